@@ -1,0 +1,35 @@
+# tactorbelt: `make demo` and `make test` set everything up on a fresh machine
+# (python3, pip, make, g++).
+PYTHON ?= python3
+VENV := .venv
+PY := $(VENV)/bin/python
+STAMP := $(VENV)/.installed
+
+.PHONY: demo test test-py test-firmware lint bench clean
+
+$(STAMP): pyproject.toml
+	test -x $(PY) || $(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install -q --upgrade pip
+	$(PY) -m pip install -q -e '.[dev]'
+	touch $(STAMP)
+
+demo: $(STAMP)
+	$(VENV)/bin/tactorbelt demo --out demo-output
+
+test: test-py test-firmware
+
+test-py: $(STAMP)
+	$(PY) -m pytest
+
+test-firmware:
+	@if [ -f firmware/Makefile ]; then $(MAKE) -C firmware test; fi
+
+lint: $(STAMP)
+	$(VENV)/bin/ruff check src tests benchmarks
+	$(VENV)/bin/mypy
+
+bench: $(STAMP)
+	$(PY) benchmarks/run.py
+
+clean:
+	rm -rf $(VENV) build dist demo-output firmware/build

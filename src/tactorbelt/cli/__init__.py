@@ -1,0 +1,124 @@
+"""The ``tactorbelt`` command.
+
+Subcommands live in their own modules and are imported only when run, so that
+``tactorbelt --help`` starts fast (no NumPy, matplotlib, pygame, pyserial or bleak).
+
+Errors: a user error prints ``error: ...`` to stderr and exits 2; a device error
+exits 3; Ctrl-C exits 130. Never a traceback (set ``TACTORBELT_DEBUG=1`` to see one).
+"""
+
+from __future__ import annotations
+
+import importlib
+import os
+import sys
+from typing import Any
+
+import click
+
+from .._errors import DeviceError, TactorbeltError
+
+__all__ = ["COMMANDS", "main"]
+
+#: name -> ("module:attribute", one-line help). The help is shown without importing.
+COMMANDS: dict[str, tuple[str, str]] = {
+    "render": ("tactorbelt.cli.render:render", "Render a stimulus to CSV, JSON or PNG."),
+    "figure": ("tactorbelt.cli.render:figure", "Draw the paper's figures (amplitude law)."),
+    "play": ("tactorbelt.cli.play:play", "Play a stimulus on a belt."),
+    "belt-test": ("tactorbelt.cli.play:belt_test", "Pulse each tactor in turn to check wiring."),
+    "calibrate": ("tactorbelt.cli.play:calibrate", "Walk through each tactor's calibration."),
+    "devices": ("tactorbelt.cli.devices:devices", "List serial ports and BLE belts."),
+    "study": ("tactorbelt.cli.study:study", "Write or check a study file."),
+    "run": ("tactorbelt.cli.run:run", "Run a study session for one participant."),
+    "export": ("tactorbelt.cli.run:export", "Export a store to CSV or BIDS-style files."),
+    "demo": ("tactorbelt.cli.demo:demo", "Run the paper's study with model participants."),
+    "power": ("tactorbelt.cli.demo:power", "Plan a study's size by simulation."),
+    "analyze": ("tactorbelt.cli.analyze:analyze", "Analyse a store and write the report."),
+    "point": ("tactorbelt.cli.point:point", "Keep a bearing displayed on a belt."),
+}
+
+
+class LazyGroup(click.Group):
+    """A group whose subcommands are imported on first use."""
+
+    def list_commands(self, ctx: click.Context) -> list[str]:
+        return list(COMMANDS)
+
+    def get_command(self, ctx: click.Context, cmd_name: str) -> click.Command | None:
+        if cmd_name not in COMMANDS:
+            return None
+        target, _ = COMMANDS[cmd_name]
+        module_name, _, attr = target.partition(":")
+        try:
+            module = importlib.import_module(module_name)
+        except ModuleNotFoundError as exc:
+            if exc.name == module_name:
+                raise click.UsageError(f"command {cmd_name!r} is not available yet") from None
+            raise
+        command: click.Command = getattr(module, attr)
+        return command
+
+    def format_commands(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:
+        rows = [(name, short) for name, (_, short) in COMMANDS.items()]
+        with formatter.section("Commands"):
+            formatter.write_dl(rows)
+
+
+def _version() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("tactorbelt")
+    except PackageNotFoundError:  # pragma: no cover - running from a source tree
+        return "unknown"
+
+
+@click.group(cls=LazyGroup, context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(package_name="tactorbelt", message="tactorbelt %(version)s")
+def cli() -> None:
+    """tactorbelt: directions between the motors of a vibrotactile belt.
+
+    Everything runs on the simulated belt (`--belt sim`) unless told otherwise.
+    """
+
+
+def fail(message: str) -> None:
+    """Raise a user error from inside a command (printed as ``error: ...``, exit 2)."""
+    raise click.UsageError(message)
+
+
+def main(argv: list[str] | None = None) -> Any:
+    """Entry point: run the CLI and turn every error into a message and an exit code."""
+    debug = bool(os.environ.get("TACTORBELT_DEBUG"))
+    try:
+        return cli.main(args=argv, prog_name="tactorbelt", standalone_mode=False)
+    except click.exceptions.Exit as exc:
+        sys.exit(exc.exit_code)
+    except click.exceptions.Abort:
+        click.echo("error: aborted", err=True)
+        sys.exit(130)
+    except click.ClickException as exc:
+        if isinstance(exc, click.UsageError) and exc.ctx is not None and debug:
+            click.echo(exc.ctx.get_usage(), err=True)
+        msg = exc.format_message()
+        if isinstance(exc, click.UsageError) and exc.ctx is not None:
+            msg += f" (see 'tactorbelt {exc.ctx.command_path.partition(' ')[2]} --help')".replace(
+                "tactorbelt  ", "tactorbelt "
+            )
+        click.echo(f"error: {msg}", err=True)
+        sys.exit(exc.exit_code if exc.exit_code != 1 else 2)
+    except DeviceError as exc:
+        if debug:
+            raise
+        click.echo(f"error: {exc}", err=True)
+        sys.exit(3)
+    except TactorbeltError as exc:
+        if debug:
+            raise
+        click.echo(f"error: {exc}", err=True)
+        sys.exit(2)
+    except KeyboardInterrupt:
+        click.echo("error: interrupted", err=True)
+        sys.exit(130)
+    except BrokenPipeError:
+        sys.exit(0)

@@ -1,0 +1,181 @@
+"""The Belt interface: the one seam between tactorbelt and vibration hardware.
+
+Every backend (``sim``, ``emulator``, ``serial``, ``ble``) subclasses :class:`Belt`
+and implements the four ``_``-methods. The base class validates amplitudes, applies
+the calibration, and guarantees that every motor is off when the ``with`` block
+ends, whether normally, on an exception or on Ctrl-C (KeyboardInterrupt).
+
+Callers never need to know which backend they have:
+
+- ``set_amplitudes(values)`` streams one frame (one value per tactor, in [0, 1]);
+- ``play(stimulus, duration_s)`` hands a whole stimulus to a belt that renders on the
+  device (``can_render``), which then keeps its own 1 kHz timing;
+- ``stop()`` turns every motor off.
+
+The :class:`tactorbelt.player.Player` picks between streaming and device-side
+rendering, so runners simply use a Player.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+from abc import ABC, abstractmethod
+from collections.abc import Sequence
+from types import TracebackType
+from typing import TYPE_CHECKING
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from .._errors import ConfigError, TactorbeltError
+from ..geometry import Layout
+from .calibration import Calibration
+
+if TYPE_CHECKING:
+    from ..stimuli import Stimulus
+
+__all__ = ["Belt", "check_amplitudes"]
+
+
+def check_amplitudes(values: ArrayLike, n: int) -> NDArray[np.float64]:
+    """Validate one frame: exactly ``n`` finite values in [0, 1].
+
+    Raises:
+        ConfigError: wrong count, NaN or infinite values, values outside [0, 1].
+    """
+    try:
+        a = np.asarray(values, dtype=float).reshape(-1)
+    except (TypeError, ValueError):
+        raise ConfigError(f"amplitudes must be {n} numbers in [0, 1], got {values!r}") from None
+    if a.size != n:
+        raise ConfigError(f"expected {n} amplitudes (one per tactor), got {a.size}")
+    if not np.all(np.isfinite(a)):
+        raise ConfigError("amplitudes must be finite numbers in [0, 1]; got NaN or infinity")
+    if np.any(a < 0.0) or np.any(a > 1.0):
+        bad = a[(a < 0.0) | (a > 1.0)][0]
+        raise ConfigError(f"amplitudes must be in [0, 1], got {bad:g}")
+    return a
+
+
+class Belt(ABC):
+    """A vibrotactile belt. Use it as a context manager: motors are off on exit.
+
+    Attributes:
+        url: how it was opened (``sim``, ``serial:/dev/ttyACM0``, ...).
+        name: a human-readable name.
+        firmware_version: ``"1.0.0"`` or None for a belt with no firmware.
+        layout: the tactor angles.
+        calibration: the drive mapping applied to every frame.
+        can_render: True when the belt renders stimuli itself (``play``).
+    """
+
+    can_render: bool = False
+
+    def __init__(
+        self,
+        url: str,
+        name: str,
+        layout: Layout,
+        firmware_version: str | None = None,
+        calibration: Calibration | None = None,
+    ) -> None:
+        self.url = url
+        self.name = name
+        self.layout = layout
+        self.firmware_version = firmware_version
+        if calibration is not None and calibration.n != layout.n:
+            raise ConfigError(
+                f"calibration has {calibration.n} tactors but the belt has {layout.n}"
+            )
+        self.calibration = calibration or Calibration.identity(layout.n)
+        self._closed = False
+        self._lock = threading.RLock()
+
+    # -- what backends implement ------------------------------------------------
+    @abstractmethod
+    def _write_levels(self, levels: NDArray[np.float64]) -> None:
+        """Send one frame of drive levels (calibrated, each in [0, 1])."""
+
+    @abstractmethod
+    def _write_stop(self) -> None:
+        """Turn every motor off now."""
+
+    def _write_play(self, stimulus: Stimulus, duration_s: float | None) -> None:
+        """Hand a stimulus to the device (only for ``can_render`` belts)."""
+        raise TactorbeltError(f"belt {self.url!r} cannot render stimuli on the device")
+
+    def _close(self) -> None:  # noqa: B027 - optional hook
+        """Release the connection (motors are already off)."""
+
+    # -- the public interface ---------------------------------------------------
+    @property
+    def n_tactors(self) -> int:
+        return self.layout.n
+
+    @property
+    def tactor_angles_deg(self) -> tuple[float, ...]:
+        return self.layout.angles_deg
+
+    @property
+    def closed(self) -> bool:
+        return self._closed
+
+    def _check_open(self) -> None:
+        if self._closed:
+            raise TactorbeltError(f"belt {self.url!r} is closed")
+
+    def set_amplitudes(self, values: Sequence[float] | ArrayLike) -> None:
+        """Set every tactor's amplitude (one value per tactor, in [0, 1]; 0 = off)."""
+        a = check_amplitudes(values, self.n_tactors)
+        with self._lock:
+            self._check_open()
+            self._write_levels(self.calibration.apply(a))
+
+    def play(self, stimulus: Stimulus, duration_s: float | None = None) -> None:
+        """Render ``stimulus`` on the device for ``duration_s`` (None: until stopped)."""
+        if duration_s is not None and not (math.isfinite(duration_s) and duration_s > 0):
+            raise ConfigError(f"duration must be positive and finite, got {duration_s!r}")
+        if stimulus.layout != self.layout:
+            raise ConfigError("the stimulus was made for another layout than this belt's")
+        with self._lock:
+            self._check_open()
+            self._write_play(stimulus, duration_s)
+
+    def stop(self) -> None:
+        """Turn every motor off."""
+        with self._lock:
+            if not self._closed:
+                self._write_stop()
+
+    def close(self) -> None:
+        """Turn every motor off (best effort) and release the belt. Safe to call twice."""
+        with self._lock:
+            if self._closed:
+                return
+            try:
+                self._write_stop()
+            finally:
+                self._closed = True
+                self._close()
+
+    def __enter__(self) -> Belt:
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        self.close()
+
+    def __del__(self) -> None:  # last resort: never leave a motor running
+        try:
+            if not getattr(self, "_closed", True):
+                self.close()
+        except Exception:
+            pass
+
+    def __repr__(self) -> str:
+        return f"<{type(self).__name__} {self.url!r} {self.n_tactors} tactors>"

@@ -1,0 +1,252 @@
+"""Angles, tactor layouts and target sets.
+
+Conventions (DESIGN.md): degrees, normalised to [0, 360); 0 is the navel, angles
+grow clockwise seen from above (90 = right flank, 180 = spine, 270 = left flank).
+The default layout puts N tactors at ``180/N + k*360/N``; targets sit at ``k*360/M``.
+
+Pure: imports only NumPy and tactorbelt._errors.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ._errors import ConfigError
+
+__all__ = [
+    "ANGLE_TOLERANCE_DEG",
+    "Layout",
+    "TargetSet",
+    "normalize",
+    "parse_angle",
+    "wrap",
+]
+
+#: Two angles closer than this are the same angle (on-tactor test, duplicates).
+ANGLE_TOLERANCE_DEG = 1e-6
+
+FloatArray = NDArray[np.float64]
+
+
+def normalize(angle: ArrayLike) -> Any:
+    """Normalise angles to [0, 360). Works on scalars and arrays."""
+    a = np.mod(np.asarray(angle, dtype=float), 360.0)
+    # np.mod(-1e-17, 360) == 360.0 in floating point: fold it back to 0.
+    a = np.where(a >= 360.0, 0.0, a)
+    return float(a) if a.ndim == 0 else a
+
+
+def wrap(angle: ArrayLike) -> Any:
+    """Wrap angle differences into (-180, 180]. Works on scalars and arrays."""
+    a = np.asarray(angle, dtype=float)
+    w = 180.0 - np.mod(180.0 - a, 360.0)
+    return float(w) if w.ndim == 0 else w
+
+
+def parse_angle(text: str | float, what: str = "angle") -> float:
+    """Parse a finite angle in degrees (any real number; normalised to [0, 360)).
+
+    Raises:
+        ConfigError: for text that is not a finite number (``abc``, ``nan``, ``inf``).
+    """
+    try:
+        value = float(text)
+    except (TypeError, ValueError):
+        raise ConfigError(
+            f"{what} must be a finite number of degrees, got {text!r}"
+        ) from None
+    if not math.isfinite(value):
+        raise ConfigError(f"{what} must be a finite number of degrees, got {text!r}")
+    return float(normalize(value))
+
+
+@dataclass(frozen=True)
+class Layout:
+    """Where the tactors sit around the torso.
+
+    Tactor ``k`` is index ``k`` in every array. Angles are kept in the order given
+    (normalised); neighbours are found by angle, so an uneven or unsorted layout works.
+
+    Use :meth:`even` for N evenly spaced tactors (the default layout of DESIGN.md) or
+    :meth:`from_angles` for explicit angles.
+    """
+
+    angles_deg: tuple[float, ...]
+    _sorted_idx: tuple[int, ...] = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        angles = tuple(float(normalize(a)) for a in self.angles_deg)
+        if len(angles) < 2:
+            raise ConfigError(f"a layout needs at least 2 tactors, got {len(angles)}")
+        if not all(math.isfinite(a) for a in angles):
+            raise ConfigError("tactor angles must be finite numbers of degrees")
+        order = sorted(range(len(angles)), key=lambda k: angles[k])
+        for i, k in enumerate(order):
+            j = order[(i + 1) % len(order)]
+            gap = (angles[j] - angles[k]) % 360.0
+            if len(order) > 1 and (
+                gap < ANGLE_TOLERANCE_DEG or 360.0 - gap < ANGLE_TOLERANCE_DEG
+            ):
+                raise ConfigError(
+                    f"duplicate tactor angles: tactors {min(k, j)} and {max(k, j)} "
+                    f"are both at {angles[k]:g} deg; every tactor needs its own angle"
+                )
+        object.__setattr__(self, "angles_deg", angles)
+        object.__setattr__(self, "_sorted_idx", tuple(order))
+
+    @classmethod
+    def even(cls, n: int = 6) -> Layout:
+        """N tactors at ``180/N + k*360/N`` (two front tactors symmetric about the navel)."""
+        if isinstance(n, bool) or int(n) != n:
+            raise ConfigError(f"tactor count must be an integer, got {n!r}")
+        n = int(n)
+        if n < 2:
+            raise ConfigError(f"a layout needs at least 2 tactors, got {n}")
+        return cls(tuple(180.0 / n + k * 360.0 / n for k in range(n)))
+
+    @classmethod
+    def from_angles(cls, angles: Iterable[float | str]) -> Layout:
+        """Explicit tactor angles (degrees, any order, possibly uneven)."""
+        return cls(tuple(parse_angle(a, "tactor angle") for a in angles))
+
+    @classmethod
+    def parse(cls, text: str) -> Layout:
+        """Parse ``"30,90,150"`` into a layout."""
+        parts = [p.strip() for p in text.split(",") if p.strip()]
+        return cls.from_angles(parts)
+
+    @property
+    def n(self) -> int:
+        """Number of tactors."""
+        return len(self.angles_deg)
+
+    def __len__(self) -> int:
+        return self.n
+
+    @property
+    def angles(self) -> FloatArray:
+        """Tactor angles as a NumPy array (a fresh copy)."""
+        return np.array(self.angles_deg, dtype=float)
+
+    @property
+    def is_even(self) -> bool:
+        """True when the tactors are evenly spaced."""
+        gaps = self.gaps_deg()
+        return bool(np.allclose(gaps, 360.0 / self.n, atol=1e-9))
+
+    def gaps_deg(self) -> FloatArray:
+        """Clockwise gap from each tactor to its clockwise neighbour, by tactor index."""
+        cw, _ = self.neighbour_indices()
+        return np.asarray(np.mod(self.angles[cw] - self.angles, 360.0))
+
+    def neighbour_indices(self) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+        """For each tactor, the index of its clockwise and counter-clockwise neighbours."""
+        order = np.array(self._sorted_idx)
+        n = self.n
+        cw = np.empty(n, dtype=np.intp)
+        ccw = np.empty(n, dtype=np.intp)
+        cw[order] = np.roll(order, -1)
+        ccw[order] = np.roll(order, 1)
+        return cw, ccw
+
+    def neighbours(self, angle: ArrayLike) -> tuple[Any, Any]:
+        """The two tactors that bracket each angle.
+
+        Returns ``(ccw, cw)``: the index of the nearest tactor at or counter-clockwise
+        of the angle and of the next tactor clockwise. For an angle exactly on tactor k,
+        ``ccw == k``. Scalars in, ints out; arrays in, arrays out.
+        """
+        x = normalize(angle)
+        xa = np.atleast_1d(np.asarray(x, dtype=float))
+        order = np.array(self._sorted_idx)
+        sorted_angles = self.angles[order]
+        # position of x among sorted angles, with tolerance for "on tactor"
+        pos = np.searchsorted(sorted_angles, xa + ANGLE_TOLERANCE_DEG, side="right") - 1
+        pos = np.where(pos < 0, len(order) - 1, pos)
+        ccw = order[pos]
+        cw = order[(pos + 1) % len(order)]
+        if np.ndim(x) == 0:
+            return int(ccw[0]), int(cw[0])
+        return ccw, cw
+
+    def tactor_at(self, angle: ArrayLike) -> Any:
+        """Index of the tactor at each angle, or -1 where the angle is between tactors."""
+        d = np.abs(wrap(np.subtract.outer(np.atleast_1d(normalize(angle)), self.angles)))
+        hit = d < ANGLE_TOLERANCE_DEG
+        idx = np.where(hit.any(axis=1), hit.argmax(axis=1), -1)
+        return int(idx[0]) if np.ndim(angle) == 0 else idx
+
+    def is_on_tactor(self, angle: ArrayLike) -> Any:
+        """True where an angle coincides with a tactor angle."""
+        idx = self.tactor_at(angle)
+        return bool(idx >= 0) if np.ndim(idx) == 0 else idx >= 0
+
+    def rotated(self, by_deg: float) -> Layout:
+        """The same layout turned clockwise by ``by_deg``."""
+        return Layout(tuple(float(normalize(a + by_deg)) for a in self.angles_deg))
+
+    def to_list(self) -> list[float]:
+        """Tactor angles as a plain list (for JSON and TOML)."""
+        return list(self.angles_deg)
+
+
+@dataclass(frozen=True)
+class TargetSet:
+    """The directions a study can show: ``M`` targets at ``k*360/M`` by default."""
+
+    angles_deg: tuple[float, ...]
+
+    def __post_init__(self) -> None:
+        angles = tuple(float(normalize(a)) for a in self.angles_deg)
+        if not angles:
+            raise ConfigError("a target set needs at least 1 target")
+        object.__setattr__(self, "angles_deg", angles)
+
+    @classmethod
+    def even(cls, m: int = 24) -> TargetSet:
+        """M targets at ``k*360/M``, starting at the navel."""
+        if isinstance(m, bool) or int(m) != m or int(m) < 1:
+            raise ConfigError(f"target count must be a positive integer, got {m!r}")
+        m = int(m)
+        return cls(tuple(k * 360.0 / m for k in range(m)))
+
+    @property
+    def m(self) -> int:
+        return len(self.angles_deg)
+
+    def __len__(self) -> int:
+        return self.m
+
+    def __iter__(self):  # type: ignore[no-untyped-def]
+        return iter(self.angles_deg)
+
+    @property
+    def angles(self) -> FloatArray:
+        return np.array(self.angles_deg, dtype=float)
+
+    def on_tactor(self, layout: Layout) -> NDArray[np.bool_]:
+        """Which targets coincide with a tactor of ``layout``."""
+        return np.asarray(layout.is_on_tactor(self.angles), dtype=bool)
+
+    def nearest(self, angle: ArrayLike) -> Any:
+        """The target nearest in angle to each angle (ties go to the lower index)."""
+        d = np.abs(wrap(np.subtract.outer(np.atleast_1d(normalize(angle)), self.angles)))
+        best = self.angles[d.argmin(axis=1)]
+        return float(best[0]) if np.ndim(angle) == 0 else best
+
+
+def as_layout(layout: Layout | int | Sequence[float] | None) -> Layout:
+    """Accept a Layout, a tactor count, or a list of angles (None: the default 6)."""
+    if layout is None:
+        return Layout.even(6)
+    if isinstance(layout, Layout):
+        return layout
+    if isinstance(layout, int | np.integer):
+        return Layout.even(int(layout))
+    return Layout.from_angles(layout)

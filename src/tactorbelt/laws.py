@@ -1,0 +1,85 @@
+"""Amplitude laws: how strongly each tactor vibrates for a felt location.
+
+For tactor k at angle d_k and a location x: ``D = |wrap(x - d_k)|`` and ``s`` is the
+angular distance from d_k to its neighbour on x's side (for an uneven layout the two
+sides differ; when x is exactly on d_k the clockwise side is used).
+
+- ``paper`` (default; Eguchi et al. Eq. 1, T = falloff): ``max(1 - exp(-(s - D)/T), 0)``,
+  not renormalised: on a tactor of the default layout it gives ``1 - e^-4``.
+- ``linear``: ``max(1 - D/s, 0)``.
+- ``energy`` (Tactile Brush, Israr & Poupyrev 2011): ``sqrt(max(1 - D/s, 0))``.
+
+Every law is vectorised: locations of any shape ``S`` give amplitudes of shape
+``S + (N,)``. Values are in [0, 1]; 0 means off.
+
+Pure: imports only NumPy and tactorbelt.geometry.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Final
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ._errors import ConfigError
+from .geometry import Layout, wrap
+
+__all__ = ["DEFAULT_FALLOFF_DEG", "LAWS", "amplitudes", "check_law"]
+
+LAWS: Final = ("paper", "linear", "energy")
+DEFAULT_FALLOFF_DEG: Final = 15.0
+
+
+def check_law(law: str, falloff_deg: float = DEFAULT_FALLOFF_DEG) -> None:
+    """Raise ConfigError for an unknown law or a falloff that is not positive and finite."""
+    if law not in LAWS:
+        raise ConfigError(f"unknown law {law!r}; allowed: {', '.join(LAWS)}")
+    if not (isinstance(falloff_deg, int | float) and math.isfinite(falloff_deg)) or (
+        falloff_deg <= 0
+    ):
+        raise ConfigError(
+            f"falloff must be a positive, finite number of degrees, got {falloff_deg!r}"
+        )
+
+
+def _distances(layout: Layout, x: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """D (distance to each tactor) and s (spacing on x's side), both of shape S + (N,)."""
+    xa = np.asarray(x, dtype=float)
+    d = layout.angles
+    signed = wrap(xa[..., None] - d)  # (-180, 180]
+    dist = np.abs(signed)
+    gaps_cw = layout.gaps_deg()  # k -> its clockwise neighbour
+    _, ccw = layout.neighbour_indices()
+    gaps_ccw = gaps_cw[ccw]  # k's counter-clockwise neighbour -> k
+    spacing = np.where(signed >= 0.0, gaps_cw, gaps_ccw)
+    return np.asarray(dist), np.asarray(spacing)
+
+
+def amplitudes(
+    layout: Layout,
+    x: ArrayLike,
+    law: str = "paper",
+    falloff_deg: float = DEFAULT_FALLOFF_DEG,
+) -> NDArray[np.float64]:
+    """Amplitude of every tactor for felt location(s) ``x`` (degrees).
+
+    Args:
+        layout: where the tactors are.
+        x: location angle(s), any shape ``S``.
+        law: ``paper``, ``linear`` or ``energy``.
+        falloff_deg: T of the paper law (ignored by the others).
+
+    Returns:
+        An array of shape ``S + (N,)`` with values in [0, 1].
+    """
+    check_law(law, falloff_deg)
+    dist, spacing = _distances(layout, x)
+    if law == "paper":
+        y = 1.0 - np.exp(-(spacing - dist) / falloff_deg)
+        return np.asarray(np.clip(y, 0.0, 1.0))
+    lin = np.clip(1.0 - dist / spacing, 0.0, 1.0)
+    if law == "linear":
+        return np.asarray(lin)
+    return np.asarray(np.sqrt(lin))
