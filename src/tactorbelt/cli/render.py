@@ -1,0 +1,110 @@
+"""``tactorbelt render`` and ``tactorbelt figure``: the stimulus engine from the command line."""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import click
+
+from ._options import build_stimulus, stimulus_options
+
+
+def _write_text(text: str, out: Path | None) -> None:
+    if out is None:
+        sys.stdout.write(text)
+    else:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        out.write_text(text)
+        click.echo(f"wrote {out}", err=True)
+
+
+@click.command(context_settings={"ignore_unknown_options": True})
+@click.argument("angle", metavar="ANGLE")
+@stimulus_options
+@click.option("--rate", default="1000", show_default=True,
+              help="Samples per second.")
+@click.option("--duration", default=None, type=str,
+              help="Seconds to render [default: one period].")
+@click.option("--format", "fmt", type=click.Choice(["csv", "json", "png"]), default="csv",
+              show_default=True, help="Output format.")
+@click.option("-o", "--output", "out", type=click.Path(dir_okay=False, path_type=Path),
+              default=None, help="Output file [default: stdout; required for png].")
+def render(angle: str, rate: str, duration: str | None, fmt: str, out: Path | None,
+           **stim: object) -> None:
+    """Render the stimulus for direction ANGLE (degrees, 0 = navel, clockwise).
+
+    CSV: header t_s,tactor_0,...,tactor_{N-1}, one row per sample at t = i/rate,
+    9 decimals. JSON: parameters, times and amplitudes. PNG: amplitude against time.
+    """
+    from ..stimuli import check_rate_duration
+
+    stimulus = build_stimulus(angle, **stim)
+    rate_f, duration_f = check_rate_duration(
+        _number(rate, "--rate"),
+        stimulus.period_s if duration is None else _number(duration, "--duration"),
+    )
+    t, amps = stimulus.render(rate_f, duration_f)
+    if fmt == "csv":
+        import io
+
+        import numpy as np
+
+        buf = io.StringIO()
+        header = "t_s," + ",".join(f"tactor_{k}" for k in range(amps.shape[1]))
+        np.savetxt(buf, np.column_stack([t, amps]), delimiter=",", fmt="%.9f",
+                   header=header, comments="")
+        _write_text(buf.getvalue(), out)
+    elif fmt == "json":
+        doc = {
+            "stimulus": stimulus.describe(),
+            "rate_hz": rate_f,
+            "duration_s": duration_f,
+            "t_s": [round(float(v), 9) for v in t],
+            "amplitudes": [[round(float(v), 9) for v in row] for row in amps],
+        }
+        _write_text(json.dumps(doc) + "\n", out)
+    else:
+        if out is None:
+            raise click.UsageError("--format png needs -o FILE")
+        from ..figures import save_figure, stimulus_figure
+
+        save_figure(stimulus_figure(stimulus, t, amps), out)
+        click.echo(f"wrote {out}", err=True)
+
+
+def _number(text: str, what: str) -> float:
+    try:
+        return float(text)
+    except ValueError:
+        raise click.UsageError(f"{what} must be a number, got {text!r}") from None
+
+
+@click.group()
+def figure() -> None:
+    """Draw the paper's figures."""
+
+
+@figure.command("amplitudes")
+@click.option("--law", type=click.Choice(["paper", "linear", "energy"]), default="paper",
+              show_default=True, help="Amplitude law.")
+@click.option("--falloff", default=15.0, show_default=True, type=float,
+              help="T of the paper law, degrees.")
+@click.option("--tactors", type=int, default=None, help="Evenly spaced tactors [default: 6].")
+@click.option("--tactor-angles", default=None, help="Explicit tactor angles, e.g. 30,90,150.")
+@click.option("--targets", type=int, default=24, show_default=True, help="Number of targets.")
+@click.option("-o", "--output", "out", type=click.Path(dir_okay=False, path_type=Path),
+              default=Path("amplitudes.png"), show_default=True, help="PNG file to write.")
+def figure_amplitudes(law: str, falloff: float, tactors: int | None, tactor_angles: str | None,
+                      targets: int, out: Path) -> None:
+    """Amplitude of each tactor against target direction (top of the paper's Fig. 1(B))."""
+    from ..figures import amplitude_figure, save_figure
+    from ..geometry import TargetSet
+    from ..laws import check_law
+    from ._options import build_layout
+
+    check_law(law, falloff)
+    layout = build_layout(tactors, tactor_angles)
+    save_figure(amplitude_figure(layout, TargetSet.even(targets), law, falloff), out)
+    click.echo(f"wrote {out}")

@@ -1,0 +1,89 @@
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from tactorbelt import ConfigError
+from tactorbelt.geometry import Layout, TargetSet, normalize, parse_angle, wrap
+
+finite = st.floats(-1e6, 1e6, allow_nan=False)
+
+
+def test_default_layout_puts_front_tactors_symmetric_about_navel():
+    layout = Layout.even(6)
+    assert layout.angles_deg == (30.0, 90.0, 150.0, 210.0, 270.0, 330.0)
+    assert Layout.even(8).angles_deg[0] == 22.5
+
+
+@given(finite)
+def test_normalize_is_in_range_and_idempotent(a):
+    n = normalize(a)
+    assert 0.0 <= n < 360.0
+    assert normalize(n) == pytest.approx(n)
+
+
+@given(finite)
+def test_wrap_is_in_half_open_interval(a):
+    w = wrap(a)
+    assert -180.0 < w <= 180.0
+    assert np.isclose(np.mod(w - a, 360.0), 0.0, atol=1e-6) or np.isclose(
+        np.mod(w - a, 360.0), 360.0, atol=1e-6)
+
+
+def test_wrap_edges():
+    assert wrap(180.0) == 180.0
+    assert wrap(-180.0) == 180.0
+    assert wrap(190.0) == -170.0
+
+
+@pytest.mark.parametrize("text", ["abc", "nan", "inf", "-inf", ""])
+def test_parse_angle_refuses_non_finite(text):
+    with pytest.raises(ConfigError, match="finite number"):
+        parse_angle(text)
+
+
+def test_parse_angle_normalises():
+    assert parse_angle("375") == 15.0
+    assert parse_angle("-15") == 345.0
+
+
+def test_neighbours_bracket_every_angle():
+    layout = Layout.even(6)
+    assert layout.neighbours(45.0) == (0, 1)
+    assert layout.neighbours(0.0) == (5, 0)
+    assert layout.neighbours(345.0) == (5, 0)
+    assert layout.neighbours(30.0)[0] == 0  # on a tactor: ccw is that tactor
+    ccw, cw = layout.neighbours(np.array([10.0, 100.0, 200.0]))
+    assert list(ccw) == [5, 1, 2] and list(cw) == [0, 2, 3]
+
+
+def test_uneven_unsorted_layout_neighbours():
+    layout = Layout.from_angles([90, 10, 200])
+    assert layout.neighbours(50.0) == (1, 0)
+    assert layout.neighbours(300.0) == (2, 1)
+    assert not layout.is_even
+    assert list(layout.gaps_deg()) == [110.0, 80.0, 170.0]
+
+
+def test_on_tactor_and_targets():
+    layout = Layout.even(6)
+    targets = TargetSet.even(24)
+    on = targets.on_tactor(layout)
+    assert on.sum() == 6
+    assert list(targets.angles[on]) == [30, 90, 150, 210, 270, 330]
+    assert targets.nearest(16.0) == 15.0
+    assert targets.nearest(359.0) == 0.0
+
+
+@pytest.mark.parametrize(
+    "angles, match",
+    [([30.0], "at least 2"), ([30.0, 30.0, 90.0], "duplicate"), ([10.0, 370.0], "duplicate")],
+)
+def test_bad_layouts(angles, match):
+    with pytest.raises(ConfigError, match=match):
+        Layout.from_angles(angles)
+
+
+def test_even_layout_needs_two_tactors():
+    with pytest.raises(ConfigError):
+        Layout.even(1)
