@@ -81,7 +81,7 @@ def test_mirror_about_navel_mirrors_amplitudes(x, law):
 def test_rotation_invariance(x, rot, law, raw):
     raw_sorted = sorted(set(round(v, 3) for v in raw))
     assume(len(raw_sorted) >= 2)
-    gaps = np.diff(raw_sorted + [raw_sorted[0] + 360])
+    gaps = np.diff([*raw_sorted, raw_sorted[0] + 360])
     assume(gaps.min() > 0.5)
     layout = Layout.from_angles(raw_sorted)
     a = amplitudes(layout, x, law)

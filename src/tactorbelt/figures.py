@@ -10,7 +10,7 @@ Imports matplotlib (Agg) when called; pure otherwise (no devices, no store).
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -26,7 +26,7 @@ if TYPE_CHECKING:
 __all__ = ["amplitude_figure", "plot_amplitudes", "save_figure", "stimulus_figure", "tactor_colors"]
 
 
-def _pyplot():  # type: ignore[no-untyped-def]
+def _pyplot() -> Any:
     import matplotlib
 
     matplotlib.use("Agg", force=False)

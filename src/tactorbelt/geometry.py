@@ -10,7 +10,7 @@ Pure: imports only NumPy and tactorbelt._errors.
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -223,7 +223,7 @@ class TargetSet:
     def __len__(self) -> int:
         return self.m
 
-    def __iter__(self):  # type: ignore[no-untyped-def]
+    def __iter__(self) -> Iterator[float]:
         return iter(self.angles_deg)
 
     @property

@@ -208,7 +208,9 @@ def make_stimulus(
     except (TypeError, ValueError):
         raise ConfigError(f"transit must be a number of seconds, got {transit_s!r}") from None
     if not math.isfinite(transit) or transit <= 0:
-        raise ConfigError(f"transit must be a positive, finite number of seconds, got {transit_s!r}")
+        raise ConfigError(
+            f"transit must be a positive, finite number of seconds, got {transit_s!r}"
+        )
     if 2 * transit >= period:
         raise ConfigError(
             f"2*transit ({2 * transit:g} s) must be shorter than the period ({period:g} s)"

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import sys
 from pathlib import Path
+from typing import Any
 
 import click
 
@@ -32,7 +33,7 @@ def _write_text(text: str, out: Path | None) -> None:
 @click.option("-o", "--output", "out", type=click.Path(dir_okay=False, path_type=Path),
               default=None, help="Output file [default: stdout; required for png].")
 def render(angle: str, rate: str, duration: str | None, fmt: str, out: Path | None,
-           **stim: object) -> None:
+           **stim: Any) -> None:
     """Render the stimulus for direction ANGLE (degrees, 0 = navel, clockwise).
 
     CSV: header t_s,tactor_0,...,tactor_{N-1}, one row per sample at t = i/rate,
