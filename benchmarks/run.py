@@ -1,0 +1,134 @@
+"""``make bench``: run every benchmark and write results.json and RESULTS.md.
+
+Each ``benchmarks/bench_*.py`` is a script that prints one JSON object (key -> number) as
+its last line. This runner runs each one in its own process (so one failing benchmark
+does not hide the others), merges the figures into ``benchmarks/results.json`` and
+writes ``benchmarks/RESULTS.md``: figure, value, baseline, ratio, goal, met or not.
+
+Every figure with a goal is compared with a baseline measured in the same run, because
+these machines are shared and noisy: an absolute time alone says little.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import platform
+import subprocess
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+
+
+@dataclass(frozen=True)
+class Goal:
+    key: str
+    baseline: str | None  # key of the baseline figure, if any
+    op: str  # "<=" or ">="
+    limit: float
+    unit: str
+    limits: str  # what limits this figure
+
+
+GOALS = [
+    Goal("render_24_targets_ms", None, "<=", 10.0, "ms",
+         "NumPy temporaries: exp and wrap over (24, 1000, 6) arrays"),
+    Goal("render_speedup_vs_loop", None, ">=", 50.0, "x",
+         "memory bandwidth of the vectorised law; baseline is a plain Python loop"),
+    Goal("player_p99_ms", "sleep_loop_p99_ms", "<=", 0.2, "ms",
+         "OS scheduling wake-up latency; the player sleeps then spins the last stretch"),
+    Goal("player_p99_vs_sleep_loop", None, "<=", 0.2, "x",
+         "same run, same machine: naive time.sleep(1/rate) loop"),
+    Goal("session_s", None, "<=", 2.0, "s",
+         "SQLite commits (synchronous=FULL, one per trial) and the ERM model"),
+    Goal("analyze_1000_s", None, "<=", 30.0, "s",
+         "SQL aggregation over 240,000 trials; samples only for plotted trials"),
+    Goal("cli_help_s", "python_startup_s", "<=", 0.3, "s",
+         "Python start-up plus click; no NumPy at --help"),
+    Goal("window_sample_p99_ms", None, "<=", 1.0, "ms",
+         "sampling thread wake-up latency while the window draws at 60 Hz"),
+]
+
+
+def run_script(path: Path, timeout: float) -> dict[str, float]:
+    env = dict(os.environ, SDL_VIDEODRIVER="dummy", SDL_AUDIODRIVER="dummy", MPLBACKEND="Agg")
+    proc = subprocess.run([sys.executable, str(path)], capture_output=True, text=True,
+                          timeout=timeout, env=env)
+    if proc.returncode != 0:
+        raise RuntimeError(proc.stderr.strip().splitlines()[-1] if proc.stderr else "failed")
+    last = [ln for ln in proc.stdout.splitlines() if ln.strip().startswith("{")][-1]
+    data = json.loads(last)
+    return {k: float(v) for k, v in data.items() if isinstance(v, int | float)}
+
+
+def cli_help() -> dict[str, float]:
+    exe = Path(sys.executable).with_name("tactorbelt")
+    cmd = [str(exe), "--help"] if exe.exists() else [sys.executable, "-m", "tactorbelt", "--help"]
+
+    def best(argv: list[str]) -> float:
+        times = []
+        for _ in range(7):
+            t0 = time.perf_counter()
+            subprocess.run(argv, capture_output=True, check=True)
+            times.append(time.perf_counter() - t0)
+        return min(times)
+
+    base = best([sys.executable, "-c", "pass"])
+    ours = best(cmd)
+    return {"cli_help_s": ours, "python_startup_s": base, "cli_help_vs_python": ours / base}
+
+
+def main() -> int:
+    only = set(sys.argv[1:])
+    results: dict[str, float] = {}
+    failures: dict[str, str] = {}
+    scripts = sorted(HERE.glob("bench_*.py"))
+    for path in scripts:
+        name = path.stem
+        if only and name not in only:
+            continue
+        print(f"running {name} ...", flush=True)
+        try:
+            results.update(run_script(path, timeout=1800))
+        except Exception as exc:  # report and go on: one failure must not hide the rest
+            failures[name] = str(exc)
+            print(f"  {name} failed: {exc}", flush=True)
+    if not only or "cli_help" in only:
+        results.update(cli_help())
+    (HERE / "results.json").write_text(json.dumps(results, indent=2, sort_keys=True) + "\n")
+    lines = [
+        "# Benchmark results",
+        "",
+        f"Machine: {os.cpu_count()} cores, Python {platform.python_version()}, "
+        f"{platform.system()} {platform.machine()}. Written by `make bench`.",
+        "",
+        "| figure | value | baseline | ratio | goal | met | what limits it |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for g in GOALS:
+        if g.key not in results:
+            lines.append(f"| {g.key} | not measured | | | {g.op} {g.limit:g} {g.unit} | no | |")
+            continue
+        v = results[g.key]
+        base = results.get(g.baseline) if g.baseline else None
+        ratio = f"{v / base:.3g}" if base else ""
+        met = v <= g.limit if g.op == "<=" else v >= g.limit
+        lines.append(
+            f"| {g.key} | {v:.4g} | {'' if base is None else f'{base:.4g}'} | {ratio} | "
+            f"{g.op} {g.limit:g} {g.unit} | {'yes' if met else 'NO'} | {g.limits} |"
+        )
+    lines += ["", "## All figures", "", "| key | value |", "|---|---|"]
+    lines += [f"| {k} | {v:.6g} |" for k, v in sorted(results.items())]
+    if failures:
+        lines += ["", "## Failed benchmarks", ""]
+        lines += [f"- {k}: {v}" for k, v in failures.items()]
+    (HERE / "RESULTS.md").write_text("\n".join(lines) + "\n")
+    print((HERE / "RESULTS.md").read_text())
+    return 1 if failures else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
