@@ -1,0 +1,575 @@
+"""The host side of protocol v1: a Belt that talks to tactorbelt firmware over a transport.
+
+:class:`FirmwareBelt` is shared by the ``serial``, ``emulator`` and ``ble`` backends;
+they differ only in their :class:`Transport` (how packets become bytes and travel).
+
+What the belt does while open:
+
+- On open, GET_INFO (retried): it refuses a protocol version other than 1 with a
+  :class:`~tactorbelt.ProtocolError`, takes the layout from the device's tactor
+  angles, the firmware version, ``can_render`` from capability bit 0 and the device's
+  heartbeat timeout.
+- Every packet gets the next sequence number (mod 256), in the order it is written,
+  so the device's ``seq_gaps`` counter stays 0. Requests that have a reply (PING,
+  GET_INFO, GET_STATUS, STOP_ALL, PLAY_TARGET, SET_CONFIG) wait for the reply with
+  the same sequence number, with a timeout.
+- A keep-alive thread writes every third of the device's heartbeat timeout: a PING
+  when nothing has been heard from the device for that long, else a HEARTBEAT. When
+  the device has been silent for a whole heartbeat timeout (and at least two PINGs
+  went unanswered), or the transport reports an error or end of file, the belt is
+  *lost*: every later call raises :class:`~tactorbelt.DeviceError` naming the port.
+- Corrupted frames and garbage from the device are counted (``host_crc_errors``,
+  ``host_framing_errors``, ``bad_replies``) and skipped.
+- ``close()`` sends STOP_ALL and waits briefly for its ACK; on a dead device it logs
+  a warning instead of raising (the device's own failsafe turns the motors off).
+
+Imports the standard library, NumPy (through Belt) and tactorbelt.devices.wire; never
+pyserial or bleak (those live in the transports).
+"""
+
+from __future__ import annotations
+
+import functools
+import itertools
+import logging
+import math
+import random
+import threading
+import time
+from abc import ABC, abstractmethod
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any, Final
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .._errors import ConfigError, DeviceError, ProtocolError
+from ..geometry import Layout
+from . import wire
+from .base import Belt
+from .calibration import Calibration
+
+if TYPE_CHECKING:
+    from ..stimuli import Stimulus
+
+__all__ = [
+    "DEFAULT_TIMEOUT_S",
+    "FirmwareBelt",
+    "PacketSink",
+    "Transport",
+    "layout_from_info",
+]
+
+log = logging.getLogger("tactorbelt.devices")
+
+#: How long a request waits for its reply by default.
+DEFAULT_TIMEOUT_S: Final = 0.5
+#: The shortest wait for the ACK of STOP_ALL (the request timeout if longer).
+STOP_TIMEOUT_S: Final = 0.25
+#: GET_INFO attempts on open (the first bytes after opening a port may be lost).
+INFO_ATTEMPTS: Final = 3
+#: Tactor angles within this of the default layout's are taken as the default layout.
+_EVEN_LAYOUT_TOLERANCE_DEG: Final = 0.0051
+
+_LAW_CODES: Final = {"paper": wire.Law.PAPER, "linear": wire.Law.LINEAR, "energy": wire.Law.ENERGY}
+_MODE_CODES: Final = {"static": wire.Mode.STATIC, "dynamic": wire.Mode.DYNAMIC}
+_REPLY_TYPES: Final = frozenset(
+    {wire.MsgType.ACK, wire.MsgType.PONG, wire.MsgType.INFO, wire.MsgType.STATUS, wire.MsgType.NAK}
+)
+
+
+class PacketSink(ABC):
+    """Where a transport delivers what it reads (called from the transport's thread)."""
+
+    @abstractmethod
+    def packet_received(self, packet: wire.Packet) -> None:
+        """A packet with a valid CRC arrived."""
+
+    @abstractmethod
+    def link_lost(self, reason: str) -> None:
+        """The link ended (end of file, I/O error, disconnect); ``reason`` says how."""
+
+
+class Transport(ABC):
+    """How packets travel: encode, write bytes, read packets in a thread, close.
+
+    Attributes:
+        port: names the link in messages (``/dev/ttyACM0``, ``BLE AA:BB:...``).
+        crc_errors: incoming frames dropped for a bad CRC.
+        framing_errors: incoming frames dropped for bad framing or length.
+    """
+
+    port: str = "?"
+
+    @property
+    def crc_errors(self) -> int:
+        return 0
+
+    @property
+    def framing_errors(self) -> int:
+        return 0
+
+    @abstractmethod
+    def encode(self, packet: wire.Packet) -> bytes:
+        """The bytes of one packet on this link (framed for serial, raw for BLE)."""
+
+    @abstractmethod
+    def write(self, data: bytes) -> None:
+        """Write bytes. Raises DeviceError (or OSError) when the link is gone."""
+
+    @abstractmethod
+    def start(self, sink: PacketSink) -> None:
+        """Start delivering incoming packets (and the end of the link) to ``sink``."""
+
+    @abstractmethod
+    def close(self) -> None:
+        """Stop reading and release the link. Safe to call twice; never raises."""
+
+
+@dataclass
+class _Waiter:
+    """One request waiting for its reply."""
+
+    seq: int
+    name: str
+    event: threading.Event = field(default_factory=threading.Event)
+    reply: wire.Reply | None = None
+
+
+def layout_from_info(info: wire.Info) -> Layout:
+    """The device's tactor layout; the default layout when the angles match it.
+
+    The device reports centidegrees, so ``180/7`` comes back as 25.71: snapping to
+    :meth:`Layout.even` keeps ``belt.layout == Layout.even(n)`` for stimuli built on it.
+
+    Raises:
+        ProtocolError: no tactors, or angles that do not form a layout.
+    """
+    angles = info.tactor_angles_deg
+    if info.channels != len(angles) or info.channels < 2:
+        raise ProtocolError(
+            f"INFO reports {info.channels} channels and {len(angles)} tactor angles; "
+            "a belt needs at least 2"
+        )
+    even = Layout.even(info.channels)
+    diffs = np.abs((np.asarray(angles) - even.angles + 180.0) % 360.0 - 180.0)
+    if np.all(diffs <= _EVEN_LAYOUT_TOLERANCE_DEG):
+        return even
+    try:
+        return Layout.from_angles(angles)
+    except ConfigError as exc:
+        raise ProtocolError(f"INFO tactor angles {list(angles)} are not a layout: {exc}") from None
+
+
+def _ping_nonce(seq: int, nonce: int) -> wire.Packet:
+    return wire.ping(seq, nonce)
+
+
+def _ms(value_s: float, what: str, lo: int, hi: int) -> int:
+    ms = round(value_s * 1000.0)
+    if not lo <= ms <= hi:
+        raise ConfigError(
+            f"{what} {value_s:g} s does not fit the device: "
+            f"allowed {lo / 1000:g} to {hi / 1000:g} s"
+        )
+    return ms
+
+
+class FirmwareBelt(Belt, PacketSink):
+    """A belt running tactorbelt firmware (protocol v1), over any :class:`Transport`.
+
+    Open one with ``open_belt("serial:...")``, ``open_belt("emulator")`` or
+    ``open_belt("ble:...")`` rather than directly.
+
+    Args:
+        transport: the link; the belt starts it and closes it.
+        url: how it was opened (``serial:/dev/ttyACM0``).
+        stream_rate_hz: the frame rate :class:`~tactorbelt.player.Player` streams at.
+        timeout_s: how long a request waits for its reply.
+        heartbeat_ms: if given, set the device's heartbeat timeout (50..2000 ms) on open.
+        calibration: drive mapping per tactor.
+        layout: override the device's tactor angles (same tactor count). When they
+            differ from the device's, the belt cannot render on the device
+            (``can_render`` is False), since the device renders with its own angles.
+        keepalive: run the keep-alive thread (turn it off only to test the failsafe).
+        clock: accepted for compatibility with the other backends and ignored
+            (a real device runs on wall time).
+
+    Attributes:
+        info: what GET_INFO reported.
+        port: the link's name.
+        heartbeat_ms: the device's heartbeat timeout in use.
+        stream_rate_hz: the streaming rate for this link.
+
+    Raises:
+        ProtocolError: the device speaks another protocol version, or garbles INFO.
+        DeviceError: no answer to GET_INFO.
+    """
+
+    def __init__(
+        self,
+        transport: Transport,
+        url: str,
+        *,
+        stream_rate_hz: float = 1000.0,
+        timeout_s: float = DEFAULT_TIMEOUT_S,
+        heartbeat_ms: int | None = None,
+        calibration: Calibration | None = None,
+        layout: Layout | None = None,
+        keepalive: bool = True,
+        clock: object | None = None,
+    ) -> None:
+        del clock
+        if not (isinstance(timeout_s, int | float) and math.isfinite(timeout_s) and timeout_s > 0):
+            raise ConfigError(f"timeout_s must be a positive number of seconds, got {timeout_s!r}")
+        self._transport = transport
+        self.port = transport.port
+        self.timeout_s = float(timeout_s)
+        self.stream_rate_hz = float(stream_rate_hz)
+        self._seq = itertools.count()
+        self._tx_lock = threading.Lock()
+        self._pending: dict[int, _Waiter] = {}
+        self._pending_lock = threading.Lock()
+        self._lost: str | None = None
+        self._last_rx_ns = time.monotonic_ns()
+        self._unanswered_pings = 0
+        self._keepalive_stop = threading.Event()
+        self._keepalive_thread: threading.Thread | None = None
+        self._closing = False
+        self.bad_replies = 0
+        self.unmatched_replies = 0
+        self.unsolicited_naks = 0
+        self.frames_sent = 0
+        self.heartbeat_ms = 0
+        # Belt.__init__ sets _closed; until it runs, __del__ must see a closed belt.
+        self._closed = True
+        transport.start(self)
+        try:
+            info = self._handshake()
+            dev_layout = layout_from_info(info)
+            if layout is not None:
+                if layout.n != dev_layout.n:
+                    raise ConfigError(
+                        f"layout has {layout.n} tactors but the belt on {self.port} has "
+                        f"{dev_layout.n}"
+                    )
+                use_layout = layout
+            else:
+                use_layout = dev_layout
+            self.info = info
+            self.heartbeat_ms = info.heartbeat_ms
+            self.can_render = info.can_play_target and use_layout == dev_layout
+            super().__init__(
+                url,
+                f"tactorbelt firmware {info.firmware_version} on {self.port}",
+                use_layout,
+                firmware_version=info.firmware_version,
+                calibration=calibration,
+            )
+            if heartbeat_ms is not None:
+                self.set_config(heartbeat_ms)
+        except BaseException:
+            self._closed = True
+            transport.close()
+            raise
+        if keepalive:
+            self.start_keepalive()
+
+    # -- packets in (transport thread) ------------------------------------------
+    def packet_received(self, packet: wire.Packet) -> None:
+        self._last_rx_ns = time.monotonic_ns()
+        self._unanswered_pings = 0
+        if packet.type not in _REPLY_TYPES:
+            self.bad_replies += 1
+            log.debug("%s: ignoring packet type 0x%02X from the device", self.port, packet.type)
+            return
+        try:
+            reply = wire.parse_reply(packet)
+        except ProtocolError as exc:
+            self.bad_replies += 1
+            log.debug("%s: ignoring a bad reply: %s", self.port, exc)
+            return
+        with self._pending_lock:
+            waiter = self._pending.pop(packet.seq, None)
+        if waiter is None:
+            if isinstance(reply, wire.Nak):
+                self.unsolicited_naks += 1
+                log.warning("%s: the device refused packet seq %d (NAK code %s)",
+                            self.port, packet.seq, reply.code)
+            elif not isinstance(reply, wire.Pong):  # keep-alive PONGs have no waiter
+                self.unmatched_replies += 1
+            return
+        waiter.reply = reply
+        waiter.event.set()
+
+    def link_lost(self, reason: str) -> None:
+        self._mark_lost(f"belt on {self.port} stopped answering: {reason}")
+
+    def _mark_lost(self, message: str) -> None:
+        if self._lost is None:
+            self._lost = message
+            if not self._closing and not self._closed:
+                log.warning("%s", message)
+        with self._pending_lock:
+            waiters = list(self._pending.values())
+            self._pending.clear()
+        for w in waiters:
+            w.event.set()
+
+    # -- packets out -------------------------------------------------------------
+    def _check_alive(self) -> None:
+        if self._lost is not None:
+            raise DeviceError(self._lost)
+
+    def _send(self, build: Callable[[int], wire.Packet], waiter_name: str | None = None
+              ) -> _Waiter | None:
+        """Build a packet with the next seq and write it; register a waiter first."""
+        self._check_alive()
+        with self._tx_lock:
+            seq = next(self._seq) & 0xFF
+            packet = build(seq)
+            waiter = None
+            if waiter_name is not None:
+                waiter = _Waiter(seq, waiter_name)
+                with self._pending_lock:
+                    self._pending[seq] = waiter
+            try:
+                self._transport.write(self._transport.encode(packet))
+            except (OSError, DeviceError) as exc:
+                self._mark_lost(f"belt on {self.port} stopped answering: write failed: {exc}")
+                raise DeviceError(self._lost) from None
+            self.frames_sent += 1
+        return waiter
+
+    def _request(self, build: Callable[[int], wire.Packet], name: str,
+                 timeout_s: float | None = None) -> wire.Reply:
+        """Send a request and wait for the reply with its sequence number."""
+        waiter = self._send(build, name)
+        assert waiter is not None
+        timeout = self.timeout_s if timeout_s is None else timeout_s
+        if not waiter.event.wait(timeout):
+            with self._pending_lock:
+                self._pending.pop(waiter.seq, None)
+            self._check_alive()
+            raise DeviceError(
+                f"belt on {self.port} did not answer {name} within {timeout * 1000:.0f} ms"
+            )
+        if waiter.reply is None:  # woken by the link ending
+            self._check_alive()
+            raise DeviceError(f"belt on {self.port} stopped answering")
+        return waiter.reply
+
+    def _expect(self, reply: wire.Reply, kind: type, name: str) -> Any:
+        if isinstance(reply, wire.Nak):
+            if reply.code == wire.NakCode.OUT_OF_RANGE:
+                raise ConfigError(
+                    f"the belt on {self.port} refused {name}: a value is out of range"
+                )
+            raise ProtocolError(
+                f"the belt on {self.port} refused {name} (NAK code {int(reply.code)}); "
+                "host and firmware disagree on protocol v1"
+            )
+        if not isinstance(reply, kind):
+            raise ProtocolError(
+                f"the belt on {self.port} answered {name} with {type(reply).__name__}"
+            )
+        return reply
+
+    def _handshake(self) -> wire.Info:
+        last: DeviceError | None = None
+        for _ in range(INFO_ATTEMPTS):
+            try:
+                reply = self._request(wire.get_info, "GET_INFO")
+            except DeviceError as exc:
+                if self._lost is not None:
+                    raise
+                last = exc
+                continue
+            info: wire.Info = self._expect(reply, wire.Info, "GET_INFO")
+            if info.protocol_version != wire.PROTOCOL_VERSION:
+                raise ProtocolError(
+                    f"the device on {self.port} speaks protocol version {info.protocol_version} "
+                    f"(firmware {info.firmware_version}); this tactorbelt speaks version "
+                    f"{wire.PROTOCOL_VERSION}: update the firmware or tactorbelt so they match"
+                )
+            return info
+        raise DeviceError(
+            f"no tactorbelt firmware answered on {self.port} "
+            f"({INFO_ATTEMPTS} GET_INFO requests, {self.timeout_s * 1000:.0f} ms each)"
+        ) from last
+
+    # -- keep-alive --------------------------------------------------------------
+    @property
+    def keepalive_running(self) -> bool:
+        """True while the keep-alive thread runs."""
+        t = self._keepalive_thread
+        return t is not None and t.is_alive()
+
+    def start_keepalive(self) -> None:
+        """Start the keep-alive thread (it starts on open unless ``keepalive=False``)."""
+        if self.keepalive_running:
+            return
+        self._keepalive_stop = threading.Event()
+        self._last_rx_ns = time.monotonic_ns()
+        self._unanswered_pings = 0
+        t = threading.Thread(
+            target=self._keepalive_loop, args=(self._keepalive_stop,),
+            name=f"tactorbelt-keepalive {self.port}", daemon=True,
+        )
+        self._keepalive_thread = t
+        t.start()
+
+    def stop_keepalive(self) -> None:
+        """Stop the keep-alive thread: the device's failsafe fires unless frames keep coming.
+
+        Meant for tests and diagnostics of the failsafe.
+        """
+        self._keepalive_stop.set()
+        t = self._keepalive_thread
+        if t is not None and t is not threading.current_thread():
+            t.join()
+        self._keepalive_thread = None
+
+    def _keepalive_loop(self, stop: threading.Event) -> None:
+        while True:
+            hb_s = self.heartbeat_ms / 1000.0
+            if stop.wait(hb_s / 3.0) or self._lost is not None:
+                return
+            silent_s = (time.monotonic_ns() - self._last_rx_ns) / 1e9
+            if silent_s >= hb_s and self._unanswered_pings >= 2:
+                self._mark_lost(
+                    f"belt on {self.port} stopped answering: no reply for "
+                    f"{silent_s * 1000:.0f} ms (heartbeat timeout {self.heartbeat_ms} ms)"
+                )
+                return
+            try:
+                if silent_s >= hb_s / 3.0:
+                    self._unanswered_pings += 1
+                    self._send(functools.partial(_ping_nonce, nonce=self._unanswered_pings))
+                else:
+                    self._send(wire.heartbeat)
+            except DeviceError:
+                return
+
+    # -- Belt backend --------------------------------------------------------------
+    def _write_levels(self, levels: NDArray[np.float64]) -> None:
+        lv = [wire.amplitude_to_level(float(a)) for a in levels]
+        self._send(lambda seq: wire.set_amplitudes(seq, lv))
+
+    def _write_stop(self) -> None:
+        try:
+            reply = self._request(wire.stop_all, "STOP_ALL", max(STOP_TIMEOUT_S, self.timeout_s))
+            self._expect(reply, wire.Ack, "STOP_ALL")
+        except DeviceError as exc:
+            if not self._closing:
+                raise
+            log.warning("could not stop the motors of the belt on %s: %s "
+                        "(its failsafe turns them off within %d ms)",
+                        self.port, exc, self.heartbeat_ms)
+
+    def _write_play(self, stimulus: Stimulus, duration_s: float | None) -> None:
+        if not self.can_render:
+            super()._write_play(stimulus, duration_s)
+        if stimulus.law not in _LAW_CODES:
+            raise ConfigError(
+                f"the firmware cannot render law {stimulus.law!r}; allowed: {', '.join(_LAW_CODES)}"
+            )
+        falloff_cdeg = round(stimulus.falloff_deg * 100.0)
+        if not 1 <= falloff_cdeg <= 0xFFFF:
+            raise ConfigError(
+                f"falloff {stimulus.falloff_deg:g} deg does not fit the device: "
+                "allowed 0.01 to 655.35 deg"
+            )
+        period_ms = _ms(stimulus.period_s, "period", 1, 0xFFFF)
+        transit_ms = _ms(stimulus.transit_s, "transit", 1, 0xFFFF)
+        duration_ms = 0 if duration_s is None else _ms(duration_s, "duration", 1, 0xFFFFFFFF)
+        args = (
+            wire.angle_to_cdeg(stimulus.target_deg),
+            int(_MODE_CODES[stimulus.mode]),
+            int(_LAW_CODES[stimulus.law]),
+            falloff_cdeg,
+            period_ms,
+            transit_ms,
+            duration_ms,
+        )
+        reply = self._request(lambda seq: wire.play_target(seq, *args), "PLAY_TARGET")
+        self._expect(reply, wire.Ack, "PLAY_TARGET")
+
+    def close(self) -> None:
+        """Stop the motors (best effort: a dead device is logged, not raised) and release."""
+        self._closing = True
+        try:
+            super().close()
+        finally:
+            self._closing = False
+
+    def _close(self) -> None:
+        self.stop_keepalive()
+        self._transport.close()
+        self._mark_lost(f"belt on {self.port} is closed")
+
+    # -- device-level requests -------------------------------------------------------
+    def ping(self) -> float:
+        """Round trip of a PING to the device, in seconds.
+
+        Raises:
+            DeviceError: no PONG within the timeout, or the belt is lost.
+        """
+        self._check_open()
+        nonce = random.getrandbits(32)
+        t0 = time.perf_counter()
+        reply = self._request(lambda seq: wire.ping(seq, nonce), "PING")
+        rtt = time.perf_counter() - t0
+        pong: wire.Pong = self._expect(reply, wire.Pong, "PING")
+        if pong.nonce != nonce:
+            raise ProtocolError(f"the belt on {self.port} echoed the wrong PING nonce")
+        return rtt
+
+    def status(self) -> wire.Status:
+        """The device's state, error counters and output levels (GET_STATUS)."""
+        self._check_open()
+        status: wire.Status = self._expect(
+            self._request(wire.get_status, "GET_STATUS"), wire.Status, "GET_STATUS")
+        return status
+
+    def set_config(self, heartbeat_ms: int, max_on_ms: int | None = None) -> None:
+        """Set the device's heartbeat timeout and, optionally, its continuous-on limit.
+
+        Args:
+            heartbeat_ms: 50..2000 ms without a valid packet before the device turns
+                every output off (the failsafe).
+            max_on_ms: 100..600000 ms a channel may stay on without a break.
+
+        Raises:
+            ConfigError: a value out of range (checked here and by the device).
+        """
+        if isinstance(heartbeat_ms, bool) or not isinstance(heartbeat_ms, int) or not (
+            50 <= heartbeat_ms <= 2000
+        ):
+            raise ConfigError(f"heartbeat_ms must be an integer in 50..2000, got {heartbeat_ms!r}")
+        if max_on_ms is not None and (
+            isinstance(max_on_ms, bool) or not isinstance(max_on_ms, int)
+            or not 100 <= max_on_ms <= 600_000
+        ):
+            raise ConfigError(f"max_on_ms must be an integer in 100..600000, got {max_on_ms!r}")
+        self._check_open()
+        reply = self._request(lambda seq: wire.set_config(seq, heartbeat_ms, max_on_ms),
+                              "SET_CONFIG")
+        self._expect(reply, wire.Ack, "SET_CONFIG")
+        self.heartbeat_ms = heartbeat_ms
+
+    @property
+    def lost(self) -> str | None:
+        """Why the belt was lost (None while it answers)."""
+        return self._lost
+
+    @property
+    def host_crc_errors(self) -> int:
+        """Frames from the device dropped for a bad CRC."""
+        return self._transport.crc_errors
+
+    @property
+    def host_framing_errors(self) -> int:
+        """Frames from the device dropped for bad framing or length."""
+        return self._transport.framing_errors

@@ -1,0 +1,270 @@
+"""The ``serial`` belt: tactorbelt firmware over USB serial (COBS frames), with pyserial.
+
+- ``serial:/dev/ttyACM0`` (or ``serial:COM3``) opens that port.
+- ``serial:auto`` lists the serial ports, keeps those that look like an Arduino Nano
+  33 BLE (USB vendor 0x2341, or "Nano 33 BLE"/"Arduino" in the description) and opens
+  the first that answers GET_INFO; when none does, the error lists every candidate
+  and why it failed.
+
+The serial link streams at 1 kHz (``stream_rate_hz = 1000.0``). A reader thread
+decodes frames; packets go to :class:`~tactorbelt.devices._firmware.FirmwareBelt`.
+
+Imports pyserial; :func:`tactorbelt.devices.open_belt` imports this module only when a
+``serial:`` or ``emulator`` belt is opened.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import threading
+from collections.abc import Iterable
+from dataclasses import dataclass
+from typing import Any, Final
+
+from .._errors import ConfigError, DeviceError, ProtocolError
+from . import wire
+from ._firmware import DEFAULT_TIMEOUT_S, FirmwareBelt, PacketSink, Transport
+
+__all__ = [
+    "ARDUINO_VID",
+    "SERIAL_STREAM_RATE_HZ",
+    "SerialPortInfo",
+    "SerialTransport",
+    "list_serial_ports",
+    "open_serial",
+    "open_serial_port",
+]
+
+log = logging.getLogger("tactorbelt.devices")
+
+#: USB vendor id of Arduino (the Nano 33 BLE enumerates with it).
+ARDUINO_VID: Final = 0x2341
+SERIAL_STREAM_RATE_HZ: Final = 1000.0
+#: Per-request timeout while ``serial:auto`` probes candidate ports.
+AUTO_PROBE_TIMEOUT_S: Final = 0.3
+
+#: Options open_serial accepts (passed on to FirmwareBelt but ``baudrate``).
+OPTIONS: Final = frozenset(
+    {"baudrate", "timeout_s", "heartbeat_ms", "calibration", "layout", "keepalive", "clock"}
+)
+
+
+class SerialTransport(Transport):
+    """COBS frames over a pyserial port, read by a daemon thread.
+
+    Args:
+        port: the device path (``/dev/ttyACM0``, a pseudo-terminal, ``COM3``).
+        baudrate: ignored by USB CDC and pseudo-terminals, kept for real UARTs.
+        write_timeout_s: a write that blocks this long means the device is gone.
+
+    Raises:
+        DeviceError: the port cannot be opened (missing, busy, no permission).
+    """
+
+    def __init__(self, port: str, baudrate: int = 115200, write_timeout_s: float = 1.0) -> None:
+        import serial
+
+        self.port = port
+        self._serial_exception = serial.SerialException
+        try:
+            self._ser = serial.Serial(
+                port, baudrate=baudrate, timeout=None, write_timeout=write_timeout_s,
+                exclusive=True,
+            )
+        except (serial.SerialException, OSError, ValueError) as exc:
+            hint = ""
+            text = str(exc).lower()
+            if "permission" in text:
+                hint = " (on Linux, add yourself to the 'dialout' group and log in again)"
+            elif "lock" in text or "busy" in text:
+                hint = " (another program has it open: close the serial monitor)"
+            raise DeviceError(f"cannot open serial port {port}: {exc}{hint}") from None
+        self._decoder = wire.FrameDecoder()
+        self._stopping = False
+        self._thread: threading.Thread | None = None
+        self._sink: PacketSink | None = None
+        self._closed = False
+
+    @property
+    def crc_errors(self) -> int:
+        return self._decoder.crc_errors
+
+    @property
+    def framing_errors(self) -> int:
+        return self._decoder.framing_errors
+
+    def encode(self, packet: wire.Packet) -> bytes:
+        return wire.encode_frame(packet)
+
+    def write(self, data: bytes) -> None:
+        if self._closed:
+            raise DeviceError(f"serial port {self.port} is closed")
+        try:
+            self._ser.write(data)
+        except (self._serial_exception, OSError) as exc:
+            raise DeviceError(f"write to serial port {self.port} failed: {exc}") from None
+
+    def start(self, sink: PacketSink) -> None:
+        self._sink = sink
+        self._thread = threading.Thread(
+            target=self._read_loop, name=f"tactorbelt-serial {self.port}", daemon=True
+        )
+        self._thread.start()
+
+    def _read_loop(self) -> None:
+        sink = self._sink
+        assert sink is not None
+        while not self._stopping:
+            try:
+                data = self._ser.read(max(1, self._ser.in_waiting))
+            except Exception as exc:  # pyserial raises SerialException, OSError, TypeError
+                if not self._stopping:
+                    sink.link_lost(f"serial port {self.port} failed: {exc}")
+                return
+            if not data:
+                continue  # cancelled read or timeout
+            for packet in self._decoder.feed(data):
+                try:
+                    sink.packet_received(packet)
+                except Exception:  # never let a handler bug kill the reader
+                    log.exception("%s: error handling a packet", self.port)
+
+    def close(self) -> None:
+        if self._closed:
+            return
+        self._closed = True
+        self._stopping = True
+        with contextlib.suppress(Exception):
+            self._ser.cancel_read()
+        t = self._thread
+        if t is not None and t is not threading.current_thread():
+            t.join(timeout=2.0)
+        try:
+            self._ser.close()
+        except Exception as exc:
+            log.debug("closing %s: %s", self.port, exc)
+
+
+def check_options(options: dict[str, Any], allowed: Iterable[str], url: str) -> None:
+    """Raise ConfigError naming the options a backend does not know."""
+    allowed = frozenset(allowed)
+    unknown = sorted(set(options) - allowed)
+    if unknown:
+        raise ConfigError(
+            f"unknown option(s) {', '.join(unknown)} for belt {url!r}; "
+            f"allowed: {', '.join(sorted(allowed))}"
+        )
+
+
+def open_serial_port(port: str, url: str | None = None, **options: Any) -> FirmwareBelt:
+    """Open the firmware belt on one serial port (no auto-detection).
+
+    Args:
+        port: the device path.
+        url: recorded as ``belt.url`` (default ``serial:PORT``).
+        **options: ``baudrate`` and the :class:`FirmwareBelt` options
+            (``timeout_s``, ``heartbeat_ms``, ``calibration``, ``layout``, ``keepalive``).
+    """
+    url = url or f"serial:{port}"
+    check_options(options, OPTIONS, url)
+    baudrate = int(options.pop("baudrate", 115200))
+    transport = SerialTransport(port, baudrate=baudrate)
+    try:
+        return FirmwareBelt(transport, url, stream_rate_hz=SERIAL_STREAM_RATE_HZ, **options)
+    except BaseException:
+        transport.close()
+        raise
+
+
+@dataclass(frozen=True)
+class SerialPortInfo:
+    """One serial port as the operating system lists it.
+
+    Attributes:
+        device: the path to open (``/dev/ttyACM0``).
+        description: what the OS calls it.
+        vid, pid: USB vendor and product ids (None for non-USB ports).
+        looks_like_belt: USB VID 0x2341 or an Arduino / Nano 33 BLE description.
+    """
+
+    device: str
+    description: str
+    vid: int | None
+    pid: int | None
+    looks_like_belt: bool
+
+    def label(self) -> str:
+        ids = f" [{self.vid:04X}:{self.pid or 0:04X}]" if self.vid is not None else ""
+        return f"{self.device} ({self.description}{ids})"
+
+
+def _looks_like_belt(vid: int | None, text: str) -> bool:
+    t = text.lower()
+    return vid == ARDUINO_VID or "nano 33 ble" in t or "arduino" in t
+
+
+def list_serial_ports() -> list[SerialPortInfo]:
+    """Every serial port the OS lists, Arduino-looking ones first."""
+    from serial.tools import list_ports
+
+    ports = []
+    for p in list_ports.comports():
+        text = " ".join(str(x) for x in (p.description, p.product, p.manufacturer) if x)
+        ports.append(SerialPortInfo(
+            device=p.device,
+            description=str(p.description or p.device),
+            vid=p.vid,
+            pid=p.pid,
+            looks_like_belt=_looks_like_belt(p.vid, text),
+        ))
+    ports.sort(key=lambda p: (not p.looks_like_belt, p.device))
+    return ports
+
+
+def open_serial(target: str, **options: Any) -> FirmwareBelt:
+    """Open ``serial:PORT`` or ``serial:auto``.
+
+    Args:
+        target: a port path, or ``auto``.
+        **options: ``baudrate``, ``timeout_s``, ``heartbeat_ms``, ``calibration``,
+            ``layout``, ``keepalive``, ``clock`` (ignored).
+
+    Raises:
+        ConfigError: an unknown option.
+        DeviceError: the port cannot be opened or does not answer; for ``auto``, no
+            candidate answered (the message lists them).
+        ProtocolError: the device speaks another protocol version.
+    """
+    url = f"serial:{target}"
+    check_options(options, OPTIONS, url)
+    if target.strip().lower() != "auto":
+        return open_serial_port(target, url, **options)
+    ports = list_serial_ports()
+    candidates = [p for p in ports if p.looks_like_belt]
+    if not candidates:
+        seen = "; ".join(p.label() for p in ports) or "none"
+        raise DeviceError(
+            "serial:auto found no port that looks like an Arduino Nano 33 BLE "
+            f"(USB vendor 0x{ARDUINO_VID:04X}); ports seen: {seen}. "
+            "Plug the belt in, or name its port: --belt serial:/dev/ttyACM0"
+        )
+    failures = []
+    probe = dict(options)
+    probe.setdefault("timeout_s", AUTO_PROBE_TIMEOUT_S)
+    for p in candidates:
+        try:
+            belt = open_serial_port(p.device, **probe)
+        except ProtocolError as exc:
+            failures.append(f"{p.label()}: {exc}")
+            continue
+        except DeviceError as exc:
+            failures.append(f"{p.label()}: {exc}")
+            continue
+        if "timeout_s" not in options:
+            belt.timeout_s = DEFAULT_TIMEOUT_S
+        log.info("serial:auto picked %s", p.device)
+        return belt
+    raise DeviceError(
+        "serial:auto: no candidate port answered as a tactorbelt: " + "; ".join(failures)
+    )

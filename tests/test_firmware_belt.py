@@ -1,0 +1,409 @@
+"""FirmwareBelt (the host side of protocol v1) against a fake device, in memory.
+
+:class:`FakeFirmware` plays the device with tactorbelt.devices.wire; the serial and
+BLE tests reuse it (``from test_firmware_belt import FakeFirmware``).
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+import pytest
+
+from tactorbelt import ConfigError, DeviceError, Layout, ProtocolError, TactorbeltError
+from tactorbelt.devices import wire
+from tactorbelt.devices._firmware import FirmwareBelt, PacketSink, Transport
+from tactorbelt.devices.calibration import Calibration, TactorCalibration
+from tactorbelt.stimuli import make_stimulus
+
+
+@dataclass
+class FakeFirmware:
+    """A protocol v1 device in Python: answers requests, records what it got.
+
+    Attributes:
+        silent: drop every request without an answer (a hung device).
+        protocol_version, capabilities, heartbeat_ms, angles_deg: what INFO reports.
+        requests: every valid request, parsed, in order of arrival.
+        seqs: their sequence numbers.
+        extra_replies: a function of the request packet giving packets to send
+            before the real reply (garbage, stale replies, ...).
+    """
+
+    tactors: int = 6
+    protocol_version: int = 1
+    capabilities: int = 1
+    heartbeat_ms: int = 250
+    angles_deg: tuple[float, ...] | None = None
+    silent: bool = False
+    requests: list[wire.Request] = field(default_factory=list)
+    seqs: list[int] = field(default_factory=list)
+    levels: list[int] = field(default_factory=list)
+    state: wire.State = wire.State.IDLE
+    extra_replies: Callable[[wire.Packet], list[wire.Packet]] | None = None
+    got_request: threading.Event = field(default_factory=threading.Event)
+
+    def __post_init__(self) -> None:
+        if self.angles_deg is None:
+            self.angles_deg = Layout.even(self.tactors).angles_deg
+        self.levels = [0] * self.tactors
+        self._lock = threading.Lock()
+
+    def of_type(self, kind: type) -> list[wire.Request]:
+        with self._lock:
+            return [r for r in self.requests if isinstance(r, kind)]
+
+    def handle(self, packet: wire.Packet) -> list[wire.Packet]:
+        """The replies to one request packet."""
+        if self.silent:
+            return []
+        try:
+            req = wire.parse_request(packet)
+        except ProtocolError:
+            code = (wire.NakCode.UNKNOWN_TYPE if packet.type not in set(wire.MsgType)
+                    else wire.NakCode.BAD_LENGTH)
+            return [wire.encode_reply(packet.seq, wire.Nak(packet.seq, code))]
+        with self._lock:
+            self.requests.append(req)
+            self.seqs.append(packet.seq)
+        self.got_request.set()
+        out = list(self.extra_replies(packet)) if self.extra_replies else []
+        reply = self._answer(packet.seq, req)
+        if reply is not None:
+            out.append(wire.encode_reply(packet.seq, reply))
+        return out
+
+    def _answer(self, seq: int, req: wire.Request) -> wire.Reply | None:
+        ack = wire.Ack(seq, 0)
+        if isinstance(req, wire.Ping):
+            return wire.Pong(req.nonce, int(time.monotonic() * 1e6) & 0xFFFFFFFF)
+        if isinstance(req, wire.GetInfo):
+            assert self.angles_deg is not None
+            return wire.Info(self.protocol_version, 1, 2, 3, len(self.angles_deg), 65535,
+                             self.heartbeat_ms, self.capabilities, tuple(self.angles_deg))
+        if isinstance(req, wire.SetAmplitudes):
+            self.levels = list(req.levels)
+            self.state = wire.State.STREAMING
+            return None
+        if isinstance(req, wire.StopAll):
+            self.levels = [0] * self.tactors
+            self.state = wire.State.IDLE
+            return ack
+        if isinstance(req, wire.PlayTarget):
+            self.state = wire.State.PLAYING
+            return ack
+        if isinstance(req, wire.SetConfig):
+            if not 50 <= req.heartbeat_ms <= 2000:
+                return wire.Nak(seq, wire.NakCode.OUT_OF_RANGE)
+            self.heartbeat_ms = req.heartbeat_ms
+            return ack
+        if isinstance(req, wire.GetStatus):
+            return wire.Status(self.state, 0, 0, 0, 0, tuple(self.levels))
+        return None  # HEARTBEAT
+
+
+class LoopTransport(Transport):
+    """An in-memory link: each write is one packet, answered at once by the fake."""
+
+    def __init__(self, device: FakeFirmware, port: str = "loop0") -> None:
+        self.device = device
+        self.port = port
+        self.sink: PacketSink | None = None
+        self.dead = False
+        self.closed = False
+
+    def encode(self, packet: wire.Packet) -> bytes:
+        return wire.encode_packet(packet)
+
+    def write(self, data: bytes) -> None:
+        if self.dead:
+            raise OSError(5, "Input/output error")
+        assert self.sink is not None
+        for reply in self.device.handle(wire.decode_packet(data)):
+            self.sink.packet_received(reply)
+
+    def start(self, sink: PacketSink) -> None:
+        self.sink = sink
+
+    def close(self) -> None:
+        self.closed = True
+
+    def kill(self) -> None:
+        """The link ends (a cable pulled): the reader reports it, writes fail."""
+        self.dead = True
+        assert self.sink is not None
+        self.sink.link_lost("end of file")
+
+
+def wait_for(predicate: Callable[[], object], timeout_s: float = 3.0) -> bool:
+    """Poll a condition another thread makes true (for keep-alive behaviour)."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if predicate():
+            return True
+        time.sleep(0.005)
+    return bool(predicate())
+
+
+def open_fake(device: FakeFirmware | None = None, **options: object
+              ) -> tuple[FirmwareBelt, FakeFirmware, LoopTransport]:
+    device = device or FakeFirmware()
+    transport = LoopTransport(device)
+    options.setdefault("keepalive", False)
+    belt = FirmwareBelt(transport, "loop:loop0", **options)  # type: ignore[arg-type]
+    return belt, device, transport
+
+
+# --- opening ------------------------------------------------------------------------
+
+
+def test_open_reads_layout_version_and_capabilities_from_info() -> None:
+    belt, _, _ = open_fake()
+    with belt:
+        assert belt.n_tactors == 6
+        assert belt.layout == Layout.even(6)
+        assert belt.firmware_version == "1.2.3"
+        assert belt.can_render
+        assert belt.heartbeat_ms == 250
+        assert "loop0" in belt.name
+
+
+def test_uneven_device_layout_is_used_and_even_layouts_snap_to_exact_angles() -> None:
+    belt, _, _ = open_fake(FakeFirmware(tactors=4, angles_deg=(0.0, 80.0, 180.0, 250.5)))
+    with belt:
+        assert belt.tactor_angles_deg == (0.0, 80.0, 180.0, 250.5)
+    # 180/7 comes back from the device as 25.71 deg: still the default 7-tactor layout
+    belt, _, _ = open_fake(FakeFirmware(tactors=7))
+    with belt:
+        assert belt.layout == Layout.even(7)
+
+
+def test_protocol_version_other_than_1_is_refused_and_the_link_released() -> None:
+    with pytest.raises(ProtocolError, match=r"loop0 speaks protocol version 2"):
+        open_fake(FakeFirmware(protocol_version=2))
+    device = FakeFirmware(protocol_version=2)
+    transport = LoopTransport(device)
+    with pytest.raises(ProtocolError):
+        FirmwareBelt(transport, "loop:x", keepalive=False)
+    assert transport.closed
+
+
+def test_a_device_that_never_answers_gives_a_device_error_naming_the_port() -> None:
+    with pytest.raises(DeviceError, match="loop0"):
+        open_fake(FakeFirmware(silent=True), timeout_s=0.02)
+
+
+def test_no_capability_bit_means_no_device_rendering() -> None:
+    belt, _, _ = open_fake(FakeFirmware(capabilities=0))
+    with belt:
+        assert not belt.can_render
+        with pytest.raises(TactorbeltError, match="cannot render"):
+            belt.play(make_stimulus(belt.layout, 45.0))
+
+
+def test_a_layout_override_with_other_angles_disables_device_rendering() -> None:
+    other = Layout.even(6).rotated(10.0)
+    belt, _, _ = open_fake(layout=other)
+    with belt:
+        assert belt.layout == other
+        assert not belt.can_render
+    with pytest.raises(ConfigError, match="4 tactors"):
+        open_fake(layout=Layout.even(4))
+
+
+def test_unknown_heartbeat_is_refused_before_sending() -> None:
+    with pytest.raises(ConfigError, match=r"50\.\.2000"):
+        open_fake(heartbeat_ms=20)
+
+
+# --- streaming, playing, stopping -----------------------------------------------------
+
+
+def test_set_amplitudes_sends_calibrated_levels() -> None:
+    cal = Calibration((TactorCalibration(start=0.2),) + (TactorCalibration(),) * 5)
+    belt, device, _ = open_fake(calibration=cal)
+    with belt:
+        belt.set_amplitudes([0.5, 1.0, 0.0, 0.25, 0.0, 1e-9])
+        (req,) = device.of_type(wire.SetAmplitudes)
+        assert isinstance(req, wire.SetAmplitudes)
+        expected = [wire.amplitude_to_level(v) for v in (0.6, 1.0, 0.0, 0.25, 0.0, 1e-9)]
+        assert list(req.levels) == expected
+        assert device.state == wire.State.STREAMING
+
+
+def test_every_packet_takes_the_next_sequence_number_mod_256() -> None:
+    belt, device, _ = open_fake()
+    with belt:
+        for _ in range(300):
+            belt.set_amplitudes(np.zeros(6))
+        belt.status()
+    steps = np.diff(np.array(device.seqs)) % 256
+    assert np.all(steps == 1)
+    assert len(device.seqs) == 1 + 300 + 1 + 1  # GET_INFO, frames, GET_STATUS, STOP_ALL
+
+
+def test_play_sends_play_target_with_the_stimulus_parameters() -> None:
+    belt, device, _ = open_fake()
+    with belt:
+        stim = make_stimulus(belt.layout, 45.0, mode="dynamic", law="energy",
+                             falloff_deg=12.5, period_s=0.8, transit_s=0.05)
+        belt.play(stim, 2.5)
+        belt.play(make_stimulus(belt.layout, 359.995), None)
+    first, second = device.of_type(wire.PlayTarget)
+    assert first == wire.PlayTarget(4500, 1, 2, 1250, 800, 50, 2500)
+    assert second == wire.PlayTarget(0, 0, 0, 1500, 1000, 100, 0)  # 0 = until stopped
+
+
+def test_play_rejects_values_the_wire_cannot_carry() -> None:
+    belt, _, _ = open_fake()
+    with belt:
+        stim = make_stimulus(belt.layout, 45.0, period_s=70.0)
+        with pytest.raises(ConfigError, match="period"):
+            belt.play(stim)
+
+
+def test_stop_waits_for_the_ack_and_close_stops_the_motors() -> None:
+    belt, device, transport = open_fake()
+    with belt:
+        belt.set_amplitudes([1.0] * 6)
+        belt.stop()
+        assert device.levels == [0] * 6
+        belt.set_amplitudes([1.0] * 6)
+    assert device.levels == [0] * 6
+    assert isinstance(device.requests[-1], wire.StopAll)
+    assert transport.closed
+    with pytest.raises(TactorbeltError, match="closed"):
+        belt.set_amplitudes([0.0] * 6)
+
+
+# --- requests --------------------------------------------------------------------------
+
+
+def test_ping_status_and_set_config() -> None:
+    belt, device, _ = open_fake()
+    with belt:
+        assert 0.0 < belt.ping() < 1.0
+        belt.set_amplitudes([0.0, 0.5, 0.0, 0.0, 0.0, 1.0])
+        status = belt.status()
+        assert status.state == wire.State.STREAMING
+        assert status.levels == (0, 32768, 0, 0, 0, 65535)
+        belt.set_config(500)
+        assert belt.heartbeat_ms == 500
+        assert device.heartbeat_ms == 500
+        with pytest.raises(ConfigError, match=r"50\.\.2000"):
+            belt.set_config(10)
+
+
+def test_a_nak_for_a_request_becomes_a_clear_error() -> None:
+    device = FakeFirmware()
+    belt, _, _ = open_fake(device)
+
+    with belt:
+        device._answer = lambda seq, req: wire.Nak(seq, wire.NakCode.OUT_OF_RANGE)  # type: ignore[method-assign]
+        with pytest.raises(ConfigError, match="out of range"):
+            belt.play(make_stimulus(belt.layout, 45.0))
+        device._answer = lambda seq, req: wire.Nak(seq, wire.NakCode.UNKNOWN_TYPE)  # type: ignore[method-assign]
+        with pytest.raises(ProtocolError, match="refused GET_STATUS"):
+            belt.status()
+        del device._answer
+
+
+def test_bad_and_stale_replies_are_counted_and_skipped() -> None:
+    device = FakeFirmware()
+    belt, _, _ = open_fake(device)
+
+    def junk(packet: wire.Packet) -> list[wire.Packet]:
+        return [
+            wire.Packet(0x99, packet.seq, b"\x01"),  # unknown type
+            wire.Packet(wire.MsgType.PONG, packet.seq, b"\x00"),  # wrong length
+            wire.encode_reply((packet.seq + 17) % 256, wire.Ack(0)),  # nobody waits for it
+        ]
+
+    with belt:
+        device.extra_replies = junk
+        status = belt.status()
+        assert status.state == wire.State.IDLE
+        assert belt.bad_replies == 2
+        assert belt.unmatched_replies == 1
+        device.extra_replies = None
+
+
+# --- losing the device ----------------------------------------------------------------
+
+
+def test_a_lost_link_makes_the_next_call_raise_naming_the_port() -> None:
+    belt, _, transport = open_fake()
+    transport.kill()
+    with pytest.raises(DeviceError, match=r"loop0.*end of file"):
+        belt.set_amplitudes([0.0] * 6)
+    with pytest.raises(DeviceError, match="loop0"):
+        belt.status()
+
+
+def test_closing_a_dead_belt_logs_instead_of_raising(caplog: pytest.LogCaptureFixture) -> None:
+    belt, device, transport = open_fake(timeout_s=0.02)
+    device.silent = True
+    with caplog.at_level(logging.WARNING, logger="tactorbelt.devices"), belt:
+        pass
+    assert belt.closed and transport.closed
+    assert "could not stop the motors" in caplog.text and "loop0" in caplog.text
+    belt2, _, transport2 = open_fake()
+    transport2.kill()
+    belt2.close()  # no exception
+    assert belt2.closed
+
+
+def test_a_request_without_reply_times_out_naming_the_port() -> None:
+    belt, device, _ = open_fake(timeout_s=0.02)
+    device.silent = True
+    with pytest.raises(DeviceError, match=r"loop0 did not answer GET_STATUS within 20 ms"):
+        belt.status()
+    belt.close()
+
+
+def test_keepalive_writes_while_open_and_detects_a_silent_device() -> None:
+    device = FakeFirmware(heartbeat_ms=60)
+    belt, _, _ = open_fake(device, keepalive=True)
+    try:
+        assert belt.keepalive_running
+        # nothing else is sent, yet the device keeps hearing from the host
+        assert wait_for(lambda: len(device.seqs) >= 4)
+        kinds = {type(r) for r in device.requests[1:4]}
+        assert kinds <= {wire.Ping, wire.Heartbeat}
+        device.silent = True
+        assert wait_for(lambda: belt.lost is not None)
+        with pytest.raises(DeviceError, match=r"loop0 stopped answering: no reply"):
+            belt.set_amplitudes([0.0] * 6)
+    finally:
+        belt.close()
+    assert not belt.keepalive_running
+
+
+def test_stop_keepalive_lets_the_host_go_quiet() -> None:
+    device = FakeFirmware(heartbeat_ms=60)
+    belt, _, _ = open_fake(device, keepalive=True)
+    with belt:
+        belt.stop_keepalive()
+        assert not belt.keepalive_running
+        n = len(device.seqs)
+        belt.start_keepalive()
+        assert wait_for(lambda: len(device.seqs) > n)
+
+
+def test_unknown_options_are_refused_by_open_belt() -> None:
+    from tactorbelt.devices import open_belt
+
+    with pytest.raises(ConfigError, match="unknown option"):
+        open_belt("serial:/dev/null-does-not-exist", tactors=6)
+
+
+def test_fake_firmware_replies_roundtrip_through_wire() -> None:
+    """Guard for the fake itself: its INFO parses as the real firmware's would."""
+    info = wire.parse_reply(FakeFirmware().handle(wire.get_info(5))[0])
+    assert isinstance(info, wire.Info)
+    assert info.channels == 6 and info.can_play_target
