@@ -205,7 +205,7 @@ def _looks_like_belt(vid: int | None, text: str) -> bool:
 
 
 def list_serial_ports() -> list[SerialPortInfo]:
-    """Every serial port the OS lists, Arduino-looking ones first."""
+    """Every serial port the OS lists, Arduino-looking ones first (else in the OS's order)."""
     from serial.tools import list_ports
 
     ports = []
@@ -218,7 +218,7 @@ def list_serial_ports() -> list[SerialPortInfo]:
             pid=p.pid,
             looks_like_belt=_looks_like_belt(p.vid, text),
         ))
-    ports.sort(key=lambda p: (not p.looks_like_belt, p.device))
+    ports.sort(key=lambda p: not p.looks_like_belt)
     return ports
 
 
