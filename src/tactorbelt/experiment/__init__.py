@@ -1,0 +1,55 @@
+"""The user study: study files, schedules, the trial state machine, the store, the runner.
+
+- :mod:`.study`: :func:`load_study`, :class:`Study`, :func:`paper_study` (TOML + pydantic);
+- :mod:`.schedule`: :func:`make_schedule` (pure, seeded), :class:`ScheduledTrial`;
+- :mod:`.trial`: :class:`TrialMachine` (pure state machine), :class:`TrialResult`;
+- :mod:`.store`: :class:`Store` (SQLite, WAL, one transaction per trial);
+- :mod:`.runner`: :func:`run_session`, :class:`SessionObserver`, :class:`Command`;
+- :mod:`.export`: :func:`export_csv`, :func:`export_bids`.
+
+Names are imported lazily, so ``import tactorbelt.experiment`` costs nothing.
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import Any
+
+__all__ = [
+    "Command",
+    "NullObserver",
+    "ScheduledTrial",
+    "SessionObserver",
+    "SessionResult",
+    "Store",
+    "Study",
+    "TrialMachine",
+    "TrialResult",
+    "TrialState",
+    "export_bids",
+    "export_csv",
+    "load_study",
+    "make_schedule",
+    "paper_study",
+    "run_session",
+]
+
+_LAZY = {
+    "Study": "study", "load_study": "study", "paper_study": "study",
+    "ScheduledTrial": "schedule", "make_schedule": "schedule",
+    "TrialMachine": "trial", "TrialResult": "trial", "TrialState": "trial",
+    "Store": "store",
+    "Command": "runner", "NullObserver": "runner", "SessionObserver": "runner",
+    "SessionResult": "runner", "run_session": "runner",
+    "export_csv": "export", "export_bids": "export",
+}
+
+
+def __getattr__(name: str) -> Any:
+    if name in _LAZY:
+        return getattr(importlib.import_module(f"{__name__}.{_LAZY[name]}"), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(__all__)

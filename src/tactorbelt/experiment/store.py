@@ -1,0 +1,498 @@
+"""The session store: one SQLite file holding sessions, trials and cursor samples.
+
+Schema (DESIGN.md, "Data store", plus provenance columns)::
+
+    sessions(session_id, participant, session_number, study_name, study_sha256,
+             study_toml, seed, condition_order, schedule_json, n_trials, belt,
+             firmware_version, calibration_json, package_version, git_commit, host,
+             input, clock, started_at, ended_at, status, resumed)
+    trials(trial_id, session_id, trial_index, block, block_index, block_name, condition,
+           repetition, target_deg, on_tactor, response_deg, response_target_deg, correct,
+           rt_s, onset_ns, acquired_ns, crossed_ns, stimulus_off_ns, n_samples,
+           status, abort_reason, attempts, recorded_at)      UNIQUE(session_id, trial_index)
+    samples(trial_id, t_s, x, y, buttons)
+
+Durability: WAL journal, ``synchronous=FULL``, and one transaction per trial holding
+the trial row and all its samples, so a process killed at any moment loses at most
+the trial in flight. An ``aborted`` row is replaced (with its samples) when the
+trial is run again; a ``done`` or ``timeout`` row is never written twice.
+
+Only one run may write a store at a time: :meth:`Store.open` takes an exclusive
+``flock`` on ``<file>.lock`` and fails at once, before anything is written, when
+another run holds it.
+
+I/O edge of the experiment package: imports sqlite3, fcntl and the pure experiment
+modules; never devices, inputs or the window.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import datetime as _dt
+import json
+import os
+import sqlite3
+import stat
+from collections.abc import Iterator
+from pathlib import Path
+from types import TracebackType
+from typing import Any
+
+from .._errors import StoreError
+from .schedule import ScheduledTrial, schedule_from_json, schedule_to_json
+from .trial import TrialResult
+
+__all__ = ["SCHEMA_VERSION", "SESSION_STATUSES", "Store", "utc_now"]
+
+SCHEMA_VERSION = 1
+#: PRAGMA application_id of a tactorbelt store ("TBLT").
+APPLICATION_ID = 0x54424C54
+SESSION_STATUSES = ("running", "complete", "aborted", "interrupted")
+TRIAL_STATUSES = ("done", "timeout", "aborted")
+_SQLITE_MAGIC = b"SQLite format 3\x00"
+
+_SCHEMA = """
+CREATE TABLE IF NOT EXISTS meta(
+    key TEXT PRIMARY KEY,
+    value TEXT NOT NULL
+);
+CREATE TABLE IF NOT EXISTS sessions(
+    session_id INTEGER PRIMARY KEY AUTOINCREMENT,
+    participant TEXT NOT NULL,
+    session_number INTEGER NOT NULL,
+    study_name TEXT NOT NULL,
+    study_sha256 TEXT NOT NULL,
+    study_toml TEXT NOT NULL,
+    seed INTEGER NOT NULL,
+    condition_order TEXT NOT NULL,
+    schedule_json TEXT NOT NULL,
+    n_trials INTEGER NOT NULL,
+    belt TEXT,
+    firmware_version TEXT,
+    calibration_json TEXT,
+    package_version TEXT,
+    git_commit TEXT,
+    host TEXT,
+    input TEXT,
+    clock TEXT,
+    started_at TEXT NOT NULL,
+    ended_at TEXT,
+    status TEXT NOT NULL CHECK (status IN ('running','complete','aborted','interrupted')),
+    resumed INTEGER NOT NULL DEFAULT 0
+);
+CREATE TABLE IF NOT EXISTS trials(
+    trial_id INTEGER PRIMARY KEY AUTOINCREMENT,
+    session_id INTEGER NOT NULL REFERENCES sessions(session_id),
+    trial_index INTEGER NOT NULL,
+    block TEXT NOT NULL CHECK (block IN ('training','test')),
+    block_index INTEGER NOT NULL,
+    block_name TEXT NOT NULL,
+    condition TEXT NOT NULL,
+    repetition INTEGER NOT NULL,
+    target_deg REAL NOT NULL,
+    on_tactor INTEGER NOT NULL,
+    response_deg REAL,
+    response_target_deg REAL,
+    correct INTEGER,
+    rt_s REAL,
+    onset_ns INTEGER,
+    acquired_ns INTEGER,
+    crossed_ns INTEGER,
+    stimulus_off_ns INTEGER,
+    n_samples INTEGER NOT NULL,
+    status TEXT NOT NULL CHECK (status IN ('done','timeout','aborted')),
+    abort_reason TEXT,
+    attempts INTEGER NOT NULL DEFAULT 1,
+    recorded_at TEXT NOT NULL,
+    UNIQUE(session_id, trial_index)
+);
+CREATE TABLE IF NOT EXISTS samples(
+    trial_id INTEGER NOT NULL REFERENCES trials(trial_id),
+    t_s REAL NOT NULL,
+    x REAL NOT NULL,
+    y REAL NOT NULL,
+    buttons INTEGER NOT NULL
+);
+CREATE INDEX IF NOT EXISTS trials_session ON trials(session_id);
+CREATE INDEX IF NOT EXISTS samples_trial ON samples(trial_id);
+CREATE INDEX IF NOT EXISTS sessions_participant ON sessions(participant);
+"""
+
+_TRIAL_COLUMNS = (
+    "session_id", "trial_index", "block", "block_index", "block_name", "condition",
+    "repetition", "target_deg", "on_tactor", "response_deg", "response_target_deg",
+    "correct", "rt_s", "onset_ns", "acquired_ns", "crossed_ns", "stimulus_off_ns",
+    "n_samples", "status", "abort_reason", "attempts", "recorded_at",
+)
+
+
+def utc_now() -> str:
+    """The current UTC time, ISO 8601 with microseconds."""
+    return _dt.datetime.now(_dt.UTC).isoformat(timespec="microseconds")
+
+
+def _read_only(path: Path) -> bool:
+    """True when the file cannot or must not be written (no write bit, or no access)."""
+    try:
+        mode = path.stat().st_mode
+    except OSError:
+        return False
+    return not os.access(path, os.W_OK) or not (mode & (stat.S_IWUSR | stat.S_IWGRP | stat.S_IWOTH))
+
+
+class Store:
+    """An open session store. Use :meth:`open`; close it (or use ``with``) when done."""
+
+    def __init__(self, path: Path, conn: sqlite3.Connection, lock_fd: int | None,
+                 readonly: bool) -> None:
+        self.path = path
+        self.conn = conn
+        self._lock_fd = lock_fd
+        self.readonly = readonly
+
+    # -- opening -----------------------------------------------------------------------
+    @classmethod
+    def open(cls, path: str | Path, create: bool = True, readonly: bool = False) -> Store:
+        """Open (and with ``create`` make) a store for writing, or read-only.
+
+        Raises:
+            StoreError: the path is a directory; the file is not SQLite, not a
+                tactorbelt store, corrupted or truncated; it is read-only (for
+                writing); another run is using it; or (``create=False``) it does not
+                exist. Raised before anything is written.
+        """
+        p = Path(path)
+        if p.is_dir():
+            raise StoreError(f"{p} is a directory; give a database file such as {p}/study.sqlite")
+        exists = p.exists()
+        if exists:
+            try:
+                with p.open("rb") as fh:
+                    head = fh.read(len(_SQLITE_MAGIC))
+            except OSError as exc:
+                raise StoreError(f"cannot read {p}: {exc.strerror}") from None
+            if head and head != _SQLITE_MAGIC:
+                raise StoreError(
+                    f"{p} is not an SQLite database (it starts with {head[:8]!r}); "
+                    "give a tactorbelt store or a new file name"
+                )
+        elif not create or readonly:
+            raise StoreError(f"{p}: no such store")
+        if not readonly:
+            if exists and _read_only(p):
+                raise StoreError(
+                    f"{p} is read-only; a run must write every trial. Make it writable "
+                    "(chmod u+w) or give another --db"
+                )
+            parent = p.parent if str(p.parent) else Path(".")
+            if not parent.exists():
+                raise StoreError(f"cannot create {p}: directory {parent} does not exist")
+            if not os.access(parent, os.W_OK):
+                raise StoreError(f"cannot write to directory {parent} (needed for {p})")
+        lock_fd = None if readonly else cls._lock(p)
+        try:
+            try:
+                conn = cls._connect(p, readonly)
+            except sqlite3.DatabaseError as exc:
+                raise cls._translate(p, exc) from None
+        except BaseException:
+            if lock_fd is not None:
+                os.close(lock_fd)
+            raise
+        return cls(p, conn, lock_fd, readonly)
+
+    @staticmethod
+    def _lock(p: Path) -> int:
+        import fcntl
+
+        lock_path = p.with_name(p.name + ".lock")
+        try:
+            fd = os.open(lock_path, os.O_RDWR | os.O_CREAT, 0o644)
+        except OSError as exc:
+            raise StoreError(f"cannot create the lock file {lock_path}: {exc.strerror}") from None
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            holder = ""
+            with contextlib.suppress(OSError):
+                holder = os.pread(fd, 200, 0).decode(errors="replace").strip()
+            os.close(fd)
+            raise StoreError(
+                f"another run is using the store {p}"
+                + (f" ({holder})" if holder else "")
+                + "; wait for it to finish or give another --db"
+            ) from None
+        with contextlib.suppress(OSError):
+            os.ftruncate(fd, 0)
+            os.pwrite(fd, f"pid {os.getpid()}".encode(), 0)
+        return fd
+
+    @staticmethod
+    def _connect(p: Path, readonly: bool) -> sqlite3.Connection:
+        conn: sqlite3.Connection | None = None
+        try:
+            if readonly:
+                conn = sqlite3.connect(f"{p.resolve().as_uri()}?mode=ro", uri=True,
+                                       isolation_level=None, check_same_thread=False)
+            else:
+                conn = sqlite3.connect(p, isolation_level=None, check_same_thread=False)
+            conn.row_factory = sqlite3.Row
+            conn.execute("PRAGMA busy_timeout = 5000")
+            check = conn.execute("PRAGMA quick_check").fetchone()[0]
+            if check != "ok":
+                raise sqlite3.DatabaseError(check)
+            tables = {r[0] for r in conn.execute(
+                "SELECT name FROM sqlite_master WHERE type='table'")}
+            app_id = conn.execute("PRAGMA application_id").fetchone()[0]
+            if tables and "sessions" not in tables:
+                raise StoreError(
+                    f"{p} is an SQLite database but not a tactorbelt store "
+                    f"(tables: {', '.join(sorted(tables))}); give another file"
+                )
+            if "sessions" in tables and app_id not in (0, APPLICATION_ID):
+                raise StoreError(f"{p} is not a tactorbelt store (application_id {app_id:#x})")
+            if readonly:
+                if "sessions" not in tables:
+                    raise StoreError(f"{p} holds no tactorbelt sessions")
+                return conn
+            conn.execute("PRAGMA journal_mode = WAL")
+            conn.execute("PRAGMA synchronous = FULL")
+            conn.execute("PRAGMA foreign_keys = ON")
+            conn.execute("BEGIN IMMEDIATE")
+            try:
+                for stmt in _SCHEMA.split(";"):
+                    if stmt.strip():
+                        conn.execute(stmt)
+                conn.execute(f"PRAGMA application_id = {APPLICATION_ID}")
+                conn.execute("INSERT OR IGNORE INTO meta(key, value) VALUES ('schema_version', ?)",
+                             (str(SCHEMA_VERSION),))
+                conn.execute("COMMIT")
+            except BaseException:
+                conn.execute("ROLLBACK")
+                raise
+            version = conn.execute("SELECT value FROM meta WHERE key='schema_version'").fetchone()
+            if version is not None and int(version[0]) > SCHEMA_VERSION:
+                raise StoreError(
+                    f"{p} was written by a newer tactorbelt (schema {version[0]}); upgrade"
+                )
+            return conn
+        except BaseException:
+            if conn is not None:
+                with contextlib.suppress(Exception):
+                    conn.close()
+            raise
+
+    @staticmethod
+    def _translate(p: Path, exc: sqlite3.DatabaseError) -> StoreError:
+        if isinstance(exc, sqlite3.OperationalError):
+            msg = str(exc)
+            if "readonly" in msg or "read-only" in msg:
+                return StoreError(f"{p} is read-only: {msg}")
+            if "locked" in msg or "busy" in msg:
+                return StoreError(f"another process is using the store {p}: {msg}")
+            if "malformed" not in msg and "corrupt" not in msg:
+                return StoreError(f"cannot open the store {p}: {msg}")
+        return StoreError(
+            f"{p} is corrupted or truncated ({exc}); restore it from a backup "
+            "or give another file"
+        )
+
+    def close(self) -> None:
+        """Close the database and release the lock. Safe to call twice."""
+        with contextlib.suppress(Exception):
+            self.conn.close()
+        if self._lock_fd is not None:
+            with contextlib.suppress(OSError):
+                os.close(self._lock_fd)
+            self._lock_fd = None
+
+    def __enter__(self) -> Store:
+        return self
+
+    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
+                 tb: TracebackType | None) -> None:
+        self.close()
+
+    # -- helpers -----------------------------------------------------------------------
+    @contextlib.contextmanager
+    def _transaction(self) -> Iterator[sqlite3.Connection]:
+        if self.readonly:
+            raise StoreError(f"{self.path} was opened read-only")
+        try:
+            self.conn.execute("BEGIN IMMEDIATE")
+        except sqlite3.Error as exc:
+            raise StoreError(f"cannot write to {self.path}: {exc}") from None
+        try:
+            yield self.conn
+        except BaseException:
+            with contextlib.suppress(sqlite3.Error):
+                self.conn.execute("ROLLBACK")
+            raise
+        try:
+            self.conn.execute("COMMIT")
+        except sqlite3.Error as exc:
+            with contextlib.suppress(sqlite3.Error):
+                self.conn.execute("ROLLBACK")
+            raise StoreError(f"cannot write to {self.path}: {exc}") from None
+
+    def _query(self, sql: str, args: tuple[Any, ...] = ()) -> list[sqlite3.Row]:
+        try:
+            return self.conn.execute(sql, args).fetchall()
+        except sqlite3.DatabaseError as exc:
+            raise StoreError(f"cannot read {self.path}: {exc}") from None
+
+    # -- sessions ----------------------------------------------------------------------
+    def create_session(
+        self,
+        *,
+        participant: str,
+        study_name: str,
+        study_toml: str,
+        study_sha256: str,
+        seed: int,
+        condition_order: list[str],
+        schedule: list[ScheduledTrial],
+        belt: str | None = None,
+        firmware_version: str | None = None,
+        calibration: Any = None,
+        package_version: str | None = None,
+        git_commit: str | None = None,
+        host: str | None = None,
+        input: str | None = None,
+        clock: str | None = None,
+    ) -> int:
+        """Record a new session (status ``running``) with its provenance; return its id."""
+        try:
+            with self._transaction() as c:
+                row = c.execute(
+                    "SELECT COALESCE(MAX(session_number), 0) FROM sessions WHERE participant=?",
+                    (participant,),
+                ).fetchone()
+                cur = c.execute(
+                    "INSERT INTO sessions(participant, session_number, study_name, study_sha256,"
+                    " study_toml, seed, condition_order, schedule_json, n_trials, belt,"
+                    " firmware_version, calibration_json, package_version, git_commit, host,"
+                    " input, clock, started_at, status)"
+                    " VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,'running')",
+                    (
+                        participant, int(row[0]) + 1, study_name, study_sha256, study_toml,
+                        int(seed), json.dumps(condition_order), schedule_to_json(schedule),
+                        len(schedule), belt, firmware_version,
+                        None if calibration is None else json.dumps(calibration),
+                        package_version, git_commit, host, input, clock, utc_now(),
+                    ),
+                )
+                return int(cur.lastrowid or 0)
+        except sqlite3.DatabaseError as exc:
+            raise StoreError(f"cannot write to {self.path}: {exc}") from None
+
+    def mark_resumed(self, session_id: int) -> None:
+        """A resumed session is ``running`` again (and counts one more resume)."""
+        with self._transaction() as c:
+            c.execute("UPDATE sessions SET status='running', ended_at=NULL, resumed=resumed+1"
+                      " WHERE session_id=?", (session_id,))
+
+    def set_status(self, session_id: int, status: str) -> None:
+        """Set a session's status; any status but ``running`` also sets ``ended_at``."""
+        if status not in SESSION_STATUSES:
+            raise StoreError(f"unknown session status {status!r}; allowed: {SESSION_STATUSES}")
+        with self._transaction() as c:
+            c.execute("UPDATE sessions SET status=?, ended_at=? WHERE session_id=?",
+                      (status, None if status == "running" else utc_now(), session_id))
+
+    def session(self, session_id: int) -> dict[str, Any]:
+        """One session row as a dict."""
+        rows = self._query("SELECT * FROM sessions WHERE session_id=?", (session_id,))
+        if not rows:
+            raise StoreError(f"{self.path}: no session {session_id}")
+        return dict(rows[0])
+
+    def sessions(self, participant: str | None = None) -> list[dict[str, Any]]:
+        """Every session (of one participant), oldest first."""
+        if participant is None:
+            rows = self._query("SELECT * FROM sessions ORDER BY session_id")
+        else:
+            rows = self._query("SELECT * FROM sessions WHERE participant=? ORDER BY session_id",
+                               (participant,))
+        return [dict(r) for r in rows]
+
+    def find_resumable(self, participant: str) -> dict[str, Any] | None:
+        """The participant's latest session that is not complete, or None."""
+        rows = self._query(
+            "SELECT * FROM sessions WHERE participant=? AND status!='complete'"
+            " ORDER BY session_id DESC LIMIT 1", (participant,))
+        return dict(rows[0]) if rows else None
+
+    def schedule(self, session_id: int) -> list[ScheduledTrial]:
+        """The stored schedule of a session."""
+        return schedule_from_json(self.session(session_id)["schedule_json"])
+
+    def finished_indices(self, session_id: int) -> set[int]:
+        """trial_index of every trial with a final outcome (``done`` or ``timeout``)."""
+        rows = self._query("SELECT trial_index FROM trials WHERE session_id=?"
+                           " AND status IN ('done','timeout')", (session_id,))
+        return {int(r[0]) for r in rows}
+
+    # -- trials ------------------------------------------------------------------------
+    def write_trial(self, session_id: int, result: TrialResult) -> int:
+        """Write a trial and its samples in one transaction; return its trial_id.
+
+        An earlier ``aborted`` row of the same trial is replaced (with its samples).
+
+        Raises:
+            StoreError: the trial already has a final row, or the write failed.
+        """
+        t = result.trial
+        if result.status not in TRIAL_STATUSES:
+            raise StoreError(f"unknown trial status {result.status!r}")
+        try:
+            with self._transaction() as c:
+                attempts = 1
+                old = c.execute("SELECT trial_id, status, attempts FROM trials"
+                                " WHERE session_id=? AND trial_index=?",
+                                (session_id, t.trial_index)).fetchone()
+                if old is not None:
+                    if old["status"] != "aborted":
+                        raise StoreError(
+                            f"trial {t.trial_index} of session {session_id} is already "
+                            f"recorded ({old['status']}); a trial is never written twice"
+                        )
+                    c.execute("DELETE FROM samples WHERE trial_id=?", (old["trial_id"],))
+                    c.execute("DELETE FROM trials WHERE trial_id=?", (old["trial_id"],))
+                    attempts = int(old["attempts"]) + 1
+                values = (
+                    session_id, t.trial_index, t.block, t.block_index, t.block_name,
+                    t.condition, t.repetition, t.target_deg, int(t.on_tactor),
+                    result.response_deg, result.response_target_deg,
+                    None if result.correct is None else int(result.correct),
+                    result.rt_s, result.onset_ns, result.acquired_ns, result.crossed_ns,
+                    result.stimulus_off_ns, result.n_samples, result.status,
+                    result.abort_reason, attempts, utc_now(),
+                )
+                cur = c.execute(
+                    f"INSERT INTO trials({', '.join(_TRIAL_COLUMNS)}) "
+                    f"VALUES ({', '.join('?' * len(_TRIAL_COLUMNS))})", values)
+                trial_id = int(cur.lastrowid or 0)
+                if result.n_samples:
+                    c.executemany(
+                        "INSERT INTO samples(trial_id, t_s, x, y, buttons) VALUES (?,?,?,?,?)",
+                        [(trial_id, *row) for row in result.sample_rows()],
+                    )
+                return trial_id
+        except sqlite3.DatabaseError as exc:
+            raise StoreError(f"cannot write trial {t.trial_index} to {self.path}: {exc}") from None
+
+    def trials(self, session_id: int | None = None) -> list[dict[str, Any]]:
+        """Trial rows (of one session), in the order they were recorded."""
+        if session_id is None:
+            rows = self._query("SELECT * FROM trials ORDER BY trial_id")
+        else:
+            rows = self._query("SELECT * FROM trials WHERE session_id=? ORDER BY trial_id",
+                               (session_id,))
+        return [dict(r) for r in rows]
+
+    def samples(self, trial_id: int) -> list[tuple[float, float, float, int]]:
+        """(t_s, x, y, buttons) of one trial, in time order."""
+        rows = self._query("SELECT t_s, x, y, buttons FROM samples WHERE trial_id=?"
+                           " ORDER BY rowid", (trial_id,))
+        return [(r[0], r[1], r[2], r[3]) for r in rows]
