@@ -1,0 +1,160 @@
+"""The BLE belt against a fake bleak client that plays the device (no adapter needed).
+
+The fake client answers each write-without-response on the RX characteristic with
+notifications on the TX characteristic, from the BLE event loop, as bleak does.
+"""
+
+from __future__ import annotations
+
+import asyncio
+from collections.abc import Callable
+from typing import Any
+
+import pytest
+
+from tactorbelt import DeviceError, Layout, ProtocolError
+from tactorbelt.devices import ble, open_belt, wire
+from tactorbelt.devices._firmware import FirmwareBelt
+from tactorbelt.stimuli import make_stimulus
+from test_firmware_belt import FakeFirmware, wait_for
+
+
+class FakeBleClient:
+    """A bleak-like client connected to a FakeFirmware.
+
+    Attributes:
+        writes: every (characteristic, data, response) written.
+        corrupt: notify a corrupted and a truncated packet before each reply.
+        fail_connect: connect() raises like an out-of-range device.
+    """
+
+    def __init__(self, firmware: FakeFirmware, on_disconnect: Callable[[Any], None]) -> None:
+        self.firmware = firmware
+        self.on_disconnect = on_disconnect
+        self.address = "AA:BB:CC:DD:EE:FF"
+        self.connected = False
+        self.disconnects = 0
+        self.writes: list[tuple[str, bytes, bool]] = []
+        self.notify: Callable[[Any, bytearray], None] | None = None
+        self.corrupt = False
+        self.fail_connect = False
+
+    @property
+    def is_connected(self) -> bool:
+        return self.connected
+
+    async def connect(self) -> None:
+        if self.fail_connect:
+            raise TimeoutError("device out of range")
+        self.connected = True
+
+    async def disconnect(self) -> None:
+        self.connected = False
+        self.disconnects += 1
+
+    async def start_notify(self, char: str, callback: Callable[[Any, bytearray], None]) -> None:
+        assert char == ble.TX_CHAR_UUID
+        self.notify = callback
+
+    async def write_gatt_char(self, char: str, data: bytes, response: bool) -> None:
+        if not self.connected:
+            raise OSError("not connected")
+        self.writes.append((char, bytes(data), response))
+        loop = asyncio.get_running_loop()
+        for reply in self.firmware.handle(wire.decode_packet(bytes(data))):
+            raw = wire.encode_packet(reply)
+            if self.corrupt:
+                bad = bytearray(raw)
+                bad[2] ^= 0x55
+                loop.call_soon(self.notify, None, bad)  # type: ignore[arg-type]
+                loop.call_soon(self.notify, None, bytearray(raw[:3]))  # type: ignore[arg-type]
+            loop.call_soon(self.notify, None, bytearray(raw))  # type: ignore[arg-type]
+
+    def drop(self) -> None:
+        """The device disconnects (out of range, powered off)."""
+        self.connected = False
+        self.on_disconnect(self)
+
+
+class FakeBle:
+    """A client_factory that hands out FakeBleClients for one FakeFirmware."""
+
+    def __init__(self, firmware: FakeFirmware | None = None) -> None:
+        self.firmware = firmware or FakeFirmware()
+        self.client: FakeBleClient | None = None
+        self.targets: list[str] = []
+        self.fail_connect = False
+
+    async def __call__(self, target: str, on_disconnect: Callable[[Any], None],
+                       scan_timeout_s: float) -> FakeBleClient:
+        self.targets.append(target)
+        self.client = FakeBleClient(self.firmware, on_disconnect)
+        self.client.fail_connect = self.fail_connect
+        return self.client
+
+
+def test_ble_belt_streams_plays_and_stops_through_gatt() -> None:
+    fake = FakeBle()
+    with open_belt("ble:tactorbelt", client_factory=fake) as belt:
+        assert isinstance(belt, FirmwareBelt)
+        assert fake.targets == ["tactorbelt"]
+        assert belt.url == "ble:tactorbelt"
+        assert belt.stream_rate_hz == 40.0
+        assert belt.layout == Layout.even(6)
+        assert "BLE tactorbelt" in belt.name
+        belt.set_amplitudes([1.0, 0.5, 0.0, 0.0, 0.0, 0.0])
+        assert belt.status().levels == (65535, 32768, 0, 0, 0, 0)
+        belt.play(make_stimulus(belt.layout, 45.0, mode="dynamic"), 1.0)
+        assert fake.firmware.of_type(wire.PlayTarget)[-1] == wire.PlayTarget(
+            4500, 1, 0, 1500, 1000, 100, 1000)
+        assert belt.ping() > 0
+    client = fake.client
+    assert client is not None
+    assert isinstance(fake.firmware.requests[-1], wire.StopAll)
+    assert client.disconnects == 1
+    # every packet went unframed, in one write without response, to RX
+    for char, data, response in client.writes:
+        assert char == ble.RX_CHAR_UUID and response is False
+        assert len(data) <= wire.MAX_PACKET
+        wire.decode_packet(data)
+
+
+def test_corrupted_notifications_are_counted_and_skipped() -> None:
+    fake = FakeBle()
+    with open_belt("ble:tactorbelt", client_factory=fake, keepalive=False) as belt:
+        assert isinstance(belt, FirmwareBelt) and fake.client is not None
+        fake.client.corrupt = True
+        for _ in range(3):
+            assert belt.status().state == wire.State.IDLE
+        assert wait_for(lambda: belt.host_crc_errors == 3 and belt.host_framing_errors == 3)
+
+
+def test_a_disconnect_makes_the_next_call_raise_naming_the_device() -> None:
+    fake = FakeBle()
+    belt = open_belt("ble:tactorbelt", client_factory=fake)
+    assert fake.client is not None
+    fake.client.drop()
+    with pytest.raises(DeviceError, match=r"BLE tactorbelt.*stopped answering: BLE disconnected"):
+        belt.set_amplitudes([0.0] * 6)
+    belt.close()  # logs, never raises
+
+
+def test_protocol_version_2_is_refused_and_the_connection_closed() -> None:
+    fake = FakeBle(FakeFirmware(protocol_version=2))
+    with pytest.raises(ProtocolError, match="protocol version 2"):
+        open_belt("ble:AA:BB:CC:DD:EE:FF", client_factory=fake)
+    assert fake.client is not None and fake.client.disconnects == 1
+
+
+def test_a_failed_connection_is_a_device_error() -> None:
+    fake = FakeBle()
+    fake.fail_connect = True
+    msg = r"cannot connect to BLE tactorbelt \(AA:BB:CC:DD:EE:FF\): device out of range"
+    with pytest.raises(DeviceError, match=msg):
+        open_belt("ble:tactorbelt", client_factory=fake)
+
+
+def test_without_an_adapter_ble_fails_with_a_device_error() -> None:
+    # On this machine there is no adapter (or no belt in range): never a traceback.
+    with pytest.raises(DeviceError):
+        open_belt("ble:tactorbelt-not-here", scan_timeout_s=0.5)
