@@ -1,0 +1,252 @@
+"""The ``emulator`` belt: the real firmware core, built for this computer, on a pseudo-terminal.
+
+``open_belt("emulator")`` builds ``firmware/build/emulator`` if needed (``make -C
+firmware emulator``; needs make and g++), starts it, reads the pseudo-terminal path
+it prints as its first line, and talks to it through the serial backend: the same
+frames, decoder, renderer and failsafe as on the board, with the host's clock.
+
+Closing the belt stops the motors, closes the port, then ends the emulator (closing
+its stdin, then SIGTERM, then SIGKILL if it lingers).
+
+The firmware directory is found next to the package source (a source checkout:
+``Path(__file__).parents[3] / "firmware"``), or from ``$TACTORBELT_FIRMWARE_DIR``.
+
+Imports pyserial through :mod:`tactorbelt.devices.serial`.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import os
+import selectors
+import shutil
+import subprocess
+import tempfile
+import threading
+import time
+from pathlib import Path
+from typing import IO, Any, Final
+
+from .._errors import ConfigError, DeviceError
+from ._firmware import FirmwareBelt
+from .serial import SERIAL_STREAM_RATE_HZ, SerialTransport, check_options
+
+__all__ = ["EmulatorBelt", "build_emulator", "emulator_path", "firmware_dir", "open_emulator"]
+
+log = logging.getLogger("tactorbelt.devices")
+
+#: How long the emulator may take to print its pseudo-terminal path.
+START_TIMEOUT_S: Final = 10.0
+#: How long ``make`` may take.
+BUILD_TIMEOUT_S: Final = 300.0
+
+OPTIONS: Final = frozenset({
+    "tactors", "heartbeat_ms", "build", "timeout_s", "calibration", "keepalive", "clock",
+    "firmware_dir", "extra_args",
+})
+
+_build_lock = threading.Lock()
+
+
+def firmware_dir(override: str | os.PathLike[str] | None = None) -> Path:
+    """The firmware source directory.
+
+    Raises:
+        DeviceError: it is not there (an installed package without the source tree).
+    """
+    candidates = []
+    if override is not None:
+        candidates.append(Path(override))
+    elif os.environ.get("TACTORBELT_FIRMWARE_DIR"):
+        candidates.append(Path(os.environ["TACTORBELT_FIRMWARE_DIR"]))
+    else:
+        candidates.append(Path(__file__).resolve().parents[3] / "firmware")
+    for c in candidates:
+        if (c / "Makefile").is_file():
+            return c
+    raise DeviceError(
+        f"the emulator needs the firmware sources, not found at {candidates[0]}; run from a "
+        "source checkout of tactorbelt or set TACTORBELT_FIRMWARE_DIR to its firmware/ directory"
+    )
+
+
+def emulator_path(fw_dir: Path) -> Path:
+    """Where ``make emulator`` puts the binary."""
+    return fw_dir / "build" / "emulator"
+
+
+def build_emulator(fw_dir: Path | None = None) -> Path:
+    """Run ``make -C firmware emulator`` (a no-op when up to date); return the binary.
+
+    Raises:
+        DeviceError: make or g++ is missing, or the build fails (with make's output).
+    """
+    fw = fw_dir or firmware_dir()
+    missing = [tool for tool in ("make", "g++") if shutil.which(tool) is None]
+    if missing:
+        exe = emulator_path(fw)
+        if exe.is_file():
+            log.info("%s not found; using the existing %s", " and ".join(missing), exe)
+            return exe
+        raise DeviceError(
+            f"building the emulator needs {' and '.join(missing)} (on Debian/Ubuntu: "
+            "sudo apt-get install make g++)"
+        )
+    with _build_lock:
+        try:
+            proc = subprocess.run(
+                ["make", "-C", str(fw), "emulator"], capture_output=True, text=True,
+                timeout=BUILD_TIMEOUT_S, check=False,
+            )
+        except subprocess.TimeoutExpired:
+            raise DeviceError(f"building the emulator took longer than {BUILD_TIMEOUT_S:g} s"
+                              ) from None
+    if proc.returncode != 0:
+        tail = "\n".join((proc.stdout + proc.stderr).strip().splitlines()[-15:])
+        raise DeviceError(f"building the emulator failed (make -C {fw} emulator):\n{tail}")
+    exe = emulator_path(fw)
+    if not exe.is_file():
+        raise DeviceError(f"make -C {fw} emulator succeeded but {exe} is missing")
+    return exe
+
+
+def _read_first_line(stream: IO[bytes], timeout_s: float) -> str:
+    """The first stdout line of the emulator, or "" if it exits or times out first."""
+    fd = stream.fileno()
+    buf = b""
+    deadline = time.monotonic() + timeout_s
+    with selectors.DefaultSelector() as sel:
+        sel.register(fd, selectors.EVENT_READ)
+        while b"\n" not in buf:
+            left = deadline - time.monotonic()
+            if left <= 0 or not sel.select(left):
+                return ""
+            chunk = os.read(fd, 4096)
+            if not chunk:
+                return ""
+            buf += chunk
+    line, _, rest = buf.partition(b"\n")
+    if rest:
+        log.debug("emulator: %s", rest.decode(errors="replace").rstrip())
+    return line.decode(errors="replace").strip()
+
+
+def _drain(stream: IO[bytes]) -> None:
+    """Keep reading the emulator's stdout so that it never blocks on a full pipe."""
+    with contextlib.suppress(OSError, ValueError):
+        for line in stream:
+            log.debug("emulator: %s", line.decode(errors="replace").rstrip())
+
+
+class EmulatorBelt(FirmwareBelt):
+    """A FirmwareBelt whose device is an emulator process it owns (and ends on close).
+
+    Attributes:
+        process: the emulator (``subprocess.Popen``).
+        pty_path: the pseudo-terminal it serves.
+    """
+
+    def __init__(self, transport: SerialTransport, process: subprocess.Popen[bytes],
+                 pty_path: str, **options: Any) -> None:
+        self.process = process
+        self.pty_path = pty_path
+        super().__init__(transport, "emulator", stream_rate_hz=SERIAL_STREAM_RATE_HZ, **options)
+
+    def _close(self) -> None:
+        try:
+            super()._close()
+        finally:
+            stop_process(self.process)
+
+
+def stop_process(proc: subprocess.Popen[bytes], timeout_s: float = 2.0) -> None:
+    """End the emulator: close its stdin, SIGTERM, and SIGKILL if it lingers."""
+    if proc.stdin is not None:
+        with contextlib.suppress(OSError):
+            proc.stdin.close()
+    if proc.poll() is None:
+        with contextlib.suppress(OSError):
+            proc.terminate()
+        try:
+            proc.wait(timeout_s)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait(timeout_s)
+    if proc.stdout is not None:
+        with contextlib.suppress(OSError):
+            proc.stdout.close()
+
+
+def open_emulator(target: str = "", **options: Any) -> EmulatorBelt:
+    """Build (if needed) and start the firmware emulator, and open it as a belt.
+
+    Args:
+        target: unused (``emulator`` takes no target).
+        **options:
+            tactors (int, 6): channels of the emulated belt (2..16).
+            heartbeat_ms (int | None): the emulator's heartbeat timeout at start.
+            build (bool, True): run ``make -C firmware emulator`` first.
+            firmware_dir: the firmware directory (default: next to the package).
+            extra_args (list[str]): more emulator arguments.
+            timeout_s, calibration, keepalive, clock: as for every firmware belt.
+
+    Raises:
+        ConfigError: an unknown option or a bad tactor count.
+        DeviceError: no firmware sources, no compiler, a failed build, or an emulator
+            that does not start or answer.
+    """
+    check_options(options, OPTIONS, "emulator")
+    if target:
+        raise ConfigError(f"the emulator belt takes no target, got 'emulator:{target}'")
+    tactors = options.pop("tactors", 6)
+    if isinstance(tactors, bool) or not isinstance(tactors, int) or not 2 <= tactors <= 16:
+        raise ConfigError(f"tactors must be an integer in 2..16, got {tactors!r}")
+    heartbeat_ms = options.pop("heartbeat_ms", None)
+    if heartbeat_ms is not None and (
+        isinstance(heartbeat_ms, bool) or not isinstance(heartbeat_ms, int)
+        or not 50 <= heartbeat_ms <= 2000
+    ):
+        raise ConfigError(f"heartbeat_ms must be an integer in 50..2000, got {heartbeat_ms!r}")
+    fw = firmware_dir(options.pop("firmware_dir", None))
+    if options.pop("build", True):
+        exe = build_emulator(fw)
+    else:
+        exe = emulator_path(fw)
+        if not exe.is_file():
+            raise DeviceError(f"no emulator at {exe}; build it with: make -C {fw} emulator")
+    args = [str(exe), "--tactors", str(tactors)]
+    if heartbeat_ms is not None:
+        args += ["--heartbeat-ms", str(heartbeat_ms)]
+    args += [str(a) for a in options.pop("extra_args", ())]
+
+    with tempfile.TemporaryFile() as stderr:
+        try:
+            proc = subprocess.Popen(args, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                                    stderr=stderr)
+        except OSError as exc:
+            raise DeviceError(f"cannot start the emulator {exe}: {exc}") from None
+        assert proc.stdout is not None
+        path = _read_first_line(proc.stdout, START_TIMEOUT_S)
+        if not path:
+            stop_process(proc)
+            stderr.seek(0)
+            err = stderr.read().decode(errors="replace").strip()
+            raise DeviceError(
+                f"the emulator did not print its pseudo-terminal within {START_TIMEOUT_S:g} s "
+                f"(exit code {proc.returncode}){': ' + err if err else ''}"
+            )
+    threading.Thread(target=_drain, args=(proc.stdout,), name="tactorbelt-emulator-stdout",
+                     daemon=True).start()
+    try:
+        transport = SerialTransport(path)
+    except BaseException:
+        stop_process(proc)
+        raise
+    try:
+        belt = EmulatorBelt(transport, proc, path, **options)
+    except BaseException:
+        transport.close()
+        stop_process(proc)
+        raise
+    return belt
