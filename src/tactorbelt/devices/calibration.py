@@ -3,21 +3,50 @@
 Per tactor: ``start`` (the dead zone of an ERM: the smallest drive that spins it),
 ``gain`` and ``ceiling``. Amplitude 0 is off; above 0 the drive is
 ``start + (ceiling - start) * amplitude * gain``, clamped to [0, ceiling] (and [0, 1]).
+So every non-zero amplitude spins the motor, and no amplitude drives it past the
+comfortable maximum found by ``tactorbelt calibrate``.
 
-Pure: NumPy only (TOML load and save live here too, through the standard library and tomli-w).
+A calibration is stored as a small TOML file (:meth:`Calibration.save`,
+:meth:`Calibration.load`)::
+
+    format = "tactorbelt-calibration"
+    version = 1
+    belt = "serial:/dev/ttyACM0"      # optional, informative
+
+    [[tactor]]
+    index = 0                          # optional; when given, 0, 1, ... in order
+    angle_deg = 30.0                   # optional, informative
+    start = 0.22
+    gain = 1.0                         # optional, default 1.0
+    ceiling = 0.85
+
+Pure: NumPy and the standard library (tomllib); tomli-w is imported only to save.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import math
+import tomllib
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from functools import cached_property
+from pathlib import Path
+from typing import Any, Final
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .._errors import ConfigError
 
-__all__ = ["Calibration", "TactorCalibration"]
+__all__ = ["FORMAT", "Calibration", "TactorCalibration"]
+
+#: The ``format`` key of a calibration file.
+FORMAT: Final = "tactorbelt-calibration"
+#: The version of the file format written by :meth:`Calibration.save`.
+VERSION: Final = 1
+
+_TOP_KEYS: Final = frozenset({"format", "version", "belt", "created", "tactor"})
+_TACTOR_KEYS: Final = frozenset({"index", "angle_deg", "start", "gain", "ceiling"})
 
 
 @dataclass(frozen=True)
@@ -47,6 +76,10 @@ class Calibration:
 
     tactors: tuple[TactorCalibration, ...]
 
+    def __post_init__(self) -> None:
+        if not self.tactors:
+            raise ConfigError("a calibration needs at least one tactor")
+
     @classmethod
     def identity(cls, n: int) -> Calibration:
         """No dead zone, unit gain, full ceiling: drive level equals amplitude."""
@@ -60,14 +93,24 @@ class Calibration:
     def is_identity(self) -> bool:
         return all(t == TactorCalibration() for t in self.tactors)
 
+    @cached_property
+    def _arrays(self) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+        start = np.array([t.start for t in self.tactors], dtype=float)
+        gain = np.array([t.gain for t in self.tactors], dtype=float)
+        ceiling = np.array([t.ceiling for t in self.tactors], dtype=float)
+        return start, gain, ceiling
+
     def apply(self, amplitudes: ArrayLike) -> NDArray[np.float64]:
-        """Map amplitudes (last axis = tactors) to drive levels in [0, 1]."""
+        """Map amplitudes (last axis = tactors) to drive levels in [0, 1].
+
+        Amplitude 0 (or below) gives 0; any positive amplitude gives at least ``start``
+        and at most ``ceiling``.
+        """
         a = np.asarray(amplitudes, dtype=float)
-        if a.shape[-1] != self.n:
-            raise ConfigError(f"expected {self.n} amplitudes, got {a.shape[-1]}")
-        start = np.array([t.start for t in self.tactors])
-        gain = np.array([t.gain for t in self.tactors])
-        ceiling = np.array([t.ceiling for t in self.tactors])
+        if a.ndim == 0 or a.shape[-1] != self.n:
+            got = 1 if a.ndim == 0 else a.shape[-1]
+            raise ConfigError(f"expected {self.n} amplitudes (one per tactor), got {got}")
+        start, gain, ceiling = self._arrays
         drive = np.clip(start + (ceiling - start) * a * gain, 0.0, ceiling)
         return np.asarray(np.where(a > 0.0, drive, 0.0))
 
@@ -77,3 +120,138 @@ class Calibration:
     @classmethod
     def from_list(cls, rows: Sequence[dict[str, float]]) -> Calibration:
         return cls(tuple(TactorCalibration(**r) for r in rows))
+
+    # -- files ----------------------------------------------------------------------
+    def to_toml(self, belt: str | None = None,
+                angles_deg: Sequence[float] | None = None) -> str:
+        """The calibration as TOML text (see the module docstring for the format).
+
+        Args:
+            belt: the belt URL, recorded for the reader's information.
+            angles_deg: tactor angles, recorded for the reader's information.
+        """
+        import tomli_w
+
+        if angles_deg is not None and len(angles_deg) != self.n:
+            raise ConfigError(f"expected {self.n} tactor angles, got {len(angles_deg)}")
+        doc: dict[str, Any] = {"format": FORMAT, "version": VERSION}
+        if belt:
+            doc["belt"] = str(belt)
+        rows: list[dict[str, Any]] = []
+        for k, t in enumerate(self.tactors):
+            row: dict[str, Any] = {"index": k}
+            if angles_deg is not None:
+                row["angle_deg"] = float(angles_deg[k])
+            row.update(start=float(t.start), gain=float(t.gain), ceiling=float(t.ceiling))
+            rows.append(row)
+        doc["tactor"] = rows
+        header = (
+            "# tactorbelt motor calibration, one [[tactor]] table per tactor (index k = tactor k)\n"
+            "# drive = start + (ceiling - start) * amplitude * gain, clamped to [0, ceiling];"
+            " amplitude 0 = off\n"
+        )
+        return header + tomli_w.dumps(doc)
+
+    def save(self, path: str | Path, belt: str | None = None,
+             angles_deg: Sequence[float] | None = None) -> Path:
+        """Write the calibration to a TOML file (parent directories are created).
+
+        Returns:
+            The path written.
+
+        Raises:
+            ConfigError: the file cannot be written (the message names it).
+        """
+        p = Path(path)
+        text = self.to_toml(belt, angles_deg)
+        try:
+            if p.parent != Path(""):
+                p.parent.mkdir(parents=True, exist_ok=True)
+            p.write_text(text, encoding="utf-8")
+        except OSError as exc:
+            raise ConfigError(f"cannot write calibration file {str(p)!r}: {exc.strerror}") from None
+        return p
+
+    @classmethod
+    def load(cls, path: str | Path) -> Calibration:
+        """Read a calibration TOML file.
+
+        Raises:
+            ConfigError: the file is missing or unreadable, is not valid TOML, or a
+                field is missing or out of range; the message names the file and the
+                field (``cal.toml: tactor[2].start: ...``).
+        """
+        p = Path(path)
+        try:
+            text = p.read_text(encoding="utf-8")
+        except FileNotFoundError:
+            raise ConfigError(f"calibration file {str(p)!r} not found") from None
+        except IsADirectoryError:
+            raise ConfigError(f"calibration file {str(p)!r} is a directory") from None
+        except UnicodeDecodeError:
+            raise ConfigError(f"{p}: not a text (UTF-8) calibration file") from None
+        except OSError as exc:
+            raise ConfigError(f"cannot read calibration file {str(p)!r}: {exc.strerror}") from None
+        return cls.from_toml(text, source=str(p))
+
+    @classmethod
+    def from_toml(cls, text: str, source: str = "<calibration>") -> Calibration:
+        """Parse calibration TOML text; errors name ``source`` and the field."""
+        try:
+            doc = tomllib.loads(text)
+        except tomllib.TOMLDecodeError as exc:
+            raise ConfigError(f"{source}: not valid TOML: {exc}") from None
+        return cls.from_mapping(doc, source)
+
+    @classmethod
+    def from_mapping(cls, doc: Mapping[str, Any], source: str = "<calibration>") -> Calibration:
+        """Build a calibration from a parsed document (the TOML structure)."""
+
+        def fail(field: str, message: str) -> ConfigError:
+            return ConfigError(f"{source}: {field}: {message}")
+
+        unknown = sorted(set(doc) - _TOP_KEYS)
+        if unknown:
+            raise fail(unknown[0], f"unknown key; allowed: {', '.join(sorted(_TOP_KEYS))}")
+        if "format" in doc and doc["format"] != FORMAT:
+            raise fail("format", f"must be {FORMAT!r}, got {doc['format']!r}")
+        if "version" in doc and doc["version"] != VERSION:
+            raise fail("version", f"unsupported version {doc['version']!r}; allowed: {VERSION}")
+        rows = doc.get("tactor")
+        if rows is None:
+            raise fail("tactor", "missing: add one [[tactor]] table per tactor")
+        if not isinstance(rows, list) or not rows:
+            raise fail("tactor", "must be a non-empty array of tables ([[tactor]])")
+        tactors: list[TactorCalibration] = []
+        for k, row in enumerate(rows):
+            where = f"tactor[{k}]"
+            if not isinstance(row, Mapping):
+                raise fail(where, "must be a table with start, gain and ceiling")
+            extra = sorted(set(row) - _TACTOR_KEYS)
+            if extra:
+                raise fail(f"{where}.{extra[0]}",
+                           f"unknown key; allowed: {', '.join(sorted(_TACTOR_KEYS))}")
+            if "index" in row and (isinstance(row["index"], bool) or row["index"] != k):
+                raise fail(f"{where}.index",
+                           f"must be {k} (tables in tactor order), got {row['index']!r}")
+            values: dict[str, float] = {}
+            for name, lo, hi, default in (("start", 0.0, 1.0, None), ("gain", 0.0, 10.0, 1.0),
+                                          ("ceiling", 0.0, 1.0, None)):
+                if name not in row:
+                    if default is None:
+                        raise fail(f"{where}.{name}", "missing (a number in [0, 1])")
+                    values[name] = default
+                    continue
+                v = row[name]
+                if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
+                    raise fail(f"{where}.{name}", f"must be a finite number, got {v!r}")
+                ok = (lo < v <= hi) if name == "gain" else (lo <= v <= hi)
+                if not ok:
+                    allowed = "(0, 10]" if name == "gain" else "[0, 1]"
+                    raise fail(f"{where}.{name}", f"must be in {allowed}, got {v!r}")
+                values[name] = float(v)
+            if values["start"] > values["ceiling"]:
+                raise fail(f"{where}.start", f"start ({values['start']:g}) must not exceed "
+                           f"ceiling ({values['ceiling']:g})")
+            tactors.append(TactorCalibration(**values))
+        return cls(tuple(tactors))

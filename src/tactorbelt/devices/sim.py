@@ -1,0 +1,657 @@
+"""The ``sim`` belt: N simulated ERM vibration motors, on the wall clock or a simulated one.
+
+:class:`SimBelt` is a real :class:`~tactorbelt.devices.base.Belt`: the runner, the
+player and the command line use it exactly as they use hardware. It
+
+- records every command with its time on the belt's clock (``set_amplitudes`` frames,
+  ``stop``, and ``play`` of a whole stimulus), in a compact log that keeps only a
+  bounded horizon (``horizon_s``, default 120 s), so a 10,000-trial session does not
+  grow memory without bound;
+- renders a played stimulus itself, lazily, like the firmware: from the onset
+  (``clock.now_ns()`` at the call) the commanded levels at time t are
+  ``calibration(stimulus.amplitudes(k / 1000))`` with ``k`` the whole number of
+  milliseconds since onset (a 1 kHz tick), until ``stop``, the end of the duration or
+  the next command;
+- models each motor (:class:`ErmParams`): first-order speed response with a rise and a
+  fall time constant, no spin below the start level (dead zone), vibration amplitude
+  growing with the square of the speed.
+
+:meth:`SimBelt.commanded` and :meth:`SimBelt.vibration` sample the drive levels and the
+modelled vibration over any interval; the model participant and the tests read them.
+
+The motor model is solved exactly: the drive is piecewise constant (it changes only at
+commands and at 1 kHz render ticks), and on each piece the speed relaxes exponentially
+towards its steady state with the rise or the fall time constant. The recurrence over
+pieces is solved vectorised (over tactors and over time, by cumulative products), with
+the rise/fall choice found by fixed-point iteration; no Python loop per sample.
+
+Imports NumPy and tactorbelt (geometry, clock, stimuli types, devices.base); never an
+I/O library.
+"""
+
+from __future__ import annotations
+
+import bisect
+import itertools
+import math
+from dataclasses import dataclass
+from fractions import Fraction
+from typing import TYPE_CHECKING, Any, Final
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .._errors import ConfigError
+from ..clock import Clock, WallClock
+from ..geometry import Layout
+from .base import Belt
+from .calibration import Calibration
+
+if TYPE_CHECKING:
+    from ..stimuli import Stimulus
+
+__all__ = ["DEFAULT_HORIZON_S", "ErmParams", "SimBelt", "SimCommand", "open_sim"]
+
+#: How much command history a sim belt keeps by default (seconds).
+DEFAULT_HORIZON_S: Final = 120.0
+#: The sim belt renders played stimuli at 1 kHz, like the firmware.
+RENDER_TICK_NS: Final = 1_000_000
+#: History is pruned in steps of at least this much (or an eighth of the horizon).
+_PRUNE_SLACK_NS: Final = 1_000_000_000
+#: A step's decay exponent is capped here: exp(-300) is zero for every purpose.
+_MAX_DECAY: Final = 300.0
+#: Fixed-point iterations for the rise/fall choice before finishing step by step.
+_MAX_ITERATIONS: Final = 12
+#: Rendered one-period tables kept per belt (a study uses a few dozen stimuli).
+_MAX_TABLES: Final = 128
+#: Checkpoints of the motor state kept to start later simulations from.
+_MAX_CHECKPOINTS: Final = 64
+
+_OPTIONS: Final = ("layout", "clock", "calibration", "params", "horizon_s", "name")
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+
+
+@dataclass(frozen=True)
+class ErmParams:
+    """Constants of the ERM motor model (one set for every tactor).
+
+    Speed ``w`` is normalised so that full drive (level 1) spins the motor at its rated
+    speed (``w = 1``); vibration amplitude is normalised so that rated speed gives 1.
+
+    Attributes:
+        rise_tau_s: time constant of the speed while it rises (0.040 s). Source:
+            Precision Microdrives, AB-004 "Understanding ERM vibration motor
+            characteristics", and the rise times listed in their datasheets of 7-10 mm
+            ERMs (several tens of ms to reach half the rated vibration). With amplitude
+            ~ speed squared, 50 % amplitude is reached after ``-tau*ln(1 - 0.5**0.5)``
+            = 1.23 tau = 49 ms. Not measured on the paper's motor: an assumption within
+            that range.
+        fall_tau_s: time constant while the speed falls (0.050 s); source as above
+            (AB-004's stop time, longer than the rise since only friction and back-EMF
+            brake an undriven motor). An assumption within the quoted range.
+        start_level: the dead zone (0.25): below this drive level the motor does not
+            start. The paper's motor (Vybronics VZ7AL2B1692082, 3 V rated) has a start
+            voltage well below its rated voltage; 0.25 of full drive is an assumption
+            (measure your motors with ``tactorbelt calibrate``).
+        amplitude_exponent: vibration amplitude ~ speed ** exponent (2.0): the
+            centripetal force of the eccentric mass is ``m * r * w**2`` (Precision
+            Microdrives AB-004, AB-028). Physics, not an assumption.
+    """
+
+    rise_tau_s: float = 0.040
+    fall_tau_s: float = 0.050
+    start_level: float = 0.25
+    amplitude_exponent: float = 2.0
+
+    def __post_init__(self) -> None:
+        for name in ("rise_tau_s", "fall_tau_s", "amplitude_exponent"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int | float) or not (
+                math.isfinite(v) and v > 0
+            ):
+                raise ConfigError(f"ErmParams.{name} must be a positive, finite number, got {v!r}")
+        s = self.start_level
+        if isinstance(s, bool) or not isinstance(s, int | float) or not (0.0 <= s < 1.0):
+            raise ConfigError(f"ErmParams.start_level must be in [0, 1), got {s!r}")
+
+    def steady_speed(self, levels: FloatArray) -> FloatArray:
+        """Steady-state speed for drive levels: 0 below the start level, else the level."""
+        lv = np.asarray(levels, dtype=float)
+        return np.asarray(np.where(lv >= self.start_level, lv, 0.0))
+
+    def amplitude(self, speed: FloatArray) -> FloatArray:
+        """Vibration amplitude in [0, 1] for a normalised speed."""
+        w = np.clip(np.asarray(speed, dtype=float), 0.0, 1.0)
+        if self.amplitude_exponent == 2.0:
+            return np.asarray(w * w)
+        return np.asarray(w**self.amplitude_exponent)
+
+
+@dataclass(frozen=True)
+class SimCommand:
+    """One recorded command.
+
+    Attributes:
+        t_ns: when it was given (the belt's clock).
+        levels: the drive levels from then on (calibrated), or None for a played stimulus.
+        stimulus: the stimulus being rendered from ``t_ns`` (None for a levels command).
+        end_ns: when the rendered stimulus ends (None: until the next command).
+    """
+
+    t_ns: int
+    levels: FloatArray | None
+    stimulus: Stimulus | None = None
+    end_ns: int | None = None
+
+
+class _Render:
+    """A stimulus the sim belt renders itself from ``onset_ns`` (1 kHz ticks).
+
+    Levels are computed per tick; for a periodic stimulus whose period is a whole
+    number of ticks (the usual case) one period is computed once and reused.
+    """
+
+    #: Periods up to this many ticks are tabulated.
+    MAX_TABLE: Final = 20_000
+
+    def __init__(self, stimulus: Stimulus, onset_ns: int, end_ns: int | None,
+                 calibration: Calibration,
+                 tables: dict[tuple[Stimulus, Calibration], FloatArray] | None = None) -> None:
+        self.stimulus = stimulus
+        self.onset_ns = onset_ns
+        self.end_ns = end_ns
+        self.calibration = calibration
+        self._table: FloatArray | None = None
+        self._table_ticks = 0
+        self._tables = tables
+        ticks_per_s = 1e9 / RENDER_TICK_NS
+        if not stimulus.is_dynamic:
+            self._table_ticks = 1
+        else:
+            per = stimulus.period_s * ticks_per_s
+            if abs(per - round(per)) < 1e-9 and 0 < round(per) <= self.MAX_TABLE:
+                self._table_ticks = round(per)
+
+    def levels(self, times: IntArray) -> FloatArray:
+        """Drive levels at ``times`` (all at or after the onset)."""
+        ticks = (times - self.onset_ns) // RENDER_TICK_NS
+        ticks_per_s = 1e9 / RENDER_TICK_NS
+        if self._table_ticks:
+            if self._table is None:
+                key = (self.stimulus, self.calibration)
+                table = self._tables.get(key) if self._tables is not None else None
+                if table is None:
+                    k = np.arange(self._table_ticks)
+                    table = self.calibration.apply(self.stimulus.amplitudes(k / ticks_per_s))
+                    if self._tables is not None:
+                        if len(self._tables) >= _MAX_TABLES:
+                            del self._tables[next(iter(self._tables))]
+                        self._tables[key] = table
+                self._table = table
+            levels = self._table[ticks % self._table_ticks]
+        else:
+            levels = self.calibration.apply(self.stimulus.amplitudes(ticks / ticks_per_s))
+        if self.end_ns is not None:
+            levels[times >= self.end_ns] = 0.0
+        return np.asarray(levels)
+
+
+def sample_grid(t0_ns: int, t1_ns: int, rate_hz: float) -> IntArray:
+    """Sample times ``t0 + round-down(i * 1e9 / rate)`` in [t0, t1), integer ns, no drift."""
+    try:
+        rate = float(rate_hz)
+    except (TypeError, ValueError):
+        raise ConfigError(f"rate must be a positive number of Hz, got {rate_hz!r}") from None
+    if not (math.isfinite(rate) and rate > 0):
+        raise ConfigError(f"rate must be a positive, finite number of Hz, got {rate_hz!r}")
+    t0, t1 = int(t0_ns), int(t1_ns)
+    if t1 < t0:
+        raise ConfigError(f"the interval ends ({t1} ns) before it starts ({t0} ns)")
+    period = Fraction(10**9) / Fraction(rate).limit_denominator(1_000_000)
+    p, q = period.numerator, period.denominator
+    # number of i with floor(i*p/q) < t1 - t0, i.e. i*p < (t1 - t0)*q
+    n = -((-(t1 - t0) * q) // p)
+    i = np.arange(n, dtype=np.int64)
+    if n and (n - 1) * p > np.iinfo(np.int64).max // 2:
+        raise ConfigError("interval too long for this rate")
+    return np.asarray(t0 + (i * p) // q, dtype=np.int64)
+
+
+def _sorted_unique(a: IntArray) -> IntArray:
+    """``np.unique`` for a 1-D int array, by sorting (faster than hashing here)."""
+    a = np.sort(a)
+    if a.shape[0] < 2:
+        return a
+    keep = np.empty(a.shape[0], dtype=bool)
+    keep[0] = True
+    np.not_equal(a[1:], a[:-1], out=keep[1:])
+    return np.asarray(a[keep])
+
+
+def _blocks(step_decay: FloatArray) -> list[tuple[int, int]]:
+    """Cut steps into blocks whose total decay stays below about 2 * _MAX_DECAY."""
+    m = step_decay.shape[0]
+    block = np.floor(np.cumsum(step_decay) / _MAX_DECAY).astype(np.int64)
+    cuts = np.flatnonzero(np.diff(block)) + 1
+    bounds = [0, *cuts.tolist(), m]
+    return [(s, e) for s, e in itertools.pairwise(bounds) if e > s]
+
+
+def _linear_recurrence(w0: FloatArray, log_a: FloatArray, c: FloatArray,
+                       blocks: list[tuple[int, int]]) -> FloatArray:
+    """Solve ``w[:, j+1] = exp(log_a[:, j]) * w[:, j] + c[:, j]`` for every row at once.
+
+    Rows are motors, columns are steps. ``log_a <= 0`` and ``c >= 0``, so the
+    cumulative sums below never cancel; within a block the total decay stays below
+    ~600 (exp(600) ~ 1e260), so the cumulative products neither overflow nor underflow.
+    """
+    n, m = log_a.shape
+    out = np.empty((n, m + 1))
+    out[:, 0] = w0
+    for s, e in blocks:
+        lb = np.cumsum(log_a[:, s:e], axis=1)
+        acc = np.cumsum(c[:, s:e] * np.exp(-lb), axis=1)
+        acc += out[:, s : s + 1]
+        out[:, s + 1 : e + 1] = np.exp(lb) * acc
+    return out
+
+
+def erm_speed(t_ns: IntArray, levels: FloatArray, w0: FloatArray,
+              params: ErmParams) -> FloatArray:
+    """Motor speed at each time of a piecewise-constant drive, exactly.
+
+    On a step of length h with drive u (steady speed ``s(u)``) the speed relaxes as
+    ``w' = s + (w - s) * exp(-h / tau)``, tau = rise time constant if ``s > w`` else the
+    fall one (the speed moves monotonically within a step, so the choice is exact).
+
+    Args:
+        t_ns: increasing times (m,); ``levels[j]`` is the drive on ``[t_ns[j], t_ns[j+1])``.
+        levels: drive levels (m, N) in [0, 1].
+        w0: the speed of each motor at ``t_ns[0]`` (N,).
+        params: the motor constants.
+
+    Returns:
+        Speeds (m, N): row j is the speed at ``t_ns[j]``.
+    """
+    m, n = levels.shape
+    w0 = np.asarray(w0, dtype=float)
+    out = np.zeros((m, n))
+    out[0] = w0
+    if m <= 1:
+        return out
+    target = params.steady_speed(levels[:-1])  # (m-1, N)
+    # only motors that move at all need solving
+    cols = np.flatnonzero(target.any(axis=0) | (w0 > 0.0))
+    if cols.size == 0:
+        return out
+    u = np.ascontiguousarray(target[:, cols].T)  # (motors, steps)
+    h = np.diff(t_ns).astype(float) * 1e-9
+    k_rise = np.minimum(h / params.rise_tau_s, _MAX_DECAY)
+    k_fall = np.minimum(h / params.fall_tau_s, _MAX_DECAY)
+    blocks = _blocks(np.maximum(k_rise, k_fall))
+    g_rise = -np.expm1(-k_rise)
+    g_fall = -np.expm1(-k_fall)
+    start = w0[cols]
+    # first guess: the mean time constant; then fix the rise/fall choice until stable
+    tau_mid = 2.0 / (1.0 / params.rise_tau_s + 1.0 / params.fall_tau_s)
+    k_mid = np.minimum(h / tau_mid, _MAX_DECAY)
+    w = _linear_recurrence(start, np.broadcast_to(-k_mid, u.shape), -np.expm1(-k_mid) * u,
+                           blocks)
+    rising = u > w[:, :-1]
+    for _ in range(_MAX_ITERATIONS):
+        k = np.where(rising, k_rise, k_fall)
+        w = _linear_recurrence(start, -k, np.where(rising, g_rise, g_fall) * u, blocks)
+        new_rising = u > w[:, :-1]
+        if np.array_equal(new_rising, rising):
+            break
+        rising = new_rising
+    else:
+        # not settled (pathological ties): finish exactly, step by step, from the first
+        # step whose choice was still changing (everything before it is right)
+        bad = np.flatnonzero((new_rising != rising).any(axis=0))
+        for j in range(int(bad[0]) if bad.size else u.shape[1], u.shape[1]):
+            kj = np.where(u[:, j] > w[:, j], k_rise[j], k_fall[j])
+            w[:, j + 1] = u[:, j] + (w[:, j] - u[:, j]) * np.exp(-kj)
+    out[:, cols] = np.clip(w.T, 0.0, 1.0)
+    return out
+
+
+class SimBelt(Belt):
+    """A simulated belt of N ERM motors (see the module docstring).
+
+    Args:
+        layout: tactor angles (default: 6 evenly spaced tactors).
+        clock: the clock commands are timed by (default: a new WallClock).
+        calibration: the drive mapping (default: identity).
+        params: the motor model constants (default: :class:`ErmParams`()).
+        horizon_s: how much command history to keep (default 120 s); older history
+            is summarised by the motor state at the cut, and queries before the cut
+            raise ConfigError.
+        url, name: recorded on the belt.
+    """
+
+    can_render = True
+
+    def __init__(
+        self,
+        layout: Layout | None = None,
+        clock: Clock | None = None,
+        calibration: Calibration | None = None,
+        params: ErmParams | None = None,
+        horizon_s: float = DEFAULT_HORIZON_S,
+        url: str = "sim",
+        name: str | None = None,
+    ) -> None:
+        layout = layout if layout is not None else Layout.even(6)
+        if not isinstance(layout, Layout):
+            raise ConfigError(f"layout must be a Layout, got {type(layout).__name__}")
+        if clock is not None and not isinstance(clock, Clock):
+            raise ConfigError(f"clock must be a Clock (now_ns, sleep_until_ns), got {clock!r}")
+        if params is not None and not isinstance(params, ErmParams):
+            raise ConfigError(f"params must be an ErmParams, got {type(params).__name__}")
+        if calibration is not None and not isinstance(calibration, Calibration):
+            raise ConfigError(
+                f"calibration must be a Calibration, got {type(calibration).__name__}")
+        try:
+            horizon = float(horizon_s)
+        except (TypeError, ValueError):
+            horizon = float("nan")
+        if not (math.isfinite(horizon) and horizon > 0):
+            raise ConfigError(f"horizon_s must be a positive number of seconds, got {horizon_s!r}")
+        super().__init__(url, name or f"simulated ERM belt ({layout.n} tactors)", layout,
+                         None, calibration)
+        self.clock: Clock = clock if clock is not None else WallClock()
+        self.params: ErmParams = params if params is not None else ErmParams()
+        self._horizon_ns = round(horizon * 1e9)
+        self._slack_ns = max(_PRUNE_SLACK_NS, self._horizon_ns // 8)
+        n = layout.n
+        cap = 256
+        self._t: IntArray = np.zeros(cap, dtype=np.int64)
+        self._lv: FloatArray = np.zeros((cap, n))
+        self._rid: IntArray = np.full(cap, -1, dtype=np.int64)
+        self._lo = 0
+        self._hi = 0
+        self._renders: dict[int, _Render] = {}
+        self._tables: dict[tuple[Stimulus, Calibration], FloatArray] = {}
+        self._next_rid = 0
+        self._base_t = int(self.clock.now_ns())
+        self._base_w = np.zeros(n)
+        self._pruned = False
+        self._ck_t: list[int] = []
+        self._ck_w: list[FloatArray] = []
+
+    # -- Belt backend -----------------------------------------------------------------
+    def _write_levels(self, levels: FloatArray) -> None:
+        self._append(np.asarray(levels, dtype=float), -1)
+
+    def _write_stop(self) -> None:
+        self._append(np.zeros(self.n_tactors), -1)
+
+    def _write_play(self, stimulus: Stimulus, duration_s: float | None) -> None:
+        rid = self._next_rid
+        self._next_rid += 1
+        onset = self._append(np.zeros(self.n_tactors), rid, register=False)
+        end = None if duration_s is None else onset + round(duration_s * 1e9)
+        self._renders[rid] = _Render(stimulus, onset, end, self.calibration, self._tables)
+
+    # -- the log ----------------------------------------------------------------------
+    def _append(self, levels: FloatArray, rid: int, register: bool = True) -> int:
+        now = int(self.clock.now_ns())
+        if self._hi > self._lo:
+            now = max(now, int(self._t[self._hi - 1]))
+        if self._hi == self._t.shape[0]:
+            live = self._hi - self._lo
+            if self._lo >= live:  # at least half free at the front: compact
+                self._t[:live] = self._t[self._lo : self._hi]
+                self._lv[:live] = self._lv[self._lo : self._hi]
+                self._rid[:live] = self._rid[self._lo : self._hi]
+            else:
+                cap = 2 * self._t.shape[0]
+                t = np.zeros(cap, dtype=np.int64)
+                lv = np.zeros((cap, self.n_tactors))
+                r = np.full(cap, -1, dtype=np.int64)
+                t[:live] = self._t[self._lo : self._hi]
+                lv[:live] = self._lv[self._lo : self._hi]
+                r[:live] = self._rid[self._lo : self._hi]
+                self._t, self._lv, self._rid = t, lv, r
+            self._lo, self._hi = 0, live
+        i = self._hi
+        self._t[i] = now
+        self._lv[i] = levels
+        self._rid[i] = rid
+        self._hi += 1
+        if (self._hi - self._lo >= 2
+                and int(self._t[self._lo + 1]) < now - self._horizon_ns - self._slack_ns):
+            self.prune(now - self._horizon_ns)
+        return now
+
+    def _row_in_force(self, t_ns: int) -> int:
+        """Absolute index of the command in force at ``t_ns`` (lo - 1 when none)."""
+        rel = int(np.searchsorted(self._t[self._lo : self._hi], t_ns, side="right")) - 1
+        return self._lo + rel
+
+    def _levels_at(self, times: IntArray) -> FloatArray:
+        """Commanded drive levels at each time (times need not be sorted)."""
+        out = np.zeros((times.shape[0], self.n_tactors))
+        lo, hi = self._lo, self._hi
+        if hi == lo or times.shape[0] == 0:
+            return out
+        idx = np.searchsorted(self._t[lo:hi], times, side="right") - 1
+        pos = np.flatnonzero(idx >= 0)
+        rows = idx[pos] + lo
+        rid = self._rid[rows]
+        const = rid < 0
+        out[pos[const]] = self._lv[rows[const]]
+        if not const.all():
+            for r in sorted(set(rid[~const].tolist())):
+                sel = pos[rid == r]
+                out[sel] = self._renders[int(r)].levels(times[sel])
+        return out
+
+    def _breakpoints(self, t_a: int, t_b: int) -> IntArray:
+        """Every time in (t_a, t_b] at which the commanded drive may change."""
+        lo, hi = self._lo, self._hi
+        if hi == lo:
+            return np.zeros(0, dtype=np.int64)
+        first = max(self._row_in_force(t_a), lo)
+        last = self._row_in_force(t_b)
+        if last < first:
+            return np.zeros(0, dtype=np.int64)
+        parts: list[IntArray] = [self._t[first : last + 1]]
+        rids = self._rid[first : last + 1]
+        for off in np.flatnonzero(rids >= 0).tolist():
+            row = first + off
+            render = self._renders[int(self._rid[row])]
+            seg_end = int(self._t[row + 1]) if row + 1 < hi else t_b + 1
+            if render.end_ns is not None:
+                if t_a < render.end_ns <= t_b:
+                    parts.append(np.array([render.end_ns], dtype=np.int64))
+                seg_end = min(seg_end, render.end_ns)
+            seg_start = max(int(self._t[row]), t_a + 1)
+            seg_end = min(seg_end, t_b + 1)
+            if seg_end <= seg_start:
+                continue
+            k0 = -((render.onset_ns - seg_start) // RENDER_TICK_NS)  # ceil
+            k1 = -((render.onset_ns - seg_end) // RENDER_TICK_NS)
+            if k1 > k0:
+                parts.append(render.onset_ns + np.arange(k0, k1, dtype=np.int64) * RENDER_TICK_NS)
+        return np.concatenate(parts)
+
+    def _speed_at(self, times: IntArray) -> FloatArray:
+        """Modelled motor speed at increasing times (the state carries over exactly)."""
+        n = self.n_tactors
+        if times.shape[0] == 0:
+            return np.zeros((0, n))
+        t_first, t_last = int(times[0]), int(times[-1])
+        if self._pruned and t_first < self._base_t:
+            raise ConfigError(
+                f"time {t_first} ns is before the kept history (from {self._base_t} ns; "
+                f"the sim belt keeps {self._horizon_ns / 1e9:g} s, see horizon_s)"
+            )
+        if t_first < self._base_t:
+            t_a, w_a = t_first, np.zeros(n)
+        else:
+            j = bisect.bisect_right(self._ck_t, t_first) - 1
+            if j >= 0:
+                t_a, w_a = self._ck_t[j], self._ck_w[j]
+            else:
+                t_a, w_a = self._base_t, self._base_w
+        grid = _sorted_unique(np.concatenate([np.array([t_a], dtype=np.int64),
+                                              self._breakpoints(t_a, t_last), times]))
+        w = erm_speed(grid, self._levels_at(grid), w_a, self.params)
+        # remember the state at the latest time no future command can change
+        settled = min(int(self.clock.now_ns()), t_last)
+        js = int(np.searchsorted(grid, settled, side="right")) - 1
+        if js > 0 and (not self._ck_t or int(grid[js]) > self._ck_t[-1]):
+            self._ck_t.append(int(grid[js]))
+            self._ck_w.append(w[js].copy())
+            if len(self._ck_t) > _MAX_CHECKPOINTS:
+                del self._ck_t[0], self._ck_w[0]
+        return np.asarray(w[np.searchsorted(grid, times)])
+
+    # -- public queries -----------------------------------------------------------------
+    @property
+    def horizon_s(self) -> float:
+        """How much command history the belt keeps."""
+        return self._horizon_ns / 1e9
+
+    @property
+    def levels(self) -> FloatArray:
+        """The drive levels commanded now (calibrated, one per tactor)."""
+        with self._lock:
+            return self._levels_at(np.array([self.clock.now_ns()], dtype=np.int64))[0]
+
+    def commanded(self, t0_ns: int, t1_ns: int, rate_hz: float = 1000.0
+                  ) -> tuple[IntArray, FloatArray]:
+        """Commanded drive levels sampled over [t0, t1).
+
+        Returns:
+            ``(t_ns, levels)``: sample times ``t0 + i*1e9/rate`` (int ns, shape (n,))
+            and drive levels (n, N) in [0, 1].
+        """
+        times = sample_grid(t0_ns, t1_ns, rate_hz)
+        with self._lock:
+            if times.size and self._pruned and int(times[0]) < self._base_t:
+                raise ConfigError(f"time {int(times[0])} ns is before the kept history "
+                                  f"(from {self._base_t} ns)")
+            return times, self._levels_at(times)
+
+    def vibration(self, t0_ns: int, t1_ns: int, rate_hz: float = 1000.0
+                  ) -> tuple[IntArray, FloatArray]:
+        """Modelled vibration amplitude over [t0, t1).
+
+        Returns:
+            ``(t_ns, amplitude)``: sample times as :meth:`commanded` and amplitudes
+            (n, N) in [0, 1], 1 = a motor at rated speed.
+        """
+        times = sample_grid(t0_ns, t1_ns, rate_hz)
+        with self._lock:
+            return times, self.params.amplitude(self._speed_at(times))
+
+    def vibration_at(self, times_ns: Any) -> FloatArray:
+        """Modelled vibration amplitude (len(times), N) at arbitrary increasing times."""
+        times = np.asarray(times_ns, dtype=np.int64).reshape(-1)
+        if times.size > 1 and np.any(np.diff(times) < 0):
+            raise ConfigError("vibration_at needs increasing times")
+        with self._lock:
+            return self.params.amplitude(self._speed_at(times))
+
+    def commands(self) -> list[SimCommand]:
+        """The commands kept in the history, oldest first."""
+        with self._lock:
+            out: list[SimCommand] = []
+            for i in range(self._lo, self._hi):
+                rid = int(self._rid[i])
+                if rid < 0:
+                    out.append(SimCommand(int(self._t[i]), self._lv[i].copy()))
+                else:
+                    r = self._renders[rid]
+                    out.append(SimCommand(int(self._t[i]), None, r.stimulus, r.end_ns))
+            return out
+
+    def prune(self, before_ns: int | None = None) -> None:
+        """Forget history before ``before_ns`` (default: now minus the horizon).
+
+        The motor state at the cut is kept, so later vibration stays exact.
+        """
+        with self._lock:
+            cut = int(self.clock.now_ns()) - self._horizon_ns if before_ns is None else int(
+                before_ns)
+            # cut at a remembered state when there is one close before the cut: no work
+            j = bisect.bisect_right(self._ck_t, cut) - 1
+            if j >= 0 and self._ck_t[j] > max(self._base_t, cut - self._slack_ns):
+                cut = self._ck_t[j]
+            if cut <= self._base_t:
+                return
+            w_cut = self._speed_at(np.array([cut], dtype=np.int64))[0]
+            keep = max(self._row_in_force(cut), self._lo)
+            self._lo = keep
+            self._base_t, self._base_w, self._pruned = cut, w_cut, True
+            j = bisect.bisect_left(self._ck_t, cut)
+            del self._ck_t[:j], self._ck_w[:j]
+            live = self._rid[self._lo : self._hi]
+            live = live[live >= 0]
+            oldest = int(live.min()) if live.size else self._next_rid
+            for rid in [r for r in self._renders if r < oldest]:
+                del self._renders[rid]
+
+
+def _parse_target(target: str) -> tuple[int | None, bool]:
+    n: int | None = None
+    virtual = False
+    for token in (p.strip().lower() for p in target.split(",")):
+        if not token:
+            continue
+        if token == "virtual":
+            virtual = True
+        elif token.isdigit():
+            n = int(token)
+        else:
+            raise ConfigError(
+                f"unknown sim belt option {token!r} in 'sim:{target}'; allowed: a tactor "
+                "count (sim:8) and 'virtual' (a simulated clock: sim:virtual, sim:8,virtual)"
+            )
+    return n, virtual
+
+
+def open_sim(target: str = "", **options: Any) -> SimBelt:
+    """Open the ``sim`` belt.
+
+    Args:
+        target: what follows ``sim:``: empty, a tactor count (``sim:8``), ``virtual``
+            (run on a new SimClock, so nothing waits in real time), or both
+            (``sim:8,virtual``).
+        **options: ``layout`` (Layout), ``clock`` (Clock), ``calibration``
+            (Calibration or a path to a calibration file), ``params`` (ErmParams),
+            ``horizon_s`` (float), ``name`` (str).
+
+    Raises:
+        ConfigError: an unknown option or target, or values that do not fit together.
+    """
+    unknown = sorted(set(options) - set(_OPTIONS))
+    if unknown:
+        raise ConfigError(f"unknown option {unknown[0]!r} for the sim belt; allowed: "
+                          f"{', '.join(_OPTIONS)}")
+    n, virtual = _parse_target(target or "")
+    layout = options.get("layout")
+    if layout is None:
+        layout = Layout.even(n if n is not None else 6)
+    elif not isinstance(layout, Layout):
+        raise ConfigError(f"layout must be a Layout, got {type(layout).__name__}")
+    elif n is not None and n != layout.n:
+        raise ConfigError(f"'sim:{target}' asks for {n} tactors but the layout has {layout.n}")
+    clock = options.get("clock")
+    if clock is None and virtual:
+        from ..clock import SimClock
+
+        clock = SimClock()
+    calibration = options.get("calibration")
+    if calibration is not None and not isinstance(calibration, Calibration):
+        calibration = Calibration.load(calibration)
+    url = f"sim:{target}" if target else "sim"
+    return SimBelt(layout=layout, clock=clock, calibration=calibration,
+                   params=options.get("params"),
+                   horizon_s=options.get("horizon_s", DEFAULT_HORIZON_S),
+                   url=url, name=options.get("name"))
