@@ -1,0 +1,101 @@
+"""``tactorbelt devices``: ports and BLE devices, which answer as belts, and clear notes."""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Iterator
+from typing import Any
+
+import pytest
+from click.testing import CliRunner
+
+from tactorbelt.cli import cli
+from tactorbelt.devices import ble, wire
+from test_ble_belt import FakeBle
+from test_firmware_belt import FakeFirmware
+from test_serial_belt import PtyDevice, _comports, _port
+
+
+@pytest.fixture
+def pty_belt() -> Iterator[PtyDevice]:
+    dev = PtyDevice(FakeFirmware(tactors=8))
+    yield dev
+    dev.close()
+
+
+def _no_ble(monkeypatch: pytest.MonkeyPatch) -> None:
+    def unavailable(timeout_s: float = 5.0) -> list[ble.BleBeltInfo]:
+        raise ble.BleUnavailableError("BLE is not available on this machine: no adapter")
+
+    monkeypatch.setattr(ble, "discover_belts", unavailable)
+
+
+def test_lists_the_serial_belt_and_leaves_other_ports_alone(
+    monkeypatch: pytest.MonkeyPatch, pty_belt: PtyDevice
+) -> None:
+    from serial.tools import list_ports
+
+    monkeypatch.setattr(list_ports, "comports", _comports(
+        _port("/dev/ttyS0", "ttyS0"), _port(pty_belt.path, "Nano 33 BLE", 0x2341)))
+    result = CliRunner().invoke(cli, ["devices", "--no-ble"])
+    assert result.exit_code == 0, result.output
+    lines = result.output.splitlines()
+    (belt_line,) = [ln for ln in lines if pty_belt.path in ln]
+    assert "firmware 1.2.3, 8 tactors" in belt_line
+    assert f"--belt serial:{pty_belt.path}" in belt_line
+    (other,) = [ln for ln in lines if "/dev/ttyS0" in ln]
+    assert "not probed" in other
+    assert "1 belt(s) found." in result.output
+    # the probe closed the belt: it stopped the motors and released the port
+    assert isinstance(pty_belt.firmware.requests[-1], wire.StopAll)
+
+
+def test_says_clearly_when_there_is_nothing_and_ble_is_unavailable(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    from serial.tools import list_ports
+
+    monkeypatch.setattr(list_ports, "comports", _comports())
+    _no_ble(monkeypatch)
+    result = CliRunner().invoke(cli, ["devices", "--timeout", "0.2"])
+    assert result.exit_code == 0, result.output
+    assert "Serial ports:\n  none" in result.output
+    assert "note: BLE is not available on this machine: no adapter" in result.output
+    assert "No belts found." in result.output
+    assert "Traceback" not in result.output
+
+
+def test_lists_ble_belts_that_answer(monkeypatch: pytest.MonkeyPatch) -> None:
+    from serial.tools import list_ports
+
+    monkeypatch.setattr(list_ports, "comports", _comports())
+    monkeypatch.setattr(ble, "discover_belts", lambda timeout_s=5.0: [
+        ble.BleBeltInfo("AA:BB:CC:DD:EE:FF", "tactorbelt", -60)])
+    real_open = ble.open_ble
+    fake = FakeBle(FakeFirmware(tactors=6))
+
+    def open_fake(target: str, **options: Any) -> Any:
+        return real_open(target, client_factory=fake, **options)
+
+    monkeypatch.setattr(ble, "open_ble", open_fake)
+    result = CliRunner().invoke(cli, ["devices", "--json"])
+    assert result.exit_code == 0, result.output
+    data = json.loads(result.output)
+    assert data["belts"] == ["ble:AA:BB:CC:DD:EE:FF"]
+    (row,) = data["ble"]
+    assert row["firmware_version"] == "1.2.3" and row["tactors"] == 6
+    assert row["description"] == "tactorbelt, -60 dBm"
+    assert fake.client is not None and fake.client.disconnects == 1
+
+
+def test_a_port_that_does_not_answer_is_listed_with_the_reason(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    from serial.tools import list_ports
+
+    monkeypatch.setattr(list_ports, "comports", _comports(
+        _port("/dev/tactorbelt-gone", "Arduino Nano 33 BLE", 0x2341)))
+    result = CliRunner().invoke(cli, ["devices", "--no-ble"])
+    assert result.exit_code == 0, result.output
+    assert "cannot open serial port /dev/tactorbelt-gone" in result.output
+    assert "No belts found." in result.output
