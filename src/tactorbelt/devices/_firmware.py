@@ -559,6 +559,21 @@ class FirmwareBelt(Belt, PacketSink):
         self._expect(reply, wire.Ack, "SET_CONFIG")
         self.heartbeat_ms = heartbeat_ms
 
+    def write_raw(self, data: bytes) -> None:
+        """Write bytes to the link as they are, between packets (diagnostics, fuzzing).
+
+        The device counts what it cannot decode and skips it; a serial device
+        resynchronises at the next 0x00, so end the bytes with one.
+        """
+        self._check_open()
+        self._check_alive()
+        with self._tx_lock:
+            try:
+                self._transport.write(bytes(data))
+            except (OSError, DeviceError) as exc:
+                self._mark_lost(f"belt on {self.port} stopped answering: write failed: {exc}")
+                raise DeviceError(self._lost) from None
+
     @property
     def lost(self) -> str | None:
         """Why the belt was lost (None while it answers)."""

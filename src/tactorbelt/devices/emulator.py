@@ -161,18 +161,19 @@ class EmulatorBelt(FirmwareBelt):
 
 
 def stop_process(proc: subprocess.Popen[bytes], timeout_s: float = 2.0) -> None:
-    """End the emulator: close its stdin, SIGTERM, and SIGKILL if it lingers."""
+    """End the emulator: close its stdin (it exits), then SIGTERM, then SIGKILL."""
     if proc.stdin is not None:
         with contextlib.suppress(OSError):
             proc.stdin.close()
-    if proc.poll() is None:
-        with contextlib.suppress(OSError):
-            proc.terminate()
+    for signal_it in (None, proc.terminate, proc.kill):
+        if signal_it is not None:
+            with contextlib.suppress(OSError):
+                signal_it()
         try:
-            proc.wait(timeout_s)
+            proc.wait(0.5 if signal_it is None else timeout_s)
+            break
         except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait(timeout_s)
+            continue
     if proc.stdout is not None:
         with contextlib.suppress(OSError):
             proc.stdout.close()
