@@ -35,8 +35,10 @@ INPUTS = ("joystick", "mouse", "model", "scripted")
 
 
 def _model_cursor(belt: Belt, clock: Clock, seed: int) -> CursorSource:
+    import importlib
+
     try:
-        from ..inputs import model as model_mod
+        model_mod = importlib.import_module("tactorbelt.inputs.model")
     except ImportError as exc:
         if exc.name not in ("tactorbelt.inputs.model", None):
             raise

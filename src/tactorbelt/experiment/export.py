@@ -220,9 +220,9 @@ def export_bids(db: str | Path, out: str | Path) -> list[Path]:
             _write_tsv(beh, cols, [
                 [(t["onset_ns"] / 1e9 if t["onset_ns"] is not None else None) if k == "onset_s"
                  else t[k] for k in cols] for t in trials])
-            sidecar = dict(BEH_COLUMNS)
-            sidecar["TaskName"] = TASK  # type: ignore[assignment]
-            sidecar["tactorbelt"] = {  # type: ignore[assignment]
+            sidecar: dict[str, Any] = dict(BEH_COLUMNS)
+            sidecar["TaskName"] = TASK
+            sidecar["tactorbelt"] = {
                 k: s[k] for k in ("study_name", "study_sha256", "seed", "condition_order",
                                   "belt", "firmware_version", "package_version", "git_commit",
                                   "host", "input", "clock", "started_at", "ended_at", "status")
