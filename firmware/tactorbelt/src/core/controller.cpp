@@ -1,0 +1,234 @@
+#include "controller.h"
+
+namespace tb {
+
+namespace {
+
+uint16_t saturating_inc(uint16_t v) { return v == 0xFFFF ? v : static_cast<uint16_t>(v + 1); }
+
+}  // namespace
+
+Controller::Controller(const Layout& layout, MotorDriver& motors, uint16_t pwm_steps)
+    : layout_(layout), motors_(motors), pwm_steps_(pwm_steps) {}
+
+void Controller::begin(uint64_t now_us) {
+  state_ = State::kIdle;
+  for (uint8_t k = 0; k < kMaxChannels; ++k) out_[k] = 0;
+  motors_.write(out_, channels());
+  update_outputs(now_us);
+}
+
+bool Controller::set_heartbeat_ms(uint16_t ms) {
+  if (ms < kMinHeartbeatMs || ms > kMaxHeartbeatMs) return false;
+  heartbeat_ms_ = ms;
+  return true;
+}
+
+bool Controller::set_max_on_ms(uint32_t ms) {
+  if (ms < kMinMaxOnMs || ms > kMaxMaxOnMs) return false;
+  max_on_ms_ = ms;
+  return true;
+}
+
+void Controller::receive_bytes(const uint8_t* data, size_t n, uint64_t now_us, ReplySink& reply) {
+  Packet p;
+  for (size_t i = 0; i < n; ++i) {
+    switch (decoder_.feed(data[i], &p)) {
+      case FeedResult::kNone:
+        break;
+      case FeedResult::kPacket:
+        handle(p, now_us, reply);
+        break;
+      case FeedResult::kCrcError:
+        counters_.crc_errors = saturating_inc(counters_.crc_errors);
+        break;
+      case FeedResult::kFramingError:
+        counters_.framing_errors = saturating_inc(counters_.framing_errors);
+        break;
+    }
+  }
+}
+
+void Controller::receive_packet(const uint8_t* raw, size_t n, uint64_t now_us, ReplySink& reply) {
+  Packet p;
+  switch (parse_packet(raw, n, &p)) {
+    case PacketStatus::kOk:
+      handle(p, now_us, reply);
+      break;
+    case PacketStatus::kBadCrc:
+      counters_.crc_errors = saturating_inc(counters_.crc_errors);
+      break;
+    case PacketStatus::kBadLength:
+      counters_.framing_errors = saturating_inc(counters_.framing_errors);
+      break;
+  }
+}
+
+void Controller::link_closed(uint64_t now_us) {
+  decoder_.reset();
+  have_seq_ = false;
+  stop(State::kIdle);
+  update_outputs(now_us);
+}
+
+void Controller::reply(ReplySink& sink, uint8_t type, uint8_t seq, const uint8_t* payload, size_t n) {
+  uint8_t packet[kMaxPacket];
+  const size_t len = build_packet(type, seq, payload, n, packet);
+  if (len != 0) sink.send(packet, len);
+}
+
+void Controller::ack(ReplySink& sink, uint8_t seq) {
+  const uint8_t payload[2] = {seq, 0};
+  reply(sink, msg::kAck, seq, payload, sizeof payload);
+}
+
+void Controller::nak(ReplySink& sink, uint8_t seq, uint8_t code) {
+  const uint8_t payload[2] = {seq, code};
+  reply(sink, msg::kNak, seq, payload, sizeof payload);
+}
+
+void Controller::stop(State next) {
+  state_ = next;
+  for (uint8_t k = 0; k < kMaxChannels; ++k) stream_[k] = 0;
+}
+
+void Controller::handle(const Packet& p, uint64_t now_us, ReplySink& sink) {
+  const uint8_t n = channels();
+  // Every valid packet pushes the failsafe deadline and is checked for a gap.
+  deadline_us_ = now_us + static_cast<uint64_t>(heartbeat_ms_) * 1000u;
+  if (have_seq_ && p.seq != static_cast<uint8_t>(last_seq_ + 1)) {
+    counters_.seq_gaps = saturating_inc(counters_.seq_gaps);
+  }
+  have_seq_ = true;
+  last_seq_ = p.seq;
+
+  uint8_t payload[kMaxPayload];
+  switch (p.type) {
+    case msg::kPing: {
+      if (p.len != kPingPayload) return nak(sink, p.seq, nak::kBadLength);
+      for (size_t i = 0; i < 4; ++i) payload[i] = p.payload[i];
+      put_u32(payload + 4, static_cast<uint32_t>(now_us));
+      return reply(sink, msg::kPong, p.seq, payload, 8);
+    }
+    case msg::kGetInfo: {
+      if (p.len != 0) return nak(sink, p.seq, nak::kBadLength);
+      payload[0] = kProtocolVersion;
+      payload[1] = kFirmwareMajor;
+      payload[2] = kFirmwareMinor;
+      payload[3] = kFirmwarePatch;
+      payload[4] = n;
+      put_u16(payload + 5, pwm_steps_);
+      put_u16(payload + 7, heartbeat_ms_);
+      payload[9] = kCapPlayTarget;
+      for (uint8_t k = 0; k < n; ++k) {
+        uint32_t cdeg = static_cast<uint32_t>(layout_.angle(k) * 100.0f + 0.5f);
+        if (cdeg >= 36000u) cdeg -= 36000u;
+        put_u16(payload + 10 + 2 * k, static_cast<uint16_t>(cdeg));
+      }
+      return reply(sink, msg::kInfo, p.seq, payload, 10 + 2u * n);
+    }
+    case msg::kSetAmplitudes: {
+      if (p.len != 2u * n) return nak(sink, p.seq, nak::kBadLength);
+      for (uint8_t k = 0; k < n; ++k) stream_[k] = get_u16(p.payload + 2 * k);
+      state_ = State::kStreaming;
+      update_outputs(now_us);
+      return;
+    }
+    case msg::kStopAll: {
+      if (p.len != 0) return nak(sink, p.seq, nak::kBadLength);
+      stop(State::kIdle);
+      update_outputs(now_us);
+      return ack(sink, p.seq);
+    }
+    case msg::kPlayTarget: {
+      if (p.len != kPlayTargetPayload) return nak(sink, p.seq, nak::kBadLength);
+      StimulusParams sp;
+      sp.angle_cdeg = get_u16(p.payload + 0);
+      sp.mode = p.payload[2];
+      sp.law = p.payload[3];
+      sp.falloff_cdeg = get_u16(p.payload + 4);
+      sp.period_ms = get_u16(p.payload + 6);
+      sp.transit_ms = get_u16(p.payload + 8);
+      if (!stimulus_.set(layout_, sp)) return nak(sink, p.seq, nak::kOutOfRange);
+      play_duration_ms_ = get_u32(p.payload + 10);
+      play_start_us_ = now_us;
+      for (uint8_t k = 0; k < n; ++k) stream_[k] = 0;
+      state_ = State::kPlaying;
+      update_outputs(now_us);
+      return ack(sink, p.seq);
+    }
+    case msg::kHeartbeat: {
+      if (p.len != 0) return nak(sink, p.seq, nak::kBadLength);
+      return;
+    }
+    case msg::kSetConfig: {
+      if (p.len != kSetConfigPayload && p.len != kSetConfigPayloadLong) {
+        return nak(sink, p.seq, nak::kBadLength);
+      }
+      const uint16_t hb = get_u16(p.payload);
+      const bool hb_ok = hb >= kMinHeartbeatMs && hb <= kMaxHeartbeatMs;
+      uint32_t max_on = max_on_ms_;
+      if (p.len == kSetConfigPayloadLong) max_on = get_u32(p.payload + 2);
+      const bool max_on_ok = max_on >= kMinMaxOnMs && max_on <= kMaxMaxOnMs;
+      if (!hb_ok || !max_on_ok) return nak(sink, p.seq, nak::kOutOfRange);
+      heartbeat_ms_ = hb;
+      max_on_ms_ = max_on;
+      deadline_us_ = now_us + static_cast<uint64_t>(heartbeat_ms_) * 1000u;
+      return ack(sink, p.seq);
+    }
+    case msg::kGetStatus: {
+      if (p.len != 0) return nak(sink, p.seq, nak::kBadLength);
+      payload[0] = static_cast<uint8_t>(state_);
+      put_u16(payload + 1, counters_.failsafe);
+      put_u16(payload + 3, counters_.crc_errors);
+      put_u16(payload + 5, counters_.framing_errors);
+      put_u16(payload + 7, counters_.seq_gaps);
+      for (uint8_t k = 0; k < n; ++k) put_u16(payload + 9 + 2 * k, out_[k]);
+      return reply(sink, msg::kStatus, p.seq, payload, 9 + 2u * n);
+    }
+    default:
+      return nak(sink, p.seq, nak::kUnknownType);
+  }
+}
+
+void Controller::tick(uint64_t now_us) {
+  const bool active = state_ == State::kStreaming || state_ == State::kPlaying;
+  if (active && now_us >= deadline_us_) {
+    counters_.failsafe = saturating_inc(counters_.failsafe);
+    stop(State::kFailsafe);
+  } else if (state_ == State::kPlaying && play_duration_ms_ != 0 &&
+             now_us - play_start_us_ >= static_cast<uint64_t>(play_duration_ms_) * 1000u) {
+    stop(State::kIdle);
+  }
+  update_outputs(now_us);
+}
+
+void Controller::update_outputs(uint64_t now_us) {
+  const uint8_t n = channels();
+  float amps[kMaxChannels] = {};
+  if (state_ == State::kPlaying) stimulus_.amplitudes(now_us - play_start_us_, amps);
+  const uint64_t max_on_us = static_cast<uint64_t>(max_on_ms_) * 1000u;
+  bool changed = false;
+  for (uint8_t k = 0; k < n; ++k) {
+    uint16_t level = 0;
+    if (state_ == State::kStreaming) level = stream_[k];
+    if (state_ == State::kPlaying) level = amplitude_to_level(amps[k]);
+    // Continuous-on limit: a channel commanded on for max_onms without a break
+    // goes off, and stays off until it is commanded to 0.
+    if (level == 0) {
+      on_[k] = false;
+    } else if (!on_[k]) {
+      on_[k] = true;
+      on_since_us_[k] = now_us;
+    } else if (now_us - on_since_us_[k] >= max_on_us) {
+      level = 0;
+    }
+    if (level != out_[k]) {
+      out_[k] = level;
+      changed = true;
+    }
+  }
+  if (changed) motors_.write(out_, n);
+}
+
+}  // namespace tb

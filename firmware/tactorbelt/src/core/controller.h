@@ -1,0 +1,103 @@
+// The device side of protocol v1: request handling, the 1 kHz output tick, the
+// heartbeat failsafe and the per-channel continuous-on limit. Time is passed in
+// (microseconds, 64-bit, monotonic); motors and links are behind interfaces.
+// Portable C++17: no Arduino headers, no heap, no exceptions.
+#pragma once
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "protocol.h"
+#include "renderer.h"
+#include "wire.h"
+
+namespace tb {
+
+// Drives the motors. write() gets every channel's level (0 = off, 65535 = full)
+// whenever one of them changes.
+class MotorDriver {
+ public:
+  virtual void write(const uint16_t* levels, uint8_t n) = 0;
+
+ protected:
+  ~MotorDriver() = default;
+};
+
+// Sends one unframed reply packet on the link the request came from (the serial
+// link COBS-frames it, BLE notifies it as is).
+class ReplySink {
+ public:
+  virtual void send(const uint8_t* packet, size_t n) = 0;
+
+ protected:
+  ~ReplySink() = default;
+};
+
+struct Counters {
+  uint16_t failsafe = 0;
+  uint16_t crc_errors = 0;
+  uint16_t framing_errors = 0;
+  uint16_t seq_gaps = 0;
+};
+
+class Controller {
+ public:
+  // layout must outlive the controller; its size is the channel count.
+  // pwm_steps is reported in INFO.
+  Controller(const Layout& layout, MotorDriver& motors, uint16_t pwm_steps);
+
+  // Power-up: outputs off, state idle.
+  void begin(uint64_t now_us);
+
+  // Serial link: COBS-framed bytes.
+  void receive_bytes(const uint8_t* data, size_t n, uint64_t now_us, ReplySink& reply);
+  // BLE link: one unframed packet per write.
+  void receive_packet(const uint8_t* raw, size_t n, uint64_t now_us, ReplySink& reply);
+  // Call at 1 kHz: failsafe deadline, end of play, rendering, continuous-on limit.
+  void tick(uint64_t now_us);
+  // The USB port closed or BLE disconnected: outputs off, state idle.
+  void link_closed(uint64_t now_us);
+
+  // Settings that SET_CONFIG also changes; false when out of range.
+  bool set_heartbeat_ms(uint16_t ms);
+  bool set_max_on_ms(uint32_t ms);
+
+  State state() const { return state_; }
+  uint8_t channels() const { return layout_.size(); }
+  const uint16_t* levels() const { return out_; }
+  const Counters& counters() const { return counters_; }
+  uint16_t heartbeat_ms() const { return heartbeat_ms_; }
+  uint32_t max_on_ms() const { return max_on_ms_; }
+
+ private:
+  void handle(const Packet& p, uint64_t now_us, ReplySink& reply);
+  void reply(ReplySink& sink, uint8_t type, uint8_t seq, const uint8_t* payload, size_t n);
+  void ack(ReplySink& sink, uint8_t seq);
+  void nak(ReplySink& sink, uint8_t seq, uint8_t code);
+  void stop(State next);
+  void update_outputs(uint64_t now_us);
+
+  const Layout& layout_;
+  MotorDriver& motors_;
+  uint16_t pwm_steps_;
+  FrameDecoder decoder_;
+
+  State state_ = State::kIdle;
+  Counters counters_;
+  uint16_t heartbeat_ms_ = kDefaultHeartbeatMs;
+  uint32_t max_on_ms_ = kDefaultMaxOnMs;
+  uint64_t deadline_us_ = 0;
+  bool have_seq_ = false;
+  uint8_t last_seq_ = 0;
+
+  uint16_t stream_[kMaxChannels] = {};
+  Stimulus stimulus_;
+  uint64_t play_start_us_ = 0;
+  uint32_t play_duration_ms_ = 0;
+
+  uint16_t out_[kMaxChannels] = {};
+  bool on_[kMaxChannels] = {};
+  uint64_t on_since_us_[kMaxChannels] = {};
+};
+
+}  // namespace tb

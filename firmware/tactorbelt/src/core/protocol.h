@@ -1,0 +1,88 @@
+// Protocol v1 constants and little-endian field helpers (see docs/protocol.md).
+// Portable C++17: no Arduino headers, no heap, no exceptions.
+#pragma once
+
+#include <stddef.h>
+#include <stdint.h>
+
+namespace tb {
+
+constexpr uint8_t kProtocolVersion = 1;
+constexpr uint8_t kFirmwareMajor = 1;
+constexpr uint8_t kFirmwareMinor = 0;
+constexpr uint8_t kFirmwarePatch = 0;
+
+// A packet is type u8, seq u8, payload, crc u16 LE: at most 64 bytes before framing.
+constexpr size_t kMaxPacket = 64;
+constexpr size_t kHeaderSize = 2;
+constexpr size_t kCrcSize = 2;
+constexpr size_t kMinPacket = kHeaderSize + kCrcSize;
+constexpr size_t kMaxPayload = kMaxPacket - kMinPacket;
+// COBS adds one byte per started run of 254 bytes: 64 bytes encode to at most 65.
+constexpr size_t kMaxEncodedPacket = kMaxPacket + kMaxPacket / 254 + 1;
+
+// Channel limit: INFO (10 + 2N payload bytes) must fit in kMaxPayload.
+constexpr uint8_t kMaxChannels = 16;
+
+constexpr uint8_t kCapPlayTarget = 0x01;
+
+namespace msg {
+constexpr uint8_t kPing = 0x01;
+constexpr uint8_t kGetInfo = 0x02;
+constexpr uint8_t kSetAmplitudes = 0x10;
+constexpr uint8_t kStopAll = 0x11;
+constexpr uint8_t kPlayTarget = 0x12;
+constexpr uint8_t kHeartbeat = 0x14;
+constexpr uint8_t kSetConfig = 0x15;
+constexpr uint8_t kGetStatus = 0x16;
+constexpr uint8_t kAck = 0x80;
+constexpr uint8_t kPong = 0x81;
+constexpr uint8_t kInfo = 0x82;
+constexpr uint8_t kStatus = 0x83;
+constexpr uint8_t kNak = 0x8F;
+}  // namespace msg
+
+namespace nak {
+constexpr uint8_t kUnknownType = 2;
+constexpr uint8_t kBadLength = 3;
+constexpr uint8_t kOutOfRange = 4;
+}  // namespace nak
+
+enum class State : uint8_t { kIdle = 0, kStreaming = 1, kPlaying = 2, kFailsafe = 3 };
+
+// Payload sizes of fixed-size requests.
+constexpr size_t kPingPayload = 4;
+constexpr size_t kPlayTargetPayload = 14;
+constexpr size_t kSetConfigPayload = 2;
+constexpr size_t kSetConfigPayloadLong = 6;
+
+// Configuration limits.
+constexpr uint16_t kDefaultHeartbeatMs = 250;
+constexpr uint16_t kMinHeartbeatMs = 50;
+constexpr uint16_t kMaxHeartbeatMs = 2000;
+constexpr uint32_t kDefaultMaxOnMs = 30000;
+constexpr uint32_t kMinMaxOnMs = 100;
+constexpr uint32_t kMaxMaxOnMs = 600000;
+
+inline uint16_t get_u16(const uint8_t* p) {
+  return static_cast<uint16_t>(p[0] | (p[1] << 8));
+}
+
+inline uint32_t get_u32(const uint8_t* p) {
+  return static_cast<uint32_t>(p[0]) | (static_cast<uint32_t>(p[1]) << 8) |
+         (static_cast<uint32_t>(p[2]) << 16) | (static_cast<uint32_t>(p[3]) << 24);
+}
+
+inline void put_u16(uint8_t* p, uint16_t v) {
+  p[0] = static_cast<uint8_t>(v);
+  p[1] = static_cast<uint8_t>(v >> 8);
+}
+
+inline void put_u32(uint8_t* p, uint32_t v) {
+  p[0] = static_cast<uint8_t>(v);
+  p[1] = static_cast<uint8_t>(v >> 8);
+  p[2] = static_cast<uint8_t>(v >> 16);
+  p[3] = static_cast<uint8_t>(v >> 24);
+}
+
+}  // namespace tb

@@ -1,0 +1,409 @@
+#!/usr/bin/env python3
+"""Write firmware/test/vectors.json: what the Python package says the firmware must do.
+
+The C++ host tests (``make -C firmware test``) read the file and check, byte for byte,
+CRCs, COBS encodings, frames of every message and the frame decoder's verdicts on
+damaged streams; a scripted exchange with the controller (replies byte for byte);
+and rendered amplitudes (within 2/65535) for targets, modes, laws and times on the
+default 6-tactor layout, an 8-tactor layout and an uneven layout.
+
+The sources of truth are ``tactorbelt.devices.wire`` and ``tactorbelt.stimuli``.
+``tests/test_firmware_vectors.py`` fails when the committed file no longer matches.
+
+Usage:
+    python scripts/gen_firmware_vectors.py            # rewrite the file
+    python scripts/gen_firmware_vectors.py --check    # exit 1 when it is stale
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import random
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from tactorbelt.devices import wire
+from tactorbelt.devices.wire import (
+    Ack,
+    Info,
+    Nak,
+    NakCode,
+    Packet,
+    Pong,
+    State,
+    Status,
+)
+from tactorbelt.geometry import Layout
+from tactorbelt.stimuli import make_stimulus
+
+ROOT = Path(__file__).resolve().parents[1]
+VECTORS = ROOT / "firmware" / "test" / "vectors.json"
+FORMAT = 1
+DECIMALS = 9
+
+MODES = ("static", "dynamic")
+LAWS = ("paper", "linear", "energy")
+
+# What the firmware reports for itself (firmware/tactorbelt/src/core/protocol.h) and
+# what the exchange below runs against (6 tactors, default layout, 800 PWM steps).
+FW_VERSION = (1, 0, 0)
+EXCHANGE_PWM_STEPS = 800
+
+
+def _hex(data: bytes) -> str:
+    return data.hex()
+
+
+def _frame_entry(name: str, p: Packet) -> dict[str, Any]:
+    return {
+        "name": name,
+        "type": int(p.type),
+        "seq": p.seq,
+        "payload": _hex(p.payload),
+        "packet": _hex(wire.encode_packet(p)),
+        "frame": _hex(wire.encode_frame(p)),
+    }
+
+
+def crc_vectors() -> list[dict[str, Any]]:
+    rng = random.Random(1)
+    datas = [b"123456789", b"", b"\x00", b"\xff" * 4, bytes(range(64))]
+    datas += [bytes(rng.randrange(256) for _ in range(rng.randrange(1, 70))) for _ in range(5)]
+    return [{"data": _hex(d), "crc": wire.crc16_ccitt_false(d)} for d in datas]
+
+
+def cobs_vectors() -> list[dict[str, Any]]:
+    rng = random.Random(2)
+    datas = [
+        b"",
+        b"\x00",
+        b"\x00\x00",
+        b"\x11\x22\x00\x33",
+        b"\x11\x22\x33\x44",
+        b"\x11\x00\x00\x00",
+        bytes(range(1, 255)),  # 254 non-zero bytes: one full block, nothing after
+        bytes(range(1, 256)),  # 255 non-zero bytes: a full block and one more
+        bytes(range(256)),
+        b"\x01" * 300,
+    ]
+    datas += [
+        bytes(rng.choice((0, rng.randrange(256))) for _ in range(rng.randrange(1, 80)))
+        for _ in range(6)
+    ]
+    return [{"data": _hex(d), "encoded": _hex(wire.cobs_encode(d))} for d in datas]
+
+
+def default_info(channels: int = 6, heartbeat_ms: int = 250) -> Info:
+    layout = Layout.even(channels)
+    return Info(
+        wire.PROTOCOL_VERSION,
+        *FW_VERSION,
+        channels,
+        EXCHANGE_PWM_STEPS,
+        heartbeat_ms,
+        int(wire.Capability.PLAY_TARGET),
+        tuple(wire.angle_to_cdeg(a) / 100.0 for a in layout.angles_deg),
+    )
+
+
+def frame_vectors() -> list[dict[str, Any]]:
+    entries = [
+        ("ping", wire.ping(0, 0)),
+        ("ping", wire.ping(7, 0xDEADBEEF)),
+        ("get_info", wire.get_info(1)),
+        ("set_amplitudes", wire.set_amplitudes(2, [0, 65535, 1, 256, 32768, 12345])),
+        ("set_amplitudes", wire.set_amplitudes(3, [0] * 8)),
+        ("stop_all", wire.stop_all(4)),
+        ("play_target", wire.play_target(5, 4500, 1, 0, 1500, 1000, 100, 0)),
+        ("play_target", wire.play_target(255, 35999, 0, 2, 1, 65535, 32767, 0xFFFFFFFF)),
+        ("heartbeat", wire.heartbeat(6)),
+        ("set_config", wire.set_config(7, 250)),
+        ("set_config", wire.set_config(8, 2000, 30000)),
+        ("get_status", wire.get_status(0)),
+        ("ack", wire.encode_reply(4, Ack(4))),
+        ("nak", wire.encode_reply(9, Nak(9, NakCode.OUT_OF_RANGE))),
+        ("pong", wire.encode_reply(0, Pong(0xDEADBEEF, 123456789))),
+        ("info", wire.encode_reply(1, default_info())),
+        ("status", wire.encode_reply(2, Status(State.FAILSAFE, 1, 2, 3, 4, (0, 1, 2, 3, 4, 5)))),
+        ("unknown", Packet(0x7F, 0x00, b"\x00\x00\x00")),
+        ("max_payload", Packet(0x10, 0x00, bytes(range(60)))),
+    ]
+    return [_frame_entry(name, p) for name, p in entries]
+
+
+def _stream(name: str, data: bytes) -> dict[str, Any]:
+    dec = wire.FrameDecoder()
+    packets = dec.feed(data)
+    return {
+        "name": name,
+        "input": _hex(data),
+        "packets": [
+            {"type": int(p.type), "seq": p.seq, "payload": _hex(p.payload)} for p in packets
+        ],
+        "crc_errors": dec.crc_errors,
+        "framing_errors": dec.framing_errors,
+    }
+
+
+def stream_vectors() -> list[dict[str, Any]]:
+    good = [
+        wire.encode_frame(wire.ping(1, 0x01020304)),
+        wire.encode_frame(wire.set_amplitudes(2, [0, 1000, 0, 65535, 0, 7])),
+        wire.encode_frame(wire.get_status(3)),
+        wire.encode_frame(wire.play_target(4, 1500, 1, 0, 1500, 1000, 100, 0)),
+    ]
+    bad_crc = bytearray(wire.encode_packet(wire.ping(5, 42)))
+    bad_crc[-1] ^= 0x01
+    short = wire.cobs_encode(b"\x01\x02\x03") + b"\x00"
+    bad_cobs = b"\x05\x01\x02\x00"  # code 5 promises 4 bytes, 2 follow
+    streams = [
+        _stream("good frames back to back", b"".join(good)),
+        _stream("leading zeros and empty frames", b"\x00\x00" + good[0] + b"\x00\x00" + good[2]),
+        _stream("garbage then a frame", b"\x13\x37\xff\xfe" + b"\x00" + good[1]),
+        _stream("garbage without a delimiter glued to a frame", b"\x13\x37" + good[1] + good[2]),
+        _stream("bad crc", wire.cobs_encode(bytes(bad_crc)) + b"\x00" + good[0]),
+        _stream("too short", short + good[2]),
+        _stream("bad cobs", bad_cobs + good[3]),
+        _stream("overlong frame", b"\x01" * 200 + b"\x00" + good[0]),
+        _stream("exactly the longest frame", wire.encode_frame(Packet(0x10, 9, bytes(60)))),
+        _stream("one byte too long", b"\x02" + wire.encode_frame(Packet(0x10, 9, bytes(60)))),
+        _stream("truncated frame then resync", good[3][:7] + b"\x00" + good[3]),
+    ]
+    rng = random.Random(3)
+    for i in range(12):
+        parts: list[bytes] = []
+        for _ in range(rng.randrange(2, 8)):
+            kind = rng.randrange(4)
+            frame = bytearray(rng.choice(good))
+            if kind == 1:  # flip one bit
+                pos = rng.randrange(len(frame))
+                frame[pos] ^= 1 << rng.randrange(8)
+            elif kind == 2:  # random noise
+                frame = bytearray(rng.randrange(256) for _ in range(rng.randrange(1, 90)))
+            elif kind == 3:  # cut short
+                frame = frame[: rng.randrange(1, len(frame))]
+            parts.append(bytes(frame))
+        streams.append(_stream(f"random mix {i}", b"".join(parts)))
+    return streams
+
+
+def exchange_vectors() -> dict[str, Any]:
+    """A scripted session with a fresh 6-tactor controller: requests and exact replies."""
+    steps: list[dict[str, Any]] = []
+
+    def step(t_us: int, data: bytes, replies: list[Packet]) -> None:
+        steps.append(
+            {
+                "t_us": t_us,
+                "input": _hex(data),
+                "output": _hex(b"".join(wire.encode_frame(r) for r in replies)),
+            }
+        )
+
+    def frame(p: Packet) -> bytes:
+        return wire.encode_frame(p)
+
+    levels = (0, 1000, 65535, 0, 7, 0)
+    step(1_000, frame(wire.get_info(0)), [wire.encode_reply(0, default_info())])
+    step(2_000, frame(wire.ping(1, 0xCAFEF00D)), [wire.encode_reply(1, Pong(0xCAFEF00D, 2_000))])
+    step(3_000, frame(wire.set_amplitudes(2, levels)), [])
+    step(
+        4_000,
+        frame(wire.get_status(3)),
+        [wire.encode_reply(3, Status(State.STREAMING, 0, 0, 0, 0, levels))],
+    )
+    bad = bytearray(wire.encode_packet(wire.stop_all(4)))
+    bad[2] ^= 0xFF
+    step(5_000, wire.cobs_encode(bytes(bad)) + b"\x00" + b"\x07\x00", [])
+    step(6_000, frame(Packet(wire.MsgType.HEARTBEAT, 4, b"\x00")),
+         [wire.encode_reply(4, Nak(4, NakCode.BAD_LENGTH))])
+    step(7_000, frame(Packet(0x7F, 5)), [wire.encode_reply(5, Nak(5, NakCode.UNKNOWN_TYPE))])
+    step(8_000, frame(wire.play_target(6, 4500, 2, 0, 1500, 1000, 100, 0)),
+         [wire.encode_reply(6, Nak(6, NakCode.OUT_OF_RANGE))])
+    step(9_000, frame(wire.play_target(7, 4500, 1, 3, 1500, 1000, 100, 0)),
+         [wire.encode_reply(7, Nak(7, NakCode.OUT_OF_RANGE))])
+    step(10_000, frame(wire.set_config(8, 49)),
+         [wire.encode_reply(8, Nak(8, NakCode.OUT_OF_RANGE))])
+    step(11_000, frame(wire.set_config(9, 2001)),
+         [wire.encode_reply(9, Nak(9, NakCode.OUT_OF_RANGE))])
+    step(12_000, frame(wire.set_config(10, 250, 99)),
+         [wire.encode_reply(10, Nak(10, NakCode.OUT_OF_RANGE))])
+    step(13_000, frame(wire.set_config(11, 300, 20000)), [wire.encode_reply(11, Ack(11))])
+    step(14_000, frame(wire.set_amplitudes(12, (1, 2, 3))),
+         [wire.encode_reply(12, Nak(12, NakCode.BAD_LENGTH))])
+    # seq 13 skipped on purpose: one sequence gap
+    step(
+        15_000,
+        frame(wire.get_status(14)),
+        [wire.encode_reply(14, Status(State.STREAMING, 0, 1, 1, 1, levels))],
+    )
+    step(16_000, frame(wire.stop_all(15)), [wire.encode_reply(15, Ack(15))])
+    step(
+        17_000,
+        frame(wire.get_status(16)) + frame(wire.get_info(17)),
+        [
+            wire.encode_reply(16, Status(State.IDLE, 0, 1, 1, 1, (0,) * 6)),
+            wire.encode_reply(17, default_info(heartbeat_ms=300)),
+        ],
+    )
+    # the heartbeat is now 300 ms: silence for longer trips the failsafe
+    step(18_000, frame(wire.set_amplitudes(18, levels)), [])
+    step(
+        318_000,
+        frame(wire.get_status(19)),
+        [wire.encode_reply(19, Status(State.FAILSAFE, 1, 1, 1, 1, (0,) * 6))],
+    )
+    return {"tactors": 6, "pwm_steps": EXCHANGE_PWM_STEPS, "steps": steps}
+
+
+def _render_case(
+    layout: Layout,
+    angle_cdeg: int,
+    mode: str,
+    law: str,
+    t_us: list[int],
+    falloff_cdeg: int = 1500,
+    period_ms: int = 1000,
+    transit_ms: int = 100,
+) -> dict[str, Any]:
+    stim = make_stimulus(
+        layout,
+        angle_cdeg / 100.0,
+        mode,
+        law,
+        falloff_deg=falloff_cdeg / 100.0,
+        period_s=period_ms / 1000.0,
+        transit_s=transit_ms / 1000.0,
+    )
+    amps = stim.amplitudes(np.asarray(t_us, dtype=float) / 1e6)
+    return {
+        "tactor_angles_deg": list(layout.angles_deg),
+        "angle_cdeg": angle_cdeg,
+        "mode": MODES.index(mode),
+        "law": LAWS.index(law),
+        "falloff_cdeg": falloff_cdeg,
+        "period_ms": period_ms,
+        "transit_ms": transit_ms,
+        "t_us": t_us,
+        "amplitudes": [[_num(a) for a in row] for row in amps],
+    }
+
+
+def _num(a: float) -> float | int:
+    r = round(float(a), DECIMALS)
+    return 0 if r == 0 else r
+
+
+def _us(t_ms: list[int], offset_us: int = 0) -> list[int]:
+    return [t * 1000 + offset_us for t in t_ms]
+
+
+def render_vectors() -> list[dict[str, Any]]:
+    static_t = _us([0, 1234])
+    period_ms = [*range(0, 1000, 25), 599, 601, 613, 650, 699, 701, 899, 901, 937, 999, 1605, 12345]
+    period_t = _us(period_ms)
+    cases: list[dict[str, Any]] = []
+
+    six = Layout.even(6)
+    six_targets = [k * 1500 for k in range(24)] + [750, 1234, 35950, 35999]
+    for law in LAWS:
+        for cdeg in six_targets:
+            cases.append(_render_case(six, cdeg, "static", law, static_t))
+    for cdeg in six_targets:
+        cases.append(_render_case(six, cdeg, "dynamic", "paper", period_t))
+    for law in ("linear", "energy"):
+        for cdeg in (750, 1500, 3000, 6000, 1234):
+            cases.append(_render_case(six, cdeg, "dynamic", law, period_t))
+    # one period at 1 kHz, as the golden reference
+    cases.append(_render_case(six, 1500, "dynamic", "paper", _us(list(range(1000)))))
+    # other falloff, period and transit
+    cases.append(_render_case(six, 1500, "dynamic", "paper", _us(list(range(0, 1600, 7))),
+                              falloff_cdeg=1000, period_ms=1500, transit_ms=200))
+    cases.append(_render_case(six, 11000, "dynamic", "paper", _us(list(range(0, 700, 3))),
+                              falloff_cdeg=2500, period_ms=600, transit_ms=50))
+    cases.append(_render_case(six, 1250, "static", "paper", static_t, falloff_cdeg=100))
+
+    eight = Layout.even(8)
+    for cdeg in (0, 1125, 2250, 4500, 5000, 9000, 20000, 33750):
+        for law in LAWS:
+            cases.append(_render_case(eight, cdeg, "static", law, static_t))
+        cases.append(_render_case(eight, cdeg, "dynamic", "paper", period_t))
+
+    # On an uneven layout the law jumps where the location arrives on a tactor from
+    # its counter-clockwise side (s switches to the clockwise gap), and which side a
+    # sample at that very instant sees is float noise. Sample half a millisecond off.
+    uneven = Layout.from_angles([10, 70, 150, 200, 290])
+    for cdeg in (0, 4000, 10000, 18000, 25000, 7000):
+        for law in LAWS:
+            cases.append(_render_case(uneven, cdeg, "static", law, static_t))
+            cases.append(_render_case(uneven, cdeg, "dynamic", law, _us(period_ms, 500)))
+    return cases
+
+
+def build_vectors() -> dict[str, Any]:
+    """Everything the firmware tests check, as plain JSON values."""
+    return {
+        "format": FORMAT,
+        "generated_by": "scripts/gen_firmware_vectors.py (do not edit by hand)",
+        "crc": crc_vectors(),
+        "cobs": cobs_vectors(),
+        "frames": frame_vectors(),
+        "streams": stream_vectors(),
+        "exchange": exchange_vectors(),
+        "render": render_vectors(),
+    }
+
+
+def dumps(vectors: dict[str, Any]) -> str:
+    """JSON with one list element per line, so that diffs stay readable."""
+    lines = ["{"]
+    keys = list(vectors)
+    for i, key in enumerate(keys):
+        value = vectors[key]
+        comma = "," if i + 1 < len(keys) else ""
+        if isinstance(value, list):
+            lines.append(f"  {json.dumps(key)}: [")
+            for j, item in enumerate(value):
+                sep = "," if j + 1 < len(value) else ""
+                lines.append("    " + json.dumps(item, separators=(",", ":")) + sep)
+            lines.append(f"  ]{comma}")
+        elif isinstance(value, dict) and "steps" in value:
+            head = {k: v for k, v in value.items() if k != "steps"}
+            lines.append(f"  {json.dumps(key)}: {{")
+            for k, v in head.items():
+                lines.append(f"    {json.dumps(k)}: {json.dumps(v)},")
+            lines.append('    "steps": [')
+            for j, item in enumerate(value["steps"]):
+                sep = "," if j + 1 < len(value["steps"]) else ""
+                lines.append("      " + json.dumps(item, separators=(",", ":")) + sep)
+            lines.append("    ]")
+            lines.append(f"  }}{comma}")
+        else:
+            lines.append(f"  {json.dumps(key)}: {json.dumps(value)}{comma}")
+    lines.append("}")
+    return "\n".join(lines) + "\n"
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--check", action="store_true", help="exit 1 when the file is stale")
+    parser.add_argument("-o", "--output", type=Path, default=VECTORS)
+    args = parser.parse_args(argv)
+    text = dumps(build_vectors())
+    if args.check:
+        current = args.output.read_text() if args.output.exists() else ""
+        if current != text:
+            print(f"{args.output} is stale; run scripts/gen_firmware_vectors.py", file=sys.stderr)
+            return 1
+        return 0
+    args.output.write_text(text)
+    print(f"wrote {args.output} ({len(text)} bytes)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

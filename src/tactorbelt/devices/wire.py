@@ -1,0 +1,696 @@
+"""Protocol v1 on the wire: packets, CRC, COBS framing, and every message of it.
+
+The contract is ``docs/protocol.md``; the firmware (``firmware/``) implements the
+same contract in C++ and shares nothing with this module but that document and the
+test vectors in ``firmware/test/vectors.json``.
+
+- A packet is ``type u8, seq u8, payload, crc u16 LE`` (at most 64 bytes), the CRC
+  being CRC-16/CCITT-FALSE over type, seq and payload.
+- Serial: each packet is COBS-encoded and followed by one 0x00
+  (:func:`encode_frame`, :class:`FrameDecoder`). BLE: the packet goes unframed
+  (:func:`encode_packet`, :func:`decode_packet`).
+- Builders (:func:`ping`, :func:`set_amplitudes`, ...) return a :class:`Packet`;
+  :func:`parse_reply` and :func:`parse_request` turn a Packet into a frozen
+  dataclass, and :func:`encode_reply` builds device replies, so that tests can play
+  either side.
+
+Builders check that each value fits its field (u8, u16, u32) and raise
+:class:`~tactorbelt.ConfigError` otherwise; they do not check the ranges the device
+enforces (mode, law, heartbeat timeout), so that those NAKs can be tested. Bytes that
+break the protocol raise :class:`~tactorbelt.ProtocolError`.
+
+Pure: imports only the standard library and tactorbelt._errors.
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+import struct
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+from .._errors import ConfigError, ProtocolError
+
+__all__ = [
+    "MAX_ENCODED_PACKET",
+    "MAX_PACKET",
+    "MAX_PAYLOAD",
+    "MIN_PACKET",
+    "PROTOCOL_VERSION",
+    "Ack",
+    "Capability",
+    "FrameDecoder",
+    "GetInfo",
+    "GetStatus",
+    "Heartbeat",
+    "Info",
+    "Law",
+    "Mode",
+    "MsgType",
+    "Nak",
+    "NakCode",
+    "Packet",
+    "Ping",
+    "PlayTarget",
+    "Pong",
+    "Reply",
+    "Request",
+    "SetAmplitudes",
+    "SetConfig",
+    "State",
+    "Status",
+    "StopAll",
+    "amplitude_to_level",
+    "angle_to_cdeg",
+    "cobs_decode",
+    "cobs_encode",
+    "crc16_ccitt_false",
+    "decode_packet",
+    "encode_frame",
+    "encode_packet",
+    "encode_reply",
+    "get_info",
+    "get_status",
+    "heartbeat",
+    "parse_reply",
+    "parse_request",
+    "ping",
+    "play_target",
+    "set_amplitudes",
+    "set_config",
+    "stop_all",
+]
+
+PROTOCOL_VERSION = 1
+#: Longest packet (type, seq, payload, crc) before framing.
+MAX_PACKET = 64
+#: Shortest packet: type, seq and crc.
+MIN_PACKET = 4
+MAX_PAYLOAD = MAX_PACKET - MIN_PACKET
+#: Longest COBS encoding of a packet (the 0x00 delimiter not counted).
+MAX_ENCODED_PACKET = MAX_PACKET + MAX_PACKET // 254 + 1
+
+
+class MsgType(enum.IntEnum):
+    """Packet types: host-to-device requests below 0x80, replies from 0x80."""
+
+    PING = 0x01
+    GET_INFO = 0x02
+    SET_AMPLITUDES = 0x10
+    STOP_ALL = 0x11
+    PLAY_TARGET = 0x12
+    HEARTBEAT = 0x14
+    SET_CONFIG = 0x15
+    GET_STATUS = 0x16
+    ACK = 0x80
+    PONG = 0x81
+    INFO = 0x82
+    STATUS = 0x83
+    NAK = 0x8F
+
+
+class NakCode(enum.IntEnum):
+    """Why the device refused a request."""
+
+    UNKNOWN_TYPE = 2
+    BAD_LENGTH = 3
+    OUT_OF_RANGE = 4
+
+
+class State(enum.IntEnum):
+    """The device state reported in STATUS."""
+
+    IDLE = 0
+    STREAMING = 1
+    PLAYING = 2
+    FAILSAFE = 3
+
+
+class Mode(enum.IntEnum):
+    """PLAY_TARGET mode."""
+
+    STATIC = 0
+    DYNAMIC = 1
+
+
+class Law(enum.IntEnum):
+    """PLAY_TARGET amplitude law."""
+
+    PAPER = 0
+    LINEAR = 1
+    ENERGY = 2
+
+
+class Capability(enum.IntFlag):
+    """INFO capability bits."""
+
+    PLAY_TARGET = 0x01
+
+
+def _uint(name: str, value: int, bits: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise ConfigError(f"{name} must be an integer, got {value!r}")
+    if not 0 <= value < (1 << bits):
+        raise ConfigError(f"{name} must be in 0..{(1 << bits) - 1} (u{bits}), got {value}")
+    return value
+
+
+@dataclass(frozen=True)
+class Packet:
+    """One protocol packet: type, sequence number and payload (the CRC is implicit)."""
+
+    type: int
+    seq: int
+    payload: bytes = b""
+
+    def __post_init__(self) -> None:
+        _uint("packet type", self.type, 8)
+        _uint("packet seq", self.seq, 8)
+        if not isinstance(self.payload, bytes | bytearray | memoryview):
+            raise ConfigError(f"packet payload must be bytes, got {type(self.payload).__name__}")
+        object.__setattr__(self, "payload", bytes(self.payload))
+        if len(self.payload) > MAX_PAYLOAD:
+            raise ConfigError(
+                f"packet payload is {len(self.payload)} bytes; at most {MAX_PAYLOAD} fit"
+            )
+
+
+# --- CRC and COBS -------------------------------------------------------------------
+
+
+def crc16_ccitt_false(data: bytes) -> int:
+    """CRC-16/CCITT-FALSE: poly 0x1021, init 0xFFFF, no reflection, no final xor."""
+    crc = 0xFFFF
+    for byte in data:
+        crc ^= byte << 8
+        for _ in range(8):
+            crc = ((crc << 1) ^ 0x1021) if crc & 0x8000 else (crc << 1)
+            crc &= 0xFFFF
+    return crc
+
+
+def cobs_encode(data: bytes) -> bytes:
+    """COBS-encode ``data`` (the result holds no 0x00; the delimiter is not added).
+
+    A run of 254 non-zero bytes that ends the data is not followed by an empty block.
+    """
+    out = bytearray([0])
+    code_at = 0
+    code = 1
+    for i, byte in enumerate(data):
+        if byte == 0:
+            out[code_at] = code
+            code_at = len(out)
+            out.append(0)
+            code = 1
+        else:
+            out.append(byte)
+            code += 1
+            if code == 0xFF and i + 1 < len(data):
+                out[code_at] = code
+                code_at = len(out)
+                out.append(0)
+                code = 1
+    out[code_at] = code
+    return bytes(out)
+
+
+def cobs_decode(data: bytes) -> bytes:
+    """Decode one COBS block sequence (without the 0x00 delimiter).
+
+    Raises:
+        ProtocolError: a 0x00 inside the data, or a code that runs past the end.
+    """
+    out = bytearray()
+    i, n = 0, len(data)
+    while i < n:
+        code = data[i]
+        i += 1
+        if code == 0:
+            raise ProtocolError(f"COBS: unexpected 0x00 at byte {i - 1}")
+        end = i + code - 1
+        if end > n:
+            raise ProtocolError(f"COBS: block at byte {i - 1} runs past the end ({n} bytes)")
+        block = data[i:end]
+        if 0 in block:
+            raise ProtocolError(f"COBS: unexpected 0x00 at byte {i + block.index(0)}")
+        out += block
+        i = end
+        if code != 0xFF and i < n:
+            out.append(0)
+    return bytes(out)
+
+
+# --- packets and frames -------------------------------------------------------------
+
+
+def encode_packet(p: Packet) -> bytes:
+    """``type, seq, payload, crc16 LE``: the unframed packet (one BLE write)."""
+    body = bytes((p.type, p.seq)) + p.payload
+    return body + struct.pack("<H", crc16_ccitt_false(body))
+
+
+def decode_packet(raw: bytes) -> Packet:
+    """Check the length and CRC of an unframed packet.
+
+    Raises:
+        ProtocolError: fewer than 4 or more than 64 bytes, or a CRC mismatch.
+    """
+    raw = bytes(raw)
+    if not MIN_PACKET <= len(raw) <= MAX_PACKET:
+        raise ProtocolError(
+            f"packet of {len(raw)} bytes; a packet has {MIN_PACKET} to {MAX_PACKET} bytes"
+        )
+    (crc,) = struct.unpack_from("<H", raw, len(raw) - 2)
+    expected = crc16_ccitt_false(raw[:-2])
+    if crc != expected:
+        raise ProtocolError(f"bad CRC: got 0x{crc:04X}, computed 0x{expected:04X}")
+    return Packet(raw[0], raw[1], raw[2:-2])
+
+
+def encode_frame(p: Packet) -> bytes:
+    """``COBS(encode_packet(p)) + b"\\x00"``: one packet on the serial link."""
+    return cobs_encode(encode_packet(p)) + b"\x00"
+
+
+class FrameDecoder:
+    """Incremental decoder for the serial link: feed bytes, get packets.
+
+    A frame is everything up to a 0x00. Empty frames are ignored (a host may send a
+    0x00 to flush). A frame longer than :data:`MAX_ENCODED_PACKET` bytes, not valid
+    COBS, or shorter than 4 bytes counts as a framing error; a bad CRC as a CRC
+    error. Errors are counted, never raised, and the decoder resynchronises at the
+    next 0x00. The firmware decoder follows the same rules.
+
+    Attributes:
+        crc_errors: frames dropped for a bad CRC.
+        framing_errors: frames dropped for bad framing or length.
+    """
+
+    def __init__(self) -> None:
+        self.crc_errors = 0
+        self.framing_errors = 0
+        self._buf = bytearray()
+        self._overflow = False
+
+    def reset(self) -> None:
+        """Drop a partial frame (the counters stay)."""
+        self._buf.clear()
+        self._overflow = False
+
+    def feed(self, data: bytes) -> list[Packet]:
+        """Consume bytes; return the packets completed by them, in order."""
+        packets: list[Packet] = []
+        start = 0
+        data = bytes(data)
+        while start < len(data):
+            end = data.find(0, start)
+            chunk = data[start:] if end < 0 else data[start:end]
+            if not self._overflow:
+                room = MAX_ENCODED_PACKET - len(self._buf)
+                if len(chunk) > room:
+                    self._overflow = True
+                else:
+                    self._buf += chunk
+            if end < 0:
+                break
+            start = end + 1
+            packet = self._end_frame()
+            if packet is not None:
+                packets.append(packet)
+        return packets
+
+    def _end_frame(self) -> Packet | None:
+        frame, overflow = bytes(self._buf), self._overflow
+        self.reset()
+        if overflow:
+            self.framing_errors += 1
+            return None
+        if not frame:
+            return None
+        try:
+            raw = cobs_decode(frame)
+        except ProtocolError:
+            self.framing_errors += 1
+            return None
+        if not MIN_PACKET <= len(raw) <= MAX_PACKET:
+            self.framing_errors += 1
+            return None
+        try:
+            return decode_packet(raw)
+        except ProtocolError:
+            self.crc_errors += 1
+            return None
+
+
+# --- values ---------------------------------------------------------------------------
+
+
+def amplitude_to_level(a: float) -> int:
+    """Amplitude in [0, 1] to a drive level 0..65535: ``floor(a*65535 + 0.5)``, clamped.
+
+    Raises:
+        ConfigError: NaN (a ValueError; hiding it as 0 would hide a bug).
+    """
+    a = float(a)
+    if math.isnan(a):
+        raise ConfigError("amplitude is NaN; expected a number in [0, 1]")
+    if a <= 0.0:
+        return 0
+    if a >= 1.0:
+        return 65535
+    return math.floor(a * 65535.0 + 0.5)
+
+
+def angle_to_cdeg(angle_deg: float) -> int:
+    """Degrees to centidegrees in 0..35999 (rounded, normalised).
+
+    Raises:
+        ConfigError: a non-finite angle.
+    """
+    a = float(angle_deg)
+    if not math.isfinite(a):
+        raise ConfigError(f"angle must be a finite number of degrees, got {angle_deg!r}")
+    return round(a * 100.0) % 36000
+
+
+# --- requests (host to device) --------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Ping:
+    nonce: int
+
+
+@dataclass(frozen=True)
+class GetInfo:
+    pass
+
+
+@dataclass(frozen=True)
+class SetAmplitudes:
+    levels: tuple[int, ...]
+
+
+@dataclass(frozen=True)
+class StopAll:
+    pass
+
+
+@dataclass(frozen=True)
+class PlayTarget:
+    angle_cdeg: int
+    mode: int
+    law: int
+    falloff_cdeg: int
+    period_ms: int
+    transit_ms: int
+    duration_ms: int
+
+
+@dataclass(frozen=True)
+class Heartbeat:
+    pass
+
+
+@dataclass(frozen=True)
+class SetConfig:
+    heartbeat_ms: int
+    max_on_ms: int | None = None
+
+
+@dataclass(frozen=True)
+class GetStatus:
+    pass
+
+
+Request = Ping | GetInfo | SetAmplitudes | StopAll | PlayTarget | Heartbeat | SetConfig | GetStatus
+
+_PLAY_TARGET = struct.Struct("<HBBHHHI")
+
+
+def ping(seq: int, nonce: int) -> Packet:
+    """PING: the device answers PONG with the nonce and its clock."""
+    return Packet(MsgType.PING, seq, struct.pack("<I", _uint("nonce", nonce, 32)))
+
+
+def get_info(seq: int) -> Packet:
+    """GET_INFO: the device answers INFO."""
+    return Packet(MsgType.GET_INFO, seq)
+
+
+def set_amplitudes(seq: int, levels: Sequence[int]) -> Packet:
+    """SET_AMPLITUDES: one level per channel, 0 (off) to 65535 (full). No reply."""
+    values = [_uint(f"level {k}", v, 16) for k, v in enumerate(levels)]
+    if 2 * len(values) > MAX_PAYLOAD:
+        raise ConfigError(f"{len(values)} levels do not fit in one packet (at most 30)")
+    return Packet(MsgType.SET_AMPLITUDES, seq, struct.pack(f"<{len(values)}H", *values))
+
+
+def stop_all(seq: int) -> Packet:
+    """STOP_ALL: every output off, state idle; the device answers ACK."""
+    return Packet(MsgType.STOP_ALL, seq)
+
+
+def play_target(
+    seq: int,
+    angle_cdeg: int,
+    mode: int,
+    law: int,
+    falloff_cdeg: int,
+    period_ms: int,
+    transit_ms: int,
+    duration_ms: int,
+) -> Packet:
+    """PLAY_TARGET: the device renders the stimulus itself at 1 kHz; answers ACK."""
+    payload = _PLAY_TARGET.pack(
+        _uint("angle_cdeg", angle_cdeg, 16),
+        _uint("mode", mode, 8),
+        _uint("law", law, 8),
+        _uint("falloff_cdeg", falloff_cdeg, 16),
+        _uint("period_ms", period_ms, 16),
+        _uint("transit_ms", transit_ms, 16),
+        _uint("duration_ms", duration_ms, 32),
+    )
+    return Packet(MsgType.PLAY_TARGET, seq, payload)
+
+
+def heartbeat(seq: int) -> Packet:
+    """HEARTBEAT: pushes the failsafe deadline; no reply."""
+    return Packet(MsgType.HEARTBEAT, seq)
+
+
+def set_config(seq: int, heartbeat_ms: int, max_on_ms: int | None = None) -> Packet:
+    """SET_CONFIG: heartbeat timeout (50..2000 ms) and, optionally, the longest
+    continuous-on time per channel (100..600000 ms). ACK, or NAK when out of range."""
+    payload = struct.pack("<H", _uint("heartbeat_ms", heartbeat_ms, 16))
+    if max_on_ms is not None:
+        payload += struct.pack("<I", _uint("max_on_ms", max_on_ms, 32))
+    return Packet(MsgType.SET_CONFIG, seq, payload)
+
+
+def get_status(seq: int) -> Packet:
+    """GET_STATUS: the device answers STATUS."""
+    return Packet(MsgType.GET_STATUS, seq)
+
+
+def _expect_len(p: Packet, name: str, *sizes: int) -> None:
+    if len(p.payload) not in sizes:
+        want = " or ".join(str(s) for s in sizes)
+        raise ProtocolError(f"{name}: payload of {len(p.payload)} bytes, expected {want}")
+
+
+def parse_request(p: Packet) -> Request:
+    """A host-to-device packet as a dataclass (for tests that play the device).
+
+    Raises:
+        ProtocolError: an unknown type or a payload of the wrong length.
+    """
+    t = p.type
+    if t == MsgType.PING:
+        _expect_len(p, "PING", 4)
+        return Ping(*struct.unpack("<I", p.payload))
+    if t == MsgType.GET_INFO:
+        _expect_len(p, "GET_INFO", 0)
+        return GetInfo()
+    if t == MsgType.SET_AMPLITUDES:
+        if len(p.payload) % 2:
+            raise ProtocolError(f"SET_AMPLITUDES: odd payload of {len(p.payload)} bytes")
+        n = len(p.payload) // 2
+        return SetAmplitudes(struct.unpack(f"<{n}H", p.payload))
+    if t == MsgType.STOP_ALL:
+        _expect_len(p, "STOP_ALL", 0)
+        return StopAll()
+    if t == MsgType.PLAY_TARGET:
+        _expect_len(p, "PLAY_TARGET", _PLAY_TARGET.size)
+        return PlayTarget(*_PLAY_TARGET.unpack(p.payload))
+    if t == MsgType.HEARTBEAT:
+        _expect_len(p, "HEARTBEAT", 0)
+        return Heartbeat()
+    if t == MsgType.SET_CONFIG:
+        _expect_len(p, "SET_CONFIG", 2, 6)
+        if len(p.payload) == 2:
+            return SetConfig(*struct.unpack("<H", p.payload))
+        return SetConfig(*struct.unpack("<HI", p.payload))
+    if t == MsgType.GET_STATUS:
+        _expect_len(p, "GET_STATUS", 0)
+        return GetStatus()
+    raise ProtocolError(f"unknown request type 0x{t:02X}")
+
+
+# --- replies (device to host) ---------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Pong:
+    nonce: int
+    device_time_us: int
+
+
+@dataclass(frozen=True)
+class Info:
+    """What GET_INFO tells: versions, channels, PWM resolution, timeout, tactor angles."""
+
+    protocol_version: int
+    fw_major: int
+    fw_minor: int
+    fw_patch: int
+    channels: int
+    pwm_steps: int
+    heartbeat_ms: int
+    capabilities: int
+    tactor_angles_deg: tuple[float, ...]
+
+    @property
+    def firmware_version(self) -> str:
+        """``"major.minor.patch"``."""
+        return f"{self.fw_major}.{self.fw_minor}.{self.fw_patch}"
+
+    @property
+    def can_play_target(self) -> bool:
+        """True when the device renders PLAY_TARGET itself."""
+        return bool(self.capabilities & Capability.PLAY_TARGET)
+
+
+@dataclass(frozen=True)
+class Status:
+    """What GET_STATUS tells: state, error counters and each channel's output level."""
+
+    state: State
+    failsafe_count: int
+    crc_errors: int
+    framing_errors: int
+    seq_gaps: int
+    levels: tuple[int, ...]
+
+
+@dataclass(frozen=True)
+class Ack:
+    seq: int
+    code: int = 0
+
+
+@dataclass(frozen=True)
+class Nak:
+    seq: int
+    code: int
+
+
+Reply = Pong | Info | Status | Ack | Nak
+
+_INFO_HEAD = struct.Struct("<BBBBBHHB")
+_STATUS_HEAD = struct.Struct("<BHHHH")
+
+
+def parse_reply(p: Packet) -> Reply:
+    """A device-to-host packet as a dataclass.
+
+    Raises:
+        ProtocolError: an unknown type, a payload of the wrong length, an unknown state.
+    """
+    t, payload = p.type, p.payload
+    if t == MsgType.PONG:
+        _expect_len(p, "PONG", 8)
+        return Pong(*struct.unpack("<II", payload))
+    if t == MsgType.INFO:
+        head = _INFO_HEAD.size
+        if len(payload) < head or (len(payload) - head) % 2:
+            raise ProtocolError(f"INFO: payload of {len(payload)} bytes, expected {head} + 2*N")
+        version, major, minor, patch, channels, steps, hb_ms, caps = _INFO_HEAD.unpack_from(
+            payload
+        )
+        if len(payload) != head + 2 * channels:
+            raise ProtocolError(
+                f"INFO: {channels} channels need {head + 2 * channels} bytes, got {len(payload)}"
+            )
+        cdeg = struct.unpack_from(f"<{channels}H", payload, head)
+        return Info(
+            version, major, minor, patch, channels, steps, hb_ms, caps,
+            tuple(c / 100.0 for c in cdeg),
+        )
+    if t == MsgType.STATUS:
+        head = _STATUS_HEAD.size
+        if len(payload) < head or (len(payload) - head) % 2:
+            raise ProtocolError(
+                f"STATUS: payload of {len(payload)} bytes, expected {head} + 2*N"
+            )
+        state, failsafe, crc_errors, framing_errors, gaps = _STATUS_HEAD.unpack_from(payload)
+        try:
+            st = State(state)
+        except ValueError:
+            raise ProtocolError(f"STATUS: unknown state {state}") from None
+        n = (len(payload) - head) // 2
+        levels = struct.unpack_from(f"<{n}H", payload, head)
+        return Status(st, failsafe, crc_errors, framing_errors, gaps, levels)
+    if t == MsgType.ACK:
+        _expect_len(p, "ACK", 2)
+        return Ack(*payload)
+    if t == MsgType.NAK:
+        _expect_len(p, "NAK", 2)
+        seq, code = payload
+        try:
+            return Nak(seq, NakCode(code))
+        except ValueError:
+            return Nak(seq, code)
+    raise ProtocolError(f"unknown reply type 0x{t:02X}")
+
+
+def encode_reply(seq: int, reply: Reply) -> Packet:
+    """Build a device reply (the inverse of :func:`parse_reply`; for tests and tools)."""
+    if isinstance(reply, Pong):
+        payload = struct.pack(
+            "<II",
+            _uint("nonce", reply.nonce, 32),
+            _uint("device_time_us", reply.device_time_us, 32),
+        )
+        return Packet(MsgType.PONG, seq, payload)
+    if isinstance(reply, Info):
+        if reply.channels != len(reply.tactor_angles_deg):
+            raise ConfigError(
+                f"INFO: {reply.channels} channels but {len(reply.tactor_angles_deg)} angles"
+            )
+        payload = _INFO_HEAD.pack(
+            _uint("protocol_version", reply.protocol_version, 8),
+            _uint("fw_major", reply.fw_major, 8),
+            _uint("fw_minor", reply.fw_minor, 8),
+            _uint("fw_patch", reply.fw_patch, 8),
+            _uint("channels", reply.channels, 8),
+            _uint("pwm_steps", reply.pwm_steps, 16),
+            _uint("heartbeat_ms", reply.heartbeat_ms, 16),
+            _uint("capabilities", reply.capabilities, 8),
+        ) + b"".join(struct.pack("<H", angle_to_cdeg(a)) for a in reply.tactor_angles_deg)
+        return Packet(MsgType.INFO, seq, payload)
+    if isinstance(reply, Status):
+        payload = _STATUS_HEAD.pack(
+            _uint("state", int(reply.state), 8),
+            _uint("failsafe_count", reply.failsafe_count, 16),
+            _uint("crc_errors", reply.crc_errors, 16),
+            _uint("framing_errors", reply.framing_errors, 16),
+            _uint("seq_gaps", reply.seq_gaps, 16),
+        ) + b"".join(struct.pack("<H", _uint("level", v, 16)) for v in reply.levels)
+        return Packet(MsgType.STATUS, seq, payload)
+    if isinstance(reply, Ack | Nak):
+        kind = MsgType.ACK if isinstance(reply, Ack) else MsgType.NAK
+        return Packet(kind, seq, bytes((_uint("seq", reply.seq, 8), _uint("code", reply.code, 8))))
+    raise ConfigError(f"not a reply: {reply!r}")
