@@ -1,0 +1,653 @@
+"""A direction display for applications: keep any direction shown on a belt, smoothly.
+
+The study shows 24 fixed targets, one at a time. An application (navigation, say)
+needs any direction, changing as the wearer turns. :class:`DirectionDisplay` keeps one
+direction displayed and moves it smoothly:
+
+- ``show(angle_deg)`` asks for a body angle (any angle, any call rate). The *displayed*
+  angle slews toward the *requested* one the short way round at ``slew_deg_per_s`` at
+  most (default 180 deg/s: a half turn in 1 s), so a new direction never makes the
+  amplitudes jump and never leaves a gap.
+- ``show_bearing(bearing_deg, heading_deg, t_s)`` shows a world bearing for a wearer
+  whose heading is ``heading_deg``: body angle = bearing - heading. The heading goes
+  through a One Euro filter (:class:`~tactorbelt.filters.OneEuroFilter`) first.
+- Every request goes through a :class:`~tactorbelt.filters.Hysteresis` (default 4 deg):
+  the dominant (nearest) tactor changes only when the requested angle is past the edge
+  of its sector by the margin, so an angle jittering around a sector edge does not make
+  the cue flicker between two tactors.
+- ``hide()`` turns every motor off. The display is a context manager (``hide`` on exit);
+  it does not close the belt.
+
+Two ways to drive a belt, chosen by ``device_render`` (default: automatic):
+
+- **Streaming** (any belt): frames at ``rate_hz`` (default the belt's ``stream_rate_hz``,
+  else 1000 Hz) computed from the displayed angle at each frame time. On a wall clock a
+  render thread writes them; on a simulated clock call :meth:`DirectionDisplay.pump`
+  (which moves the clock) or :meth:`DirectionDisplay.update`, so nothing sleeps.
+- **Device rendering** (``belt.can_render`` with an identity calibration): the belt
+  renders a static or dynamic stimulus itself (PLAY_TARGET, ``belt.play(stimulus, None)``).
+  A tick at ``device_rate_hz`` (20 Hz) slews the displayed angle and sends a new
+  PLAY_TARGET only when it differs from the one last sent by more than ``step_deg``
+  (default 2 deg, far below the ~15-deg resolution of the display, so the device is
+  never told about a change nobody can feel, and a slow link is not flooded). Within
+  ``step_deg`` of the requested angle the tick aims at the requested angle itself, so
+  after a move the device ends exactly on it; a later request within ``step_deg`` of
+  what the device shows sends nothing.
+
+The dynamic perturbation and its phase (the rule):
+
+- Streaming: the felt location runs on the trapezoid of DESIGN.md within the *pair* of
+  tactors that brackets the displayed angle. Its phase is kept (it keeps running) while
+  the displayed angle stays in the same pair; the dwell times follow the angle at every
+  frame, which is continuous, so sliding within a pair (even across its midpoint, where
+  the nearer tactor swaps) never jumps. When the displayed angle crosses a tactor into
+  another pair, the phase restarts at the start of the dwell on the new pair's nearer
+  tactor (the crossed one), and the restart waits until the old waveform is dwelling on
+  that tactor (at most ``2*transit_s``), so the felt location never jumps. An angle
+  exactly on a tactor renders static, as in the paper.
+- Device rendering: the device restarts the perturbation with every PLAY_TARGET (t = 0
+  starts the dwell on the nearer tactor). So, in dynamic mode, a new PLAY_TARGET is sent
+  only while the device's current stimulus is dwelling on the new stimulus's nearer
+  tactor (the same nearer tactor, or the old farther one when the angle crossed the
+  midpoint), so the felt location is continuous there too; this can delay a change by
+  up to one period (``period_s``), and after two periods the change is sent anyway.
+
+Imports NumPy, tactorbelt (geometry, laws, stimuli, filters, clock, devices.base) and
+the standard library (threading); no I/O library.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+import threading
+from types import TracebackType
+from typing import TYPE_CHECKING, Final
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ._errors import ConfigError, TactorbeltError
+from .clock import Clock, WallClock
+from .filters import (
+    DEFAULT_BETA,
+    DEFAULT_D_CUTOFF_HZ,
+    DEFAULT_HYSTERESIS_DEG,
+    DEFAULT_MIN_CUTOFF_HZ,
+    Hysteresis,
+    OneEuroFilter,
+)
+from .geometry import Layout, normalize, wrap
+from .laws import DEFAULT_FALLOFF_DEG, amplitudes
+from .stimuli import DEFAULT_PERIOD_S, DEFAULT_TRANSIT_S, Stimulus, make_stimulus
+
+if TYPE_CHECKING:
+    from .devices.base import Belt
+
+__all__ = [
+    "DEFAULT_DEVICE_RATE_HZ",
+    "DEFAULT_SLEW_DEG_PER_S",
+    "DEFAULT_STEP_DEG",
+    "DirectionDisplay",
+]
+
+#: Default top speed of the displayed angle (deg/s).
+DEFAULT_SLEW_DEG_PER_S: Final = 180.0
+#: Default smallest change that sends a new PLAY_TARGET to a device-render belt (deg).
+DEFAULT_STEP_DEG: Final = 2.0
+#: Default tick rate of the device-render loop (Hz).
+DEFAULT_DEVICE_RATE_HZ: Final = 20.0
+#: Default streaming rate when the belt does not say (Hz).
+DEFAULT_STREAM_RATE_HZ: Final = 1000.0
+#: A device-render change waits at most this many periods for a seamless moment.
+_MAX_WAIT_PERIODS: Final = 2.0
+#: A location within this of a tactor is on that tactor (for the seamless checks).
+_ON_TACTOR_DEG: Final = 1e-6
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+Pair = tuple[int, int]
+
+# the segments of the perturbation's trapezoid within a pair (ccw tactor A, cw tactor B)
+_DWELL_A, _TO_B, _DWELL_B, _TO_A = range(4)
+
+
+def _number(value: object, what: str) -> float:
+    try:
+        v = float(value)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        raise ConfigError(f"{what} must be a number, got {value!r}") from None
+    if not math.isfinite(v):
+        raise ConfigError(f"{what} must be a finite number, got {value!r}")
+    return v
+
+
+def _positive(value: object, what: str, allow_inf: bool = False) -> float:
+    try:
+        v = float(value)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        raise ConfigError(f"{what} must be a positive number, got {value!r}") from None
+    if math.isnan(v) or v <= 0 or (math.isinf(v) and not allow_inf):
+        raise ConfigError(f"{what} must be a positive, finite number, got {value!r}")
+    return v
+
+
+class DirectionDisplay:
+    """Keep one direction displayed on a belt; move it smoothly when it changes.
+
+    Args:
+        belt: an open belt (any backend).
+        law: amplitude law (``paper``, ``linear``, ``energy``).
+        mode: ``static`` or ``dynamic`` (the paper's perturbation).
+        falloff_deg: T of the paper law.
+        period_s: period of the dynamic perturbation.
+        transit_s: time of each move between the two tactors.
+        clock: the clock (default: the belt's ``clock`` if it has one, else the wall clock).
+        step_deg: device rendering: the smallest change of direction that sends a new
+            PLAY_TARGET (default 2 deg).
+        slew_deg_per_s: top speed of the displayed angle (default 180 deg/s; ``math.inf``
+            jumps at once).
+        hysteresis_deg: hysteresis margin past a sector edge (default 4 deg; 0 = off).
+        rate_hz: streaming frame rate (default: the belt's ``stream_rate_hz``, else 1000).
+        device_render: True to send PLAY_TARGET, False to stream frames, None (default)
+            to render on the device when the belt can (``can_render``) and its
+            calibration is the identity (the device does not apply host calibration).
+        device_rate_hz: tick rate of the device-render loop (default 20 Hz).
+        min_cutoff_hz, beta, d_cutoff_hz: the heading filter's parameters (see
+            :mod:`tactorbelt.filters`).
+
+    Raises:
+        ConfigError: a bad parameter, or ``device_render=True`` on a belt that cannot.
+    """
+
+    def __init__(
+        self,
+        belt: Belt,
+        law: str = "paper",
+        mode: str = "static",
+        falloff_deg: float = DEFAULT_FALLOFF_DEG,
+        period_s: float = DEFAULT_PERIOD_S,
+        transit_s: float = DEFAULT_TRANSIT_S,
+        clock: Clock | None = None,
+        step_deg: float = DEFAULT_STEP_DEG,
+        slew_deg_per_s: float = DEFAULT_SLEW_DEG_PER_S,
+        hysteresis_deg: float = DEFAULT_HYSTERESIS_DEG,
+        rate_hz: float | None = None,
+        device_render: bool | None = None,
+        device_rate_hz: float = DEFAULT_DEVICE_RATE_HZ,
+        min_cutoff_hz: float = DEFAULT_MIN_CUTOFF_HZ,
+        beta: float = DEFAULT_BETA,
+        d_cutoff_hz: float = DEFAULT_D_CUTOFF_HZ,
+    ) -> None:
+        self.belt = belt
+        self.layout: Layout = belt.layout
+        # validates mode, law, falloff, period and transit together
+        probe = make_stimulus(self.layout, 0.0, mode, law, falloff_deg, period_s, transit_s)
+        self.mode = probe.mode
+        self.law = probe.law
+        self.falloff_deg = probe.falloff_deg
+        self.period_s = probe.period_s
+        self.transit_s = probe.transit_s
+        self.step_deg = _number(step_deg, "step_deg")
+        if self.step_deg < 0:
+            raise ConfigError(f"step_deg must be >= 0 degrees, got {step_deg!r}")
+        self.slew_deg_per_s = _positive(slew_deg_per_s, "slew_deg_per_s", allow_inf=True)
+        self.device_rate_hz = _positive(device_rate_hz, "device_rate_hz")
+        if rate_hz is None:
+            rate_hz = getattr(belt, "stream_rate_hz", None) or DEFAULT_STREAM_RATE_HZ
+        self.rate_hz = _positive(rate_hz, "rate_hz")
+        can = bool(getattr(belt, "can_render", False))
+        identity = belt.calibration.is_identity
+        if device_render is None:
+            device_render = can and identity
+        elif device_render and not can:
+            raise ConfigError(f"belt {belt.url!r} cannot render stimuli on the device; "
+                              "use device_render=False (stream frames)")
+        elif device_render and not identity:
+            raise ConfigError(f"belt {belt.url!r} has a calibration, which the device would "
+                              "ignore; use device_render=False (stream frames)")
+        self.device_render = bool(device_render)
+        if clock is None:
+            clock = getattr(belt, "clock", None)
+        self.clock: Clock = clock if isinstance(clock, Clock) else WallClock()
+        self.hysteresis = Hysteresis(self.layout, hysteresis_deg)
+        self.heading_filter = OneEuroFilter(min_cutoff_hz, beta, d_cutoff_hz, angular=True)
+
+        self._lock = threading.RLock()
+        self._angles = self.layout.angles
+        self._gaps_cw = self.layout.gaps_deg()
+        self._hold_s = self.period_s - 2.0 * self.transit_s
+        self._tick_ns = (1e9 / self.device_rate_hz) if self.device_render else (1e9 / self.rate_hz)
+        self._thread: threading.Thread | None = None
+        self._stop_event = threading.Event()
+        self._error: BaseException | None = None
+        self._reset_state()
+        #: Frames written (streaming).
+        self.frames_written = 0
+        #: PLAY_TARGET commands sent (device rendering).
+        self.plays_sent = 0
+        #: Times the perturbation restarted in another pair (streaming, dynamic).
+        self.pair_changes = 0
+        #: Largest change of any tactor's amplitude between two consecutive frames.
+        self.max_frame_change = 0.0
+        #: The last heading given to show_bearing, after the filter (None before).
+        self.filtered_heading_deg: float | None = None
+
+    # -- state ----------------------------------------------------------------------------
+    def _reset_state(self) -> None:
+        self._requested: float | None = None
+        self._displayed: float | None = None
+        self._t_ns = 0  # time the displayed angle was last advanced to
+        self._next_ns = 0  # next frame (streaming) or tick (device rendering)
+        self._pair: Pair | None = None
+        self._seg = _DWELL_A  # where the perturbation is on its trapezoid
+        self._seg_start_ns = 0  # when that segment started
+        self._last_frame_ns = 0
+        self._last_amps: FloatArray | None = None
+        self._sent: Stimulus | None = None  # device rendering: the stimulus playing
+        self._sent_ns = 0
+        self._pending_since_ns: int | None = None
+
+    @property
+    def playing(self) -> bool:
+        """True while a direction is shown (between the first show and hide)."""
+        return self._displayed is not None
+
+    @property
+    def requested_deg(self) -> float | None:
+        """The angle asked for (after hysteresis), or None when hidden."""
+        return self._requested
+
+    @property
+    def displayed_deg(self) -> float | None:
+        """The angle displayed now (slewing toward the requested one), or None."""
+        return self._displayed
+
+    @property
+    def dominant_tactor(self) -> int | None:
+        """The tactor the hysteresis holds as dominant, or None when hidden."""
+        return self.hysteresis.dominant if self.playing else None
+
+    @property
+    def device_angle_deg(self) -> float | None:
+        """Device rendering: the direction of the PLAY_TARGET last sent (None: none)."""
+        return None if self._sent is None else self._sent.target_deg
+
+    # -- the public interface -------------------------------------------------------------
+    def show(self, angle_deg: float) -> float:
+        """Display body angle ``angle_deg`` (degrees, 0 = navel, clockwise).
+
+        Returns at once: the displayed angle slews toward it. May be called at any rate,
+        from any thread.
+
+        Returns:
+            The requested angle after hysteresis (what the display moves toward).
+        """
+        x = _number(angle_deg, "angle")
+        self._raise_thread_error()
+        with self._lock:
+            held = self.hysteresis(float(normalize(x)))
+            self._requested = held
+            if self._displayed is None:
+                self._start(held)
+            elif self.device_render and not self._threaded:
+                pass  # the next pump/update tick sends it
+            elif self.device_render:
+                self._device_tick(self.clock.now_ns())
+        return held
+
+    def show_bearing(self, bearing_deg: float, heading_deg: float,
+                     t_s: float | None = None) -> float:
+        """Display a world bearing for a wearer facing ``heading_deg``.
+
+        The heading is filtered (One Euro, on the unwrapped angle); the body angle is
+        ``bearing - filtered heading``, then goes through :meth:`show`.
+
+        Args:
+            bearing_deg: direction to show, degrees clockwise from north (or any fixed
+                world reference the heading shares).
+            heading_deg: the wearer's heading in the same reference (noisy is fine).
+            t_s: when the heading was measured, seconds (default: the display's clock).
+
+        Returns:
+            The requested body angle after hysteresis.
+        """
+        b = _number(bearing_deg, "bearing")
+        h = _number(heading_deg, "heading")
+        t = self.clock.now_ns() / 1e9 if t_s is None else _number(t_s, "heading time")
+        with self._lock:
+            hf = self.heading_filter(h, t)
+            self.filtered_heading_deg = hf
+            return self.show(float(normalize(b - hf)))
+
+    def hide(self) -> None:
+        """Stop displaying: the render loop ends and every motor is off."""
+        self._stop_thread()
+        with self._lock:
+            self._reset_state()
+            self.hysteresis.reset()
+            if not self.belt.closed:
+                self.belt.stop()
+        self._raise_thread_error()
+
+    def close(self) -> None:
+        """Same as :meth:`hide` (the belt stays open)."""
+        self.hide()
+
+    def __enter__(self) -> DirectionDisplay:
+        return self
+
+    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
+                 tb: TracebackType | None) -> None:
+        try:
+            self.hide()
+        except TactorbeltError:
+            if exc is None:
+                raise
+
+    def update(self, now_ns: int | None = None) -> FloatArray | None:
+        """Advance the display to ``now_ns`` (default: the clock) and drive the belt once.
+
+        Streaming: writes one frame for ``now_ns`` and returns its amplitudes.
+        Device rendering: slews, sends a PLAY_TARGET if one is due, returns None.
+        For applications that run their own loop; the render thread and :meth:`pump`
+        call the same code.
+        """
+        self._raise_thread_error()
+        now = self.clock.now_ns() if now_ns is None else int(now_ns)
+        with self._lock:
+            if self._displayed is None:
+                return None
+            if self.device_render:
+                self._device_tick(now)
+                self._next_ns = max(self._next_ns, now + round(self._tick_ns))
+                return None
+            amps = self._frames(np.array([max(now, self._t_ns)], dtype=np.int64))
+            self._write(amps)
+            self._next_ns = max(self._next_ns, now + round(self._tick_ns))
+            return amps[0]
+
+    def pump(self, until_ns: int) -> None:
+        """Drive the belt up to ``until_ns`` on a simulated clock (moves the clock).
+
+        Streaming: writes every frame due before ``until_ns``, each at its time.
+        Device rendering: runs every tick due before ``until_ns``. The clock ends at
+        ``until_ns``. Does nothing but move the clock while hidden.
+
+        Raises:
+            TactorbeltError: the display runs its own thread (a wall clock).
+        """
+        if self._threaded:
+            raise TactorbeltError("this display renders in its own thread on the wall clock; "
+                                  "pump() is for simulated clocks")
+        until = int(until_ns)
+        with self._lock:
+            if self._displayed is not None:
+                now = self.clock.now_ns()
+                tick = self._tick_ns
+                if self._next_ns < now:  # the clock was moved by someone else: skip ahead
+                    self._next_ns += math.ceil((now - self._next_ns) / tick) * round(tick)
+                n = max(0, math.ceil((until - self._next_ns) / tick))
+                times = self._next_ns + np.round(np.arange(n) * tick).astype(np.int64)
+                if self.device_render:
+                    for t in times.tolist():
+                        self.clock.sleep_until_ns(t)
+                        self._device_tick(t)
+                else:
+                    amps = self._frames(times)
+                    for t, row in zip(times.tolist(), amps, strict=True):
+                        self.clock.sleep_until_ns(t)
+                        self._write(row[None, :])
+                if n:
+                    self._next_ns = int(times[-1]) + round(tick)
+            self.clock.sleep_until_ns(until)
+
+    # -- starting and the render thread -----------------------------------------------------
+    @property
+    def _threaded(self) -> bool:
+        return not self.clock.simulated
+
+    def _start(self, angle: float) -> None:
+        now = self.clock.now_ns()
+        self._displayed = angle
+        self._t_ns = now
+        self._next_ns = now
+        self._pair = None
+        self._last_frame_ns = now
+        self._sent = None
+        self._last_amps = None
+        if self.device_render:
+            self._device_tick(now)
+            self._next_ns = now + round(self._tick_ns)
+        if self._threaded:
+            self._stop_event.clear()
+            self._error = None
+            self._thread = threading.Thread(target=self._run, name="tactorbelt-display",
+                                            daemon=True)
+            self._thread.start()
+
+    def _run(self) -> None:
+        tick = round(self._tick_ns)
+        try:
+            while not self._stop_event.is_set():
+                with self._lock:
+                    deadline = self._next_ns
+                self.clock.sleep_until_ns(deadline)
+                if self._stop_event.is_set():
+                    break
+                now = self.clock.now_ns()
+                with self._lock:
+                    if self._displayed is None:
+                        break
+                    if self.device_render:
+                        self._device_tick(now)
+                    else:
+                        self._write(self._frames(np.array([now], dtype=np.int64)))
+                    nxt = self._next_ns + tick
+                    self._next_ns = nxt if nxt > now else now + tick  # late: skip, no burst
+        except BaseException as exc:  # surfaced by the next call from the application
+            self._error = exc
+
+    def _stop_thread(self) -> None:
+        thread = self._thread
+        if thread is not None:
+            self._stop_event.set()
+            if thread is not threading.current_thread():
+                thread.join(timeout=5.0)
+            self._thread = None
+
+    def _raise_thread_error(self) -> None:
+        err = self._error
+        if err is not None:
+            self._error = None
+            raise err
+
+    # -- the displayed angle -----------------------------------------------------------------
+    def _slew(self, times: IntArray) -> FloatArray:
+        """Displayed angle at each (increasing) time; advances the state to the last."""
+        assert self._displayed is not None and self._requested is not None
+        d0, target = self._displayed, self._requested
+        diff = float(wrap(target - d0))
+        dt = np.maximum(times - self._t_ns, 0).astype(float) * 1e-9
+        if math.isinf(self.slew_deg_per_s):
+            x = np.full(times.shape, target)
+        else:
+            travel = self.slew_deg_per_s * dt
+            arrived = travel >= abs(diff)
+            x = np.where(arrived, target,
+                         np.asarray(normalize(d0 + math.copysign(1.0, diff) * travel)))
+        if times.size:
+            self._displayed = float(x[-1])
+            self._t_ns = max(self._t_ns, int(times[-1]))
+        return np.asarray(x, dtype=float)
+
+    # -- streaming --------------------------------------------------------------------------
+    def _frames(self, times: IntArray) -> FloatArray:
+        """Amplitudes (len(times), N) for increasing frame times; advances the state."""
+        x = self._slew(times)
+        dynamic = self.mode == "dynamic" and times.size > 0
+        loc = self._dynamic_locations(times, x) if dynamic else x
+        return amplitudes(self.layout, loc, self.law, self.falloff_deg)
+
+    def _write(self, amps: FloatArray) -> None:
+        for row in amps:
+            if self._last_amps is not None:
+                change = float(np.max(np.abs(row - self._last_amps)))
+                self.max_frame_change = max(self.max_frame_change, change)
+            self.belt.set_amplitudes(row)
+            self._last_amps = row
+            self.frames_written += 1
+
+    def _pairs(self, x: FloatArray) -> tuple[IntArray, IntArray]:
+        """The pair bracketing each angle: (ccw, cw), or (k, k) on tactor k."""
+        on = np.asarray(self.layout.tactor_at(x))
+        ccw, cw = self.layout.neighbours(x)
+        a = np.where(on >= 0, on, ccw).astype(np.int64)
+        b = np.where(on >= 0, on, cw).astype(np.int64)
+        return a, b
+
+    def _r(self, pair: Pair, x: FloatArray) -> FloatArray:
+        """Where each angle sits in ``pair``: 0 at its ccw tactor, 1 at its cw tactor.
+
+        Clamped to [0, 1]: an angle that has just left the pair counts as on its edge.
+        """
+        a, _ = pair
+        gap = float(self._gaps_cw[a])
+        off = np.asarray(wrap(x - self._angles[a] - gap / 2.0)) + gap / 2.0
+        return np.asarray(np.clip(off / gap, 0.0, 1.0))
+
+    def _enter_pair(self, pair: Pair, t_ns: int, x: float) -> None:
+        """Start the perturbation in ``pair`` at the dwell on its nearer tactor."""
+        if self._pair is not None:
+            self.pair_changes += 1
+        self._pair = pair
+        a, b = pair
+        r = float(self._r(pair, np.array([x]))[0]) if a != b else 0.0
+        # nearer = ccw tactor when r <= 0.5 (at an exact midpoint too, as in DESIGN.md)
+        self._seg = _DWELL_A if r <= 0.5 else _DWELL_B
+        self._seg_start_ns = t_ns
+
+    def _dwelling_on(self, k: int) -> bool:
+        """True when the felt location is dwelling on tactor k (current pair)."""
+        assert self._pair is not None
+        a, b = self._pair
+        if a == b:
+            return k == a
+        return (self._seg == _DWELL_A and k == a) or (self._seg == _DWELL_B and k == b)
+
+    def _crossed(self, x: float) -> int:
+        """The tactor of the current pair nearest ``x`` (the one being crossed)."""
+        assert self._pair is not None
+        a, b = self._pair
+        da = abs(float(wrap(x - self._angles[a])))
+        db = abs(float(wrap(x - self._angles[b])))
+        return a if da <= db else b
+
+    def _segments(self, times: IntArray, x: FloatArray, loc: FloatArray, i: int, j: int,
+                  stop_on: int | None = None) -> int:
+        """Render frames ``i..j-1`` in the current pair, moving along the trapezoid.
+
+        The trapezoid is a small state machine: dwell on the ccw tactor (for
+        ``hold*(1-r)``), transit to the cw tactor (``transit_s``), dwell there (for
+        ``hold*r``), transit back. Dwell lengths follow r at every frame; a transit
+        always runs at its nominal speed, so the felt location moves no faster than
+        in the paper's stimulus, whatever the display does.
+
+        Returns ``j``, or with ``stop_on`` the first frame at which the location is
+        dwelling on that tactor (that frame is not rendered).
+        """
+        assert self._pair is not None
+        a, b = self._pair
+        if a == b:
+            if stop_on is not None:
+                return i
+            loc[i:j] = self._angles[a]
+            return j
+        ang_a, gap = float(self._angles[a]), float(self._gaps_cw[a])
+        tr_ns = self.transit_s * 1e9
+        hold_ns = self._hold_s * 1e9
+        while i < j:
+            if stop_on is not None and self._dwelling_on(stop_on):
+                return i
+            seg, s0 = self._seg, self._seg_start_ns
+            t = times[i:j]
+            elapsed = (t - s0).astype(float)
+            if seg == _DWELL_A:
+                dur = hold_ns * (1.0 - self._r(self._pair, x[i:j]))
+            elif seg == _DWELL_B:
+                dur = hold_ns * self._r(self._pair, x[i:j])
+            else:
+                dur = np.full(t.shape, tr_ns)
+            done = np.flatnonzero(elapsed >= dur)
+            k = int(done[0]) if done.size else j - i
+            if seg == _DWELL_A:
+                loc[i:i + k] = ang_a
+            elif seg == _DWELL_B:
+                loc[i:i + k] = ang_a + gap
+            else:
+                frac = np.clip(elapsed[:k] / tr_ns, 0.0, 1.0)
+                loc[i:i + k] = ang_a + gap * (frac if seg == _TO_B else 1.0 - frac)
+            if not done.size:
+                return j
+            # the segment ended at s0 + dur; never before the last frame drawn in it
+            prev = int(times[i + k - 1]) if i + k > 0 else self._last_frame_ns
+            end = int(s0 + round(float(dur[k])))
+            self._seg = (seg + 1) % 4
+            self._seg_start_ns = max(end, prev)
+            i += k
+        return j
+
+    def _dynamic_locations(self, times: IntArray, x: FloatArray) -> FloatArray:
+        """Felt locations of the streamed perturbation (see the module docstring)."""
+        ka, kb = self._pairs(x)
+        n = times.shape[0]
+        loc = np.empty(n)
+        change = np.flatnonzero((np.diff(ka) != 0) | (np.diff(kb) != 0)) + 1
+        bounds = [0, *change.tolist(), n]
+        for i0, j in itertools.pairwise(bounds):
+            target: Pair = (int(ka[i0]), int(kb[i0]))
+            i = i0
+            if target != self._pair:
+                if self._pair is not None and self._pair[0] != self._pair[1]:
+                    s = self._crossed(float(x[i]))
+                    if s in target:  # wait until dwelling on the crossed tactor
+                        i = self._segments(times, x, loc, i, j, stop_on=s)
+                if i < j:
+                    self._enter_pair(target, int(times[i]), float(x[i]))
+            if i < j:
+                self._segments(times, x, loc, i, j)
+        if n:
+            self._last_frame_ns = int(times[-1])
+        return np.asarray(normalize(loc))
+
+    # -- device rendering ---------------------------------------------------------------------
+    def _stimulus(self, angle: float) -> Stimulus:
+        return make_stimulus(self.layout, angle, self.mode, self.law, self.falloff_deg,
+                             self.period_s, self.transit_s)
+
+    def _device_tick(self, now: int) -> None:
+        """Slew to ``now``; send a PLAY_TARGET when the direction moved by > step_deg."""
+        x = float(self._slew(np.array([max(now, self._t_ns)], dtype=np.int64))[0])
+        assert self._requested is not None
+        if abs(float(wrap(self._requested - x))) <= self.step_deg:
+            x = self._requested  # within a step of the goal: aim at the goal itself
+        sent = self._sent
+        if sent is not None and abs(float(wrap(x - sent.target_deg))) <= self.step_deg:
+            self._pending_since_ns = None
+            return
+        stim = self._stimulus(x)
+        if sent is not None and sent.is_dynamic and not self._seamless(sent, stim, now):
+            if self._pending_since_ns is None:
+                self._pending_since_ns = now
+            if now - self._pending_since_ns < _MAX_WAIT_PERIODS * self.period_s * 1e9:
+                return
+        self.belt.play(stim, None)
+        self._sent = stim
+        self._sent_ns = now
+        self._pending_since_ns = None
+        self.plays_sent += 1
+
+    def _seamless(self, playing: Stimulus, new: Stimulus, now: int) -> bool:
+        """True when ``playing`` is dwelling on ``new``'s nearer tactor at ``now``."""
+        loc = float(playing.location((now - self._sent_ns) * 1e-9))
+        return abs(float(wrap(loc - new.near_deg))) < _ON_TACTOR_DEG
