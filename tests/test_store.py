@@ -1,0 +1,223 @@
+"""The SQLite store: schema, durability settings, one row per trial, and clear errors."""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import sqlite3
+from pathlib import Path
+
+import pytest
+
+from tactorbelt import StoreError
+from tactorbelt.experiment.schedule import make_schedule
+from tactorbelt.experiment.store import Store
+from tactorbelt.experiment.study import paper_study
+from tactorbelt.experiment.trial import TrialResult
+
+DESIGN_COLUMNS = {
+    "sessions": {"session_id", "participant", "study_name", "study_sha256", "study_toml",
+                 "seed", "condition_order", "belt", "firmware_version", "package_version",
+                 "started_at", "ended_at", "status"},
+    "trials": {"trial_id", "session_id", "block", "condition", "repetition", "trial_index",
+               "target_deg", "on_tactor", "response_deg", "response_target_deg", "correct",
+               "rt_s", "onset_ns", "status"},
+    "samples": {"trial_id", "t_s", "x", "y", "buttons"},
+}
+
+
+def _session(store: Store, participant: str = "P01") -> int:
+    study = paper_study()
+    text = study.to_toml()
+    return store.create_session(
+        participant=participant, study_name=study.name, study_toml=text,
+        study_sha256=hashlib.sha256(text.encode()).hexdigest(), seed=1,
+        condition_order=["static", "dynamic"], schedule=make_schedule(study, participant),
+        belt="sim", package_version="0.1.0")
+
+
+def _result(index: int = 0, status: str = "done", n: int = 3) -> TrialResult:
+    t = make_schedule(paper_study(), "P01")[index]
+    r = TrialResult(t, status=status, onset_ns=1_000_000_000)
+    if status == "done":
+        r.acquired_ns = 1_500_000_000
+        r.rt_s = 0.5
+        r.response_deg = t.target_deg
+        r.response_target_deg = t.target_deg
+        r.correct = True
+    for k in range(n):
+        r.sample_t_ns.append(1_000_000_000 + k * 10_000_000)
+        r.sample_x.append(0.1 * k)
+        r.sample_y.append(0.2 * k)
+        r.sample_buttons.append(0)
+    return r
+
+
+def test_schema_has_designs_columns_and_indexes(tmp_path: Path) -> None:
+    with Store.open(tmp_path / "s.sqlite") as store:
+        for table, cols in DESIGN_COLUMNS.items():
+            have = {r[1] for r in store.conn.execute(f"PRAGMA table_info({table})")}
+            assert cols <= have, (table, cols - have)
+        idx = {r[0]: r[1] for r in store.conn.execute(
+            "SELECT name, sql FROM sqlite_master WHERE type='index' AND sql IS NOT NULL")}
+        assert any("trials(session_id)" in s for s in idx.values())
+        assert any("samples(trial_id)" in s for s in idx.values())
+        assert store.conn.execute("PRAGMA synchronous").fetchone()[0] == 2  # FULL
+    conn = sqlite3.connect(tmp_path / "s.sqlite")
+    assert conn.execute("PRAGMA journal_mode").fetchone()[0] == "wal"
+    conn.close()
+
+
+def test_session_provenance_and_trials_round_trip(tmp_path: Path) -> None:
+    with Store.open(tmp_path / "s.sqlite") as store:
+        sid = _session(store)
+        tid = store.write_trial(sid, _result(0))
+        store.set_status(sid, "complete")
+    with Store.open(tmp_path / "s.sqlite", create=False) as store:
+        s = store.session(sid)
+        assert s["status"] == "complete" and s["ended_at"] is not None
+        assert s["session_number"] == 1
+        assert store.schedule(sid) == make_schedule(paper_study(), "P01")
+        (row,) = store.trials(sid)
+        assert row["trial_id"] == tid and row["status"] == "done" and row["correct"] == 1
+        assert row["block"] == "training" and row["onset_ns"] == 1_000_000_000
+        assert store.samples(tid) == [(0.0, 0.0, 0.0, 0), (0.01, 0.1, 0.2, 0),
+                                      (0.02, 0.2, 0.4, 0)]
+        assert store.finished_indices(sid) == {0}
+        # a second session of the same participant is session number 2
+        assert store.session(_session(store))["session_number"] == 2
+
+
+def test_a_final_trial_is_never_written_twice(tmp_path: Path) -> None:
+    with Store.open(tmp_path / "s.sqlite") as store:
+        sid = _session(store)
+        store.write_trial(sid, _result(5, "timeout"))
+        with pytest.raises(StoreError, match="already recorded"):
+            store.write_trial(sid, _result(5, "done"))
+        assert len(store.trials(sid)) == 1
+
+
+def test_an_aborted_trial_is_replaced_with_its_samples(tmp_path: Path) -> None:
+    with Store.open(tmp_path / "s.sqlite") as store:
+        sid = _session(store)
+        old = store.write_trial(sid, _result(7, "aborted", n=5))
+        new = store.write_trial(sid, _result(7, "done", n=2))
+        (row,) = store.trials(sid)
+        assert row["trial_id"] == new != old
+        assert row["attempts"] == 2 and row["status"] == "done"
+        assert store.samples(old) == []
+        assert len(store.samples(new)) == 2
+        assert store.conn.execute("SELECT COUNT(*) FROM samples").fetchone()[0] == 2
+
+
+def test_find_resumable(tmp_path: Path) -> None:
+    with Store.open(tmp_path / "s.sqlite") as store:
+        assert store.find_resumable("P01") is None
+        sid = _session(store)
+        assert store.find_resumable("P01")["session_id"] == sid  # type: ignore[index]
+        store.set_status(sid, "complete")
+        assert store.find_resumable("P01") is None
+        sid2 = _session(store)
+        store.set_status(sid2, "interrupted")
+        assert store.find_resumable("P01")["session_id"] == sid2  # type: ignore[index]
+        assert store.find_resumable("P02") is None
+
+
+# -- bad stores: a clear error before anything is written -------------------------------
+
+def _snapshot(p: Path) -> tuple[bytes, list[str]]:
+    return p.read_bytes(), sorted(os.listdir(p.parent))
+
+
+def test_not_sqlite(tmp_path: Path) -> None:
+    p = tmp_path / "notes.sqlite"
+    p.write_text("participant,answer\nP01,3\n")
+    before = _snapshot(p)
+    with pytest.raises(StoreError, match="not an SQLite database"):
+        Store.open(p)
+    assert _snapshot(p) == before
+
+
+def test_read_only(tmp_path: Path) -> None:
+    p = tmp_path / "ro.sqlite"
+    with Store.open(p) as store:
+        _session(store)
+    p.chmod(0o444)
+    try:
+        before = _snapshot(p)
+        with pytest.raises(StoreError, match="read-only"):
+            Store.open(p)
+        assert _snapshot(p) == before
+    finally:
+        p.chmod(0o644)
+
+
+def test_locked_by_another_run(tmp_path: Path) -> None:
+    p = tmp_path / "busy.sqlite"
+    with Store.open(p) as first:
+        _session(first)
+        before = p.read_bytes()
+        with pytest.raises(StoreError, match="another run is using the store"):
+            Store.open(p)
+        assert p.read_bytes() == before
+    # released on close
+    Store.open(p).close()
+
+
+def test_truncated(tmp_path: Path) -> None:
+    p = tmp_path / "t.sqlite"
+    with Store.open(p) as store:
+        sid = _session(store)
+        for i in range(40):
+            store.write_trial(sid, _result(i, n=50))
+        store.conn.execute("PRAGMA wal_checkpoint(TRUNCATE)")
+    data = p.read_bytes()
+    p.write_bytes(data[: len(data) // 2])
+    with pytest.raises(StoreError, match="corrupted or truncated"):
+        Store.open(p)
+
+
+def test_corrupted_pages(tmp_path: Path) -> None:
+    p = tmp_path / "c.sqlite"
+    with Store.open(p) as store:
+        sid = _session(store)
+        for i in range(40):
+            store.write_trial(sid, _result(i, n=50))
+        store.conn.execute("PRAGMA wal_checkpoint(TRUNCATE)")
+    data = bytearray(p.read_bytes())
+    page = 4096
+    for off in range(2 * page, len(data), page):  # garble every page header after the first
+        data[off:off + 8] = b"\xff" * 8
+    p.write_bytes(bytes(data))
+    with pytest.raises(StoreError, match="corrupted or truncated"):
+        Store.open(p)
+
+
+def test_sqlite_but_not_a_store(tmp_path: Path) -> None:
+    p = tmp_path / "other.sqlite"
+    conn = sqlite3.connect(p)
+    conn.execute("CREATE TABLE people(name TEXT)")
+    conn.commit()
+    conn.close()
+    with pytest.raises(StoreError, match="not a tactorbelt store"):
+        Store.open(p)
+
+
+def test_directory_and_missing(tmp_path: Path) -> None:
+    with pytest.raises(StoreError, match="is a directory"):
+        Store.open(tmp_path)
+    with pytest.raises(StoreError, match="no such store"):
+        Store.open(tmp_path / "absent.sqlite", create=False)
+    with pytest.raises(StoreError, match="does not exist"):
+        Store.open(tmp_path / "nodir" / "s.sqlite")
+
+
+def test_read_only_open_does_not_lock(tmp_path: Path) -> None:
+    p = tmp_path / "s.sqlite"
+    with Store.open(p) as writer:
+        sid = _session(writer)
+        writer.write_trial(sid, _result(0))
+        with Store.open(p, readonly=True) as reader:
+            assert len(reader.trials()) == 1
+            with pytest.raises(StoreError, match="read-only"):
+                reader.write_trial(sid, _result(1))
