@@ -1,0 +1,43 @@
+"""The experiment window (pygame-ce): what the participant sees, and the experimenter's keys.
+
+- :func:`session_window` / :func:`run_with_window` (``gui.window``): open the window for
+  one session and run it in the main thread;
+- :func:`target_positions`, :class:`EllipseGeometry` (``gui.layout``, pure): where
+  targets and the cursor are drawn.
+
+Importing this package imports neither pygame nor NumPy; the names below are loaded
+on first use (``tactorbelt --help`` stays fast).
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import Any
+
+__all__ = [
+    "EllipseGeometry",
+    "ExperimentWindow",
+    "SessionWindow",
+    "run_with_window",
+    "session_window",
+    "target_positions",
+]
+
+_LAZY = {
+    "EllipseGeometry": "tactorbelt.gui.layout",
+    "target_positions": "tactorbelt.gui.layout",
+    "ExperimentWindow": "tactorbelt.gui.window",
+    "SessionWindow": "tactorbelt.gui.window",
+    "run_with_window": "tactorbelt.gui.window",
+    "session_window": "tactorbelt.gui.window",
+}
+
+
+def __getattr__(name: str) -> Any:
+    if name in _LAZY:
+        return getattr(importlib.import_module(_LAZY[name]), name)
+    raise AttributeError(f"module 'tactorbelt.gui' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(__all__)

@@ -1,0 +1,340 @@
+"""Joystick cursor source (SDL through pygame-ce), for a flight stick such as the
+Thrustmaster HOTAS Warthog used in the paper.
+
+Position control: the stick's deflection places the cursor inside the response
+ellipse. :func:`stick_to_cursor` (pure, tested directly) maps the raw axes: inversion,
+the square stick range onto the unit disc, a radial dead zone, and a clamp to radius 1.
+
+Threads (see docs/window.md): pygame is initialised and its events are pumped only in
+the main thread, by the experiment window (:meth:`JoystickCursor.handle_event` for
+hot-plug events, :meth:`JoystickCursor.update` after each pump). :meth:`read` may be
+called from any thread (the runner's 100 Hz loop): it only reads the latest state, one
+immutable tuple, so it is cheap and needs no lock.
+
+Hot-plug: the source follows ``JOYDEVICEADDED`` / ``JOYDEVICEREMOVED``. While the
+chosen stick is unplugged, :attr:`connected` is False and :meth:`read` returns the
+centre with no buttons (so nothing is acquired); the window pauses the session.
+
+Imports the standard library and tactorbelt.inputs.base; pygame only inside methods
+(call :func:`prepare_sdl` before pygame is first imported).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import threading
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+from .._errors import ConfigError, DeviceError
+from .base import CursorSample, CursorSource
+
+__all__ = [
+    "JoystickConfig",
+    "JoystickCursor",
+    "LiveCursor",
+    "list_joysticks",
+    "prepare_sdl",
+    "stick_to_cursor",
+]
+
+
+def prepare_sdl() -> None:
+    """Set SDL's environment before pygame is initialised.
+
+    ``SDL_JOYSTICK_ALLOW_BACKGROUND_EVENTS=1`` keeps joystick input flowing when the
+    window loses focus (an experimenter clicking another window must not freeze the
+    participant's stick). Existing values are kept.
+    """
+    os.environ.setdefault("SDL_JOYSTICK_ALLOW_BACKGROUND_EVENTS", "1")
+    os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")
+
+
+def stick_to_cursor(
+    ax: float,
+    ay: float,
+    dead_zone: float = 0.05,
+    invert_x: bool = False,
+    invert_y: bool = False,
+) -> tuple[float, float]:
+    """Map raw stick axes to a cursor position inside the unit disc.
+
+    Args:
+        ax: raw horizontal axis in [-1, 1] (SDL: + is right).
+        ay: raw vertical axis in [-1, 1] (SDL: + is pulled back, towards the user).
+        dead_zone: radial dead zone in [0, 1): deflections up to this radius give the
+            centre; beyond it the radius is rescaled so full deflection still reaches 1.
+        invert_x: mirror left/right.
+        invert_y: mirror front/back (for a stick that reports + when pushed forward).
+
+    Returns:
+        ``(x, y)`` in cursor units: x right, y up = front (stick pushed forward), with
+        ``x*x + y*y <= 1``. The square range of the stick maps onto the disc
+        (elliptical grid mapping: the edges of the square land on the circle, the
+        axes are unchanged), so a full diagonal deflection reaches the ellipse too.
+    """
+    if not 0.0 <= dead_zone < 1.0:
+        raise ConfigError(f"dead zone must be in [0, 1), got {dead_zone!r}")
+    if not (math.isfinite(ax) and math.isfinite(ay)):
+        return 0.0, 0.0
+    x = min(max(float(ax), -1.0), 1.0)
+    y = -min(max(float(ay), -1.0), 1.0)
+    if invert_x:
+        x = -x
+    if invert_y:
+        y = -y
+    # square [-1, 1]^2 onto the unit disc
+    u = x * math.sqrt(max(1.0 - 0.5 * y * y, 0.0))
+    v = y * math.sqrt(max(1.0 - 0.5 * x * x, 0.0))
+    r = math.hypot(u, v)
+    if r <= dead_zone:
+        return 0.0, 0.0
+    r_new = min((r - dead_zone) / (1.0 - dead_zone), 1.0)
+    k = r_new / r
+    return u * k, v * k
+
+
+class LiveCursor(CursorSource):
+    """A cursor whose state is set by the window's main loop and read by anyone.
+
+    :meth:`set_state` (main thread) replaces one tuple; :meth:`read` (any thread)
+    reads it. Assigning and reading one attribute is atomic in CPython, so no lock.
+
+    When the runner's loop runs in the thread that owns the window (the usual case:
+    everything in the main thread), the window registers a refresh function with
+    :meth:`attach_refresh`; :meth:`read` then pumps SDL's events and re-reads the
+    device first, so each 100 Hz sample holds the stick's state at that moment, not
+    at the last frame. From any other thread :meth:`read` never touches SDL.
+    """
+
+    def __init__(self) -> None:
+        self._state: tuple[float, float, int] = (0.0, 0.0, 0)
+        self._refresh: Callable[[], None] | None = None
+        self._owner: int | None = None
+
+    def attach_refresh(self, refresh: Callable[[], None] | None) -> None:
+        """Call ``refresh`` (pump and update) in :meth:`read` when read from this thread."""
+        self._refresh = refresh
+        self._owner = threading.get_ident() if refresh is not None else None
+
+    def set_state(self, x: float, y: float, buttons: int = 0) -> None:
+        """Store the latest position (cursor units) and button mask."""
+        self._state = (float(x), float(y), int(buttons))
+
+    @property
+    def state(self) -> tuple[float, float, int]:
+        """The latest ``(x, y, buttons)``."""
+        return self._state
+
+    @property
+    def connected(self) -> bool:
+        """False while the device is gone (the window pauses the session)."""
+        return True
+
+    def read(self, now_ns: int) -> CursorSample:
+        refresh = self._refresh
+        if refresh is not None and threading.get_ident() == self._owner:
+            refresh()
+        x, y, b = self._state
+        return CursorSample(int(now_ns), x, y, b)
+
+    def handle_event(self, event: Any) -> None:
+        """Look at one pygame event (main thread). Default: ignore it."""
+
+    def update(self) -> None:
+        """Refresh the state from the device after an event pump (main thread)."""
+
+
+@dataclass(frozen=True)
+class JoystickConfig:
+    """Which stick and how its axes map to the cursor.
+
+    Attributes:
+        device: a device index (``0``) or a case-insensitive substring of its name
+            (``"warthog joystick"``); None picks the first device whose name does not
+            contain ``throttle`` (the Warthog's throttle is a separate USB device).
+        axis_x: index of the left/right axis (Warthog stick: 0).
+        axis_y: index of the front/back axis (Warthog stick: 1).
+        dead_zone: radial dead zone in [0, 1).
+        invert_x, invert_y: mirror an axis.
+    """
+
+    device: int | str | None = None
+    axis_x: int = 0
+    axis_y: int = 1
+    dead_zone: float = 0.05
+    invert_x: bool = False
+    invert_y: bool = False
+
+    def __post_init__(self) -> None:
+        if not 0.0 <= self.dead_zone < 1.0:
+            raise ConfigError(f"joystick dead zone must be in [0, 1), got {self.dead_zone!r}")
+        for name in ("axis_x", "axis_y"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int) or v < 0:
+                raise ConfigError(f"joystick {name} must be an axis index >= 0, got {v!r}")
+        if self.axis_x == self.axis_y:
+            raise ConfigError(f"joystick axis_x and axis_y are both {self.axis_x}")
+
+    @classmethod
+    def parse_device(cls, text: str | None) -> int | str | None:
+        """``"0"`` -> 0, ``"warthog"`` -> ``"warthog"``, ``None``/``""`` -> None."""
+        if text is None or not str(text).strip():
+            return None
+        t = str(text).strip()
+        return int(t) if t.isdigit() else t
+
+
+def list_joysticks() -> list[dict[str, Any]]:
+    """The joysticks SDL sees: index, name, GUID, axes, buttons, hats (main thread).
+
+    Initialises pygame's joystick module if needed.
+    """
+    prepare_sdl()
+    import pygame
+
+    pygame.joystick.init()
+    out = []
+    for i in range(pygame.joystick.get_count()):
+        js = pygame.joystick.Joystick(i)
+        out.append({
+            "index": i,
+            "name": js.get_name(),
+            "guid": js.get_guid(),
+            "axes": js.get_numaxes(),
+            "buttons": js.get_numbuttons(),
+            "hats": js.get_numhats(),
+        })
+    return out
+
+
+def _matches(config: JoystickConfig, index: int, name: str) -> bool:
+    dev = config.device
+    if dev is None:
+        return "throttle" not in name.lower()
+    if isinstance(dev, int):
+        return index == dev
+    return dev.lower() in name.lower()
+
+
+class _PygameJoysticks:
+    """The default device backend: SDL joysticks through pygame-ce."""
+
+    def count(self) -> int:
+        import pygame
+
+        pygame.joystick.init()
+        return int(pygame.joystick.get_count())
+
+    def open(self, device_index: int) -> Any:
+        import pygame
+
+        try:
+            return pygame.joystick.Joystick(device_index)
+        except pygame.error:
+            return None
+
+
+class JoystickCursor(LiveCursor):
+    """A joystick as a cursor source, with hot-plug.
+
+    Create it after pygame is initialised (the window does this), in the main thread.
+    If no matching stick is plugged in yet, it waits for one (``connected`` False).
+
+    Args:
+        config: device choice and axis mapping.
+        backend: where devices come from: an object with ``count()`` and
+            ``open(device_index)`` returning a pygame-like Joystick (``get_name``,
+            ``get_instance_id``, ``get_numaxes``, ``get_axis``, ``get_numbuttons``,
+            ``get_button``) or None. Default: SDL through pygame-ce. Tests pass a fake.
+    """
+
+    def __init__(self, config: JoystickConfig | None = None, backend: Any = None) -> None:
+        super().__init__()
+        self.config = config or JoystickConfig()
+        self._backend = backend if backend is not None else _PygameJoysticks()
+        self._js: Any = None
+        self._instance_id: int | None = None
+        self.name: str | None = None
+        self.problem: str | None = None
+        self.raw_axes: tuple[float, float] = (0.0, 0.0)
+        for i in range(self._backend.count()):
+            if self._try_open(i):
+                break
+
+    # -- device choice -----------------------------------------------------------------
+    def _try_open(self, device_index: int) -> bool:
+        js = self._backend.open(device_index)
+        if js is None:
+            return False
+        name = str(js.get_name())
+        if not _matches(self.config, device_index, name):
+            return False
+        need = max(self.config.axis_x, self.config.axis_y) + 1
+        if js.get_numaxes() < need:
+            raise DeviceError(
+                f"joystick {device_index} ({name!r}) has {js.get_numaxes()} axes; "
+                f"axis_x={self.config.axis_x} and axis_y={self.config.axis_y} need {need}"
+            )
+        self._js = js
+        self._instance_id = int(js.get_instance_id())
+        self.name = name
+        self.update()
+        return True
+
+    @property
+    def connected(self) -> bool:
+        return self._js is not None
+
+    @property
+    def instance_id(self) -> int | None:
+        """SDL's instance id of the open stick (events carry it), or None."""
+        return self._instance_id
+
+    def describe_wanted(self) -> str:
+        """What the source waits for, in words (for the window's message)."""
+        dev = self.config.device
+        if dev is None:
+            return "a joystick"
+        if isinstance(dev, int):
+            return f"joystick {dev}"
+        return f"a joystick named like {dev!r}"
+
+    # -- main thread -------------------------------------------------------------------
+    def handle_event(self, event: Any) -> None:
+        import pygame
+
+        if event.type == pygame.JOYDEVICEADDED and self._js is None:
+            try:
+                self._try_open(int(event.device_index))
+            except DeviceError as exc:  # a device that does not fit: keep waiting
+                self.problem = str(exc)
+        elif (event.type == pygame.JOYDEVICEREMOVED and self._js is not None
+              and int(event.instance_id) == self._instance_id):
+            self._js = None
+            self._instance_id = None
+            self.raw_axes = (0.0, 0.0)
+            self.set_state(0.0, 0.0, 0)
+
+    def update(self) -> None:
+        js = self._js
+        if js is None:
+            return
+        try:
+            ax = float(js.get_axis(self.config.axis_x))
+            ay = float(js.get_axis(self.config.axis_y))
+            buttons = 0
+            for b in range(min(js.get_numbuttons(), 31)):
+                if js.get_button(b):
+                    buttons |= 1 << b
+        except Exception:  # the device vanished between the pump and this read
+            return
+        self.raw_axes = (ax, ay)
+        x, y = stick_to_cursor(ax, ay, self.config.dead_zone, self.config.invert_x,
+                               self.config.invert_y)
+        self.set_state(x, y, buttons)
+
+    def close(self) -> None:
+        self._js = None
