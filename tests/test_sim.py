@@ -1,0 +1,291 @@
+"""The sim belt: ERM model, device-side rendering, history, motors off on every exit."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from tactorbelt import ConfigError, TactorbeltError
+from tactorbelt.clock import SimClock
+from tactorbelt.devices import open_belt
+from tactorbelt.devices.calibration import Calibration, TactorCalibration
+from tactorbelt.devices.sim import ErmParams, SimBelt, erm_speed, open_sim, sample_grid
+from tactorbelt.geometry import Layout
+from tactorbelt.stimuli import make_stimulus
+
+S = 1_000_000_000
+MS = 1_000_000
+
+
+def sim(**kw: object) -> tuple[SimBelt, SimClock]:
+    clock = SimClock()
+    belt = open_sim("", clock=clock, **kw)
+    return belt, clock
+
+
+def reference_speed(levels: np.ndarray, dt_s: float, p: ErmParams) -> np.ndarray:
+    """A plain step-by-step solution of the same model (the slow way)."""
+    w = np.zeros(levels.shape[1])
+    out = []
+    for row in levels:
+        out.append(w.copy())
+        u = np.where(row >= p.start_level, row, 0.0)
+        tau = np.where(u > w, p.rise_tau_s, p.fall_tau_s)
+        w = u + (w - u) * np.exp(-dt_s / tau)
+    return np.array(out)
+
+
+# -- the paper's stimuli through the motor model --------------------------------------
+
+
+def test_dynamic_quarter_point_shows_the_600_200_ms_dwell_asymmetry() -> None:
+    belt, clock = sim()
+    stim = make_stimulus(belt.layout, 15.0, "dynamic")  # near tactor 0 (30), far tactor 5 (330)
+    assert (stim.near_idx, stim.far_idx) == (0, 5)
+    onset = clock.now_ns()
+    belt.play(stim, 3.0)
+    _, vib = belt.vibration(onset + 1 * S, onset + 2 * S)  # one whole period, spun up
+    near, far = vib[:, 0], vib[:, 5]
+    near_share = float(np.mean(near > far))
+    assert 0.6 <= near_share <= 0.8, near_share  # 600 ms dwell + half of each transit
+    assert 0.2 <= 1.0 - near_share <= 0.4
+    # each motor is felt strongly for a time that follows its dwell
+    t_near = float(np.sum(near > 0.5 * near.max())) / 1000
+    t_far = float(np.sum(far > 0.5 * far.max())) / 1000
+    assert t_near > 2.0 * t_far
+    # the other four motors never move
+    assert np.all(vib[:, 1:5] == 0.0)
+
+
+def test_static_stimulus_gives_constant_vibration_once_spun_up() -> None:
+    belt, clock = sim()
+    stim = make_stimulus(belt.layout, 15.0, "static")
+    onset = clock.now_ns()
+    belt.play(stim, 3.0)
+    _, levels = belt.commanded(onset, onset + 2 * S)
+    _, vib = belt.vibration(onset + 1 * S, onset + 2 * S)
+    assert np.ptp(vib, axis=0).max() < 1e-9
+    expected = np.where(levels[0] >= belt.params.start_level, levels[0], 0.0) ** 2
+    np.testing.assert_allclose(vib[-1], expected, atol=1e-9)
+    # and it had to spin up: lower at the onset
+    _, early = belt.vibration(onset, onset + 20 * MS)
+    assert early[0].max() == 0.0 and early[-1].max() < expected.max()
+
+
+# -- the model itself -----------------------------------------------------------------
+
+
+def test_rise_and_fall_follow_their_time_constants() -> None:
+    belt, clock = sim()
+    p = belt.params
+    belt.set_amplitudes([1, 0, 0, 0, 0, 0])
+    t_on = clock.now_ns()
+    clock.advance(2 * S)
+    belt.stop()
+    t_off = clock.now_ns()
+    rise = belt.vibration_at([t_on + round(p.rise_tau_s * S)])[0, 0]
+    assert rise == pytest.approx((1 - math.exp(-1)) ** 2, rel=1e-9)
+    fall = belt.vibration_at([t_off + round(p.fall_tau_s * S)])[0, 0]
+    assert fall == pytest.approx(math.exp(-1) ** 2, rel=1e-6)
+
+
+def test_dead_zone_no_spin_below_the_start_level() -> None:
+    belt, clock = sim(params=ErmParams(start_level=0.3))
+    t0 = clock.now_ns()
+    belt.set_amplitudes([0.29, 0.31, 0, 0, 0, 0])
+    clock.advance(S)
+    _, vib = belt.vibration(t0, t0 + S)
+    assert np.all(vib[:, 0] == 0.0)
+    assert vib[-1, 1] == pytest.approx(0.31**2, rel=1e-9)
+
+
+def test_exact_solution_matches_step_by_step_reference_on_random_frames() -> None:
+    rng = np.random.default_rng(7)
+    p = ErmParams()
+    levels = rng.random((1500, 6)) * (rng.random((1500, 6)) < 0.6)
+    levels = np.repeat(levels, 3, axis=0)  # some constant stretches, some jumps
+    t = np.arange(levels.shape[0], dtype=np.int64) * MS
+    fast = erm_speed(t, levels, np.zeros(6), p)
+    np.testing.assert_allclose(fast, reference_speed(levels, 1e-3, p), atol=1e-12)
+
+
+def test_vibration_state_carries_over_between_queries() -> None:
+    belt, clock = sim()
+    onset = clock.now_ns()
+    belt.play(make_stimulus(belt.layout, 100.0, "dynamic"), 2.0)
+    clock.advance(2_500 * MS)
+    _, whole = belt.vibration(onset, onset + 2_500 * MS)
+    pieces = [belt.vibration(onset + k * 250 * MS, onset + (k + 1) * 250 * MS)[1]
+              for k in (3, 0, 7, 1, 2, 9, 4, 5, 6, 8)]
+    order = [3, 0, 7, 1, 2, 9, 4, 5, 6, 8]
+    joined = np.concatenate([pieces[order.index(k)] for k in range(10)])
+    np.testing.assert_allclose(joined, whole, atol=1e-12)
+
+
+def test_streamed_frames_and_rendered_stimulus_give_the_same_vibration() -> None:
+    stim = make_stimulus(Layout.even(6), 45.0, "dynamic")
+    a, ca = sim()
+    a.play(stim, 1.0)
+    b, cb = sim()
+    _, amps = stim.render(1000.0, 1.0)
+    for row in amps:
+        b.set_amplitudes(row)
+        cb.advance(MS)
+    b.stop()
+    np.testing.assert_allclose(a.vibration(0, 1_200 * MS)[1], b.vibration(0, 1_200 * MS)[1],
+                               atol=1e-12)
+
+
+# -- device-side rendering --------------------------------------------------------------
+
+
+def test_play_renders_the_stimulus_at_1khz_until_its_end() -> None:
+    belt, clock = sim()
+    stim = make_stimulus(belt.layout, 15.0, "dynamic")
+    clock.advance(123 * MS)
+    onset = clock.now_ns()
+    belt.play(stim, 1.5)
+    t, levels = belt.commanded(onset, onset + 2 * S)
+    _, expected = stim.render(1000.0, 1.5)
+    np.testing.assert_allclose(levels[:1500], expected, atol=1e-12)
+    assert np.all(levels[1500:] == 0.0)
+    assert t[0] == onset and t[1] - t[0] == MS
+
+
+def test_play_goes_through_the_calibration_and_stop_ends_it() -> None:
+    cal = Calibration(tuple(TactorCalibration(0.3, 1.0, 0.8) for _ in range(6)))
+    belt, clock = sim(calibration=cal)
+    stim = make_stimulus(belt.layout, 30.0, "static")  # on tactor 0
+    belt.play(stim, None)
+    clock.advance(500 * MS)
+    lv = belt.levels
+    assert lv[0] == pytest.approx(0.3 + 0.5 * (1 - math.exp(-4)))
+    assert np.all(lv[1:] == 0.0)
+    belt.stop()
+    assert np.all(belt.levels == 0.0)
+
+
+def test_commanded_levels_follow_set_amplitudes_with_timestamps() -> None:
+    belt, clock = sim()
+    t0 = clock.now_ns()
+    belt.set_amplitudes([0.5, 0, 0, 0, 0, 0])
+    clock.advance(10 * MS)
+    belt.set_amplitudes([0, 0.7, 0, 0, 0, 0])
+    t, lv = belt.commanded(t0, t0 + 20 * MS, rate_hz=1000.0)
+    assert t.dtype == np.int64 and t.shape == (20,)
+    assert lv.shape == (20, 6)
+    assert np.all(lv[:10, 0] == 0.5) and np.all(lv[10:, 1] == 0.7)
+    cmds = belt.commands()
+    assert [c.t_ns for c in cmds] == [t0, t0 + 10 * MS]
+
+
+def test_sample_grid_has_no_drift() -> None:
+    t = sample_grid(5, 5 + 10 * S, 3000.0)
+    assert t.shape == (30_000,)
+    assert t[-1] == 5 + (29_999 * S) // 3000
+
+
+# -- bounded history -----------------------------------------------------------------------
+
+
+def test_history_is_bounded_and_vibration_stays_exact_after_pruning() -> None:
+    short, c1 = sim(horizon_s=5.0)
+    long_, c2 = sim(horizon_s=1000.0)
+    rng = np.random.default_rng(3)
+    for _ in range(60):  # 60 s at 100 Hz, random frames and pauses
+        frames = rng.random((100, 6)) * (rng.random() < 0.7)
+        for row in frames:
+            for belt, clock in ((short, c1), (long_, c2)):
+                belt.set_amplitudes(row)
+                clock.advance(10 * MS)
+    assert len(short.commands()) <= (5 + 2) * 100
+    assert len(long_.commands()) == 6000
+    now = c1.now_ns()
+    np.testing.assert_allclose(short.vibration(now - 2 * S, now)[1],
+                               long_.vibration(now - 2 * S, now)[1], atol=1e-12)
+    with pytest.raises(ConfigError, match="history"):
+        short.vibration(0, S)
+
+
+# -- motors off on every exit path ---------------------------------------------------------
+
+
+def test_motors_off_after_normal_exit() -> None:
+    clock = SimClock()
+    with open_belt("sim", clock=clock) as belt:
+        belt.set_amplitudes([1.0] * 6)
+    assert belt.closed and np.all(belt.levels == 0.0)
+
+
+def test_motors_off_after_an_exception_in_the_with_block() -> None:
+    clock = SimClock()
+    with pytest.raises(RuntimeError), open_belt("sim", clock=clock) as belt:
+        belt.play(make_stimulus(belt.layout, 15.0, "dynamic"))
+        raise RuntimeError("experiment crashed")
+    assert np.all(belt.levels == 0.0)
+
+
+def test_motors_off_after_keyboard_interrupt() -> None:
+    clock = SimClock()
+    with pytest.raises(KeyboardInterrupt), open_belt("sim", clock=clock) as belt:
+        belt.set_amplitudes([0.5] * 6)
+        raise KeyboardInterrupt
+    assert np.all(belt.levels == 0.0)
+    clock.advance(S)
+    assert np.all(belt.vibration_at([clock.now_ns()]) < 1e-8)
+
+
+# -- bad input -------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("values", [[0.5] * 5, [0.5] * 7, [0.1, 0.2, math.nan, 0, 0, 0],
+                                    [1.5, 0, 0, 0, 0, 0], [-0.1, 0, 0, 0, 0, 0], "abc"])
+def test_bad_frames_raise_and_leave_no_motor_running(values: object) -> None:
+    clock = SimClock()
+    with pytest.raises(ConfigError), open_belt("sim", clock=clock) as belt:
+        belt.set_amplitudes([0.5] * 6)
+        belt.set_amplitudes(values)  # type: ignore[arg-type]
+    assert np.all(belt.levels == 0.0)
+
+
+def test_urls_and_options() -> None:
+    belt = open_belt("sim:8,virtual")
+    assert belt.n_tactors == 8 and belt.clock.simulated  # type: ignore[attr-defined]
+    belt.close()
+    with pytest.raises(ConfigError, match="unknown belt URL"):
+        open_belt("bogus:thing")
+    with pytest.raises(ConfigError, match="unknown sim belt option"):
+        open_belt("sim:fast")
+    with pytest.raises(ConfigError, match="unknown option"):
+        open_belt("sim", colour="red")
+    with pytest.raises(ConfigError, match="tactors"):
+        open_belt("sim:4", layout=Layout.even(6))
+    with pytest.raises(ConfigError, match="calibration"):
+        open_belt("sim", calibration=Calibration.identity(4))
+
+
+def test_closed_belt_refuses_commands_but_answers_queries() -> None:
+    belt, clock = sim()
+    belt.close()
+    with pytest.raises(TactorbeltError, match="closed"):
+        belt.set_amplitudes([0.1] * 6)
+    assert belt.vibration(0, 10 * MS)[1].shape == (10, 6)
+
+
+@pytest.mark.parametrize("kw", [{"rise_tau_s": 0}, {"fall_tau_s": math.nan},
+                                {"start_level": 1.0}, {"amplitude_exponent": -1}])
+def test_erm_params_are_validated(kw: dict[str, float]) -> None:
+    with pytest.raises(ConfigError, match="ErmParams"):
+        ErmParams(**kw)
+
+
+def test_bad_query_intervals() -> None:
+    belt, _ = sim()
+    with pytest.raises(ConfigError):
+        belt.vibration(10, 0)
+    with pytest.raises(ConfigError):
+        belt.commanded(0, 10, rate_hz=0)
+    t, v = belt.vibration(5, 5)
+    assert t.shape == (0,) and v.shape == (0, 6)
