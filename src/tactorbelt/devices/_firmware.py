@@ -235,6 +235,7 @@ class FirmwareBelt(Belt, PacketSink):
         self._last_rx_ns = time.monotonic_ns()
         self._unanswered_pings = 0
         self._keepalive_stop = threading.Event()
+        self._keepalive_kick = threading.Event()
         self._keepalive_thread: threading.Thread | None = None
         self._closing = False
         self.bad_replies = 0
@@ -411,10 +412,11 @@ class FirmwareBelt(Belt, PacketSink):
         if self.keepalive_running:
             return
         self._keepalive_stop = threading.Event()
+        self._keepalive_kick = threading.Event()
         self._last_rx_ns = time.monotonic_ns()
         self._unanswered_pings = 0
         t = threading.Thread(
-            target=self._keepalive_loop, args=(self._keepalive_stop,),
+            target=self._keepalive_loop, args=(self._keepalive_stop, self._keepalive_kick),
             name=f"tactorbelt-keepalive {self.port}", daemon=True,
         )
         self._keepalive_thread = t
@@ -426,15 +428,18 @@ class FirmwareBelt(Belt, PacketSink):
         Meant for tests and diagnostics of the failsafe.
         """
         self._keepalive_stop.set()
+        self._keepalive_kick.set()
         t = self._keepalive_thread
         if t is not None and t is not threading.current_thread():
             t.join()
         self._keepalive_thread = None
 
-    def _keepalive_loop(self, stop: threading.Event) -> None:
+    def _keepalive_loop(self, stop: threading.Event, kick: threading.Event) -> None:
         while True:
             hb_s = self.heartbeat_ms / 1000.0
-            if stop.wait(hb_s / 3.0) or self._lost is not None:
+            kick.wait(hb_s / 3.0)  # set_config kicks it: a shorter timeout applies at once
+            kick.clear()
+            if stop.is_set() or self._lost is not None:
                 return
             silent_s = (time.monotonic_ns() - self._last_rx_ns) / 1e9
             if silent_s >= hb_s and self._unanswered_pings >= 2:
@@ -558,6 +563,7 @@ class FirmwareBelt(Belt, PacketSink):
                               "SET_CONFIG")
         self._expect(reply, wire.Ack, "SET_CONFIG")
         self.heartbeat_ms = heartbeat_ms
+        self._keepalive_kick.set()
 
     def write_raw(self, data: bytes) -> None:
         """Write bytes to the link as they are, between packets (diagnostics, fuzzing).

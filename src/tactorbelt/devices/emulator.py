@@ -29,6 +29,7 @@ from pathlib import Path
 from typing import IO, Any, Final
 
 from .._errors import ConfigError, DeviceError
+from ..geometry import Layout
 from ._firmware import FirmwareBelt
 from .serial import SERIAL_STREAM_RATE_HZ, SerialTransport, check_options
 
@@ -42,8 +43,8 @@ START_TIMEOUT_S: Final = 10.0
 BUILD_TIMEOUT_S: Final = 300.0
 
 OPTIONS: Final = frozenset({
-    "tactors", "heartbeat_ms", "build", "timeout_s", "calibration", "keepalive", "clock",
-    "firmware_dir", "extra_args",
+    "tactors", "layout", "heartbeat_ms", "levels_log", "build", "timeout_s", "calibration",
+    "keepalive", "clock", "firmware_dir", "extra_args",
 })
 
 _build_lock = threading.Lock()
@@ -185,8 +186,11 @@ def open_emulator(target: str = "", **options: Any) -> EmulatorBelt:
     Args:
         target: unused (``emulator`` takes no target).
         **options:
-            tactors (int, 6): channels of the emulated belt (2..16).
+            tactors (int, 6): channels of the emulated belt (2..16), evenly spaced.
+            layout (Layout | None): emulate a belt with these tactor angles instead.
             heartbeat_ms (int | None): the emulator's heartbeat timeout at start.
+            levels_log (path | None): the emulator writes every change of its outputs
+                there as CSV ``t_us,state,level_0,...`` (device time since start).
             build (bool, True): run ``make -C firmware emulator`` first.
             firmware_dir: the firmware directory (default: next to the package).
             extra_args (list[str]): more emulator arguments.
@@ -200,9 +204,17 @@ def open_emulator(target: str = "", **options: Any) -> EmulatorBelt:
     check_options(options, OPTIONS, "emulator")
     if target:
         raise ConfigError(f"the emulator belt takes no target, got 'emulator:{target}'")
-    tactors = options.pop("tactors", 6)
-    if isinstance(tactors, bool) or not isinstance(tactors, int) or not 2 <= tactors <= 16:
+    tactors = options.pop("tactors", None)
+    layout = options.pop("layout", None)
+    if tactors is not None and (
+        isinstance(tactors, bool) or not isinstance(tactors, int) or not 2 <= tactors <= 16
+    ):
         raise ConfigError(f"tactors must be an integer in 2..16, got {tactors!r}")
+    if layout is not None:
+        if not isinstance(layout, Layout) or not 2 <= layout.n <= 16:
+            raise ConfigError(f"layout must be a Layout of 2..16 tactors, got {layout!r}")
+        if tactors is not None and tactors != layout.n:
+            raise ConfigError(f"tactors={tactors} but the layout has {layout.n} tactors")
     heartbeat_ms = options.pop("heartbeat_ms", None)
     if heartbeat_ms is not None and (
         isinstance(heartbeat_ms, bool) or not isinstance(heartbeat_ms, int)
@@ -216,9 +228,15 @@ def open_emulator(target: str = "", **options: Any) -> EmulatorBelt:
         exe = emulator_path(fw)
         if not exe.is_file():
             raise DeviceError(f"no emulator at {exe}; build it with: make -C {fw} emulator")
-    args = [str(exe), "--tactors", str(tactors)]
+    if layout is not None:
+        args = [str(exe), "--tactor-angles", ",".join(f"{a:.2f}" for a in layout.angles_deg)]
+    else:
+        args = [str(exe), "--tactors", str(6 if tactors is None else tactors)]
     if heartbeat_ms is not None:
         args += ["--heartbeat-ms", str(heartbeat_ms)]
+    levels_log = options.pop("levels_log", None)
+    if levels_log is not None:
+        args += ["--levels-log", os.fspath(levels_log)]
     args += [str(a) for a in options.pop("extra_args", ())]
 
     with tempfile.TemporaryFile() as stderr:

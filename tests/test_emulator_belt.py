@@ -1,0 +1,219 @@
+"""The emulator belt: the real firmware core on a pseudo-terminal, through the serial backend.
+
+These tests run in real time against a real process (the firmware's timing is what they
+check), so they wait on the wall clock; each keeps to a fraction of a second. The
+emulator is built once per session; the tests are skipped when g++ or make is missing.
+"""
+
+from __future__ import annotations
+
+import functools
+import os
+import shutil
+import signal
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from tactorbelt import DeviceError, Layout
+from tactorbelt.devices import open_belt, wire
+from tactorbelt.devices.emulator import EmulatorBelt, build_emulator, firmware_dir
+from tactorbelt.stimuli import make_stimulus
+from test_firmware_belt import wait_for
+
+pytestmark = pytest.mark.emulator
+
+
+@pytest.fixture(scope="session")
+def emulator_built() -> Path:
+    missing = [t for t in ("g++", "make") if shutil.which(t) is None]
+    if missing:
+        pytest.skip(f"the firmware emulator needs {' and '.join(missing)} to build")
+    return build_emulator(firmware_dir())
+
+
+@pytest.fixture
+def emu(emulator_built: Path) -> Iterator[EmulatorBelt]:
+    belt = open_belt("emulator", build=False)
+    assert isinstance(belt, EmulatorBelt)
+    yield belt
+    belt.close()
+
+
+def test_get_info_gives_the_layout_and_version(emu: EmulatorBelt) -> None:
+    assert emu.url == "emulator"
+    assert emu.layout == Layout.even(6)
+    assert emu.firmware_version == emu.info.firmware_version
+    assert emu.info.protocol_version == 1
+    assert emu.can_render
+    assert emu.stream_rate_hz == 1000.0
+    assert emu.pty_path in emu.name
+
+
+def test_tactor_count_and_heartbeat_options(emulator_built: Path) -> None:
+    with open_belt("emulator", build=False, tactors=8, heartbeat_ms=400) as belt:
+        assert belt.layout == Layout.even(8)
+        assert isinstance(belt, EmulatorBelt)
+        assert belt.heartbeat_ms == 400
+
+
+def test_set_amplitudes_reach_the_outputs(emu: EmulatorBelt) -> None:
+    amps = [0.0, 0.1, 0.25, 0.5, 0.999, 1.0]
+    emu.set_amplitudes(amps)
+    status = emu.status()
+    assert status.state == wire.State.STREAMING
+    assert status.levels == tuple(wire.amplitude_to_level(a) for a in amps)
+    assert status.seq_gaps == 0
+
+
+def test_stop_all_turns_everything_off(emu: EmulatorBelt) -> None:
+    emu.set_amplitudes([1.0] * 6)
+    emu.stop()
+    status = emu.status()
+    assert status.state == wire.State.IDLE
+    assert status.levels == (0,) * 6
+
+
+def read_levels_log(path: Path) -> np.ndarray:
+    """The emulator's levels log: rows of (t_us, state, level_0, ...), one per change."""
+    text = path.read_text().strip().splitlines()
+    assert text[0].startswith("t_us,state,level_0")
+    return np.array([[int(v) for v in line.split(",")] for line in text[1:]], dtype=np.int64)
+
+
+def test_play_target_dynamic_follows_the_600_200_ms_pattern(
+    emulator_built: Path, tmp_path: Path
+) -> None:
+    """Quarter point (45 deg between 30 and 90): 600 ms on tactor 0, 200 ms on tactor 1.
+
+    Checked in device time with the emulator's levels log, so the load of this machine
+    does not matter: every output change the renderer made matches the stimulus.
+    """
+    log = tmp_path / "levels.csv"
+    with open_belt("emulator", build=False, levels_log=log) as belt:
+        stim = make_stimulus(belt.layout, 45.0, mode="dynamic")
+        belt.play(stim, 1.2)
+        assert belt.status().state == wire.State.PLAYING  # type: ignore[attr-defined]
+        assert wait_for(lambda: belt.status().state == wire.State.IDLE,  # type: ignore[attr-defined]
+                        3.0)
+    rows = read_levels_log(log)
+    playing = np.flatnonzero(rows[:, 1] == wire.State.PLAYING)
+    start_us = rows[playing[0], 0]
+    end_us = rows[playing[-1] + 1, 0]  # the first row after playing: back to idle
+    assert rows[playing[-1] + 1, 1] == wire.State.IDLE
+    assert abs((end_us - start_us) - 1_200_000) <= 2_000
+    t = (rows[playing, 0] - start_us) / 1e6
+    want = np.vectorize(wire.amplitude_to_level)(stim.amplitudes(t))
+    assert np.max(np.abs(rows[playing, 2:] - want)) <= 2
+    # dwell times of the first period from the step function of the log
+    levels, held = rows[playing, 2:], np.diff(np.append(rows[playing, 0], end_us))
+    first = t < 1.0
+    plateau = wire.amplitude_to_level(1 - np.exp(-4))
+    on_near = first & (abs(levels[:, 0] - plateau) <= 2) & (levels[:, 1] == 0)
+    on_far = first & (abs(levels[:, 1] - plateau) <= 2) & (levels[:, 0] == 0)
+    assert abs(held[on_near].sum() - 600_000) <= 3_000
+    assert abs(held[on_far].sum() - 200_000) <= 3_000
+
+
+def test_play_with_a_duration_ends_by_itself(emu: EmulatorBelt) -> None:
+    emu.play(make_stimulus(emu.layout, 90.0), 0.05)
+    assert emu.status().state == wire.State.PLAYING
+    assert wait_for(lambda: emu.status().state == wire.State.IDLE, 1.0)
+    assert emu.status().levels == (0,) * 6
+
+
+def _fired_since(log: Path, n0: int) -> bool:
+    return bool(np.any(read_levels_log(log)[n0:, 1] == wire.State.FAILSAFE))
+
+
+def test_failsafe_fires_within_the_heartbeat_timeout_plus_20_ms(
+    emulator_built: Path, tmp_path: Path
+) -> None:
+    """With the keep-alive stopped, the outputs go off between hb and hb + 20 ms after the
+    last packet, in device time (the levels log).
+
+    The emulator's 1 kHz tick can be starved on a loaded machine, so one trial in three
+    must be within 20 ms; every trial must fire, and none early.
+    """
+    log = tmp_path / "levels.csv"
+    with open_belt("emulator", build=False, levels_log=log, heartbeat_ms=100) as belt:
+        assert isinstance(belt, EmulatorBelt)
+        belt.stop_keepalive()
+        delays_ms = []
+        for trial in range(3):
+            count0 = belt.status().failsafe_count
+            n0 = len(read_levels_log(log))
+            belt.set_amplitudes([0.2 + 0.1 * trial] * 6)  # the last packet: a logged change
+            assert wait_for(functools.partial(_fired_since, log, n0), 2.0)
+            rows = read_levels_log(log)[n0:]
+            (sent,) = np.flatnonzero(rows[:, 1] == wire.State.STREAMING)
+            (fired,) = np.flatnonzero(rows[:, 1] == wire.State.FAILSAFE)
+            assert np.all(rows[fired, 2:] == 0)
+            delays_ms.append((rows[fired, 0] - rows[sent, 0]) / 1000)
+            status = belt.status()
+            assert status.state == wire.State.FAILSAFE
+            assert status.failsafe_count == count0 + 1
+            if delays_ms[-1] <= 120:
+                break
+        assert all(d >= 100 for d in delays_ms), delays_ms
+        assert min(delays_ms) <= 120, delays_ms
+        # a new frame after the failsafe streams again
+        belt.start_keepalive()
+        belt.set_amplitudes([0.25] * 6)
+        assert belt.status().state == wire.State.STREAMING
+
+
+def test_the_keepalive_holds_the_failsafe_off(emu: EmulatorBelt) -> None:
+    emu.set_config(60)
+    emu.set_amplitudes([0.5] * 6)
+    count0 = emu.status().failsafe_count
+    deadline = time.perf_counter() + 0.4  # more than six heartbeat timeouts of silence
+    while time.perf_counter() < deadline:
+        time.sleep(0.01)
+    status = emu.status()
+    assert status.state == wire.State.STREAMING
+    assert status.failsafe_count == count0
+
+
+def test_garbage_is_counted_and_skipped(emu: EmulatorBelt) -> None:
+    before = emu.status()
+    rng = np.random.default_rng(7)
+    emu.write_raw(rng.integers(1, 256, 300, dtype=np.uint8).tobytes() + b"\x00")  # too long
+    emu.write_raw(b"\x05\x01\x02\x03\x04\x00")  # valid COBS, bad CRC
+    emu.write_raw(b"\x02\x01\x00")  # too short
+    emu.write_raw(rng.integers(0, 256, 500, dtype=np.uint8).tobytes() + b"\x00")
+    after = emu.status()  # a valid request still works
+    assert after.framing_errors >= before.framing_errors + 2
+    assert after.crc_errors >= before.crc_errors + 1
+    assert after.seq_gaps == before.seq_gaps
+    emu.set_amplitudes([0.5] * 6)
+    assert emu.status().levels == (32768,) * 6
+
+
+def test_a_frozen_emulator_raises_naming_the_port(emu: EmulatorBelt) -> None:
+    os.kill(emu.process.pid, signal.SIGSTOP)
+    try:
+        assert wait_for(lambda: emu.lost is not None, 2.0)
+        with pytest.raises(DeviceError, match=f"{emu.pty_path} stopped answering"):
+            emu.set_amplitudes([0.0] * 6)
+    finally:
+        os.kill(emu.process.pid, signal.SIGCONT)
+
+
+def test_a_dead_emulator_raises_naming_the_port(emu: EmulatorBelt) -> None:
+    emu.process.kill()
+    assert wait_for(lambda: emu.lost is not None, 2.0)
+    with pytest.raises(DeviceError, match=f"{emu.pty_path} stopped answering"):
+        emu.status()
+
+
+def test_close_stops_the_motors_and_ends_the_emulator(emulator_built: Path) -> None:
+    belt = open_belt("emulator", build=False)
+    assert isinstance(belt, EmulatorBelt)
+    belt.set_amplitudes([1.0] * 6)
+    belt.close()
+    assert belt.process.returncode is not None
+    assert belt.lost is not None
