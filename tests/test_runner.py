@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import hashlib
+import itertools
 from pathlib import Path
 from typing import Any
 
@@ -134,7 +135,7 @@ def test_iti_and_onsets(tmp_path: Path) -> None:
     with Store.open(tmp_path / "s.sqlite") as store, _belt(study, clock) as belt:
         res = run_session(study, "P01", belt, _cursor(study), store, clock)
         rows = store.trials(res.session_id)
-        for a, b in zip(rows, rows[1:], strict=False):
+        for a, b in itertools.pairwise(rows):
             assert b["onset_ns"] - a["acquired_ns"] >= 500 * MS
 
 

@@ -1,0 +1,267 @@
+"""The command line: study init/check, run, export; clear errors and exit codes."""
+
+from __future__ import annotations
+
+import importlib.util
+import os
+import sqlite3
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from tactorbelt import DeviceError
+from tactorbelt.cli import main
+from tactorbelt.experiment.store import Store
+from tactorbelt.experiment.study import PAPER_STUDY_TOML, load_study, paper_study
+
+SMALL = """\
+name = "cli"
+[layout]
+tactors = 6
+[targets]
+count = 6
+[session]
+break_every = 0
+[training]
+passes = 1
+conditions = ["static"]
+[[test]]
+condition = "static"
+repetitions = 2
+[[test]]
+condition = "dynamic"
+repetitions = 2
+"""  # 6 training + 24 test
+
+
+def run_cli(args: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
+    try:
+        main(args)
+        code = 0
+    except SystemExit as exc:
+        code = int(exc.code or 0)
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+@pytest.fixture
+def small(tmp_path: Path) -> Path:
+    p = tmp_path / "small.toml"
+    p.write_text(SMALL)
+    return p
+
+
+def test_study_init_writes_the_papers_protocol(tmp_path: Path,
+                                               capsys: pytest.CaptureFixture[str]) -> None:
+    p = tmp_path / "paper.toml"
+    code, out, _ = run_cli(["study", "init", str(p)], capsys)
+    assert code == 0 and "288 trials" in out
+    assert p.read_text() == PAPER_STUDY_TOML
+    assert load_study(p) == paper_study()
+    assert "# " in p.read_text()  # commented for the user
+    code, _, err = run_cli(["study", "init", str(p)], capsys)
+    assert code == 2 and "exists" in err and "--force" in err
+    code, _, _ = run_cli(["study", "init", str(p), "--force"], capsys)
+    assert code == 0
+
+
+def test_study_check_prints_counts_and_duration(tmp_path: Path,
+                                                capsys: pytest.CaptureFixture[str]) -> None:
+    p = tmp_path / "paper.toml"
+    p.write_text(PAPER_STUDY_TOML)
+    code, out, _ = run_cli(["study", "check", str(p)], capsys)
+    assert code == 0
+    assert "training    48 trials" in out
+    assert "static     120 trials" in out and "dynamic    120 trials" in out
+    assert "total       288 trials (240 test)" in out
+    assert "duration    about 19 min" in out
+    code, out, _ = run_cli(["study", "check", str(p), "--participant", "P02"], capsys)
+    assert "P02: dynamic -> static" in out
+
+
+def test_study_check_reports_file_line_field(tmp_path: Path,
+                                             capsys: pytest.CaptureFixture[str]) -> None:
+    p = tmp_path / "bad.toml"
+    p.write_text(PAPER_STUDY_TOML.replace("threshold = 0.9", "threshold = 1.5"))
+    code, _, err = run_cli(["study", "check", str(p)], capsys)
+    line = PAPER_STUDY_TOML.splitlines().index(
+        next(x for x in PAPER_STUDY_TOML.splitlines() if x.startswith("threshold"))) + 1
+    assert code == 2
+    assert err.startswith(f"error: {p}:{line}: response.threshold: must be in (0, 1]")
+    assert "Traceback" not in err
+
+
+def test_run_headless_scripted_then_export(small: Path, tmp_path: Path,
+                                           capsys: pytest.CaptureFixture[str]) -> None:
+    db = tmp_path / "s.sqlite"
+    code, out, err = run_cli(["run", str(small), "--participant", "P01", "--headless",
+                              "--input", "scripted", "--db", str(db)], capsys)
+    assert code == 0, err
+    assert "complete, 30/30 trials" in out and "accuracy 100.0%" in out
+    with Store.open(db, readonly=True) as store:
+        (s,) = store.sessions()
+        assert s["clock"] == "sim" and s["input"] == "scripted"
+        assert s["study_toml"] == SMALL
+        assert len(store.trials()) == 30
+    code, out, _ = run_cli(["export", str(db), str(tmp_path / "csv")], capsys)
+    assert code == 0 and (tmp_path / "csv" / "trials.csv").exists()
+    code, out, _ = run_cli(["export", str(db), str(tmp_path / "bids"), "--format", "bids"],
+                           capsys)
+    assert code == 0
+    assert (tmp_path / "bids" / "sub-P01" / "ses-1" / "beh").is_dir()
+
+
+def test_run_limit_then_resume(small: Path, tmp_path: Path,
+                               capsys: pytest.CaptureFixture[str]) -> None:
+    db = tmp_path / "s.sqlite"
+    base = ["run", str(small), "--participant", "P02", "--headless", "--input", "scripted",
+            "--db", str(db)]
+    code, out, err = run_cli([*base, "--limit", "4", "--seed", "5"], capsys)
+    assert code == 0 and "interrupted, 10/30" in out and "--resume" in err
+    code, _, err = run_cli(base, capsys)
+    assert code == 2 and "unfinished session" in err and "--resume" in err
+    code, out, _ = run_cli([*base, "--resume"], capsys)
+    assert code == 0 and "complete, 30/30 trials done (20 this run)" in out
+    with Store.open(db, readonly=True) as store:
+        (s,) = store.sessions()
+        assert s["seed"] == 5
+        assert [t["trial_index"] for t in store.trials()] == list(range(30))
+    # another session for the same participant
+    code, out, _ = run_cli([*base, "--limit", "1"], capsys)
+    assert code == 0
+    code, out, _ = run_cli([*base, "--new-session", "--limit", "1"], capsys)
+    assert code == 0
+    with Store.open(db, readonly=True) as store:
+        assert [s["session_number"] for s in store.sessions()] == [1, 2, 3]
+
+
+def _files(d: Path) -> dict[str, bytes]:
+    return {p.name: p.read_bytes() for p in d.iterdir() if p.is_file()}
+
+
+def test_run_into_a_file_that_is_not_sqlite(small: Path, tmp_path: Path,
+                                            capsys: pytest.CaptureFixture[str]) -> None:
+    db = tmp_path / "notes.txt"
+    db.write_text("not a database\n")
+    before = _files(tmp_path)
+    code, _, err = run_cli(["run", str(small), "-p", "P01", "--headless", "--input",
+                            "scripted", "--db", str(db)], capsys)
+    assert code == 2 and "not an SQLite database" in err
+    assert _files(tmp_path) == before
+
+
+def test_run_into_a_read_only_store(small: Path, tmp_path: Path,
+                                    capsys: pytest.CaptureFixture[str]) -> None:
+    db = tmp_path / "ro.sqlite"
+    Store.open(db).close()
+    db.chmod(0o444)
+    try:
+        before = _files(tmp_path)
+        code, _, err = run_cli(["run", str(small), "-p", "P01", "--headless", "--input",
+                                "scripted", "--db", str(db)], capsys)
+        assert code == 2 and "read-only" in err
+        assert _files(tmp_path) == before
+    finally:
+        db.chmod(0o644)
+
+
+def test_run_into_a_store_in_use(small: Path, tmp_path: Path,
+                                 capsys: pytest.CaptureFixture[str]) -> None:
+    db = tmp_path / "busy.sqlite"
+    with Store.open(db):
+        before = _files(tmp_path)
+        code, _, err = run_cli(["run", str(small), "-p", "P01", "--headless", "--input",
+                                "scripted", "--db", str(db)], capsys)
+        assert code == 2 and "another run is using the store" in err
+        assert _files(tmp_path) == before
+    conn = sqlite3.connect(db)
+    assert conn.execute("SELECT COUNT(*) FROM sessions").fetchone()[0] == 0
+    conn.close()
+
+
+def test_belt_failure_exits_3_naming_the_port(small: Path, tmp_path: Path,
+                                              capsys: pytest.CaptureFixture[str],
+                                              monkeypatch: pytest.MonkeyPatch) -> None:
+    import tactorbelt.devices as devices
+
+    real_open = devices.open_belt
+    belts: list[Any] = []
+
+    def open_failing(url: str, **kw: Any) -> Any:
+        belt = real_open("sim", **kw)
+        belt.url = "serial:/dev/ttyACM0"
+        real_play = belt._write_play
+        n = {"plays": 0}
+
+        def play(stimulus: Any, duration_s: Any) -> None:
+            n["plays"] += 1
+            real_play(stimulus, duration_s)
+            if n["plays"] == 4:
+                raise DeviceError("no answer on /dev/ttyACM0 for 1.0 s")
+
+        belt._write_play = play
+        belts.append(belt)
+        return belt
+
+    monkeypatch.setattr(devices, "open_belt", open_failing)
+    db = tmp_path / "s.sqlite"
+    code, _, err = run_cli(["run", str(small), "-p", "P01", "--headless", "--input",
+                            "scripted", "--db", str(db)], capsys)
+    assert code == 3
+    assert err.startswith("error: belt serial:/dev/ttyACM0 failed")
+    assert "--resume" in err and "Traceback" not in err
+    assert belts[0].closed and not belts[0].levels.any()
+    with Store.open(db, readonly=True) as store:
+        (s,) = store.sessions()
+        assert s["status"] == "interrupted"
+        assert [t["status"] for t in store.trials()] == ["done"] * 3 + ["aborted"]
+    monkeypatch.setattr(devices, "open_belt", real_open)
+    code, out, _ = run_cli(["run", str(small), "-p", "P01", "--headless", "--input",
+                            "scripted", "--db", str(db), "--resume"], capsys)
+    assert code == 0 and "complete, 30/30" in out
+
+
+def test_headless_needs_model_or_scripted(small: Path, capsys: pytest.CaptureFixture[str]
+                                          ) -> None:
+    for kind in ("joystick", "mouse"):
+        code, _, err = run_cli(["run", str(small), "-p", "P01", "--headless", "--input", kind],
+                               capsys)
+        assert code == 2 and "needs the experiment window" in err
+
+
+@pytest.mark.skipif(importlib.util.find_spec("tactorbelt.inputs.model") is not None,
+                    reason="the model participant is installed")
+def test_model_input_without_the_model_is_a_clear_error(
+        small: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    code, _, err = run_cli(["run", str(small), "-p", "P01", "--headless", "--input", "model",
+                            "--db", str(tmp_path / "s.sqlite")], capsys)
+    assert code == 2 and "model participant" in err
+
+
+def test_bad_arguments(small: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    code, _, err = run_cli(["run", str(small), "-p", " ", "--headless"], capsys)
+    assert code == 2 and "--participant" in err
+    code, _, err = run_cli(["run", str(tmp_path / "none.toml"), "-p", "P1", "--headless"],
+                           capsys)
+    assert code == 2 and "no such file" in err
+    code, _, err = run_cli(["run", str(small), "-p", "P1", "--headless", "--belt", "usb:x"],
+                           capsys)
+    assert code == 2 and "unknown belt URL" in err
+    code, _, err = run_cli(["run", str(small), "-p", "P1", "--resume", "--new-session"], capsys)
+    assert code == 2 and "exclude" in err
+
+
+@pytest.mark.parametrize("cmd", [["study"], ["study", "init"], ["study", "check"], ["run"],
+                                 ["export"]])
+def test_help(cmd: list[str], capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, _ = run_cli([*cmd, "--help"], capsys)
+    assert code == 0 and "Usage:" in out
+
+
+def test_cwd_default_db(small: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                        monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.chdir(tmp_path)
+    code, _, _ = run_cli(["run", str(small), "-p", "P01", "--headless", "--input", "scripted",
+                          "--limit", "0"], capsys)
+    assert code == 0 and os.path.exists(tmp_path / "study.sqlite")

@@ -1,0 +1,167 @@
+"""Resume: exactly the stored schedule's unfinished trials, in order, never duplicated,
+also after the process is killed with SIGKILL."""
+
+from __future__ import annotations
+
+import os
+import signal
+import sqlite3
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from tactorbelt import StoreError
+from tactorbelt.clock import SimClock
+from tactorbelt.devices import open_belt
+from tactorbelt.experiment.runner import run_session
+from tactorbelt.experiment.schedule import make_schedule
+from tactorbelt.experiment.store import Store
+from tactorbelt.experiment.study import Study
+from tactorbelt.inputs.scripted import ScriptedCursor
+
+STUDY = """\
+name = "resume"
+[layout]
+tactors = 6
+[targets]
+count = 12
+[session]
+iti_s = 0.2
+break_every = 0
+[training]
+passes = 1
+conditions = ["static"]
+[[test]]
+condition = "static"
+repetitions = 2
+[[test]]
+condition = "dynamic"
+repetitions = 2
+"""  # 12 training + 48 test = 60 trials
+
+
+def _cursor(study: Study, participant: str, seed: int = 1) -> ScriptedCursor:
+    return ScriptedCursor(answers={t.trial_index: t.target_deg
+                                   for t in make_schedule(study, participant, seed)})
+
+
+def _check_complete(db: Path, participant: str, study: Study, seed: int = 1) -> dict[str, Any]:
+    with Store.open(db, readonly=True) as store:
+        (sess,) = store.sessions(participant)
+        rows = store.trials(sess["session_id"])
+        sched = store.schedule(sess["session_id"])
+        assert sched == make_schedule(study, participant, seed)
+        # every scheduled trial exactly once, in schedule order
+        assert [r["trial_index"] for r in rows] == [t.trial_index for t in sched]
+        assert {r["status"] for r in rows} <= {"done", "timeout"}
+        assert [(r["target_deg"], r["condition"]) for r in rows] == [
+            (t.target_deg, t.condition) for t in sched]
+        # no orphan samples
+        n = store.conn.execute("SELECT COUNT(*) FROM samples WHERE trial_id NOT IN "
+                               "(SELECT trial_id FROM trials)").fetchone()[0]
+        assert n == 0
+        assert sum(r["n_samples"] for r in rows) == store.conn.execute(
+            "SELECT COUNT(*) FROM samples").fetchone()[0]
+        return sess
+
+
+def test_resume_runs_exactly_the_unfinished_trials(tmp_path: Path) -> None:
+    study = Study.from_toml(STUDY)
+    db = tmp_path / "s.sqlite"
+    clock = SimClock()
+    with Store.open(db) as store, open_belt("sim", clock=clock) as belt:
+        first = run_session(study, "P07", belt, _cursor(study, "P07"), store, clock, limit=10)
+        assert first.n_done == 22 and first.status == "interrupted"
+        second = run_session(study, "P07", belt, _cursor(study, "P07"), store, clock,
+                             resume=True)
+        assert second.session_id == first.session_id
+        assert second.n_run == 38 and second.status == "complete"
+        assert [r.trial.trial_index for r in second.results] == list(range(22, 60))
+    sess = _check_complete(db, "P07", study)
+    assert sess["resumed"] == 1 and sess["status"] == "complete"
+
+
+def test_resume_uses_the_stored_seed(tmp_path: Path) -> None:
+    study = Study.from_toml(STUDY)
+    db = tmp_path / "s.sqlite"
+    clock = SimClock()
+    with Store.open(db) as store, open_belt("sim", clock=clock) as belt:
+        run_session(study, "P01", belt, _cursor(study, "P01", 99), store, clock, seed=99,
+                    limit=5)
+        run_session(study, "P01", belt, _cursor(study, "P01", 99), store, clock, seed=3,
+                    resume=True)
+    _check_complete(db, "P01", study, seed=99)
+
+
+def test_nothing_to_resume(tmp_path: Path) -> None:
+    study = Study.from_toml(STUDY)
+    clock = SimClock()
+    with (Store.open(tmp_path / "s.sqlite") as store, open_belt("sim", clock=clock) as belt,
+          pytest.raises(StoreError, match="no unfinished session")):
+        run_session(study, "P01", belt, _cursor(study, "P01"), store, clock, resume=True)
+
+
+def test_resume_with_a_changed_study_is_refused(tmp_path: Path) -> None:
+    study = Study.from_toml(STUDY)
+    clock = SimClock()
+    with Store.open(tmp_path / "s.sqlite") as store, open_belt("sim", clock=clock) as belt:
+        run_session(study, "P01", belt, _cursor(study, "P01"), store, clock, limit=1)
+        changed = Study.from_toml(STUDY.replace("iti_s = 0.2", "iti_s = 0.3"))
+        with pytest.raises(StoreError, match="study changed"):
+            run_session(changed, "P01", belt, _cursor(study, "P01"), store, clock, resume=True)
+        # the same study with other formatting resumes fine
+        same = Study.from_toml(STUDY.replace("iti_s = 0.2", "iti_s  =  0.2  # s"))
+        res = run_session(same, "P01", belt, _cursor(study, "P01"), store, clock, resume=True)
+        assert res.status == "complete"
+
+
+def _tactorbelt() -> list[str]:
+    return [sys.executable, "-m", "tactorbelt"]
+
+
+def test_sigkill_then_resume(tmp_path: Path) -> None:
+    study_file = tmp_path / "study.toml"
+    study_file.write_text(STUDY)
+    db = tmp_path / "s.sqlite"
+    args = [*_tactorbelt(), "run", str(study_file), "--participant", "P03", "--headless",
+            "--input", "scripted", "--db", str(db)]
+    env = dict(os.environ, TACTORBELT_TEST_SLOW_TRIAL_S="0.05")
+    proc = subprocess.Popen(args, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    try:
+        n = 0
+        deadline = time.monotonic() + 60
+        while n < 15 and time.monotonic() < deadline and proc.poll() is None:
+            time.sleep(0.02)
+            if db.exists():
+                try:
+                    conn = sqlite3.connect(f"file:{db}?mode=ro", uri=True, timeout=1)
+                    n = conn.execute("SELECT COUNT(*) FROM trials").fetchone()[0]
+                    conn.close()
+                except sqlite3.Error:
+                    n = 0
+        assert proc.poll() is None, proc.stderr.read() if proc.stderr else ""
+        os.kill(proc.pid, signal.SIGKILL)
+    finally:
+        proc.wait()
+        if proc.stdout:
+            proc.stdout.close()
+        if proc.stderr:
+            proc.stderr.close()
+    assert proc.returncode == -signal.SIGKILL
+    with Store.open(db, readonly=True) as store:
+        (sess,) = store.sessions()
+        assert sess["status"] == "running"  # killed: never marked
+        killed_at = len(store.trials())
+        assert 15 <= killed_at < 60
+    # without --resume: refused, with a hint
+    out = subprocess.run(args, capture_output=True, text=True, check=False)
+    assert out.returncode == 2
+    assert "--resume" in out.stderr and "Traceback" not in out.stderr
+    out = subprocess.run([*args, "--resume"], capture_output=True, text=True, check=False)
+    assert out.returncode == 0, out.stderr
+    sess = _check_complete(db, "P03", Study.from_toml(STUDY))
+    assert sess["resumed"] == 1
