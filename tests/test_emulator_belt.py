@@ -217,3 +217,23 @@ def test_close_stops_the_motors_and_ends_the_emulator(emulator_built: Path) -> N
     belt.close()
     assert belt.process.returncode is not None
     assert belt.lost is not None
+
+
+def test_closing_the_port_turns_the_outputs_off(emulator_built: Path, tmp_path: Path) -> None:
+    """Like unplugging USB: the host closes the port without STOP_ALL; the device stops."""
+    from tactorbelt.devices._firmware import FirmwareBelt
+    from tactorbelt.devices.serial import SerialTransport
+
+    log = tmp_path / "levels.csv"
+    with open_belt("emulator", build=False, levels_log=log) as belt:
+        assert isinstance(belt, EmulatorBelt)
+        belt.set_amplitudes([0.75] * 6)
+        belt.stop_keepalive()
+        belt._transport.close()  # the port closes; no STOP_ALL was sent
+        assert wait_for(lambda: tuple(read_levels_log(log)[-1, 1:]) == (0,) * 7, 2.0)
+        again = FirmwareBelt(SerialTransport(belt.pty_path), "serial:" + belt.pty_path,
+                             keepalive=False)
+        with again:
+            status = again.status()
+            assert status.state == wire.State.IDLE and status.levels == (0,) * 6
+            assert status.failsafe_count == 0  # the port closing, not the failsafe
