@@ -16,6 +16,7 @@ Imports pyserial; :func:`tactorbelt.devices.open_belt` imports this module only 
 from __future__ import annotations
 
 import contextlib
+import errno
 import logging
 import threading
 from collections.abc import Iterable
@@ -75,6 +76,11 @@ class SerialTransport(Transport):
         except (serial.SerialException, OSError, ValueError) as exc:
             hint = ""
             text = str(exc).lower()
+            if getattr(exc, "errno", None) == errno.ENOENT:
+                raise DeviceError(
+                    f"cannot open serial port {port}: no such port "
+                    "('tactorbelt devices' lists the ports)"
+                ) from None
             if "permission" in text:
                 hint = " (on Linux, add yourself to the 'dialout' group and log in again)"
             elif "lock" in text or "busy" in text:
