@@ -1,0 +1,235 @@
+"""The model participant as a cursor source: it feels the belt and moves a cursor.
+
+:func:`make_model_cursor` returns a :class:`ModelCursor`, a
+:class:`~tactorbelt.inputs.base.CursorSource` like a joystick, so the runner, the store
+and the window see what they would see with a person:
+
+- :meth:`~ModelCursor.trial_started` records the onset; nothing about the target is
+  known (test trials carry no answer; in training the highlighted target is given and
+  the model moves there);
+- the first :meth:`~ModelCursor.read` at or after ``onset + observation time`` asks the
+  belt for the vibration between onset and now (``sense(t0_ns, t1_ns)``, by default
+  ``belt.vibration`` of the ``sim`` belt), perceives it
+  (:mod:`tactorbelt.participant.perception`), picks a target and plans a minimum-jerk
+  movement from home to it, which starts after the decision time;
+- :meth:`~ModelCursor.trial_ended` springs the cursor back home.
+
+The model is a simulated observer; what it does follows from its assumptions and is
+no evidence about people (docs/participant-model.md).
+
+Also :func:`sim_vibrator`, the vibration of one stimulus on a fresh ``sim`` belt, for
+the fast (runner-free) simulations of :mod:`tactorbelt.participant.simulate`.
+
+I/O edge: imports tactorbelt.participant (pure) and, in :func:`sim_vibrator`, the sim
+belt; never the window or a hardware backend.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .._errors import ConfigError
+from ..clock import Clock
+from ..geometry import TargetSet
+from ..participant.params import ModelParams
+from ..participant.perception import Percepts, perceive_vibration
+from ..participant.timing import decision_s, min_jerk, observation_s
+from .base import CursorSample, CursorSource, TrialCue
+
+if TYPE_CHECKING:
+    from ..devices.base import Belt
+    from ..geometry import Layout
+    from ..stimuli import Stimulus
+
+__all__ = ["ModelCursor", "ModelDecision", "Sense", "make_model_cursor", "sim_vibrator"]
+
+#: ``sense(t0_ns, t1_ns) -> (t_ns (n,), vibration (n, N))``: what the belt did.
+Sense = Callable[[int, int], tuple[Any, Any]]
+
+
+@dataclass(frozen=True)
+class ModelDecision:
+    """What the model decided in one trial (for inspection and tests).
+
+    Attributes:
+        trial_index: the trial.
+        block: ``training`` or ``test``.
+        decided_ns: when it decided (end of the observed window).
+        answer_deg: the target it moves to.
+        move_start_ns: when the movement starts.
+        percept: the percept (None in training, where the shown target is used).
+    """
+
+    trial_index: int
+    block: str
+    decided_ns: int
+    answer_deg: float
+    move_start_ns: int
+    percept: Percepts | None
+
+
+@dataclass(frozen=True)
+class _Move:
+    start_ns: int
+    duration_ns: int
+    x0: float
+    y0: float
+    x1: float
+    y1: float
+
+    def at(self, now_ns: int) -> tuple[float, float]:
+        s = (now_ns - self.start_ns) / self.duration_ns
+        f = float(min_jerk(s))
+        return self.x0 + (self.x1 - self.x0) * f, self.y0 + (self.y1 - self.y0) * f
+
+
+class ModelCursor(CursorSource):
+    """A model participant driving the cursor (see the module docstring).
+
+    Args:
+        sense: ``sense(t0_ns, t1_ns) -> (t_ns, vibration)`` on the runner's clock.
+        seed: seeds the observer's random generator (perception, timing, movement).
+        params: the observer (default: the typical observer, :class:`ModelParams`).
+        clock: the runner's clock (kept for reference; reads are timed by ``now_ns``).
+    """
+
+    def __init__(self, sense: Sense, seed: int, params: ModelParams | None = None,
+                 clock: Clock | None = None) -> None:
+        self.params = params if params is not None else ModelParams()
+        self.clock = clock
+        self._sense = sense
+        self._rng = np.random.default_rng(seed)
+        self._cue: TrialCue | None = None
+        self._onset_ns = 0
+        self._decide_ns: int | None = None
+        self._move: _Move | None = None
+        self._targets: dict[tuple[float, ...], TargetSet] = {}
+        #: The decision of the latest trial (None before the first decision).
+        self.last_decision: ModelDecision | None = None
+
+    # -- CursorSource -------------------------------------------------------------------
+    def trial_started(self, cue: TrialCue, onset_ns: int) -> None:
+        self._cue = cue
+        self._onset_ns = int(onset_ns)
+        obs = observation_s(cue.condition, self.params)
+        self._decide_ns = self._onset_ns + round(obs * 1e9)
+        x, y = self._position(self._onset_ns)
+        self._move = _Move(self._onset_ns, 1, x, y, x, y)
+
+    def trial_ended(self, now_ns: int) -> None:
+        x, y = self._position(int(now_ns))
+        self._move = _Move(int(now_ns), max(round(self.params.return_s * 1e9), 1), x, y,
+                           0.0, 0.0)
+        self._cue = None
+        self._decide_ns = None
+
+    def read(self, now_ns: int) -> CursorSample:
+        now = int(now_ns)
+        if self._cue is not None and self._decide_ns is not None and now >= self._decide_ns:
+            self._decide(now)
+        x, y = self._position(now)
+        j = self.params.jitter
+        if j > 0:
+            dx, dy = self._rng.normal(0.0, j, 2)
+            x, y = x + float(dx), y + float(dy)
+        return CursorSample(now, x, y, 0)
+
+    # -- internals -------------------------------------------------------------------------
+    def _position(self, now_ns: int) -> tuple[float, float]:
+        if self._move is None:
+            return 0.0, 0.0
+        return self._move.at(now_ns)
+
+    def _target_set(self, cue: TrialCue) -> TargetSet:
+        key = tuple(cue.targets_deg)
+        if key not in self._targets:
+            self._targets[key] = TargetSet(key)
+        return self._targets[key]
+
+    def _decide(self, now_ns: int) -> None:
+        cue = self._cue
+        assert cue is not None
+        self._decide_ns = None
+        p = self.params
+        percept: Percepts | None = None
+        if cue.block == "training" and cue.shown_target_deg is not None:
+            answer = float(cue.shown_target_deg)
+        else:
+            t_ns, vib = self._sense(self._onset_ns, now_ns)
+            t_s = (np.asarray(t_ns, dtype=np.int64) - self._onset_ns) / 1e9
+            targets = self._target_set(cue)
+            percept = perceive_vibration(t_s, vib, cue.layout, targets, p, self._rng)
+            answer = float(percept.response_deg[0])
+        wait = float(decision_s(self._rng, 1, len(cue.targets_deg), p)[0])
+        angle = math.radians(answer + float(self._rng.normal(0.0, p.endpoint_sd_deg)))
+        start = now_ns + round(wait * 1e9)
+        x0, y0 = self._position(now_ns)
+        r = p.reach_radius
+        self._move = _Move(start, max(round(p.movement_s * 1e9), 1), x0, y0,
+                           r * math.sin(angle), r * math.cos(angle))
+        self.last_decision = ModelDecision(cue.trial_index, cue.block, now_ns, answer, start,
+                                           percept)
+
+
+def make_model_cursor(belt: Belt, clock: Clock, seed: int, params: ModelParams | None = None,
+                      sense: Sense | None = None) -> CursorSource:
+    """A model participant that feels ``belt`` and answers with a cursor.
+
+    Args:
+        belt: the belt the runner plays on; unless ``sense`` is given it must model its
+            vibration (``belt.vibration(t0_ns, t1_ns)``, as the ``sim`` belt does).
+        clock: the runner's clock.
+        seed: seeds the observer (same seed, same session: the run is reproducible).
+        params: the observer (default: the typical observer).
+        sense: ``sense(t0_ns, t1_ns) -> (t_ns, vibration (n, N))`` to use instead of
+            ``belt.vibration``.
+
+    Raises:
+        ConfigError: the belt models no vibration and no ``sense`` was given, or the
+            seed is not an integer.
+    """
+    if isinstance(seed, bool) or not isinstance(seed, int | np.integer):
+        raise ConfigError(f"the model participant's seed must be an integer, got {seed!r}")
+    if sense is None:
+        vibration = getattr(belt, "vibration", None)
+        if not callable(vibration):
+            raise ConfigError(
+                f"the model participant feels the vibration a simulated belt models; belt "
+                f"{getattr(belt, 'url', belt)!r} models none. Use --belt sim with --input model"
+            )
+        sense = vibration
+    if params is not None and not isinstance(params, ModelParams):
+        raise ConfigError(f"params must be a ModelParams, got {type(params).__name__}")
+    return ModelCursor(sense, int(seed), params, clock)
+
+
+def sim_vibrator(layout: Layout, **sim_options: Any
+                 ) -> Callable[[Stimulus, float], tuple[NDArray[np.float64],
+                                                        NDArray[np.float64]]]:
+    """The vibration of a stimulus played from rest on a fresh ``sim`` belt.
+
+    Returns ``vibrate(stimulus, duration_s) -> (t_s (n,), vibration (n, N))`` sampled
+    at 1 kHz from onset, exactly what a model participant senses in the runner over
+    its observation window. ``sim_options`` go to the sim belt (``calibration``,
+    ``params``).
+    """
+    from ..clock import SimClock
+    from ..devices.sim import SimBelt
+
+    def vibrate(stimulus: Stimulus, duration_s: float) -> tuple[NDArray[np.float64],
+                                                                 NDArray[np.float64]]:
+        clock = SimClock()
+        with SimBelt(layout=layout, clock=clock, **sim_options) as belt:
+            belt.play(stimulus)
+            t0 = clock.now_ns()
+            clock.advance(round(duration_s * 1e9))
+            t_ns, vib = belt.vibration(t0, clock.now_ns())
+        return (np.asarray(t_ns) - t0) / 1e9, np.asarray(vib)
+
+    return vibrate
