@@ -13,7 +13,7 @@
 namespace support {
 
 inline const char* g_vectors_path = "test/vectors.json";
-inline const char* g_reference_dir = "test/reference";
+inline const char* g_reference_dir = "../tests/data/reference";
 
 // The parsed vectors.json (loaded once).
 inline const json::Value& vectors() {

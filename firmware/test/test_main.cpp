@@ -1,4 +1,5 @@
-// Host test runner: test_main VECTORS_JSON REFERENCE_DIR
+// Host test runner: host_tests VECTORS_JSON REFERENCE_DIR (the golden CSVs,
+// tests/data/reference in the repository)
 #include "minitest.h"
 #include "support.h"
 

@@ -1,0 +1,330 @@
+// The firmware core on the host: serves protocol v1 on a pseudo-terminal, with the
+// motors replaced by recorded levels and the 1 kHz tick on the wall clock.
+//
+//   emulator [--tactors N | --tactor-angles A,B,...] [--heartbeat-ms MS]
+//            [--max-on-ms MS] [--levels-log FILE]
+//
+// Contract (docs/protocol.md, "The emulator"):
+// - The first stdout line is the pseudo-terminal's slave path (then stdout is
+//   flushed and nothing else is printed there). Diagnostics go to stderr.
+// - When the host side of the pseudo-terminal closes (every opener has closed
+//   it), it is treated like the USB port closing: outputs off, state idle.
+// - Exits 0 on SIGTERM, SIGINT or SIGHUP, and when stdin reaches end of file if
+//   stdin is a pipe, a socket or a terminal (stdin from /dev/null or a regular
+//   file is ignored). On exit the outputs go off (a last levels-log line).
+// - Exits 2 on a bad command line, 1 when the pseudo-terminal cannot be made.
+#include <errno.h>
+#include <fcntl.h>
+#include <poll.h>
+#include <signal.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <termios.h>
+#include <time.h>
+#include <unistd.h>
+
+#include "../tactorbelt/src/core/controller.h"
+
+namespace {
+
+constexpr uint16_t kPwmSteps = 800;  // what the Nano 33 BLE reports (16 MHz / 20 kHz)
+constexpr int64_t kTickNs = 1000000;
+constexpr int64_t kMaxLagNs = 100 * kTickNs;  // behind by more: skip ahead, do not burst
+
+volatile sig_atomic_t g_stop = 0;
+
+void on_signal(int) { g_stop = 1; }
+
+int64_t mono_ns() {
+  timespec ts;
+  clock_gettime(CLOCK_MONOTONIC, &ts);
+  return static_cast<int64_t>(ts.tv_sec) * 1000000000 + ts.tv_nsec;
+}
+
+timespec to_timespec(int64_t ns) {
+  timespec ts;
+  ts.tv_sec = static_cast<time_t>(ns / 1000000000);
+  ts.tv_nsec = static_cast<long>(ns % 1000000000);
+  return ts;
+}
+
+[[noreturn]] void usage_error(const char* fmt, const char* arg) {
+  fprintf(stderr, "emulator: error: ");
+  fprintf(stderr, fmt, arg);
+  fprintf(stderr, "\nusage: emulator [--tactors N | --tactor-angles A,B,...] [--heartbeat-ms MS]"
+                  " [--max-on-ms MS] [--levels-log FILE]\n");
+  exit(2);
+}
+
+long parse_long(const char* text, const char* what, long lo, long hi) {
+  char* end = nullptr;
+  errno = 0;
+  const long v = strtol(text, &end, 10);
+  if (errno != 0 || end == text || *end != '\0' || v < lo || v > hi) {
+    char msg[160];
+    snprintf(msg, sizeof msg, "%s must be an integer in %ld..%ld, got '%%s'", what, lo, hi);
+    usage_error(msg, text);
+  }
+  return v;
+}
+
+// Records levels (and the state) as CSV: "t_us,state,level_0,...", one line at
+// start, one whenever a level or the state changes, one at exit.
+class LevelsLog {
+ public:
+  bool open(const char* path, uint8_t n) {
+    f_ = fopen(path, "w");
+    if (f_ == nullptr) return false;
+    fprintf(f_, "t_us,state");
+    for (uint8_t k = 0; k < n; ++k) fprintf(f_, ",level_%u", k);
+    fprintf(f_, "\n");
+    return true;
+  }
+  void record(uint64_t t_us, const tb::Controller& c) {
+    if (f_ == nullptr) return;
+    const uint8_t n = c.channels();
+    const uint8_t state = static_cast<uint8_t>(c.state());
+    if (written_ && state == state_ && memcmp(levels_, c.levels(), n * sizeof(uint16_t)) == 0) {
+      return;
+    }
+    written_ = true;
+    state_ = state;
+    memcpy(levels_, c.levels(), n * sizeof(uint16_t));
+    fprintf(f_, "%llu,%u", static_cast<unsigned long long>(t_us), state);
+    for (uint8_t k = 0; k < n; ++k) fprintf(f_, ",%u", levels_[k]);
+    fprintf(f_, "\n");
+    dirty_ = true;
+  }
+  void flush() {
+    if (f_ != nullptr && dirty_) fflush(f_);
+    dirty_ = false;
+  }
+  void close() {
+    if (f_ != nullptr) fclose(f_);
+    f_ = nullptr;
+  }
+
+ private:
+  FILE* f_ = nullptr;
+  bool written_ = false;
+  bool dirty_ = false;
+  uint8_t state_ = 0;
+  uint16_t levels_[tb::kMaxChannels] = {};
+};
+
+class NullMotors : public tb::MotorDriver {
+ public:
+  void write(const uint16_t*, uint8_t) override {}
+};
+
+// Frames replies (COBS + 0x00) onto the pseudo-terminal.
+class PtySink : public tb::ReplySink {
+ public:
+  explicit PtySink(int fd) : fd_(fd) {}
+  void send(const uint8_t* packet, size_t n) override {
+    uint8_t frame[tb::kMaxFrame];
+    const size_t len = tb::frame_packet(packet, n, frame, sizeof frame);
+    size_t done = 0;
+    while (done < len) {
+      const ssize_t w = write(fd_, frame + done, len - done);
+      if (w > 0) {
+        done += static_cast<size_t>(w);
+      } else if (w < 0 && errno == EINTR) {
+        continue;
+      } else {
+        return;  // host not reading or gone: the reply is lost, as on a real link
+      }
+    }
+  }
+
+ private:
+  int fd_;
+};
+
+bool stdin_is_watched() {
+  struct stat st;
+  if (fstat(STDIN_FILENO, &st) != 0) return false;
+  return S_ISFIFO(st.st_mode) || S_ISSOCK(st.st_mode) || isatty(STDIN_FILENO);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  uint8_t tactors = 6;
+  float angles[tb::kMaxChannels];
+  uint8_t n_angles = 0;
+  long heartbeat_ms = -1;
+  long max_on_ms = -1;
+  const char* log_path = nullptr;
+  for (int i = 1; i < argc; ++i) {
+    const char* a = argv[i];
+    const bool has_value = i + 1 < argc;
+    if (strcmp(a, "--help") == 0 || strcmp(a, "-h") == 0) {
+      printf("usage: emulator [--tactors N | --tactor-angles A,B,...] [--heartbeat-ms MS]"
+             " [--max-on-ms MS] [--levels-log FILE]\n"
+             "Serves tactorbelt protocol v1 on a pseudo-terminal; prints its path first.\n");
+      return 0;
+    }
+    if (!has_value) usage_error("%s needs a value", a);
+    const char* v = argv[++i];
+    if (strcmp(a, "--tactors") == 0) {
+      tactors = static_cast<uint8_t>(parse_long(v, "--tactors", 2, tb::kMaxChannels));
+    } else if (strcmp(a, "--tactor-angles") == 0) {
+      n_angles = 0;
+      const char* p = v;
+      while (*p != '\0') {
+        char* end = nullptr;
+        const float deg = strtof(p, &end);
+        if (end == p || n_angles == tb::kMaxChannels) usage_error("bad --tactor-angles '%s'", v);
+        angles[n_angles++] = deg;
+        p = end;
+        if (*p == ',') ++p;
+        else if (*p != '\0') usage_error("bad --tactor-angles '%s'", v);
+      }
+    } else if (strcmp(a, "--heartbeat-ms") == 0) {
+      heartbeat_ms = parse_long(v, "--heartbeat-ms", tb::kMinHeartbeatMs, tb::kMaxHeartbeatMs);
+    } else if (strcmp(a, "--max-on-ms") == 0) {
+      max_on_ms = parse_long(v, "--max-on-ms", tb::kMinMaxOnMs, tb::kMaxMaxOnMs);
+    } else if (strcmp(a, "--levels-log") == 0) {
+      log_path = v;
+    } else {
+      usage_error("unknown option '%s'", a);
+    }
+  }
+
+  tb::Layout layout;
+  if (n_angles > 0 ? !layout.set(angles, n_angles) : !layout.set_even(tactors)) {
+    usage_error("%s", "--tactor-angles needs 2..16 distinct finite angles");
+  }
+  NullMotors motors;
+  tb::Controller controller(layout, motors, kPwmSteps);
+  if (heartbeat_ms >= 0) controller.set_heartbeat_ms(static_cast<uint16_t>(heartbeat_ms));
+  if (max_on_ms >= 0) controller.set_max_on_ms(static_cast<uint32_t>(max_on_ms));
+
+  LevelsLog levels_log;
+  if (log_path != nullptr && !levels_log.open(log_path, layout.size())) {
+    fprintf(stderr, "emulator: error: cannot write %s: %s\n", log_path, strerror(errno));
+    return 2;
+  }
+
+  const int master = posix_openpt(O_RDWR | O_NOCTTY);
+  if (master < 0 || grantpt(master) != 0 || unlockpt(master) != 0) {
+    fprintf(stderr, "emulator: error: cannot open a pseudo-terminal: %s\n", strerror(errno));
+    return 1;
+  }
+  const char* slave_name = ptsname(master);
+  if (slave_name == nullptr) {
+    fprintf(stderr, "emulator: error: ptsname: %s\n", strerror(errno));
+    return 1;
+  }
+  char slave_path[256];
+  snprintf(slave_path, sizeof slave_path, "%s", slave_name);
+  // Raw mode on the slave side (kept while the master is open), so the first
+  // opener sees bytes, not lines, even if it does not set raw mode itself.
+  const int slave = open(slave_path, O_RDWR | O_NOCTTY);
+  if (slave >= 0) {
+    termios tio;
+    if (tcgetattr(slave, &tio) == 0) {
+      cfmakeraw(&tio);
+      tcsetattr(slave, TCSANOW, &tio);
+    }
+    close(slave);
+  }
+  fcntl(master, F_SETFL, fcntl(master, F_GETFL) | O_NONBLOCK);
+
+  struct sigaction sa;
+  memset(&sa, 0, sizeof sa);
+  sa.sa_handler = on_signal;
+  sigaction(SIGTERM, &sa, nullptr);
+  sigaction(SIGINT, &sa, nullptr);
+  sigaction(SIGHUP, &sa, nullptr);
+  signal(SIGPIPE, SIG_IGN);
+
+  const bool watch_stdin = stdin_is_watched();
+  printf("%s\n", slave_path);
+  fflush(stdout);
+
+  const int64_t t0 = mono_ns();
+  auto now_us = [t0] { return static_cast<uint64_t>((mono_ns() - t0) / 1000); };
+  controller.begin(0);
+  levels_log.record(0, controller);
+  levels_log.flush();
+
+  PtySink sink(master);
+  bool connected = false;
+  int64_t next = t0 + kTickNs;
+  uint8_t buf[4096];
+  while (!g_stop) {
+    const int64_t now = mono_ns();
+    if (now >= next) {
+      // The 1 kHz tick, on absolute deadlines.
+      if (now - next > kMaxLagNs) next = now;  // suspended or starved: skip, do not burst
+      next += kTickNs;
+      const uint64_t t = now_us();
+      controller.tick(t);
+      if (!connected) {
+        // Without an opener the master reports POLLHUP at once, so it is not
+        // waited on; look for an opener once per tick instead.
+        pollfd p = {master, POLLIN, 0};
+        if (poll(&p, 1, 0) >= 0 && !(p.revents & POLLHUP)) connected = true;
+      }
+      levels_log.record(t, controller);
+      levels_log.flush();
+      continue;
+    }
+    // Between ticks: wait for a request (served at once) or the next deadline.
+    pollfd fds[2];
+    nfds_t nfds = 0;
+    int master_i = -1;
+    int stdin_i = -1;
+    if (connected) {
+      master_i = static_cast<int>(nfds);
+      fds[nfds++] = {master, POLLIN, 0};
+    }
+    if (watch_stdin) {
+      stdin_i = static_cast<int>(nfds);
+      fds[nfds++] = {STDIN_FILENO, POLLIN, 0};
+    }
+    const timespec timeout = to_timespec(next - now);
+    const int ready = ppoll(fds, nfds, &timeout, nullptr);
+    if (ready < 0 && errno != EINTR) break;
+    if (ready <= 0) continue;
+    const uint64_t t = now_us();
+    if (master_i >= 0 && fds[master_i].revents != 0) {
+      if (fds[master_i].revents & POLLIN) {
+        controller.tick(t);  // outputs as of now, so that a STATUS reports them
+        while (true) {
+          const ssize_t r = read(master, buf, sizeof buf);
+          if (r > 0) {
+            controller.receive_bytes(buf, static_cast<size_t>(r), t, sink);
+            continue;
+          }
+          if (r < 0 && errno == EINTR) continue;
+          break;  // EAGAIN: drained; EIO: no opener any more (POLLHUP)
+        }
+      }
+      if (fds[master_i].revents & (POLLHUP | POLLERR)) {
+        // every opener closed the port: like the USB port closing
+        controller.link_closed(t);
+        tcflush(master, TCIOFLUSH);
+        connected = false;
+      }
+      levels_log.record(t, controller);
+      levels_log.flush();
+    }
+    if (stdin_i >= 0 && (fds[stdin_i].revents & (POLLIN | POLLHUP | POLLERR))) {
+      const ssize_t r = read(STDIN_FILENO, buf, sizeof buf);
+      if (r == 0 || (r < 0 && errno != EINTR && errno != EAGAIN)) break;  // end of file: exit
+    }
+  }
+
+  const uint64_t t = now_us();
+  controller.link_closed(t);
+  levels_log.record(t, controller);
+  levels_log.flush();
+  levels_log.close();
+  close(master);
+  return 0;
+}
