@@ -205,3 +205,19 @@ def test_serial_auto_lists_every_candidate_when_none_answers(
             open_belt("serial:auto")
     finally:
         silent.close()
+
+
+def test_a_program_that_forgets_to_close_stops_the_motors_at_exit(
+    pty_device: PtyDevice,
+) -> None:
+    import subprocess
+    import sys
+
+    script = (
+        "from tactorbelt.devices import open_belt\n"
+        f"belt = open_belt('serial:{pty_device.path}')\n"
+        "belt.set_amplitudes([1.0] * 6)\n"
+    )
+    subprocess.run([sys.executable, "-c", script], check=True, timeout=30)
+    assert isinstance(pty_device.firmware.requests[-1], wire.StopAll)
+    assert pty_device.firmware.levels == [0] * 6

@@ -29,6 +29,8 @@ pyserial or bleak (those live in the transports).
 
 from __future__ import annotations
 
+import atexit
+import contextlib
 import functools
 import itertools
 import logging
@@ -36,6 +38,7 @@ import math
 import random
 import threading
 import time
+import weakref
 from abc import ABC, abstractmethod
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -176,6 +179,17 @@ def _ms(value_s: float, what: str, lo: int, hi: int) -> int:
     return ms
 
 
+#: Belts still open, closed (motors stopped) at interpreter exit.
+_OPEN_BELTS: weakref.WeakSet[FirmwareBelt] = weakref.WeakSet()
+
+
+@atexit.register
+def _close_open_belts() -> None:
+    for belt in list(_OPEN_BELTS):
+        with contextlib.suppress(Exception):
+            belt.close()
+
+
 class FirmwareBelt(Belt, PacketSink):
     """A belt running tactorbelt firmware (protocol v1), over any :class:`Transport`.
 
@@ -274,6 +288,7 @@ class FirmwareBelt(Belt, PacketSink):
             self._closed = True
             transport.close()
             raise
+        _OPEN_BELTS.add(self)
         if keepalive:
             self.start_keepalive()
 
@@ -469,6 +484,10 @@ class FirmwareBelt(Belt, PacketSink):
         except DeviceError as exc:
             if not self._closing:
                 raise
+            if self._lost is not None:  # the port may still be open: one last try, no wait
+                with contextlib.suppress(Exception), self._tx_lock:
+                    seq = next(self._seq) & 0xFF
+                    self._transport.write(self._transport.encode(wire.stop_all(seq)))
             log.warning("could not stop the motors of the belt on %s: %s "
                         "(its failsafe turns them off within %d ms)",
                         self.port, exc, self.heartbeat_ms)
@@ -510,6 +529,7 @@ class FirmwareBelt(Belt, PacketSink):
             self._closing = False
 
     def _close(self) -> None:
+        _OPEN_BELTS.discard(self)
         self.stop_keepalive()
         self._transport.close()
         self._mark_lost(f"belt on {self.port} is closed")
