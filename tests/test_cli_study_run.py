@@ -200,7 +200,7 @@ def test_belt_failure_exits_3_naming_the_port(small: Path, tmp_path: Path,
             if n["plays"] == 4:
                 raise DeviceError("no answer on /dev/ttyACM0 for 1.0 s")
 
-        belt._write_play = play
+        belt._write_play = play  # type: ignore[method-assign]
         belts.append(belt)
         return belt
 

@@ -159,7 +159,8 @@ def test_streaming_belt_gives_the_same_exact_timing(tmp_path: Path) -> None:
         res = run_session(study, "P01", belt, _cursor(study), store, clock, limit=2)
         assert len(res.results) == 10
         for r in res.results:
-            k = np.array(r.sample_t_ns) - r.onset_ns  # type: ignore[operator]
+            assert r.onset_ns is not None
+            k = np.array(r.sample_t_ns) - r.onset_ns
             assert set(np.diff(k).tolist()) == {10 * MS}
         assert not belt.levels.any()
 

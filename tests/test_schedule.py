@@ -86,8 +86,8 @@ def test_full_and_no_randomisation() -> None:
     block = [t for t in full if t.block == "test" and t.condition == "static"]
     assert Counter(t.target_deg for t in block) == {k * 15.0: 5 for k in range(24)}
     none = make_schedule(_study(randomise="none"), "P01")
-    block = [t.target_deg for t in none if t.block == "test" and t.condition == "static"]
-    assert block == [k * 15.0 for k in range(24)] * 5
+    angles = [t.target_deg for t in none if t.block == "test" and t.condition == "static"]
+    assert angles == [k * 15.0 for k in range(24)] * 5
 
 
 def test_participant_number() -> None:

@@ -59,6 +59,7 @@ def test_acquisition_at_first_sample_beyond_threshold() -> None:
     res = m.result
     assert res.status == "done"
     assert res.acquired_ns == 1040 * MS  # the 0.95 sample
+    assert res.onset_ns is not None
     assert res.rt_s == (res.acquired_ns - res.onset_ns) / 1e9 == pytest.approx(0.04)
     assert res.response_deg == pytest.approx(47.0)
     assert res.response_target_deg == 45.0

@@ -388,6 +388,7 @@ def run_session(
             while True:
                 now = clock.now_ns()
                 s = cursor.read(now)
+                obs.on_sample(CursorSample(now, s.x, s.y, s.buttons))
                 if machine.at_home(s):
                     break
                 if sim and now - start > SIM_HOME_LIMIT_NS:
