@@ -35,7 +35,7 @@ class ModelParams:
             amplitude (2.0). Source: the energy model of funnelling, Israr & Poupyrev
             2011 ("Tactile Brush"): with gamma = 2 a location rendered with the
             ``energy`` law (A = sqrt(1 - D/s)) is felt exactly where it is rendered.
-        detect_amplitude: a tactor is felt when its vibration amplitude reaches this
+        detect_amplitude: a tactor is felt when its vibration amplitude exceeds this
             (0.02 of the rated vibration). Assumption.
         weber_amplitude: Weber fraction of vibration amplitude (0.3): each tactor's
             felt amplitude carries log-normal noise of this SD, so the log ratio of

@@ -80,7 +80,7 @@ class Cues:
         pair: the counter-clockwise tactor a of the strongest adjacent pair (a, b).
         w_a, w_b: time-averaged location weights of a and b (the static cue).
         felt_a, felt_b: whether a and b were felt at all (peak amplitude above the
-            detection level).
+            detection level; with a level of 0, any vibration is felt).
         dwell_a_s, dwell_b_s: how long a and b dominated the pair (the dynamic cue).
         overlap: share of the felt time during which a and b were both felt.
         duration_s: length of the window.
@@ -169,13 +169,13 @@ def sense_cues(t_s: ArrayLike, vib: ArrayLike, layout: Layout,
     b = cw[pair]
     rows = np.arange(v.shape[0])
     peak = v.max(axis=1)                                      # (K, N)
-    felt_a = peak[rows, pair] >= p.detect_amplitude
-    felt_b = peak[rows, b] >= p.detect_amplitude
+    felt_a = peak[rows, pair] > p.detect_amplitude
+    felt_b = peak[rows, b] > p.detect_amplitude
     va, vb = v[rows, :, pair], v[rows, :, b]                  # (K, n)
     wa, wb = w[rows, :, pair], w[rows, :, b]
     tot = wa + wb
     share_b = np.divide(wb, tot, out=np.full_like(tot, 0.5), where=tot > 0)
-    on_a, on_b = va >= p.detect_amplitude, vb >= p.detect_amplitude
+    on_a, on_b = va > p.detect_amplitude, vb > p.detect_amplitude
     active = on_a | on_b
     dom_b = active & (share_b > 0.5 + p.dominance_margin)
     dom_a = active & (share_b < 0.5 - p.dominance_margin)
