@@ -1,0 +1,39 @@
+"""The loaded tables of one or more stores, as plain pandas data.
+
+:func:`tactorbelt.analysis.load.load_stores` fills a :class:`StoreData`; the pure
+layers (tables, stats, figures) take it without knowing about files.
+
+Pure: imports only the standard library (pandas for type checking).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+__all__ = ["StoreData"]
+
+
+@dataclass
+class StoreData:
+    """The tables of one or more stores, concatenated.
+
+    Attributes:
+        paths: the store files, in the order given (duplicates removed).
+        sessions: one row per session. ``store`` is the index into ``paths``;
+            ``session_key`` (``"<store>:<session_id>"``) is unique across stores.
+        trials: one row per trial with its session's ``participant`` and
+            ``session_key``; ``on_tactor`` is bool; ``correct``, ``rt_s``,
+            ``response_deg`` and ``response_target_deg`` are floats (NaN for NULL);
+            ``block``, ``condition`` and ``status`` are lower-case strings.
+        notes: what the loader noticed and did (duplicates dropped, unknown values).
+    """
+
+    paths: list[Path]
+    sessions: pd.DataFrame
+    trials: pd.DataFrame
+    notes: list[str] = field(default_factory=list)

@@ -1,0 +1,272 @@
+"""Load one or more session stores (SQLite) into tidy pandas tables.
+
+Reads the DESIGN.md schema by column name and tolerates extra columns. Stores are
+opened read-only; nothing is ever written to them. Cursor samples are not loaded in
+bulk: :func:`load_samples` fetches the few trials a figure needs, by SQL.
+
+Every problem with a file (missing, not SQLite, not a tactorbelt store, no sessions)
+raises :class:`~tactorbelt.StoreError` naming the file and what is wrong.
+
+I/O layer of the analysis: imports sqlite3, pandas and tactorbelt._errors; never
+devices, inputs, the window or the experiment runner.
+"""
+
+from __future__ import annotations
+
+import sqlite3
+from collections.abc import Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING, Final
+
+from .._errors import StoreError
+from .dataset import StoreData
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+__all__ = ["REQUIRED_COLUMNS", "StoreData", "load_samples", "load_stores"]
+
+#: Columns each table must have (DESIGN.md, "Data store"). More are welcome.
+REQUIRED_COLUMNS: Final[dict[str, tuple[str, ...]]] = {
+    "sessions": (
+        "session_id", "participant", "study_name", "study_sha256", "study_toml", "seed",
+        "condition_order", "belt", "firmware_version", "package_version", "started_at",
+        "ended_at", "status",
+    ),
+    "trials": (
+        "trial_id", "session_id", "block", "condition", "repetition", "trial_index",
+        "target_deg", "on_tactor", "response_deg", "response_target_deg", "correct", "rt_s",
+        "onset_ns", "status",
+    ),
+    "samples": ("trial_id", "t_s", "x", "y", "buttons"),
+}
+#: Optional session columns read when present.
+OPTIONAL_SESSION_COLUMNS: Final = ("input",)
+
+_SQLITE_MAGIC: Final = b"SQLite format 3\x00"
+
+
+def _check_file(path: Path) -> None:
+    if not path.exists():
+        raise StoreError(f"{path}: no such file; give a store written by 'tactorbelt run'")
+    if path.is_dir():
+        raise StoreError(f"{path} is a directory; give a store file such as {path}/study.sqlite")
+    try:
+        with path.open("rb") as fh:
+            head = fh.read(len(_SQLITE_MAGIC))
+    except OSError as exc:
+        raise StoreError(f"cannot read {path}: {exc.strerror}") from None
+    if head != _SQLITE_MAGIC:
+        what = "an empty file" if not head else f"a file starting with {head[:8]!r}"
+        raise StoreError(
+            f"{path} is not a tactorbelt store: it is {what}, not an SQLite database; "
+            "give a store written by 'tactorbelt run' or 'tactorbelt demo'"
+        )
+
+
+def _connect(path: Path) -> sqlite3.Connection:
+    """Open read-only. Falls back to ``immutable`` when the directory is not writable."""
+    uri = path.resolve().as_uri()
+    try:
+        conn = sqlite3.connect(f"{uri}?mode=ro", uri=True)
+        conn.execute("SELECT count(*) FROM sqlite_master").fetchone()
+        return conn
+    except sqlite3.DatabaseError:
+        pass
+    try:
+        conn = sqlite3.connect(f"{uri}?immutable=1", uri=True)
+        conn.execute("SELECT count(*) FROM sqlite_master").fetchone()
+        return conn
+    except sqlite3.DatabaseError as exc:
+        raise StoreError(f"{path}: cannot be read as an SQLite database ({exc})") from None
+
+
+def _columns(conn: sqlite3.Connection, table: str) -> list[str]:
+    return [str(r[1]) for r in conn.execute(f"PRAGMA table_info({table})")]
+
+
+def _check_schema(path: Path, conn: sqlite3.Connection) -> dict[str, list[str]]:
+    try:
+        tables = {str(r[0]) for r in conn.execute(
+            "SELECT name FROM sqlite_master WHERE type IN ('table', 'view')")}
+    except sqlite3.DatabaseError as exc:
+        raise StoreError(f"{path}: cannot be read as an SQLite database ({exc})") from None
+    missing = [t for t in REQUIRED_COLUMNS if t not in tables]
+    if missing:
+        raise StoreError(
+            f"{path} is not a tactorbelt store: table(s) {', '.join(missing)} missing "
+            f"(a store has tables {', '.join(REQUIRED_COLUMNS)})"
+        )
+    cols: dict[str, list[str]] = {}
+    for table, required in REQUIRED_COLUMNS.items():
+        have = _columns(conn, table)
+        lacking = [c for c in required if c not in have]
+        if lacking:
+            raise StoreError(
+                f"{path} is not a tactorbelt store: table {table} lacks column(s) "
+                f"{', '.join(lacking)} (required: {', '.join(required)})"
+            )
+        cols[table] = have
+    return cols
+
+
+def _read_store(path: Path, store: int) -> tuple[pd.DataFrame, pd.DataFrame]:
+    import pandas as pd
+
+    _check_file(path)
+    conn = _connect(path)
+    try:
+        cols = _check_schema(path, conn)
+        sess_cols = list(REQUIRED_COLUMNS["sessions"]) + [
+            c for c in OPTIONAL_SESSION_COLUMNS if c in cols["sessions"]]
+        try:
+            sessions = pd.read_sql_query(
+                f"SELECT {', '.join(sess_cols)} FROM sessions ORDER BY session_id", conn)
+            trials = pd.read_sql_query(
+                f"SELECT {', '.join(REQUIRED_COLUMNS['trials'])} FROM trials "
+                "ORDER BY session_id, trial_index, trial_id", conn)
+        except (sqlite3.DatabaseError, pd.errors.DatabaseError) as exc:
+            raise StoreError(f"{path}: cannot read sessions or trials ({exc})") from None
+    finally:
+        conn.close()
+    sessions.insert(0, "store", store)
+    trials.insert(0, "store", store)
+    return sessions, trials
+
+
+def _tidy(sessions: pd.DataFrame, trials: pd.DataFrame,
+          notes: list[str]) -> tuple[pd.DataFrame, pd.DataFrame]:
+    import numpy as np
+    import pandas as pd
+
+    sessions = sessions.copy()
+    sessions["session_key"] = sessions["store"].astype(str) + ":" + sessions["session_id"].astype(str)
+    sessions["participant"] = sessions["participant"].astype(str)
+    for c in ("status", "belt", "study_name", "study_sha256", "firmware_version",
+              "package_version", "condition_order", "started_at", "ended_at"):
+        sessions[c] = sessions[c].astype("string")
+    if "input" not in sessions.columns:
+        sessions["input"] = pd.Series(pd.NA, index=sessions.index, dtype="string")
+    else:
+        sessions["input"] = sessions["input"].astype("string")
+
+    # The same session copied into two stores: keep the first copy.
+    ident = ["participant", "study_sha256", "started_at"]
+    dup = sessions.duplicated(ident, keep="first") & sessions["started_at"].notna()
+    if dup.any():
+        dropped = sessions.loc[dup, "session_key"].tolist()
+        notes.append(
+            f"{len(dropped)} session(s) appear in more than one store (same participant, "
+            f"study and start time) and were counted once: {', '.join(dropped[:10])}"
+            + (" ..." if len(dropped) > 10 else "")
+        )
+        sessions = sessions.loc[~dup].reset_index(drop=True)
+
+    trials = trials.copy()
+    trials["session_key"] = trials["store"].astype(str) + ":" + trials["session_id"].astype(str)
+    orphan = ~trials["session_key"].isin(sessions["session_key"])
+    if orphan.any():
+        n_dup = int(orphan.sum())
+        notes.append(f"{n_dup} trial row(s) belong to no loaded session and were ignored")
+        trials = trials.loc[~orphan]
+    trials = trials.merge(sessions[["session_key", "participant"]], on="session_key",
+                          how="left", validate="many_to_one")
+    for c in ("block", "condition", "status"):
+        trials[c] = trials[c].astype("string").str.strip().str.lower()
+    trials["target_deg"] = pd.to_numeric(trials["target_deg"], errors="coerce")
+    trials["on_tactor"] = pd.to_numeric(trials["on_tactor"], errors="coerce").fillna(0) != 0
+    for c in ("response_deg", "response_target_deg", "correct", "rt_s"):
+        trials[c] = pd.to_numeric(trials[c], errors="coerce").astype(float)
+    bad_target = trials["target_deg"].isna()
+    if bad_target.any():
+        notes.append(f"{int(bad_target.sum())} trial(s) without a target angle were ignored")
+        trials = trials.loc[~bad_target]
+    trials["target_deg"] = np.round(np.mod(trials["target_deg"].to_numpy(), 360.0), 6) % 360.0
+    unknown = ~trials["status"].isin(["done", "timeout", "aborted"])
+    if unknown.any():
+        vals = sorted(trials.loc[unknown, "status"].fillna("<null>").unique().tolist())
+        notes.append(
+            f"{int(unknown.sum())} trial(s) with unknown status ({', '.join(vals)}) were "
+            "treated as aborted (allowed: done, timeout, aborted)"
+        )
+        trials.loc[unknown, "status"] = "aborted"
+    return sessions, trials.reset_index(drop=True)
+
+
+def load_stores(paths: Sequence[str | Path]) -> StoreData:
+    """Load every store in ``paths`` into one :class:`StoreData`.
+
+    Raises:
+        StoreError: no path given; a file missing, not SQLite, or lacking the tactorbelt
+            tables or columns; or no session in any of the stores.
+    """
+    import pandas as pd
+
+    if not paths:
+        raise StoreError("no store given; pass one or more .sqlite files")
+    notes: list[str] = []
+    unique: list[Path] = []
+    seen: set[Path] = set()
+    for p in paths:
+        path = Path(p)
+        key = path.resolve()
+        if key in seen:
+            notes.append(f"{path} was given twice and read once")
+            continue
+        seen.add(key)
+        unique.append(path)
+    all_sessions = []
+    all_trials = []
+    for i, path in enumerate(unique):
+        sessions, trials = _read_store(path, i)
+        if sessions.empty:
+            if len(unique) == 1:
+                raise StoreError(
+                    f"{path} is an empty store: it holds no session; run a study into it "
+                    "first ('tactorbelt run' or 'tactorbelt demo')"
+                )
+            notes.append(f"{path} holds no session")
+        all_sessions.append(sessions)
+        all_trials.append(trials)
+    sessions = pd.concat(all_sessions, ignore_index=True)
+    trials = pd.concat(all_trials, ignore_index=True)
+    if sessions.empty:
+        raise StoreError(
+            f"the stores hold no session ({', '.join(str(p) for p in unique)}); nothing "
+            "to analyse"
+        )
+    sessions, trials = _tidy(sessions, trials, notes)
+    return StoreData(paths=unique, sessions=sessions, trials=trials, notes=notes)
+
+
+def load_samples(data: StoreData, trials: pd.DataFrame) -> pd.DataFrame:
+    """Cursor samples of a few trials, fetched by SQL (never the whole table).
+
+    Args:
+        data: what :func:`load_stores` returned (for the store paths).
+        trials: rows with ``store`` and ``trial_id`` columns (other columns ignored).
+
+    Returns:
+        Columns ``store, trial_id, t_s, x, y, buttons``, ordered by trial and time.
+    """
+    import pandas as pd
+
+    frames = []
+    for store, group in trials.groupby("store"):
+        ids = [int(t) for t in group["trial_id"].unique()]
+        if not ids:
+            continue
+        conn = _connect(data.paths[int(store)])  # type: ignore[call-overload]
+        try:
+            frame = pd.read_sql_query(
+                f"SELECT trial_id, t_s, x, y, buttons FROM samples WHERE trial_id IN "
+                f"({', '.join('?' * len(ids))}) ORDER BY trial_id, t_s", conn, params=ids)
+        except (sqlite3.DatabaseError, pd.errors.DatabaseError) as exc:
+            raise StoreError(f"{data.paths[int(store)]}: cannot read samples ({exc})") from None  # type: ignore[call-overload]
+        finally:
+            conn.close()
+        frame.insert(0, "store", int(store))  # type: ignore[call-overload]
+        frames.append(frame)
+    if not frames:
+        return pd.DataFrame(columns=["store", "trial_id", "t_s", "x", "y", "buttons"])
+    return pd.concat(frames, ignore_index=True)

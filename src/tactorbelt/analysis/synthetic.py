@@ -1,0 +1,284 @@
+"""Synthetic session stores in the DESIGN.md schema, for tests and benchmarks.
+
+The analysis must not depend on the study runner to be tested, so this module writes
+stores with plain :mod:`sqlite3` in exactly the columns DESIGN.md requires ("Data
+store"). Two entry points:
+
+- :func:`create_store`, :func:`insert_session`, :func:`insert_trials`,
+  :func:`insert_samples`: hand-built datasets with known numbers (tests).
+- :func:`synthesize_store`: many participants with 100 Hz cursor samples, written
+  with ``executemany`` from NumPy arrays (benchmarks, examples).
+
+The numbers it makes up are not a model of people; they only exercise the analysis.
+
+I/O (writes SQLite files); imports NumPy, sqlite3 and tactorbelt.geometry only.
+"""
+
+from __future__ import annotations
+
+import sqlite3
+from collections.abc import Iterable, Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..geometry import Layout, TargetSet, normalize
+
+__all__ = [
+    "SCHEMA_SQL",
+    "create_store",
+    "insert_samples",
+    "insert_session",
+    "insert_trials",
+    "paper_study_toml",
+    "synthesize_store",
+]
+
+#: The minimal schema of DESIGN.md ("Data store"): the columns that must exist.
+SCHEMA_SQL = """
+CREATE TABLE sessions(
+    session_id INTEGER PRIMARY KEY,
+    participant TEXT NOT NULL,
+    study_name TEXT,
+    study_sha256 TEXT,
+    study_toml TEXT,
+    seed INTEGER,
+    condition_order TEXT,
+    belt TEXT,
+    firmware_version TEXT,
+    package_version TEXT,
+    started_at TEXT,
+    ended_at TEXT,
+    status TEXT
+);
+CREATE TABLE trials(
+    trial_id INTEGER PRIMARY KEY,
+    session_id INTEGER NOT NULL,
+    block TEXT NOT NULL,
+    condition TEXT NOT NULL,
+    repetition INTEGER,
+    trial_index INTEGER,
+    target_deg REAL NOT NULL,
+    on_tactor INTEGER NOT NULL,
+    response_deg REAL,
+    response_target_deg REAL,
+    correct INTEGER,
+    rt_s REAL,
+    onset_ns INTEGER,
+    status TEXT NOT NULL
+);
+CREATE TABLE samples(
+    trial_id INTEGER NOT NULL,
+    t_s REAL NOT NULL,
+    x REAL NOT NULL,
+    y REAL NOT NULL,
+    buttons INTEGER NOT NULL
+);
+"""
+
+_SAMPLES_INDEX = "CREATE INDEX samples_trial ON samples(trial_id);"
+
+SESSION_COLUMNS = (
+    "session_id", "participant", "study_name", "study_sha256", "study_toml", "seed",
+    "condition_order", "belt", "firmware_version", "package_version", "started_at",
+    "ended_at", "status",
+)
+TRIAL_COLUMNS = (
+    "trial_id", "session_id", "block", "condition", "repetition", "trial_index",
+    "target_deg", "on_tactor", "response_deg", "response_target_deg", "correct", "rt_s",
+    "onset_ns", "status",
+)
+
+
+def paper_study_toml(name: str = "between-tactor-paper", tactors: int | Sequence[float] = 6,
+                     targets: int = 24, law: str = "paper", falloff_deg: float = 15.0) -> str:
+    """A small study TOML text with the sections the analysis reads."""
+    if isinstance(tactors, int):
+        layout = f"tactors = {tactors}"
+    else:
+        layout = "angles_deg = [" + ", ".join(f"{a:g}" for a in tactors) + "]"
+    return (
+        f'name = "{name}"\n\n[layout]\n{layout}\n\n[targets]\ncount = {targets}\n\n'
+        f'[stimulus]\nlaw = "{law}"\nfalloff_deg = {falloff_deg}\n'
+    )
+
+
+def create_store(path: str | Path, *, samples_index: bool = True,
+                 extra_columns: bool = False) -> sqlite3.Connection:
+    """Create an empty store with the DESIGN.md tables and return an open connection.
+
+    Args:
+        path: the new file (must not exist).
+        samples_index: create an index on ``samples(trial_id)``, as a real store has.
+        extra_columns: add columns the analysis must tolerate (``input``, ``notes``).
+    """
+    conn = sqlite3.connect(str(path))
+    conn.executescript(SCHEMA_SQL)
+    if samples_index:
+        conn.execute(_SAMPLES_INDEX)
+    if extra_columns:
+        conn.execute("ALTER TABLE sessions ADD COLUMN input TEXT")
+        conn.execute("ALTER TABLE trials ADD COLUMN notes TEXT")
+    conn.commit()
+    return conn
+
+
+def insert_session(conn: sqlite3.Connection, **fields: Any) -> int:
+    """Insert one session; missing DESIGN.md fields get plausible defaults."""
+    row: dict[str, Any] = {
+        "participant": "P01",
+        "study_name": "between-tactor-paper",
+        "study_sha256": "0" * 64,
+        "study_toml": paper_study_toml(),
+        "seed": 1,
+        "condition_order": "static,dynamic",
+        "belt": "serial:/dev/ttyACM0",
+        "firmware_version": "1.0.0",
+        "package_version": "0.1.0",
+        "started_at": "2026-01-01T10:00:00+00:00",
+        "ended_at": "2026-01-01T10:30:00+00:00",
+        "status": "complete",
+    }
+    row.update(fields)
+    cols = list(row)
+    cur = conn.execute(
+        f"INSERT INTO sessions({', '.join(cols)}) VALUES ({', '.join('?' * len(cols))})",
+        [row[c] for c in cols],
+    )
+    conn.commit()
+    assert cur.lastrowid is not None
+    return int(cur.lastrowid)
+
+
+def insert_trials(conn: sqlite3.Connection, rows: Iterable[Mapping[str, Any]]) -> None:
+    """Insert trial rows (dicts keyed by trial column name; missing ones are NULL)."""
+    rows = list(rows)
+    if not rows:
+        return
+    cols = sorted({k for r in rows for k in r})
+    conn.executemany(
+        f"INSERT INTO trials({', '.join(cols)}) VALUES ({', '.join('?' * len(cols))})",
+        [[r.get(c) for c in cols] for r in rows],
+    )
+    conn.commit()
+
+
+def insert_samples(conn: sqlite3.Connection, trial_id: int, t_s: Sequence[float],
+                   x: Sequence[float], y: Sequence[float]) -> None:
+    """Insert one trial's cursor samples (buttons 0)."""
+    conn.executemany(
+        "INSERT INTO samples(trial_id, t_s, x, y, buttons) VALUES (?, ?, ?, ?, 0)",
+        [(trial_id, float(t), float(a), float(b)) for t, a, b in zip(t_s, x, y, strict=True)],
+    )
+    conn.commit()
+
+
+def synthesize_store(
+    path: str | Path,
+    participants: int,
+    *,
+    repetitions: int = 5,
+    tactors: int = 6,
+    targets: int = 24,
+    seed: int = 0,
+    samples: bool = True,
+    sample_rate_hz: float = 100.0,
+    timeout_rate: float = 0.01,
+    participant_prefix: str = "P",
+    belt: str = "serial:/dev/ttyACM0",
+    chunk: int = 50,
+) -> dict[str, int]:
+    """Write a store of made-up sessions: ``participants * 2 * repetitions * targets`` test trials.
+
+    Each participant has one complete session with a static and a dynamic test block.
+    On-tactor targets are found 90 % of the time; between-tactor ones 50 % (static) or
+    75 % (dynamic); misses land on a neighbouring target. RTs are log-normal around
+    1.2 s (static) and 1.4 s (dynamic). A cursor path from the centre to the response is
+    sampled at ``sample_rate_hz`` until the response time (about 150 samples a trial).
+
+    Returns:
+        Counts written: ``sessions``, ``trials``, ``samples``.
+    """
+    rng = np.random.default_rng(seed)
+    layout = Layout.even(tactors)
+    tset = TargetSet.even(targets)
+    tgt = tset.angles
+    on = tset.on_tactor(layout)
+    step = 360.0 / targets
+    conn = create_store(path, samples_index=False)
+    conn.execute("PRAGMA journal_mode=OFF")
+    conn.execute("PRAGMA synchronous=OFF")
+    toml = paper_study_toml(tactors=tactors, targets=targets)
+    n_per = 2 * repetitions * targets
+    counts = {"sessions": 0, "trials": 0, "samples": 0}
+    trial_id = 0
+    for start in range(0, participants, chunk):
+        stop = min(participants, start + chunk)
+        sess_rows = []
+        for p in range(start, stop):
+            order = "static,dynamic" if p % 2 == 0 else "dynamic,static"
+            sess_rows.append((p + 1, f"{participant_prefix}{p + 1:04d}", "synthetic", "0" * 64,
+                              toml, seed, order, belt, "1.0.0", "0.1.0",
+                              "2026-01-01T10:00:00+00:00", "2026-01-01T10:30:00+00:00",
+                              "complete"))
+        conn.executemany(
+            f"INSERT INTO sessions({', '.join(SESSION_COLUMNS)}) VALUES "
+            f"({', '.join('?' * len(SESSION_COLUMNS))})", sess_rows)
+        k = stop - start
+        n = k * n_per
+        sess = np.repeat(np.arange(start, stop) + 1, n_per)
+        cond_dyn = np.tile(np.repeat([False, True], repetitions * targets), k)
+        tidx = np.tile(np.arange(targets), 2 * repetitions * k)
+        target = tgt[tidx]
+        on_t = on[tidx]
+        rep = np.tile(np.repeat(np.arange(repetitions), targets), 2 * k)
+        p_ok = np.where(on_t, 0.9, np.where(cond_dyn, 0.75, 0.5))
+        ok = rng.random(n) < p_ok
+        off = rng.choice([-1.0, 1.0], n) * np.where(rng.random(n) < 0.85, 1.0, 2.0)
+        resp_t = np.asarray(normalize(target + np.where(ok, 0.0, off * step)))
+        resp = np.asarray(normalize(resp_t + rng.uniform(-step / 3, step / 3, n)))
+        rt = np.exp(rng.normal(np.log(np.where(cond_dyn, 1.4, 1.2)), 0.2))
+        timeout = rng.random(n) < timeout_rate
+        status = np.where(timeout, "timeout", "done")
+        ids = np.arange(trial_id + 1, trial_id + n + 1)
+        trial_id += n
+        cond = np.where(cond_dyn, "dynamic", "static")
+        rows = zip(
+            ids.tolist(), sess.tolist(), ["test"] * n, cond.tolist(), rep.tolist(),
+            (np.arange(n) % n_per).tolist(), target.tolist(), on_t.astype(int).tolist(),
+            [None if t else v for t, v in zip(timeout.tolist(), resp.tolist(), strict=True)],
+            [None if t else v for t, v in zip(timeout.tolist(), resp_t.tolist(), strict=True)],
+            (ok & ~timeout).astype(int).tolist(),
+            [None if t else v for t, v in zip(timeout.tolist(), rt.tolist(), strict=True)],
+            (np.arange(n, dtype=np.int64) * 3_000_000_000).tolist(), status.tolist(),
+            strict=True,
+        )
+        conn.executemany(
+            f"INSERT INTO trials({', '.join(TRIAL_COLUMNS)}) VALUES "
+            f"({', '.join('?' * len(TRIAL_COLUMNS))})", rows)
+        counts["sessions"] += k
+        counts["trials"] += n
+        if samples:
+            dur = np.where(timeout, 10.0, rt)
+            ns = np.ceil(dur * sample_rate_hz).astype(np.int64) + 1
+            tid = np.repeat(ids, ns)
+            first = np.repeat(np.cumsum(ns) - ns, ns)
+            i = np.arange(int(ns.sum())) - first
+            t = i / sample_rate_hz
+            frac = np.clip(t / np.repeat(dur, ns), 0.0, 1.0)
+            r = frac * frac * (3 - 2 * frac)  # smooth start and stop
+            a = np.deg2rad(np.repeat(resp, ns)) + 0.05 * np.sin(6 * frac)
+            x = r * np.sin(a)
+            y = r * np.cos(a)
+            conn.executemany(
+                "INSERT INTO samples(trial_id, t_s, x, y, buttons) VALUES (?, ?, ?, ?, 0)",
+                zip(tid.tolist(), t.tolist(), x.tolist(), y.tolist(), strict=True))
+            counts["samples"] += int(ns.sum())
+        conn.commit()
+    if samples:
+        conn.execute(_SAMPLES_INDEX)
+    conn.commit()
+    conn.close()
+    return counts
+
