@@ -1,0 +1,397 @@
+"""Protocol v1 codec (tactorbelt.devices.wire): what backends and other tools rely on.
+
+The byte layouts here are the contract of docs/protocol.md; the firmware checks the
+same bytes through firmware/test/vectors.json.
+"""
+
+from __future__ import annotations
+
+import struct
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from tactorbelt import ConfigError, ProtocolError
+from tactorbelt.devices import wire
+from tactorbelt.devices.wire import (
+    Ack,
+    Info,
+    MsgType,
+    Nak,
+    NakCode,
+    Packet,
+    Pong,
+    State,
+    Status,
+)
+
+u8 = st.integers(0, 0xFF)
+u16 = st.integers(0, 0xFFFF)
+u32 = st.integers(0, 0xFFFFFFFF)
+payloads = st.binary(max_size=wire.MAX_PAYLOAD)
+packets = st.builds(Packet, u8, u8, payloads)
+
+
+# --- CRC and COBS --------------------------------------------------------------------
+
+
+def test_crc_check_value() -> None:
+    assert wire.crc16_ccitt_false(b"123456789") == 0x29B1
+    assert wire.crc16_ccitt_false(b"") == 0xFFFF
+
+
+@pytest.mark.parametrize(
+    ("data", "encoded"),
+    [
+        (b"", b"\x01"),
+        (b"\x00", b"\x01\x01"),
+        (b"\x00\x00", b"\x01\x01\x01"),
+        (b"\x11\x22\x00\x33", b"\x03\x11\x22\x02\x33"),
+        (b"\x11\x22\x33\x44", b"\x05\x11\x22\x33\x44"),
+        (b"\x11\x00\x00\x00", b"\x02\x11\x01\x01\x01"),
+        (bytes(range(1, 255)), b"\xff" + bytes(range(1, 255))),
+        (bytes(range(1, 256)), b"\xff" + bytes(range(1, 255)) + b"\x02\xff"),
+    ],
+)
+def test_cobs_known_encodings(data: bytes, encoded: bytes) -> None:
+    assert wire.cobs_encode(data) == encoded
+    assert wire.cobs_decode(encoded) == data
+
+
+@given(st.binary(max_size=700))
+def test_cobs_round_trip_and_no_zero(data: bytes) -> None:
+    encoded = wire.cobs_encode(data)
+    assert 0 not in encoded
+    assert len(encoded) <= len(data) + len(data) // 254 + 1
+    assert wire.cobs_decode(encoded) == data
+
+
+@pytest.mark.parametrize("bad", [b"\x00", b"\x02\x00", b"\x05\x01\x02", b"\x03\x01"])
+def test_cobs_decode_rejects_malformed(bad: bytes) -> None:
+    with pytest.raises(ProtocolError):
+        wire.cobs_decode(bad)
+
+
+# --- packets and frames -----------------------------------------------------------------
+
+
+def test_packet_layout_is_type_seq_payload_crc_le() -> None:
+    raw = wire.encode_packet(Packet(0x12, 0x34, b"\xab\xcd"))
+    crc = wire.crc16_ccitt_false(b"\x12\x34\xab\xcd")
+    assert raw == b"\x12\x34\xab\xcd" + struct.pack("<H", crc)
+    assert wire.encode_frame(Packet(0x12, 0x34, b"\xab\xcd")) == wire.cobs_encode(raw) + b"\x00"
+
+
+@given(packets)
+def test_packet_and_frame_round_trip(p: Packet) -> None:
+    raw = wire.encode_packet(p)
+    assert len(raw) <= wire.MAX_PACKET
+    assert wire.decode_packet(raw) == p
+    frame = wire.encode_frame(p)
+    assert frame.endswith(b"\x00") and frame.count(0) == 1
+    dec = wire.FrameDecoder()
+    assert dec.feed(frame) == [p]
+    assert (dec.crc_errors, dec.framing_errors) == (0, 0)
+
+
+@pytest.mark.parametrize("size", [0, 1, 3, 65, 200])
+def test_decode_packet_rejects_bad_lengths(size: int) -> None:
+    with pytest.raises(ProtocolError, match="bytes"):
+        wire.decode_packet(bytes(size))
+
+
+@given(packets, st.data())
+def test_decode_packet_rejects_any_single_bit_flip(p: Packet, data: st.DataObject) -> None:
+    raw = bytearray(wire.encode_packet(p))
+    bit = data.draw(st.integers(0, 8 * len(raw) - 1))
+    raw[bit // 8] ^= 1 << (bit % 8)
+    with pytest.raises(ProtocolError, match="CRC"):
+        wire.decode_packet(bytes(raw))
+
+
+def test_packet_fields_are_checked() -> None:
+    with pytest.raises(ConfigError):
+        Packet(256, 0)
+    with pytest.raises(ConfigError):
+        Packet(1, -1)
+    with pytest.raises(ConfigError, match="at most 60"):
+        Packet(1, 0, bytes(61))
+
+
+# --- the frame decoder ---------------------------------------------------------------------
+
+
+@given(st.lists(packets, max_size=8), st.integers(1, 20))
+def test_decoder_handles_any_chunking(ps: list[Packet], chunk: int) -> None:
+    stream = b"".join(wire.encode_frame(p) for p in ps)
+    dec = wire.FrameDecoder()
+    got: list[Packet] = []
+    for i in range(0, len(stream), chunk):
+        got += dec.feed(stream[i : i + chunk])
+    assert got == ps
+
+
+@settings(max_examples=300)
+@given(st.binary(max_size=300), packets)
+def test_decoder_never_raises_and_resynchronises(garbage: bytes, p: Packet) -> None:
+    dec = wire.FrameDecoder()
+    dec.feed(garbage)  # anything at all: counted, never raised
+    got = dec.feed(b"\x00" + wire.encode_frame(p))
+    assert got[-1] == p
+
+
+@given(packets, st.data())
+def test_decoder_counts_a_mutated_frame_and_decodes_the_next(
+    p: Packet, data: st.DataObject
+) -> None:
+    frame = bytearray(wire.encode_frame(p))
+    pos = data.draw(st.integers(0, len(frame) - 2))  # not the delimiter
+    frame[pos] = data.draw(st.integers(1, 255).filter(lambda b: b != frame[pos]))
+    good = Packet(MsgType.GET_STATUS, 7)
+    dec = wire.FrameDecoder()
+    got = dec.feed(bytes(frame) + wire.encode_frame(good))
+    assert got[-1] == good
+    # the damaged frame is counted as an error, or (when the damage happens to leave a
+    # valid CRC, about 1 in 65536) decoded as some packet; never both, never lost
+    assert dec.crc_errors + dec.framing_errors + len(got[:-1]) == 1
+
+
+def test_decoder_error_kinds() -> None:
+    dec = wire.FrameDecoder()
+    bad_crc = bytearray(wire.encode_packet(wire.ping(1, 2)))
+    bad_crc[-1] ^= 0xFF
+    assert dec.feed(wire.cobs_encode(bytes(bad_crc)) + b"\x00") == []
+    assert (dec.crc_errors, dec.framing_errors) == (1, 0)
+    assert dec.feed(wire.cobs_encode(b"\x01\x02\x03") + b"\x00") == []  # 3 bytes: too short
+    assert dec.feed(b"\x05\x01\x00") == []  # the code runs past the end
+    assert dec.feed(b"\x01" * 100 + b"\x00") == []  # longer than any frame
+    assert (dec.crc_errors, dec.framing_errors) == (1, 3)
+    assert dec.feed(b"\x00\x00\x00") == []  # empty frames are not errors
+    assert (dec.crc_errors, dec.framing_errors) == (1, 3)
+
+
+def test_longest_frame_is_accepted_and_one_more_byte_is_not() -> None:
+    longest = wire.encode_frame(Packet(0x10, 1, bytes(wire.MAX_PAYLOAD)))
+    assert len(longest) == wire.MAX_ENCODED_PACKET + 1
+    dec = wire.FrameDecoder()
+    assert len(dec.feed(longest)) == 1
+    assert dec.feed(b"\x02" + longest) == []
+    assert dec.framing_errors == 1
+
+
+def test_reset_drops_a_partial_frame() -> None:
+    frame = wire.encode_frame(wire.get_info(3))
+    dec = wire.FrameDecoder()
+    assert dec.feed(frame[:3]) == []
+    dec.reset()
+    assert dec.feed(frame) == [wire.get_info(3)]
+    assert dec.framing_errors == 0
+
+
+# --- requests ---------------------------------------------------------------------------------
+
+
+@given(u8, u32)
+def test_ping_round_trip(seq: int, nonce: int) -> None:
+    p = wire.ping(seq, nonce)
+    assert (p.type, p.seq, p.payload) == (0x01, seq, struct.pack("<I", nonce))
+    assert wire.parse_request(p) == wire.Ping(nonce)
+
+
+@given(u8, st.lists(u16, min_size=1, max_size=30))
+def test_set_amplitudes_round_trip(seq: int, levels: list[int]) -> None:
+    p = wire.set_amplitudes(seq, levels)
+    assert p.type == 0x10 and p.payload == struct.pack(f"<{len(levels)}H", *levels)
+    assert wire.parse_request(p) == wire.SetAmplitudes(tuple(levels))
+
+
+@given(u8, u16, u8, u8, u16, u16, u16, u32)
+def test_play_target_round_trip(seq: int, angle: int, mode: int, law: int, falloff: int,
+                                period: int, transit: int, duration: int) -> None:
+    p = wire.play_target(seq, angle, mode, law, falloff, period, transit, duration)
+    assert p.type == 0x12 and len(p.payload) == 14
+    assert p.payload == struct.pack("<HBBHHHI", angle, mode, law, falloff, period, transit,
+                                    duration)
+    assert wire.parse_request(p) == wire.PlayTarget(angle, mode, law, falloff, period, transit,
+                                                    duration)
+
+
+@given(u8, u16, st.one_of(st.none(), u32))
+def test_set_config_round_trip(seq: int, heartbeat_ms: int, max_on_ms: int | None) -> None:
+    p = wire.set_config(seq, heartbeat_ms, max_on_ms)
+    assert p.type == 0x15
+    assert len(p.payload) == (2 if max_on_ms is None else 6)
+    assert wire.parse_request(p) == wire.SetConfig(heartbeat_ms, max_on_ms)
+
+
+@pytest.mark.parametrize(
+    ("build", "type_", "parsed"),
+    [
+        (wire.get_info, 0x02, wire.GetInfo()),
+        (wire.stop_all, 0x11, wire.StopAll()),
+        (wire.heartbeat, 0x14, wire.Heartbeat()),
+        (wire.get_status, 0x16, wire.GetStatus()),
+    ],
+)
+def test_empty_requests(build, type_: int, parsed: object) -> None:  # type: ignore[no-untyped-def]
+    p = build(9)
+    assert (p.type, p.seq, p.payload) == (type_, 9, b"")
+    assert wire.parse_request(p) == parsed
+
+
+def test_builders_check_field_widths() -> None:
+    with pytest.raises(ConfigError, match="nonce"):
+        wire.ping(0, 1 << 32)
+    with pytest.raises(ConfigError, match="level 1"):
+        wire.set_amplitudes(0, [0, 65536])
+    with pytest.raises(ConfigError, match="at most 30"):
+        wire.set_amplitudes(0, [0] * 31)
+    with pytest.raises(ConfigError, match="mode"):
+        wire.play_target(0, 0, 256, 0, 1500, 1000, 100, 0)
+    with pytest.raises(ConfigError, match="heartbeat_ms"):
+        wire.set_config(0, -1)
+    with pytest.raises(ConfigError, match="seq"):
+        wire.get_info(256)
+    # ranges the device enforces are not checked here, so that NAKs can be tested
+    assert wire.set_config(0, 49).payload == b"\x31\x00"
+
+
+@pytest.mark.parametrize(
+    "p",
+    [
+        Packet(0x01, 0, b"\x00\x00\x00"),
+        Packet(0x02, 0, b"\x00"),
+        Packet(0x10, 0, b"\x00"),
+        Packet(0x12, 0, bytes(13)),
+        Packet(0x15, 0, bytes(4)),
+        Packet(0x16, 0, b"\x00"),
+    ],
+)
+def test_parse_request_rejects_bad_lengths(p: Packet) -> None:
+    with pytest.raises(ProtocolError, match="payload"):
+        wire.parse_request(p)
+
+
+def test_parse_request_rejects_unknown_types() -> None:
+    with pytest.raises(ProtocolError, match="0x7F"):
+        wire.parse_request(Packet(0x7F, 0))
+    with pytest.raises(ProtocolError, match="0x81"):
+        wire.parse_request(Packet(0x81, 0, bytes(8)))
+
+
+# --- replies -------------------------------------------------------------------------------------
+
+infos = st.integers(0, 25).flatmap(
+    lambda n: st.builds(
+        Info, u8, u8, u8, u8, st.just(n), u16, u16, u8,
+        st.lists(st.integers(0, 35999).map(lambda c: c / 100.0), min_size=n, max_size=n).map(
+            tuple
+        ),
+    )
+)
+statuses = st.builds(
+    Status, st.sampled_from(State), u16, u16, u16, u16,
+    st.lists(u16, max_size=25).map(tuple),
+)
+replies = st.one_of(
+    st.builds(Pong, u32, u32),
+    infos,
+    statuses,
+    st.builds(Ack, u8, st.just(0)),
+    st.builds(Nak, u8, st.sampled_from(NakCode)),
+)
+
+
+@given(u8, replies)
+def test_reply_round_trip(seq: int, reply: wire.Reply) -> None:
+    p = wire.encode_reply(seq, reply)
+    assert p.seq == seq
+    assert len(wire.encode_packet(p)) <= wire.MAX_PACKET
+    assert wire.parse_reply(p) == reply
+
+
+def test_info_layout() -> None:
+    payload = bytes([1, 1, 2, 3, 6]) + struct.pack("<HHB", 800, 250, 1)
+    payload += struct.pack("<6H", 3000, 9000, 15000, 21000, 27000, 33000)
+    info = wire.parse_reply(Packet(0x82, 0, payload))
+    assert isinstance(info, Info)
+    assert info.protocol_version == 1
+    assert info.firmware_version == "1.2.3"
+    assert (info.channels, info.pwm_steps, info.heartbeat_ms) == (6, 800, 250)
+    assert info.can_play_target
+    assert info.tactor_angles_deg == (30.0, 90.0, 150.0, 210.0, 270.0, 330.0)
+
+
+def test_status_layout() -> None:
+    payload = struct.pack("<BHHHH", 3, 1, 2, 3, 4) + struct.pack("<2H", 0, 65535)
+    status = wire.parse_reply(Packet(0x83, 0, payload))
+    assert status == Status(State.FAILSAFE, 1, 2, 3, 4, (0, 65535))
+    assert isinstance(status, Status) and status.state is State.FAILSAFE
+
+
+def test_ack_nak_pong_layouts() -> None:
+    assert wire.parse_reply(Packet(0x80, 5, b"\x05\x00")) == Ack(5, 0)
+    nak = wire.parse_reply(Packet(0x8F, 5, b"\x05\x04"))
+    assert nak == Nak(5, NakCode.OUT_OF_RANGE)
+    assert wire.parse_reply(Packet(0x8F, 5, b"\x05\x09")) == Nak(5, 9)  # unknown code kept
+    assert wire.parse_reply(Packet(0x81, 0, struct.pack("<II", 7, 8))) == Pong(7, 8)
+
+
+@pytest.mark.parametrize(
+    "p",
+    [
+        Packet(0x80, 0, b"\x00"),
+        Packet(0x81, 0, bytes(7)),
+        Packet(0x82, 0, bytes(9)),
+        Packet(0x82, 0, bytes([1, 1, 0, 0, 6]) + bytes(5) + bytes(10)),  # 6 channels, 5 angles
+        Packet(0x83, 0, bytes(10)),
+        Packet(0x83, 0, b"\x07" + bytes(8)),  # unknown state
+        Packet(0x8F, 0, b""),
+        Packet(0x01, 0, bytes(4)),  # a request is not a reply
+    ],
+)
+def test_parse_reply_rejects_malformed(p: Packet) -> None:
+    with pytest.raises(ProtocolError):
+        wire.parse_reply(p)
+
+
+# --- values ---------------------------------------------------------------------------------------
+
+
+def test_amplitude_to_level() -> None:
+    assert wire.amplitude_to_level(0.0) == 0
+    assert wire.amplitude_to_level(1.0) == 65535
+    assert wire.amplitude_to_level(0.5) == 32768
+    assert wire.amplitude_to_level(-0.1) == 0
+    assert wire.amplitude_to_level(1.5) == 65535
+    assert wire.amplitude_to_level(1 / 65535) == 1
+    with pytest.raises(ValueError, match="NaN"):
+        wire.amplitude_to_level(float("nan"))
+
+
+@given(st.floats(0.0, 1.0))
+def test_amplitude_to_level_is_monotonic_and_close(a: float) -> None:
+    level = wire.amplitude_to_level(a)
+    assert abs(level / 65535 - a) <= 0.5 / 65535 + 1e-12
+    assert wire.amplitude_to_level(min(1.0, a + 1e-3)) >= level
+
+
+def test_angle_to_cdeg() -> None:
+    assert wire.angle_to_cdeg(30.0) == 3000
+    assert wire.angle_to_cdeg(359.999) == 0
+    assert wire.angle_to_cdeg(-15.0) == 34500
+    assert wire.angle_to_cdeg(12.345) in (1234, 1235)
+    with pytest.raises(ConfigError):
+        wire.angle_to_cdeg(float("inf"))
+
+
+def test_message_codes_are_the_contract() -> None:
+    assert {m.name: m.value for m in MsgType} == {
+        "PING": 0x01, "GET_INFO": 0x02, "SET_AMPLITUDES": 0x10, "STOP_ALL": 0x11,
+        "PLAY_TARGET": 0x12, "HEARTBEAT": 0x14, "SET_CONFIG": 0x15, "GET_STATUS": 0x16,
+        "ACK": 0x80, "PONG": 0x81, "INFO": 0x82, "STATUS": 0x83, "NAK": 0x8F,
+    }
+    assert [c.value for c in NakCode] == [2, 3, 4]
+    assert [s.value for s in State] == [0, 1, 2, 3]
+    assert (wire.PROTOCOL_VERSION, wire.MAX_PACKET) == (1, 64)
