@@ -254,10 +254,10 @@ class Renderer:
 
     def _draw_overlay_panel(self, surface: Any, view: View) -> None:
         u = self.unit
-        px = int(22 * u)
+        px = int(19 * u)
         lines = view.overlay_lines
         n_levels = 0 if view.levels is None else len(np.asarray(view.levels).reshape(-1))
-        bar_w, gap, max_h = int(18 * u), int(8 * u), int(80 * u)
+        bar_w, gap, max_h = int(16 * u), int(7 * u), int(60 * u)
         width = max(int(330 * u), n_levels * (bar_w + gap) + int(20 * u))
         for line in lines:
             width = max(width, self.text(line, px, COLORS["text"]).get_width() + int(20 * u))

@@ -212,9 +212,19 @@ class ExperimentWindow:
             cursor.attach_refresh(self._refresh_live)
 
     def _refresh_live(self) -> None:
-        self._pg.event.pump()
-        if isinstance(self.cursor, LiveCursor):
-            self.cursor.update()
+        """Pump SDL's events and re-read the device (from ``read``, main thread only).
+
+        Hot-plug events are taken from the queue here, so a stick unplugged between two
+        samples reads as the centre at the very next sample (nothing is acquired) and
+        the next ``poll`` pauses the session.
+        """
+        pg = self._pg
+        pg.event.pump()
+        live = self.cursor
+        if isinstance(live, LiveCursor):
+            for ev in pg.event.get((pg.JOYDEVICEADDED, pg.JOYDEVICEREMOVED)):
+                live.handle_event(ev)
+            live.update()
 
     @property
     def _live(self) -> LiveCursor | None:
@@ -350,6 +360,8 @@ class ExperimentWindow:
             self.overlay = not self.overlay
         elif key == pg.K_q and ctrl:
             self.abort()
+        elif key == pg.K_ESCAPE and self.screen == "end":
+            self._continue = True
         elif key == pg.K_ESCAPE:
             if self._esc_ns is not None and now_ns - self._esc_ns <= ESC_WINDOW_S * 1e9:
                 self.abort()
@@ -482,7 +494,7 @@ class ExperimentWindow:
             return "click or press Space", "Move the mouse"
         if self.input_kind == "joystick":
             return "press the trigger or Space", "Push the joystick"
-        return "wait", "The model participant moves the cursor"
+        return "press Space (or wait a moment)", "Move the cursor"
 
     def view(self, now_ns: int) -> View:
         """What to draw now."""
@@ -552,8 +564,8 @@ class ExperimentWindow:
             lines = [
                 "You will feel a vibration around your waist. Show where it is.",
                 "The ellipse is your torso seen from above; the top is your front.",
-                f"{move} from the centre to the target where you feel the vibration,",
-                "then let it come back to the centre.",
+                f"{move} from the centre to the target where you feel it,",
+                "then back to the centre.",
                 "",
             ]
             if self.study.training.passes > 0:

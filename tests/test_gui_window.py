@@ -1,0 +1,436 @@
+"""The experiment window, headless (SDL's dummy video driver), on a simulated clock.
+
+Sessions run through the window exactly as ``tactorbelt run`` runs them: the runner in
+the main thread, the window drawing and handling keys in ``poll``. Keys and joystick
+hot-plug events are posted into pygame's real event queue from the ``on_frame`` hook.
+"""
+
+from __future__ import annotations
+
+import collections
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pygame
+import pytest
+
+from tactorbelt.clock import SimClock
+from tactorbelt.devices import open_belt
+from tactorbelt.experiment.runner import run_session
+from tactorbelt.experiment.schedule import make_schedule
+from tactorbelt.experiment.store import Store
+from tactorbelt.experiment.study import Study
+from tactorbelt.gui.layout import target_positions
+from tactorbelt.gui.render import COLORS
+from tactorbelt.gui.window import SCREEN_KINDS, ExperimentWindow, run_with_window
+from tactorbelt.inputs.base import TrialCue
+from tactorbelt.inputs.joystick import JoystickConfig, JoystickCursor
+from tactorbelt.inputs.mouse import MouseCursor
+from tactorbelt.inputs.scripted import ScriptedCursor, ScriptedResponse
+
+SMALL = """\
+name = "small"
+[layout]
+tactors = 4
+[targets]
+count = 8
+[stimulus]
+max_presentation_s = 2.0
+[response]
+timeout_s = 3.0
+[session]
+iti_s = 0.3
+break_every = 5
+[training]
+passes = 1
+conditions = ["static"]
+[[test]]
+condition = "static"
+repetitions = 1
+[[test]]
+condition = "dynamic"
+repetitions = 1
+"""
+
+SIZE = (400, 300)
+
+
+@pytest.fixture
+def study() -> Study:
+    return Study.from_toml(SMALL)
+
+
+@pytest.fixture(autouse=True)
+def _clean_pygame() -> Any:
+    yield
+    pygame.display.quit()
+
+
+def _cursor(study: Study, participant: str = "P01") -> ScriptedCursor:
+    """Right on even trials, 90 deg off on odd ones (so some answers are wrong)."""
+    answers = {t.trial_index: t.target_deg for t in make_schedule(study, participant)}
+
+    def answer(cue: TrialCue) -> float:
+        a = answers[cue.trial_index]
+        return a if cue.trial_index % 2 == 0 else (a + 90.0) % 360
+
+    return ScriptedCursor(ScriptedResponse(answer=answer, reaction_s=0.2, movement_s=0.3))
+
+
+def _key(key: int, mod: int = 0) -> None:
+    pygame.event.post(pygame.event.Event(pygame.KEYDOWN, key=key, mod=mod, unicode="",
+                                         scancode=0))
+
+
+class Participant:
+    """An on_frame hook that presses Space on every waiting screen, and counts frames."""
+
+    def __init__(self) -> None:
+        self.kinds: collections.Counter[str] = collections.Counter()
+
+    def __call__(self, win: ExperimentWindow, kind: str) -> None:
+        self.kinds[kind] += 1
+        if kind in ("instructions", "block", "break", "end"):
+            _key(pygame.K_SPACE)
+
+
+def _pixel(surface: Any, x: float, y: float) -> tuple[int, int, int]:
+    c = surface.get_at((round(x), round(y)))
+    return (c.r, c.g, c.b)
+
+
+def _count(surface: Any, color: tuple[int, int, int]) -> int:
+    a = pygame.surfarray.array3d(surface)
+    return int(np.all(a == np.array(color), axis=-1).sum())
+
+
+def _trial_rows(store: Store, session_id: int) -> list[tuple[Any, ...]]:
+    cols = ("trial_index", "block", "condition", "target_deg", "on_tactor", "response_deg",
+            "response_target_deg", "correct", "rt_s", "status")
+    return [tuple(r[c] for c in cols) for r in store.trials(session_id)]
+
+
+# -- drawing ---------------------------------------------------------------------------------
+def test_targets_are_drawn_where_the_geometry_puts_them(study: Study) -> None:
+    clock = SimClock()
+    win = ExperimentWindow(study, clock, size=(640, 480))
+    try:
+        win.draw(0)
+        g = win.renderer.geometry
+        targets = study.target_set()
+        on = targets.on_tactor(study.layout_obj())
+        pos = target_positions(targets.angles_deg, (g.cx, g.cy), g.rx, g.ry)
+        for (px, py), is_on in zip(pos, on, strict=True):
+            want = COLORS["on_tactor"] if is_on else COLORS["between"]
+            assert _pixel(win.surface, px, py) == want
+        # both colours are used, and the front target is at the top centre
+        assert on.any() and (~on).any()
+        assert pos[0][0] == pytest.approx(g.cx) and pos[0][1] == pytest.approx(g.cy - g.ry)
+        # the cursor is at the centre, inside the home zone
+        assert _pixel(win.surface, g.cx, g.cy) == COLORS["cursor"]
+    finally:
+        win.close()
+
+
+def test_tactors_are_hidden_until_the_overlay_key(study: Study) -> None:
+    win = ExperimentWindow(study, SimClock(), size=(640, 480))
+    try:
+        win.draw(0)
+        assert _count(win.surface, COLORS["tactor"]) == 0
+        _key(pygame.K_F1)
+        win.step(10**9)
+        assert win.overlay
+        assert _count(win.surface, COLORS["tactor"]) > 0
+        _key(pygame.K_TAB)
+        win.step(2 * 10**9)
+        assert not win.overlay
+        assert _count(win.surface, COLORS["tactor"]) == 0
+    finally:
+        win.close()
+
+
+# -- sessions through the window ----------------------------------------------------------------
+def test_window_session_stores_the_same_trials_as_a_headless_run(study: Study, tmp_path: Path
+                                                                 ) -> None:
+    clock_a = SimClock()
+    with Store.open(tmp_path / "a.sqlite") as store, \
+            open_belt("sim", clock=clock_a, layout=study.layout_obj()) as belt:
+        head = run_session(study, "P01", belt, _cursor(study), store, clock_a, seed=7)
+        rows_a = _trial_rows(store, head.session_id)
+        samples_a = [store.samples(int(r["trial_id"])) for r in store.trials(head.session_id)]
+
+    clock_b = SimClock()
+    person = Participant()
+    with Store.open(tmp_path / "b.sqlite") as store, \
+            open_belt("sim", clock=clock_b, layout=study.layout_obj()) as belt:
+        res = run_with_window(study, "P01", belt, "scripted", store, clock=clock_b,
+                              cursor=_cursor(study), seed=7, size=SIZE,
+                              auto_continue_s=None, on_frame=person)
+        rows_b = _trial_rows(store, res.session_id)
+        samples_b = [store.samples(int(r["trial_id"])) for r in store.trials(res.session_id)]
+        assert not belt.levels.any()
+
+    assert res.status == "complete" and head.status == "complete"
+    assert rows_b == rows_a
+    assert samples_b == samples_a
+    assert len(rows_a) == study.n_trials()
+    assert {r[7] for r in rows_a if r[1] == "test"} == {0, 1}  # right and wrong answers
+    # every screen the participant goes through was drawn
+    for kind in ("instructions", "training", "feedback", "block", "test", "break", "end"):
+        assert person.kinds[kind] > 0, kind
+
+
+def test_training_highlights_the_target_only_while_it_plays(study: Study, tmp_path: Path
+                                                            ) -> None:
+    seen = collections.Counter()
+
+    def hook(win: ExperimentWindow, kind: str) -> None:
+        if kind in ("instructions", "block", "break", "end"):
+            _key(pygame.K_SPACE)
+        cur = win.current
+        if cur is None or cur.phase != "stimulus":
+            return
+        x, y = win.view(0).cursor or (0, 0)
+        if math.hypot(x, y) > 0.6:  # the cursor is not yet over the target
+            return
+        g = win.renderer.geometry
+        (px, py), = g.targets([cur.trial.target_deg])
+        color = _pixel(win.surface, px, py)
+        if kind == "training":
+            assert color == COLORS["highlight"]
+            seen["training"] += 1
+        elif kind == "test":
+            assert color in (COLORS["on_tactor"], COLORS["between"])
+            seen["test"] += 1
+
+    clock = SimClock()
+    with Store.open(tmp_path / "s.sqlite") as store, \
+            open_belt("sim", clock=clock, layout=study.layout_obj()) as belt:
+        res = run_with_window(study, "P01", belt, "scripted", store, clock=clock,
+                              cursor=_cursor(study), size=SIZE, limit=3, on_frame=hook)
+    assert res.status == "interrupted"  # --limit: resumable
+    assert seen["training"] > 0 and seen["test"] > 0
+
+
+def test_pause_key_turns_the_motors_off_at_once_and_resume_goes_on(study: Study,
+                                                                  tmp_path: Path) -> None:
+    clock = SimClock()
+    log: dict[str, Any] = {"pause_frames": 0}
+
+    with Store.open(tmp_path / "s.sqlite") as store, \
+            open_belt("sim", clock=clock, layout=study.layout_obj()) as belt:
+
+        def hook(win: ExperimentWindow, kind: str) -> None:
+            if kind in ("instructions", "block", "break", "end"):
+                _key(pygame.K_SPACE)
+            if "pressed" not in log and kind == "test" and belt.levels.any():
+                _key(pygame.K_p)
+                log["pressed"] = win.current.trial.trial_index  # type: ignore[union-attr]
+            elif kind == "pause":
+                if log["pause_frames"] == 0:
+                    log["levels_at_pause"] = belt.levels.copy()
+                log["pause_frames"] += 1
+                assert not belt.levels.any()  # motors stay off while paused
+                if log["pause_frames"] == 30:
+                    _key(pygame.K_r)
+
+        res = run_with_window(study, "P01", belt, "scripted", store, clock=clock,
+                              cursor=_cursor(study), size=SIZE, on_frame=hook)
+        rows = store.trials(res.session_id)
+
+    assert "pressed" in log
+    assert not np.any(log["levels_at_pause"])
+    assert log["pause_frames"] >= 30
+    aborted = [r for r in res.results if r.status == "aborted"]
+    assert [r.trial.trial_index for r in aborted] == [log["pressed"]]
+    assert aborted[0].abort_reason == "paused"
+    # the paused trial ran again after resume; the session completed
+    assert res.status == "complete"
+    assert {r["status"] for r in rows} == {"done"}
+    assert len(rows) == study.n_trials()
+
+
+def test_esc_once_warns_and_esc_twice_aborts_resumably(study: Study, tmp_path: Path) -> None:
+    clock = SimClock()
+    log: dict[str, Any] = {}
+
+    def hook(win: ExperimentWindow, kind: str) -> None:
+        if kind in ("instructions", "block", "break", "end"):
+            _key(pygame.K_SPACE)
+        if kind == "test" and "first" not in log:
+            _key(pygame.K_ESCAPE)
+            log["first"] = clock.now_ns()
+        elif "first" in log and "banner" not in log:
+            log["banner"] = win.view(clock.now_ns()).banner
+        elif "first" in log and "second" not in log \
+                and clock.now_ns() - log["first"] > 2_500_000_000:
+            assert not win.abort_requested  # one Esc alone never aborts
+            _key(pygame.K_ESCAPE)
+            _key(pygame.K_ESCAPE)
+            log["second"] = True
+
+    with Store.open(tmp_path / "s.sqlite") as store, \
+            open_belt("sim", clock=clock, layout=study.layout_obj()) as belt:
+        res = run_with_window(study, "P01", belt, "scripted", store, clock=clock,
+                              cursor=_cursor(study), size=SIZE, on_frame=hook)
+        assert not belt.levels.any()
+        assert res.status == "aborted"
+        assert "Esc again" in log["banner"]
+        resumable = store.find_resumable("P01")
+        assert resumable is not None and resumable["session_id"] == res.session_id
+        n_before = len(store.finished_indices(res.session_id))
+        assert 0 < n_before < study.n_trials()
+
+    # and it resumes, through the window, to the end
+    with Store.open(tmp_path / "s.sqlite") as store, \
+            open_belt("sim", clock=clock, layout=study.layout_obj()) as belt:
+        res2 = run_with_window(study, "P01", belt, "scripted", store, clock=clock,
+                               cursor=_cursor(study), size=SIZE, resume=True,
+                               on_frame=Participant())
+        assert res2.status == "complete"
+        assert res2.session_id == res.session_id
+
+
+def test_ctrl_q_aborts(study: Study, tmp_path: Path) -> None:
+    clock = SimClock()
+
+    def hook(win: ExperimentWindow, kind: str) -> None:
+        if kind in ("instructions", "block", "break", "end"):
+            _key(pygame.K_SPACE)
+        if kind == "feedback":
+            _key(pygame.K_q, pygame.KMOD_LCTRL)
+
+    with Store.open(tmp_path / "s.sqlite") as store, \
+            open_belt("sim", clock=clock, layout=study.layout_obj()) as belt:
+        res = run_with_window(study, "P01", belt, "scripted", store, clock=clock,
+                              cursor=_cursor(study), size=SIZE, on_frame=hook)
+        assert res.status == "aborted"
+        assert store.find_resumable("P01") is not None
+
+
+# -- joystick hot-plug -------------------------------------------------------------------------
+class FakeStick:
+    """A pygame-like Joystick whose axes the test sets."""
+
+    def __init__(self, instance_id: int) -> None:
+        self.axes = [0.0, 0.0, 0.0]
+        self.buttons = [0] * 4
+        self.instance_id = instance_id
+
+    def get_name(self) -> str:
+        return "Thrustmaster HOTAS Warthog Joystick (fake)"
+
+    def get_instance_id(self) -> int:
+        return self.instance_id
+
+    def get_numaxes(self) -> int:
+        return len(self.axes)
+
+    def get_axis(self, i: int) -> float:
+        return self.axes[i]
+
+    def get_numbuttons(self) -> int:
+        return len(self.buttons)
+
+    def get_button(self, i: int) -> int:
+        return self.buttons[i]
+
+
+class FakeBackend:
+    def __init__(self) -> None:
+        self.plugged = True
+        self.stick = FakeStick(100)
+
+    def count(self) -> int:
+        return 1 if self.plugged else 0
+
+    def open(self, index: int) -> FakeStick | None:
+        return self.stick if self.plugged and index == 0 else None
+
+
+def test_joystick_unplugged_mid_trial_pauses_until_it_is_back(study: Study, tmp_path: Path
+                                                              ) -> None:
+    clock = SimClock()
+    backend = FakeBackend()
+    stick = JoystickCursor(JoystickConfig(device="warthog"), backend=backend)
+    assert stick.connected
+    log: dict[str, Any] = {"pause_frames": 0}
+
+    with Store.open(tmp_path / "s.sqlite") as store, \
+            open_belt("sim", clock=clock, layout=study.layout_obj()) as belt:
+
+        def hook(win: ExperimentWindow, kind: str) -> None:
+            if kind in ("instructions", "block", "break", "end"):
+                backend.stick.buttons[0] = 0
+                pygame.event.post(pygame.event.Event(pygame.JOYBUTTONDOWN, button=0,
+                                                     instance_id=backend.stick.instance_id,
+                                                     joy=0))
+            cur = win.current
+            # the participant: push forward while the stimulus plays, else let go
+            forward = cur is not None and cur.phase == "stimulus"
+            backend.stick.axes[1] = -1.0 if forward else 0.0
+            if kind == "test" and "unplugged" not in log and belt.levels.any():
+                backend.plugged = False
+                pygame.event.post(pygame.event.Event(pygame.JOYDEVICEREMOVED,
+                                                     instance_id=backend.stick.instance_id))
+                log["unplugged"] = cur.trial.trial_index  # type: ignore[union-attr]
+            elif kind == "pause":
+                log["pause_frames"] += 1
+                assert win.device_paused
+                assert not belt.levels.any()
+                log["title"] = win.view(clock.now_ns()).modal_title
+                if log["pause_frames"] == 20:
+                    backend.plugged = True
+                    backend.stick = FakeStick(101)  # SDL gives a new instance id
+                    pygame.event.post(pygame.event.Event(pygame.JOYDEVICEADDED,
+                                                         device_index=0))
+
+        res = run_with_window(study, "P01", belt, "joystick", store, clock=clock,
+                              cursor=stick, size=SIZE, limit=4, on_frame=hook)
+        rows = store.trials(res.session_id)
+
+    assert log["title"] == "Joystick disconnected"
+    assert log["pause_frames"] >= 20
+    assert stick.connected and stick.instance_id == 101
+    aborted = [r for r in res.results if r.status == "aborted"]
+    assert [r.trial.trial_index for r in aborted] == [log["unplugged"]]
+    # answers came from the (fake) stick, pushed forward: the front target
+    done = [r for r in rows if r["status"] == "done"]
+    assert done and all(r["response_target_deg"] == 0.0 for r in done)
+    assert res.n_run == study.n_training_trials() + 4
+
+
+def test_mouse_position_maps_to_cursor_units(study: Study) -> None:
+    win = ExperimentWindow(study, SimClock(), input_kind="mouse", size=(640, 480))
+    try:
+        g = win.renderer.geometry
+        mouse = MouseCursor(g)
+        mouse.place(g.cx + g.rx / 2, g.cy)
+        assert mouse.read(5).x == pytest.approx(0.5) and mouse.read(5).y == pytest.approx(0)
+        mouse.place(g.cx, g.cy - 3 * g.ry, buttons=1)  # far above: clamped to the front
+        s = mouse.read(7)
+        assert (s.t_ns, s.x, s.y, s.buttons) == (7, pytest.approx(0), pytest.approx(1), 1)
+        # attached to the window, read() follows the real pointer
+        win.attach_cursor(mouse)
+        s = mouse.read(9)
+        want = g.from_pixels(*pygame.mouse.get_pos())
+        assert (s.x, s.y) == pytest.approx(want)
+    finally:
+        win.close()
+
+
+# -- screenshots --------------------------------------------------------------------------------
+def test_screenshot_dir_gets_every_kind_of_screen(study: Study, tmp_path: Path) -> None:
+    clock = SimClock()
+    shots = tmp_path / "shots"
+    with Store.open(tmp_path / "s.sqlite") as store, \
+            open_belt("sim", clock=clock, layout=study.layout_obj()) as belt:
+        run_with_window(study, "P01", belt, "scripted", store, clock=clock,
+                        cursor=_cursor(study), size=SIZE, limit=2, screenshot_dir=shots,
+                        auto_continue_s=0.5)
+    names = sorted(p.name for p in shots.glob("*.png"))
+    assert names == sorted(f"window-{k}.png" for k in SCREEN_KINDS)
+    img = pygame.image.load(str(shots / "window-test.png"))
+    assert img.get_size() == SIZE
