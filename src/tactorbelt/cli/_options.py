@@ -1,13 +1,25 @@
-"""Shared command-line options for stimuli: mode, law, falloff, layout, period, transit.
+"""Shared command-line options: the stimulus (mode, law, falloff, layout, period,
+transit), the belt (``--belt URL``, ``--calibration FILE``) and a negative ANGLE.
 
-``@stimulus_options`` adds the options to a click command; ``build_stimulus(angle, **opts)``
-validates them and returns a Stimulus. Every bad value becomes a ConfigError, which the
-CLI prints as ``error: ...`` with exit code 2.
+- ``@stimulus_options`` adds --mode --law --falloff --tactors --tactor-angles --period
+  --transit; ``build_stimulus(angle, **opts)`` validates them and returns a Stimulus
+  (its ``layout`` is the layout asked for); ``layout_given(**opts)`` says whether the
+  user chose a layout.
+- ``@belt_options`` adds --belt and --calibration; ``open_belt_for(url, stimulus, ...)``
+  opens the belt for a stimulus (the layout the user gave, or the belt's own).
+- ``AngleCommand``: a click command class whose ANGLE argument may be negative
+  (``tactorbelt play -30``) without ``--``.
+- ``region_name(angle)``: ``front``, ``right-front``, ..., for messages.
+
+Every bad value becomes a ConfigError (or click.BadParameter), which the CLI prints
+as ``error: ...`` with exit code 2. Imports click at module level; NumPy and the
+devices only inside functions.
 """
 
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any, TypeVar
 
@@ -16,12 +28,25 @@ import click
 from .._errors import ConfigError
 
 if TYPE_CHECKING:
+    from ..devices.base import Belt
+    from ..devices.calibration import Calibration
     from ..geometry import Layout
     from ..stimuli import Stimulus
 
 F = TypeVar("F", bound=Callable[..., Any])
 
-__all__ = ["build_layout", "build_stimulus", "parse_number", "stimulus_options"]
+__all__ = [
+    "AngleCommand",
+    "belt_options",
+    "build_layout",
+    "build_stimulus",
+    "layout_given",
+    "load_calibration",
+    "open_belt_for",
+    "parse_number",
+    "region_name",
+    "stimulus_options",
+]
 
 
 def parse_number(text: object, what: str) -> float:
@@ -91,3 +116,128 @@ def build_stimulus(angle: str, *, mode: str, law: str, falloff: object, tactors:
         period_s=parse_number(period, "--period"),
         transit_s=parse_number(transit, "--transit"),
     )
+
+
+def layout_given(tactors: object | None = None, tactor_angles: str | None = None,
+                 **_: Any) -> bool:
+    """True when the user chose a layout (--tactors or --tactor-angles)."""
+    return tactors is not None or tactor_angles is not None
+
+
+def belt_options(func: F) -> F:
+    """Add --belt URL and --calibration FILE."""
+    options = [
+        click.option("--belt", "belt_url", default="sim", show_default=True, metavar="URL",
+                     help="sim, sim:virtual (no real-time waits), emulator, serial:PORT, "
+                          "serial:auto or ble:NAME."),
+        click.option("--calibration", "calibration_file", default=None, metavar="FILE",
+                     help="Motor calibration file (TOML, from `tactorbelt calibrate`)."),
+    ]
+    for option in reversed(options):
+        func = option(func)
+    return func
+
+
+def load_calibration(path: str | None) -> Calibration | None:
+    """Load --calibration FILE (None when not given)."""
+    if path is None:
+        return None
+    from ..devices.calibration import Calibration
+
+    return Calibration.load(path)
+
+
+def open_belt_for(url: str, stimulus: Stimulus | None = None, *, explicit_layout: bool = False,
+                  calibration: Calibration | None = None,
+                  calibration_file: str | None = None) -> tuple[Belt, Stimulus | None]:
+    """Open the belt at ``url`` for ``stimulus``.
+
+    With ``explicit_layout`` the belt is opened with the stimulus's layout (the sim belt
+    takes it; a hardware belt must have as many tactors). Otherwise the belt keeps its
+    own layout and the stimulus is remade on it.
+
+    Returns:
+        The open belt (use it as a context manager) and the stimulus to play on it.
+
+    Raises:
+        ConfigError: an unknown URL, or a calibration or layout that does not fit.
+    """
+    from ..devices import open_belt, parse_url
+    from ..stimuli import make_stimulus
+
+    parse_url(url)  # an unknown scheme fails before anything is opened
+    where = f"calibration file {calibration_file!r}" if calibration_file else "the calibration"
+    options: dict[str, Any] = {}
+    if calibration is not None:
+        options["calibration"] = calibration
+    if explicit_layout and stimulus is not None:
+        if calibration is not None and calibration.n != stimulus.layout.n:
+            raise ConfigError(f"{where} has {calibration.n} tactors but the layout asked for "
+                              f"has {stimulus.layout.n}")
+        options["layout"] = stimulus.layout
+    try:
+        belt = open_belt(url, **options)
+    except ConfigError as exc:
+        if calibration is not None and "calibration has" in str(exc):
+            raise ConfigError(f"{where} does not fit belt {url!r}: {exc}") from None
+        raise
+    try:
+        if stimulus is None:
+            return belt, None
+        if explicit_layout and belt.n_tactors != stimulus.layout.n:
+            raise ConfigError(f"belt {url!r} has {belt.n_tactors} tactors but the stimulus "
+                              f"was asked for {stimulus.layout.n} (--tactors/--tactor-angles)")
+        if not explicit_layout and belt.layout != stimulus.layout:
+            stimulus = make_stimulus(belt.layout, stimulus.target_deg, stimulus.mode,
+                                     stimulus.law, stimulus.falloff_deg, stimulus.period_s,
+                                     stimulus.transit_s)
+        return belt, stimulus
+    except BaseException:
+        belt.close()
+        raise
+
+
+_REGIONS = ("front", "right-front", "right", "right-back", "back", "left-back", "left",
+            "left-front")
+
+
+def region_name(angle_deg: float) -> str:
+    """The body region of an angle: 8 sectors of 45 degrees centred on 0, 45, ..."""
+    k = int(((float(angle_deg) % 360.0) + 22.5) // 45.0) % 8
+    return _REGIONS[k]
+
+
+_NEGATIVE = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$")
+
+
+class AngleCommand(click.Command):
+    """A command whose positional ANGLE may be a negative number (``-30``).
+
+    click would read ``-30`` as an unknown option; this class moves a bare negative
+    number that is not an option's value behind ``--`` before parsing.
+    """
+
+    def parse_args(self, ctx: click.Context, args: list[str]) -> list[str]:
+        if "--" not in args:
+            takes_value: set[str] = set()
+            for param in self.params:
+                if isinstance(param, click.Option) and not param.is_flag and not param.count:
+                    takes_value.update(param.opts)
+                    takes_value.update(param.secondary_opts)
+            rest: list[str] = []
+            moved: list[str] = []
+            skip = False
+            for token in args:
+                if skip:
+                    rest.append(token)
+                    skip = False
+                elif token in takes_value:
+                    rest.append(token)
+                    skip = True
+                elif _NEGATIVE.match(token):
+                    moved.append(token)
+                else:
+                    rest.append(token)
+            if moved:
+                args = [*rest, "--", *moved]
+        return super().parse_args(ctx, args)

@@ -134,23 +134,22 @@ class Calibration:
 
         if angles_deg is not None and len(angles_deg) != self.n:
             raise ConfigError(f"expected {self.n} tactor angles, got {len(angles_deg)}")
-        doc: dict[str, Any] = {"format": FORMAT, "version": VERSION}
-        if belt:
-            doc["belt"] = str(belt)
-        rows: list[dict[str, Any]] = []
-        for k, t in enumerate(self.tactors):
-            row: dict[str, Any] = {"index": k}
-            if angles_deg is not None:
-                row["angle_deg"] = float(angles_deg[k])
-            row.update(start=float(t.start), gain=float(t.gain), ceiling=float(t.ceiling))
-            rows.append(row)
-        doc["tactor"] = rows
-        header = (
-            "# tactorbelt motor calibration, one [[tactor]] table per tactor (index k = tactor k)\n"
+        lines = [
+            "# tactorbelt motor calibration, one [[tactor]] table per tactor (index k = tactor k)",
             "# drive = start + (ceiling - start) * amplitude * gain, clamped to [0, ceiling];"
-            " amplitude 0 = off\n"
-        )
-        return header + tomli_w.dumps(doc)
+            " amplitude 0 = off",
+            f'format = "{FORMAT}"',
+            f"version = {VERSION}",
+        ]
+        if belt:
+            lines.append(tomli_w.dumps({"belt": str(belt)}).strip())
+        for k, t in enumerate(self.tactors):
+            lines += ["", "[[tactor]]", f"index = {k}"]
+            if angles_deg is not None:
+                lines.append(f"angle_deg = {float(angles_deg[k])!r}")
+            lines += [f"start = {float(t.start)!r}", f"gain = {float(t.gain)!r}",
+                      f"ceiling = {float(t.ceiling)!r}"]
+        return "\n".join(lines) + "\n"
 
     def save(self, path: str | Path, belt: str | None = None,
              angles_deg: Sequence[float] | None = None) -> Path:

@@ -360,7 +360,7 @@ class SimBelt(Belt):
             horizon = float("nan")
         if not (math.isfinite(horizon) and horizon > 0):
             raise ConfigError(f"horizon_s must be a positive number of seconds, got {horizon_s!r}")
-        super().__init__(url, name or f"simulated ERM belt ({layout.n} tactors)", layout,
+        super().__init__(url, name or "simulated ERM belt", layout,
                          None, calibration)
         self.clock: Clock = clock if clock is not None else WallClock()
         self.params: ErmParams = params if params is not None else ErmParams()

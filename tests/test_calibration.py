@@ -1,0 +1,109 @@
+"""Motor calibration: the amplitude-to-drive mapping and its TOML file."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from tactorbelt import ConfigError
+from tactorbelt.devices.calibration import Calibration, TactorCalibration
+
+CAL = Calibration((TactorCalibration(0.2, 1.0, 0.8), TactorCalibration(0.0, 2.0, 0.5),
+                   TactorCalibration(0.3, 0.5, 1.0)))
+
+
+def test_zero_is_off_and_any_positive_amplitude_clears_the_dead_zone() -> None:
+    drive = CAL.apply([0.0, 0.0, 0.0])
+    assert np.all(drive == 0.0)
+    drive = CAL.apply([1e-6, 1e-6, 1e-6])
+    assert drive[0] >= 0.2 and drive[2] >= 0.3 and drive[1] > 0.0
+
+
+def test_mapping_is_start_plus_span_times_amplitude_times_gain() -> None:
+    drive = CAL.apply([0.5, 0.2, 0.5])
+    np.testing.assert_allclose(drive, [0.2 + 0.6 * 0.5, 0.0 + 0.5 * 0.2 * 2.0,
+                                       0.3 + 0.7 * 0.5 * 0.5])
+
+
+def test_ceiling_clamps_high_gain() -> None:
+    drive = CAL.apply([1.0, 1.0, 1.0])
+    np.testing.assert_allclose(drive, [0.8, 0.5, 0.3 + 0.7 * 0.5])
+    assert CAL.apply([0.0, 0.9, 0.0])[1] == 0.5  # gain 2 would give 0.9: clamped
+
+
+def test_apply_works_on_many_frames_and_checks_the_count() -> None:
+    frames = np.linspace(0, 1, 30).reshape(10, 3)
+    assert CAL.apply(frames).shape == (10, 3)
+    with pytest.raises(ConfigError, match="expected 3"):
+        CAL.apply([0.1, 0.2])
+
+
+def test_identity() -> None:
+    ident = Calibration.identity(4)
+    assert ident.is_identity and not CAL.is_identity
+    np.testing.assert_array_equal(ident.apply([0, 0.25, 0.5, 1]), [0, 0.25, 0.5, 1])
+
+
+@pytest.mark.parametrize("kw", [{"start": -0.1}, {"ceiling": 1.1}, {"gain": 0},
+                                {"start": 0.6, "ceiling": 0.5}, {"start": math.nan}])
+def test_bad_tactor_values(kw: dict[str, float]) -> None:
+    with pytest.raises(ConfigError):
+        TactorCalibration(**kw)
+
+
+def test_toml_round_trip(tmp_path: Path) -> None:
+    path = CAL.save(tmp_path / "sub" / "cal.toml", belt="serial:/dev/ttyACM0",
+                    angles_deg=[30.0, 150.0, 270.0])
+    assert Calibration.load(path) == CAL
+    text = path.read_text()
+    assert "[[tactor]]" in text and 'belt = "serial:/dev/ttyACM0"' in text
+    odd = Calibration((TactorCalibration(1 / 3, 1.7, 0.9),) * 2)
+    assert Calibration.from_toml(odd.to_toml()) == odd
+
+
+def test_gain_may_be_left_out(tmp_path: Path) -> None:
+    p = tmp_path / "c.toml"
+    p.write_text("[[tactor]]\nstart = 0.1\nceiling = 0.9\n[[tactor]]\nstart = 0\nceiling = 1\n")
+    cal = Calibration.load(p)
+    assert cal.n == 2 and cal.tactors[0].gain == 1.0
+
+
+def test_missing_file_names_it(tmp_path: Path) -> None:
+    with pytest.raises(ConfigError, match=r"nope\.toml.*not found"):
+        Calibration.load(tmp_path / "nope.toml")
+
+
+@pytest.mark.parametrize(("text", "where"), [
+    ("[[tactor]\nstart = 0.1", "not valid TOML"),
+    ("format = 'tactorbelt-calibration'\n", "tactor: missing"),
+    ("tactor = 3\n", "tactor: must be a non-empty array"),
+    ("[[tactor]]\nceiling = 0.9\n", r"tactor\[0\]\.start: missing"),
+    ("[[tactor]]\nstart = 0.1\nceiling = 0.9\n[[tactor]]\nstart = 1.5\nceiling = 1\n",
+     r"tactor\[1\]\.start: must be in \[0, 1\], got 1.5"),
+    ("[[tactor]]\nstart = 'low'\nceiling = 0.9\n", r"tactor\[0\]\.start: must be a finite number"),
+    ("[[tactor]]\nstart = nan\nceiling = 0.9\n", r"tactor\[0\]\.start: must be a finite number"),
+    ("[[tactor]]\nstart = true\nceiling = 0.9\n", r"tactor\[0\]\.start"),
+    ("[[tactor]]\nstart = 0.1\nceiling = 0.9\ngain = 0\n", r"tactor\[0\]\.gain: must be in"),
+    ("[[tactor]]\nstart = 0.5\nceiling = 0.4\n", r"tactor\[0\]\.start: start \(0.5\) must not"),
+    ("[[tactor]]\nstart = 0.1\nceilling = 0.9\n", r"tactor\[0\]\.ceilling: unknown key"),
+    ("[[tactor]]\nindex = 1\nstart = 0.1\nceiling = 0.9\n", r"tactor\[0\]\.index: must be 0"),
+    ("version = 2\n[[tactor]]\nstart = 0.1\nceiling = 0.9\n", "version: unsupported"),
+    ("format = 'other'\n[[tactor]]\nstart = 0.1\nceiling = 0.9\n", "format: must be"),
+    ("colour = 'red'\n[[tactor]]\nstart = 0.1\nceiling = 0.9\n", "colour: unknown key"),
+])
+def test_bad_files_name_the_file_and_the_field(tmp_path: Path, text: str, where: str) -> None:
+    p = tmp_path / "bad.toml"
+    p.write_text(text)
+    with pytest.raises(ConfigError, match=where) as info:
+        Calibration.load(p)
+    assert str(p) in str(info.value)
+
+
+def test_binary_file(tmp_path: Path) -> None:
+    p = tmp_path / "bin.toml"
+    p.write_bytes(b"\xff\xfe\x00garbage")
+    with pytest.raises(ConfigError, match=r"bin\.toml"):
+        Calibration.load(p)
