@@ -211,11 +211,12 @@ def _run_headless(study: Study, participant: str, belt: Belt, cursor: CursorSour
 def _run_windowed(window_factory: Any, study: Study, participant: str, input_kind: str,
                   belt: Belt, cursor: CursorSource | None, store: Any, clock: Clock,
                   kwargs: dict[str, Any]) -> Any:
-    """Run with the experiment window: the window loop in this (main) thread, the runner
-    in a worker (contract in docs/study.md, "The experiment window")."""
+    """Run with the experiment window (``tactorbelt.gui.session_window``; the window and
+    the runner share the main thread: the runner calls ``observer.poll`` every 10 ms)."""
     from ..experiment.runner import run_session
 
-    with window_factory(study, input=input_kind, participant=participant, clock=clock) as win:
+    with window_factory(study, input=input_kind, participant=participant, clock=clock,
+                        belt=belt) as win:
         src = cursor if cursor is not None else win.cursor
         if src is None:
             raise ConfigError(f"the window gave no cursor for --input {input_kind}")
