@@ -10,7 +10,7 @@ from __future__ import annotations
 import collections
 import math
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 import pygame
@@ -18,6 +18,8 @@ import pytest
 
 from tactorbelt.clock import SimClock
 from tactorbelt.devices import open_belt
+from tactorbelt.devices.base import Belt
+from tactorbelt.devices.sim import SimBelt
 from tactorbelt.experiment.runner import run_session
 from tactorbelt.experiment.schedule import make_schedule
 from tactorbelt.experiment.store import Store
@@ -77,6 +79,15 @@ def _cursor(study: Study, participant: str = "P01") -> ScriptedCursor:
         return a if cue.trial_index % 2 == 0 else (a + 90.0) % 360
 
     return ScriptedCursor(ScriptedResponse(answer=answer, reaction_s=0.2, movement_s=0.3))
+
+
+def _belt(study: Study, clock: SimClock) -> Belt:
+    return open_belt("sim", clock=clock, layout=study.layout_obj())
+
+
+def _levels(belt: Belt) -> Any:
+    """The sim belt's drive levels now."""
+    return cast(SimBelt, belt).levels
 
 
 def _key(key: int, mod: int = 0) -> None:
@@ -156,7 +167,7 @@ def test_window_session_stores_the_same_trials_as_a_headless_run(study: Study, t
                                                                  ) -> None:
     clock_a = SimClock()
     with Store.open(tmp_path / "a.sqlite") as store, \
-            open_belt("sim", clock=clock_a, layout=study.layout_obj()) as belt:
+            _belt(study, clock_a) as belt:
         head = run_session(study, "P01", belt, _cursor(study), store, clock_a, seed=7)
         rows_a = _trial_rows(store, head.session_id)
         samples_a = [store.samples(int(r["trial_id"])) for r in store.trials(head.session_id)]
@@ -164,13 +175,13 @@ def test_window_session_stores_the_same_trials_as_a_headless_run(study: Study, t
     clock_b = SimClock()
     person = Participant()
     with Store.open(tmp_path / "b.sqlite") as store, \
-            open_belt("sim", clock=clock_b, layout=study.layout_obj()) as belt:
+            _belt(study, clock_b) as belt:
         res = run_with_window(study, "P01", belt, "scripted", store, clock=clock_b,
                               cursor=_cursor(study), seed=7, size=SIZE,
                               auto_continue_s=None, on_frame=person)
         rows_b = _trial_rows(store, res.session_id)
         samples_b = [store.samples(int(r["trial_id"])) for r in store.trials(res.session_id)]
-        assert not belt.levels.any()
+        assert not _levels(belt).any()
 
     assert res.status == "complete" and head.status == "complete"
     assert rows_b == rows_a
@@ -184,7 +195,7 @@ def test_window_session_stores_the_same_trials_as_a_headless_run(study: Study, t
 
 def test_training_highlights_the_target_only_while_it_plays(study: Study, tmp_path: Path
                                                             ) -> None:
-    seen = collections.Counter()
+    seen: collections.Counter[str] = collections.Counter()
 
     def hook(win: ExperimentWindow, kind: str) -> None:
         if kind in ("instructions", "block", "break", "end"):
@@ -207,7 +218,7 @@ def test_training_highlights_the_target_only_while_it_plays(study: Study, tmp_pa
 
     clock = SimClock()
     with Store.open(tmp_path / "s.sqlite") as store, \
-            open_belt("sim", clock=clock, layout=study.layout_obj()) as belt:
+            _belt(study, clock) as belt:
         res = run_with_window(study, "P01", belt, "scripted", store, clock=clock,
                               cursor=_cursor(study), size=SIZE, limit=3, on_frame=hook)
     assert res.status == "interrupted"  # --limit: resumable
@@ -220,19 +231,19 @@ def test_pause_key_turns_the_motors_off_at_once_and_resume_goes_on(study: Study,
     log: dict[str, Any] = {"pause_frames": 0}
 
     with Store.open(tmp_path / "s.sqlite") as store, \
-            open_belt("sim", clock=clock, layout=study.layout_obj()) as belt:
+            _belt(study, clock) as belt:
 
         def hook(win: ExperimentWindow, kind: str) -> None:
             if kind in ("instructions", "block", "break", "end"):
                 _key(pygame.K_SPACE)
-            if "pressed" not in log and kind == "test" and belt.levels.any():
+            if "pressed" not in log and kind == "test" and _levels(belt).any():
                 _key(pygame.K_p)
                 log["pressed"] = win.current.trial.trial_index  # type: ignore[union-attr]
             elif kind == "pause":
                 if log["pause_frames"] == 0:
-                    log["levels_at_pause"] = belt.levels.copy()
+                    log["levels_at_pause"] = _levels(belt).copy()
                 log["pause_frames"] += 1
-                assert not belt.levels.any()  # motors stay off while paused
+                assert not _levels(belt).any()  # motors stay off while paused
                 if log["pause_frames"] == 30:
                     _key(pygame.K_r)
 
@@ -272,10 +283,10 @@ def test_esc_once_warns_and_esc_twice_aborts_resumably(study: Study, tmp_path: P
             log["second"] = True
 
     with Store.open(tmp_path / "s.sqlite") as store, \
-            open_belt("sim", clock=clock, layout=study.layout_obj()) as belt:
+            _belt(study, clock) as belt:
         res = run_with_window(study, "P01", belt, "scripted", store, clock=clock,
                               cursor=_cursor(study), size=SIZE, on_frame=hook)
-        assert not belt.levels.any()
+        assert not _levels(belt).any()
         assert res.status == "aborted"
         assert "Esc again" in log["banner"]
         resumable = store.find_resumable("P01")
@@ -285,7 +296,7 @@ def test_esc_once_warns_and_esc_twice_aborts_resumably(study: Study, tmp_path: P
 
     # and it resumes, through the window, to the end
     with Store.open(tmp_path / "s.sqlite") as store, \
-            open_belt("sim", clock=clock, layout=study.layout_obj()) as belt:
+            _belt(study, clock) as belt:
         res2 = run_with_window(study, "P01", belt, "scripted", store, clock=clock,
                                cursor=_cursor(study), size=SIZE, resume=True,
                                on_frame=Participant())
@@ -303,7 +314,7 @@ def test_ctrl_q_aborts(study: Study, tmp_path: Path) -> None:
             _key(pygame.K_q, pygame.KMOD_LCTRL)
 
     with Store.open(tmp_path / "s.sqlite") as store, \
-            open_belt("sim", clock=clock, layout=study.layout_obj()) as belt:
+            _belt(study, clock) as belt:
         res = run_with_window(study, "P01", belt, "scripted", store, clock=clock,
                               cursor=_cursor(study), size=SIZE, on_frame=hook)
         assert res.status == "aborted"
@@ -359,7 +370,7 @@ def test_joystick_unplugged_mid_trial_pauses_until_it_is_back(study: Study, tmp_
     log: dict[str, Any] = {"pause_frames": 0}
 
     with Store.open(tmp_path / "s.sqlite") as store, \
-            open_belt("sim", clock=clock, layout=study.layout_obj()) as belt:
+            _belt(study, clock) as belt:
 
         def hook(win: ExperimentWindow, kind: str) -> None:
             if kind in ("instructions", "block", "break", "end"):
@@ -371,7 +382,7 @@ def test_joystick_unplugged_mid_trial_pauses_until_it_is_back(study: Study, tmp_
             # the participant: push forward while the stimulus plays, else let go
             forward = cur is not None and cur.phase == "stimulus"
             backend.stick.axes[1] = -1.0 if forward else 0.0
-            if kind == "test" and "unplugged" not in log and belt.levels.any():
+            if kind == "test" and "unplugged" not in log and _levels(belt).any():
                 backend.plugged = False
                 pygame.event.post(pygame.event.Event(pygame.JOYDEVICEREMOVED,
                                                      instance_id=backend.stick.instance_id))
@@ -379,7 +390,7 @@ def test_joystick_unplugged_mid_trial_pauses_until_it_is_back(study: Study, tmp_
             elif kind == "pause":
                 log["pause_frames"] += 1
                 assert win.device_paused
-                assert not belt.levels.any()
+                assert not _levels(belt).any()
                 log["title"] = win.view(clock.now_ns()).modal_title
                 if log["pause_frames"] == 20:
                     backend.plugged = True
@@ -426,7 +437,7 @@ def test_screenshot_dir_gets_every_kind_of_screen(study: Study, tmp_path: Path) 
     clock = SimClock()
     shots = tmp_path / "shots"
     with Store.open(tmp_path / "s.sqlite") as store, \
-            open_belt("sim", clock=clock, layout=study.layout_obj()) as belt:
+            _belt(study, clock) as belt:
         run_with_window(study, "P01", belt, "scripted", store, clock=clock,
                         cursor=_cursor(study), size=SIZE, limit=2, screenshot_dir=shots,
                         auto_continue_s=0.5)
