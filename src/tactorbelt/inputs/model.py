@@ -39,7 +39,7 @@ from ..clock import Clock
 from ..geometry import TargetSet
 from ..participant.params import ModelParams
 from ..participant.perception import Percepts, perceive_vibration
-from ..participant.timing import decision_s, min_jerk, observation_s
+from ..participant.timing import decision_s, observation_s
 from .base import CursorSample, CursorSource, TrialCue
 
 if TYPE_CHECKING:
@@ -48,6 +48,9 @@ if TYPE_CHECKING:
     from ..stimuli import Stimulus
 
 __all__ = ["ModelCursor", "ModelDecision", "Sense", "make_model_cursor", "sim_vibrator"]
+
+#: Sensor noise is drawn this many values at a time.
+_NOISE_BLOCK = 4096
 
 #: ``sense(t0_ns, t1_ns) -> (t_ns (n,), vibration (n, N))``: what the belt did.
 Sense = Callable[[int, int], tuple[Any, Any]]
@@ -85,7 +88,11 @@ class _Move:
 
     def at(self, now_ns: int) -> tuple[float, float]:
         s = (now_ns - self.start_ns) / self.duration_ns
-        f = float(min_jerk(s))
+        if s <= 0.0:
+            return self.x0, self.y0
+        if s >= 1.0:
+            return self.x1, self.y1
+        f = s * s * s * (10.0 - 15.0 * s + 6.0 * s * s)  # minimum jerk (timing.min_jerk)
         return self.x0 + (self.x1 - self.x0) * f, self.y0 + (self.y1 - self.y0) * f
 
 
@@ -110,6 +117,8 @@ class ModelCursor(CursorSource):
         self._decide_ns: int | None = None
         self._move: _Move | None = None
         self._targets: dict[tuple[float, ...], TargetSet] = {}
+        self._noise: list[float] = []
+        self._noise_i = 0
         #: The decision of the latest trial (None before the first decision).
         self.last_decision: ModelDecision | None = None
 
@@ -136,8 +145,13 @@ class ModelCursor(CursorSource):
         x, y = self._position(now)
         j = self.params.jitter
         if j > 0:
-            dx, dy = self._rng.normal(0.0, j, 2)
-            x, y = x + float(dx), y + float(dy)
+            if self._noise_i + 2 > len(self._noise):
+                self._noise = self._rng.standard_normal(_NOISE_BLOCK).tolist()
+                self._noise_i = 0
+            i = self._noise_i
+            x += j * self._noise[i]
+            y += j * self._noise[i + 1]
+            self._noise_i = i + 2
         return CursorSample(now, x, y, 0)
 
     # -- internals -------------------------------------------------------------------------

@@ -1,0 +1,116 @@
+"""The fast simulation path: the paper's qualitative finding, agreement with the runner, power."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from tactorbelt import ConfigError, open_belt
+from tactorbelt.clock import SimClock
+from tactorbelt.experiment.runner import run_session
+from tactorbelt.experiment.store import Store
+from tactorbelt.experiment.study import paper_study
+from tactorbelt.inputs.model import make_model_cursor, sim_vibrator
+from tactorbelt.participant import (
+    ModelParams,
+    Protocol,
+    draw_participant,
+    simulate_participant,
+    stimulus_cues,
+)
+from tactorbelt.participant.power import binomial_ci, power_row, simulate_studies
+from tactorbelt.participant.simulate import between_accuracy
+
+
+@pytest.fixture(scope="module")
+def protocol() -> Protocol:
+    return Protocol.from_study(paper_study())
+
+
+@pytest.fixture(scope="module")
+def cues(protocol: Protocol):  # type: ignore[no-untyped-def]
+    return stimulus_cues(protocol, sim_vibrator(protocol.layout))
+
+
+def _split(correct: np.ndarray, cond: np.ndarray, on: np.ndarray) -> dict[tuple[str, bool], float]:
+    return {(c, o): float(correct[(cond == c) & (on == o)].mean())
+            for c in ("static", "dynamic") for o in (True, False)}
+
+
+def test_default_model_reproduces_the_papers_qualitative_finding(protocol, cues) -> None:  # type: ignore[no-untyped-def]
+    """Dynamic between-tactor accuracy is higher than static, RT slightly longer.
+
+    This follows from the model's assumptions (docs/participant-model.md); it proves
+    nothing about people.
+    """
+    rng = np.random.default_rng(1)
+    tables = [simulate_participant(protocol, cues, ModelParams(), rng) for _ in range(20)]
+    static = np.mean([between_accuracy(t, "static") for t in tables])
+    dynamic = np.mean([between_accuracy(t, "dynamic") for t in tables])
+    assert dynamic > static + 0.15
+    rt = {c: np.median(np.concatenate([t.rt_s[(t.condition == c) & ~t.on_tactor]
+                                       for t in tables])) for c in ("static", "dynamic")}
+    assert rt["static"] < rt["dynamic"] < 1.5 * rt["static"]
+    on = np.mean([t.correct[t.on_tactor].mean() for t in tables])
+    assert on > 0.9
+
+
+def test_fast_path_agrees_with_the_full_runner(tmp_path: Path, protocol, cues) -> None:  # type: ignore[no-untyped-def]
+    study = paper_study()
+    rows = []
+    with Store.open(tmp_path / "full.sqlite") as store:
+        for i, seed in enumerate((21, 22)):
+            clock = SimClock()
+            with open_belt("sim", clock=clock) as belt:
+                cursor = make_model_cursor(belt, clock, seed=seed)
+                run_session(study, f"model-{i + 1:02d}", belt, cursor, store, clock, seed=1)
+        rows = [r for r in store.trials() if r["block"] == "test"]
+    full_correct = np.array([bool(r["correct"]) for r in rows])
+    full_cond = np.array([r["condition"] for r in rows])
+    full_on = np.array([bool(r["on_tactor"]) for r in rows])
+    full = _split(full_correct, full_cond, full_on)
+    counts = {k: int(((full_cond == k[0]) & (full_on == k[1])).sum()) for k in full}
+
+    rng = np.random.default_rng(3)
+    tables = [simulate_participant(protocol, cues, ModelParams(), rng) for _ in range(40)]
+    fast = _split(np.concatenate([t.correct for t in tables]),
+                  np.concatenate([t.condition for t in tables]),
+                  np.concatenate([t.on_tactor for t in tables]))
+    for key, p_fast in fast.items():
+        se = math.sqrt(max(p_fast * (1 - p_fast), 0.01) / counts[key])
+        assert abs(full[key] - p_fast) < 4 * se, (key, full[key], p_fast)
+    full_rt = np.median([r["rt_s"] for r in rows])
+    fast_rt = np.median(np.concatenate([t.rt_s for t in tables]))
+    assert full_rt == pytest.approx(fast_rt, abs=0.08)
+
+
+def test_fast_path_refuses_an_observer_the_cues_were_not_sensed_with(protocol, cues) -> None:  # type: ignore[no-untyped-def]
+    with pytest.raises(ConfigError, match="gamma"):
+        simulate_participant(protocol, cues, ModelParams(gamma=1.5), np.random.default_rng(0))
+    # individual observers keep the shared fields
+    simulate_participant(protocol, cues, draw_participant(np.random.default_rng(0)),
+                         np.random.default_rng(0))
+
+
+def test_power_simulation_is_reproducible_and_summarised(protocol, cues) -> None:  # type: ignore[no-untyped-def]
+    def test(static: np.ndarray, dynamic: np.ndarray) -> float:
+        return 0.01 if dynamic.mean() > static.mean() else 0.5
+
+    a = simulate_studies(protocol, cues, 3, range(4), seed=5, test=test)
+    b = simulate_studies(protocol, cues, 3, [2, 3], seed=5, test=test)
+    assert np.array_equal(a[2].static_acc, b[0].static_acc)  # independent of the split
+    row = power_row(a, alpha=0.05)
+    assert row.n_participants == 3 and row.sims == 4 and row.found == 4 and row.power == 1.0
+    assert row.ci_low < 1.0 == row.ci_high
+    assert row.dynamic_acc > row.static_acc
+    with pytest.raises(ConfigError, match="at least 2"):
+        simulate_studies(protocol, cues, 1, range(1), seed=5, test=test)
+
+
+def test_binomial_ci() -> None:
+    lo, hi = binomial_ci(5, 10)
+    assert lo == pytest.approx(0.187, abs=1e-3) and hi == pytest.approx(0.813, abs=1e-3)
+    assert binomial_ci(0, 10)[0] == 0.0 and binomial_ci(10, 10)[1] == 1.0
