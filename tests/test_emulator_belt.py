@@ -90,7 +90,8 @@ def test_play_target_dynamic_follows_the_600_200_ms_pattern(
     """Quarter point (45 deg between 30 and 90): 600 ms on tactor 0, 200 ms on tactor 1.
 
     Checked in device time with the emulator's levels log, so the load of this machine
-    does not matter: every output change the renderer made matches the stimulus.
+    does not matter for the values: every output change the renderer made matches the
+    stimulus at that instant. Durations allow for a starved 1 kHz tick (15 ms).
     """
     log = tmp_path / "levels.csv"
     with open_belt("emulator", build=False, levels_log=log) as belt:
@@ -104,7 +105,8 @@ def test_play_target_dynamic_follows_the_600_200_ms_pattern(
     start_us = rows[playing[0], 0]
     end_us = rows[playing[-1] + 1, 0]  # the first row after playing: back to idle
     assert rows[playing[-1] + 1, 1] == wire.State.IDLE
-    assert abs((end_us - start_us) - 1_000_000) <= 2_000
+    # ends on the first 1 ms tick at or after 1 s (later if the emulator was starved)
+    assert 1_000_000 <= end_us - start_us <= 1_020_000
     t = (rows[playing, 0] - start_us) / 1e6
     want = np.vectorize(wire.amplitude_to_level)(stim.amplitudes(t))
     assert np.max(np.abs(rows[playing, 2:] - want)) <= 2
@@ -114,8 +116,8 @@ def test_play_target_dynamic_follows_the_600_200_ms_pattern(
     plateau = wire.amplitude_to_level(1 - np.exp(-4))
     on_near = first & (abs(levels[:, 0] - plateau) <= 2) & (levels[:, 1] == 0)
     on_far = first & (abs(levels[:, 1] - plateau) <= 2) & (levels[:, 0] == 0)
-    assert abs(held[on_near].sum() - 600_000) <= 3_000
-    assert abs(held[on_far].sum() - 200_000) <= 3_000
+    assert abs(held[on_near].sum() - 600_000) <= 15_000
+    assert abs(held[on_far].sum() - 200_000) <= 15_000
 
 
 def test_play_with_a_duration_ends_by_itself(emu: EmulatorBelt) -> None:
@@ -228,9 +230,12 @@ def test_closing_the_port_turns_the_outputs_off(emulator_built: Path, tmp_path: 
     with open_belt("emulator", build=False, levels_log=log) as belt:
         assert isinstance(belt, EmulatorBelt)
         belt.set_amplitudes([0.75] * 6)
+        assert belt.status().state == wire.State.STREAMING
         belt.stop_keepalive()
         belt._transport.close()  # the port closes; no STOP_ALL was sent
+        # the emulator sees the hang-up only while nobody has the port open: wait for it
         assert wait_for(lambda: tuple(read_levels_log(log)[-1, 1:]) == (0,) * 7, 2.0)
+        assert read_levels_log(log)[-2, 1] == wire.State.STREAMING
         again = FirmwareBelt(SerialTransport(belt.pty_path), "serial:" + belt.pty_path,
                              keepalive=False)
         with again:
