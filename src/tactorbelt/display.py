@@ -47,10 +47,12 @@ The dynamic perturbation and its phase (the rule):
   exactly on a tactor renders static, as in the paper.
 - Device rendering: the device restarts the perturbation with every PLAY_TARGET (t = 0
   starts the dwell on the nearer tactor). So, in dynamic mode, a new PLAY_TARGET is sent
-  only while the device's current stimulus is dwelling on the new stimulus's nearer
-  tactor (the same nearer tactor, or the old farther one when the angle crossed the
-  midpoint), so the felt location is continuous there too; this can delay a change by
-  up to one period (``period_s``), and after two periods the change is sent anyway.
+  only at the tick when the device's current stimulus *starts* its dwell on the new
+  stimulus's nearer tactor: the start of a period when the nearer tactor is the same,
+  the start of the far dwell when the angle crossed the pair's midpoint. The felt
+  location is then continuous and every dwell keeps the paper's timing (a stream of
+  small changes cannot keep restarting a dwell); a change waits at most one period
+  (``period_s``), and after two periods it is sent anyway.
 
 Imports NumPy, tactorbelt (geometry, laws, stimuli, filters, clock, devices.base) and
 the standard library (threading); no I/O library.
@@ -648,6 +650,18 @@ class DirectionDisplay:
         self.plays_sent += 1
 
     def _seamless(self, playing: Stimulus, new: Stimulus, now: int) -> bool:
-        """True when ``playing`` is dwelling on ``new``'s nearer tactor at ``now``."""
-        loc = float(playing.location((now - self._sent_ns) * 1e-9))
-        return abs(float(wrap(loc - new.near_deg))) < _ON_TACTOR_DEG
+        """True when ``playing`` is just starting its dwell on ``new``'s nearer tactor.
+
+        "Just": within one tick after the dwell starts, so the new stimulus (which
+        starts with that dwell) takes over the dwell with the paper's timing, and a
+        stream of small changes cannot keep restarting (and so lengthening) a dwell.
+        """
+        phase = ((now - self._sent_ns) * 1e-9) % playing.period_s
+        window = 1.0 / self.device_rate_hz
+        if new.near_idx == playing.near_idx:
+            start = 0.0
+        elif new.near_idx == playing.far_idx:
+            start = playing.dwell_near_s + playing.transit_s
+        else:  # the direction jumped past the pair: nothing to keep continuous
+            return True
+        return start <= phase < start + window
