@@ -140,7 +140,8 @@ def _tidy(sessions: pd.DataFrame, trials: pd.DataFrame,
     import pandas as pd
 
     sessions = sessions.copy()
-    sessions["session_key"] = sessions["store"].astype(str) + ":" + sessions["session_id"].astype(str)
+    sessions["session_key"] = (sessions["store"].astype(str) + ":"
+                               + sessions["session_id"].astype(str))
     sessions["participant"] = sessions["participant"].astype(str)
     for c in ("status", "belt", "study_name", "study_sha256", "firmware_version",
               "package_version", "condition_order", "started_at", "ended_at"):
@@ -252,20 +253,23 @@ def load_samples(data: StoreData, trials: pd.DataFrame) -> pd.DataFrame:
     import pandas as pd
 
     frames = []
-    for store, group in trials.groupby("store"):
-        ids = [int(t) for t in group["trial_id"].unique()]
+    stores = sorted({int(v) for v in trials["store"].tolist()})
+    for store in stores:
+        group = trials.loc[trials["store"] == store]
+        ids = sorted({int(t) for t in group["trial_id"].tolist()})
         if not ids:
             continue
-        conn = _connect(data.paths[int(store)])  # type: ignore[call-overload]
+        path = data.paths[store]
+        conn = _connect(path)
         try:
             frame = pd.read_sql_query(
                 f"SELECT trial_id, t_s, x, y, buttons FROM samples WHERE trial_id IN "
                 f"({', '.join('?' * len(ids))}) ORDER BY trial_id, t_s", conn, params=ids)
         except (sqlite3.DatabaseError, pd.errors.DatabaseError) as exc:
-            raise StoreError(f"{data.paths[int(store)]}: cannot read samples ({exc})") from None  # type: ignore[call-overload]
+            raise StoreError(f"{path}: cannot read samples ({exc})") from None
         finally:
             conn.close()
-        frame.insert(0, "store", int(store))  # type: ignore[call-overload]
+        frame.insert(0, "store", store)
         frames.append(frame)
     if not frames:
         return pd.DataFrame(columns=["store", "trial_id", "t_s", "x", "y", "buttons"])

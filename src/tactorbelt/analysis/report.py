@@ -1,0 +1,492 @@
+"""The analysis report: ``analyze()`` writes report.html, summary.json, per_target.csv, PNGs.
+
+:func:`analyze` loads the stores, calls :func:`~tactorbelt.analysis.stats.summarize`,
+fetches the cursor samples of a few trials for the trajectory figure (by SQL), draws
+the figures and writes the files. :func:`render_html` is pure (a string from a
+Summary and the PNG bytes); the HTML is one self-contained file (inline CSS, figures
+as base64 ``data:`` URIs) that links only to files written next to it.
+:func:`print_summary_table` prints the headline numbers with rich (the demo reuses it).
+
+I/O edge of the analysis (writes files); never imports devices, inputs or the window.
+"""
+
+from __future__ import annotations
+
+import base64
+import datetime as _dt
+import html
+import json
+import math
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Final
+
+from .._errors import ConfigError
+from .stats import COUNTING_RULES, DEFAULT_N_BOOT, Summary, TestResult
+from .tables import CONDITIONS, KIND_LABELS, KINDS
+
+if TYPE_CHECKING:
+    import pandas as pd
+    from rich.console import Console
+
+__all__ = [
+    "FIGURE_CAPTIONS",
+    "ProgressFn",
+    "analyze",
+    "choose_sample_trials",
+    "print_summary_table",
+    "render_html",
+]
+
+#: ``progress(description, done, total)``: called as the work advances.
+ProgressFn = Callable[[str, int, int], None]
+
+FIGURE_CAPTIONS: Final = {
+    "fig1b.png": "Fig. 1(B) of the paper, recomputed: amplitude of each tactor against "
+                 "direction (top; the study's layout and law), then recognition accuracy and "
+                 "median time from stimulus onset to target acquisition per direction, static "
+                 "vs dynamic. Grey bands mark on-tactor targets (always rendered static).",
+    "polar.png": "Accuracy and mean signed error per direction, as seen from above: front "
+                 "(navel) at the top, angles clockwise.",
+    "confusion.png": "Confusion matrices per condition: each row is a target, each column the "
+                     "selected response; cells are the proportion of that target's counted "
+                     "trials. The last column holds timeouts.",
+    "trajectories.png": "Cursor trajectories (100 Hz samples) of a few test trials per "
+                        "condition, in the normalised response ellipse (front up).",
+    "paired.png": "Per-participant between-tactor accuracy and median RT in the two "
+                  "conditions; each grey line is one participant.",
+}
+FIGURE_ORDER: Final = ("fig1b.png", "polar.png", "confusion.png", "trajectories.png",
+                       "paired.png")
+KNOWN_OUTPUTS: Final = ("report.html", "summary.json", "per_target.csv", *FIGURE_ORDER)
+MAX_TABLE_ROWS: Final = 200
+MAX_LISTED: Final = 50
+
+
+# -- formatting ------------------------------------------------------------------------
+
+def _finite(v: Any) -> bool:
+    try:
+        return v is not None and math.isfinite(float(v))
+    except (TypeError, ValueError):
+        return False
+
+
+def _fmt(v: Any, digits: int = 3, *, missing: str = "n/a") -> str:
+    """A number for a table; ``missing`` (a word, never NaN) when there is none."""
+    if not _finite(v):
+        return missing
+    f = float(v)
+    if f != 0 and (abs(f) < 10 ** -(digits) or abs(f) >= 1e6):
+        return f"{f:.{digits}g}"
+    return f"{f:.{digits}f}"
+
+
+def _p(v: Any) -> str:
+    if not _finite(v):
+        return "none (Bayesian fit)"
+    f = float(v)
+    return "< 0.0001" if f < 1e-4 else f"{f:.4f}"
+
+
+def _pct(v: Any, *, missing: str = "n/a") -> str:
+    return f"{100 * float(v):.1f} %" if _finite(v) else missing
+
+
+def _int(v: Any) -> str:
+    return str(int(v))
+
+
+def _e(text: Any) -> str:
+    return html.escape(str(text))
+
+
+def _joined(values: Sequence[Any], limit: int = 30) -> str:
+    if not values:
+        return "not recorded"
+    text = ", ".join(str(v) for v in values[:limit])
+    return _e(text + (" ..." if len(values) > limit else ""))
+
+
+def _table(headers: Sequence[str], rows: Sequence[Sequence[Any]], cls: str = "") -> str:
+    head = "".join(f"<th>{_e(h)}</th>" for h in headers)
+    body = "\n".join("<tr>" + "".join(f"<td>{c}</td>" for c in r) + "</tr>" for r in rows)
+    return f'<table class="{cls}"><thead><tr>{head}</tr></thead><tbody>\n{body}\n</tbody></table>'
+
+
+# -- content ---------------------------------------------------------------------------
+
+def choose_sample_trials(summary: Summary, per_condition: int = 5, seed: int = 0) -> pd.DataFrame:
+    """A few answered test trials per condition for the trajectory figure.
+
+    Takes the first participant (sorted) with answered test trials in both conditions
+    (else the first with any), prefers between-tactor targets, distinct targets,
+    chosen with a seeded generator.
+    """
+    import numpy as np
+
+    tr = summary.trials
+    ok = tr.loc[tr["counted"] & tr["responded"]]
+    if ok.empty:
+        return ok.iloc[0:0]
+    both = ok.groupby("participant")["condition"].nunique()
+    cands = sorted(both.index[both == both.max()].astype(str).tolist())
+    who = ok.loc[ok["participant"].astype(str) == cands[0]]
+    rng = np.random.default_rng(seed)
+    picks = []
+    for cond in CONDITIONS:
+        sub = who.loc[who["condition"] == cond]
+        if sub.empty:
+            continue
+        sub = sub.sample(frac=1.0, random_state=rng)
+        sub = sub.sort_values("on_tactor", kind="stable").drop_duplicates("target_deg")
+        picks.append(sub.head(per_condition))
+    import pandas as pd
+
+    return pd.concat(picks) if picks else ok.iloc[0:0]
+
+
+def _summary_rows(summary: Summary) -> list[list[str]]:
+    rows = []
+    for cond in CONDITIONS:
+        for kind in KINDS:
+            r = summary.conditions.loc[(summary.conditions["condition"] == cond)
+                                       & (summary.conditions["kind"] == kind)].iloc[0]
+            n = int(r["n"])
+            none = "no trials" if n == 0 else "no answered trial"
+            rows.append([
+                f'<span class="{cond}">{cond}</span>', KIND_LABELS[kind], str(n),
+                str(int(r["n_participants"])),
+                _pct(r["accuracy"], missing="no trials"),
+                _fmt(r["median_rt_s"], missing=none),
+                str(int(r["n_timeout"])),
+                _fmt(r["circ_mean_error_deg"], 2, missing=none),
+                _fmt(r["circ_sd_error_deg"], 2, missing=none),
+            ])
+    return rows
+
+
+def _test_rows(tests: Sequence[TestResult]) -> list[list[str]]:
+    rows = []
+    for t in tests:
+        n = ", ".join(f"{k} {v}" for k, v in t.n.items())
+        if not t.computed:
+            rows.append([_e(t.test), _e(t.question), _e(n),
+                         f'<span class="nc">not computed: {_e(t.reason)}</span>', "", "", ""])
+            continue
+        effect = f"{_e(t.effect_name)} = {_fmt(t.effect)}"
+        odds = t.details.get("odds_ratio")
+        if t.key == "between_accuracy" and "odds_ratio" in t.details:
+            effect += "; odds ratio = " + (
+                _fmt(odds) if odds is not None else _e(t.details.get("odds_ratio_note", "")))
+        if t.key == "mixed_model":
+            effect += f"; odds ratio = {_fmt(t.details.get('odds_ratio'))}"
+        stat = f"{_e(t.statistic_name)} = {_fmt(t.statistic)}"
+        ci = f"[{_fmt(t.ci_low)}, {_fmt(t.ci_high)}] ({_e(t.ci_name)})"
+        extra = []
+        if t.details.get("method"):
+            extra.append(_e(t.details["method"]))
+        for w in t.details.get("warnings", []):
+            extra.append("warning: " + _e(w))
+        for w in t.details.get("notes", []):
+            extra.append(_e(w))
+        rows.append([_e(t.test), _e(t.question), _e(n), stat, _p(t.p_value), effect,
+                     ci + ("<br><small>" + "<br>".join(extra) + "</small>" if extra else "")])
+    return rows
+
+
+def _listing(df: pd.DataFrame, what: str) -> str:
+    if df.empty:
+        return f"<p>No {what}.</p>"
+    rows = []
+    for r in df.head(MAX_LISTED).itertuples(index=False):
+        rows.append([_e(v if not (isinstance(v, float) and math.isnan(v)) else "") for v in r])
+    more = (f"<p>... and {len(df) - MAX_LISTED} more (all in the store).</p>"
+            if len(df) > MAX_LISTED else "")
+    return _table(list(df.columns), rows) + more
+
+
+def render_html(summary: Summary, figures: dict[str, bytes], *,
+                generated_at: str | None = None, package_version: str | None = None) -> str:
+    """The whole report as one HTML string (figures embedded as data: URIs)."""
+    c = summary.counts
+    prov = summary.provenance()
+    studies = prov["studies"]
+    title = "tactorbelt analysis: " + ", ".join(_e(s["study_name"]) for s in studies[:3])
+    parts: list[str] = [
+        "<!doctype html>", '<html lang="en"><head><meta charset="utf-8">',
+        f"<title>{title}</title>", f"<style>{_CSS}</style></head><body>",
+        "<h1>Between-tactor display: analysis report</h1>",
+        f'<p class="meta">tactorbelt {_e(package_version or "")} analysis'
+        + (f", generated {_e(generated_at)}" if generated_at else "")
+        + f"; stores: {_e(', '.join(summary.paths))}</p>",
+    ]
+    if summary.simulated_sessions:
+        if summary.simulated:
+            msg = ("These data come from a simulated model participant, not from people. "
+                   "The numbers show what the model does; they are not evidence about human "
+                   "perception.")
+        else:
+            msg = (f"{len(summary.simulated_sessions)} of {c['sessions']} sessions come from a "
+                   "simulated model participant, not from people: "
+                   + _e(", ".join(summary.simulated_sessions[:20]))
+                   + ". They are pooled with the others below.")
+        parts.append(f'<div class="warn"><strong>Simulated data.</strong> {msg}</div>')
+
+    # coverage
+    parts.append("<h2>What this report covers</h2>")
+    parts.append(
+        f"<p>{c['participants']} participant(s), {c['sessions']} session(s) in "
+        f"{c['stores']} store(s), {c['trials']} trial(s): {c['test_trials']} test-block "
+        f"trial(s), of which {c['done']} done, {c['timeout']} timed out and {c['aborted']} "
+        f"aborted; {c['training_trials']} training trial(s).</p>")
+    parts.append(f"<p><strong>How trials are counted.</strong> {_e(COUNTING_RULES)} "
+                 f"So the accuracies below are over {c['counted_trials']} test trial(s) "
+                 f"(done + timed out); response times and errors only over answered ones. "
+                 "The signed error of a response is the selected target minus the shown "
+                 "target, wrapped to (-180°, 180°], clockwise positive.</p>")
+    inc = summary.incomplete_sessions
+    if len(inc):
+        parts.append(f"<h3>Incomplete sessions ({len(inc)})</h3><p>Sessions whose status is not "
+                     "complete or that have no end time. Their finished trials are counted "
+                     "like the others.</p>" + _listing(inc, "incomplete sessions"))
+    else:
+        parts.append("<p>Every session is complete.</p>")
+    parts.append(f"<h3>Timed-out trials ({len(summary.timeouts)})</h3>"
+                 "<p>Counted as incorrect (test block), with no response time.</p>"
+                 + _listing(summary.timeouts, "timed-out trials"))
+    parts.append(f"<h3>Aborted trials ({len(summary.aborted)})</h3>"
+                 "<p>Left out of every table and test.</p>"
+                 + _listing(summary.aborted, "aborted trials"))
+
+    # results
+    parts.append("<h2>Results by condition</h2>")
+    parts.append(_table(["condition", "targets", "n trials", "participants", "accuracy",
+                         "median RT (s)", "timeouts", "circular mean error (°)",
+                         "circular SD of error (°)"], _summary_rows(summary), "num"))
+    parts.append("<p><small>Pooled over participants. 'no trials': the data hold no counted "
+                 "trial of that kind; 'no answered trial': every one timed out.</small></p>")
+    if len(summary.training):
+        rows = [[_e(r.condition), _int(r.n), _pct(r.accuracy)]
+                for r in summary.training.itertuples(index=False)]
+        parts.append("<h3>Training block (not part of any statistic)</h3>"
+                     + _table(["condition", "n trials", "accuracy"], rows, "num"))
+
+    parts.append("<h2>Statistical tests</h2>")
+    parts.append("<p>Two-sided tests. Intervals are 95 % percentile bootstrap intervals "
+                 f"({summary.n_boot} resamples, seed {summary.seed}) unless the row says "
+                 "otherwise.</p>")
+    parts.append(_table(["test", "question", "n", "statistic", "p", "effect size",
+                         "95 % interval"], _test_rows(summary.tests), "tests"))
+
+    # figures
+    parts.append("<h2>Figures</h2>")
+    for name in FIGURE_ORDER:
+        if name not in figures:
+            continue
+        data = base64.b64encode(figures[name]).decode("ascii")
+        parts.append(f'<figure><img src="data:image/png;base64,{data}" alt="{_e(name)}">'
+                     f"<figcaption>{_e(FIGURE_CAPTIONS[name])} ({_e(name)})</figcaption></figure>")
+
+    # per direction
+    d = summary.directions
+    if len(d):
+        rows = []
+        for r in d.sort_values(["condition", "target_deg"]).itertuples(index=False):
+            rows.append([f'<span class="{r.condition}">{_e(r.condition)}</span>',
+                         f"{r.target_deg:g}", "yes" if r.on_tactor else "no", _int(r.n),
+                         _pct(r.accuracy), _fmt(r.median_rt_s, missing="all timed out"),
+                         _fmt(r.mean_signed_error_deg, 2, missing="all timed out"),
+                         _fmt(r.circ_sd_error_deg, 2, missing="all timed out")])
+        parts.append("<h2>Per direction (pooled over participants)</h2><details><summary>"
+                     f"{len(d)} rows</summary>"
+                     + _table(["condition", "target (°)", "on-tactor", "n", "accuracy",
+                               "median RT (s)", "mean signed error (°)", "circular SD (°)"],
+                              rows, "num") + "</details>")
+
+    # per participant
+    pp = summary.per_participant
+    if len(pp) and c["participants_with_test_trials"] > 1:
+        rows = []
+        for r in pp.head(MAX_TABLE_ROWS).itertuples(index=False):
+            none = "no trials" if r.n == 0 else "no answered trial"
+            rows.append([_e(r.participant), f'<span class="{r.condition}">{r.condition}</span>',
+                         KIND_LABELS[str(r.kind)], _int(r.n),
+                         _pct(r.accuracy, missing="no trials"),
+                         _fmt(r.median_rt_s, missing=none)])
+        more = (f"<p>First {MAX_TABLE_ROWS} of {len(pp)} rows; per_target.csv has all "
+                "participants.</p>" if len(pp) > MAX_TABLE_ROWS else "")
+        parts.append("<h2>Per participant</h2><details><summary>"
+                     f"{c['participants_with_test_trials']} participants</summary>"
+                     + _table(["participant", "condition", "targets", "n", "accuracy",
+                               "median RT (s)"], rows, "num") + more + "</details>")
+
+    if summary.notes:
+        parts.append("<h2>Notes</h2><ul>" + "".join(f"<li>{_e(n)}</li>" for n in summary.notes)
+                     + "</ul>")
+
+    # provenance
+    parts.append("<h2>Provenance</h2>")
+    design = summary.design
+    prov_rows = [
+        ["study", "<br>".join(f"{_e(s['study_name'])} (SHA-256 <code>{_e(s['study_sha256'])}"
+                              "</code>)" for s in studies)],
+        ["layout (tactor angles, °)", _e(", ".join(f"{a:g}" for a in design.layout.angles_deg))],
+        ["targets", f"{design.targets.m} ("
+         + _e(", ".join(f"{a:g}" for a in design.targets.angles_deg[:8]))
+         + (" ..." if design.targets.m > 8 else "") + ")"],
+        ["amplitude law", _e(f"{design.law}, falloff {design.falloff_deg:g}°")
+         + (" <em>(paper defaults: " + _e("; ".join(design.fallbacks)) + ")</em>"
+            if design.fallbacks else "")],
+        ["package version(s) that ran the sessions", _joined(prov["package_versions"])],
+        ["belt(s)", _joined(prov["belts"])],
+        ["firmware version(s)", _joined(prov["firmware_versions"])],
+        ["input(s)", _joined(prov["inputs"])],
+        ["session seeds", _joined(prov["session_seeds"])],
+        ["analysis seed (bootstrap)", f"{summary.seed} ({summary.n_boot} resamples)"],
+    ]
+    parts.append(_table(["", ""], prov_rows, "prov"))
+    s = summary.sessions
+    cols = [col for col in ("session_key", "participant", "study_name", "condition_order",
+                            "seed", "belt", "started_at", "ended_at", "status") if col in s]
+    srows = [[_e("" if (isinstance(v, float) and math.isnan(v)) or v is None
+                 or str(v) == "<NA>" else v) for v in r]
+             for r in s[cols].head(MAX_TABLE_ROWS).itertuples(index=False)]
+    more = (f"<p>First {MAX_TABLE_ROWS} of {len(s)} sessions.</p>"
+            if len(s) > MAX_TABLE_ROWS else "")
+    parts.append(f"<h3>Sessions ({len(s)})</h3><details open><summary>start, end and status"
+                 "</summary>" + _table(cols, srows) + more + "</details>")
+    parts.append('<h2>Files</h2><p>Next to this report: <a href="summary.json">summary.json</a>'
+                 ' (headline numbers and tests), <a href="per_target.csv">per_target.csv</a> '
+                 "(per participant, condition and target) and the figures as PNG.</p>")
+    parts.append("</body></html>")
+    return "\n".join(parts)
+
+
+_CSS = """
+body{font-family:system-ui,-apple-system,'Segoe UI',Roboto,sans-serif;max-width:1100px;
+margin:2em auto;padding:0 1em;color:#222;line-height:1.45}
+h1{font-size:1.6em;margin-bottom:.2em}h2{border-bottom:1px solid #ccc;padding-bottom:.2em;
+margin-top:1.6em}h3{margin-bottom:.3em}
+.meta{color:#666;font-size:.9em}
+.warn{background:#fff4e5;border-left:5px solid #D55E00;padding:.7em 1em;margin:1em 0}
+table{border-collapse:collapse;margin:.6em 0;font-size:.88em}
+th,td{border:1px solid #ddd;padding:.3em .55em;text-align:left;vertical-align:top}
+th{background:#f3f3f3}table.num td{text-align:right}table.num td:first-child,
+table.num td:nth-child(2){text-align:left}
+.static{color:#0072B2;font-weight:600}.dynamic{color:#D55E00;font-weight:600}
+.nc{color:#8a4b00}figure{margin:1.2em 0}img{max-width:100%;border:1px solid #eee}
+figcaption{font-size:.88em;color:#444;margin-top:.3em}code{font-size:.85em}
+details summary{cursor:pointer;color:#0072B2}
+"""
+
+
+# -- console ---------------------------------------------------------------------------
+
+def print_summary_table(summary: Summary, console: Console | None = None) -> None:
+    """Print accuracy and median RT per condition, on- and between-tactor (rich)."""
+    from rich.console import Console
+    from rich.table import Table
+
+    con = console or Console()
+    table = Table(title="Accuracy and median response time (test block)")
+    table.add_column("condition")
+    table.add_column("targets")
+    table.add_column("n", justify="right")
+    table.add_column("accuracy", justify="right")
+    table.add_column("median RT (s)", justify="right")
+    style = {"static": "bold blue", "dynamic": "bold dark_orange3"}
+    for cond in CONDITIONS:
+        for kind in KINDS:
+            n = summary.condition_value(cond, kind, "n") or 0
+            acc = summary.condition_value(cond, kind, "accuracy")
+            rt = summary.condition_value(cond, kind, "median_rt_s")
+            table.add_row(f"[{style[cond]}]{cond}[/]", KIND_LABELS[kind], str(int(n)),
+                          _pct(acc, missing="no trials"),
+                          _fmt(rt, missing="no trials" if not n else "none answered"))
+    con.print(table)
+    t = summary.between_accuracy_test
+    if t.computed:
+        p = _p(t.p_value)
+        con.print(f"{t.test}, {t.question}: p {p if p.startswith('<') else '= ' + p}, "
+                  f"{t.effect_name} = {_fmt(t.effect)}; 95 % CI of the {t.ci_name}: "
+                  f"[{_fmt(t.ci_low)}, {_fmt(t.ci_high)}]", highlight=False)
+    else:
+        con.print(f"{t.test}, {t.question}: not computed ({t.reason})")
+    if summary.simulated_sessions:
+        con.print("[bold]Note:[/] these data come from a simulated model participant, "
+                  "not from people.")
+
+
+# -- files -----------------------------------------------------------------------------
+
+def _package_version() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("tactorbelt")
+    except PackageNotFoundError:  # pragma: no cover
+        return "unknown"
+
+
+def analyze(paths: Sequence[str | Path], out: str | Path, *, seed: int = 0,
+            progress: ProgressFn | None = None, n_boot: int = DEFAULT_N_BOOT) -> Summary:
+    """Analyse stores and write report.html, summary.json, per_target.csv and PNGs to ``out``.
+
+    Args:
+        paths: one or more store files.
+        out: the output directory (created if needed).
+        seed: seeds the bootstrap and the choice of sample trajectories.
+        progress: called as ``progress(description, done, total)``.
+        n_boot: bootstrap resamples per interval.
+
+    Raises:
+        StoreError: a store that cannot be read (see :func:`load.load_stores`).
+        ConfigError: ``out`` exists and is not a directory, or cannot be written.
+    """
+    from .figures import make_figures
+    from .load import load_samples, load_stores
+    from .stats import summarize
+
+    total = 6
+    step = 0
+
+    def tick(what: str) -> None:
+        nonlocal step
+        if progress is not None:
+            progress(what, step, total)
+        step += 1
+
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise ConfigError(f"--out {out} is a file; give a directory for the report")
+    tick("loading stores")
+    data = load_stores(list(paths))
+    tick("computing tables and tests")
+    summary = summarize(data, seed=seed, n_boot=n_boot)
+    tick("reading sample trajectories")
+    chosen = choose_sample_trials(summary, seed=seed)
+    samples = load_samples(data, chosen) if len(chosen) else None
+    tick("drawing figures")
+    figures = make_figures(summary, samples, chosen if len(chosen) else None)
+    tick("writing the report")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        for name in FIGURE_ORDER:  # stale figures of an earlier run would mislead
+            if name not in figures and (out / name).is_file():
+                (out / name).unlink()
+        for name, png in figures.items():
+            (out / name).write_bytes(png)
+        pt = summary.per_target.copy()
+        pt["on_tactor"] = pt["on_tactor"].astype(int)
+        pt.to_csv(out / "per_target.csv", index=False)
+        (out / "summary.json").write_text(
+            json.dumps(summary.to_json(), indent=2, allow_nan=False) + "\n", encoding="utf-8")
+        now = _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
+        (out / "report.html").write_text(
+            render_html(summary, figures, generated_at=now,
+                        package_version=_package_version()), encoding="utf-8")
+    except OSError as exc:
+        raise ConfigError(f"cannot write the report to {out}: {exc.strerror}") from None
+    tick("done")
+    return summary

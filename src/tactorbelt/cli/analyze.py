@@ -1,0 +1,62 @@
+"""``tactorbelt analyze DB [DB ...] [--out DIR] [--seed S]``: the analysis report.
+
+Imports the analysis (pandas, SciPy, statsmodels, matplotlib) only when the command
+runs. Errors are raised as tactorbelt errors; ``tactorbelt.cli.main`` prints them.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import click
+
+if TYPE_CHECKING:
+    from ..analysis.stats import Summary
+
+__all__ = ["analyze", "print_summary_table"]
+
+
+def print_summary_table(summary: Summary) -> None:
+    """Accuracy and median RT per condition (on- and between-tactor), as a rich table."""
+    from ..analysis.report import print_summary_table as _print
+
+    _print(summary)
+
+
+@click.command("analyze")
+@click.argument("db", nargs=-1, required=True, type=click.Path(path_type=Path))
+@click.option("--out", "out", type=click.Path(path_type=Path), default=None,
+              help="Directory for report.html, summary.json, per_target.csv and the PNGs "
+                   "[default: the directory of the first DB].")
+@click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True,
+              help="Seed of the bootstrap intervals and of the sample trajectories shown.")
+def analyze(db: tuple[Path, ...], out: Path | None, seed: int) -> None:
+    """Analyse one or more session stores and write the report.
+
+    DB is a store written by 'tactorbelt run' or 'tactorbelt demo' (several may be
+    given: their sessions are pooled). Writes report.html (self-contained), summary.json,
+    per_target.csv and the figures, then prints the headline numbers and where the report is.
+    """
+    os.environ.setdefault("MPLBACKEND", "Agg")
+    from rich.console import Console
+    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+
+    from ..analysis.report import analyze as run_analysis
+    from ..analysis.report import print_summary_table as _print
+
+    out_dir = out if out is not None else (db[0].parent if str(db[0].parent) else Path("."))
+    err = Console(stderr=True)
+    with Progress(TextColumn("{task.description}"), BarColumn(), TimeElapsedColumn(),
+                  console=err, transient=True) as bar:
+        task = bar.add_task("analysing", total=6)
+
+        def progress(what: str, done: int, total: int) -> None:
+            bar.update(task, description=what, completed=done, total=total)
+
+        summary = run_analysis(list(db), out_dir, seed=seed, progress=progress)
+    _print(summary, Console())
+    for note in summary.notes:
+        err.print(f"note: {note}", highlight=False)
+    click.echo(f"report: {(out_dir / 'report.html').resolve()}")
