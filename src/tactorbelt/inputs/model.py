@@ -239,7 +239,8 @@ def sim_vibrator(layout: Layout, **sim_options: Any
     def vibrate(stimulus: Stimulus, duration_s: float) -> tuple[NDArray[np.float64],
                                                                  NDArray[np.float64]]:
         clock = SimClock()
-        with SimBelt(layout=layout, clock=clock, **sim_options) as belt:
+        belt = SimBelt(layout=layout, clock=clock, **sim_options)
+        with belt:
             belt.play(stimulus)
             t0 = clock.now_ns()
             clock.advance(round(duration_s * 1e9))
