@@ -1,18 +1,27 @@
-"""The shared firmware test vectors: the committed file is what the package says now.
+"""The firmware's shared test vectors, and the emulator's command-line contract.
 
 ``firmware/test/vectors.json`` is written by ``scripts/gen_firmware_vectors.py`` from
 ``tactorbelt.devices.wire`` and ``tactorbelt.stimuli``; the C++ host tests
 (``make -C firmware test``) check the firmware against it. When the Python side
 changes, this test fails until the file is regenerated, so the firmware can never
 be checked against a stale contract.
+
+The emulator tests (marker ``emulator``) run ``firmware/build/emulator`` directly and
+check what docs/protocol.md promises about it: the first stdout line, the levels log,
+the exit rules; they take about 3 s of wall time and skip without g++ or make.
 """
 
 from __future__ import annotations
 
 import importlib.util
+import itertools
 import json
 import math
+import shutil
+import signal
+import subprocess
 import sys
+import time
 from pathlib import Path
 from types import ModuleType
 from typing import Any
@@ -126,3 +135,132 @@ def test_check_mode_reports_a_stale_file(gen: ModuleType, tmp_path: Path) -> Non
     assert gen.main(["--check", "-o", str(out)]) == 0
     out.write_text(out.read_text().replace('"format": 1', '"format": 0'))
     assert gen.main(["--check", "-o", str(out)]) == 1
+
+
+# --- the emulator: the same core on a pseudo-terminal (its command-line contract) ---------
+
+
+@pytest.fixture(scope="module")
+def emulator_exe() -> Path:
+    missing = [t for t in ("g++", "make") if shutil.which(t) is None]
+    if missing:
+        pytest.skip(f"the firmware emulator needs {' and '.join(missing)} to build")
+    from tactorbelt.devices.emulator import build_emulator
+
+    return build_emulator(REPO / "firmware")
+
+
+def _start(exe: Path, *args: str, stdin: Any = subprocess.PIPE) -> tuple[subprocess.Popen[bytes],
+                                                                          str]:
+    proc = subprocess.Popen([str(exe), *args], stdin=stdin, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE)
+    assert proc.stdout is not None
+    line = proc.stdout.readline().decode().strip()
+    return proc, line
+
+
+def _read_log(path: Path) -> tuple[list[str], list[list[int]]]:
+    lines = path.read_text().splitlines()
+    return lines[0].split(","), [[int(v) for v in row.split(",")] for row in lines[1:]]
+
+
+def _segments(rows: list[list[int]], t0: int, t1: int) -> list[tuple[int, list[int]]]:
+    """(duration_us, row) for every logged row that starts in [t0, t1)."""
+    out = []
+    for a, b in itertools.pairwise(rows):
+        if t0 <= a[0] < t1:
+            out.append((min(b[0], t1) - a[0], a))
+    return out
+
+
+@pytest.mark.emulator
+def test_emulator_cli_contract(emulator_exe: Path, tmp_path: Path) -> None:
+    """First line, levels log, dwell pattern, failsafe timing, port close, exit on EOF."""
+    import serial
+
+    log = tmp_path / "levels.csv"
+    proc, pty = _start(emulator_exe, "--tactors", "6", "--heartbeat-ms", "100",
+                       "--levels-log", str(log))
+    try:
+        assert pty.startswith("/dev/")
+        port = serial.Serial(pty, timeout=1.0)
+        dec = wire.FrameDecoder()
+
+        def request(p: wire.Packet) -> wire.Reply:
+            port.write(wire.encode_frame(p))
+            deadline = time.monotonic() + 1.0
+            while time.monotonic() < deadline:
+                got = dec.feed(port.read(port.in_waiting or 1))
+                if got:
+                    return wire.parse_reply(got[0])
+            raise AssertionError("no reply")
+
+        info = request(wire.get_info(0))
+        assert isinstance(info, wire.Info) and info.heartbeat_ms == 100
+        ack = request(wire.play_target(1, 4500, 1, 0, 1500, 1000, 100, 0))
+        assert ack == wire.Ack(1)
+        seq = 2
+        t_end = time.monotonic() + 2.0
+        while time.monotonic() < t_end:  # keep it alive for two periods
+            port.write(wire.encode_frame(wire.heartbeat(seq)))
+            seq += 1
+            time.sleep(0.03)
+        time.sleep(0.3)  # silence: the failsafe trips 100 ms after the last heartbeat
+        status = request(wire.get_status(seq))
+        assert isinstance(status, wire.Status) and status.state == wire.State.FAILSAFE
+        port.write(wire.encode_frame(wire.set_amplitudes(seq + 1, [1000] * 6)))
+        time.sleep(0.05)
+        port.close()  # like the USB port closing: outputs off
+        time.sleep(0.05)
+        assert proc.stdin is not None
+        proc.stdin.close()  # end of file on stdin: the emulator exits
+        assert proc.wait(2.0) == 0
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+
+    header, rows = _read_log(log)
+    assert header == ["t_us", "state"] + [f"level_{k}" for k in range(6)]
+    assert rows[0] == [0, 0, 0, 0, 0, 0, 0, 0]
+    play_start = next(r[0] for r in rows if r[1] == wire.State.PLAYING)
+    segs = _segments(rows, play_start, play_start + 2_000_000)
+    near_only = sum(d for d, r in segs if r[2] > 0 and r[3] == 0) / 2
+    far_only = sum(d for d, r in segs if r[3] > 60000 and r[2] == 0) / 2
+    assert abs(near_only - 600_000) < 5_000  # per period, in microseconds
+    assert abs(far_only - 200_000) < 5_000
+    failsafe = next(r for r in rows if r[1] == wire.State.FAILSAFE)
+    assert failsafe[2:] == [0] * 6
+    streaming = [r for r in rows if r[1] == wire.State.STREAMING]
+    assert streaming and streaming[0][2:] == [1000] * 6
+    after = rows[rows.index(streaming[-1]) + 1]
+    assert after[1] == wire.State.IDLE and after[2:] == [0] * 6  # the port closed
+    assert rows[-1][1] == wire.State.IDLE and rows[-1][2:] == [0] * 6  # the exit line
+
+
+@pytest.mark.emulator
+def test_emulator_ignores_dev_null_stdin_and_ends_on_sigterm(emulator_exe: Path) -> None:
+    proc, pty = _start(emulator_exe, stdin=subprocess.DEVNULL)
+    try:
+        assert pty.startswith("/dev/")
+        time.sleep(0.3)
+        assert proc.poll() is None  # still serving
+        proc.send_signal(signal.SIGTERM)
+        assert proc.wait(2.0) == 0
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+
+
+@pytest.mark.emulator
+@pytest.mark.parametrize(
+    "args", [["--tactors", "1"], ["--heartbeat-ms", "49"], ["--tactor-angles", "10,10"],
+             ["--bogus", "1"]]
+)
+def test_emulator_rejects_bad_arguments(emulator_exe: Path, args: list[str]) -> None:
+    proc = subprocess.run([str(emulator_exe), *args], capture_output=True, timeout=5,
+                          stdin=subprocess.DEVNULL, check=False)
+    assert proc.returncode == 2
+    assert proc.stdout == b""
+    assert b"emulator: error:" in proc.stderr

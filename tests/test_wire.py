@@ -7,6 +7,7 @@ same bytes through firmware/test/vectors.json.
 from __future__ import annotations
 
 import struct
+from collections.abc import Callable
 
 import pytest
 from hypothesis import given, settings
@@ -234,7 +235,7 @@ def test_set_config_round_trip(seq: int, heartbeat_ms: int, max_on_ms: int | Non
         (wire.get_status, 0x16, wire.GetStatus()),
     ],
 )
-def test_empty_requests(build, type_: int, parsed: object) -> None:  # type: ignore[no-untyped-def]
+def test_empty_requests(build: Callable[[int], Packet], type_: int, parsed: object) -> None:
     p = build(9)
     assert (p.type, p.seq, p.payload) == (type_, 9, b"")
     assert wire.parse_request(p) == parsed

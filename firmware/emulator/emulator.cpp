@@ -71,7 +71,7 @@ long parse_long(const char* text, const char* what, long lo, long hi) {
 }
 
 // Records levels (and the state) as CSV: "t_us,state,level_0,...", one line at
-// start, one whenever a level or the state changes, one at exit.
+// start, one whenever a level or the state changes, and one at exit.
 class LevelsLog {
  public:
   bool open(const char* path, uint8_t n) {
@@ -82,11 +82,14 @@ class LevelsLog {
     fprintf(f_, "\n");
     return true;
   }
-  void record(uint64_t t_us, const tb::Controller& c) {
+  // Writes a line when a level or the state changed since the last one (or always,
+  // with force).
+  void record(uint64_t t_us, const tb::Controller& c, bool force = false) {
     if (f_ == nullptr) return;
     const uint8_t n = c.channels();
     const uint8_t state = static_cast<uint8_t>(c.state());
-    if (written_ && state == state_ && memcmp(levels_, c.levels(), n * sizeof(uint16_t)) == 0) {
+    if (!force && written_ && state == state_ &&
+        memcmp(levels_, c.levels(), n * sizeof(uint16_t)) == 0) {
       return;
     }
     written_ = true;
@@ -322,7 +325,7 @@ int main(int argc, char** argv) {
 
   const uint64_t t = now_us();
   controller.link_closed(t);
-  levels_log.record(t, controller);
+  levels_log.record(t, controller, true);
   levels_log.flush();
   levels_log.close();
   close(master);
