@@ -395,7 +395,7 @@ class DirectionDisplay:
                     for t in times.tolist():
                         self.clock.sleep_until_ns(t)
                         self._device_tick(t)
-                else:
+                elif n:
                     amps = self._frames(times)
                     for t, row in zip(times.tolist(), amps, strict=True):
                         self.clock.sleep_until_ns(t)

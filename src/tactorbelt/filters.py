@@ -240,6 +240,10 @@ class Hysteresis:
             )
         self.dominant: int | None = None
         self.switches = 0
+        gaps_cw = self.layout.gaps_deg()
+        _, ccw = self.layout.neighbour_indices()
+        self._sectors = [(-float(gaps_cw[ccw[k]]) / 2.0, float(gaps_cw[k]) / 2.0)
+                         for k in range(self.layout.n)]
 
     def reset(self) -> None:
         """Forget the dominant tactor (the next angle picks the nearest)."""
@@ -258,9 +262,7 @@ class Hysteresis:
 
         The first is negative (counter-clockwise half-gap), the second positive.
         """
-        gaps_cw = self.layout.gaps_deg()
-        _, ccw = self.layout.neighbour_indices()
-        return -float(gaps_cw[ccw[k]]) / 2.0, float(gaps_cw[k]) / 2.0
+        return self._sectors[k]
 
     def __call__(self, angle_deg: float) -> float:
         """Pass ``angle_deg`` through the hysteresis; returns the angle to display.
