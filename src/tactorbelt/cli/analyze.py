@@ -49,7 +49,7 @@ def analyze(db: tuple[Path, ...], out: Path | None, seed: int) -> None:
     out_dir = out if out is not None else (db[0].parent if str(db[0].parent) else Path("."))
     err = Console(stderr=True)
     with Progress(TextColumn("{task.description}"), BarColumn(), TimeElapsedColumn(),
-                  console=err, transient=True) as bar:
+                  console=err, transient=True, disable=not err.is_terminal) as bar:
         task = bar.add_task("analysing", total=6)
 
         def progress(what: str, done: int, total: int) -> None:
