@@ -110,6 +110,7 @@ class Renderer:
         self._text_cache: dict[tuple[str, int, tuple[int, int, int]], Any] = {}
         self._static: Any = None
         self._static_key: tuple[Any, ...] | None = None
+        self._shades: dict[tuple[Any, ...], Any] = {}
         self.resize(size)
 
     # -- geometry ----------------------------------------------------------------------
@@ -145,6 +146,18 @@ class Renderer:
             self._text_cache[key] = surf
         return surf
 
+    def _shade(self, size: tuple[int, int], rgba: tuple[int, int, int, int]) -> Any:
+        """A cached translucent rectangle."""
+        key = (size, rgba)
+        surf = self._shades.get(key)
+        if surf is None:
+            if len(self._shades) > 16:
+                self._shades.clear()
+            surf = pygame.Surface(size, pygame.SRCALPHA)
+            surf.fill(rgba)
+            self._shades[key] = surf
+        return surf
+
     # -- static layer ------------------------------------------------------------------
     def _static_layer(self, view: View) -> Any:
         key = (self.size, view.targets_deg, view.on_tactor, view.home_radius)
@@ -166,6 +179,8 @@ class Renderer:
             for (px, py), on in zip(pos.tolist(), view.on_tactor, strict=False):
                 color = COLORS["on_tactor"] if on else COLORS["between"]
                 pygame.draw.circle(surf, color, (round(px), round(py)), self.target_radius)
+        if pygame.display.get_surface() is not None:
+            surf = surf.convert()  # the display's pixel format: the fastest blit
         self._static = surf
         self._static_key = key
         return surf
@@ -266,9 +281,7 @@ class Renderer:
             height += max_h + int(44 * u)
         x0 = int(10 * u)
         y0 = self.size[1] - height - int(10 * u)
-        panel = pygame.Surface((width, height), pygame.SRCALPHA)
-        panel.fill((*COLORS["panel"], 215))
-        surface.blit(panel, (x0, y0))
+        surface.blit(self._shade((width, height), (*COLORS["panel"], 215)), (x0, y0))
         y = y0 + int(8 * u)
         for line in lines:
             surface.blit(self.text(line, px, COLORS["text"]), (x0 + int(10 * u), y))
@@ -288,9 +301,7 @@ class Renderer:
     def _draw_modal(self, surface: Any, title: str, lines: list[str]) -> None:
         u = self.unit
         w, h = self.size
-        shade = pygame.Surface((w, h), pygame.SRCALPHA)
-        shade.fill((0, 0, 0, 170))
-        surface.blit(shade, (0, 0))
+        surface.blit(self._shade((w, h), (0, 0, 0, 170)), (0, 0))
         title_s = self.text(title, int(48 * u), COLORS["text"])
         body = [self.text(line, int(28 * u), COLORS["text"]) if line else None
                 for line in lines]

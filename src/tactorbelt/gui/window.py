@@ -266,7 +266,9 @@ class ExperimentWindow:
 
     def on_sample(self, sample: CursorSample) -> None:
         self.last_sample = sample
-        self._sample_times.append(sample.t_ns)
+        cur = self.current
+        if cur is not None and cur.phase == "stimulus":
+            self._sample_times.append(sample.t_ns)
 
     def on_trial_done(self, result: TrialResult) -> None:
         self.last_result = result
@@ -483,8 +485,7 @@ class ExperimentWindow:
         if live is not None:
             x, y, _ = live.state
             return (x, y)
-        cur = self.current
-        if cur is not None and cur.phase != "home" and self.last_sample is not None:
+        if self.current is not None and self.last_sample is not None:
             return (self.last_sample.x, self.last_sample.y)
         return (0.0, 0.0)
 
