@@ -239,6 +239,21 @@ def test_model_input_without_the_model_is_a_clear_error(
     assert code == 2 and "model participant" in err
 
 
+@pytest.mark.skipif(importlib.util.find_spec("tactorbelt.inputs.model") is None,
+                    reason="the model participant is not installed")
+def test_model_participant_runs_headless_on_a_sim_clock(
+        small: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    db = tmp_path / "s.sqlite"
+    code, out, err = run_cli(["run", str(small), "-p", "P01", "--headless", "--input", "model",
+                              "--db", str(db), "--limit", "6"], capsys)
+    assert code == 0, err
+    assert "12/30 trials done" in out
+    with Store.open(db, readonly=True) as store:
+        (s,) = store.sessions()
+        assert (s["input"], s["clock"]) == ("model", "sim")
+        assert {t["status"] for t in store.trials()} <= {"done", "timeout"}
+
+
 def test_bad_arguments(small: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     code, _, err = run_cli(["run", str(small), "-p", " ", "--headless"], capsys)
     assert code == 2 and "--participant" in err

@@ -137,12 +137,13 @@ def test_sigkill_then_resume(tmp_path: Path) -> None:
         while n < 15 and time.monotonic() < deadline and proc.poll() is None:
             time.sleep(0.02)
             if db.exists():
+                conn = sqlite3.connect(db, timeout=1)
                 try:
-                    conn = sqlite3.connect(f"file:{db}?mode=ro", uri=True, timeout=1)
                     n = conn.execute("SELECT COUNT(*) FROM trials").fetchone()[0]
-                    conn.close()
                 except sqlite3.Error:
                     n = 0
+                finally:
+                    conn.close()
         assert proc.poll() is None, proc.stderr.read() if proc.stderr else ""
         os.kill(proc.pid, signal.SIGKILL)
     finally:

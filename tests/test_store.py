@@ -221,3 +221,21 @@ def test_read_only_open_does_not_lock(tmp_path: Path) -> None:
             assert len(reader.trials()) == 1
             with pytest.raises(StoreError, match="read-only"):
                 reader.write_trial(sid, _result(1))
+
+
+def test_a_reader_that_outlives_the_writer(tmp_path: Path) -> None:
+    # export/analysis reading while a run ends must leave the store readable
+    p = tmp_path / "s.sqlite"
+    writer = Store.open(p)
+    sid = _session(writer)
+    writer.write_trial(sid, _result(0))
+    reader = Store.open(p, readonly=True)
+    assert len(reader.trials()) == 1
+    writer.write_trial(sid, _result(1))
+    writer.close()
+    assert len(reader.trials()) == 2
+    reader.close()
+    with Store.open(p, readonly=True) as again:
+        assert len(again.trials()) == 2
+    with Store.open(p) as w2:
+        assert w2.finished_indices(sid) == {0, 1}

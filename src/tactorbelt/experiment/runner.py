@@ -361,8 +361,9 @@ def run_session(
         _stop_quietly(player, belt)
         if cmd is Command.ABORT:
             raise _Aborted
-        # PAUSE: wait (motors off) until RESUME or ABORT
-        if machine is not None and not machine.finished:
+        # PAUSE: wait (motors off) until RESUME or ABORT; a trial whose stimulus has
+        # started is aborted (and run again after the pause)
+        if machine is not None and machine.state is TrialState.STIMULUS:
             raise _Paused
         pause_loop()
 

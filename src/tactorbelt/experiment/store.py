@@ -49,7 +49,6 @@ SCHEMA_VERSION = 1
 APPLICATION_ID = 0x54424C54
 SESSION_STATUSES = ("running", "complete", "aborted", "interrupted")
 TRIAL_STATUSES = ("done", "timeout", "aborted")
-_SQLITE_MAGIC = b"SQLite format 3\x00"
 
 _SCHEMA = """
 CREATE TABLE IF NOT EXISTS meta(
@@ -165,18 +164,10 @@ class Store:
         if p.is_dir():
             raise StoreError(f"{p} is a directory; give a database file such as {p}/study.sqlite")
         exists = p.exists()
-        if exists:
-            try:
-                with p.open("rb") as fh:
-                    head = fh.read(len(_SQLITE_MAGIC))
-            except OSError as exc:
-                raise StoreError(f"cannot read {p}: {exc.strerror}") from None
-            if head and head != _SQLITE_MAGIC:
-                raise StoreError(
-                    f"{p} is not an SQLite database (it starts with {head[:8]!r}); "
-                    "give a tactorbelt store or a new file name"
-                )
-        elif not create or readonly:
+        # The file's header is left to SQLite to check: opening and closing another
+        # descriptor on a database file would drop the POSIX locks that other
+        # connections of this process hold on it.
+        if not exists and (not create or readonly):
             raise StoreError(f"{p}: no such store")
         if not readonly:
             if exists and _read_only(p):
@@ -189,6 +180,8 @@ class Store:
                 raise StoreError(f"cannot create {p}: directory {parent} does not exist")
             if not os.access(parent, os.W_OK):
                 raise StoreError(f"cannot write to directory {parent} (needed for {p})")
+        lock_path = p.with_name(p.name + ".lock")
+        made_lock = not readonly and not lock_path.exists()
         lock_fd = None if readonly else cls._lock(p)
         try:
             try:
@@ -197,6 +190,9 @@ class Store:
                 raise cls._translate(p, exc) from None
         except BaseException:
             if lock_fd is not None:
+                if made_lock:  # leave nothing behind that was not there
+                    with contextlib.suppress(OSError):
+                        lock_path.unlink()
                 os.close(lock_fd)
             raise
         return cls(p, conn, lock_fd, readonly)
@@ -231,11 +227,16 @@ class Store:
     def _connect(p: Path, readonly: bool) -> sqlite3.Connection:
         conn: sqlite3.Connection | None = None
         try:
+            # A read-only store is still opened read-write when the file allows it (and
+            # made query_only): a mode=ro connection cannot rebuild a WAL index (-shm)
+            # that a writer left behind, and would report a sound file as malformed.
+            uri = p.resolve().as_uri()
+            if readonly and _read_only(p):
+                uri += "?mode=ro"
+            conn = sqlite3.connect(uri, uri=True, isolation_level=None,
+                                   check_same_thread=False)
             if readonly:
-                conn = sqlite3.connect(f"{p.resolve().as_uri()}?mode=ro", uri=True,
-                                       isolation_level=None, check_same_thread=False)
-            else:
-                conn = sqlite3.connect(p, isolation_level=None, check_same_thread=False)
+                conn.execute("PRAGMA query_only = ON")
             conn.row_factory = sqlite3.Row
             conn.execute("PRAGMA busy_timeout = 5000")
             check = conn.execute("PRAGMA quick_check").fetchone()[0]
@@ -284,6 +285,10 @@ class Store:
 
     @staticmethod
     def _translate(p: Path, exc: sqlite3.DatabaseError) -> StoreError:
+        if "not a database" in str(exc):
+            return StoreError(
+                f"{p} is not an SQLite database; give a tactorbelt store or a new file name"
+            )
         if isinstance(exc, sqlite3.OperationalError):
             msg = str(exc)
             if "readonly" in msg or "read-only" in msg:
