@@ -691,6 +691,10 @@ class ExperimentWindow:
         moving = math.hypot(x, y) >= 0.5
         if kind in ("training", "test") and not moving:
             return
+        cur = self.current
+        if (kind == "test" and cur is not None and cur.trial.on_tactor
+                and not all(self._on_tactor)):
+            return  # show a between-tactor trial: two tactors at work in the overlay
         if kind == "test" and self.overlay:
             kind = "overlay"
             if kind in self.saved:
