@@ -292,10 +292,8 @@ class DirectionDisplay:
             self._requested = held
             if self._displayed is None:
                 self._start(held)
-            elif self.device_render and not self._threaded:
-                pass  # the next pump/update tick sends it
-            elif self.device_render:
-                self._device_tick(self.clock.now_ns())
+            # otherwise the next frame or device tick (thread, pump or update) takes it:
+            # show() itself never waits for the belt after the first call
         return held
 
     def show_bearing(self, bearing_deg: float, heading_deg: float,
