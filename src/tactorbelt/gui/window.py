@@ -162,6 +162,8 @@ class ExperimentWindow:
                 "check DISPLAY / WAYLAND_DISPLAY"
             ) from None
         pygame.display.set_caption(f"tactorbelt: {study.name}")
+        if input_kind == "joystick":
+            pygame.mouse.set_visible(False)  # the participant looks at the cursor only
         self.renderer = Renderer(self.surface.get_size())
 
         layout = study.layout_obj()
