@@ -22,6 +22,7 @@ What the belt does while open:
   ``host_framing_errors``, ``bad_replies``) and skipped.
 - ``close()`` sends STOP_ALL and waits briefly for its ACK; on a dead device it logs
   a warning instead of raising (the device's own failsafe turns the motors off).
+  Belts still open at interpreter exit are closed by an ``atexit`` hook.
 
 Imports the standard library, NumPy (through Belt) and tactorbelt.devices.wire; never
 pyserial or bleak (those live in the transports).
