@@ -357,7 +357,7 @@ def paired_figure(per_participant: pd.DataFrame) -> bytes:
         ys = w.to_numpy(dtype=float)
         segs = np.stack([np.column_stack([xs[:, 0], ys[:, 0]]),
                          np.column_stack([xs[:, 1], ys[:, 1]])], axis=1)
-        alpha = float(np.clip(6.0 / np.sqrt(n), 0.05, 0.6))
+        alpha = float(np.clip(4.0 / np.sqrt(n), 0.04, 0.6))
         ax.add_collection(LineCollection(list(segs), colors="#777777", linewidths=0.8,
                                          alpha=alpha))
         for i, cond in enumerate(CONDITIONS):
