@@ -158,3 +158,17 @@ def test_without_an_adapter_ble_fails_with_a_device_error() -> None:
     # On this machine there is no adapter (or no belt in range): never a traceback.
     with pytest.raises(DeviceError):
         open_belt("ble:tactorbelt-not-here", scan_timeout_s=0.5)
+
+
+def test_uuids_and_name_match_the_firmware_sketch() -> None:
+    import re
+    from pathlib import Path
+
+    sketch = Path(__file__).resolve().parents[1] / "firmware" / "tactorbelt" / "tactorbelt.ino"
+    if not sketch.is_file():
+        pytest.skip("no firmware sketch in this tree")
+    consts = dict(re.findall(r'const char (k\w+)\[\] = "([^"]+)";', sketch.read_text()))
+    assert consts["kServiceUuid"] == ble.SERVICE_UUID
+    assert consts["kRxUuid"] == ble.RX_CHAR_UUID
+    assert consts["kTxUuid"] == ble.TX_CHAR_UUID
+    assert consts["kDeviceName"] == ble.DEVICE_NAME
