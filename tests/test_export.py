@@ -112,6 +112,7 @@ def test_bids_label() -> None:
 def test_export_of_a_missing_or_foreign_file(tmp_path: Path) -> None:
     with pytest.raises(StoreError, match="no such store"):
         export_csv(tmp_path / "nope.sqlite", tmp_path / "out")
+    assert not (tmp_path / "out").exists()
     bad = tmp_path / "bad.sqlite"
     bad.write_text("hello")
     with pytest.raises(StoreError, match="not an SQLite"):

@@ -39,7 +39,7 @@ TRIAL_COLUMNS = [
     "participant", "session_id", "session_number", "trial_id", "trial_index", "block",
     "block_index", "block_name", "condition", "repetition", "target_deg", "on_tactor",
     "response_deg", "response_target_deg", "correct", "rt_s", "onset_ns", "acquired_ns",
-    "stimulus_off_ns", "n_samples", "status", "attempts",
+    "crossed_ns", "stimulus_off_ns", "n_samples", "status", "abort_reason", "attempts",
 ]
 SAMPLE_COLUMNS = ["participant", "session_id", "trial_index", "t_s", "x", "y", "buttons"]
 SESSION_COLUMNS = [
@@ -118,8 +118,8 @@ def export_csv(db: str | Path, out: str | Path) -> list[Path]:
     Raises:
         StoreError: the store cannot be read. ConfigError: ``out`` is not usable.
     """
-    o = _prepare(out)
     with _open(db) as store:
+        o = _prepare(out)
         c = store.conn
         try:
             files = [o / "sessions.csv", o / "trials.csv", o / "samples.csv"]
@@ -177,9 +177,9 @@ def export_bids(db: str | Path, out: str | Path) -> list[Path]:
     """
     from .. import __version__
 
-    o = _prepare(out)
     written: list[Path] = []
     with _open(db) as store:
+        o = _prepare(out)
         sessions = store.sessions()
         labels: dict[str, str] = {}
         for s in sessions:
