@@ -124,6 +124,28 @@ def test_vibration_state_carries_over_between_queries() -> None:
     np.testing.assert_allclose(joined, whole, atol=1e-12)
 
 
+def test_queries_as_time_goes_by_match_one_query_afterwards() -> None:
+    # each query leaves a checkpoint between commands; later queries start from it
+    belt, clock = sim()
+    ref, ref_clock = sim()
+    stim = make_stimulus(belt.layout, 100.0, "dynamic")
+    for b in (belt, ref):
+        b.play(stim)
+    step = 37 * MS + 123
+    times, got = [], []
+    for k in range(40):
+        clock.advance(step)
+        if k == 20:
+            belt.set_amplitudes([0, 0.3, 0.9, 0, 0, 0])
+            ref_clock.advance(21 * step)
+            ref.set_amplitudes([0, 0.3, 0.9, 0, 0, 0])
+        t, v = belt.vibration(k * step, (k + 1) * step)
+        times.append(t)
+        got.append(v)
+    np.testing.assert_allclose(np.concatenate(got), ref.vibration_at(np.concatenate(times)),
+                               atol=1e-12)
+
+
 def test_streamed_frames_and_rendered_stimulus_give_the_same_vibration() -> None:
     stim = make_stimulus(Layout.even(6), 45.0, "dynamic")
     a, ca = sim()

@@ -459,7 +459,8 @@ class SimBelt(Belt):
         last = self._row_in_force(t_b)
         if last < first:
             return np.zeros(0, dtype=np.int64)
-        parts: list[IntArray] = [self._t[first : last + 1]]
+        row_t = self._t[first : last + 1]
+        parts: list[IntArray] = [row_t[row_t > t_a]]
         rids = self._rid[first : last + 1]
         for off in np.flatnonzero(rids >= 0).tolist():
             row = first + off
