@@ -60,6 +60,8 @@ RENDER_TICK_NS: Final = 1_000_000
 _PRUNE_SLACK_NS: Final = 1_000_000_000
 #: A step's decay exponent is capped here: exp(-300) is zero for every purpose.
 _MAX_DECAY: Final = 300.0
+#: Speed differences below this are ties for the rise/fall choice.
+_TIE: Final = 1e-12
 #: Fixed-point iterations for the rise/fall choice before finishing step by step.
 _MAX_ITERATIONS: Final = 12
 #: Rendered one-period tables kept per belt (a study uses a few dozen stimuli).
@@ -303,8 +305,12 @@ def erm_speed(t_ns: IntArray, levels: FloatArray, w0: FloatArray,
     for _ in range(_MAX_ITERATIONS):
         k = np.where(rising, k_rise, k_fall)
         w = _linear_recurrence(start, -k, np.where(rising, g_rise, g_fall) * u, blocks)
-        new_rising = u > w[:, :-1]
-        if np.array_equal(new_rising, rising):
+        gap = u - w[:, :-1]
+        new_rising = gap > 0.0
+        changed = new_rising != rising
+        # a choice that flips where the speed already equals its target (to 1e-12) changes
+        # the result by less than 1e-14: such near-ties count as settled
+        if not np.any(changed & (np.abs(gap) > _TIE)):
             break
         rising = new_rising
     else:
