@@ -11,7 +11,10 @@ prints one JSON object:
 - ``player_p99_vs_sleep_loop``: their ratio (goal: at most 0.2);
 - ``sleep_loop_interval_p99_ms``: the naive loop's p99 of (interval - period), a
   fairer view of its jitter that ignores the drift;
-- ``player_missed``, ``player_frames``, ``player_p50_ms``, ``player_max_ms``.
+- ``player_missed``, ``player_frames``, ``player_p50_ms``, ``player_max_ms``;
+- ``sim_vibration_session_s``: total time of ``SimBelt.vibration`` over 2 s of stimulus
+  for each of 264 trials (a paper session) on a SimClock, as the model participant
+  calls it; ``sim_vibration_call_ms`` per call.
 
 Run alone: ``.venv/bin/python benchmarks/bench_player.py [--seconds 10] [--spin-us N]``.
 """
@@ -44,6 +47,31 @@ def naive_loop(belt, stimulus, seconds: float, rate: float) -> tuple[float, floa
     return float(np.percentile(err, 99)), float(np.percentile(interval, 99))
 
 
+def sim_vibration_session(trials: int = 264) -> float:
+    """Seconds spent in SimBelt.vibration for a paper session on a SimClock."""
+    from tactorbelt.clock import SimClock
+    from tactorbelt.devices.sim import open_sim
+    from tactorbelt.geometry import Layout
+    from tactorbelt.stimuli import make_stimulus
+
+    clock = SimClock()
+    layout = Layout.even(6)
+    stimuli = [make_stimulus(layout, k * 15.0, mode) for k in range(24)
+               for mode in ("static", "dynamic")]
+    spent = 0.0
+    with open_sim("", clock=clock) as belt:
+        for k in range(trials):
+            clock.advance(1_500_000_000)  # inter-trial interval and going home
+            onset = clock.now_ns()
+            belt.play(stimuli[k % len(stimuli)], 3.0)
+            clock.advance(2_000_000_000)  # the response comes after 2 s
+            belt.stop()
+            t0 = time.perf_counter()
+            belt.vibration(onset, onset + 2_000_000_000)
+            spent += time.perf_counter() - t0
+    return spent
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seconds", type=float, default=10.0)
@@ -65,6 +93,7 @@ def main() -> None:
         stats = player.play(stimulus, args.seconds)
     with open_sim("", clock=clock) as belt:
         naive_p99, naive_interval_p99 = naive_loop(belt, stimulus, args.seconds, args.rate)
+    sim_s = sim_vibration_session()
     out = {
         "player_p99_ms": round(stats.deadline_error_p99_ms, 4),
         "sleep_loop_p99_ms": round(naive_p99, 4),
@@ -75,6 +104,8 @@ def main() -> None:
         "player_max_ms": round(stats.deadline_error_max_ms, 4),
         "player_frames": stats.frames,
         "player_missed": stats.missed,
+        "sim_vibration_session_s": round(sim_s, 4),
+        "sim_vibration_call_ms": round(sim_s / 264 * 1e3, 4),
     }
     print(json.dumps(out))
 
