@@ -241,3 +241,20 @@ def test_stats_to_dict_has_the_documented_keys() -> None:
     assert set(stats.to_dict()) == {"frames", "missed", "deadline_error_p50_ms",
                                     "deadline_error_p99_ms", "deadline_error_max_ms",
                                     "onset_ns"}
+
+
+def test_device_switch_restarts_on_the_device_for_the_rest_of_the_duration() -> None:
+    clock = SimClock()
+    belt = open_sim("", clock=clock)
+    player = Player(belt)
+    player.start(DYNAMIC, 2.0)
+    clock.advance(500 * MS)
+    other = make_stimulus(LAYOUT, 100.0, "static")
+    player.switch(other)
+    cmds = belt.commands()
+    assert [c.t_ns for c in cmds] == [0, 500 * MS]
+    assert cmds[1].stimulus == other and cmds[1].end_ns == 2 * S
+    assert player.playing
+    clock.advance(1500 * MS)
+    assert not player.playing
+    assert np.all(belt.levels == 0.0)
