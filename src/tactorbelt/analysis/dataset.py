@@ -25,7 +25,7 @@ class StoreData:
     Attributes:
         paths: the store files, in the order given (duplicates removed).
         sessions: one row per session. ``store`` is the index into ``paths``;
-            ``session_key`` (``"<store>:<session_id>"``) is unique across stores.
+            ``session_key`` (``"<store file name>#<session_id>"``) is unique across stores.
         trials: one row per trial with its session's ``participant`` and
             ``session_key``; ``on_tactor`` is bool; ``correct``, ``rt_s``,
             ``response_deg`` and ``response_target_deg`` are floats (NaN for NULL);

@@ -100,6 +100,17 @@ def _no_data(ax: Any, text: str) -> None:
             color=TEXT_GREY, fontsize=10, wrap=True)
 
 
+def _on_grid(d: pd.DataFrame, grid: np.ndarray) -> pd.DataFrame:
+    """Rows of ``d`` on every target of ``grid`` (NaN where a target has no data).
+
+    Lines then break at targets without data instead of joining across them.
+    """
+    keys = np.unique(np.round(np.concatenate([grid, d["target_deg"].to_numpy(dtype=float)]), 6))
+    out = d.assign(target_deg=np.round(d["target_deg"].to_numpy(dtype=float), 6))
+    out = out.drop_duplicates("target_deg").set_index("target_deg").reindex(keys)
+    return out.rename_axis("target_deg").reset_index()
+
+
 def fig1b(design: StudyDesign, directions: pd.DataFrame, *, title: str | None = None) -> bytes:
     """The paper's Fig. 1(B): amplitudes, accuracy and median RT per direction."""
     fig = _figure(9.0, 8.4)
@@ -138,9 +149,10 @@ def fig1b(design: StudyDesign, directions: pd.DataFrame, *, title: str | None = 
     _style(ax_amp)
 
     for cond in CONDITIONS:
-        d = directions.loc[directions["condition"] == cond].sort_values("target_deg")
+        d = directions.loc[directions["condition"] == cond]
         if d.empty:
             continue
+        d = _on_grid(d, tg)
         kw: dict[str, Any] = {
               "color": COLORS[cond], "marker": MARKERS[cond], "linestyle": LINESTYLES[cond],
               "markersize": 4.5, "linewidth": 1.4, "label": cond}
@@ -150,8 +162,7 @@ def fig1b(design: StudyDesign, directions: pd.DataFrame, *, title: str | None = 
                             capsize=2, elinewidth=0.8, **kw)
         else:
             ax_acc.plot(d["target_deg"], d["accuracy"], **kw)
-        rt = d.loc[d["median_rt_s"].notna()]
-        ax_rt.plot(rt["target_deg"], rt["median_rt_s"], **kw)
+        ax_rt.plot(d["target_deg"], d["median_rt_s"], **kw)
     if directions.empty:
         _no_data(ax_acc, "no counted test trials")
         _no_data(ax_rt, "no counted test trials")
@@ -181,24 +192,26 @@ def fig1b(design: StudyDesign, directions: pd.DataFrame, *, title: str | None = 
     return _png(fig)
 
 
-def polar_figure(directions: pd.DataFrame) -> bytes:
+def polar_figure(directions: pd.DataFrame, targets: np.ndarray | None = None) -> bytes:
     """Accuracy and mean signed error per direction, front up, clockwise."""
-    fig = _figure(9.0, 4.8)
+    fig = _figure(9.0, 5.2)
     ax_acc: Any = fig.add_subplot(1, 2, 1, projection="polar")
     ax_err: Any = fig.add_subplot(1, 2, 2, projection="polar")
     emax = 10.0
+    grid = np.asarray([] if targets is None else targets, dtype=float)
     for cond in CONDITIONS:
-        d = directions.loc[directions["condition"] == cond].sort_values("target_deg")
+        d = directions.loc[directions["condition"] == cond]
         if d.empty:
             continue
+        d = _on_grid(d, grid)
         th = np.deg2rad(np.append(d["target_deg"].to_numpy(), d["target_deg"].iloc[0]))
         acc = np.append(d["accuracy"].to_numpy(), d["accuracy"].iloc[0])
         kw: dict[str, Any] = {
               "color": COLORS[cond], "marker": MARKERS[cond], "linestyle": LINESTYLES[cond],
               "markersize": 3.5, "linewidth": 1.3, "label": cond}
         ax_acc.plot(th, acc, **kw)
-        e = d[["target_deg", "mean_signed_error_deg"]].dropna()
-        if not e.empty:
+        e = d[["target_deg", "mean_signed_error_deg"]]
+        if e["mean_signed_error_deg"].notna().any():
             the = np.deg2rad(np.append(e["target_deg"].to_numpy(), e["target_deg"].iloc[0]))
             err = np.append(e["mean_signed_error_deg"].to_numpy(),
                             e["mean_signed_error_deg"].iloc[0])
@@ -214,14 +227,14 @@ def polar_figure(directions: pd.DataFrame) -> bytes:
         ax.tick_params(axis="y", labelsize=7, colors=TEXT_GREY)
     ax_acc.set_ylim(0, 1)
     ax_acc.set_rticks([0.25, 0.5, 0.75, 1.0])
-    ax_acc.set_title("Accuracy per direction\n(radius: proportion correct)", fontsize=10)
+    ax_acc.set_title("Accuracy per direction\n(radius: proportion correct)", fontsize=10, pad=14)
     ax_err.set_ylim(-lim, lim)
     ax_err.set_rticks([-lim, -lim / 2, 0, lim / 2, lim],
                       [f"{-lim:g}°", f"{-lim / 2:g}°", "0°", f"+{lim / 2:g}°", f"+{lim:g}°"])
     zero = np.linspace(0, 2 * np.pi, 200)
     ax_err.plot(zero, np.zeros_like(zero), color="black", linewidth=0.9, zorder=1)
     ax_err.set_title("Mean signed error per direction\n(black circle: 0; outward: clockwise)",
-                     fontsize=10)
+                     fontsize=10, pad=14)
     if directions.empty:
         _no_data(ax_acc, "no counted test trials")
     else:
@@ -240,6 +253,8 @@ def confusion_figure(confusion: dict[str, pd.DataFrame], on_tactor: set[float]) 
         m = confusion.get(cond)
         if m is None or m.to_numpy().sum() == 0:
             _no_data(ax, f"no {cond} test trials")
+            ax.set_xticks([])
+            ax.set_yticks([])
             ax.set_title(cond, color=COLORS[cond], fontsize=11, fontweight="bold")
             continue
         counts = m.to_numpy(dtype=float)
@@ -314,7 +329,8 @@ def trajectory_figure(samples: pd.DataFrame, trials: pd.DataFrame,
             ax.plot(np.sin(t) * 1.08, np.cos(t) * 1.08, "*", color=COLORS[cond],
                     markersize=11, markeredgecolor="black", markeredgewidth=0.4)
         if drawn == 0:
-            _no_data(ax, "no cursor samples\nfor these trials")
+            ax.text(0.5, 0.62, f"no {cond} trial\nwith cursor samples", transform=ax.transAxes,
+                    ha="center", va="center", color=TEXT_GREY, fontsize=10)
         ax.set_aspect("equal")
         ax.set_xlim(-1.3, 1.3)
         ax.set_ylim(-1.3, 1.3)
@@ -324,7 +340,7 @@ def trajectory_figure(samples: pd.DataFrame, trials: pd.DataFrame,
         ax.set_xlabel("x (ellipse radii; + = right)", fontsize=8)
         ax.set_ylabel("y (ellipse radii; + = front)", fontsize=8)
         who = sorted(sel["participant"].astype(str).unique().tolist())
-        ax.set_title(f"{cond}: {drawn} trial(s)" + (f", {', '.join(who[:2])}" if who else "")
+        ax.set_title(f"{cond}: {drawn} trial(s)" + (f", {', '.join(who[:2])}" if drawn else "")
                      + "\n★ = target shown", fontsize=9.5, color=COLORS[cond])
     handles, labels = axes[0].get_legend_handles_labels()
     fig.legend(handles[:2], labels[:2], loc="outside lower center", ncols=2, fontsize=8,
@@ -400,7 +416,7 @@ def make_figures(summary: Summary, samples: pd.DataFrame | None = None,
            summary.trials.loc[summary.trials["on_tactor"], "target_deg"].unique()}
     figs = {
         "fig1b.png": fig1b(summary.design, summary.directions),
-        "polar.png": polar_figure(summary.directions),
+        "polar.png": polar_figure(summary.directions, summary.design.targets.angles),
         "confusion.png": confusion_figure(summary.confusion, on),
     }
     if samples is not None and sample_trials is not None:

@@ -24,7 +24,7 @@ from .dataset import StoreData
 if TYPE_CHECKING:
     import pandas as pd
 
-__all__ = ["REQUIRED_COLUMNS", "StoreData", "load_samples", "load_stores"]
+__all__ = ["REQUIRED_COLUMNS", "StoreData", "load_samples", "load_stores", "store_labels"]
 
 #: Columns each table must have (DESIGN.md, "Data store"). More are welcome.
 REQUIRED_COLUMNS: Final[dict[str, tuple[str, ...]]] = {
@@ -134,13 +134,25 @@ def _read_store(path: Path, store: int) -> tuple[pd.DataFrame, pd.DataFrame]:
     return sessions, trials
 
 
-def _tidy(sessions: pd.DataFrame, trials: pd.DataFrame,
+def store_labels(paths: Sequence[Path]) -> list[str]:
+    """Short, unique names for the stores: the file name, or more of the path if needed."""
+    names = [p.name for p in paths]
+    if len(set(names)) == len(names):
+        return names
+    longer = [f"{p.parent.name}/{p.name}" for p in paths]
+    if len(set(longer)) == len(longer):
+        return longer
+    return [f"{i}:{p.name}" for i, p in enumerate(paths)]
+
+
+def _tidy(sessions: pd.DataFrame, trials: pd.DataFrame, labels: list[str],
           notes: list[str]) -> tuple[pd.DataFrame, pd.DataFrame]:
     import numpy as np
     import pandas as pd
 
     sessions = sessions.copy()
-    sessions["session_key"] = (sessions["store"].astype(str) + ":"
+    label = pd.Series(labels, dtype="string")
+    sessions["session_key"] = (label.iloc[sessions["store"].to_numpy()].to_numpy() + "#"
                                + sessions["session_id"].astype(str))
     sessions["participant"] = sessions["participant"].astype(str)
     for c in ("status", "belt", "study_name", "study_sha256", "firmware_version",
@@ -164,7 +176,8 @@ def _tidy(sessions: pd.DataFrame, trials: pd.DataFrame,
         sessions = sessions.loc[~dup].reset_index(drop=True)
 
     trials = trials.copy()
-    trials["session_key"] = trials["store"].astype(str) + ":" + trials["session_id"].astype(str)
+    trials["session_key"] = (label.iloc[trials["store"].to_numpy()].to_numpy() + "#"
+                             + trials["session_id"].astype(str))
     orphan = ~trials["session_key"].isin(sessions["session_key"])
     if orphan.any():
         n_dup = int(orphan.sum())
@@ -236,7 +249,7 @@ def load_stores(paths: Sequence[str | Path]) -> StoreData:
             f"the stores hold no session ({', '.join(str(p) for p in unique)}); nothing "
             "to analyse"
         )
-    sessions, trials = _tidy(sessions, trials, notes)
+    sessions, trials = _tidy(sessions, trials, store_labels(unique), notes)
     return StoreData(paths=unique, sessions=sessions, trials=trials, notes=notes)
 
 

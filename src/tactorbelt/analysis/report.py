@@ -76,7 +76,9 @@ def _fmt(v: Any, digits: int = 3, *, missing: str = "n/a") -> str:
     """A number for a table; ``missing`` (a word, never NaN) when there is none."""
     if not _finite(v):
         return missing
-    f = float(v)
+    f = float(v) + 0.0  # no "-0.000"
+    if round(f, digits) == 0:
+        f = 0.0
     if f != 0 and (abs(f) < 10 ** -(digits) or abs(f) >= 1e6):
         return f"{f:.{digits}g}"
     return f"{f:.{digits}f}"
@@ -292,7 +294,10 @@ def render_html(summary: Summary, figures: dict[str, bytes], *,
     d = summary.directions
     if len(d):
         rows = []
-        for r in d.sort_values(["condition", "target_deg"]).itertuples(index=False):
+        order = {k: i for i, k in enumerate(CONDITIONS)}
+        d = d.sort_values(["condition", "target_deg"],
+                          key=lambda col: col.map(order) if col.name == "condition" else col)
+        for r in d.itertuples(index=False):
             rows.append([f'<span class="{r.condition}">{_e(r.condition)}</span>',
                          f"{r.target_deg:g}", "yes" if r.on_tactor else "no", _int(r.n),
                          _pct(r.accuracy), _fmt(r.median_rt_s, missing="all timed out"),
@@ -467,8 +472,12 @@ def analyze(paths: Sequence[str | Path], out: str | Path, *, seed: int = 0,
     tick("reading sample trajectories")
     chosen = choose_sample_trials(summary, seed=seed)
     samples = load_samples(data, chosen) if len(chosen) else None
+    if samples is not None and samples.empty:
+        summary.notes.append("no cursor samples are stored for the sample trials; the "
+                             "trajectory figure is left out")
+        samples = None
     tick("drawing figures")
-    figures = make_figures(summary, samples, chosen if len(chosen) else None)
+    figures = make_figures(summary, samples, chosen if samples is not None else None)
     tick("writing the report")
     try:
         out.mkdir(parents=True, exist_ok=True)

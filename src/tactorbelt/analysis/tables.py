@@ -96,7 +96,8 @@ def _circ_from_sums(s: np.ndarray, c: np.ndarray, n: np.ndarray) -> tuple[np.nda
     with np.errstate(invalid="ignore", divide="ignore"):
         mean = np.where(n > 0, wrap(np.rad2deg(np.arctan2(s, c))), np.nan)
         r = np.clip(np.hypot(s, c) / n, 0.0, 1.0)
-        sd = np.where(n > 0, np.rad2deg(np.sqrt(-2.0 * np.log(r))), np.nan)
+        sd = np.where(n > 0, np.rad2deg(np.sqrt(np.maximum(-2.0 * np.log(r), 0.0))) + 0.0,
+                      np.nan)
     return mean, sd
 
 
@@ -112,7 +113,7 @@ def circ_stats(errors_deg: np.ndarray) -> tuple[float, float]:
     if e.size == 0:
         return float("nan"), float("nan")
     m = float(wrap(circmean(e, high=180.0, low=-180.0)))
-    sd = float(circstd(e, high=180.0, low=-180.0))
+    sd = float(circstd(e, high=180.0, low=-180.0)) + 0.0
     return m, sd
 
 
