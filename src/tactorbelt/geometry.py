@@ -79,6 +79,7 @@ class Layout:
 
     angles_deg: tuple[float, ...]
     _sorted_idx: tuple[int, ...] = field(init=False, repr=False, compare=False)
+    _cache: dict[str, Any] = field(init=False, repr=False, compare=False, hash=False)
 
     def __post_init__(self) -> None:
         angles = tuple(float(normalize(a)) for a in self.angles_deg)
@@ -99,6 +100,17 @@ class Layout:
                 )
         object.__setattr__(self, "angles_deg", angles)
         object.__setattr__(self, "_sorted_idx", tuple(order))
+        # Derived arrays, computed once (read-only): the laws use them on every frame.
+        arr = np.array(angles, dtype=float)
+        idx = np.array(order)
+        cw = np.empty(len(order), dtype=np.intp)
+        ccw = np.empty(len(order), dtype=np.intp)
+        cw[idx] = np.roll(idx, -1)
+        ccw[idx] = np.roll(idx, 1)
+        gaps = np.mod(arr[cw] - arr, 360.0)
+        for a in (arr, cw, ccw, gaps):
+            a.setflags(write=False)
+        object.__setattr__(self, "_cache", {"angles": arr, "cw": cw, "ccw": ccw, "gaps": gaps})
 
     @classmethod
     def even(cls, n: int = 6) -> Layout:
@@ -131,8 +143,8 @@ class Layout:
 
     @property
     def angles(self) -> FloatArray:
-        """Tactor angles as a NumPy array (a fresh copy)."""
-        return np.array(self.angles_deg, dtype=float)
+        """Tactor angles as a read-only NumPy array."""
+        return self._cache["angles"]
 
     @property
     def is_even(self) -> bool:
@@ -141,19 +153,12 @@ class Layout:
         return bool(np.allclose(gaps, 360.0 / self.n, atol=1e-9))
 
     def gaps_deg(self) -> FloatArray:
-        """Clockwise gap from each tactor to its clockwise neighbour, by tactor index."""
-        cw, _ = self.neighbour_indices()
-        return np.asarray(np.mod(self.angles[cw] - self.angles, 360.0))
+        """Clockwise gap from each tactor to its clockwise neighbour (read-only), by index."""
+        return self._cache["gaps"]
 
     def neighbour_indices(self) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
         """For each tactor, the index of its clockwise and counter-clockwise neighbours."""
-        order = np.array(self._sorted_idx)
-        n = self.n
-        cw = np.empty(n, dtype=np.intp)
-        ccw = np.empty(n, dtype=np.intp)
-        cw[order] = np.roll(order, -1)
-        ccw[order] = np.roll(order, 1)
-        return cw, ccw
+        return self._cache["cw"], self._cache["ccw"]
 
     def neighbours(self, angle: ArrayLike) -> tuple[Any, Any]:
         """The two tactors that bracket each angle.
