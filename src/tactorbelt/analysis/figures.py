@@ -158,8 +158,11 @@ def fig1b(design: StudyDesign, directions: pd.DataFrame, *, title: str | None = 
               "markersize": 4.5, "linewidth": 1.4, "label": cond}
         se = d["accuracy_se"].to_numpy(dtype=float) if "accuracy_se" in d else None
         if se is not None and np.isfinite(se).any():
-            ax_acc.errorbar(d["target_deg"], d["accuracy"], yerr=np.nan_to_num(se),
-                            capsize=2, elinewidth=0.8, **kw)
+            acc = d["accuracy"].to_numpy(dtype=float)
+            se = np.nan_to_num(se)
+            yerr = np.vstack([np.minimum(se, np.nan_to_num(acc)),
+                              np.minimum(se, 1.0 - np.nan_to_num(acc))])  # stay in [0, 1]
+            ax_acc.errorbar(d["target_deg"], acc, yerr=yerr, capsize=2, elinewidth=0.8, **kw)
         else:
             ax_acc.plot(d["target_deg"], d["accuracy"], **kw)
         ax_rt.plot(d["target_deg"], d["median_rt_s"], **kw)
@@ -171,12 +174,13 @@ def fig1b(design: StudyDesign, directions: pd.DataFrame, *, title: str | None = 
     several = "accuracy_se" in directions and np.isfinite(
         directions["accuracy_se"].to_numpy(dtype=float)).any()
     ax_acc.set_title("Recognition accuracy per direction" +
-                     (" (pooled; bars: SE across participants)" if several else "")
-                     + "; grey bands: on-tactor targets", fontsize=9.5, loc="left")
+                     (" (bars: SE across participants)" if several else ""),
+                     fontsize=9.5, loc="left")
     ax_rt.set_ylabel("median RT (s)")
     ax_rt.set_title("Time from stimulus onset to target acquisition (median)",
                     fontsize=9.5, loc="left")
-    ax_rt.set_xlabel("target direction (degrees clockwise from the navel)")
+    ax_rt.set_xlabel("target direction (degrees clockwise from the navel); "
+                     "grey bands: on-tactor targets")
     for ax in (ax_acc, ax_rt):
         _style(ax)
         if not directions.empty:

@@ -256,4 +256,6 @@ def training_summary(tr: pd.DataFrame) -> pd.DataFrame:
     if t.empty:
         return pd.DataFrame(columns=["condition", "n", "accuracy"])
     g = t.groupby("condition", sort=True)["is_correct"]
-    return g.agg(n="size", accuracy="mean").reset_index()
+    out = g.agg(n="size", accuracy="mean").reset_index()
+    order = {k: i for i, k in enumerate(CONDITIONS)}
+    return out.sort_values("condition", key=lambda c: c.map(order).fillna(len(order)))

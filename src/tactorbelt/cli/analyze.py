@@ -56,7 +56,9 @@ def analyze(db: tuple[Path, ...], out: Path | None, seed: int) -> None:
             bar.update(task, description=what, completed=done, total=total)
 
         summary = run_analysis(list(db), out_dir, seed=seed, progress=progress)
-    _print(summary, Console())
+    out_console = Console()
+    _print(summary, out_console)
     for note in summary.notes:
-        err.print(f"note: {note}", highlight=False)
-    click.echo(f"report: {(out_dir / 'report.html').resolve()}")
+        out_console.print(f"note: {note}", highlight=False, markup=False)
+    out_console.print(f"report: {(out_dir / 'report.html').resolve()}", highlight=False,
+                      markup=False, soft_wrap=True)
