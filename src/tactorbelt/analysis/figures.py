@@ -169,6 +169,10 @@ def fig1b(design: StudyDesign, directions: pd.DataFrame, *, title: str | None = 
     if directions.empty:
         _no_data(ax_acc, "no counted test trials")
         _no_data(ax_rt, "no counted test trials")
+    elif not directions["median_rt_s"].notna().any():
+        _no_data(ax_rt, "no answered trial: every counted trial timed out")
+    if not directions["median_rt_s"].notna().any() if len(directions) else True:
+        ax_rt.set_ylim(0, 1)
     ax_acc.set_ylabel("accuracy")
     ax_acc.set_ylim(-0.03, 1.05)
     several = "accuracy_se" in directions and np.isfinite(
@@ -239,6 +243,9 @@ def polar_figure(directions: pd.DataFrame, targets: np.ndarray | None = None) ->
     ax_err.plot(zero, np.zeros_like(zero), color="black", linewidth=0.9, zorder=1)
     ax_err.set_title("Mean signed error per direction\n(black circle: 0; outward: clockwise)",
                      fontsize=10, pad=14)
+    if len(directions) and not directions["mean_signed_error_deg"].notna().any():
+        ax_err.text(0.5, 0.3, "no answered trial", transform=ax_err.transAxes, ha="center",
+                    color=TEXT_GREY, fontsize=10)
     if directions.empty:
         _no_data(ax_acc, "no counted test trials")
     else:

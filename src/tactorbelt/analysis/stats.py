@@ -496,6 +496,9 @@ class Summary:
                 }
                 if int(r["n"]) == 0:
                     entry[kind]["note"] = "no counted test trials"
+                elif int(r["n_rt"]) == 0:
+                    entry[kind]["note"] = ("every counted trial timed out: no response time "
+                                           "and no error")
             conditions[cond] = entry
         return {
             "tactorbelt_analysis": 1,
