@@ -56,7 +56,8 @@ __all__ = ["DEFAULT_HORIZON_S", "ErmParams", "SimBelt", "SimCommand", "open_sim"
 DEFAULT_HORIZON_S: Final = 120.0
 #: The sim belt renders played stimuli at 1 kHz, like the firmware.
 RENDER_TICK_NS: Final = 1_000_000
-#: History is pruned in steps of at least this much (or an eighth of the horizon).
+#: History is pruned in steps of at least this much (or an eighth of the horizon), at a
+#: checkpoint, so pruning replays nothing.
 _PRUNE_SLACK_NS: Final = 1_000_000_000
 #: A step's decay exponent is capped here: exp(-300) is zero for every purpose.
 _MAX_DECAY: Final = 300.0
@@ -64,6 +65,8 @@ _MAX_DECAY: Final = 300.0
 _TIE: Final = 1e-12
 #: Fixed-point iterations for the rise/fall choice before finishing step by step.
 _MAX_ITERATIONS: Final = 12
+#: A checkpoint is taken at least every this many commands (cheap: ~0.3 ms each).
+_CHECKPOINT_EVERY: Final = 256
 #: Rendered one-period tables kept per belt (a study uses a few dozen stimuli).
 _MAX_TABLES: Final = 128
 #: Checkpoints of the motor state kept to start later simulations from.
@@ -387,6 +390,8 @@ class SimBelt(Belt):
         self._pruned = False
         self._ck_t: list[int] = []
         self._ck_w: list[FloatArray] = []
+        self._ck_spacing_ns = max(1, self._horizon_ns // 32)
+        self._since_ck = 0
 
     # -- Belt backend -----------------------------------------------------------------
     def _write_levels(self, levels: FloatArray) -> None:
@@ -428,6 +433,10 @@ class SimBelt(Belt):
         self._lv[i] = levels
         self._rid[i] = rid
         self._hi += 1
+        self._since_ck += 1
+        if self._since_ck >= _CHECKPOINT_EVERY:
+            # keep a recent state, so later queries and pruning never replay much
+            self._speed_at(np.array([now], dtype=np.int64))
         if (self._hi - self._lo >= 2
                 and int(self._t[self._lo + 1]) < now - self._horizon_ns - self._slack_ns):
             self.prune(now - self._horizon_ns)
@@ -486,6 +495,23 @@ class SimBelt(Belt):
                 parts.append(render.onset_ns + np.arange(k0, k1, dtype=np.int64) * RENDER_TICK_NS)
         return np.concatenate(parts)
 
+    def _add_checkpoint(self, t_ns: int, w: FloatArray) -> None:
+        """Remember the motor state at ``t_ns`` (after every other checkpoint).
+
+        The newest checkpoint is always kept; older ones are kept at least
+        ``_ck_spacing_ns`` apart, so about 32 cover the horizon and pruning always finds
+        one close before its cut.
+        """
+        ck_t, ck_w = self._ck_t, self._ck_w
+        if len(ck_t) >= 2 and ck_t[-1] - ck_t[-2] < self._ck_spacing_ns:
+            ck_t[-1], ck_w[-1] = t_ns, w
+        else:
+            ck_t.append(t_ns)
+            ck_w.append(w)
+        if len(ck_t) > _MAX_CHECKPOINTS:
+            del ck_t[0], ck_w[0]
+        self._since_ck = 0
+
     def _speed_at(self, times: IntArray) -> FloatArray:
         """Modelled motor speed at increasing times (the state carries over exactly)."""
         n = self.n_tactors
@@ -512,10 +538,7 @@ class SimBelt(Belt):
         settled = min(int(self.clock.now_ns()), t_last)
         js = int(np.searchsorted(grid, settled, side="right")) - 1
         if js > 0 and (not self._ck_t or int(grid[js]) > self._ck_t[-1]):
-            self._ck_t.append(int(grid[js]))
-            self._ck_w.append(w[js].copy())
-            if len(self._ck_t) > _MAX_CHECKPOINTS:
-                del self._ck_t[0], self._ck_w[0]
+            self._add_checkpoint(int(grid[js]), w[js].copy())
         return np.asarray(w[np.searchsorted(grid, times)])
 
     # -- public queries -----------------------------------------------------------------
