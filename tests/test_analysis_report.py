@@ -238,3 +238,23 @@ def test_analyze_into_a_file_is_an_error(tmp_path: Path) -> None:
     f.write_text("x")
     code, _, stderr = _run(["analyze", str(db), "--out", str(f)])
     assert code == 2 and "is a file" in stderr
+
+
+def test_all_timed_out_is_said_in_words_not_nan(tmp_path: Path) -> None:
+    db = tmp_path / "timeouts.sqlite"
+    conn = create_store(db)
+    sid = insert_session(conn)
+    rows = [("test", cond, t, int(t % 60 == 30), None, None, None, "timeout")
+            for cond in ("static", "dynamic") for t in (0.0, 15.0, 30.0)]
+    insert_trials(conn, _rows(sid, rows))
+    conn.close()
+    out = tmp_path / "o"
+    analyze([db], out, n_boot=100)
+    j = json.loads((out / "summary.json").read_text())
+    e = j["conditions"]["static"]["between_tactor"]
+    assert e["accuracy"] == 0.0 and e["median_rt_s"] is None and "timed out" in e["note"]
+    text = " ".join(_check_self_contained(out).text)
+    assert "no answered trial" in text
+    t = j["tests"][1]
+    assert t["key"] == "between_rt" and t["computed"] is False
+    assert "no answered trial" in t["reason"]
