@@ -364,6 +364,7 @@ def trajectory_figure(samples: pd.DataFrame, trials: pd.DataFrame,
 def paired_figure(per_participant: pd.DataFrame) -> bytes:
     """Per-participant between-tactor accuracy and median RT, static vs dynamic."""
     from matplotlib.collections import LineCollection
+    from scipy.stats import t as t_dist
 
     fig = _figure(8.0, 4.4)
     axes = fig.subplots(1, 2)
@@ -393,7 +394,8 @@ def paired_figure(per_participant: pd.DataFrame) -> bytes:
                        linewidths=0)
             m = float(np.mean(ys[:, i]))
             se = float(np.std(ys[:, i], ddof=1) / np.sqrt(n)) if n > 1 else 0.0
-            ax.errorbar([i + (0.22 if i else -0.22)], [m], yerr=[1.96 * se], fmt=MARKERS[cond],
+            half = float(t_dist.ppf(0.975, n - 1)) * se if n > 1 else 0.0
+            ax.errorbar([i + (0.22 if i else -0.22)], [m], yerr=[half], fmt=MARKERS[cond],
                         color=COLORS[cond], markersize=8, capsize=4, linewidth=2, zorder=4,
                         markeredgecolor="black")
         ax.plot([-0.22, 1.22], ys.mean(axis=0), color="black", linewidth=1.5, zorder=3)
@@ -405,7 +407,7 @@ def paired_figure(per_participant: pd.DataFrame) -> bytes:
         ax.set_ylabel(label)
         if col == "accuracy":
             ax.set_ylim(-0.03, 1.03)
-        ax.set_title(f"{n} participant(s); large markers: mean ± 95 % CI", fontsize=9)
+        ax.set_title(f"{n} participant(s); large markers: mean ± 95 % CI (t)", fontsize=9)
     fig.suptitle("Per-participant between-tactor performance (lines join one participant)",
                  fontsize=10.5)
     return _png(fig)
