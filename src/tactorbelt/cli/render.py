@@ -9,7 +9,7 @@ from typing import Any
 
 import click
 
-from ._options import build_stimulus, stimulus_options
+from ._options import AngleCommand, build_stimulus, stimulus_options
 
 
 def _write_text(text: str, out: Path | None) -> None:
@@ -21,7 +21,7 @@ def _write_text(text: str, out: Path | None) -> None:
         click.echo(f"wrote {out}", err=True)
 
 
-@click.command(context_settings={"ignore_unknown_options": True})
+@click.command(cls=AngleCommand)
 @click.argument("angle", metavar="ANGLE")
 @stimulus_options
 @click.option("--rate", default="1000", show_default=True,
