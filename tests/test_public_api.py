@@ -43,3 +43,18 @@ def test_every_subcommand_has_help():
                               capture_output=True, text=True)
         assert proc.returncode == 0, (name, proc.stderr)
         assert "Usage:" in proc.stdout
+
+
+def test_belt_refuses_bad_frames_and_durations():
+    import pytest
+
+    from tactorbelt import ConfigError, Layout, make_stimulus, open_belt
+
+    with open_belt("sim") as belt:
+        for bad in ([0.1] * 5, [[0.1] * 3] * 2, [0.1] * 5 + [float("nan")], [0.1] * 5 + [1.5],
+                    "abc"):
+            with pytest.raises(ConfigError):
+                belt.set_amplitudes(bad)
+        with pytest.raises(ConfigError):
+            belt.play(make_stimulus(Layout.even(6), 45.0), duration_s="long")  # type: ignore[arg-type]
+        assert all(v == 0 for v in belt.levels)

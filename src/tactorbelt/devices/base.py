@@ -45,9 +45,11 @@ def check_amplitudes(values: ArrayLike, n: int) -> NDArray[np.float64]:
         ConfigError: wrong count, NaN or infinite values, values outside [0, 1].
     """
     try:
-        a = np.asarray(values, dtype=float).reshape(-1)
+        a = np.asarray(values, dtype=float)
     except (TypeError, ValueError):
         raise ConfigError(f"amplitudes must be {n} numbers in [0, 1], got {values!r}") from None
+    if a.ndim != 1:
+        raise ConfigError(f"amplitudes must be one flat list of {n} numbers, got shape {a.shape}")
     if a.size != n:
         raise ConfigError(f"expected {n} amplitudes (one per tactor), got {a.size}")
     if not np.all(np.isfinite(a)):
@@ -134,8 +136,14 @@ class Belt(ABC):
 
     def play(self, stimulus: Stimulus, duration_s: float | None = None) -> None:
         """Render ``stimulus`` on the device for ``duration_s`` (None: until stopped)."""
-        if duration_s is not None and not (math.isfinite(duration_s) and duration_s > 0):
-            raise ConfigError(f"duration must be positive and finite, got {duration_s!r}")
+        if duration_s is not None:
+            try:
+                ok = math.isfinite(float(duration_s)) and float(duration_s) > 0
+            except (TypeError, ValueError):
+                ok = False
+            if not ok:
+                raise ConfigError(f"duration must be a positive, finite number of seconds, "
+                                  f"got {duration_s!r}")
         if stimulus.layout != self.layout:
             raise ConfigError("the stimulus was made for another layout than this belt's")
         with self._lock:
