@@ -188,7 +188,6 @@ class ExperimentWindow:
         self._sample_times: collections.deque[int] = collections.deque(maxlen=256)
         # what is on screen
         self.screen = "trial"
-        self._modal: tuple[str, list[str]] | None = None
         self.overlay = False
         # commands
         self.user_paused = False
@@ -202,6 +201,9 @@ class ExperimentWindow:
         self._next_frame_ns = 0
         self.frames = 0
         self._stimuli: dict[tuple[float, str], Any] = {}
+        from ..experiment.runner import Command
+
+        self._Command = Command
 
     # ------------------------------------------------------------------------------------
     # cursor
@@ -238,7 +240,6 @@ class ExperimentWindow:
         self.info = info
         self.n_total = info.n_total
         self.n_done = info.n_done
-        self._schedule = schedule
         self._wait_screen("instructions")
 
     def on_block_start(self, block: str, condition: str) -> None:
@@ -294,8 +295,7 @@ class ExperimentWindow:
     # ------------------------------------------------------------------------------------
     # commands
     def _command(self) -> Command | None:
-        from ..experiment.runner import Command
-
+        Command = self._Command
         if self.abort_requested:
             return Command.ABORT
         want = self.user_paused or self.device_paused
@@ -430,7 +430,7 @@ class ExperimentWindow:
                     return
                 self.clock.sleep_until_ns(max(self._next_frame_ns, now + 1))
         finally:
-            self.screen = prev if kind != "end" else kind
+            self.screen = prev
             self._continue = False
 
     def show_end(self, status: str | None = None) -> None:
