@@ -445,3 +445,22 @@ def test_screenshot_dir_gets_every_kind_of_screen(study: Study, tmp_path: Path) 
     assert names == sorted(f"window-{k}.png" for k in SCREEN_KINDS)
     img = pygame.image.load(str(shots / "window-test.png"))
     assert img.get_size() == SIZE
+
+
+# -- the entry point tactorbelt run uses ------------------------------------------------------
+def test_session_window_makes_the_live_sources(study: Study) -> None:
+    from tactorbelt import ConfigError
+    from tactorbelt.gui import session_window
+
+    with session_window(study, input="mouse", clock=SimClock(), size=SIZE) as win:
+        assert isinstance(win.cursor, MouseCursor)
+        assert win.observer is win.window
+    with session_window(study, input="joystick", clock=SimClock(), size=SIZE,
+                        joystick="no such stick") as win:
+        assert isinstance(win.cursor, JoystickCursor)
+        assert not win.cursor.connected  # waits for it (the session would pause)
+    with session_window(study, input="model", clock=SimClock(), size=SIZE) as win:
+        assert win.cursor is None  # the caller makes the model participant
+        assert win.window.auto_continue_s == 2.0
+    with pytest.raises(ConfigError, match="unknown input"):
+        session_window(study, input="keyboard", clock=SimClock())
