@@ -34,23 +34,12 @@ __all__ = ["export", "run"]
 INPUTS = ("joystick", "mouse", "model", "scripted")
 
 
-def _model_cursor(belt: Belt, clock: Clock, seed: int) -> CursorSource:
-    import importlib
+def _model_cursor(belt: Belt, clock: Clock, seed: int, period_s: float) -> CursorSource:
+    """The model participant, timed for the study's dynamic period."""
+    from ..inputs.model import make_model_cursor
+    from ..participant.params import ModelParams
 
-    try:
-        model_mod = importlib.import_module("tactorbelt.inputs.model")
-    except ImportError as exc:
-        if exc.name not in ("tactorbelt.inputs.model", None):
-            raise
-        raise click.UsageError(
-            "the model participant (tactorbelt.inputs.model) is not available in this "
-            "installation; use --input scripted"
-        ) from None
-    make = getattr(model_mod, "make_model_cursor", None)
-    if make is None:
-        raise click.UsageError("tactorbelt.inputs.model has no make_model_cursor()")
-    cursor: CursorSource = make(belt, clock, seed)
-    return cursor
+    return make_model_cursor(belt, clock, seed, params=ModelParams().for_period(period_s))
 
 
 def _window_factory() -> Any:
@@ -183,7 +172,7 @@ def _make_cursor(input_kind: str, study: Study, belt: Belt, clock: Clock,
 
         return ScriptedCursor(answers={t.trial_index: t.target_deg for t in schedule})
     if input_kind == "model":
-        return _model_cursor(belt, clock, _stable_seed(seed, participant))
+        return _model_cursor(belt, clock, _stable_seed(seed, participant), study.stimulus.period_s)
     return None  # joystick / mouse: the window provides it
 
 
