@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import importlib.util
 import os
 import sqlite3
 from pathlib import Path
@@ -230,17 +229,6 @@ def test_headless_needs_model_or_scripted(small: Path, capsys: pytest.CaptureFix
         assert code == 2 and "needs the experiment window" in err
 
 
-@pytest.mark.skipif(importlib.util.find_spec("tactorbelt.inputs.model") is not None,
-                    reason="the model participant is installed")
-def test_model_input_without_the_model_is_a_clear_error(
-        small: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    code, _, err = run_cli(["run", str(small), "-p", "P01", "--headless", "--input", "model",
-                            "--db", str(tmp_path / "s.sqlite")], capsys)
-    assert code == 2 and "model participant" in err
-
-
-@pytest.mark.skipif(importlib.util.find_spec("tactorbelt.inputs.model") is None,
-                    reason="the model participant is not installed")
 def test_model_participant_runs_headless_on_a_sim_clock(
         small: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     db = tmp_path / "s.sqlite"
