@@ -197,7 +197,7 @@ def test_disk_full_mid_session_stops_cleanly_and_resumes(tmp_path: Path) -> None
     with Store.open(db) as store, open_belt("sim", clock=clock) as belt:
         res = run_session(study, "P01", belt, _cursor(study), store, clock, resume=True)
         assert res.status == "complete"
-        assert [r.trial.trial_index for r in res.results][0] == failed
+        assert res.results[0].trial.trial_index == failed
         rows = store.trials()
         assert sorted(r["trial_index"] for r in rows) == list(range(study.n_trials()))
         assert _trial_rows_without_all_samples(store) == 0
