@@ -61,6 +61,9 @@ __all__ = [
 SLOW_TRIAL_ENV = "TACTORBELT_TEST_SLOW_TRIAL_S"
 #: On a simulated clock, a cursor that stays out of the home zone this long is an error.
 SIM_HOME_LIMIT_NS = 600_000_000_000
+#: SessionResult.results keeps the cursor samples of this many most recent trials; older
+#: results drop theirs (they are in the store), so a long session's memory stays flat.
+RESULT_SAMPLES_KEPT = 1000
 
 
 class Command(StrEnum):
@@ -149,7 +152,10 @@ class SessionResult:
         n_total: trials in the schedule.
         n_done: trials with a final outcome (done or timeout), this run and before.
         n_run: trials run by this call (final outcomes only).
-        results: this call's trial results, aborted ones included, in order.
+        results: this call's trial results, aborted ones included, in order. Only the
+            last :data:`RESULT_SAMPLES_KEPT` (1000) keep their cursor samples in memory;
+            older ones have released them (``n_samples`` still counts them; the store
+            holds them all).
     """
 
     session_id: int
@@ -462,6 +468,8 @@ def run_session(
                 time.sleep(slow_s / 2)
             store.write_trial(session_id, result)
             results.append(result)
+            if len(results) > RESULT_SAMPLES_KEPT:
+                results[-RESULT_SAMPLES_KEPT - 1].release_samples()
             obs.on_trial_done(result)
             if result.status == "aborted":  # paused: wait, then run the same trial again
                 obs.on_trial_state(t, TrialState.ABORTED, clock.now_ns())

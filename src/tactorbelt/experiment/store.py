@@ -450,6 +450,9 @@ class Store:
         t = result.trial
         if result.status not in TRIAL_STATUSES:
             raise StoreError(f"unknown trial status {result.status!r}")
+        if result.samples_released:
+            raise StoreError(f"trial {t.trial_index}: its samples were released from memory "
+                             "after it was stored; it cannot be written again")
         try:
             with self._transaction() as c:
                 attempts = 1

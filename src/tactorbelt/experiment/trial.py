@@ -95,7 +95,7 @@ class ResponseRule:
         )
 
 
-@dataclass
+@dataclass(slots=True)
 class TrialResult:
     """What a trial produced; the store writes it in one transaction.
 
@@ -112,6 +112,7 @@ class TrialResult:
         rt_s: (acquired_ns - onset_ns) / 1e9.
         abort_reason: why the trial was aborted.
         sample_t_ns, sample_x, sample_y, sample_buttons: the cursor samples.
+        samples_released: how many samples :meth:`release_samples` dropped.
     """
 
     trial: ScheduledTrial
@@ -129,10 +130,21 @@ class TrialResult:
     sample_x: list[float] = field(default_factory=list)
     sample_y: list[float] = field(default_factory=list)
     sample_buttons: list[int] = field(default_factory=list)
+    #: samples dropped from memory by :meth:`release_samples` (still counted by n_samples)
+    samples_released: int = field(default=0, repr=False)
 
     @property
     def n_samples(self) -> int:
-        return len(self.sample_t_ns)
+        return len(self.sample_t_ns) + self.samples_released
+
+    def release_samples(self) -> None:
+        """Drop the cursor samples from memory once they are stored (long sessions).
+
+        ``n_samples`` still counts them; the store refuses to write such a result again.
+        """
+        self.samples_released += len(self.sample_t_ns)
+        for samples in (self.sample_t_ns, self.sample_x, self.sample_y, self.sample_buttons):
+            samples.clear()
 
     def sample_rows(self) -> list[tuple[float, float, float, int]]:
         """(t_s from onset, x, y, buttons) per sample."""
