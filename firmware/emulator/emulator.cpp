@@ -50,11 +50,12 @@ timespec to_timespec(int64_t ns) {
   return ts;
 }
 
-[[noreturn]] void usage_error(const char* fmt, const char* arg) {
-  fprintf(stderr, "emulator: error: ");
-  fprintf(stderr, fmt, arg);
-  fprintf(stderr, "\nusage: emulator [--tactors N | --tactor-angles A,B,...] [--heartbeat-ms MS]"
-                  " [--max-on-ms MS] [--levels-log FILE]\n");
+constexpr const char kUsage[] =
+    "usage: emulator [--tactors N | --tactor-angles A,B,...] [--heartbeat-ms MS]"
+    " [--max-on-ms MS] [--levels-log FILE]\n";
+
+[[noreturn]] void usage_error(const char* message) {
+  fprintf(stderr, "emulator: error: %s\n%s", message, kUsage);
   exit(2);
 }
 
@@ -63,9 +64,9 @@ long parse_long(const char* text, const char* what, long lo, long hi) {
   errno = 0;
   const long v = strtol(text, &end, 10);
   if (errno != 0 || end == text || *end != '\0' || v < lo || v > hi) {
-    char msg[160];
-    snprintf(msg, sizeof msg, "%s must be an integer in %ld..%ld, got '%%s'", what, lo, hi);
-    usage_error(msg, text);
+    char msg[200];
+    snprintf(msg, sizeof msg, "%s must be an integer in %ld..%ld, got '%s'", what, lo, hi, text);
+    usage_error(msg);
   }
   return v;
 }
@@ -164,13 +165,16 @@ int main(int argc, char** argv) {
   for (int i = 1; i < argc; ++i) {
     const char* a = argv[i];
     const bool has_value = i + 1 < argc;
+    char msg[200];
     if (strcmp(a, "--help") == 0 || strcmp(a, "-h") == 0) {
-      printf("usage: emulator [--tactors N | --tactor-angles A,B,...] [--heartbeat-ms MS]"
-             " [--max-on-ms MS] [--levels-log FILE]\n"
-             "Serves tactorbelt protocol v1 on a pseudo-terminal; prints its path first.\n");
+      printf("%sServes tactorbelt protocol v1 on a pseudo-terminal; prints its path first.\n"
+             "See docs/protocol.md, \"The emulator\".\n", kUsage);
       return 0;
     }
-    if (!has_value) usage_error("%s needs a value", a);
+    if (!has_value) {
+      snprintf(msg, sizeof msg, "%s needs a value", a);
+      usage_error(msg);
+    }
     const char* v = argv[++i];
     if (strcmp(a, "--tactors") == 0) {
       tactors = static_cast<uint8_t>(parse_long(v, "--tactors", 2, tb::kMaxChannels));
@@ -180,11 +184,13 @@ int main(int argc, char** argv) {
       while (*p != '\0') {
         char* end = nullptr;
         const float deg = strtof(p, &end);
-        if (end == p || n_angles == tb::kMaxChannels) usage_error("bad --tactor-angles '%s'", v);
+        const bool bad = end == p || n_angles == tb::kMaxChannels || (*end != ',' && *end != '\0');
+        if (bad) {
+          snprintf(msg, sizeof msg, "--tactor-angles takes 2..16 angles in degrees, got '%s'", v);
+          usage_error(msg);
+        }
         angles[n_angles++] = deg;
-        p = end;
-        if (*p == ',') ++p;
-        else if (*p != '\0') usage_error("bad --tactor-angles '%s'", v);
+        p = *end == ',' ? end + 1 : end;
       }
     } else if (strcmp(a, "--heartbeat-ms") == 0) {
       heartbeat_ms = parse_long(v, "--heartbeat-ms", tb::kMinHeartbeatMs, tb::kMaxHeartbeatMs);
@@ -193,13 +199,14 @@ int main(int argc, char** argv) {
     } else if (strcmp(a, "--levels-log") == 0) {
       log_path = v;
     } else {
-      usage_error("unknown option '%s'", a);
+      snprintf(msg, sizeof msg, "unknown option '%s'", a);
+      usage_error(msg);
     }
   }
 
   tb::Layout layout;
   if (n_angles > 0 ? !layout.set(angles, n_angles) : !layout.set_even(tactors)) {
-    usage_error("%s", "--tactor-angles needs 2..16 distinct finite angles");
+    usage_error("--tactor-angles needs 2..16 distinct finite angles");
   }
   NullMotors motors;
   tb::Controller controller(layout, motors, kPwmSteps);

@@ -14,18 +14,18 @@ Controller::Controller(const Layout& layout, MotorDriver& motors, uint16_t pwm_s
 void Controller::begin(uint64_t now_us) {
   state_ = State::kIdle;
   for (uint8_t k = 0; k < kMaxChannels; ++k) out_[k] = 0;
-  motors_.write(out_, channels());
+  motors_.write(out_, channels());  // off, whatever the driver did before
   update_outputs(now_us);
 }
 
 bool Controller::set_heartbeat_ms(uint16_t ms) {
-  if (ms < kMinHeartbeatMs || ms > kMaxHeartbeatMs) return false;
+  if (!heartbeat_ms_ok(ms)) return false;
   heartbeat_ms_ = ms;
   return true;
 }
 
 bool Controller::set_max_on_ms(uint32_t ms) {
-  if (ms < kMinMaxOnMs || ms > kMaxMaxOnMs) return false;
+  if (!max_on_ms_ok(ms)) return false;
   max_on_ms_ = ms;
   return true;
 }
@@ -67,7 +67,7 @@ void Controller::receive_packet(const uint8_t* raw, size_t n, uint64_t now_us, R
 void Controller::link_closed(uint64_t now_us) {
   decoder_.reset();
   have_seq_ = false;
-  stop(State::kIdle);
+  state_ = State::kIdle;
   update_outputs(now_us);
 }
 
@@ -85,11 +85,6 @@ void Controller::ack(ReplySink& sink, uint8_t seq) {
 void Controller::nak(ReplySink& sink, uint8_t seq, uint8_t code) {
   const uint8_t payload[2] = {seq, code};
   reply(sink, msg::kNak, seq, payload, sizeof payload);
-}
-
-void Controller::stop(State next) {
-  state_ = next;
-  for (uint8_t k = 0; k < kMaxChannels; ++k) stream_[k] = 0;
 }
 
 void Controller::handle(const Packet& p, uint64_t now_us, ReplySink& sink) {
@@ -136,7 +131,7 @@ void Controller::handle(const Packet& p, uint64_t now_us, ReplySink& sink) {
     }
     case msg::kStopAll: {
       if (p.len != 0) return nak(sink, p.seq, nak::kBadLength);
-      stop(State::kIdle);
+      state_ = State::kIdle;
       update_outputs(now_us);
       return ack(sink, p.seq);
     }
@@ -152,7 +147,6 @@ void Controller::handle(const Packet& p, uint64_t now_us, ReplySink& sink) {
       if (!stimulus_.set(layout_, sp)) return nak(sink, p.seq, nak::kOutOfRange);
       play_duration_ms_ = get_u32(p.payload + 10);
       play_start_us_ = now_us;
-      for (uint8_t k = 0; k < n; ++k) stream_[k] = 0;
       state_ = State::kPlaying;
       update_outputs(now_us);
       return ack(sink, p.seq);
@@ -166,11 +160,9 @@ void Controller::handle(const Packet& p, uint64_t now_us, ReplySink& sink) {
         return nak(sink, p.seq, nak::kBadLength);
       }
       const uint16_t hb = get_u16(p.payload);
-      const bool hb_ok = hb >= kMinHeartbeatMs && hb <= kMaxHeartbeatMs;
-      uint32_t max_on = max_on_ms_;
-      if (p.len == kSetConfigPayloadLong) max_on = get_u32(p.payload + 2);
-      const bool max_on_ok = max_on >= kMinMaxOnMs && max_on <= kMaxMaxOnMs;
-      if (!hb_ok || !max_on_ok) return nak(sink, p.seq, nak::kOutOfRange);
+      const uint32_t max_on = p.len == kSetConfigPayloadLong ? get_u32(p.payload + 2) : max_on_ms_;
+      // both values are checked before either applies
+      if (!heartbeat_ms_ok(hb) || !max_on_ms_ok(max_on)) return nak(sink, p.seq, nak::kOutOfRange);
       heartbeat_ms_ = hb;
       max_on_ms_ = max_on;
       deadline_us_ = now_us + static_cast<uint64_t>(heartbeat_ms_) * 1000u;
@@ -195,10 +187,10 @@ void Controller::tick(uint64_t now_us) {
   const bool active = state_ == State::kStreaming || state_ == State::kPlaying;
   if (active && now_us >= deadline_us_) {
     counters_.failsafe = saturating_inc(counters_.failsafe);
-    stop(State::kFailsafe);
+    state_ = State::kFailsafe;
   } else if (state_ == State::kPlaying && play_duration_ms_ != 0 &&
              now_us - play_start_us_ >= static_cast<uint64_t>(play_duration_ms_) * 1000u) {
-    stop(State::kIdle);
+    state_ = State::kIdle;
   }
   update_outputs(now_us);
 }

@@ -74,7 +74,6 @@ class Controller {
   void reply(ReplySink& sink, uint8_t type, uint8_t seq, const uint8_t* payload, size_t n);
   void ack(ReplySink& sink, uint8_t seq);
   void nak(ReplySink& sink, uint8_t seq, uint8_t code);
-  void stop(State next);
   void update_outputs(uint64_t now_us);
 
   const Layout& layout_;
@@ -90,7 +89,7 @@ class Controller {
   bool have_seq_ = false;
   uint8_t last_seq_ = 0;
 
-  uint16_t stream_[kMaxChannels] = {};
+  uint16_t stream_[kMaxChannels] = {};  // the last SET_AMPLITUDES (state streaming)
   Stimulus stimulus_;
   uint64_t play_start_us_ = 0;
   uint32_t play_duration_ms_ = 0;

@@ -64,6 +64,9 @@ constexpr uint32_t kDefaultMaxOnMs = 30000;
 constexpr uint32_t kMinMaxOnMs = 100;
 constexpr uint32_t kMaxMaxOnMs = 600000;
 
+inline bool heartbeat_ms_ok(uint32_t ms) { return ms >= kMinHeartbeatMs && ms <= kMaxHeartbeatMs; }
+inline bool max_on_ms_ok(uint32_t ms) { return ms >= kMinMaxOnMs && ms <= kMaxMaxOnMs; }
+
 inline uint16_t get_u16(const uint8_t* p) {
   return static_cast<uint16_t>(p[0] | (p[1] << 8));
 }
