@@ -445,17 +445,22 @@ def test_out_of_range_max_on_is_refused_by_host_and_device(emulator_exe: Path) -
     (3000, 0, 1, 0, 1, 1),
 ])
 def test_firmware_clamps_play_target_fields(emulator_exe: Path, tmp_path: Path,
-                                            fields: tuple[int, ...]) -> None:
+                                            fields: tuple[int, int, int, int, int, int]
+                                            ) -> None:
+    """Out-of-range fields are clamped (docs/protocol.md), and what plays is exactly the
+    stimulus of the clamped values; only the two enumerations are refused."""
     log = tmp_path / "levels.csv"
+    angle, mode, law, falloff, period, transit = fields
     with open_belt("emulator", build=False, levels_log=log) as belt:
         reply = belt._request(  # type: ignore[attr-defined]
-            lambda seq: wire.play_target(seq, *fields, 200), "PLAY_TARGET")
+            lambda seq: wire.play_target(seq, angle, mode, law, falloff, period, transit,
+                                         200), "PLAY_TARGET")
         assert isinstance(reply, wire.Ack)
         assert wait_for(lambda: belt.status().state == wire.State.IDLE, 2)  # type: ignore[attr-defined]
         # enumerations out of range are refused and change nothing
-        for mode, law in ((2, 0), (0, 3), (255, 255)):
+        for bad_mode, bad_law in ((2, 0), (0, 3), (255, 255)):
             reply = belt._request(  # type: ignore[attr-defined]
-                lambda seq, m=mode, la=law: wire.play_target(seq, 4500, m, la, 1500, 1000,
+                lambda seq, m=bad_mode, la=bad_law: wire.play_target(seq, 4500, m, la, 1500, 1000,
                                                              100, 0), "PLAY_TARGET")
             assert reply == wire.Nak(reply.seq, wire.NakCode.OUT_OF_RANGE)
         assert belt.status().levels == (0,) * 6  # type: ignore[attr-defined]
@@ -463,6 +468,19 @@ def test_firmware_clamps_play_target_fields(emulator_exe: Path, tmp_path: Path,
     playing = rows[rows[:, 1] == wire.State.PLAYING]
     assert len(playing) and playing[:, 2:].any()
     assert playing[:, 2:].min() >= 0 and playing[:, 2:].max() <= 65535
+    # the clamped stimulus, rendered by the Python package
+    period_c = max(period, 10)
+    transit_c = min(max(transit, 1), (period_c - 1) // 2)
+    stim = make_stimulus(belt.layout, (angle % 36000) / 100, ("static", "dynamic")[mode],
+                         ("paper", "linear", "energy")[law], max(falloff, 1) / 100,
+                         period_c / 1000, transit_c / 1000)
+    t = (playing[:, 0] - playing[0, 0]) / 1e6
+    with np.errstate(over="ignore"):  # laws.py: exp overflows (harmlessly) for T = 0.01
+        want = np.vectorize(wire.amplitude_to_level)(stim.amplitudes(t))
+    close = np.all(np.abs(playing[:, 2:] - want) <= 2, axis=1)
+    # (a change logged on a millisecond tick that is also a phase boundary may be
+    # computed on either side of it in float32: allow one such row in twenty)
+    assert close.mean() >= 0.95, (playing[~close][:5], want[~close][:5])
 
 
 def test_amplitudes_are_checked_and_clamped_at_every_host_layer(emulator_exe: Path) -> None:
@@ -475,7 +493,7 @@ def test_amplitudes_are_checked_and_clamped_at_every_host_layer(emulator_exe: Pa
         for bad in ([1.01] * 6, [-0.01] * 6, [float("nan")] * 6, [float("inf")] * 6,
                     [0.5] * 5, [0.5] * 7, "loud"):
             with pytest.raises(ConfigError):
-                belt.set_amplitudes(bad)  # type: ignore[arg-type]
+                belt.set_amplitudes(bad)
         assert belt.status().levels == (0,) * 6  # type: ignore[attr-defined]
         # calibration: gain 5 cannot push past the ceiling
         belt.set_amplitudes([1.0, 0.9, 0.5, 0.1, 0.01, 0.0])
