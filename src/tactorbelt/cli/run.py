@@ -16,6 +16,7 @@ the model participant) only when a command runs.
 from __future__ import annotations
 
 import hashlib
+import statistics
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -76,9 +77,23 @@ def _stable_seed(seed: int, participant: str) -> int:
               help="Randomisation seed [default: the study's session.seed].")
 @click.option("--realtime", is_flag=True,
               help="Run a headless simulated session on the wall clock (real time).")
+@click.option("--fullscreen", is_flag=True, help="Open the window full screen.")
+@click.option("--screenshot", "screenshot_dir", type=click.Path(file_okay=False, path_type=Path),
+              default=None, help="Save a PNG of each kind of screen into DIR.")
+@click.option("--joystick", "joystick_device", default=None,
+              help="Which stick: an index or a name substring [default: the first stick "
+                   "that is not a throttle].")
+@click.option("--axes", default="0,1", show_default=True,
+              help="Stick axis indices for left/right and front/back.")
+@click.option("--dead-zone", type=click.FloatRange(0.0, 1.0, max_open=True), default=0.05,
+              show_default=True, help="Radial dead zone of the stick.")
+@click.option("--invert-x", is_flag=True, help="Mirror the stick's left/right axis.")
+@click.option("--invert-y", is_flag=True, help="Mirror the stick's front/back axis.")
 def run(study_file: Path, participant: str, belt_url: str, input_kind: str | None, db: Path,
         resume: bool, new_session: bool, headless: bool, limit: int | None, seed: int | None,
-        realtime: bool) -> None:
+        realtime: bool, fullscreen: bool, screenshot_dir: Path | None,
+        joystick_device: str | None, axes: str, dead_zone: float, invert_x: bool,
+        invert_y: bool) -> None:
     """Run a study session for one participant, storing every trial in --db."""
     from ..clock import SimClock, WallClock
     from ..devices import open_belt, parse_url
@@ -148,8 +163,12 @@ def run(study_file: Path, participant: str, belt_url: str, input_kind: str | Non
                                           study_toml=text, input_name=input_kind)
             try:
                 if window is not None:
+                    window_options = dict(
+                        fullscreen=fullscreen, screenshot_dir=screenshot_dir,
+                        joystick=_joystick_config(joystick_device, axes, dead_zone,
+                                                  invert_x, invert_y))
                     result = _run_windowed(window, study, participant, input_kind, belt,
-                                           cursor, store, clock, kwargs)
+                                           cursor, store, clock, kwargs, window_options)
                 else:
                     result = _run_headless(study, participant, belt, cursor, store, clock,
                                            kwargs)
@@ -199,18 +218,35 @@ def _run_headless(study: Study, participant: str, belt: Belt, cursor: CursorSour
 
 def _run_windowed(window_factory: Any, study: Study, participant: str, input_kind: str,
                   belt: Belt, cursor: CursorSource | None, store: Any, clock: Clock,
-                  kwargs: dict[str, Any]) -> Any:
+                  kwargs: dict[str, Any], window_options: dict[str, Any]) -> Any:
     """Run with the experiment window (``tactorbelt.gui.session_window``; the window and
     the runner share the main thread: the runner calls ``observer.poll`` every 10 ms)."""
     from ..experiment.runner import run_session
 
     with window_factory(study, input=input_kind, participant=participant, clock=clock,
-                        belt=belt) as win:
+                        belt=belt, **window_options) as win:
         src = cursor if cursor is not None else win.cursor
         if src is None:
             raise ConfigError(f"the window gave no cursor for --input {input_kind}")
         return win.run(lambda: run_session(study, participant, belt, src, store, clock,
                                            observer=win.observer, **kwargs))
+
+
+def _joystick_config(device: str | None, axes: str, dead_zone: float, invert_x: bool,
+                     invert_y: bool) -> Any:
+    """The stick options as a JoystickConfig (the device by index or name substring)."""
+    from ..inputs.joystick import JoystickConfig
+
+    try:
+        ax, ay = (int(a) for a in axes.split(","))
+    except ValueError:
+        raise click.BadParameter(f"expected two axis indices like 0,1, got {axes!r}",
+                                 param_hint="--axes") from None
+    dev: int | str | None = device
+    if device is not None and device.strip().isdigit():
+        dev = int(device)
+    return JoystickConfig(device=dev, axis_x=ax, axis_y=ay, dead_zone=dead_zone,
+                          invert_x=invert_x, invert_y=invert_y)
 
 
 def _report(result: Any, db: Path, store: Any) -> None:
@@ -221,10 +257,10 @@ def _report(result: Any, db: Path, store: Any) -> None:
         rs = [r for r in test if r.trial.condition == cond]
         if rs:
             acc = sum(1 for r in rs if r.correct) / len(rs)
-            rts = sorted(r.rt_s for r in rs if r.rt_s is not None)
-            med = rts[len(rts) // 2] if rts else float("nan")
+            rts = [r.rt_s for r in rs if r.rt_s is not None]
+            med = f"{statistics.median(rts):.2f} s" if rts else "n/a (no response)"
             click.echo(f"  {cond:<8s} {len(rs):4d} test trials, accuracy {acc:.1%}, "
-                       f"median RT {med:.2f} s")
+                       f"median RT {med}")
     if result.status != "complete":
         click.echo(f"  continue with --resume (session {result.session_id})", err=True)
 
