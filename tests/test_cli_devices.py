@@ -99,3 +99,19 @@ def test_a_port_that_does_not_answer_is_listed_with_the_reason(
     assert result.exit_code == 0, result.output
     assert "cannot open serial port /dev/tactorbelt-gone" in result.output
     assert "No belts found." in result.output
+
+
+def test_lists_joysticks_for_the_run_command(monkeypatch: pytest.MonkeyPatch) -> None:
+    from serial.tools import list_ports
+
+    from tactorbelt.inputs import joystick
+
+    monkeypatch.setattr(list_ports, "comports", _comports())
+    _no_ble(monkeypatch)
+    stick = {"index": 0, "name": "Thrustmaster HOTAS Warthog Joystick", "guid": "x",
+             "axes": 2, "buttons": 19, "hats": 1}
+    monkeypatch.setattr(joystick, "list_joysticks", lambda: [stick])
+    result = CliRunner().invoke(cli, ["devices", "--timeout", "0.2"])
+    assert "0  Thrustmaster HOTAS Warthog Joystick  (2 axes, 19 buttons)" in result.output
+    result = CliRunner().invoke(cli, ["devices", "--timeout", "0.2", "--json"])
+    assert json.loads(result.output)["joysticks"] == [stick]

@@ -14,7 +14,7 @@ import functools
 import json
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import click
 
@@ -98,6 +98,16 @@ def _line(row: Found) -> str:
     return f"  {row.port}  {row.description}  {what}"
 
 
+def _joysticks() -> tuple[list[dict[str, Any]], str | None]:
+    """The joysticks SDL sees, or a note saying why none can be listed."""
+    try:
+        from ..inputs.joystick import list_joysticks
+
+        return list_joysticks(), None
+    except Exception as exc:  # no SDL, no display server: a note, not an error
+        return [], f"joysticks cannot be listed here ({exc})"
+
+
 @click.command()
 @click.option("--timeout", "timeout_s", type=click.FloatRange(min=0.1, max=60.0), default=5.0,
               show_default=True,
@@ -119,12 +129,15 @@ def devices(timeout_s: float, no_ble: bool, probe_all: bool, as_json: bool) -> N
     if not no_ble:
         ble_rows, ble_note = _ble(timeout_s)
     belts = [r for r in rows + ble_rows if r.is_belt]
+    sticks, stick_note = _joysticks()
     if as_json:
         click.echo(json.dumps({
             "serial": [asdict(r) for r in rows],
             "ble": [asdict(r) for r in ble_rows],
             "ble_note": ble_note,
             "belts": [r.url for r in belts],
+            "joysticks": sticks,
+            "joystick_note": stick_note,
         }, indent=2))
         return
     click.echo("Serial ports:")
@@ -141,6 +154,13 @@ def devices(timeout_s: float, no_ble: bool, probe_all: bool, as_json: bool) -> N
             click.echo(_line(r))
     else:
         click.echo(f"  no device advertising a tactorbelt within {timeout_s:g} s")
+    click.echo("Joysticks (for tactorbelt run --joystick INDEX|NAME):")
+    if stick_note:
+        click.echo(f"  note: {stick_note}")
+    for js in sticks:
+        click.echo(f"  {js['index']}  {js['name']}  ({js['axes']} axes, {js['buttons']} buttons)")
+    if not sticks and not stick_note:
+        click.echo("  none")
     if belts:
         click.echo(f"{len(belts)} belt(s) found.")
     else:
