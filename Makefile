@@ -25,7 +25,7 @@ test-firmware:
 	@if [ -f firmware/Makefile ]; then $(MAKE) -C firmware test; fi
 
 lint: $(STAMP)
-	$(VENV)/bin/ruff check src tests benchmarks
+	$(VENV)/bin/ruff check src tests benchmarks examples scripts
 	$(VENV)/bin/mypy
 
 bench: $(STAMP)
