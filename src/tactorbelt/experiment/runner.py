@@ -504,9 +504,10 @@ def run_session(
             obs.on_session_end(status)
         if isinstance(exc, DeviceError):
             raise DeviceError(
-                f"belt {belt.url} failed during the session ({exc}); motors off, the trial in "
-                f"flight was stored as aborted and session {session_id} of {participant!r} "
-                "can be resumed with --resume"
+                f"belt {belt.url} failed during the session ({exc}); motors off (a belt that "
+                "no longer answers turns them off itself within its heartbeat timeout), the "
+                f"trial in flight was stored as aborted and session {session_id} of "
+                f"{participant!r} can be resumed with --resume"
             ) from exc
         raise
     finally:
