@@ -401,11 +401,6 @@ def test_help_works_for_every_command(path: tuple[str, ...], cmd: click.Command,
     assert code == 0
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "src/tactorbelt/__main__.py calls main() and drops its return value: click returns the "
-    "code of click.exceptions.Exit in standalone_mode=False (calibrate's q: 1, run's "
-    "Ctrl-C: 130), so `python -m tactorbelt` exits 0. Fix: `raise SystemExit(main())` in "
-    "__main__.py (or sys.exit on an int returned by cli.main in cli/__init__.py)"))
 def test_python_m_tactorbelt_keeps_exit_codes(tmp_path: Path) -> None:
     out = subprocess.run([sys.executable, "-m", "tactorbelt", "calibrate", "--belt", "sim"],
                          input="q", capture_output=True, text=True, check=False, timeout=60)

@@ -77,7 +77,8 @@ def amplitudes(
     check_law(law, falloff_deg)
     dist, spacing = _distances(layout, x)
     if law == "paper":
-        y = 1.0 - np.exp(-(spacing - dist) / falloff_deg)
+        with np.errstate(over="ignore"):  # far tactors: exp overflows to inf, clipped to 0
+            y = 1.0 - np.exp(-(spacing - dist) / falloff_deg)
         return np.asarray(np.clip(y, 0.0, 1.0))
     lin = np.clip(1.0 - dist / spacing, 0.0, 1.0)
     if law == "linear":

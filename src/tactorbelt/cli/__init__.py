@@ -10,6 +10,7 @@ exits 3; Ctrl-C exits 130. Never a traceback (set ``TACTORBELT_DEBUG=1`` to see 
 from __future__ import annotations
 
 import importlib
+import logging
 import os
 import sys
 from typing import Any
@@ -87,11 +88,46 @@ def fail(message: str) -> None:
     raise click.UsageError(message)
 
 
+class _OncePerMessage(logging.Filter):
+    """Print each warning once: a lost belt is reported by several threads."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self._seen: set[str] = set()
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        message = record.getMessage()
+        if message in self._seen:
+            return False
+        self._seen.add(message)
+        return True
+
+
+def _setup_logging(debug: bool) -> None:
+    """Library warnings go to stderr as ``warning: ...`` (each once)."""
+    logger = logging.getLogger("tactorbelt")
+    if any(getattr(h, "_tactorbelt_cli", False) for h in logger.handlers):
+        return
+    handler = logging.StreamHandler()
+    handler.setFormatter(logging.Formatter("%(levelname)s: %(message)s"))
+    handler.addFilter(_OncePerMessage())
+    handler._tactorbelt_cli = True  # type: ignore[attr-defined]
+    logger.addHandler(handler)
+    logger.setLevel(logging.DEBUG if debug else logging.WARNING)
+    logger.propagate = False
+    logging.addLevelName(logging.WARNING, "warning")
+
+
 def main(argv: list[str] | None = None) -> Any:
     """Entry point: run the CLI and turn every error into a message and an exit code."""
     debug = bool(os.environ.get("TACTORBELT_DEBUG"))
+    _setup_logging(debug)
     try:
-        return cli.main(args=argv, prog_name="tactorbelt", standalone_mode=False)
+        rv = cli.main(args=argv, prog_name="tactorbelt", standalone_mode=False)
+        # click returns (rather than raises) the code of ctx.exit(code) here
+        if isinstance(rv, int) and not isinstance(rv, bool):
+            sys.exit(rv)
+        return rv
     except click.exceptions.Exit as exc:
         sys.exit(exc.exit_code)
     except click.exceptions.Abort:
