@@ -340,3 +340,21 @@ def test_bad_arguments(tmp_path: Path) -> None:
             run_session(study, "  ", belt, _cursor(study), store, clock)
         with pytest.raises(ConfigError, match="limit"):
             run_session(study, "P01", belt, _cursor(study), store, clock, limit=-1)
+
+
+def test_interrupt_on_the_instructions_screen_leaves_the_session_interrupted(
+        tmp_path: Path) -> None:
+    study = small_study()
+    clock = SimClock()
+
+    class ClosedAtInstructions(NullObserver):
+        def on_session_start(self, info: Any, schedule: Any) -> None:
+            raise KeyboardInterrupt
+
+    with Store.open(tmp_path / "s.sqlite") as store, _belt(study, clock) as belt:
+        with pytest.raises(KeyboardInterrupt):
+            run_session(study, "P01", belt, _cursor(study), store, clock,
+                        observer=ClosedAtInstructions())
+        (sess,) = store.sessions()
+        assert sess["status"] == "interrupted"
+        assert store.find_resumable("P01") is not None

@@ -347,7 +347,6 @@ def run_session(
     n_test_run = 0
     status = "interrupted"
     info = SessionInfo(session_id, participant, study, n_total, n_done, resume, order)
-    obs.on_session_start(info, schedule)
 
     def wait_until(deadline_ns: int) -> None:
         """Sleep to a deadline in sample-period steps, pumping the player and polling."""
@@ -454,6 +453,9 @@ def run_session(
 
     prev_block: int | None = None
     try:
+        # inside the try: Ctrl-C or a window error on the instructions screen leaves
+        # the session "interrupted", not "running"
+        obs.on_session_start(info, schedule)
         queue = list(todo)
         i = 0
         while i < len(queue):
