@@ -16,6 +16,7 @@ import numpy as np
 import pygame
 import pytest
 
+from fakes import FakeBackend, FakeStick
 from tactorbelt.clock import SimClock
 from tactorbelt.devices import open_belt
 from tactorbelt.devices.base import Belt
@@ -322,43 +323,6 @@ def test_ctrl_q_aborts(study: Study, tmp_path: Path) -> None:
 
 
 # -- joystick hot-plug -------------------------------------------------------------------------
-class FakeStick:
-    """A pygame-like Joystick whose axes the test sets."""
-
-    def __init__(self, instance_id: int) -> None:
-        self.axes = [0.0, 0.0, 0.0]
-        self.buttons = [0] * 4
-        self.instance_id = instance_id
-
-    def get_name(self) -> str:
-        return "Thrustmaster HOTAS Warthog Joystick (fake)"
-
-    def get_instance_id(self) -> int:
-        return self.instance_id
-
-    def get_numaxes(self) -> int:
-        return len(self.axes)
-
-    def get_axis(self, i: int) -> float:
-        return self.axes[i]
-
-    def get_numbuttons(self) -> int:
-        return len(self.buttons)
-
-    def get_button(self, i: int) -> int:
-        return self.buttons[i]
-
-
-class FakeBackend:
-    def __init__(self) -> None:
-        self.plugged = True
-        self.stick = FakeStick(100)
-
-    def count(self) -> int:
-        return 1 if self.plugged else 0
-
-    def open(self, index: int) -> FakeStick | None:
-        return self.stick if self.plugged and index == 0 else None
 
 
 def test_joystick_unplugged_mid_trial_pauses_until_it_is_back(study: Study, tmp_path: Path

@@ -14,6 +14,7 @@ from typing import Any
 import pygame
 import pytest
 
+from fakes import FakeBackend, FakeStick
 from tactorbelt.clock import SimClock
 from tactorbelt.devices import open_belt
 from tactorbelt.devices.sim import SimBelt
@@ -50,45 +51,6 @@ repetitions = 1
 def _clean_pygame() -> Any:
     yield
     pygame.display.quit()
-
-
-class FakeStick:
-    """A pygame-like Joystick whose axes the test sets."""
-
-    def __init__(self, instance_id: int) -> None:
-        self.axes = [0.0, 0.0]
-        self.buttons = [0, 0]
-        self.instance_id = instance_id
-
-    def get_name(self) -> str:
-        return "Fake HOTAS"
-
-    def get_instance_id(self) -> int:
-        return self.instance_id
-
-    def get_numaxes(self) -> int:
-        return len(self.axes)
-
-    def get_axis(self, i: int) -> float:
-        return self.axes[i]
-
-    def get_numbuttons(self) -> int:
-        return len(self.buttons)
-
-    def get_button(self, i: int) -> int:
-        return self.buttons[i]
-
-
-class FakeBackend:
-    def __init__(self) -> None:
-        self.plugged = True
-        self.stick = FakeStick(7)
-
-    def count(self) -> int:
-        return 1 if self.plugged else 0
-
-    def open(self, index: int) -> FakeStick | None:
-        return self.stick if self.plugged and index == 0 else None
 
 
 class Participant:
@@ -140,7 +102,7 @@ def test_unplugged_joystick_pauses_with_a_message_and_resumes_when_back(
 ) -> None:
     study = Study.from_toml(STUDY)
     clock = SimClock()
-    backend = FakeBackend()
+    backend = FakeBackend(FakeStick(7, "Fake HOTAS", n_axes=2, n_buttons=2))
     stick = JoystickCursor(JoystickConfig(device="hotas"), backend=backend)
     assert stick.connected
     with Store.open(tmp_path / "s.sqlite") as store, \
