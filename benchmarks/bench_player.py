@@ -97,7 +97,7 @@ def main() -> None:
     out = {
         "player_p99_ms": round(stats.deadline_error_p99_ms, 4),
         "sleep_loop_p99_ms": round(naive_p99, 4),
-        "player_p99_vs_sleep_loop": round(stats.deadline_error_p99_ms / naive_p99, 4)
+        "player_p99_vs_sleep_loop": float(f"{stats.deadline_error_p99_ms / naive_p99:.4g}")
         if naive_p99 > 0 else None,
         "sleep_loop_interval_p99_ms": round(naive_interval_p99, 4),
         "player_p50_ms": round(stats.deadline_error_p50_ms, 4),
