@@ -41,7 +41,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ._errors import ConfigError, TactorbeltError
-from .clock import Clock, WallClock
+from .clock import SPIN_NS, Clock, WallClock
 
 if TYPE_CHECKING:
     from .devices.base import Belt
@@ -134,6 +134,7 @@ class Player:
         device_render: bool | None = None,
     ) -> None:
         self.belt = belt
+        clock_is_ours = clock is None and getattr(belt, "clock", None) is None
         if clock is None:
             clock = getattr(belt, "clock", None) or WallClock()
         if not isinstance(clock, Clock):
@@ -149,6 +150,11 @@ class Player:
         self.rate_hz = rate_f
         period = Fraction(10**9) / Fraction(rate_f).limit_denominator(1_000_000)
         self._p, self._q = period.numerator, period.denominator
+        if isinstance(self.clock, WallClock) and clock_is_ours:
+            # Spin at most a quarter of a frame: a thread spinning the whole 1 ms period
+            # holds the interpreter lock so long that the serial reader and keep-alive
+            # threads starve (pings went unanswered for 300+ ms at 1 kHz).
+            self.clock = WallClock(spin_ns=min(SPIN_NS, int(period) // 4))
         if device_render and not belt.can_render:
             raise ConfigError(f"belt {belt.url!r} cannot render stimuli on the device")
         if device_render is None:

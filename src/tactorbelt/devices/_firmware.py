@@ -249,6 +249,7 @@ class FirmwareBelt(Belt, PacketSink):
         self._lost: str | None = None
         self._last_rx_ns = time.monotonic_ns()
         self._unanswered_pings = 0
+        self._first_ping_ns = 0
         self._keepalive_stop = threading.Event()
         self._keepalive_kick = threading.Event()
         self._keepalive_thread: threading.Thread | None = None
@@ -431,6 +432,7 @@ class FirmwareBelt(Belt, PacketSink):
         self._keepalive_kick = threading.Event()
         self._last_rx_ns = time.monotonic_ns()
         self._unanswered_pings = 0
+        self._first_ping_ns = 0
         t = threading.Thread(
             target=self._keepalive_loop, args=(self._keepalive_stop, self._keepalive_kick),
             name=f"tactorbelt-keepalive {self.port}", daemon=True,
@@ -457,8 +459,13 @@ class FirmwareBelt(Belt, PacketSink):
             kick.clear()
             if stop.is_set() or self._lost is not None:
                 return
-            silent_s = (time.monotonic_ns() - self._last_rx_ns) / 1e9
-            if silent_s >= hb_s and self._unanswered_pings >= 2:
+            now_ns = time.monotonic_ns()
+            silent_s = (now_ns - self._last_rx_ns) / 1e9
+            # Lost only when pings that really went out (not ones still waiting behind a
+            # 1 kHz stream for the write lock, or a host that was itself starved of CPU)
+            # have gone unanswered for a whole heartbeat timeout.
+            pinged_s = (now_ns - self._first_ping_ns) / 1e9 if self._unanswered_pings else 0.0
+            if silent_s >= hb_s and self._unanswered_pings >= 2 and pinged_s >= hb_s:
                 self._mark_lost(
                     f"belt on {self.port} stopped answering: no reply for "
                     f"{silent_s * 1000:.0f} ms (heartbeat timeout {self.heartbeat_ms} ms)"
@@ -466,8 +473,10 @@ class FirmwareBelt(Belt, PacketSink):
                 return
             try:
                 if silent_s >= hb_s / 3.0:
+                    self._send(functools.partial(_ping_nonce, nonce=self._unanswered_pings + 1))
+                    if self._unanswered_pings == 0:
+                        self._first_ping_ns = time.monotonic_ns()
                     self._unanswered_pings += 1
-                    self._send(functools.partial(_ping_nonce, nonce=self._unanswered_pings))
                 else:
                     self._send(wire.heartbeat)
             except DeviceError:
