@@ -1,5 +1,8 @@
 """``make bench``: run every benchmark and write results.json and RESULTS.md.
 
+``python benchmarks/run.py bench_player cli_help`` runs only those and keeps the other
+figures of the last full run.
+
 Each ``benchmarks/bench_*.py`` is a script that prints one JSON object (key -> number) as
 its last line. This runner runs each one in its own process (so one failing benchmark
 does not hide the others), merges the figures into ``benchmarks/results.json`` and
@@ -98,6 +101,9 @@ def cli_help() -> dict[str, float]:
 def main() -> int:
     only = set(sys.argv[1:])
     results: dict[str, float] = {}
+    previous = HERE / "results.json"
+    if only and previous.exists():  # a partial run updates the figures it measures
+        results.update(json.loads(previous.read_text()))
     failures: dict[str, str] = {}
     scripts = sorted(HERE.glob("bench_*.py"))
     for path in scripts:
