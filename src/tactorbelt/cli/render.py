@@ -9,7 +9,7 @@ from typing import Any
 
 import click
 
-from ._options import AngleCommand, build_stimulus, stimulus_options
+from ._options import AngleCommand, build_stimulus, parse_number, stimulus_options
 
 
 def _write_text(text: str, out: Path | None) -> None:
@@ -43,8 +43,8 @@ def render(angle: str, rate: str, duration: str | None, fmt: str, out: Path | No
 
     stimulus = build_stimulus(angle, **stim)
     rate_f, duration_f = check_rate_duration(
-        _number(rate, "--rate"),
-        stimulus.period_s if duration is None else _number(duration, "--duration"),
+        parse_number(rate, "--rate"),
+        stimulus.period_s if duration is None else parse_number(duration, "--duration"),
     )
     t, amps = stimulus.render(rate_f, duration_f)
     if fmt == "csv":
@@ -73,13 +73,6 @@ def render(angle: str, rate: str, duration: str | None, fmt: str, out: Path | No
 
         save_figure(stimulus_figure(stimulus, t, amps), out)
         click.echo(f"wrote {out}", err=True)
-
-
-def _number(text: str, what: str) -> float:
-    try:
-        return float(text)
-    except ValueError:
-        raise click.UsageError(f"{what} must be a number, got {text!r}") from None
 
 
 @click.group()
