@@ -9,10 +9,12 @@ Imports only the standard library.
 
 from __future__ import annotations
 
+import math
 import time
+from fractions import Fraction
 from typing import Protocol, runtime_checkable
 
-__all__ = ["Clock", "SimClock", "WallClock", "ns", "seconds"]
+__all__ = ["Clock", "Deadlines", "SimClock", "WallClock", "ns", "seconds"]
 
 #: The wall clock sleeps until this long before a deadline, then spins.
 SPIN_NS = 1_000_000
@@ -90,3 +92,67 @@ class SimClock:
         if dt_ns < 0:
             raise ValueError("a clock cannot go backwards")
         self._now += int(dt_ns)
+
+
+class Deadlines:
+    """The one deadline loop: frame ``i`` is due at ``onset + floor(i * 1e9 / rate)`` ns.
+
+    Deadlines are computed from integers, never accumulated, so nothing drifts however
+    long a loop runs. :meth:`wait` sleeps (then spins, on the wall clock) until a frame is
+    due; a frame woken up so late that a later frame is already due is skipped, and
+    counted in :attr:`missed`. The player, the direction display, the runner's cursor
+    sampling and the window's frames all keep time with this class.
+
+    Args:
+        clock: the clock to wait on.
+        rate_hz: frames per second, in (0, 100000].
+        onset_ns: the deadline of frame 0 (default: now).
+
+    Raises:
+        ValueError: a rate that is not a positive finite number up to 100 kHz.
+    """
+
+    def __init__(self, clock: Clock, rate_hz: float, onset_ns: int | None = None) -> None:
+        rate = float(rate_hz)
+        if not (math.isfinite(rate) and 0 < rate <= 100_000):
+            raise ValueError(f"rate must be a number of Hz in (0, 100000], got {rate_hz!r}")
+        self.clock = clock
+        self.rate_hz = rate
+        period = Fraction(10**9) / Fraction(rate).limit_denominator(1_000_000)
+        self._p, self._q = period.numerator, period.denominator
+        self.period_ns = int(period)
+        self.onset_ns = int(clock.now_ns()) if onset_ns is None else int(onset_ns)
+        #: the next frame index :meth:`wait` will return (or a later one, when late).
+        self.next_index = 0
+        #: frames skipped because their time had passed.
+        self.missed = 0
+
+    def deadline(self, i: int) -> int:
+        """The deadline of frame ``i`` (integer ns)."""
+        return self.onset_ns + (i * self._p) // self._q
+
+    def time_s(self, i: int) -> float:
+        """The time of frame ``i`` since the onset, in seconds."""
+        return ((i * self._p) // self._q) / 1e9
+
+    def last_due(self, now_ns: int) -> int:
+        """The largest frame index whose deadline is at or before ``now_ns`` (-1 before onset)."""
+        return ((now_ns - self.onset_ns + 1) * self._q - 1) // self._p
+
+    def wait(self, limit: int | None = None) -> tuple[int, int]:
+        """Wait for the next frame and return ``(index, now_ns)``.
+
+        Sleeps until the deadline of :attr:`next_index`; if it woke up so late that later
+        frames are due, returns the latest frame due now and counts the skipped ones in
+        :attr:`missed`. ``limit`` caps the index (a playback of ``limit`` frames counts the
+        frames it overslept past its end as missed and returns ``limit``).
+        """
+        i = self.next_index
+        self.clock.sleep_until_ns(self.deadline(i))
+        now = int(self.clock.now_ns())
+        j = max(i, self.last_due(now))
+        if limit is not None and j > limit:
+            j = limit
+        self.missed += j - i
+        self.next_index = j + 1
+        return j, now
