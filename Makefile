@@ -4,6 +4,10 @@ PYTHON ?= python3
 VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
+# Hypothesis profile of the tests (tests/conftest.py, docs/testing.md): dev explores with
+# random examples; .ci/run and `make test HYPOTHESIS_PROFILE=ci` check fixed ones.
+HYPOTHESIS_PROFILE ?= dev
+export HYPOTHESIS_PROFILE
 
 .PHONY: demo test test-py test-firmware lint bench clean
 

@@ -1,4 +1,20 @@
-"""Shared test setup: headless, no hardware, reference data."""
+"""Shared test setup: headless, no hardware, reference data, Hypothesis profiles.
+
+Hypothesis profiles (docs/testing.md), chosen with the ``HYPOTHESIS_PROFILE`` environment
+variable:
+
+- ``dev`` (the default): random examples, remembered failures in ``.hypothesis/``.
+- ``ci`` (``.ci/run``): derandomized, so every run checks the same examples; no example
+  database; failures print a ``@reproduce_failure`` blob.
+- ``explore``: ten times the examples of ``dev``, for hunting before a release.
+
+No profile has a deadline or the timing health check: on a loaded 2-core machine a slow
+example is not a bug, and a test that fails for timing alone is a flake.
+
+Helpers shared by test files live in the ``support`` package (``tests/support/``);
+pytest puts ``tests/`` on ``sys.path`` (rootdir conftest, no ``tests/__init__.py``), so
+``from support.studies import write_study`` works from every test file.
+"""
 
 from __future__ import annotations
 
@@ -6,6 +22,7 @@ import os
 from pathlib import Path
 
 import pytest
+from hypothesis import HealthCheck, settings
 
 os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
 os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
@@ -13,6 +30,18 @@ os.environ.setdefault("MPLBACKEND", "Agg")
 
 REPO = Path(__file__).resolve().parents[1]
 REFERENCE = Path(__file__).resolve().parent / "data" / "reference"
+
+#: Examples per property in ``dev`` and ``ci`` (a test's own @settings may ask for more).
+MAX_EXAMPLES = 100
+
+_COMMON = {"deadline": None, "suppress_health_check": [HealthCheck.too_slow]}
+settings.register_profile("dev", max_examples=MAX_EXAMPLES, **_COMMON)
+settings.register_profile(
+    "ci", max_examples=MAX_EXAMPLES, derandomize=True, database=None, print_blob=True,
+    **_COMMON,
+)
+settings.register_profile("explore", max_examples=10 * MAX_EXAMPLES, print_blob=True, **_COMMON)
+settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "dev"))
 
 
 @pytest.fixture

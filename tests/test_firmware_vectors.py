@@ -8,7 +8,7 @@ be checked against a stale contract.
 
 The emulator tests (marker ``emulator``) run ``firmware/build/emulator`` directly and
 check what docs/protocol.md promises about it: the first stdout line, the levels log,
-the exit rules; they take about 3 s of wall time and skip without g++ or make.
+the exit rules; they take about 3.5 s of wall time and skip without g++ or make.
 """
 
 from __future__ import annotations
@@ -179,7 +179,9 @@ def test_emulator_cli_contract(emulator_exe: Path, tmp_path: Path) -> None:
     import serial
 
     log = tmp_path / "levels.csv"
-    proc, pty = _start(emulator_exe, "--tactors", "6", "--heartbeat-ms", "100",
+    # a 300 ms heartbeat sent every 30 ms: a loaded machine may stall this process
+    # for a while without the failsafe tripping during the two periods measured
+    proc, pty = _start(emulator_exe, "--tactors", "6", "--heartbeat-ms", "300",
                        "--levels-log", str(log))
     try:
         assert pty.startswith("/dev/")
@@ -188,7 +190,7 @@ def test_emulator_cli_contract(emulator_exe: Path, tmp_path: Path) -> None:
 
         def request(p: wire.Packet) -> wire.Reply:
             port.write(wire.encode_frame(p))
-            deadline = time.monotonic() + 1.0
+            deadline = time.monotonic() + 5.0
             while time.monotonic() < deadline:
                 got = dec.feed(port.read(port.in_waiting or 1))
                 if got:
@@ -196,7 +198,7 @@ def test_emulator_cli_contract(emulator_exe: Path, tmp_path: Path) -> None:
             raise AssertionError("no reply")
 
         info = request(wire.get_info(0))
-        assert isinstance(info, wire.Info) and info.heartbeat_ms == 100
+        assert isinstance(info, wire.Info) and info.heartbeat_ms == 300
         ack = request(wire.play_target(1, 4500, 1, 0, 1500, 1000, 100, 0))
         assert ack == wire.Ack(1)
         seq = 2
@@ -205,7 +207,7 @@ def test_emulator_cli_contract(emulator_exe: Path, tmp_path: Path) -> None:
             port.write(wire.encode_frame(wire.heartbeat(seq)))
             seq += 1
             time.sleep(0.03)
-        time.sleep(0.3)  # silence: the failsafe trips 100 ms after the last heartbeat
+        time.sleep(0.7)  # silence: the failsafe trips 300 ms after the last heartbeat
         status = request(wire.get_status(seq))
         assert isinstance(status, wire.Status) and status.state == wire.State.FAILSAFE
         port.write(wire.encode_frame(wire.set_amplitudes(seq + 1, [1000] * 6)))
@@ -227,8 +229,10 @@ def test_emulator_cli_contract(emulator_exe: Path, tmp_path: Path) -> None:
     segs = _segments(rows, play_start, play_start + 2_000_000)
     near_only = sum(d for d, r in segs if r[2] > 0 and r[3] == 0) / 2
     far_only = sum(d for d, r in segs if r[3] > 60000 and r[2] == 0) / 2
-    assert abs(near_only - 600_000) < 5_000  # per period, in microseconds
-    assert abs(far_only - 200_000) < 5_000
+    # per period, in microseconds; 20 ms leaves room for a stalled emulator and still
+    # tells 600/200 from an even 400/400
+    assert abs(near_only - 600_000) < 20_000
+    assert abs(far_only - 200_000) < 20_000
     failsafe = next(r for r in rows if r[1] == wire.State.FAILSAFE)
     assert failsafe[2:] == [0] * 6
     streaming = [r for r in rows if r[1] == wire.State.STREAMING]

@@ -1,6 +1,8 @@
+import math
+
 import numpy as np
 import pytest
-from hypothesis import given
+from hypothesis import example, given
 from hypothesis import strategies as st
 
 from tactorbelt import ConfigError
@@ -15,19 +17,46 @@ def test_default_layout_puts_front_tactors_symmetric_about_navel():
     assert Layout.even(8).angles_deg[0] == 22.5
 
 
+def same_angle(a: float, b: float, atol: float = 1e-6) -> bool:
+    """a and b differ by a multiple of 360 (the wrapped difference, so 359.9... == 0)."""
+    d = math.remainder(a - b, 360.0)  # in [-180, 180], exact
+    return abs(d) <= atol
+
+
+# values whose np.mod rounds up to the modulus: normalize/wrap must fold them back
+EDGES = [-1e-17, -5e-324, math.nextafter(360.0, 0.0), math.nextafter(180.0, math.inf),
+         math.nextafter(-180.0, -math.inf), 540.0 + 1e-13, -180.0, 180.0, 0.0, -0.0]
+
+
 @given(finite)
+@example(EDGES[0])
+@example(EDGES[1])
+@example(EDGES[2])
+@example(math.nextafter(0.0, -1.0))
 def test_normalize_is_in_range_and_idempotent(a):
     n = normalize(a)
     assert 0.0 <= n < 360.0
-    assert normalize(n) == pytest.approx(n)
+    assert same_angle(n, a)
+    assert normalize(n) == n
 
 
 @given(finite)
+@example(EDGES[3])  # np.mod(180 - a, 360) rounds to 360: wrap gave -180
+@example(EDGES[4])
+@example(EDGES[5])
+@example(-180.0)
+@example(180.0)
 def test_wrap_is_in_half_open_interval(a):
     w = wrap(a)
     assert -180.0 < w <= 180.0
-    assert np.isclose(np.mod(w - a, 360.0), 0.0, atol=1e-6) or np.isclose(
-        np.mod(w - a, 360.0), 360.0, atol=1e-6)
+    assert same_angle(w, a)
+
+
+def test_wrap_and_normalize_arrays_fold_the_edges():
+    w = wrap(np.array(EDGES))
+    n = normalize(np.array(EDGES))
+    assert np.all((w > -180.0) & (w <= 180.0))
+    assert np.all((n >= 0.0) & (n < 360.0))
 
 
 def test_wrap_edges():

@@ -16,7 +16,7 @@ import numpy as np
 import pygame
 import pytest
 
-from fakes import FakeBackend, FakeStick
+from support.inputs import FakeBackend, FakeStick
 from tactorbelt.clock import SimClock
 from tactorbelt.devices import open_belt
 from tactorbelt.devices.base import Belt

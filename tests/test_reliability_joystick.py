@@ -14,7 +14,7 @@ from typing import Any
 import pygame
 import pytest
 
-from fakes import FakeBackend, FakeStick
+from support.inputs import FakeBackend, FakeStick
 from tactorbelt.clock import SimClock
 from tactorbelt.devices import open_belt
 from tactorbelt.devices.sim import SimBelt

@@ -6,26 +6,12 @@ from pathlib import Path
 
 import pytest
 
+from support.studies import make_study, study_toml, write_study
 from tactorbelt import StudyFileError
 from tactorbelt.experiment.study import PAPER_STUDY_TOML, Study, load_study, paper_study
 
-MINIMAL = """\
-name = "mini"
-
-[layout]
-tactors = 6
-
-[targets]
-count = 24
-
-[[test]]
-condition = "static"
-repetitions = 5
-
-[[test]]
-condition = "dynamic"
-repetitions = 5
-"""
+#: only the required keys: every table's defaults apply
+MINIMAL = study_toml(minimal=True, name="mini")
 
 
 def test_paper_study_is_the_papers_protocol() -> None:
@@ -55,8 +41,7 @@ def test_defaults_fill_missing_tables() -> None:
 
 
 def test_explicit_uneven_angles() -> None:
-    text = MINIMAL.replace("tactors = 6", "angles_deg = [0, 80, 180, 280]")
-    s = Study.from_toml(text)
+    s = make_study(minimal=True, tactors=[0, 80, 180, 280])
     assert s.layout_obj().angles_deg == (0.0, 80.0, 180.0, 280.0)
 
 
@@ -64,6 +49,8 @@ def test_load_study_reads_a_file(tmp_path: Path) -> None:
     p = tmp_path / "s.toml"
     p.write_text(PAPER_STUDY_TOML)
     assert load_study(p) == paper_study()
+    small = write_study(tmp_path, "small.toml", tactors=4, targets=8, repetitions=1, training=0)
+    assert load_study(small).n_trials() == 16
 
 
 def test_missing_file_names_it(tmp_path: Path) -> None:
@@ -153,16 +140,15 @@ def test_duplicate_block_names() -> None:
 
 
 def test_layout_needs_count_or_angles() -> None:
-    text = MINIMAL.replace("tactors = 6\n", "")
+    text = study_toml(minimal=True, tactors=None)
     with pytest.raises(StudyFileError, match="tactor count") as info:
         Study.from_toml(text, path="m.toml")
-    assert info.value.line == 3  # the [layout] header
+    assert info.value.line == _line_of(text, "[layout]")
 
 
 def test_duplicate_tactor_angles() -> None:
-    text = MINIMAL.replace("tactors = 6", "angles_deg = [10, 10, 200]")
     with pytest.raises(StudyFileError, match="duplicate tactor angles"):
-        Study.from_toml(text)
+        make_study(minimal=True, tactors=[10, 10, 200])
 
 
 def test_duration_estimate_counts_breaks() -> None:

@@ -46,6 +46,8 @@ def wrap(angle: ArrayLike) -> Any:
     """Wrap angle differences into (-180, 180]. Works on scalars and arrays."""
     a = np.asarray(angle, dtype=float)
     w = 180.0 - np.mod(180.0 - a, 360.0)
+    # np.mod(-3e-14, 360) == 360.0 (for a just above 180): fold -180 back to 180.
+    w = np.where(w <= -180.0, 180.0, w)
     return float(w) if w.ndim == 0 else w
 
 

@@ -12,6 +12,15 @@ sides differ; when x is exactly on d_k the clockwise side is used).
 Every law is vectorised: locations of any shape ``S`` give amplitudes of shape
 ``S + (N,)``. Values are in [0, 1]; 0 means off.
 
+Off means exactly 0: a tactor is off where ``s - D <= ROUNDING_FLOOR_DEG`` (1e-10 deg),
+i.e. where the location is at its neighbour up to floating-point rounding. D and s come
+from different sums of angles below 720 deg (ulp 1.1e-13), so a location exactly on a
+tactor can leave its neighbour a residue of ~1e-14; the energy law's sqrt turns that into
+~1e-7, and a calibration drives every non-zero amplitude at least at its start level.
+The floor is some 1000 ulp of 360 deg, four orders below ``ANGLE_TOLERANCE_DEG`` (1e-6),
+so every amplitude it zeroes is below one 16-bit drive level (``sqrt(1e-10/s)`` < 1.5e-5
+for every gap s >= 0.5 deg).
+
 Pure: imports only NumPy and tactorbelt.geometry.
 """
 
@@ -26,10 +35,12 @@ from numpy.typing import ArrayLike, NDArray
 from ._errors import ConfigError
 from .geometry import Layout, wrap
 
-__all__ = ["DEFAULT_FALLOFF_DEG", "LAWS", "amplitudes", "check_law"]
+__all__ = ["DEFAULT_FALLOFF_DEG", "LAWS", "ROUNDING_FLOOR_DEG", "amplitudes", "check_law"]
 
 LAWS: Final = ("paper", "linear", "energy")
 DEFAULT_FALLOFF_DEG: Final = 15.0
+#: A tactor is off where ``s - D`` is at most this (degrees): rounding, not geometry.
+ROUNDING_FLOOR_DEG: Final = 1e-10
 
 
 def check_law(law: str, falloff_deg: float = DEFAULT_FALLOFF_DEG) -> None:
@@ -76,11 +87,12 @@ def amplitudes(
     """
     check_law(law, falloff_deg)
     dist, spacing = _distances(layout, x)
+    off = spacing - dist <= ROUNDING_FLOOR_DEG  # at (or past) the neighbour: exactly 0
     if law == "paper":
         with np.errstate(over="ignore"):  # far tactors: exp overflows to inf, clipped to 0
             y = 1.0 - np.exp(-(spacing - dist) / falloff_deg)
-        return np.asarray(np.clip(y, 0.0, 1.0))
-    lin = np.clip(1.0 - dist / spacing, 0.0, 1.0)
+        return np.asarray(np.where(off, 0.0, np.clip(y, 0.0, 1.0)))
+    lin = np.where(off, 0.0, np.clip(1.0 - dist / spacing, 0.0, 1.0))
     if law == "linear":
         return np.asarray(lin)
     return np.asarray(np.sqrt(lin))

@@ -1,4 +1,4 @@
-"""Test doubles shared by several test files (imported as ``from fakes import ...``)."""
+"""Joystick test doubles shared by several test files (``from support.inputs import ...``)."""
 
 from __future__ import annotations
 
