@@ -130,7 +130,7 @@ def belt_test(belt_url: str, calibration_file: str | None, seconds_each: float, 
     belt, _ = open_belt_for(belt_url, None, calibration=calibration,
                             calibration_file=calibration_file)
     with belt:
-        clock = getattr(belt, "clock", None) or WallClock()
+        clock = belt.clock or WallClock()
         player = Player(belt, clock=clock, device_render=False)
         click.echo(f"belt-test on {_describe(belt)}: {seconds_each:g} s per tactor")
         for k, angle in enumerate(belt.tactor_angles_deg):
@@ -226,7 +226,7 @@ def calibrate(belt_url: str, output: str | None, step: float) -> None:
     keys = _Keys()
     belt, _ = open_belt_for(belt_url, None)
     with belt:
-        clock = getattr(belt, "clock", None) or WallClock()
+        clock = belt.clock or WallClock()
         # stream on a real clock (a hardware belt's heartbeat needs frames); on a
         # simulated clock just set the levels
         player = None if clock.simulated else Player(belt, clock=clock, device_render=False)

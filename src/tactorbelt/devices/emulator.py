@@ -31,7 +31,8 @@ from typing import IO, Any, Final
 from .._errors import ConfigError, DeviceError
 from ..geometry import Layout
 from ._firmware import FirmwareBelt
-from .serial import SERIAL_STREAM_RATE_HZ, SerialTransport, check_options
+from .registry import check_options
+from .serial import SERIAL_STREAM_RATE_HZ, SerialTransport
 
 __all__ = ["EmulatorBelt", "build_emulator", "emulator_path", "firmware_dir", "open_emulator"]
 
