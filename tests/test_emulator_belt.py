@@ -18,11 +18,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from support.belts import wait_for
 from tactorbelt import DeviceError, Layout
 from tactorbelt.devices import open_belt, wire
 from tactorbelt.devices.emulator import EmulatorBelt, build_emulator, firmware_dir
 from tactorbelt.stimuli import make_stimulus
-from test_firmware_belt import wait_for
 
 pytestmark = pytest.mark.emulator
 
@@ -48,7 +48,7 @@ def test_get_info_gives_the_layout_and_version(emu: EmulatorBelt) -> None:
     assert emu.layout == Layout.even(6)
     assert emu.firmware_version == emu.info.firmware_version
     assert emu.info.protocol_version == 1
-    assert emu.can_render
+    assert emu.can_render()
     assert emu.stream_rate_hz == 1000.0
     assert emu.pty_path in emu.name
 

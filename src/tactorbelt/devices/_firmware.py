@@ -503,7 +503,7 @@ class FirmwareBelt(Belt, PacketSink):
                         "(its failsafe turns them off within %d ms)",
                         self.port, exc, self.heartbeat_ms)
 
-    def _renders(self, stimulus: Stimulus | None) -> bool:
+    def _device_renders(self, stimulus: Stimulus | None) -> bool:
         if not self._can_play_target:
             return False
         if stimulus is None:

@@ -126,7 +126,7 @@ class Belt(ABC):
         """Hand a stimulus to the device (only for what ``can_render`` accepts)."""
         raise TactorbeltError(f"belt {self.url!r} cannot render stimuli on the device")
 
-    def _renders(self, stimulus: Stimulus | None) -> bool:
+    def _device_renders(self, stimulus: Stimulus | None) -> bool:
         """Backends that render on the device: True for what the device can render
         (``stimulus`` None: anything at all). The layout is checked by the caller."""
         return False
@@ -157,7 +157,7 @@ class Belt(ABC):
         """
         if stimulus is not None and stimulus.layout != self.layout:
             return False
-        return self._renders(stimulus)
+        return self._device_renders(stimulus)
 
     @property
     def levels(self) -> NDArray[np.float64] | None:

@@ -392,7 +392,7 @@ class SimBelt(Belt):
         self._since_ck = 0
 
     # -- Belt backend -----------------------------------------------------------------
-    def _renders(self, stimulus: Stimulus | None) -> bool:
+    def _device_renders(self, stimulus: Stimulus | None) -> bool:
         return True  # the sim belt renders every stimulus made for its layout
 
     @property

@@ -1,0 +1,1 @@
+"""Helpers shared by the tests (fakes, factories); never a test module."""
