@@ -209,6 +209,10 @@ class Player:
             return self.clock.now_ns() < self._end
         return True
 
+    def renders_on_device(self, stimulus: Stimulus) -> bool:
+        """True when :meth:`start` hands ``stimulus`` to the belt (else it streams it)."""
+        return self.device_render and self.belt.can_render(stimulus)
+
     def start(self, stimulus: Stimulus, duration_s: float | None = None) -> int:
         """Start playing ``stimulus`` now, for ``duration_s`` seconds (None: until stopped).
 
@@ -229,7 +233,7 @@ class Player:
                                   f"got {duration_s!r}")
         self._join()
         self._halt.clear()
-        device = self.device_render and self.belt.can_render(stimulus)
+        device = self.renders_on_device(stimulus)
         onset = int(self.clock.now_ns())
         with self._lock:
             self._reset(stimulus, onset, device)

@@ -52,9 +52,10 @@ def _joysticks() -> tuple[list[dict[str, Any]], str | None]:
         return [], f"joysticks cannot be listed here ({exc})"
 
 
-@click.command(epilog="Belt URLs (--belt URL):\n" + "\n".join(
+@click.command(epilog="\b\nBelt URLs (--belt URL):\n" + "\n".join(
     f"  {', '.join(b.examples)}: {b.summary}" for b in BACKENDS.values())
-    + "\nURL options:\n" + url_options_help())
+    + "\n\n\b\nURL options (--belt serial:auto?timeout_s=2&heartbeat_ms=500):\n"
+    + url_options_help())
 @click.option("--timeout", "timeout_s", type=click.FloatRange(min=0.1, max=60.0), default=5.0,
               show_default=True,
               help="Seconds to scan for BLE devices (each device gets at most 0.5 s to answer).")

@@ -242,8 +242,12 @@ def open_emulator(target: str = "", **options: Any) -> EmulatorBelt:
 
     with tempfile.TemporaryFile() as stderr:
         try:
+            # its own session: the terminal's Ctrl-C (SIGINT to the foreground process
+            # group) reaches only the host, which stops the motors, then ends the
+            # emulator; if the host dies, the emulator's stdin reaches end of file and
+            # it exits by itself
             proc = subprocess.Popen(args, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
-                                    stderr=stderr)
+                                    stderr=stderr, start_new_session=True)
         except OSError as exc:
             raise DeviceError(f"cannot start the emulator {exe}: {exc}") from None
         assert proc.stdout is not None

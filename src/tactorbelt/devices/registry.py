@@ -210,16 +210,15 @@ def parse_url(url: str) -> tuple[str, str]:
 def belt_url_help() -> str:
     """The ``--belt URL`` help text: every registered scheme with an example."""
     return "; ".join(f"{', '.join(b.examples)}: {b.summary}" for b in BACKENDS.values()) + (
-        ". URL options: ?key=value (see tactorbelt devices --help).")
+        ". Options: URL?key=value (tactorbelt devices --help).")
 
 
 def url_options_help() -> str:
     """One line per backend with URL options (for ``tactorbelt devices --help``)."""
     lines = []
     for b in BACKENDS.values():
-        if b.options:
-            opts = ", ".join(o.name for o in b.options)
-            lines.append(f"{b.usage}?{b.options[0].name}=...: {opts}")
+        for o in b.options:
+            lines.append(f"  {b.scheme}: {o.name} ({o.kind.__name__}): {o.help}")
     return "\n".join(lines)
 
 
