@@ -230,7 +230,8 @@ def test_leaving_the_with_block_turns_motors_off_even_on_error(belt, clock):
 class CountingRenderBelt(Belt):
     """A belt that renders on the device: counts PLAY_TARGETs (and frames, stops)."""
 
-    can_render = True
+    def _device_renders(self, stimulus):
+        return True
 
     def __init__(self, clock: SimClock, layout: Layout | None = None) -> None:
         super().__init__("fake-render", "fake render belt", layout or Layout.even(6))
@@ -298,7 +299,8 @@ def test_device_render_needs_a_capable_identity_belt(belt):
     from tactorbelt.devices.calibration import Calibration, TactorCalibration
 
     class Streaming(CountingRenderBelt):
-        can_render = False
+        def _device_renders(self, stimulus):
+            return False
 
     with pytest.raises(ConfigError, match="cannot render"):
         DirectionDisplay(Streaming(SimClock()), device_render=True)
