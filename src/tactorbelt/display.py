@@ -38,16 +38,16 @@ Two ways to drive a belt, chosen by ``device_render`` (default: automatic):
 
 The dynamic perturbation and its phase (the rule):
 
-- Streaming: the felt location runs on the paper's trapezoid (as
-  :meth:`~tactorbelt.stimuli.Stimulus.location`: dwell, transit, dwell, transit) within the *pair* of
-  tactors that brackets the displayed angle. Its phase is kept (it keeps running) while
-  the displayed angle stays in the same pair; the dwell times follow the angle at every
-  frame, which is continuous, so sliding within a pair (even across its midpoint, where
-  the nearer tactor swaps) never jumps. When the displayed angle crosses a tactor into
-  another pair, the phase restarts at the start of the dwell on the new pair's nearer
-  tactor (the crossed one), and the restart waits until the old waveform is dwelling on
-  that tactor (at most ``2*transit_s``), so the felt location never jumps. An angle
-  exactly on a tactor renders static, as in the paper.
+- Streaming: the felt location runs on the paper's trapezoid (dwell, transit, dwell,
+  transit, as :meth:`~tactorbelt.stimuli.Stimulus.location`) within the *pair* of tactors
+  that brackets the displayed angle. Its phase is kept (it keeps running) while the
+  displayed angle stays in the same pair; the dwell times follow the angle at every frame,
+  which is continuous, so sliding within a pair (even across its midpoint, where the
+  nearer tactor swaps) never jumps. When the displayed angle crosses a tactor into another
+  pair, the phase restarts at the start of the dwell on the new pair's nearer tactor (the
+  crossed one), and the restart waits until the old waveform is dwelling on that tactor
+  (at most ``2*transit_s``), so the felt location never jumps. An angle exactly on a
+  tactor renders static, as in the paper.
 - Device rendering: the device restarts the perturbation with every PLAY_TARGET (t = 0
   starts the dwell on the nearer tactor). So, in dynamic mode, a new PLAY_TARGET is sent
   only at the tick when the device's current stimulus *starts* its dwell on the new

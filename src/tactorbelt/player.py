@@ -11,8 +11,9 @@ Two ways to play:
 - **Streaming**: the player writes one frame per period (default 1 kHz; a belt may
   declare ``stream_rate_hz``, e.g. 40 Hz over BLE). Frame i is due at
   ``deadline_i = onset + floor(i * 1e9 / rate)`` ns (:class:`~tactorbelt.clock.Deadlines`),
-  computed from integers, never accumulated, so there is no drift however long it plays. The wall clock sleeps most
-  of the way to a deadline and spins the last stretch (``WallClock.sleep_until_ns``).
+  computed from integers, never accumulated, so there is no drift however long it plays.
+  The wall clock sleeps most of the way to a deadline and spins the last stretch
+  (``WallClock.sleep_until_ns``).
   On the wall clock frames are written by a background thread; on a simulated clock
   (``clock.simulated``) nothing runs by itself: :meth:`Player.pump` writes every frame
   due up to a time.
@@ -36,7 +37,7 @@ import contextlib
 import math
 import threading
 from dataclasses import asdict, dataclass
-from typing import TYPE_CHECKING, Final
+from typing import TYPE_CHECKING, Final, Protocol, runtime_checkable
 
 import numpy as np
 from numpy.typing import NDArray
@@ -46,6 +47,7 @@ from .clock import SPIN_NS, Clock, Deadlines, WallClock
 
 if TYPE_CHECKING:
     from .devices.base import Belt
+    from .geometry import Layout
     from .stimuli import Stimulus
 
 __all__ = ["DEFAULT_RATE_HZ", "Player", "PlayerStats"]
@@ -83,6 +85,19 @@ class PlayerStats:
     def to_dict(self) -> dict[str, float | int | None]:
         """The statistics as a plain dict (for JSON)."""
         return asdict(self)
+
+
+@runtime_checkable
+class Playable(Protocol):
+    """What the player streams: a layout and ``amplitudes(t_s) -> (len(t), N)``.
+
+    A :class:`~tactorbelt.stimuli.Stimulus` is one (and the only kind a belt renders on
+    the device); a constant test frame may be another.
+    """
+
+    layout: Layout
+
+    def amplitudes(self, t: NDArray[np.float64]) -> NDArray[np.float64]: ...
 
 
 class _Errors:
@@ -188,9 +203,7 @@ class Player:
             raise err
 
     def _check_stimulus(self, stimulus: Stimulus) -> None:
-        from .stimuli import Stimulus
-
-        if not isinstance(stimulus, Stimulus):
+        if not isinstance(stimulus, Playable):
             raise ConfigError(f"expected a Stimulus, got {type(stimulus).__name__}")
         layout = stimulus.layout
         if layout.n != self.belt.n_tactors:
@@ -211,7 +224,10 @@ class Player:
 
     def renders_on_device(self, stimulus: Stimulus) -> bool:
         """True when :meth:`start` hands ``stimulus`` to the belt (else it streams it)."""
-        return self.device_render and self.belt.can_render(stimulus)
+        from .stimuli import Stimulus
+
+        return (self.device_render and isinstance(stimulus, Stimulus)
+                and self.belt.can_render(stimulus))
 
     def start(self, stimulus: Stimulus, duration_s: float | None = None) -> int:
         """Start playing ``stimulus`` now, for ``duration_s`` seconds (None: until stopped).

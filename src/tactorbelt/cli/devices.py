@@ -1,10 +1,11 @@
 """``tactorbelt devices``: list serial ports and BLE devices that answer as belts.
 
 Each registered backend with a discovery function (:mod:`tactorbelt.devices.registry`)
-gets a section, in the registry's order. Serial ports that look like an Arduino Nano 33 BLE (USB vendor 0x2341) are asked
-GET_INFO; other ports are listed without being written to unless ``--probe-all``.
-BLE devices advertising the tactorbelt service (or name) are connected to and asked
-GET_INFO. A machine without BLE gets a one-line note, not an error.
+gets a section, in the registry's order. Serial ports that look like an Arduino Nano 33
+BLE (USB vendor 0x2341) are asked GET_INFO; other ports are listed without being written
+to unless ``--probe-all``. BLE devices advertising the tactorbelt service (or name) are
+connected to and asked GET_INFO. A machine without BLE gets a one-line note, not an
+error.
 
 Imports pyserial and bleak only when the command runs (through the device backends).
 """

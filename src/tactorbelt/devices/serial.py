@@ -24,17 +24,17 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, Final
 
-from .._errors import ConfigError, DeviceError, ProtocolError
+from .._errors import DeviceError, ProtocolError
 from . import wire
 from ._firmware import DEFAULT_TIMEOUT_S, FirmwareBelt, PacketSink, Transport
 from .registry import Discovery, Found, check_options
 
 __all__ = [
     "ARDUINO_VID",
-    "discover",
     "SERIAL_STREAM_RATE_HZ",
     "SerialPortInfo",
     "SerialTransport",
+    "discover",
     "list_serial_ports",
     "open_serial",
     "open_serial_port",
