@@ -211,10 +211,13 @@ def make_model_cursor(belt: Belt, clock: Clock, seed: int, params: ModelParams |
     if isinstance(seed, bool) or not isinstance(seed, int | np.integer):
         raise ConfigError(f"the model participant's seed must be an integer, got {seed!r}")
     if sense is None:
-        if not belt.models_vibration:
+        from ..devices.base import Belt as _Belt
+
+        if not (isinstance(belt, _Belt) and belt.models_vibration):
+            where = belt.url if isinstance(belt, _Belt) else belt
             raise ConfigError(
                 f"the model participant feels the vibration a simulated belt models; belt "
-                f"{belt.url!r} models none. Use --belt sim with --input model"
+                f"{where!r} models none. Use --belt sim with --input model"
             )
         sense = belt.vibration
     if params is not None and not isinstance(params, ModelParams):
