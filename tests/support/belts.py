@@ -307,3 +307,119 @@ def port_info(device: str, description: str, vid: int | None = None) -> SimpleNa
                            pid=0x805A if vid else None, product=None, manufacturer=None)
 
 
+
+
+# --- one factory per registered backend, for tests/test_belt_contract.py -----------------
+
+
+@dataclass
+class Harness:
+    """An open belt of one backend and a way to read what its device outputs.
+
+    Attributes:
+        belt: the open belt.
+        device_levels: the levels the device outputs now (0..1 per tactor), read on the
+            device side (after ``belt.close()`` too).
+        cleanup: releases the fake device (after the belt is closed).
+    """
+
+    belt: Any
+    device_levels: Callable[[], list[float]]
+    cleanup: Callable[[], None] = lambda: None
+
+
+def _synced(belt: FirmwareBelt, read: Callable[[], list[int]]) -> Callable[[], list[float]]:
+    """Device levels after every packet sent so far has arrived (a PING round trip)."""
+
+    def levels() -> list[float]:
+        if not belt.closed:
+            belt.ping()
+        return [v / 65535.0 for v in read()]
+
+    return levels
+
+
+def _skip(reason: str) -> None:
+    import pytest
+
+    pytest.skip(reason)
+
+
+def sim_harness(**options: Any) -> Harness:
+    from tactorbelt.clock import SimClock
+    from tactorbelt.devices import open_belt
+
+    clock = SimClock()
+    belt = open_belt("sim", clock=clock, **options)
+    return Harness(belt, lambda: [float(v) for v in belt.levels])
+
+
+def emulator_harness(tmp_dir: str | None = None, **options: Any) -> Harness:
+    import shutil
+    import tempfile
+    from pathlib import Path
+
+    from tactorbelt import DeviceError
+    from tactorbelt.devices import open_belt
+    from tactorbelt.devices.emulator import build_emulator, firmware_dir
+
+    missing = [t for t in ("g++", "make") if shutil.which(t) is None]
+    if missing:
+        _skip(f"the firmware emulator needs {' and '.join(missing)} to build")
+    try:
+        build_emulator(firmware_dir())
+    except DeviceError as exc:
+        _skip(f"the firmware emulator cannot be built here: {exc}")
+    folder = Path(tmp_dir or tempfile.mkdtemp(prefix="tactorbelt-contract-"))
+    log = folder / "levels.csv"
+    belt = open_belt("emulator", build=False, levels_log=log, **options)
+
+    def device_levels() -> list[float]:
+        if not belt.closed:
+            return [v / 65535.0 for v in belt.status().levels]
+        assert wait_for(lambda: belt.process.poll() is not None)
+        last = log.read_text().strip().splitlines()[-1].split(",")
+        return [int(v) / 65535.0 for v in last[2:]]
+
+    return Harness(belt, device_levels)
+
+
+def serial_harness(**options: Any) -> Harness:
+    from tactorbelt.devices import open_belt
+
+    dev = PtyDevice(FakeFirmware())
+    try:
+        belt = open_belt(f"serial:{dev.path}", **options)
+    except BaseException:
+        dev.close()
+        raise
+    return Harness(belt, _synced(belt, lambda: dev.firmware.levels), dev.close)
+
+
+def ble_harness(**options: Any) -> Harness:
+    from tactorbelt.devices import open_belt
+
+    fake = FakeBle()
+    belt = open_belt("ble:tactorbelt", client_factory=fake, **options)
+    return Harness(belt, _synced(belt, lambda: fake.firmware.levels))
+
+
+def loop_harness(**options: Any) -> Harness:
+    """Not a registered scheme: FirmwareBelt over the in-memory loop transport."""
+    options.setdefault("keepalive", False)
+    belt, device, _ = open_fake(**options)
+    return Harness(belt, _synced(belt, lambda: device.levels))
+
+
+#: scheme -> harness factory. Every registered scheme needs one (the contract suite
+#: fails for a scheme without): a new backend adds its fake here.
+FACTORIES: dict[str, Callable[..., Harness]] = {
+    "sim": sim_harness,
+    "emulator": emulator_harness,
+    "serial": serial_harness,
+    "ble": ble_harness,
+}
+#: Further cases of the contract that are not URL schemes.
+EXTRA_FACTORIES: dict[str, Callable[..., Harness]] = {
+    "firmware-loop": loop_harness,
+}
