@@ -189,3 +189,66 @@ def test_the_player_renders_on_the_device_when_it_can(harness: Harness) -> None:
     stats = player.play(stim, 0.1)
     assert (stats.frames == 0) == player.renders_on_device(stim)
     assert _off(harness)
+
+
+# -- the registry ------------------------------------------------------------------------------
+def test_url_options_reach_the_backend() -> None:
+    from tactorbelt.devices import open_belt
+
+    with open_belt("sim:8,virtual?horizon_s=5") as belt:
+        assert (belt.n_tactors, belt.horizon_s, belt.url) == (8, 5.0, "sim:8,virtual")
+        assert belt.clock is not None and belt.clock.simulated
+
+
+@pytest.mark.parametrize(("url", "message"), [
+    ("sim?bogus=1", "unknown option 'bogus' in belt URL 'sim\\?bogus=1'; allowed: horizon_s"),
+    ("sim?horizon_s=abc", "'horizon_s' of belt URL .* must be a number, got 'abc'"),
+    ("sim?horizon_s=-1", "must be in"),
+    ("sim?horizon_s", "expected key=value"),
+    ("emulator?tactors=2.5", "must be an integer"),
+    ("serial:auto?timeout_s=fast", "must be a number"),
+    ("ble:auto?heartbeat_ms=10", "must be in 50..2000"),
+    ("ble:auto?keepalive=0", "unknown option 'keepalive'"),
+    ("x", "unknown belt URL 'x'; allowed: sim, emulator, serial:PORT, serial:auto, "
+          "ble:NAME_OR_ADDRESS"),
+    ("serial", "needs a target, e.g. serial:auto"),
+    ("ble:", "needs a target, e.g. ble:auto"),
+])
+def test_bad_urls_fail_before_anything_is_opened(url: str, message: str) -> None:
+    from tactorbelt.devices import open_belt
+
+    with pytest.raises(ConfigError, match=message):
+        open_belt(url)
+
+
+def test_an_option_in_the_url_and_as_a_keyword_is_refused() -> None:
+    from tactorbelt.devices import open_belt
+
+    with pytest.raises(ConfigError, match="given both"):
+        open_belt("sim?horizon_s=5", horizon_s=3)
+
+
+def test_the_registry_imports_no_backend_library() -> None:
+    import subprocess
+    import sys
+
+    code = ("import sys\nfrom tactorbelt.devices import BACKENDS, parse_url\n"
+            "from tactorbelt.devices.registry import belt_url_help\n"
+            "belt_url_help(); parse_url('serial:auto?timeout_s=1')\n"
+            "print(sorted(m for m in ('numpy', 'serial', 'bleak') if m in sys.modules))\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True).stdout
+    assert out.strip() == "[]"
+
+
+@pytest.mark.parametrize("command", ["play", "belt-test", "calibrate", "point", "run"])
+def test_every_command_lists_every_registered_backend_in_its_belt_help(command: str) -> None:
+    from click.testing import CliRunner
+
+    from tactorbelt.cli import cli
+
+    result = CliRunner().invoke(cli, [command, "--help"], terminal_width=1000)
+    assert result.exit_code == 0, result.output
+    for backend in BACKENDS.values():
+        for example in backend.examples:
+            assert example in result.output, (command, example)

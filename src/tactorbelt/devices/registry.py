@@ -98,6 +98,8 @@ class Backend:
     title: str = ""
     #: the docs page describing the backend.
     docs: str = "docs/devices.md"
+    #: the URL forms an unknown-scheme error lists (default: :attr:`usage`).
+    allowed: tuple[str, ...] = ()
 
     @property
     def needs_target(self) -> bool:
@@ -107,6 +109,10 @@ class Backend:
     def usage(self) -> str:
         """``serial:PORT`` or ``sim``."""
         return f"{self.scheme}:{self.target}" if self.target else self.scheme
+
+    @property
+    def forms(self) -> tuple[str, ...]:
+        return self.allowed or (self.usage,)
 
     def load_opener(self) -> Callable[..., Any]:
         """Import the backend module and return its opener."""
@@ -176,7 +182,7 @@ def resolve(url: str) -> tuple[Backend, str, dict[str, Any]]:
     scheme, _, target = head.partition(":")
     backend = BACKENDS.get(scheme.lower())
     if backend is None:
-        allowed = ", ".join(ex for b in BACKENDS.values() for ex in _allowed(b))
+        allowed = ", ".join(form for b in BACKENDS.values() for form in b.forms)
         raise ConfigError(f"unknown belt URL {url!r}; allowed: {allowed}")
     if backend.needs_target and not target:
         raise ConfigError(f"belt URL {url!r} needs a target, e.g. {backend.scheme}:auto")
@@ -193,12 +199,6 @@ def resolve(url: str) -> tuple[Backend, str, dict[str, Any]]:
                               f"allowed: {names}")
         options[opt.name] = opt.parse(value.strip(), url)
     return backend, target, options
-
-
-def _allowed(b: Backend) -> tuple[str, ...]:
-    # the forms the unknown-scheme error lists (unchanged since 1.0 for the built-ins)
-    return {"serial": ("serial:PORT", "serial:auto"),
-            "ble": ("ble:NAME_OR_ADDRESS",)}.get(b.scheme, (b.usage,))
 
 
 def parse_url(url: str) -> tuple[str, str]:
@@ -245,7 +245,7 @@ BACKENDS: dict[str, Backend] = {b.scheme: b for b in (
             options=(_TIMEOUT, _HEARTBEAT,
                      UrlOption("baudrate", int, "for real UARTs", 300, 4_000_000)),
             discover="tactorbelt.devices.serial:discover", title="Serial ports",
-            docs="docs/devices.md"),
+            docs="docs/devices.md", allowed=("serial:PORT", "serial:auto")),
     Backend("ble", "tactorbelt.devices.ble:open_ble",
             "firmware over Bluetooth LE (40 Hz streaming)", ("ble:NAME", "ble:auto"),
             target="NAME_OR_ADDRESS",
