@@ -529,7 +529,7 @@ class DirectionDisplay:
         self._pair = pair
         a, b = pair
         r = float(self._r(pair, np.array([x]))[0]) if a != b else 0.0
-        # nearer = ccw tactor when r <= 0.5 (at an exact midpoint too, as in DESIGN.md)
+        # nearer = ccw tactor when r <= 0.5 (at an exact midpoint too, as make_stimulus does)
         self._seg = _DWELL_A if r <= 0.5 else _DWELL_B
         self._seg_start_ns = t_ns
 
