@@ -327,3 +327,17 @@ def test_pump_is_refused_on_a_wall_clock_display():
         d = DirectionDisplay(wall_belt, device_render=False)
         with pytest.raises(Exception, match="pump"):
             d.pump(0)
+
+
+@pytest.mark.parametrize("angle", [40.0, 75.0, 60.0, 30.0])
+def test_a_steady_dynamic_direction_streams_exactly_the_papers_stimulus(belt, clock, angle):
+    """For a direction that does not move, the streamed perturbation is the stimulus's own
+    (make_stimulus(...).amplitudes(t since onset)): the display's trapezoid is the paper's."""
+    d = DirectionDisplay(belt, mode="dynamic", device_render=False, hysteresis_deg=0.0)
+    onset = clock.now_ns()
+    d.show(angle)
+    d.pump(onset + 3000 * MS)
+    stim = make_stimulus(belt.layout, angle, "dynamic")
+    t = np.arange(3000) / 1000.0
+    got = _levels(belt, onset, onset + 3000 * MS)
+    assert np.allclose(got, stim.amplitudes(t), atol=1e-9)
