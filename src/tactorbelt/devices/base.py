@@ -244,7 +244,7 @@ class Belt(ABC):
 
     def __del__(self) -> None:  # last resort: never leave a motor running
         try:
-            if not getattr(self, "_closed", True):
+            if not self.__dict__.get("_closed", True):  # __init__ may not have run
                 self.close()
         except Exception:
             pass
