@@ -265,6 +265,14 @@ class Player:
                 self._stop_motors()
                 raise
         elif not self.clock.simulated:
+            # frame 0 is due now: write it here, so the motors are on when start returns
+            # (a caller that stops at once still played its first frame)
+            try:
+                self._step(None)
+            except BaseException:
+                self._active = False
+                self._stop_motors()
+                raise
             self._thread = threading.Thread(target=self._run, name="tactorbelt-player",
                                             daemon=True)
             self._thread.start()
