@@ -113,3 +113,29 @@ def test_lists_joysticks_for_the_run_command(monkeypatch: pytest.MonkeyPatch) ->
     assert "0  Thrustmaster HOTAS Warthog Joystick  (2 axes, 19 buttons)" in result.output
     result = CliRunner().invoke(cli, ["devices", "--timeout", "0.2", "--json"])
     assert json.loads(result.output)["joysticks"] == [stick]
+
+
+def test_skipped_links_are_not_scanned_and_say_so(monkeypatch: pytest.MonkeyPatch) -> None:
+    from serial.tools import list_ports
+
+    def never(*_: Any, **__: Any) -> Any:
+        raise AssertionError("a skipped link was scanned")
+
+    monkeypatch.setattr(list_ports, "comports", never)
+    monkeypatch.setattr(ble, "discover_belts", never)
+    result = CliRunner().invoke(cli, ["devices", "--skip", "serial", "--no-ble", "--json"])
+    assert result.exit_code == 0, result.output
+    data = json.loads(result.output)
+    assert data["serial"] == [] and data["serial_note"] == "not scanned (--skip serial)"
+    assert data["ble"] == [] and data["ble_note"] == "not scanned (--no-ble)"
+    assert data["belts"] == []
+
+
+def test_help_lists_every_registered_backend_and_its_url_options() -> None:
+    from tactorbelt.devices.registry import BACKENDS
+
+    result = CliRunner().invoke(cli, ["devices", "--help"])
+    assert result.exit_code == 0
+    for backend in BACKENDS.values():
+        assert all(example in result.output for example in backend.examples)
+        assert all(f"{backend.scheme}: {o.name} " in result.output for o in backend.options)
