@@ -6,91 +6,13 @@ notifications on the TX characteristic, from the BLE event loop, as bleak does.
 
 from __future__ import annotations
 
-import asyncio
-from collections.abc import Callable
-from typing import Any
-
 import pytest
 
+from support.belts import FakeBle, FakeFirmware, wait_for
 from tactorbelt import DeviceError, Layout, ProtocolError
 from tactorbelt.devices import ble, open_belt, wire
 from tactorbelt.devices._firmware import FirmwareBelt
 from tactorbelt.stimuli import make_stimulus
-from test_firmware_belt import FakeFirmware, wait_for
-
-
-class FakeBleClient:
-    """A bleak-like client connected to a FakeFirmware.
-
-    Attributes:
-        writes: every (characteristic, data, response) written.
-        corrupt: notify a corrupted and a truncated packet before each reply.
-        fail_connect: connect() raises like an out-of-range device.
-    """
-
-    def __init__(self, firmware: FakeFirmware, on_disconnect: Callable[[Any], None]) -> None:
-        self.firmware = firmware
-        self.on_disconnect = on_disconnect
-        self.address = "AA:BB:CC:DD:EE:FF"
-        self.connected = False
-        self.disconnects = 0
-        self.writes: list[tuple[str, bytes, bool]] = []
-        self.notify: Callable[[Any, bytearray], None] | None = None
-        self.corrupt = False
-        self.fail_connect = False
-
-    @property
-    def is_connected(self) -> bool:
-        return self.connected
-
-    async def connect(self) -> None:
-        if self.fail_connect:
-            raise TimeoutError("device out of range")
-        self.connected = True
-
-    async def disconnect(self) -> None:
-        self.connected = False
-        self.disconnects += 1
-
-    async def start_notify(self, char: str, callback: Callable[[Any, bytearray], None]) -> None:
-        assert char == ble.TX_CHAR_UUID
-        self.notify = callback
-
-    async def write_gatt_char(self, char: str, data: bytes, response: bool) -> None:
-        if not self.connected:
-            raise OSError("not connected")
-        self.writes.append((char, bytes(data), response))
-        loop = asyncio.get_running_loop()
-        for reply in self.firmware.handle(wire.decode_packet(bytes(data))):
-            raw = wire.encode_packet(reply)
-            if self.corrupt:
-                bad = bytearray(raw)
-                bad[2] ^= 0x55
-                loop.call_soon(self.notify, None, bad)  # type: ignore[arg-type]
-                loop.call_soon(self.notify, None, bytearray(raw[:3]))  # type: ignore[arg-type]
-            loop.call_soon(self.notify, None, bytearray(raw))  # type: ignore[arg-type]
-
-    def drop(self) -> None:
-        """The device disconnects (out of range, powered off)."""
-        self.connected = False
-        self.on_disconnect(self)
-
-
-class FakeBle:
-    """A client_factory that hands out FakeBleClients for one FakeFirmware."""
-
-    def __init__(self, firmware: FakeFirmware | None = None) -> None:
-        self.firmware = firmware or FakeFirmware()
-        self.client: FakeBleClient | None = None
-        self.targets: list[str] = []
-        self.fail_connect = False
-
-    async def __call__(self, target: str, on_disconnect: Callable[[Any], None],
-                       scan_timeout_s: float) -> FakeBleClient:
-        self.targets.append(target)
-        self.client = FakeBleClient(self.firmware, on_disconnect)
-        self.client.fail_connect = self.fail_connect
-        return self.client
 
 
 def test_ble_belt_streams_plays_and_stops_through_gatt() -> None:

@@ -9,11 +9,9 @@ from typing import Any
 import pytest
 from click.testing import CliRunner
 
+from support.belts import FakeBle, FakeFirmware, PtyDevice, comports, port_info
 from tactorbelt.cli import cli
 from tactorbelt.devices import ble, wire
-from test_ble_belt import FakeBle
-from test_firmware_belt import FakeFirmware
-from test_serial_belt import PtyDevice, _comports, _port
 
 
 @pytest.fixture
@@ -35,8 +33,8 @@ def test_lists_the_serial_belt_and_leaves_other_ports_alone(
 ) -> None:
     from serial.tools import list_ports
 
-    monkeypatch.setattr(list_ports, "comports", _comports(
-        _port("/dev/ttyS0", "ttyS0"), _port(pty_belt.path, "Nano 33 BLE", 0x2341)))
+    monkeypatch.setattr(list_ports, "comports", comports(
+        port_info("/dev/ttyS0", "ttyS0"), port_info(pty_belt.path, "Nano 33 BLE", 0x2341)))
     result = CliRunner().invoke(cli, ["devices", "--no-ble"])
     assert result.exit_code == 0, result.output
     lines = result.output.splitlines()
@@ -55,7 +53,7 @@ def test_says_clearly_when_there_is_nothing_and_ble_is_unavailable(
 ) -> None:
     from serial.tools import list_ports
 
-    monkeypatch.setattr(list_ports, "comports", _comports())
+    monkeypatch.setattr(list_ports, "comports", comports())
     _no_ble(monkeypatch)
     result = CliRunner().invoke(cli, ["devices", "--timeout", "0.2"])
     assert result.exit_code == 0, result.output
@@ -68,7 +66,7 @@ def test_says_clearly_when_there_is_nothing_and_ble_is_unavailable(
 def test_lists_ble_belts_that_answer(monkeypatch: pytest.MonkeyPatch) -> None:
     from serial.tools import list_ports
 
-    monkeypatch.setattr(list_ports, "comports", _comports())
+    monkeypatch.setattr(list_ports, "comports", comports())
     monkeypatch.setattr(ble, "discover_belts", lambda timeout_s=5.0: [
         ble.BleBeltInfo("AA:BB:CC:DD:EE:FF", "tactorbelt", -60)])
     real_open = ble.open_ble
@@ -93,8 +91,8 @@ def test_a_port_that_does_not_answer_is_listed_with_the_reason(
 ) -> None:
     from serial.tools import list_ports
 
-    monkeypatch.setattr(list_ports, "comports", _comports(
-        _port("/dev/tactorbelt-gone", "Arduino Nano 33 BLE", 0x2341)))
+    monkeypatch.setattr(list_ports, "comports", comports(
+        port_info("/dev/tactorbelt-gone", "Arduino Nano 33 BLE", 0x2341)))
     result = CliRunner().invoke(cli, ["devices", "--no-ble"])
     assert result.exit_code == 0, result.output
     assert "cannot open serial port /dev/tactorbelt-gone" in result.output
@@ -106,7 +104,7 @@ def test_lists_joysticks_for_the_run_command(monkeypatch: pytest.MonkeyPatch) ->
 
     from tactorbelt.inputs import joystick
 
-    monkeypatch.setattr(list_ports, "comports", _comports())
+    monkeypatch.setattr(list_ports, "comports", comports())
     _no_ble(monkeypatch)
     stick = {"index": 0, "name": "Thrustmaster HOTAS Warthog Joystick", "guid": "x",
              "axes": 2, "buttons": 19, "hats": 1}
@@ -115,3 +113,29 @@ def test_lists_joysticks_for_the_run_command(monkeypatch: pytest.MonkeyPatch) ->
     assert "0  Thrustmaster HOTAS Warthog Joystick  (2 axes, 19 buttons)" in result.output
     result = CliRunner().invoke(cli, ["devices", "--timeout", "0.2", "--json"])
     assert json.loads(result.output)["joysticks"] == [stick]
+
+
+def test_skipped_links_are_not_scanned_and_say_so(monkeypatch: pytest.MonkeyPatch) -> None:
+    from serial.tools import list_ports
+
+    def never(*_: Any, **__: Any) -> Any:
+        raise AssertionError("a skipped link was scanned")
+
+    monkeypatch.setattr(list_ports, "comports", never)
+    monkeypatch.setattr(ble, "discover_belts", never)
+    result = CliRunner().invoke(cli, ["devices", "--skip", "serial", "--no-ble", "--json"])
+    assert result.exit_code == 0, result.output
+    data = json.loads(result.output)
+    assert data["serial"] == [] and data["serial_note"] == "not scanned (--skip serial)"
+    assert data["ble"] == [] and data["ble_note"] == "not scanned (--no-ble)"
+    assert data["belts"] == []
+
+
+def test_help_lists_every_registered_backend_and_its_url_options() -> None:
+    from tactorbelt.devices.registry import BACKENDS
+
+    result = CliRunner().invoke(cli, ["devices", "--help"])
+    assert result.exit_code == 0
+    for backend in BACKENDS.values():
+        assert all(example in result.output for example in backend.examples)
+        assert all(f"{backend.scheme}: {o.name} " in result.output for o in backend.options)

@@ -230,7 +230,8 @@ def test_leaving_the_with_block_turns_motors_off_even_on_error(belt, clock):
 class CountingRenderBelt(Belt):
     """A belt that renders on the device: counts PLAY_TARGETs (and frames, stops)."""
 
-    can_render = True
+    def _device_renders(self, stimulus):
+        return True
 
     def __init__(self, clock: SimClock, layout: Layout | None = None) -> None:
         super().__init__("fake-render", "fake render belt", layout or Layout.even(6))
@@ -298,7 +299,8 @@ def test_device_render_needs_a_capable_identity_belt(belt):
     from tactorbelt.devices.calibration import Calibration, TactorCalibration
 
     class Streaming(CountingRenderBelt):
-        can_render = False
+        def _device_renders(self, stimulus):
+            return False
 
     with pytest.raises(ConfigError, match="cannot render"):
         DirectionDisplay(Streaming(SimClock()), device_render=True)
@@ -325,3 +327,17 @@ def test_pump_is_refused_on_a_wall_clock_display():
         d = DirectionDisplay(wall_belt, device_render=False)
         with pytest.raises(Exception, match="pump"):
             d.pump(0)
+
+
+@pytest.mark.parametrize("angle", [40.0, 75.0, 60.0, 30.0])
+def test_a_steady_dynamic_direction_streams_exactly_the_papers_stimulus(belt, clock, angle):
+    """For a direction that does not move, the streamed perturbation is the stimulus's own
+    (make_stimulus(...).amplitudes(t since onset)): the display's trapezoid is the paper's."""
+    d = DirectionDisplay(belt, mode="dynamic", device_render=False, hysteresis_deg=0.0)
+    onset = clock.now_ns()
+    d.show(angle)
+    d.pump(onset + 3000 * MS)
+    stim = make_stimulus(belt.layout, angle, "dynamic")
+    t = np.arange(3000) / 1000.0
+    got = _levels(belt, onset, onset + 3000 * MS)
+    assert np.allclose(got, stim.amplitudes(t), atol=1e-9)

@@ -18,11 +18,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from support.belts import wait_for
 from tactorbelt import DeviceError, Layout
 from tactorbelt.devices import open_belt, wire
 from tactorbelt.devices.emulator import EmulatorBelt, build_emulator, firmware_dir
 from tactorbelt.stimuli import make_stimulus
-from test_firmware_belt import wait_for
 
 pytestmark = pytest.mark.emulator
 
@@ -48,7 +48,7 @@ def test_get_info_gives_the_layout_and_version(emu: EmulatorBelt) -> None:
     assert emu.layout == Layout.even(6)
     assert emu.firmware_version == emu.info.firmware_version
     assert emu.info.protocol_version == 1
-    assert emu.can_render
+    assert emu.can_render()
     assert emu.stream_rate_hz == 1000.0
     assert emu.pty_path in emu.name
 
@@ -242,3 +242,63 @@ def test_closing_the_port_turns_the_outputs_off(emulator_built: Path, tmp_path: 
             status = again.status()
             assert status.state == wire.State.IDLE and status.levels == (0,) * 6
             assert status.failsafe_count == 0  # the port closing, not the failsafe
+
+
+def _running(pid: int) -> bool:
+    """True while ``pid`` runs (a zombie, exited but not yet reaped, has ended)."""
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().rsplit(")", 1)[1].split()[0] != "Z"
+    except FileNotFoundError:
+        return False
+
+
+@pytest.mark.skipif(not Path("/proc").is_dir(), reason="needs /proc to find the child")
+def test_ctrl_c_in_a_terminal_stops_cleanly_and_ends_the_emulator(emulator_built: Path) -> None:
+    """The terminal sends SIGINT to the whole foreground process group: the emulator must
+    not die before the host has stopped the motors (it runs in its own session)."""
+    import subprocess
+    import sys
+
+    cmd = [sys.executable, "-m", "tactorbelt", "play", "45", "--belt", "emulator",
+           "--seconds", "10"]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            start_new_session=True)
+    try:
+        assert proc.stdout is not None
+        assert "playing" in proc.stdout.readline()  # the belt is open
+        time.sleep(1.0)  # and playing
+        children = [int(p) for p in Path(f"/proc/{proc.pid}/task/{proc.pid}/children")
+                    .read_text().split()]
+        assert children, "the emulator child was not found"
+        os.killpg(proc.pid, signal.SIGINT)  # what Ctrl-C in a terminal does
+        out, err = proc.communicate(timeout=20)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert "stopped answering" not in err and "could not stop" not in err, err
+    assert "motors off" in err
+    assert proc.returncode == 130  # a user interrupt, as on the sim belt
+    assert wait_for(lambda: not any(_running(c) for c in children), 5.0)
+
+
+def test_the_emulator_exits_when_its_host_dies(emulator_built: Path) -> None:
+    import subprocess
+    import sys
+
+    script = ("from tactorbelt.devices import open_belt\n"
+              "import os, time\n"
+              "belt = open_belt('emulator', build=False)\n"
+              "print(belt.process.pid, flush=True)\n"
+              "time.sleep(60)\n")
+    proc = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE, text=True)
+    try:
+        assert proc.stdout is not None
+        child = int(proc.stdout.readline())
+        assert _running(child)
+        proc.kill()
+        proc.wait(10)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert wait_for(lambda: not _running(child), 5.0)

@@ -1,163 +1,21 @@
 """FirmwareBelt (the host side of protocol v1) against a fake device, in memory.
 
-:class:`FakeFirmware` plays the device with tactorbelt.devices.wire; the serial and
-BLE tests reuse it (``from test_firmware_belt import FakeFirmware``).
+:class:`~support.belts.FakeFirmware` plays the device with tactorbelt.devices.wire.
 """
 
 from __future__ import annotations
 
 import logging
-import threading
-import time
-from collections.abc import Callable
-from dataclasses import dataclass, field
 
 import numpy as np
 import pytest
 
+from support.belts import FakeFirmware, LoopTransport, open_fake, wait_for
 from tactorbelt import ConfigError, DeviceError, Layout, ProtocolError, TactorbeltError
 from tactorbelt.devices import wire
-from tactorbelt.devices._firmware import FirmwareBelt, PacketSink, Transport
+from tactorbelt.devices._firmware import FirmwareBelt
 from tactorbelt.devices.calibration import Calibration, TactorCalibration
 from tactorbelt.stimuli import make_stimulus
-
-
-@dataclass
-class FakeFirmware:
-    """A protocol v1 device in Python: answers requests, records what it got.
-
-    Attributes:
-        silent: drop every request without an answer (a hung device).
-        protocol_version, capabilities, heartbeat_ms, angles_deg: what INFO reports.
-        requests: every valid request, parsed, in order of arrival.
-        seqs: their sequence numbers.
-        extra_replies: a function of the request packet giving packets to send
-            before the real reply (garbage, stale replies, ...).
-    """
-
-    tactors: int = 6
-    protocol_version: int = 1
-    capabilities: int = 1
-    heartbeat_ms: int = 250
-    angles_deg: tuple[float, ...] | None = None
-    silent: bool = False
-    requests: list[wire.Request] = field(default_factory=list)
-    seqs: list[int] = field(default_factory=list)
-    levels: list[int] = field(default_factory=list)
-    state: wire.State = wire.State.IDLE
-    extra_replies: Callable[[wire.Packet], list[wire.Packet]] | None = None
-    got_request: threading.Event = field(default_factory=threading.Event)
-
-    def __post_init__(self) -> None:
-        if self.angles_deg is None:
-            self.angles_deg = Layout.even(self.tactors).angles_deg
-        self.levels = [0] * self.tactors
-        self._lock = threading.Lock()
-
-    def of_type(self, kind: type) -> list[wire.Request]:
-        with self._lock:
-            return [r for r in self.requests if isinstance(r, kind)]
-
-    def handle(self, packet: wire.Packet) -> list[wire.Packet]:
-        """The replies to one request packet."""
-        if self.silent:
-            return []
-        try:
-            req = wire.parse_request(packet)
-        except ProtocolError:
-            code = (wire.NakCode.UNKNOWN_TYPE if packet.type not in set(wire.MsgType)
-                    else wire.NakCode.BAD_LENGTH)
-            return [wire.encode_reply(packet.seq, wire.Nak(packet.seq, code))]
-        with self._lock:
-            self.requests.append(req)
-            self.seqs.append(packet.seq)
-        self.got_request.set()
-        out = list(self.extra_replies(packet)) if self.extra_replies else []
-        reply = self._answer(packet.seq, req)
-        if reply is not None:
-            out.append(wire.encode_reply(packet.seq, reply))
-        return out
-
-    def _answer(self, seq: int, req: wire.Request) -> wire.Reply | None:
-        ack = wire.Ack(seq, 0)
-        if isinstance(req, wire.Ping):
-            return wire.Pong(req.nonce, int(time.monotonic() * 1e6) & 0xFFFFFFFF)
-        if isinstance(req, wire.GetInfo):
-            assert self.angles_deg is not None
-            return wire.Info(self.protocol_version, 1, 2, 3, len(self.angles_deg), 65535,
-                             self.heartbeat_ms, self.capabilities, tuple(self.angles_deg))
-        if isinstance(req, wire.SetAmplitudes):
-            self.levels = list(req.levels)
-            self.state = wire.State.STREAMING
-            return None
-        if isinstance(req, wire.StopAll):
-            self.levels = [0] * self.tactors
-            self.state = wire.State.IDLE
-            return ack
-        if isinstance(req, wire.PlayTarget):
-            self.state = wire.State.PLAYING
-            return ack
-        if isinstance(req, wire.SetConfig):
-            if not 50 <= req.heartbeat_ms <= 2000:
-                return wire.Nak(seq, wire.NakCode.OUT_OF_RANGE)
-            self.heartbeat_ms = req.heartbeat_ms
-            return ack
-        if isinstance(req, wire.GetStatus):
-            return wire.Status(self.state, 0, 0, 0, 0, tuple(self.levels))
-        return None  # HEARTBEAT
-
-
-class LoopTransport(Transport):
-    """An in-memory link: each write is one packet, answered at once by the fake."""
-
-    def __init__(self, device: FakeFirmware, port: str = "loop0") -> None:
-        self.device = device
-        self.port = port
-        self.sink: PacketSink | None = None
-        self.dead = False
-        self.closed = False
-
-    def encode(self, packet: wire.Packet) -> bytes:
-        return wire.encode_packet(packet)
-
-    def write(self, data: bytes) -> None:
-        if self.dead:
-            raise OSError(5, "Input/output error")
-        assert self.sink is not None
-        for reply in self.device.handle(wire.decode_packet(data)):
-            self.sink.packet_received(reply)
-
-    def start(self, sink: PacketSink) -> None:
-        self.sink = sink
-
-    def close(self) -> None:
-        self.closed = True
-
-    def kill(self) -> None:
-        """The link ends (a cable pulled): the reader reports it, writes fail."""
-        self.dead = True
-        assert self.sink is not None
-        self.sink.link_lost("end of file")
-
-
-def wait_for(predicate: Callable[[], object], timeout_s: float = 3.0) -> bool:
-    """Poll a condition another thread makes true (for keep-alive behaviour)."""
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        if predicate():
-            return True
-        time.sleep(0.005)
-    return bool(predicate())
-
-
-def open_fake(device: FakeFirmware | None = None, **options: object
-              ) -> tuple[FirmwareBelt, FakeFirmware, LoopTransport]:
-    device = device or FakeFirmware()
-    transport = LoopTransport(device)
-    options.setdefault("keepalive", False)
-    belt = FirmwareBelt(transport, "loop:loop0", **options)  # type: ignore[arg-type]
-    return belt, device, transport
-
 
 # --- opening ------------------------------------------------------------------------
 
@@ -168,7 +26,7 @@ def test_open_reads_layout_version_and_capabilities_from_info() -> None:
         assert belt.n_tactors == 6
         assert belt.layout == Layout.even(6)
         assert belt.firmware_version == "1.2.3"
-        assert belt.can_render
+        assert belt.can_render()
         assert belt.heartbeat_ms == 250
         assert "loop0" in belt.name
 
@@ -201,7 +59,7 @@ def test_a_device_that_never_answers_gives_a_device_error_naming_the_port() -> N
 def test_no_capability_bit_means_no_device_rendering() -> None:
     belt, _, _ = open_fake(FakeFirmware(capabilities=0))
     with belt:
-        assert not belt.can_render
+        assert not belt.can_render()
         with pytest.raises(TactorbeltError, match="cannot render"):
             belt.play(make_stimulus(belt.layout, 45.0))
 
@@ -211,7 +69,7 @@ def test_a_layout_override_with_other_angles_disables_device_rendering() -> None
     belt, _, _ = open_fake(layout=other)
     with belt:
         assert belt.layout == other
-        assert not belt.can_render
+        assert not belt.can_render()
     with pytest.raises(ConfigError, match="4 tactors"):
         open_fake(layout=Layout.even(4))
 

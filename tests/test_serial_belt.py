@@ -6,79 +6,15 @@ slave side with pyserial exactly as it opens /dev/ttyACM0.
 
 from __future__ import annotations
 
-import os
-import select
-import threading
-import tty
 from collections.abc import Iterator
-from types import SimpleNamespace
 
-import numpy as np
 import pytest
 
+from support.belts import FakeFirmware, PtyDevice, comports, port_info, wait_for
 from tactorbelt import DeviceError, Layout, ProtocolError
 from tactorbelt.devices import open_belt, wire
 from tactorbelt.devices import serial as serial_backend
 from tactorbelt.devices._firmware import FirmwareBelt
-from test_firmware_belt import FakeFirmware, wait_for
-
-
-class PtyDevice:
-    """A FakeFirmware served on a pseudo-terminal (``path`` is what the host opens).
-
-    Attributes:
-        garbage: before each reply, also send random bytes and a frame with a bad CRC.
-        bytes_in: every byte the host wrote.
-    """
-
-    def __init__(self, firmware: FakeFirmware, seed: int = 1) -> None:
-        self.firmware = firmware
-        self.master, self._slave = os.openpty()
-        tty.setraw(self._slave)
-        self.path = os.ttyname(self._slave)
-        self.garbage = False
-        self.garbage_sent = 0
-        self.bytes_in = bytearray()
-        self._rng = np.random.default_rng(seed)
-        self._decoder = wire.FrameDecoder()
-        self._stop_r, self._stop_w = os.pipe()
-        self._thread = threading.Thread(target=self._serve, daemon=True)
-        self._thread.start()
-
-    def _serve(self) -> None:
-        while True:
-            ready, _, _ = select.select([self.master, self._stop_r], [], [])
-            if self._stop_r in ready:
-                return
-            try:
-                data = os.read(self.master, 4096)
-            except OSError:
-                return
-            self.bytes_in += data
-            for packet in self._decoder.feed(data):
-                for reply in self.firmware.handle(packet):
-                    out = b""
-                    if self.garbage:
-                        noise = self._rng.integers(0, 256, 40, dtype=np.uint8).tobytes()
-                        bad = bytearray(wire.encode_packet(reply))
-                        bad[-1] ^= 0xFF
-                        out += noise + b"\x00" + wire.cobs_encode(bytes(bad)) + b"\x00"
-                        self.garbage_sent += 1
-                    os.write(self.master, out + wire.encode_frame(reply))
-
-    def hang_up(self) -> None:
-        """The device vanishes: the master side closes (the host reads EIO)."""
-        os.write(self._stop_w, b"x")
-        self._thread.join()
-        os.close(self.master)
-        self.master = -1
-
-    def close(self) -> None:
-        if self.master >= 0:
-            self.hang_up()
-        os.close(self._slave)
-        os.close(self._stop_r)
-        os.close(self._stop_w)
 
 
 @pytest.fixture
@@ -115,7 +51,7 @@ def test_garbage_and_corrupted_frames_from_the_device_are_counted_and_skipped(
         assert belt.lost is None
 
 
-def test_a_device_that_goes_silent_raises_naming_the_port(pty_device: PtyDevice) -> None:
+def test_a_device_that_goes_silent_raises_naming_theport_info(pty_device: PtyDevice) -> None:
     pty_device.firmware.heartbeat_ms = 60
     with open_belt(f"serial:{pty_device.path}") as belt:
         assert isinstance(belt, FirmwareBelt)
@@ -125,7 +61,7 @@ def test_a_device_that_goes_silent_raises_naming_the_port(pty_device: PtyDevice)
             belt.set_amplitudes([0.0] * 6)
 
 
-def test_a_device_that_vanishes_raises_naming_the_port(pty_device: PtyDevice) -> None:
+def test_a_device_that_vanishes_raises_naming_theport_info(pty_device: PtyDevice) -> None:
     belt = open_belt(f"serial:{pty_device.path}", keepalive=False)
     assert isinstance(belt, FirmwareBelt)
     pty_device.hang_up()
@@ -152,15 +88,6 @@ def test_a_missing_port_is_a_device_error() -> None:
         open_belt("serial:/dev/tactorbelt-nope")
 
 
-def _comports(*ports: SimpleNamespace) -> object:
-    return lambda: list(ports)
-
-
-def _port(device: str, description: str, vid: int | None = None) -> SimpleNamespace:
-    return SimpleNamespace(device=device, description=description, vid=vid,
-                           pid=0x805A if vid else None, product=None, manufacturer=None)
-
-
 def test_serial_auto_picks_the_first_arduino_port_that_answers(
     monkeypatch: pytest.MonkeyPatch, pty_device: PtyDevice
 ) -> None:
@@ -168,10 +95,10 @@ def test_serial_auto_picks_the_first_arduino_port_that_answers(
 
     silent = PtyDevice(FakeFirmware(silent=True))
     try:
-        monkeypatch.setattr(list_ports, "comports", _comports(
-            _port("/dev/ttyS0", "ttyS0"),
-            _port(silent.path, "Nano 33 BLE", 0x2341),
-            _port(pty_device.path, "Arduino Nano 33 BLE", 0x2341),
+        monkeypatch.setattr(list_ports, "comports", comports(
+            port_info("/dev/ttyS0", "ttyS0"),
+            port_info(silent.path, "Nano 33 BLE", 0x2341),
+            port_info(pty_device.path, "Arduino Nano 33 BLE", 0x2341),
         ))
         ports = serial_backend.list_serial_ports()
         assert [p.device for p in ports] == [silent.path, pty_device.path, "/dev/ttyS0"]
@@ -191,16 +118,16 @@ def test_serial_auto_lists_every_candidate_when_none_answers(
 
     silent = PtyDevice(FakeFirmware(silent=True))
     try:
-        monkeypatch.setattr(list_ports, "comports", _comports(
-            _port(silent.path, "Nano 33 BLE", 0x2341),
-            _port("/dev/tactorbelt-gone", "Arduino", 0x2341),
+        monkeypatch.setattr(list_ports, "comports", comports(
+            port_info(silent.path, "Nano 33 BLE", 0x2341),
+            port_info("/dev/tactorbelt-gone", "Arduino", 0x2341),
         ))
         with pytest.raises(DeviceError) as err:
             open_belt("serial:auto", timeout_s=0.05)
         text = str(err.value)
         assert silent.path in text and "/dev/tactorbelt-gone" in text
         assert "no candidate port answered" in text
-        monkeypatch.setattr(list_ports, "comports", _comports(_port("/dev/ttyS0", "ttyS0")))
+        monkeypatch.setattr(list_ports, "comports", comports(port_info("/dev/ttyS0", "ttyS0")))
         with pytest.raises(DeviceError, match=r"no port that looks like.*ttyS0"):
             open_belt("serial:auto")
     finally:

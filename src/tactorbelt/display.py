@@ -20,11 +20,13 @@ direction displayed and moves it smoothly:
 
 Two ways to drive a belt, chosen by ``device_render`` (default: automatic):
 
-- **Streaming** (any belt): frames at ``rate_hz`` (default the belt's ``stream_rate_hz``,
-  else 1000 Hz) computed from the displayed angle at each frame time. On a wall clock a
-  render thread writes them; on a simulated clock call :meth:`DirectionDisplay.pump`
-  (which moves the clock) or :meth:`DirectionDisplay.update`, so nothing sleeps.
-- **Device rendering** (``belt.can_render`` with an identity calibration): the belt
+- **Streaming** (any belt): frames at ``rate_hz`` (default the belt's ``stream_rate_hz``)
+  computed from the displayed angle at each frame time, on the deadlines of a
+  :class:`~tactorbelt.clock.Deadlines` (frame i due at onset + i/rate; a frame woken up
+  late is skipped, never sent in a burst). On a wall clock a render thread writes them;
+  on a simulated clock call :meth:`DirectionDisplay.pump` (which moves the clock) or
+  :meth:`DirectionDisplay.update`, so nothing sleeps.
+- **Device rendering** (``belt.can_render(stimulus)`` with an identity calibration): the belt
   renders a static or dynamic stimulus itself (PLAY_TARGET, ``belt.play(stimulus, None)``).
   A tick at ``device_rate_hz`` (20 Hz) slews the displayed angle and sends a new
   PLAY_TARGET only when it differs from the one last sent by more than ``step_deg``
@@ -36,15 +38,16 @@ Two ways to drive a belt, chosen by ``device_render`` (default: automatic):
 
 The dynamic perturbation and its phase (the rule):
 
-- Streaming: the felt location runs on the trapezoid of DESIGN.md within the *pair* of
-  tactors that brackets the displayed angle. Its phase is kept (it keeps running) while
-  the displayed angle stays in the same pair; the dwell times follow the angle at every
-  frame, which is continuous, so sliding within a pair (even across its midpoint, where
-  the nearer tactor swaps) never jumps. When the displayed angle crosses a tactor into
-  another pair, the phase restarts at the start of the dwell on the new pair's nearer
-  tactor (the crossed one), and the restart waits until the old waveform is dwelling on
-  that tactor (at most ``2*transit_s``), so the felt location never jumps. An angle
-  exactly on a tactor renders static, as in the paper.
+- Streaming: the felt location runs on the paper's trapezoid (dwell, transit, dwell,
+  transit, as :meth:`~tactorbelt.stimuli.Stimulus.location`) within the *pair* of tactors
+  that brackets the displayed angle. Its phase is kept (it keeps running) while the
+  displayed angle stays in the same pair; the dwell times follow the angle at every frame,
+  which is continuous, so sliding within a pair (even across its midpoint, where the
+  nearer tactor swaps) never jumps. When the displayed angle crosses a tactor into another
+  pair, the phase restarts at the start of the dwell on the new pair's nearer tactor (the
+  crossed one), and the restart waits until the old waveform is dwelling on that tactor
+  (at most ``2*transit_s``), so the felt location never jumps. An angle exactly on a
+  tactor renders static, as in the paper.
 - Device rendering: the device restarts the perturbation with every PLAY_TARGET (t = 0
   starts the dwell on the nearer tactor). So, in dynamic mode, a new PLAY_TARGET is sent
   only at the tick when the device's current stimulus *starts* its dwell on the new
@@ -70,7 +73,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ._errors import ConfigError, TactorbeltError
-from .clock import Clock, WallClock
+from .clock import Clock, Deadlines, WallClock
 from .filters import (
     DEFAULT_BETA,
     DEFAULT_D_CUTOFF_HZ,
@@ -99,8 +102,6 @@ DEFAULT_SLEW_DEG_PER_S: Final = 180.0
 DEFAULT_STEP_DEG: Final = 2.0
 #: Default tick rate of the device-render loop (Hz).
 DEFAULT_DEVICE_RATE_HZ: Final = 20.0
-#: Default streaming rate when the belt does not say (Hz).
-DEFAULT_STREAM_RATE_HZ: Final = 1000.0
 #: A device-render change waits at most this many periods for a seamless moment.
 _MAX_WAIT_PERIODS: Final = 2.0
 #: A location within this of a tactor is on that tactor (for the seamless checks).
@@ -150,9 +151,9 @@ class DirectionDisplay:
         slew_deg_per_s: top speed of the displayed angle (default 180 deg/s; ``math.inf``
             jumps at once).
         hysteresis_deg: hysteresis margin past a sector edge (default 4 deg; 0 = off).
-        rate_hz: streaming frame rate (default: the belt's ``stream_rate_hz``, else 1000).
+        rate_hz: streaming frame rate (default: the belt's ``stream_rate_hz``).
         device_render: True to send PLAY_TARGET, False to stream frames, None (default)
-            to render on the device when the belt can (``can_render``) and its
+            to render on the device when the belt can (``can_render(stimulus)``) and its
             calibration is the identity (the device does not apply host calibration).
         device_rate_hz: tick rate of the device-render loop (default 20 Hz).
         min_cutoff_hz, beta, d_cutoff_hz: the heading filter's parameters (see
@@ -196,9 +197,10 @@ class DirectionDisplay:
         self.slew_deg_per_s = _positive(slew_deg_per_s, "slew_deg_per_s", allow_inf=True)
         self.device_rate_hz = _positive(device_rate_hz, "device_rate_hz")
         if rate_hz is None:
-            rate_hz = getattr(belt, "stream_rate_hz", None) or DEFAULT_STREAM_RATE_HZ
+            rate_hz = belt.stream_rate_hz
         self.rate_hz = _positive(rate_hz, "rate_hz")
-        can = bool(getattr(belt, "can_render", False))
+        # every stimulus the display sends has the probe's law, mode and timing
+        can = belt.can_render(probe)
         identity = belt.calibration.is_identity
         if device_render is None:
             device_render = can and identity
@@ -210,7 +212,7 @@ class DirectionDisplay:
                               "ignore; use device_render=False (stream frames)")
         self.device_render = bool(device_render)
         if clock is None:
-            clock = getattr(belt, "clock", None)
+            clock = belt.clock
         self.clock: Clock = clock if isinstance(clock, Clock) else WallClock()
         self.hysteresis = Hysteresis(self.layout, hysteresis_deg)
         self.heading_filter = OneEuroFilter(min_cutoff_hz, beta, d_cutoff_hz, angular=True)
@@ -219,7 +221,9 @@ class DirectionDisplay:
         self._angles = self.layout.angles
         self._gaps_cw = self.layout.gaps_deg()
         self._hold_s = self.period_s - 2.0 * self.transit_s
-        self._tick_ns = (1e9 / self.device_rate_hz) if self.device_render else (1e9 / self.rate_hz)
+        self._tick_rate_hz = self.device_rate_hz if self.device_render else self.rate_hz
+        self._tick_ns = 1e9 / self._tick_rate_hz
+        self._dl = Deadlines(self.clock, self._tick_rate_hz, onset_ns=0)
         self._thread: threading.Thread | None = None
         self._stop_event = threading.Event()
         self._error: BaseException | None = None
@@ -240,7 +244,6 @@ class DirectionDisplay:
         self._requested: float | None = None
         self._displayed: float | None = None
         self._t_ns = 0  # time the displayed angle was last advanced to
-        self._next_ns = 0  # next frame (streaming) or tick (device rendering)
         self._pair: Pair | None = None
         self._seg = _DWELL_A  # where the perturbation is on its trapezoid
         self._seg_start_ns = 0  # when that segment started
@@ -360,11 +363,11 @@ class DirectionDisplay:
                 return None
             if self.device_render:
                 self._device_tick(now)
-                self._next_ns = max(self._next_ns, now + round(self._tick_ns))
+                self._defer(now)
                 return None
             amps = self._frames(np.array([max(now, self._t_ns)], dtype=np.int64))
             self._write(amps)
-            self._next_ns = max(self._next_ns, now + round(self._tick_ns))
+            self._defer(now)
             return amps[0]
 
     def pump(self, until_ns: int) -> None:
@@ -383,12 +386,15 @@ class DirectionDisplay:
         until = int(until_ns)
         with self._lock:
             if self._displayed is not None:
+                dl = self._dl
                 now = self.clock.now_ns()
-                tick = self._tick_ns
-                if self._next_ns < now:  # the clock was moved by someone else: skip ahead
-                    self._next_ns += math.ceil((now - self._next_ns) / tick) * round(tick)
-                n = max(0, math.ceil((until - self._next_ns) / tick))
-                times = self._next_ns + np.round(np.arange(n) * tick).astype(np.int64)
+                i = dl.next_index
+                if dl.deadline(i) < now:  # the clock was moved by someone else: skip ahead
+                    i = dl.last_due(now - 1) + 1
+                end = max(i, dl.last_due(until - 1) + 1)  # frames due before ``until``
+                times = np.array([dl.deadline(k) for k in range(i, end)], dtype=np.int64)
+                n = end - i
+                dl.next_index = end
                 if self.device_render:
                     for t in times.tolist():
                         self.clock.sleep_until_ns(t)
@@ -398,8 +404,6 @@ class DirectionDisplay:
                     for t, row in zip(times.tolist(), amps, strict=True):
                         self.clock.sleep_until_ns(t)
                         self._write(row[None, :])
-                if n:
-                    self._next_ns = int(times[-1]) + round(tick)
             self.clock.sleep_until_ns(until)
 
     # -- starting and the render thread -----------------------------------------------------
@@ -411,14 +415,14 @@ class DirectionDisplay:
         now = self.clock.now_ns()
         self._displayed = angle
         self._t_ns = now
-        self._next_ns = now
+        self._dl = Deadlines(self.clock, self._tick_rate_hz, onset_ns=now)
         self._pair = None
         self._last_frame_ns = now
         self._sent = None
         self._last_amps = None
         if self.device_render:
             self._device_tick(now)
-            self._next_ns = now + round(self._tick_ns)
+            self._dl.next_index = 1
         if self._threaded:
             self._stop_event.clear()
             self._error = None
@@ -426,16 +430,20 @@ class DirectionDisplay:
                                             daemon=True)
             self._thread.start()
 
+    def _defer(self, now: int) -> None:
+        """After a frame or tick driven by hand at ``now``: the next one is a period on."""
+        nxt = now + round(self._tick_ns)
+        if self._dl.deadline(self._dl.next_index) < nxt:
+            self._dl = Deadlines(self.clock, self._tick_rate_hz, onset_ns=nxt)
+
     def _run(self) -> None:
-        tick = round(self._tick_ns)
         try:
             while not self._stop_event.is_set():
                 with self._lock:
-                    deadline = self._next_ns
-                self.clock.sleep_until_ns(deadline)
+                    dl = self._dl
+                _, now = dl.wait()  # a frame woken up late is skipped: no burst
                 if self._stop_event.is_set():
                     break
-                now = self.clock.now_ns()
                 with self._lock:
                     if self._displayed is None:
                         break
@@ -443,8 +451,6 @@ class DirectionDisplay:
                         self._device_tick(now)
                     else:
                         self._write(self._frames(np.array([now], dtype=np.int64)))
-                    nxt = self._next_ns + tick
-                    self._next_ns = nxt if nxt > now else now + tick  # late: skip, no burst
         except BaseException as exc:  # surfaced by the next call from the application
             self._error = exc
 
@@ -523,7 +529,7 @@ class DirectionDisplay:
         self._pair = pair
         a, b = pair
         r = float(self._r(pair, np.array([x]))[0]) if a != b else 0.0
-        # nearer = ccw tactor when r <= 0.5 (at an exact midpoint too, as in DESIGN.md)
+        # nearer = ccw tactor when r <= 0.5 (at an exact midpoint too, as make_stimulus does)
         self._seg = _DWELL_A if r <= 0.5 else _DWELL_B
         self._seg_start_ns = t_ns
 

@@ -2,15 +2,18 @@
 
 Two ways to play:
 
-- **Device rendering**: a belt that renders stimuli itself (``belt.can_render``: the
-  sim belt, firmware with PLAY_TARGET) gets the whole stimulus once (``belt.play``)
-  and keeps its own 1 kHz timing. The default when the belt can render and its
-  calibration is the identity (the device does not know the host's calibration).
+- **Device rendering**: a belt that renders a stimulus itself
+  (``belt.can_render(stimulus)``: the sim belt, firmware with PLAY_TARGET for the laws
+  and modes it knows) gets the whole stimulus once (``belt.play``) and keeps its own
+  1 kHz timing. The default when the belt can render and its calibration is the
+  identity (the device does not know the host's calibration); a stimulus the device
+  cannot render is streamed instead.
 - **Streaming**: the player writes one frame per period (default 1 kHz; a belt may
   declare ``stream_rate_hz``, e.g. 40 Hz over BLE). Frame i is due at
-  ``deadline_i = onset + floor(i * 1e9 / rate)`` ns, computed from integers, never
-  accumulated, so there is no drift however long it plays. The wall clock sleeps most
-  of the way to a deadline and spins the last stretch (``WallClock.sleep_until_ns``).
+  ``deadline_i = onset + floor(i * 1e9 / rate)`` ns (:class:`~tactorbelt.clock.Deadlines`),
+  computed from integers, never accumulated, so there is no drift however long it plays.
+  The wall clock sleeps most of the way to a deadline and spins the last stretch
+  (``WallClock.sleep_until_ns``).
   On the wall clock frames are written by a background thread; on a simulated clock
   (``clock.simulated``) nothing runs by itself: :meth:`Player.pump` writes every frame
   due up to a time.
@@ -34,17 +37,17 @@ import contextlib
 import math
 import threading
 from dataclasses import asdict, dataclass
-from fractions import Fraction
-from typing import TYPE_CHECKING, Final
+from typing import TYPE_CHECKING, Final, Protocol, runtime_checkable
 
 import numpy as np
 from numpy.typing import NDArray
 
 from ._errors import ConfigError, TactorbeltError
-from .clock import SPIN_NS, Clock, WallClock
+from .clock import SPIN_NS, Clock, Deadlines, WallClock
 
 if TYPE_CHECKING:
     from .devices.base import Belt
+    from .geometry import Layout
     from .stimuli import Stimulus
 
 __all__ = ["DEFAULT_RATE_HZ", "Player", "PlayerStats"]
@@ -82,6 +85,19 @@ class PlayerStats:
     def to_dict(self) -> dict[str, float | int | None]:
         """The statistics as a plain dict (for JSON)."""
         return asdict(self)
+
+
+@runtime_checkable
+class Playable(Protocol):
+    """What the player streams: a layout and ``amplitudes(t_s) -> (len(t), N)``.
+
+    A :class:`~tactorbelt.stimuli.Stimulus` is one (and the only kind a belt renders on
+    the device); a constant test frame may be another.
+    """
+
+    layout: Layout
+
+    def amplitudes(self, t: NDArray[np.float64]) -> NDArray[np.float64]: ...
 
 
 class _Errors:
@@ -134,13 +150,13 @@ class Player:
         device_render: bool | None = None,
     ) -> None:
         self.belt = belt
-        clock_is_ours = clock is None and getattr(belt, "clock", None) is None
+        clock_is_ours = clock is None and belt.clock is None
         if clock is None:
-            clock = getattr(belt, "clock", None) or WallClock()
+            clock = belt.clock or WallClock()
         if not isinstance(clock, Clock):
             raise ConfigError(f"clock must be a Clock (now_ns, sleep_until_ns), got {clock!r}")
         self.clock: Clock = clock
-        rate = getattr(belt, "stream_rate_hz", DEFAULT_RATE_HZ) if rate_hz is None else rate_hz
+        rate = belt.stream_rate_hz if rate_hz is None else rate_hz
         try:
             rate_f = float(rate)
         except (TypeError, ValueError):
@@ -148,17 +164,16 @@ class Player:
         if not (math.isfinite(rate_f) and 0 < rate_f <= 100_000):
             raise ConfigError(f"rate must be a number of Hz in (0, 100000], got {rate!r}")
         self.rate_hz = rate_f
-        period = Fraction(10**9) / Fraction(rate_f).limit_denominator(1_000_000)
-        self._p, self._q = period.numerator, period.denominator
+        period_ns = Deadlines(self.clock, rate_f, onset_ns=0).period_ns
         if isinstance(self.clock, WallClock) and clock_is_ours:
             # Spin at most a quarter of a frame: a thread spinning the whole 1 ms period
             # holds the interpreter lock so long that the serial reader and keep-alive
             # threads starve (pings went unanswered for 300+ ms at 1 kHz).
-            self.clock = WallClock(spin_ns=min(SPIN_NS, int(period) // 4))
-        if device_render and not belt.can_render:
+            self.clock = WallClock(spin_ns=min(SPIN_NS, period_ns // 4))
+        if device_render and not belt.can_render():
             raise ConfigError(f"belt {belt.url!r} cannot render stimuli on the device")
         if device_render is None:
-            device_render = bool(belt.can_render and belt.calibration.is_identity)
+            device_render = bool(belt.can_render() and belt.calibration.is_identity)
         self.device_render = bool(device_render)
 
         self._lock = threading.Lock()
@@ -171,25 +186,15 @@ class Player:
     def _reset(self, stimulus: Stimulus | None, onset_ns: int | None, device: bool) -> None:
         self._stimulus = stimulus
         self._onset: int | None = onset_ns
+        self._dl = Deadlines(self.clock, self.rate_hz, onset_ns=onset_ns or 0)
         self._device = device
         self._active = stimulus is not None
         self._end: int | None = None
         self._n_frames: int | None = None
-        self._i = 0
         self._frames = 0
-        self._missed = 0
         self._errors = _Errors()
         self._cache_start = 0
         self._cache: NDArray[np.float64] | None = None
-
-    def _deadline(self, i: int) -> int:
-        assert self._onset is not None
-        return self._onset + (i * self._p) // self._q
-
-    def _last_due(self, now_ns: int) -> int:
-        """The largest i whose deadline is at or before ``now_ns``."""
-        assert self._onset is not None
-        return ((now_ns - self._onset + 1) * self._q - 1) // self._p
 
     def _check_error(self) -> None:
         err = self._error
@@ -198,9 +203,9 @@ class Player:
             raise err
 
     def _check_stimulus(self, stimulus: Stimulus) -> None:
-        layout = getattr(stimulus, "layout", None)
-        if layout is None or not callable(getattr(stimulus, "amplitudes", None)):
+        if not isinstance(stimulus, Playable):
             raise ConfigError(f"expected a Stimulus, got {type(stimulus).__name__}")
+        layout = stimulus.layout
         if layout.n != self.belt.n_tactors:
             raise ConfigError(f"the stimulus has {layout.n} tactors but the belt has "
                               f"{self.belt.n_tactors}")
@@ -216,6 +221,13 @@ class Player:
         if self._device and self._end is not None:
             return self.clock.now_ns() < self._end
         return True
+
+    def renders_on_device(self, stimulus: Stimulus) -> bool:
+        """True when :meth:`start` hands ``stimulus`` to the belt (else it streams it)."""
+        from .stimuli import Stimulus
+
+        return (self.device_render and isinstance(stimulus, Stimulus)
+                and self.belt.can_render(stimulus))
 
     def start(self, stimulus: Stimulus, duration_s: float | None = None) -> int:
         """Start playing ``stimulus`` now, for ``duration_s`` seconds (None: until stopped).
@@ -237,14 +249,14 @@ class Player:
                                   f"got {duration_s!r}")
         self._join()
         self._halt.clear()
-        device = self.device_render and stimulus.layout == self.belt.layout
+        device = self.renders_on_device(stimulus)
         onset = int(self.clock.now_ns())
         with self._lock:
             self._reset(stimulus, onset, device)
             if duration_s is not None:
                 self._n_frames = max(1, round(float(duration_s) * self.rate_hz))
                 self._end = (onset + round(float(duration_s) * 1e9) if device
-                             else self._deadline(self._n_frames))
+                             else self._dl.deadline(self._n_frames))
         if device:
             try:
                 self.belt.play(stimulus, duration_s)
@@ -253,6 +265,14 @@ class Player:
                 self._stop_motors()
                 raise
         elif not self.clock.simulated:
+            # frame 0 is due now: write it here, so the motors are on when start returns
+            # (a caller that stops at once still played its first frame)
+            try:
+                self._step(None)
+            except BaseException:
+                self._active = False
+                self._stop_motors()
+                raise
             self._thread = threading.Thread(target=self._run, name="tactorbelt-player",
                                             daemon=True)
             self._thread.start()
@@ -370,7 +390,7 @@ class Player:
             else:
                 p50 = p99 = 0.0
                 mx = 0
-            return PlayerStats(self._frames, self._missed, float(p50) / 1e6, float(p99) / 1e6,
+            return PlayerStats(self._frames, self._dl.missed, float(p50) / 1e6, float(p99) / 1e6,
                                float(mx) / 1e6, self._onset)
 
     def _stop_motors(self) -> None:
@@ -394,7 +414,7 @@ class Player:
                 idx = np.arange(i, i + _CHUNK, dtype=np.int64)
                 if self._n_frames is not None:
                     idx = idx[idx < max(self._n_frames, i + 1)]
-                t = ((idx * self._p) // self._q) / 1e9
+                t = np.array([self._dl.time_s(int(k)) for k in idx])
                 cache = np.asarray(self._stimulus.amplitudes(t), dtype=float)
                 self._cache, self._cache_start = cache, i
             return np.asarray(cache[i - self._cache_start])
@@ -405,38 +425,33 @@ class Player:
         Returns False when the playback is over or the next deadline is after
         ``limit_ns``.
         """
-        i = self._i
+        dl = self._dl
+        i = dl.next_index
         n = self._n_frames
         if n is not None and i >= n:
-            end = self._deadline(n)
+            end = dl.deadline(n)
             if limit_ns is not None and end > limit_ns:
                 return False
             self.clock.sleep_until_ns(end)
             self.belt.stop()
             self._active = False
             return False
-        deadline = self._deadline(i)
-        if limit_ns is not None and deadline > limit_ns:
+        if limit_ns is not None and dl.deadline(i) > limit_ns:
             return False
         frame = self._frame(i)
-        self.clock.sleep_until_ns(deadline)
-        if self._halt.is_set():
+        missed = dl.missed
+        j, now = dl.wait(limit=n)
+        if self._halt.is_set():  # stopped while waiting: this frame never happened
+            dl.missed, dl.next_index = missed, i
             return False
-        now = int(self.clock.now_ns())
-        j = max(i, self._last_due(now))
         if n is not None and j >= n:  # woke up after the end: everything left is missed
-            self._missed += n - i
-            self._i = n
             return True
         if j > i:
-            self._missed += j - i
             frame = self._frame(j)
-            deadline = self._deadline(j)
         self.belt.set_amplitudes(frame)
         with self._lock:
             self._frames += 1
-            self._errors.add(now - deadline)
-        self._i = j + 1
+            self._errors.add(now - dl.deadline(j))
         return True
 
     def _run(self) -> None:

@@ -5,7 +5,8 @@ transit), the belt (``--belt URL``, ``--calibration FILE``) and a negative ANGLE
   --transit; ``build_stimulus(angle, **opts)`` validates them and returns a Stimulus
   (its ``layout`` is the layout asked for); ``layout_given(**opts)`` says whether the
   user chose a layout.
-- ``@belt_options`` adds --belt and --calibration; ``open_belt_for(url, stimulus, ...)``
+- ``@belt_option()`` adds --belt (help from the backend registry), ``@belt_options``
+  --belt and --calibration; ``open_belt_for(url, stimulus, ...)``
   opens the belt for a stimulus (the layout the user gave, or the belt's own).
 - ``AngleCommand``: a click command class whose ANGLE argument may be negative
   (``tactorbelt play -30``) without ``--``.
@@ -37,6 +38,7 @@ F = TypeVar("F", bound=Callable[..., Any])
 
 __all__ = [
     "AngleCommand",
+    "belt_option",
     "belt_options",
     "build_layout",
     "build_stimulus",
@@ -124,12 +126,18 @@ def layout_given(tactors: object | None = None, tactor_angles: str | None = None
     return tactors is not None or tactor_angles is not None
 
 
+def belt_option(what: str = "The belt") -> Callable[[F], F]:
+    """The one ``--belt URL`` option; its help lists the registered backends."""
+    from ..devices.registry import belt_url_help
+
+    return click.option("--belt", "belt_url", default="sim", show_default=True, metavar="URL",
+                        help=f"{what}: {belt_url_help()}")
+
+
 def belt_options(func: F) -> F:
     """Add --belt URL and --calibration FILE."""
     options = [
-        click.option("--belt", "belt_url", default="sim", show_default=True, metavar="URL",
-                     help="sim, sim:virtual (no real-time waits), emulator, serial:PORT, "
-                          "serial:auto or ble:NAME."),
+        belt_option(),
         click.option("--calibration", "calibration_file", default=None, metavar="FILE",
                      help="Motor calibration file (TOML, from `tactorbelt calibrate`)."),
     ]

@@ -22,6 +22,7 @@ import click
 
 from ._options import (
     AngleCommand,
+    belt_option,
     belt_options,
     build_stimulus,
     layout_given,
@@ -85,7 +86,7 @@ def play(angle: str, belt_url: str, calibration_file: str | None, seconds: float
     assert stimulus_on_belt is not None
     with belt:
         player = Player(belt, rate_hz=rate, device_render=False if rate is not None else None)
-        how = ("rendered by the belt" if player.device_render
+        how = ("rendered by the belt" if player.renders_on_device(stimulus_on_belt)
                else f"streamed at {player.rate_hz:g} Hz")
         kind = "on-tactor" if stimulus_on_belt.on_tactor else "between-tactor"
         click.echo(f"playing {stimulus_on_belt.mode} {kind} {stimulus_on_belt.target_deg:g} deg "
@@ -130,7 +131,7 @@ def belt_test(belt_url: str, calibration_file: str | None, seconds_each: float, 
     belt, _ = open_belt_for(belt_url, None, calibration=calibration,
                             calibration_file=calibration_file)
     with belt:
-        clock = getattr(belt, "clock", None) or WallClock()
+        clock = belt.clock or WallClock()
         player = Player(belt, clock=clock, device_render=False)
         click.echo(f"belt-test on {_describe(belt)}: {seconds_each:g} s per tactor")
         for k, angle in enumerate(belt.tactor_angles_deg):
@@ -201,8 +202,7 @@ def _adjust(keys: _Keys, show: Any, level: float, step: float, lo: float) -> flo
 
 
 @click.command()
-@click.option("--belt", "belt_url", default="sim", show_default=True, metavar="URL",
-              help="The belt to calibrate.")
+@belt_option("The belt to calibrate")
 @click.option("-o", "--output", default=None, metavar="FILE",
               help="Write the calibration here [default: print it to stdout].")
 @click.option("--step", type=float, default=0.02, show_default=True,
@@ -226,7 +226,7 @@ def calibrate(belt_url: str, output: str | None, step: float) -> None:
     keys = _Keys()
     belt, _ = open_belt_for(belt_url, None)
     with belt:
-        clock = getattr(belt, "clock", None) or WallClock()
+        clock = belt.clock or WallClock()
         # stream on a real clock (a hardware belt's heartbeat needs frames); on a
         # simulated clock just set the levels
         player = None if clock.simulated else Player(belt, clock=clock, device_render=False)

@@ -25,7 +25,7 @@ from typing import IO, TYPE_CHECKING, Any
 import click
 
 from .._errors import ConfigError
-from ._options import parse_number
+from ._options import belt_option, parse_number
 
 if TYPE_CHECKING:
     from ..display import DirectionDisplay
@@ -165,8 +165,7 @@ def _stdin_lines(stream: IO[str]) -> Iterator[tuple[int, str]]:
 
 
 @click.command()
-@click.option("--belt", "belt_url", default="sim", show_default=True,
-              help="Belt URL: sim, sim:virtual, emulator, serial:PORT, ble:NAME.")
+@belt_option()
 @click.option("--bearing", default=None,
               help="Direction to keep displayed, degrees clockwise from the heading's "
                    "reference (north); without --heading-from, a body angle.")

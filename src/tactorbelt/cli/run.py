@@ -23,6 +23,7 @@ from typing import TYPE_CHECKING, Any
 import click
 
 from .._errors import ConfigError, StoreError
+from ._options import belt_option
 
 if TYPE_CHECKING:
     from ..clock import Clock
@@ -60,8 +61,7 @@ def _stable_seed(seed: int, participant: str) -> int:
 @click.command("run")
 @click.argument("study_file", metavar="STUDY", type=click.Path(dir_okay=False, path_type=Path))
 @click.option("--participant", "-p", required=True, help="Participant id (e.g. P01).")
-@click.option("--belt", "belt_url", default="sim", show_default=True,
-              help="Belt URL: sim, emulator, serial:PORT, serial:auto, ble:NAME.")
+@belt_option()
 @click.option("--input", "input_kind", type=click.Choice(INPUTS), default=None,
               help="Cursor source [default: joystick; model with --headless].")
 @click.option("--db", type=click.Path(path_type=Path), default=Path("study.sqlite"),

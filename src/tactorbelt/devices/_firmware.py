@@ -7,7 +7,7 @@ What the belt does while open:
 
 - On open, GET_INFO (retried): it refuses a protocol version other than 1 with a
   :class:`~tactorbelt.ProtocolError`, takes the layout from the device's tactor
-  angles, the firmware version, ``can_render`` from capability bit 0 and the device's
+  angles, the firmware version, ``can_render()`` from capability bit 0 and the device's
   heartbeat timeout.
 - Every packet gets the next sequence number (mod 256), in the order it is written,
   so the device's ``seq_gaps`` counter stays 0. Requests that have a reply (PING,
@@ -206,7 +206,7 @@ class FirmwareBelt(Belt, PacketSink):
         calibration: drive mapping per tactor.
         layout: override the device's tactor angles (same tactor count). When they
             differ from the device's, the belt cannot render on the device
-            (``can_render`` is False), since the device renders with its own angles.
+            (``can_render()`` is False), since the device renders with its own angles.
         keepalive: run the keep-alive thread (turn it off only to test the failsafe).
         clock: accepted for compatibility with the other backends and ignored
             (a real device runs on wall time).
@@ -259,6 +259,7 @@ class FirmwareBelt(Belt, PacketSink):
         self.unsolicited_naks = 0
         self.frames_sent = 0
         self.heartbeat_ms = 0
+        self._can_play_target = False
         # Belt.__init__ sets _closed; until it runs, __del__ must see a closed belt.
         self._closed = True
         transport.start(self)
@@ -276,7 +277,7 @@ class FirmwareBelt(Belt, PacketSink):
                 use_layout = dev_layout
             self.info = info
             self.heartbeat_ms = info.heartbeat_ms
-            self.can_render = info.can_play_target and use_layout == dev_layout
+            self._can_play_target = info.can_play_target and use_layout == dev_layout
             super().__init__(
                 url,
                 f"tactorbelt firmware {info.firmware_version} on {self.port}",
@@ -502,9 +503,20 @@ class FirmwareBelt(Belt, PacketSink):
                         "(its failsafe turns them off within %d ms)",
                         self.port, exc, self.heartbeat_ms)
 
+    def _device_renders(self, stimulus: Stimulus | None) -> bool:
+        if not self._can_play_target:
+            return False
+        if stimulus is None:
+            return True
+        try:  # what PLAY_TARGET can carry: a known law and mode, timings that fit
+            _ms(stimulus.period_s, "period", 1, 0xFFFF)
+            _ms(stimulus.transit_s, "transit", 1, 0xFFFF)
+        except ConfigError:
+            return False
+        return (stimulus.law in _LAW_CODES and stimulus.mode in _MODE_CODES
+                and 1 <= round(stimulus.falloff_deg * 100.0) <= 0xFFFF)
+
     def _write_play(self, stimulus: Stimulus, duration_s: float | None) -> None:
-        if not self.can_render:
-            super()._write_play(stimulus, duration_s)
         if stimulus.law not in _LAW_CODES:
             raise ConfigError(
                 f"the firmware cannot render law {stimulus.law!r}; allowed: {', '.join(_LAW_CODES)}"

@@ -8,9 +8,21 @@ ends, whether normally, on an exception or on Ctrl-C (KeyboardInterrupt).
 Callers never need to know which backend they have:
 
 - ``set_amplitudes(values)`` streams one frame (one value per tactor, in [0, 1]);
-- ``play(stimulus, duration_s)`` hands a whole stimulus to a belt that renders on the
-  device (``can_render``), which then keeps its own 1 kHz timing;
+- ``play(stimulus, duration_s)`` hands a whole stimulus to a belt that renders it on
+  the device (``can_render(stimulus)``), which then keeps its own 1 kHz timing;
 - ``stop()`` turns every motor off.
+
+Every capability a caller may use is declared here, with a default, so callers never
+probe a belt with ``getattr``/``hasattr``:
+
+- ``clock``: the belt's own clock (the sim belt's), or None (wall time);
+- ``stream_rate_hz``: the rate a Player streams at (1000; 40 over BLE);
+- ``can_render(stimulus)``: True when the device renders that stimulus itself (a law or
+  mode the firmware lacks is streamed instead); ``can_render()``: renders any at all;
+- ``levels``: the drive levels last written (calibrated), or None when not known (a
+  device rendering a stimulus);
+- ``models_vibration`` and ``vibration(t0_ns, t1_ns, rate_hz)``: the modelled vibration
+  (the sim belt's motor model); other belts raise TactorbeltError.
 
 The :class:`tactorbelt.player.Player` picks between streaming and device-side
 rendering, so runners simply use a Player.
@@ -29,13 +41,17 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .._errors import ConfigError, TactorbeltError
+from ..clock import Clock
 from ..geometry import Layout
 from .calibration import Calibration
 
 if TYPE_CHECKING:
     from ..stimuli import Stimulus
 
-__all__ = ["Belt", "check_amplitudes"]
+__all__ = ["DEFAULT_STREAM_RATE_HZ", "Belt", "check_amplitudes"]
+
+#: The streaming rate of a belt that does not declare another.
+DEFAULT_STREAM_RATE_HZ = 1000.0
 
 
 def check_amplitudes(values: ArrayLike, n: int) -> NDArray[np.float64]:
@@ -69,10 +85,12 @@ class Belt(ABC):
         firmware_version: ``"1.0.0"`` or None for a belt with no firmware.
         layout: the tactor angles.
         calibration: the drive mapping applied to every frame.
-        can_render: True when the belt renders stimuli itself (``play``).
+        clock: the belt's own clock, or None (the belt runs on wall time).
+        stream_rate_hz: the frame rate a Player streams at by default.
     """
 
-    can_render: bool = False
+    clock: Clock | None = None
+    stream_rate_hz: float = DEFAULT_STREAM_RATE_HZ
 
     def __init__(
         self,
@@ -93,6 +111,7 @@ class Belt(ABC):
         self.calibration = calibration or Calibration.identity(layout.n)
         self._closed = False
         self._lock = threading.RLock()
+        self._levels: NDArray[np.float64] | None = np.zeros(layout.n)
 
     # -- what backends implement ------------------------------------------------
     @abstractmethod
@@ -104,8 +123,13 @@ class Belt(ABC):
         """Turn every motor off now."""
 
     def _write_play(self, stimulus: Stimulus, duration_s: float | None) -> None:
-        """Hand a stimulus to the device (only for ``can_render`` belts)."""
+        """Hand a stimulus to the device (only for what ``can_render`` accepts)."""
         raise TactorbeltError(f"belt {self.url!r} cannot render stimuli on the device")
+
+    def _device_renders(self, stimulus: Stimulus | None) -> bool:
+        """Backends that render on the device: True for what the device can render
+        (``stimulus`` None: anything at all). The layout is checked by the caller."""
+        return False
 
     def _close(self) -> None:  # noqa: B027 - optional hook
         """Release the connection (motors are already off)."""
@@ -123,6 +147,39 @@ class Belt(ABC):
     def closed(self) -> bool:
         return self._closed
 
+    # -- capabilities -------------------------------------------------------------
+    def can_render(self, stimulus: Stimulus | None = None) -> bool:
+        """True when :meth:`play` renders ``stimulus`` on the device.
+
+        False for a stimulus made for another layout, or with a law, mode or timing
+        the device lacks (stream it instead). Without a stimulus: True when the belt
+        can render some stimulus on the device.
+        """
+        if stimulus is not None and stimulus.layout != self.layout:
+            return False
+        return self._device_renders(stimulus)
+
+    @property
+    def levels(self) -> NDArray[np.float64] | None:
+        """The drive levels last written (calibrated, one per tactor; zeros after
+        ``stop``), or None when not known (the device is rendering a stimulus)."""
+        with self._lock:
+            return None if self._levels is None else self._levels.copy()
+
+    @property
+    def models_vibration(self) -> bool:
+        """True when :meth:`vibration` models the motors' vibration (the sim belt)."""
+        return False
+
+    def vibration(self, t0_ns: int, t1_ns: int, rate_hz: float = 1000.0
+                  ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+        """Modelled vibration over [t0, t1): ``(t_ns, amplitude (n, N))``.
+
+        Raises:
+            TactorbeltError: the belt models no vibration (``models_vibration`` False).
+        """
+        raise TactorbeltError(f"belt {self.url!r} models no vibration (only the sim belt does)")
+
     def _check_open(self) -> None:
         if self._closed:
             raise TactorbeltError(f"belt {self.url!r} is closed")
@@ -132,7 +189,9 @@ class Belt(ABC):
         a = check_amplitudes(values, self.n_tactors)
         with self._lock:
             self._check_open()
-            self._write_levels(self.calibration.apply(a))
+            levels = self.calibration.apply(a)
+            self._write_levels(levels)
+            self._levels = np.asarray(levels, dtype=float)
 
     def play(self, stimulus: Stimulus, duration_s: float | None = None) -> None:
         """Render ``stimulus`` on the device for ``duration_s`` (None: until stopped)."""
@@ -148,13 +207,17 @@ class Belt(ABC):
             raise ConfigError("the stimulus was made for another layout than this belt's")
         with self._lock:
             self._check_open()
+            if not self.can_render():
+                raise TactorbeltError(f"belt {self.url!r} cannot render stimuli on the device")
             self._write_play(stimulus, duration_s)
+            self._levels = None
 
     def stop(self) -> None:
         """Turn every motor off."""
         with self._lock:
             if not self._closed:
                 self._write_stop()
+                self._levels = np.zeros(self.n_tactors)
 
     def close(self) -> None:
         """Turn every motor off (best effort) and release the belt. Safe to call twice."""
@@ -163,6 +226,7 @@ class Belt(ABC):
                 return
             try:
                 self._write_stop()
+                self._levels = np.zeros(self.n_tactors)
             finally:
                 self._closed = True
                 self._close()
@@ -180,7 +244,7 @@ class Belt(ABC):
 
     def __del__(self) -> None:  # last resort: never leave a motor running
         try:
-            if not getattr(self, "_closed", True):
+            if not self.__dict__.get("_closed", True):  # __init__ may not have run
                 self.close()
         except Exception:
             pass

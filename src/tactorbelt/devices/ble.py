@@ -34,10 +34,10 @@ from collections.abc import Awaitable, Callable, Coroutine
 from dataclasses import dataclass
 from typing import Any, Final, Protocol, TypeVar
 
-from .._errors import DeviceError, ProtocolError
+from .._errors import DeviceError, ProtocolError, TactorbeltError
 from . import wire
 from ._firmware import FirmwareBelt, PacketSink, Transport
-from .serial import check_options
+from .registry import Discovery, Found, check_options
 
 __all__ = [
     "BLE_STREAM_RATE_HZ",
@@ -49,6 +49,7 @@ __all__ = [
     "BleClient",
     "BleTransport",
     "BleUnavailableError",
+    "discover",
     "discover_belts",
     "open_ble",
 ]
@@ -355,3 +356,29 @@ def discover_belts(timeout_s: float = 5.0) -> list[BleBeltInfo]:
     except Exception as exc:
         raise BleUnavailableError(
             f"BLE is not available on this machine: {_describe(exc)}") from None
+
+
+def discover(timeout_s: float = 5.0, probe_all: bool = False) -> Discovery:
+    """Scan for belts and ask each GET_INFO (for ``tactorbelt devices``).
+
+    A machine without BLE gets a note, not an error. ``probe_all`` is unused.
+    """
+    del probe_all
+    empty = f"no device advertising a tactorbelt within {timeout_s:g} s"
+    try:
+        found = discover_belts(timeout_s)
+    except BleUnavailableError as exc:
+        return Discovery([], str(exc), empty)
+    rows = []
+    for d in found:
+        rssi = f", {d.rssi} dBm" if d.rssi is not None else ""
+        row = Found("ble", d.address, f"{d.name or '(no name)'}{rssi}", f"ble:{d.address}")
+        try:
+            belt = open_ble(d.address, scan_timeout_s=timeout_s, keepalive=False)
+        except TactorbeltError as exc:
+            row.note = str(exc)
+        else:
+            with belt:
+                row.firmware_version, row.tactors = belt.firmware_version, belt.n_tactors
+        rows.append(row)
+    return Discovery(rows, None, empty)

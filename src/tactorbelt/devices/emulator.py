@@ -31,7 +31,8 @@ from typing import IO, Any, Final
 from .._errors import ConfigError, DeviceError
 from ..geometry import Layout
 from ._firmware import FirmwareBelt
-from .serial import SERIAL_STREAM_RATE_HZ, SerialTransport, check_options
+from .registry import check_options
+from .serial import SERIAL_STREAM_RATE_HZ, SerialTransport
 
 __all__ = ["EmulatorBelt", "build_emulator", "emulator_path", "firmware_dir", "open_emulator"]
 
@@ -241,8 +242,12 @@ def open_emulator(target: str = "", **options: Any) -> EmulatorBelt:
 
     with tempfile.TemporaryFile() as stderr:
         try:
+            # its own session: the terminal's Ctrl-C (SIGINT to the foreground process
+            # group) reaches only the host, which stops the motors, then ends the
+            # emulator; if the host dies, the emulator's stdin reaches end of file and
+            # it exits by itself
             proc = subprocess.Popen(args, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
-                                    stderr=stderr)
+                                    stderr=stderr, start_new_session=True)
         except OSError as exc:
             raise DeviceError(f"cannot start the emulator {exe}: {exc}") from None
         assert proc.stdout is not None

@@ -17,21 +17,24 @@ from __future__ import annotations
 
 import contextlib
 import errno
+import functools
 import logging
 import threading
-from collections.abc import Iterable
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, Final
 
-from .._errors import ConfigError, DeviceError, ProtocolError
+from .._errors import DeviceError, ProtocolError
 from . import wire
 from ._firmware import DEFAULT_TIMEOUT_S, FirmwareBelt, PacketSink, Transport
+from .registry import Discovery, Found, check_options
 
 __all__ = [
     "ARDUINO_VID",
     "SERIAL_STREAM_RATE_HZ",
     "SerialPortInfo",
     "SerialTransport",
+    "discover",
     "list_serial_ports",
     "open_serial",
     "open_serial_port",
@@ -152,17 +155,6 @@ class SerialTransport(Transport):
             log.debug("closing %s: %s", self.port, exc)
 
 
-def check_options(options: dict[str, Any], allowed: Iterable[str], url: str) -> None:
-    """Raise ConfigError naming the options a backend does not know."""
-    allowed = frozenset(allowed)
-    unknown = sorted(set(options) - allowed)
-    if unknown:
-        raise ConfigError(
-            f"unknown option(s) {', '.join(unknown)} for belt {url!r}; "
-            f"allowed: {', '.join(sorted(allowed))}"
-        )
-
-
 def open_serial_port(port: str, url: str | None = None, **options: Any) -> FirmwareBelt:
     """Open the firmware belt on one serial port (no auto-detection).
 
@@ -274,3 +266,36 @@ def open_serial(target: str, **options: Any) -> FirmwareBelt:
     raise DeviceError(
         "serial:auto: no candidate port answered as a tactorbelt: " + "; ".join(failures)
     )
+
+
+def _probe(open_: Callable[[], FirmwareBelt]) -> tuple[str | None, int | None, str]:
+    """Open a belt, read version and tactor count, close it. Never raises."""
+    from .._errors import TactorbeltError
+
+    try:
+        belt = open_()
+    except TactorbeltError as exc:
+        return None, None, str(exc)
+    with belt:
+        return belt.firmware_version, belt.n_tactors, ""
+
+
+#: Longest wait for one device's answer while ``tactorbelt devices`` probes.
+PROBE_TIMEOUT_S: Final = 0.5
+
+
+def discover(timeout_s: float = 5.0, probe_all: bool = False) -> Discovery:
+    """Every serial port; those that look like a belt (or all, with ``probe_all``) are
+    asked GET_INFO (for ``tactorbelt devices``). Never raises for a port that fails."""
+    rows = []
+    for p in list_serial_ports():
+        ids = f" [{p.vid:04X}:{p.pid or 0:04X}]" if p.vid is not None else ""
+        row = Found("serial", p.device, p.description + ids, f"serial:{p.device}")
+        if p.looks_like_belt or probe_all:
+            row.firmware_version, row.tactors, row.note = _probe(functools.partial(
+                open_serial_port, p.device, timeout_s=min(timeout_s, PROBE_TIMEOUT_S),
+                keepalive=False))
+        else:
+            row.note = "not probed (not an Arduino; --probe-all asks it anyway)"
+        rows.append(row)
+    return Discovery(rows)

@@ -341,8 +341,6 @@ class SimBelt(Belt):
         url, name: recorded on the belt.
     """
 
-    can_render = True
-
     def __init__(
         self,
         layout: Layout | None = None,
@@ -394,6 +392,13 @@ class SimBelt(Belt):
         self._since_ck = 0
 
     # -- Belt backend -----------------------------------------------------------------
+    def _device_renders(self, stimulus: Stimulus | None) -> bool:
+        return True  # the sim belt renders every stimulus made for its layout
+
+    @property
+    def models_vibration(self) -> bool:
+        return True
+
     def _write_levels(self, levels: FloatArray) -> None:
         self._append(np.asarray(levels, dtype=float), -1)
 

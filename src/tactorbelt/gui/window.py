@@ -211,8 +211,7 @@ class ExperimentWindow:
         """Use ``cursor``: live sources (joystick, mouse) are fed by this window."""
         self.cursor = cursor
         if isinstance(cursor, LiveCursor):
-            if hasattr(cursor, "geometry"):
-                cursor.geometry = self.renderer.geometry
+            cursor.geometry = self.renderer.geometry
             cursor.attach_refresh(self._refresh_live)
 
     def _refresh_live(self) -> None:
@@ -340,7 +339,7 @@ class ExperimentWindow:
             elif t == pg.KEYDOWN:
                 self._on_key(ev, now_ns)
             elif t == pg.JOYBUTTONDOWN:
-                own = getattr(live, "instance_id", None)
+                own = live.instance_id if live is not None else None
                 if own is None or getattr(ev, "instance_id", own) == own:
                     self._continue = True
             elif t == pg.MOUSEBUTTONDOWN and self.input_kind == "mouse":
@@ -396,7 +395,7 @@ class ExperimentWindow:
         self.surface = surface
         self.renderer.resize(self.surface.get_size())
         live = self._live
-        if live is not None and hasattr(live, "geometry"):
+        if live is not None:
             live.geometry = self.renderer.geometry
 
     # ------------------------------------------------------------------------------------
@@ -603,10 +602,10 @@ class ExperimentWindow:
     def _pause_text(self) -> tuple[str, list[str]]:
         if self.device_paused:
             live = self._live
-            want = getattr(live, "describe_wanted", lambda: "the joystick")()
+            want = live.describe_wanted() if live is not None else "the joystick"
             lines = [f"Waiting for {want}: plug it back in.",
                      "The session goes on by itself when it is back."]
-            problem = getattr(live, "problem", None)
+            problem = live.problem if live is not None else None
             if problem:
                 lines.append(str(problem))
             lines += ["", "Esc twice: stop the session (saved, can be resumed)."]
@@ -640,8 +639,8 @@ class ExperimentWindow:
                              + (f" ({r.abort_reason})" if r.abort_reason else ""))
         live = self._live
         x, y = self._cursor_pos() or (0.0, 0.0)
-        name = getattr(live, "name", None)
-        raw = getattr(live, "raw_axes", None)
+        name = live.name if live is not None else None
+        raw = live.raw_axes if live is not None else None
         desc = f"input {self.input_kind}" + (f" '{name}'" if name else "")
         if raw is not None:
             desc += f"  raw ({raw[0]:+.2f}, {raw[1]:+.2f})"
@@ -657,8 +656,8 @@ class ExperimentWindow:
 
     def _levels(self, now_ns: int) -> Any:
         """Live amplitude per tactor: the belt's levels when it has them, else computed."""
-        lv = getattr(self.belt, "levels", None) if self.belt is not None else None
-        if lv is not None and not callable(lv):
+        lv = self.belt.levels if self.belt is not None else None
+        if lv is not None:
             return lv
         cur = self.current
         if cur is None or cur.phase != "stimulus" or cur.onset_ns is None:
@@ -936,8 +935,8 @@ def run_with_window(
     from ..experiment.runner import run_session
 
     if clock is None:
-        own = getattr(belt, "clock", None)
-        if own is not None and (realtime or getattr(own, "simulated", False)):
+        own = belt.clock
+        if own is not None and (realtime or own.simulated):
             clock = own
         elif realtime:
             from ..clock import WallClock

@@ -15,8 +15,12 @@ Imports only the standard library and tactorbelt.geometry.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 from ..geometry import Layout
+
+if TYPE_CHECKING:
+    from ..gui.layout import EllipseGeometry
 
 __all__ = ["CursorSample", "CursorSource", "TrialCue"]
 
@@ -53,7 +57,31 @@ class TrialCue:
 
 
 class CursorSource:
-    """Base class of cursor sources. Subclasses implement :meth:`read`."""
+    """Base class of cursor sources. Subclasses implement :meth:`read`.
+
+    What a window may use, declared here with defaults (a source sets what it has):
+
+    Attributes:
+        geometry: where the response ellipse is on screen (pixels); the window sets it
+            when it lays out (the mouse uses it; other sources ignore it).
+        name: the device's name for the operator's overlay, or None.
+        problem: why the device cannot be used now (shown while paused), or None.
+        raw_axes: the device's raw axes for the overlay, or None.
+    """
+
+    geometry: EllipseGeometry | None = None
+    name: str | None = None
+    problem: str | None = None
+    raw_axes: tuple[float, float] | None = None
+
+    @property
+    def instance_id(self) -> int | None:
+        """SDL's instance id of the device (its events carry it), or None."""
+        return None
+
+    def describe_wanted(self) -> str:
+        """What the source waits for while its device is gone, in words."""
+        return "the joystick"
 
     def read(self, now_ns: int) -> CursorSample:
         """The cursor at ``now_ns`` (the runner's clock)."""

@@ -211,13 +211,15 @@ def make_model_cursor(belt: Belt, clock: Clock, seed: int, params: ModelParams |
     if isinstance(seed, bool) or not isinstance(seed, int | np.integer):
         raise ConfigError(f"the model participant's seed must be an integer, got {seed!r}")
     if sense is None:
-        vibration = getattr(belt, "vibration", None)
-        if not callable(vibration):
+        from ..devices.base import Belt as _Belt
+
+        if not (isinstance(belt, _Belt) and belt.models_vibration):
+            where = belt.url if isinstance(belt, _Belt) else belt
             raise ConfigError(
                 f"the model participant feels the vibration a simulated belt models; belt "
-                f"{getattr(belt, 'url', belt)!r} models none. Use --belt sim with --input model"
+                f"{where!r} models none. Use --belt sim with --input model"
             )
-        sense = vibration
+        sense = belt.vibration
     if params is not None and not isinstance(params, ModelParams):
         raise ConfigError(f"params must be a ModelParams, got {type(params).__name__}")
     return ModelCursor(sense, int(seed), params, clock)

@@ -1,0 +1,257 @@
+"""The belt backend registry: one entry per URL scheme, modelled on pyserial's URL handlers.
+
+Each backend registers, in :data:`BACKENDS` (one line each, at the end of this module):
+
+- its ``scheme`` (``serial``) and whether the URL needs a target (``serial:PORT``);
+- the ``opener``, a ``"module:function"`` string imported only when such a belt is
+  opened (so the registry never imports pyserial or bleak); the function takes
+  ``(target, **options)`` and returns a :class:`~tactorbelt.devices.base.Belt`;
+- its URL options (``serial:/dev/ttyACM0?timeout_s=2``): the ``?key=value`` query is
+  parsed and validated here, in one place, and passed to the opener as keywords;
+- a one-line summary and example URLs (the ``--belt`` help and ``tactorbelt devices``
+  are generated from them);
+- optionally a ``discover`` function (``"module:function"``), which ``tactorbelt
+  devices`` calls as ``discover(timeout_s=..., probe_all=...)`` to list what answers.
+
+Imports only the standard library and tactorbelt._errors.
+"""
+
+from __future__ import annotations
+
+import importlib
+import math
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, field
+from typing import Any, Final
+
+from .._errors import ConfigError
+
+__all__ = [
+    "BACKENDS",
+    "Backend",
+    "Discovery",
+    "Found",
+    "UrlOption",
+    "belt_url_help",
+    "check_options",
+    "parse_url",
+    "resolve",
+]
+
+
+@dataclass(frozen=True)
+class UrlOption:
+    """One ``?key=value`` option of a belt URL.
+
+    Attributes:
+        name: the key, also the keyword passed to the opener (``timeout_s``).
+        kind: ``int``, ``float``, ``bool`` or ``str``.
+        help: one line for the help text.
+        low, high: the allowed range of a number (inclusive), or None.
+    """
+
+    name: str
+    kind: type
+    help: str
+    low: float | None = None
+    high: float | None = None
+
+    def parse(self, text: str, url: str) -> Any:
+        """The value of ``key=text``, checked. Raises ConfigError naming the URL."""
+        what = f"option {self.name!r} of belt URL {url!r}"
+        if self.kind is bool:
+            t = text.strip().lower()
+            if t in ("1", "true", "yes", "on"):
+                return True
+            if t in ("0", "false", "no", "off"):
+                return False
+            raise ConfigError(f"{what} must be true or false, got {text!r}")
+        if self.kind is str:
+            return text
+        try:
+            value: float = int(text) if self.kind is int else float(text)
+        except ValueError:
+            kind = "an integer" if self.kind is int else "a number"
+            raise ConfigError(f"{what} must be {kind}, got {text!r}") from None
+        if not math.isfinite(value) or (self.low is not None and value < self.low) or (
+                self.high is not None and value > self.high):
+            raise ConfigError(f"{what} must be in {self.low:g}..{self.high:g}, got {text!r}"
+                              if self.low is not None and self.high is not None
+                              else f"{what} is out of range: {text!r}")
+        return value
+
+
+@dataclass(frozen=True)
+class Backend:
+    """One registered belt backend (see the module docstring)."""
+
+    scheme: str
+    opener: str
+    summary: str
+    examples: tuple[str, ...]
+    #: ``"PORT"`` when the URL needs a target (``serial:PORT``), "" when it takes none
+    #: or an optional one.
+    target: str = ""
+    options: tuple[UrlOption, ...] = ()
+    discover: str | None = None
+    #: heading of the backend's section in ``tactorbelt devices``.
+    title: str = ""
+    #: the docs page describing the backend.
+    docs: str = "docs/devices.md"
+    #: the URL forms an unknown-scheme error lists (default: :attr:`usage`).
+    allowed: tuple[str, ...] = ()
+
+    @property
+    def needs_target(self) -> bool:
+        return bool(self.target)
+
+    @property
+    def usage(self) -> str:
+        """``serial:PORT`` or ``sim``."""
+        return f"{self.scheme}:{self.target}" if self.target else self.scheme
+
+    @property
+    def forms(self) -> tuple[str, ...]:
+        return self.allowed or (self.usage,)
+
+    def load_opener(self) -> Callable[..., Any]:
+        """Import the backend module and return its opener."""
+        return _load(self.opener)
+
+    def load_discover(self) -> Callable[..., Discovery] | None:
+        """Import the backend module and return its discovery function (None: none)."""
+        return None if self.discover is None else _load(self.discover)
+
+
+@dataclass
+class Found:
+    """One port or device a discovery function saw, and what it answered."""
+
+    link: str
+    port: str
+    description: str
+    url: str
+    firmware_version: str | None = None
+    tactors: int | None = None
+    note: str = ""
+
+    @property
+    def is_belt(self) -> bool:
+        return self.firmware_version is not None
+
+
+@dataclass
+class Discovery:
+    """What one backend's discovery found: rows, a note when it could not look, and
+    what to say when it looked and found nothing."""
+
+    rows: list[Found] = field(default_factory=list)
+    note: str | None = None
+    empty: str = "none"
+
+
+def check_options(options: dict[str, Any], allowed: Iterable[str], url: str) -> None:
+    """Raise ConfigError naming the keyword options a backend does not know."""
+    allowed = frozenset(allowed)
+    unknown = sorted(set(options) - allowed)
+    if unknown:
+        raise ConfigError(
+            f"unknown option(s) {', '.join(unknown)} for belt {url!r}; "
+            f"allowed: {', '.join(sorted(allowed))}"
+        )
+
+
+def _load(spec: str) -> Callable[..., Any]:
+    module_name, _, func_name = spec.partition(":")
+    module = importlib.import_module(module_name)
+    func: Callable[..., Any] = vars(module)[func_name]
+    return func
+
+
+def resolve(url: str) -> tuple[Backend, str, dict[str, Any]]:
+    """Split ``scheme:target?key=value&...`` into its backend, target and URL options.
+
+    Raises:
+        ConfigError: not a string, an unknown scheme, a missing target, an unknown or
+            malformed URL option (every message names the URL).
+    """
+    if not isinstance(url, str) or not url.strip():
+        raise ConfigError(f"belt URL must be a non-empty string, got {url!r}")
+    text = url.strip()
+    head, _, query = text.partition("?")
+    scheme, _, target = head.partition(":")
+    backend = BACKENDS.get(scheme.lower())
+    if backend is None:
+        allowed = ", ".join(form for b in BACKENDS.values() for form in b.forms)
+        raise ConfigError(f"unknown belt URL {url!r}; allowed: {allowed}")
+    if backend.needs_target and not target:
+        raise ConfigError(f"belt URL {url!r} needs a target, e.g. {backend.scheme}:auto")
+    options: dict[str, Any] = {}
+    known = {o.name: o for o in backend.options}
+    for item in filter(None, query.split("&")):
+        key, eq, value = item.partition("=")
+        if not eq:
+            raise ConfigError(f"belt URL {url!r}: expected key=value after '?', got {item!r}")
+        opt = known.get(key.strip())
+        if opt is None:
+            names = ", ".join(known) or "none"
+            raise ConfigError(f"unknown option {key.strip()!r} in belt URL {url!r}; "
+                              f"allowed: {names}")
+        options[opt.name] = opt.parse(value.strip(), url)
+    return backend, target, options
+
+
+def parse_url(url: str) -> tuple[str, str]:
+    """Split ``scheme:target`` (the URL options are checked, then dropped)."""
+    backend, target, _ = resolve(url)
+    return backend.scheme, target
+
+
+def belt_url_help() -> str:
+    """The ``--belt URL`` help text: every registered scheme with an example."""
+    return "; ".join(f"{', '.join(b.examples)}: {b.summary}" for b in BACKENDS.values()) + (
+        ". Options: URL?key=value (tactorbelt devices --help).")
+
+
+def url_options_help() -> str:
+    """One line per backend with URL options (for ``tactorbelt devices --help``)."""
+    lines = []
+    for b in BACKENDS.values():
+        for o in b.options:
+            lines.append(f"  {b.scheme}: {o.name} ({o.kind.__name__}): {o.help}")
+    return "\n".join(lines)
+
+
+_TIMEOUT: Final = UrlOption("timeout_s", float, "seconds a request waits for its reply",
+                            0.01, 60.0)
+_HEARTBEAT: Final = UrlOption("heartbeat_ms", int, "the device's failsafe timeout (ms)",
+                              50, 2000)
+
+#: scheme -> backend. Adding a backend: its module, one line here, its docs page.
+BACKENDS: dict[str, Backend] = {b.scheme: b for b in (
+    Backend("sim", "tactorbelt.devices.sim:open_sim",
+            "simulated ERM belt (sim:8 tactors; sim:virtual runs on a simulated clock)",
+            ("sim", "sim:virtual", "sim:8"),
+            options=(UrlOption("horizon_s", float, "seconds of history kept", 0.001, 1e6),),
+            docs="docs/belts.md"),
+    Backend("emulator", "tactorbelt.devices.emulator:open_emulator",
+            "the firmware core built for this computer, on a pseudo-terminal",
+            ("emulator",),
+            options=(UrlOption("tactors", int, "emulated channels", 2, 16), _HEARTBEAT,
+                     _TIMEOUT, UrlOption("build", bool, "run make first")),
+            docs="docs/devices.md"),
+    Backend("serial", "tactorbelt.devices.serial:open_serial",
+            "firmware over USB serial", ("serial:/dev/ttyACM0", "serial:auto"), target="PORT",
+            options=(_TIMEOUT, _HEARTBEAT,
+                     UrlOption("baudrate", int, "for real UARTs", 300, 4_000_000)),
+            discover="tactorbelt.devices.serial:discover", title="Serial ports",
+            docs="docs/devices.md", allowed=("serial:PORT", "serial:auto")),
+    Backend("ble", "tactorbelt.devices.ble:open_ble",
+            "firmware over Bluetooth LE (40 Hz streaming)", ("ble:NAME", "ble:auto"),
+            target="NAME_OR_ADDRESS",
+            options=(_TIMEOUT, _HEARTBEAT,
+                     UrlOption("scan_timeout_s", float, "seconds to scan", 0.1, 120.0),
+                     UrlOption("connect_timeout_s", float, "seconds to connect", 0.1, 120.0)),
+            discover="tactorbelt.devices.ble:discover", title="BLE",
+            docs="docs/devices.md"),
+)}

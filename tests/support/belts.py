@@ -1,0 +1,425 @@
+"""Belt fakes shared by the tests: a fake firmware device, its in-memory transport, a
+fake bleak client, a pseudo-terminal device, fake serial port listings, and one factory
+per registered belt backend for the contract suite (tests/test_belt_contract.py).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import os
+import select
+import threading
+import time
+import tty
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from types import SimpleNamespace
+from typing import Any
+
+import numpy as np
+
+from tactorbelt import Layout, ProtocolError
+from tactorbelt.devices import ble, wire
+from tactorbelt.devices._firmware import FirmwareBelt, PacketSink, Transport
+
+
+@dataclass
+class FakeFirmware:
+    """A protocol v1 device in Python: answers requests, records what it got.
+
+    Attributes:
+        silent: drop every request without an answer (a hung device).
+        protocol_version, capabilities, heartbeat_ms, angles_deg: what INFO reports.
+        requests: every valid request, parsed, in order of arrival.
+        seqs: their sequence numbers.
+        extra_replies: a function of the request packet giving packets to send
+            before the real reply (garbage, stale replies, ...).
+    """
+
+    tactors: int = 6
+    protocol_version: int = 1
+    capabilities: int = 1
+    heartbeat_ms: int = 250
+    angles_deg: tuple[float, ...] | None = None
+    silent: bool = False
+    requests: list[wire.Request] = field(default_factory=list)
+    seqs: list[int] = field(default_factory=list)
+    levels: list[int] = field(default_factory=list)
+    state: wire.State = wire.State.IDLE
+    extra_replies: Callable[[wire.Packet], list[wire.Packet]] | None = None
+    got_request: threading.Event = field(default_factory=threading.Event)
+
+    def __post_init__(self) -> None:
+        if self.angles_deg is None:
+            self.angles_deg = Layout.even(self.tactors).angles_deg
+        self.levels = [0] * self.tactors
+        self._lock = threading.Lock()
+
+    def of_type(self, kind: type) -> list[wire.Request]:
+        with self._lock:
+            return [r for r in self.requests if isinstance(r, kind)]
+
+    def handle(self, packet: wire.Packet) -> list[wire.Packet]:
+        """The replies to one request packet."""
+        if self.silent:
+            return []
+        try:
+            req = wire.parse_request(packet)
+        except ProtocolError:
+            code = (wire.NakCode.UNKNOWN_TYPE if packet.type not in set(wire.MsgType)
+                    else wire.NakCode.BAD_LENGTH)
+            return [wire.encode_reply(packet.seq, wire.Nak(packet.seq, code))]
+        with self._lock:
+            self.requests.append(req)
+            self.seqs.append(packet.seq)
+        self.got_request.set()
+        out = list(self.extra_replies(packet)) if self.extra_replies else []
+        reply = self._answer(packet.seq, req)
+        if reply is not None:
+            out.append(wire.encode_reply(packet.seq, reply))
+        return out
+
+    def _answer(self, seq: int, req: wire.Request) -> wire.Reply | None:
+        ack = wire.Ack(seq, 0)
+        if isinstance(req, wire.Ping):
+            return wire.Pong(req.nonce, int(time.monotonic() * 1e6) & 0xFFFFFFFF)
+        if isinstance(req, wire.GetInfo):
+            assert self.angles_deg is not None
+            return wire.Info(self.protocol_version, 1, 2, 3, len(self.angles_deg), 65535,
+                             self.heartbeat_ms, self.capabilities, tuple(self.angles_deg))
+        if isinstance(req, wire.SetAmplitudes):
+            self.levels = list(req.levels)
+            self.state = wire.State.STREAMING
+            return None
+        if isinstance(req, wire.StopAll):
+            self.levels = [0] * self.tactors
+            self.state = wire.State.IDLE
+            return ack
+        if isinstance(req, wire.PlayTarget):
+            self.state = wire.State.PLAYING
+            return ack
+        if isinstance(req, wire.SetConfig):
+            if not 50 <= req.heartbeat_ms <= 2000:
+                return wire.Nak(seq, wire.NakCode.OUT_OF_RANGE)
+            self.heartbeat_ms = req.heartbeat_ms
+            return ack
+        if isinstance(req, wire.GetStatus):
+            return wire.Status(self.state, 0, 0, 0, 0, tuple(self.levels))
+        return None  # HEARTBEAT
+
+
+class LoopTransport(Transport):
+    """An in-memory link: each write is one packet, answered at once by the fake."""
+
+    def __init__(self, device: FakeFirmware, port: str = "loop0") -> None:
+        self.device = device
+        self.port = port
+        self.sink: PacketSink | None = None
+        self.dead = False
+        self.closed = False
+
+    def encode(self, packet: wire.Packet) -> bytes:
+        return wire.encode_packet(packet)
+
+    def write(self, data: bytes) -> None:
+        if self.dead:
+            raise OSError(5, "Input/output error")
+        assert self.sink is not None
+        for reply in self.device.handle(wire.decode_packet(data)):
+            self.sink.packet_received(reply)
+
+    def start(self, sink: PacketSink) -> None:
+        self.sink = sink
+
+    def close(self) -> None:
+        self.closed = True
+
+    def kill(self) -> None:
+        """The link ends (a cable pulled): the reader reports it, writes fail."""
+        self.dead = True
+        assert self.sink is not None
+        self.sink.link_lost("end of file")
+
+
+def wait_for(predicate: Callable[[], object], timeout_s: float = 3.0) -> bool:
+    """Poll a condition another thread makes true (for keep-alive behaviour)."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if predicate():
+            return True
+        time.sleep(0.005)
+    return bool(predicate())
+
+
+def open_fake(device: FakeFirmware | None = None, **options: object
+              ) -> tuple[FirmwareBelt, FakeFirmware, LoopTransport]:
+    device = device or FakeFirmware()
+    transport = LoopTransport(device)
+    options.setdefault("keepalive", False)
+    belt = FirmwareBelt(transport, "loop:loop0", **options)  # type: ignore[arg-type]
+    return belt, device, transport
+
+
+
+
+class FakeBleClient:
+    """A bleak-like client connected to a FakeFirmware.
+
+    Attributes:
+        writes: every (characteristic, data, response) written.
+        corrupt: notify a corrupted and a truncated packet before each reply.
+        fail_connect: connect() raises like an out-of-range device.
+    """
+
+    def __init__(self, firmware: FakeFirmware, on_disconnect: Callable[[Any], None]) -> None:
+        self.firmware = firmware
+        self.on_disconnect = on_disconnect
+        self.address = "AA:BB:CC:DD:EE:FF"
+        self.connected = False
+        self.disconnects = 0
+        self.writes: list[tuple[str, bytes, bool]] = []
+        self.notify: Callable[[Any, bytearray], None] | None = None
+        self.corrupt = False
+        self.fail_connect = False
+
+    @property
+    def is_connected(self) -> bool:
+        return self.connected
+
+    async def connect(self) -> None:
+        if self.fail_connect:
+            raise TimeoutError("device out of range")
+        self.connected = True
+
+    async def disconnect(self) -> None:
+        self.connected = False
+        self.disconnects += 1
+
+    async def start_notify(self, char: str, callback: Callable[[Any, bytearray], None]) -> None:
+        assert char == ble.TX_CHAR_UUID
+        self.notify = callback
+
+    async def write_gatt_char(self, char: str, data: bytes, response: bool) -> None:
+        if not self.connected:
+            raise OSError("not connected")
+        self.writes.append((char, bytes(data), response))
+        loop = asyncio.get_running_loop()
+        for reply in self.firmware.handle(wire.decode_packet(bytes(data))):
+            raw = wire.encode_packet(reply)
+            if self.corrupt:
+                bad = bytearray(raw)
+                bad[2] ^= 0x55
+                loop.call_soon(self.notify, None, bad)  # type: ignore[arg-type]
+                loop.call_soon(self.notify, None, bytearray(raw[:3]))  # type: ignore[arg-type]
+            loop.call_soon(self.notify, None, bytearray(raw))  # type: ignore[arg-type]
+
+    def drop(self) -> None:
+        """The device disconnects (out of range, powered off)."""
+        self.connected = False
+        self.on_disconnect(self)
+
+
+class FakeBle:
+    """A client_factory that hands out FakeBleClients for one FakeFirmware."""
+
+    def __init__(self, firmware: FakeFirmware | None = None) -> None:
+        self.firmware = firmware or FakeFirmware()
+        self.client: FakeBleClient | None = None
+        self.targets: list[str] = []
+        self.fail_connect = False
+
+    async def __call__(self, target: str, on_disconnect: Callable[[Any], None],
+                       scan_timeout_s: float) -> FakeBleClient:
+        self.targets.append(target)
+        self.client = FakeBleClient(self.firmware, on_disconnect)
+        self.client.fail_connect = self.fail_connect
+        return self.client
+
+
+
+
+class PtyDevice:
+    """A FakeFirmware served on a pseudo-terminal (``path`` is what the host opens).
+
+    Attributes:
+        garbage: before each reply, also send random bytes and a frame with a bad CRC.
+        bytes_in: every byte the host wrote.
+    """
+
+    def __init__(self, firmware: FakeFirmware, seed: int = 1) -> None:
+        self.firmware = firmware
+        self.master, self._slave = os.openpty()
+        tty.setraw(self._slave)
+        self.path = os.ttyname(self._slave)
+        self.garbage = False
+        self.garbage_sent = 0
+        self.bytes_in = bytearray()
+        self._rng = np.random.default_rng(seed)
+        self._decoder = wire.FrameDecoder()
+        self._stop_r, self._stop_w = os.pipe()
+        self._thread = threading.Thread(target=self._serve, daemon=True)
+        self._thread.start()
+
+    def _serve(self) -> None:
+        while True:
+            ready, _, _ = select.select([self.master, self._stop_r], [], [])
+            if self._stop_r in ready:
+                return
+            try:
+                data = os.read(self.master, 4096)
+            except OSError:
+                return
+            self.bytes_in += data
+            for packet in self._decoder.feed(data):
+                for reply in self.firmware.handle(packet):
+                    out = b""
+                    if self.garbage:
+                        noise = self._rng.integers(0, 256, 40, dtype=np.uint8).tobytes()
+                        bad = bytearray(wire.encode_packet(reply))
+                        bad[-1] ^= 0xFF
+                        out += noise + b"\x00" + wire.cobs_encode(bytes(bad)) + b"\x00"
+                        self.garbage_sent += 1
+                    os.write(self.master, out + wire.encode_frame(reply))
+
+    def hang_up(self) -> None:
+        """The device vanishes: the master side closes (the host reads EIO)."""
+        os.write(self._stop_w, b"x")
+        self._thread.join()
+        os.close(self.master)
+        self.master = -1
+
+    def close(self) -> None:
+        if self.master >= 0:
+            self.hang_up()
+        os.close(self._slave)
+        os.close(self._stop_r)
+        os.close(self._stop_w)
+
+
+
+
+def comports(*ports: SimpleNamespace) -> object:
+    return lambda: list(ports)
+
+
+def port_info(device: str, description: str, vid: int | None = None) -> SimpleNamespace:
+    return SimpleNamespace(device=device, description=description, vid=vid,
+                           pid=0x805A if vid else None, product=None, manufacturer=None)
+
+
+
+
+# --- one factory per registered backend, for tests/test_belt_contract.py -----------------
+
+
+@dataclass
+class Harness:
+    """An open belt of one backend and a way to read what its device outputs.
+
+    Attributes:
+        belt: the open belt.
+        device_levels: the levels the device outputs now (0..1 per tactor), read on the
+            device side (after ``belt.close()`` too).
+        cleanup: releases the fake device (after the belt is closed).
+    """
+
+    belt: Any
+    device_levels: Callable[[], list[float]]
+    cleanup: Callable[[], None] = lambda: None
+
+
+def _synced(belt: FirmwareBelt, read: Callable[[], list[int]]) -> Callable[[], list[float]]:
+    """Device levels after every packet sent so far has arrived (a PING round trip)."""
+
+    def levels() -> list[float]:
+        if not belt.closed:
+            belt.ping()
+        return [v / 65535.0 for v in read()]
+
+    return levels
+
+
+def _skip(reason: str) -> None:
+    import pytest
+
+    pytest.skip(reason)
+
+
+def sim_harness(**options: Any) -> Harness:
+    from tactorbelt.clock import SimClock
+    from tactorbelt.devices import open_belt
+
+    clock = SimClock()
+    belt = open_belt("sim", clock=clock, **options)
+    return Harness(belt, lambda: [float(v) for v in belt.levels])
+
+
+def emulator_harness(tmp_dir: str | None = None, **options: Any) -> Harness:
+    import shutil
+    import tempfile
+    from pathlib import Path
+
+    from tactorbelt import DeviceError
+    from tactorbelt.devices import open_belt
+    from tactorbelt.devices.emulator import build_emulator, firmware_dir
+
+    missing = [t for t in ("g++", "make") if shutil.which(t) is None]
+    if missing:
+        _skip(f"the firmware emulator needs {' and '.join(missing)} to build")
+    try:
+        build_emulator(firmware_dir())
+    except DeviceError as exc:
+        _skip(f"the firmware emulator cannot be built here: {exc}")
+    folder = Path(tmp_dir or tempfile.mkdtemp(prefix="tactorbelt-contract-"))
+    log = folder / "levels.csv"
+    belt = open_belt("emulator", build=False, levels_log=log, **options)
+
+    def device_levels() -> list[float]:
+        if not belt.closed:
+            return [v / 65535.0 for v in belt.status().levels]
+        assert wait_for(lambda: belt.process.poll() is not None)
+        last = log.read_text().strip().splitlines()[-1].split(",")
+        return [int(v) / 65535.0 for v in last[2:]]
+
+    return Harness(belt, device_levels)
+
+
+def serial_harness(**options: Any) -> Harness:
+    from tactorbelt.devices import open_belt
+
+    dev = PtyDevice(FakeFirmware())
+    try:
+        belt = open_belt(f"serial:{dev.path}", **options)
+    except BaseException:
+        dev.close()
+        raise
+    return Harness(belt, _synced(belt, lambda: dev.firmware.levels), dev.close)
+
+
+def ble_harness(**options: Any) -> Harness:
+    from tactorbelt.devices import open_belt
+
+    fake = FakeBle()
+    belt = open_belt("ble:tactorbelt", client_factory=fake, **options)
+    return Harness(belt, _synced(belt, lambda: fake.firmware.levels))
+
+
+def loop_harness(**options: Any) -> Harness:
+    """Not a registered scheme: FirmwareBelt over the in-memory loop transport."""
+    options.setdefault("keepalive", False)
+    belt, device, _ = open_fake(**options)
+    return Harness(belt, _synced(belt, lambda: device.levels))
+
+
+#: scheme -> harness factory. Every registered scheme needs one (the contract suite
+#: fails for a scheme without): a new backend adds its fake here.
+FACTORIES: dict[str, Callable[..., Harness]] = {
+    "sim": sim_harness,
+    "emulator": emulator_harness,
+    "serial": serial_harness,
+    "ble": ble_harness,
+}
+#: Further cases of the contract that are not URL schemes.
+EXTRA_FACTORIES: dict[str, Callable[..., Harness]] = {
+    "firmware-loop": loop_harness,
+}
