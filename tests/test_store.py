@@ -63,9 +63,12 @@ def test_schema_has_designs_columns_and_indexes(tmp_path: Path) -> None:
         assert any("trials(session_id)" in s for s in idx.values())
         assert any("samples(trial_id)" in s for s in idx.values())
         assert store.conn.execute("PRAGMA synchronous").fetchone()[0] == 2  # FULL
+        assert store.conn.execute("PRAGMA journal_mode").fetchone()[0] == "wal"  # while open
+    # a clean close leaves the file in rollback mode, alone in its folder
     conn = sqlite3.connect(tmp_path / "s.sqlite")
-    assert conn.execute("PRAGMA journal_mode").fetchone()[0] == "wal"
+    assert conn.execute("PRAGMA journal_mode").fetchone()[0] == "delete"
     conn.close()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["s.sqlite"]
 
 
 def test_session_provenance_and_trials_round_trip(tmp_path: Path) -> None:
