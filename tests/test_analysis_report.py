@@ -23,7 +23,7 @@ from tactorbelt.analysis.synthetic import (
     synthesize_store,
 )
 from tactorbelt.analysis.tables import PER_TARGET_COLUMNS
-from test_analysis_tables import HAND_TRIALS, _rows, hand_store
+from support.analysis import HAND_TRIALS, _rows, hand_store
 
 PNG = b"\x89PNG\r\n\x1a\n"
 

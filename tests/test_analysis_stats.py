@@ -28,7 +28,7 @@ from tactorbelt.analysis.synthetic import (
     synthesize_store,
 )
 from tactorbelt.analysis.tables import prepare_trials
-from test_analysis_tables import HAND_TRIALS, _rows, hand_store
+from support.analysis import HAND_TRIALS, _rows, hand_store
 
 
 @pytest.fixture

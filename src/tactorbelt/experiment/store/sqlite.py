@@ -172,14 +172,14 @@ CREATE TABLE trials(
     condition TEXT NOT NULL,
     repetition INTEGER,
     trial_index INTEGER,
-    target_deg REAL,
+    target_deg REAL NOT NULL,
     on_tactor INTEGER NOT NULL,
     response_deg REAL,
     response_target_deg REAL,
     correct INTEGER,
     rt_s REAL,
     onset_ns INTEGER,
-    status TEXT
+    status TEXT NOT NULL
 );
 CREATE TABLE samples(
     trial_id INTEGER NOT NULL,
