@@ -26,7 +26,8 @@ if TYPE_CHECKING:
 
     from ..experiment.store import Store
 
-__all__ = ["REQUIRED_COLUMNS", "StoreData", "load_samples", "load_stores", "store_labels"]
+__all__ = ["REQUIRED_COLUMNS", "StoreData", "analysis_seed", "load_samples", "load_stores",
+           "store_labels"]
 
 #: Columns each table must have (docs/study.md, "The store"). More are welcome.
 REQUIRED_COLUMNS: Final[dict[str, tuple[str, ...]]] = {
@@ -208,6 +209,24 @@ def load_stores(paths: Sequence[str | Path]) -> StoreData:
         )
     sessions, trials = _tidy(sessions, trials, store_labels(unique), notes)
     return StoreData(paths=unique, sessions=sessions, trials=trials, notes=notes)
+
+
+def analysis_seed(data: StoreData) -> int:
+    """The analysis' default seed, derived from the data: the smallest seed of the loaded
+    sessions (0 when none is stored).
+
+    The demo stores its seed with every session, so ``tactorbelt analyze`` on the
+    demo's store draws the same bootstrap resamples and sample trajectories as the
+    demo did; any store gives the same report however often it is analysed.
+    """
+    seeds = []
+    for value in data.sessions["seed"].tolist():
+        try:
+            seeds.append(int(value))  # exact for 64-bit seeds (no float round trip)
+        except (TypeError, ValueError, OverflowError):
+            continue
+    seeds = [s for s in seeds if s >= 0]
+    return min(seeds) if seeds else 0
 
 
 def load_samples(data: StoreData, trials: pd.DataFrame) -> pd.DataFrame:
