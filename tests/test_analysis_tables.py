@@ -12,6 +12,7 @@ import pandas as pd
 import pytest
 from scipy.stats import circmean, circstd
 
+from support.analysis import HAND_TRIALS, _rows, hand_store
 from tactorbelt import StoreError
 from tactorbelt.analysis.design import parse_design
 from tactorbelt.analysis.load import load_samples, load_stores
@@ -22,7 +23,6 @@ from tactorbelt.analysis.synthetic import (
     insert_trials,
     paper_study_toml,
 )
-from support.analysis import HAND_TRIALS, _rows, hand_store
 from tactorbelt.analysis.tables import (
     PER_TARGET_COLUMNS,
     condition_summary,
@@ -30,6 +30,7 @@ from tactorbelt.analysis.tables import (
     per_target,
     prepare_trials,
 )
+
 
 @pytest.fixture
 def hand(tmp_path: Path) -> Path:

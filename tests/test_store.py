@@ -270,7 +270,7 @@ def test_run_and_resume_leave_only_the_store_file(tmp_path: Path,
     db.parent.mkdir()
     base = ["run", str(study), "--participant", "P01", "--headless", "--input", "scripted",
             "--db", str(db)]
-    for argv in (base + ["--limit", "5"], base + ["--resume"]):
+    for argv in ([*base, "--limit", "5"], [*base, "--resume"]):
         code = 0
         try:
             main(argv)

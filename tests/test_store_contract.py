@@ -72,7 +72,7 @@ def test_a_failure_mid_trial_leaves_no_partial_trial(backend: tuple[str, str]) -
             store.write_trial(sid, broken)
         assert [t["trial_index"] for t in store.trials(sid)] == [0]
         trial_ids = [t["trial_id"] for t in store.trials()]
-        assert len(store.samples_of(trial_ids + [trial_ids[0] + 1])) == 3
+        assert len(store.samples_of([*trial_ids, trial_ids[0] + 1])) == 3
         store.write_trial(sid, make_result(1, n=5))  # and the trial can be written after
         assert store.finished_indices(sid) == {0, 1}
 
