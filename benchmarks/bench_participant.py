@@ -25,7 +25,7 @@ def main() -> None:
     import numpy as np
 
     from tactorbelt import open_belt
-    from tactorbelt.cli.demo import analysis_paired_test
+    from tactorbelt.demo import analysis_paired_test
     from tactorbelt.clock import SimClock
     from tactorbelt.experiment.runner import run_session
     from tactorbelt.experiment.store import Store

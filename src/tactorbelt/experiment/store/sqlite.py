@@ -65,7 +65,6 @@ __all__ = ["APPLICATION_ID", "SQLiteStore", "create_design_store", "move_store_f
 APPLICATION_ID = 0x54424C54
 #: Files SQLite may keep next to the store while it is open (or after a crash).
 SIDE_SUFFIXES = ("-wal", "-shm", "-journal")
-_SQLITE_MAGIC = b"SQLite format 3\x00"
 _TABLES = ("sessions", "trials", "samples")
 
 _SCHEMA = """
@@ -320,10 +319,8 @@ class SQLiteStore(Store):
             # made query_only): a mode=ro connection cannot rebuild a WAL index (-shm)
             # that a writer left behind, and would report a sound file as malformed.
             uri = p.resolve().as_uri()
-            if readonly:
-                SQLiteStore._check_header(p)
-                if _read_only(p):
-                    uri += "?mode=ro"
+            if readonly and _read_only(p):
+                uri += "?mode=ro"
             try:
                 conn = sqlite3.connect(uri, uri=True, isolation_level=None,
                                        check_same_thread=False)
@@ -390,21 +387,6 @@ class SQLiteStore(Store):
                 with contextlib.suppress(Exception):
                     conn.close()
             raise
-
-    @staticmethod
-    def _check_header(p: Path) -> None:
-        """A reader refuses a file that is not SQLite before SQLite opens it."""
-        try:
-            with p.open("rb") as fh:
-                head = fh.read(len(_SQLITE_MAGIC))
-        except OSError as exc:
-            raise StoreError(f"cannot read {p}: {exc.strerror}") from None
-        if head != _SQLITE_MAGIC:
-            what = "an empty file" if not head else f"a file starting with {head[:8]!r}"
-            raise StoreError(
-                f"{p} is not a tactorbelt store: it is {what}, not an SQLite database; "
-                "give a store written by 'tactorbelt run' or 'tactorbelt demo'"
-            )
 
     @staticmethod
     def _translate(p: Path, exc: sqlite3.DatabaseError) -> StoreError:
