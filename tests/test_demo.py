@@ -175,3 +175,17 @@ def test_help_mentions_models(capsys: pytest.CaptureFixture[str]) -> None:
         except SystemExit as exc:
             assert exc.code == 0
         assert word in capsys.readouterr().out
+
+
+def test_one_seed_policy_for_the_model_participants(demo_dir: tuple[Path, str]) -> None:
+    from tactorbelt.demo import model_participants
+    from tactorbelt.experiment.study import paper_study
+    from tactorbelt.participant.params import ModelParams
+
+    out, _ = demo_dir
+    base = ModelParams().for_period(paper_study().stimulus.period_s)
+    people = model_participants(2, 3, base)  # the demo ran with --seed 3
+    stored = json.loads((out / "participants.json").read_text())["participants"]
+    assert {p.pid: p.cursor_seed for p in people} == {k: v["seed"] for k, v in stored.items()}
+    assert people[0].params.to_dict() == stored["model-01"]["params"]
+    assert model_participants(2, 4, base)[0].cursor_seed != people[0].cursor_seed
