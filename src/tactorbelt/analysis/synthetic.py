@@ -1,7 +1,7 @@
 """Synthetic session stores with only the required columns, for tests and benchmarks.
 
 The analysis must not depend on the study runner to be tested, so this module writes
-bare stores (:func:`~tactorbelt.experiment.store.sqlite.create_design_store`: exactly
+bare stores (:func:`~tactorbelt.experiment.store.sqlite.create_bare_store`: exactly
 the columns the analysis requires, docs/study.md "The store") through the store's bulk
 insert. Two entry points:
 
@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from ..experiment.store.sqlite import SQLiteStore, create_design_store
+from ..experiment.store.sqlite import SQLiteStore, create_bare_store
 from ..geometry import Layout, TargetSet, normalize
 
 __all__ = [
@@ -70,7 +70,7 @@ def create_store(path: str | Path, *, samples_index: bool = True,
         samples_index: create an index on ``samples(trial_id)``, as a real store has.
         extra_columns: add columns the analysis must tolerate (``input``, ``notes``).
     """
-    return create_design_store(path, samples_index=samples_index, extra_columns=extra_columns)
+    return create_bare_store(path, samples_index=samples_index, extra_columns=extra_columns)
 
 
 def insert_session(store: SQLiteStore, **fields: Any) -> int:
@@ -139,7 +139,7 @@ def synthesize_store(
     tgt = tset.angles
     on = tset.on_tactor(layout)
     step = 360.0 / targets
-    store = create_design_store(path, samples_index=False, fast=True)
+    store = create_bare_store(path, samples_index=False, fast=True)
     toml = paper_study_toml(tactors=tactors, targets=targets)
     n_per = 2 * repetitions * targets
     counts = {"sessions": 0, "trials": 0, "samples": 0}

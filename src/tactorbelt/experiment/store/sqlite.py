@@ -27,7 +27,7 @@ and removes the lock file: what stays on disk is the store file alone. After a c
 the ``-wal`` (with the last committed trials) and the lock file stay; the next open
 recovers them.
 
-:func:`create_design_store` writes a bare store with only the columns the analysis
+:func:`create_bare_store` writes a bare store with only the columns the analysis
 requires (synthetic data for tests and benchmarks); :func:`move_store_file` moves a
 closed store (with any WAL files) aside.
 
@@ -59,7 +59,7 @@ from .base import (
     utc_now,
 )
 
-__all__ = ["APPLICATION_ID", "SQLiteStore", "create_design_store", "move_store_file"]
+__all__ = ["APPLICATION_ID", "SQLiteStore", "create_bare_store", "move_store_file"]
 
 #: PRAGMA application_id of a tactorbelt store ("TBLT").
 APPLICATION_ID = 0x54424C54
@@ -147,8 +147,8 @@ def _read_only(path: Path) -> bool:
         return False
     return not os.access(path, os.W_OK) or not (mode & (stat.S_IWUSR | stat.S_IWGRP | stat.S_IWOTH))
 
-#: The bare schema of :func:`create_design_store`: only the columns a store must have.
-DESIGN_SCHEMA = """
+#: The bare schema of :func:`create_bare_store`: only the columns a store must have.
+BARE_SCHEMA = """
 CREATE TABLE sessions(
     session_id INTEGER PRIMARY KEY,
     participant TEXT NOT NULL,
@@ -699,7 +699,7 @@ class SQLiteStore(Store):
             c.execute(_SAMPLES_INDEX)
 
 
-def create_design_store(path: str | Path, *, samples_index: bool = True,
+def create_bare_store(path: str | Path, *, samples_index: bool = True,
                         extra_columns: bool = False, fast: bool = False) -> SQLiteStore:
     """Create a bare store (only the required columns) for synthetic data; open for writing.
 
@@ -725,7 +725,7 @@ def create_design_store(path: str | Path, *, samples_index: bool = True,
             conn.execute("PRAGMA journal_mode = OFF")
             conn.execute("PRAGMA synchronous = OFF")
         conn.execute("BEGIN")
-        for stmt in DESIGN_SCHEMA.split(";"):
+        for stmt in BARE_SCHEMA.split(";"):
             if stmt.strip():
                 conn.execute(stmt)
         if samples_index:
