@@ -14,6 +14,7 @@ from pathlib import Path
 
 import pytest
 
+from support.analysis import HAND_TRIALS, _rows, hand_store
 from tactorbelt.analysis.report import analyze
 from tactorbelt.analysis.synthetic import (
     create_store,
@@ -23,7 +24,6 @@ from tactorbelt.analysis.synthetic import (
     synthesize_store,
 )
 from tactorbelt.analysis.tables import PER_TARGET_COLUMNS
-from test_analysis_tables import HAND_TRIALS, _rows, hand_store
 
 PNG = b"\x89PNG\r\n\x1a\n"
 

@@ -12,6 +12,7 @@ import statsmodels.api as sm
 from scipy import stats
 from statsmodels.genmod.bayes_mixed_glm import BinomialBayesMixedGLM
 
+from support.analysis import HAND_TRIALS, _rows, hand_store
 from tactorbelt.analysis.load import load_stores
 from tactorbelt.analysis.stats import (
     fisher_accuracy,
@@ -28,7 +29,6 @@ from tactorbelt.analysis.synthetic import (
     synthesize_store,
 )
 from tactorbelt.analysis.tables import prepare_trials
-from test_analysis_tables import HAND_TRIALS, _rows, hand_store
 
 
 @pytest.fixture

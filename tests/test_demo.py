@@ -51,6 +51,31 @@ def test_demo_writes_every_output_named_in_design(demo_dir: tuple[Path, str]) ->
     assert "no evidence about people" in people["note"]
 
 
+def test_demo_leaves_only_the_store_and_its_outputs(demo_dir: tuple[Path, str]) -> None:
+    out, _ = demo_dir
+    names = {p.name for p in out.iterdir()}
+    assert {n for n in names if "sqlite" in n} == {"study.sqlite"}  # no -wal, -shm, .lock
+    assert names - {"study.sqlite"} <= {"study.toml", "participants.json", "report.html",
+                                        "summary.json", "per_target.csv"} | {
+        p.name for p in out.glob("*.png")}
+
+
+def test_analyze_on_the_demo_store_reproduces_the_demo_report(
+        demo_dir: tuple[Path, str], tmp_path: Path) -> None:
+    out, _ = demo_dir
+    code, _, stderr = run("analyze", str(out / "study.sqlite"), "--out", str(tmp_path))
+    assert code == 0, stderr
+    demo = json.loads((out / "summary.json").read_text())
+    again = json.loads((tmp_path / "summary.json").read_text())
+    assert again == demo
+    assert again["provenance"]["analysis_seed"] == 3  # the demo's --seed, derived from its sessions
+    assert (tmp_path / "per_target.csv").read_text() == (out / "per_target.csv").read_text()
+    assert {p.name for p in out.iterdir() if "sqlite" in p.name} == {"study.sqlite"}
+    # export reads it too and leaves nothing behind
+    assert run("export", str(out / "study.sqlite"), str(tmp_path / "csv"))[0] == 0
+    assert {p.name for p in out.iterdir() if "sqlite" in p.name} == {"study.sqlite"}
+
+
 def test_demo_numbers_agree_with_the_raw_trials(demo_dir: tuple[Path, str]) -> None:
     out, _ = demo_dir
     summary = json.loads((out / "summary.json").read_text())
@@ -150,3 +175,17 @@ def test_help_mentions_models(capsys: pytest.CaptureFixture[str]) -> None:
         except SystemExit as exc:
             assert exc.code == 0
         assert word in capsys.readouterr().out
+
+
+def test_one_seed_policy_for_the_model_participants(demo_dir: tuple[Path, str]) -> None:
+    from tactorbelt.demo import model_participants
+    from tactorbelt.experiment.study import paper_study
+    from tactorbelt.participant.params import ModelParams
+
+    out, _ = demo_dir
+    base = ModelParams().for_period(paper_study().stimulus.period_s)
+    people = model_participants(2, 3, base)  # the demo ran with --seed 3
+    stored = json.loads((out / "participants.json").read_text())["participants"]
+    assert {p.pid: p.cursor_seed for p in people} == {k: v["seed"] for k, v in stored.items()}
+    assert people[0].params.to_dict() == stored["model-01"]["params"]
+    assert model_participants(2, 4, base)[0].cursor_seed != people[0].cursor_seed

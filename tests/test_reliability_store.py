@@ -35,6 +35,7 @@ from tactorbelt.devices.sim import SimBelt
 from tactorbelt.experiment.runner import NullObserver, run_session
 from tactorbelt.experiment.schedule import make_schedule
 from tactorbelt.experiment.store import Store
+from tactorbelt.experiment.store.sqlite import SQLiteStore
 from tactorbelt.experiment.study import Study
 from tactorbelt.experiment.trial import TrialState
 from tactorbelt.inputs.scripted import ScriptedCursor
@@ -262,16 +263,16 @@ def test_cli_reports_a_full_disk_and_turns_the_motors_off(
         belts.append(belt)
         return belt
 
-    real_write = Store.write_trial
+    real_write = SQLiteStore.write_trial
 
-    def write_then_fill(self: Store, session_id: int, result: Any) -> int:
+    def write_then_fill(self: SQLiteStore, session_id: int, result: Any) -> int:
         if result.trial.trial_index == 10:
             pages = self.conn.execute("PRAGMA page_count").fetchone()[0]
             self.conn.execute(f"PRAGMA max_page_count = {pages}")
         return real_write(self, session_id, result)
 
     monkeypatch.setattr(devices, "open_belt", recording_open)
-    monkeypatch.setattr(Store, "write_trial", write_then_fill)
+    monkeypatch.setattr(SQLiteStore, "write_trial", write_then_fill)
     with pytest.raises(SystemExit) as exit_info:
         main(["run", str(study_file), "-p", "P01", "--headless", "--input", "scripted",
               "--db", str(db)])

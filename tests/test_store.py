@@ -63,9 +63,12 @@ def test_schema_has_designs_columns_and_indexes(tmp_path: Path) -> None:
         assert any("trials(session_id)" in s for s in idx.values())
         assert any("samples(trial_id)" in s for s in idx.values())
         assert store.conn.execute("PRAGMA synchronous").fetchone()[0] == 2  # FULL
+        assert store.conn.execute("PRAGMA journal_mode").fetchone()[0] == "wal"  # while open
+    # a clean close leaves the file in rollback mode, alone in its folder
     conn = sqlite3.connect(tmp_path / "s.sqlite")
-    assert conn.execute("PRAGMA journal_mode").fetchone()[0] == "wal"
+    assert conn.execute("PRAGMA journal_mode").fetchone()[0] == "delete"
     conn.close()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["s.sqlite"]
 
 
 def test_session_provenance_and_trials_round_trip(tmp_path: Path) -> None:
@@ -239,3 +242,42 @@ def test_a_reader_that_outlives_the_writer(tmp_path: Path) -> None:
         assert len(again.trials()) == 2
     with Store.open(p) as w2:
         assert w2.finished_indices(sid) == {0, 1}
+
+
+SMALL_STUDY = """\
+name = "store-files"
+[layout]
+tactors = 6
+[targets]
+count = 12
+[session]
+break_every = 0
+[training]
+passes = 0
+[[test]]
+condition = "static"
+repetitions = 1
+"""
+
+
+def test_run_and_resume_leave_only_the_store_file(tmp_path: Path,
+                                                   capsys: pytest.CaptureFixture[str]) -> None:
+    from tactorbelt.cli import main
+
+    study = tmp_path / "study.toml"
+    study.write_text(SMALL_STUDY)
+    db = tmp_path / "runs" / "s.sqlite"
+    db.parent.mkdir()
+    base = ["run", str(study), "--participant", "P01", "--headless", "--input", "scripted",
+            "--db", str(db)]
+    for argv in ([*base, "--limit", "5"], [*base, "--resume"]):
+        code = 0
+        try:
+            main(argv)
+        except SystemExit as exc:
+            code = exc.code or 0
+        assert code == 0, capsys.readouterr().err
+        assert sorted(p.name for p in db.parent.iterdir()) == ["s.sqlite"]
+    with Store.open(db, readonly=True) as store:
+        assert len(store.trials()) == 12
+    assert sorted(p.name for p in db.parent.iterdir()) == ["s.sqlite"]

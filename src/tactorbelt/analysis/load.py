@@ -1,19 +1,19 @@
-"""Load one or more session stores (SQLite) into tidy pandas tables.
+"""Load one or more session stores into tidy pandas tables.
 
-Reads the DESIGN.md schema by column name and tolerates extra columns. Stores are
-opened read-only; nothing is ever written to them. Cursor samples are not loaded in
-bulk: :func:`load_samples` fetches the few trials a figure needs, by SQL.
+Reads the store schema (docs/study.md) by column name, through the store interface
+(:func:`~tactorbelt.experiment.store.open_store`), and tolerates extra columns. Stores
+are opened read-only; nothing is ever written to them. Cursor samples are not loaded in
+bulk: :func:`load_samples` fetches the few trials a figure needs.
 
 Every problem with a file (missing, not SQLite, not a tactorbelt store, no sessions)
 raises :class:`~tactorbelt.StoreError` naming the file and what is wrong.
 
-I/O layer of the analysis: imports sqlite3, pandas and tactorbelt._errors; never
-devices, inputs, the window or the experiment runner.
+I/O layer of the analysis: imports pandas, tactorbelt._errors and the store
+interface; never devices, inputs, the window or the experiment runner.
 """
 
 from __future__ import annotations
 
-import sqlite3
 from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Final
@@ -24,9 +24,12 @@ from .dataset import StoreData
 if TYPE_CHECKING:
     import pandas as pd
 
-__all__ = ["REQUIRED_COLUMNS", "StoreData", "load_samples", "load_stores", "store_labels"]
+    from ..experiment.store import Store
 
-#: Columns each table must have (DESIGN.md, "Data store"). More are welcome.
+__all__ = ["REQUIRED_COLUMNS", "StoreData", "analysis_seed", "load_samples", "load_stores",
+           "store_labels"]
+
+#: Columns each table must have (docs/study.md, "The store"). More are welcome.
 REQUIRED_COLUMNS: Final[dict[str, tuple[str, ...]]] = {
     "sessions": (
         "session_id", "participant", "study_name", "study_sha256", "study_toml", "seed",
@@ -43,94 +46,49 @@ REQUIRED_COLUMNS: Final[dict[str, tuple[str, ...]]] = {
 #: Optional session columns read when present.
 OPTIONAL_SESSION_COLUMNS: Final = ("input",)
 
-_SQLITE_MAGIC: Final = b"SQLite format 3\x00"
+def _open(path: Path) -> Store:
+    """Open read-only through the store interface (no integrity scan: stores can be
+    large, and a damaged page still fails the read that reaches it)."""
+    from ..experiment.store import open_store
+
+    return open_store(path, create=False, readonly=True, verify=False)
 
 
-def _check_file(path: Path) -> None:
-    if not path.exists():
-        raise StoreError(f"{path}: no such file; give a store written by 'tactorbelt run'")
-    if path.is_dir():
-        raise StoreError(f"{path} is a directory; give a store file such as {path}/study.sqlite")
-    try:
-        with path.open("rb") as fh:
-            head = fh.read(len(_SQLITE_MAGIC))
-    except OSError as exc:
-        raise StoreError(f"cannot read {path}: {exc.strerror}") from None
-    if head != _SQLITE_MAGIC:
-        what = "an empty file" if not head else f"a file starting with {head[:8]!r}"
-        raise StoreError(
-            f"{path} is not a tactorbelt store: it is {what}, not an SQLite database; "
-            "give a store written by 'tactorbelt run' or 'tactorbelt demo'"
-        )
-
-
-def _connect(path: Path) -> sqlite3.Connection:
-    """Open read-only. Falls back to ``immutable`` when the directory is not writable."""
-    uri = path.resolve().as_uri()
-    try:
-        conn = sqlite3.connect(f"{uri}?mode=ro", uri=True)
-        conn.execute("SELECT count(*) FROM sqlite_master").fetchone()
-        return conn
-    except sqlite3.DatabaseError:
-        pass
-    try:
-        conn = sqlite3.connect(f"{uri}?immutable=1", uri=True)
-        conn.execute("SELECT count(*) FROM sqlite_master").fetchone()
-        return conn
-    except sqlite3.DatabaseError as exc:
-        raise StoreError(f"{path}: cannot be read as an SQLite database ({exc})") from None
-
-
-def _columns(conn: sqlite3.Connection, table: str) -> list[str]:
-    return [str(r[1]) for r in conn.execute(f"PRAGMA table_info({table})")]
-
-
-def _check_schema(path: Path, conn: sqlite3.Connection) -> dict[str, list[str]]:
-    try:
-        tables = {str(r[0]) for r in conn.execute(
-            "SELECT name FROM sqlite_master WHERE type IN ('table', 'view')")}
-    except sqlite3.DatabaseError as exc:
-        raise StoreError(f"{path}: cannot be read as an SQLite database ({exc})") from None
-    missing = [t for t in REQUIRED_COLUMNS if t not in tables]
+def _check_schema(path: Path, store: Store) -> dict[str, list[str]]:
+    cols: dict[str, list[str]] = {t: store.table_columns(t) for t in REQUIRED_COLUMNS}
+    missing = [t for t in REQUIRED_COLUMNS if not cols[t]]
     if missing:
         raise StoreError(
             f"{path} is not a tactorbelt store: table(s) {', '.join(missing)} missing "
             f"(a store has tables {', '.join(REQUIRED_COLUMNS)})"
         )
-    cols: dict[str, list[str]] = {}
     for table, required in REQUIRED_COLUMNS.items():
-        have = _columns(conn, table)
-        lacking = [c for c in required if c not in have]
+        lacking = [c for c in required if c not in cols[table]]
         if lacking:
             raise StoreError(
                 f"{path} is not a tactorbelt store: table {table} lacks column(s) "
                 f"{', '.join(lacking)} (required: {', '.join(required)})"
             )
-        cols[table] = have
     return cols
 
 
-def _read_store(path: Path, store: int) -> tuple[pd.DataFrame, pd.DataFrame]:
+def _read_store(path: Path, store_index: int) -> tuple[pd.DataFrame, pd.DataFrame]:
     import pandas as pd
 
-    _check_file(path)
-    conn = _connect(path)
-    try:
-        cols = _check_schema(path, conn)
+    with _open(path) as store:
+        cols = _check_schema(path, store)
         sess_cols = list(REQUIRED_COLUMNS["sessions"]) + [
             c for c in OPTIONAL_SESSION_COLUMNS if c in cols["sessions"]]
-        try:
-            sessions = pd.read_sql_query(
-                f"SELECT {', '.join(sess_cols)} FROM sessions ORDER BY session_id", conn)
-            trials = pd.read_sql_query(
-                f"SELECT {', '.join(REQUIRED_COLUMNS['trials'])} FROM trials "
-                "ORDER BY session_id, trial_index, trial_id", conn)
-        except (sqlite3.DatabaseError, pd.errors.DatabaseError) as exc:
-            raise StoreError(f"{path}: cannot read sessions or trials ({exc})") from None
-    finally:
-        conn.close()
-    sessions.insert(0, "store", store)
-    trials.insert(0, "store", store)
+        trial_cols = list(REQUIRED_COLUMNS["trials"])
+        sessions = pd.DataFrame.from_records(store.read_table("sessions", sess_cols),
+                                             columns=sess_cols, coerce_float=True)
+        trials = pd.DataFrame.from_records(store.read_table("trials", trial_cols),
+                                           columns=trial_cols, coerce_float=True)
+    # Each session's trials in schedule order (an aborted attempt before its rerun).
+    trials = trials.sort_values(["session_id", "trial_index", "trial_id"], kind="stable",
+                                na_position="first", ignore_index=True)
+    sessions.insert(0, "store", store_index)
+    trials.insert(0, "store", store_index)
     return sessions, trials
 
 
@@ -253,8 +211,26 @@ def load_stores(paths: Sequence[str | Path]) -> StoreData:
     return StoreData(paths=unique, sessions=sessions, trials=trials, notes=notes)
 
 
+def analysis_seed(data: StoreData) -> int:
+    """The analysis' default seed, derived from the data: the smallest seed of the loaded
+    sessions (0 when none is stored).
+
+    The demo stores its seed with every session, so ``tactorbelt analyze`` on the
+    demo's store draws the same bootstrap resamples and sample trajectories as the
+    demo did; any store gives the same report however often it is analysed.
+    """
+    seeds = []
+    for value in data.sessions["seed"].tolist():
+        try:
+            seeds.append(int(value))  # exact for 64-bit seeds (no float round trip)
+        except (TypeError, ValueError, OverflowError):
+            continue
+    seeds = [s for s in seeds if s >= 0]
+    return min(seeds) if seeds else 0
+
+
 def load_samples(data: StoreData, trials: pd.DataFrame) -> pd.DataFrame:
-    """Cursor samples of a few trials, fetched by SQL (never the whole table).
+    """Cursor samples of a few trials, fetched by trial id (never the whole table).
 
     Args:
         data: what :func:`load_stores` returned (for the store paths).
@@ -272,16 +248,10 @@ def load_samples(data: StoreData, trials: pd.DataFrame) -> pd.DataFrame:
         ids = sorted({int(t) for t in group["trial_id"].tolist()})
         if not ids:
             continue
-        path = data.paths[store]
-        conn = _connect(path)
-        try:
-            frame = pd.read_sql_query(
-                f"SELECT trial_id, t_s, x, y, buttons FROM samples WHERE trial_id IN "
-                f"({', '.join('?' * len(ids))}) ORDER BY trial_id, t_s", conn, params=ids)
-        except (sqlite3.DatabaseError, pd.errors.DatabaseError) as exc:
-            raise StoreError(f"{path}: cannot read samples ({exc})") from None
-        finally:
-            conn.close()
+        with _open(data.paths[store]) as st:
+            frame = pd.DataFrame.from_records(
+                st.samples_of(ids), columns=["trial_id", "t_s", "x", "y", "buttons"],
+                coerce_float=True)
         frame.insert(0, "store", store)
         frames.append(frame)
     if not frames:

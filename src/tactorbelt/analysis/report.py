@@ -434,14 +434,16 @@ def _package_version() -> str:
         return "unknown"
 
 
-def analyze(paths: Sequence[str | Path], out: str | Path, *, seed: int = 0,
+def analyze(paths: Sequence[str | Path], out: str | Path, *, seed: int | None = None,
             progress: ProgressFn | None = None, n_boot: int = DEFAULT_N_BOOT) -> Summary:
     """Analyse stores and write report.html, summary.json, per_target.csv and PNGs to ``out``.
 
     Args:
         paths: one or more store files.
         out: the output directory (created if needed).
-        seed: seeds the bootstrap and the choice of sample trajectories.
+        seed: seeds the bootstrap and the choice of sample trajectories; None (the
+            default) derives it from the stores (:func:`load.analysis_seed`), so the
+            same stores always give the same report.
         progress: called as ``progress(description, done, total)``.
         n_boot: bootstrap resamples per interval.
 
@@ -450,7 +452,7 @@ def analyze(paths: Sequence[str | Path], out: str | Path, *, seed: int = 0,
         ConfigError: ``out`` exists and is not a directory, or cannot be written.
     """
     from .figures import make_figures
-    from .load import load_samples, load_stores
+    from .load import analysis_seed, load_samples, load_stores
     from .stats import summarize
 
     total = 6
@@ -467,6 +469,8 @@ def analyze(paths: Sequence[str | Path], out: str | Path, *, seed: int = 0,
         raise ConfigError(f"--out {out} is a file; give a directory for the report")
     tick("loading stores")
     data = load_stores(list(paths))
+    if seed is None:
+        seed = analysis_seed(data)
     tick("computing tables and tests")
     summary = summarize(data, seed=seed, n_boot=n_boot)
     tick("reading sample trajectories")

@@ -1,32 +1,33 @@
-"""Synthetic session stores in the DESIGN.md schema, for tests and benchmarks.
+"""Synthetic session stores with only the required columns, for tests and benchmarks.
 
 The analysis must not depend on the study runner to be tested, so this module writes
-stores with plain :mod:`sqlite3` in exactly the columns DESIGN.md requires ("Data
-store"). Two entry points:
+bare stores (:func:`~tactorbelt.experiment.store.sqlite.create_bare_store`: exactly
+the columns the analysis requires, docs/study.md "The store") through the store's bulk
+insert. Two entry points:
 
 - :func:`create_store`, :func:`insert_session`, :func:`insert_trials`,
   :func:`insert_samples`: hand-built datasets with known numbers (tests).
-- :func:`synthesize_store`: many participants with 100 Hz cursor samples, written
-  with ``executemany`` from NumPy arrays (benchmarks, examples).
+- :func:`synthesize_store`: many participants with 100 Hz cursor samples, bulk-inserted
+  from NumPy arrays (benchmarks, examples).
 
 The numbers it makes up are not a model of people; they only exercise the analysis.
 
-I/O (writes SQLite files); imports NumPy, sqlite3 and tactorbelt.geometry only.
+I/O (writes store files through the store interface); imports NumPy,
+tactorbelt.geometry and the store.
 """
 
 from __future__ import annotations
 
-import sqlite3
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from ..experiment.store.sqlite import SQLiteStore, create_bare_store
 from ..geometry import Layout, TargetSet, normalize
 
 __all__ = [
-    "SCHEMA_SQL",
     "create_store",
     "insert_samples",
     "insert_session",
@@ -34,50 +35,6 @@ __all__ = [
     "paper_study_toml",
     "synthesize_store",
 ]
-
-#: The minimal schema of DESIGN.md ("Data store"): the columns that must exist.
-SCHEMA_SQL = """
-CREATE TABLE sessions(
-    session_id INTEGER PRIMARY KEY,
-    participant TEXT NOT NULL,
-    study_name TEXT,
-    study_sha256 TEXT,
-    study_toml TEXT,
-    seed INTEGER,
-    condition_order TEXT,
-    belt TEXT,
-    firmware_version TEXT,
-    package_version TEXT,
-    started_at TEXT,
-    ended_at TEXT,
-    status TEXT
-);
-CREATE TABLE trials(
-    trial_id INTEGER PRIMARY KEY,
-    session_id INTEGER NOT NULL,
-    block TEXT NOT NULL,
-    condition TEXT NOT NULL,
-    repetition INTEGER,
-    trial_index INTEGER,
-    target_deg REAL NOT NULL,
-    on_tactor INTEGER NOT NULL,
-    response_deg REAL,
-    response_target_deg REAL,
-    correct INTEGER,
-    rt_s REAL,
-    onset_ns INTEGER,
-    status TEXT NOT NULL
-);
-CREATE TABLE samples(
-    trial_id INTEGER NOT NULL,
-    t_s REAL NOT NULL,
-    x REAL NOT NULL,
-    y REAL NOT NULL,
-    buttons INTEGER NOT NULL
-);
-"""
-
-_SAMPLES_INDEX = "CREATE INDEX samples_trial ON samples(trial_id);"
 
 SESSION_COLUMNS = (
     "session_id", "participant", "study_name", "study_sha256", "study_toml", "seed",
@@ -105,27 +62,19 @@ def paper_study_toml(name: str = "between-tactor-paper", tactors: int | Sequence
 
 
 def create_store(path: str | Path, *, samples_index: bool = True,
-                 extra_columns: bool = False) -> sqlite3.Connection:
-    """Create an empty store with the DESIGN.md tables and return an open connection.
+                 extra_columns: bool = False) -> SQLiteStore:
+    """Create an empty bare store and return it open for writing (close it when done).
 
     Args:
         path: the new file (must not exist).
         samples_index: create an index on ``samples(trial_id)``, as a real store has.
         extra_columns: add columns the analysis must tolerate (``input``, ``notes``).
     """
-    conn = sqlite3.connect(str(path))
-    conn.executescript(SCHEMA_SQL)
-    if samples_index:
-        conn.execute(_SAMPLES_INDEX)
-    if extra_columns:
-        conn.execute("ALTER TABLE sessions ADD COLUMN input TEXT")
-        conn.execute("ALTER TABLE trials ADD COLUMN notes TEXT")
-    conn.commit()
-    return conn
+    return create_bare_store(path, samples_index=samples_index, extra_columns=extra_columns)
 
 
-def insert_session(conn: sqlite3.Connection, **fields: Any) -> int:
-    """Insert one session; missing DESIGN.md fields get plausible defaults."""
+def insert_session(store: SQLiteStore, **fields: Any) -> int:
+    """Insert one session; missing required fields get plausible defaults."""
     row: dict[str, Any] = {
         "participant": "P01",
         "study_name": "between-tactor-paper",
@@ -141,37 +90,20 @@ def insert_session(conn: sqlite3.Connection, **fields: Any) -> int:
         "status": "complete",
     }
     row.update(fields)
-    cols = list(row)
-    cur = conn.execute(
-        f"INSERT INTO sessions({', '.join(cols)}) VALUES ({', '.join('?' * len(cols))})",
-        [row[c] for c in cols],
-    )
-    conn.commit()
-    assert cur.lastrowid is not None
-    return int(cur.lastrowid)
+    (session_id,) = store.bulk_insert(sessions=[row])
+    return session_id
 
 
-def insert_trials(conn: sqlite3.Connection, rows: Iterable[Mapping[str, Any]]) -> None:
+def insert_trials(store: SQLiteStore, rows: Iterable[Mapping[str, Any]]) -> None:
     """Insert trial rows (dicts keyed by trial column name; missing ones are NULL)."""
-    rows = list(rows)
-    if not rows:
-        return
-    cols = sorted({k for r in rows for k in r})
-    conn.executemany(
-        f"INSERT INTO trials({', '.join(cols)}) VALUES ({', '.join('?' * len(cols))})",
-        [[r.get(c) for c in cols] for r in rows],
-    )
-    conn.commit()
+    store.bulk_insert(trials=rows)
 
 
-def insert_samples(conn: sqlite3.Connection, trial_id: int, t_s: Sequence[float],
+def insert_samples(store: SQLiteStore, trial_id: int, t_s: Sequence[float],
                    x: Sequence[float], y: Sequence[float]) -> None:
     """Insert one trial's cursor samples (buttons 0)."""
-    conn.executemany(
-        "INSERT INTO samples(trial_id, t_s, x, y, buttons) VALUES (?, ?, ?, ?, 0)",
-        [(trial_id, float(t), float(a), float(b)) for t, a, b in zip(t_s, x, y, strict=True)],
-    )
-    conn.commit()
+    store.bulk_insert(samples=[(trial_id, float(t), float(a), float(b), 0)
+                               for t, a, b in zip(t_s, x, y, strict=True)])
 
 
 def synthesize_store(
@@ -200,15 +132,14 @@ def synthesize_store(
     Returns:
         Counts written: ``sessions``, ``trials``, ``samples``.
     """
+
     rng = np.random.default_rng(seed)
     layout = Layout.even(tactors)
     tset = TargetSet.even(targets)
     tgt = tset.angles
     on = tset.on_tactor(layout)
     step = 360.0 / targets
-    conn = create_store(path, samples_index=False)
-    conn.execute("PRAGMA journal_mode=OFF")
-    conn.execute("PRAGMA synchronous=OFF")
+    store = create_bare_store(path, samples_index=False, fast=True)
     toml = paper_study_toml(tactors=tactors, targets=targets)
     n_per = 2 * repetitions * targets
     counts = {"sessions": 0, "trials": 0, "samples": 0}
@@ -222,9 +153,8 @@ def synthesize_store(
                               toml, seed, order, belt, "1.0.0", "0.1.0",
                               "2026-01-01T10:00:00+00:00", "2026-01-01T10:30:00+00:00",
                               "complete"))
-        conn.executemany(
-            f"INSERT INTO sessions({', '.join(SESSION_COLUMNS)}) VALUES "
-            f"({', '.join('?' * len(SESSION_COLUMNS))})", sess_rows)
+        store.bulk_insert(sessions=(dict(zip(SESSION_COLUMNS, r, strict=True))
+                                    for r in sess_rows))
         k = stop - start
         n = k * n_per
         sess = np.repeat(np.arange(start, stop) + 1, n_per)
@@ -254,9 +184,7 @@ def synthesize_store(
             (np.arange(n, dtype=np.int64) * 3_000_000_000).tolist(), status.tolist(),
             strict=True,
         )
-        conn.executemany(
-            f"INSERT INTO trials({', '.join(TRIAL_COLUMNS)}) VALUES "
-            f"({', '.join('?' * len(TRIAL_COLUMNS))})", rows)
+        store.bulk_insert(trials=(dict(zip(TRIAL_COLUMNS, r, strict=True)) for r in rows))
         counts["sessions"] += k
         counts["trials"] += n
         if samples:
@@ -271,14 +199,11 @@ def synthesize_store(
             a = np.deg2rad(np.repeat(resp, ns)) + 0.05 * np.sin(6 * frac)
             x = r * np.sin(a)
             y = r * np.cos(a)
-            conn.executemany(
-                "INSERT INTO samples(trial_id, t_s, x, y, buttons) VALUES (?, ?, ?, ?, 0)",
-                zip(tid.tolist(), t.tolist(), x.tolist(), y.tolist(), strict=True))
+            store.bulk_insert(samples=zip(tid.tolist(), t.tolist(), x.tolist(), y.tolist(),
+                                          [0] * len(tid), strict=True))
             counts["samples"] += int(ns.sum())
-        conn.commit()
     if samples:
-        conn.execute(_SAMPLES_INDEX)
-    conn.commit()
-    conn.close()
+        store.index_samples()
+    store.close()
     return counts
 

@@ -1,5 +1,7 @@
 """``tactorbelt analyze DB [DB ...] [--out DIR] [--seed S]``: the analysis report.
 
+Without ``--seed`` the analysis seed is derived from the stores (docs/analysis.md).
+
 Imports the analysis (pandas, SciPy, statsmodels, matplotlib) only when the command
 runs. Errors are raised as tactorbelt errors; ``tactorbelt.cli.main`` prints them.
 """
@@ -30,9 +32,11 @@ def print_summary_table(summary: Summary) -> None:
 @click.option("--out", "out", type=click.Path(path_type=Path), default=None,
               help="Directory for report.html, summary.json, per_target.csv and the PNGs "
                    "[default: the directory of the first DB].")
-@click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True,
-              help="Seed of the bootstrap intervals and of the sample trajectories shown.")
-def analyze(db: tuple[Path, ...], out: Path | None, seed: int) -> None:
+@click.option("--seed", type=click.IntRange(min=0), default=None,
+              help="Seed of the bootstrap intervals and of the sample trajectories shown "
+                   "[default: the smallest seed of the stored sessions, so the same stores "
+                   "always give the same report, the demo's included].")
+def analyze(db: tuple[Path, ...], out: Path | None, seed: int | None) -> None:
     """Analyse one or more session stores and write the report.
 
     DB is a store written by 'tactorbelt run' or 'tactorbelt demo' (several may be

@@ -3,7 +3,8 @@
 - :mod:`.study`: :func:`load_study`, :class:`Study`, :func:`paper_study` (TOML + pydantic);
 - :mod:`.schedule`: :func:`make_schedule` (pure, seeded), :class:`ScheduledTrial`;
 - :mod:`.trial`: :class:`TrialMachine` (pure state machine), :class:`TrialResult`;
-- :mod:`.store`: :class:`Store` (SQLite, WAL, one transaction per trial);
+- :mod:`.store`: :class:`Store` (the store interface), :func:`open_store` (by URL; the
+  SQLite store: WAL, one transaction per trial);
 - :mod:`.runner`: :func:`run_session`, :class:`SessionObserver`, :class:`Command`;
 - :mod:`.export`: :func:`export_csv`, :func:`export_bids`.
 
@@ -30,6 +31,7 @@ __all__ = [
     "export_csv",
     "load_study",
     "make_schedule",
+    "open_store",
     "paper_study",
     "run_session",
 ]
@@ -38,7 +40,7 @@ _LAZY = {
     "Study": "study", "load_study": "study", "paper_study": "study",
     "ScheduledTrial": "schedule", "make_schedule": "schedule",
     "TrialMachine": "trial", "TrialResult": "trial", "TrialState": "trial",
-    "Store": "store",
+    "Store": "store", "open_store": "store",
     "Command": "runner", "NullObserver": "runner", "SessionObserver": "runner",
     "SessionResult": "runner", "run_session": "runner",
     "export_csv": "export", "export_bids": "export",

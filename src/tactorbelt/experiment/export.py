@@ -16,8 +16,8 @@ labels are alphanumeric); two ids that collapse to the same label are an error.
 Missing values are ``n/a``. The motion file has no header; its columns are the rows
 of ``_channels.tsv`` (trial, t_s, x, y, buttons).
 
-I/O: reads a :class:`~tactorbelt.experiment.store.Store` (read-only) and writes files;
-standard library only.
+I/O: reads a store (:func:`~tactorbelt.experiment.store.open_store`, read-only) through
+its interface and writes files; standard library only.
 """
 
 from __future__ import annotations
@@ -28,8 +28,8 @@ import re
 from pathlib import Path
 from typing import Any
 
-from .._errors import ConfigError, StoreError
-from .store import Store
+from .._errors import ConfigError
+from .store import Store, open_store
 
 __all__ = ["BEH_COLUMNS", "TASK", "bids_label", "export_bids", "export_csv"]
 
@@ -95,7 +95,7 @@ def _na(v: Any) -> Any:
 
 
 def _open(db: str | Path) -> Store:
-    return Store.open(db, create=False, readonly=True)
+    return open_store(db, create=False, readonly=True)
 
 
 def _prepare(out: str | Path) -> Path:
@@ -120,43 +120,31 @@ def export_csv(db: str | Path, out: str | Path) -> list[Path]:
     """
     with _open(db) as store:
         o = _prepare(out)
-        c = store.conn
+        sessions = store.sessions()
+        by_id = {int(s["session_id"]): s for s in sessions}
+        trials = sorted(store.trials(), key=lambda t: (t["session_id"], t["trial_id"]))
         try:
             files = [o / "sessions.csv", o / "trials.csv", o / "samples.csv"]
             with files[0].open("w", newline="") as fh:
                 w = csv.writer(fh)
                 w.writerow(SESSION_COLUMNS)
-                for r in c.execute(f"SELECT {', '.join(SESSION_COLUMNS)} FROM sessions"
-                                   " ORDER BY session_id"):
-                    w.writerow(list(r))
+                for s in sessions:
+                    w.writerow([s[k] for k in SESSION_COLUMNS])
             with files[1].open("w", newline="") as fh:
                 w = csv.writer(fh)
                 w.writerow(TRIAL_COLUMNS)
-                cols = ", ".join(
-                    f"s.{k}" if k in ("participant", "session_number") else f"t.{k}"
-                    for k in TRIAL_COLUMNS)
-                for r in c.execute(f"SELECT {cols} FROM trials t JOIN sessions s"
-                                   " USING (session_id) ORDER BY t.session_id, t.trial_id"):
-                    w.writerow(list(r))
+                for t in trials:
+                    sess = by_id[int(t["session_id"])]
+                    w.writerow([sess[k] if k in ("participant", "session_number") else t[k]
+                                for k in TRIAL_COLUMNS])
             with files[2].open("w", newline="") as fh:
                 w = csv.writer(fh)
                 w.writerow(SAMPLE_COLUMNS)
-                for r in c.execute(
-                    "SELECT s.participant, t.session_id, t.trial_index, p.t_s, p.x, p.y,"
-                    " p.buttons FROM samples p JOIN trials t USING (trial_id)"
-                    " JOIN sessions s USING (session_id)"
-                    " ORDER BY t.session_id, t.trial_id, p.rowid"):
-                    w.writerow([r[0], r[1], r[2], repr(r[3]), repr(r[4]), repr(r[5]), r[6]])
+                for sid, index, t_s, x, y, buttons in store.iter_samples():
+                    w.writerow([by_id[int(sid)]["participant"], sid, index, repr(t_s),
+                                repr(x), repr(y), buttons])
         except OSError as exc:
             raise ConfigError(f"cannot write to {o}: {exc.strerror}") from None
-        except Exception as exc:
-            if isinstance(exc, StoreError | ConfigError):
-                raise
-            import sqlite3
-
-            if isinstance(exc, sqlite3.DatabaseError):
-                raise StoreError(f"cannot read {store.path}: {exc}") from None
-            raise
     return files
 
 
@@ -232,11 +220,8 @@ def export_bids(db: str | Path, out: str | Path) -> list[Path]:
             written += [beh, bj]
             mstem = f"{stem}_tracksys-cursor"
             motion = base / "motion" / f"{mstem}_motion.tsv"
-            rows = store.conn.execute(
-                "SELECT t.trial_index, p.t_s, p.x, p.y, p.buttons FROM samples p"
-                " JOIN trials t USING (trial_id) WHERE t.session_id=?"
-                " ORDER BY t.trial_id, p.rowid", (s["session_id"],))
-            _write_tsv(motion, None, ([r[0], repr(r[1]), repr(r[2]), repr(r[3]), r[4]]
+            rows = store.iter_samples(s["session_id"])
+            _write_tsv(motion, None, ([r[1], repr(r[2]), repr(r[3]), repr(r[4]), r[5]]
                                       for r in rows))
             ch = base / "motion" / f"{mstem}_channels.tsv"
             _write_tsv(ch, ["name", "component", "type", "tracked_point", "units", "description"],

@@ -290,11 +290,11 @@ def run_session(
         row = store.find_resumable(participant)
         if row is None:
             raise StoreError(
-                f"participant {participant!r} has no unfinished session in {store.path}; "
+                f"participant {participant!r} has no unfinished session in {store.url}; "
                 "run without --resume to start one"
             )
         if row["study_sha256"] != sha:
-            stored = Study.from_toml(row["study_toml"], path=f"{store.path} (session "
+            stored = Study.from_toml(row["study_toml"], path=f"{store.url} (session "
                                      f"{row['session_id']})")
             if stored != study:
                 raise StoreError(

@@ -1,7 +1,8 @@
-"""The session store: one SQLite file holding sessions, trials and cursor samples.
+"""The SQLite store: one file holding sessions, trials and cursor samples.
 
-Schema (DESIGN.md, "Data store", plus provenance columns)::
+Schema (docs/study.md, "The store", plus provenance columns)::
 
+    meta(key, value)                                  schema_version
     sessions(session_id, participant, session_number, study_name, study_sha256,
              study_toml, seed, condition_order, schedule_json, n_trials, belt,
              firmware_version, calibration_json, package_version, git_commit, host,
@@ -12,14 +13,23 @@ Schema (DESIGN.md, "Data store", plus provenance columns)::
            status, abort_reason, attempts, recorded_at)      UNIQUE(session_id, trial_index)
     samples(trial_id, t_s, x, y, buttons)
 
-Durability: WAL journal, ``synchronous=FULL``, and one transaction per trial holding
-the trial row and all its samples, so a process killed at any moment loses at most
-the trial in flight. An ``aborted`` row is replaced (with its samples) when the
-trial is run again; a ``done`` or ``timeout`` row is never written twice.
+Durability: while a writer has the store open it is in WAL mode with
+``synchronous=FULL``, and each trial is one transaction holding the trial row and all
+its samples, so a process killed at any moment loses at most the trial in flight. An
+``aborted`` row is replaced (with its samples) when the trial is run again; a ``done``
+or ``timeout`` row is never written twice.
 
-Only one run may write a store at a time: :meth:`Store.open` takes an exclusive
-``flock`` on ``<file>.lock`` and fails at once, before anything is written, when
-another run holds it.
+Files: only one run may write a store at a time: opening for writing takes an
+exclusive ``flock`` on ``<file>.lock`` and fails at once, before anything is written,
+when another run holds it. A clean close checkpoints the WAL into the file, switches
+the file back to the rollback journal (so later readers create no ``-wal``/``-shm``)
+and removes the lock file: what stays on disk is the store file alone. After a crash
+the ``-wal`` (with the last committed trials) and the lock file stay; the next open
+recovers them.
+
+:func:`create_bare_store` writes a bare store with only the columns the analysis
+requires (synthetic data for tests and benchmarks); :func:`move_store_file` moves a
+closed store (with any WAL files) aside.
 
 I/O edge of the experiment package: imports sqlite3, fcntl and the pure experiment
 modules; never devices, inputs or the window.
@@ -28,27 +38,34 @@ modules; never devices, inputs or the window.
 from __future__ import annotations
 
 import contextlib
-import datetime as _dt
 import json
 import os
+import shutil
 import sqlite3
 import stat
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 from pathlib import Path
-from types import TracebackType
 from typing import Any
 
-from .._errors import StoreError
-from .schedule import ScheduledTrial, schedule_from_json, schedule_to_json
-from .trial import TrialResult
+from ..._errors import StoreError
+from ..schedule import ScheduledTrial, schedule_from_json, schedule_to_json
+from ..trial import TrialResult
+from .base import (
+    SCHEMA_VERSION,
+    SESSION_STATUSES,
+    TRIAL_STATUSES,
+    Store,
+    StoreCapabilities,
+    utc_now,
+)
 
-__all__ = ["SCHEMA_VERSION", "SESSION_STATUSES", "Store", "utc_now"]
+__all__ = ["APPLICATION_ID", "SQLiteStore", "create_bare_store", "move_store_file"]
 
-SCHEMA_VERSION = 1
 #: PRAGMA application_id of a tactorbelt store ("TBLT").
 APPLICATION_ID = 0x54424C54
-SESSION_STATUSES = ("running", "complete", "aborted", "interrupted")
-TRIAL_STATUSES = ("done", "timeout", "aborted")
+#: Files SQLite may keep next to the store while it is open (or after a crash).
+SIDE_SUFFIXES = ("-wal", "-shm", "-journal")
+_TABLES = ("sessions", "trials", "samples")
 
 _SCHEMA = """
 CREATE TABLE IF NOT EXISTS meta(
@@ -116,20 +133,12 @@ CREATE INDEX IF NOT EXISTS trials_session ON trials(session_id);
 CREATE INDEX IF NOT EXISTS samples_trial ON samples(trial_id);
 CREATE INDEX IF NOT EXISTS sessions_participant ON sessions(participant);
 """
-
 _TRIAL_COLUMNS = (
     "session_id", "trial_index", "block", "block_index", "block_name", "condition",
     "repetition", "target_deg", "on_tactor", "response_deg", "response_target_deg",
     "correct", "rt_s", "onset_ns", "acquired_ns", "crossed_ns", "stimulus_off_ns",
     "n_samples", "status", "abort_reason", "attempts", "recorded_at",
 )
-
-
-def utc_now() -> str:
-    """The current UTC time, ISO 8601 with microseconds."""
-    return _dt.datetime.now(_dt.UTC).isoformat(timespec="microseconds")
-
-
 def _read_only(path: Path) -> bool:
     """True when the file cannot or must not be written (no write bit, or no access)."""
     try:
@@ -138,29 +147,96 @@ def _read_only(path: Path) -> bool:
         return False
     return not os.access(path, os.W_OK) or not (mode & (stat.S_IWUSR | stat.S_IWGRP | stat.S_IWOTH))
 
+#: The bare schema of :func:`create_bare_store`: only the columns a store must have.
+BARE_SCHEMA = """
+CREATE TABLE sessions(
+    session_id INTEGER PRIMARY KEY,
+    participant TEXT NOT NULL,
+    study_name TEXT,
+    study_sha256 TEXT,
+    study_toml TEXT,
+    seed INTEGER,
+    condition_order TEXT,
+    belt TEXT,
+    firmware_version TEXT,
+    package_version TEXT,
+    started_at TEXT,
+    ended_at TEXT,
+    status TEXT
+);
+CREATE TABLE trials(
+    trial_id INTEGER PRIMARY KEY,
+    session_id INTEGER NOT NULL,
+    block TEXT NOT NULL,
+    condition TEXT NOT NULL,
+    repetition INTEGER,
+    trial_index INTEGER,
+    target_deg REAL NOT NULL,
+    on_tactor INTEGER NOT NULL,
+    response_deg REAL,
+    response_target_deg REAL,
+    correct INTEGER,
+    rt_s REAL,
+    onset_ns INTEGER,
+    status TEXT NOT NULL
+);
+CREATE TABLE samples(
+    trial_id INTEGER NOT NULL,
+    t_s REAL NOT NULL,
+    x REAL NOT NULL,
+    y REAL NOT NULL,
+    buttons INTEGER NOT NULL
+)
+"""
+_SAMPLES_INDEX = "CREATE INDEX IF NOT EXISTS samples_trial ON samples(trial_id)"
 
-class Store:
-    """An open session store. Use :meth:`open`; close it (or use ``with``) when done."""
+
+def _side_files(p: Path) -> list[Path]:
+    return [p.with_name(p.name + s) for s in SIDE_SUFFIXES]
+
+
+def _lock_path(p: Path) -> Path:
+    return p.with_name(p.name + ".lock")
+
+
+def _path_of(url: str | Path) -> Path:
+    text = str(url)
+    if not isinstance(url, Path) and text.lower().startswith("sqlite://"):
+        text = text[len("sqlite://"):]
+        if not text:
+            raise StoreError(f"{url}: no file in the store URL; give sqlite:///path/study.sqlite")
+    return Path(text)
+
+
+class SQLiteStore(Store):
+    """A store in one SQLite file (see the module doc). Open with :func:`open_store`."""
+
+    capabilities = StoreCapabilities(backend="sqlite", file=True, bulk_insert=True,
+                                     exclusive_writer=True)
 
     def __init__(self, path: Path, conn: sqlite3.Connection, lock_fd: int | None,
                  readonly: bool) -> None:
-        self.path = path
+        self.url = str(path)
+        self.path: Path = path
         self.conn = conn
         self._lock_fd = lock_fd
         self.readonly = readonly
+        self._closed = False
 
     # -- opening -----------------------------------------------------------------------
     @classmethod
-    def open(cls, path: str | Path, create: bool = True, readonly: bool = False) -> Store:
+    def open_url(cls, url: str | Path, *, create: bool = True, readonly: bool = False,
+                 verify: bool = True) -> SQLiteStore:
         """Open (and with ``create`` make) a store for writing, or read-only.
 
         Raises:
             StoreError: the path is a directory; the file is not SQLite, not a
                 tactorbelt store, corrupted or truncated; it is read-only (for
-                writing); another run is using it; or (``create=False``) it does not
-                exist. Raised before anything is written.
+                writing); another run is using it; it was written by a newer
+                tactorbelt (for writing); or (``create=False``) it does not exist.
+                Raised before anything is written.
         """
-        p = Path(path)
+        p = _path_of(url)
         if p.is_dir():
             raise StoreError(f"{p} is a directory; give a database file such as {p}/study.sqlite")
         exists = p.exists()
@@ -168,7 +244,8 @@ class Store:
         # descriptor on a database file would drop the POSIX locks that other
         # connections of this process hold on it.
         if not exists and (not create or readonly):
-            raise StoreError(f"{p}: no such store")
+            raise StoreError(f"{p}: no such store (no such file); give a store written "
+                             "by 'tactorbelt run' or 'tactorbelt demo'")
         if not readonly:
             if exists and _read_only(p):
                 raise StoreError(
@@ -180,12 +257,12 @@ class Store:
                 raise StoreError(f"cannot create {p}: directory {parent} does not exist")
             if not os.access(parent, os.W_OK):
                 raise StoreError(f"cannot write to directory {parent} (needed for {p})")
-        lock_path = p.with_name(p.name + ".lock")
+        lock_path = _lock_path(p)
         made_lock = not readonly and not lock_path.exists()
         lock_fd = None if readonly else cls._lock(p)
         try:
             try:
-                conn = cls._connect(p, readonly)
+                conn = cls._connect(p, readonly, verify)
             except sqlite3.DatabaseError as exc:
                 raise cls._translate(p, exc) from None
         except BaseException:
@@ -201,30 +278,41 @@ class Store:
     def _lock(p: Path) -> int:
         import fcntl
 
-        lock_path = p.with_name(p.name + ".lock")
-        try:
-            fd = os.open(lock_path, os.O_RDWR | os.O_CREAT, 0o644)
-        except OSError as exc:
-            raise StoreError(f"cannot create the lock file {lock_path}: {exc.strerror}") from None
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError:
-            holder = ""
-            with contextlib.suppress(OSError):
-                holder = os.pread(fd, 200, 0).decode(errors="replace").strip()
+        lock_path = _lock_path(p)
+        while True:
+            try:
+                fd = os.open(lock_path, os.O_RDWR | os.O_CREAT, 0o644)
+            except OSError as exc:
+                raise StoreError(
+                    f"cannot create the lock file {lock_path}: {exc.strerror}") from None
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except OSError:
+                holder = ""
+                with contextlib.suppress(OSError):
+                    holder = os.pread(fd, 200, 0).decode(errors="replace").strip()
+                os.close(fd)
+                raise StoreError(
+                    f"another run is using the store {p}"
+                    + (f" ({holder})" if holder else "")
+                    + "; wait for it to finish or give another --db"
+                ) from None
+            # The holder removes the lock file when it closes: a lock taken on a file
+            # that was removed meanwhile locks nothing; take it again on the new file.
+            try:
+                same = os.path.samestat(os.fstat(fd), os.stat(lock_path))
+            except OSError:
+                same = False
+            if same:
+                break
             os.close(fd)
-            raise StoreError(
-                f"another run is using the store {p}"
-                + (f" ({holder})" if holder else "")
-                + "; wait for it to finish or give another --db"
-            ) from None
         with contextlib.suppress(OSError):
             os.ftruncate(fd, 0)
             os.pwrite(fd, f"pid {os.getpid()}".encode(), 0)
         return fd
 
     @staticmethod
-    def _connect(p: Path, readonly: bool) -> sqlite3.Connection:
+    def _connect(p: Path, readonly: bool, verify: bool = True) -> sqlite3.Connection:
         conn: sqlite3.Connection | None = None
         try:
             # A read-only store is still opened read-write when the file allows it (and
@@ -233,29 +321,50 @@ class Store:
             uri = p.resolve().as_uri()
             if readonly and _read_only(p):
                 uri += "?mode=ro"
-            conn = sqlite3.connect(uri, uri=True, isolation_level=None,
-                                   check_same_thread=False)
+            try:
+                conn = sqlite3.connect(uri, uri=True, isolation_level=None,
+                                       check_same_thread=False)
+                conn.execute("SELECT count(*) FROM sqlite_master").fetchone()
+            except sqlite3.OperationalError as exc:
+                if not readonly or "unable to open" not in str(exc):
+                    raise
+                # A reader in a directory it cannot write (no -shm can be made).
+                if conn is not None:
+                    conn.close()
+                conn = sqlite3.connect(p.resolve().as_uri() + "?immutable=1", uri=True,
+                                       isolation_level=None, check_same_thread=False)
             if readonly:
                 conn.execute("PRAGMA query_only = ON")
             conn.row_factory = sqlite3.Row
             conn.execute("PRAGMA busy_timeout = 5000")
-            check = conn.execute("PRAGMA quick_check").fetchone()[0]
-            if check != "ok":
-                raise sqlite3.DatabaseError(check)
+            if verify:
+                check = conn.execute("PRAGMA quick_check").fetchone()[0]
+                if check != "ok":
+                    raise sqlite3.DatabaseError(check)
             tables = {r[0] for r in conn.execute(
                 "SELECT name FROM sqlite_master WHERE type='table'")}
             app_id = conn.execute("PRAGMA application_id").fetchone()[0]
             if tables and "sessions" not in tables:
                 raise StoreError(
                     f"{p} is an SQLite database but not a tactorbelt store "
-                    f"(tables: {', '.join(sorted(tables))}); give another file"
+                    f"(tables: {', '.join(sorted(tables))}; a store has tables "
+                    f"{', '.join(_TABLES)}); give another file"
                 )
             if "sessions" in tables and app_id not in (0, APPLICATION_ID):
                 raise StoreError(f"{p} is not a tactorbelt store (application_id {app_id:#x})")
             if readonly:
                 if "sessions" not in tables:
-                    raise StoreError(f"{p} holds no tactorbelt sessions")
+                    raise StoreError(f"{p} is not a tactorbelt store: it holds no tables "
+                                     f"(a store has tables {', '.join(_TABLES)})")
                 return conn
+            if "meta" in tables:
+                version = conn.execute(
+                    "SELECT value FROM meta WHERE key='schema_version'").fetchone()
+                if version is not None and int(version[0]) > SCHEMA_VERSION:
+                    raise StoreError(
+                        f"{p} was written by a newer tactorbelt (schema {version[0]}, this "
+                        f"one writes {SCHEMA_VERSION}); upgrade tactorbelt to write to it"
+                    )
             conn.execute("PRAGMA journal_mode = WAL")
             conn.execute("PRAGMA synchronous = FULL")
             conn.execute("PRAGMA foreign_keys = ON")
@@ -264,18 +373,14 @@ class Store:
                 for stmt in _SCHEMA.split(";"):
                     if stmt.strip():
                         conn.execute(stmt)
-                conn.execute(f"PRAGMA application_id = {APPLICATION_ID}")
+                if app_id != APPLICATION_ID:
+                    conn.execute(f"PRAGMA application_id = {APPLICATION_ID}")
                 conn.execute("INSERT OR IGNORE INTO meta(key, value) VALUES ('schema_version', ?)",
                              (str(SCHEMA_VERSION),))
                 conn.execute("COMMIT")
             except BaseException:
                 conn.execute("ROLLBACK")
                 raise
-            version = conn.execute("SELECT value FROM meta WHERE key='schema_version'").fetchone()
-            if version is not None and int(version[0]) > SCHEMA_VERSION:
-                raise StoreError(
-                    f"{p} was written by a newer tactorbelt (schema {version[0]}); upgrade"
-                )
             return conn
         except BaseException:
             if conn is not None:
@@ -303,20 +408,28 @@ class Store:
         )
 
     def close(self) -> None:
-        """Close the database and release the lock. Safe to call twice."""
+        """Close the database and release the lock, leaving only the store file.
+
+        A writer checkpoints the WAL into the file and switches it back to the rollback
+        journal (when no other connection has it open), then removes its lock file.
+        Safe to call twice.
+        """
+        if self._closed:
+            return
+        self._closed = True
+        if not self.readonly:
+            with contextlib.suppress(sqlite3.Error):
+                self.conn.execute("PRAGMA busy_timeout = 0")  # never wait for a reader
+                self.conn.execute("PRAGMA wal_checkpoint(TRUNCATE)")
+                self.conn.execute("PRAGMA journal_mode = DELETE")
         with contextlib.suppress(Exception):
             self.conn.close()
         if self._lock_fd is not None:
             with contextlib.suppress(OSError):
+                _lock_path(self.path).unlink()  # while still holding it
+            with contextlib.suppress(OSError):
                 os.close(self._lock_fd)
             self._lock_fd = None
-
-    def __enter__(self) -> Store:
-        return self
-
-    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
-                 tb: TracebackType | None) -> None:
-        self.close()
 
     # -- helpers -----------------------------------------------------------------------
     @contextlib.contextmanager
@@ -340,9 +453,9 @@ class Store:
                 self.conn.execute("ROLLBACK")
             raise StoreError(f"cannot write to {self.path}: {exc}") from None
 
-    def _query(self, sql: str, args: tuple[Any, ...] = ()) -> list[sqlite3.Row]:
+    def _query(self, sql: str, args: Sequence[Any] = ()) -> list[sqlite3.Row]:
         try:
-            return self.conn.execute(sql, args).fetchall()
+            return self.conn.execute(sql, tuple(args)).fetchall()
         except sqlite3.DatabaseError as exc:
             raise StoreError(f"cannot read {self.path}: {exc}") from None
 
@@ -504,3 +617,162 @@ class Store:
         rows = self._query("SELECT t_s, x, y, buttons FROM samples WHERE trial_id=?"
                            " ORDER BY rowid", (trial_id,))
         return [(r[0], r[1], r[2], r[3]) for r in rows]
+
+    # -- bulk reads --------------------------------------------------------------------
+    def table_columns(self, table: str) -> list[str]:
+        if table not in _TABLES:
+            raise StoreError(f"unknown table {table!r}; a store has {', '.join(_TABLES)}")
+        return [str(r[1]) for r in self._query(f"PRAGMA table_info({table})")]
+
+    def read_table(self, table: str, columns: Sequence[str]) -> list[tuple[Any, ...]]:
+        order = {"sessions": "session_id", "trials": "session_id, trial_id"}.get(table)
+        if order is None:
+            raise StoreError(f"read_table reads sessions or trials, not {table!r}")
+        have = set(self.table_columns(table))
+        bad = [c for c in columns if c not in have]
+        if bad:
+            raise StoreError(f"{self.path}: table {table} lacks column(s) {', '.join(bad)}")
+        rows = self._query(f"SELECT {', '.join(columns)} FROM {table} ORDER BY {order}")
+        return [tuple(r) for r in rows]
+
+    def samples_of(self, trial_ids: Sequence[int]) -> list[tuple[int, float, float, float, int]]:
+        ids = sorted({int(t) for t in trial_ids})
+        out: list[tuple[int, float, float, float, int]] = []
+        for start in range(0, len(ids), 500):  # stay under SQLite's parameter limit
+            part = ids[start:start + 500]
+            rows = self._query(
+                "SELECT trial_id, t_s, x, y, buttons FROM samples WHERE trial_id IN "
+                f"({', '.join('?' * len(part))}) ORDER BY trial_id, t_s", part)
+            out += [(r[0], r[1], r[2], r[3], r[4]) for r in rows]
+        return out
+
+    def iter_samples(self, session_id: int | None = None
+                     ) -> Iterator[tuple[int, int, float, float, float, int]]:
+        sql = ("SELECT t.session_id, t.trial_index, p.t_s, p.x, p.y, p.buttons"
+               " FROM samples p JOIN trials t USING (trial_id)")
+        args: tuple[Any, ...] = ()
+        if session_id is not None:
+            sql += " WHERE t.session_id=?"
+            args = (session_id,)
+        sql += " ORDER BY t.session_id, t.trial_id, p.rowid"
+        try:
+            for r in self.conn.execute(sql, args):
+                yield (r[0], r[1], r[2], r[3], r[4], r[5])
+        except sqlite3.DatabaseError as exc:
+            raise StoreError(f"cannot read {self.path}: {exc}") from None
+
+    # -- bulk writes -------------------------------------------------------------------
+    def bulk_insert(self, *, sessions: Iterable[Mapping[str, Any]] = (),
+                    trials: Iterable[Mapping[str, Any]] = (),
+                    samples: Iterable[Sequence[Any]] = ()) -> list[int]:
+        """Insert ready-made rows in one transaction; return the new sessions' ids.
+
+        Rows go in as given (explicit ids are kept, missing columns get the schema's
+        defaults); for synthetic data, not for runs (:meth:`write_trial` checks trials).
+        """
+        ids: list[int] = []
+        try:
+            with self._transaction() as c:
+                for row in sessions:
+                    cols = list(row)
+                    cur = c.execute(
+                        f"INSERT INTO sessions({', '.join(cols)}) "
+                        f"VALUES ({', '.join('?' * len(cols))})", [row[k] for k in cols])
+                    ids.append(int(cur.lastrowid or 0))
+                trial_rows = list(trials)
+                if trial_rows:
+                    cols = sorted({k for r in trial_rows for k in r})
+                    c.executemany(
+                        f"INSERT INTO trials({', '.join(cols)}) "
+                        f"VALUES ({', '.join('?' * len(cols))})",
+                        ([r.get(k) for k in cols] for r in trial_rows))
+                c.executemany(
+                    "INSERT INTO samples(trial_id, t_s, x, y, buttons) VALUES (?,?,?,?,?)",
+                    samples)
+        except sqlite3.DatabaseError as exc:
+            raise StoreError(f"cannot write to {self.path}: {exc}") from None
+        return ids
+
+    def index_samples(self) -> None:
+        """Create the index on ``samples(trial_id)`` (after a bulk load without it)."""
+        with self._transaction() as c:
+            c.execute(_SAMPLES_INDEX)
+
+
+def create_bare_store(path: str | Path, *, samples_index: bool = True,
+                        extra_columns: bool = False, fast: bool = False) -> SQLiteStore:
+    """Create a bare store (only the required columns) for synthetic data; open for writing.
+
+    The analysis reads any store that has the required tables and columns; this one has
+    no more (no meta table, no provenance), so tests can check that. Fill it with
+    :meth:`SQLiteStore.bulk_insert`.
+
+    Args:
+        path: the new file (must not exist).
+        samples_index: create the index on ``samples(trial_id)`` now (else call
+            :meth:`SQLiteStore.index_samples` after loading).
+        extra_columns: add columns the analysis must tolerate (``sessions.input``,
+            ``trials.notes``).
+        fast: no journal and no fsync (a benchmark's scratch file; not crash safe).
+    """
+    p = _path_of(path)
+    if p.exists():
+        raise StoreError(f"{p} exists; a synthetic store is written into a new file")
+    try:
+        conn = sqlite3.connect(str(p), isolation_level=None, check_same_thread=False)
+        conn.row_factory = sqlite3.Row
+        if fast:
+            conn.execute("PRAGMA journal_mode = OFF")
+            conn.execute("PRAGMA synchronous = OFF")
+        conn.execute("BEGIN")
+        for stmt in BARE_SCHEMA.split(";"):
+            if stmt.strip():
+                conn.execute(stmt)
+        if samples_index:
+            conn.execute(_SAMPLES_INDEX)
+        if extra_columns:
+            conn.execute("ALTER TABLE sessions ADD COLUMN input TEXT")
+            conn.execute("ALTER TABLE trials ADD COLUMN notes TEXT")
+        conn.execute("COMMIT")
+    except sqlite3.Error as exc:
+        raise StoreError(f"cannot create {p}: {exc}") from None
+    return SQLiteStore(p, conn, None, readonly=False)
+
+
+def move_store_file(src: str | Path, dst: str | Path) -> bool:
+    """Move a closed store file (and any WAL files of a crashed run) to ``dst``.
+
+    A store at ``dst`` is replaced. Leftover WAL files of a store whose file is gone are
+    removed. Returns whether there was a store to move.
+
+    Raises:
+        StoreError: another run holds the store, or the files cannot be moved.
+    """
+    import fcntl
+
+    s, d = _path_of(src), _path_of(dst)
+    fd = None
+    try:
+        if _lock_path(s).exists():
+            fd = os.open(_lock_path(s), os.O_RDWR)
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except OSError:
+                raise StoreError(f"another run is using {s}; wait for it to finish") from None
+        if not s.exists():
+            for side in _side_files(s):  # leftovers of a run that lost its main file
+                side.unlink(missing_ok=True)
+            return False
+        for old in (d, *_side_files(d)):
+            old.unlink(missing_ok=True)
+        for a, b in zip((s, *_side_files(s)), (d, *_side_files(d)), strict=True):
+            if a.exists():
+                shutil.move(str(a), str(b))
+        if fd is not None:  # a crashed run's lock, now held by us
+            _lock_path(s).unlink(missing_ok=True)
+    except OSError as exc:
+        raise StoreError(f"cannot move the store {s} to {d}: {exc.strerror}") from None
+    finally:
+        if fd is not None:
+            os.close(fd)
+    return True

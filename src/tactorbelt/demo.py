@@ -1,0 +1,363 @@
+"""The paper's study with model participants: the whole-study runs behind ``tactorbelt
+demo`` and ``tactorbelt power``.
+
+- :func:`run_model_study`: writes the paper's protocol, runs N model participants
+  through the real session runner on the ``sim`` belt and a simulated clock, stores
+  everything in ``DIR/study.sqlite`` and writes the analysis report.
+- :func:`run_power_study`: estimates, by simulation on the fast path
+  (:mod:`tactorbelt.participant.simulate`, in a process pool), how often a study of N
+  model participants finds the static-versus-dynamic difference with the analysis'
+  test; writes power.csv, power.json and power.png.
+
+Seed policy (one for every model participant): participant ``i`` (1-based) of a study
+with seed ``s`` draws its parameters and its cursor's seed from
+``numpy.random.SeedSequence([s, i]).spawn(2)`` (:func:`model_participants`); its session
+is scheduled with seed ``s``, and the analysis seed is derived from the stored sessions
+(so it is ``s``; see docs/analysis.md).
+
+The participants are models (docs/participant-model.md); their results follow from the
+model's assumptions and are no evidence about people.
+
+I/O: writes files and a store; imports NumPy, the runner, the analysis and matplotlib
+only inside the functions.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from ._errors import ConfigError
+
+if TYPE_CHECKING:
+    import numpy as np
+
+    from .analysis.stats import Summary
+    from .experiment.study import Study
+    from .participant.params import ModelParams
+    from .participant.power import PowerRow, StudyOutcome
+    from .participant.simulate import Protocol, StimulusCues
+
+__all__ = [
+    "MODEL_NOTE",
+    "PREVIOUS_STORE_NAME",
+    "STORE_NAME",
+    "ModelParticipant",
+    "ModelStudyResult",
+    "PowerStudyResult",
+    "analysis_paired_test",
+    "model_participants",
+    "participant_ids",
+    "prepare_out",
+    "run_model_study",
+    "run_power",
+    "run_power_study",
+]
+
+STORE_NAME = "study.sqlite"
+PREVIOUS_STORE_NAME = "study.previous.sqlite"
+MODEL_NOTE = ("The participants are simulated observers (the model participant): their "
+              "results follow from the model's assumptions and are no evidence about people.")
+SMALL_STUDY_NOTE = ("with 5 or fewer participants the exact two-sided Wilcoxon test cannot "
+                    "reach p < 0.05 (its smallest p is 2/2^n), whatever the effect.")
+
+#: ``progress(what, done, total)``: what is being done and how far.
+ProgressFn = Callable[[str, int, int], None]
+
+
+def prepare_out(path: Path) -> Path:
+    """Create the output directory (and parents), or explain why it cannot be."""
+    if path.exists() and not path.is_dir():
+        raise ConfigError(f"--out {path} exists and is not a directory")
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ConfigError(f"cannot create directory {path}: {exc.strerror}") from None
+    return path
+
+
+def participant_ids(n: int) -> list[str]:
+    """``model-01`` ... (at least two digits, wider for 100 or more)."""
+    width = max(2, len(str(n)))
+    return [f"model-{i:0{width}d}" for i in range(1, n + 1)]
+
+
+@dataclass(frozen=True)
+class ModelParticipant:
+    """One model participant of a study: id, drawn parameters and its cursor's seed."""
+
+    pid: str
+    params: ModelParams
+    cursor_seed: int
+
+
+def model_participants(n: int, seed: int, base: ModelParams) -> list[ModelParticipant]:
+    """The study's model participants under the one seed policy (see the module doc)."""
+    import numpy as np
+
+    from .participant.params import draw_participant
+
+    people = []
+    for i, pid in enumerate(participant_ids(n)):
+        params_seq, cursor_seq = np.random.SeedSequence([seed, i + 1]).spawn(2)
+        params = draw_participant(np.random.default_rng(params_seq), base)
+        cursor_seed = int(cursor_seq.generate_state(1, np.uint64)[0] >> np.uint64(1))
+        people.append(ModelParticipant(pid, params, cursor_seed))
+    return people
+
+
+@dataclass(frozen=True)
+class ModelStudyResult:
+    """What :func:`run_model_study` wrote."""
+
+    summary: Summary
+    store: Path
+    report: Path
+    #: Where an earlier store in the directory was moved, or None.
+    previous_store: Path | None
+
+
+def run_model_study(out: Path, n_participants: int, seed: int,
+                    progress: ProgressFn | None = None,
+                    notify: Callable[[str], None] | None = None,
+                    study_toml: str | None = None) -> ModelStudyResult:
+    """Run a whole study with model participants into ``out`` and analyse it.
+
+    Writes ``out/study.toml`` (the paper's protocol unless ``study_toml`` is given),
+    moves an earlier ``out/study.sqlite`` to ``out/study.previous.sqlite``, runs each
+    participant's whole session on the sim belt and a simulated clock into
+    ``out/study.sqlite``, writes ``participants.json`` and the analysis report.
+
+    Args:
+        progress: called with ``(what, done, total)``; ``what`` names the participant
+            (``model-01 (1/2)``, counting trials of all participants) or the analysis
+            step (``analysis: ...``).
+        notify: called with a note for the user (an earlier store was moved aside).
+
+    Raises:
+        ConfigError: ``out`` is unusable, or a session did not complete.
+        StoreError: another run is using the store.
+    """
+    from .analysis.report import analyze
+    from .clock import SimClock
+    from .devices import open_belt
+    from .experiment.runner import run_session
+    from .experiment.store import open_store
+    from .experiment.store.sqlite import move_store_file
+    from .experiment.study import PAPER_STUDY_TOML, Study
+    from .inputs.model import make_model_cursor
+    from .participant.params import ModelParams
+
+    text = PAPER_STUDY_TOML if study_toml is None else study_toml
+    out = prepare_out(out)
+    study_path = out / "study.toml"
+    try:
+        study_path.write_text(text, encoding="utf-8")
+    except OSError as exc:
+        raise ConfigError(f"cannot write {study_path}: {exc.strerror}") from None
+    study: Study = Study.from_toml(text, path=study_path)
+    db = out / STORE_NAME
+    moved = out / PREVIOUS_STORE_NAME if move_store_file(db, out / PREVIOUS_STORE_NAME) else None
+    if moved is not None and notify is not None:
+        notify(f"the previous store was moved to {moved}")
+    base = ModelParams().for_period(study.stimulus.period_s)
+    people = model_participants(n_participants, seed, base)
+    n_trials = study.n_trials()
+    total = n_participants * n_trials
+    with open_store(db) as store:
+        for i, person in enumerate(people):
+            what = f"{person.pid} ({i + 1}/{n_participants})"
+
+            def session_progress(n_done: int, n_total: int, _base: int = i * n_trials,
+                                 _what: str = what) -> None:
+                if progress is not None:
+                    progress(_what, _base + n_done, total)
+
+            session_progress(0, n_trials)
+            clock = SimClock()
+            with open_belt("sim", clock=clock, layout=study.layout_obj()) as belt:
+                cursor = make_model_cursor(belt, clock, seed=person.cursor_seed,
+                                           params=person.params)
+                result = run_session(study, person.pid, belt, cursor, store, clock, seed=seed,
+                                     progress=session_progress, study_toml=text,
+                                     input_name="model")
+            if result.status != "complete":
+                raise ConfigError(f"the session of {person.pid} ended {result.status}; "
+                                  f"see {db}")
+    (out / "participants.json").write_text(json.dumps(
+        {"note": MODEL_NOTE, "study": study.name, "seed": seed,
+         "participants": {p.pid: {"seed": p.cursor_seed, "params": p.params.to_dict()}
+                          for p in people}},
+        indent=2) + "\n", encoding="utf-8")
+
+    def analysis_progress(what: str, done: int, steps: int) -> None:
+        if progress is not None:
+            progress(f"analysis: {what}", done, max(steps, 1))
+
+    # No seed given: the analysis derives it from the stored sessions, exactly as
+    # 'tactorbelt analyze' on this store does.
+    summary = analyze([db], out, progress=analysis_progress)
+    return ModelStudyResult(summary, db, out / "report.html", moved)
+
+
+# -- power ---------------------------------------------------------------------------------
+
+def analysis_paired_test(static: np.ndarray, dynamic: np.ndarray) -> float:
+    """The analysis' static-vs-dynamic test (paired Wilcoxon) p-value; NaN if not computed."""
+    import numpy as np
+
+    from .analysis.stats import wilcoxon_paired
+
+    res = wilcoxon_paired(static, dynamic, np.random.default_rng(0), n_boot=1,
+                          key="between_accuracy", what="accuracy")
+    if not res.computed or res.p_value is None:
+        return float("nan")
+    return float(res.p_value)
+
+
+def _power_chunk(args: tuple[Protocol, StimulusCues, int, list[int], int]
+                 ) -> list[StudyOutcome]:
+    """Worker: simulate some studies of one size (module level, so processes can run it)."""
+    from .participant.power import simulate_studies
+
+    protocol, cues, n, indices, seed = args
+    return simulate_studies(protocol, cues, n, indices, seed, analysis_paired_test)
+
+
+def run_power(protocol: Protocol, cues: StimulusCues, sizes: Sequence[int], sims: int,
+              seed: int, jobs: int, alpha: float,
+              advance: Callable[[int], None] | None = None) -> list[PowerRow]:
+    """Simulate ``sims`` studies at each size (in ``jobs`` processes) and summarise them.
+
+    Results do not depend on ``jobs``: each simulated study has its own seed.
+    """
+    from .participant.power import power_row
+
+    chunk = max(1, min(25, math.ceil(sims / max(jobs, 1) / 4)))
+    work = [(protocol, cues, n, list(range(s, min(s + chunk, sims))), seed)
+            for n in sizes for s in range(0, sims, chunk)]
+    results: dict[int, list[StudyOutcome]] = {n: [] for n in sizes}
+    if jobs <= 1:
+        for item in work:
+            done = _power_chunk(item)
+            results[item[2]].extend(done)
+            if advance is not None:
+                advance(len(done))
+    else:
+        from concurrent.futures import ProcessPoolExecutor, as_completed
+
+        with ProcessPoolExecutor(max_workers=jobs) as pool:
+            futures = {pool.submit(_power_chunk, item): item for item in work}
+            for fut in as_completed(futures):
+                done = fut.result()
+                results[futures[fut][2]].extend(done)
+                if advance is not None:
+                    advance(len(done))
+    return [power_row(results[n], alpha) for n in sizes]
+
+
+def _plot_power(rows: Sequence[PowerRow], path: Path, title: str, alpha: float) -> None:
+    os.environ.setdefault("MPLBACKEND", "Agg")
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    n = [r.n_participants for r in rows]
+    pw = [r.power for r in rows]
+    lo = [r.power - r.ci_low for r in rows]
+    hi = [r.ci_high - r.power for r in rows]
+    fig, ax = plt.subplots(figsize=(6.4, 4.2), dpi=120)
+    ax.axhline(0.8, color="0.6", lw=1, ls="--", label="power 0.8")
+    ax.errorbar(n, pw, yerr=[lo, hi], fmt="o-", color="tab:orange", capsize=4,
+                label="simulated power (95 % Clopper-Pearson CI)")
+    ax.set_xlabel("participants")
+    ax.set_ylabel("power")
+    ax.set_ylim(-0.03, 1.03)
+    ax.set_xticks(n)
+    ax.set_title(title, fontsize=10)
+    ax.legend(loc="lower right", fontsize=8)
+    ax.grid(alpha=0.3)
+    fig.text(0.01, 0.01, f"Model participants (simulated); alpha = {alpha:g}, "
+             f"{rows[0].sims} simulated studies per size. Follows from the model's "
+             "assumptions.", fontsize=6.5, color="0.35")
+    fig.tight_layout(rect=(0, 0.03, 1, 1))
+    fig.savefig(path)
+    plt.close(fig)
+
+
+@dataclass(frozen=True)
+class PowerStudyResult:
+    """What :func:`run_power_study` computed and wrote."""
+
+    rows: list[PowerRow]
+    study_name: str
+    plot: Path
+    notes: list[str]
+
+
+def _finite(v: float) -> bool:
+    return math.isfinite(v)
+
+
+def run_power_study(study: Study, sizes: Sequence[int], sims: int, seed: int, out: Path,
+                    *, jobs: int | None = None, alpha: float = 0.05,
+                    advance: Callable[[int], None] | None = None,
+                    study_label: str | None = None) -> PowerStudyResult:
+    """Simulate ``sims`` studies per size, write power.csv, power.json and power.png.
+
+    Args:
+        jobs: worker processes (default: the number of CPUs, at most 8).
+        advance: called with the number of simulated studies just finished.
+        study_label: how to name the study in errors (its file).
+
+    Raises:
+        ConfigError: the study lacks a static or a dynamic test block; ``out`` unusable.
+    """
+    from .inputs.model import sim_vibrator
+    from .participant.params import ModelParams
+    from .participant.simulate import Protocol, stimulus_cues
+
+    protocol = Protocol.from_study(study)
+    conds = protocol.conditions
+    if "static" not in conds or "dynamic" not in conds:
+        raise ConfigError(f"{study_label or 'the study'} needs a static and a dynamic test "
+                          f"block for the static-vs-dynamic test; it has {', '.join(conds)}")
+    n_jobs = jobs if jobs is not None else max(1, min(8, os.cpu_count() or 1))
+    out = prepare_out(out)
+    base = ModelParams().for_period(protocol.period_s)
+    cues = stimulus_cues(protocol, sim_vibrator(protocol.layout), base)
+    rows = run_power(protocol, cues, sizes, sims, seed, n_jobs, alpha, advance=advance)
+
+    header = ["participants", "sims", "found", "power", "ci_low", "ci_high",
+              "mean_static_between_acc", "mean_dynamic_between_acc", "median_p"]
+    lines = [",".join(header)]
+    for r in rows:
+        lines.append(",".join([str(r.n_participants), str(r.sims), str(r.found),
+                               f"{r.power:.4f}", f"{r.ci_low:.4f}", f"{r.ci_high:.4f}",
+                               f"{r.static_acc:.4f}", f"{r.dynamic_acc:.4f}",
+                               "" if not _finite(r.median_p) else f"{r.median_p:.6g}"]))
+    (out / "power.csv").write_text("\n".join(lines) + "\n", encoding="utf-8")
+    doc: dict[str, Any] = {
+        "note": MODEL_NOTE,
+        "study": study.name,
+        "test": "Wilcoxon signed-rank (two-sided) on per-participant between-tactor "
+                "accuracy, dynamic vs static (tactorbelt.analysis.stats.wilcoxon_paired); "
+                "found = p < alpha and mean dynamic > mean static",
+        "alpha": alpha, "sims": sims, "seed": seed,
+        "model": base.to_dict(),
+        "rows": [{k: (None if isinstance(v, float) and not math.isfinite(v) else v)
+                  for k, v in r.__dict__.items()} for r in rows],
+    }
+    (out / "power.json").write_text(json.dumps(doc, indent=2) + "\n", encoding="utf-8")
+    plot = out / "power.png"
+    _plot_power(rows, plot, f"{study.name}: static vs dynamic between-tactor accuracy", alpha)
+    notes = [MODEL_NOTE]
+    if any(r.n_participants <= 5 for r in rows):
+        notes.append(SMALL_STUDY_NOTE)
+    return PowerStudyResult(rows, study.name, plot, notes)

@@ -1,0 +1,33 @@
+"""Session stores: the :class:`Store` interface and :func:`open_store` (see :mod:`.base`).
+
+``from tactorbelt.experiment.store import Store, open_store``. The SQLite
+implementation is :class:`~.sqlite.SQLiteStore`.
+"""
+
+from __future__ import annotations
+
+from .base import (
+    BACKENDS,
+    SAMPLE_COLUMNS,
+    SCHEMA_VERSION,
+    SESSION_STATUSES,
+    TRIAL_STATUSES,
+    Store,
+    StoreCapabilities,
+    backend_for,
+    open_store,
+    utc_now,
+)
+
+__all__ = [
+    "BACKENDS",
+    "SAMPLE_COLUMNS",
+    "SCHEMA_VERSION",
+    "SESSION_STATUSES",
+    "TRIAL_STATUSES",
+    "Store",
+    "StoreCapabilities",
+    "backend_for",
+    "open_store",
+    "utc_now",
+]

@@ -1,0 +1,273 @@
+"""The store seam: what the runner, export, analysis and the model study need of a store.
+
+A store holds sessions (with their provenance and schedule), trials and cursor samples.
+:class:`Store` is the interface; :func:`open_store` picks an implementation by URL:
+
+- a path, or ``sqlite:///path``: :class:`~.sqlite.SQLiteStore` (one file on disk);
+- ``postgresql://...``: not available yet (raises :class:`StoreError`).
+
+Implementations register in :data:`BACKENDS` (URL scheme -> ``"module:Class"``,
+imported lazily); adding one is one line there. Every implementation must pass
+tests/test_store_contract.py.
+
+Pure: imports the experiment's schedule and trial types only.
+"""
+
+from __future__ import annotations
+
+import abc
+import datetime as _dt
+import importlib
+from collections.abc import Iterable, Iterator, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from types import TracebackType
+from typing import Any
+
+from ..._errors import StoreError
+from ..schedule import ScheduledTrial, schedule_from_json
+from ..trial import TrialResult
+
+__all__ = [
+    "BACKENDS",
+    "SAMPLE_COLUMNS",
+    "SCHEMA_VERSION",
+    "SESSION_STATUSES",
+    "TRIAL_STATUSES",
+    "Store",
+    "StoreCapabilities",
+    "backend_for",
+    "open_store",
+    "utc_now",
+]
+
+#: Version of the store schema this tactorbelt writes; a store with a newer one is refused.
+SCHEMA_VERSION = 1
+SESSION_STATUSES = ("running", "complete", "aborted", "interrupted")
+TRIAL_STATUSES = ("done", "timeout", "aborted")
+#: Columns of a cursor sample row, in order.
+SAMPLE_COLUMNS = ("trial_id", "t_s", "x", "y", "buttons")
+
+#: URL scheme -> "module:Class" (relative to this package) of each store implementation.
+#: ``None`` means "planned, not available yet". A path with no scheme is ``sqlite``.
+BACKENDS: dict[str, str | None] = {
+    "sqlite": ".sqlite:SQLiteStore",
+    "postgresql": None,
+}
+
+
+def utc_now() -> str:
+    """The current UTC time, ISO 8601 with microseconds."""
+    return _dt.datetime.now(_dt.UTC).isoformat(timespec="microseconds")
+
+
+@dataclass(frozen=True)
+class StoreCapabilities:
+    """What an implementation offers beyond the common operations.
+
+    Attributes:
+        backend: the URL scheme (``sqlite``).
+        file: the store is one file on disk (:attr:`Store.path` is set); it can be
+            copied or moved aside when closed.
+        bulk_insert: :meth:`Store.bulk_insert` is supported.
+        exclusive_writer: only one writer may hold the store at a time.
+    """
+
+    backend: str
+    file: bool
+    bulk_insert: bool
+    exclusive_writer: bool
+
+
+def _scheme(url: str | Path) -> tuple[str, str]:
+    """``(scheme, rest)``: a bare path (or a Windows drive letter) is ``sqlite``."""
+    text = str(url)
+    if isinstance(url, Path) or "://" not in text:
+        return "sqlite", text
+    scheme, rest = text.split("://", 1)
+    return scheme.lower().split("+", 1)[0], rest
+
+
+def backend_for(url: str | Path) -> type[Store]:
+    """The :class:`Store` class for a URL.
+
+    Raises:
+        StoreError: the scheme is unknown or its implementation is not available yet.
+    """
+    scheme, _ = _scheme(url)
+    if scheme == "postgres":
+        scheme = "postgresql"
+    if scheme not in BACKENDS:
+        raise StoreError(f"unknown store URL scheme {scheme!r} in {url}; give a file path, "
+                         f"sqlite:///path or one of: {', '.join(sorted(BACKENDS))}")
+    target = BACKENDS[scheme]
+    if target is None:
+        name = {"postgresql": "PostgreSQL"}.get(scheme, scheme)
+        raise StoreError(f"{name} stores are not available yet ({url}); give a file path "
+                         "such as study.sqlite")
+    module, cls = target.split(":")
+    mod = importlib.import_module(module, __package__)
+    store_cls: type[Store] = getattr(mod, cls)
+    return store_cls
+
+
+def open_store(url: str | Path, create: bool = True, readonly: bool = False,
+               verify: bool = True) -> Store:
+    """Open (and with ``create`` make) the store at ``url`` for writing, or read-only.
+
+    Args:
+        url: a path (``study.sqlite``), ``sqlite:///abs/path`` or
+            ``sqlite:relative/path``; ``postgresql://...`` is not available yet.
+        create: make the store (its schema) when it does not exist.
+        readonly: open for reading only; nothing is written, no lock is taken.
+        verify: check the store's integrity when opening (a full scan of an SQLite
+            file; readers of very large stores may skip it).
+
+    Raises:
+        StoreError: unknown or unavailable scheme, or the store cannot be opened (see
+            the implementation's ``open``). Raised before anything is written.
+    """
+    cls = backend_for(url)
+    return cls.open_url(url, create=create, readonly=readonly, verify=verify)
+
+
+class Store(abc.ABC):
+    """An open session store. Close it (or use ``with``) when done.
+
+    ``Store.open(url, create=True, readonly=False)`` is :func:`open_store`.
+    """
+
+    #: What this implementation offers (a class attribute of each implementation).
+    capabilities: StoreCapabilities
+    #: Where the store is, as given when it was opened (a path for SQLite).
+    url: str
+    #: The store's file when :attr:`StoreCapabilities.file` (else None).
+    path: Path | None
+    #: Opened read-only: every write raises StoreError.
+    readonly: bool
+
+    # -- opening -----------------------------------------------------------------------
+    @classmethod
+    def open(cls, url: str | Path, create: bool = True, readonly: bool = False,
+             verify: bool = True) -> Store:
+        """Open a store; on :class:`Store` itself the URL picks the implementation."""
+        if cls is Store:
+            return open_store(url, create=create, readonly=readonly, verify=verify)
+        return cls.open_url(url, create=create, readonly=readonly, verify=verify)
+
+    @classmethod
+    @abc.abstractmethod
+    def open_url(cls, url: str | Path, *, create: bool, readonly: bool,
+                 verify: bool) -> Store:
+        """Open this implementation's store at ``url`` (see :func:`open_store`)."""
+
+    @abc.abstractmethod
+    def close(self) -> None:
+        """Release the store (and, for a file store, leave only its file). Idempotent."""
+
+    def __enter__(self) -> Store:
+        return self
+
+    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
+                 tb: TracebackType | None) -> None:
+        self.close()
+
+    # -- sessions ----------------------------------------------------------------------
+    @abc.abstractmethod
+    def create_session(
+        self, *, participant: str, study_name: str, study_toml: str, study_sha256: str,
+        seed: int, condition_order: list[str], schedule: list[ScheduledTrial],
+        belt: str | None = None, firmware_version: str | None = None,
+        calibration: Any = None, package_version: str | None = None,
+        git_commit: str | None = None, host: str | None = None, input: str | None = None,
+        clock: str | None = None,
+    ) -> int:
+        """Record a new session (status ``running``) with its provenance; return its id."""
+
+    @abc.abstractmethod
+    def mark_resumed(self, session_id: int) -> None:
+        """A resumed session is ``running`` again (and counts one more resume)."""
+
+    @abc.abstractmethod
+    def set_status(self, session_id: int, status: str) -> None:
+        """Set a session's status; any status but ``running`` also sets ``ended_at``."""
+
+    @abc.abstractmethod
+    def sessions(self, participant: str | None = None) -> list[dict[str, Any]]:
+        """Every session (of one participant) as a dict of its columns, oldest first."""
+
+    def session(self, session_id: int) -> dict[str, Any]:
+        """One session row as a dict."""
+        for s in self.sessions():
+            if s["session_id"] == session_id:
+                return s
+        raise StoreError(f"{self.url}: no session {session_id}")
+
+    def find_resumable(self, participant: str) -> dict[str, Any] | None:
+        """The participant's latest session that is not complete, or None."""
+        open_ = [s for s in self.sessions(participant) if s["status"] != "complete"]
+        return open_[-1] if open_ else None
+
+    def schedule(self, session_id: int) -> list[ScheduledTrial]:
+        """The stored schedule of a session."""
+        return schedule_from_json(self.session(session_id)["schedule_json"])
+
+    def finished_indices(self, session_id: int) -> set[int]:
+        """trial_index of every trial with a final outcome (``done`` or ``timeout``)."""
+        return {int(t["trial_index"]) for t in self.trials(session_id)
+                if t["status"] in ("done", "timeout")}
+
+    # -- trials ------------------------------------------------------------------------
+    @abc.abstractmethod
+    def write_trial(self, session_id: int, result: TrialResult) -> int:
+        """Write a trial and its samples in one transaction; return its trial_id.
+
+        An earlier ``aborted`` row of the same trial is replaced (with its samples).
+
+        Raises:
+            StoreError: the trial already has a final row, or the write failed (then
+                nothing of the trial was written).
+        """
+
+    @abc.abstractmethod
+    def trials(self, session_id: int | None = None) -> list[dict[str, Any]]:
+        """Trial rows (of one session), in the order they were recorded."""
+
+    @abc.abstractmethod
+    def samples(self, trial_id: int) -> list[tuple[float, float, float, int]]:
+        """(t_s, x, y, buttons) of one trial, in time order."""
+
+    # -- bulk reads (export, analysis) -------------------------------------------------
+    @abc.abstractmethod
+    def table_columns(self, table: str) -> list[str]:
+        """Column names of ``sessions``, ``trials`` or ``samples`` ([] when absent)."""
+
+    @abc.abstractmethod
+    def read_table(self, table: str, columns: Sequence[str]) -> list[tuple[Any, ...]]:
+        """Rows of ``sessions`` (by session_id) or ``trials`` (by session_id, trial_id).
+
+        Only the given columns, in that order; for the analysis, which reads stores
+        that may hold only the columns the schema requires.
+        """
+
+    @abc.abstractmethod
+    def samples_of(self, trial_ids: Sequence[int]) -> list[tuple[int, float, float, float, int]]:
+        """``(trial_id, t_s, x, y, buttons)`` of some trials, by trial_id and time."""
+
+    @abc.abstractmethod
+    def iter_samples(self, session_id: int | None = None
+                     ) -> Iterator[tuple[int, int, float, float, float, int]]:
+        """``(session_id, trial_index, t_s, x, y, buttons)`` of every sample (of one
+        session), by session, trial_id and time; streamed, never all in memory."""
+
+    # -- bulk writes (synthetic stores for tests and benchmarks) -----------------------
+    def bulk_insert(self, *, sessions: Iterable[Mapping[str, Any]] = (),
+                    trials: Iterable[Mapping[str, Any]] = (),
+                    samples: Iterable[Sequence[Any]] = ()) -> list[int]:
+        """Insert ready-made rows in one transaction; return the new sessions' ids.
+
+        ``sessions`` and ``trials`` are dicts keyed by column (missing columns get their
+        defaults, explicit ids are kept); ``samples`` are :data:`SAMPLE_COLUMNS` tuples.
+        Only when :attr:`StoreCapabilities.bulk_insert`.
+        """
+        raise StoreError(f"{self.url}: this store does not take bulk inserts")
