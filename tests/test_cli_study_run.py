@@ -126,9 +126,12 @@ def test_run_limit_then_resume(small: Path, tmp_path: Path,
         (s,) = store.sessions()
         assert s["seed"] == 5
         assert [t["trial_index"] for t in store.trials()] == list(range(30))
-    # another session for the same participant
-    code, out, _ = run_cli([*base, "--limit", "1"], capsys)
+    # a complete session is not followed by another one unasked
+    code, _, err = run_cli([*base, "--limit", "1"], capsys)
+    assert code == 2 and "completed session 1" in err and "--new-session" in err
+    code, out, _ = run_cli([*base, "--new-session", "--limit", "1"], capsys)
     assert code == 0
+    # the second one is unfinished: a third needs --new-session again
     code, out, _ = run_cli([*base, "--new-session", "--limit", "1"], capsys)
     assert code == 0
     with Store.open(db, readonly=True) as store:
