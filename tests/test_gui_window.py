@@ -517,3 +517,36 @@ def test_overlay_panel_hides_no_target_label_or_prompt(size: tuple[int, int]) ->
         lx, ly = px + dx / d * 2.6 * r, py + dy / d * 2.6 * r
         assert not pygame.Rect(round(lx - 2 * r), round(ly - r), 4 * r, 2 * r).colliderect(panel)
     assert panel.right <= size[0] and panel.bottom <= size[1]
+
+
+def test_run_command_exits_130_when_the_experimenter_aborts_in_the_window(
+        study: Study, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    from tactorbelt import launch
+    from tactorbelt.cli import main
+    from tactorbelt.gui.window import session_window
+
+    def hook(win: ExperimentWindow, kind: str) -> None:
+        if kind in ("training", "feedback", "test"):
+            _key(pygame.K_ESCAPE)
+            _key(pygame.K_ESCAPE)
+        if kind == "end":
+            _key(pygame.K_SPACE)
+
+    def factory(input_kind: str, note: Any) -> Any:
+        return lambda *a, **k: session_window(*a, **k, size=SIZE, auto_continue_s=0.0,
+                                              on_frame=hook)
+
+    monkeypatch.setattr(launch, "_window_factory", factory)
+    study_file = tmp_path / "small.toml"
+    study_file.write_text(SMALL)
+    db = tmp_path / "s.sqlite"
+    with pytest.raises(SystemExit) as exc:
+        main(["run", str(study_file), "-p", "P01", "--input", "scripted", "--db", str(db)])
+    out, err = capsys.readouterr()
+    assert exc.value.code == 130
+    assert "aborted" in out and "error" not in err
+    assert f"tactorbelt run {study_file} --participant P01 --db {db} --resume" in err
+    with Store.open(db, readonly=True) as store:
+        (s,) = store.sessions()
+        assert s["status"] == "aborted"
