@@ -480,8 +480,8 @@ def test_resumed_instructions_do_not_announce_training_that_is_done(study: Study
 
 @pytest.mark.parametrize("size", [(1280, 800), (1024, 768), (800, 600)])
 def test_overlay_panel_hides_no_target_label_or_prompt(size: tuple[int, int]) -> None:
-    from tactorbelt.gui.render import Renderer, View
     from tactorbelt.experiment.study import paper_study
+    from tactorbelt.gui.render import Renderer, View
 
     paper = paper_study()
     layout, targets = paper.layout_obj(), paper.target_set()
