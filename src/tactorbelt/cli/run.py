@@ -92,8 +92,8 @@ def run(ctx: click.Context, study_file: Path, participant: str, belt_url: str,
             outcome = run_study(req, progress=progress,
                                 note=lambda line: click.echo(line, err=True))
     except (KeyboardInterrupt, Terminated) as exc:
-        why = "interrupted" if isinstance(exc, KeyboardInterrupt) else f"terminated ({exc})"
-        click.echo(f"{why}: motors off, the trial in flight was stored as aborted; continue "
+        why = "interrupted" if isinstance(exc, KeyboardInterrupt) else f"terminated by {exc.name}"
+        click.echo(f"{why}: motors off, a trial in flight is stored as aborted; continue "
                    f"with '{resume_command(req)}'", err=True)
         raise
     out, err = outcome.summary()

@@ -65,7 +65,7 @@ SCREEN_KINDS = ("instructions", "block", "training", "feedback", "test", "overla
 ESC_WINDOW_S = 2.0
 #: Frames per second of the waiting screens on the wall clock (they wait on events in
 #: between: a key, a button or a stick move wakes them at once).
-IDLE_FPS = 20.0
+IDLE_FPS = 10.0
 
 FrameHook = Callable[["ExperimentWindow", str], None]
 
