@@ -290,9 +290,8 @@ def test_no_display_fails_at_once_instead_of_an_invisible_window(small: Path,
     assert out.returncode == 2, out.stderr
     assert out.stderr.startswith("error: no display")
     assert "use --headless with --input model or scripted" in out.stderr
-    assert took < 3.0  # python's own start included; the check itself is at once
-    with Store.open(tmp_path / "s.sqlite", readonly=True) as store:
-        assert store.sessions() == []
+    assert took < 1.5  # python's own start included (about 0.3 s); nothing else runs
+    assert not (tmp_path / "s.sqlite").exists()
 
 
 def test_resume_reuses_the_sessions_input_and_counts_session_totals(

@@ -36,12 +36,11 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from ._errors import ConfigError, StoreError
-from .experiment.runner import NullObserver, SessionInfo, check_participant
 from .inputs import INPUTS
 
 if TYPE_CHECKING:
     from .clock import Clock
-    from .experiment.runner import SessionResult
+    from .experiment.runner import SessionInfo, SessionResult
     from .experiment.schedule import ScheduledTrial
     from .experiment.store import Store
     from .inputs.joystick import JoystickConfig
@@ -234,10 +233,12 @@ def _check_session(store: Store, req: RunRequest) -> dict[str, Any]:
     return {}
 
 
-class _RunObserver(NullObserver):
+class _RunObserver:
     """Stores the run's options when the session starts, then forwards to ``inner``."""
 
     def __init__(self, inner: Any, store: Store, opts: dict[str, Any], slow_s: float) -> None:
+        from .experiment.runner import NullObserver
+
         self.inner = inner if inner is not None else NullObserver()
         self.store, self.opts, self.slow_s = store, opts, slow_s
 
@@ -285,8 +286,10 @@ def run_study(req: RunRequest, *, progress: Callable[[int, int], None] | None = 
         KeyboardInterrupt, Terminated: the run was stopped; the trial in flight is stored
             ``aborted`` and the session can be resumed (:func:`resume_command`).
     """
+    if not req.resume and not req.headless and not has_display():
+        _no_display()  # at once: before the heavy imports, the study and the store
     from .devices import open_belt
-    from .experiment.runner import run_session
+    from .experiment.runner import check_participant, run_session
     from .experiment.store import Store
     from .experiment.study import load_study
     from .inputs import make_cursor
@@ -306,9 +309,7 @@ def run_study(req: RunRequest, *, progress: Callable[[int, int], None] | None = 
                               "--headless, or use --input model or --input scripted")
         window = None if r.headless else _window_factory(r.input_kind, note)
         if window is not None and not has_display():
-            raise ConfigError("no display (DISPLAY and WAYLAND_DISPLAY are not set) for the "
-                              "experiment window; use --headless with --input model or "
-                              "scripted")
+            _no_display()
         headless = window is None
         clock = choose_clock(headless=headless, input_kind=r.input_kind,
                              belt_url=r.belt_url, realtime=bool(r.realtime))
@@ -356,6 +357,11 @@ def run_study(req: RunRequest, *, progress: Callable[[int, int], None] | None = 
                     cursor.close()
         trials = store.trials(result.session_id)
     return RunOutcome(result, req.db, trials, req.resume)
+
+
+def _no_display() -> None:
+    raise ConfigError("no display (DISPLAY and WAYLAND_DISPLAY are not set) for the "
+                      "experiment window; use --headless with --input model or scripted")
 
 
 def _window_factory(input_kind: str, note: Callable[[str], None] | None) -> Any:

@@ -10,6 +10,8 @@ Imports click at import time; everything else only when a command runs.
 
 from __future__ import annotations
 
+import contextlib
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -107,31 +109,22 @@ def run(ctx: click.Context, study_file: Path, participant: str, belt_url: str,
         raise click.exceptions.Exit(130)
 
 
-class _progress_bar:
+@contextlib.contextmanager
+def _progress_bar(label: str) -> Iterator[Callable[[int, int], None]]:
     """A rich progress bar on stderr when it is a terminal (headless runs)."""
+    from rich.console import Console
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TimeElapsedColumn
 
-    def __init__(self, label: str) -> None:
-        self.label = label
-        self.bar: Any = None
-
-    def __enter__(self) -> Any:
-        from rich.console import Console
-        from rich.progress import BarColumn, MofNCompleteColumn, Progress, TimeElapsedColumn
-
-        console = Console(stderr=True)
-        self.bar = Progress("[progress.description]{task.description}", BarColumn(),
-                            MofNCompleteColumn(), TimeElapsedColumn(), console=console,
-                            disable=not console.is_terminal)
-        self.bar.__enter__()
-        task = self.bar.add_task(self.label, total=None)
+    console = Console(stderr=True)
+    with Progress("[progress.description]{task.description}", BarColumn(),
+                  MofNCompleteColumn(), TimeElapsedColumn(), console=console,
+                  disable=not console.is_terminal) as bar:
+        task = bar.add_task(label, total=None)
 
         def progress(done: int, total: int) -> None:
-            self.bar.update(task, completed=done, total=total)
+            bar.update(task, completed=done, total=total)
 
-        return progress
-
-    def __exit__(self, *exc: object) -> None:
-        self.bar.__exit__(*exc)
+        yield progress
 
 
 @click.command("export")
