@@ -193,6 +193,8 @@ def _store_options(store: Store, session_id: int, opts: dict[str, Any]) -> None:
 def _resolve(req: RunRequest, stored: dict[str, Any]) -> RunRequest:
     """The request with stored values for what it does not give, then the defaults."""
     got = asdict(req)
+    if req.headless is None and req.input_kind in ("joystick", "mouse"):
+        got["headless"] = False  # a live input given again brings the window back
     for name in _STORED:
         if got[name] is None:
             got[name] = stored.get(name)
