@@ -1,16 +1,18 @@
 """The session runner: a loop over an injected clock that runs a study's schedule.
 
-:func:`run_session` plays each scheduled trial's stimulus through a
-:class:`tactorbelt.player.Player`, samples the cursor at the study's rate (100 Hz) on
-absolute deadlines (onset + k * 10 ms), drives the trial state machine, stores each
+:func:`run_session` (a :class:`SessionRunner`) plays each scheduled trial's stimulus
+through a :class:`tactorbelt.player.Player`, samples the cursor at the study's rate
+(100 Hz) on absolute deadlines (:class:`tactorbelt.clock.Deadlines`: onset + k * 10 ms,
+late samples skipped), drives the trial state machine, stores each
 trial (with its samples) in one transaction, and keeps the inter-trial interval and
 the breaks. On a :class:`~tactorbelt.clock.SimClock` nothing sleeps, so a whole paper
 session runs in well under a second of CPU; on the wall clock it paces a real
 participant.
 
 Every exit path turns the motors off: normal end, a pause or abort from the
-observer, Ctrl-C (KeyboardInterrupt), a belt that fails (DeviceError) and any other
-exception. An interrupted trial is stored as ``aborted`` and the session is left
+observer, Ctrl-C (KeyboardInterrupt), SIGTERM / SIGHUP
+(:class:`~tactorbelt.interrupts.Terminated`), a belt that fails (DeviceError) and any
+other exception. An interrupted trial is stored as ``aborted`` and the session is left
 ``interrupted`` (resumable with ``resume=True``).
 
 The experiment window plugs in as a :class:`SessionObserver`; cursor sources
