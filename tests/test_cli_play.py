@@ -3,6 +3,10 @@
 from __future__ import annotations
 
 import json
+import signal
+import subprocess
+import sys
+import time
 from pathlib import Path
 from typing import Any
 
@@ -131,7 +135,8 @@ def test_ctrl_c_stops_with_motors_off(monkeypatch: pytest.MonkeyPatch,
     monkeypatch.setattr(Player, "pump", pump_then_interrupt)
     code, _, err = run("play", "15", "--belt", "sim:virtual", "--rate", "1000")
     assert code == 130
-    assert "motors off" in err
+    assert "stopped: motors off" in err
+    assert "error" not in err  # the user's own stop is not an error
     assert np.all(belts[0].levels == 0.0) and belts[0].closed
 
 
@@ -196,3 +201,29 @@ def test_calibrate_quit(tmp_path: Path) -> None:
     out = tmp_path / "cal.toml"
     code, _, err = run("calibrate", "--belt", "sim:virtual", "-o", str(out), input="++q")
     assert code == 1 and not out.exists()
+
+
+@pytest.mark.parametrize(("command", "sig", "code"), [
+    (["play", "15", "--seconds", "60"], signal.SIGTERM, 143),
+    (["play", "15", "--seconds", "60"], signal.SIGHUP, 129),
+    (["point", "--bearing", "90"], signal.SIGINT, 130),
+    (["point", "--bearing", "90"], signal.SIGTERM, 143),
+    (["belt-test", "--seconds-each", "5"], signal.SIGTERM, 143),
+])
+def test_signals_end_a_real_process_promptly(command: list[str], sig: int, code: int) -> None:
+    proc = subprocess.Popen([sys.executable, "-m", "tactorbelt", *command],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        time.sleep(2.0)  # started and playing
+        assert proc.poll() is None, proc.communicate()
+        sent = time.monotonic()
+        proc.send_signal(sig)
+        out, err = proc.communicate(timeout=10)
+        took = time.monotonic() - sent
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+    assert proc.returncode == code, err
+    assert took < 1.5
+    assert "error" not in err and "Traceback" not in err

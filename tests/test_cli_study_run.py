@@ -126,9 +126,12 @@ def test_run_limit_then_resume(small: Path, tmp_path: Path,
         (s,) = store.sessions()
         assert s["seed"] == 5
         assert [t["trial_index"] for t in store.trials()] == list(range(30))
-    # another session for the same participant
-    code, out, _ = run_cli([*base, "--limit", "1"], capsys)
+    # a complete session is not followed by another one unasked
+    code, _, err = run_cli([*base, "--limit", "1"], capsys)
+    assert code == 2 and "completed session 1" in err and "--new-session" in err
+    code, out, _ = run_cli([*base, "--new-session", "--limit", "1"], capsys)
     assert code == 0
+    # the second one is unfinished: a third needs --new-session again
     code, out, _ = run_cli([*base, "--new-session", "--limit", "1"], capsys)
     assert code == 0
     with Store.open(db, readonly=True) as store:
@@ -268,3 +271,65 @@ def test_cwd_default_db(small: Path, tmp_path: Path, capsys: pytest.CaptureFixtu
     code, _, _ = run_cli(["run", str(small), "-p", "P01", "--headless", "--input", "scripted",
                           "--limit", "0"], capsys)
     assert code == 0 and os.path.exists(tmp_path / "study.sqlite")
+
+
+# -- what users met ------------------------------------------------------------------------------
+def test_no_display_fails_at_once_instead_of_an_invisible_window(small: Path,
+                                                                 tmp_path: Path) -> None:
+    import subprocess
+    import sys
+    import time
+
+    env = {k: v for k, v in os.environ.items()
+           if k not in ("DISPLAY", "WAYLAND_DISPLAY", "SDL_VIDEODRIVER")}
+    t0 = time.monotonic()
+    out = subprocess.run([sys.executable, "-m", "tactorbelt", "run", str(small), "-p", "P09",
+                          "--input", "mouse", "--db", str(tmp_path / "s.sqlite")],
+                         env=env, capture_output=True, text=True, timeout=30, check=False)
+    took = time.monotonic() - t0
+    assert out.returncode == 2, out.stderr
+    assert out.stderr.startswith("error: no display")
+    assert "use --headless with --input model or scripted" in out.stderr
+    assert took < 1.5  # python's own start included (about 0.3 s); nothing else runs
+    assert not (tmp_path / "s.sqlite").exists()
+
+
+def test_resume_reuses_the_sessions_input_and_counts_session_totals(
+        small: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    db = tmp_path / "s.sqlite"
+    code, out, err = run_cli(["run", str(small), "-p", "P04", "--headless", "--input",
+                              "scripted", "--db", str(db), "--limit", "6"], capsys)
+    assert code == 0 and "12/30 trials done (12 this run)" in out
+    # no --headless, no --input: the stored ones (a window with a joystick would fail)
+    code, out, err = run_cli(["run", str(small), "-p", "P04", "--db", str(db), "--resume"],
+                             capsys)
+    assert code == 0, err
+    assert "complete, 30/30 trials done (18 this run)" in out
+    assert "  session static     12 test trials, accuracy 100.0%" in out
+    assert "  session dynamic    12 test trials, accuracy 100.0%" in out
+    this_run = [line.split() for line in out.splitlines() if line.startswith("  this run ")]
+    assert sorted(int(w[3]) for w in this_run) == [6, 12]  # 18 test trials, 6 + 12
+    with Store.open(db, readonly=True) as store:
+        (s,) = store.sessions()
+        assert s["input"] == "scripted" and s["clock"] == "sim"
+
+
+@pytest.mark.parametrize("pid", ["P 01/x", "P01/x", "../P01", "P01 ", "Jörg", "-P01"])
+def test_participant_ids_that_do_not_round_trip_are_refused(
+        pid: str, small: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    code, _, err = run_cli(["run", str(small), "-p", pid, "--headless", "--input", "scripted",
+                            "--db", str(tmp_path / "s.sqlite")], capsys)
+    if pid == "P01 ":  # surrounding spaces are stripped
+        assert code == 0, err
+        return
+    assert code == 2
+    assert err.startswith("error: participant id") and "letters, digits" in err
+
+
+def test_exit_codes_are_documented_in_the_help(capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, _ = run_cli(["--help"], capsys)
+    assert code == 0
+    text = " ".join(out.split())
+    for part in ("0 finished", "130 stopped by the user", "143 terminated by SIGTERM",
+                 "129 by SIGHUP", "2 usage", "3 device"):
+        assert part in text

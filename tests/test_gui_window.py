@@ -428,3 +428,125 @@ def test_session_window_makes_the_live_sources(study: Study) -> None:
         assert win.window.auto_continue_s == 2.0
     with pytest.raises(ConfigError, match="unknown input"):
         session_window(study, input="keyboard", clock=SimClock())
+
+
+# -- what the screens say and hide ---------------------------------------------------------------
+def test_end_screen_after_esc_esc_drops_the_press_esc_again_line(study: Study,
+                                                                 tmp_path: Path) -> None:
+    clock = SimClock()
+    seen: dict[str, Any] = {}
+
+    def hook(win: ExperimentWindow, kind: str) -> None:
+        if kind in ("instructions", "block", "break"):
+            _key(pygame.K_SPACE)
+        if kind == "test" and "esc" not in seen:
+            _key(pygame.K_ESCAPE)
+            _key(pygame.K_ESCAPE)
+            seen["esc"] = True
+        if kind == "end" and "end" not in seen:
+            v = win.view(clock.now_ns())
+            seen["end"] = (v.modal_title, v.banner)
+            _key(pygame.K_SPACE)
+
+    with Store.open(tmp_path / "s.sqlite") as store, _belt(study, clock) as belt:
+        res = run_with_window(study, "P01", belt, "scripted", store, clock=clock,
+                              cursor=_cursor(study), size=SIZE, on_frame=hook)
+    assert res.status == "aborted"
+    assert seen["end"] == ("Session stopped", None)
+
+
+def test_resumed_instructions_do_not_announce_training_that_is_done(study: Study,
+                                                                    tmp_path: Path) -> None:
+    clock = SimClock()
+    said: list[str] = []
+
+    def hook(win: ExperimentWindow, kind: str) -> None:
+        if kind == "instructions":
+            said.append(" ".join(win.view(clock.now_ns()).modal_lines))
+        if kind in ("instructions", "block", "break", "end"):
+            _key(pygame.K_SPACE)
+
+    with Store.open(tmp_path / "s.sqlite") as store, _belt(study, clock) as belt:
+        first = run_with_window(study, "P01", belt, "scripted", store, clock=clock,
+                                cursor=_cursor(study), size=SIZE, limit=1, on_frame=hook)
+        assert first.status == "interrupted"
+        res = run_with_window(study, "P01", belt, "scripted", store, clock=clock,
+                              cursor=_cursor(study), size=SIZE, resume=True, on_frame=hook)
+    assert res.status == "complete"
+    first_text, resumed_text = said[0], said[-1]
+    assert "training" in first_text and "Resuming" not in first_text
+    assert "training" not in resumed_text.lower() and "Resuming: 9 of 24" in resumed_text
+
+
+@pytest.mark.parametrize("size", [(1280, 800), (1024, 768), (800, 600)])
+def test_overlay_panel_hides_no_target_label_or_prompt(size: tuple[int, int]) -> None:
+    from tactorbelt.experiment.study import paper_study
+    from tactorbelt.gui.render import Renderer, View
+
+    paper = paper_study()
+    layout, targets = paper.layout_obj(), paper.target_set()
+    pygame.display.init()
+    pygame.font.init()
+    surface = pygame.Surface(size)
+    renderer = Renderer(size)
+    lines = ["participant P01  session 1  done 40/264",
+             "trial 41 (index 40)  block static (test)  condition static  rep 1",
+             "target 210 deg (between-tactor)  state stimulus  t  0.42 s",
+             "last: answer 195 deg (wrong), RT 1.234 s",
+             "input joystick 'Thrustmaster HOTAS Warthog Joystick'  raw (+0.01, -0.02)  "
+             "cursor (+0.01, +0.02)",
+             "samples this trial 42, worst interval error 0.31 ms",
+             "P pause  R resume  Esc Esc / Ctrl-Q abort  F1/Tab overlay  F12 shot"]
+    view = View(targets_deg=targets.angles_deg,
+                on_tactor=tuple(bool(b) for b in targets.on_tactor(layout)),
+                tactors_deg=layout.angles_deg, cursor=(0.0, 0.0), highlight_deg=210.0,
+                prompt="Move to where you feel the vibration", overlay=True,
+                overlay_lines=lines, levels=[0.0, 0.0, 0.0, 0.7, 0.4, 0.0])
+    renderer.draw(surface, view)
+    panel = renderer.rects["overlay"]
+    assert renderer.rects["prompt"].colliderect(panel) is False
+    g = renderer.geometry
+    r = renderer.target_radius
+    for (px, py) in g.targets(targets.angles_deg).tolist():
+        marker = pygame.Rect(round(px - 1.6 * r), round(py - 1.6 * r), round(3.2 * r),
+                             round(3.2 * r))
+        assert not marker.colliderect(panel), (size, px, py)
+    for (px, py) in g.targets(layout.angles_deg).tolist():  # the tactor labels (T0 ...)
+        dx, dy = px - g.cx, py - g.cy
+        d = math.hypot(dx, dy)
+        lx, ly = px + dx / d * 2.6 * r, py + dy / d * 2.6 * r
+        assert not pygame.Rect(round(lx - 2 * r), round(ly - r), 4 * r, 2 * r).colliderect(panel)
+    assert panel.right <= size[0] and panel.bottom <= size[1]
+
+
+def test_run_command_exits_130_when_the_experimenter_aborts_in_the_window(
+        study: Study, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    from tactorbelt import launch
+    from tactorbelt.cli import main
+    from tactorbelt.gui.window import session_window
+
+    def hook(win: ExperimentWindow, kind: str) -> None:
+        if kind in ("training", "feedback", "test"):
+            _key(pygame.K_ESCAPE)
+            _key(pygame.K_ESCAPE)
+        if kind == "end":
+            _key(pygame.K_SPACE)
+
+    def factory(input_kind: str, note: Any) -> Any:
+        return lambda *a, **k: session_window(*a, **k, size=SIZE, auto_continue_s=0.0,
+                                              on_frame=hook)
+
+    monkeypatch.setattr(launch, "_window_factory", factory)
+    study_file = tmp_path / "small.toml"
+    study_file.write_text(SMALL)
+    db = tmp_path / "s.sqlite"
+    with pytest.raises(SystemExit) as exc:
+        main(["run", str(study_file), "-p", "P01", "--input", "scripted", "--db", str(db)])
+    out, err = capsys.readouterr()
+    assert exc.value.code == 130
+    assert "aborted" in out and "error" not in err
+    assert f"tactorbelt run {study_file} --participant P01 --db {db} --resume" in err
+    with Store.open(db, readonly=True) as store:
+        (s,) = store.sessions()
+        assert s["status"] == "aborted"

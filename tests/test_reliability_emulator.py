@@ -568,7 +568,8 @@ def test_point_stops_the_motors_at_its_end_and_on_sigint(emulator: Emulator) -> 
     proc = spawn("point", "--bearing", "45", "--belt", emulator.url, "--seconds", "30", "-q",
                  emu=emulator)
     code, _, err = _interrupt_when_on(proc, emulator)
-    assert code == 0 and "Traceback" not in err, err  # Ctrl-C is the normal end of point
+    # the user's own stop: exit 130 like every command, no error line
+    assert code == 130 and "Traceback" not in err and "error" not in err, err
     assert_stopped_by_the_command(emulator)
 
 

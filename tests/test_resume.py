@@ -4,6 +4,7 @@ also after the process is killed with SIGKILL."""
 from __future__ import annotations
 
 import os
+import shlex
 import signal
 import sqlite3
 import subprocess
@@ -166,3 +167,93 @@ def test_sigkill_then_resume(tmp_path: Path) -> None:
     assert out.returncode == 0, out.stderr
     sess = _check_complete(db, "P03", Study.from_toml(STUDY))
     assert sess["resumed"] == 1
+
+
+# -- SIGTERM, SIGHUP and Ctrl-C on a real process ------------------------------------------------
+def _count(db: Path, sql: str) -> int:
+    if not db.exists():
+        return 0
+    conn = sqlite3.connect(db, timeout=1)
+    try:
+        return int(conn.execute(sql).fetchone()[0])
+    except sqlite3.Error:
+        return 0
+    finally:
+        conn.close()
+
+
+def _run_then_signal(args: list[str], db: Path, sig: int, env: dict[str, str],
+                     after_trials: int = 1) -> tuple[int, str, float]:
+    """Start ``args``; once ``after_trials`` trials are stored (and the next one is under
+    way), send ``sig``; return (exit code, stderr, seconds from the signal to the exit)."""
+    proc = subprocess.Popen(args, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True)
+    try:
+        deadline = time.monotonic() + 90
+        while (_count(db, "SELECT COUNT(*) FROM trials") < after_trials
+               and time.monotonic() < deadline and proc.poll() is None):
+            time.sleep(0.05)
+        assert proc.poll() is None, proc.communicate()[1]
+        time.sleep(0.3)  # into the next trial
+        sent = time.monotonic()
+        proc.send_signal(sig)
+        _, err = proc.communicate(timeout=20)
+        took = time.monotonic() - sent
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+    return proc.returncode, err, took
+
+
+def _env(window: bool) -> dict[str, str]:
+    env = dict(os.environ)
+    env.pop("TACTORBELT_TEST_SLOW_TRIAL_S", None)
+    if window:
+        env["SDL_VIDEODRIVER"] = "dummy"
+    return env
+
+
+@pytest.mark.parametrize("window", [False, True], ids=["headless", "window"])
+def test_sigterm_ends_a_realtime_run_with_the_trial_stored_aborted(tmp_path: Path,
+                                                                   window: bool) -> None:
+    study_file = tmp_path / "study.toml"
+    study_file.write_text(STUDY)
+    db = tmp_path / "s.sqlite"
+    args = [*_tactorbelt(), "run", str(study_file), "-p", "P07", "--input", "model",
+            "--realtime", "--db", str(db), *([] if window else ["--headless"])]
+    code, err, took = _run_then_signal(args, db, signal.SIGTERM, _env(window))
+    assert code == 143, err
+    assert took < 2.0
+    assert "error:" not in err and "Traceback" not in err
+    with Store.open(db, readonly=True) as store:
+        (sess,) = store.sessions()
+        assert sess["status"] == "interrupted"
+        aborted = [t for t in store.trials() if t["status"] == "aborted"]
+        assert [t["abort_reason"] for t in aborted] == ["terminated (SIGTERM)"]
+    # the printed hint resumes with the stored input, belt and window options
+    hint = err.split("continue with '")[1].split("'")[0]
+    assert hint.startswith("tactorbelt run ") and hint.endswith(" --resume")
+    resumed = [*_tactorbelt(), *shlex.split(hint)[1:]]
+    code, err, took = _run_then_signal(resumed, db, signal.SIGHUP, _env(window),
+                                       after_trials=len(aborted) + 2)
+    assert code == 129, err
+    assert took < 2.0
+    with Store.open(db, readonly=True) as store:
+        (sess,) = store.sessions()
+        assert sess["resumed"] == 1 and sess["status"] == "interrupted"
+        assert sess["input"] == "model"
+        reasons = [t["abort_reason"] for t in store.trials() if t["status"] == "aborted"]
+        assert reasons[-1] == "terminated (SIGHUP)"
+
+
+def test_ctrl_c_exits_130_without_an_error_line(tmp_path: Path) -> None:
+    study_file = tmp_path / "study.toml"
+    study_file.write_text(STUDY)
+    db = tmp_path / "s.sqlite"
+    args = [*_tactorbelt(), "run", str(study_file), "-p", "P08", "--headless", "--input",
+            "model", "--realtime", "--db", str(db)]
+    code, err, _ = _run_then_signal(args, db, signal.SIGINT, _env(False))
+    assert code == 130
+    assert "error:" not in err and "Traceback" not in err
+    assert "interrupted: motors off" in err and "--resume'" in err

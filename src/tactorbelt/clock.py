@@ -156,3 +156,18 @@ class Deadlines:
         self.missed += j - i
         self.next_index = j + 1
         return j, now
+
+    def due(self, now_ns: int) -> int | None:
+        """The frame due at ``now_ns`` without waiting, or None when none is due yet.
+
+        For loops that are woken by something else (a window polled by the runner, an
+        event queue): returns the latest frame due (skipped ones are counted in
+        :attr:`missed`) and moves :attr:`next_index` past it.
+        """
+        i = self.next_index
+        if now_ns < self.deadline(i):
+            return None
+        j = max(i, self.last_due(int(now_ns)))
+        self.missed += j - i
+        self.next_index = j + 1
+        return j

@@ -3,8 +3,12 @@
 Subcommands live in their own modules and are imported only when run, so that
 ``tactorbelt --help`` starts fast (no NumPy, matplotlib, pygame, pyserial or bleak).
 
-Errors: a user error prints ``error: ...`` to stderr and exits 2; a device error
-exits 3; Ctrl-C exits 130. Never a traceback (set ``TACTORBELT_DEBUG=1`` to see one).
+Exit status, one rule for every command (also in ``tactorbelt --help``): 0 finished;
+130 stopped by the user (Ctrl-C; the window's Esc Esc or Ctrl-Q); 143 terminated
+(SIGTERM) and 129 (SIGHUP), with the motors off and the trial in flight stored
+``aborted``; 2 a usage or user error (``error: ...`` on stderr); 3 a device error. A
+user's own stop prints no ``error:`` line. Never a traceback (set
+``TACTORBELT_DEBUG=1`` to see one).
 """
 
 from __future__ import annotations
@@ -18,8 +22,14 @@ from typing import Any
 import click
 
 from .._errors import DeviceError, TactorbeltError
+from ..interrupts import Terminated, terminate_on_signals
 
-__all__ = ["COMMANDS", "main"]
+__all__ = ["COMMANDS", "EXIT_CODES", "main"]
+
+#: The exit statuses of every command.
+EXIT_CODES = """Exit status: 0 finished; 130 stopped by the user (Ctrl-C, or Esc Esc / Ctrl-Q in
+the experiment window); 143 terminated by SIGTERM, 129 by SIGHUP (motors off, the trial in
+flight stored as aborted); 2 usage or user error; 3 device error."""
 
 #: name -> ("module:attribute", one-line help). The help is shown without importing.
 COMMANDS: dict[str, tuple[str, str]] = {
@@ -74,7 +84,8 @@ def _version() -> str:
         return "unknown"
 
 
-@click.group(cls=LazyGroup, context_settings={"help_option_names": ["-h", "--help"]})
+@click.group(cls=LazyGroup, context_settings={"help_option_names": ["-h", "--help"]},
+             epilog=EXIT_CODES)
 @click.version_option(package_name="tactorbelt", message="tactorbelt %(version)s")
 def cli() -> None:
     """tactorbelt: directions between the motors of a vibrotactile belt.
@@ -123,15 +134,20 @@ def main(argv: list[str] | None = None) -> Any:
     debug = bool(os.environ.get("TACTORBELT_DEBUG"))
     _setup_logging(debug)
     try:
-        rv = cli.main(args=argv, prog_name="tactorbelt", standalone_mode=False)
+        with terminate_on_signals():
+            rv = cli.main(args=argv, prog_name="tactorbelt", standalone_mode=False)
         # click returns (rather than raises) the code of ctx.exit(code) here
         if isinstance(rv, int) and not isinstance(rv, bool):
             sys.exit(rv)
         return rv
     except click.exceptions.Exit as exc:
         sys.exit(exc.exit_code)
-    except click.exceptions.Abort:
-        click.echo("error: aborted", err=True)
+    except Terminated as exc:
+        sys.exit(exc.exit_code)
+    except click.exceptions.Abort as exc:
+        # click turns Ctrl-C into Abort: the user's own stop, no error line
+        if not isinstance(exc.__cause__, KeyboardInterrupt):
+            click.echo("error: aborted (input ended)", err=True)
         sys.exit(130)
     except click.ClickException as exc:
         if isinstance(exc, click.UsageError) and exc.ctx is not None and debug:
@@ -154,7 +170,6 @@ def main(argv: list[str] | None = None) -> Any:
         click.echo(f"error: {exc}", err=True)
         sys.exit(2)
     except KeyboardInterrupt:
-        click.echo("error: interrupted", err=True)
         sys.exit(130)
     except BrokenPipeError:
         sys.exit(0)

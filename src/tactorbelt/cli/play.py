@@ -33,11 +33,7 @@ from ._options import (
 )
 
 if TYPE_CHECKING:
-    import numpy as np
-    from numpy.typing import NDArray
-
     from ..devices.base import Belt
-    from ..geometry import Layout
 
 __all__ = ["belt_test", "calibrate", "play"]
 
@@ -119,8 +115,8 @@ def belt_test(belt_url: str, calibration_file: str | None, seconds_each: float, 
     Each tactor should be felt where the message says: tactor 0 is the first
     clockwise of the navel (30 deg on the default 6-tactor belt).
     """
+    from ..calibrate import pulse_each
     from ..clock import WallClock
-    from ..player import Player
 
     _positive(seconds_each, "--seconds-each")
     if not (math.isfinite(gap) and gap >= 0):
@@ -132,38 +128,14 @@ def belt_test(belt_url: str, calibration_file: str | None, seconds_each: float, 
                             calibration_file=calibration_file)
     with belt:
         clock = belt.clock or WallClock()
-        player = Player(belt, clock=clock, device_render=False)
         click.echo(f"belt-test on {_describe(belt)}: {seconds_each:g} s per tactor")
-        for k, angle in enumerate(belt.tactor_angles_deg):
-            click.echo(f"tactor {k} at {angle:g} deg ({region_name(angle)})")
-            player.play(_OneTactor(belt.layout, k, level), seconds_each)  # type: ignore[arg-type]
-            if gap > 0 and k + 1 < belt.n_tactors:
-                clock.sleep_until_ns(clock.now_ns() + round(gap * 1e9))
+        pulse_each(belt, clock, seconds_each=seconds_each, gap=gap, level=level,
+                   say=lambda k, angle: click.echo(
+                       f"tactor {k} at {angle:g} deg ({region_name(angle)})"))
     click.echo("done: all motors off")
 
 
-class _OneTactor:
-    """A constant frame with one tactor on (duck-types the Stimulus the player needs)."""
-
-    def __init__(self, layout: Layout, k: int, level: float) -> None:
-        import numpy as np
-
-        self.layout = layout
-        self.frame = np.zeros(layout.n)
-        self.frame[k] = level
-
-    def amplitudes(self, t: Any) -> NDArray[np.float64]:
-        import numpy as np
-
-        ta = np.asarray(t, dtype=float)
-        return np.broadcast_to(self.frame, (*ta.shape, self.frame.shape[0])).copy()
-
-
 # -- calibrate ----------------------------------------------------------------------------------
-
-_KEYS_HELP = ("keys: + / - = up / down by one step, ] / [ = five steps, enter = accept, "
-              "q = quit without saving")
-
 
 class _Keys:
     """Single key presses from a terminal, or characters from piped input."""
@@ -185,22 +157,6 @@ class _Keys:
             return ch
 
 
-def _adjust(keys: _Keys, show: Any, level: float, step: float, lo: float) -> float:
-    """Let the user move ``level`` within [lo, 1] until enter; returns the level."""
-    moves = {"+": 1, "=": 1, "-": -1, "_": -1, "]": 5, "[": -5}
-    show(level)
-    while True:
-        ch = keys.read()
-        if ch in ("\r", "\n"):
-            return level
-        if ch in ("q", "Q"):
-            click.echo("calibration abandoned; nothing was written", err=True)
-            raise click.exceptions.Exit(1)
-        if ch in moves:
-            level = round(min(1.0, max(lo, level + moves[ch] * step)), 6)
-            show(level)
-
-
 @click.command()
 @belt_option("The belt to calibrate")
 @click.option("-o", "--output", default=None, metavar="FILE",
@@ -217,9 +173,8 @@ def calibrate(belt_url: str, output: str | None, step: float) -> None:
     tactorbelt calibrate`. Prompts go to stderr; the calibration (TOML) to FILE or
     stdout.
     """
+    from ..calibrate import KEYS_HELP, CalibrationQuit, walk_calibration
     from ..clock import WallClock
-    from ..devices.calibration import Calibration, TactorCalibration
-    from ..player import Player
 
     if not (math.isfinite(step) and 0 < step <= 0.5):
         raise click.BadParameter(f"must be in (0, 0.5], got {step!r}", param_hint="--step")
@@ -227,38 +182,14 @@ def calibrate(belt_url: str, output: str | None, step: float) -> None:
     belt, _ = open_belt_for(belt_url, None)
     with belt:
         clock = belt.clock or WallClock()
-        # stream on a real clock (a hardware belt's heartbeat needs frames); on a
-        # simulated clock just set the levels
-        player = None if clock.simulated else Player(belt, clock=clock, device_render=False)
-        click.echo(f"calibrating {_describe(belt)}; {_KEYS_HELP}", err=True)
-        rows: list[TactorCalibration] = []
-        for k, angle in enumerate(belt.tactor_angles_deg):
-
-            def show(level: float, k: int = k) -> None:
-                frame = _OneTactor(belt.layout, k, level)
-                if player is None:
-                    belt.set_amplitudes(frame.frame)
-                elif level <= 0:
-                    player.stop()
-                elif player.playing:
-                    player.switch(frame)  # type: ignore[arg-type]
-                else:
-                    player.start(frame)  # type: ignore[arg-type]
-                click.echo(f"  tactor {k}: level {level:.2f}", err=True)
-
-            click.echo(f"tactor {k} at {angle:g} deg ({region_name(angle)}): raise the level "
-                       "until you just feel it, then press enter", err=True)
-            start = _adjust(keys, show, 0.0, step, 0.0)
-            click.echo(f"tactor {k}: now raise it to a comfortable maximum, then press enter",
-                       err=True)
-            ceiling = _adjust(keys, show, max(start, step), step, start)
-            if player is not None:
-                player.stop()
-            belt.stop()
-            rows.append(TactorCalibration(start=start, gain=1.0, ceiling=max(ceiling, start)))
-            click.echo(f"tactor {k}: start {start:.2f}, ceiling {max(ceiling, start):.2f}",
-                       err=True)
-    calibration = Calibration(tuple(rows))
+        click.echo(f"calibrating {_describe(belt)}; {KEYS_HELP}", err=True)
+        try:
+            calibration = walk_calibration(belt, clock, keys.read, step,
+                                           lambda line: click.echo(line, err=True),
+                                           region=region_name)
+        except CalibrationQuit as exc:
+            click.echo(str(exc), err=True)
+            raise click.exceptions.Exit(1) from None
     if output:
         path = calibration.save(output, belt=belt_url, angles_deg=belt.tactor_angles_deg)
         click.echo(f"wrote {path}", err=True)

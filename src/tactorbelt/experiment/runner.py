@@ -1,16 +1,18 @@
 """The session runner: a loop over an injected clock that runs a study's schedule.
 
-:func:`run_session` plays each scheduled trial's stimulus through a
-:class:`tactorbelt.player.Player`, samples the cursor at the study's rate (100 Hz) on
-absolute deadlines (onset + k * 10 ms), drives the trial state machine, stores each
+:func:`run_session` (a :class:`SessionRunner`) plays each scheduled trial's stimulus
+through a :class:`tactorbelt.player.Player`, samples the cursor at the study's rate
+(100 Hz) on absolute deadlines (:class:`tactorbelt.clock.Deadlines`: onset + k * 10 ms,
+late samples skipped), drives the trial state machine, stores each
 trial (with its samples) in one transaction, and keeps the inter-trial interval and
 the breaks. On a :class:`~tactorbelt.clock.SimClock` nothing sleeps, so a whole paper
 session runs in well under a second of CPU; on the wall clock it paces a real
 participant.
 
 Every exit path turns the motors off: normal end, a pause or abort from the
-observer, Ctrl-C (KeyboardInterrupt), a belt that fails (DeviceError) and any other
-exception. An interrupted trial is stored as ``aborted`` and the session is left
+observer, Ctrl-C (KeyboardInterrupt), SIGTERM / SIGHUP
+(:class:`~tactorbelt.interrupts.Terminated`), a belt that fails (DeviceError) and any
+other exception. An interrupted trial is stored as ``aborted`` and the session is left
 ``interrupted`` (resumable with ``resume=True``).
 
 The experiment window plugs in as a :class:`SessionObserver`; cursor sources
@@ -25,20 +27,17 @@ from __future__ import annotations
 
 import contextlib
 import json
-import os
-import socket
-import subprocess
-import time
+import re
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from enum import StrEnum
-from functools import lru_cache
-from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol
 
 from .._errors import ConfigError, DeviceError, StoreError, TactorbeltError
-from ..clock import Clock
+from ..clock import Clock, Deadlines
 from ..inputs.base import CursorSample, CursorSource, TrialCue
+from ..interrupts import Terminated
+from . import provenance
 from .schedule import ScheduledTrial, block_order, make_schedule
 from .store import Store
 from .study import Study
@@ -54,11 +53,13 @@ __all__ = [
     "SessionInfo",
     "SessionObserver",
     "SessionResult",
+    "SessionRunner",
+    "check_participant",
     "run_session",
 ]
 
-#: Test hook: seconds of real time each trial takes (after its row is stored).
-SLOW_TRIAL_ENV = "TACTORBELT_TEST_SLOW_TRIAL_S"
+#: Participant ids that name files without being mangled (see :func:`check_participant`).
+PARTICIPANT_RE = re.compile(r"[A-Za-z0-9][A-Za-z0-9_-]{0,63}")
 #: On a simulated clock, a cursor that stays out of the home zone this long is an error.
 SIM_HOME_LIMIT_NS = 600_000_000_000
 #: SessionResult.results keeps the cursor samples of this many most recent trials; older
@@ -183,26 +184,23 @@ class _Paused(Exception):
     """The observer paused the session during a trial (the trial is aborted)."""
 
 
-@lru_cache(maxsize=1)
-def _git_commit() -> str | None:
-    here = Path(__file__).resolve().parent
-    try:
-        out = subprocess.run(["git", "rev-parse", "HEAD"], cwd=here, capture_output=True,
-                             text=True, timeout=2, check=False)
-    except (OSError, subprocess.SubprocessError):
-        return None
-    commit = out.stdout.strip()
-    return commit if out.returncode == 0 and len(commit) == 40 else None
+def check_participant(participant: object) -> str:
+    """The participant id, stripped, or ConfigError when it cannot be used.
 
-
-def _package_version() -> str:
-    from .. import __version__
-
-    return __version__
-
-
-def _study_text(study: Study, study_toml: str | None) -> str:
-    return study_toml if study_toml is not None else study.to_toml()
+    Allowed: 1 to 64 ASCII letters, digits, ``-`` and ``_``, starting with a letter or a
+    digit. The id names files (BIDS ``sub-<label>`` keeps its letters and digits;
+    ``participants.tsv`` maps the label back to the id), so spaces, slashes and other
+    characters are refused rather than mangled.
+    """
+    pid = participant.strip() if isinstance(participant, str) else ""
+    if not pid:
+        raise ConfigError("participant id must be a non-empty string")
+    if not PARTICIPANT_RE.fullmatch(pid):
+        raise ConfigError(
+            f"participant id {pid!r} is not allowed: use 1 to 64 letters, digits, '-' or "
+            "'_', starting with a letter or digit (e.g. P01); it names the exported files"
+        )
+    return pid
 
 
 def _check_layout(study: Study, belt: Belt) -> None:
@@ -226,6 +224,350 @@ def _stop_quietly(player: Any, belt: Belt) -> None:
         belt.stop()
 
 
+def _abort_reason(exc: BaseException) -> str:
+    """Why a trial was aborted, as stored in its ``abort_reason``."""
+    if isinstance(exc, KeyboardInterrupt):
+        return "interrupted (Ctrl-C)"
+    if isinstance(exc, Terminated):
+        return f"terminated ({exc.name})"
+    if isinstance(exc, _Aborted):
+        return "aborted by the experimenter"
+    if isinstance(exc, DeviceError):
+        return f"device error: {exc}"
+    return f"error: {type(exc).__name__}: {exc}"
+
+
+class SessionRunner:
+    """One run of one participant's session; :meth:`run` does it all.
+
+    The parts, in order: :meth:`open_session` (a new session in the store, or the
+    resumed one), then for each scheduled trial :meth:`run_trial` (:meth:`wait_home`,
+    :meth:`present`), :meth:`inter_trial` and the breaks, with :meth:`pause` whenever
+    the observer pauses; :meth:`finish` or :meth:`fail` at the end. Cursor sampling and
+    every wait keep time with one :class:`~tactorbelt.clock.Deadlines` per loop.
+
+    Arguments: as :func:`run_session`.
+    """
+
+    def __init__(self, study: Study, participant: str, belt: Belt, cursor: CursorSource,
+                 store: Store, clock: Clock, *, seed: int | None = None,
+                 resume: bool = False, limit: int | None = None,
+                 observer: SessionObserver | None = None,
+                 progress: Callable[[int, int], None] | None = None,
+                 study_toml: str | None = None, input_name: str | None = None) -> None:
+        from ..player import Player
+
+        self.participant = check_participant(participant)
+        if limit is not None and limit < 0:
+            raise ConfigError(f"limit must be a number of test trials >= 0, got {limit}")
+        _check_layout(study, belt)
+        self.study = study
+        self.belt = belt
+        self.cursor = cursor
+        self.store = store
+        self.clock = clock
+        self.seed = seed
+        self.resume = resume
+        self.limit = limit
+        self.obs: Any = observer if observer is not None else NullObserver()
+        self.progress = progress
+        self.study_toml = study_toml if study_toml is not None else study.to_toml()
+        self.input_name = input_name
+        self.rule = ResponseRule.from_study(study)
+        self.targets = study.target_set()
+        self.rate_hz = float(study.session.sample_rate_hz)
+        self.sim = bool(clock.simulated)
+        self.player = Player(belt, clock)
+        self._stimuli: dict[tuple[float, str], Stimulus] = {}
+        # set by open_session
+        self.session_id = 0
+        self.schedule: list[ScheduledTrial] = []
+        self.order: tuple[str, ...] = ()
+        self.n_done = 0
+        self.n_run = 0
+        self.n_test_run = 0
+        self.results: list[TrialResult] = []
+
+    # -- setup -----------------------------------------------------------------------------
+    def open_session(self) -> list[ScheduledTrial]:
+        """Create the session (or reopen the resumed one); return the trials to run."""
+        import hashlib
+
+        study, store = self.study, self.store
+        sha = hashlib.sha256(self.study_toml.encode("utf-8")).hexdigest()
+        if self.resume:
+            row = store.find_resumable(self.participant)
+            if row is None:
+                raise StoreError(
+                    f"participant {self.participant!r} has no unfinished session in "
+                    f"{store.url}; run without --resume to start one"
+                )
+            if row["study_sha256"] != sha:
+                stored = Study.from_toml(row["study_toml"], path=f"{store.url} (session "
+                                         f"{row['session_id']})")
+                if stored != study:
+                    raise StoreError(
+                        f"the study changed since session {row['session_id']} of "
+                        f"{self.participant!r} started ({row['study_name']}, sha256 "
+                        f"{row['study_sha256'][:12]}); resume with the same study file"
+                    )
+            self.session_id = int(row["session_id"])
+            self.schedule = store.schedule(self.session_id)
+            self.order = tuple(json.loads(row["condition_order"]))
+            store.mark_resumed(self.session_id)
+        else:
+            seed = study.session.seed if self.seed is None else int(self.seed)
+            self.schedule = make_schedule(study, self.participant, seed)
+            self.order = tuple(study.test[i].condition
+                               for i in block_order(study, self.participant))
+            prov = provenance.collect()
+            self.session_id = store.create_session(
+                participant=self.participant, study_name=study.name,
+                study_toml=self.study_toml, study_sha256=sha, seed=seed,
+                condition_order=list(self.order), schedule=self.schedule,
+                belt=self.belt.url, firmware_version=self.belt.firmware_version,
+                calibration=self.belt.calibration.to_list(),
+                package_version=prov.package_version, git_commit=prov.git_commit,
+                host=prov.host, input=self.input_name,
+                clock="sim" if self.sim else "wall",
+            )
+        finished = store.finished_indices(self.session_id)
+        self.n_done = len(finished)
+        return [t for t in self.schedule if t.trial_index not in finished]
+
+    def stimulus_for(self, t: ScheduledTrial) -> Stimulus:
+        """The stimulus of a trial (one per target and condition, made once)."""
+        from ..stimuli import make_stimulus
+
+        key = (t.target_deg, t.condition)
+        if key not in self._stimuli:
+            sp = self.study.stimulus
+            self._stimuli[key] = make_stimulus(self.belt.layout, t.target_deg, t.condition,
+                                               sp.law, sp.falloff_deg, sp.period_s,
+                                               sp.transit_s)
+        return self._stimuli[key]
+
+    # -- waiting and commands --------------------------------------------------------------
+    def _ticks(self, onset_ns: int | None = None, first: int = 1) -> Deadlines:
+        """The sampling deadlines of one loop: frame 0 at ``onset_ns`` (default now); the
+        first :meth:`_tick` waits for frame ``first``."""
+        ticks = Deadlines(self.clock, self.rate_hz, onset_ns)
+        ticks.next_index = first
+        return ticks
+
+    def _tick(self, ticks: Deadlines) -> int:
+        """Wait for the next sampling deadline; pump a simulated player; return now."""
+        _, now = ticks.wait()
+        if self.sim:
+            self.player.pump(now)
+        return now
+
+    def wait_for(self, duration_ns: int) -> None:
+        """Wait ``duration_ns`` in sampling steps (the last one ends at the end), pumping
+        the player and polling the observer at each."""
+        ticks = self._ticks()
+        end = ticks.onset_ns + duration_ns
+        now = ticks.onset_ns
+        while now < end:
+            if ticks.deadline(ticks.next_index) < end:
+                now = self._tick(ticks)
+            else:
+                self.clock.sleep_until_ns(end)
+                now = self.clock.now_ns()
+                if self.sim:
+                    self.player.pump(now)
+            self.handle(self.obs.poll(now), None)
+
+    def handle(self, cmd: Command | None, machine: TrialMachine | None) -> None:
+        """Act on a command from the observer. A pause aborts the trial in flight."""
+        if cmd is None or cmd is Command.RESUME:
+            return
+        _stop_quietly(self.player, self.belt)
+        if cmd is Command.ABORT:
+            raise _Aborted
+        # PAUSE: a trial whose stimulus has started is aborted (and run again after the
+        # pause); otherwise wait here, motors off, until RESUME or ABORT
+        if machine is not None and machine.state is TrialState.STIMULUS:
+            raise _Paused
+        self.pause()
+
+    def pause(self) -> None:
+        """Wait, motors off, until the observer resumes (or aborts) the session."""
+        ticks = self._ticks()
+        while True:
+            ticks.wait()
+            cmd = self.obs.poll(self.clock.now_ns())
+            if cmd is Command.RESUME:
+                return
+            if cmd is Command.ABORT:
+                raise _Aborted
+
+    # -- a trial ---------------------------------------------------------------------------
+    def _sample(self) -> tuple[int, CursorSample]:
+        now = self.clock.now_ns()
+        s = self.cursor.read(now)
+        sample = CursorSample(now, s.x, s.y, s.buttons)
+        self.obs.on_sample(sample)
+        return now, sample
+
+    def wait_home(self, t: ScheduledTrial, machine: TrialMachine) -> None:
+        """Sample the cursor until it is in the home zone."""
+        self.obs.on_trial_state(t, TrialState.WAIT_HOME, self.clock.now_ns())
+        ticks = self._ticks()
+        while True:
+            now, s = self._sample()
+            if machine.at_home(s):
+                return
+            if self.sim and now - ticks.onset_ns > SIM_HOME_LIMIT_NS:
+                raise TactorbeltError(
+                    f"trial {t.trial_index}: the cursor never came back to the home zone "
+                    f"(within {self.rule.home_radius:g} of the centre)"
+                )
+            self.handle(self.obs.poll(now), machine)
+            self._tick(ticks)
+
+    def present(self, t: ScheduledTrial, machine: TrialMachine) -> TrialState:
+        """Play the stimulus and sample the cursor on its deadlines until an outcome."""
+        layout = self.belt.layout
+        cue = TrialCue(t.trial_index, t.block, t.condition, self.targets.angles_deg, layout,
+                       t.target_deg if t.block == "training" else None)
+        onset = int(self.player.start(self.stimulus_for(t),
+                                      duration_s=self.study.stimulus.max_presentation_s))
+        machine.start(onset)
+        self.cursor.trial_started(cue, onset)
+        self.obs.on_trial_state(t, TrialState.STIMULUS, onset)
+        ticks = self._ticks(onset, first=0)
+        playing = True
+        while True:
+            now = self._tick(ticks)
+            s = self.cursor.read(now)
+            state = machine.feed(now, s.x, s.y, s.buttons)
+            self.obs.on_sample(CursorSample(now, s.x, s.y, s.buttons))
+            if playing and (machine.finished or machine.stimulus_due_off(now)):
+                self.player.stop()
+                machine.stimulus_stopped(self.clock.now_ns())
+                playing = False
+            if machine.finished:
+                return state
+            self.handle(self.obs.poll(now), machine)
+
+    def run_trial(self, t: ScheduledTrial) -> TrialResult:
+        """One trial: home, stimulus and response. A pause returns it ``aborted``; any
+        other way out stores nothing here, aborts it and re-raises with the result
+        attached (``exc.trial_result``)."""
+        machine = TrialMachine(t, self.rule, self.targets)
+        try:
+            self.wait_home(t, machine)
+            state = self.present(t, machine)
+            self.obs.on_trial_state(t, state, self.clock.now_ns())
+            return machine.result
+        except _Paused:
+            machine.stimulus_stopped(self.clock.now_ns())
+            return machine.abort("paused")
+        except BaseException as exc:
+            _stop_quietly(self.player, self.belt)
+            machine.stimulus_stopped(self.clock.now_ns())
+            machine.abort(_abort_reason(exc))
+            exc.trial_result = machine.result  # type: ignore[attr-defined]
+            raise
+        finally:
+            with contextlib.suppress(Exception):
+                self.cursor.trial_ended(self.clock.now_ns())
+
+    def record(self, result: TrialResult) -> None:
+        """Store a trial (one transaction) and keep it in :attr:`results`."""
+        self.store.write_trial(self.session_id, result)
+        self.results.append(result)
+        if len(self.results) > RESULT_SAMPLES_KEPT:
+            self.results[-RESULT_SAMPLES_KEPT - 1].release_samples()
+        self.obs.on_trial_done(result)
+
+    # -- the session -----------------------------------------------------------------------
+    def run(self) -> SessionResult:
+        """Run the session; see :func:`run_session`."""
+        todo = self.open_session()
+        n_total = len(self.schedule)
+        info = SessionInfo(self.session_id, self.participant, self.study, n_total,
+                           self.n_done, self.resume, self.order)
+        try:
+            # inside the try: Ctrl-C or a window error on the instructions screen leaves
+            # the session "interrupted", not "running"
+            self.obs.on_session_start(info, self.schedule)
+            status = self._trials(todo)
+        except _Aborted as exc:
+            self._record_failed(exc)
+            status = "aborted"
+        except BaseException as exc:
+            self.fail(exc)
+            raise
+        finally:
+            _stop_quietly(self.player, self.belt)
+        self.store.set_status(self.session_id, status)
+        self.obs.on_session_end(status)
+        return SessionResult(self.session_id, status, n_total, self.n_done, self.n_run,
+                             self.results)
+
+    def _trials(self, todo: list[ScheduledTrial]) -> str:
+        """Run the trials to do, with the inter-trial intervals and breaks; the status."""
+        iti_ns = round(self.study.session.iti_s * 1e9)
+        break_every = self.study.session.break_every
+        n_total = len(self.schedule)
+        prev_block: int | None = None
+        i = 0
+        while i < len(todo):
+            t = todo[i]
+            if self.limit is not None and t.block == "test" and self.n_test_run >= self.limit:
+                break
+            if t.block_index != prev_block:
+                self.obs.on_block_start(t.block, t.condition)
+                prev_block = t.block_index
+            result = self.run_trial(t)
+            self.record(result)
+            if result.status == "aborted":  # paused: wait, then run the same trial again
+                self.obs.on_trial_state(t, TrialState.ABORTED, self.clock.now_ns())
+                self.pause()
+                continue
+            self.n_run += 1
+            self.n_done += 1
+            if t.block == "test":
+                self.n_test_run += 1
+            if self.progress is not None:
+                self.progress(self.n_done, n_total)
+            i += 1
+            if i < len(todo):
+                self.obs.on_trial_state(t, TrialState.ITI, self.clock.now_ns())
+                self.wait_for(iti_ns)
+                if break_every and (t.trial_index + 1) % break_every == 0:
+                    self.obs.on_break(self.n_done, n_total)
+        return "complete" if self.n_done >= n_total else "interrupted"
+
+    def fail(self, exc: BaseException) -> None:
+        """Teardown after an error or an interrupt: motors off, the trial in flight
+        stored ``aborted``, the session ``interrupted`` (resumable). A device error is
+        re-raised by the caller with what happened to the session."""
+        _stop_quietly(self.player, self.belt)
+        self._record_failed(exc)
+        with contextlib.suppress(Exception):
+            self.store.set_status(self.session_id, "interrupted")
+        with contextlib.suppress(Exception):
+            self.obs.on_session_end("interrupted")
+        if isinstance(exc, DeviceError):
+            raise DeviceError(
+                f"belt {self.belt.url} failed during the session ({exc}); motors off (a belt "
+                "that no longer answers turns them off itself within its heartbeat timeout), "
+                f"the trial in flight was stored as aborted and session {self.session_id} of "
+                f"{self.participant!r} can be resumed with --resume"
+            ) from exc
+
+    def _record_failed(self, exc: BaseException) -> None:
+        """Store the aborted trial attached to ``exc`` (best effort)."""
+        result = getattr(exc, "trial_result", None)
+        if isinstance(result, TrialResult):
+            with contextlib.suppress(Exception):
+                self.store.write_trial(self.session_id, result)
+                self.results.append(result)
+
+
 def run_session(
     study: Study,
     participant: str,
@@ -246,7 +588,7 @@ def run_session(
 
     Args:
         study: the study.
-        participant: the participant id (non-empty).
+        participant: the participant id (see :func:`check_participant`).
         belt: an open belt with the study's layout (the caller closes it).
         cursor: where responses come from.
         store: an open, writable store.
@@ -264,266 +606,13 @@ def run_session(
         A :class:`SessionResult`.
 
     Raises:
-        ConfigError: an empty participant id, a negative limit, a belt whose layout is
-            not the study's.
+        ConfigError: a participant id that is empty or not allowed, a negative limit, a
+            belt whose layout is not the study's.
         StoreError: nothing to resume, or the study changed since the session started.
         DeviceError: the belt failed; the trial in flight is stored ``aborted`` and the
-            session ``interrupted``. KeyboardInterrupt likewise.
+            session ``interrupted``. KeyboardInterrupt and
+            :class:`~tactorbelt.interrupts.Terminated` (SIGTERM, SIGHUP) likewise.
     """
-    from ..player import Player
-    from ..stimuli import make_stimulus
-
-    participant = participant.strip() if isinstance(participant, str) else ""
-    if not participant:
-        raise ConfigError("participant id must be a non-empty string")
-    if limit is not None and limit < 0:
-        raise ConfigError(f"limit must be a number of test trials >= 0, got {limit}")
-    _check_layout(study, belt)
-    obs: Any = observer if observer is not None else NullObserver()
-    text = _study_text(study, study_toml)
-    import hashlib
-
-    sha = hashlib.sha256(text.encode("utf-8")).hexdigest()
-
-    # -- the session: new or resumed -------------------------------------------------
-    if resume:
-        row = store.find_resumable(participant)
-        if row is None:
-            raise StoreError(
-                f"participant {participant!r} has no unfinished session in {store.url}; "
-                "run without --resume to start one"
-            )
-        if row["study_sha256"] != sha:
-            stored = Study.from_toml(row["study_toml"], path=f"{store.url} (session "
-                                     f"{row['session_id']})")
-            if stored != study:
-                raise StoreError(
-                    f"the study changed since session {row['session_id']} of {participant!r} "
-                    f"started ({row['study_name']}, sha256 {row['study_sha256'][:12]}); resume "
-                    "with the same study file"
-                )
-        session_id = int(row["session_id"])
-        schedule = store.schedule(session_id)
-        order = tuple(json.loads(row["condition_order"]))
-        store.mark_resumed(session_id)
-    else:
-        seed = study.session.seed if seed is None else int(seed)
-        schedule = make_schedule(study, participant, seed)
-        order = tuple(study.test[i].condition for i in block_order(study, participant))
-        session_id = store.create_session(
-            participant=participant, study_name=study.name, study_toml=text,
-            study_sha256=sha, seed=seed, condition_order=list(order), schedule=schedule,
-            belt=belt.url, firmware_version=belt.firmware_version,
-            calibration=belt.calibration.to_list(), package_version=_package_version(),
-            git_commit=_git_commit(), host=socket.gethostname(), input=input_name,
-            clock="sim" if clock.simulated else "wall",
-        )
-    finished = store.finished_indices(session_id)
-    todo = [t for t in schedule if t.trial_index not in finished]
-    n_total = len(schedule)
-    n_done = len(finished)
-
-    rule = ResponseRule.from_study(study)
-    targets = study.target_set()
-    layout = belt.layout
-    sp = study.stimulus
-    stimuli: dict[tuple[float, str], Stimulus] = {}
-
-    def stimulus_for(t: ScheduledTrial) -> Stimulus:
-        key = (t.target_deg, t.condition)
-        if key not in stimuli:
-            stimuli[key] = make_stimulus(layout, t.target_deg, t.condition, sp.law,
-                                         sp.falloff_deg, sp.period_s, sp.transit_s)
-        return stimuli[key]
-
-    slow_s = float(os.environ.get(SLOW_TRIAL_ENV, "0") or 0)
-    period = rule.sample_period_ns
-    iti_ns = round(study.session.iti_s * 1e9)
-    break_every = study.session.break_every
-    sim = bool(clock.simulated)
-    player = Player(belt, clock)
-    results: list[TrialResult] = []
-    n_run = 0
-    n_test_run = 0
-    status = "interrupted"
-    info = SessionInfo(session_id, participant, study, n_total, n_done, resume, order)
-
-    def wait_until(deadline_ns: int) -> None:
-        """Sleep to a deadline in sample-period steps, pumping the player and polling."""
-        now = clock.now_ns()
-        while now < deadline_ns:
-            step = min(deadline_ns, now + period)
-            clock.sleep_until_ns(step)
-            now = clock.now_ns()
-            if sim:
-                player.pump(now)
-            handle(obs.poll(now), None)
-
-    def handle(cmd: Command | None, machine: TrialMachine | None) -> None:
-        """Act on a command from the observer. A pause aborts the trial in flight."""
-        if cmd is None or cmd is Command.RESUME:
-            return
-        _stop_quietly(player, belt)
-        if cmd is Command.ABORT:
-            raise _Aborted
-        # PAUSE: wait (motors off) until RESUME or ABORT; a trial whose stimulus has
-        # started is aborted (and run again after the pause)
-        if machine is not None and machine.state is TrialState.STIMULUS:
-            raise _Paused
-        pause_loop()
-
-    def pause_loop() -> None:
-        while True:
-            now = clock.now_ns()
-            clock.sleep_until_ns(now + period)
-            cmd = obs.poll(clock.now_ns())
-            if cmd is Command.RESUME:
-                return
-            if cmd is Command.ABORT:
-                raise _Aborted
-
-    def run_trial(t: ScheduledTrial) -> TrialResult:
-        machine = TrialMachine(t, rule, targets)
-        cue = TrialCue(t.trial_index, t.block, t.condition, targets.angles_deg, layout,
-                       t.target_deg if t.block == "training" else None)
-        stim = stimulus_for(t)
-        try:
-            # WAIT_HOME
-            obs.on_trial_state(t, TrialState.WAIT_HOME, clock.now_ns())
-            start = clock.now_ns()
-            while True:
-                now = clock.now_ns()
-                s = cursor.read(now)
-                obs.on_sample(CursorSample(now, s.x, s.y, s.buttons))
-                if machine.at_home(s):
-                    break
-                if sim and now - start > SIM_HOME_LIMIT_NS:
-                    raise TactorbeltError(
-                        f"trial {t.trial_index}: the cursor never came back to the home zone "
-                        f"(within {rule.home_radius:g} of the centre)"
-                    )
-                handle(obs.poll(now), machine)
-                clock.sleep_until_ns(now + period)
-                if sim:
-                    player.pump(clock.now_ns())
-            # STIMULUS
-            onset = int(player.start(stim, duration_s=sp.max_presentation_s))
-            machine.start(onset)
-            cursor.trial_started(cue, onset)
-            obs.on_trial_state(t, TrialState.STIMULUS, onset)
-            k = 0
-            playing = True
-            while True:
-                deadline = onset + k * period
-                clock.sleep_until_ns(deadline)
-                now = clock.now_ns()
-                if now - deadline >= period:  # late (wall clock): skip missed deadlines
-                    k = (now - onset) // period
-                if sim:
-                    player.pump(now)
-                s = cursor.read(now)
-                state = machine.feed(now, s.x, s.y, s.buttons)
-                obs.on_sample(CursorSample(now, s.x, s.y, s.buttons))
-                if playing and (machine.finished or machine.stimulus_due_off(now)):
-                    player.stop()
-                    machine.stimulus_stopped(clock.now_ns())
-                    playing = False
-                if machine.finished:
-                    break
-                handle(obs.poll(now), machine)
-                k += 1
-            obs.on_trial_state(t, state, clock.now_ns())
-            return machine.result
-        except _Paused:
-            machine.stimulus_stopped(clock.now_ns())
-            return machine.abort("paused")
-        except BaseException as exc:
-            _stop_quietly(player, belt)
-            machine.stimulus_stopped(clock.now_ns())
-            reason = ("interrupted (Ctrl-C)" if isinstance(exc, KeyboardInterrupt)
-                      else "aborted by the experimenter" if isinstance(exc, _Aborted)
-                      else f"device error: {exc}" if isinstance(exc, DeviceError)
-                      else f"error: {type(exc).__name__}: {exc}")
-            machine.abort(reason)
-            exc.trial_result = machine.result  # type: ignore[attr-defined]
-            raise
-        finally:
-            with contextlib.suppress(Exception):
-                cursor.trial_ended(clock.now_ns())
-
-    prev_block: int | None = None
-    try:
-        # inside the try: Ctrl-C or a window error on the instructions screen leaves
-        # the session "interrupted", not "running"
-        obs.on_session_start(info, schedule)
-        queue = list(todo)
-        i = 0
-        while i < len(queue):
-            t = queue[i]
-            if limit is not None and t.block == "test" and n_test_run >= limit:
-                break
-            if t.block_index != prev_block:
-                obs.on_block_start(t.block, t.condition)
-                prev_block = t.block_index
-            result = run_trial(t)
-            if slow_s > 0:
-                time.sleep(slow_s / 2)
-            store.write_trial(session_id, result)
-            results.append(result)
-            if len(results) > RESULT_SAMPLES_KEPT:
-                results[-RESULT_SAMPLES_KEPT - 1].release_samples()
-            obs.on_trial_done(result)
-            if result.status == "aborted":  # paused: wait, then run the same trial again
-                obs.on_trial_state(t, TrialState.ABORTED, clock.now_ns())
-                pause_loop()
-                continue
-            n_run += 1
-            n_done += 1
-            if t.block == "test":
-                n_test_run += 1
-            if progress is not None:
-                progress(n_done, n_total)
-            if slow_s > 0:
-                time.sleep(slow_s / 2)
-            i += 1
-            last = i >= len(queue)
-            if not last:
-                obs.on_trial_state(t, TrialState.ITI, clock.now_ns())
-                wait_until(clock.now_ns() + iti_ns)
-                if break_every and (t.trial_index + 1) % break_every == 0:
-                    obs.on_break(n_done, n_total)
-        status = "complete" if n_done >= n_total else "interrupted"
-    except _Aborted as exc:
-        _record_failed(store, session_id, exc, results)
-        status = "aborted"
-    except BaseException as exc:
-        _stop_quietly(player, belt)
-        _record_failed(store, session_id, exc, results)
-        status = "interrupted"
-        with contextlib.suppress(Exception):
-            store.set_status(session_id, status)
-        with contextlib.suppress(Exception):
-            obs.on_session_end(status)
-        if isinstance(exc, DeviceError):
-            raise DeviceError(
-                f"belt {belt.url} failed during the session ({exc}); motors off (a belt that "
-                "no longer answers turns them off itself within its heartbeat timeout), the "
-                f"trial in flight was stored as aborted and session {session_id} of "
-                f"{participant!r} can be resumed with --resume"
-            ) from exc
-        raise
-    finally:
-        _stop_quietly(player, belt)
-    store.set_status(session_id, status)
-    obs.on_session_end(status)
-    return SessionResult(session_id, status, n_total, n_done, n_run, results)
-
-
-def _record_failed(store: Store, session_id: int, exc: BaseException,
-                   results: list[TrialResult]) -> None:
-    """Store the aborted trial attached to ``exc`` (best effort)."""
-    result = getattr(exc, "trial_result", None)
-    if isinstance(result, TrialResult):
-        with contextlib.suppress(Exception):
-            store.write_trial(session_id, result)
-            results.append(result)
+    return SessionRunner(study, participant, belt, cursor, store, clock, seed=seed,
+                         resume=resume, limit=limit, observer=observer, progress=progress,
+                         study_toml=study_toml, input_name=input_name).run()

@@ -106,6 +106,7 @@ class Renderer:
 
     def __init__(self, size: tuple[int, int], aspect: float = 1.25) -> None:
         self.aspect = aspect
+        self.overlay_layout = False
         self._fonts: dict[int, Any] = {}
         self._text_cache: dict[tuple[str, int, tuple[int, int, int]], Any] = {}
         self._static: Any = None
@@ -114,14 +115,24 @@ class Renderer:
         self.resize(size)
 
     # -- geometry ----------------------------------------------------------------------
-    def resize(self, size: tuple[int, int]) -> None:
-        """Lay out for a new surface size."""
+    def resize(self, size: tuple[int, int], overlay: bool | None = None) -> None:
+        """Lay out for a new surface size; with ``overlay`` (default: as before) the
+        ellipse moves right of a column kept for the experimenter overlay, so the panel
+        hides no target, label or prompt."""
         self.size = (max(int(size[0]), 64), max(int(size[1]), 64))
+        if overlay is not None:
+            self.overlay_layout = bool(overlay)
         w, h = self.size
         self.unit = max(min(w, h) / 800.0, 0.35)
         self.top_band = int(44 * self.unit)
-        self.geometry: EllipseGeometry = fit_ellipse(w, h, self.aspect, margin=0.12,
-                                                     top_band=self.top_band)
+        self.panel_width = max(int(0.3 * w), min(int(340 * self.unit), w // 2)) \
+            if self.overlay_layout else 0
+        g = fit_ellipse(w - self.panel_width, h, self.aspect, margin=0.12,
+                        top_band=self.top_band)
+        self.geometry: EllipseGeometry = EllipseGeometry(g.cx + self.panel_width, g.cy,
+                                                         g.rx, g.ry)
+        #: where the last frame drew the overlay panel and the prompt (pygame Rects).
+        self.rects: dict[str, Any] = {}
         self.target_radius = max(int(15 * self.unit), 4)
         self.cursor_radius = max(int(9 * self.unit), 3)
         self._static = None
@@ -188,8 +199,9 @@ class Renderer:
     # -- the frame ---------------------------------------------------------------------
     def draw(self, surface: Any, view: View) -> None:
         """Draw ``view`` on ``surface`` (which must have this renderer's size)."""
-        if surface.get_size() != self.size:
-            self.resize(surface.get_size())
+        if surface.get_size() != self.size or view.overlay != self.overlay_layout:
+            self.resize(surface.get_size(), overlay=view.overlay)
+        self.rects = {}
         surface.blit(self._static_layer(view), (0, 0))
         g = self.geometry
         u = self.unit
@@ -232,7 +244,9 @@ class Renderer:
         if view.prompt:
             t = self.text(view.prompt, int(30 * u), COLORS["text"])
             y = min(g.cy + g.ry + 2.2 * r, self.size[1] - int(20 * u))
-            surface.blit(t, t.get_rect(center=(round(g.cx), round(y))))
+            rect = t.get_rect(center=(round(g.cx), round(y)))
+            surface.blit(t, rect)
+            self.rects["prompt"] = rect
         if view.overlay:
             self._draw_overlay_panel(surface, view)
         if view.modal_title is not None:
@@ -270,17 +284,17 @@ class Renderer:
     def _draw_overlay_panel(self, surface: Any, view: View) -> None:
         u = self.unit
         px = int(19 * u)
-        lines = view.overlay_lines
+        width = self.panel_width - int(20 * u)
+        lines = self._wrap(view.overlay_lines, px, width - int(20 * u))
         n_levels = 0 if view.levels is None else len(np.asarray(view.levels).reshape(-1))
         bar_w, gap, max_h = int(16 * u), int(7 * u), int(60 * u)
-        width = max(int(330 * u), n_levels * (bar_w + gap) + int(20 * u))
-        for line in lines:
-            width = max(width, self.text(line, px, COLORS["text"]).get_width() + int(20 * u))
+        bar_w = max(min(bar_w, (width - int(20 * u)) // max(n_levels, 1) - gap), 2)
         height = int(12 * u) + len(lines) * int(px * 0.95)
         if n_levels:
             height += max_h + int(44 * u)
         x0 = int(10 * u)
-        y0 = self.size[1] - height - int(10 * u)
+        y0 = max(self.top_band, self.size[1] - height - int(10 * u))
+        self.rects["overlay"] = pygame.Rect(x0, y0, width, height)
         surface.blit(self._shade((width, height), (*COLORS["panel"], 215)), (x0, y0))
         y = y0 + int(8 * u)
         for line in lines:
@@ -297,6 +311,22 @@ class Renderer:
                                      pygame.Rect(round(bx), round(by), round(bw), round(bh)))
                 t = self.text(f"T{k}", int(18 * u), COLORS["text_dim"])
                 surface.blit(t, t.get_rect(midtop=(round(bx + bw / 2), base + int(4 * u))))
+
+    def _wrap(self, lines: list[str], px: int, width: int) -> list[str]:
+        """Lines broken at spaces to fit ``width`` pixels."""
+        out: list[str] = []
+        for line in lines:
+            words = line.split(" ")
+            cur = ""
+            for word in words:
+                cand = f"{cur} {word}" if cur else word
+                if cur and self.text(cand, px, COLORS["text"]).get_width() > width:
+                    out.append(cur)
+                    cur = word.lstrip()
+                else:
+                    cur = cand
+            out.append(cur)
+        return out
 
     def _draw_modal(self, surface: Any, title: str, lines: list[str]) -> None:
         u = self.unit

@@ -40,6 +40,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from .._errors import ConfigError, TactorbeltError
+from ..clock import Deadlines
+from ..inputs import make_cursor
 from ..inputs.base import CursorSample, CursorSource
 from ..inputs.joystick import JoystickConfig, LiveCursor, prepare_sdl
 
@@ -53,7 +55,7 @@ if TYPE_CHECKING:
     from ..experiment.trial import TrialResult, TrialState
     from .render import View
 
-__all__ = ["SCREEN_KINDS", "ExperimentWindow", "make_cursor", "run_with_window"]
+__all__ = ["SCREEN_KINDS", "ExperimentWindow", "run_with_window"]
 
 #: Kinds of screen passed to ``on_frame`` and saved by ``screenshot_dir``.
 SCREEN_KINDS = ("instructions", "block", "training", "feedback", "test", "overlay", "break",
@@ -61,6 +63,9 @@ SCREEN_KINDS = ("instructions", "block", "training", "feedback", "test", "overla
 
 #: Two presses of Esc within this many seconds abort the session.
 ESC_WINDOW_S = 2.0
+#: Frames per second of the waiting screens on the wall clock (they wait on events in
+#: between: a key, a button or a stick move wakes them at once).
+IDLE_FPS = 10.0
 
 FrameHook = Callable[["ExperimentWindow", str], None]
 
@@ -131,7 +136,6 @@ class ExperimentWindow:
         self.input_kind = input_kind
         self.participant = participant
         self.fps = float(fps)
-        self._frame_ns = round(1e9 / self.fps)
         self.auto_continue_s = auto_continue_s
         self.on_frame = on_frame
         self.screenshot_dir = Path(screenshot_dir) if screenshot_dir is not None else None
@@ -198,7 +202,7 @@ class ExperimentWindow:
         self._esc_ns: int | None = None
         self._banner: str | None = None
         self._banner_until_ns = 0
-        self._next_frame_ns = 0
+        self._frames = Deadlines(clock, self.fps)
         self.frames = 0
         self._stimuli: dict[tuple[float, str], Any] = {}
         from ..experiment.runner import Command
@@ -323,14 +327,18 @@ class ExperimentWindow:
     def abort(self) -> None:
         """Abort the session (saved, resumable): motors off at once."""
         self.abort_requested = True
+        self._banner = None
         self._motors_off()
 
     # ------------------------------------------------------------------------------------
     # events
-    def _handle_events(self, now_ns: int) -> None:
+    def _handle_events(self, now_ns: int, first: Any = None) -> None:
         pg = self._pg
         live = self._live
-        for ev in pg.event.get():
+        events = pg.event.get()
+        if first is not None:
+            events.insert(0, first)
+        for ev in events:
             if live is not None:
                 live.handle_event(ev)
             t = ev.type
@@ -361,6 +369,7 @@ class ExperimentWindow:
         ctrl = bool(ev.mod & pg.KMOD_CTRL)
         if key in (pg.K_F1, pg.K_TAB):
             self.overlay = not self.overlay
+            self._relayout()
         elif key == pg.K_q and ctrl:
             self.abort()
         elif key == pg.K_ESCAPE and self.screen == "end":
@@ -390,69 +399,71 @@ class ExperimentWindow:
 
     def _relayout(self) -> None:
         surface = self._pg.display.get_surface()
-        if surface is None:
-            return
-        self.surface = surface
-        self.renderer.resize(self.surface.get_size())
+        if surface is not None:
+            self.surface = surface
+        self.renderer.resize(self.surface.get_size(), overlay=self.overlay)
         live = self._live
         if live is not None:
             live.geometry = self.renderer.geometry
 
     # ------------------------------------------------------------------------------------
     # the loop
-    def step(self, now_ns: int) -> None:
-        """Handle pending events, and draw a frame if one is due."""
-        self._handle_events(now_ns)
-        if now_ns >= self._next_frame_ns:
-            behind = now_ns - self._next_frame_ns
-            self._next_frame_ns = (now_ns + self._frame_ns if behind >= self._frame_ns
-                                   else self._next_frame_ns + self._frame_ns)
+    def step(self, now_ns: int, event: Any = None) -> None:
+        """Handle pending events (``event`` first), and draw a frame if one is due."""
+        self._handle_events(now_ns, event)
+        if self._frames.due(now_ns) is not None:
             self.draw(now_ns)
+
+    def _idle(self, kind: str, done: Callable[[], bool]) -> None:
+        """Show the waiting screen ``kind`` until ``done()``, an abort, or
+        ``auto_continue_s``. On the wall clock it waits on SDL's event queue between
+        frames (``pygame.event.wait`` with a timeout): no spinning, and a signal is
+        handled within a frame."""
+        pg = self._pg
+        self.screen = kind
+        self._continue = False
+        sim = bool(self.clock.simulated)
+        self._frames = Deadlines(self.clock, self.fps if sim else min(self.fps, IDLE_FPS))
+        start = self._frames.onset_ns
+        limit = None if self.auto_continue_s is None else round(self.auto_continue_s * 1e9)
+        event = None
+        while True:
+            now = self.clock.now_ns()
+            self.step(now, event)
+            event = None
+            if self.abort_requested or done():
+                return
+            if limit is not None and now - start >= limit:
+                return
+            until = self._frames.deadline(self._frames.next_index)
+            if limit is not None:
+                until = min(until, start + limit)
+            if sim:
+                self.clock.sleep_until_ns(max(until, now + 1))
+                continue
+            ev = pg.event.wait(max(1, (until - self.clock.now_ns()) // 1_000_000))
+            if ev.type != pg.NOEVENT:
+                event = ev
 
     def _wait_screen(self, kind: str) -> None:
         """Show a waiting screen until the participant goes on (or an abort)."""
         prev = self.screen
-        self.screen = kind
-        self._continue = False
-        start = self.clock.now_ns()
-        limit = None if self.auto_continue_s is None else round(self.auto_continue_s * 1e9)
-        self._next_frame_ns = start
         try:
-            while True:
-                now = self.clock.now_ns()
-                self.step(now)
-                if self.abort_requested:
-                    return
-                if self._continue and not (self.user_paused or self.device_paused):
-                    return
-                if limit is not None and now - start >= limit:
-                    return
-                self.clock.sleep_until_ns(max(self._next_frame_ns, now + 1))
+            self._idle(kind, lambda: self._continue and not (self.user_paused
+                                                            or self.device_paused))
         finally:
             self.screen = prev
             self._continue = False
+            self._frames = Deadlines(self.clock, self.fps)
 
     def show_end(self, status: str | None = None) -> None:
         """The end screen: wait for the participant (or ``auto_continue_s``)."""
         if status is not None:
             self.end_status = status
         self.abort_requested = False  # Esc twice leaves the end screen
-        self._wait_screen_end()
-
-    def _wait_screen_end(self) -> None:
-        self.screen = "end"
-        self._continue = False
-        start = self.clock.now_ns()
-        limit = None if self.auto_continue_s is None else round(self.auto_continue_s * 1e9)
-        self._next_frame_ns = start
-        while True:
-            now = self.clock.now_ns()
-            self.step(now)
-            if self._continue or self.abort_requested:
-                return
-            if limit is not None and now - start >= limit:
-                return
-            self.clock.sleep_until_ns(max(self._next_frame_ns, now + 1))
+        self._banner = None  # "Press Esc again" belongs to the session, not its end
+        self._esc_ns = None
+        self._idle("end", lambda: self._continue)
 
     # ------------------------------------------------------------------------------------
     # drawing
@@ -570,7 +581,7 @@ class ExperimentWindow:
                 "then back to the centre.",
                 "",
             ]
-            if self.study.training.passes > 0:
+            if self._training_left():
                 lines += ["First, training: the target lights up while you feel it,",
                           "and you see whether your answer was right.",
                           "Then the test, without feedback.", ""]
@@ -598,6 +609,14 @@ class ExperimentWindow:
                 "The experimenter can resume it later (--resume).", "",
                 "Press Space or Esc to close."]
         return None, []
+
+    def _training_left(self) -> bool:
+        """Whether training trials remain (a resumed session may be past them)."""
+        if self.study.training.passes <= 0:
+            return False
+        if self.info is None or not self.info.resumed:
+            return True
+        return self.study.n_training_trials() > self.info.n_done
 
     def _pause_text(self) -> tuple[str, list[str]]:
         if self.device_paused:
@@ -748,40 +767,6 @@ class ExperimentWindow:
 
 
 # ----------------------------------------------------------------------------------------
-def make_cursor(
-    kind: str,
-    window: ExperimentWindow,
-    belt: Belt | None,
-    clock: Clock,
-    *,
-    seed: int | None = None,
-    joystick: JoystickConfig | int | str | None = None,
-) -> CursorSource:
-    """The cursor source for ``--input KIND`` (``joystick``, ``mouse`` or ``model``)."""
-    if kind == "joystick":
-        from ..inputs.joystick import JoystickCursor
-
-        cfg = joystick if isinstance(joystick, JoystickConfig) else JoystickConfig(
-            device=joystick if not isinstance(joystick, str) else
-            JoystickConfig.parse_device(joystick))
-        return JoystickCursor(cfg)
-    if kind == "mouse":
-        from ..inputs.mouse import MouseCursor
-
-        return MouseCursor(window.renderer.geometry)
-    if kind == "model":
-        if belt is None:
-            raise ConfigError("the model participant needs the belt")
-        try:
-            from ..inputs.model import make_model_cursor  # type: ignore[import-not-found,unused-ignore]
-        except ImportError:
-            raise ConfigError("the model participant (--input model) is not available in this "
-                              "build") from None
-        cursor: CursorSource = make_model_cursor(belt, clock, 0 if seed is None else int(seed))
-        return cursor
-    raise ConfigError(f"unknown input {kind!r}; allowed: joystick, mouse, model")
-
-
 class SessionWindow:
     """The window of one session, as ``tactorbelt run`` uses it (a context manager).
 
@@ -853,7 +838,8 @@ def session_window(
         joystick: which stick (index, name substring) or a full JoystickConfig.
         cursor: a ready source to show and feed (e.g. a JoystickCursor on a test
             backend) instead of the one ``input`` makes.
-        seed: unused (the model participant is made by the caller).
+        seed: unused (the model participant is made by the caller with
+            :func:`tactorbelt.inputs.make_cursor`).
     """
     if clock is None:
         from ..clock import WallClock
@@ -869,7 +855,8 @@ def session_window(
                               auto_continue_s=auto_continue_s, on_frame=on_frame)
     try:
         if cursor is None and input in ("joystick", "mouse"):
-            cursor = make_cursor(input, window, belt, clock, seed=seed, joystick=joystick)
+            cursor = make_cursor(input, study=study, participant=participant, seed=seed,
+                                 geometry=window.renderer.geometry, joystick=joystick)
         if cursor is not None:
             window.attach_cursor(cursor)
     except BaseException:
@@ -955,7 +942,8 @@ def run_with_window(
                         auto_continue_s=auto_continue_s, on_frame=on_frame) as win:
         src = win.cursor
         if src is None:
-            src = make_cursor(cursor_kind, win.window, belt, clock, seed=seed)
+            src = make_cursor(cursor_kind, study=study, belt=belt, clock=clock,
+                              participant=participant, seed=seed)
             win.window.attach_cursor(src)
         clk = clock
 

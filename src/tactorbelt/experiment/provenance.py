@@ -1,0 +1,51 @@
+"""Provenance of a session: the package version, the git commit and the host.
+
+Stored with every new session (see :meth:`tactorbelt.experiment.store.Store.create_session`)
+so a data set says which code and machine produced it.
+
+Imports only the standard library (and tactorbelt's version).
+"""
+
+from __future__ import annotations
+
+import socket
+import subprocess
+from dataclasses import dataclass
+from functools import lru_cache
+from pathlib import Path
+
+__all__ = ["Provenance", "collect", "git_commit", "package_version"]
+
+
+@lru_cache(maxsize=1)
+def git_commit() -> str | None:
+    """The commit of the source tree tactorbelt runs from, or None outside a git checkout."""
+    here = Path(__file__).resolve().parent
+    try:
+        out = subprocess.run(["git", "rev-parse", "HEAD"], cwd=here, capture_output=True,
+                             text=True, timeout=2, check=False)
+    except (OSError, subprocess.SubprocessError):
+        return None
+    commit = out.stdout.strip()
+    return commit if out.returncode == 0 and len(commit) == 40 else None
+
+
+def package_version() -> str:
+    """tactorbelt's version."""
+    from .. import __version__
+
+    return __version__
+
+
+@dataclass(frozen=True)
+class Provenance:
+    """Where a session ran: the package version, the git commit (or None) and the host."""
+
+    package_version: str
+    git_commit: str | None
+    host: str
+
+
+def collect() -> Provenance:
+    """The provenance of this process."""
+    return Provenance(package_version(), git_commit(), socket.gethostname())

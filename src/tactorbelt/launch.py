@@ -1,0 +1,382 @@
+"""Start one participant's session the way ``tactorbelt run`` does (the library behind it).
+
+:func:`run_study` takes a :class:`RunRequest` (the command line's options, ``None`` for
+options not given) and does everything the command does:
+
+- checks the participant id (:func:`~tactorbelt.experiment.runner.check_participant`);
+- the session policy: with ``resume`` the participant's unfinished session, reusing the
+  input, belt and window options stored with it unless the request overrides them;
+  without, a new session, refused when the participant has an unfinished one (resume
+  it) or a complete one (ask for ``new_session``);
+- the display: a window needs one (``DISPLAY`` / ``WAYLAND_DISPLAY``, or an explicit
+  ``SDL_VIDEODRIVER``); without it the run fails at once instead of drawing into an
+  invisible window;
+- the clock policy (:func:`choose_clock`): a headless model or scripted run on the sim
+  belt runs on a SimClock (as fast as the CPU allows) unless ``realtime``; everything
+  else on the wall clock;
+- the cursor (:func:`tactorbelt.inputs.make_cursor`, one seed policy);
+- the run, headless or in the experiment window, and a :class:`RunOutcome` whose
+  :meth:`~RunOutcome.summary` counts the session's totals (and this run's share).
+
+The run's options are kept in the store's ``meta`` table under
+``run_options:<session_id>`` (JSON), so ``--resume`` can reuse them.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shlex
+import statistics
+import sys
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from ._errors import ConfigError, StoreError
+from .inputs import INPUTS
+
+if TYPE_CHECKING:
+    from .clock import Clock
+    from .experiment.runner import SessionInfo, SessionResult
+    from .experiment.schedule import ScheduledTrial
+    from .experiment.store import Store
+    from .inputs.joystick import JoystickConfig
+
+__all__ = ["RunOutcome", "RunRequest", "choose_clock", "has_display", "resume_command",
+           "run_study"]
+
+#: Seconds of real time added after each trial (to test interrupting a fast run).
+SLOW_TRIAL_ENV = "TACTORBELT_TEST_SLOW_TRIAL_S"
+_META_KEY = "run_options:{}"
+
+
+@dataclass
+class JoystickOptions:
+    """The stick options of ``tactorbelt run`` (None: not given)."""
+
+    device: str | None = None
+    axes: str | None = None
+    dead_zone: float | None = None
+    invert_x: bool | None = None
+    invert_y: bool | None = None
+
+    def config(self) -> JoystickConfig:
+        """As a JoystickConfig (defaults for what is not given)."""
+        from .inputs.joystick import JoystickConfig
+
+        axes = self.axes or "0,1"
+        try:
+            ax, ay = (int(a) for a in axes.split(","))
+        except ValueError:
+            raise ConfigError(f"--axes: expected two axis indices like 0,1, got {axes!r}") \
+                from None
+        return JoystickConfig(device=JoystickConfig.parse_device(self.device), axis_x=ax,
+                              axis_y=ay, dead_zone=0.05 if self.dead_zone is None
+                              else self.dead_zone, invert_x=bool(self.invert_x),
+                              invert_y=bool(self.invert_y))
+
+
+@dataclass
+class RunRequest:
+    """What ``tactorbelt run`` was asked. ``None``: not given (a default, or on resume the
+    session's stored value)."""
+
+    study_file: Path
+    participant: str
+    db: Path = Path("study.sqlite")
+    belt_url: str | None = None
+    input_kind: str | None = None
+    headless: bool | None = None
+    resume: bool = False
+    new_session: bool = False
+    limit: int | None = None
+    seed: int | None = None
+    realtime: bool | None = None
+    fullscreen: bool | None = None
+    screenshot_dir: Path | None = None
+    joystick: JoystickOptions = field(default_factory=JoystickOptions)
+
+
+#: What is stored with a session and reused on resume.
+_STORED = ("belt_url", "input_kind", "headless", "realtime", "fullscreen")
+
+
+@dataclass
+class RunOutcome:
+    """What :func:`run_study` did: the runner's result and the session's totals."""
+
+    result: SessionResult
+    db: Path
+    trials: list[dict[str, Any]]
+    resumed: bool
+
+    def summary(self) -> tuple[list[str], list[str]]:
+        """(lines for stdout, lines for stderr) of the end-of-run summary."""
+        r = self.result
+        out = [f"session {r.session_id}: {r.status}, {r.n_done}/{r.n_total} trials done "
+               f"({r.n_run} this run), stored in {self.db}"]
+        final = [t for t in self.trials if t["block"] == "test" and t["status"] != "aborted"]
+        out += _condition_lines(
+            [(t["condition"], bool(t["correct"]), t["rt_s"]) for t in final],
+            "  " if not self.resumed else "  session ")
+        if self.resumed:
+            mine = [(x.trial.condition, bool(x.correct), x.rt_s) for x in r.results
+                    if x.trial.block == "test" and x.status != "aborted"]
+            out += _condition_lines(mine, "  this run ") or ["  this run: no test trials"]
+        err = []
+        if r.status != "complete":
+            err.append(f"  continue with --resume (session {r.session_id})")
+        return out, err
+
+
+def _condition_lines(rows: list[tuple[str, bool, float | None]], prefix: str) -> list[str]:
+    lines = []
+    for cond in ("static", "dynamic"):
+        rs = [x for x in rows if x[0] == cond]
+        if rs:
+            acc = sum(1 for x in rs if x[1]) / len(rs)
+            rts = [x[2] for x in rs if x[2] is not None]
+            med = f"{statistics.median(rts):.2f} s" if rts else "n/a (no response)"
+            lines.append(f"{prefix}{cond:<8s} {len(rs):4d} test trials, accuracy {acc:.1%}, "
+                         f"median RT {med}")
+    return lines
+
+
+def has_display(environ: dict[str, str] | None = None, platform: str = sys.platform) -> bool:
+    """Whether a window can be shown: an explicit ``SDL_VIDEODRIVER`` (tests use
+    ``dummy``), or on Linux and the BSDs ``DISPLAY`` or ``WAYLAND_DISPLAY``."""
+    env = os.environ if environ is None else environ
+    if env.get("SDL_VIDEODRIVER"):
+        return True
+    if platform.startswith(("linux", "freebsd", "openbsd", "netbsd")):
+        return bool(env.get("DISPLAY") or env.get("WAYLAND_DISPLAY"))
+    return True
+
+
+def choose_clock(*, headless: bool, input_kind: str, belt_url: str, realtime: bool) -> Clock:
+    """A SimClock for a headless model or scripted run on the sim belt (not realtime);
+    else the wall clock."""
+    from .clock import SimClock, WallClock
+    from .devices import parse_url
+
+    scheme, _ = parse_url(belt_url)
+    simulated = headless and input_kind in ("model", "scripted") and not realtime \
+        and scheme == "sim"
+    return SimClock() if simulated else WallClock()
+
+
+def resume_command(req: RunRequest) -> str:
+    """The command that continues the participant's session (as a shell line)."""
+    return " ".join(["tactorbelt", "run", shlex.quote(str(req.study_file)), "--participant",
+                     shlex.quote(req.participant.strip()), "--db", shlex.quote(str(req.db)),
+                     "--resume"])
+
+
+def stored_options(store: Store, session: dict[str, Any]) -> dict[str, Any]:
+    """The run options stored with a session (older sessions: their input and belt)."""
+    row = store.conn.execute("SELECT value FROM meta WHERE key=?",
+                             (_META_KEY.format(session["session_id"]),)).fetchone()
+    if row is not None:
+        opts: dict[str, Any] = json.loads(row[0])
+        return opts
+    return {"input_kind": session.get("input"), "belt_url": session.get("belt")}
+
+
+def _store_options(store: Store, session_id: int, opts: dict[str, Any]) -> None:
+    store.conn.execute("INSERT OR REPLACE INTO meta(key, value) VALUES (?, ?)",
+                       (_META_KEY.format(session_id), json.dumps(opts)))
+
+
+def _resolve(req: RunRequest, stored: dict[str, Any]) -> RunRequest:
+    """The request with stored values for what it does not give, then the defaults."""
+    got = asdict(req)
+    if req.headless is None and req.input_kind in ("joystick", "mouse"):
+        got["headless"] = False  # a live input given again brings the window back
+    for name in _STORED:
+        if got[name] is None:
+            got[name] = stored.get(name)
+    joy = dict(stored.get("joystick") or {})
+    joy.update({k: v for k, v in got["joystick"].items() if v is not None})
+    got["joystick"] = JoystickOptions(**joy)
+    res = RunRequest(**got)
+    res.belt_url = res.belt_url or "sim"
+    res.headless = bool(res.headless)
+    res.realtime = bool(res.realtime)
+    res.fullscreen = bool(res.fullscreen)
+    if res.input_kind is None:
+        res.input_kind = "model" if res.headless else "joystick"
+    return res
+
+
+def _check_session(store: Store, req: RunRequest) -> dict[str, Any]:
+    """The session policy; returns the stored options to reuse."""
+    pid = req.participant
+    existing = store.find_resumable(pid)
+    if req.resume:
+        if existing is None:
+            raise StoreError(f"participant {pid!r} has no unfinished session in {req.db}; "
+                             "run without --resume to start one")
+        return stored_options(store, existing)
+    if existing is not None and not req.new_session:
+        done = len(store.finished_indices(existing["session_id"]))
+        raise StoreError(
+            f"participant {pid!r} has an unfinished session {existing['session_id']} in "
+            f"{req.db} ({done}/{existing['n_trials']} trials done, {existing['status']}); "
+            "continue it with --resume, or start another with --new-session")
+    complete = [s for s in store.sessions(pid) if s["status"] == "complete"]
+    if complete and not req.new_session:
+        raise StoreError(
+            f"participant {pid!r} has completed session {complete[-1]['session_number']} in "
+            f"{req.db}; start another session for them with --new-session (or check the "
+            "participant id)")
+    return {}
+
+
+class _RunObserver:
+    """Stores the run's options when the session starts, then forwards to ``inner``."""
+
+    def __init__(self, inner: Any, store: Store, opts: dict[str, Any], slow_s: float) -> None:
+        from .experiment.runner import NullObserver
+
+        self.inner = inner if inner is not None else NullObserver()
+        self.store, self.opts, self.slow_s = store, opts, slow_s
+
+    def on_session_start(self, info: SessionInfo, schedule: list[ScheduledTrial]) -> None:
+        _store_options(self.store, info.session_id, self.opts)
+        self.inner.on_session_start(info, schedule)
+
+    def on_trial_done(self, result: Any) -> None:
+        self.inner.on_trial_done(result)
+        if self.slow_s > 0:
+            time.sleep(self.slow_s)
+
+    def on_block_start(self, block: str, condition: str) -> None:
+        self.inner.on_block_start(block, condition)
+
+    def on_trial_state(self, trial: Any, state: Any, now_ns: int) -> None:
+        self.inner.on_trial_state(trial, state, now_ns)
+
+    def on_sample(self, sample: Any) -> None:
+        self.inner.on_sample(sample)
+
+    def on_break(self, n_done: int, n_total: int) -> None:
+        self.inner.on_break(n_done, n_total)
+
+    def on_session_end(self, status: str) -> None:
+        self.inner.on_session_end(status)
+
+    def poll(self, now_ns: int) -> Any:
+        return self.inner.poll(now_ns)
+
+
+def run_study(req: RunRequest, *, progress: Callable[[int, int], None] | None = None,
+              note: Callable[[str], None] | None = None) -> RunOutcome:
+    """Run ``tactorbelt run``'s session (see the module's docstring).
+
+    Args:
+        req: the options.
+        progress: ``progress(n_done, n_total)`` after each trial of a headless run.
+        note: called with a line of information for the experimenter.
+
+    Raises:
+        ConfigError: a participant id that is not allowed, options that exclude each
+            other, no display for the window.
+        StoreError, StudyFileError, DeviceError: as the store, the study file, the belt.
+        KeyboardInterrupt, Terminated: the run was stopped; the trial in flight is stored
+            ``aborted`` and the session can be resumed (:func:`resume_command`).
+    """
+    if not req.resume and not req.headless and not has_display():
+        _no_display()  # at once: before the heavy imports, the study and the store
+    from .devices import open_belt
+    from .experiment.runner import check_participant, run_session
+    from .experiment.store import Store
+    from .experiment.study import load_study
+    from .inputs import make_cursor
+
+    req.participant = check_participant(req.participant)
+    if req.resume and req.new_session:
+        raise ConfigError("--resume and --new-session exclude each other")
+    text = req.study_file.read_text(encoding="utf-8") if req.study_file.is_file() else None
+    study = load_study(req.study_file)
+    with Store.open(req.db) as store:
+        r = _resolve(req, _check_session(store, req))
+        assert r.input_kind is not None and r.belt_url is not None
+        if r.input_kind not in INPUTS:
+            raise ConfigError(f"unknown input {r.input_kind!r}; allowed: {', '.join(INPUTS)}")
+        if r.headless and r.input_kind in ("joystick", "mouse"):
+            raise ConfigError(f"--input {r.input_kind} needs the experiment window; drop "
+                              "--headless, or use --input model or --input scripted")
+        window = None if r.headless else _window_factory(r.input_kind, note)
+        if window is not None and not has_display():
+            _no_display()
+        headless = window is None
+        clock = choose_clock(headless=headless, input_kind=r.input_kind,
+                             belt_url=r.belt_url, realtime=bool(r.realtime))
+        opts = {k: getattr(r, k) for k in _STORED} | {"headless": headless,
+                                                      "joystick": asdict(r.joystick)}
+        if req.resume:
+            row = store.find_resumable(req.participant)
+            assert row is not None
+            schedule = store.schedule(int(row["session_id"]))
+            seed = int(row["seed"])
+        else:
+            seed = study.session.seed if r.seed is None else r.seed
+            schedule = None
+        slow_s = float(os.environ.get(SLOW_TRIAL_ENV, "0") or 0)
+        with open_belt(r.belt_url, clock=clock, layout=study.layout_obj()) as belt:
+            kwargs: dict[str, Any] = dict(seed=seed, resume=req.resume, limit=req.limit,
+                                          study_toml=text, input_name=r.input_kind)
+            cursor = None
+            if r.input_kind in ("model", "scripted"):
+                cursor = make_cursor(r.input_kind, study=study, belt=belt, clock=clock,
+                                     participant=req.participant, seed=seed,
+                                     schedule=schedule)
+            try:
+                if window is None:
+                    assert cursor is not None
+                    result = run_session(study, req.participant, belt, cursor, store, clock,
+                                         progress=progress,
+                                         observer=_RunObserver(None, store, opts, slow_s),
+                                         **kwargs)
+                else:
+                    with window(study, input=r.input_kind, participant=req.participant,
+                                clock=clock, belt=belt, fullscreen=r.fullscreen,
+                                screenshot_dir=r.screenshot_dir,
+                                joystick=r.joystick.config()) as win:
+                        src = cursor if cursor is not None else win.cursor
+                        if src is None:
+                            raise ConfigError(f"the window gave no cursor for --input "
+                                              f"{r.input_kind}")
+                        obs = _RunObserver(win.observer, store, opts, slow_s)
+                        result = win.run(lambda: run_session(
+                            study, req.participant, belt, src, store, clock, observer=obs,
+                            **kwargs))
+            finally:
+                if cursor is not None:
+                    cursor.close()
+        trials = store.trials(result.session_id)
+    return RunOutcome(result, req.db, trials, req.resume)
+
+
+def _no_display() -> None:
+    raise ConfigError("no display (DISPLAY and WAYLAND_DISPLAY are not set) for the "
+                      "experiment window; use --headless with --input model or scripted")
+
+
+def _window_factory(input_kind: str, note: Callable[[str], None] | None) -> Any:
+    """``tactorbelt.gui.session_window``, or None (headless) when it is not installed."""
+    try:
+        from .gui.window import session_window
+    except ImportError:
+        if input_kind in ("joystick", "mouse"):
+            raise ConfigError(
+                f"--input {input_kind} needs the experiment window (tactorbelt.gui), which "
+                "is not available in this installation; use --headless with --input model "
+                "or --input scripted") from None
+        if note is not None:
+            note("note: the experiment window is not available; running headless")
+        return None
+    return session_window
