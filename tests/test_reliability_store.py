@@ -121,7 +121,15 @@ def test_sigkill_at_20_random_moments_then_resume_holds_every_trial_once(tmp_pat
         args = _tactorbelt(*base, *(["--resume"] if has_session else []))
         proc = subprocess.Popen(args, env=env, stdout=subprocess.DEVNULL,
                                 stderr=subprocess.PIPE)
-        time.sleep(rng.uniform(0.0, 0.8))  # start-up takes about 0.2 s
+        # time the kill from when this run has opened the store (its pid is in the lock
+        # file; a killed run leaves its own behind), not from the start of the process:
+        # start-up time depends on the machine's load
+        lock = db.with_name(db.name + ".lock")
+        give_up = time.monotonic() + 30.0
+        while (proc.poll() is None and time.monotonic() < give_up
+               and not _holds_lock(lock, proc.pid)):
+            time.sleep(0.005)
+        time.sleep(rng.uniform(0.0, 0.6))
         proc.send_signal(signal.SIGKILL)
         _, err = proc.communicate()
         assert proc.returncode in (-signal.SIGKILL, 0), err
@@ -135,6 +143,13 @@ def test_sigkill_at_20_random_moments_then_resume_holds_every_trial_once(tmp_pat
                          check=False)
     assert out.returncode == 0, out.stderr
     assert check_store(db, study, "P05", complete=True) == study.n_trials()
+
+
+def _holds_lock(lock: Path, pid: int) -> bool:
+    try:
+        return lock.read_text().strip() == f"pid {pid}"
+    except OSError:
+        return False
 
 
 def _has_sessions_table(db: Path) -> bool:

@@ -24,7 +24,6 @@ The run's options are kept in the store's ``meta`` table under
 
 from __future__ import annotations
 
-import json
 import os
 import shlex
 import statistics
@@ -50,7 +49,6 @@ __all__ = ["RunOutcome", "RunRequest", "choose_clock", "has_display", "resume_co
 
 #: Seconds of real time added after each trial (to test interrupting a fast run).
 SLOW_TRIAL_ENV = "TACTORBELT_TEST_SLOW_TRIAL_S"
-_META_KEY = "run_options:{}"
 
 
 @dataclass
@@ -177,17 +175,10 @@ def resume_command(req: RunRequest) -> str:
 
 def stored_options(store: Store, session: dict[str, Any]) -> dict[str, Any]:
     """The run options stored with a session (older sessions: their input and belt)."""
-    row = store.conn.execute("SELECT value FROM meta WHERE key=?",
-                             (_META_KEY.format(session["session_id"]),)).fetchone()
-    if row is not None:
-        opts: dict[str, Any] = json.loads(row[0])
+    opts = store.run_options(session["session_id"])
+    if opts is not None:
         return opts
     return {"input_kind": session.get("input"), "belt_url": session.get("belt")}
-
-
-def _store_options(store: Store, session_id: int, opts: dict[str, Any]) -> None:
-    store.conn.execute("INSERT OR REPLACE INTO meta(key, value) VALUES (?, ?)",
-                       (_META_KEY.format(session_id), json.dumps(opts)))
 
 
 def _resolve(req: RunRequest, stored: dict[str, Any]) -> RunRequest:
@@ -245,7 +236,7 @@ class _RunObserver:
         self.store, self.opts, self.slow_s = store, opts, slow_s
 
     def on_session_start(self, info: SessionInfo, schedule: list[ScheduledTrial]) -> None:
-        _store_options(self.store, info.session_id, self.opts)
+        self.store.set_run_options(info.session_id, self.opts)
         self.inner.on_session_start(info, schedule)
 
     def on_trial_done(self, result: Any) -> None:
@@ -292,7 +283,7 @@ def run_study(req: RunRequest, *, progress: Callable[[int, int], None] | None = 
         _no_display()  # at once: before the heavy imports, the study and the store
     from .devices import open_belt
     from .experiment.runner import check_participant, run_session
-    from .experiment.store import Store
+    from .experiment.store import open_store
     from .experiment.study import load_study
     from .inputs import make_cursor
 
@@ -301,7 +292,7 @@ def run_study(req: RunRequest, *, progress: Callable[[int, int], None] | None = 
         raise ConfigError("--resume and --new-session exclude each other")
     text = req.study_file.read_text(encoding="utf-8") if req.study_file.is_file() else None
     study = load_study(req.study_file)
-    with Store.open(req.db) as store:
+    with open_store(req.db) as store:
         r = _resolve(req, _check_session(store, req))
         assert r.input_kind is not None and r.belt_url is not None
         if r.input_kind not in INPUTS:

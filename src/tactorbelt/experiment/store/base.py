@@ -196,6 +196,15 @@ class Store(abc.ABC):
     def sessions(self, participant: str | None = None) -> list[dict[str, Any]]:
         """Every session (of one participant) as a dict of its columns, oldest first."""
 
+    @abc.abstractmethod
+    def set_run_options(self, session_id: int, options: Mapping[str, Any]) -> None:
+        """Keep how a session was run (input, belt, window options; JSON values), so a
+        resume can reuse them. Replaces what was kept before."""
+
+    @abc.abstractmethod
+    def run_options(self, session_id: int) -> dict[str, Any] | None:
+        """The options kept by :meth:`set_run_options`, or None (older sessions)."""
+
     def session(self, session_id: int) -> dict[str, Any]:
         """One session row as a dict."""
         for s in self.sessions():

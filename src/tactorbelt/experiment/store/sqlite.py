@@ -65,6 +65,8 @@ __all__ = ["APPLICATION_ID", "SQLiteStore", "create_bare_store", "move_store_fil
 APPLICATION_ID = 0x54424C54
 #: Files SQLite may keep next to the store while it is open (or after a crash).
 SIDE_SUFFIXES = ("-wal", "-shm", "-journal")
+#: meta key of the run options kept with a session (input, belt, window options).
+_RUN_OPTIONS_KEY = "run_options:{}"
 _TABLES = ("sessions", "trials", "samples")
 
 _SCHEMA = """
@@ -509,6 +511,19 @@ class SQLiteStore(Store):
         with self._transaction() as c:
             c.execute("UPDATE sessions SET status='running', ended_at=NULL, resumed=resumed+1"
                       " WHERE session_id=?", (session_id,))
+
+    def set_run_options(self, session_id: int, options: Mapping[str, Any]) -> None:
+        with self._transaction() as c:
+            c.execute("INSERT OR REPLACE INTO meta(key, value) VALUES (?, ?)",
+                      (_RUN_OPTIONS_KEY.format(session_id), json.dumps(dict(options))))
+
+    def run_options(self, session_id: int) -> dict[str, Any] | None:
+        rows = self._query("SELECT value FROM meta WHERE key=?",
+                           (_RUN_OPTIONS_KEY.format(session_id),))
+        if not rows:
+            return None
+        opts: dict[str, Any] = json.loads(rows[0][0])
+        return opts
 
     def set_status(self, session_id: int, status: str) -> None:
         """Set a session's status; any status but ``running`` also sets ``ended_at``."""
