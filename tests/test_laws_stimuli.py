@@ -261,3 +261,17 @@ def test_bad_stimulus_arguments(kwargs, match):
     args = {"target_deg": 15.0} | kwargs
     with pytest.raises(ConfigError, match=match):
         make_stimulus(Layout.even(6), **args)
+
+
+def test_every_law_name_has_a_function_and_is_offered_by_the_cli() -> None:
+    """A law is one name in _lawnames and one function in LAW_FUNCTIONS; the CLI lists it."""
+    from click.testing import CliRunner
+
+    from tactorbelt._lawnames import LAWS
+    from tactorbelt.cli import main
+    from tactorbelt.laws import LAW_FUNCTIONS
+
+    assert tuple(LAW_FUNCTIONS) == LAWS
+    out = CliRunner().invoke(main, ["render", "--help"]).output
+    for law in LAWS:
+        assert law in out

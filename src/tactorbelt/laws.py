@@ -27,17 +27,19 @@ Pure: imports only NumPy and tactorbelt.geometry.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import Final
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ._errors import ConfigError
+from ._lawnames import LAWS
 from .geometry import Layout, wrap
 
-__all__ = ["DEFAULT_FALLOFF_DEG", "LAWS", "ROUNDING_FLOOR_DEG", "amplitudes", "check_law"]
+__all__ = ["DEFAULT_FALLOFF_DEG", "LAWS", "LAW_FUNCTIONS", "ROUNDING_FLOOR_DEG", "amplitudes",
+           "check_law"]
 
-LAWS: Final = ("paper", "linear", "energy")
 DEFAULT_FALLOFF_DEG: Final = 15.0
 #: A tactor is off where ``s - D`` is at most this (degrees): rounding, not geometry.
 ROUNDING_FLOOR_DEG: Final = 1e-10
@@ -88,11 +90,31 @@ def amplitudes(
     check_law(law, falloff_deg)
     dist, spacing = _distances(layout, x)
     off = spacing - dist <= ROUNDING_FLOOR_DEG  # at (or past) the neighbour: exactly 0
-    if law == "paper":
-        with np.errstate(over="ignore"):  # far tactors: exp overflows to inf, clipped to 0
-            y = 1.0 - np.exp(-(spacing - dist) / falloff_deg)
-        return np.asarray(np.where(off, 0.0, np.clip(y, 0.0, 1.0)))
-    lin = np.where(off, 0.0, np.clip(1.0 - dist / spacing, 0.0, 1.0))
-    if law == "linear":
-        return np.asarray(lin)
-    return np.asarray(np.sqrt(lin))
+    y = LAW_FUNCTIONS[law](dist, spacing, falloff_deg)
+    return np.asarray(np.where(off, 0.0, np.clip(y, 0.0, 1.0)))
+
+
+def _paper(dist: NDArray[np.float64], spacing: NDArray[np.float64],
+           falloff_deg: float) -> NDArray[np.float64]:
+    with np.errstate(over="ignore"):  # far tactors: exp overflows to inf, clipped to 0
+        return np.asarray(1.0 - np.exp(-(spacing - dist) / falloff_deg))
+
+
+def _linear(dist: NDArray[np.float64], spacing: NDArray[np.float64],
+            falloff_deg: float) -> NDArray[np.float64]:
+    return np.asarray(np.clip(1.0 - dist / spacing, 0.0, 1.0))
+
+
+def _energy(dist: NDArray[np.float64], spacing: NDArray[np.float64],
+            falloff_deg: float) -> NDArray[np.float64]:
+    return np.asarray(np.sqrt(_linear(dist, spacing, falloff_deg)))
+
+
+#: Each law's amplitude before the off mask and the clip to [0, 1]: ``f(D, s, falloff)``,
+#: vectorised. The keys are exactly :data:`LAWS`.
+LAW_FUNCTIONS: Final[dict[str, Callable[[NDArray[np.float64], NDArray[np.float64], float],
+                                         NDArray[np.float64]]]] = {
+    "paper": _paper,
+    "linear": _linear,
+    "energy": _energy,
+}

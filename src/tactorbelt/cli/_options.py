@@ -27,6 +27,7 @@ from typing import TYPE_CHECKING, Any, TypeVar
 import click
 
 from .._errors import ConfigError
+from .._lawnames import LAWS
 
 if TYPE_CHECKING:
     from ..devices.base import Belt
@@ -67,7 +68,7 @@ def stimulus_options(func: F) -> F:
     options = [
         click.option("--mode", type=click.Choice(["static", "dynamic"]), default="static",
                      show_default=True, help="Static amplitudes or the dynamic perturbation."),
-        click.option("--law", type=click.Choice(["paper", "linear", "energy"]),
+        click.option("--law", type=click.Choice(LAWS),
                      default="paper", show_default=True, help="Amplitude law."),
         click.option("--falloff", default="15", show_default=True,
                      help="T of the paper law, degrees."),

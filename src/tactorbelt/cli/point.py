@@ -18,6 +18,7 @@ from typing import Any
 import click
 
 from .._errors import ConfigError
+from .._lawnames import LAWS
 from ..heading import HeadingReader, HeadingSample, read_headings
 from ._options import belt_option, parse_number
 
@@ -41,7 +42,7 @@ __all__ = ["HeadingReader", "HeadingSample", "point"]
 @click.option("--seconds", default=None, help="Stop after this many seconds.")
 @click.option("--mode", type=click.Choice(["static", "dynamic"]), default="static",
               show_default=True, help="Static amplitudes or the dynamic perturbation.")
-@click.option("--law", type=click.Choice(["paper", "linear", "energy"]), default="paper",
+@click.option("--law", type=click.Choice(LAWS), default="paper",
               show_default=True, help="Amplitude law.")
 @click.option("--falloff", default="15", show_default=True,
               help="T of the paper law, degrees.")

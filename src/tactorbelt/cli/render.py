@@ -9,6 +9,7 @@ from typing import Any
 
 import click
 
+from .._lawnames import LAWS
 from ._options import AngleCommand, build_stimulus, parse_number, stimulus_options
 
 
@@ -81,7 +82,7 @@ def figure() -> None:
 
 
 @figure.command("amplitudes")
-@click.option("--law", type=click.Choice(["paper", "linear", "energy"]), default="paper",
+@click.option("--law", type=click.Choice(LAWS), default="paper",
               show_default=True, help="Amplitude law.")
 @click.option("--falloff", default=15.0, show_default=True, type=float,
               help="T of the paper law, degrees.")
