@@ -10,11 +10,12 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterator
+from functools import partial
 
 import numpy as np
 import pytest
 
-from support.belts import EXTRA_FACTORIES, FACTORIES, Harness
+from support.belts import EXTRA_FACTORIES, FACTORIES, Harness, url_harness
 from tactorbelt import ConfigError, TactorbeltError
 from tactorbelt.clock import Clock
 from tactorbelt.devices.calibration import Calibration, TactorCalibration
@@ -29,9 +30,11 @@ TOL = 2.0 / 65535.0
 
 def _factory(case: str):  # type: ignore[no-untyped-def]
     factory = FACTORIES.get(case) or EXTRA_FACTORIES.get(case)
+    if factory is None and case in BACKENDS and BACKENDS[case].contract_url is not None:
+        return partial(url_harness, BACKENDS[case].contract_url)
     if factory is None:
-        pytest.fail(f"belt backend {case!r} is registered but tests/support/belts.py has no "
-                    "harness factory for it: add one to FACTORIES")
+        pytest.fail(f"belt backend {case!r} is registered with no contract_url and "
+                    "tests/support/belts.py has no harness factory for it: add one")
     return factory
 
 
@@ -50,7 +53,7 @@ def _off(h: Harness) -> bool:
 
 
 def test_every_registered_backend_has_a_harness() -> None:
-    missing = [s for s in BACKENDS if s not in FACTORIES]
+    missing = [s for s in BACKENDS if s not in FACTORIES and BACKENDS[s].contract_url is None]
     assert not missing, (f"registered belt backend(s) {missing} have no harness factory in "
                          "tests/support/belts.py FACTORIES; the contract suite cannot cover them")
 
@@ -252,3 +255,21 @@ def test_every_command_lists_every_registered_backend_in_its_belt_help(command: 
     for backend in BACKENDS.values():
         for example in backend.examples:
             assert example in result.output, (command, example)
+
+
+def test_a_backend_with_a_contract_url_is_covered_with_no_test_code(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """Registering a backend (with a URL that opens without hardware) is all it takes."""
+    from tactorbelt.devices.registry import Backend
+
+    monkeypatch.setitem(BACKENDS, "newbelt", Backend(
+        "newbelt", "tactorbelt.devices.sim:open_sim", "a new backend", ("newbelt",),
+        contract_url="newbelt"))
+    h = _factory("newbelt")()
+    try:
+        with h.belt as belt:
+            belt.set_amplitudes([0.5] * belt.n_tactors)
+            assert h.device_levels() == pytest.approx([0.5] * belt.n_tactors)
+        assert _off(h)
+    finally:
+        h.cleanup()

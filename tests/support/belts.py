@@ -411,6 +411,20 @@ def loop_harness(**options: Any) -> Harness:
     return Harness(belt, _synced(belt, lambda: device.levels))
 
 
+def url_harness(url: str, **options: Any) -> Harness:
+    """A belt opened by its registered ``contract_url``; the device side is read as the
+    belt's own ``levels`` (the backend declares no fake device to read instead)."""
+    from tactorbelt.devices import open_belt
+
+    belt = open_belt(url, **options)
+
+    def levels() -> list[float]:
+        lv = belt.levels
+        return [0.0] * belt.n_tactors if lv is None else [float(v) for v in lv]
+
+    return Harness(belt, levels)
+
+
 #: scheme -> harness factory. Every registered scheme needs one (the contract suite
 #: fails for a scheme without): a new backend adds its fake here.
 FACTORIES: dict[str, Callable[..., Harness]] = {

@@ -100,6 +100,11 @@ class Backend:
     docs: str = "docs/devices.md"
     #: the URL forms an unknown-scheme error lists (default: :attr:`usage`).
     allowed: tuple[str, ...] = ()
+    #: a URL that opens this backend on a machine with no hardware (a dummy device or
+    #: server the backend brings), so the belt contract suite covers it with no code of
+    #: its own; None when the suite needs a harness with a fake device
+    #: (tests/support/belts.py).
+    contract_url: str | None = None
 
     @property
     def needs_target(self) -> bool:
