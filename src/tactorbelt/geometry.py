@@ -25,6 +25,7 @@ __all__ = [
     "TargetSet",
     "normalize",
     "parse_angle",
+    "region_name",
     "wrap",
 ]
 
@@ -257,3 +258,13 @@ def as_layout(layout: Layout | int | Sequence[float] | None) -> Layout:
     if isinstance(layout, int | np.integer):
         return Layout.even(int(layout))
     return Layout.from_angles(layout)
+
+
+_REGIONS = ("front", "right-front", "right", "right-back", "back", "left-back", "left",
+            "left-front")
+
+
+def region_name(angle_deg: float) -> str:
+    """The body region of an angle: 8 sectors of 45 degrees centred on 0, 45, ..."""
+    k = int(((float(angle_deg) % 360.0) + 22.5) // 45.0) % 8
+    return _REGIONS[k]

@@ -6,11 +6,10 @@ transit), the belt (``--belt URL``, ``--calibration FILE``) and a negative ANGLE
   (its ``layout`` is the layout asked for); ``layout_given(**opts)`` says whether the
   user chose a layout.
 - ``@belt_option()`` adds --belt (help from the backend registry), ``@belt_options``
-  --belt and --calibration; ``open_belt_for(url, stimulus, ...)``
-  opens the belt for a stimulus (the layout the user gave, or the belt's own).
+  --belt and --calibration (``tactorbelt.devices.open_belt_for`` opens the belt for a
+  stimulus).
 - ``AngleCommand``: a click command class whose ANGLE argument may be negative
   (``tactorbelt play -30``) without ``--``.
-- ``region_name(angle)``: ``front``, ``right-front``, ..., for messages.
 
 Every bad value becomes a ConfigError (or click.BadParameter), which the CLI prints
 as ``error: ...`` with exit code 2. Imports click at module level; NumPy and the
@@ -30,7 +29,6 @@ from .._errors import ConfigError
 from .._lawnames import LAWS
 
 if TYPE_CHECKING:
-    from ..devices.base import Belt
     from ..devices.calibration import Calibration
     from ..geometry import Layout
     from ..stimuli import Stimulus
@@ -45,9 +43,7 @@ __all__ = [
     "build_stimulus",
     "layout_given",
     "load_calibration",
-    "open_belt_for",
     "parse_number",
-    "region_name",
     "stimulus_options",
 ]
 
@@ -154,66 +150,6 @@ def load_calibration(path: str | None) -> Calibration | None:
     from ..devices.calibration import Calibration
 
     return Calibration.load(path)
-
-
-def open_belt_for(url: str, stimulus: Stimulus | None = None, *, explicit_layout: bool = False,
-                  calibration: Calibration | None = None,
-                  calibration_file: str | None = None) -> tuple[Belt, Stimulus | None]:
-    """Open the belt at ``url`` for ``stimulus``.
-
-    With ``explicit_layout`` the belt is opened with the stimulus's layout (the sim belt
-    takes it; a hardware belt must have as many tactors). Otherwise the belt keeps its
-    own layout and the stimulus is remade on it.
-
-    Returns:
-        The open belt (use it as a context manager) and the stimulus to play on it.
-
-    Raises:
-        ConfigError: an unknown URL, or a calibration or layout that does not fit.
-    """
-    from ..devices import open_belt, parse_url
-    from ..stimuli import make_stimulus
-
-    parse_url(url)  # an unknown scheme fails before anything is opened
-    where = f"calibration file {calibration_file!r}" if calibration_file else "the calibration"
-    options: dict[str, Any] = {}
-    if calibration is not None:
-        options["calibration"] = calibration
-    if explicit_layout and stimulus is not None:
-        if calibration is not None and calibration.n != stimulus.layout.n:
-            raise ConfigError(f"{where} has {calibration.n} tactors but the layout asked for "
-                              f"has {stimulus.layout.n}")
-        options["layout"] = stimulus.layout
-    try:
-        belt = open_belt(url, **options)
-    except ConfigError as exc:
-        if calibration is not None and "calibration has" in str(exc):
-            raise ConfigError(f"{where} does not fit belt {url!r}: {exc}") from None
-        raise
-    try:
-        if stimulus is None:
-            return belt, None
-        if explicit_layout and belt.n_tactors != stimulus.layout.n:
-            raise ConfigError(f"belt {url!r} has {belt.n_tactors} tactors but the stimulus "
-                              f"was asked for {stimulus.layout.n} (--tactors/--tactor-angles)")
-        if not explicit_layout and belt.layout != stimulus.layout:
-            stimulus = make_stimulus(belt.layout, stimulus.target_deg, stimulus.mode,
-                                     stimulus.law, stimulus.falloff_deg, stimulus.period_s,
-                                     stimulus.transit_s)
-        return belt, stimulus
-    except BaseException:
-        belt.close()
-        raise
-
-
-_REGIONS = ("front", "right-front", "right", "right-back", "back", "left-back", "left",
-            "left-front")
-
-
-def region_name(angle_deg: float) -> str:
-    """The body region of an angle: 8 sectors of 45 degrees centred on 0, 45, ..."""
-    k = int(((float(angle_deg) % 360.0) + 22.5) // 45.0) % 8
-    return _REGIONS[k]
 
 
 _NEGATIVE = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$")

@@ -7,8 +7,7 @@
 - ``calibrate``: walk an experimenter through each tactor (the level where it is first
   felt, then a comfortable maximum) and write a calibration file.
 
-Every path ends with the motors off (the belt is a context manager); Ctrl-C stops the
-motors and exits with code 130. Heavy imports happen inside the commands.
+Every path ends with the motors off; Ctrl-C exits 130. Heavy imports are inside commands.
 """
 
 from __future__ import annotations
@@ -20,6 +19,7 @@ from typing import TYPE_CHECKING, Any
 
 import click
 
+from ..devices import open_belt_for
 from ._options import (
     AngleCommand,
     belt_option,
@@ -27,8 +27,6 @@ from ._options import (
     build_stimulus,
     layout_given,
     load_calibration,
-    open_belt_for,
-    region_name,
     stimulus_options,
 )
 
@@ -124,6 +122,8 @@ def belt_test(belt_url: str, calibration_file: str | None, seconds_each: float, 
     if not (math.isfinite(level) and 0 < level <= 1):
         raise click.BadParameter(f"must be in (0, 1], got {level!r}", param_hint="--level")
     calibration = load_calibration(calibration_file)
+    from ..geometry import region_name
+
     belt, _ = open_belt_for(belt_url, None, calibration=calibration,
                             calibration_file=calibration_file)
     with belt:
@@ -179,6 +179,8 @@ def calibrate(belt_url: str, output: str | None, step: float) -> None:
     if not (math.isfinite(step) and 0 < step <= 0.5):
         raise click.BadParameter(f"must be in (0, 0.5], got {step!r}", param_hint="--step")
     keys = _Keys()
+    from ..geometry import region_name
+
     belt, _ = open_belt_for(belt_url, None)
     with belt:
         clock = belt.clock or WallClock()

@@ -21,9 +21,11 @@ from .._errors import ConfigError
 from .registry import BACKENDS, parse_url, resolve
 
 if TYPE_CHECKING:
+    from ..stimuli import Stimulus
     from .base import Belt
+    from .calibration import Calibration
 
-__all__ = ["BACKENDS", "Belt", "open_belt", "parse_url"]
+__all__ = ["BACKENDS", "Belt", "open_belt", "open_belt_for", "parse_url"]
 
 
 def open_belt(url: str = "sim", **options: Any) -> Belt:
@@ -52,3 +54,52 @@ def __getattr__(name: str) -> Any:
     if name == "Belt":
         return importlib.import_module(f"{__name__}.base").Belt
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def open_belt_for(url: str, stimulus: Stimulus | None = None, *, explicit_layout: bool = False,
+                  calibration: Calibration | None = None,
+                  calibration_file: str | None = None) -> tuple[Belt, Stimulus | None]:
+    """Open the belt at ``url`` for ``stimulus``.
+
+    With ``explicit_layout`` the belt is opened with the stimulus's layout (the sim belt
+    takes it; a hardware belt must have as many tactors). Otherwise the belt keeps its
+    own layout and the stimulus is remade on it.
+
+    Returns:
+        The open belt (use it as a context manager) and the stimulus to play on it.
+
+    Raises:
+        ConfigError: an unknown URL, or a calibration or layout that does not fit.
+    """
+    from ..stimuli import make_stimulus
+
+    parse_url(url)  # an unknown scheme fails before anything is opened
+    where = f"calibration file {calibration_file!r}" if calibration_file else "the calibration"
+    options: dict[str, Any] = {}
+    if calibration is not None:
+        options["calibration"] = calibration
+    if explicit_layout and stimulus is not None:
+        if calibration is not None and calibration.n != stimulus.layout.n:
+            raise ConfigError(f"{where} has {calibration.n} tactors but the layout asked for "
+                              f"has {stimulus.layout.n}")
+        options["layout"] = stimulus.layout
+    try:
+        belt = open_belt(url, **options)
+    except ConfigError as exc:
+        if calibration is not None and "calibration has" in str(exc):
+            raise ConfigError(f"{where} does not fit belt {url!r}: {exc}") from None
+        raise
+    try:
+        if stimulus is None:
+            return belt, None
+        if explicit_layout and belt.n_tactors != stimulus.layout.n:
+            raise ConfigError(f"belt {url!r} has {belt.n_tactors} tactors but the stimulus "
+                              f"was asked for {stimulus.layout.n} (--tactors/--tactor-angles)")
+        if not explicit_layout and belt.layout != stimulus.layout:
+            stimulus = make_stimulus(belt.layout, stimulus.target_deg, stimulus.mode,
+                                     stimulus.law, stimulus.falloff_deg, stimulus.period_s,
+                                     stimulus.transit_s)
+        return belt, stimulus
+    except BaseException:
+        belt.close()
+        raise
