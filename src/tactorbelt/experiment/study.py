@@ -20,6 +20,7 @@ import itertools
 import math
 import re
 import tomllib
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
 
@@ -31,6 +32,7 @@ from ..geometry import Layout, TargetSet
 __all__ = [
     "CONDITIONS",
     "BlockSpec",
+    "Cell",
     "DesignSpec",
     "LayoutSpec",
     "QuestionnaireSpec",
@@ -38,12 +40,15 @@ __all__ = [
     "SessionSpec",
     "StimulusSpec",
     "Study",
+    "StudyDescription",
     "TargetsSpec",
     "TaskSpec",
     "TrainingSpec",
+    "describe",
     "load_study",
     "paper_study",
     "plural",
+    "template_toml",
 ]
 
 Condition = Literal["static", "dynamic"]
@@ -714,3 +719,209 @@ repetitions = 5
 def paper_study() -> Study:
     """The paper's protocol: 6 tactors, 24 targets, T = 15, training, static and dynamic blocks."""
     return Study.from_toml(PAPER_STUDY_TOML, path="<paper study>")
+
+
+# -- the resolution study ------------------------------------------------------------
+
+RESOLUTION_STUDY_TOML = '''\
+# tactorbelt study file: how finely can directions be told apart between tactors?
+# A full factorial of target resolution (12, 24, 36, 48 targets) x condition (static,
+# dynamic), each cell one test block, ordered across participants by a balanced Latin
+# square (Williams). Check it with
+#   tactorbelt study check THIS_FILE
+# Angles are degrees, 0 = navel (front), growing clockwise seen from above.
+
+name = "between-tactor-resolution"
+description = "6 tactors; 12/24/36/48 targets x static/dynamic; Williams order"
+
+[layout]
+tactors = 6               # evenly spaced at 180/N + k*360/N
+
+[targets]
+count = 24                # not used by the [design] blocks (they set their own counts)
+
+[stimulus]
+law = "paper"             # paper | linear | energy
+falloff_deg = 15.0        # T of the paper's Eq. 1
+period_s = 1.0            # period of the dynamic perturbation
+transit_s = 0.1           # time to move between the two tactors (2*transit < period)
+max_presentation_s = 10.0 # the stimulus stops at acquisition or after this long
+
+[response]
+home_radius = 0.15        # the cursor must be this close to the centre to start a trial
+threshold = 0.9           # acquisition: distance from the centre passes this, in (0, 1]
+dwell_s = 0.0             # ... and stays beyond it this long (0 = at once)
+timeout_s = 10.0          # no acquisition this long after onset: the trial times out
+
+[session]
+seed = 1                  # randomisation seed (with the participant id); --seed overrides
+iti_s = 1.0               # inter-trial interval
+break_every = 60          # a break after every N trials (0 = no breaks)
+randomise = "per_repetition"  # per_repetition (each pass a new permutation) | full | none
+sample_rate_hz = 100.0    # cursor sampling rate
+
+[training]
+# Before the first test block, each target of every count (12, then 24, 36, 48) is
+# felt while its location is shown; the participant points at it.
+passes = 1                # 0 = no training
+conditions = ["static", "dynamic"]
+order = "sequential"      # sequential (around the belt) | random
+
+[design]
+# One test block per cell: 4 target counts x 2 conditions = 8 blocks.
+targets = [12, 24, 36, 48]     # targets at k*360/count
+condition = ["static", "dynamic"]
+load = ["none"]                # "none" or the name of a [tasks.NAME] table
+repetitions = 2                # every target of a block this many times
+order = "williams"             # williams | latin | fixed | random (across participants)
+
+# A secondary task, used by naming it in design.load (e.g. load = ["none", "nback2"]):
+# [tasks.nback2]
+# kind = "nback"               # nback | arithmetic | none
+# n = 2
+# modality = "auditory"        # auditory | visual
+# interval_s = 2.5
+
+# [questionnaire]
+# tlx = true                   # raw NASA-TLX after each test block
+'''
+
+TEMPLATES: dict[str, str] = {"paper": PAPER_STUDY_TOML, "resolution": RESOLUTION_STUDY_TOML}
+
+
+def template_toml(name: str = "paper") -> str:
+    """The commented TOML of a study template: ``paper`` or ``resolution``.
+
+    Raises:
+        ConfigError: an unknown template name (the message lists the names).
+    """
+    try:
+        return TEMPLATES[name]
+    except KeyError:
+        raise ConfigError(f"unknown study template {name!r}; use one of: "
+                          f"{', '.join(TEMPLATES)}") from None
+
+
+# -- what `study check` prints -------------------------------------------------------
+
+
+def _minutes(seconds: float) -> str:
+    m, s = divmod(round(seconds), 60)
+    return f"{m} min {s:02d} s" if m else f"{s} s"
+
+
+@dataclass(frozen=True)
+class Cell:
+    """One cell of the test design (one test block)."""
+
+    block: str
+    n_targets: int
+    condition: str
+    load: str
+    repetitions: int
+
+    @property
+    def trials(self) -> int:
+        return self.n_targets * self.repetitions
+
+
+@dataclass(frozen=True)
+class StudyDescription:
+    """What ``tactorbelt study check`` reports about a study (:func:`describe`).
+
+    Attributes:
+        study: the study.
+        participant: whose block order ``order`` is.
+        cells: the test blocks in the file's (canonical) order.
+        order: the block labels in the participant's running order.
+        order_rule: ``design.order`` or ``session.condition_order``.
+        balance_participants: participants per complete balance of the order.
+        n_breaks: breaks in a session.
+        duration_s, max_duration_s: the estimate with 2 s responses, and with every
+            trial timing out.
+    """
+
+    study: Study
+    participant: str
+    cells: tuple[Cell, ...]
+    order: tuple[str, ...]
+    order_rule: str
+    balance_participants: int
+    n_breaks: int
+    duration_s: float
+    max_duration_s: float
+
+    def to_text(self) -> str:
+        """The report as lines of text (two-space indent; the CLI prints 'FILE: ok' first)."""
+        s = self.study
+        layout = s.layout_obj()
+        counts = s.target_counts()
+        out = [f"  study       {s.name}",
+               f"  layout      {plural(layout.n, 'tactor')} at "
+               f"{', '.join(f'{a:g}' for a in layout.angles_deg)} deg"]
+        for n in counts:
+            on = int(TargetSet.even(n).on_tactor(layout).sum())
+            out.append(f"  targets     {n} ({on} on-tactor, {n - on} between-tactor)")
+        st = s.stimulus
+        out.append(f"  stimulus    law {st.law}, falloff {st.falloff_deg:g} deg, period "
+                   f"{st.period_s:g} s, transit {st.transit_s:g} s, at most "
+                   f"{st.max_presentation_s:g} s")
+        r = s.response
+        out.append(f"  response    home {r.home_radius:g}, threshold {r.threshold:g}, dwell "
+                   f"{r.dwell_s:g} s, timeout {r.timeout_s:g} s")
+        if s.design is not None:
+            d = s.design
+            out.append(f"  design      {plural(len(d.targets), 'target count')} x "
+                       f"{plural(len(d.condition), 'condition')} x "
+                       f"{plural(len(d.load), 'load')} = {plural(len(self.cells), 'cell')}, "
+                       f"{plural(d.repetitions, 'repetition')} of every target")
+        out.append("  blocks")
+        tr = s.training
+        n_tr = s.n_training_trials()
+        width = max(9, *(len(c.block) for c in self.cells))
+        if n_tr:
+            tgt = (plural(counts[0], "target") if len(counts) == 1
+                   else f"({' + '.join(str(n) for n in counts)}) targets")
+            out.append(f"    {'training':<{width}s} {n_tr:4d} trials "
+                       f"({plural(tr.passes, 'pass')} x "
+                       f"{plural(len(tr.conditions), 'condition')} x {tgt}, {tr.order})")
+        for c in self.cells:
+            load = "" if c.load == "none" else f", load {c.load}"
+            out.append(f"    {c.block:<{width}s} {c.trials:4d} trials "
+                       f"({c.condition}{load}, {plural(c.repetitions, 'repetition')} x "
+                       f"{plural(c.n_targets, 'target')})")
+        out.append(f"  total       {s.n_trials()} trials ({s.n_test_trials()} test)")
+        out.append(f"  order       {self.order_rule} (balanced over "
+                   f"{plural(self.balance_participants, 'participant')}); "
+                   f"{self.participant}: {' -> '.join(self.order)}")
+        out.append(f"  breaks      {self.n_breaks} (every {s.session.break_every} trials)"
+                   if self.n_breaks else "  breaks      none")
+        out.append(f"  duration    about {_minutes(self.duration_s)} "
+                   f"(2 s per response + {s.session.iti_s:g} s ITI per trial + 1 min per "
+                   f"break); at most {_minutes(self.max_duration_s)}")
+        return "\n".join(out)
+
+
+def describe(study: Study, participant: str = "P01", seed: int | None = None) -> StudyDescription:
+    """The ``study check`` report: cells, trials per cell, block order, duration.
+
+    Also builds the participant's schedule, so a study that cannot be scheduled fails
+    here. ``seed`` (default ``session.seed``) matters for ``design.order = "random"``.
+    """
+    from .schedule import block_order, make_schedule, order_rows, order_rule
+
+    cells = tuple(Cell(b.label, study.block_n_targets(b), b.condition, b.load, b.repetitions)
+                  for b in study.test)
+    idx = block_order(study, participant, seed)
+    rule = order_rule(study)
+    n = study.n_trials()
+    every = study.session.break_every
+    make_schedule(study, participant, seed)
+    return StudyDescription(
+        study=study, participant=participant, cells=cells,
+        order=tuple(study.test[i].label for i in idx), order_rule=rule,
+        balance_participants=order_rows(rule, len(cells)),
+        n_breaks=(n - 1) // every if every else 0,
+        duration_s=study.estimate_duration_s(),
+        max_duration_s=study.estimate_duration_s(response_s=study.response.timeout_s),
+    )
