@@ -8,11 +8,19 @@ estimated here from a matrix of counts ``n_ij`` (rows: the stimulus, columns: th
 response). The plug-in (maximum-likelihood) estimate :func:`information_transfer`
 is biased upwards for small N (it is positive on average even when stimulus and
 response are independent). :func:`miller_madow_transfer` subtracts the first-order
-bias, ``(R - 1)(C - 1) / (2 N ln 2)`` bits, where R and C count the non-empty rows
-and columns (Miller 1955; Panzeri & Treves 1996, "Analytical estimates of limited
-sampling biases in different information measures", Network 7:87-107). The
-corrected value may be slightly negative; it is not clipped, so that averages over
-participants stay unbiased.
+bias of ``IT = H(R) - H(R|S)``, the Miller-Madow correction applied to each entropy
+(Miller 1955; Panzeri & Treves 1996, "Analytical estimates of limited sampling biases
+in different information measures", Network 7:87-107, Eq. 8 with naive bin counting):
+
+    bias = ( sum_s (R_s - 1) - (R - 1) ) / (2 N ln 2)   bits,
+
+where R_s counts the non-empty cells of stimulus row s and R the non-empty response
+columns. When every cell is non-empty this is ``(rows - 1)(cols - 1) / (2 N ln 2)``,
+the textbook form; counting only the cells that occur keeps the correction from
+overshooting on sparse matrices (a participant who confuses only neighbours), where
+the textbook form can subtract more bits than the matrix holds. The corrected value
+may be slightly negative; it is not clipped, so averages over participants stay
+unbiased.
 
 Pure: NumPy only.
 """
@@ -64,17 +72,19 @@ def information_transfer(counts: np.ndarray | Sequence[Sequence[float]]) -> floa
 
 
 def miller_madow_bias(counts: np.ndarray | Sequence[Sequence[float]]) -> float:
-    """The first-order bias of the plug-in estimate, ``(R-1)(C-1) / (2 N ln 2)`` bits.
+    """The first-order bias of the plug-in estimate in bits (see the module docstring).
 
-    R and C are the numbers of non-empty rows and columns; 0 for an empty matrix.
+    ``(sum_s (R_s - 1) - (R - 1)) / (2 N ln 2)`` with R_s the non-empty cells of row s
+    (over the non-empty rows) and R the non-empty columns; 0 for an empty matrix.
     """
     m = _counts(counts)
     n = m.sum()
     if n <= 0:
         return 0.0
-    r = int(np.count_nonzero(m.sum(axis=1)))
-    c = int(np.count_nonzero(m.sum(axis=0)))
-    return (r - 1) * (c - 1) / (2.0 * n * math.log(2.0))
+    rows = m[m.sum(axis=1) > 0]
+    per_row = np.count_nonzero(rows, axis=1)
+    cols = int(np.count_nonzero(m.sum(axis=0)))
+    return float(np.sum(per_row - 1) - (cols - 1)) / (2.0 * n * math.log(2.0))
 
 
 def miller_madow_transfer(counts: np.ndarray | Sequence[Sequence[float]]) -> float:
