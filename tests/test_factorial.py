@@ -9,6 +9,7 @@ from collections import Counter
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 
 from support.studies import make_study, study_toml, write_study
@@ -132,7 +133,7 @@ def test_latin_fixed_and_random_orders() -> None:
     assert sorted(a) == list(range(12))
     assert a == block_order(rnd, "P01") != block_order(rnd, "P02")
     assert block_order(rnd, "P01", seed=2) != a
-    assert [t.block_name for t in make_schedule(rnd, "P01", 2) if t.block == "test"][0] == \
+    assert next(t.block_name for t in make_schedule(rnd, "P01", 2) if t.block == "test") == \
         rnd.test[block_order(rnd, "P01", seed=2)[0]].label
 
 
@@ -267,3 +268,71 @@ def test_unknown_load_lists_the_tasks(tmp_path: Path) -> None:
 def test_study_toml_builder_writes_design() -> None:
     text = study_toml(design=DESIGN, tasks=TASKS, questionnaire={"tlx": True})
     assert "[design]" in text and "[tasks.nback2]" in text and "[[test]]" not in text
+
+
+# -- per-cell analysis ---------------------------------------------------------------
+
+
+def _trials(study: Study, participants: list[str], noise: dict[str, int]) -> Any:
+    """Trials of a simulated run: participant p answers ``noise[p]`` targets off (0: right)."""
+    import pandas as pd
+
+    rows = []
+    for p in participants:
+        for t in make_schedule(study, p, 1):
+            step = 360.0 / t.n_targets
+            resp = (t.target_deg + noise[p] * step * (t.repetition % 2)) % 360.0
+            rows.append({"participant": p, "block": t.block, "condition": t.condition,
+                         "status": "done", "target_deg": t.target_deg,
+                         "response_target_deg": resp, "response_deg": resp,
+                         "correct": float(resp == t.target_deg), "rt_s": 1.0 + t.n_targets / 100,
+                         "on_tactor": t.on_tactor, "n_targets": t.n_targets, "load": t.load})
+    return pd.DataFrame(rows)
+
+
+def test_cell_summary_per_condition_count_and_load() -> None:
+    from tactorbelt.analysis.cells import CELL_COLUMNS, cell_summary
+
+    s = factorial(repetitions=2)
+    tr = _trials(s, ["P01", "P02"], {"P01": 0, "P02": 0})
+    out = cell_summary(tr)
+    assert list(out.columns) == CELL_COLUMNS
+    assert [tuple(r) for r in out[["condition", "n_targets", "load"]].itertuples(index=False)] \
+        == [(c, n, ld) for c in ("static", "dynamic") for n in (12, 24, 36)
+            for ld in ("none", "nback2")]
+    assert (out["n"] == 2 * 2 * out["n_targets"]).all()  # 2 participants x 2 repetitions
+    assert (out["accuracy"] == 1.0).all() and (out["n_timeout"] == 0).all()
+    assert np.allclose(out["it_bits_plain"], np.log2(out["n_targets"]))
+    assert np.allclose(out["median_rt_s"], 1.0 + out["n_targets"] / 100)
+    assert (out["mean_abs_error_deg"] == 0).all()
+    assert (out["n_on_tactor"] == 2 * 2 * 6).all()
+    assert (out["accuracy_between_tactor"] == 1.0).all()
+
+
+def test_cell_information_transfer_is_per_participant_then_averaged() -> None:
+    from tactorbelt.analysis.cells import cell_summary, participant_cells
+
+    s = make_study(design={**DESIGN, "targets": [12], "load": ["none"], "repetitions": 2},
+                   training=0)
+    # P01 right every time; P02 one target clockwise on odd repetitions: a consistent
+    # bias that a pooled matrix would partly read as confusion
+    tr = _trials(s, ["P01", "P02"], {"P01": 0, "P02": 1})
+    per = participant_cells(tr)
+    assert list(per["participant"]) == ["P01", "P01", "P02", "P02"]
+    cell = cell_summary(tr).iloc[0]
+    mine = per.loc[per["condition"] == cell["condition"], "it_bits"]
+    assert cell["it_bits"] == pytest.approx(mine.mean())
+    assert cell["accuracy"] == pytest.approx(0.75)
+    assert cell["mean_abs_error_deg"] == pytest.approx(30.0 / 4)
+    p1 = per.iloc[0]
+    assert p1["it_bits_plain"] == pytest.approx(np.log2(12))
+
+
+def test_old_trials_get_the_single_count_and_no_load() -> None:
+    from tactorbelt.analysis.cells import cell_summary, infer_n_targets
+
+    tr = _trials(paper_study(), ["P01"], {"P01": 0}).drop(columns=["n_targets", "load"])
+    out = cell_summary(tr)
+    assert list(out["n_targets"]) == [24, 24] and list(out["load"]) == ["none", "none"]
+    assert infer_n_targets(np.array([0.0, 45.0, 90.0])) == 8
+    assert cell_summary(tr, n_targets=24).equals(out)

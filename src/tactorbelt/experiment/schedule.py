@@ -159,10 +159,9 @@ def block_order(study: Study, participant: str, seed: int | None = None) -> list
             return [int(i) for i in _rng(seed, participant, -1).permutation(k)]
         rows = williams_square(k) if rule == "williams" else cyclic_latin_square(k)
         return rows[(p - 1) % len(rows)]
-    rule = study.session.condition_order
-    if rule == "fixed" or k == 1:
+    if study.session.condition_order == "fixed" or k == 1:
         return list(range(k))
-    if rule == "alternate":
+    if study.session.condition_order == "alternate":
         return list(range(k)) if p % 2 == 1 else list(reversed(range(k)))
     rows = williams_square(k)
     return rows[(p - 1) % len(rows)]
