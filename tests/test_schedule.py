@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import hashlib
 import itertools
+import json
 import subprocess
 import sys
 from collections import Counter
@@ -11,6 +13,7 @@ import pytest
 
 from support.studies import make_study
 from tactorbelt.experiment.schedule import (
+    ScheduledTrial,
     block_order,
     make_schedule,
     participant_number,
@@ -145,3 +148,39 @@ def test_latin_square_over_participants() -> None:
 def test_json_round_trip() -> None:
     sched = make_schedule(paper_study(), "P01")
     assert schedule_from_json(schedule_to_json(sched)) == sched
+
+
+#: SHA-256 (first 16 hex digits) of the schedule JSON of [[test]] files, over the fields
+#: a schedule had before factorial designs; pinned so that stored sessions resume the same.
+_GOLDEN_FIELDS = ("trial_index", "block", "block_index", "block_name", "condition",
+                  "repetition", "target_deg", "on_tactor")
+_GOLDEN = {
+    "paper P01 1": "1807fc2c529b1ce5",
+    "paper P02 7": "8a4f1aeed0d65ea6",
+    "paper anne None": "2162cda5215ce0d5",
+    "latin3 P05 3": "a3954723fb565977",
+    "full fixed P03 2": "eee60f17c4116fea",
+}
+
+
+def _golden_case(name: str) -> tuple[list[ScheduledTrial], str]:
+    three = [{"name": "a", "condition": "static", "repetitions": 2},
+             {"name": "b", "condition": "dynamic", "repetitions": 1},
+             {"name": "c", "condition": "static", "repetitions": 1}]
+    study, p, seed = {
+        "paper P01 1": (paper_study(), "P01", 1),
+        "paper P02 7": (paper_study(), "P02", 7),
+        "paper anne None": (paper_study(), "anne", None),
+        "latin3 P05 3": (make_study(condition_order="latin", blocks=three), "P05", 3),
+        "full fixed P03 2": (make_study(randomise="full", condition_order="fixed",
+                                        training_order="random"), "P03", 2),
+    }[name]
+    sched = make_schedule(study, p, seed)
+    rows = [{k: d[k] for k in _GOLDEN_FIELDS} for d in json.loads(schedule_to_json(sched))]
+    return sched, hashlib.sha256(json.dumps(rows, separators=(",", ":")).encode()).hexdigest()
+
+
+@pytest.mark.parametrize("name", list(_GOLDEN))
+def test_test_block_files_keep_their_pinned_schedule(name: str) -> None:
+    sched, digest = _golden_case(name)
+    assert digest[:16] == _GOLDEN[name]

@@ -20,6 +20,11 @@ states only what it changes. Keywords:
 - ``conditions`` (one test block per condition, in order; default static, dynamic) and
   ``repetitions`` (of every such block; default 5), or ``blocks`` for full control: a
   list of ``{"condition": ..., "repetitions": ..., "name": ...}`` tables;
+- ``design``: a ``[design]`` table (``{"targets": [12, 24], "condition": [...], ...}``);
+  it replaces the ``[[test]]`` blocks unless ``blocks`` is given too (to test that
+  conflict), and drops ``session.condition_order`` unless ``condition_order`` is given;
+- ``tasks``: ``{"nback2": {"kind": "nback", "n": 2}}``, written as ``[tasks.NAME]``
+  tables; ``questionnaire``: the ``[questionnaire]`` table (``{"tlx": True}``);
 - ``minimal=True``: only the required keys (name, layout, targets, test), so the
   file's defaults apply to everything else.
 
@@ -53,7 +58,8 @@ _TABLE_OF: dict[str, str] = {
     **{k: "response" for k in ResponseSpec.model_fields},
     **{k: "session" for k in SessionSpec.model_fields},
 }
-_TABLE_ORDER = ("layout", "targets", "stimulus", "response", "session", "training")
+_TABLE_ORDER = ("layout", "targets", "stimulus", "response", "session", "training",
+                "design", "tasks", "questionnaire")
 _REQUIRED = ("name", "layout", "targets", "test")
 #: "not given": the paper's value stays (None, by contrast, leaves the key out)
 _KEEP: Any = type("_Keep", (), {"__repr__": lambda self: "<paper value>"})()
@@ -70,6 +76,9 @@ def study_dict(
     conditions: Any = _KEEP,
     repetitions: Any = _KEEP,
     blocks: Any = _KEEP,
+    design: Any = _KEEP,
+    tasks: Any = _KEEP,
+    questionnaire: Any = _KEEP,
     **keys: Any,
 ) -> dict[str, Any]:
     """The study as plain TOML data (see the module docstring for the keywords)."""
@@ -97,6 +106,15 @@ def study_dict(
         reps = 5 if repetitions is _KEEP else repetitions
         conds = [b["condition"] for b in data["test"]] if conditions is _KEEP else conditions
         data["test"] = [{"condition": c, "repetitions": reps} for c in conds]
+    if design is not _KEEP and design is not None:
+        data["design"] = dict(design)
+        if blocks is _KEEP:
+            data.pop("test", None)
+        if "condition_order" not in keys:  # design.order replaces it
+            data.get("session", {}).pop("condition_order", None)
+    for table, value in (("tasks", tasks), ("questionnaire", questionnaire)):
+        if value is not _KEEP and value is not None:
+            data[table] = {k: dict(v) if isinstance(v, dict) else v for k, v in value.items()}
     for key, value in keys.items():
         if key in ("name", "description"):
             if value is None:
@@ -133,7 +151,13 @@ def study_toml(**overrides: Any) -> str:
     for table in (*_TABLE_ORDER, *(k for k in data if k not in _TABLE_ORDER)):
         value = data.get(table)
         if isinstance(value, dict):
-            lines += ["", f"[{table}]", *(f"{k} = {_value(v)}" for k, v in value.items())]
+            plain = {k: v for k, v in value.items() if not isinstance(v, dict)}
+            if plain or len(plain) == len(value):
+                lines += ["", f"[{table}]", *(f"{k} = {_value(v)}" for k, v in plain.items())]
+            for sub, inner in value.items():
+                if isinstance(inner, dict):
+                    lines += ["", f"[{table}.{sub}]",
+                              *(f"{k} = {_value(v)}" for k, v in inner.items())]
     for block in data.get("test", []):
         lines += ["", "[[test]]", *(f"{k} = {_value(v)}" for k, v in block.items())]
     return "\n".join(lines) + "\n"

@@ -15,6 +15,14 @@ Counterbalancing of the test blocks (``session.condition_order``):
 - ``latin``: a balanced Latin square (Williams design; 2k rows for an odd number k
   of blocks), row ``(p - 1) mod rows``.
 
+A ``[design]`` file orders its factorial blocks by ``design.order`` instead:
+``williams`` (the balanced Latin square above), ``latin`` (the cyclic Latin square,
+row r = r, r+1, ... mod k: each block once in each position over k participants, no
+carry-over balance), ``fixed`` (the canonical order: targets, then condition, then
+load) or ``random`` (a permutation seeded from the seed and the participant).
+
+Training runs first and covers every target count of the test blocks, ascending.
+
 Pure: imports NumPy, the standard library and tactorbelt.geometry / experiment.study.
 """
 
@@ -28,12 +36,16 @@ from typing import Any
 
 import numpy as np
 
+from ..geometry import TargetSet
 from .study import Study
 
 __all__ = [
     "ScheduledTrial",
     "block_order",
+    "cyclic_latin_square",
     "make_schedule",
+    "order_rows",
+    "order_rule",
     "participant_number",
     "schedule_from_json",
     "schedule_to_json",
@@ -54,6 +66,8 @@ class ScheduledTrial:
         repetition: 1-based pass (training) or repetition (test) of this target.
         target_deg: the target direction.
         on_tactor: True when the target coincides with a tactor.
+        n_targets: the block's target count (its targets are at k*360/n_targets).
+        load: the secondary task's name, ``none`` without one.
     """
 
     trial_index: int
@@ -64,6 +78,12 @@ class ScheduledTrial:
     repetition: int
     target_deg: float
     on_tactor: bool
+    n_targets: int = 0
+    load: str = "none"
+
+    def target_set(self) -> TargetSet:
+        """The candidate targets of this trial's block (what a response snaps to)."""
+        return TargetSet.even(self.n_targets)
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -97,14 +117,51 @@ def williams_square(k: int) -> list[list[int]]:
     return rows
 
 
-def block_order(study: Study, participant: str) -> list[int]:
-    """Indices into ``study.test`` in the order this participant runs them."""
-    k = len(study.test)
-    rule = study.session.condition_order
-    p = participant_number(participant)
-    if rule == "fixed" or k == 1:
-        return list(range(k))
+def cyclic_latin_square(k: int) -> list[list[int]]:
+    """The cyclic Latin square: row r is ``r, r+1, ..., r+k-1`` (mod k)."""
+    return [[(r + c) % k for c in range(k)] for r in range(k)]
+
+
+def order_rows(rule: str, k: int) -> int:
+    """How many participants complete one balance of ``k`` blocks under ``rule``.
+
+    ``williams``/``latin`` (condition_order): k rows, 2k when k is odd; cyclic
+    ``latin`` (design.order): k; ``alternate``: 2; ``fixed`` and ``random``: 1 (random
+    balances only in expectation).
+    """
+    if k <= 1:
+        return 1
     if rule == "alternate":
+        return 2
+    if rule in ("fixed", "random"):
+        return 1
+    return len(williams_square(k)) if rule == "williams" else k
+
+
+def order_rule(study: Study) -> str:
+    """The counterbalancing rule in force: ``design.order`` or ``session.condition_order``."""
+    return study.design.order if study.design is not None else study.session.condition_order
+
+
+def block_order(study: Study, participant: str, seed: int | None = None) -> list[int]:
+    """Indices into ``study.test`` in the order this participant runs them.
+
+    ``seed`` (default ``session.seed``) matters only for ``design.order = "random"``.
+    """
+    k = len(study.test)
+    p = participant_number(participant)
+    if study.design is not None:
+        rule = study.design.order
+        if rule == "fixed" or k == 1:
+            return list(range(k))
+        if rule == "random":
+            seed = study.session.seed if seed is None else int(seed)
+            return [int(i) for i in _rng(seed, participant, -1).permutation(k)]
+        rows = williams_square(k) if rule == "williams" else cyclic_latin_square(k)
+        return rows[(p - 1) % len(rows)]
+    if study.session.condition_order == "fixed" or k == 1:
+        return list(range(k))
+    if study.session.condition_order == "alternate":
         return list(range(k)) if p % 2 == 1 else list(reversed(range(k)))
     rows = williams_square(k)
     return rows[(p - 1) % len(rows)]
@@ -112,7 +169,9 @@ def block_order(study: Study, participant: str) -> list[int]:
 
 def _rng(seed: int, participant: str, block_position: int) -> np.random.Generator:
     pid = int.from_bytes(hashlib.sha256(participant.encode("utf-8")).digest()[:8], "little")
-    return np.random.default_rng(np.random.SeedSequence([int(seed), pid, block_position]))
+    # block_position -1 (the random block order) becomes 2**32, never a block's position
+    pos = block_position if block_position >= 0 else 2**32
+    return np.random.default_rng(np.random.SeedSequence([int(seed), pid, pos]))
 
 
 def _order(
@@ -147,31 +206,35 @@ def make_schedule(study: Study, participant: str, seed: int | None = None) -> li
     """
     seed = study.session.seed if seed is None else int(seed)
     layout = study.layout_obj()
-    targets = study.target_set()
-    angles = targets.angles_deg
-    on = targets.on_tactor(layout)
     out: list[ScheduledTrial] = []
     block_pos = 0
+    order_idx = block_order(study, participant, seed)
 
-    def add(block: str, name: str, condition: str, pairs: list[tuple[int, int]]) -> None:
+    def add(block: str, name: str, condition: str, n: int, load: str,
+            pairs: list[tuple[int, int]]) -> None:
+        targets = TargetSet.even(n)
+        angles = targets.angles_deg
+        on = targets.on_tactor(layout)
         for rep, t in pairs:
             out.append(ScheduledTrial(len(out), block, block_pos, name, condition, rep,
-                                      float(angles[t]), bool(on[t])))
+                                      float(angles[t]), bool(on[t]), n, load))
 
     tr = study.training
     if tr.passes > 0 and tr.conditions:
         rng = _rng(seed, participant, 0)
         # training follows the participant's condition order when the conditions match
-        order = [study.test[i].condition for i in block_order(study, participant)]
+        order = [study.test[i].condition for i in order_idx]
         conds = sorted(tr.conditions, key=lambda c: order.index(c) if c in order else 99)
-        for cond in conds:
-            add("training", "training", cond, _order(targets.m, tr.passes, tr.order, rng))
+        for n in study.target_counts():
+            for cond in conds:
+                add("training", "training", cond, n, "none", _order(n, tr.passes, tr.order, rng))
         block_pos += 1
-    for bi in block_order(study, participant):
+    for bi in order_idx:
         spec = study.test[bi]
+        n = study.block_n_targets(spec)
         rng = _rng(seed, participant, 1 + bi)
-        add("test", spec.label, spec.condition,
-            _order(targets.m, spec.repetitions, study.session.randomise, rng))
+        add("test", spec.label, spec.condition, n, spec.load,
+            _order(n, spec.repetitions, study.session.randomise, rng))
         block_pos += 1
     return out
 
@@ -181,6 +244,23 @@ def schedule_to_json(schedule: list[ScheduledTrial]) -> str:
     return json.dumps([t.to_dict() for t in schedule], separators=(",", ":"))
 
 
-def schedule_from_json(text: str) -> list[ScheduledTrial]:
-    """Read back :func:`schedule_to_json`."""
-    return [ScheduledTrial(**d) for d in json.loads(text)]
+def schedule_from_json(text: str, study: Study | None = None) -> list[ScheduledTrial]:
+    """Read back :func:`schedule_to_json`.
+
+    A schedule stored before factorial designs lacks ``n_targets`` and ``load``: they
+    become the study's ``[targets] count`` (or the block's, matched by name) and
+    ``none``. Without ``study``, a missing ``n_targets`` stays 0.
+    """
+    counts: dict[str, int] = {}
+    default = 0
+    if study is not None:
+        default = study.targets.count
+        counts = {b.label: study.block_n_targets(b) for b in study.test}
+    out = []
+    for d in json.loads(text):
+        d = dict(d)
+        if "n_targets" not in d:
+            d["n_targets"] = counts.get(d.get("block_name", ""), default)
+        d.setdefault("load", "none")
+        out.append(ScheduledTrial(**d))
+    return out

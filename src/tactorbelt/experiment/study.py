@@ -14,10 +14,13 @@ tactorbelt.stimuli; never an I/O layer (devices, inputs, gui, store).
 
 from __future__ import annotations
 
+import difflib
 import hashlib
+import itertools
 import math
 import re
 import tomllib
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
 
@@ -29,15 +32,23 @@ from ..geometry import Layout, TargetSet
 __all__ = [
     "CONDITIONS",
     "BlockSpec",
+    "Cell",
+    "DesignSpec",
     "LayoutSpec",
+    "QuestionnaireSpec",
     "ResponseSpec",
     "SessionSpec",
     "StimulusSpec",
     "Study",
+    "StudyDescription",
     "TargetsSpec",
+    "TaskSpec",
     "TrainingSpec",
+    "describe",
     "load_study",
     "paper_study",
+    "plural",
+    "template_toml",
 ]
 
 Condition = Literal["static", "dynamic"]
@@ -167,16 +178,118 @@ class TrainingSpec(_Model):
         return v
 
 
+def plural(n: int, word: str, many: str | None = None) -> str:
+    """``1 repetition``, ``2 repetitions``, ``1 pass``, ``3 passes``."""
+    if n == 1:
+        return f"{n} {word}"
+    if many is None:
+        many = word + ("es" if word.endswith(("s", "x", "ch", "sh")) else "s")
+    return f"{n} {many}"
+
+
+_NAME = r"^[A-Za-z][A-Za-z0-9_\-]*$"
+
+
+class TaskSpec(_Model):
+    """A secondary task (``[tasks.NAME]``), run during the test blocks whose load is NAME."""
+
+    kind: Literal["nback", "arithmetic", "none"]
+    n: int = Field(default=2, ge=1, le=9)
+    modality: Literal["auditory", "visual"] = "auditory"
+    interval_s: float = Field(default=2.5, gt=0, le=60)
+
+
+class QuestionnaireSpec(_Model):
+    """Questionnaires: ``tlx = true`` asks the raw NASA-TLX after each test block."""
+
+    tlx: bool = False
+
+
 class BlockSpec(_Model):
-    """A test block: every target ``repetitions`` times in one condition."""
+    """A test block: every target ``repetitions`` times in one condition.
+
+    ``targets`` overrides ``[targets] count`` for this block, ``load`` names the
+    secondary task (``none`` or a ``[tasks.NAME]`` table), and any ``[stimulus]`` key
+    given here overrides the study's stimulus for this block.
+    """
 
     name: str | None = Field(default=None, min_length=1, max_length=64)
     condition: Condition
     repetitions: int = Field(ge=1, le=1000)
+    targets: int | None = Field(default=None, ge=1, le=360)
+    load: str = Field(default="none", min_length=1, max_length=64)
+    law: Literal["paper", "linear", "energy"] | None = None
+    falloff_deg: float | None = Field(default=None, gt=0, le=360)
+    period_s: float | None = Field(default=None, gt=0, le=60)
+    transit_s: float | None = Field(default=None, gt=0, le=30)
+    max_presentation_s: float | None = Field(default=None, gt=0, le=600)
 
     @property
     def label(self) -> str:
         return self.name or self.condition
+
+    def stimulus_overrides(self) -> dict[str, Any]:
+        """The ``[stimulus]`` keys this block sets."""
+        return {k: getattr(self, k) for k in StimulusSpec.model_fields
+                if getattr(self, k) is not None}
+
+
+Order = Literal["williams", "latin", "fixed", "random"]
+
+
+def _check_counts(v: Any) -> Any:
+    if isinstance(v, list):
+        for x in v:
+            if isinstance(x, bool) or not isinstance(x, int) or not 1 <= x <= 360:
+                raise ValueError(
+                    f"target counts must be whole numbers from 1 to 360 (got {x!r})")
+        if len(set(v)) != len(v):
+            raise ValueError(f"each target count at most once (got {v!r})")
+    return v
+
+
+class DesignSpec(_Model):
+    """A full factorial of the test blocks: targets x condition x load.
+
+    Each cell is one test block of ``repetitions`` passes over its targets; ``order``
+    counterbalances the blocks across participants (see
+    :func:`tactorbelt.experiment.schedule.block_order`).
+    """
+
+    targets: list[int] = Field(min_length=1, max_length=26)
+    condition: list[Condition] = Field(min_length=1, max_length=2)
+    load: list[str] = Field(default_factory=lambda: ["none"], min_length=1, max_length=26)
+    repetitions: int = Field(ge=1, le=1000)
+    order: Order = "williams"
+
+    _counts = field_validator("targets", mode="before")(_check_counts)
+
+    @field_validator("condition", "load")
+    @classmethod
+    def _unique(cls, v: list[str]) -> list[str]:
+        if len(set(v)) != len(v):
+            raise ValueError(f"each value at most once (got {v!r})")
+        return v
+
+    def n_blocks(self) -> int:
+        return len(self.targets) * len(self.condition) * len(self.load)
+
+    def blocks(self) -> list[BlockSpec]:
+        """The cells as test blocks, targets slowest, load fastest (the canonical order).
+
+        Block names: ``static-24`` or, with a load, ``static-24-nback2``.
+        """
+        out = []
+        for n, cond, load in itertools.product(self.targets, self.condition, self.load):
+            name = f"{cond}-{n}" + ("" if load == "none" else f"-{load}")
+            out.append(BlockSpec(name=name, condition=cond, repetitions=self.repetitions,
+                                 targets=n, load=load))
+        return out
+
+
+def _at(loc: str, message: str) -> ValueError:
+    """A ValueError that :func:`_study_error` reports at field ``loc`` (``design.load``)."""
+    return ValueError(f"@{loc}@ {message}")
 
 
 class Study(_Model):
@@ -197,10 +310,47 @@ class Study(_Model):
     response: ResponseSpec = Field(default_factory=ResponseSpec)
     session: SessionSpec = Field(default_factory=SessionSpec)
     training: TrainingSpec = Field(default_factory=TrainingSpec)
-    test: list[BlockSpec] = Field(min_length=1, max_length=26)
+    test: list[BlockSpec] = Field(default_factory=list, max_length=26)
+    design: DesignSpec | None = None
+    tasks: dict[str, TaskSpec] = Field(default_factory=dict)
+    questionnaire: QuestionnaireSpec = Field(default_factory=QuestionnaireSpec)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _design_or_test(cls, data: Any) -> Any:
+        if isinstance(data, dict) and data.get("design") is not None and data.get("test"):
+            raise _at("design", "give either [design] or [[test]] blocks, not both")
+        return data
 
     @model_validator(mode="after")
     def _names_unique(self) -> Study:
+        for name in self.tasks:
+            if name == "none" or not re.match(_NAME, name):
+                raise _at(f"tasks.{name}", "a task name is a letter then letters, digits, "
+                          "_ or -, and not 'none'")
+        if self.design is not None:
+            if self.design.n_blocks() > 26:
+                raise _at("design", f"{self.design.n_blocks()} blocks "
+                          f"({len(self.design.targets)} target counts x "
+                          f"{len(self.design.condition)} conditions x "
+                          f"{len(self.design.load)} loads); at most 26 are allowed")
+            if "condition_order" in self.session.model_fields_set:
+                raise _at("session.condition_order", "applies to [[test]] blocks; with "
+                          "[design] set design.order (williams, latin, fixed or random)")
+            for i, load in enumerate(self.design.load):
+                self._check_load(load, f"design.load[{i}]")
+            object.__setattr__(self, "test", self.design.blocks())
+        elif not self.test:
+            raise _at("test", "required but missing: give [[test]] blocks or a [design]")
+        for i, b in enumerate(self.test):
+            if self.design is None:
+                self._check_load(b.load, f"test[{i}].load")
+            merged = {**self.stimulus.model_dump(), **b.stimulus_overrides()}
+            try:
+                StimulusSpec.model_validate(merged)
+            except ValidationError as exc:
+                raise _at(f"test[{i}]", exc.errors(include_url=False)[0]["msg"]
+                          .removeprefix("Value error, ")) from None
         labels = [b.label for b in self.test]
         dup = sorted({x for x in labels if labels.count(x) > 1})
         if dup:
@@ -209,6 +359,13 @@ class Study(_Model):
                 "(add name = \"...\" to each block)"
             )
         return self
+
+    def _check_load(self, load: str, loc: str) -> None:
+        if load != "none" and load not in self.tasks:
+            known = ", ".join(repr(k) for k in ["none", *self.tasks])
+            hint = difflib.get_close_matches(load, ["none", *self.tasks], n=1)
+            raise _at(loc, f"unknown load {load!r}: use {known}, or declare "
+                      f"[tasks.{load}]" + (f" (did you mean {hint[0]!r}?)" if hint else ""))
 
     # -- derived values ----------------------------------------------------------
     def layout_obj(self) -> Layout:
@@ -219,11 +376,27 @@ class Study(_Model):
         """The candidate targets."""
         return self.targets.to_target_set()
 
+    def block_n_targets(self, block: BlockSpec) -> int:
+        """The target count of a test block (its ``targets``, else ``[targets] count``)."""
+        return block.targets if block.targets is not None else self.targets.count
+
+    def block_targets(self, block: BlockSpec) -> TargetSet:
+        """The candidate targets of a test block."""
+        return TargetSet.even(self.block_n_targets(block))
+
+    def block_stimulus(self, block: BlockSpec) -> StimulusSpec:
+        """The stimulus of a test block: ``[stimulus]`` with the block's overrides."""
+        return self.stimulus.model_copy(update=block.stimulus_overrides())
+
+    def target_counts(self) -> list[int]:
+        """Every target count of the test blocks, ascending (what training covers)."""
+        return sorted({self.block_n_targets(b) for b in self.test})
+
     def n_training_trials(self) -> int:
-        return self.training.passes * len(self.training.conditions) * self.targets.count
+        return self.training.passes * len(self.training.conditions) * sum(self.target_counts())
 
     def n_test_trials(self) -> int:
-        return sum(b.repetitions for b in self.test) * self.targets.count
+        return sum(b.repetitions * self.block_n_targets(b) for b in self.test)
 
     def n_trials(self) -> int:
         return self.n_training_trials() + self.n_test_trials()
@@ -268,6 +441,17 @@ class Study(_Model):
         import tomli_w
 
         data = self.model_dump(mode="python", exclude_none=True)
+        if self.design is not None:
+            data.pop("test")
+            data["session"].pop("condition_order")
+        else:
+            data.pop("design", None)
+            data["test"] = [{k: v for k, v in b.items() if not (k == "load" and v == "none")}
+                            for b in data["test"]]
+        if not self.tasks:
+            data.pop("tasks")
+        if self.questionnaire == QuestionnaireSpec():
+            data.pop("questionnaire")
         return tomli_w.dumps(data)
 
     def sha256(self) -> str:
@@ -338,18 +522,24 @@ def _line_for(loc: tuple[str | int, ...], lines: dict[tuple[str | int, ...], int
 def _model_at(loc: tuple[str | int, ...]) -> Any:
     """The pydantic model that holds the last key of ``loc`` (None if not a model)."""
     model: Any = Study
+    ann: Any = None
     for part in loc[:-1]:
+        if ann is not None:  # the key of a dict (tasks.NAME) or an index of a list
+            ann = None
+            continue
         if isinstance(part, int):
             continue
-        field = model.model_fields.get(part)
+        field = model.model_fields.get(part) if model is not None else None
         if field is None:
             return None
         ann = field.annotation
-        inner = getattr(ann, "__args__", None)
+        args = [a for a in getattr(ann, "__args__", ()) if a is not type(None)]
         if isinstance(ann, type) and issubclass(ann, BaseModel):
-            model = ann
-        elif inner and isinstance(inner[0], type) and issubclass(inner[0], BaseModel):
-            model = inner[0]
+            model, ann = ann, None
+        elif args and isinstance(args[-1], type) and issubclass(args[-1], BaseModel):
+            model = args[-1]
+            if getattr(ann, "__origin__", None) is None:  # X | None
+                ann = None
         else:
             return None
     return model
@@ -385,24 +575,69 @@ def _range_text(loc: tuple[str | int, ...]) -> str | None:
     return f"{left}{lo_s}, {hi_s}{right}"
 
 
+def _parse_loc(dotted: str) -> tuple[str | int, ...]:
+    out: list[str | int] = []
+    for part in dotted.split("."):
+        m = re.fullmatch(r"([^\[]+)((?:\[\d+\])*)", part)
+        if not m:
+            out.append(part)
+            continue
+        out.append(m.group(1))
+        out += [int(i) for i in re.findall(r"\[(\d+)\]", m.group(2))]
+    return tuple(out)
+
+
+def _dotted(loc: tuple[str | int, ...]) -> str | None:
+    text = ".".join(f"[{p}]" if isinstance(p, int) else str(p) for p in loc).replace(".[", "[")
+    return text or None
+
+
+def _clean_loc(raw: tuple[Any, ...]) -> tuple[str | int, ...]:
+    return tuple(p for p in raw if not (isinstance(p, str) and "[" in p))
+
+
 def _study_error(exc: ValidationError, text: str, where: str) -> StudyFileError:
-    err = exc.errors(include_url=False)[0]
-    loc = tuple(p for p in err["loc"] if not (isinstance(p, str) and "[" in p))
+    errors = exc.errors(include_url=False)
+    err = errors[0]
+    loc = _clean_loc(err["loc"])
     lines = _key_lines(text)
-    line = _line_for(loc, lines)
-    dotted = ".".join(f"[{p}]" if isinstance(p, int) else str(p) for p in loc).replace(".[", "[")
     kind = err["type"]
     msg = err["msg"]
     got = err.get("input")
+    # a misspelt required key: report the unknown key and the missing one together
+    missing = {_clean_loc(e["loc"]) for e in errors if e["type"] == "missing"}
+    extra = [_clean_loc(e["loc"]) for e in errors if e["type"] == "extra_forbidden"]
+    pair = None
+    for x in extra:
+        for m in missing:
+            if (x[:-1] == m[:-1] and isinstance(x[-1], str) and isinstance(m[-1], str)
+                    and difflib.get_close_matches(x[-1], [m[-1]], n=1)):
+                pair = (x, m)
+                break
+        if pair:
+            break
+    if pair is not None:
+        loc, kind, got = pair[0], "extra_forbidden", None
+    m_at = re.match(r"^(?:Value error, )?@([^@]+)@ (.*)$", msg, re.S) if kind == "value_error" \
+        else None
+    if m_at:
+        loc = (*loc, *_parse_loc(m_at.group(1)))
+        msg = m_at.group(2)
+    line = _line_for(loc, lines)
+    dotted = _dotted(loc)
     if kind == "extra_forbidden":
         allowed = _allowed_keys(loc)
-        msg = f"unknown key {loc[-1]!r}" + (
-            f"; allowed here: {', '.join(allowed)}" if allowed else ""
-        )
+        close = difflib.get_close_matches(str(loc[-1]), allowed, n=1)
+        msg = f"unknown key {loc[-1]!r}"
+        if pair is not None:
+            msg += (f" (did you mean {pair[1][-1]!r}?); {pair[1][-1]!r} is required but "
+                    "missing")
+        elif close:
+            msg += f" (did you mean {close[0]!r}?)"
+        if allowed:
+            msg += f"; allowed here: {', '.join(allowed)}"
     elif kind == "missing":
         msg = "required but missing"
-        if line is None and len(loc) == 1:
-            line = None
     elif kind == "value_error":
         msg = msg.removeprefix("Value error, ")
     elif kind in ("greater_than", "greater_than_equal", "less_than", "less_than_equal"):
@@ -417,8 +652,6 @@ def _study_error(exc: ValidationError, text: str, where: str) -> StudyFileError:
         msg = msg[0].lower() + msg[1:]
         if not isinstance(got, dict | list):
             msg += f" (got {got!r})"
-    if not dotted:
-        dotted = None  # type: ignore[assignment]
     return StudyFileError(msg, path=where, line=line, field=dotted)
 
 
@@ -486,3 +719,209 @@ repetitions = 5
 def paper_study() -> Study:
     """The paper's protocol: 6 tactors, 24 targets, T = 15, training, static and dynamic blocks."""
     return Study.from_toml(PAPER_STUDY_TOML, path="<paper study>")
+
+
+# -- the resolution study ------------------------------------------------------------
+
+RESOLUTION_STUDY_TOML = '''\
+# tactorbelt study file: how finely can directions be told apart between tactors?
+# A full factorial of target resolution (12, 24, 36, 48 targets) x condition (static,
+# dynamic), each cell one test block, ordered across participants by a balanced Latin
+# square (Williams). Check it with
+#   tactorbelt study check THIS_FILE
+# Angles are degrees, 0 = navel (front), growing clockwise seen from above.
+
+name = "between-tactor-resolution"
+description = "6 tactors; 12/24/36/48 targets x static/dynamic; Williams order"
+
+[layout]
+tactors = 6               # evenly spaced at 180/N + k*360/N
+
+[targets]
+count = 24                # not used by the [design] blocks (they set their own counts)
+
+[stimulus]
+law = "paper"             # paper | linear | energy
+falloff_deg = 15.0        # T of the paper's Eq. 1
+period_s = 1.0            # period of the dynamic perturbation
+transit_s = 0.1           # time to move between the two tactors (2*transit < period)
+max_presentation_s = 10.0 # the stimulus stops at acquisition or after this long
+
+[response]
+home_radius = 0.15        # the cursor must be this close to the centre to start a trial
+threshold = 0.9           # acquisition: distance from the centre passes this, in (0, 1]
+dwell_s = 0.0             # ... and stays beyond it this long (0 = at once)
+timeout_s = 10.0          # no acquisition this long after onset: the trial times out
+
+[session]
+seed = 1                  # randomisation seed (with the participant id); --seed overrides
+iti_s = 1.0               # inter-trial interval
+break_every = 60          # a break after every N trials (0 = no breaks)
+randomise = "per_repetition"  # per_repetition (each pass a new permutation) | full | none
+sample_rate_hz = 100.0    # cursor sampling rate
+
+[training]
+# Before the first test block, each target of every count (12, then 24, 36, 48) is
+# felt while its location is shown; the participant points at it.
+passes = 1                # 0 = no training
+conditions = ["static", "dynamic"]
+order = "sequential"      # sequential (around the belt) | random
+
+[design]
+# One test block per cell: 4 target counts x 2 conditions = 8 blocks.
+targets = [12, 24, 36, 48]     # targets at k*360/count
+condition = ["static", "dynamic"]
+load = ["none"]                # "none" or the name of a [tasks.NAME] table
+repetitions = 2                # every target of a block this many times
+order = "williams"             # williams | latin | fixed | random (across participants)
+
+# A secondary task, used by naming it in design.load (e.g. load = ["none", "nback2"]):
+# [tasks.nback2]
+# kind = "nback"               # nback | arithmetic | none
+# n = 2
+# modality = "auditory"        # auditory | visual
+# interval_s = 2.5
+
+# [questionnaire]
+# tlx = true                   # raw NASA-TLX after each test block
+'''
+
+TEMPLATES: dict[str, str] = {"paper": PAPER_STUDY_TOML, "resolution": RESOLUTION_STUDY_TOML}
+
+
+def template_toml(name: str = "paper") -> str:
+    """The commented TOML of a study template: ``paper`` or ``resolution``.
+
+    Raises:
+        ConfigError: an unknown template name (the message lists the names).
+    """
+    try:
+        return TEMPLATES[name]
+    except KeyError:
+        raise ConfigError(f"unknown study template {name!r}; use one of: "
+                          f"{', '.join(TEMPLATES)}") from None
+
+
+# -- what `study check` prints -------------------------------------------------------
+
+
+def _minutes(seconds: float) -> str:
+    m, s = divmod(round(seconds), 60)
+    return f"{m} min {s:02d} s" if m else f"{s} s"
+
+
+@dataclass(frozen=True)
+class Cell:
+    """One cell of the test design (one test block)."""
+
+    block: str
+    n_targets: int
+    condition: str
+    load: str
+    repetitions: int
+
+    @property
+    def trials(self) -> int:
+        return self.n_targets * self.repetitions
+
+
+@dataclass(frozen=True)
+class StudyDescription:
+    """What ``tactorbelt study check`` reports about a study (:func:`describe`).
+
+    Attributes:
+        study: the study.
+        participant: whose block order ``order`` is.
+        cells: the test blocks in the file's (canonical) order.
+        order: the block labels in the participant's running order.
+        order_rule: ``design.order`` or ``session.condition_order``.
+        balance_participants: participants per complete balance of the order.
+        n_breaks: breaks in a session.
+        duration_s, max_duration_s: the estimate with 2 s responses, and with every
+            trial timing out.
+    """
+
+    study: Study
+    participant: str
+    cells: tuple[Cell, ...]
+    order: tuple[str, ...]
+    order_rule: str
+    balance_participants: int
+    n_breaks: int
+    duration_s: float
+    max_duration_s: float
+
+    def to_text(self) -> str:
+        """The report as lines of text (two-space indent; the CLI prints 'FILE: ok' first)."""
+        s = self.study
+        layout = s.layout_obj()
+        counts = s.target_counts()
+        out = [f"  study       {s.name}",
+               f"  layout      {plural(layout.n, 'tactor')} at "
+               f"{', '.join(f'{a:g}' for a in layout.angles_deg)} deg"]
+        for n in counts:
+            on = int(TargetSet.even(n).on_tactor(layout).sum())
+            out.append(f"  targets     {n} ({on} on-tactor, {n - on} between-tactor)")
+        st = s.stimulus
+        out.append(f"  stimulus    law {st.law}, falloff {st.falloff_deg:g} deg, period "
+                   f"{st.period_s:g} s, transit {st.transit_s:g} s, at most "
+                   f"{st.max_presentation_s:g} s")
+        r = s.response
+        out.append(f"  response    home {r.home_radius:g}, threshold {r.threshold:g}, dwell "
+                   f"{r.dwell_s:g} s, timeout {r.timeout_s:g} s")
+        if s.design is not None:
+            d = s.design
+            out.append(f"  design      {plural(len(d.targets), 'target count')} x "
+                       f"{plural(len(d.condition), 'condition')} x "
+                       f"{plural(len(d.load), 'load')} = {plural(len(self.cells), 'cell')}, "
+                       f"{plural(d.repetitions, 'repetition')} of every target")
+        out.append("  blocks")
+        tr = s.training
+        n_tr = s.n_training_trials()
+        width = max(9, *(len(c.block) for c in self.cells))
+        if n_tr:
+            tgt = (plural(counts[0], "target") if len(counts) == 1
+                   else f"({' + '.join(str(n) for n in counts)}) targets")
+            out.append(f"    {'training':<{width}s} {n_tr:4d} trials "
+                       f"({plural(tr.passes, 'pass')} x "
+                       f"{plural(len(tr.conditions), 'condition')} x {tgt}, {tr.order})")
+        for c in self.cells:
+            load = "" if c.load == "none" else f", load {c.load}"
+            out.append(f"    {c.block:<{width}s} {c.trials:4d} trials "
+                       f"({c.condition}{load}, {plural(c.repetitions, 'repetition')} x "
+                       f"{plural(c.n_targets, 'target')})")
+        out.append(f"  total       {s.n_trials()} trials ({s.n_test_trials()} test)")
+        out.append(f"  order       {self.order_rule} (balanced over "
+                   f"{plural(self.balance_participants, 'participant')}); "
+                   f"{self.participant}: {' -> '.join(self.order)}")
+        out.append(f"  breaks      {self.n_breaks} (every {s.session.break_every} trials)"
+                   if self.n_breaks else "  breaks      none")
+        out.append(f"  duration    about {_minutes(self.duration_s)} "
+                   f"(2 s per response + {s.session.iti_s:g} s ITI per trial + 1 min per "
+                   f"break); at most {_minutes(self.max_duration_s)}")
+        return "\n".join(out)
+
+
+def describe(study: Study, participant: str = "P01", seed: int | None = None) -> StudyDescription:
+    """The ``study check`` report: cells, trials per cell, block order, duration.
+
+    Also builds the participant's schedule, so a study that cannot be scheduled fails
+    here. ``seed`` (default ``session.seed``) matters for ``design.order = "random"``.
+    """
+    from .schedule import block_order, make_schedule, order_rows, order_rule
+
+    cells = tuple(Cell(b.label, study.block_n_targets(b), b.condition, b.load, b.repetitions)
+                  for b in study.test)
+    idx = block_order(study, participant, seed)
+    rule = order_rule(study)
+    n = study.n_trials()
+    every = study.session.break_every
+    make_schedule(study, participant, seed)
+    return StudyDescription(
+        study=study, participant=participant, cells=cells,
+        order=tuple(study.test[i].label for i in idx), order_rule=rule,
+        balance_participants=order_rows(rule, len(cells)),
+        n_breaks=(n - 1) // every if every else 0,
+        duration_s=study.estimate_duration_s(),
+        max_duration_s=study.estimate_duration_s(response_s=study.response.timeout_s),
+    )

@@ -1,0 +1,187 @@
+"""Per-cell tables of a factorial study: accuracy, information transfer, RT, error.
+
+A cell is one (condition, n_targets, load) combination. Counting follows
+:func:`tactorbelt.analysis.tables.prepare_trials` (test blocks; ``done`` and
+``timeout`` trials count, timeouts as incorrect; ``aborted`` left out).
+
+Information transfer is estimated from each participant's confusion matrix of the
+cell (rows: the n targets, columns: the response snapped to the nearest of those n
+targets), with the Miller-Madow correction of :mod:`.transfer`, then averaged over
+participants (``it_bits``). Pooling every participant's trials into one matrix
+would count the differences between participants' response biases as transfer and
+give one number without a spread; the pooled value is reported as well
+(``it_bits_pooled``) for comparison. Timeouts carry no response and are left out of
+the matrices (they count in ``n`` and against ``accuracy``).
+
+Trials of stores written before factorial designs have no ``n_targets`` or
+``load`` column: they get the single target count (``n_targets`` argument, or
+inferred as 360 / gcd of the target angles) and ``none``.
+
+Pure: NumPy and pandas; never an I/O layer.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING, Any, Final, cast
+
+import numpy as np
+
+from .tables import prepare_trials
+from .transfer import information_transfer, miller_madow_transfer
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+__all__ = [
+    "CELL_COLUMNS",
+    "CELL_KEYS",
+    "PARTICIPANT_CELL_COLUMNS",
+    "cell_summary",
+    "infer_n_targets",
+    "participant_cells",
+    "with_cell_columns",
+]
+
+CELL_KEYS: Final = ["condition", "n_targets", "load"]
+PARTICIPANT_CELL_COLUMNS: Final = [
+    "participant", *CELL_KEYS, "n", "n_correct", "n_timeout", "accuracy", "it_bits",
+    "it_bits_plain", "median_rt_s", "mean_abs_error_deg",
+]
+CELL_COLUMNS: Final = [
+    *CELL_KEYS, "n_participants", "n", "n_correct", "n_timeout", "accuracy", "it_bits",
+    "it_bits_sd", "it_bits_plain", "it_bits_pooled", "median_rt_s", "mean_abs_error_deg",
+    "n_on_tactor", "accuracy_on_tactor", "n_between_tactor", "accuracy_between_tactor",
+]
+
+
+def infer_n_targets(target_deg: np.ndarray) -> int:
+    """The target count of angles at k*360/n: 360 / gcd(angles, 360) (in micro-degrees)."""
+    micro = np.round(np.mod(np.asarray(target_deg, dtype=float), 360.0) * 1e6).astype(np.int64)
+    g = 360_000_000
+    for v in np.unique(micro).tolist():
+        g = math.gcd(g, int(v))
+    return max(1, round(360_000_000 / g))
+
+
+def with_cell_columns(trials: pd.DataFrame, n_targets: int | None = None) -> pd.DataFrame:
+    """``trials`` with ``n_targets`` and ``load`` filled in for old stores.
+
+    Missing (or null) ``n_targets`` become ``n_targets`` if given, else the count
+    inferred from the test trials' angles; missing ``load`` becomes ``none``.
+    """
+    tr = trials.copy()
+    if "n_targets" not in tr.columns:
+        tr["n_targets"] = np.nan
+    if tr["n_targets"].isna().any():
+        if n_targets is None:
+            n_targets = infer_n_targets(tr["target_deg"].dropna().to_numpy(dtype=float))
+        tr["n_targets"] = tr["n_targets"].fillna(n_targets)
+    tr["n_targets"] = tr["n_targets"].astype(int)
+    if "load" not in tr.columns:
+        tr["load"] = "none"
+    tr["load"] = tr["load"].fillna("none").astype(str)
+    return tr
+
+
+def _prepared(trials: pd.DataFrame, n_targets: int | None) -> pd.DataFrame:
+    tr = with_cell_columns(trials, n_targets)
+    if "counted" not in tr.columns:
+        tr = prepare_trials(tr)
+    return tr.loc[tr["counted"]]
+
+
+def _matrix(c: pd.DataFrame, n: int) -> np.ndarray:
+    """Target x response (snapped to the nearest of the n targets) counts; no timeouts."""
+    r = c.loc[c["responded"]]
+    step = 360.0 / n
+    target = r["target_deg"].to_numpy(dtype=float)
+    resp = target + r["error_deg"].to_numpy(dtype=float)
+    row = np.mod(np.round(target / step), n).astype(int)
+    col = np.mod(np.round(resp / step), n).astype(int)
+    m = np.zeros((n, n), dtype=np.int64)
+    np.add.at(m, (row, col), 1)
+    return m
+
+
+def _stats(c: pd.DataFrame) -> dict[str, float | int]:
+    n = len(c)
+    rt = c["rt"].dropna()
+    err = c["error_deg"].dropna()
+    return {
+        "n": n,
+        "n_correct": int(c["is_correct"].sum()),
+        "n_timeout": int((~c["responded"]).sum()),
+        "accuracy": float(c["is_correct"].mean()) if n else float("nan"),
+        "median_rt_s": float(rt.median()) if len(rt) else float("nan"),
+        "mean_abs_error_deg": float(err.abs().mean()) if len(err) else float("nan"),
+    }
+
+
+def participant_cells(trials: pd.DataFrame, n_targets: int | None = None) -> pd.DataFrame:
+    """One row per (participant, condition, n_targets, load): :data:`PARTICIPANT_CELL_COLUMNS`.
+
+    ``it_bits`` is the Miller-Madow estimate from the participant's confusion matrix
+    of the cell, ``it_bits_plain`` the plug-in one.
+    """
+    import pandas as pd
+
+    c = _prepared(trials, n_targets)
+    rows = []
+    for key, g in c.groupby(["participant", *CELL_KEYS], sort=True, observed=True):
+        p, cond, n_obj, load = cast("tuple[Any, ...]", key)
+        n = int(n_obj)
+        m = _matrix(g, n)
+        rows.append({"participant": p, "condition": cond, "n_targets": n, "load": load,
+                     **_stats(g), "it_bits": miller_madow_transfer(m),
+                     "it_bits_plain": information_transfer(m)})
+    return pd.DataFrame(rows, columns=PARTICIPANT_CELL_COLUMNS)
+
+
+def cell_summary(trials: pd.DataFrame, n_targets: int | None = None) -> pd.DataFrame:
+    """One row per (condition, n_targets, load): :data:`CELL_COLUMNS`.
+
+    Args:
+        trials: the trials (as :func:`tactorbelt.analysis.load.load_stores` gives them,
+            with or without :func:`~tactorbelt.analysis.tables.prepare_trials`).
+        n_targets: the target count of trials without an ``n_targets`` value (old
+            stores); None infers it from the angles.
+
+    ``accuracy``, ``median_rt_s`` and ``mean_abs_error_deg`` pool the cell's trials;
+    ``it_bits`` is the mean over participants of each one's Miller-Madow estimate
+    (``it_bits_sd`` their SD, NaN for one participant), ``it_bits_plain`` the mean
+    plug-in estimate, ``it_bits_pooled`` the Miller-Madow estimate of the pooled matrix.
+    Rows are sorted by condition (static first), n_targets and load (``none`` first).
+    """
+    import pandas as pd
+
+    c = _prepared(trials, n_targets)
+    per = participant_cells(c, n_targets)
+    rows = []
+    for key, g in c.groupby(CELL_KEYS, sort=True, observed=True):
+        cond, n_obj, load = cast("tuple[Any, ...]", key)
+        n = int(n_obj)
+        pp = per.loc[(per["condition"] == cond) & (per["n_targets"] == n)
+                     & (per["load"] == load)]
+        on = g.loc[g["on_tactor"].astype(bool)]
+        between = g.loc[~g["on_tactor"].astype(bool)]
+        rows.append({
+            "condition": cond, "n_targets": n, "load": load,
+            "n_participants": int(g["participant"].nunique()), **_stats(g),
+            "it_bits": float(pp["it_bits"].mean()),
+            "it_bits_sd": float(pp["it_bits"].std(ddof=1)) if len(pp) > 1 else float("nan"),
+            "it_bits_plain": float(pp["it_bits_plain"].mean()),
+            "it_bits_pooled": miller_madow_transfer(_matrix(g, n)),
+            "n_on_tactor": len(on),
+            "accuracy_on_tactor": float(on["is_correct"].mean()) if len(on) else float("nan"),
+            "n_between_tactor": len(between),
+            "accuracy_between_tactor": (float(between["is_correct"].mean()) if len(between)
+                                        else float("nan")),
+        })
+    out = pd.DataFrame(rows, columns=CELL_COLUMNS)
+    order = {"static": 0, "dynamic": 1}
+
+    out["_c"] = out["condition"].map(order)
+    out["_l"] = out["load"].where(out["load"] != "none", "")  # no load first
+    out = out.sort_values(["_c", "n_targets", "_l"]).drop(columns=["_c", "_l"])
+    return out.reset_index(drop=True)
