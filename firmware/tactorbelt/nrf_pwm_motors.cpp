@@ -40,17 +40,17 @@ void gpio_output_low(uint32_t pin_name) {
 
 }  // namespace
 
-void NrfPwmMotors::begin(const pin_size_t* pins, uint8_t n) {
+void NrfPwmMotors::begin(const PinName* pins, uint8_t n) {
   n_ = n > kMaxOutputs ? kMaxOutputs : n;
   for (uint8_t k = 0; k < n_; ++k) {
-    gpio_output_low(static_cast<uint32_t>(digitalPinToPinName(pins[k])));
+    gpio_output_low(static_cast<uint32_t>(pins[k]));
   }
   for (int i = 0; i < 2; ++i) {
     g_pwm[i].stop();  // disabled: the pins are the GPIO outputs above, low
     NRF_PWM_Type* p = pwm(i);
     for (int c = 0; c < 4; ++c) {
       const uint8_t k = static_cast<uint8_t>(i * 4 + c);
-      p->PSEL.OUT[c] = k < n_ ? static_cast<uint32_t>(digitalPinToPinName(pins[k]))
+      p->PSEL.OUT[c] = k < n_ ? static_cast<uint32_t>(pins[k])
                               : (PWM_PSEL_OUT_CONNECT_Disconnected << PWM_PSEL_OUT_CONNECT_Pos);
       g_sequence[i][c] = kFallingEdge;  // duty 0
     }

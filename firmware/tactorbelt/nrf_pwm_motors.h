@@ -26,7 +26,7 @@ class NrfPwmMotors : public tb::MotorDriver {
   static constexpr uint8_t kMaxOutputs = 8;
 
   // Drives pins low, then configures the PWM peripherals, disabled.
-  void begin(const pin_size_t* pins, uint8_t n);
+  void begin(const PinName* pins, uint8_t n);
   // Level 0..65535 to duty 0..kSteps per channel; a peripheral whose outputs are
   // all 0 is stopped and disabled, so its pins rest at the GPIO level (low).
   void write(const uint16_t* levels, uint8_t n) override;

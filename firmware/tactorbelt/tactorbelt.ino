@@ -23,14 +23,14 @@ namespace {
 
 // --- configuration ----------------------------------------------------------------
 // Tactor k is driven from kMotorPins[k] and sits at 180/N + k*360/N degrees
-// (30, 90, ..., 330: 0 = navel, clockwise seen from above). Pins on port P0 away
-// from the radio: the nRF52840 marks P1.13 and P1.15 (D5, D4), among others,
-// "Standard drive, low frequency I/O only", and the PWM runs at 20 kHz
-// (docs/hardware.md, "Why these pins").
+// (30, 90, ..., 330: 0 = navel, clockwise seen from above). The PWM runs at
+// 20 kHz, so only pins without the nRF52840's "Standard drive, low frequency I/O
+// only" mark (which D2-D6, P1.11-P1.15, carry): docs/hardware.md, "Why these pins".
+// Named by nRF52840 pin, so no board-variant table can move them: on the Nano 33
+// BLE header they are D7, D8, D9, D12, A0, A1.
 constexpr uint8_t kChannels = 6;
-const pin_size_t kMotorPins[kChannels] = {D7, D8, D9, D13, A0, A1};
-// D13 drives the orange LED too; the state shows on the green one (active low).
-const pin_size_t kStateLed = LEDG;
+const PinName kMotorPins[kChannels] = {P0_23, P0_21, P0_27, P1_8, P0_4, P0_5};
+const pin_size_t kStateLed = LED_BUILTIN;  // on while the outputs may be driven
 
 // The GATT service: the host writes request packets (unframed, one per write,
 // without response) to RX and gets replies as notifications on TX.
@@ -194,7 +194,7 @@ void setup() {
   // Outputs off before anything else: pins GPIO outputs low, PWM disabled.
   g_motors.begin(kMotorPins, kChannels);
   pinMode(kStateLed, OUTPUT);
-  digitalWrite(kStateLed, HIGH);  // off (active low)
+  digitalWrite(kStateLed, LOW);
   g_layout.set_even(kChannels);
   g_controller.set_reset_flags(read_and_clear_reset_reason());
   g_controller.begin(micros64());
@@ -217,6 +217,6 @@ void loop() {
     g_next_tick_us += kTickUs;
     g_controller.tick(now);
     const tb::State s = g_controller.state();
-    digitalWrite(kStateLed, s == tb::State::kStreaming || s == tb::State::kPlaying ? LOW : HIGH);
+    digitalWrite(kStateLed, s == tb::State::kStreaming || s == tb::State::kPlaying ? HIGH : LOW);
   }
 }

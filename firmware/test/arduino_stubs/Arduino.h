@@ -7,11 +7,12 @@
 #include <stdint.h>
 
 typedef uint8_t pin_size_t;
-enum PinName : int { P1_11 = 43, P1_12 = 44, P1_15 = 47, P1_13 = 45, P1_14 = 46, P0_23 = 23,
-                     P0_21 = 21, P0_27 = 27, P0_13 = 13, P0_04 = 4, P0_05 = 5, P0_16 = 16,
+// PinName: mbed's nRF52840 names (targets/.../TARGET_NRF52840/PinNames.h), pin
+// number = port * 32 + pin.
+enum PinName : int { P0_4 = 4, P0_5 = 5, P0_13 = 13, P0_21 = 21, P0_23 = 23, P0_27 = 27,
+                     P1_8 = 40, P1_11 = 43, P1_12 = 44, P1_13 = 45, P1_14 = 46, P1_15 = 47,
                      NC = -1 };
-enum { D2 = 2, D3 = 3, D4 = 4, D5 = 5, D6 = 6, D7 = 7, D8 = 8, D9 = 9, D13 = 13,
-       LED_BUILTIN = 13, A0 = 14, A1 = 15, LEDR = 22, LEDG = 23, LEDB = 24 };
+enum { D2 = 2, D3 = 3, D4 = 4, D5 = 5, D6 = 6, D7 = 7, LED_BUILTIN = 13 };
 enum PinMode { INPUT = 0, OUTPUT = 1 };
 enum PinStatus { LOW = 0, HIGH = 1 };
 
