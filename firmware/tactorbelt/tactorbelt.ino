@@ -55,7 +55,6 @@ BLECharacteristic g_tx(kTxUuid, BLENotify, tb::kMaxPacket);
 bool g_ble_ok = false;
 bool g_serial_open = false;
 uint64_t g_next_tick_us = 0;
-bool g_ble_connected = false;
 uint16_t g_ble_conn_handle = 0xFFFF;
 
 // micros() wraps every 71.6 minutes; the controller wants a monotonic 64-bit clock.
