@@ -159,15 +159,14 @@ class HangHook : public tb::DebugHook {
   }
 };
 
-// Everything a reset starts afresh: the core, its TX ring, its watchdog.
+// Everything a reset starts afresh: the core and its TX ring. (The watchdog is
+// not in here: like the WDT it outlives the reset, and its thread reads it.)
 struct Device {
-  Device(const tb::Layout& layout, uint32_t watchdog_ms)
-      : controller(layout, motors, kPwmSteps), tx(controller.link_counters()),
-        watchdog(watchdog_ms) {}
+  explicit Device(const tb::Layout& layout)
+      : controller(layout, motors, kPwmSteps), tx(controller.link_counters()) {}
   NullMotors motors;
   tb::Controller controller;
   tb::SerialTx tx;
-  tb::WatchdogModel watchdog;
 };
 
 // Drains the TX ring into the pseudo-terminal without blocking (what the kernel
@@ -256,18 +255,19 @@ int main(int argc, char** argv) {
     usage_error("--tactor-angles needs 2..16 distinct finite angles");
   }
   HangHook hang_hook;
+  tb::WatchdogModel watchdog(static_cast<uint32_t>(watchdog_ms));
   std::unique_ptr<Device> dev;
   // Power-up (and a watchdog reset): a fresh core with the command line's settings.
   auto boot = [&](uint64_t t_us, uint8_t reset_flags) {
-    dev = std::make_unique<Device>(layout, static_cast<uint32_t>(watchdog_ms));
+    dev = std::make_unique<Device>(layout);
     tb::Controller& c = dev->controller;
     if (heartbeat_ms >= 0) c.set_heartbeat_ms(static_cast<uint16_t>(heartbeat_ms));
     if (max_on_ms >= 0) c.set_max_on_ms(static_cast<uint32_t>(max_on_ms));
     c.set_reset_flags(reset_flags);
     if (debug_frames) c.set_debug_hook(&hang_hook);
     if (watchdog_ms > 0) {
-      c.set_watchdog(&dev->watchdog);
-      dev->watchdog.start(t_us);
+      c.set_watchdog(&watchdog);
+      watchdog.start(t_us);
     }
     c.begin(t_us);
   };
@@ -327,7 +327,7 @@ int main(int argc, char** argv) {
     watchdog_thread = std::thread([&] {
       while (!g_stop) {
         const uint64_t t = now_us();
-        if (!g_wdt_fired && dev->watchdog.expired(t)) {
+        if (!g_wdt_fired && watchdog.expired(t)) {
           g_wdt_fired_us = t;
           g_wdt_fired = true;
         }
