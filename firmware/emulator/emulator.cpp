@@ -2,7 +2,7 @@
 // motors replaced by recorded levels and the 1 kHz tick on the wall clock.
 //
 //   emulator [--tactors N | --tactor-angles A,B,...] [--heartbeat-ms MS]
-//            [--max-on-ms MS] [--levels-log FILE]
+//            [--max-on-ms MS] [--levels-log FILE] [--watchdog-ms MS] [--debug-frames]
 //
 // Contract (docs/protocol.md, "The emulator"):
 // - The first stdout line is the pseudo-terminal's slave path (then stdout is
@@ -13,6 +13,14 @@
 //   stdin is a pipe, a socket or a terminal (stdin from /dev/null or a regular
 //   file is ignored). On exit the outputs go off (a last levels-log line).
 // - Exits 2 on a bad command line, 1 when the pseudo-terminal cannot be made.
+// - Replies go through the core's SerialTx: a bounded ring of whole frames,
+//   drained into the pseudo-terminal without blocking; what does not fit is
+//   dropped and counted (GET_DIAG), as on the board.
+// - --watchdog-ms: the core's WatchdogModel, fed by the tick and watched by a
+//   thread; when it expires the emulator "resets": outputs off at once, then a
+//   fresh core (power-up settings, the watchdog reset flag set).
+// - --debug-frames: accepts DEBUG_HANG (0x7E), which stops the loop (no tick, no
+//   reading, no feeding) until the watchdog resets it (forever without one).
 #include <errno.h>
 #include <fcntl.h>
 #include <poll.h>
@@ -25,7 +33,12 @@
 #include <time.h>
 #include <unistd.h>
 
+#include <atomic>
+#include <memory>
+#include <thread>
+
 #include "../tactorbelt/src/core/controller.h"
+#include "../tactorbelt/src/core/links.h"
 
 namespace {
 
@@ -34,6 +47,9 @@ constexpr int64_t kTickNs = 1000000;
 constexpr int64_t kMaxLagNs = 100 * kTickNs;  // behind by more: skip ahead, do not burst
 
 volatile sig_atomic_t g_stop = 0;
+std::atomic<bool> g_hang{false};        // DEBUG_HANG received
+std::atomic<bool> g_wdt_fired{false};   // the watchdog thread saw it expire
+std::atomic<uint64_t> g_wdt_fired_us{0};
 
 void on_signal(int) { g_stop = 1; }
 
@@ -52,7 +68,7 @@ timespec to_timespec(int64_t ns) {
 
 constexpr const char kUsage[] =
     "usage: emulator [--tactors N | --tactor-angles A,B,...] [--heartbeat-ms MS]"
-    " [--max-on-ms MS] [--levels-log FILE]\n";
+    " [--max-on-ms MS] [--levels-log FILE] [--watchdog-ms MS] [--debug-frames]\n";
 
 [[noreturn]] void usage_error(const char* message) {
   fprintf(stderr, "emulator: error: %s\n%s", message, kUsage);
@@ -101,6 +117,17 @@ class LevelsLog {
     fprintf(f_, "\n");
     dirty_ = true;
   }
+  // Every output off at t_us, whatever the controller holds (a watchdog reset).
+  void record_off(uint64_t t_us, uint8_t n) {
+    if (f_ == nullptr) return;
+    written_ = true;
+    state_ = 0;
+    memset(levels_, 0, sizeof levels_);
+    fprintf(f_, "%llu,0", static_cast<unsigned long long>(t_us));
+    for (uint8_t k = 0; k < n; ++k) fprintf(f_, ",0");
+    fprintf(f_, "\n");
+    dirty_ = true;
+  }
   void flush() {
     if (f_ != nullptr && dirty_) fflush(f_);
     dirty_ = false;
@@ -123,29 +150,40 @@ class NullMotors : public tb::MotorDriver {
   void write(const uint16_t*, uint8_t) override {}
 };
 
-// Frames replies (COBS + 0x00) onto the pseudo-terminal.
-class PtySink : public tb::ReplySink {
+class HangHook : public tb::DebugHook {
  public:
-  explicit PtySink(int fd) : fd_(fd) {}
-  void send(const uint8_t* packet, size_t n) override {
-    uint8_t frame[tb::kMaxFrame];
-    const size_t len = tb::frame_packet(packet, n, frame, sizeof frame);
-    size_t done = 0;
-    while (done < len) {
-      const ssize_t w = write(fd_, frame + done, len - done);
-      if (w > 0) {
-        done += static_cast<size_t>(w);
-      } else if (w < 0 && errno == EINTR) {
-        continue;
-      } else {
-        return;  // host not reading or gone: the reply is lost, as on a real link
-      }
-    }
+  bool handle(const tb::Packet& p) override {
+    if (p.type != tb::msg::kDebugHang || p.len != 0) return false;
+    g_hang = true;
+    return true;
   }
-
- private:
-  int fd_;
 };
+
+// Everything a reset starts afresh: the core and its TX ring. (The watchdog is
+// not in here: like the WDT it outlives the reset, and its thread reads it.)
+struct Device {
+  explicit Device(const tb::Layout& layout)
+      : controller(layout, motors, kPwmSteps), tx(controller.link_counters()) {}
+  NullMotors motors;
+  tb::Controller controller;
+  tb::SerialTx tx;
+};
+
+// Drains the TX ring into the pseudo-terminal without blocking (what the kernel
+// does not take stays queued; the ring drops whole frames when full).
+void drain(Device& d, int fd) {
+  while (d.tx.queued() > 0) {
+    const uint8_t* data = nullptr;
+    const size_t n = d.tx.peek(&data);
+    const ssize_t w = write(fd, data, n);
+    if (w > 0) {
+      d.tx.consume(static_cast<size_t>(w));
+      continue;
+    }
+    if (w < 0 && errno == EINTR) continue;
+    return;  // EAGAIN: the host is not reading; EIO: nobody has the port open
+  }
+}
 
 bool stdin_is_watched() {
   struct stat st;
@@ -162,6 +200,8 @@ int main(int argc, char** argv) {
   long heartbeat_ms = -1;
   long max_on_ms = -1;
   const char* log_path = nullptr;
+  long watchdog_ms = 0;
+  bool debug_frames = false;
   for (int i = 1; i < argc; ++i) {
     const char* a = argv[i];
     const bool has_value = i + 1 < argc;
@@ -170,6 +210,10 @@ int main(int argc, char** argv) {
       printf("%sServes tactorbelt protocol v1 on a pseudo-terminal; prints its path first.\n"
              "See docs/protocol.md, \"The emulator\".\n", kUsage);
       return 0;
+    }
+    if (strcmp(a, "--debug-frames") == 0) {
+      debug_frames = true;
+      continue;
     }
     if (!has_value) {
       snprintf(msg, sizeof msg, "%s needs a value", a);
@@ -198,6 +242,8 @@ int main(int argc, char** argv) {
       max_on_ms = parse_long(v, "--max-on-ms", tb::kMinMaxOnMs, tb::kMaxMaxOnMs);
     } else if (strcmp(a, "--levels-log") == 0) {
       log_path = v;
+    } else if (strcmp(a, "--watchdog-ms") == 0) {
+      watchdog_ms = parse_long(v, "--watchdog-ms", 0, 10000);
     } else {
       snprintf(msg, sizeof msg, "unknown option '%s'", a);
       usage_error(msg);
@@ -208,10 +254,23 @@ int main(int argc, char** argv) {
   if (n_angles > 0 ? !layout.set(angles, n_angles) : !layout.set_even(tactors)) {
     usage_error("--tactor-angles needs 2..16 distinct finite angles");
   }
-  NullMotors motors;
-  tb::Controller controller(layout, motors, kPwmSteps);
-  if (heartbeat_ms >= 0) controller.set_heartbeat_ms(static_cast<uint16_t>(heartbeat_ms));
-  if (max_on_ms >= 0) controller.set_max_on_ms(static_cast<uint32_t>(max_on_ms));
+  HangHook hang_hook;
+  tb::WatchdogModel watchdog(static_cast<uint32_t>(watchdog_ms));
+  std::unique_ptr<Device> dev;
+  // Power-up (and a watchdog reset): a fresh core with the command line's settings.
+  auto boot = [&](uint64_t t_us, uint8_t reset_flags) {
+    dev = std::make_unique<Device>(layout);
+    tb::Controller& c = dev->controller;
+    if (heartbeat_ms >= 0) c.set_heartbeat_ms(static_cast<uint16_t>(heartbeat_ms));
+    if (max_on_ms >= 0) c.set_max_on_ms(static_cast<uint32_t>(max_on_ms));
+    c.set_reset_flags(reset_flags);
+    if (debug_frames) c.set_debug_hook(&hang_hook);
+    if (watchdog_ms > 0) {
+      c.set_watchdog(&watchdog);
+      watchdog.start(t_us);
+    }
+    c.begin(t_us);
+  };
 
   LevelsLog levels_log;
   if (log_path != nullptr && !levels_log.open(log_path, layout.size())) {
@@ -258,29 +317,68 @@ int main(int argc, char** argv) {
 
   const int64_t t0 = mono_ns();
   auto now_us = [t0] { return static_cast<uint64_t>((mono_ns() - t0) / 1000); };
-  controller.begin(0);
-  levels_log.record(0, controller);
+  boot(0, 0);
+  levels_log.record(0, dev->controller);
   levels_log.flush();
 
-  PtySink sink(master);
+  // The watchdog runs on its own, like the nRF52840 WDT on its 32 kHz clock.
+  std::thread watchdog_thread;
+  if (watchdog_ms > 0) {
+    watchdog_thread = std::thread([&] {
+      while (!g_stop) {
+        const uint64_t t = now_us();
+        if (!g_wdt_fired && watchdog.expired(t)) {
+          g_wdt_fired_us = t;
+          g_wdt_fired = true;
+        }
+        timespec ts = {0, 1000000};
+        nanosleep(&ts, nullptr);
+      }
+    });
+  }
+
   bool connected = false;
   int64_t next = t0 + kTickNs;
   uint8_t buf[4096];
   while (!g_stop) {
+    if (g_hang) {
+      // DEBUG_HANG: the loop is stuck; only the watchdog gets it out.
+      drain(*dev, master);  // the ACK, so the host knows the hang began
+      while (!g_stop && !g_wdt_fired) {
+        timespec ts = {0, 1000000};
+        nanosleep(&ts, nullptr);
+      }
+      g_hang = false;
+    }
+    if (g_wdt_fired) {
+      // Watchdog reset: the pins go to inputs (driver pull-downs: motors off) at
+      // the moment it fires; the firmware boots again and reports the cause.
+      const uint64_t t_fire = g_wdt_fired_us;
+      levels_log.record_off(t_fire, layout.size());
+      levels_log.flush();
+      fprintf(stderr, "emulator: watchdog reset (not fed for %ld ms)\n", watchdog_ms);
+      boot(now_us(), tb::reset::kWatchdog);
+      dev->tx.set_open(connected);
+      g_wdt_fired = false;
+      next = mono_ns() + kTickNs;
+      continue;
+    }
     const int64_t now = mono_ns();
     if (now >= next) {
       // The 1 kHz tick, on absolute deadlines.
       if (now - next > kMaxLagNs) next = now;  // suspended or starved: skip, do not burst
       next += kTickNs;
       const uint64_t t = now_us();
-      controller.tick(t);
+      dev->controller.tick(t);
       if (!connected) {
         // Without an opener the master reports POLLHUP at once, so it is not
         // waited on; look for an opener once per tick instead.
         pollfd p = {master, POLLIN, 0};
         if (poll(&p, 1, 0) >= 0 && !(p.revents & POLLHUP)) connected = true;
+        dev->tx.set_open(connected);
       }
-      levels_log.record(t, controller);
+      drain(*dev, master);
+      levels_log.record(t, dev->controller);
       levels_log.flush();
       continue;
     }
@@ -304,11 +402,12 @@ int main(int argc, char** argv) {
     const uint64_t t = now_us();
     if (master_i >= 0 && fds[master_i].revents != 0) {
       if (fds[master_i].revents & POLLIN) {
-        controller.tick(t);  // outputs as of now, so that a STATUS reports them
-        while (true) {
+        dev->controller.tick(t);  // outputs as of now, so that a STATUS reports them
+        while (!g_hang) {
           const ssize_t r = read(master, buf, sizeof buf);
           if (r > 0) {
-            controller.receive_bytes(buf, static_cast<size_t>(r), t, sink);
+            dev->controller.receive_bytes(buf, static_cast<size_t>(r), t, dev->tx);
+            drain(*dev, master);
             continue;
           }
           if (r < 0 && errno == EINTR) continue;
@@ -317,11 +416,12 @@ int main(int argc, char** argv) {
       }
       if (fds[master_i].revents & (POLLHUP | POLLERR)) {
         // every opener closed the port: like the USB port closing
-        controller.link_closed(t);
+        dev->controller.link_closed(t);
         tcflush(master, TCIOFLUSH);
         connected = false;
+        dev->tx.set_open(false);
       }
-      levels_log.record(t, controller);
+      levels_log.record(t, dev->controller);
       levels_log.flush();
     }
     if (stdin_i >= 0 && (fds[stdin_i].revents & (POLLIN | POLLHUP | POLLERR))) {
@@ -330,9 +430,11 @@ int main(int argc, char** argv) {
     }
   }
 
+  g_stop = 1;
+  if (watchdog_thread.joinable()) watchdog_thread.join();
   const uint64_t t = now_us();
-  controller.link_closed(t);
-  levels_log.record(t, controller, true);
+  dev->controller.link_closed(t);
+  levels_log.record(t, dev->controller, true);
   levels_log.flush();
   levels_log.close();
   close(master);

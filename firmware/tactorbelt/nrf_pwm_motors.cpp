@@ -4,6 +4,8 @@
 #include "nrf.h"
 #endif
 
+#include "src/core/pwm_sequencer.h"
+
 namespace {
 
 // EasyDMA reads the compare values from RAM: one group of 4 per peripheral.
@@ -13,22 +15,42 @@ uint16_t g_sequence[2][4];
 // at COMPARE, so COMPARE counts of kSteps are "on" (active high).
 constexpr uint16_t kFallingEdge = 0x8000;
 
+uint32_t micros32() { return static_cast<uint32_t>(micros()); }
+
+tb::PwmSequencer<NRF_PWM_Type> g_pwm[2] = {
+    tb::PwmSequencer<NRF_PWM_Type>(NRF_PWM0, micros32),
+    tb::PwmSequencer<NRF_PWM_Type>(NRF_PWM1, micros32),
+};
+
 NRF_PWM_Type* pwm(int i) { return i == 0 ? NRF_PWM0 : NRF_PWM1; }
+
+// A GPIO output driving low, by register: OUT cleared before the direction is set,
+// so the pin never drives high on the way.
+void gpio_output_low(uint32_t pin_name) {
+  NRF_GPIO_Type* port = (pin_name >= 32) ? NRF_P1 : NRF_P0;
+  const uint32_t bit = 1ul << (pin_name & 31u);
+  port->OUTCLR = bit;
+  port->PIN_CNF[pin_name & 31u] =
+      (GPIO_PIN_CNF_DIR_Output << GPIO_PIN_CNF_DIR_Pos) |
+      (GPIO_PIN_CNF_INPUT_Disconnect << GPIO_PIN_CNF_INPUT_Pos) |
+      (GPIO_PIN_CNF_PULL_Disabled << GPIO_PIN_CNF_PULL_Pos) |
+      (GPIO_PIN_CNF_DRIVE_S0S1 << GPIO_PIN_CNF_DRIVE_Pos);
+  port->OUTCLR = bit;
+}
 
 }  // namespace
 
-void NrfPwmMotors::begin(const pin_size_t* pins, uint8_t n) {
+void NrfPwmMotors::begin(const PinName* pins, uint8_t n) {
   n_ = n > kMaxOutputs ? kMaxOutputs : n;
   for (uint8_t k = 0; k < n_; ++k) {
-    pinMode(pins[k], OUTPUT);
-    digitalWrite(pins[k], LOW);
+    gpio_output_low(static_cast<uint32_t>(pins[k]));
   }
   for (int i = 0; i < 2; ++i) {
+    g_pwm[i].stop();  // disabled: the pins are the GPIO outputs above, low
     NRF_PWM_Type* p = pwm(i);
-    p->ENABLE = PWM_ENABLE_ENABLE_Disabled << PWM_ENABLE_ENABLE_Pos;
     for (int c = 0; c < 4; ++c) {
       const uint8_t k = static_cast<uint8_t>(i * 4 + c);
-      p->PSEL.OUT[c] = k < n_ ? static_cast<uint32_t>(digitalPinToPinName(pins[k]))
+      p->PSEL.OUT[c] = k < n_ ? static_cast<uint32_t>(pins[k])
                               : (PWM_PSEL_OUT_CONNECT_Disconnected << PWM_PSEL_OUT_CONNECT_Pos);
       g_sequence[i][c] = kFallingEdge;  // duty 0
     }
@@ -43,8 +65,6 @@ void NrfPwmMotors::begin(const pin_size_t* pins, uint8_t n) {
     p->SEQ[0].REFRESH = 0;
     p->SEQ[0].ENDDELAY = 0;
     p->SHORTS = 0;
-    p->ENABLE = PWM_ENABLE_ENABLE_Enabled << PWM_ENABLE_ENABLE_Pos;
-    running_[i] = false;
   }
 }
 
@@ -53,23 +73,27 @@ void NrfPwmMotors::write(const uint16_t* levels, uint8_t n) {
     bool any = false;
     for (int c = 0; c < 4; ++c) {
       const uint8_t k = static_cast<uint8_t>(i * 4 + c);
-      uint32_t duty = 0;
-      if (k < n_ && k < n) duty = (static_cast<uint32_t>(levels[k]) * kSteps + 32767u) / 65535u;
-      // COMPARE == COUNTERTOP is an edge case of the wave counter (Zephyr's nRF
-      // driver avoids it too): full level runs at kSteps - 1 of kSteps.
-      if (duty >= kSteps) duty = kSteps - 1u;
+      const uint16_t duty = (k < n_ && k < n) ? tb::level_to_duty(levels[k], kSteps) : 0;
       g_sequence[i][c] = static_cast<uint16_t>(kFallingEdge | duty);
       any = any || duty != 0;
     }
-    NRF_PWM_Type* p = pwm(i);
+    // Play the 4 values once; after the sequence the last values stay on. All 0:
+    // stop (bounded wait for EVENTS_STOPPED), then disable: pins low via GPIO.
     if (any) {
-      // Play the 4 values once; after the sequence the last values stay on.
-      p->EVENTS_SEQEND[0] = 0;
-      p->TASKS_SEQSTART[0] = 1;
-      running_[i] = true;
-    } else if (running_[i]) {
-      p->TASKS_STOP = 1;
-      running_[i] = false;
+      g_pwm[i].start();
+    } else {
+      g_pwm[i].stop();
     }
   }
+}
+
+void NrfPwmMotors::all_off() {
+  for (int i = 0; i < 2; ++i) {
+    for (int c = 0; c < 4; ++c) g_sequence[i][c] = kFallingEdge;
+    g_pwm[i].stop();
+  }
+}
+
+uint32_t NrfPwmMotors::stop_timeouts() const {
+  return g_pwm[0].stop_timeouts() + g_pwm[1].stop_timeouts();
 }

@@ -3,7 +3,17 @@
 // analogWrite() on this board drives at most 4 pins at once, so it must not be
 // used. NRF_PWM0 drives channels 0-3 and NRF_PWM1 channels 4-7, each in
 // "individual" decoder mode (one compare value per output), counting up to 800 at
-// 16 MHz: 20 kHz, above hearing, with 800 steps. Arduino-only (not in the core).
+// 16 MHz: 20 kHz, above hearing, with 800 steps. Arduino-only (not in the core);
+// the start/stop sequencing is the core's PwmSequencer (tested on the host).
+//
+// Pin levels (docs/hardware.md, "Pin levels"):
+// - at reset and until begin(): every GPIO is an input with its buffer disconnected
+//   (high impedance); the driver's pull-downs hold the motors off;
+// - begin() makes every motor pin a GPIO output driving low (OUTCLR, then DIRSET)
+//   before the PWM is configured, and leaves the PWM disabled;
+// - a peripheral runs (ENABLE = 1) only while one of its channels is above 0; when
+//   all are 0 it is stopped (waiting for EVENTS_STOPPED) and disabled, so its pins
+//   are GPIO outputs driving low again.
 #pragma once
 
 #include <Arduino.h>
@@ -15,13 +25,16 @@ class NrfPwmMotors : public tb::MotorDriver {
   static constexpr uint16_t kSteps = 800;  // 16 MHz / 800 = 20 kHz
   static constexpr uint8_t kMaxOutputs = 8;
 
-  // Drives pins low, then hands them to the PWM peripherals with every output off.
-  void begin(const pin_size_t* pins, uint8_t n);
+  // Drives pins low, then configures the PWM peripherals, disabled.
+  void begin(const PinName* pins, uint8_t n);
   // Level 0..65535 to duty 0..kSteps per channel; a peripheral whose outputs are
-  // all 0 is stopped, so its pins rest at the GPIO level (low).
+  // all 0 is stopped and disabled, so its pins rest at the GPIO level (low).
   void write(const uint16_t* levels, uint8_t n) override;
+  // Everything off, by construction: both peripherals stopped and disabled.
+  void all_off();
+  // Stops that did not see EVENTS_STOPPED within the bound (should stay 0).
+  uint32_t stop_timeouts() const;
 
  private:
   uint8_t n_ = 0;
-  bool running_[2] = {false, false};
 };

@@ -32,7 +32,7 @@ struct Value {
   }
   const Value& operator[](size_t i) const {
     if (kind != kArray || i >= arr.size()) {
-      fprintf(stderr, "json: index %zu out of range\n", i);
+      fprintf(stderr, "json: index %lu out of range\n", static_cast<unsigned long>(i));
       abort();
     }
     return arr[i];
@@ -56,7 +56,7 @@ class Parser {
 
  private:
   [[noreturn]] void die(const char* what) {
-    fprintf(stderr, "json: %s at offset %zu\n", what, i_);
+    fprintf(stderr, "json: %s at offset %lu\n", what, static_cast<unsigned long>(i_));
     abort();
   }
   void ws() {

@@ -13,6 +13,7 @@
 namespace support {
 
 inline const char* g_vectors_path = "test/vectors.json";
+inline const char* g_vectors_ext_path = "test/vectors_ext.json";
 inline const char* g_reference_dir = "../tests/data/reference";
 
 // The parsed vectors.json (loaded once).
@@ -21,6 +22,19 @@ inline const json::Value& vectors() {
     std::string text;
     if (!json::read_file(g_vectors_path, &text)) {
       fprintf(stderr, "cannot read %s\n", g_vectors_path);
+      abort();
+    }
+    return json::Parser(text).parse();
+  }();
+  return v;
+}
+
+// The parsed vectors_ext.json (hand-written vectors of the protocol extensions).
+inline const json::Value& vectors_ext() {
+  static json::Value v = [] {
+    std::string text;
+    if (!json::read_file(g_vectors_ext_path, &text)) {
+      fprintf(stderr, "cannot read %s\n", g_vectors_ext_path);
       abort();
     }
     return json::Parser(text).parse();

@@ -189,14 +189,17 @@ TEST(render_vectors_match_python) {
       s.amplitudes(static_cast<uint64_t>(times[i].integer()), out);
       for (size_t k = 0; k < angles.size(); ++k) {
         char ctx[160];
-        snprintf(ctx, sizeof ctx, "n=%zu cdeg=%d mode=%d law=%d t=%lldus tactor %zu",
-                 angles.size(), p.angle_cdeg, p.mode, p.law, times[i].integer(), k);
+        // %lu, not %zu: newlib's printf on the Cortex-M4 run does not know %zu
+        snprintf(ctx, sizeof ctx, "n=%lu cdeg=%d mode=%d law=%d t=%lldus tactor %lu",
+                 static_cast<unsigned long>(angles.size()), p.angle_cdeg, p.mode, p.law,
+                 times[i].integer(), static_cast<unsigned long>(k));
         CHECK_NEAR_CTX(out[k], amps[i][k].number(), kTolerance, ctx);
         worst = fmax(worst, fabs(static_cast<double>(out[k]) - amps[i][k].number()));
       }
       ++samples;
     }
   }
-  printf("render vectors: %zu cases, %zu samples, largest difference %.2e (%.3f/65535)\n",
-         cases.size(), samples, worst, worst * 65535.0);
+  printf("render vectors: %lu cases, %lu samples, largest difference %.2e (%.3f/65535)\n",
+         static_cast<unsigned long>(cases.size()), static_cast<unsigned long>(samples), worst,
+         worst * 65535.0);
 }

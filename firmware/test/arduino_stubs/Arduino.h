@@ -7,8 +7,11 @@
 #include <stdint.h>
 
 typedef uint8_t pin_size_t;
-enum PinName : int { P1_11 = 43, P1_12 = 44, P1_15 = 47, P1_13 = 45, P1_14 = 46, P0_23 = 23,
-                     P0_13 = 13, NC = -1 };
+// PinName: mbed's nRF52840 names (targets/.../TARGET_NRF52840/PinNames.h), pin
+// number = port * 32 + pin.
+enum PinName : int { P0_4 = 4, P0_5 = 5, P0_13 = 13, P0_21 = 21, P0_23 = 23, P0_27 = 27,
+                     P1_8 = 40, P1_11 = 43, P1_12 = 44, P1_13 = 45, P1_14 = 46, P1_15 = 47,
+                     NC = -1 };
 enum { D2 = 2, D3 = 3, D4 = 4, D5 = 5, D6 = 6, D7 = 7, LED_BUILTIN = 13 };
 enum PinMode { INPUT = 0, OUTPUT = 1 };
 enum PinStatus { LOW = 0, HIGH = 1 };
@@ -27,6 +30,9 @@ class USBSerial {
   int available();
   int read();
   size_t write(const uint8_t* buf, size_t size);
+  // USBCDC::send_nb (USBSerial derives from USBCDC): copies what the CDC TX
+  // buffer has room for, never waits.
+  void send_nb(uint8_t* buffer, uint32_t size, uint32_t* actual, bool now = true);
   bool dtr();
   operator bool();
 };

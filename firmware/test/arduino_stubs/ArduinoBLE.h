@@ -11,7 +11,10 @@ enum BLEProperty : uint8_t {
 enum BLECharacteristicEvent { BLESubscribed = 0, BLEUnsubscribed = 1, BLEWritten = 3 };
 enum BLEDeviceEvent { BLEConnected = 0, BLEDisconnected = 1 };
 
-class BLEDevice {};
+class BLEDevice {
+ public:
+  bool connected() const;
+};
 class BLECharacteristic;
 typedef void (*BLECharacteristicEventHandler)(BLEDevice device, BLECharacteristic characteristic);
 typedef void (*BLEDeviceEventHandler)(BLEDevice device);

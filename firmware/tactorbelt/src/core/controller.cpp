@@ -2,12 +2,6 @@
 
 namespace tb {
 
-namespace {
-
-uint16_t saturating_inc(uint16_t v) { return v == 0xFFFF ? v : static_cast<uint16_t>(v + 1); }
-
-}  // namespace
-
 Controller::Controller(const Layout& layout, MotorDriver& motors, uint16_t pwm_steps)
     : layout_(layout), motors_(motors), pwm_steps_(pwm_steps) {}
 
@@ -67,6 +61,7 @@ void Controller::receive_packet(const uint8_t* raw, size_t n, uint64_t now_us, R
 void Controller::link_closed(uint64_t now_us) {
   decoder_.reset();
   have_seq_ = false;
+  flags_ = 0;  // extensions are per connection: the next host starts with plain v1
   state_ = State::kIdle;
   update_outputs(now_us);
 }
@@ -85,6 +80,17 @@ void Controller::ack(ReplySink& sink, uint8_t seq) {
 void Controller::nak(ReplySink& sink, uint8_t seq, uint8_t code) {
   const uint8_t payload[2] = {seq, code};
   reply(sink, msg::kNak, seq, payload, sizeof payload);
+}
+
+// ONSET: the device time at which the outputs took the new values. The motor
+// registers are written by update_outputs() with this same now_us, before the call.
+void Controller::onset(ReplySink& sink, uint8_t seq, uint8_t type, uint64_t now_us) {
+  if ((flags_ & kFlagOnsetEvents) == 0) return;
+  uint8_t payload[kOnsetPayload];
+  payload[0] = seq;
+  payload[1] = type;
+  put_u64(payload + 2, now_us);
+  reply(sink, msg::kOnset, seq, payload, sizeof payload);
 }
 
 void Controller::handle(const Packet& p, uint64_t now_us, ReplySink& sink) {
@@ -115,6 +121,7 @@ void Controller::handle(const Packet& p, uint64_t now_us, ReplySink& sink) {
       put_u16(payload + 5, pwm_steps_);
       put_u16(payload + 7, heartbeat_ms_);
       payload[9] = kCapPlayTarget;
+      if (reset_flags_ & reset::kWatchdog) payload[9] |= kCapWatchdogReset;
       for (uint8_t k = 0; k < n; ++k) {
         uint32_t cdeg = static_cast<uint32_t>(layout_.angle(k) * 100.0f + 0.5f);
         if (cdeg >= 36000u) cdeg -= 36000u;
@@ -125,8 +132,10 @@ void Controller::handle(const Packet& p, uint64_t now_us, ReplySink& sink) {
     case msg::kSetAmplitudes: {
       if (p.len != 2u * n) return nak(sink, p.seq, nak::kBadLength);
       for (uint8_t k = 0; k < n; ++k) stream_[k] = get_u16(p.payload + 2 * k);
+      const bool starts = state_ != State::kStreaming;
       state_ = State::kStreaming;
       update_outputs(now_us);
+      if (starts) onset(sink, p.seq, p.type, now_us);
       return;
     }
     case msg::kStopAll: {
@@ -149,22 +158,28 @@ void Controller::handle(const Packet& p, uint64_t now_us, ReplySink& sink) {
       play_start_us_ = now_us;
       state_ = State::kPlaying;
       update_outputs(now_us);
-      return ack(sink, p.seq);
+      ack(sink, p.seq);
+      return onset(sink, p.seq, p.type, now_us);
     }
     case msg::kHeartbeat: {
       if (p.len != 0) return nak(sink, p.seq, nak::kBadLength);
       return;
     }
     case msg::kSetConfig: {
-      if (p.len != kSetConfigPayload && p.len != kSetConfigPayloadLong) {
+      if (p.len != kSetConfigPayload && p.len != kSetConfigPayloadLong &&
+          p.len != kSetConfigPayloadFlags) {
         return nak(sink, p.seq, nak::kBadLength);
       }
       const uint16_t hb = get_u16(p.payload);
-      const uint32_t max_on = p.len == kSetConfigPayloadLong ? get_u32(p.payload + 2) : max_on_ms_;
-      // both values are checked before either applies
-      if (!heartbeat_ms_ok(hb) || !max_on_ms_ok(max_on)) return nak(sink, p.seq, nak::kOutOfRange);
+      const uint32_t max_on = p.len >= kSetConfigPayloadLong ? get_u32(p.payload + 2) : max_on_ms_;
+      const uint8_t flags = p.len == kSetConfigPayloadFlags ? p.payload[6] : flags_;
+      // every value is checked before any applies
+      if (!heartbeat_ms_ok(hb) || !max_on_ms_ok(max_on) || (flags & ~kKnownFlags) != 0) {
+        return nak(sink, p.seq, nak::kOutOfRange);
+      }
       heartbeat_ms_ = hb;
       max_on_ms_ = max_on;
+      flags_ = flags;
       deadline_us_ = now_us + static_cast<uint64_t>(heartbeat_ms_) * 1000u;
       return ack(sink, p.seq);
     }
@@ -178,7 +193,19 @@ void Controller::handle(const Packet& p, uint64_t now_us, ReplySink& sink) {
       for (uint8_t k = 0; k < n; ++k) put_u16(payload + 9 + 2 * k, out_[k]);
       return reply(sink, msg::kStatus, p.seq, payload, 9 + 2u * n);
     }
+    case msg::kGetDiag: {
+      if (p.len != 0) return nak(sink, p.seq, nak::kBadLength);
+      put_u64(payload, now_us);
+      payload[8] = reset_flags_;
+      put_u16(payload + 9, counters_.tx_dropped);
+      put_u16(payload + 11, counters_.ble_refused);
+      return reply(sink, msg::kDiag, p.seq, payload, kDiagPayload);
+    }
     default:
+      if (debug_ != nullptr && p.type >= msg::kDebugFirst && p.type <= msg::kDebugLast &&
+          debug_->handle(p)) {
+        return ack(sink, p.seq);
+      }
       return nak(sink, p.seq, nak::kUnknownType);
   }
 }
@@ -193,6 +220,8 @@ void Controller::tick(uint64_t now_us) {
     state_ = State::kIdle;
   }
   update_outputs(now_us);
+  // Fed only here, after the outputs: a loop that stops ticking gets reset.
+  if (watchdog_ != nullptr) watchdog_->feed(now_us);
 }
 
 void Controller::update_outputs(uint64_t now_us) {

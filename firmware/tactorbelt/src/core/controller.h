@@ -9,6 +9,7 @@
 
 #include "protocol.h"
 #include "renderer.h"
+#include "watchdog.h"
 #include "wire.h"
 
 namespace tb {
@@ -33,12 +34,31 @@ class ReplySink {
   ~ReplySink() = default;
 };
 
+// Debug requests (types 0x70..0x7F) go to a hook when one is installed (the
+// emulator's --debug-frames); true means handled (the controller ACKs it).
+class DebugHook {
+ public:
+  virtual bool handle(const Packet& p) = 0;
+
+ protected:
+  ~DebugHook() = default;
+};
+
 struct Counters {
   uint16_t failsafe = 0;
   uint16_t crc_errors = 0;
   uint16_t framing_errors = 0;
   uint16_t seq_gaps = 0;
+  // Link counters (GET_DIAG), kept by the link sinks: reply frames dropped because
+  // the serial TX buffer was full (a host not reading), and BLE replies refused
+  // (NAK 5) because they did not fit the ATT MTU.
+  uint16_t tx_dropped = 0;
+  uint16_t ble_refused = 0;
 };
+
+inline uint16_t saturating_inc(uint16_t v) {
+  return v == 0xFFFF ? v : static_cast<uint16_t>(v + 1);
+}
 
 class Controller {
  public:
@@ -62,10 +82,21 @@ class Controller {
   bool set_heartbeat_ms(uint16_t ms);
   bool set_max_on_ms(uint32_t ms);
 
+  // Fed at the end of every tick, after the outputs are updated (may be null).
+  void set_watchdog(Watchdog* w) { watchdog_ = w; }
+  // Handles debug requests (emulator only; null on the device).
+  void set_debug_hook(DebugHook* h) { debug_ = h; }
+  // Why the device last reset (reset::* bits, from RESETREAS at boot): GET_DIAG
+  // reports them, INFO sets kCapWatchdogReset when the watchdog did it.
+  void set_reset_flags(uint8_t flags) { reset_flags_ = flags; }
+
   State state() const { return state_; }
   uint8_t channels() const { return layout_.size(); }
   const uint16_t* levels() const { return out_; }
   const Counters& counters() const { return counters_; }
+  Counters& link_counters() { return counters_; }
+  uint8_t config_flags() const { return flags_; }
+  uint8_t reset_flags() const { return reset_flags_; }
   uint16_t heartbeat_ms() const { return heartbeat_ms_; }
   uint32_t max_on_ms() const { return max_on_ms_; }
 
@@ -74,6 +105,7 @@ class Controller {
   void reply(ReplySink& sink, uint8_t type, uint8_t seq, const uint8_t* payload, size_t n);
   void ack(ReplySink& sink, uint8_t seq);
   void nak(ReplySink& sink, uint8_t seq, uint8_t code);
+  void onset(ReplySink& sink, uint8_t seq, uint8_t type, uint64_t now_us);
   void update_outputs(uint64_t now_us);
 
   const Layout& layout_;
@@ -88,6 +120,10 @@ class Controller {
   uint64_t deadline_us_ = 0;
   bool have_seq_ = false;
   uint8_t last_seq_ = 0;
+  uint8_t flags_ = 0;        // SET_CONFIG flags, per connection
+  uint8_t reset_flags_ = 0;  // reset::*
+  Watchdog* watchdog_ = nullptr;
+  DebugHook* debug_ = nullptr;
 
   uint16_t stream_[kMaxChannels] = {};  // the last SET_AMPLITUDES (state streaming)
   Stimulus stimulus_;

@@ -24,7 +24,26 @@ constexpr size_t kMaxEncodedPacket = kMaxPacket + kMaxPacket / 254 + 1;
 // Channel limit: INFO (10 + 2N payload bytes) must fit in kMaxPayload.
 constexpr uint8_t kMaxChannels = 16;
 
+// INFO capability bits. kCapWatchdogReset is a status bit: the last reset was the
+// watchdog's. The extensions (GET_DIAG, ONSET events, the SET_CONFIG flags byte) are
+// all opt-in, so a v1 host that never asks sees exactly v1.0 behaviour; a host finds
+// them by sending GET_DIAG (a device without them NAKs it with code 2).
 constexpr uint8_t kCapPlayTarget = 0x01;
+constexpr uint8_t kCapWatchdogReset = 0x80;
+
+// SET_CONFIG flags (the optional 7th payload byte). Cleared when the link closes.
+constexpr uint8_t kFlagOnsetEvents = 0x01;  // send ONSET when outputs start
+constexpr uint8_t kFlagBleFramed = 0x02;    // BLE replies as a COBS stream in MTU chunks
+constexpr uint8_t kKnownFlags = kFlagOnsetEvents | kFlagBleFramed;
+
+// Reset causes (GET_DIAG reset_flags), from the nRF52840 RESETREAS register.
+namespace reset {
+constexpr uint8_t kPin = 0x01;       // RESETREAS.RESETPIN
+constexpr uint8_t kWatchdog = 0x02;  // RESETREAS.DOG
+constexpr uint8_t kSoft = 0x04;      // RESETREAS.SREQ
+constexpr uint8_t kLockup = 0x08;    // RESETREAS.LOCKUP
+constexpr uint8_t kOther = 0x80;     // any other bit (wake-ups, debug interface)
+}  // namespace reset
 
 namespace msg {
 constexpr uint8_t kPing = 0x01;
@@ -35,17 +54,26 @@ constexpr uint8_t kPlayTarget = 0x12;
 constexpr uint8_t kHeartbeat = 0x14;
 constexpr uint8_t kSetConfig = 0x15;
 constexpr uint8_t kGetStatus = 0x16;
+constexpr uint8_t kGetDiag = 0x17;
 constexpr uint8_t kAck = 0x80;
 constexpr uint8_t kPong = 0x81;
 constexpr uint8_t kInfo = 0x82;
 constexpr uint8_t kStatus = 0x83;
+constexpr uint8_t kDiag = 0x84;
+constexpr uint8_t kOnset = 0x85;
 constexpr uint8_t kNak = 0x8F;
+// 0x70..0x7F: debug requests, handled only by a build that installs a DebugHook
+// (the emulator with --debug-frames); the device NAKs them as unknown (code 2).
+constexpr uint8_t kDebugFirst = 0x70;
+constexpr uint8_t kDebugLast = 0x7F;
+constexpr uint8_t kDebugHang = 0x7E;  // emulator: stop ticking (watchdog test)
 }  // namespace msg
 
 namespace nak {
 constexpr uint8_t kUnknownType = 2;
 constexpr uint8_t kBadLength = 3;
 constexpr uint8_t kOutOfRange = 4;
+constexpr uint8_t kReplyTooLong = 5;  // BLE: the reply does not fit the negotiated ATT MTU
 }  // namespace nak
 
 enum class State : uint8_t { kIdle = 0, kStreaming = 1, kPlaying = 2, kFailsafe = 3 };
@@ -55,6 +83,9 @@ constexpr size_t kPingPayload = 4;
 constexpr size_t kPlayTargetPayload = 14;
 constexpr size_t kSetConfigPayload = 2;
 constexpr size_t kSetConfigPayloadLong = 6;
+constexpr size_t kSetConfigPayloadFlags = 7;
+constexpr size_t kDiagPayload = 13;
+constexpr size_t kOnsetPayload = 10;
 
 // Configuration limits.
 constexpr uint16_t kDefaultHeartbeatMs = 250;
@@ -86,6 +117,15 @@ inline void put_u32(uint8_t* p, uint32_t v) {
   p[1] = static_cast<uint8_t>(v >> 8);
   p[2] = static_cast<uint8_t>(v >> 16);
   p[3] = static_cast<uint8_t>(v >> 24);
+}
+
+inline void put_u64(uint8_t* p, uint64_t v) {
+  put_u32(p, static_cast<uint32_t>(v));
+  put_u32(p + 4, static_cast<uint32_t>(v >> 32));
+}
+
+inline uint64_t get_u64(const uint8_t* p) {
+  return static_cast<uint64_t>(get_u32(p)) | (static_cast<uint64_t>(get_u32(p + 4)) << 32);
 }
 
 }  // namespace tb
