@@ -1,6 +1,6 @@
 """Angles, tactor layouts and target sets.
 
-Conventions (DESIGN.md): degrees, normalised to [0, 360); 0 is the navel, angles
+Conventions (docs/conventions.md): degrees, normalised to [0, 360); 0 is the navel, angles
 grow clockwise seen from above (90 = right flank, 180 = spine, 270 = left flank).
 The default layout puts N tactors at ``180/N + k*360/N``; targets sit at ``k*360/M``.
 
@@ -76,7 +76,7 @@ class Layout:
     Tactor ``k`` is index ``k`` in every array. Angles are kept in the order given
     (normalised); neighbours are found by angle, so an uneven or unsorted layout works.
 
-    Use :meth:`even` for N evenly spaced tactors (the default layout of DESIGN.md) or
+    Use :meth:`even` for N evenly spaced tactors (the default layout of docs/conventions.md) or
     :meth:`from_angles` for explicit angles.
     """
 

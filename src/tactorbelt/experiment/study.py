@@ -27,6 +27,7 @@ from typing import Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from .._errors import ConfigError, StudyFileError
+from .._lawnames import LawName
 from ..geometry import Layout, TargetSet
 
 __all__ = [
@@ -109,9 +110,9 @@ class TargetsSpec(_Model):
 
 
 class StimulusSpec(_Model):
-    """How targets are rendered (DESIGN.md, "Amplitude laws" and "Stimuli")."""
+    """How targets are rendered (docs/conventions.md, "Amplitude laws" and "Stimuli")."""
 
-    law: Literal["paper", "linear", "energy"] = "paper"
+    law: LawName = "paper"
     falloff_deg: float = Field(default=15.0, gt=0, le=360)
     period_s: float = Field(default=1.0, gt=0, le=60)
     transit_s: float = Field(default=0.1, gt=0, le=30)

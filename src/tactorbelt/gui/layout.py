@@ -5,7 +5,8 @@ the top, angles growing clockwise. A target at angle θ is drawn where the ray f
 centre in direction ``(sin θ, cos θ)`` (x right, y up) meets the ellipse, at the
 distance ``r(θ) = 1 / sqrt((sin θ / rx)^2 + (cos θ / ry)^2)`` from the centre.
 
-Cursor units (DESIGN.md): the ellipse has radius 1 along each axis, y up = front. The
+Cursor units (docs/conventions.md, "Data store"): the ellipse has radius 1 along each
+axis, y up = front. The
 window maps them to pixels *along rays*: a cursor at ``ρ (sin φ, cos φ)`` is drawn at
 ``ρ r(φ)`` pixels from the centre in direction φ. On the two axes this is the plain
 scaling ``(x rx, y ry)``; elsewhere it keeps angles, so the direction the participant

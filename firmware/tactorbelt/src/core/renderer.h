@@ -1,4 +1,4 @@
-// Amplitude laws and static/dynamic stimuli, float32, exactly as DESIGN.md
+// Amplitude laws and static/dynamic stimuli, float32, exactly as docs/conventions.md
 // ("Amplitude laws", "Stimuli") and the Python reference tactorbelt.stimuli define
 // them. Portable C++17: no Arduino headers, no heap, no exceptions.
 #pragma once
