@@ -6,13 +6,12 @@ centre in direction ``(sin θ, cos θ)`` (x right, y up) meets the ellipse, at t
 distance ``r(θ) = 1 / sqrt((sin θ / rx)^2 + (cos θ / ry)^2)`` from the centre.
 
 Cursor units (docs/conventions.md, "Data store"): the ellipse has radius 1 along each
-axis, y up = front. The
-window maps them to pixels *along rays*: a cursor at ``ρ (sin φ, cos φ)`` is drawn at
-``ρ r(φ)`` pixels from the centre in direction φ. On the two axes this is the plain
-scaling ``(x rx, y ry)``; elsewhere it keeps angles, so the direction the participant
-sees on screen is the direction the trial machine computes (``atan2(x, y)``), and a
-cursor on a drawn target has exactly that target's angle. For a circle (rx == ry) it is
-the plain scaling everywhere.
+axis, y up = front. The window maps them to pixels *along rays*: a cursor at ``ρ (sin φ,
+cos φ)`` is drawn at ``ρ r(φ)`` pixels from the centre in direction φ. On the two axes
+this is the plain scaling ``(x rx, y ry)``; elsewhere it keeps angles, so the direction
+the participant sees on screen is the direction the trial machine computes (``atan2(x,
+y)``), and a cursor on a drawn target has exactly that target's angle. For a circle (rx
+== ry) it is the plain scaling everywhere.
 
 Pure: imports only the standard library and NumPy (no pygame).
 """
