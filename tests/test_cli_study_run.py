@@ -333,3 +333,14 @@ def test_exit_codes_are_documented_in_the_help(capsys: pytest.CaptureFixture[str
     for part in ("0 finished", "130 stopped by the user", "143 terminated by SIGTERM",
                  "129 by SIGHUP", "2 usage", "3 device"):
         assert part in text
+
+
+@pytest.mark.parametrize("bad", [["--input", "mouse", "--headless"], ["--belt", "usb:x"],
+                                 ["--input", "telepathy"]])
+def test_a_usage_error_leaves_no_store_behind(small: Path, tmp_path: Path, bad: list[str],
+                                              capsys: pytest.CaptureFixture[str]) -> None:
+    db = tmp_path / "never.sqlite"
+    code, _, err = run_cli(["run", str(small), "-p", "P01", "--headless", "--db", str(db),
+                            *bad], capsys)
+    assert code == 2 and err.startswith("error:")
+    assert not db.exists() and not list(tmp_path.glob("never.sqlite*"))

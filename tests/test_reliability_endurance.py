@@ -27,6 +27,7 @@ import numpy as np
 import pytest
 from numpy.typing import NDArray
 
+from support.studies import study_toml
 from tactorbelt.clock import SimClock
 from tactorbelt.devices import open_belt, wire
 from tactorbelt.experiment.runner import RESULT_SAMPLES_KEPT, run_session
@@ -36,24 +37,9 @@ from tactorbelt.experiment.study import Study
 from tactorbelt.geometry import Layout
 from tactorbelt.inputs.scripted import ScriptedCursor, ScriptedResponse
 
-ENDURANCE = """\
-name = "endurance"
-[layout]
-tactors = 6
-[targets]
-count = 24
-[session]
-iti_s = 0.02
-break_every = 0
-[training]
-passes = 1
-[[test]]
-condition = "static"
-repetitions = 208
-[[test]]
-condition = "dynamic"
-repetitions = 208
-"""  # 48 training trials (every stimulus once, so the belt's tables fill early) + 9,984
+# 48 training trials (every stimulus once, so the belt's tables fill early) + 9,984
+ENDURANCE = study_toml(minimal=True, name="endurance", tactors=6, targets=24, iti_s=0.02,
+                       break_every=0, training=1, repetitions=208)
 
 
 @pytest.mark.slow

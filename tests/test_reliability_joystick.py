@@ -15,6 +15,7 @@ import pygame
 import pytest
 
 from support.inputs import FakeBackend, FakeStick
+from support.studies import study_toml
 from tactorbelt.clock import SimClock
 from tactorbelt.devices import open_belt
 from tactorbelt.devices.sim import SimBelt
@@ -23,28 +24,9 @@ from tactorbelt.experiment.study import Study
 from tactorbelt.gui.window import ExperimentWindow, run_with_window
 from tactorbelt.inputs.joystick import JoystickConfig, JoystickCursor
 
-STUDY = """\
-name = "joystick"
-[layout]
-tactors = 4
-[targets]
-count = 8
-[stimulus]
-max_presentation_s = 2.0
-[response]
-timeout_s = 3.0
-[session]
-iti_s = 0.3
-break_every = 0
-[training]
-passes = 0
-[[test]]
-condition = "static"
-repetitions = 1
-[[test]]
-condition = "dynamic"
-repetitions = 1
-"""
+STUDY = study_toml(minimal=True, name="joystick", tactors=4, targets=8,
+                   max_presentation_s=2.0, timeout_s=3.0, iti_s=0.3, break_every=0,
+                   training=0, repetitions=1)
 
 
 @pytest.fixture(autouse=True)

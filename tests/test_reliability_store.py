@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 import pytest
 
+from support.studies import study_toml
 from tactorbelt import StoreError
 from tactorbelt.clock import SimClock
 from tactorbelt.devices import open_belt
@@ -40,25 +41,9 @@ from tactorbelt.experiment.study import Study
 from tactorbelt.experiment.trial import TrialState
 from tactorbelt.inputs.scripted import ScriptedCursor
 
-STUDY = """\
-name = "store-reliability"
-[layout]
-tactors = 6
-[targets]
-count = 12
-[session]
-iti_s = 0.2
-break_every = 0
-[training]
-passes = 1
-conditions = ["static"]
-[[test]]
-condition = "static"
-repetitions = 8
-[[test]]
-condition = "dynamic"
-repetitions = 8
-"""  # 12 training + 192 test = 204 trials
+STUDY = study_toml(minimal=True, name="store-reliability", tactors=6, targets=12,
+                   iti_s=0.2, break_every=0, training=1, training_conditions=["static"],
+                   repetitions=8)  # 12 training + 192 test = 204 trials
 
 
 def _tactorbelt(*args: str) -> list[str]:

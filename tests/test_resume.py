@@ -15,6 +15,7 @@ from typing import Any
 
 import pytest
 
+from support.studies import study_toml
 from tactorbelt import StoreError
 from tactorbelt.clock import SimClock
 from tactorbelt.devices import open_belt
@@ -24,25 +25,9 @@ from tactorbelt.experiment.store import Store
 from tactorbelt.experiment.study import Study
 from tactorbelt.inputs.scripted import ScriptedCursor
 
-STUDY = """\
-name = "resume"
-[layout]
-tactors = 6
-[targets]
-count = 12
-[session]
-iti_s = 0.2
-break_every = 0
-[training]
-passes = 1
-conditions = ["static"]
-[[test]]
-condition = "static"
-repetitions = 2
-[[test]]
-condition = "dynamic"
-repetitions = 2
-"""  # 12 training + 48 test = 60 trials
+STUDY = study_toml(minimal=True, name="resume", tactors=6, targets=12, iti_s=0.2,
+                   break_every=0, training=1, training_conditions=["static"],
+                   repetitions=2)  # 12 training + 48 test = 60 trials
 
 
 def _cursor(study: Study, participant: str, seed: int = 1) -> ScriptedCursor:

@@ -263,6 +263,19 @@ class _RunObserver:
         return self.inner.poll(now_ns)
 
 
+def _check_options(r: RunRequest) -> None:
+    """Refuse an unknown input, a window input without a window, an unknown belt URL."""
+    from .devices import parse_url
+
+    if r.input_kind is not None and r.input_kind not in INPUTS:
+        raise ConfigError(f"unknown input {r.input_kind!r}; allowed: {', '.join(INPUTS)}")
+    if r.headless and r.input_kind in ("joystick", "mouse"):
+        raise ConfigError(f"--input {r.input_kind} needs the experiment window; drop "
+                          "--headless, or use --input model or --input scripted")
+    if r.belt_url is not None:
+        parse_url(r.belt_url)
+
+
 def run_study(req: RunRequest, *, progress: Callable[[int, int], None] | None = None,
               note: Callable[[str], None] | None = None) -> RunOutcome:
     """Run ``tactorbelt run``'s session (see the module's docstring).
@@ -292,14 +305,11 @@ def run_study(req: RunRequest, *, progress: Callable[[int, int], None] | None = 
         raise ConfigError("--resume and --new-session exclude each other")
     text = req.study_file.read_text(encoding="utf-8") if req.study_file.is_file() else None
     study = load_study(req.study_file)
+    _check_options(req)  # what the request gives: before a store file is created
     with open_store(req.db) as store:
         r = _resolve(req, _check_session(store, req))
         assert r.input_kind is not None and r.belt_url is not None
-        if r.input_kind not in INPUTS:
-            raise ConfigError(f"unknown input {r.input_kind!r}; allowed: {', '.join(INPUTS)}")
-        if r.headless and r.input_kind in ("joystick", "mouse"):
-            raise ConfigError(f"--input {r.input_kind} needs the experiment window; drop "
-                              "--headless, or use --input model or --input scripted")
+        _check_options(r)  # with the stored options of a resumed session
         window = None if r.headless else _window_factory(r.input_kind, note)
         if window is not None and not has_display():
             _no_display()
