@@ -150,7 +150,7 @@ def run_model_study(out: Path, n_participants: int, seed: int,
     from .experiment.store import open_store
     from .experiment.store.sqlite import move_store_file
     from .experiment.study import PAPER_STUDY_TOML, Study
-    from .inputs.model import make_model_cursor
+    from .inputs import make_cursor
     from .participant.params import ModelParams
 
     text = PAPER_STUDY_TOML if study_toml is None else study_toml
@@ -181,8 +181,9 @@ def run_model_study(out: Path, n_participants: int, seed: int,
             session_progress(0, n_trials)
             clock = SimClock()
             with open_belt("sim", clock=clock, layout=study.layout_obj()) as belt:
-                cursor = make_model_cursor(belt, clock, seed=person.cursor_seed,
-                                           params=person.params)
+                cursor = make_cursor("model", study=study, belt=belt, clock=clock,
+                                     participant=person.pid, cursor_seed=person.cursor_seed,
+                                     params=person.params)
                 result = run_session(study, person.pid, belt, cursor, store, clock, seed=seed,
                                      progress=session_progress, study_toml=text,
                                      input_name="model")
