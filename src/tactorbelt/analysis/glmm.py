@@ -52,9 +52,9 @@ from __future__ import annotations
 
 import itertools
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, Final, Literal
+from typing import TYPE_CHECKING, Any, Final
 
 import numpy as np
 
@@ -69,6 +69,7 @@ __all__ = [
     "RandomTerm",
     "fit_glmm",
     "fit_lmm",
+    "fit_simplified",
     "fixed_design",
 ]
 
@@ -107,16 +108,25 @@ class ModelSpec:
     response: str
     fixed: tuple[str, ...]
     random: tuple[RandomTerm, ...]
+    #: ``"log"``: the model is of ``log(response)`` (written so in the formula).
+    transform: str | None = None
 
     def formula(self) -> str:
         """The model in lme4 syntax."""
         rhs = " * ".join(self.fixed) if self.fixed else "1"
-        return f"{self.response} ~ " + " + ".join((rhs, *(t.lme4() for t in self.random)))
+        lhs = f"{self.transform}({self.response})" if self.transform else self.response
+        return f"{lhs} ~ " + " + ".join((rhs, *(t.lme4() for t in self.random)))
 
-    def without(self, drop: RandomTerm, keep: RandomTerm | None = None) -> ModelSpec:
+    def replace_term(self, drop: RandomTerm, keep: RandomTerm | None = None) -> ModelSpec:
         """The same model with ``drop`` replaced by ``keep`` (or removed)."""
-        terms = tuple(keep if t == drop else t for t in self.random if t != drop or keep)
-        return ModelSpec(self.response, self.fixed, terms)
+        terms = tuple(t if t != drop else keep for t in self.random
+                      if t != drop or keep is not None)
+        return ModelSpec(self.response, self.fixed, tuple(t for t in terms if t is not None),
+                         self.transform)
+
+    def response_values(self, df: pd.DataFrame) -> np.ndarray:
+        y = df[self.response].to_numpy(dtype=float)
+        return np.log(y) if self.transform == "log" else y
 
 
 @dataclass
@@ -166,10 +176,22 @@ class MixedModelFit:
     vcov_method: str
     converged: bool
     messages: list[str] = field(default_factory=list)
+    theta_names: list[str] = field(default_factory=list)
     n_obs: int = 0
     n_cells: int = 0
     groups: dict[str, int] = field(default_factory=dict)
     criterion: str = "ML (Laplace)"
+
+    def zero_components(self) -> list[str]:
+        """Names of theta elements bounded by 0 and estimated below :data:`SINGULAR_TOL`
+        (``participant.conditionstatic``: a slope at 0 or a correlation of +-1)."""
+        out = []
+        for nm, th in zip(self.theta_names, self.theta, strict=False):
+            parts = nm.split(".")
+            diagonal = len(parts) == 2 or (len(parts) == 3 and parts[1] == parts[2])
+            if diagonal and th < SINGULAR_TOL:
+                out.append(nm)
+        return out
 
 
 # -- design matrices ---------------------------------------------------------------------
@@ -218,7 +240,7 @@ def fixed_design(df: pd.DataFrame, fixed: Sequence[str]) -> tuple[np.ndarray, li
     keep: list[int] = []
     dropped: list[str] = []
     for j in range(x.shape[1]):
-        trial = keep + [j]
+        trial = [*keep, j]
         if np.linalg.matrix_rank(x[:, trial], tol=1e-7 * max(1.0, np.abs(x).max()) * n) == len(
                 trial):
             keep.append(j)
@@ -245,6 +267,12 @@ class _Term:
 
     def lower_bounds(self) -> list[float]:
         return [0.0 if i == j else -np.inf for j in range(self.b) for i in range(j, self.b)]
+
+    def theta_names(self) -> list[str]:
+        """lme4's names of this term's theta elements (``group.col`` or ``group.row.col``)."""
+        c = self.columns
+        return [f"{self.name}.{c[i]}" if i == j else f"{self.name}.{c[i]}.{c[j]}"
+                for j in range(self.b) for i in range(j, self.b)]
 
     def tri(self, th: np.ndarray) -> np.ndarray:
         t = np.zeros((self.b, self.b))
@@ -585,7 +613,7 @@ def fit_glmm(df: pd.DataFrame, spec: ModelSpec) -> MixedModelFit:
         ValueError: a missing column, fewer than 2 levels of a grouping factor.
     """
     _check(df, spec)
-    y = df[spec.response].to_numpy(dtype=float)
+    y = spec.response_values(df)
     x, names, dropped = fixed_design(df, spec.fixed)
     terms = _random_terms(df, spec)
     xc, ys, ms, pterms = _pool(df, x, terms, y)
@@ -633,6 +661,7 @@ def fit_glmm(df: pd.DataFrame, spec: ModelSpec) -> MixedModelFit:
         vcov=vcov, random_effects=_random_table(pterms, lap.split(theta)), theta=theta,
         singular=singular, deviance=dev, loglik=-dev / 2.0, vcov_method=vcov_method,
         converged=ok1 and ok2, messages=messages, n_obs=len(df), n_cells=int(ys.size),
+        theta_names=[nm for t in pterms for nm in t.theta_names()],
         groups={t.name: t.n_levels for t in terms},
     )
 
@@ -647,7 +676,7 @@ def fit_lmm(df: pd.DataFrame, spec: ModelSpec, *, reml: bool = True) -> MixedMod
     z and p are Wald (normal) values; lmer itself prints t without a p.
     """
     _check(df, spec)
-    y = df[spec.response].to_numpy(dtype=float)
+    y = spec.response_values(df)
     x, names, dropped = fixed_design(df, spec.fixed)
     terms = _random_terms(df, spec)
     sysm = _System(terms, x)
@@ -707,9 +736,59 @@ def fit_lmm(df: pd.DataFrame, spec: ModelSpec, *, reml: bool = True) -> MixedMod
         vcov=vcov, random_effects=re, theta=theta, singular=singular, deviance=crit,
         loglik=-crit / 2.0, vcov_method="sigma^2 (R_X' R_X)^-1, as lmer's vcov",
         converged=ok, messages=messages, n_obs=n, n_cells=n,
+        theta_names=[nm for t in terms for nm in t.theta_names()],
         groups={t.name: t.n_levels for t in terms},
         criterion="REML" if reml else "ML",
     )
 
 
-Engine = Literal["tactorbelt", "lme4"]
+# -- the simplification rule --------------------------------------------------------------
+
+Fitter = Callable[["pd.DataFrame", ModelSpec], MixedModelFit]
+
+
+def fit_simplified(df: pd.DataFrame, spec: ModelSpec,
+                   fitter: Fitter) -> tuple[MixedModelFit, list[dict[str, Any]]]:
+    """Fit the maximal model and simplify it while the fit is singular.
+
+    The rule (Barr et al. 2013: start maximal; Matuschek et al. 2017: drop variance
+    components the data do not support), applied after each singular fit, first
+    applicable step only:
+
+    1. a random term with slopes whose slope SD is 0 or whose correlation is +-1 (a
+       zero diagonal element of its theta) loses its slopes (``(1 + condition |
+       participant)`` -> ``(1 | participant)``);
+    2. else an intercept-only term estimated at SD 0 is dropped (targets first, as
+       listed last in the formula), unless it is the only term left;
+    3. else (nothing left to drop) the singular fit is kept and reported as singular.
+
+    Returns:
+        The final fit and one record per fit: ``formula``, ``singular``,
+        ``zero_components`` and the ``action`` taken.
+    """
+    steps: list[dict[str, Any]] = []
+    while True:
+        fit = fitter(df, spec)
+        zero = fit.zero_components()
+        step: dict[str, Any] = {"formula": spec.formula(), "singular": fit.singular,
+                                "zero_components": zero, "action": "kept"}
+        steps.append(step)
+        if not fit.singular:
+            return fit, steps
+        groups = {z.split(".")[0] for z in zero}
+        nxt = None
+        for t in spec.random:
+            if t.slopes and t.group in groups:
+                nxt = spec.replace_term(t, RandomTerm(t.group))
+                step["action"] = f"singular: dropped the random slope(s) of {t.group}"
+                break
+        if nxt is None and len(spec.random) > 1:
+            for t in reversed(spec.random):
+                if not t.slopes and t.group in groups:
+                    nxt = spec.replace_term(t)
+                    step["action"] = f"singular: dropped the random intercept of {t.group}"
+                    break
+        if nxt is None:
+            step["action"] = "singular: nothing left to drop; the singular fit is reported"
+            return fit, steps
+        spec = nxt
