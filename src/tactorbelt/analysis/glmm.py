@@ -303,66 +303,93 @@ def _random_terms(df: pd.DataFrame, spec: ModelSpec) -> list[_Term]:
 
 # -- the penalised least-squares system, structured --------------------------------------
 
+@dataclass
+class _Rows:
+    """The dense part of ``[Z Lambda | X]``, stored by row: ``vals`` at columns ``cols``."""
+
+    cols: np.ndarray  # (N, s) int
+    vals: np.ndarray  # (N, s)
+    r: int
+
+    def dot(self, x: np.ndarray) -> np.ndarray:
+        return (self.vals * x[self.cols]).sum(axis=1)
+
+    def tdot(self, resid: np.ndarray) -> np.ndarray:
+        return np.bincount(self.cols.ravel(), weights=(self.vals * resid[:, None]).ravel(),
+                           minlength=self.r)
+
+
 class _System:
     """``A = Lambda' Z' W Z Lambda + P`` with the first term's levels as diagonal blocks.
 
     Unknowns: ``u_1`` (term 1, ``m1`` blocks of size ``b1``) and a dense part ``[u_2,
-    ..., u_K, beta?]`` (``beta`` only for joint solves, unpenalised).
+    ..., u_K, beta?]`` (``beta`` only for joint solves, unpenalised). Every sum over
+    rows is a ``bincount`` over the few non-zeros of each row (no large matrix product).
     """
 
     def __init__(self, terms: list[_Term], x: np.ndarray | None) -> None:
         self.terms = terms
         self.x = x
         t1 = terms[0]
-        self.order = np.argsort(t1.group, kind="stable")
-        g = t1.group[self.order]
-        self.starts = np.flatnonzero(np.r_[True, g[1:] != g[:-1]])
-        self.present = g[self.starts]
+        self.g1 = t1.group
         self.m1, self.b1 = t1.n_levels, t1.b
-        self.offsets: list[int] = []
+        cols: list[np.ndarray] = []
         r = 0
         for t in terms[1:]:
-            self.offsets.append(r)
+            for j in range(t.b):
+                cols.append(r + t.group * t.b + j)
             r += t.n_levels * t.b
         self.r_u = r
         self.p = 0 if x is None else x.shape[1]
+        n = t1.group.size
+        for j in range(self.p):
+            cols.append(np.full(n, r + j))
         self.r = r + self.p
+        self.cols = (np.column_stack(cols).astype(np.int64) if cols
+                     else np.zeros((n, 0), dtype=np.int64))
+        s = self.cols.shape[1]
+        b1 = self.b1
+        self.idx11 = ((self.g1[:, None, None] * b1 + np.arange(b1)[None, :, None]) * b1
+                      + np.arange(b1)[None, None, :]).reshape(n, -1)
+        self.idx12 = ((self.g1[:, None, None] * b1 + np.arange(b1)[None, :, None]) * self.r
+                      + self.cols[:, None, :]).reshape(n, -1)
+        self.idx22 = (self.cols[:, :, None] * self.r + self.cols[:, None, :]).reshape(n, -1)
+        self.s = s
 
-    def rows(self, thetas: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
-        """``V1`` (N, b1) and the dense rows ``D`` (N, r) of ``[Z Lambda | X]``."""
+    def rows(self, thetas: list[np.ndarray]) -> tuple[np.ndarray, _Rows]:
+        """``V1`` (N, b1) and the dense rows of ``[Z Lambda | X]``."""
         ts = [t.tri(th) for t, th in zip(self.terms, thetas, strict=True)]
         v1 = self.terms[0].z @ ts[0]
-        n = v1.shape[0]
-        d = np.zeros((n, self.r))
-        ar = np.arange(n)
-        for t, tk, off in zip(self.terms[1:], ts[1:], self.offsets, strict=True):
-            vk = t.z @ tk
-            for j in range(t.b):
-                d[ar, off + t.group * t.b + j] = vk[:, j]
+        vals = [t.z @ tk for t, tk in zip(self.terms[1:], ts[1:], strict=True)]
         if self.x is not None:
-            d[:, self.r_u:] = self.x
-        return v1, d
+            vals.append(self.x)
+        v = np.column_stack(vals) if vals else np.zeros((v1.shape[0], 0))
+        return v1, _Rows(self.cols, v, self.r)
 
-    def eta_random(self, v1: np.ndarray, d: np.ndarray, u1: np.ndarray,
+    def eta_random(self, v1: np.ndarray, d: _Rows, u1: np.ndarray,
                    ud: np.ndarray) -> np.ndarray:
         """``Z Lambda u`` (+ ``X beta`` when ``ud`` holds beta)."""
-        return (v1 * u1[self.terms[0].group]).sum(axis=1) + d @ ud
+        return (v1 * u1[self.g1]).sum(axis=1) + d.dot(ud)
 
-    def factor(self, v1: np.ndarray, d: np.ndarray, w: np.ndarray) -> dict[str, Any]:
+    def factor(self, v1: np.ndarray, d: _Rows, w: np.ndarray) -> dict[str, Any]:
         """Blocks of ``A`` and what solving and ``log det`` need."""
         m1, b1, r = self.m1, self.b1, self.r
-        o = self.order
         wv1 = v1 * w[:, None]
-        a11 = np.zeros((m1, b1, b1))
-        a11[self.present] = np.add.reduceat(
-            (wv1[:, :, None] * v1[:, None, :])[o], self.starts, axis=0)
-        a11 += np.eye(b1)
-        a12 = np.zeros((m1, b1, r))
+        a11 = np.bincount(self.idx11.ravel(), weights=(wv1[:, :, None] * v1[:, None, :]).ravel(),
+                          minlength=m1 * b1 * b1).reshape(m1, b1, b1)
+        a11 = a11 + np.eye(b1)
         if r:
-            a12[self.present] = np.add.reduceat(
-                (wv1[:, :, None] * d[:, None, :])[o], self.starts, axis=0)
-        a22 = (d * w[:, None]).T @ d
-        a22[np.arange(self.r_u), np.arange(self.r_u)] += 1.0
+            a12 = np.bincount(self.idx12.ravel(),
+                              weights=(wv1[:, :, None] * d.vals[:, None, :]).ravel(),
+                              minlength=m1 * b1 * r).reshape(m1, b1, r)
+            wd = d.vals * w[:, None]
+            a22 = np.bincount(self.idx22.ravel(), weights=(wd[:, :, None] * d.vals[:, None, :]
+                                                           ).ravel(),
+                              minlength=r * r).reshape(r, r)
+            a22[np.arange(self.r_u), np.arange(self.r_u)] += 1.0
+        else:
+            a12 = np.zeros((m1, b1, 0))
+            a22 = np.zeros((0, 0))
         l11 = np.linalg.cholesky(a11)
         logdet11 = 2.0 * float(np.log(np.diagonal(l11, axis1=1, axis2=2)).sum())
         inv_a12 = np.linalg.solve(a11, a12) if r else a12
@@ -375,7 +402,7 @@ class _System:
         if self.r_u:
             suu = f["s"][: self.r_u, : self.r_u]
             ld += 2.0 * float(np.log(np.diag(np.linalg.cholesky(suu))).sum())
-        return ld
+        return float(ld)
 
     def solve(self, f: dict[str, Any], r1: np.ndarray, r2: np.ndarray) -> tuple[np.ndarray,
                                                                                   np.ndarray]:
@@ -388,10 +415,10 @@ class _System:
         return x1, x2
 
     def scatter1(self, v1: np.ndarray, resid: np.ndarray) -> np.ndarray:
-        out = np.zeros((self.m1, self.b1))
-        o = self.order
-        out[self.present] = np.add.reduceat((v1 * resid[:, None])[o], self.starts, axis=0)
-        return out
+        b1 = self.b1
+        idx = (self.g1[:, None] * b1 + np.arange(b1)[None, :]).ravel()
+        return np.bincount(idx, weights=(v1 * resid[:, None]).ravel(),
+                           minlength=self.m1 * b1).reshape(self.m1, b1)
 
 
 # -- the binomial GLMM -------------------------------------------------------------------
@@ -448,7 +475,7 @@ class _Laplace:
             f = sysm.factor(v1, d, w)
             resid = y - m * mu
             g1 = sysm.scatter1(v1, resid) - u1
-            g2 = d.T @ resid
+            g2 = d.tdot(resid)
             g2[:r_u] -= ud[:r_u]
             x1, x2 = sysm.solve(f, g1, g2)
             step = 1.0
@@ -695,7 +722,7 @@ def fit_lmm(df: pd.DataFrame, spec: ModelSpec, *, reml: bool = True) -> MixedMod
         v1, d = sysm.rows(split(theta))
         f = sysm.factor(v1, d, w)
         r1 = sysm.scatter1(v1, y)
-        r2 = d.T @ y
+        r2 = d.tdot(y)
         x1, x2 = sysm.solve(f, r1, r2)
         fitted = sysm.eta_random(v1, d, x1, x2)
         pwrss = float(((y - fitted) ** 2).sum() + (x1**2).sum() + (x2[: sysm.r_u] ** 2).sum())
@@ -758,9 +785,11 @@ def fit_simplified(df: pd.DataFrame, spec: ModelSpec,
     1. a random term with slopes whose slope SD is 0 or whose correlation is +-1 (a
        zero diagonal element of its theta) loses its slopes (``(1 + condition |
        participant)`` -> ``(1 | participant)``);
-    2. else an intercept-only term estimated at SD 0 is dropped (targets first, as
-       listed last in the formula), unless it is the only term left;
-    3. else (nothing left to drop) the singular fit is kept and reported as singular.
+    2. else an intercept-only term after the first (``(1 | target)``) estimated at SD 0
+       is dropped, the last listed first;
+    3. else the singular fit is kept and reported as singular: the first term (the
+       participant intercept) is never dropped, so trials stay clustered by
+       participant (at SD 0 the model equals a logistic regression).
 
     Returns:
         The final fit and one record per fit: ``formula``, ``singular``,
@@ -782,8 +811,8 @@ def fit_simplified(df: pd.DataFrame, spec: ModelSpec,
                 nxt = spec.replace_term(t, RandomTerm(t.group))
                 step["action"] = f"singular: dropped the random slope(s) of {t.group}"
                 break
-        if nxt is None and len(spec.random) > 1:
-            for t in reversed(spec.random):
+        if nxt is None:
+            for t in reversed(spec.random[1:]):
                 if not t.slopes and t.group in groups:
                     nxt = spec.replace_term(t)
                     step["action"] = f"singular: dropped the random intercept of {t.group}"

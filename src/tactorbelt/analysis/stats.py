@@ -10,10 +10,11 @@ seeded :class:`numpy.random.Generator`, vectorised):
 - Several participants: Wilcoxon signed-rank tests (two-sided) on per-participant
   between-tactor accuracy and median RT, effect size matched-pairs rank-biserial
   correlation, CI of the mean paired difference.
-- From 3 participants: a binomial mixed model ``correct ~ condition + on_tactor`` with a
-  random intercept per participant (statsmodels BinomialBayesMixedGLM, fit_vb; above
-  :data:`VB_MAX_PARTICIPANTS` participants a GEE with exchangeable correlation instead,
-  because the variational fit grows too slow).
+- From 3 participants: a binomial GLMM ``correct ~ condition * on_tactor +
+  (1 + condition | participant) + (1 | target)`` by maximum likelihood with the Laplace
+  approximation (:mod:`.glmm`, agreeing with lme4's glmer; or glmer itself through
+  Rscript), simplified by a stated rule while the fit is singular; and a linear mixed
+  model of log RT with the same structure (REML, as lmer), timeouts counted per cell.
 
 A test that cannot be computed carries ``computed=False`` and a ``reason`` in words.
 
@@ -49,7 +50,6 @@ if TYPE_CHECKING:
 
 __all__ = [
     "DEFAULT_N_BOOT",
-    "VB_MAX_PARTICIPANTS",
     "Summary",
     "TestResult",
     "fisher_accuracy",
@@ -61,8 +61,6 @@ __all__ = [
 ]
 
 DEFAULT_N_BOOT: Final = 2000
-#: Above this many participants the mixed model is a GEE (fit_vb grows ~quadratically).
-VB_MAX_PARTICIPANTS: Final = 60
 COMPLETE_STATUSES: Final = frozenset({"complete", "completed", "done", "finished"})
 
 
@@ -281,114 +279,245 @@ def wilcoxon_paired(static: np.ndarray, dynamic: np.ndarray, rng: np.random.Gene
     )
 
 
-def mixed_model(tr: pd.DataFrame, *, vb_max_participants: int = VB_MAX_PARTICIPANTS) -> TestResult:
-    """Binomial mixed model ``correct ~ condition + on_tactor + (1 | participant)``.
+#: Factor columns of the design, in formula order, when the trials table has them and
+#: they vary: ``condition * on_tactor * n_targets * load``.
+DESIGN_FACTORS: Final = ("condition", "on_tactor", "n_targets", "load")
+#: A cell with more timeouts than this share gets a note beside the RT model.
+TIMEOUT_NOTE_SHARE: Final = 0.05
+ENGINES: Final = ("tactorbelt", "lme4")
+ENGINE_NAMES: Final = {"tactorbelt": "tactorbelt-laplace", "lme4": "lme4"}
 
-    ``condition`` is coded dynamic = 1, static = 0; the reported coefficient is its
-    log-odds effect. Up to ``vb_max_participants`` participants: statsmodels
-    BinomialBayesMixedGLM.fit_vb, interval = posterior mean +- 1.96 posterior SD (no
-    p-value). Above: GEE (binomial, exchangeable within participant, robust SE), Wald
-    interval and p-value; a population-averaged rather than subject-specific effect.
+
+def model_frame(tr: pd.DataFrame) -> pd.DataFrame:
+    """The counted trials in the columns the mixed models use (the trials table's names).
+
+    ``correct`` 0/1 (timeouts 0), ``condition`` text, ``on_tactor`` 0/1 integer (so
+    lme4 names its coefficient ``on_tactor``, not ``on_tactorTRUE``), ``n_targets`` and
+    ``load`` when present, ``participant`` text, ``target`` (``target_deg`` as text, a
+    factor), ``rt_s`` (NaN for timeouts) and ``status``.
+    """
+    import pandas as pd
+
+    c = tr.loc[tr["counted"]]
+    out = pd.DataFrame({
+        "correct": c["is_correct"].to_numpy(dtype=int),
+        "condition": c["condition"].astype(str).to_numpy(),
+        "on_tactor": c["on_tactor"].to_numpy(dtype=bool).astype(int),
+        "participant": c["participant"].astype(str).to_numpy(),
+        "target": [f"{v:g}" for v in c["target_deg"].to_numpy(dtype=float)],
+        "rt_s": c["rt"].to_numpy(dtype=float),
+        "status": c["status"].astype(str).to_numpy(),
+    })
+    if "n_targets" in c:
+        out["n_targets"] = pd.to_numeric(c["n_targets"], errors="coerce").to_numpy()
+    if "load" in c:
+        out["load"] = c["load"].astype("string").fillna("none").astype(str).to_numpy()
+    return out
+
+
+def model_spec(frame: pd.DataFrame, response: str = "correct",
+               transform: str | None = None) -> tuple[Any, list[str]]:
+    """The maximal model the data support, and notes on what was left out.
+
+    Fixed: every :data:`DESIGN_FACTORS` column that varies, fully crossed. Random: a
+    per-participant intercept and condition slope (from 2 participants; the slope only
+    when some participant has both conditions) and a per-target intercept (from 2
+    targets).
+    """
+    from .glmm import ModelSpec, RandomTerm
+
+    notes: list[str] = []
+    fixed = []
+    for col in DESIGN_FACTORS:
+        if col not in frame:
+            continue
+        if frame[col].nunique(dropna=True) > 1:
+            fixed.append(col)
+        elif col == "on_tactor":
+            notes.append("on_tactor left out of the model: all targets are of one kind")
+    random = []
+    if frame["participant"].nunique() > 1:
+        both = frame.groupby("participant")["condition"].nunique().max() > 1
+        random.append(RandomTerm("participant", ("condition",) if both else ()))
+    if frame["target"].nunique() > 1:
+        random.append(RandomTerm("target"))
+    return ModelSpec(response, tuple(fixed), tuple(random), transform), notes
+
+
+def _fitter(engine: str, family: str) -> Any:
+    if engine == "lme4":
+        from .lme4 import fit_lme4
+
+        return lambda df, spec: fit_lme4(df, spec, family=family)
+    from .glmm import fit_glmm, fit_lmm
+
+    return fit_glmm if family == "binomial" else fit_lmm
+
+
+def model_json(fit: Any, steps: list[dict[str, Any]], engine: str,
+               notes: list[str]) -> dict[str, Any]:
+    """The ``summary.json`` object of one fitted model (docs/conventions.md)."""
+    binomial = fit.family == "binomial"
+    return {
+        "engine": ENGINE_NAMES[engine],
+        "family": "binomial (logit link)" if binomial else "gaussian (identity link)",
+        "criterion": ("maximum likelihood, Laplace approximation (glmer's nAGQ = 1)"
+                      if binomial else "REML (lmer's default)"),
+        "formula": fit.spec.formula(),
+        "scale": "log-odds" if binomial else "log(seconds)",
+        "fixed_effects": {k: v.to_dict() for k, v in fit.fixed_effects.items()},
+        "ci_method": "Wald",
+        "p_method": "Wald z, two-sided, normal reference",
+        "vcov_method": fit.vcov_method,
+        "random_effects": fit.random_effects,
+        "singular": bool(fit.singular),
+        "simplification": steps,
+        "converged": bool(fit.converged),
+        "convergence": list(fit.messages) or ["converged"],
+        "n": {"observations": int(fit.n_obs), **{f"{g}s": int(n) for g, n in
+                                                  fit.groups.items()}},
+        "coding": "treatment coding, alphabetically first level the reference "
+                  "(condition: dynamic); on_tactor numeric 0/1 (1 = on a tactor)",
+        "notes": notes,
+    }
+
+
+def fit_model(frame: pd.DataFrame, *, engine: str = "tactorbelt",
+              rt: bool = False) -> tuple[Any, dict[str, Any]]:
+    """Fit the accuracy GLMM (or, ``rt=True``, the log-RT LMM) with the simplification rule.
+
+    Returns:
+        ``(fit, json)``; see :func:`model_json`.
+    """
+    from .glmm import fit_simplified
+
+    if engine not in ENGINES:
+        raise ValueError(f"unknown engine {engine!r}; choose {', '.join(ENGINES)}")
+    data = frame.loc[frame["status"] == "done"] if rt else frame
+    spec, notes = model_spec(data, "rt_s" if rt else "correct", "log" if rt else None)
+    fit, steps = fit_simplified(data, spec, _fitter(engine, "gaussian" if rt else "binomial"))
+    return fit, model_json(fit, steps, engine, notes)
+
+
+def timeout_cells(frame: pd.DataFrame) -> list[dict[str, Any]]:
+    """Timeouts per design cell (condition x kind [x n_targets x load])."""
+    keys = ["condition", "on_tactor"] + [c for c in ("n_targets", "load") if c in frame]
+    g = frame.assign(timeout=frame["status"] == "timeout").groupby(keys, dropna=False)
+    out = []
+    for key, sub in g:
+        vals = dict(zip(keys, key if isinstance(key, tuple) else (key,), strict=True))
+        n = len(sub)
+        k = int(sub["timeout"].sum())
+        out.append({**{kk: (v.item() if hasattr(v, "item") else v) for kk, v in vals.items()},
+                    "n": n, "timeouts": k, "share": k / n if n else None})
+    return out
+
+
+def mixed_model(tr: pd.DataFrame, *, engine: str = "tactorbelt") -> TestResult:
+    """Binomial GLMM of accuracy: ``correct ~ condition * on_tactor [* n_targets * load] +
+    (1 + condition | participant) + (1 | target)``, simplified while singular.
+
+    Maximum likelihood with the Laplace approximation (:mod:`.glmm`, or lme4's glmer
+    with ``engine="lme4"``). The headline is the ``conditionstatic`` coefficient: the
+    log-odds of a correct answer, static minus dynamic, at between-tactor targets
+    (``on_tactor = 0``; the reference level of condition is ``dynamic``). Wald z, p and
+    interval. ``details["model"]`` is the ``summary.json`` ``mixed_model`` object.
 
     Args:
         tr: prepared trials (:func:`~tactorbelt.analysis.tables.prepare_trials`),
             only the counted ones are used.
+        engine: ``tactorbelt`` (this package) or ``lme4`` (R, through Rscript).
     """
-    key, question = "mixed_model", "accuracy, dynamic vs static, all targets"
-    c = tr.loc[tr["counted"]]
-    parts = c["participant"].unique()
-    n_p = int(parts.size)
-    test = ("binomial mixed model (BinomialBayesMixedGLM, fit_vb)"
-            if n_p <= vb_max_participants else "GEE, binomial, exchangeable (mixed-model stand-in)")
+    key, question = "mixed_model", "accuracy, static vs dynamic, at between-tactor targets"
+    frame = model_frame(tr)
+    n_p = int(frame["participant"].nunique())
+    test = f"binomial GLMM, Laplace ML ({ENGINE_NAMES.get(engine, engine)})"
     if n_p < 3:
         return _not_computed(key, test, question,
                              f"needs at least 3 participants, found {n_p}", participants=n_p)
-    conds = set(c["condition"].unique())
+    conds = set(frame["condition"].unique())
     if conds != set(CONDITIONS):
         only = ", ".join(sorted(conds)) or "none"
         return _not_computed(key, test, question,
                              f"needs both conditions; the data hold only {only}",
-                             participants=n_p, trials=len(c))
-    y = c["is_correct"].to_numpy(dtype=float)
+                             participants=n_p, trials=len(frame))
+    y = frame["correct"].to_numpy()
     if np.all(y == y[0]):
         return _not_computed(key, test, question,
                              "every counted trial is " + ("correct" if y[0] else "incorrect")
                              + "; a logistic model has nothing to fit",
-                             participants=n_p, trials=len(c))
-    cond = (c["condition"] == "dynamic").to_numpy(dtype=float)
-    on = c["on_tactor"].to_numpy(dtype=float)
-    names = ["Intercept", "condition[dynamic]"]
-    cols = [np.ones_like(y), cond]
-    notes: list[str] = []
-    if 0 < on.sum() < on.size:
-        names.append("on_tactor")
-        cols.append(on)
-    else:
-        notes.append("on_tactor dropped from the model: all targets are of one kind")
-    x = np.column_stack(cols)
-    group = np.unique(c["participant"].to_numpy(), return_inverse=True)[1]
-    n = {"participants": n_p, "trials": len(c)}
+                             participants=n_p, trials=len(frame))
+    n = {"participants": n_p, "trials": len(frame)}
     try:
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always")
-            if n_p <= vb_max_participants:
-                from scipy import sparse
-                from statsmodels.genmod.bayes_mixed_glm import BinomialBayesMixedGLM
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            fit, js = fit_model(frame, engine=engine)
+    except Exception as exc:  # an engine may raise many kinds (LinAlgError, R errors, ...)
+        from .lme4 import Lme4Unavailable
 
-                z = sparse.csr_array((np.ones(len(y)), (np.arange(len(y)), group)),
-                                     shape=(len(y), n_p))
-                model = BinomialBayesMixedGLM(y, x, z, np.zeros(n_p, dtype=int),
-                                              fep_names=names, vcp_names=["participant"])
-                fit = model.fit_vb()
-                coef = float(fit.fe_mean[1])
-                sd = float(fit.fe_sd[1])
-                lo, hi = coef - 1.959964 * sd, coef + 1.959964 * sd
-                p = None
-                details: dict[str, Any] = {
-                    "method": "variational Bayes (fit_vb); interval = mean +- 1.96 SD of the "
-                              "approximate posterior; no p-value",
-                    "posterior_sd": sd,
-                    "random_intercept_sd": float(np.exp(fit.vcp_mean[0])),
-                }
-            else:
-                import statsmodels.api as sm
-
-                gee = sm.GEE(y, x, groups=group, family=sm.families.Binomial(),
-                             cov_struct=sm.cov_struct.Exchangeable()).fit()
-                coef = float(gee.params[1])
-                se = float(gee.bse[1])
-                lo, hi = coef - 1.959964 * se, coef + 1.959964 * se
-                p = float(gee.pvalues[1])
-                details = {
-                    "method": f"GEE with exchangeable working correlation within participant "
-                              f"(used instead of fit_vb above {vb_max_participants} "
-                              "participants); robust SE, Wald interval and p-value",
-                    "robust_se": se,
-                    "within_participant_correlation": float(gee.cov_struct.dep_params),
-                }
-        msgs = sorted({str(w.message).splitlines()[0] for w in caught
-                       if not issubclass(w.category, DeprecationWarning | FutureWarning)})
-    except Exception as exc:  # statsmodels raises many kinds (LinAlgError, separation, ...)
+        if isinstance(exc, Lme4Unavailable):
+            raise
         return _not_computed(key, test, question,
                              f"the model fit failed: {type(exc).__name__}: {exc}", **n)
-    if not (math.isfinite(coef) and math.isfinite(lo) and math.isfinite(hi)):
+    fe = fit.fixed_effects.get("conditionstatic")
+    if fe is None or not (math.isfinite(fe.estimate) and math.isfinite(fe.se)):
         return _not_computed(key, test, question,
-                             "the fit gave no finite coefficient (separation?)", **n)
-    details["formula"] = "correct ~ condition + on_tactor + (1 | participant)"
-    details["odds_ratio"] = math.exp(coef)
-    details["odds_ratio_interval"] = [math.exp(lo), math.exp(hi)]
-    if msgs:
-        details["warnings"] = msgs
-    if notes:
-        details["notes"] = notes
+                             "the fit gave no finite condition coefficient (separation?)", **n)
+    details: dict[str, Any] = {
+        "method": f"{js['criterion']}; {js['formula']}; Wald z, p and 95 % interval",
+        "formula": js["formula"], "model": js,
+        "odds_ratio": math.exp(fe.estimate),
+        "odds_ratio_interval": [math.exp(fe.ci_low), math.exp(fe.ci_high)],
+    }
+    if js["notes"]:
+        details["notes"] = list(js["notes"])
+    if fit.singular or not fit.converged:
+        details["warnings"] = list(fit.messages)
     return TestResult(
-        key=key, test=test, question=question, statistic=coef,
-        statistic_name="condition[dynamic] coefficient (log-odds)", p_value=p,
-        effect_name="condition[dynamic] log-odds ratio", effect=coef,
-        ci_name="condition coefficient, 95 % " + ("posterior" if p is None else "Wald")
-                + " interval (model-based, not bootstrap)",
-        ci_low=lo, ci_high=hi, n=n, details=details,
+        key=key, test=test, question=question, statistic=fe.z,
+        statistic_name="Wald z (conditionstatic)", p_value=fe.p,
+        effect_name="conditionstatic: log-odds, static - dynamic, between-tactor targets",
+        effect=fe.estimate,
+        ci_name="conditionstatic, 95 % Wald interval (model-based, not bootstrap)",
+        ci_low=fe.ci_low, ci_high=fe.ci_high, n=n, details=details,
     )
+
+
+def rt_model(tr: pd.DataFrame, *, engine: str = "tactorbelt") -> dict[str, Any]:
+    """The log-RT linear mixed model (REML) as a ``summary.json`` object, with timeouts.
+
+    Same fixed and random structure as :func:`mixed_model`, over answered (``done``)
+    trials; timeouts have no RT and are counted per cell beside the model.
+    """
+    frame = model_frame(tr)
+    cells = timeout_cells(frame)
+    out: dict[str, Any] = {"timeouts_by_cell": cells}
+    high = [c for c in cells if c["share"] is not None and c["share"] > TIMEOUT_NOTE_SHARE]
+    if high:
+        out["timeout_note"] = (
+            f"{len(high)} cell(s) have more than {TIMEOUT_NOTE_SHARE:.0%} timeouts; the RT "
+            "model sees only answered trials, so its estimates there describe the faster "
+            "answers")
+    done = frame.loc[frame["status"] == "done"]
+    n_p = int(done["participant"].nunique())
+    if n_p < 3 or done["condition"].nunique() < 2 or not (done["rt_s"] > 0).all():
+        out["computed"] = False
+        out["reason"] = ("needs at least 3 participants with answered trials in both "
+                         "conditions and positive response times")
+        return out
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            _, js = fit_model(frame, engine=engine, rt=True)
+    except Exception as exc:  # reported, not raised
+        from .lme4 import Lme4Unavailable
+
+        if isinstance(exc, Lme4Unavailable):
+            raise
+        out["computed"] = False
+        out["reason"] = f"the model fit failed: {type(exc).__name__}: {exc}"
+        return out
+    return {"computed": True, **js, **out}
 
 
 # -- the whole summary -----------------------------------------------------------------
@@ -437,6 +566,14 @@ class Summary:
     paths: list[str]
     seed: int = 0
     n_boot: int = DEFAULT_N_BOOT
+    #: the ``rt_mixed_model`` object of summary.json (None without counted trials).
+    rt_model: dict[str, Any] | None = None
+
+    @property
+    def mixed_model(self) -> dict[str, Any] | None:
+        """The ``mixed_model`` object of summary.json, when the GLMM was fitted."""
+        t = self.test("mixed_model")
+        return t.details.get("model") if t is not None and t.computed else None
 
     @property
     def simulated(self) -> bool:
@@ -508,6 +645,8 @@ class Summary:
             "conditions": conditions,
             "between_accuracy_test": self.between_accuracy_test.to_dict(),
             "tests": [t.to_dict() for t in self.tests],
+            "mixed_model": self.mixed_model,
+            "rt_mixed_model": self.rt_model,
             "counting": COUNTING_RULES,
             "study": {
                 "layout_deg": self.design.layout.to_list(),
@@ -565,14 +704,16 @@ def _design_for(sessions: pd.DataFrame, notes: list[str]) -> StudyDesign:
 
 
 def summarize(data: StoreData, *, seed: int = 0, n_boot: int = DEFAULT_N_BOOT,
-              vb_max_participants: int = VB_MAX_PARTICIPANTS) -> Summary:
+              engine: str = "tactorbelt") -> Summary:
     """Compute every table and test from loaded stores. Pure: no files, no clock.
 
     Args:
         data: what :func:`tactorbelt.analysis.load.load_stores` returned.
         seed: seeds the bootstrap (a :class:`numpy.random.Generator`).
         n_boot: bootstrap resamples per interval.
-        vb_max_participants: above this, the mixed model is a GEE.
+        engine: who fits the mixed models: ``tactorbelt`` (:mod:`.glmm`) or ``lme4``
+            (R through Rscript; raises :class:`~tactorbelt.analysis.lme4.Lme4Unavailable`
+            without it).
     """
     rng = np.random.default_rng(seed)
     notes = list(data.notes)
@@ -670,8 +811,12 @@ def summarize(data: StoreData, *, seed: int = 0, n_boot: int = DEFAULT_N_BOOT,
             tests.append(wilcoxon_paired(
                 b[("median_rt_s", "static")].to_numpy(), b[("median_rt_s", "dynamic")].to_numpy(),
                 rng, n_boot, key="between_rt", what="median RT", unit=", s"))
+    rt_json: dict[str, Any] | None = None
     if len(counted):
-        tests.append(mixed_model(tr, vb_max_participants=vb_max_participants))
+        tests.append(mixed_model(tr, engine=engine))
+        rt_json = rt_model(tr, engine=engine)
+        if rt_json.get("timeout_note"):
+            notes.append("RT model: " + rt_json["timeout_note"])
     primary = next(t for t in tests if t.key == "between_accuracy")
     for t in tests:
         if not t.computed:
@@ -688,4 +833,5 @@ def summarize(data: StoreData, *, seed: int = 0, n_boot: int = DEFAULT_N_BOOT,
         aborted=aborted,
         simulated_sessions=sessions.loc[sessions["simulated"], "session_key"].tolist(),
         notes=notes, trials=tr, paths=[str(p) for p in data.paths], seed=seed, n_boot=n_boot,
+        rt_model=rt_json,
     )
