@@ -316,7 +316,7 @@ class _Rows:
 
     def tdot(self, resid: np.ndarray) -> np.ndarray:
         return np.bincount(self.cols.ravel(), weights=(self.vals * resid[:, None]).ravel(),
-                           minlength=self.r)
+                           minlength=self.r).astype(float)
 
 
 class _System:
