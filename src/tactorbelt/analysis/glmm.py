@@ -303,6 +303,12 @@ def _random_terms(df: pd.DataFrame, spec: ModelSpec) -> list[_Term]:
 
 # -- the penalised least-squares system, structured --------------------------------------
 
+def _bsum(idx: np.ndarray, weights: np.ndarray, n: int) -> np.ndarray:
+    """``bincount`` with weights, always float (also for empty input)."""
+    out: np.ndarray = np.bincount(idx.ravel(), weights=weights.ravel(), minlength=n).astype(float)
+    return out
+
+
 @dataclass
 class _Rows:
     """The dense part of ``[Z Lambda | X]``, stored by row: ``vals`` at columns ``cols``."""
@@ -315,8 +321,7 @@ class _Rows:
         return (self.vals * x[self.cols]).sum(axis=1)
 
     def tdot(self, resid: np.ndarray) -> np.ndarray:
-        return np.bincount(self.cols.ravel(), weights=(self.vals * resid[:, None]).ravel(),
-                           minlength=self.r).astype(float)
+        return _bsum(self.cols, self.vals * resid[:, None], self.r)
 
 
 class _System:
@@ -375,17 +380,14 @@ class _System:
         """Blocks of ``A`` and what solving and ``log det`` need."""
         m1, b1, r = self.m1, self.b1, self.r
         wv1 = v1 * w[:, None]
-        a11 = np.bincount(self.idx11.ravel(), weights=(wv1[:, :, None] * v1[:, None, :]).ravel(),
-                          minlength=m1 * b1 * b1).reshape(m1, b1, b1)
+        a11 = _bsum(self.idx11, wv1[:, :, None] * v1[:, None, :], m1 * b1 * b1).reshape(
+            m1, b1, b1)
         a11 = a11 + np.eye(b1)
         if r:
-            a12 = np.bincount(self.idx12.ravel(),
-                              weights=(wv1[:, :, None] * d.vals[:, None, :]).ravel(),
-                              minlength=m1 * b1 * r).reshape(m1, b1, r)
+            a12 = _bsum(self.idx12, wv1[:, :, None] * d.vals[:, None, :], m1 * b1 * r).reshape(
+                m1, b1, r)
             wd = d.vals * w[:, None]
-            a22 = np.bincount(self.idx22.ravel(), weights=(wd[:, :, None] * d.vals[:, None, :]
-                                                           ).ravel(),
-                              minlength=r * r).reshape(r, r)
+            a22 = _bsum(self.idx22, wd[:, :, None] * d.vals[:, None, :], r * r).reshape(r, r)
             a22[np.arange(self.r_u), np.arange(self.r_u)] += 1.0
         else:
             a12 = np.zeros((m1, b1, 0))
@@ -417,8 +419,7 @@ class _System:
     def scatter1(self, v1: np.ndarray, resid: np.ndarray) -> np.ndarray:
         b1 = self.b1
         idx = (self.g1[:, None] * b1 + np.arange(b1)[None, :]).ravel()
-        return np.bincount(idx, weights=(v1 * resid[:, None]).ravel(),
-                           minlength=self.m1 * b1).reshape(self.m1, b1)
+        return _bsum(idx, v1 * resid[:, None], self.m1 * b1).reshape(self.m1, b1)
 
 
 # -- the binomial GLMM -------------------------------------------------------------------

@@ -197,6 +197,70 @@ def _test_rows(tests: Sequence[TestResult]) -> list[list[str]]:
     return rows
 
 
+def _model_paragraph(m: dict[str, Any], what: str, timeouts: str) -> str:
+    steps = m.get("simplification", [])
+    if len(steps) > 1:
+        simp = ("The maximal model was simplified while its fit was singular (a variance "
+                "at 0 or a correlation of +-1): " + "; ".join(
+                    f"<code>{_e(s['formula'])}</code>: {_e(s['action'])}" for s in steps[:-1])
+                + ".")
+    else:
+        simp = "The maximal model's fit was not singular; nothing was simplified."
+    if m.get("singular"):
+        simp += " The reported fit is still singular (a participant SD at 0)."
+    conv = "; ".join(m.get("convergence", []))
+    return (f"<p><strong>{_e(what)}.</strong> <code>{_e(m['formula'])}</code>, "
+            f"{_e(m['family'])}, {_e(m['criterion'])}; engine <code>{_e(m['engine'])}</code>. "
+            f"{simp} {timeouts} Coefficients are on the {_e(m['scale'])} scale with "
+            f"{_e(m['coding'])}; SEs: {_e(m['vcov_method'])}; {_e(m['p_method'])} and "
+            f"{_e(m['ci_method'])} 95 % intervals. Convergence: {_e(conv)}.</p>")
+
+
+def _fixed_rows(m: dict[str, Any]) -> list[list[str]]:
+    return [[f"<code>{_e(k)}</code>", _fmt(v["estimate"]), _fmt(v["se"]), _fmt(v["z"], 2),
+             _p(v["p"]), f"[{_fmt(v['ci_low'])}, {_fmt(v['ci_high'])}]"]
+            for k, v in m["fixed_effects"].items()]
+
+
+def _random_text(m: dict[str, Any]) -> str:
+    bits = []
+    for grp, e in m.get("random_effects", {}).items():
+        sds = ", ".join(f"{_e(k)} {_fmt(v)}" for k, v in e.get("sd", {}).items())
+        cor = ", ".join(f"{_e(k)} {_fmt(v, 2)}" for k, v in (e.get("corr") or {}).items())
+        bits.append(f"{_e(grp)}: SD {sds}" + (f", correlation {cor}" if cor else ""))
+    return "<p>Random effects: " + "; ".join(bits) + ".</p>" if bits else ""
+
+
+def _model_sections(summary: Summary) -> list[str]:
+    """One paragraph and one coefficient table per mixed model."""
+    out: list[str] = []
+    headers = ["term", "estimate", "SE", "z", "p", "95 % Wald interval"]
+    acc = summary.mixed_model
+    rt = summary.rt_model
+    if acc is None and not (rt and rt.get("computed")):
+        return out
+    out.append("<h2>Mixed models</h2>")
+    if acc is not None:
+        out.append(_model_paragraph(
+            acc, "Accuracy", "Timeouts count as incorrect answers (the counting rules)."))
+        out.append(_table(headers, _fixed_rows(acc), "num"))
+        out.append(_random_text(acc))
+    if rt and rt.get("computed"):
+        cells = rt.get("timeouts_by_cell", [])
+        k = sum(c["timeouts"] for c in cells)
+        n = sum(c["n"] for c in cells)
+        tt = (f"Timeouts have no response time and are left out of this model: {k} of {n} "
+              "counted trials (" + ", ".join(
+                  f"{c['condition']} {'on' if c['on_tactor'] else 'between'}-tactor "
+                  f"{c['timeouts']}/{c['n']}" for c in cells) + ").")
+        if rt.get("timeout_note"):
+            tt += " Note: " + rt["timeout_note"] + "."
+        out.append(_model_paragraph(rt, "Response time", _e(tt)))
+        out.append(_table(headers, _fixed_rows(rt), "num"))
+        out.append(_random_text(rt))
+    return out
+
+
 def _listing(df: pd.DataFrame, what: str) -> str:
     if df.empty:
         return f"<p>No {what}.</p>"
@@ -280,6 +344,7 @@ def render_html(summary: Summary, figures: dict[str, bytes], *,
                  "otherwise.</p>")
     parts.append(_table(["test", "question", "n", "statistic", "p", "effect size",
                          "95 % interval"], _test_rows(summary.tests), "tests"))
+    parts.extend(_model_sections(summary))
 
     # figures
     parts.append("<h2>Figures</h2>")
@@ -435,7 +500,8 @@ def _package_version() -> str:
 
 
 def analyze(paths: Sequence[str | Path], out: str | Path, *, seed: int = 0,
-            progress: ProgressFn | None = None, n_boot: int = DEFAULT_N_BOOT) -> Summary:
+            progress: ProgressFn | None = None, n_boot: int = DEFAULT_N_BOOT,
+            engine: str = "tactorbelt") -> Summary:
     """Analyse stores and write report.html, summary.json, per_target.csv and PNGs to ``out``.
 
     Args:
@@ -444,10 +510,12 @@ def analyze(paths: Sequence[str | Path], out: str | Path, *, seed: int = 0,
         seed: seeds the bootstrap and the choice of sample trajectories.
         progress: called as ``progress(description, done, total)``.
         n_boot: bootstrap resamples per interval.
+        engine: who fits the mixed models, ``tactorbelt`` or ``lme4`` (R via Rscript).
 
     Raises:
         StoreError: a store that cannot be read (see :func:`load.load_stores`).
-        ConfigError: ``out`` exists and is not a directory, or cannot be written.
+        ConfigError: ``out`` exists and is not a directory, or cannot be written;
+            ``engine="lme4"`` without R and lme4 (the message says how to install them).
     """
     from .figures import make_figures
     from .load import load_samples, load_stores
@@ -468,7 +536,12 @@ def analyze(paths: Sequence[str | Path], out: str | Path, *, seed: int = 0,
     tick("loading stores")
     data = load_stores(list(paths))
     tick("computing tables and tests")
-    summary = summarize(data, seed=seed, n_boot=n_boot)
+    from .lme4 import Lme4Unavailable
+
+    try:
+        summary = summarize(data, seed=seed, n_boot=n_boot, engine=engine)
+    except Lme4Unavailable as exc:
+        raise ConfigError(str(exc)) from None
     tick("reading sample trajectories")
     chosen = choose_sample_trials(summary, seed=seed)
     samples = load_samples(data, chosen) if len(chosen) else None
