@@ -47,7 +47,10 @@ def test_fisher_matches_scipy_and_bootstrap_is_reproducible() -> None:
     ref = stats.fisher_exact([[22, 8], [10, 20]])
     assert r.p_value == pytest.approx(ref.pvalue)
     assert r.effect == pytest.approx(22 / 30 - 10 / 30)
-    assert r.details["odds_ratio"] == pytest.approx((22 * 20) / (8 * 10))
+    assert r.details["sample_odds_ratio"] == pytest.approx((22 * 20) / (8 * 10))
+    # the conditional MLE and exact interval R's fisher.test reports for this table
+    assert r.details["odds_ratio"] == pytest.approx(5.327244, rel=1e-5)
+    assert r.details["odds_ratio_ci95"] == pytest.approx([1.603346, 19.44574], rel=1e-4)
     assert r.ci_low < r.effect < r.ci_high
     # the binomial-draw bootstrap equals resampling trials: compare with a naive one
     g = np.random.default_rng(1)

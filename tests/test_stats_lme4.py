@@ -129,3 +129,48 @@ def test_analyze_engine_lme4_reports_the_same_fields(tmp_path: Path) -> None:
         assert abs(o["estimate"] - r["estimate"]) <= max(EST_REL * abs(r["estimate"]),
                                                         EST_FLOOR_SE * r["se"])
         assert o["se"] == pytest.approx(r["se"], rel=SE_REL)
+
+
+def _r_vector(a: np.ndarray) -> str:
+    return "c(" + ", ".join(repr(float(v)) for v in a) + ")"
+
+
+def test_rank_intervals_and_odds_ratio_agree_with_r() -> None:
+    import subprocess
+
+    from tactorbelt.analysis.stats import (
+        fisher_accuracy,
+        hodges_lehmann_paired,
+        hodges_lehmann_shift,
+        signed_rank_test,
+    )
+
+    rng = np.random.default_rng(4)
+    x, y, d = rng.normal(1, 1, 7), rng.normal(0, 1, 9), rng.normal(0.3, 1, 8)
+    x2, y2, d2 = rng.normal(1, 1, 60), rng.normal(0, 1, 70), rng.normal(0.3, 1, 70)
+    tied = np.array([0.1, 0.1, 0.2, -0.1, 0.3, 0.3, 0.0, 0.25, -0.2, 0.1])
+    script = (
+        "options(digits = 15)\n"
+        f"x <- {_r_vector(x)}; y <- {_r_vector(y)}; d <- {_r_vector(d)}\n"
+        f"x2 <- {_r_vector(x2)}; y2 <- {_r_vector(y2)}; d2 <- {_r_vector(d2)}\n"
+        "out <- function(w) cat(w$estimate, w$conf.int, w$p.value, '\\n')\n"
+        "out(wilcox.test(x, y, conf.int = TRUE)); out(wilcox.test(d, conf.int = TRUE))\n"
+        "out(wilcox.test(x2, y2, conf.int = TRUE)); out(wilcox.test(d2, conf.int = TRUE))\n"
+        "ft <- fisher.test(matrix(c(22, 8, 10, 20), 2, byrow = TRUE))\n"
+        "cat(ft$estimate, ft$conf.int, ft$p.value, '\\n')\n")
+    out = subprocess.run(["Rscript", "-e", script], capture_output=True, text=True, check=True)
+    rows = [[float(v) for v in line.split()] for line in out.stdout.strip().splitlines()]
+    exact = [hodges_lehmann_shift(x, y), hodges_lehmann_paired(d)]
+    approx = [hodges_lehmann_shift(x2, y2), hodges_lehmann_paired(d2)]
+    for ours, ref in zip(exact, rows[:2], strict=True):
+        assert ours[:3] == pytest.approx(ref[:3], rel=1e-9)  # exact: identical order statistics
+    for ours, ref in zip(approx, rows[2:4], strict=True):
+        assert ours[:3] == pytest.approx(ref[:3], rel=2e-3)  # R root-finds; we take an order stat
+    assert signed_rank_test(d)[1] == pytest.approx(rows[1][3], rel=1e-9)
+    fisher = fisher_accuracy(10, 30, 22, 30, np.random.default_rng(0), n_boot=200)
+    assert fisher.details["odds_ratio"] == pytest.approx(rows[4][0], rel=1e-5)
+    assert fisher.details["odds_ratio_ci95"] == pytest.approx(rows[4][1:3], rel=1e-4)
+    assert fisher.p_value == pytest.approx(rows[4][3], rel=1e-9)
+    # with ties the p is exact over sign flips of the mid-ranks, whatever SciPy's default
+    w, p, how = signed_rank_test(tied)
+    assert "exact" in how and 0 < p <= 1
