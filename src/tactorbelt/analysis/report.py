@@ -181,6 +181,15 @@ def _test_rows(tests: Sequence[TestResult]) -> list[list[str]]:
         if t.key == "between_accuracy" and "odds_ratio" in t.details:
             effect += "; odds ratio = " + (
                 _fmt(odds) if odds is not None else _e(t.details.get("odds_ratio_note", "")))
+            orci = t.details.get("odds_ratio_ci95")
+            if orci:
+                effect += (f" [{_fmt(orci[0], missing='0')}, {_fmt(orci[1], missing='inf')}] "
+                           "(conditional MLE, exact interval)")
+        if t.details.get("hodges_lehmann_ci95") is not None:
+            hl = t.details.get("hodges_lehmann", t.details.get("hodges_lehmann_s"))
+            hci = t.details["hodges_lehmann_ci95"]
+            effect += (f"; Hodges-Lehmann {_fmt(hl)} [{_fmt(hci[0])}, {_fmt(hci[1])}] "
+                       f"({_e(t.details.get('hodges_lehmann_method', ''))})")
         if t.key == "mixed_model":
             effect += f"; odds ratio = {_fmt(t.details.get('odds_ratio'))}"
         stat = f"{_e(t.statistic_name)} = {_fmt(t.statistic)}"
@@ -188,6 +197,11 @@ def _test_rows(tests: Sequence[TestResult]) -> list[list[str]]:
         extra = []
         if t.details.get("method"):
             extra.append(_e(t.details["method"]))
+        if t.details.get("p_method"):
+            extra.append("p: " + _e(t.details["p_method"]))
+        if t.details.get("t_interval_ci95"):
+            tci = t.details["t_interval_ci95"]
+            extra.append(f"t interval of the mean difference: [{_fmt(tci[0])}, {_fmt(tci[1])}]")
         for w in t.details.get("warnings", []):
             extra.append("warning: " + _e(w))
         for w in t.details.get("notes", []):
@@ -339,9 +353,11 @@ def render_html(summary: Summary, figures: dict[str, bytes], *,
                      + _table(["condition", "n trials", "accuracy"], rows, "num"))
 
     parts.append("<h2>Statistical tests</h2>")
-    parts.append("<p>Two-sided tests. Intervals are 95 % percentile bootstrap intervals "
-                 f"({summary.n_boot} resamples, seed {summary.seed}) unless the row says "
-                 "otherwise.</p>")
+    parts.append("<p>Two-sided tests. Intervals are 95 % bias-corrected and accelerated "
+                 f"(BCa) bootstrap intervals ({summary.n_boot} resamples, seed {summary.seed}; "
+                 "trials resampled within a condition with one participant, participants "
+                 "resampled with several) unless the row says otherwise. Each row names how "
+                 "its p was computed (exact or approximate).</p>")
     parts.append(_table(["test", "question", "n", "statistic", "p", "effect size",
                          "95 % interval"], _test_rows(summary.tests), "tests"))
     parts.extend(_model_sections(summary))

@@ -1,7 +1,7 @@
 """Inferential statistics of static versus dynamic between-tactor rendering, and the Summary.
 
-Tests (docs/analysis.md), each with an effect size and a 95 % bootstrap CI (percentile,
-seeded :class:`numpy.random.Generator`, vectorised):
+Tests (docs/analysis.md), each with an effect size and a 95 % bootstrap CI (BCa by
+``scipy.stats.bootstrap``, seeded :class:`numpy.random.Generator`, vectorised):
 
 - One participant: Fisher's exact test (two-sided) of between-tactor accuracy, effect
   size risk difference (dynamic - static; odds ratio alongside), CI of the accuracy
@@ -18,8 +18,9 @@ seeded :class:`numpy.random.Generator`, vectorised):
 
 A test that cannot be computed carries ``computed=False`` and a ``reason`` in words.
 
-Pure: imports NumPy, pandas, SciPy, statsmodels and the pure analysis modules; never
-an I/O layer. Randomness comes from the ``seed`` argument only.
+Pure: imports NumPy, pandas, SciPy and the pure analysis modules; never an I/O layer,
+except that ``engine="lme4"`` runs R through :mod:`.lme4` (temporary files and a
+subprocess). Randomness comes from the ``seed`` argument only.
 """
 
 from __future__ import annotations
@@ -127,11 +128,6 @@ class TestResult:
 def _not_computed(key: str, test: str, question: str, reason: str, **n: int) -> TestResult:
     return TestResult(key=key, test=test, question=question, computed=False, reason=reason,
                       n=dict(n))
-
-
-def _percentile_ci(boot: np.ndarray) -> tuple[float, float]:
-    lo, hi = np.percentile(boot, [2.5, 97.5])
-    return float(lo), float(hi)
 
 
 def bca_interval(data: tuple[np.ndarray, ...], statistic: Any, rng: np.random.Generator,
