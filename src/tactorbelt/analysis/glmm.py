@@ -71,6 +71,7 @@ __all__ = [
     "fit_lmm",
     "fit_simplified",
     "fixed_design",
+    "simplify_step",
 ]
 
 #: lme4's ``isSingular`` tolerance on the elements of theta bounded below by 0.
@@ -558,14 +559,16 @@ def deriv12(f: Any, x: np.ndarray, delta: float = HESSIAN_STEP) -> np.ndarray:
     return h
 
 
-def _minimize(f: Any, x0: np.ndarray, lower: Sequence[float]) -> tuple[np.ndarray, bool, str]:
+def _minimize(f: Any, x0: np.ndarray, lower: Sequence[float], *, ftol: float = 1e-12,
+              gtol: float = 1e-6) -> tuple[np.ndarray, bool, str]:
+    """L-BFGS-B with central-difference gradients (one-sided at a bound)."""
     from scipy.optimize import minimize
 
     lo = np.array([(-np.inf if not math.isfinite(b) else b) for b in lower])
     bounds = [(None if not math.isfinite(b) else b, None) for b in lower]
     x0 = np.maximum(x0, np.where(np.isfinite(lo), lo, -np.inf))
     res = minimize(f, x0, jac=lambda x: _central_grad(f, x, lo), method="L-BFGS-B",
-                   bounds=bounds, options={"maxiter": 500, "ftol": 1e-13, "gtol": 1e-7})
+                   bounds=bounds, options={"maxiter": 500, "ftol": ftol, "gtol": gtol})
     msg = str(res.message)
     ok = bool(res.success) or "ABNORMAL" in msg.upper()
     return np.asarray(res.x, dtype=float), ok, msg
@@ -573,7 +576,7 @@ def _minimize(f: Any, x0: np.ndarray, lower: Sequence[float]) -> tuple[np.ndarra
 
 def _pool(df: pd.DataFrame, x: np.ndarray, terms: list[_Term],
           y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[_Term]]:
-    """Pool rows with equal covariates and groups into binomial counts."""
+    """Pool rows with equal covariates and groups: ``(x, sum of y, count, terms)``."""
     key = np.column_stack([x] + [np.c_[t.group, t.z] for t in terms])
     uniq, inv = np.unique(key, axis=0, return_inverse=True)
     inv = inv.ravel()
@@ -630,7 +633,23 @@ def _check(df: pd.DataFrame, spec: ModelSpec) -> None:
             raise ValueError(f"grouping factor {t.group} needs at least 2 levels")
 
 
-def fit_glmm(df: pd.DataFrame, spec: ModelSpec) -> MixedModelFit:
+def _hessian_vcov(lap: _Laplace, par: np.ndarray) -> np.ndarray | None:
+    """glmer's default vcov: ``2 solve(H)[beta, beta]`` (None unless positive definite)."""
+    hess = deriv12(lap.dev, par)
+    lap.dev(par)  # leave the modes at the optimum
+    try:
+        hinv = np.linalg.inv(hess)
+    except np.linalg.LinAlgError:
+        return None
+    hb = hinv[lap.n_theta:, lap.n_theta:]
+    hb = hb + hb.T
+    if np.all(np.isfinite(hb)) and np.all(np.linalg.eigvalsh(hb) > 0):
+        return np.asarray(hb)
+    return None
+
+
+def fit_glmm(df: pd.DataFrame, spec: ModelSpec, *,
+             skip_se_if_simplified: bool = False) -> MixedModelFit:
     """A binomial (logit) GLMM by maximum likelihood, Laplace approximation (glmer's nAGQ=1).
 
     Args:
@@ -653,35 +672,34 @@ def fit_glmm(df: pd.DataFrame, spec: ModelSpec) -> MixedModelFit:
     lower = lap.lower()
     theta0 = np.array([1.0 if b == 0.0 else 0.0 for b in lower])
     # stage 1 (nAGQ = 0): theta only, beta at the joint penalised mode
-    theta1, ok1, msg1 = _minimize(lap.dev_theta, theta0, lower)
+    theta1, ok1, msg1 = _minimize(lap.dev_theta, theta0, lower, ftol=1e-9, gtol=1e-4)
     lap.dev_theta(theta1)
     par0 = np.r_[theta1, lap.beta_joint]
     # stage 2 (nAGQ = 1): the Laplace deviance over (theta, beta)
     par, ok2, msg2 = _minimize(lap.dev, par0, lower + [-np.inf] * lap.p)
     dev = lap.dev(par)
     theta, beta = par[: lap.n_theta], par[lap.n_theta:]
-    hess = deriv12(lap.dev, par)
-    lap.dev(par)  # leave the modes at the optimum
-    vcov_method = ("2 x inverse of the finite-difference Hessian of the Laplace deviance over "
-                   "(theta, beta), as glmer's default vcov")
-    vcov = None
-    try:  # lme4: solve(H)[beta, beta] * 2, used when that block is positive definite
-        hinv = np.linalg.inv(hess)
-        hb = hinv[lap.n_theta:, lap.n_theta:]
-        hb = hb + hb.T
-        if np.all(np.isfinite(hb)) and np.all(np.linalg.eigvalsh(hb) > 0):
-            vcov = hb
-    except np.linalg.LinAlgError:
-        pass
-    if vcov is None:
-        vcov = lap.rx_vcov(par)
-        vcov_method = "(R_X' R_X)^-1 given theta (the Hessian was not positive definite)"
-        messages.append("variance-covariance matrix computed from finite-difference Hessian "
-                        "is not positive definite: falling back to var-cov estimated from RX")
-    if not ok2:
-        messages.append(f"optimizer: {msg2}")
+    theta_names = [nm for t in pterms for nm in t.theta_names()]
     singular = bool(any(th < SINGULAR_TOL for th, lb in zip(theta, lower, strict=True)
                         if lb == 0.0))
+    zero = [nm for nm, th, lb in zip(theta_names, theta, lower, strict=True)
+            if lb == 0.0 and th < SINGULAR_TOL]
+    vcov_method = ("2 x inverse of the finite-difference Hessian of the Laplace deviance over "
+                   "(theta, beta), as glmer's default vcov")
+    vcov: np.ndarray | None
+    if singular and skip_se_if_simplified and simplify_step(spec, zero)[0] is not None:
+        vcov = np.full((lap.p, lap.p), np.nan)
+        vcov_method = "not computed: a singular fit the simplification rule replaces"
+    else:
+        vcov = _hessian_vcov(lap, par)
+        if vcov is None:
+            vcov = lap.rx_vcov(par)
+            vcov_method = "(R_X' R_X)^-1 given theta (the Hessian was not positive definite)"
+            messages.append("variance-covariance matrix computed from finite-difference "
+                            "Hessian is not positive definite: falling back to var-cov "
+                            "estimated from RX")
+    if not ok2:
+        messages.append(f"optimizer: {msg2}")
     if singular:
         messages.append("boundary (singular) fit: see help('isSingular')")
     return MixedModelFit(
@@ -689,7 +707,7 @@ def fit_glmm(df: pd.DataFrame, spec: ModelSpec) -> MixedModelFit:
         vcov=vcov, random_effects=_random_table(pterms, lap.split(theta)), theta=theta,
         singular=singular, deviance=dev, loglik=-dev / 2.0, vcov_method=vcov_method,
         converged=ok1 and ok2, messages=messages, n_obs=len(df), n_cells=int(ys.size),
-        theta_names=[nm for t in pterms for nm in t.theta_names()],
+        theta_names=theta_names,
         groups={t.name: t.n_levels for t in terms},
     )
 
@@ -704,13 +722,14 @@ def fit_lmm(df: pd.DataFrame, spec: ModelSpec, *, reml: bool = True) -> MixedMod
     z and p are Wald (normal) values; lmer itself prints t without a p.
     """
     _check(df, spec)
-    y = spec.response_values(df)
-    x, names, dropped = fixed_design(df, spec.fixed)
-    terms = _random_terms(df, spec)
+    y_obs = spec.response_values(df)
+    x_obs, names, dropped = fixed_design(df, spec.fixed)
+    n, p = x_obs.shape
+    # pool rows with equal covariates and groups: counts, sums and sums of squares
+    x, ysum, w, terms = _pool(df, x_obs, _random_terms(df, spec), y_obs)
+    y2sum = _pool(df, x_obs, _random_terms(df, spec), y_obs**2)[1]
     sysm = _System(terms, x)
-    n, p = x.shape
     lower = [b for t in terms for b in t.lower_bounds()]
-    w = np.ones(n)
 
     def split(theta: np.ndarray) -> list[np.ndarray]:
         out, k = [], 0
@@ -722,11 +741,12 @@ def fit_lmm(df: pd.DataFrame, spec: ModelSpec, *, reml: bool = True) -> MixedMod
     def solve(theta: np.ndarray) -> tuple[float, dict[str, Any]]:
         v1, d = sysm.rows(split(theta))
         f = sysm.factor(v1, d, w)
-        r1 = sysm.scatter1(v1, y)
-        r2 = d.tdot(y)
+        r1 = sysm.scatter1(v1, ysum)
+        r2 = d.tdot(ysum)
         x1, x2 = sysm.solve(f, r1, r2)
         fitted = sysm.eta_random(v1, d, x1, x2)
-        pwrss = float(((y - fitted) ** 2).sum() + (x1**2).sum() + (x2[: sysm.r_u] ** 2).sum())
+        rss = float((y2sum - 2.0 * fitted * ysum + w * fitted**2).sum())
+        pwrss = rss + float((x1**2).sum() + (x2[: sysm.r_u] ** 2).sum())
         ld = sysm.logdet_u(f)
         s = f["s"]
         r_u = sysm.r_u
@@ -763,7 +783,7 @@ def fit_lmm(df: pd.DataFrame, spec: ModelSpec, *, reml: bool = True) -> MixedMod
         spec=spec, family="gaussian", fixed_effects=_fixed_table(names, st["beta"], vcov),
         vcov=vcov, random_effects=re, theta=theta, singular=singular, deviance=crit,
         loglik=-crit / 2.0, vcov_method="sigma^2 (R_X' R_X)^-1, as lmer's vcov",
-        converged=ok, messages=messages, n_obs=n, n_cells=n,
+        converged=ok, messages=messages, n_obs=n, n_cells=int(w.size),
         theta_names=[nm for t in terms for nm in t.theta_names()],
         groups={t.name: t.n_levels for t in terms},
         criterion="REML" if reml else "ML",
@@ -805,20 +825,25 @@ def fit_simplified(df: pd.DataFrame, spec: ModelSpec,
         steps.append(step)
         if not fit.singular:
             return fit, steps
-        groups = {z.split(".")[0] for z in zero}
-        nxt = None
-        for t in spec.random:
-            if t.slopes and t.group in groups:
-                nxt = spec.replace_term(t, RandomTerm(t.group))
-                step["action"] = f"singular: dropped the random slope(s) of {t.group}"
-                break
+        nxt, step["action"] = simplify_step(spec, zero)
         if nxt is None:
-            for t in reversed(spec.random[1:]):
-                if not t.slopes and t.group in groups:
-                    nxt = spec.replace_term(t)
-                    step["action"] = f"singular: dropped the random intercept of {t.group}"
-                    break
-        if nxt is None:
-            step["action"] = "singular: nothing left to drop; the singular fit is reported"
             return fit, steps
         spec = nxt
+
+
+def simplify_step(spec: ModelSpec, zero: Sequence[str]) -> tuple[ModelSpec | None, str]:
+    """One step of :func:`fit_simplified`'s rule after a singular fit (None: keep it).
+
+    Args:
+        spec: the model that was fitted.
+        zero: its theta elements at 0 (:meth:`MixedModelFit.zero_components`).
+    """
+    groups = {z.split(".")[0] for z in zero}
+    for t in spec.random:
+        if t.slopes and t.group in groups:
+            return (spec.replace_term(t, RandomTerm(t.group)),
+                    f"singular: dropped the random slope(s) of {t.group}")
+    for t in reversed(spec.random[1:]):
+        if not t.slopes and t.group in groups:
+            return spec.replace_term(t), f"singular: dropped the random intercept of {t.group}"
+    return None, "singular: nothing left to drop; the singular fit is reported"

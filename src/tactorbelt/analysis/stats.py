@@ -527,7 +527,9 @@ def _fitter(engine: str, family: str) -> Any:
         return lambda df, spec: fit_lme4(df, spec, family=family)
     from .glmm import fit_glmm, fit_lmm
 
-    return fit_glmm if family == "binomial" else fit_lmm
+    if family == "binomial":  # no Hessian for a fit the simplification replaces
+        return lambda df, spec: fit_glmm(df, spec, skip_se_if_simplified=True)
+    return fit_lmm
 
 
 def model_json(fit: Any, steps: list[dict[str, Any]], engine: str,
