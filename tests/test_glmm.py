@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -76,3 +78,18 @@ def test_lme4_engine_without_r_says_how_to_install(monkeypatch: pytest.MonkeyPat
     spec = ModelSpec("correct", ("condition",), (RandomTerm("participant"),))
     with pytest.raises(lme4_mod.Lme4Unavailable, match="apt install r-base-core r-cran-lme4"):
         lme4_mod.fit_lme4(_frame(), spec)
+
+
+def test_analyze_engine_lme4_without_r_exits_2_with_the_install_command(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    from tactorbelt.analysis.synthetic import synthesize_store
+    from tactorbelt.cli import main
+
+    store = tmp_path / "s.sqlite"
+    synthesize_store(store, 3, repetitions=1, seed=2, samples=False)
+    monkeypatch.setattr(lme4_mod.shutil, "which", lambda _name: None)
+    with pytest.raises(SystemExit) as exc:
+        main(["analyze", str(store), "--out", str(tmp_path / "out"), "--engine", "lme4"])
+    assert exc.value.code == 2
+    assert "apt install r-base-core r-cran-lme4" in capsys.readouterr().err
