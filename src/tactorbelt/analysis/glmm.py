@@ -523,12 +523,16 @@ class _Laplace:
         return np.asarray(np.linalg.inv(sbb))
 
 
-def _central_grad(f: Any, x: np.ndarray, lower: np.ndarray, h: float = 1e-5) -> np.ndarray:
+def _central_grad(f: Any, x: np.ndarray, lower: np.ndarray, h: float = 1e-5,
+                  central: bool = True) -> np.ndarray:
     g = np.zeros_like(x)
+    f0 = None if central else f(x)
     for i in range(x.size):
         e = np.zeros_like(x)
         e[i] = h
-        if x[i] - h < lower[i]:  # one-sided at a bound
+        if f0 is not None:
+            g[i] = (f(x + e) - f0) / h
+        elif x[i] - h < lower[i]:  # one-sided at a bound
             g[i] = (f(x + e) - f(x)) / h
         else:
             g[i] = (f(x + e) - f(x - e)) / (2 * h)
@@ -560,14 +564,15 @@ def deriv12(f: Any, x: np.ndarray, delta: float = HESSIAN_STEP) -> np.ndarray:
 
 
 def _minimize(f: Any, x0: np.ndarray, lower: Sequence[float], *, ftol: float = 1e-12,
-              gtol: float = 1e-6) -> tuple[np.ndarray, bool, str]:
-    """L-BFGS-B with central-difference gradients (one-sided at a bound)."""
+              gtol: float = 1e-6, central: bool = True) -> tuple[np.ndarray, bool, str]:
+    """L-BFGS-B with central-difference gradients (one-sided at a bound; forward
+    differences throughout with ``central=False``, for starting values)."""
     from scipy.optimize import minimize
 
     lo = np.array([(-np.inf if not math.isfinite(b) else b) for b in lower])
     bounds = [(None if not math.isfinite(b) else b, None) for b in lower]
     x0 = np.maximum(x0, np.where(np.isfinite(lo), lo, -np.inf))
-    res = minimize(f, x0, jac=lambda x: _central_grad(f, x, lo), method="L-BFGS-B",
+    res = minimize(f, x0, jac=lambda x: _central_grad(f, x, lo, central=central), method="L-BFGS-B",
                    bounds=bounds, options={"maxiter": 500, "ftol": ftol, "gtol": gtol})
     msg = str(res.message)
     ok = bool(res.success) or "ABNORMAL" in msg.upper()
@@ -648,13 +653,34 @@ def _hessian_vcov(lap: _Laplace, par: np.ndarray) -> np.ndarray | None:
     return None
 
 
-def fit_glmm(df: pd.DataFrame, spec: ModelSpec, *,
-             skip_se_if_simplified: bool = False) -> MixedModelFit:
+def _start(previous: MixedModelFit | None, theta_names: list[str],
+           beta_names: list[str] | None = None) -> np.ndarray | None:
+    """Starting values from a fit of a larger model on the same data, when it has them all."""
+    if previous is None:
+        return None
+    th = dict(zip(previous.theta_names, previous.theta, strict=False))
+    if not all(nm in th for nm in theta_names):
+        return None
+    out = [th[nm] for nm in theta_names]
+    if beta_names is not None:
+        if list(previous.fixed_effects) != beta_names:
+            return None
+        out += [previous.fixed_effects[nm].estimate for nm in beta_names]
+    return np.asarray(out, dtype=float)
+
+
+def fit_glmm(df: pd.DataFrame, spec: ModelSpec, *, skip_se_if_simplified: bool = False,
+             start: MixedModelFit | None = None) -> MixedModelFit:
     """A binomial (logit) GLMM by maximum likelihood, Laplace approximation (glmer's nAGQ=1).
 
     Args:
         df: one row per Bernoulli trial; ``spec.response`` is 0/1 (or bool).
         spec: fixed factors (fully crossed) and random terms.
+        skip_se_if_simplified: leave out the Hessian (NaN SEs) when the fit is singular
+            and :func:`simplify_step` would replace it.
+        start: a fit of a model with these and more random effects on the same data (the
+            previous step of :func:`fit_simplified`): stage 2 starts from its estimates
+            instead of running stage 1 (the dropped components were at 0).
 
     Raises:
         ValueError: a missing column, fewer than 2 levels of a grouping factor.
@@ -670,13 +696,17 @@ def fit_glmm(df: pd.DataFrame, spec: ModelSpec, *,
         messages.append("fixed-effect model matrix is rank deficient so dropping "
                         f"{len(dropped)} column(s): " + ", ".join(dropped))
     lower = lap.lower()
-    theta0 = np.array([1.0 if b == 0.0 else 0.0 for b in lower])
-    # stage 1 (nAGQ = 0): theta only, beta at the joint penalised mode
-    theta1, ok1, msg1 = _minimize(lap.dev_theta, theta0, lower, ftol=1e-9, gtol=1e-4)
-    lap.dev_theta(theta1)
-    par0 = np.r_[theta1, lap.beta_joint]
+    par0 = _start(start, [nm for t in pterms for nm in t.theta_names()], names)
+    ok1 = True
+    if par0 is None:
+        theta0 = np.array([1.0 if b == 0.0 else 0.0 for b in lower])
+        # stage 1 (nAGQ = 0): theta only, beta at the joint penalised mode
+        theta1, ok1, _ = _minimize(lap.dev_theta, theta0, lower, ftol=1e-8, gtol=1e-2,
+                                   central=False)
+        lap.dev_theta(theta1)
+        par0 = np.r_[theta1, lap.beta_joint]
     # stage 2 (nAGQ = 1): the Laplace deviance over (theta, beta)
-    par, ok2, msg2 = _minimize(lap.dev, par0, lower + [-np.inf] * lap.p)
+    par, ok2, msg2 = _minimize(lap.dev, par0, lower + [-np.inf] * lap.p, gtol=1e-4)
     dev = lap.dev(par)
     theta, beta = par[: lap.n_theta], par[lap.n_theta:]
     theta_names = [nm for t in pterms for nm in t.theta_names()]
@@ -714,7 +744,8 @@ def fit_glmm(df: pd.DataFrame, spec: ModelSpec, *,
 
 # -- the linear mixed model (REML) --------------------------------------------------------
 
-def fit_lmm(df: pd.DataFrame, spec: ModelSpec, *, reml: bool = True) -> MixedModelFit:
+def fit_lmm(df: pd.DataFrame, spec: ModelSpec, *, reml: bool = True,
+            start: MixedModelFit | None = None) -> MixedModelFit:
     """A linear mixed model by REML (``reml=False``: ML), as ``lme4::lmer``.
 
     The profiled criterion of Bates et al. (2015, eq. 34/41) is minimised over theta
@@ -761,7 +792,9 @@ def fit_lmm(df: pd.DataFrame, spec: ModelSpec, *, reml: bool = True) -> MixedMod
             crit = ld + n * (1.0 + math.log(2.0 * math.pi * pwrss / n))
         return crit, {"beta": x2[r_u:], "pwrss": pwrss, "sbb": sbb}
 
-    theta0 = np.array([1.0 if b == 0.0 else 0.0 for b in lower])
+    theta0 = _start(start, [nm for t in terms for nm in t.theta_names()])
+    if theta0 is None:
+        theta0 = np.array([1.0 if b == 0.0 else 0.0 for b in lower])
     theta, ok, msg = _minimize(lambda t: solve(t)[0], theta0, lower)
     crit, st = solve(theta)
     sigma2 = st["pwrss"] / ((n - p) if reml else n)

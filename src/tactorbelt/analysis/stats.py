@@ -527,9 +527,16 @@ def _fitter(engine: str, family: str) -> Any:
         return lambda df, spec: fit_lme4(df, spec, family=family)
     from .glmm import fit_glmm, fit_lmm
 
-    if family == "binomial":  # no Hessian for a fit the simplification replaces
-        return lambda df, spec: fit_glmm(df, spec, skip_se_if_simplified=True)
-    return fit_lmm
+    last: list[Any] = [None]  # each simplification step starts from the previous fit
+
+    def fit(df: pd.DataFrame, spec: Any) -> Any:
+        if family == "binomial":  # no Hessian for a fit the simplification replaces
+            last[0] = fit_glmm(df, spec, skip_se_if_simplified=True, start=last[0])
+        else:
+            last[0] = fit_lmm(df, spec, start=last[0])
+        return last[0]
+
+    return fit
 
 
 def model_json(fit: Any, steps: list[dict[str, Any]], engine: str,
