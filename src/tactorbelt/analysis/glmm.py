@@ -310,6 +310,29 @@ def _bsum(idx: np.ndarray, weights: np.ndarray, n: int) -> np.ndarray:
     return out
 
 
+def _block_inverse(a: np.ndarray) -> tuple[np.ndarray, float]:
+    """Inverses and the summed ``log det`` of positive-definite blocks ``(m, b, b)``.
+
+    Closed forms for 1x1 and 2x2 blocks (a random intercept, or intercept and one
+    slope: the usual case, and much faster than a batched LAPACK call per block).
+    """
+    b = a.shape[1]
+    if b == 1:
+        return 1.0 / a, float(np.log(a[:, 0, 0]).sum())
+    if b == 2:
+        p, q, r = a[:, 0, 0], a[:, 0, 1], a[:, 1, 1]
+        det = p * r - q * q
+        if np.any(det <= 0):
+            raise np.linalg.LinAlgError("a random-effects block is not positive definite")
+        inv = np.empty_like(a)
+        inv[:, 0, 0], inv[:, 1, 1] = r / det, p / det
+        inv[:, 0, 1] = inv[:, 1, 0] = -q / det
+        return inv, float(np.log(det).sum())
+    chol = np.linalg.cholesky(a)
+    logdet = 2.0 * float(np.log(np.diagonal(chol, axis1=1, axis2=2)).sum())
+    return np.linalg.inv(a), logdet
+
+
 @dataclass
 class _Rows:
     """The dense part of ``[Z Lambda | X]``, stored by row: ``vals`` at columns ``cols``."""
@@ -359,7 +382,15 @@ class _System:
                       + np.arange(b1)[None, None, :]).reshape(n, -1)
         self.idx12 = ((self.g1[:, None, None] * b1 + np.arange(b1)[None, :, None]) * self.r
                       + self.cols[:, None, :]).reshape(n, -1)
-        self.idx22 = (self.cols[:, :, None] * self.r + self.cols[:, None, :]).reshape(n, -1)
+        # rows of the dense part repeat (targets x fixed-effect patterns): A22 sums the
+        # weights per distinct row first
+        key = np.column_stack([self.cols.astype(float)]
+                              + [t.z for t in terms[1:]]
+                              + ([x] if x is not None else []))
+        _, first, pat = np.unique(key, axis=0, return_index=True, return_inverse=True)
+        self.pat, self.pat_first = pat.ravel(), first
+        pc = self.cols[first]
+        self.idx22 = (pc[:, :, None] * self.r + pc[:, None, :]).reshape(first.size, -1)
         self.s = s
 
     def rows(self, thetas: list[np.ndarray]) -> tuple[np.ndarray, _Rows]:
@@ -387,17 +418,19 @@ class _System:
         if r:
             a12 = _bsum(self.idx12, wv1[:, :, None] * d.vals[:, None, :], m1 * b1 * r).reshape(
                 m1, b1, r)
-            wd = d.vals * w[:, None]
-            a22 = _bsum(self.idx22, wd[:, :, None] * d.vals[:, None, :], r * r).reshape(r, r)
+            wp = np.bincount(self.pat, weights=w, minlength=self.pat_first.size)
+            vp = d.vals[self.pat_first]
+            a22 = _bsum(self.idx22, wp[:, None, None] * vp[:, :, None] * vp[:, None, :],
+                        r * r).reshape(r, r)
             a22[np.arange(self.r_u), np.arange(self.r_u)] += 1.0
         else:
             a12 = np.zeros((m1, b1, 0))
             a22 = np.zeros((0, 0))
-        l11 = np.linalg.cholesky(a11)
-        logdet11 = 2.0 * float(np.log(np.diagonal(l11, axis1=1, axis2=2)).sum())
-        inv_a12 = np.linalg.solve(a11, a12) if r else a12
+        inv11, logdet11 = _block_inverse(a11)
+        inv_a12 = np.einsum("gij,gjr->gir", inv11, a12) if r else a12
         s = a22 - np.einsum("gbr,gbs->rs", a12, inv_a12) if r else a22
-        return {"a11": a11, "a12": a12, "inv_a12": inv_a12, "s": s, "logdet11": logdet11}
+        return {"a11": a11, "inv11": inv11, "a12": a12, "inv_a12": inv_a12, "s": s,
+                "logdet11": logdet11}
 
     def logdet_u(self, f: dict[str, Any]) -> float:
         """``log det(Lambda' Z' W Z Lambda + I)`` (the random effects only)."""
@@ -409,7 +442,7 @@ class _System:
 
     def solve(self, f: dict[str, Any], r1: np.ndarray, r2: np.ndarray) -> tuple[np.ndarray,
                                                                                   np.ndarray]:
-        t1 = np.linalg.solve(f["a11"], r1[:, :, None])[:, :, 0]
+        t1 = np.einsum("gij,gj->gi", f["inv11"], r1)
         if not self.r:
             return t1, r2
         rhs = r2 - np.einsum("gbr,gb->r", f["a12"], t1)
