@@ -181,6 +181,15 @@ def _test_rows(tests: Sequence[TestResult]) -> list[list[str]]:
         if t.key == "between_accuracy" and "odds_ratio" in t.details:
             effect += "; odds ratio = " + (
                 _fmt(odds) if odds is not None else _e(t.details.get("odds_ratio_note", "")))
+            orci = t.details.get("odds_ratio_ci95")
+            if orci:
+                effect += (f" [{_fmt(orci[0], missing='0')}, {_fmt(orci[1], missing='inf')}] "
+                           "(conditional MLE, exact interval)")
+        if t.details.get("hodges_lehmann_ci95") is not None:
+            hl = t.details.get("hodges_lehmann", t.details.get("hodges_lehmann_s"))
+            hci = t.details["hodges_lehmann_ci95"]
+            effect += (f"; Hodges-Lehmann {_fmt(hl)} [{_fmt(hci[0])}, {_fmt(hci[1])}] "
+                       f"({_e(t.details.get('hodges_lehmann_method', ''))})")
         if t.key == "mixed_model":
             effect += f"; odds ratio = {_fmt(t.details.get('odds_ratio'))}"
         stat = f"{_e(t.statistic_name)} = {_fmt(t.statistic)}"
@@ -188,6 +197,11 @@ def _test_rows(tests: Sequence[TestResult]) -> list[list[str]]:
         extra = []
         if t.details.get("method"):
             extra.append(_e(t.details["method"]))
+        if t.details.get("p_method"):
+            extra.append("p: " + _e(t.details["p_method"]))
+        if t.details.get("t_interval_ci95"):
+            tci = t.details["t_interval_ci95"]
+            extra.append(f"t interval of the mean difference: [{_fmt(tci[0])}, {_fmt(tci[1])}]")
         for w in t.details.get("warnings", []):
             extra.append("warning: " + _e(w))
         for w in t.details.get("notes", []):
@@ -195,6 +209,70 @@ def _test_rows(tests: Sequence[TestResult]) -> list[list[str]]:
         rows.append([_e(t.test), _e(t.question), _e(n), stat, _p(t.p_value), effect,
                      ci + ("<br><small>" + "<br>".join(extra) + "</small>" if extra else "")])
     return rows
+
+
+def _model_paragraph(m: dict[str, Any], what: str, timeouts: str) -> str:
+    steps = m.get("simplification", [])
+    if len(steps) > 1:
+        simp = ("The maximal model was simplified while its fit was singular (a variance "
+                "at 0 or a correlation of +-1): " + "; ".join(
+                    f"<code>{_e(s['formula'])}</code>: {_e(s['action'])}" for s in steps[:-1])
+                + ".")
+    else:
+        simp = "The maximal model's fit was not singular; nothing was simplified."
+    if m.get("singular"):
+        simp += " The reported fit is still singular (a participant SD at 0)."
+    conv = "; ".join(m.get("convergence", []))
+    return (f"<p><strong>{_e(what)}.</strong> <code>{_e(m['formula'])}</code>, "
+            f"{_e(m['family'])}, {_e(m['criterion'])}; engine <code>{_e(m['engine'])}</code>. "
+            f"{simp} {timeouts} Coefficients are on the {_e(m['scale'])} scale with "
+            f"{_e(m['coding'])}; SEs: {_e(m['vcov_method'])}; {_e(m['p_method'])} and "
+            f"{_e(m['ci_method'])} 95 % intervals. Convergence: {_e(conv)}.</p>")
+
+
+def _fixed_rows(m: dict[str, Any]) -> list[list[str]]:
+    return [[f"<code>{_e(k)}</code>", _fmt(v["estimate"]), _fmt(v["se"]), _fmt(v["z"], 2),
+             _p(v["p"]), f"[{_fmt(v['ci_low'])}, {_fmt(v['ci_high'])}]"]
+            for k, v in m["fixed_effects"].items()]
+
+
+def _random_text(m: dict[str, Any]) -> str:
+    bits = []
+    for grp, e in m.get("random_effects", {}).items():
+        sds = ", ".join(f"{_e(k)} {_fmt(v)}" for k, v in e.get("sd", {}).items())
+        cor = ", ".join(f"{_e(k)} {_fmt(v, 2)}" for k, v in (e.get("corr") or {}).items())
+        bits.append(f"{_e(grp)}: SD {sds}" + (f", correlation {cor}" if cor else ""))
+    return "<p>Random effects: " + "; ".join(bits) + ".</p>" if bits else ""
+
+
+def _model_sections(summary: Summary) -> list[str]:
+    """One paragraph and one coefficient table per mixed model."""
+    out: list[str] = []
+    headers = ["term", "estimate", "SE", "z", "p", "95 % Wald interval"]
+    acc = summary.mixed_model
+    rt = summary.rt_model
+    if acc is None and not (rt and rt.get("computed")):
+        return out
+    out.append("<h2>Mixed models</h2>")
+    if acc is not None:
+        out.append(_model_paragraph(
+            acc, "Accuracy", "Timeouts count as incorrect answers (the counting rules)."))
+        out.append(_table(headers, _fixed_rows(acc), "num"))
+        out.append(_random_text(acc))
+    if rt and rt.get("computed"):
+        cells = rt.get("timeouts_by_cell", [])
+        k = sum(c["timeouts"] for c in cells)
+        n = sum(c["n"] for c in cells)
+        tt = (f"Timeouts have no response time and are left out of this model: {k} of {n} "
+              "counted trials (" + ", ".join(
+                  f"{c['condition']} {'on' if c['on_tactor'] else 'between'}-tactor "
+                  f"{c['timeouts']}/{c['n']}" for c in cells) + ").")
+        if rt.get("timeout_note"):
+            tt += " Note: " + rt["timeout_note"] + "."
+        out.append(_model_paragraph(rt, "Response time", _e(tt)))
+        out.append(_table(headers, _fixed_rows(rt), "num"))
+        out.append(_random_text(rt))
+    return out
 
 
 def _listing(df: pd.DataFrame, what: str) -> str:
@@ -275,11 +353,14 @@ def render_html(summary: Summary, figures: dict[str, bytes], *,
                      + _table(["condition", "n trials", "accuracy"], rows, "num"))
 
     parts.append("<h2>Statistical tests</h2>")
-    parts.append("<p>Two-sided tests. Intervals are 95 % percentile bootstrap intervals "
-                 f"({summary.n_boot} resamples, seed {summary.seed}) unless the row says "
-                 "otherwise.</p>")
+    parts.append("<p>Two-sided tests. Intervals are 95 % bias-corrected and accelerated "
+                 f"(BCa) bootstrap intervals ({summary.n_boot} resamples, seed {summary.seed}; "
+                 "trials resampled within a condition with one participant, participants "
+                 "resampled with several) unless the row says otherwise. Each row names how "
+                 "its p was computed (exact or approximate).</p>")
     parts.append(_table(["test", "question", "n", "statistic", "p", "effect size",
                          "95 % interval"], _test_rows(summary.tests), "tests"))
+    parts.extend(_model_sections(summary))
 
     # figures
     parts.append("<h2>Figures</h2>")
@@ -435,7 +516,8 @@ def _package_version() -> str:
 
 
 def analyze(paths: Sequence[str | Path], out: str | Path, *, seed: int | None = None,
-            progress: ProgressFn | None = None, n_boot: int = DEFAULT_N_BOOT) -> Summary:
+            progress: ProgressFn | None = None, n_boot: int = DEFAULT_N_BOOT,
+            engine: str = "tactorbelt") -> Summary:
     """Analyse stores and write report.html, summary.json, per_target.csv and PNGs to ``out``.
 
     Args:
@@ -446,10 +528,12 @@ def analyze(paths: Sequence[str | Path], out: str | Path, *, seed: int | None = 
             same stores always give the same report.
         progress: called as ``progress(description, done, total)``.
         n_boot: bootstrap resamples per interval.
+        engine: who fits the mixed models, ``tactorbelt`` or ``lme4`` (R via Rscript).
 
     Raises:
         StoreError: a store that cannot be read (see :func:`load.load_stores`).
-        ConfigError: ``out`` exists and is not a directory, or cannot be written.
+        ConfigError: ``out`` exists and is not a directory, or cannot be written;
+            ``engine="lme4"`` without R and lme4 (the message says how to install them).
     """
     from .figures import make_figures
     from .load import analysis_seed, load_samples, load_stores
@@ -472,7 +556,12 @@ def analyze(paths: Sequence[str | Path], out: str | Path, *, seed: int | None = 
     if seed is None:
         seed = analysis_seed(data)
     tick("computing tables and tests")
-    summary = summarize(data, seed=seed, n_boot=n_boot)
+    from .lme4 import Lme4Unavailable
+
+    try:
+        summary = summarize(data, seed=seed, n_boot=n_boot, engine=engine)
+    except Lme4Unavailable as exc:
+        raise ConfigError(str(exc)) from None
     tick("reading sample trajectories")
     chosen = choose_sample_trials(summary, seed=seed)
     samples = load_samples(data, chosen) if len(chosen) else None

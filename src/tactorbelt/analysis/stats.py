@@ -1,7 +1,7 @@
 """Inferential statistics of static versus dynamic between-tactor rendering, and the Summary.
 
-Tests (docs/analysis.md), each with an effect size and a 95 % bootstrap CI (percentile,
-seeded :class:`numpy.random.Generator`, vectorised):
+Tests (docs/analysis.md), each with an effect size and a 95 % bootstrap CI (BCa by
+``scipy.stats.bootstrap``, seeded :class:`numpy.random.Generator`, vectorised):
 
 - One participant: Fisher's exact test (two-sided) of between-tactor accuracy, effect
   size risk difference (dynamic - static; odds ratio alongside), CI of the accuracy
@@ -10,15 +10,17 @@ seeded :class:`numpy.random.Generator`, vectorised):
 - Several participants: Wilcoxon signed-rank tests (two-sided) on per-participant
   between-tactor accuracy and median RT, effect size matched-pairs rank-biserial
   correlation, CI of the mean paired difference.
-- From 3 participants: a binomial mixed model ``correct ~ condition + on_tactor`` with a
-  random intercept per participant (statsmodels BinomialBayesMixedGLM, fit_vb; above
-  :data:`VB_MAX_PARTICIPANTS` participants a GEE with exchangeable correlation instead,
-  because the variational fit grows too slow).
+- From 3 participants: a binomial GLMM ``correct ~ condition * on_tactor +
+  (1 + condition | participant) + (1 | target)`` by maximum likelihood with the Laplace
+  approximation (:mod:`.glmm`, agreeing with lme4's glmer; or glmer itself through
+  Rscript), simplified by a stated rule while the fit is singular; and a linear mixed
+  model of log RT with the same structure (REML, as lmer), timeouts counted per cell.
 
 A test that cannot be computed carries ``computed=False`` and a ``reason`` in words.
 
-Pure: imports NumPy, pandas, SciPy, statsmodels and the pure analysis modules; never
-an I/O layer. Randomness comes from the ``seed`` argument only.
+Pure: imports NumPy, pandas, SciPy and the pure analysis modules; never an I/O layer,
+except that ``engine="lme4"`` runs R through :mod:`.lme4` (temporary files and a
+subprocess). Randomness comes from the ``seed`` argument only.
 """
 
 from __future__ import annotations
@@ -49,7 +51,6 @@ if TYPE_CHECKING:
 
 __all__ = [
     "DEFAULT_N_BOOT",
-    "VB_MAX_PARTICIPANTS",
     "Summary",
     "TestResult",
     "fisher_accuracy",
@@ -61,8 +62,6 @@ __all__ = [
 ]
 
 DEFAULT_N_BOOT: Final = 2000
-#: Above this many participants the mixed model is a GEE (fit_vb grows ~quadratically).
-VB_MAX_PARTICIPANTS: Final = 60
 COMPLETE_STATUSES: Final = frozenset({"complete", "completed", "done", "finished"})
 
 
@@ -131,9 +130,152 @@ def _not_computed(key: str, test: str, question: str, reason: str, **n: int) -> 
                       n=dict(n))
 
 
-def _percentile_ci(boot: np.ndarray) -> tuple[float, float]:
-    lo, hi = np.percentile(boot, [2.5, 97.5])
-    return float(lo), float(hi)
+def bca_interval(data: tuple[np.ndarray, ...], statistic: Any, rng: np.random.Generator,
+                 n_boot: int = DEFAULT_N_BOOT) -> tuple[float, float, str]:
+    """A 95 % bias-corrected and accelerated bootstrap interval (``scipy.stats.bootstrap``).
+
+    ``statistic(*samples, axis)`` is vectorised; the samples are resampled
+    independently (trials within a condition, or participants). When BCa is undefined
+    (e.g. every resample equal) the percentile interval is returned, and the third
+    value says which one it is.
+    """
+    from scipy.stats import bootstrap
+
+    for method in ("BCa", "percentile"):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            try:
+                res = bootstrap(data, statistic, n_resamples=n_boot, method=method, rng=rng,
+                                vectorized=True, axis=-1)
+            except (ValueError, FloatingPointError):
+                continue
+        lo, hi = float(res.confidence_interval.low), float(res.confidence_interval.high)
+        if math.isfinite(lo) and math.isfinite(hi):
+            return lo, hi, method
+    v = float(statistic(*data, axis=-1))
+    return v, v, "degenerate (every resample equal)"
+
+
+def _signed_rank_null(ranks2: np.ndarray) -> np.ndarray:
+    """Exact null distribution of ``2 T+`` over all sign flips of the (doubled) ranks."""
+    total = int(ranks2.sum())
+    dist = np.zeros(total + 1)
+    dist[0] = 1.0
+    for r in ranks2.astype(int):
+        shifted = np.zeros_like(dist)
+        shifted[r:] = dist[: total + 1 - r]
+        dist = dist + shifted
+    return dist / dist.sum()
+
+
+#: Up to this many non-zero differences the signed-rank p is exact (all sign flips).
+SIGNED_RANK_EXACT_MAX: Final = 50
+
+
+def signed_rank_test(diff: np.ndarray) -> tuple[float, float, str]:
+    """Wilcoxon signed-rank test (two-sided) of paired differences, version-independent.
+
+    Zero differences are dropped (``zero_method="wilcox"``), tied ``|diff|`` get mid-ranks.
+    Up to :data:`SIGNED_RANK_EXACT_MAX` non-zero differences the p is exact: the
+    distribution of ``T+`` over all ``2^n`` sign flips of the observed (mid-)ranks, by
+    dynamic programming (equal to SciPy's ``method="exact"`` without ties and to its
+    exhaustive permutation with ties); above, the normal approximation with the tie
+    correction of the variance and no continuity correction (SciPy's
+    ``"asymptotic"``).
+
+    Returns:
+        ``(W, p, method)``: W the smaller of ``T+`` and ``T-``.
+    """
+    from scipy.stats import norm, rankdata
+
+    d = np.asarray(diff, dtype=float)
+    d = d[d != 0]
+    n = d.size
+    ranks = rankdata(np.abs(d))
+    t_plus = float(ranks[d > 0].sum())
+    total = float(ranks.sum())
+    w = min(t_plus, total - t_plus)
+    if n <= SIGNED_RANK_EXACT_MAX:
+        dist = _signed_rank_null(np.round(2 * ranks).astype(int))
+        k = round(2 * w)
+        p = min(1.0, 2.0 * float(dist[: k + 1].sum()))
+        ties = np.unique(ranks).size < n
+        return w, p, ("exact (all sign flips of the mid-ranks)" if ties else "exact")
+    _, counts = np.unique(np.abs(d), return_counts=True)
+    var = n * (n + 1) * (2 * n + 1) / 24.0 - float((counts**3 - counts).sum()) / 48.0
+    z = (w - n * (n + 1) / 4.0) / math.sqrt(var)
+    return w, min(1.0, float(2.0 * norm.cdf(z))), "normal approximation, tie-corrected"
+
+
+def _untied_signed_rank_cut(n: int) -> int:
+    """c with ``P(T <= c) <= 0.025`` maximal (untied, exact up to 50, normal above)."""
+    from scipy.stats import norm
+
+    if n <= SIGNED_RANK_EXACT_MAX:
+        cdf = np.cumsum(_signed_rank_null(2 * np.arange(1, n + 1)))[::2]
+        ok = np.flatnonzero(cdf <= 0.025)
+        return int(ok[-1]) if ok.size else -1
+    big_n = n * (n + 1) / 2
+    return math.floor(big_n / 2 - 0.5 - norm.ppf(0.975) * math.sqrt(
+        n * (n + 1) * (2 * n + 1) / 24.0))
+
+
+def hodges_lehmann_paired(diff: np.ndarray) -> tuple[float, float, float, str]:
+    """Hodges-Lehmann estimate (median of the Walsh averages) and its 95 % interval.
+
+    The interval is ``[W_(c+1), W_(N-c)]`` of the sorted Walsh averages, ``c`` from the
+    signed-rank distribution (exact up to 50 pairs, untied; normal above), as R's
+    ``wilcox.test(conf.int = TRUE)``. Zero differences are kept.
+    """
+    d = np.asarray(diff, dtype=float)
+    n = d.size
+    i, j = np.triu_indices(n)
+    walsh = np.sort((d[i] + d[j]) / 2.0)
+    c = _untied_signed_rank_cut(n)
+    est = float(np.median(walsh))
+    if c < 0:
+        return est, float("nan"), float("nan"), f"too few pairs ({n}) for a 95 % interval"
+    method = "exact" if n <= SIGNED_RANK_EXACT_MAX else "normal approximation"
+    return est, float(walsh[c]), float(walsh[walsh.size - 1 - c]), method
+
+
+def hodges_lehmann_shift(x: np.ndarray, y: np.ndarray) -> tuple[float, float, float, str]:
+    """Hodges-Lehmann shift ``x - y`` (median of all pairwise differences), 95 % interval.
+
+    ``[D_(c+1), D_(nm-c)]`` with ``c`` from the Mann-Whitney U distribution: exact (by
+    recursion) when ``n m <= 2500``, else its normal approximation with continuity
+    correction (no tie correction).
+    """
+    from scipy.stats import norm
+
+    x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
+    n, m = x.size, y.size
+    diffs = np.sort((x[:, None] - y[None, :]).ravel())
+    est = float(np.median(diffs))
+    nm = n * m
+    if nm <= 2500:
+        # c(i, j, u) = c(i-1, j, u-j) + c(i, j-1, u): the largest value is an x (above all
+        # j y-values) or a y; rolled over i
+        f = np.zeros((m + 1, nm + 1))
+        f[:, 0] = 1.0
+        for _ in range(n):
+            g = np.zeros((m + 1, nm + 1))
+            g[0, 0] = 1.0
+            for j in range(1, m + 1):
+                g[j, j:] = f[j, : nm + 1 - j]
+                g[j] += g[j - 1]
+            f = g
+        dist = f[m] / f[m].sum()
+        cdf = np.cumsum(dist)
+        ok = np.flatnonzero(cdf <= 0.025)
+        c = int(ok[-1]) if ok.size else -1
+        method = "exact"
+    else:
+        c = math.floor(nm / 2 - 0.5 - norm.ppf(0.975) * math.sqrt(nm * (n + m + 1) / 12.0))
+        method = "normal approximation"
+    if c < 0:
+        return est, float("nan"), float("nan"), "too few trials for a 95 % interval"
+    return est, float(diffs[c]), float(diffs[nm - 1 - c]), method
 
 
 # -- one participant -------------------------------------------------------------------
@@ -143,12 +285,14 @@ def fisher_accuracy(correct_static: int, n_static: int, correct_dynamic: int, n_
                     key: str = "between_accuracy") -> TestResult:
     """Fisher's exact test (two-sided) of static vs dynamic accuracy.
 
-    Effect size: risk difference ``acc_dynamic - acc_static``; its 95 % CI is the
-    percentile bootstrap of resampling trials with replacement within each condition,
-    drawn exactly (and vectorised) as binomial counts. The sample odds ratio
-    ``(a d) / (b c)`` is in ``details`` (None when a cell is zero).
+    Statistic: the conditional maximum-likelihood odds ratio (dynamic vs static) with
+    its exact 95 % interval (``scipy.stats.contingency.odds_ratio``, as R's
+    ``fisher.test``). Effect size: risk difference ``acc_dynamic - acc_static``, with a
+    BCa bootstrap interval (trials resampled within each condition). The sample odds
+    ratio ``(a d) / (b c)`` is in ``details`` as ``sample_odds_ratio``.
     """
     from scipy.stats import fisher_exact
+    from scipy.stats.contingency import odds_ratio
 
     test, question = "Fisher's exact test", "between-tactor accuracy, dynamic vs static"
     if n_static == 0 or n_dynamic == 0:
@@ -159,22 +303,34 @@ def fisher_accuracy(correct_static: int, n_static: int, correct_dynamic: int, n_
     table = np.array([[correct_dynamic, n_dynamic - correct_dynamic],
                       [correct_static, n_static - correct_static]])
     res = fisher_exact(table, alternative="two-sided")
+    cond = odds_ratio(table, kind="conditional")
+    ci = cond.confidence_interval(confidence_level=0.95)
     p_s, p_d = correct_static / n_static, correct_dynamic / n_dynamic
-    boot = (rng.binomial(n_dynamic, p_d, n_boot) / n_dynamic
-            - rng.binomial(n_static, p_s, n_boot) / n_static)
-    lo, hi = _percentile_ci(boot)
+    ys = np.r_[np.ones(correct_static), np.zeros(n_static - correct_static)]
+    yd = np.r_[np.ones(correct_dynamic), np.zeros(n_dynamic - correct_dynamic)]
+    lo, hi, how = bca_interval((yd, ys), lambda a, b, axis: a.mean(axis) - b.mean(axis),
+                               rng, n_boot)
     a, b, c, d = (int(v) for v in table.ravel())
-    odds = (a * d) / (b * c) if b * c > 0 else None
+    sample = (a * d) / (b * c) if b * c > 0 else None
+    cmle = _num(cond.statistic)
+    zero_cell = min(a, b, c, d) == 0
     return TestResult(
-        key=key, test=test, question=question, statistic=_num(res.statistic),
-        statistic_name="odds ratio (scipy)", p_value=float(res.pvalue),
+        key=key, test=test, question=question, statistic=cmle,
+        statistic_name="odds ratio, dynamic vs static (conditional MLE)",
+        p_value=float(res.pvalue),
         effect_name="risk difference (dynamic - static accuracy)", effect=p_d - p_s,
-        ci_name="accuracy difference (bootstrap)", ci_low=lo, ci_high=hi,
+        ci_name=f"accuracy difference ({how} bootstrap)", ci_low=lo, ci_high=hi,
         n={"static": int(n_static), "dynamic": int(n_dynamic)},
-        details={"accuracy_static": p_s, "accuracy_dynamic": p_d, "odds_ratio": odds,
-                 "odds_ratio_note": None if odds is not None else
-                 "odds ratio undefined: a cell of the 2x2 table is zero",
-                 "table": [[a, b], [c, d]], "n_boot": n_boot},
+        details={"accuracy_static": p_s, "accuracy_dynamic": p_d,
+                 "odds_ratio": None if zero_cell else cmle,
+                 "odds_ratio_method": "conditional maximum likelihood (as R's fisher.test)",
+                 "odds_ratio_ci95": [_num(ci.low), _num(ci.high)],
+                 "odds_ratio_ci_method": "exact conditional (non-central hypergeometric)",
+                 "odds_ratio_note": None if not zero_cell else
+                 "odds ratio undefined (0 or infinite): a cell of the 2x2 table is zero",
+                 "sample_odds_ratio": sample,
+                 "p_method": "exact (Fisher, two-sided: tables no more likely than observed)",
+                 "table": [[a, b], [c, d]], "n_boot": n_boot, "bootstrap": how},
     )
 
 
@@ -183,8 +339,11 @@ def mann_whitney_rt(rt_static: np.ndarray, rt_dynamic: np.ndarray, rng: np.rando
     """Mann-Whitney U test (two-sided) of static vs dynamic response times.
 
     Effect size: rank-biserial correlation ``2 U_dynamic / (n_d n_s) - 1`` (positive:
-    dynamic RTs tend to be longer). CI: percentile bootstrap of the difference of
-    median RTs (dynamic - static), trials resampled within each condition.
+    dynamic RTs tend to be longer). CI: BCa bootstrap of the difference of median RTs
+    (dynamic - static), trials resampled within each condition. Beside it, the
+    Hodges-Lehmann shift with its distribution-free interval. The p is exact when a
+    sample has at most 8 trials and there are no ties, else the tie-corrected normal
+    approximation with continuity correction (SciPy's rule, chosen explicitly).
     """
     from scipy.stats import mannwhitneyu
 
@@ -201,19 +360,28 @@ def mann_whitney_rt(rt_static: np.ndarray, rt_dynamic: np.ndarray, rng: np.rando
     if np.all(np.concatenate([s, d]) == s[0]):
         return _not_computed(key, test, question, "all response times are equal; no ranks to "
                              "compare", static=int(s.size), dynamic=int(d.size))
-    res = mannwhitneyu(d, s, alternative="two-sided")
+    both = np.concatenate([s, d])
+    ties = np.unique(both).size < both.size
+    method = "exact" if (min(s.size, d.size) <= 8 and not ties) else "asymptotic"
+    res = mannwhitneyu(d, s, alternative="two-sided", method=method)
     r = 2.0 * float(res.statistic) / (d.size * s.size) - 1.0
-    bd = np.median(d[rng.integers(0, d.size, (n_boot, d.size))], axis=1)
-    bs = np.median(s[rng.integers(0, s.size, (n_boot, s.size))], axis=1)
-    lo, hi = _percentile_ci(bd - bs)
+    lo, hi, how = bca_interval(
+        (d, s), lambda a, b, axis: np.median(a, axis=axis) - np.median(b, axis=axis),
+        rng, n_boot)
+    hl, hl_lo, hl_hi, hl_how = hodges_lehmann_shift(d, s)
     return TestResult(
         key=key, test=test, question=question, statistic=float(res.statistic),
         statistic_name="U (dynamic)", p_value=float(res.pvalue),
         effect_name="rank-biserial correlation (+: dynamic slower)", effect=r,
-        ci_name="median RT difference, dynamic - static, s (bootstrap)", ci_low=lo, ci_high=hi,
-        n={"static": int(s.size), "dynamic": int(d.size)},
+        ci_name=f"median RT difference, dynamic - static, s ({how} bootstrap)", ci_low=lo,
+        ci_high=hi, n={"static": int(s.size), "dynamic": int(d.size)},
         details={"median_rt_static_s": float(np.median(s)),
-                 "median_rt_dynamic_s": float(np.median(d)), "n_boot": n_boot},
+                 "median_rt_dynamic_s": float(np.median(d)), "n_boot": n_boot,
+                 "bootstrap": how,
+                 "p_method": ("exact" if method == "exact" else
+                              "normal approximation, tie-corrected, continuity-corrected"),
+                 "hodges_lehmann_s": hl, "hodges_lehmann_ci95": [_num(hl_lo), _num(hl_hi)],
+                 "hodges_lehmann_method": f"shift dynamic - static; interval {hl_how}"},
     )
 
 
@@ -242,10 +410,12 @@ def wilcoxon_paired(static: np.ndarray, dynamic: np.ndarray, rng: np.random.Gene
                     unit: str = "") -> TestResult:
     """Wilcoxon signed-rank test (two-sided) of paired per-participant values.
 
-    Effect size: matched-pairs rank-biserial correlation of ``dynamic - static``. CI:
-    percentile bootstrap (participants resampled) of the mean paired difference.
+    p: :func:`signed_rank_test` (exact up to 50 pairs, also with ties). Effect size:
+    matched-pairs rank-biserial correlation of ``dynamic - static``. CI: BCa bootstrap
+    (participants resampled) of the mean paired difference; the t interval and the
+    Hodges-Lehmann estimate with its interval are in ``details``.
     """
-    from scipy.stats import wilcoxon
+    from scipy.stats import ttest_1samp
 
     test = "Wilcoxon signed-rank test"
     question = f"per-participant between-tactor {what}, dynamic vs static"
@@ -262,133 +432,277 @@ def wilcoxon_paired(static: np.ndarray, dynamic: np.ndarray, rng: np.random.Gene
         return _not_computed(key, test, question,
                              f"all {s.size} paired differences are zero (every participant has "
                              f"the same {what} in both conditions)", pairs=int(s.size))
+    w, p, p_how = signed_rank_test(diff)
+    lo, hi, how = bca_interval((diff,), lambda a, axis: a.mean(axis), rng, n_boot)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        res = wilcoxon(d, s, alternative="two-sided")
-    boot = diff[rng.integers(0, diff.size, (n_boot, diff.size))].mean(axis=1)
-    lo, hi = _percentile_ci(boot)
+        tci = ttest_1samp(diff, 0.0).confidence_interval(0.95)
+    hl, hl_lo, hl_hi, hl_how = hodges_lehmann_paired(diff)
     return TestResult(
-        key=key, test=test, question=question, statistic=float(res.statistic),
-        statistic_name="W (smaller rank sum)", p_value=float(res.pvalue),
+        key=key, test=test, question=question, statistic=w,
+        statistic_name="W (smaller rank sum)", p_value=p,
         effect_name="matched-pairs rank-biserial correlation (+: dynamic higher)",
         effect=matched_pairs_rank_biserial(diff),
-        ci_name=f"mean paired difference, dynamic - static{unit} (bootstrap)",
+        ci_name=f"mean paired difference, dynamic - static{unit} ({how} bootstrap)",
         ci_low=lo, ci_high=hi, n={"pairs": int(s.size), "zero_differences":
                                   int((diff == 0).sum())},
         details={"mean_difference": float(diff.mean()),
                  "mean_static": float(s.mean()), "mean_dynamic": float(d.mean()),
-                 "n_boot": n_boot},
+                 "n_boot": n_boot, "bootstrap": how, "p_method": p_how,
+                 "t_interval_ci95": [_num(tci.low), _num(tci.high)],
+                 "hodges_lehmann": hl, "hodges_lehmann_ci95": [_num(hl_lo), _num(hl_hi)],
+                 "hodges_lehmann_method": f"median of Walsh averages; interval {hl_how}"},
     )
 
 
-def mixed_model(tr: pd.DataFrame, *, vb_max_participants: int = VB_MAX_PARTICIPANTS) -> TestResult:
-    """Binomial mixed model ``correct ~ condition + on_tactor + (1 | participant)``.
+#: Factor columns of the design, in formula order, when the trials table has them and
+#: they vary: ``condition * on_tactor * n_targets * load``.
+DESIGN_FACTORS: Final = ("condition", "on_tactor", "n_targets", "load")
+#: A cell with more timeouts than this share gets a note beside the RT model.
+TIMEOUT_NOTE_SHARE: Final = 0.05
+ENGINES: Final = ("tactorbelt", "lme4")
+ENGINE_NAMES: Final = {"tactorbelt": "tactorbelt-laplace", "lme4": "lme4"}
 
-    ``condition`` is coded dynamic = 1, static = 0; the reported coefficient is its
-    log-odds effect. Up to ``vb_max_participants`` participants: statsmodels
-    BinomialBayesMixedGLM.fit_vb, interval = posterior mean +- 1.96 posterior SD (no
-    p-value). Above: GEE (binomial, exchangeable within participant, robust SE), Wald
-    interval and p-value; a population-averaged rather than subject-specific effect.
+
+def model_frame(tr: pd.DataFrame) -> pd.DataFrame:
+    """The counted trials in the columns the mixed models use (the trials table's names).
+
+    ``correct`` 0/1 (timeouts 0), ``condition`` text, ``on_tactor`` 0/1 integer (so
+    lme4 names its coefficient ``on_tactor``, not ``on_tactorTRUE``), ``n_targets`` and
+    ``load`` when present, ``participant`` text, ``target`` (``target_deg`` as text, a
+    factor), ``rt_s`` (NaN for timeouts) and ``status``.
+    """
+    import pandas as pd
+
+    c = tr.loc[tr["counted"]]
+    out = pd.DataFrame({
+        "correct": c["is_correct"].to_numpy(dtype=int),
+        "condition": c["condition"].astype(str).to_numpy(),
+        "on_tactor": c["on_tactor"].to_numpy(dtype=bool).astype(int),
+        "participant": c["participant"].astype(str).to_numpy(),
+        "target": [f"{v:g}" for v in c["target_deg"].to_numpy(dtype=float)],
+        "rt_s": c["rt"].to_numpy(dtype=float),
+        "status": c["status"].astype(str).to_numpy(),
+    })
+    if "n_targets" in c:
+        out["n_targets"] = pd.to_numeric(c["n_targets"], errors="coerce").to_numpy()
+    if "load" in c:
+        out["load"] = c["load"].astype("string").fillna("none").astype(str).to_numpy()
+    return out
+
+
+def model_spec(frame: pd.DataFrame, response: str = "correct",
+               transform: str | None = None) -> tuple[Any, list[str]]:
+    """The maximal model the data support, and notes on what was left out.
+
+    Fixed: every :data:`DESIGN_FACTORS` column that varies, fully crossed. Random: a
+    per-participant intercept and condition slope (from 2 participants; the slope only
+    when some participant has both conditions) and a per-target intercept (from 2
+    targets).
+    """
+    from .glmm import ModelSpec, RandomTerm
+
+    notes: list[str] = []
+    fixed = []
+    for col in DESIGN_FACTORS:
+        if col not in frame:
+            continue
+        if frame[col].nunique(dropna=True) > 1:
+            fixed.append(col)
+        elif col == "on_tactor":
+            notes.append("on_tactor left out of the model: all targets are of one kind")
+    random = []
+    if frame["participant"].nunique() > 1:
+        both = frame.groupby("participant")["condition"].nunique().max() > 1
+        random.append(RandomTerm("participant", ("condition",) if both else ()))
+    if frame["target"].nunique() > 1:
+        random.append(RandomTerm("target"))
+    return ModelSpec(response, tuple(fixed), tuple(random), transform), notes
+
+
+def _fitter(engine: str, family: str) -> Any:
+    if engine == "lme4":
+        from .lme4 import fit_lme4
+
+        return lambda df, spec: fit_lme4(df, spec, family=family)
+    from .glmm import fit_glmm, fit_lmm
+
+    last: list[Any] = [None]  # each simplification step starts from the previous fit
+
+    def fit(df: pd.DataFrame, spec: Any) -> Any:
+        if family == "binomial":  # no Hessian for a fit the simplification replaces
+            last[0] = fit_glmm(df, spec, skip_se_if_simplified=True, start=last[0])
+        else:
+            last[0] = fit_lmm(df, spec, start=last[0])
+        return last[0]
+
+    return fit
+
+
+def model_json(fit: Any, steps: list[dict[str, Any]], engine: str,
+               notes: list[str]) -> dict[str, Any]:
+    """The ``summary.json`` object of one fitted model (docs/conventions.md)."""
+    binomial = fit.family == "binomial"
+    return {
+        "engine": ENGINE_NAMES[engine],
+        "family": "binomial (logit link)" if binomial else "gaussian (identity link)",
+        "criterion": ("maximum likelihood, Laplace approximation (glmer's nAGQ = 1)"
+                      if binomial else "REML (lmer's default)"),
+        "formula": fit.spec.formula(),
+        "scale": "log-odds" if binomial else "log(seconds)",
+        "fixed_effects": {k: v.to_dict() for k, v in fit.fixed_effects.items()},
+        "ci_method": "Wald",
+        "p_method": "Wald z, two-sided, normal reference",
+        "vcov_method": fit.vcov_method,
+        "random_effects": fit.random_effects,
+        "singular": bool(fit.singular),
+        "simplification": steps,
+        "converged": bool(fit.converged),
+        "convergence": list(fit.messages) or ["converged"],
+        "n": {"observations": int(fit.n_obs), **{f"{g}s": int(n) for g, n in
+                                                  fit.groups.items()}},
+        "coding": "treatment coding, alphabetically first level the reference "
+                  "(condition: dynamic); on_tactor numeric 0/1 (1 = on a tactor)",
+        "notes": notes,
+    }
+
+
+def fit_model(frame: pd.DataFrame, *, engine: str = "tactorbelt",
+              rt: bool = False) -> tuple[Any, dict[str, Any]]:
+    """Fit the accuracy GLMM (or, ``rt=True``, the log-RT LMM) with the simplification rule.
+
+    Returns:
+        ``(fit, json)``; see :func:`model_json`.
+    """
+    from .glmm import fit_simplified
+
+    if engine not in ENGINES:
+        raise ValueError(f"unknown engine {engine!r}; choose {', '.join(ENGINES)}")
+    data = frame.loc[frame["status"] == "done"] if rt else frame
+    spec, notes = model_spec(data, "rt_s" if rt else "correct", "log" if rt else None)
+    fit, steps = fit_simplified(data, spec, _fitter(engine, "gaussian" if rt else "binomial"))
+    return fit, model_json(fit, steps, engine, notes)
+
+
+def timeout_cells(frame: pd.DataFrame) -> list[dict[str, Any]]:
+    """Timeouts per design cell (condition x kind [x n_targets x load])."""
+    keys = ["condition", "on_tactor"] + [c for c in ("n_targets", "load") if c in frame]
+    g = frame.assign(timeout=frame["status"] == "timeout").groupby(keys, dropna=False)
+    out = []
+    for key, sub in g:
+        vals = dict(zip(keys, key if isinstance(key, tuple) else (key,), strict=True))
+        n = len(sub)
+        k = int(sub["timeout"].sum())
+        out.append({**{kk: (v.item() if hasattr(v, "item") else v) for kk, v in vals.items()},
+                    "n": n, "timeouts": k, "share": k / n if n else None})
+    return out
+
+
+def mixed_model(tr: pd.DataFrame, *, engine: str = "tactorbelt") -> TestResult:
+    """Binomial GLMM of accuracy: ``correct ~ condition * on_tactor [* n_targets * load] +
+    (1 + condition | participant) + (1 | target)``, simplified while singular.
+
+    Maximum likelihood with the Laplace approximation (:mod:`.glmm`, or lme4's glmer
+    with ``engine="lme4"``). The headline is the ``conditionstatic`` coefficient: the
+    log-odds of a correct answer, static minus dynamic, at between-tactor targets
+    (``on_tactor = 0``; the reference level of condition is ``dynamic``). Wald z, p and
+    interval. ``details["model"]`` is the ``summary.json`` ``mixed_model`` object.
 
     Args:
         tr: prepared trials (:func:`~tactorbelt.analysis.tables.prepare_trials`),
             only the counted ones are used.
+        engine: ``tactorbelt`` (this package) or ``lme4`` (R, through Rscript).
     """
-    key, question = "mixed_model", "accuracy, dynamic vs static, all targets"
-    c = tr.loc[tr["counted"]]
-    parts = c["participant"].unique()
-    n_p = int(parts.size)
-    test = ("binomial mixed model (BinomialBayesMixedGLM, fit_vb)"
-            if n_p <= vb_max_participants else "GEE, binomial, exchangeable (mixed-model stand-in)")
+    key, question = "mixed_model", "accuracy, static vs dynamic, at between-tactor targets"
+    frame = model_frame(tr)
+    n_p = int(frame["participant"].nunique())
+    test = f"binomial GLMM, Laplace ML ({ENGINE_NAMES.get(engine, engine)})"
     if n_p < 3:
         return _not_computed(key, test, question,
                              f"needs at least 3 participants, found {n_p}", participants=n_p)
-    conds = set(c["condition"].unique())
+    conds = set(frame["condition"].unique())
     if conds != set(CONDITIONS):
         only = ", ".join(sorted(conds)) or "none"
         return _not_computed(key, test, question,
                              f"needs both conditions; the data hold only {only}",
-                             participants=n_p, trials=len(c))
-    y = c["is_correct"].to_numpy(dtype=float)
+                             participants=n_p, trials=len(frame))
+    y = frame["correct"].to_numpy()
     if np.all(y == y[0]):
         return _not_computed(key, test, question,
                              "every counted trial is " + ("correct" if y[0] else "incorrect")
                              + "; a logistic model has nothing to fit",
-                             participants=n_p, trials=len(c))
-    cond = (c["condition"] == "dynamic").to_numpy(dtype=float)
-    on = c["on_tactor"].to_numpy(dtype=float)
-    names = ["Intercept", "condition[dynamic]"]
-    cols = [np.ones_like(y), cond]
-    notes: list[str] = []
-    if 0 < on.sum() < on.size:
-        names.append("on_tactor")
-        cols.append(on)
-    else:
-        notes.append("on_tactor dropped from the model: all targets are of one kind")
-    x = np.column_stack(cols)
-    group = np.unique(c["participant"].to_numpy(), return_inverse=True)[1]
-    n = {"participants": n_p, "trials": len(c)}
+                             participants=n_p, trials=len(frame))
+    n = {"participants": n_p, "trials": len(frame)}
     try:
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always")
-            if n_p <= vb_max_participants:
-                from scipy import sparse
-                from statsmodels.genmod.bayes_mixed_glm import BinomialBayesMixedGLM
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            fit, js = fit_model(frame, engine=engine)
+    except Exception as exc:  # an engine may raise many kinds (LinAlgError, R errors, ...)
+        from .lme4 import Lme4Unavailable
 
-                z = sparse.csr_array((np.ones(len(y)), (np.arange(len(y)), group)),
-                                     shape=(len(y), n_p))
-                model = BinomialBayesMixedGLM(y, x, z, np.zeros(n_p, dtype=int),
-                                              fep_names=names, vcp_names=["participant"])
-                fit = model.fit_vb()
-                coef = float(fit.fe_mean[1])
-                sd = float(fit.fe_sd[1])
-                lo, hi = coef - 1.959964 * sd, coef + 1.959964 * sd
-                p = None
-                details: dict[str, Any] = {
-                    "method": "variational Bayes (fit_vb); interval = mean +- 1.96 SD of the "
-                              "approximate posterior; no p-value",
-                    "posterior_sd": sd,
-                    "random_intercept_sd": float(np.exp(fit.vcp_mean[0])),
-                }
-            else:
-                import statsmodels.api as sm
-
-                gee = sm.GEE(y, x, groups=group, family=sm.families.Binomial(),
-                             cov_struct=sm.cov_struct.Exchangeable()).fit()
-                coef = float(gee.params[1])
-                se = float(gee.bse[1])
-                lo, hi = coef - 1.959964 * se, coef + 1.959964 * se
-                p = float(gee.pvalues[1])
-                details = {
-                    "method": f"GEE with exchangeable working correlation within participant "
-                              f"(used instead of fit_vb above {vb_max_participants} "
-                              "participants); robust SE, Wald interval and p-value",
-                    "robust_se": se,
-                    "within_participant_correlation": float(gee.cov_struct.dep_params),
-                }
-        msgs = sorted({str(w.message).splitlines()[0] for w in caught
-                       if not issubclass(w.category, DeprecationWarning | FutureWarning)})
-    except Exception as exc:  # statsmodels raises many kinds (LinAlgError, separation, ...)
+        if isinstance(exc, Lme4Unavailable):
+            raise
         return _not_computed(key, test, question,
                              f"the model fit failed: {type(exc).__name__}: {exc}", **n)
-    if not (math.isfinite(coef) and math.isfinite(lo) and math.isfinite(hi)):
+    fe = fit.fixed_effects.get("conditionstatic")
+    if fe is None or not (math.isfinite(fe.estimate) and math.isfinite(fe.se)):
         return _not_computed(key, test, question,
-                             "the fit gave no finite coefficient (separation?)", **n)
-    details["formula"] = "correct ~ condition + on_tactor + (1 | participant)"
-    details["odds_ratio"] = math.exp(coef)
-    details["odds_ratio_interval"] = [math.exp(lo), math.exp(hi)]
-    if msgs:
-        details["warnings"] = msgs
-    if notes:
-        details["notes"] = notes
+                             "the fit gave no finite condition coefficient (separation?)", **n)
+    details: dict[str, Any] = {
+        "method": f"{js['criterion']}; {js['formula']}; Wald z, p and 95 % interval",
+        "formula": js["formula"], "model": js,
+        "odds_ratio": math.exp(fe.estimate),
+        "odds_ratio_interval": [math.exp(fe.ci_low), math.exp(fe.ci_high)],
+    }
+    if js["notes"]:
+        details["notes"] = list(js["notes"])
+    if fit.singular or not fit.converged:
+        details["warnings"] = list(fit.messages)
     return TestResult(
-        key=key, test=test, question=question, statistic=coef,
-        statistic_name="condition[dynamic] coefficient (log-odds)", p_value=p,
-        effect_name="condition[dynamic] log-odds ratio", effect=coef,
-        ci_name="condition coefficient, 95 % " + ("posterior" if p is None else "Wald")
-                + " interval (model-based, not bootstrap)",
-        ci_low=lo, ci_high=hi, n=n, details=details,
+        key=key, test=test, question=question, statistic=fe.z,
+        statistic_name="Wald z (conditionstatic)", p_value=fe.p,
+        effect_name="conditionstatic: log-odds, static - dynamic, between-tactor targets",
+        effect=fe.estimate,
+        ci_name="conditionstatic, 95 % Wald interval (model-based, not bootstrap)",
+        ci_low=fe.ci_low, ci_high=fe.ci_high, n=n, details=details,
     )
+
+
+def rt_model(tr: pd.DataFrame, *, engine: str = "tactorbelt") -> dict[str, Any]:
+    """The log-RT linear mixed model (REML) as a ``summary.json`` object, with timeouts.
+
+    Same fixed and random structure as :func:`mixed_model`, over answered (``done``)
+    trials; timeouts have no RT and are counted per cell beside the model.
+    """
+    frame = model_frame(tr)
+    cells = timeout_cells(frame)
+    out: dict[str, Any] = {"timeouts_by_cell": cells}
+    high = [c for c in cells if c["share"] is not None and c["share"] > TIMEOUT_NOTE_SHARE]
+    if high:
+        out["timeout_note"] = (
+            f"{len(high)} cell(s) have more than {TIMEOUT_NOTE_SHARE:.0%} timeouts; the RT "
+            "model sees only answered trials, so its estimates there describe the faster "
+            "answers")
+    done = frame.loc[frame["status"] == "done"]
+    n_p = int(done["participant"].nunique())
+    if n_p < 3 or done["condition"].nunique() < 2 or not (done["rt_s"] > 0).all():
+        out["computed"] = False
+        out["reason"] = ("needs at least 3 participants with answered trials in both "
+                         "conditions and positive response times")
+        return out
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            _, js = fit_model(frame, engine=engine, rt=True)
+    except Exception as exc:  # reported, not raised
+        from .lme4 import Lme4Unavailable
+
+        if isinstance(exc, Lme4Unavailable):
+            raise
+        out["computed"] = False
+        out["reason"] = f"the model fit failed: {type(exc).__name__}: {exc}"
+        return out
+    return {"computed": True, **js, **out}
 
 
 # -- the whole summary -----------------------------------------------------------------
@@ -437,6 +751,14 @@ class Summary:
     paths: list[str]
     seed: int = 0
     n_boot: int = DEFAULT_N_BOOT
+    #: the ``rt_mixed_model`` object of summary.json (None without counted trials).
+    rt_model: dict[str, Any] | None = None
+
+    @property
+    def mixed_model(self) -> dict[str, Any] | None:
+        """The ``mixed_model`` object of summary.json, when the GLMM was fitted."""
+        t = self.test("mixed_model")
+        return t.details.get("model") if t is not None and t.computed else None
 
     @property
     def simulated(self) -> bool:
@@ -508,6 +830,8 @@ class Summary:
             "conditions": conditions,
             "between_accuracy_test": self.between_accuracy_test.to_dict(),
             "tests": [t.to_dict() for t in self.tests],
+            "mixed_model": self.mixed_model,
+            "rt_mixed_model": self.rt_model,
             "counting": COUNTING_RULES,
             "study": {
                 "layout_deg": self.design.layout.to_list(),
@@ -565,14 +889,16 @@ def _design_for(sessions: pd.DataFrame, notes: list[str]) -> StudyDesign:
 
 
 def summarize(data: StoreData, *, seed: int = 0, n_boot: int = DEFAULT_N_BOOT,
-              vb_max_participants: int = VB_MAX_PARTICIPANTS) -> Summary:
+              engine: str = "tactorbelt") -> Summary:
     """Compute every table and test from loaded stores. Pure: no files, no clock.
 
     Args:
         data: what :func:`tactorbelt.analysis.load.load_stores` returned.
         seed: seeds the bootstrap (a :class:`numpy.random.Generator`).
         n_boot: bootstrap resamples per interval.
-        vb_max_participants: above this, the mixed model is a GEE.
+        engine: who fits the mixed models: ``tactorbelt`` (:mod:`.glmm`) or ``lme4``
+            (R through Rscript; raises :class:`~tactorbelt.analysis.lme4.Lme4Unavailable`
+            without it).
     """
     rng = np.random.default_rng(seed)
     notes = list(data.notes)
@@ -670,8 +996,12 @@ def summarize(data: StoreData, *, seed: int = 0, n_boot: int = DEFAULT_N_BOOT,
             tests.append(wilcoxon_paired(
                 b[("median_rt_s", "static")].to_numpy(), b[("median_rt_s", "dynamic")].to_numpy(),
                 rng, n_boot, key="between_rt", what="median RT", unit=", s"))
+    rt_json: dict[str, Any] | None = None
     if len(counted):
-        tests.append(mixed_model(tr, vb_max_participants=vb_max_participants))
+        tests.append(mixed_model(tr, engine=engine))
+        rt_json = rt_model(tr, engine=engine)
+        if rt_json.get("timeout_note"):
+            notes.append("RT model: " + rt_json["timeout_note"])
     primary = next(t for t in tests if t.key == "between_accuracy")
     for t in tests:
         if not t.computed:
@@ -688,4 +1018,5 @@ def summarize(data: StoreData, *, seed: int = 0, n_boot: int = DEFAULT_N_BOOT,
         aborted=aborted,
         simulated_sessions=sessions.loc[sessions["simulated"], "session_key"].tolist(),
         notes=notes, trials=tr, paths=[str(p) for p in data.paths], seed=seed, n_boot=n_boot,
+        rt_model=rt_json,
     )

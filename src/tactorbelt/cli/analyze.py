@@ -36,7 +36,11 @@ def print_summary_table(summary: Summary) -> None:
               help="Seed of the bootstrap intervals and of the sample trajectories shown "
                    "[default: the smallest seed of the stored sessions, so the same stores "
                    "always give the same report, the demo's included].")
-def analyze(db: tuple[Path, ...], out: Path | None, seed: int | None) -> None:
+@click.option("--engine", type=click.Choice(["tactorbelt", "lme4"]), default="tactorbelt",
+              show_default=True,
+              help="Who fits the mixed models: tactorbelt's Laplace GLMM, or R's lme4 through "
+                   "Rscript (needs 'apt install r-base-core r-cran-lme4').")
+def analyze(db: tuple[Path, ...], out: Path | None, seed: int | None, engine: str) -> None:
     """Analyse one or more session stores and write the report.
 
     DB is a store written by 'tactorbelt run' or 'tactorbelt demo' (several may be
@@ -59,7 +63,8 @@ def analyze(db: tuple[Path, ...], out: Path | None, seed: int | None) -> None:
         def progress(what: str, done: int, total: int) -> None:
             bar.update(task, description=what, completed=done, total=total)
 
-        summary = run_analysis(list(db), out_dir, seed=seed, progress=progress)
+        summary = run_analysis(list(db), out_dir, seed=seed, progress=progress,
+                               engine=engine)
     out_console = Console()
     _print(summary, out_console)
     for note in summary.notes:

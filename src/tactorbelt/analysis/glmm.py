@@ -1,0 +1,915 @@
+"""Mixed models by maximum likelihood, computed the way ``lme4`` computes them.
+
+Two models, both over the trials table's own column names (docs/analysis.md):
+
+- :func:`fit_glmm`: a binomial GLMM with a logit link, fitted by maximum likelihood
+  with the Laplace approximation, as ``lme4::glmer(..., family = binomial)`` does by
+  default (``nAGQ = 1``).
+- :func:`fit_lmm`: a linear mixed model fitted by REML, as ``lme4::lmer`` does by default.
+
+Why an implementation of our own: statsmodels has no Laplace GLMM (its
+``BinomialBayesMixedGLM`` is variational Bayes, whose posterior SDs are not glmer's
+standard errors), GPBoost's grouped random coefficients are uncorrelated with the
+intercept (no ``(1 + condition | participant)``), and pymer4 needs R. The algorithm is
+lme4's (Bates et al. 2015, "Fitting linear mixed-effects models using lme4", J. Stat.
+Softw. 67(1); the GLMM part is ``vignette("PIRLS")`` / the ``glmer`` sources):
+
+- Random effects ``b = Lambda(theta) u`` with spherical ``u ~ N(0, I)``; ``Lambda`` is
+  block-diagonal with one lower-triangular factor ``T_k`` per random-effects term
+  (``theta`` = the lower triangles, column by column; diagonal elements >= 0).
+- Penalised IRLS (Newton steps with step halving) finds the conditional modes ``u``
+  given ``(theta, beta)``; the Laplace deviance is
+  ``sum(deviance residuals) + |u|^2 + log det(L L')`` with
+  ``L L' = Lambda' Z' W Z Lambda + I`` at the modes (``W``: the IRLS weights).
+- Stage 1 (glmer's ``nAGQ = 0``) optimises ``theta`` only, with ``beta`` and ``u``
+  jointly at their penalised modes; stage 2 optimises the Laplace deviance over
+  ``(theta, beta)`` from there (L-BFGS-B, bounds for the diagonal of ``theta``, central
+  difference gradients).
+- Standard errors: as glmer's default ``vcov`` (``use.hessian = TRUE``), twice the
+  inverse of the finite-difference Hessian of the deviance over ``(theta, beta)``
+  (lme4's ``deriv12``, step 1e-4), its ``beta`` block; when that Hessian is not
+  positive definite, the conditional ``(R_X' R_X)^{-1}`` given ``theta``, as lme4
+  falls back (and says so in ``messages``).
+- A fit is *singular* when an element of ``theta`` with lower bound 0 is below 1e-4
+  (lme4's ``isSingular`` rule).
+
+Fixed effects use R's default treatment coding: for a text column the alphabetically
+first level is the reference and the columns are named ``<column><level>``; a numeric
+column (a 0/1 ``on_tactor``) enters as it is, named by the column; interactions are
+``a:b``, columns of the first factor varying fastest; terms ordered by degree. Columns
+that are linear combinations of earlier ones are dropped, as lme4 drops them (named in
+``messages``).
+
+Speed: Bernoulli rows with the same covariates and groups are pooled into binomial
+counts (the same likelihood); the random effects of the term with the most levels
+(participants) are eliminated block by block and the other terms (targets) form a
+small dense Schur complement, so 100 participants x 480 trials fit in a few seconds.
+
+Pure: NumPy, SciPy and pandas; no I/O.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any, Final
+
+import numpy as np
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+__all__ = [
+    "SINGULAR_TOL",
+    "FixedEffect",
+    "MixedModelFit",
+    "ModelSpec",
+    "RandomTerm",
+    "fit_glmm",
+    "fit_lmm",
+    "fit_simplified",
+    "fixed_design",
+    "simplify_step",
+]
+
+#: lme4's ``isSingular`` tolerance on the elements of theta bounded below by 0.
+SINGULAR_TOL: Final = 1e-4
+#: lme4's ``deriv12`` step for the Hessian behind glmer's standard errors.
+HESSIAN_STEP: Final = 1e-4
+Z95: Final = 1.959963984540054
+
+
+@dataclass(frozen=True)
+class RandomTerm:
+    """One random-effects term ``(1 + slopes | group)``.
+
+    Attributes:
+        group: the grouping column (``participant``, ``target``).
+        slopes: columns with a random slope per group level (``condition``).
+    """
+
+    group: str
+    slopes: tuple[str, ...] = ()
+
+    def lme4(self) -> str:
+        """The term in lme4 syntax."""
+        return "(" + " + ".join(("1", *self.slopes)) + f" | {self.group})"
+
+
+@dataclass(frozen=True)
+class ModelSpec:
+    """A mixed model: response, fully crossed fixed factors, random terms.
+
+    ``fixed = ("condition", "on_tactor")`` means ``condition * on_tactor`` (both main
+    effects and their interaction).
+    """
+
+    response: str
+    fixed: tuple[str, ...]
+    random: tuple[RandomTerm, ...]
+    #: ``"log"``: the model is of ``log(response)`` (written so in the formula).
+    transform: str | None = None
+
+    def formula(self) -> str:
+        """The model in lme4 syntax."""
+        rhs = " * ".join(self.fixed) if self.fixed else "1"
+        lhs = f"{self.transform}({self.response})" if self.transform else self.response
+        return f"{lhs} ~ " + " + ".join((rhs, *(t.lme4() for t in self.random)))
+
+    def replace_term(self, drop: RandomTerm, keep: RandomTerm | None = None) -> ModelSpec:
+        """The same model with ``drop`` replaced by ``keep`` (or removed)."""
+        terms = tuple(t if t != drop else keep for t in self.random
+                      if t != drop or keep is not None)
+        return ModelSpec(self.response, self.fixed, tuple(t for t in terms if t is not None),
+                         self.transform)
+
+    def response_values(self, df: pd.DataFrame) -> np.ndarray:
+        y = df[self.response].to_numpy(dtype=float)
+        return np.log(y) if self.transform == "log" else y
+
+
+@dataclass
+class FixedEffect:
+    """One fixed-effect coefficient with its Wald statistics (log-odds for the GLMM)."""
+
+    estimate: float
+    se: float
+    z: float
+    p: float
+    ci_low: float
+    ci_high: float
+
+    def to_dict(self) -> dict[str, float | None]:
+        return {k: (v if math.isfinite(v) else None) for k, v in self.__dict__.items()}
+
+
+@dataclass
+class MixedModelFit:
+    """A fitted mixed model, in the terms lme4 prints.
+
+    Attributes:
+        spec: the model fitted.
+        family: ``binomial`` (logit link) or ``gaussian``.
+        fixed_effects: keyed by lme4's term names (``(Intercept)``, ``conditionstatic``).
+        vcov: the fixed effects' covariance matrix, in that order.
+        random_effects: per term, the SDs by column (``(Intercept)``, ``conditionstatic``)
+            and correlations; ``sigma`` for the residual of an LMM.
+        theta: lme4's theta (relative Cholesky factors, column-wise lower triangles).
+        singular: an element of theta bounded by 0 is below :data:`SINGULAR_TOL`.
+        deviance, loglik: ``-2 log L`` (Laplace or REML criterion) and ``log L``.
+        vcov_method: how ``vcov`` was computed.
+        messages: convergence and rank notes.
+        n_obs, n_cells: observations and pooled binomial cells.
+        groups: number of levels per grouping column.
+    """
+
+    spec: ModelSpec
+    family: str
+    fixed_effects: dict[str, FixedEffect]
+    vcov: np.ndarray
+    random_effects: dict[str, dict[str, Any]]
+    theta: np.ndarray
+    singular: bool
+    deviance: float
+    loglik: float
+    vcov_method: str
+    converged: bool
+    messages: list[str] = field(default_factory=list)
+    theta_names: list[str] = field(default_factory=list)
+    n_obs: int = 0
+    n_cells: int = 0
+    groups: dict[str, int] = field(default_factory=dict)
+    criterion: str = "ML (Laplace)"
+
+    def zero_components(self) -> list[str]:
+        """Names of theta elements bounded by 0 and estimated below :data:`SINGULAR_TOL`
+        (``participant.conditionstatic``: a slope at 0 or a correlation of +-1)."""
+        out = []
+        for nm, th in zip(self.theta_names, self.theta, strict=False):
+            parts = nm.split(".")
+            diagonal = len(parts) == 2 or (len(parts) == 3 and parts[1] == parts[2])
+            if diagonal and th < SINGULAR_TOL:
+                out.append(nm)
+        return out
+
+
+# -- design matrices ---------------------------------------------------------------------
+
+def _is_numeric(s: pd.Series) -> bool:
+    import pandas as pd
+
+    return bool(pd.api.types.is_numeric_dtype(s) and not pd.api.types.is_bool_dtype(s))
+
+
+def _factor_columns(df: pd.DataFrame, col: str) -> tuple[list[np.ndarray], list[str]]:
+    """The contrast columns of one variable, R's treatment coding."""
+    s = df[col]
+    if _is_numeric(s):
+        return [s.to_numpy(dtype=float)], [col]
+    vals = s.astype(str).to_numpy()
+    levels = sorted(set(vals.tolist()))
+    return ([(vals == lv).astype(float) for lv in levels[1:]],
+            [f"{col}{lv}" for lv in levels[1:]])
+
+
+def fixed_design(df: pd.DataFrame, fixed: Sequence[str]) -> tuple[np.ndarray, list[str], list[str]]:
+    """``model.matrix(~ a * b * ...)`` with R's defaults.
+
+    Returns:
+        ``(X, names, dropped)``: the design (with ``(Intercept)`` first), its column
+        names, and the names of columns dropped because they are linear combinations of
+        earlier ones (lme4 drops them too).
+    """
+    n = len(df)
+    cols: list[np.ndarray] = [np.ones(n)]
+    names: list[str] = ["(Intercept)"]
+    per = {c: _factor_columns(df, c) for c in fixed}
+    for degree in range(1, len(fixed) + 1):
+        for combo in itertools.combinations(fixed, degree):
+            parts = [per[c] for c in combo]
+            # R: the first factor's columns vary fastest
+            for idx in itertools.product(*(range(len(p[0])) for p in reversed(parts))):
+                idx = idx[::-1]
+                col = np.ones(n)
+                for p, i in zip(parts, idx, strict=True):
+                    col = col * p[0][i]
+                cols.append(col)
+                names.append(":".join(p[1][i] for p, i in zip(parts, idx, strict=True)))
+    x = np.column_stack(cols)
+    keep: list[int] = []
+    dropped: list[str] = []
+    for j in range(x.shape[1]):
+        trial = [*keep, j]
+        if np.linalg.matrix_rank(x[:, trial], tol=1e-7 * max(1.0, np.abs(x).max()) * n) == len(
+                trial):
+            keep.append(j)
+        else:
+            dropped.append(names[j])
+    return x[:, keep], [names[j] for j in keep], dropped
+
+
+@dataclass
+class _Term:
+    name: str
+    group: np.ndarray  # level index per row
+    z: np.ndarray  # (N, b) columns of the term
+    columns: list[str]
+    n_levels: int
+
+    @property
+    def b(self) -> int:
+        return self.z.shape[1]
+
+    @property
+    def n_theta(self) -> int:
+        return self.b * (self.b + 1) // 2
+
+    def lower_bounds(self) -> list[float]:
+        return [0.0 if i == j else -np.inf for j in range(self.b) for i in range(j, self.b)]
+
+    def theta_names(self) -> list[str]:
+        """lme4's names of this term's theta elements (``group.col`` or ``group.row.col``)."""
+        c = self.columns
+        return [f"{self.name}.{c[i]}" if i == j else f"{self.name}.{c[i]}.{c[j]}"
+                for j in range(self.b) for i in range(j, self.b)]
+
+    def tri(self, th: np.ndarray) -> np.ndarray:
+        t = np.zeros((self.b, self.b))
+        k = 0
+        for j in range(self.b):
+            for i in range(j, self.b):
+                t[i, j] = th[k]
+                k += 1
+        return t
+
+
+def _random_terms(df: pd.DataFrame, spec: ModelSpec) -> list[_Term]:
+    terms: list[_Term] = []
+    for rt in spec.random:
+        codes = np.unique(df[rt.group].astype(str).to_numpy(), return_inverse=True)[1].ravel()
+        levels = int(codes.max()) + 1 if codes.size else 0
+        zc: list[np.ndarray] = [np.ones(len(df))]
+        zn = ["(Intercept)"]
+        for s in rt.slopes:
+            c, nm = _factor_columns(df, s)
+            zc += c
+            zn += nm
+        terms.append(_Term(rt.group, codes.astype(np.int64), np.column_stack(zc), zn, levels))
+    # lme4 orders terms by decreasing number of levels
+    terms.sort(key=lambda t: -t.n_levels)
+    return terms
+
+
+# -- the penalised least-squares system, structured --------------------------------------
+
+def _bsum(idx: np.ndarray, weights: np.ndarray, n: int) -> np.ndarray:
+    """``bincount`` with weights, always float (also for empty input)."""
+    out: np.ndarray = np.bincount(idx.ravel(), weights=weights.ravel(), minlength=n).astype(float)
+    return out
+
+
+def _block_inverse(a: np.ndarray) -> tuple[np.ndarray, float]:
+    """Inverses and the summed ``log det`` of positive-definite blocks ``(m, b, b)``.
+
+    Closed forms for 1x1 and 2x2 blocks (a random intercept, or intercept and one
+    slope: the usual case, and much faster than a batched LAPACK call per block).
+    """
+    b = a.shape[1]
+    if b == 1:
+        return 1.0 / a, float(np.log(a[:, 0, 0]).sum())
+    if b == 2:
+        p, q, r = a[:, 0, 0], a[:, 0, 1], a[:, 1, 1]
+        det = p * r - q * q
+        if np.any(det <= 0):
+            raise np.linalg.LinAlgError("a random-effects block is not positive definite")
+        inv = np.empty_like(a)
+        inv[:, 0, 0], inv[:, 1, 1] = r / det, p / det
+        inv[:, 0, 1] = inv[:, 1, 0] = -q / det
+        return inv, float(np.log(det).sum())
+    chol = np.linalg.cholesky(a)
+    logdet = 2.0 * float(np.log(np.diagonal(chol, axis1=1, axis2=2)).sum())
+    return np.linalg.inv(a), logdet
+
+
+@dataclass
+class _Rows:
+    """The dense part of ``[Z Lambda | X]``, stored by row: ``vals`` at columns ``cols``."""
+
+    cols: np.ndarray  # (N, s) int
+    vals: np.ndarray  # (N, s)
+    r: int
+
+    def dot(self, x: np.ndarray) -> np.ndarray:
+        return (self.vals * x[self.cols]).sum(axis=1)
+
+    def tdot(self, resid: np.ndarray) -> np.ndarray:
+        return _bsum(self.cols, self.vals * resid[:, None], self.r)
+
+
+class _System:
+    """``A = Lambda' Z' W Z Lambda + P`` with the first term's levels as diagonal blocks.
+
+    Unknowns: ``u_1`` (term 1, ``m1`` blocks of size ``b1``) and a dense part ``[u_2,
+    ..., u_K, beta?]`` (``beta`` only for joint solves, unpenalised). Every sum over
+    rows is a ``bincount`` over the few non-zeros of each row (no large matrix product).
+    """
+
+    def __init__(self, terms: list[_Term], x: np.ndarray | None) -> None:
+        self.terms = terms
+        self.x = x
+        t1 = terms[0]
+        self.g1 = t1.group
+        self.m1, self.b1 = t1.n_levels, t1.b
+        cols: list[np.ndarray] = []
+        r = 0
+        for t in terms[1:]:
+            for j in range(t.b):
+                cols.append(r + t.group * t.b + j)
+            r += t.n_levels * t.b
+        self.r_u = r
+        self.p = 0 if x is None else x.shape[1]
+        n = t1.group.size
+        for j in range(self.p):
+            cols.append(np.full(n, r + j))
+        self.r = r + self.p
+        self.cols = (np.column_stack(cols).astype(np.int64) if cols
+                     else np.zeros((n, 0), dtype=np.int64))
+        s = self.cols.shape[1]
+        b1 = self.b1
+        self.idx11 = ((self.g1[:, None, None] * b1 + np.arange(b1)[None, :, None]) * b1
+                      + np.arange(b1)[None, None, :]).reshape(n, -1)
+        self.idx12 = ((self.g1[:, None, None] * b1 + np.arange(b1)[None, :, None]) * self.r
+                      + self.cols[:, None, :]).reshape(n, -1)
+        # rows of the dense part repeat (targets x fixed-effect patterns): A22 sums the
+        # weights per distinct row first
+        key = np.column_stack([self.cols.astype(float)]
+                              + [t.z for t in terms[1:]]
+                              + ([x] if x is not None else []))
+        _, first, pat = np.unique(key, axis=0, return_index=True, return_inverse=True)
+        self.pat, self.pat_first = pat.ravel(), first
+        pc = self.cols[first]
+        self.idx22 = (pc[:, :, None] * self.r + pc[:, None, :]).reshape(first.size, -1)
+        self.s = s
+
+    def rows(self, thetas: list[np.ndarray]) -> tuple[np.ndarray, _Rows]:
+        """``V1`` (N, b1) and the dense rows of ``[Z Lambda | X]``."""
+        ts = [t.tri(th) for t, th in zip(self.terms, thetas, strict=True)]
+        v1 = self.terms[0].z @ ts[0]
+        vals = [t.z @ tk for t, tk in zip(self.terms[1:], ts[1:], strict=True)]
+        if self.x is not None:
+            vals.append(self.x)
+        v = np.column_stack(vals) if vals else np.zeros((v1.shape[0], 0))
+        return v1, _Rows(self.cols, v, self.r)
+
+    def eta_random(self, v1: np.ndarray, d: _Rows, u1: np.ndarray,
+                   ud: np.ndarray) -> np.ndarray:
+        """``Z Lambda u`` (+ ``X beta`` when ``ud`` holds beta)."""
+        return (v1 * u1[self.g1]).sum(axis=1) + d.dot(ud)
+
+    def factor(self, v1: np.ndarray, d: _Rows, w: np.ndarray) -> dict[str, Any]:
+        """Blocks of ``A`` and what solving and ``log det`` need."""
+        m1, b1, r = self.m1, self.b1, self.r
+        wv1 = v1 * w[:, None]
+        a11 = _bsum(self.idx11, wv1[:, :, None] * v1[:, None, :], m1 * b1 * b1).reshape(
+            m1, b1, b1)
+        a11 = a11 + np.eye(b1)
+        if r:
+            a12 = _bsum(self.idx12, wv1[:, :, None] * d.vals[:, None, :], m1 * b1 * r).reshape(
+                m1, b1, r)
+            wp = np.bincount(self.pat, weights=w, minlength=self.pat_first.size)
+            vp = d.vals[self.pat_first]
+            a22 = _bsum(self.idx22, wp[:, None, None] * vp[:, :, None] * vp[:, None, :],
+                        r * r).reshape(r, r)
+            a22[np.arange(self.r_u), np.arange(self.r_u)] += 1.0
+        else:
+            a12 = np.zeros((m1, b1, 0))
+            a22 = np.zeros((0, 0))
+        inv11, logdet11 = _block_inverse(a11)
+        inv_a12 = np.einsum("gij,gjr->gir", inv11, a12) if r else a12
+        s = a22 - np.einsum("gbr,gbs->rs", a12, inv_a12) if r else a22
+        return {"a11": a11, "inv11": inv11, "a12": a12, "inv_a12": inv_a12, "s": s,
+                "logdet11": logdet11}
+
+    def logdet_u(self, f: dict[str, Any]) -> float:
+        """``log det(Lambda' Z' W Z Lambda + I)`` (the random effects only)."""
+        ld = f["logdet11"]
+        if self.r_u:
+            suu = f["s"][: self.r_u, : self.r_u]
+            ld += 2.0 * float(np.log(np.diag(np.linalg.cholesky(suu))).sum())
+        return float(ld)
+
+    def solve(self, f: dict[str, Any], r1: np.ndarray, r2: np.ndarray) -> tuple[np.ndarray,
+                                                                                  np.ndarray]:
+        t1 = np.einsum("gij,gj->gi", f["inv11"], r1)
+        if not self.r:
+            return t1, r2
+        rhs = r2 - np.einsum("gbr,gb->r", f["a12"], t1)
+        x2 = np.linalg.solve(f["s"], rhs)
+        x1 = t1 - np.einsum("gbr,r->gb", f["inv_a12"], x2)
+        return x1, x2
+
+    def scatter1(self, v1: np.ndarray, resid: np.ndarray) -> np.ndarray:
+        b1 = self.b1
+        idx = (self.g1[:, None] * b1 + np.arange(b1)[None, :]).ravel()
+        return _bsum(idx, v1 * resid[:, None], self.m1 * b1).reshape(self.m1, b1)
+
+
+# -- the binomial GLMM -------------------------------------------------------------------
+
+def _binom_dev(eta: np.ndarray, y: np.ndarray, m: np.ndarray) -> float:
+    """``-2 log L`` of binomial counts (without the binomial coefficients, which Bernoulli
+    rows do not have): the sum of Bernoulli deviance residuals."""
+    return 2.0 * float((y * np.logaddexp(0.0, -eta) + (m - y) * np.logaddexp(0.0, eta)).sum())
+
+
+class _Laplace:
+    """The Laplace deviance of a binomial GLMM as a function of (theta, beta)."""
+
+    def __init__(self, terms: list[_Term], x: np.ndarray, y: np.ndarray, m: np.ndarray) -> None:
+        self.terms, self.x, self.y, self.m = terms, x, y, m
+        self.sys_u = _System(terms, None)
+        self.sys_j = _System(terms, x)
+        self.n_theta = sum(t.n_theta for t in terms)
+        self.p = x.shape[1]
+        self.u1 = np.zeros((self.sys_u.m1, self.sys_u.b1))
+        self.u2 = np.zeros(self.sys_u.r_u)
+        self.beta_joint = np.zeros(self.p)
+
+    def split(self, theta: np.ndarray) -> list[np.ndarray]:
+        out, k = [], 0
+        for t in self.terms:
+            out.append(np.asarray(theta[k:k + t.n_theta], dtype=float))
+            k += t.n_theta
+        return out
+
+    def lower(self) -> list[float]:
+        return [b for t in self.terms for b in t.lower_bounds()]
+
+    def _pirls(self, theta: np.ndarray, beta: np.ndarray | None,
+               tol: float = 1e-11) -> tuple[float, dict[str, Any]]:
+        """Penalised IRLS; ``beta=None``: beta jointly with u (glmer's nAGQ = 0)."""
+        joint = beta is None
+        sysm = self.sys_j if joint else self.sys_u
+        v1, d = sysm.rows(self.split(theta))
+        u1 = self.u1.copy()
+        ud = np.r_[self.u2, self.beta_joint] if joint else self.u2.copy()
+        off = 0.0 if joint else self.x @ beta
+        y, m = self.y, self.m
+        r_u = sysm.r_u
+
+        def objective(u1: np.ndarray, ud: np.ndarray) -> tuple[float, np.ndarray]:
+            eta = off + sysm.eta_random(v1, d, u1, ud)
+            return _binom_dev(eta, y, m) + float((u1 * u1).sum() + (ud[:r_u] ** 2).sum()), eta
+
+        pen, eta = objective(u1, ud)
+        for _ in range(200):
+            mu = 1.0 / (1.0 + np.exp(-eta))
+            w = m * mu * (1.0 - mu)
+            f = sysm.factor(v1, d, w)
+            resid = y - m * mu
+            g1 = sysm.scatter1(v1, resid) - u1
+            g2 = d.tdot(resid)
+            g2[:r_u] -= ud[:r_u]
+            x1, x2 = sysm.solve(f, g1, g2)
+            step = 1.0
+            for _ in range(30):
+                new_pen, new_eta = objective(u1 + step * x1, ud + step * x2)
+                if new_pen <= pen + 1e-12 * abs(pen):
+                    break
+                step /= 2.0
+            u1, ud = u1 + step * x1, ud + step * x2
+            change = pen - new_pen
+            pen, eta = new_pen, new_eta
+            if change < tol * (1.0 + abs(pen)) and max(
+                    float(np.abs(step * x1).max(initial=0.0)),
+                    float(np.abs(step * x2).max(initial=0.0))) < 1e-7:
+                break
+        mu = 1.0 / (1.0 + np.exp(-eta))
+        w = m * mu * (1.0 - mu)
+        f = sysm.factor(v1, d, w)
+        ld = sysm.logdet_u(f)
+        self.u1, self.u2 = u1, ud[:r_u]
+        if joint:
+            self.beta_joint = ud[r_u:]
+        return pen + ld, {"eta": eta, "factor": f, "system": sysm, "u1": u1, "ud": ud}
+
+    def dev_theta(self, theta: np.ndarray) -> float:
+        return self._pirls(theta, None)[0]
+
+    def dev(self, par: np.ndarray) -> float:
+        return self._pirls(par[: self.n_theta], par[self.n_theta:])[0]
+
+    def rx_vcov(self, par: np.ndarray) -> np.ndarray:
+        """``(R_X' R_X)^{-1}``: the conditional covariance of beta given theta."""
+        _, st = self._pirls(par[: self.n_theta], par[self.n_theta:])
+        mu = 1.0 / (1.0 + np.exp(-st["eta"]))
+        w = self.m * mu * (1.0 - mu)
+        v1, d = self.sys_j.rows(self.split(par[: self.n_theta]))
+        f = self.sys_j.factor(v1, d, w)
+        s = f["s"]
+        r_u = self.sys_j.r_u
+        sbb = s[r_u:, r_u:]
+        if r_u:
+            sbb = sbb - s[r_u:, :r_u] @ np.linalg.solve(s[:r_u, :r_u], s[:r_u, r_u:])
+        return np.asarray(np.linalg.inv(sbb))
+
+
+def _central_grad(f: Any, x: np.ndarray, lower: np.ndarray, h: float = 1e-5,
+                  central: bool = True) -> np.ndarray:
+    g = np.zeros_like(x)
+    f0 = None if central else f(x)
+    for i in range(x.size):
+        e = np.zeros_like(x)
+        e[i] = h
+        if f0 is not None:
+            g[i] = (f(x + e) - f0) / h
+        elif x[i] - h < lower[i]:  # one-sided at a bound
+            g[i] = (f(x + e) - f(x)) / h
+        else:
+            g[i] = (f(x + e) - f(x - e)) / (2 * h)
+    return g
+
+
+def deriv12(f: Any, x: np.ndarray, delta: float = HESSIAN_STEP) -> np.ndarray:
+    """Finite-difference Hessian as lme4's ``deriv12`` computes it (central, step delta)."""
+    k = x.size
+    f0 = f(x)
+    h = np.zeros((k, k))
+    fp = np.zeros(k)
+    fm = np.zeros(k)
+    for i in range(k):
+        e = np.zeros(k)
+        e[i] = delta
+        fp[i], fm[i] = f(x + e), f(x - e)
+        h[i, i] = (fp[i] + fm[i] - 2.0 * f0) / delta**2
+    for i in range(k):
+        for j in range(i):
+            ei = np.zeros(k)
+            ej = np.zeros(k)
+            ei[i] = delta
+            ej[j] = delta
+            v = (f(x + ei + ej) - f(x + ei - ej) - f(x - ei + ej) + f(x - ei - ej)) / (
+                4.0 * delta**2)
+            h[i, j] = h[j, i] = v
+    return h
+
+
+def _minimize(f: Any, x0: np.ndarray, lower: Sequence[float], *, ftol: float = 1e-12,
+              gtol: float = 1e-6, central: bool = True) -> tuple[np.ndarray, bool, str]:
+    """L-BFGS-B with central-difference gradients (one-sided at a bound; forward
+    differences throughout with ``central=False``, for starting values)."""
+    from scipy.optimize import minimize
+
+    lo = np.array([(-np.inf if not math.isfinite(b) else b) for b in lower])
+    bounds = [(None if not math.isfinite(b) else b, None) for b in lower]
+    x0 = np.maximum(x0, np.where(np.isfinite(lo), lo, -np.inf))
+    res = minimize(f, x0, jac=lambda x: _central_grad(f, x, lo, central=central), method="L-BFGS-B",
+                   bounds=bounds, options={"maxiter": 500, "ftol": ftol, "gtol": gtol})
+    msg = str(res.message)
+    ok = bool(res.success) or "ABNORMAL" in msg.upper()
+    return np.asarray(res.x, dtype=float), ok, msg
+
+
+def _pool(df: pd.DataFrame, x: np.ndarray, terms: list[_Term],
+          y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[_Term]]:
+    """Pool rows with equal covariates and groups: ``(x, sum of y, count, terms)``."""
+    key = np.column_stack([x] + [np.c_[t.group, t.z] for t in terms])
+    uniq, inv = np.unique(key, axis=0, return_inverse=True)
+    inv = inv.ravel()
+    n_cells = uniq.shape[0]
+    ys = np.bincount(inv, weights=y, minlength=n_cells)
+    ms = np.bincount(inv, minlength=n_cells).astype(float)
+    first = np.zeros(n_cells, dtype=np.int64)
+    first[inv[::-1]] = np.arange(len(inv))[::-1]
+    pooled = [_Term(t.name, t.group[first], t.z[first], t.columns, t.n_levels) for t in terms]
+    return x[first], ys, ms, pooled
+
+
+def _fixed_table(names: list[str], beta: np.ndarray, vcov: np.ndarray) -> dict[str, FixedEffect]:
+    from scipy.stats import norm
+
+    out: dict[str, FixedEffect] = {}
+    se = np.sqrt(np.maximum(np.diag(vcov), 0.0))
+    for nm, b, s in zip(names, beta, se, strict=True):
+        z = b / s if s > 0 else math.nan
+        p = float(2.0 * norm.sf(abs(z))) if math.isfinite(z) else math.nan
+        out[nm] = FixedEffect(float(b), float(s), float(z), p, float(b - Z95 * s),
+                              float(b + Z95 * s))
+    return out
+
+
+def _random_table(terms: list[_Term], thetas: list[np.ndarray],
+                  scale: float = 1.0) -> dict[str, dict[str, Any]]:
+    out: dict[str, dict[str, Any]] = {}
+    for t, th in zip(terms, thetas, strict=True):
+        tm = t.tri(th) * scale
+        cov = tm @ tm.T
+        sd = np.sqrt(np.diag(cov))
+        entry: dict[str, Any] = {"sd": {c: float(s) for c, s in zip(t.columns, sd, strict=True)},
+                                 "levels": t.n_levels}
+        if t.b > 1:
+            with np.errstate(invalid="ignore", divide="ignore"):
+                corr = cov / np.outer(sd, sd)
+            entry["corr"] = {f"{t.columns[j]},{t.columns[i]}": (float(corr[i, j]) if
+                                                              np.isfinite(corr[i, j]) else None)
+                             for j in range(t.b) for i in range(j + 1, t.b)}
+        out[t.name] = entry
+    return out
+
+
+def _check(df: pd.DataFrame, spec: ModelSpec) -> None:
+    missing = [c for c in (spec.response, *spec.fixed, *(t.group for t in spec.random),
+                           *(s for t in spec.random for s in t.slopes)) if c not in df]
+    if missing:
+        raise ValueError("the data lack column(s) " + ", ".join(missing))
+    if not spec.random:
+        raise ValueError("a mixed model needs at least one random-effects term")
+    for t in spec.random:
+        if df[t.group].nunique() < 2:
+            raise ValueError(f"grouping factor {t.group} needs at least 2 levels")
+
+
+def _hessian_vcov(lap: _Laplace, par: np.ndarray) -> np.ndarray | None:
+    """glmer's default vcov: ``2 solve(H)[beta, beta]`` (None unless positive definite)."""
+    hess = deriv12(lap.dev, par)
+    lap.dev(par)  # leave the modes at the optimum
+    try:
+        hinv = np.linalg.inv(hess)
+    except np.linalg.LinAlgError:
+        return None
+    hb = hinv[lap.n_theta:, lap.n_theta:]
+    hb = hb + hb.T
+    if np.all(np.isfinite(hb)) and np.all(np.linalg.eigvalsh(hb) > 0):
+        return np.asarray(hb)
+    return None
+
+
+def _start(previous: MixedModelFit | None, theta_names: list[str],
+           beta_names: list[str] | None = None) -> np.ndarray | None:
+    """Starting values from a fit of a larger model on the same data, when it has them all."""
+    if previous is None:
+        return None
+    th = dict(zip(previous.theta_names, previous.theta, strict=False))
+    if not all(nm in th for nm in theta_names):
+        return None
+    out = [th[nm] for nm in theta_names]
+    if beta_names is not None:
+        if list(previous.fixed_effects) != beta_names:
+            return None
+        out += [previous.fixed_effects[nm].estimate for nm in beta_names]
+    return np.asarray(out, dtype=float)
+
+
+def fit_glmm(df: pd.DataFrame, spec: ModelSpec, *, skip_se_if_simplified: bool = False,
+             start: MixedModelFit | None = None) -> MixedModelFit:
+    """A binomial (logit) GLMM by maximum likelihood, Laplace approximation (glmer's nAGQ=1).
+
+    Args:
+        df: one row per Bernoulli trial; ``spec.response`` is 0/1 (or bool).
+        spec: fixed factors (fully crossed) and random terms.
+        skip_se_if_simplified: leave out the Hessian (NaN SEs) when the fit is singular
+            and :func:`simplify_step` would replace it.
+        start: a fit of a model with these and more random effects on the same data (the
+            previous step of :func:`fit_simplified`): stage 2 starts from its estimates
+            instead of running stage 1 (the dropped components were at 0).
+
+    Raises:
+        ValueError: a missing column, fewer than 2 levels of a grouping factor.
+    """
+    _check(df, spec)
+    y = spec.response_values(df)
+    x, names, dropped = fixed_design(df, spec.fixed)
+    terms = _random_terms(df, spec)
+    xc, ys, ms, pterms = _pool(df, x, terms, y)
+    lap = _Laplace(pterms, xc, ys, ms)
+    messages: list[str] = []
+    if dropped:
+        messages.append("fixed-effect model matrix is rank deficient so dropping "
+                        f"{len(dropped)} column(s): " + ", ".join(dropped))
+    lower = lap.lower()
+    par0 = _start(start, [nm for t in pterms for nm in t.theta_names()], names)
+    ok1 = True
+    if par0 is None:
+        theta0 = np.array([1.0 if b == 0.0 else 0.0 for b in lower])
+        # stage 1 (nAGQ = 0): theta only, beta at the joint penalised mode
+        theta1, ok1, _ = _minimize(lap.dev_theta, theta0, lower, ftol=1e-8, gtol=1e-2,
+                                   central=False)
+        lap.dev_theta(theta1)
+        par0 = np.r_[theta1, lap.beta_joint]
+    # stage 2 (nAGQ = 1): the Laplace deviance over (theta, beta)
+    par, ok2, msg2 = _minimize(lap.dev, par0, lower + [-np.inf] * lap.p, gtol=1e-4)
+    dev = lap.dev(par)
+    theta, beta = par[: lap.n_theta], par[lap.n_theta:]
+    theta_names = [nm for t in pterms for nm in t.theta_names()]
+    singular = bool(any(th < SINGULAR_TOL for th, lb in zip(theta, lower, strict=True)
+                        if lb == 0.0))
+    zero = [nm for nm, th, lb in zip(theta_names, theta, lower, strict=True)
+            if lb == 0.0 and th < SINGULAR_TOL]
+    vcov_method = ("2 x inverse of the finite-difference Hessian of the Laplace deviance over "
+                   "(theta, beta), as glmer's default vcov")
+    vcov: np.ndarray | None
+    if singular and skip_se_if_simplified and simplify_step(spec, zero)[0] is not None:
+        vcov = np.full((lap.p, lap.p), np.nan)
+        vcov_method = "not computed: a singular fit the simplification rule replaces"
+    else:
+        vcov = _hessian_vcov(lap, par)
+        if vcov is None:
+            vcov = lap.rx_vcov(par)
+            vcov_method = "(R_X' R_X)^-1 given theta (the Hessian was not positive definite)"
+            messages.append("variance-covariance matrix computed from finite-difference "
+                            "Hessian is not positive definite: falling back to var-cov "
+                            "estimated from RX")
+    if not ok2:
+        messages.append(f"optimizer: {msg2}")
+    if singular:
+        messages.append("boundary (singular) fit: see help('isSingular')")
+    return MixedModelFit(
+        spec=spec, family="binomial", fixed_effects=_fixed_table(names, beta, vcov),
+        vcov=vcov, random_effects=_random_table(pterms, lap.split(theta)), theta=theta,
+        singular=singular, deviance=dev, loglik=-dev / 2.0, vcov_method=vcov_method,
+        converged=ok1 and ok2, messages=messages, n_obs=len(df), n_cells=int(ys.size),
+        theta_names=theta_names,
+        groups={t.name: t.n_levels for t in terms},
+    )
+
+
+# -- the linear mixed model (REML) --------------------------------------------------------
+
+def fit_lmm(df: pd.DataFrame, spec: ModelSpec, *, reml: bool = True,
+            start: MixedModelFit | None = None) -> MixedModelFit:
+    """A linear mixed model by REML (``reml=False``: ML), as ``lme4::lmer``.
+
+    The profiled criterion of Bates et al. (2015, eq. 34/41) is minimised over theta
+    (L-BFGS-B, diagonal of theta >= 0); ``vcov = sigma^2 (R_X' R_X)^{-1}`` as lmer's.
+    z and p are Wald (normal) values; lmer itself prints t without a p.
+    """
+    _check(df, spec)
+    y_obs = spec.response_values(df)
+    x_obs, names, dropped = fixed_design(df, spec.fixed)
+    n, p = x_obs.shape
+    # pool rows with equal covariates and groups: counts, sums and sums of squares
+    x, ysum, w, terms = _pool(df, x_obs, _random_terms(df, spec), y_obs)
+    y2sum = _pool(df, x_obs, _random_terms(df, spec), y_obs**2)[1]
+    sysm = _System(terms, x)
+    lower = [b for t in terms for b in t.lower_bounds()]
+
+    def split(theta: np.ndarray) -> list[np.ndarray]:
+        out, k = [], 0
+        for t in terms:
+            out.append(theta[k:k + t.n_theta])
+            k += t.n_theta
+        return out
+
+    def solve(theta: np.ndarray) -> tuple[float, dict[str, Any]]:
+        v1, d = sysm.rows(split(theta))
+        f = sysm.factor(v1, d, w)
+        r1 = sysm.scatter1(v1, ysum)
+        r2 = d.tdot(ysum)
+        x1, x2 = sysm.solve(f, r1, r2)
+        fitted = sysm.eta_random(v1, d, x1, x2)
+        rss = float((y2sum - 2.0 * fitted * ysum + w * fitted**2).sum())
+        pwrss = rss + float((x1**2).sum() + (x2[: sysm.r_u] ** 2).sum())
+        ld = sysm.logdet_u(f)
+        s = f["s"]
+        r_u = sysm.r_u
+        sbb = s[r_u:, r_u:]
+        if r_u:
+            sbb = sbb - s[r_u:, :r_u] @ np.linalg.solve(s[:r_u, :r_u], s[:r_u, r_u:])
+        ldx = 2.0 * float(np.log(np.diag(np.linalg.cholesky(sbb))).sum())
+        if reml:
+            dof = n - p
+            crit = ld + ldx + dof * (1.0 + math.log(2.0 * math.pi * pwrss / dof))
+        else:
+            crit = ld + n * (1.0 + math.log(2.0 * math.pi * pwrss / n))
+        return crit, {"beta": x2[r_u:], "pwrss": pwrss, "sbb": sbb}
+
+    theta0 = _start(start, [nm for t in terms for nm in t.theta_names()])
+    if theta0 is None:
+        theta0 = np.array([1.0 if b == 0.0 else 0.0 for b in lower])
+    theta, ok, msg = _minimize(lambda t: solve(t)[0], theta0, lower)
+    crit, st = solve(theta)
+    sigma2 = st["pwrss"] / ((n - p) if reml else n)
+    vcov = sigma2 * np.linalg.inv(st["sbb"])
+    messages = []
+    if dropped:
+        messages.append("fixed-effect model matrix is rank deficient so dropping "
+                        f"{len(dropped)} column(s): " + ", ".join(dropped))
+    if not ok:
+        messages.append(f"optimizer: {msg}")
+    singular = bool(any(th < SINGULAR_TOL for th, lb in zip(theta, lower, strict=True)
+                        if lb == 0.0))
+    if singular:
+        messages.append("boundary (singular) fit: see help('isSingular')")
+    sigma = math.sqrt(sigma2)
+    re = _random_table(terms, split(theta), scale=sigma)
+    re["Residual"] = {"sd": {"(Intercept)": sigma}}
+    return MixedModelFit(
+        spec=spec, family="gaussian", fixed_effects=_fixed_table(names, st["beta"], vcov),
+        vcov=vcov, random_effects=re, theta=theta, singular=singular, deviance=crit,
+        loglik=-crit / 2.0, vcov_method="sigma^2 (R_X' R_X)^-1, as lmer's vcov",
+        converged=ok, messages=messages, n_obs=n, n_cells=int(w.size),
+        theta_names=[nm for t in terms for nm in t.theta_names()],
+        groups={t.name: t.n_levels for t in terms},
+        criterion="REML" if reml else "ML",
+    )
+
+
+# -- the simplification rule --------------------------------------------------------------
+
+Fitter = Callable[["pd.DataFrame", ModelSpec], MixedModelFit]
+
+
+def fit_simplified(df: pd.DataFrame, spec: ModelSpec,
+                   fitter: Fitter) -> tuple[MixedModelFit, list[dict[str, Any]]]:
+    """Fit the maximal model and simplify it while the fit is singular.
+
+    The rule (Barr et al. 2013: start maximal; Matuschek et al. 2017: drop variance
+    components the data do not support), applied after each singular fit, first
+    applicable step only:
+
+    1. a random term with slopes whose slope SD is 0 or whose correlation is +-1 (a
+       zero diagonal element of its theta) loses its slopes (``(1 + condition |
+       participant)`` -> ``(1 | participant)``);
+    2. else an intercept-only term after the first (``(1 | target)``) estimated at SD 0
+       is dropped, the last listed first;
+    3. else the singular fit is kept and reported as singular: the first term (the
+       participant intercept) is never dropped, so trials stay clustered by
+       participant (at SD 0 the model equals a logistic regression).
+
+    Returns:
+        The final fit and one record per fit: ``formula``, ``singular``,
+        ``zero_components`` and the ``action`` taken.
+    """
+    steps: list[dict[str, Any]] = []
+    while True:
+        fit = fitter(df, spec)
+        zero = fit.zero_components()
+        step: dict[str, Any] = {"formula": spec.formula(), "singular": fit.singular,
+                                "zero_components": zero, "action": "kept"}
+        steps.append(step)
+        if not fit.singular:
+            return fit, steps
+        nxt, step["action"] = simplify_step(spec, zero)
+        if nxt is None:
+            return fit, steps
+        spec = nxt
+
+
+def simplify_step(spec: ModelSpec, zero: Sequence[str]) -> tuple[ModelSpec | None, str]:
+    """One step of :func:`fit_simplified`'s rule after a singular fit (None: keep it).
+
+    Args:
+        spec: the model that was fitted.
+        zero: its theta elements at 0 (:meth:`MixedModelFit.zero_components`).
+    """
+    groups = {z.split(".")[0] for z in zero}
+    for t in spec.random:
+        if t.slopes and t.group in groups:
+            return (spec.replace_term(t, RandomTerm(t.group)),
+                    f"singular: dropped the random slope(s) of {t.group}")
+    for t in reversed(spec.random[1:]):
+        if not t.slopes and t.group in groups:
+            return spec.replace_term(t), f"singular: dropped the random intercept of {t.group}"
+    return None, "singular: nothing left to drop; the singular fit is reported"

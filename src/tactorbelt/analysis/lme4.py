@@ -1,0 +1,168 @@
+"""Fit a mixed model with R's lme4 (``glmer`` / ``lmer``) through ``Rscript``.
+
+The ``--engine lme4`` of ``tactorbelt analyze`` and the cross-check of
+:mod:`tactorbelt.analysis.glmm`: the model frame is written to a CSV file in a
+temporary directory, a short R script fits the model with lme4's defaults (``glmer``:
+Laplace, ``nAGQ = 1``, default optimisers and ``vcov``; ``lmer``: REML) and writes
+plain CSV tables back, which become a :class:`~tactorbelt.analysis.glmm.MixedModelFit`.
+No rpy2: only the ``Rscript`` executable and the lme4 package are needed
+(Debian/Ubuntu: ``apt install r-base-core r-cran-lme4``).
+
+I/O (temporary files, a subprocess).
+"""
+
+from __future__ import annotations
+
+import math
+import shutil
+import subprocess
+import tempfile
+from pathlib import Path
+from typing import TYPE_CHECKING, Final
+
+from .glmm import FixedEffect, MixedModelFit, ModelSpec, _fixed_table
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+__all__ = ["INSTALL_HINT", "Lme4Unavailable", "fit_lme4", "lme4_available"]
+
+INSTALL_HINT: Final = ("R with lme4 is needed for --engine lme4: install it with "
+                       "'apt install r-base-core r-cran-lme4' (Debian/Ubuntu), or "
+                       "install.packages('lme4') in R, so that 'Rscript' is on PATH")
+
+_SCRIPT: Final = r"""
+suppressPackageStartupMessages(library(lme4))
+args <- commandArgs(trailingOnly = TRUE)
+dir <- args[1]; family <- args[2]; form <- as.formula(readLines(file.path(dir, "formula.txt")))
+g <- readLines(file.path(dir, "groups.txt"))
+d <- read.csv(file.path(dir, "data.csv"), stringsAsFactors = FALSE,
+              colClasses = setNames(rep("character", length(g)), g))
+msgs <- character(0)
+m <- withCallingHandlers(
+  if (family == "binomial") glmer(form, data = d, family = binomial) else lmer(form, data = d),
+  warning = function(w) { msgs <<- c(msgs, conditionMessage(w)); invokeRestart("muffleWarning") },
+  message = function(w) { msgs <<- c(msgs, conditionMessage(w)); invokeRestart("muffleMessage") })
+cf <- summary(m)$coefficients
+write.csv(data.frame(term = rownames(cf), estimate = cf[, 1], se = cf[, 2]),
+          file.path(dir, "fixef.csv"), row.names = FALSE)
+V <- as.matrix(vcov(m))
+write.csv(V, file.path(dir, "vcov.csv"), row.names = FALSE)
+th <- getME(m, "theta")
+write.csv(data.frame(name = names(th), theta = unname(th), lower = getME(m, "lower")),
+          file.path(dir, "theta.csv"), row.names = FALSE)
+vc <- as.data.frame(VarCorr(m))
+write.csv(vc, file.path(dir, "varcorr.csv"), row.names = FALSE)
+conv <- m@optinfo$conv$lme4$messages
+msgs <- unique(c(msgs, conv))
+info <- data.frame(
+  key = c("singular", "deviance", "loglik", "lme4_version", "R_version", "nobs"),
+  value = c(as.character(isSingular(m)), format(-2 * as.numeric(logLik(m)), digits = 15),
+            format(as.numeric(logLik(m)), digits = 15), as.character(packageVersion("lme4")),
+            paste(R.version$major, R.version$minor, sep = "."), as.character(nobs(m))))
+write.csv(info, file.path(dir, "info.csv"), row.names = FALSE)
+writeLines(if (length(msgs)) msgs else character(0), file.path(dir, "messages.txt"))
+"""
+
+
+class Lme4Unavailable(RuntimeError):
+    """Rscript or the lme4 package is missing."""
+
+
+def lme4_available(rscript: str = "Rscript") -> str | None:
+    """None when ``Rscript`` runs and lme4 loads; else why not, in words."""
+    exe = shutil.which(rscript)
+    if exe is None:
+        return f"'{rscript}' is not on PATH"
+    try:
+        r = subprocess.run([exe, "-e", "suppressPackageStartupMessages(library(lme4))"],
+                           capture_output=True, text=True, timeout=120)
+    except (OSError, subprocess.TimeoutExpired) as exc:
+        return f"'{rscript}' failed to run: {exc}"
+    if r.returncode != 0:
+        return "the R package lme4 is not installed (" + (r.stderr.strip().splitlines()
+                                                         or ["no message"])[-1] + ")"
+    return None
+
+
+def _frame(df: pd.DataFrame, spec: ModelSpec) -> pd.DataFrame:
+    """The columns the formula uses; booleans as 0/1 (lme4 then names them plainly)."""
+    import pandas as pd
+
+    cols = list(dict.fromkeys([spec.response, *spec.fixed,
+                               *(t.group for t in spec.random),
+                               *(s for t in spec.random for s in t.slopes)]))
+    out = df[cols].copy()
+    for c in cols:
+        if pd.api.types.is_bool_dtype(out[c]):
+            out[c] = out[c].astype(int)
+    return out
+
+
+def fit_lme4(df: pd.DataFrame, spec: ModelSpec, *, family: str = "binomial",
+             rscript: str = "Rscript", timeout_s: float = 600.0) -> MixedModelFit:
+    """Fit ``spec`` with ``lme4::glmer(family = binomial)`` (or ``lmer`` for ``gaussian``).
+
+    Raises:
+        Lme4Unavailable: no ``Rscript`` or no lme4 (the message says how to install).
+        RuntimeError: R failed (its last error lines are quoted).
+    """
+    import pandas as pd
+
+    exe = shutil.which(rscript)
+    if exe is None:
+        raise Lme4Unavailable(f"'{rscript}' is not on PATH. {INSTALL_HINT}")
+    with tempfile.TemporaryDirectory(prefix="tactorbelt-lme4-") as tmp:
+        d = Path(tmp)
+        _frame(df, spec).to_csv(d / "data.csv", index=False)
+        (d / "formula.txt").write_text(spec.formula() + "\n")
+        (d / "groups.txt").write_text("".join(f"{t.group}\n" for t in spec.random))
+        (d / "fit.R").write_text(_SCRIPT)
+        try:
+            r = subprocess.run([exe, str(d / "fit.R"), str(d), family], capture_output=True,
+                               text=True, timeout=timeout_s)
+        except subprocess.TimeoutExpired as exc:
+            raise RuntimeError(f"lme4 took longer than {timeout_s:g} s") from exc
+        if r.returncode != 0:
+            err = r.stderr.strip()
+            if "there is no package called" in err and "lme4" in err:
+                raise Lme4Unavailable(f"the R package lme4 is not installed. {INSTALL_HINT}")
+            raise RuntimeError("lme4 failed: " + " | ".join(err.splitlines()[-5:]))
+        fx = pd.read_csv(d / "fixef.csv")
+        vcov = pd.read_csv(d / "vcov.csv").to_numpy(dtype=float)
+        th = pd.read_csv(d / "theta.csv")
+        vc = pd.read_csv(d / "varcorr.csv")
+        info = dict(pd.read_csv(d / "info.csv", dtype=str).itertuples(index=False,
+                                                                      name=None))
+        msgs = [m for m in (d / "messages.txt").read_text().splitlines() if m.strip()]
+    names = fx["term"].astype(str).tolist()
+    beta = fx["estimate"].to_numpy(dtype=float)
+    fixed: dict[str, FixedEffect] = _fixed_table(names, beta, vcov)
+    random: dict[str, dict[str, object]] = {}
+    for row in vc.itertuples(index=False):
+        grp, v1, v2, sdcor = str(row.grp), row.var1, row.var2, float(str(row.sdcor))
+        entry = random.setdefault(grp, {"sd": {}})
+        if grp == "Residual":
+            entry["sd"]["(Intercept)"] = sdcor  # type: ignore[index]
+        elif isinstance(v2, str) and v2:
+            entry.setdefault("corr", {})[f"{v1},{v2}"] = (  # type: ignore[index]
+                sdcor if math.isfinite(sdcor) else None)
+        else:
+            entry["sd"][str(v1)] = sdcor  # type: ignore[index]
+    groups = {g: int(df[g].nunique()) for g in (t.group for t in spec.random)}
+    for g, n in groups.items():
+        if g in random:
+            random[g]["levels"] = n
+    dev = float(info["deviance"])
+    return MixedModelFit(
+        spec=spec, family=family, fixed_effects=fixed, vcov=vcov, random_effects=random,
+        theta=th["theta"].to_numpy(dtype=float), singular=info["singular"] == "TRUE",
+        theta_names=th["name"].astype(str).tolist(),
+        deviance=dev, loglik=float(info["loglik"]),
+        vcov_method=("lme4's vcov(): finite-difference Hessian over (theta, beta)"
+                     if family == "binomial" else "lme4's vcov(): sigma^2 (R_X' R_X)^-1"),
+        converged=not any("converge" in m.lower() for m in msgs),
+        messages=[*msgs, f"lme4 {info['lme4_version']}, R {info['R_version']}"],
+        n_obs=int(info["nobs"]), n_cells=int(info["nobs"]), groups=groups,
+        criterion="ML (Laplace)" if family == "binomial" else "REML",
+    )

@@ -1,0 +1,176 @@
+"""The mixed models agree with R's lme4 (glmer, lmer), fitted through Rscript.
+
+Three datasets made here: one participant and eight participants from the synthetic
+store generator (seed 11; no participant or target variation, so the fits are
+singular and get simplified), and eight participants drawn from a GLMM with
+participant intercepts and condition slopes, target intercepts, an extra ``load``
+factor and 100 test trials set to timeout.
+
+Agreement asserted for every fixed effect: estimates within 1 % of glmer's, or within
+an absolute floor of 2 % of glmer's SE for estimates near 0 (a relative criterion means
+nothing at 0; 2 % of an SE is far below what any reader of the table can see); SEs
+within 5 %. Skipped with the reason when Rscript or lme4 is missing (CI installs
+``r-base-core r-cran-lme4``).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from tactorbelt.analysis.glmm import MixedModelFit, fit_glmm, fit_lmm, fit_simplified
+from tactorbelt.analysis.lme4 import fit_lme4, lme4_available
+from tactorbelt.analysis.load import load_stores
+from tactorbelt.analysis.stats import model_frame, model_spec, summarize
+from tactorbelt.analysis.synthetic import synthesize_store
+from tactorbelt.analysis.tables import prepare_trials
+
+WHY = lme4_available()
+pytestmark = pytest.mark.skipif(WHY is not None, reason=f"R with lme4 unavailable: {WHY}")
+
+EST_REL = 0.01
+EST_FLOOR_SE = 0.02
+SE_REL = 0.05
+
+
+def _store_frame(path: Path, participants: int) -> pd.DataFrame:
+    synthesize_store(path, participants, repetitions=5, seed=11, samples=False,
+                     timeout_rate=0.02)
+    return model_frame(prepare_trials(load_stores([path]).trials))
+
+
+def _glmm_frame(seed: int = 11) -> pd.DataFrame:
+    """8 participants x 2 conditions x 2 loads x 3 repetitions x 24 targets, from a GLMM."""
+    rng = np.random.default_rng(seed)
+    tg = np.arange(24) * 15.0
+    on = (tg % 60 == 0).astype(int)
+    p_int, p_slope, t_int = rng.normal(0, 0.7, 8), rng.normal(0, 0.5, 8), rng.normal(0, 0.4, 24)
+    grid = pd.MultiIndex.from_product(
+        [range(8), ["static", "dynamic"], ["none", "count"], range(3), range(24)],
+        names=["p", "condition", "load", "rep", "t"]).to_frame(index=False)
+    p, t = grid["p"].to_numpy(), grid["t"].to_numpy()
+    dyn = (grid["condition"] == "dynamic").to_numpy()
+    eta = (np.where(on[t] == 1, 2.2, np.where(dyn, 1.2 + p_slope[p], 0.0)) + p_int[p]
+           + t_int[t] - 0.5 * (grid["load"] == "count").to_numpy())
+    correct = (rng.random(len(grid)) < 1 / (1 + np.exp(-eta))).astype(int)
+    rt = np.exp(rng.normal(np.log(np.where(dyn, 1.4, 1.2)) + 0.1 * p_int[p], 0.25))
+    status = np.full(len(grid), "done", dtype=object)
+    timeout = rng.choice(len(grid), 100, replace=False)
+    status[timeout] = "timeout"
+    correct[timeout] = 0
+    rt[timeout] = np.nan
+    return pd.DataFrame({
+        "correct": correct, "condition": grid["condition"], "on_tactor": on[t],
+        "load": grid["load"], "participant": [f"P{i + 1:02d}" for i in p],
+        "target": [f"{v:g}" for v in tg[t]], "rt_s": rt, "status": status})
+
+
+@pytest.fixture(scope="module")
+def datasets(tmp_path_factory: pytest.TempPathFactory) -> dict[str, pd.DataFrame]:
+    d = tmp_path_factory.mktemp("lme4")
+    return {"one participant": _store_frame(d / "one.sqlite", 1),
+            "8 participants (synthetic store)": _store_frame(d / "eight.sqlite", 8),
+            "8 participants, GLMM, load, 100 timeouts": _glmm_frame()}
+
+
+def _agree(ours: MixedModelFit, ref: MixedModelFit, what: str) -> list[str]:
+    assert list(ours.fixed_effects) == list(ref.fixed_effects), what
+    bad = []
+    for name, r in ref.fixed_effects.items():
+        o = ours.fixed_effects[name]
+        tol = max(EST_REL * abs(r.estimate), EST_FLOOR_SE * r.se)
+        if abs(o.estimate - r.estimate) > tol:
+            bad.append(f"{what}: {name} estimate {o.estimate:.6f} vs lme4 {r.estimate:.6f}")
+        if abs(o.se - r.se) > SE_REL * r.se:
+            bad.append(f"{what}: {name} SE {o.se:.6f} vs lme4 {r.se:.6f}")
+    return bad
+
+
+def test_glmm_agrees_with_glmer(datasets: dict[str, pd.DataFrame]) -> None:
+    bad: list[str] = []
+    for what, frame in datasets.items():
+        spec, _ = model_spec(frame)
+        ours, steps = fit_simplified(frame, spec, fit_glmm)
+        ref = fit_lme4(frame, ours.spec)
+        assert ours.singular == ref.singular, (what, steps, ref.theta)
+        bad += _agree(ours, ref, what)
+    assert not bad, "\n".join(bad)
+
+
+def test_rt_lmm_agrees_with_lmer(datasets: dict[str, pd.DataFrame]) -> None:
+    bad: list[str] = []
+    for what, frame in datasets.items():
+        done = frame.loc[frame["status"] == "done"]
+        spec, _ = model_spec(done, "rt_s", "log")
+        ours, _ = fit_simplified(done, spec, fit_lmm)
+        ref = fit_lme4(done, ours.spec, family="gaussian")
+        bad += _agree(ours, ref, "RT " + what)
+        sd_o = ours.random_effects["Residual"]["sd"]["(Intercept)"]
+        sd_r = ref.random_effects["Residual"]["sd"]["(Intercept)"]
+        assert sd_o == pytest.approx(sd_r, rel=1e-3), what
+    assert not bad, "\n".join(bad)
+
+
+def test_analyze_engine_lme4_reports_the_same_fields(tmp_path: Path) -> None:
+    path = tmp_path / "s.sqlite"
+    synthesize_store(path, 4, repetitions=2, seed=5, samples=False, timeout_rate=0.03)
+    data = load_stores([path])
+    ours = summarize(data, engine="tactorbelt").to_json()["mixed_model"]
+    ref = summarize(data, engine="lme4").to_json()["mixed_model"]
+    assert ours["engine"] == "tactorbelt-laplace" and ref["engine"] == "lme4"
+    assert ours["formula"] == ref["formula"]
+    assert list(ours["fixed_effects"]) == list(ref["fixed_effects"])
+    for name, r in ref["fixed_effects"].items():
+        assert set(r) == {"estimate", "se", "z", "p", "ci_low", "ci_high"}
+        o = ours["fixed_effects"][name]
+        assert abs(o["estimate"] - r["estimate"]) <= max(EST_REL * abs(r["estimate"]),
+                                                        EST_FLOOR_SE * r["se"])
+        assert o["se"] == pytest.approx(r["se"], rel=SE_REL)
+
+
+def _r_vector(a: np.ndarray) -> str:
+    return "c(" + ", ".join(repr(float(v)) for v in a) + ")"
+
+
+def test_rank_intervals_and_odds_ratio_agree_with_r() -> None:
+    import subprocess
+
+    from tactorbelt.analysis.stats import (
+        fisher_accuracy,
+        hodges_lehmann_paired,
+        hodges_lehmann_shift,
+        signed_rank_test,
+    )
+
+    rng = np.random.default_rng(4)
+    x, y, d = rng.normal(1, 1, 7), rng.normal(0, 1, 9), rng.normal(0.3, 1, 8)
+    x2, y2, d2 = rng.normal(1, 1, 60), rng.normal(0, 1, 70), rng.normal(0.3, 1, 70)
+    tied = np.array([0.1, 0.1, 0.2, -0.1, 0.3, 0.3, 0.0, 0.25, -0.2, 0.1])
+    script = (
+        "options(digits = 15)\n"
+        f"x <- {_r_vector(x)}; y <- {_r_vector(y)}; d <- {_r_vector(d)}\n"
+        f"x2 <- {_r_vector(x2)}; y2 <- {_r_vector(y2)}; d2 <- {_r_vector(d2)}\n"
+        "out <- function(w) cat(w$estimate, w$conf.int, w$p.value, '\\n')\n"
+        "out(wilcox.test(x, y, conf.int = TRUE)); out(wilcox.test(d, conf.int = TRUE))\n"
+        "out(wilcox.test(x2, y2, conf.int = TRUE)); out(wilcox.test(d2, conf.int = TRUE))\n"
+        "ft <- fisher.test(matrix(c(22, 8, 10, 20), 2, byrow = TRUE))\n"
+        "cat(ft$estimate, ft$conf.int, ft$p.value, '\\n')\n")
+    out = subprocess.run(["Rscript", "-e", script], capture_output=True, text=True, check=True)
+    rows = [[float(v) for v in line.split()] for line in out.stdout.strip().splitlines()]
+    exact = [hodges_lehmann_shift(x, y), hodges_lehmann_paired(d)]
+    approx = [hodges_lehmann_shift(x2, y2), hodges_lehmann_paired(d2)]
+    for ours, ref in zip(exact, rows[:2], strict=True):
+        assert ours[:3] == pytest.approx(ref[:3], rel=1e-9)  # exact: identical order statistics
+    for ours, ref in zip(approx, rows[2:4], strict=True):
+        assert ours[:3] == pytest.approx(ref[:3], rel=2e-3)  # R root-finds; we take an order stat
+    assert signed_rank_test(d)[1] == pytest.approx(rows[1][3], rel=1e-9)
+    fisher = fisher_accuracy(10, 30, 22, 30, np.random.default_rng(0), n_boot=200)
+    assert fisher.details["odds_ratio"] == pytest.approx(rows[4][0], rel=1e-5)
+    assert fisher.details["odds_ratio_ci95"] == pytest.approx(rows[4][1:3], rel=1e-4)
+    assert fisher.p_value == pytest.approx(rows[4][3], rel=1e-9)
+    # with ties the p is exact over sign flips of the mid-ranks, whatever SciPy's default
+    w, p, how = signed_rank_test(tied)
+    assert "exact" in how and 0 < p <= 1
