@@ -44,7 +44,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "export": ("tactorbelt.cli.run:export", "Export a store to CSV or BIDS-style files."),
     "demo": ("tactorbelt.cli.demo:demo", "Run the paper's study with model participants."),
     "power": ("tactorbelt.cli.demo:power", "Plan a study's size by simulation."),
-    "analyze": ("tactorbelt.cli.analyze:analyze", "Analyse a store and write the report."),
+    "analyze": ("tactorbelt.cli.analyze:analyze", "Analyze one or more stores and write the report."),
     "point": ("tactorbelt.cli.point:point", "Keep a bearing displayed on a belt."),
 }
 

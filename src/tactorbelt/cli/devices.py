@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING, Any
 import click
 
 from ..devices.registry import BACKENDS, url_options_help
+from ._options import number
 
 if TYPE_CHECKING:
     from ..devices.registry import Discovery, Found
@@ -57,7 +58,7 @@ def _joysticks() -> tuple[list[dict[str, Any]], str | None]:
     f"  {', '.join(b.examples)}: {b.summary}" for b in BACKENDS.values())
     + "\n\n\b\nURL options (--belt serial:auto?timeout_s=2&heartbeat_ms=500):\n"
     + url_options_help())
-@click.option("--timeout", "timeout_s", type=click.FloatRange(min=0.1, max=60.0), default=5.0,
+@click.option("--timeout", "timeout_s", type=number(float, 0.1, 60.0), default=5.0,
               show_default=True,
               help="Seconds to scan for BLE devices (each device gets at most 0.5 s to answer).")
 @click.option("--no-ble", is_flag=True, help="Do not scan for BLE devices (same as --skip ble).")
