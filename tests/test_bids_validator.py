@@ -13,6 +13,7 @@ import subprocess
 from pathlib import Path
 
 import pytest
+
 from support.cli import model_store, tactorbelt
 
 VALIDATOR = shutil.which("bids-validator")

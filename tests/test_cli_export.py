@@ -11,6 +11,7 @@ import csv
 from pathlib import Path
 
 import pytest
+
 from support.cli import model_store, tactorbelt
 
 

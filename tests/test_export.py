@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import itertools
 import json
 from pathlib import Path
 
@@ -108,7 +109,7 @@ def test_bids_export(db: Path, tmp_path: Path) -> None:
     assert meta["RecordingType"] == "discontinuous" and "EpochLength" not in meta
     latency = [float(line.split("\t")[1]) for line in motion]
     trial = [int(line.split("\t")[0]) for line in motion]
-    assert latency[0] == 0.0 and all(b > a for a, b in zip(latency, latency[1:]))
+    assert latency[0] == 0.0 and all(b > a for a, b in itertools.pairwise(latency))
     assert all(len(line.split("\t")[1].split(".")[1]) == 6 for line in motion)
     onsets = {int(r["trial_index"]): float(r["onset_s"]) for r in rows}
     first = {k: latency[trial.index(k)] for k in sorted(set(trial))}

@@ -25,7 +25,7 @@ __all__ = ["AliasOption", "AngleCommand", "HiddenArgument", "Number"]
 
 
 def _fmt(v: float) -> str:
-    return f"{v:g}"
+    return "2^63 - 1" if v == 2**63 - 1 else f"{v:g}"
 
 
 class Number(click.ParamType):

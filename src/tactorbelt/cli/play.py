@@ -20,7 +20,6 @@ from typing import TYPE_CHECKING, Any
 import click
 
 from ..devices import open_belt_for
-from ._types import AliasOption
 from ._options import (
     POSITIVE,
     AngleCommand,
@@ -33,6 +32,7 @@ from ._options import (
     output_option,
     stimulus_options,
 )
+from ._types import AliasOption
 
 if TYPE_CHECKING:
     from ..devices.base import Belt
