@@ -116,3 +116,11 @@ def test_docs_list_every_option_of_every_command(helps: dict[str, str]) -> None:
             if option.endswith("--help"):
                 continue
             assert f"`{option.split(', ')[-1]}" in body, (name, option)
+
+
+def test_errors_name_the_option_as_help_shows_it(tmp_path: Path) -> None:
+    proc = tactorbelt("render", "10", "--format", "png", "-o", str(tmp_path))
+    assert proc.returncode == 2
+    assert proc.stderr.startswith("error: Invalid value for '-o' / '--output': ")
+    proc = tactorbelt("belt-test", "--seconds-each", "x")
+    assert proc.stderr.startswith("error: Invalid value for '--seconds': must be a number")

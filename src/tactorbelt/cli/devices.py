@@ -71,8 +71,8 @@ def devices(timeout_s: float, no_ble: bool, skip: tuple[str, ...], probe_all: bo
             as_json: bool) -> None:
     """List serial ports and BLE devices, and which of them answer as belts.
 
-    A belt is a device running tactorbelt firmware (protocol v1): it answers
-    GET_INFO with its firmware version and tactor count. Use the URL shown with
+    A belt is a device running tactorbelt firmware (protocol v1): asked, it answers
+    with its firmware version and tactor count. Use the URL shown with
     --belt (e.g. --belt serial:/dev/ttyACM0), or --belt serial:auto.
     """
     skipped = set(skip) | ({"ble"} if no_ble else set())
