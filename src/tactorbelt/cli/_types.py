@@ -84,7 +84,7 @@ class AliasOption(click.Option):
         super().__init__([*decls, *hidden_aliases], *args[1:], **kwargs)
         self.hidden_aliases = tuple(hidden_aliases)
 
-    def get_error_hint(self, ctx: click.Context) -> str:
+    def get_error_hint(self, ctx: click.Context | None) -> str:
         return " / ".join(f"'{o}'" for o in self.opts if o not in self.hidden_aliases)
 
     def get_help_record(self, ctx: click.Context) -> tuple[str, str] | None:
