@@ -1,12 +1,12 @@
-"""Export a store to tidy CSV files or to a BIDS-style behavioural dataset.
+"""Export a store to tidy CSV files or to a BIDS dataset (behaviour and cursor motion).
 
 CSV (:func:`export_csv`): ``sessions.csv``, ``trials.csv`` (one row per trial, with
 the participant and session number) and ``samples.csv`` (one row per cursor sample,
 with participant, session and trial index).
 
-BIDS-style (:func:`export_bids`)::
+BIDS (:func:`export_bids`), which ``bids-validator`` passes::
 
-    dataset_description.json  participants.tsv  participants.json
+    dataset_description.json  README.md  participants.tsv  participants.json
     sub-<id>/ses-<n>/beh/sub-<id>_ses-<n>_task-betweentactor_beh.tsv   (+ .json sidecar)
     sub-<id>/ses-<n>/motion/sub-<id>_ses-<n>_task-betweentactor_tracksys-cursor_motion.tsv
                                            ..._channels.tsv, ..._motion.json
@@ -14,7 +14,14 @@ BIDS-style (:func:`export_bids`)::
 ``<id>`` is the participant id with everything but letters and digits removed (BIDS
 labels are alphanumeric); two ids that collapse to the same label are an error.
 Missing values are ``n/a``. The motion file has no header; its columns are the rows
-of ``_channels.tsv`` (trial, t_s, x, y, buttons).
+of ``_channels.tsv`` (trial, latency, x, y, buttons). The recording is discontinuous
+(the cursor is sampled from stimulus onset to the response of each trial); the
+LATENCY channel is seconds from recording onset, the onset of the session's first
+trial, as the BIDS motion spec defines it.
+
+The output directory must be new or empty; ``force=True`` first removes what an
+earlier export of the same format wrote there, and refuses a directory holding
+anything else (so nothing else is ever deleted).
 
 I/O: reads a store (:func:`~tactorbelt.experiment.store.open_store`, read-only) through
 its interface and writes files; standard library only.
