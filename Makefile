@@ -18,7 +18,7 @@ $(STAMP): pyproject.toml
 	touch $(STAMP)
 
 demo: $(STAMP)
-	$(VENV)/bin/tactorbelt demo --out demo-output
+	$(VENV)/bin/tactorbelt demo -o demo-output
 
 test: test-py test-firmware
 

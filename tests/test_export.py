@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import itertools
 import json
 from pathlib import Path
 
@@ -95,12 +96,25 @@ def test_bids_export(db: Path, tmp_path: Path) -> None:
     motion_dir = out / "sub-P01" / "ses-1" / "motion"
     stem = "sub-P01_ses-1_task-betweentactor_tracksys-cursor"
     channels = _read(motion_dir / f"{stem}_channels.tsv", "\t")
-    assert [c["name"] for c in channels] == ["trial", "t_s", "x", "y", "buttons"]
+    assert [c["name"] for c in channels] == ["trial", "latency", "x", "y", "buttons"]
+    assert [c["type"] for c in channels][1] == "LATENCY"
     motion = (motion_dir / f"{stem}_motion.tsv").read_text().splitlines()
     assert all(len(line.split("\t")) == len(channels) for line in motion)
     assert sum(int(r["trial_index"] != "") for r in rows) == 12
     meta = json.loads((motion_dir / f"{stem}_motion.json").read_text())
     assert meta["SamplingFrequency"] == 100.0
+    # BIDS motion: LATENCY is seconds from recording onset (the first trial's onset), so
+    # it never restarts at a trial; trials differ in length, so the recording is
+    # discontinuous rather than epoched (no EpochLength)
+    assert meta["RecordingType"] == "discontinuous" and "EpochLength" not in meta
+    latency = [float(line.split("\t")[1]) for line in motion]
+    trial = [int(line.split("\t")[0]) for line in motion]
+    assert latency[0] == 0.0 and all(b > a for a, b in itertools.pairwise(latency))
+    assert all(len(line.split("\t")[1].split(".")[1]) == 6 for line in motion)
+    onsets = {int(r["trial_index"]): float(r["onset_s"]) for r in rows}
+    first = {k: latency[trial.index(k)] for k in sorted(set(trial))}
+    for k in first:  # a trial's first sample sits at its onset after the first trial's
+        assert first[k] == pytest.approx(onsets[k] - onsets[0], abs=1e-6)
 
 
 def test_bids_label() -> None:

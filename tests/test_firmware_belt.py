@@ -166,7 +166,7 @@ def test_a_nak_for_a_request_becomes_a_clear_error() -> None:
         with pytest.raises(ConfigError, match="out of range"):
             belt.play(make_stimulus(belt.layout, 45.0))
         device._answer = lambda seq, req: wire.Nak(seq, wire.NakCode.UNKNOWN_TYPE)  # type: ignore[method-assign]
-        with pytest.raises(ProtocolError, match="refused GET_STATUS"):
+        with pytest.raises(ProtocolError, match="refused the status request"):
             belt.status()
         del device._answer
 
@@ -219,7 +219,7 @@ def test_closing_a_dead_belt_logs_instead_of_raising(caplog: pytest.LogCaptureFi
 def test_a_request_without_reply_times_out_naming_the_port() -> None:
     belt, device, _ = open_fake(timeout_s=0.02)
     device.silent = True
-    with pytest.raises(DeviceError, match=r"loop0 did not answer GET_STATUS within 20 ms"):
+    with pytest.raises(DeviceError, match=r"loop0 did not answer the status request within 20 ms"):
         belt.status()
     belt.close()
 

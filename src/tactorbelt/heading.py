@@ -146,9 +146,12 @@ def read_headings(path: Path) -> tuple[list[HeadingSample], bool]:
         ConfigError: unreadable file, a bad line (with its number), or no heading.
     """
     try:
-        text = path.read_text()
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ConfigError(f"cannot read headings from {path}: {exc}") from None
+        text = path.read_text(encoding="utf-8-sig")
+    except UnicodeDecodeError:
+        raise ConfigError(f"cannot read headings from {path}: not a text file (one heading "
+                          "per line, or CSV, as UTF-8 text)") from None
+    except OSError as exc:
+        raise ConfigError(f"cannot read headings from {path}: {exc.strerror or exc}") from None
     reader = HeadingReader(str(path))
     samples = [s for i, line in enumerate(text.splitlines(), start=1)
                if (s := reader.feed(i, line)) is not None]
@@ -341,6 +344,7 @@ def run_point(display: DirectionDisplay, *, bearing_deg: float, sweep_s: float |
         run.clear_status()
     elapsed = display.clock.now_ns() / 1e9 - run.t0_s if display.clock.simulated \
         else time.monotonic() - started
-    sent = f"{display.plays_sent} PLAY_TARGET" if display.device_render else \
-        f"{display.frames_written} frames"
+    plays = display.plays_sent
+    sent = f"{plays} direction{'s' if plays != 1 else ''} sent to the belt" \
+        if display.device_render else f"{display.frames_written} frames"
     return PointReport(interrupted, elapsed, run.headings, sent)

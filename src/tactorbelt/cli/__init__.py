@@ -41,10 +41,11 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "devices": ("tactorbelt.cli.devices:devices", "List serial ports and BLE belts."),
     "study": ("tactorbelt.cli.study:study", "Write or check a study file."),
     "run": ("tactorbelt.cli.run:run", "Run a study session for one participant."),
-    "export": ("tactorbelt.cli.run:export", "Export a store to CSV or BIDS-style files."),
+    "export": ("tactorbelt.cli.run:export", "Export a store to CSV files or a BIDS dataset."),
     "demo": ("tactorbelt.cli.demo:demo", "Run the paper's study with model participants."),
     "power": ("tactorbelt.cli.demo:power", "Plan a study's size by simulation."),
-    "analyze": ("tactorbelt.cli.analyze:analyze", "Analyse a store and write the report."),
+    "analyze": ("tactorbelt.cli.analyze:analyze",
+                "Analyze one or more stores and write the report."),
     "point": ("tactorbelt.cli.point:point", "Keep a bearing displayed on a belt."),
 }
 

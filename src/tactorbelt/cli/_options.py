@@ -1,5 +1,11 @@
-"""Shared command-line options: the stimulus (mode, law, falloff, layout, period,
-transit), the belt (``--belt URL``, ``--calibration FILE``) and a negative ANGLE.
+"""Shared command-line options, one definition per concept for every command
+(docs/cli.md): the stimulus (mode, law, falloff, layout, period, transit), the belt
+(``--belt URL``, ``--calibration FILE``), ``-o/--output``, ``--seed``, numbers, a
+negative ANGLE.
+
+- ``output_option(kind, help)``: ``-o/--output FILE|DIRECTORY`` (the old ``--out`` still
+  works, not shown); ``seed_option(help)``: ``--seed INTEGER``; ``FLOAT``, ``POSITIVE``,
+  ``number(...)``: typed numbers with one error wording (``_types.Number``).
 
 - ``@stimulus_options`` adds --mode --law --falloff --tactors --tactor-angles --period
   --transit; ``build_stimulus(angle, **opts)`` validates them and returns a Stimulus
@@ -8,7 +14,7 @@ transit), the belt (``--belt URL``, ``--calibration FILE``) and a negative ANGLE
 - ``@belt_option()`` adds --belt (help from the backend registry), ``@belt_options``
   --belt and --calibration (``tactorbelt.devices.open_belt_for`` opens the belt for a
   stimulus).
-- ``AngleCommand``: a click command class whose ANGLE argument may be negative
+- ``AngleCommand`` (from ``_types``): a command whose ANGLE argument may be negative
   (``tactorbelt play -30``) without ``--``.
 
 Every bad value becomes a ConfigError (or click.BadParameter), which the CLI prints
@@ -19,14 +25,15 @@ devices only inside functions.
 from __future__ import annotations
 
 import math
-import re
 from collections.abc import Callable
+from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypeVar
 
 import click
 
 from .._errors import ConfigError
 from .._lawnames import LAWS
+from ._types import AliasOption, AngleCommand, HiddenArgument, Number
 
 if TYPE_CHECKING:
     from ..devices.calibration import Calibration
@@ -36,16 +43,50 @@ if TYPE_CHECKING:
 F = TypeVar("F", bound=Callable[..., Any])
 
 __all__ = [
+    "FLOAT",
+    "POSITIVE",
     "AngleCommand",
+    "HiddenArgument",
+    "Number",
     "belt_option",
     "belt_options",
     "build_layout",
     "build_stimulus",
     "layout_given",
     "load_calibration",
+    "number",
+    "output_option",
     "parse_number",
+    "seed_option",
     "stimulus_options",
 ]
+
+#: Any finite number; a number above 0.
+FLOAT = Number(float)
+POSITIVE = Number(float, 0, lo_open=True)
+
+
+def number(kind: type = float, lo: float | None = None, hi: float | None = None,
+           lo_open: bool = False, hi_open: bool = False) -> Number:
+    """A typed number (``FLOAT`` or ``INTEGER`` in help) with a range."""
+    return Number(kind, lo, hi, lo_open, hi_open)
+
+
+def output_option(kind: str, help: str, default: Any = None, required: bool = False,
+                  old: tuple[str, ...] = ("--out",)) -> Callable[[F], F]:
+    """``-o/--output FILE`` (``kind="file"``) or ``DIRECTORY``, into parameter ``out``;
+    the ``old`` spellings still work but are not shown."""
+    is_dir = kind == "directory"
+    return click.option("-o", "--output", "out", cls=AliasOption, hidden_aliases=old,
+                        type=click.Path(file_okay=not is_dir, dir_okay=is_dir, path_type=Path),
+                        metavar="DIRECTORY" if is_dir else "FILE", default=default,
+                        required=required, show_default=default is not None, help=help)
+
+
+def seed_option(help: str, default: int | None = None) -> Callable[[F], F]:
+    """``--seed INTEGER`` (0 to 2**63 - 1)."""
+    return click.option("--seed", type=Number(int, 0, 2**63 - 1), default=default,
+                        show_default=default is not None, help=help)
 
 
 def parse_number(text: object, what: str) -> float:
@@ -66,15 +107,15 @@ def stimulus_options(func: F) -> F:
                      show_default=True, help="Static amplitudes or the dynamic perturbation."),
         click.option("--law", type=click.Choice(LAWS),
                      default="paper", show_default=True, help="Amplitude law."),
-        click.option("--falloff", default="15", show_default=True,
+        click.option("--falloff", type=POSITIVE, default=15.0, show_default=True,
                      help="T of the paper law, degrees."),
-        click.option("--tactors", default=None,
+        click.option("--tactors", type=Number(int, 2), default=None,
                      help="Number of evenly spaced tactors [default: 6]."),
         click.option("--tactor-angles", default=None,
                      help="Explicit tactor angles in degrees, e.g. 30,90,150,210,270,330."),
-        click.option("--period", default="1.0", show_default=True,
+        click.option("--period", type=POSITIVE, default=1.0, show_default=True,
                      help="Period of the dynamic perturbation, seconds."),
-        click.option("--transit", default="0.1", show_default=True,
+        click.option("--transit", type=POSITIVE, default=0.1, show_default=True,
                      help="Time to move between the two tactors, seconds."),
     ]
     for option in reversed(options):
@@ -150,39 +191,3 @@ def load_calibration(path: str | None) -> Calibration | None:
     from ..devices.calibration import Calibration
 
     return Calibration.load(path)
-
-
-_NEGATIVE = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$")
-
-
-class AngleCommand(click.Command):
-    """A command whose positional ANGLE may be a negative number (``-30``).
-
-    click would read ``-30`` as an unknown option; this class moves a bare negative
-    number that is not an option's value behind ``--`` before parsing.
-    """
-
-    def parse_args(self, ctx: click.Context, args: list[str]) -> list[str]:
-        if "--" not in args:
-            takes_value: set[str] = set()
-            for param in self.params:
-                if isinstance(param, click.Option) and not param.is_flag and not param.count:
-                    takes_value.update(param.opts)
-                    takes_value.update(param.secondary_opts)
-            rest: list[str] = []
-            moved: list[str] = []
-            skip = False
-            for token in args:
-                if skip:
-                    rest.append(token)
-                    skip = False
-                elif token in takes_value:
-                    rest.append(token)
-                    skip = True
-                elif _NEGATIVE.match(token):
-                    moved.append(token)
-                else:
-                    rest.append(token)
-            if moved:
-                args = [*rest, "--", *moved]
-        return super().parse_args(ctx, args)

@@ -1,4 +1,4 @@
-"""``tactorbelt analyze DB [DB ...] [--out DIR] [--seed S]``: the analysis report.
+"""``tactorbelt analyze DB [DB ...] [-o DIRECTORY] [--seed S]``: the analysis report.
 
 Without ``--seed`` the analysis seed is derived from the stores (docs/analysis.md).
 
@@ -13,6 +13,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 import click
+
+from ._options import output_option, seed_option
 
 if TYPE_CHECKING:
     from ..analysis.stats import Summary
@@ -29,19 +31,17 @@ def print_summary_table(summary: Summary) -> None:
 
 @click.command("analyze")
 @click.argument("db", nargs=-1, required=True, type=click.Path(path_type=Path))
-@click.option("--out", "out", type=click.Path(path_type=Path), default=None,
-              help="Directory for report.html, summary.json, per_target.csv and the PNGs "
-                   "[default: the directory of the first DB].")
-@click.option("--seed", type=click.IntRange(min=0), default=None,
-              help="Seed of the bootstrap intervals and of the sample trajectories shown "
-                   "[default: the smallest seed of the stored sessions, so the same stores "
-                   "always give the same report, the demo's included].")
+@output_option("directory", "Directory for report.html, summary.json, per_target.csv and "
+               "the PNGs [default: the directory of the first DB].")
+@seed_option("Seed of the bootstrap intervals and of the sample trajectories shown "
+             "[default: the smallest seed of the stored sessions, so the same stores "
+             "always give the same report, the demo's included].")
 @click.option("--engine", type=click.Choice(["tactorbelt", "lme4"]), default="tactorbelt",
               show_default=True,
               help="Who fits the mixed models: tactorbelt's Laplace GLMM, or R's lme4 through "
                    "Rscript (needs 'apt install r-base-core r-cran-lme4').")
 def analyze(db: tuple[Path, ...], out: Path | None, seed: int | None, engine: str) -> None:
-    """Analyse one or more session stores and write the report.
+    """Analyze one or more session stores and write the report.
 
     DB is a store written by 'tactorbelt run' or 'tactorbelt demo' (several may be
     given: their sessions are pooled). Writes report.html (self-contained), summary.json,
@@ -58,7 +58,7 @@ def analyze(db: tuple[Path, ...], out: Path | None, seed: int | None, engine: st
     err = Console(stderr=True)
     with Progress(TextColumn("{task.description}"), BarColumn(), TimeElapsedColumn(),
                   console=err, transient=True, disable=not err.is_terminal) as bar:
-        task = bar.add_task("analysing", total=6)
+        task = bar.add_task("analyzing", total=6)
 
         def progress(what: str, done: int, total: int) -> None:
             bar.update(task, description=what, completed=done, total=total)

@@ -16,6 +16,8 @@ from typing import Any
 
 import click
 
+from ._options import number, output_option, seed_option
+
 __all__ = ["demo", "parse_sizes", "power"]
 
 
@@ -36,15 +38,13 @@ def _progress_bar(console: Any) -> Any:
 # -- demo ----------------------------------------------------------------------------------
 
 @click.command("demo")
-@click.option("--out", "out", type=click.Path(file_okay=False, path_type=Path),
-              default=Path("demo-output"), show_default=True,
-              help="Directory for study.toml, study.sqlite, the report and its figures.")
-@click.option("--participants", type=click.IntRange(1, 999), default=1, show_default=True,
+@output_option("directory", "Directory for study.toml, study.sqlite, the report and its "
+               "figures.", default=Path("demo-output"))
+@click.option("--participants", type=number(int, 1, 999), default=1, show_default=True,
               help="Number of model participants (ids model-01, model-02, ...).")
-@click.option("--seed", type=click.IntRange(0, 2**63 - 1), default=1, show_default=True,
-              help="Seed of the schedules, the model participants and the analysis.")
+@seed_option("Seed of the schedules, the model participants and the analysis.", default=1)
 def demo(out: Path, participants: int, seed: int) -> None:
-    """Run the paper's study with model participants, then analyse it.
+    """Run the paper's study with model participants, then analyze it.
 
     Writes DIR/study.toml (the paper's protocol, as 'tactorbelt study init' writes it),
     runs each model participant through a whole session (training, then 240 test
@@ -115,18 +115,16 @@ def parse_sizes(text: str) -> list[int]:
 @click.command("power")
 @click.option("--participants", "sizes_text", default="4,8,12,16", show_default=True,
               help="Study sizes to simulate, comma-separated.")
-@click.option("--sims", type=click.IntRange(1, 1_000_000), default=500, show_default=True,
+@click.option("--sims", type=number(int, 1, 1_000_000), default=500, show_default=True,
               help="Simulated studies per size.")
-@click.option("--out", "out", type=click.Path(file_okay=False, path_type=Path),
-              default=Path("power-output"), show_default=True,
-              help="Directory for power.csv, power.json and power.png.")
-@click.option("--seed", type=click.IntRange(0, 2**63 - 1), default=1, show_default=True,
-              help="Seed of the simulation (results do not depend on --jobs).")
-@click.option("--jobs", type=click.IntRange(1, 256), default=None,
+@output_option("directory", "Directory for power.csv, power.json and power.png.",
+               default=Path("power-output"))
+@seed_option("Seed of the simulation (results do not depend on --jobs).", default=1)
+@click.option("--jobs", type=number(int, 1, 256), default=None,
               help="Worker processes [default: the number of CPUs, at most 8].")
 @click.option("--study", "study_file", type=click.Path(dir_okay=False, path_type=Path),
               default=None, help="Study file to plan [default: the paper's protocol].")
-@click.option("--alpha", type=click.FloatRange(0, 1, min_open=True, max_open=True),
+@click.option("--alpha", type=number(float, 0, 1, lo_open=True, hi_open=True),
               default=0.05, show_default=True, help="Significance level of the test.")
 def power(sizes_text: str, sims: int, out: Path, seed: int, jobs: int | None,
           study_file: Path | None, alpha: float) -> None:

@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING, Any
 import click
 
 from ..devices.registry import BACKENDS, url_options_help
+from ._options import number
 
 if TYPE_CHECKING:
     from ..devices.registry import Discovery, Found
@@ -57,7 +58,7 @@ def _joysticks() -> tuple[list[dict[str, Any]], str | None]:
     f"  {', '.join(b.examples)}: {b.summary}" for b in BACKENDS.values())
     + "\n\n\b\nURL options (--belt serial:auto?timeout_s=2&heartbeat_ms=500):\n"
     + url_options_help())
-@click.option("--timeout", "timeout_s", type=click.FloatRange(min=0.1, max=60.0), default=5.0,
+@click.option("--timeout", "timeout_s", type=number(float, 0.1, 60.0), default=5.0,
               show_default=True,
               help="Seconds to scan for BLE devices (each device gets at most 0.5 s to answer).")
 @click.option("--no-ble", is_flag=True, help="Do not scan for BLE devices (same as --skip ble).")
@@ -70,8 +71,8 @@ def devices(timeout_s: float, no_ble: bool, skip: tuple[str, ...], probe_all: bo
             as_json: bool) -> None:
     """List serial ports and BLE devices, and which of them answer as belts.
 
-    A belt is a device running tactorbelt firmware (protocol v1): it answers
-    GET_INFO with its firmware version and tactor count. Use the URL shown with
+    A belt is a device running tactorbelt firmware (protocol v1): asked, it answers
+    with its firmware version and tactor count. Use the URL shown with
     --belt (e.g. --belt serial:/dev/ttyACM0), or --belt serial:auto.
     """
     skipped = set(skip) | ({"ble"} if no_ble else set())

@@ -13,34 +13,31 @@ Every path ends with the motors off; Ctrl-C exits 130. Heavy imports are inside 
 from __future__ import annotations
 
 import json
-import math
 import sys
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import click
 
 from ..devices import open_belt_for
 from ._options import (
+    POSITIVE,
     AngleCommand,
     belt_option,
     belt_options,
     build_stimulus,
     layout_given,
     load_calibration,
+    number,
+    output_option,
     stimulus_options,
 )
+from ._types import AliasOption
 
 if TYPE_CHECKING:
     from ..devices.base import Belt
 
 __all__ = ["belt_test", "calibrate", "play"]
-
-
-def _positive(value: float, option: str) -> float:
-    if not (math.isfinite(value) and value > 0):
-        raise click.BadParameter(f"must be a positive, finite number, got {value!r}",
-                                 param_hint=option)
-    return value
 
 
 def _describe(belt: Belt) -> str:
@@ -51,9 +48,9 @@ def _describe(belt: Belt) -> str:
 @click.argument("angle", metavar="ANGLE")
 @stimulus_options
 @belt_options
-@click.option("--seconds", type=float, default=3.0, show_default=True,
+@click.option("--seconds", type=POSITIVE, default=3.0, show_default=True,
               help="How long to play.")
-@click.option("--rate", type=float, default=None,
+@click.option("--rate", type=POSITIVE, default=None,
               help="Stream frames at this rate (Hz) instead of letting a belt that can "
                    "render do it [default: the belt's rate, 1000 Hz; 40 Hz over BLE].")
 @click.option("--stats", is_flag=True,
@@ -68,9 +65,6 @@ def play(angle: str, belt_url: str, calibration_file: str | None, seconds: float
     """
     from ..player import Player
 
-    _positive(seconds, "--seconds")
-    if rate is not None:
-        _positive(rate, "--rate")
     stimulus = build_stimulus(angle, **stim)
     calibration = load_calibration(calibration_file)
     belt, stimulus_on_belt = open_belt_for(belt_url, stimulus,
@@ -100,12 +94,13 @@ def play(angle: str, belt_url: str, calibration_file: str | None, seconds: float
 
 @click.command("belt-test")
 @belt_options
-@click.option("--seconds-each", type=float, default=0.5, show_default=True,
+@click.option("--seconds", "seconds_each", cls=AliasOption, hidden_aliases=("--seconds-each",),
+              type=POSITIVE, default=0.5, show_default=True,
               help="How long each tactor vibrates.")
-@click.option("--gap", type=float, default=0.25, show_default=True,
+@click.option("--gap", type=number(float, 0), default=0.25, show_default=True,
               help="Pause between tactors, seconds.")
-@click.option("--level", type=float, default=1.0, show_default=True,
-              help="Amplitude of each pulse, in (0, 1] (through the calibration).")
+@click.option("--level", type=number(float, 0, 1, lo_open=True), default=1.0,
+              show_default=True, help="Amplitude of each pulse (through the calibration).")
 def belt_test(belt_url: str, calibration_file: str | None, seconds_each: float, gap: float,
               level: float) -> None:
     """Pulse each tactor in turn, saying which one, to check the wiring.
@@ -116,11 +111,6 @@ def belt_test(belt_url: str, calibration_file: str | None, seconds_each: float, 
     from ..calibrate import pulse_each
     from ..clock import WallClock
 
-    _positive(seconds_each, "--seconds-each")
-    if not (math.isfinite(gap) and gap >= 0):
-        raise click.BadParameter(f"must be 0 or more, got {gap!r}", param_hint="--gap")
-    if not (math.isfinite(level) and 0 < level <= 1):
-        raise click.BadParameter(f"must be in (0, 1], got {level!r}", param_hint="--level")
     calibration = load_calibration(calibration_file)
     from ..geometry import region_name
 
@@ -159,11 +149,10 @@ class _Keys:
 
 @click.command()
 @belt_option("The belt to calibrate")
-@click.option("-o", "--output", default=None, metavar="FILE",
-              help="Write the calibration here [default: print it to stdout].")
-@click.option("--step", type=float, default=0.02, show_default=True,
-              help="Level change per + or - key.")
-def calibrate(belt_url: str, output: str | None, step: float) -> None:
+@output_option("file", "Write the calibration here [default: print it to stdout].")
+@click.option("--step", type=number(float, 0, 0.5, lo_open=True), default=0.02,
+              show_default=True, help="Level change per + or - key.")
+def calibrate(belt_url: str, out: Path | None, step: float) -> None:
     """Walk through each tactor: the level where it is first felt, then a comfortable maximum.
 
     For each tactor: raise the level with + until the vibration is just felt and
@@ -176,8 +165,6 @@ def calibrate(belt_url: str, output: str | None, step: float) -> None:
     from ..calibrate import KEYS_HELP, CalibrationQuit, walk_calibration
     from ..clock import WallClock
 
-    if not (math.isfinite(step) and 0 < step <= 0.5):
-        raise click.BadParameter(f"must be in (0, 0.5], got {step!r}", param_hint="--step")
     keys = _Keys()
     from ..geometry import region_name
 
@@ -192,8 +179,8 @@ def calibrate(belt_url: str, output: str | None, step: float) -> None:
         except CalibrationQuit as exc:
             click.echo(str(exc), err=True)
             raise click.exceptions.Exit(1) from None
-    if output:
-        path = calibration.save(output, belt=belt_url, angles_deg=belt.tactor_angles_deg)
+    if out:
+        path = calibration.save(out, belt=belt_url, angles_deg=belt.tactor_angles_deg)
         click.echo(f"wrote {path}", err=True)
     else:
         click.echo(calibration.to_toml(belt=belt_url, angles_deg=belt.tactor_angles_deg), nl=False)

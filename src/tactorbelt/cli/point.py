@@ -20,47 +20,47 @@ import click
 from .._errors import ConfigError
 from .._lawnames import LAWS
 from ..heading import HeadingReader, HeadingSample, read_headings
-from ._options import belt_option, parse_number
+from ._options import FLOAT, POSITIVE, belt_option, number
 
 __all__ = ["HeadingReader", "HeadingSample", "point"]
 
 
 @click.command()
 @belt_option()
-@click.option("--bearing", default=None,
+@click.option("--bearing", type=FLOAT, default=None,
               help="Direction to keep displayed, degrees clockwise from the heading's "
                    "reference (north); without --heading-from, a body angle.")
 @click.option("--heading-from", "heading_from", default=None, metavar="FILE|-",
               help="Headings: one number per line, or CSV with a header t_s,heading_deg; "
                    "'-' reads stdin as lines arrive.")
-@click.option("--heading-rate", default="10", show_default=True,
+@click.option("--heading-rate", type=POSITIVE, default=10.0, show_default=True,
               help="Replay rate (Hz) of a heading file without timestamps.")
 @click.option("--sweep", is_flag=True,
               help="Turn the displayed direction slowly round the body.")
-@click.option("--sweep-period", default="20", show_default=True,
+@click.option("--sweep-period", type=POSITIVE, default=20.0, show_default=True,
               help="Seconds per turn of --sweep.")
-@click.option("--seconds", default=None, help="Stop after this many seconds.")
+@click.option("--seconds", type=POSITIVE, default=None, help="Stop after this many seconds.")
 @click.option("--mode", type=click.Choice(["static", "dynamic"]), default="static",
               show_default=True, help="Static amplitudes or the dynamic perturbation.")
 @click.option("--law", type=click.Choice(LAWS), default="paper",
               show_default=True, help="Amplitude law.")
-@click.option("--falloff", default="15", show_default=True,
+@click.option("--falloff", type=POSITIVE, default=15.0, show_default=True,
               help="T of the paper law, degrees.")
-@click.option("--period", default="1.0", show_default=True,
+@click.option("--period", type=POSITIVE, default=1.0, show_default=True,
               help="Period of the dynamic perturbation, seconds.")
-@click.option("--transit", default="0.1", show_default=True,
+@click.option("--transit", type=POSITIVE, default=0.1, show_default=True,
               help="Time to move between the two tactors, seconds.")
-@click.option("--slew", default="180", show_default=True,
+@click.option("--slew", type=POSITIVE, default=180.0, show_default=True,
               help="Top speed of the displayed direction, deg/s.")
-@click.option("--hysteresis", default="4", show_default=True,
+@click.option("--hysteresis", type=number(float, 0), default=4.0, show_default=True,
               help="Margin past a tactor's sector before the cue changes tactor, degrees.")
 @click.option("--stream", is_flag=True,
               help="Stream frames from the host even if the belt can render itself.")
 @click.option("-q", "--quiet", is_flag=True, help="Print nothing but errors.")
-def point(belt_url: str, bearing: str | None, heading_from: str | None, heading_rate: str,
-          sweep: bool, sweep_period: str, seconds: str | None, mode: str, law: str,
-          falloff: str, period: str, transit: str, slew: str, hysteresis: str,
-          stream: bool, quiet: bool) -> None:
+def point(belt_url: str, bearing: float | None, heading_from: str | None,
+          heading_rate: float, sweep: bool, sweep_period: float, seconds: float | None,
+          mode: str, law: str, falloff: float, period: float, transit: float, slew: float,
+          hysteresis: float, stream: bool, quiet: bool) -> None:
     """Keep a bearing displayed on a belt while the wearer's heading changes.
 
     The belt shows BEARING - HEADING (0 = navel, clockwise). Examples:
@@ -87,16 +87,10 @@ def point(belt_url: str, bearing: str | None, heading_from: str | None, heading_
     if sweep and heading_from is not None:
         raise click.UsageError("--heading-from needs --bearing, not --sweep")
     bearing_deg = parse_angle(bearing, "--bearing") if bearing is not None else 0.0
-    sweep_s = _positive(sweep_period, "--sweep-period")
-    rate = _positive(heading_rate, "--heading-rate")
-    limit_s = _positive(seconds, "--seconds") if seconds is not None else None
+    sweep_s, rate, limit_s = sweep_period, heading_rate, seconds
     display_opts: dict[str, Any] = {
-        "mode": mode, "law": law,
-        "falloff_deg": parse_number(falloff, "--falloff"),
-        "period_s": parse_number(period, "--period"),
-        "transit_s": parse_number(transit, "--transit"),
-        "slew_deg_per_s": _positive(slew, "--slew"),
-        "hysteresis_deg": parse_number(hysteresis, "--hysteresis"),
+        "mode": mode, "law": law, "falloff_deg": falloff, "period_s": period,
+        "transit_s": transit, "slew_deg_per_s": slew, "hysteresis_deg": hysteresis,
     }
     make_stimulus(Layout.even(6), 0.0, mode, law, display_opts["falloff_deg"],
                   display_opts["period_s"], display_opts["transit_s"])
@@ -132,9 +126,3 @@ def point(belt_url: str, bearing: str | None, heading_from: str | None, heading_
     if report.interrupted:
         raise click.exceptions.Exit(130)
 
-
-def _positive(text: object, what: str) -> float:
-    value = parse_number(text, what)
-    if value <= 0:
-        raise ConfigError(f"{what} must be positive, got {text!r}")
-    return value

@@ -10,7 +10,14 @@ from typing import Any
 import click
 
 from .._lawnames import LAWS
-from ._options import AngleCommand, build_stimulus, parse_number, stimulus_options
+from ._options import (
+    POSITIVE,
+    AngleCommand,
+    build_stimulus,
+    number,
+    output_option,
+    stimulus_options,
+)
 
 
 def _write_text(text: str, out: Path | None) -> None:
@@ -25,15 +32,14 @@ def _write_text(text: str, out: Path | None) -> None:
 @click.command(cls=AngleCommand)
 @click.argument("angle", metavar="ANGLE")
 @stimulus_options
-@click.option("--rate", default="1000", show_default=True,
+@click.option("--rate", type=POSITIVE, default=1000.0, show_default=True,
               help="Samples per second.")
-@click.option("--duration", default=None, type=str,
+@click.option("--duration", type=POSITIVE, default=None,
               help="Seconds to render [default: one period].")
 @click.option("--format", "fmt", type=click.Choice(["csv", "json", "png"]), default="csv",
               show_default=True, help="Output format.")
-@click.option("-o", "--output", "out", type=click.Path(dir_okay=False, path_type=Path),
-              default=None, help="Output file [default: stdout; required for png].")
-def render(angle: str, rate: str, duration: str | None, fmt: str, out: Path | None,
+@output_option("file", "Output file [default: stdout; required for png].")
+def render(angle: str, rate: float, duration: float | None, fmt: str, out: Path | None,
            **stim: Any) -> None:
     """Render the stimulus for direction ANGLE (degrees, 0 = navel, clockwise).
 
@@ -44,8 +50,7 @@ def render(angle: str, rate: str, duration: str | None, fmt: str, out: Path | No
 
     stimulus = build_stimulus(angle, **stim)
     rate_f, duration_f = check_rate_duration(
-        parse_number(rate, "--rate"),
-        stimulus.period_s if duration is None else parse_number(duration, "--duration"),
+        rate, stimulus.period_s if duration is None else duration,
     )
     t, amps = stimulus.render(rate_f, duration_f)
     if fmt == "csv":
@@ -84,13 +89,14 @@ def figure() -> None:
 @figure.command("amplitudes")
 @click.option("--law", type=click.Choice(LAWS), default="paper",
               show_default=True, help="Amplitude law.")
-@click.option("--falloff", default=15.0, show_default=True, type=float,
+@click.option("--falloff", default=15.0, show_default=True, type=POSITIVE,
               help="T of the paper law, degrees.")
-@click.option("--tactors", type=int, default=None, help="Evenly spaced tactors [default: 6].")
+@click.option("--tactors", type=number(int, 2), default=None,
+              help="Evenly spaced tactors [default: 6].")
 @click.option("--tactor-angles", default=None, help="Explicit tactor angles, e.g. 30,90,150.")
-@click.option("--targets", type=int, default=24, show_default=True, help="Number of targets.")
-@click.option("-o", "--output", "out", type=click.Path(dir_okay=False, path_type=Path),
-              default=Path("amplitudes.png"), show_default=True, help="PNG file to write.")
+@click.option("--targets", type=number(int, 1, 360), default=24, show_default=True,
+              help="Number of targets.")
+@output_option("file", "PNG file to write.", default=Path("amplitudes.png"))
 def figure_amplitudes(law: str, falloff: float, tactors: int | None, tactor_angles: str | None,
                       targets: int, out: Path) -> None:
     """Amplitude of each tactor against target direction (top of the paper's Fig. 1(B))."""

@@ -17,7 +17,7 @@ from typing import Any
 
 import click
 
-from ._options import belt_option
+from ._options import HiddenArgument, belt_option, number, output_option, seed_option
 
 __all__ = ["export", "run"]
 
@@ -37,7 +37,7 @@ def _given(ctx: click.Context, name: str, value: Any) -> Any:
 @belt_option()
 @click.option("--input", "input_kind", type=click.Choice(INPUTS), default=None,
               help="Cursor source [default: joystick; model with --headless].")
-@click.option("--db", type=click.Path(path_type=Path), default=Path("study.sqlite"),
+@click.option("--db", type=click.Path(dir_okay=False, path_type=Path), default=Path("study.sqlite"),
               show_default=True, help="The session store (SQLite).")
 @click.option("--resume", is_flag=True,
               help="Continue the participant's unfinished session (its stored schedule, "
@@ -46,21 +46,21 @@ def _given(ctx: click.Context, name: str, value: Any) -> Any:
               help="Start a new session even though the participant has an unfinished or "
                    "a complete one.")
 @click.option("--headless", is_flag=True, help="No window (model or scripted input only).")
-@click.option("--limit", type=click.IntRange(min=0), default=None,
-              help="Stop after N test trials (the session stays resumable).")
-@click.option("--seed", type=click.IntRange(min=0), default=None,
-              help="Randomisation seed [default: the study's session.seed].")
+@click.option("--limit", type=number(int, 0), default=None,
+              help="Stop after this many test trials (the session stays resumable).")
+@seed_option("Randomisation seed [default: the study's session.seed].")
 @click.option("--realtime", is_flag=True,
               help="Run a headless simulated session on the wall clock (real time).")
 @click.option("--fullscreen", is_flag=True, help="Open the window full screen.")
 @click.option("--screenshot", "screenshot_dir", type=click.Path(file_okay=False, path_type=Path),
-              default=None, help="Save a PNG of each kind of screen into DIR.")
+              default=None, metavar="DIRECTORY",
+              help="Save a PNG of each kind of screen into DIRECTORY.")
 @click.option("--joystick", "joystick_device", default=None,
               help="Which stick: an index or a name substring [default: the first stick "
                    "that is not a throttle].")
 @click.option("--axes", default="0,1", show_default=True,
               help="Stick axis indices for left/right and front/back.")
-@click.option("--dead-zone", type=click.FloatRange(0.0, 1.0, max_open=True), default=0.05,
+@click.option("--dead-zone", type=number(float, 0.0, 1.0, hi_open=True), default=0.05,
               show_default=True, help="Radial dead zone of the stick.")
 @click.option("--invert-x", is_flag=True, help="Mirror the stick's left/right axis.")
 @click.option("--invert-y", is_flag=True, help="Mirror the stick's front/back axis.")
@@ -130,12 +130,39 @@ def _progress_bar(label: str) -> Iterator[Callable[[int, int], None]]:
 
 @click.command("export")
 @click.argument("db", type=click.Path(dir_okay=False, path_type=Path))
-@click.argument("out", type=click.Path(file_okay=False, path_type=Path))
+@click.argument("old_out", cls=HiddenArgument, required=False,
+                type=click.Path(file_okay=False, path_type=Path))
+@output_option("directory", "New or empty directory for the files.")
 @click.option("--format", "fmt", type=click.Choice(["csv", "bids"]), default="csv",
-              show_default=True, help="Tidy CSV files, or a BIDS-style dataset.")
-def export(db: Path, out: Path, fmt: str) -> None:
-    """Export the store DB into directory OUT (trials and cursor samples)."""
+              show_default=True, help="Tidy CSV files, or a BIDS dataset (beh + motion).")
+@click.option("--force", is_flag=True,
+              help="Replace an earlier export of the same format in the output directory.")
+@click.option("--readme", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              metavar="FILE", help="BIDS: README to include [default: one describing the "
+                                   "study, the task and the columns].")
+@click.option("--authors", default=None, metavar="'A, B'",
+              help="BIDS: the dataset's authors, comma-separated.")
+def export(db: Path, old_out: Path | None, out: Path | None, fmt: str, force: bool,
+           readme: Path | None, authors: str | None) -> None:
+    """Export the store DB (trials and cursor samples) into a new directory.
+
+    Example: `tactorbelt export study.sqlite -o bids --format bids --authors "A. Author,
+    B. Author"`. A directory that is not empty is refused unless --force (which replaces
+    only an earlier export there).
+    """
     from ..experiment.export import export_bids, export_csv
 
-    files = export_csv(db, out) if fmt == "csv" else export_bids(db, out)
+    if out is not None and old_out is not None:
+        raise click.UsageError("give the output directory once, with -o DIRECTORY")
+    out = out if out is not None else old_out
+    if out is None:
+        raise click.UsageError("give the output directory with -o DIRECTORY")
+    if fmt == "csv" and (readme is not None or authors is not None):
+        raise click.UsageError("--readme and --authors are for --format bids")
+    names = [a.strip() for a in (authors or "").split(",") if a.strip()]
+    files = (export_csv(db, out, force=force) if fmt == "csv"
+             else export_bids(db, out, readme=readme, authors=names, force=force))
     click.echo(f"wrote {len(files)} files to {out}")
+    if fmt == "bids" and not names:
+        click.echo("note: no --authors given, so dataset_description.json lists none "
+                   "(the BIDS validator warns NO_AUTHORS)", err=True)

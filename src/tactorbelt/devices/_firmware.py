@@ -399,13 +399,13 @@ class FirmwareBelt(Belt, PacketSink):
         last: DeviceError | None = None
         for _ in range(INFO_ATTEMPTS):
             try:
-                reply = self._request(wire.get_info, "GET_INFO")
+                reply = self._request(wire.get_info, "the version request")
             except DeviceError as exc:
                 if self._lost is not None:
                     raise
                 last = exc
                 continue
-            info: wire.Info = self._expect(reply, wire.Info, "GET_INFO")
+            info: wire.Info = self._expect(reply, wire.Info, "the version request")
             if info.protocol_version != wire.PROTOCOL_VERSION:
                 raise ProtocolError(
                     f"the device on {self.port} speaks protocol version {info.protocol_version} "
@@ -415,7 +415,7 @@ class FirmwareBelt(Belt, PacketSink):
             return info
         raise DeviceError(
             f"no tactorbelt firmware answered on {self.port} "
-            f"({INFO_ATTEMPTS} GET_INFO requests, {self.timeout_s * 1000:.0f} ms each)"
+            f"(asked {INFO_ATTEMPTS} times for its version, {self.timeout_s * 1000:.0f} ms each)"
         ) from last
 
     # -- keep-alive --------------------------------------------------------------
@@ -490,8 +490,8 @@ class FirmwareBelt(Belt, PacketSink):
 
     def _write_stop(self) -> None:
         try:
-            reply = self._request(wire.stop_all, "STOP_ALL", max(STOP_TIMEOUT_S, self.timeout_s))
-            self._expect(reply, wire.Ack, "STOP_ALL")
+            reply = self._request(wire.stop_all, "the stop", max(STOP_TIMEOUT_S, self.timeout_s))
+            self._expect(reply, wire.Ack, "the stop")
         except DeviceError as exc:
             if not self._closing:
                 raise
@@ -539,8 +539,8 @@ class FirmwareBelt(Belt, PacketSink):
             transit_ms,
             duration_ms,
         )
-        reply = self._request(lambda seq: wire.play_target(seq, *args), "PLAY_TARGET")
-        self._expect(reply, wire.Ack, "PLAY_TARGET")
+        reply = self._request(lambda seq: wire.play_target(seq, *args), "the play command")
+        self._expect(reply, wire.Ack, "the play command")
 
     def close(self) -> None:
         """Stop the motors (best effort: a dead device is logged, not raised) and release."""
@@ -566,18 +566,18 @@ class FirmwareBelt(Belt, PacketSink):
         self._check_open()
         nonce = random.getrandbits(32)
         t0 = time.perf_counter()
-        reply = self._request(lambda seq: wire.ping(seq, nonce), "PING")
+        reply = self._request(lambda seq: wire.ping(seq, nonce), "a ping")
         rtt = time.perf_counter() - t0
-        pong: wire.Pong = self._expect(reply, wire.Pong, "PING")
+        pong: wire.Pong = self._expect(reply, wire.Pong, "a ping")
         if pong.nonce != nonce:
-            raise ProtocolError(f"the belt on {self.port} echoed the wrong PING nonce")
+            raise ProtocolError(f"the belt on {self.port} answered a ping with the wrong number")
         return rtt
 
     def status(self) -> wire.Status:
         """The device's state, error counters and output levels (GET_STATUS)."""
         self._check_open()
         status: wire.Status = self._expect(
-            self._request(wire.get_status, "GET_STATUS"), wire.Status, "GET_STATUS")
+            self._request(wire.get_status, "the status request"), wire.Status, "the status request")
         return status
 
     def set_config(self, heartbeat_ms: int, max_on_ms: int | None = None) -> None:
@@ -602,8 +602,8 @@ class FirmwareBelt(Belt, PacketSink):
             raise ConfigError(f"max_on_ms must be an integer in 100..600000, got {max_on_ms!r}")
         self._check_open()
         reply = self._request(lambda seq: wire.set_config(seq, heartbeat_ms, max_on_ms),
-                              "SET_CONFIG")
-        self._expect(reply, wire.Ack, "SET_CONFIG")
+                              "the new settings (heartbeat, longest on-time)")
+        self._expect(reply, wire.Ack, "the new settings (heartbeat, longest on-time)")
         self.heartbeat_ms = heartbeat_ms
         self._keepalive_kick.set()
 

@@ -1,12 +1,12 @@
-"""Export a store to tidy CSV files or to a BIDS-style behavioural dataset.
+"""Export a store to tidy CSV files or to a BIDS dataset (behaviour and cursor motion).
 
 CSV (:func:`export_csv`): ``sessions.csv``, ``trials.csv`` (one row per trial, with
 the participant and session number) and ``samples.csv`` (one row per cursor sample,
 with participant, session and trial index).
 
-BIDS-style (:func:`export_bids`)::
+BIDS (:func:`export_bids`), which ``bids-validator`` passes::
 
-    dataset_description.json  participants.tsv  participants.json
+    dataset_description.json  README.md  participants.tsv  participants.json
     sub-<id>/ses-<n>/beh/sub-<id>_ses-<n>_task-betweentactor_beh.tsv   (+ .json sidecar)
     sub-<id>/ses-<n>/motion/sub-<id>_ses-<n>_task-betweentactor_tracksys-cursor_motion.tsv
                                            ..._channels.tsv, ..._motion.json
@@ -14,7 +14,14 @@ BIDS-style (:func:`export_bids`)::
 ``<id>`` is the participant id with everything but letters and digits removed (BIDS
 labels are alphanumeric); two ids that collapse to the same label are an error.
 Missing values are ``n/a``. The motion file has no header; its columns are the rows
-of ``_channels.tsv`` (trial, t_s, x, y, buttons).
+of ``_channels.tsv`` (trial, latency, x, y, buttons). The recording is discontinuous
+(the cursor is sampled from stimulus onset to the response of each trial); the
+LATENCY channel is seconds from recording onset, the onset of the session's first
+trial, as the BIDS motion spec defines it.
+
+The output directory must be new or empty; ``force=True`` first removes what an
+earlier export of the same format wrote there, and refuses a directory holding
+anything else (so nothing else is ever deleted).
 
 I/O: reads a store (:func:`~tactorbelt.experiment.store.open_store`, read-only) through
 its interface and writes files; standard library only.
@@ -25,6 +32,8 @@ from __future__ import annotations
 import csv
 import json
 import re
+import shutil
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -75,7 +84,7 @@ BEH_COLUMNS: dict[str, dict[str, Any]] = {
 
 CHANNELS = [
     ("trial", "MISC", "n/a", "trial_index of the sample's trial"),
-    ("t_s", "LATENCY", "s", "time from stimulus onset"),
+    ("latency", "LATENCY", "s", "time from the onset of the session's first trial"),
     ("x", "POS", "n/a", "cursor x, right positive, ellipse radius 1"),
     ("y", "POS", "n/a", "cursor y, up (front) positive, ellipse radius 1"),
     ("buttons", "MISC", "n/a", "button bit mask"),
@@ -98,10 +107,46 @@ def _open(db: str | Path) -> Store:
     return open_store(db, create=False, readonly=True)
 
 
-def _prepare(out: str | Path) -> Path:
+#: What an export of each format writes at the top of its directory (``--force``
+#: replaces these, and refuses a directory holding anything else).
+_OWNED = {
+    "csv": ("sessions.csv", "trials.csv", "samples.csv"),
+    "bids": ("dataset_description.json", "participants.tsv", "participants.json", "README",
+             "README.md", "README.rst", "README.txt", "sub-*"),
+}
+
+
+def _prepare(out: str | Path, fmt: str, force: bool, db: str | Path) -> Path:
+    """The export directory: new or empty, or (``force``) a previous export emptied."""
     o = Path(out)
     if o.exists() and not o.is_dir():
         raise ConfigError(f"{o} exists and is not a directory; give a directory for the export")
+    if o.is_dir():
+        entries = sorted(o.iterdir())
+        if entries and not force:
+            names = ", ".join(e.name for e in entries[:4]) + (", ..." if len(entries) > 4 else "")
+            raise ConfigError(
+                f"{o} is not empty ({names}); export into a new or empty directory, or add "
+                "--force to replace an earlier export there")
+        if entries:
+            ours = [e for e in entries if any(e.match(pat) for pat in _OWNED[fmt])]
+            others = [e.name for e in entries if e not in ours]
+            if others:
+                raise ConfigError(
+                    f"{o} holds files that are not from a tactorbelt {fmt} export "
+                    f"({', '.join(others[:4])}{', ...' if len(others) > 4 else ''}); "
+                    "--force replaces only an earlier export: choose another directory")
+            db_path = Path(db).resolve()
+            if any(db_path.is_relative_to(e.resolve()) for e in ours):
+                raise ConfigError(f"the store {db} is inside {o}; choose another directory")
+            try:
+                for e in ours:
+                    if e.is_dir() and not e.is_symlink():
+                        shutil.rmtree(e)
+                    else:
+                        e.unlink()
+            except OSError as exc:
+                raise ConfigError(f"cannot replace the export in {o}: {exc.strerror}") from None
     try:
         o.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
@@ -109,8 +154,10 @@ def _prepare(out: str | Path) -> Path:
     return o
 
 
-def export_csv(db: str | Path, out: str | Path) -> list[Path]:
+def export_csv(db: str | Path, out: str | Path, *, force: bool = False) -> list[Path]:
     """Write ``sessions.csv``, ``trials.csv`` and ``samples.csv`` into directory ``out``.
+
+    ``out`` must be new or empty; ``force`` replaces an earlier CSV export there.
 
     Returns:
         The files written.
@@ -119,7 +166,7 @@ def export_csv(db: str | Path, out: str | Path) -> list[Path]:
         StoreError: the store cannot be read. ConfigError: ``out`` is not usable.
     """
     with _open(db) as store:
-        o = _prepare(out)
+        o = _prepare(out, "csv", force, db)
         sessions = store.sessions()
         by_id = {int(s["session_id"]): s for s in sessions}
         trials = sorted(store.trials(), key=lambda t: (t["session_id"], t["trial_id"]))
@@ -157,17 +204,110 @@ def _write_tsv(path: Path, header: list[str] | None, rows: Any) -> None:
             w.writerow([_na(v) for v in row])
 
 
-def export_bids(db: str | Path, out: str | Path) -> list[Path]:
-    """Write a BIDS-style behavioural dataset into directory ``out`` (see the module doc).
+def _studies(sessions: list[dict[str, Any]]) -> list[Any]:
+    """The distinct studies of the sessions (parsed from the stored study files)."""
+    from .study import Study
+
+    seen: dict[str, Any] = {}
+    for s in sessions:
+        key = s["study_sha256"] or s["study_name"]
+        if key in seen:
+            continue
+        try:
+            seen[key] = Study.from_toml(s["study_toml"])
+        except Exception:  # an older or hand-made store: the name is enough
+            seen[key] = None
+    return list(seen.values())
+
+
+def _readme(name: str, studies: list[Any], sessions: list[dict[str, Any]],
+            labels: dict[str, str]) -> str:
+    """A README describing the study, the task and every file and column."""
+    lines = [f"# {name}", "",
+             "Exported by tactorbelt from a session store "
+             f"({len(sessions)} session(s), {len(labels)} participant(s)).", ""]
+    for st in studies:
+        if st is None:
+            continue
+        if st.description.strip():
+            lines += [st.description.strip(), ""]
+        lay = st.layout_obj()
+        lines += [
+            f"## Study: {st.name}", "",
+            f"- Belt: {lay.n} vibrotactile motors (tactors) round the waist at "
+            f"{', '.join(f'{a:g}' for a in lay.angles_deg)} degrees "
+            "(0 = navel, clockwise seen from above).",
+            f"- Targets: {st.targets.count} directions, evenly spaced.",
+            f"- Stimulus: {st.stimulus.law} amplitude law (falloff {st.stimulus.falloff_deg:g} "
+            f"degrees); the dynamic condition adds a perturbation of period "
+            f"{st.stimulus.period_s:g} s.",
+            f"- Response: move the cursor from the centre of an ellipse towards the felt "
+            f"direction; a response is taken when it passes {st.response.threshold:g} of the "
+            f"radius (timeout {st.response.timeout_s:g} s).",
+            f"- Trials per session: {st.n_trials()} ({st.n_test_trials()} test).", ""]
+    lines += [
+        "## Task", "",
+        f"Task `{TASK}`: on each trial the participant feels a direction on the belt "
+        "(one tactor, or a point between two tactors rendered by the amplitudes of the two "
+        "nearest) and points to it with a joystick or mouse cursor. Training blocks show "
+        "the target on screen; test blocks do not.", "",
+        "## Files", "",
+        "- `participants.tsv`: one row per participant (`source_id` is the id typed at the "
+        "session).",
+        "- `sub-<label>/ses-<n>/beh/*_beh.tsv`: one row per trial; the columns are "
+        "described in the `_beh.json` sidecar and below.",
+        "- `sub-<label>/ses-<n>/motion/*_tracksys-cursor_motion.tsv`: the cursor samples "
+        "(no header; the columns are the rows of `_channels.tsv`). The recording is "
+        "discontinuous: the cursor is sampled from stimulus onset to the response of "
+        "each trial, and the LATENCY column `latency` counts seconds from the onset of "
+        "the session's first trial.", "",
+        "## Trial columns (`_beh.tsv`)", ""]
+    lines += [f"- `{k}`: {v['Description']}" + (f" ({v['Units']})" if "Units" in v else "")
+              for k, v in BEH_COLUMNS.items()]
+    lines += ["", "## Motion columns (`_motion.tsv`)", ""]
+    lines += [f"- `{n}` ({typ}): {d}" + (f" ({u})" if u != "n/a" else "")
+              for n, typ, u, d in CHANNELS]
+    return "\n".join(lines) + "\n"
+
+
+def _motion_rows(store: Store, session_id: int, trials: list[dict[str, Any]]
+                 ) -> Iterator[list[Any]]:
+    """Motion rows: trial, latency from the first trial's onset (6 decimals), x, y,
+    buttons."""
+    onsets = {int(t["trial_index"]): t["onset_ns"] for t in trials if t["onset_ns"] is not None}
+    start = min(onsets.values(), default=0)
+    for _sid, index, t_s, x, y, buttons in store.iter_samples(session_id):
+        onset = onsets.get(int(index), start)
+        yield [index, f"{(onset - start) / 1e9 + t_s:.6f}", repr(x), repr(y), buttons]
+
+
+def export_bids(db: str | Path, out: str | Path, *, readme: str | Path | None = None,
+                authors: Sequence[str] = (), force: bool = False) -> list[Path]:
+    """Write a BIDS behavioural and motion dataset into directory ``out`` (module doc).
+
+    Args:
+        readme: a README file to copy; default: one generated from the study files.
+        authors: the dataset's authors (``dataset_description.json``).
+        force: replace an earlier BIDS export in ``out`` (which must otherwise be new or
+            empty).
 
     Returns:
         The files written.
     """
     from .. import __version__
 
+    readme_text: str | None = None
+    readme_name = "README.md"
+    if readme is not None:
+        rp = Path(readme)
+        try:
+            readme_text = rp.read_text(encoding="utf-8")
+        except (OSError, UnicodeDecodeError) as exc:
+            why = exc.strerror if isinstance(exc, OSError) else "not UTF-8 text"
+            raise ConfigError(f"cannot read the README {rp}: {why}") from None
+        readme_name = "README" + (rp.suffix if rp.suffix in (".md", ".rst", ".txt") else "")
     written: list[Path] = []
     with _open(db) as store:
-        o = _prepare(out)
         sessions = store.sessions()
         labels: dict[str, str] = {}
         for s in sessions:
@@ -177,14 +317,24 @@ def export_bids(db: str | Path, out: str | Path) -> list[Path]:
                     f"participants {labels[lab]!r} and {s['participant']!r} both give the "
                     f"BIDS label {lab!r}; rename one of them"
                 )
-        desc = {
-            "Name": "tactorbelt between-tactor localisation",
+        o = _prepare(out, "bids", force, db)
+        studies = _studies(sessions)
+        names = list(dict.fromkeys(s["study_name"] for s in sessions if s["study_name"]))
+        name = "; ".join(names) or "tactorbelt between-tactor localisation"
+        desc: dict[str, Any] = {
+            "Name": name,
             "BIDSVersion": "1.9.0",
             "DatasetType": "raw",
-            "GeneratedBy": [{"Name": "tactorbelt", "Version": __version__}],
         }
+        if authors:
+            desc["Authors"] = list(authors)
+        desc["GeneratedBy"] = [{"Name": "tactorbelt", "Version": __version__}]
         p = o / "dataset_description.json"
         p.write_text(json.dumps(desc, indent=2) + "\n")
+        written.append(p)
+        p = o / readme_name
+        p.write_text(readme_text if readme_text is not None
+                     else _readme(name, studies, sessions, labels), encoding="utf-8")
         written.append(p)
         p = o / "participants.tsv"
         _write_tsv(p, ["participant_id", "source_id"],
@@ -220,9 +370,7 @@ def export_bids(db: str | Path, out: str | Path) -> list[Path]:
             written += [beh, bj]
             mstem = f"{stem}_tracksys-cursor"
             motion = base / "motion" / f"{mstem}_motion.tsv"
-            rows = store.iter_samples(s["session_id"])
-            _write_tsv(motion, None, ([r[1], repr(r[2]), repr(r[3]), repr(r[4]), r[5]]
-                                      for r in rows))
+            _write_tsv(motion, None, _motion_rows(store, s["session_id"], trials))
             ch = base / "motion" / f"{mstem}_channels.tsv"
             _write_tsv(ch, ["name", "component", "type", "tracked_point", "units", "description"],
                        [(n, {"x": "x", "y": "y"}.get(n, "n/a"), typ, "cursor", u, d)
@@ -237,17 +385,17 @@ def export_bids(db: str | Path, out: str | Path) -> list[Path]:
                 pass
             mj.write_text(json.dumps({
                 "TaskName": TASK,
+                "TaskDescription": "Point with a cursor to the direction felt on a "
+                                   "vibrotactile belt; the cursor is sampled from stimulus "
+                                   "onset to the response of each trial.",
                 "TrackingSystemName": "cursor",
                 "SamplingFrequency": rate,
                 "SamplingFrequencyEffective": rate,
-                "RecordingType": "epoched",
+                "RecordingType": "discontinuous",
                 "MotionChannelCount": 2,
                 "MISCChannelCount": 2,
                 "LATENCYChannelCount": 1,
                 "TrackedPointsCount": 1,
-                "Description": "Cursor position in the response ellipse during each trial, "
-                               "sampled from stimulus onset to acquisition or timeout; "
-                               "one epoch per trial (column 'trial').",
             }, indent=2) + "\n")
             written += [motion, ch, mj]
     return written

@@ -394,7 +394,9 @@ class SQLiteStore(Store):
     def _translate(p: Path, exc: sqlite3.DatabaseError) -> StoreError:
         if "not a database" in str(exc):
             return StoreError(
-                f"{p} is not an SQLite database; give a tactorbelt store or a new file name"
+                f"{p} is not an SQLite database, so not a tactorbelt store; give a store "
+                "written by 'tactorbelt run' or 'tactorbelt demo' (a run may also name a new "
+                "file, to start a store)"
             )
         if isinstance(exc, sqlite3.OperationalError):
             msg = str(exc)
