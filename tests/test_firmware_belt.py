@@ -102,7 +102,8 @@ def test_every_packet_takes_the_next_sequence_number_mod_256() -> None:
         belt.status()
     steps = np.diff(np.array(device.seqs)) % 256
     assert np.all(steps == 1)
-    assert len(device.seqs) == 1 + 300 + 1 + 1  # GET_INFO, frames, GET_STATUS, STOP_ALL
+    # GET_INFO, GET_DIAG (the extension probe), frames, GET_STATUS, STOP_ALL
+    assert len(device.seqs) == 1 + 1 + 300 + 1 + 1
 
 
 def test_play_sends_play_target_with_the_stimulus_parameters() -> None:
