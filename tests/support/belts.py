@@ -219,8 +219,11 @@ class FakeBleClient:
         fail_connect: connect() raises like an out-of-range device.
     """
 
-    def __init__(self, firmware: FakeFirmware, on_disconnect: Callable[[Any], None]) -> None:
+    def __init__(self, firmware: FakeFirmware, on_disconnect: Callable[[Any], None],
+                 mtu: int = 247) -> None:
         self.firmware = firmware
+        self.mtu_size = mtu
+        self.notifications: list[bytes] = []
         self.on_disconnect = on_disconnect
         self.address = "AA:BB:CC:DD:EE:FF"
         self.connected = False
@@ -240,6 +243,8 @@ class FakeBleClient:
         self.connected = True
 
     async def disconnect(self) -> None:
+        if self.connected:
+            self.firmware.link_closed()
         self.connected = False
         self.disconnects += 1
 
@@ -251,27 +256,47 @@ class FakeBleClient:
         if not self.connected:
             raise OSError("not connected")
         self.writes.append((char, bytes(data), response))
+        if len(data) > self.mtu_size - 3:
+            raise OSError(f"write of {len(data)} bytes exceeds the MTU")
         loop = asyncio.get_running_loop()
+        limit = self.mtu_size - 3
         for reply in self.firmware.handle(wire.decode_packet(bytes(data))):
             raw = wire.encode_packet(reply)
+            if self.firmware.flags & wire.ConfigFlag.BLE_FRAMED:  # a byte stream in pieces
+                frame = wire.encode_frame(reply)
+                for i in range(0, len(frame), limit):
+                    self._notify(loop, frame[i:i + limit])
+                continue
+            if len(raw) > limit:  # the firmware never sends what the stack would cut
+                if not self.firmware.extensions:
+                    self._notify(loop, raw[:limit])  # plain v1: cut short by the stack
+                    continue
+                raw = wire.encode_packet(wire.encode_reply(
+                    reply.seq, wire.Nak(reply.seq, wire.NakCode.REPLY_TOO_LONG)))
             if self.corrupt:
                 bad = bytearray(raw)
                 bad[2] ^= 0x55
                 loop.call_soon(self.notify, None, bad)  # type: ignore[arg-type]
                 loop.call_soon(self.notify, None, bytearray(raw[:3]))  # type: ignore[arg-type]
-            loop.call_soon(self.notify, None, bytearray(raw))  # type: ignore[arg-type]
+            self._notify(loop, raw)
+
+    def _notify(self, loop: asyncio.AbstractEventLoop, data: bytes) -> None:
+        self.notifications.append(bytes(data))
+        loop.call_soon(self.notify, None, bytearray(data))  # type: ignore[arg-type]
 
     def drop(self) -> None:
         """The device disconnects (out of range, powered off)."""
         self.connected = False
+        self.firmware.link_closed()
         self.on_disconnect(self)
 
 
 class FakeBle:
     """A client_factory that hands out FakeBleClients for one FakeFirmware."""
 
-    def __init__(self, firmware: FakeFirmware | None = None) -> None:
+    def __init__(self, firmware: FakeFirmware | None = None, mtu: int = 247) -> None:
         self.firmware = firmware or FakeFirmware()
+        self.mtu = mtu
         self.client: FakeBleClient | None = None
         self.targets: list[str] = []
         self.fail_connect = False
@@ -279,7 +304,7 @@ class FakeBle:
     async def __call__(self, target: str, on_disconnect: Callable[[Any], None],
                        scan_timeout_s: float) -> FakeBleClient:
         self.targets.append(target)
-        self.client = FakeBleClient(self.firmware, on_disconnect)
+        self.client = FakeBleClient(self.firmware, on_disconnect, self.mtu)
         self.client.fail_connect = self.fail_connect
         return self.client
 
