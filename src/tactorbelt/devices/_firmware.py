@@ -583,6 +583,9 @@ class FirmwareBelt(Belt, PacketSink):
 
     def _sync_burst(self, n: int = SYNC_BURST) -> None:
         for _ in range(n):
+            # spaced, so that a device reading its clock once per loop over waiting
+            # input (the emulator) stamps each request when it arrived
+            time.sleep(0.001)
             self._request(wire.get_diag, "GET_DIAG")
 
     def _clock_sample(self, seq: int, reply: wire.Pong | wire.Diag, recv_ns: int) -> None:
