@@ -35,6 +35,7 @@ Run alone: ``.venv/bin/python benchmarks/bench_onset.py`` (about 10 s). Skipped 
 
 from __future__ import annotations
 
+import itertools
 import json
 import os
 import select
@@ -88,7 +89,7 @@ def _offset_bracket(pty: str, pings: int = PINGS) -> tuple[int, int]:
 def _log_starts(log: Path) -> list[int]:
     """Device times (us) at which the outputs left idle (state 0 to 1 or 2)."""
     rows = [[int(v) for v in ln.split(",")[:2]] for ln in log.read_text().splitlines()[1:]]
-    return [b[0] for a, b in zip(rows, rows[1:], strict=False) if a[1] == 0 and b[1] in (1, 2)]
+    return [b[0] for a, b in itertools.pairwise(rows) if a[1] == 0 and b[1] in (1, 2)]
 
 
 def bench_onsets(n: int = N_ONSETS) -> dict[str, float]:

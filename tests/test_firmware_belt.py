@@ -285,7 +285,7 @@ def test_firmware_1_0_devices_work_without_extensions() -> None:
         assert belt.last_onset() is None
         belt.set_amplitudes([0.5] * 6)
         assert belt.status().levels == (32768,) * 6
-        with pytest.raises(TactorbeltError, match="1.1"):
+        with pytest.raises(TactorbeltError, match=r"1\.1"):
             belt.diag()
     assert not any(isinstance(r, wire.SetConfig) and r.flags is not None
                    for r in device.requests)

@@ -16,6 +16,7 @@ The emulator tests skip without g++ or make.
 
 from __future__ import annotations
 
+import itertools
 import logging
 import os
 import random
@@ -189,7 +190,7 @@ def bare_emulator(emulator_exe: Path, tmp_path: Path) -> Iterator[BareEmulator]:
 
 def _starts(rows: list[list[int]]) -> list[int]:
     """Device times (us) at which the emulator started playing (state 2 from another)."""
-    return [b[0] for a, b in zip(rows, rows[1:], strict=False) if b[1] == 2 and a[1] != 2]
+    return [b[0] for a, b in itertools.pairwise(rows) if b[1] == 2 and a[1] != 2]
 
 
 @pytest.mark.emulator

@@ -407,8 +407,8 @@ def test_message_codes_are_the_contract() -> None:
 
 
 def _ext_vectors() -> dict[str, object]:
-    from pathlib import Path
     import json
+    from pathlib import Path
 
     path = Path(__file__).resolve().parents[1] / "firmware" / "test" / "vectors_ext.json"
     data: dict[str, object] = json.loads(path.read_text())
