@@ -243,3 +243,29 @@ def test_a_hang_resets_the_emulator_by_its_watchdog_and_the_belt_reports_it(
         assert belt.last_onset() is not None  # ONSET events on again
     assert any("watchdog" in r.getMessage() and r.levelno == logging.WARNING
                for r in caplog.records)
+
+
+# --- the store: two nullable trial columns, added to older stores on open ------------------
+
+
+def test_trials_keep_device_onsets_and_older_stores_gain_the_columns(tmp_path: Path) -> None:
+    import sqlite3
+
+    from support.stores import make_result, make_session
+
+    db = tmp_path / "old.sqlite"
+    with Store.open(db) as store:
+        sid = make_session(store)
+        store.write_trial(sid, make_result(0))  # no device onset: NULL
+    conn = sqlite3.connect(db)  # a store written before the columns existed
+    conn.execute("ALTER TABLE trials DROP COLUMN device_onset_ns")
+    conn.execute("ALTER TABLE trials DROP COLUMN onset_uncertainty_ns")
+    conn.commit()
+    conn.close()
+    with Store.open(db) as store:
+        r = make_result(1)
+        r.device_onset_ns, r.onset_uncertainty_ns = 1_000_123_456, 42_000
+        store.write_trial(sid, r)
+        rows = store.trials(sid)
+    assert [(t["device_onset_ns"], t["onset_uncertainty_ns"]) for t in rows] == [
+        (None, None), (1_000_123_456, 42_000)]
