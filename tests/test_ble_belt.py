@@ -132,3 +132,11 @@ def test_ble_plain_v1_at_a_small_mtu_warns(caplog: pytest.LogCaptureFixture) -> 
         assert not belt.framed_replies  # type: ignore[attr-defined]
         assert belt.n_tactors == 3  # INFO of 3 tactors fits 20 bytes
     assert any("MTU" in r.getMessage() for r in caplog.records)
+
+
+def test_a_write_longer_than_the_mtu_fails_with_the_mtu_named() -> None:
+    fake = FakeBle(FakeFirmware(tactors=10, extensions=True), mtu=23)
+    with open_belt("ble:tactorbelt", client_factory=fake) as belt:
+        assert belt.n_tactors == 10  # INFO of 10 tactors (34 bytes) came framed
+        with pytest.raises(DeviceError, match="ATT MTU 23"):
+            belt.set_amplitudes([0.5] * 10)  # 24 bytes: one write cannot carry it

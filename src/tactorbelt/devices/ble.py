@@ -285,18 +285,19 @@ class BleTransport(Transport):
     def write(self, data: bytes) -> None:
         if self._closing:
             raise DeviceError(f"{self.port} is closed")
-        if len(data) > self.reply_limit:
-            raise DeviceError(
-                f"a {len(data)}-byte request does not fit one write on {self.port} "
-                f"(ATT MTU {self.mtu}: at most {self.reply_limit} bytes); the adapter "
-                f"must negotiate an MTU of at least {MIN_ATT_MTU}")
+
         try:
             run_on_loop(self._client.write_gatt_char(RX_CHAR_UUID, data, response=False),
                         self._write_timeout_s, f"writing to {self.port}")
         except DeviceError:
             raise
         except Exception as exc:
-            raise DeviceError(f"write to {self.port} failed: {_describe(exc)}") from None
+            hint = ""
+            if len(data) > self.reply_limit:
+                hint = (f" (a {len(data)}-byte request; the link reported ATT MTU {self.mtu}, "
+                        f"at most {self.reply_limit} bytes per write: the adapter must "
+                        f"negotiate an MTU of at least {MIN_ATT_MTU})")
+            raise DeviceError(f"write to {self.port} failed: {_describe(exc)}{hint}") from None
 
     def start(self, sink: PacketSink) -> None:
         self._sink = sink
