@@ -257,7 +257,14 @@ class FirmwareBelt(Belt, PacketSink):
         info: what GET_INFO reported.
         port: the link's name.
         heartbeat_ms: the device's heartbeat timeout in use.
+        max_on_ms: the continuous-on limit this belt last set (30000 until it sets one).
         stream_rate_hz: the streaming rate for this link.
+        extensions: the firmware answered GET_DIAG (1.1: DIAG, ONSET, SET_CONFIG flags).
+        diagnostics: the last DIAG (None without extensions).
+        watchdog_reset: the device was reset by its watchdog (before or while open).
+        onset_events: ONSET events are on (see :meth:`last_onset`).
+        framed_replies: BLE replies come as COBS frames (an MTU below 67).
+        clock_sync: the device-to-host clock mapping (:class:`ClockSync`).
 
     Raises:
         ProtocolError: the device speaks another protocol version, or garbles INFO.
