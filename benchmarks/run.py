@@ -67,6 +67,10 @@ GOALS = [
     Goal("cli_help_vs_python", None, None, None, "x", "baseline: python -c pass"),
     Goal("window_sample_p99_ms", None, "<=", 1.0, "ms",
          "OS wake-up latency of the 100 Hz loop while the window draws at 60 Hz"),
+    Goal("onset_device_p99_ms", "onset_host_p99_ms", "<=", 0.5, "ms",
+         "the clock fit's offset error: asymmetry of the fastest round trips"),
+    Goal("onset_host_vs_device", None, ">=", 4.0, "x",
+         "baseline: the host-only stamp (Player.start), late by link latency and frame work"),
 ]
 
 

@@ -1,18 +1,23 @@
 #!/usr/bin/env python3
-"""Write firmware/test/vectors.json: what the Python package says the firmware must do.
+"""Write firmware/test/vectors.json and vectors_ext.json: what the Python package says
+the firmware must do.
 
-The C++ host tests (``make -C firmware test``) read the file and check, byte for byte,
+The C++ host tests (``make -C firmware test``) read the files and check, byte for byte,
 CRCs, COBS encodings, frames of every message and the frame decoder's verdicts on
 damaged streams; a scripted exchange with the controller (replies byte for byte);
 and rendered amplitudes (within 2/65535) for targets, modes, laws and times on the
 default 6-tactor layout, an 8-tactor layout and an uneven layout.
 
+``vectors_ext.json`` holds the protocol extensions (docs/protocol.md, "Extensions"):
+GET_DIAG/DIAG, ONSET, the SET_CONFIG flags byte, NAK 5, a scripted exchange with
+ONSET events, and the BLE reply paths (refused, unframed, framed in MTU pieces).
+
 The sources of truth are ``tactorbelt.devices.wire`` and ``tactorbelt.stimuli``.
 ``tests/test_firmware_vectors.py`` fails when the committed file no longer matches.
 
 Usage:
-    python scripts/gen_firmware_vectors.py            # rewrite the file
-    python scripts/gen_firmware_vectors.py --check    # exit 1 when it is stale
+    python scripts/gen_firmware_vectors.py            # rewrite both files
+    python scripts/gen_firmware_vectors.py --check    # exit 1 when either is stale
 """
 
 from __future__ import annotations
@@ -29,11 +34,16 @@ import numpy as np
 from tactorbelt.devices import wire
 from tactorbelt.devices.wire import (
     Ack,
+    ConfigFlag,
+    Diag,
     Info,
+    MsgType,
     Nak,
     NakCode,
+    Onset,
     Packet,
     Pong,
+    ResetFlag,
     State,
     Status,
 )
@@ -42,6 +52,7 @@ from tactorbelt.stimuli import make_stimulus
 
 ROOT = Path(__file__).resolve().parents[1]
 VECTORS = ROOT / "firmware" / "test" / "vectors.json"
+EXT_NAME = "vectors_ext.json"
 FORMAT = 1
 DECIMALS = 9
 
@@ -50,7 +61,7 @@ LAWS = ("paper", "linear", "energy")
 
 # What the firmware reports for itself (firmware/tactorbelt/src/core/protocol.h) and
 # what the exchange below runs against (6 tactors, default layout, 800 PWM steps).
-FW_VERSION = (1, 0, 0)
+FW_VERSION = (1, 1, 0)
 EXCHANGE_PWM_STEPS = 800
 
 
@@ -129,6 +140,11 @@ def frame_vectors() -> list[dict[str, Any]]:
         ("pong", wire.encode_reply(0, Pong(0xDEADBEEF, 123456789))),
         ("info", wire.encode_reply(1, default_info())),
         ("status", wire.encode_reply(2, Status(State.FAILSAFE, 1, 2, 3, 4, (0, 1, 2, 3, 4, 5)))),
+        ("get_diag", wire.get_diag(5)),
+        ("set_config", wire.set_config(9, 250, 30000, ConfigFlag.ONSET_EVENTS)),
+        ("diag", wire.encode_reply(5, Diag(0x123456789, ResetFlag.WATCHDOG, 3, 1))),
+        ("onset", wire.encode_reply(7, Onset(7, MsgType.PLAY_TARGET, 4_000_000))),
+        ("nak", wire.encode_reply(9, Nak(9, NakCode.REPLY_TOO_LONG))),
         ("unknown", Packet(0x7F, 0x00, b"\x00\x00\x00")),
         ("max_payload", Packet(0x10, 0x00, bytes(range(60)))),
     ]
@@ -344,6 +360,105 @@ def render_vectors() -> list[dict[str, Any]]:
     return cases
 
 
+# --- the extensions (vectors_ext.json) ------------------------------------------------------
+
+
+def ext_packet_vectors() -> list[dict[str, Any]]:
+    flags = ConfigFlag.ONSET_EVENTS | ConfigFlag.BLE_FRAMED
+    entries = [
+        ("GET_DIAG seq 5", wire.get_diag(5)),
+        ("DIAG seq 5: device time 0x0000000123456789 us, reset watchdog, 3 TX dropped, "
+         "1 BLE refused", wire.encode_reply(5, Diag(0x123456789, ResetFlag.WATCHDOG, 3, 1))),
+        ("ONSET seq 7 of PLAY_TARGET at 4000000 us",
+         wire.encode_reply(7, Onset(7, MsgType.PLAY_TARGET, 4_000_000))),
+        ("SET_CONFIG seq 8: 250 ms, 30000 ms, flags 0x03 (onset events, BLE framed)",
+         wire.set_config(8, 250, 30000, flags)),
+        ("NAK seq 9 code 5 (reply too long for the BLE MTU)",
+         wire.encode_reply(9, Nak(9, NakCode.REPLY_TOO_LONG))),
+    ]
+    return [_frame_entry(name, p) for name, p in entries]
+
+
+def ext_exchange_vectors() -> dict[str, Any]:
+    """A scripted session with ONSET events on, off, and the extension NAKs."""
+    steps: list[dict[str, Any]] = []
+
+    def step(t_us: int, note: str, request: Packet, replies: list[Packet]) -> None:
+        steps.append({
+            "t_us": t_us,
+            "note": note,
+            "input": _hex(wire.encode_frame(request)),
+            "output": _hex(b"".join(wire.encode_frame(r) for r in replies)),
+        })
+
+    def ack(seq: int) -> Packet:
+        return wire.encode_reply(seq, Ack(seq))
+
+    def nak(seq: int, code: NakCode) -> Packet:
+        return wire.encode_reply(seq, Nak(seq, code))
+
+    def onset(seq: int, kind: MsgType, t_us: int) -> Packet:
+        return wire.encode_reply(seq, Onset(seq, kind, t_us))
+
+    levels = (1000, 0, 0, 0, 0, 2000)
+    play = (4500, 1, 0, 1500, 1000, 100, 0)
+    on = ConfigFlag.ONSET_EVENTS
+    step(1_000, "SET_CONFIG with flags: onset events on", wire.set_config(0, 250, 30000, on),
+         [ack(0)])
+    step(2_000, "first SET_AMPLITUDES after idle: ONSET", wire.set_amplitudes(1, levels),
+         [onset(1, MsgType.SET_AMPLITUDES, 2_000)])
+    step(3_000, "SET_AMPLITUDES while streaming: no ONSET", wire.set_amplitudes(2, levels), [])
+    step(4_000, "PLAY_TARGET: ACK, then ONSET", wire.play_target(3, *play),
+         [ack(3), onset(3, MsgType.PLAY_TARGET, 4_000)])
+    step(5_000, "GET_DIAG", wire.get_diag(4),
+         [wire.encode_reply(4, Diag(5_000, 0, 0, 0))])
+    step(6_000, "an unknown flag: NAK 4, nothing changes", wire.set_config(5, 250, 30000, 0x04),
+         [nak(5, NakCode.OUT_OF_RANGE)])
+    step(7_000, "GET_DIAG with a payload: NAK 3", Packet(MsgType.GET_DIAG, 6, b"\x00"),
+         [nak(6, NakCode.BAD_LENGTH)])
+    step(8_000, "DEBUG_HANG without a debug hook: NAK 2", Packet(0x7E, 7),
+         [nak(7, NakCode.UNKNOWN_TYPE)])
+    step(9_000, "STOP_ALL", wire.stop_all(8), [ack(8)])
+    step(10_000, "SET_AMPLITUDES after STOP_ALL: ONSET again", wire.set_amplitudes(9, levels),
+         [onset(9, MsgType.SET_AMPLITUDES, 10_000)])
+    step(11_000, "flags off", wire.set_config(10, 250, 30000, 0), [ack(10)])
+    step(12_000, "STOP_ALL", wire.stop_all(11), [ack(11)])
+    step(13_000, "PLAY_TARGET without the flag: ACK only", wire.play_target(12, *play),
+         [ack(12)])
+    return {"tactors": 6, "pwm_steps": EXCHANGE_PWM_STEPS, "steps": steps}
+
+
+def ext_ble_vectors() -> dict[str, Any]:
+    """GET_INFO on BLE: refused (NAK 5) at MTU 23, whole at MTU 33, framed in pieces."""
+    info = wire.encode_reply(1, default_info())
+    framed = wire.encode_frame(info)
+    chunk = 23 - 3
+    return {
+        "note": "GET_INFO (seq 1) on BLE, 6 tactors: the INFO packet is "
+                f"{len(wire.encode_packet(info))} bytes",
+        "request": _hex(wire.encode_packet(wire.get_info(1))),
+        "info_packet": _hex(wire.encode_packet(info)),
+        "mtu_23_unframed": [_hex(wire.encode_packet(
+            wire.encode_reply(1, Nak(1, NakCode.REPLY_TOO_LONG))))],
+        "mtu_33_unframed": [_hex(wire.encode_packet(info))],
+        "mtu_23_framed": [_hex(framed[i:i + chunk]) for i in range(0, len(framed), chunk)],
+    }
+
+
+def build_ext_vectors() -> dict[str, Any]:
+    """The extensions' vectors (firmware/test/vectors_ext.json)."""
+    return {
+        "format": FORMAT,
+        "generated_by": "scripts/gen_firmware_vectors.py (do not edit by hand)",
+        "about": "Protocol v1 extensions (docs/protocol.md, 'Extensions'): GET_DIAG/DIAG, "
+                 "ONSET, the SET_CONFIG flags byte, NAK 5 and BLE chunking; checked by the "
+                 "firmware host tests (test/test_extensions.cpp).",
+        "packets": ext_packet_vectors(),
+        "exchange": ext_exchange_vectors(),
+        "ble": ext_ble_vectors(),
+    }
+
+
 def build_vectors() -> dict[str, Any]:
     """Everything the firmware tests check, as plain JSON values."""
     return {
@@ -391,17 +506,22 @@ def dumps(vectors: dict[str, Any]) -> str:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--check", action="store_true", help="exit 1 when the file is stale")
-    parser.add_argument("-o", "--output", type=Path, default=VECTORS)
+    parser.add_argument("-o", "--output", type=Path, default=VECTORS,
+                        help=f"vectors.json; {EXT_NAME} goes next to it")
     args = parser.parse_args(argv)
-    text = dumps(build_vectors())
+    files = [(args.output, dumps(build_vectors())),
+             (args.output.with_name(EXT_NAME), dumps(build_ext_vectors()))]
     if args.check:
-        current = args.output.read_text() if args.output.exists() else ""
-        if current != text:
-            print(f"{args.output} is stale; run scripts/gen_firmware_vectors.py", file=sys.stderr)
-            return 1
-        return 0
-    args.output.write_text(text)
-    print(f"wrote {args.output} ({len(text)} bytes)")
+        stale = 0
+        for path, text in files:
+            current = path.read_text() if path.exists() else ""
+            if current != text:
+                print(f"{path} is stale; run scripts/gen_firmware_vectors.py", file=sys.stderr)
+                stale = 1
+        return stale
+    for path, text in files:
+        path.write_text(text)
+        print(f"wrote {path} ({len(text)} bytes)")
     return 0
 
 

@@ -94,3 +94,49 @@ def test_uuids_and_name_match_the_firmware_sketch() -> None:
     assert consts["kRxUuid"] == ble.RX_CHAR_UUID
     assert consts["kTxUuid"] == ble.TX_CHAR_UUID
     assert consts["kDeviceName"] == ble.DEVICE_NAME
+
+
+# --- the ATT MTU: framed replies below 67 (firmware 1.1) ------------------------------------
+
+
+@pytest.mark.parametrize("mtu", [23, 247])
+def test_ble_belt_works_at_any_mtu_with_firmware_1_1(mtu: int) -> None:
+    fake = FakeBle(FakeFirmware(extensions=True), mtu=mtu)
+    with open_belt("ble:tactorbelt", client_factory=fake) as belt:
+        assert isinstance(belt, FirmwareBelt)
+        assert belt.framed_replies == (mtu < 67)
+        assert belt.layout == Layout.even(6)  # INFO (26 bytes) arrived
+        assert belt.status().levels == (0,) * 6  # STATUS of 6 tactors (25 bytes)
+        belt.play(make_stimulus(belt.layout, 45.0, mode="dynamic"), 1.0)
+        assert belt.last_onset() is not None
+        belt.set_amplitudes([0.5] * 6)
+        assert belt.status().levels == (32768,) * 6
+        assert belt.host_crc_errors == 0 and belt.host_framing_errors == 0
+    client = fake.client
+    assert client is not None
+    assert all(len(n) <= mtu - 3 for n in client.notifications)
+    if mtu < 67:  # framing asked for before GET_INFO, with the flags byte
+        kinds = [type(r) for r in fake.firmware.requests]
+        assert kinds[:3] == [wire.GetDiag, wire.SetConfig, wire.GetInfo]
+        assert any(len(n) == mtu - 3 and 0 not in n for n in client.notifications)
+    else:  # one unframed packet per notification
+        assert all(wire.decode_packet(n) for n in client.notifications)
+
+
+def test_ble_plain_v1_at_a_small_mtu_warns(caplog: pytest.LogCaptureFixture) -> None:
+    import logging
+
+    fake = FakeBle(FakeFirmware(tactors=3, fw_version=(1, 0, 0)), mtu=23)
+    with caplog.at_level(logging.WARNING, logger="tactorbelt.devices"), open_belt(
+            "ble:tactorbelt", client_factory=fake) as belt:
+        assert not belt.framed_replies  # type: ignore[attr-defined]
+        assert belt.n_tactors == 3  # INFO of 3 tactors fits 20 bytes
+    assert any("MTU" in r.getMessage() for r in caplog.records)
+
+
+def test_a_write_longer_than_the_mtu_fails_with_the_mtu_named() -> None:
+    fake = FakeBle(FakeFirmware(tactors=10, extensions=True), mtu=23)
+    with open_belt("ble:tactorbelt", client_factory=fake) as belt:
+        assert belt.n_tactors == 10  # INFO of 10 tactors (34 bytes) came framed
+        with pytest.raises(DeviceError, match="ATT MTU 23"):
+            belt.set_amplitudes([0.5] * 10)  # 24 bytes: one write cannot carry it

@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 
 from support.belts import wait_for
-from tactorbelt import DeviceError, Layout
+from tactorbelt import ConfigError, DeviceError, Layout
 from tactorbelt.devices import open_belt, wire
 from tactorbelt.devices.emulator import EmulatorBelt, build_emulator, firmware_dir
 from tactorbelt.stimuli import make_stimulus
@@ -51,6 +51,24 @@ def test_get_info_gives_the_layout_and_version(emu: EmulatorBelt) -> None:
     assert emu.can_render()
     assert emu.stream_rate_hz == 1000.0
     assert emu.pty_path in emu.name
+
+
+def test_the_emulator_has_the_extensions_and_reports_onsets(emu: EmulatorBelt) -> None:
+    """Firmware 1.1.0: GET_DIAG answered, ONSET events on, no watchdog reset reported."""
+    assert emu.firmware_version == "1.1.0"
+    assert emu.extensions and emu.reports_onsets and not emu.watchdog_reset
+    assert emu.diagnostics is not None and emu.diagnostics.reset_flags == 0
+    t0 = time.perf_counter_ns()
+    emu.play(make_stimulus(emu.layout, 45.0, mode="dynamic"))
+    onset = emu.last_onset()
+    assert onset is not None
+    host_ns, uncertainty_ns = onset
+    # after the request was built, and long before now (a loaded machine: 1 s of room)
+    assert t0 - uncertainty_ns <= host_ns <= time.perf_counter_ns() + uncertainty_ns
+    assert 0 < uncertainty_ns < 50_000_000
+    assert emu.unmatched_replies == 0 and emu.bad_replies == 0
+    with pytest.raises(ConfigError, match="debug_frames"):
+        emu.hang()  # DEBUG_HANG needs an emulator started with --debug-frames
 
 
 def test_tactor_count_and_heartbeat_options(emulator_built: Path) -> None:

@@ -102,7 +102,8 @@ def test_every_packet_takes_the_next_sequence_number_mod_256() -> None:
         belt.status()
     steps = np.diff(np.array(device.seqs)) % 256
     assert np.all(steps == 1)
-    assert len(device.seqs) == 1 + 300 + 1 + 1  # GET_INFO, frames, GET_STATUS, STOP_ALL
+    # GET_INFO, GET_DIAG (the extension probe), frames, GET_STATUS, STOP_ALL
+    assert len(device.seqs) == 1 + 1 + 300 + 1 + 1
 
 
 def test_play_sends_play_target_with_the_stimulus_parameters() -> None:
@@ -265,3 +266,92 @@ def test_fake_firmware_replies_roundtrip_through_wire() -> None:
     info = wire.parse_reply(FakeFirmware().handle(wire.get_info(5))[0])
     assert isinstance(info, wire.Info)
     assert info.channels == 6 and info.can_play_target
+
+
+# --- extensions (firmware 1.1): GET_DIAG probe, watchdog report, ONSET events --------------
+
+#: FakeFirmware's device clock runs this far ahead of time.perf_counter_ns (in us).
+_FAKE_EPOCH_US = 3_600_000_000
+
+
+def test_firmware_1_0_devices_work_without_extensions() -> None:
+    """A 1.0.0 device NAKs GET_DIAG with code 2: no flags, no onsets, behaviour as v1."""
+    belt, device, _ = open_fake(FakeFirmware(fw_version=(1, 0, 0)))
+    with belt:
+        assert belt.firmware_version == "1.0.0"
+        assert not belt.extensions and not belt.reports_onsets
+        assert belt.diagnostics is None
+        belt.play(make_stimulus(belt.layout, 45.0, mode="dynamic"), 1.0)
+        assert belt.last_onset() is None
+        belt.set_amplitudes([0.5] * 6)
+        assert belt.status().levels == (32768,) * 6
+        with pytest.raises(TactorbeltError, match=r"1\.1"):
+            belt.diag()
+    assert not any(isinstance(r, wire.SetConfig) and r.flags is not None
+                   for r in device.requests)
+    assert belt.unsolicited_naks == 0 and belt.unmatched_replies == 0
+
+
+@pytest.mark.parametrize("version", [(1, 1, 0), (1, 1, 7)])
+def test_firmware_1_1_turns_onset_events_on_and_reports_device_onsets(
+        version: tuple[int, int, int]) -> None:
+    belt, device, _ = open_fake(FakeFirmware(extensions=True, fw_version=version))
+    with belt:
+        assert belt.extensions and belt.reports_onsets
+        assert device.flags == wire.ConfigFlag.ONSET_EVENTS
+        assert isinstance(belt.diagnostics, wire.Diag) and not belt.watchdog_reset
+        assert len(belt.clock_sync) >= 8  # the GET_DIAG burst on open
+        stim = make_stimulus(belt.layout, 45.0, mode="dynamic")
+        for start in ("play", "stream"):
+            if start == "play":
+                belt.play(stim, 1.0)
+            else:
+                belt.set_amplitudes([0.25] * 6)  # the first frame after stop: an ONSET
+                belt.set_amplitudes([0.5] * 6)  # streaming on: none
+            onset = belt.last_onset()
+            assert onset is not None
+            host_ns, uncertainty_ns = onset
+            seq = device.seqs[-2] if start == "stream" else device.seqs[-1]
+            true_ns = (device.onset_times_us[seq] - _FAKE_EPOCH_US) * 1000
+            assert abs(host_ns - true_ns) <= max(uncertainty_ns, 50_000)
+            assert 0 < uncertainty_ns < 5_000_000
+            belt.stop()
+        assert len(device.onset_times_us) == 2
+    assert belt.unmatched_replies == 0 and belt.bad_replies == 0
+
+
+def test_a_watchdog_reset_is_reported_on_open(caplog: pytest.LogCaptureFixture) -> None:
+    with caplog.at_level(logging.WARNING, logger="tactorbelt.devices"):
+        belt, _, _ = open_fake(FakeFirmware(extensions=True, reset_flags=0x02))
+    with belt:
+        assert belt.watchdog_reset
+        assert belt.diagnostics is not None and belt.diagnostics.watchdog_reset
+        assert belt.info.capabilities & wire.Capability.WATCHDOG_RESET
+    assert any("watchdog" in r.getMessage() and r.levelno == logging.WARNING
+               for r in caplog.records)
+
+
+def test_a_watchdog_reset_while_open_is_reported_and_the_flags_set_again(
+        caplog: pytest.LogCaptureFixture) -> None:
+    belt, device, _ = open_fake(FakeFirmware(extensions=True))
+    with belt, caplog.at_level(logging.WARNING, logger="tactorbelt.devices"):
+        assert not belt.watchdog_reset
+        device.reset_flags, device.flags = 0x02, 0  # the device rebooted: flags gone
+        belt.diag()
+        assert belt.watchdog_reset
+        assert device.flags == wire.ConfigFlag.ONSET_EVENTS  # set again
+        belt.play(make_stimulus(belt.layout, 45.0), 1.0)
+        assert belt.last_onset() is not None
+    assert any("watchdog" in r.getMessage() for r in caplog.records)
+
+
+def test_a_reply_too_long_for_the_mtu_is_a_clear_error() -> None:
+    class SmallMtu(FakeFirmware):
+        def _answer(self, seq: int, req: wire.Request) -> wire.Reply | None:
+            if isinstance(req, wire.GetStatus):
+                return wire.Nak(seq, wire.NakCode.REPLY_TOO_LONG)
+            return super()._answer(seq, req)
+
+    belt, _, _ = open_fake(SmallMtu(extensions=True))
+    with belt, pytest.raises(DeviceError, match="MTU"):
+        belt.status()

@@ -301,6 +301,8 @@ replies = st.one_of(
     statuses,
     st.builds(Ack, u8, st.just(0)),
     st.builds(Nak, u8, st.sampled_from(NakCode)),
+    st.builds(wire.Diag, st.integers(0, (1 << 64) - 1), u8, u16, u16),
+    st.builds(wire.Onset, u8, u8, st.integers(0, (1 << 64) - 1)),
 )
 
 
@@ -391,8 +393,63 @@ def test_message_codes_are_the_contract() -> None:
     assert {m.name: m.value for m in MsgType} == {
         "PING": 0x01, "GET_INFO": 0x02, "SET_AMPLITUDES": 0x10, "STOP_ALL": 0x11,
         "PLAY_TARGET": 0x12, "HEARTBEAT": 0x14, "SET_CONFIG": 0x15, "GET_STATUS": 0x16,
-        "ACK": 0x80, "PONG": 0x81, "INFO": 0x82, "STATUS": 0x83, "NAK": 0x8F,
+        "GET_DIAG": 0x17, "ACK": 0x80, "PONG": 0x81, "INFO": 0x82, "STATUS": 0x83,
+        "DIAG": 0x84, "ONSET": 0x85, "NAK": 0x8F,
     }
-    assert [c.value for c in NakCode] == [2, 3, 4]
+    assert [c.value for c in NakCode] == [2, 3, 4, 5]
+    assert (wire.Capability.WATCHDOG_RESET, wire.ResetFlag.WATCHDOG) == (0x80, 0x02)
+    assert (wire.ConfigFlag.ONSET_EVENTS, wire.ConfigFlag.BLE_FRAMED) == (0x01, 0x02)
     assert [s.value for s in State] == [0, 1, 2, 3]
     assert (wire.PROTOCOL_VERSION, wire.MAX_PACKET) == (1, 64)
+
+
+# --- extensions (docs/protocol.md "Extensions"; firmware/test/vectors_ext.json) ------------
+
+
+def _ext_vectors() -> dict[str, object]:
+    import json
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "firmware" / "test" / "vectors_ext.json"
+    data: dict[str, object] = json.loads(path.read_text())
+    return data
+
+
+def test_extension_messages_match_the_firmware_vectors() -> None:
+    """The hand-checked bytes of docs/protocol.md: GET_DIAG, DIAG, ONSET, flags, NAK 5."""
+    assert wire.get_diag(5) == Packet(0x17, 5)
+    assert wire.encode_frame(wire.get_diag(5)).hex() == "0517054ed700"
+    flags = wire.ConfigFlag.ONSET_EVENTS | wire.ConfigFlag.BLE_FRAMED
+    assert wire.encode_packet(wire.set_config(8, 250, 30000, flags)).hex() == (
+        "1508fa003075000003f13c")
+    diag = wire.parse_reply(wire.decode_packet(bytes.fromhex("840589674523010000000203000100c105")))
+    assert diag == wire.Diag(0x123456789, 0x02, 3, 1)
+    assert isinstance(diag, wire.Diag) and diag.watchdog_reset
+    onset = wire.parse_reply(wire.decode_packet(bytes.fromhex("8507071200093d000000000024ca")))
+    assert onset == wire.Onset(7, wire.MsgType.PLAY_TARGET, 4_000_000)
+    nak = wire.parse_reply(wire.decode_packet(bytes.fromhex("8f090905baf9")))
+    assert nak == Nak(9, NakCode.REPLY_TOO_LONG)
+    vectors = _ext_vectors()
+    packets = vectors["packets"]
+    assert isinstance(packets, list)
+    for v in packets:
+        p = Packet(v["type"], v["seq"], bytes.fromhex(v["payload"]))
+        assert wire.encode_packet(p).hex() == v["packet"], v["name"]
+        assert wire.encode_frame(p).hex() == v["frame"], v["name"]
+
+
+def test_set_config_flags_round_trip() -> None:
+    p = wire.set_config(3, 300, 20000, wire.ConfigFlag.ONSET_EVENTS)
+    assert p.payload == struct.pack("<HIB", 300, 20000, 1)
+    assert wire.parse_request(p) == wire.SetConfig(300, 20000, 1)
+    with pytest.raises(ConfigError, match="max_on_ms"):
+        wire.set_config(3, 300, None, 1)
+    with pytest.raises(ConfigError, match="flags"):
+        wire.set_config(3, 300, 20000, 256)
+    assert wire.parse_request(wire.get_diag(4)) == wire.GetDiag()
+    with pytest.raises(ProtocolError, match="GET_DIAG"):
+        wire.parse_request(Packet(0x17, 0, b"\x00"))
+    with pytest.raises(ProtocolError, match="DIAG"):
+        wire.parse_reply(Packet(0x84, 0, bytes(12)))
+    with pytest.raises(ProtocolError, match="ONSET"):
+        wire.parse_reply(Packet(0x85, 0, bytes(11)))

@@ -34,6 +34,11 @@ class FakeFirmware:
         seqs: their sequence numbers.
         extra_replies: a function of the request packet giving packets to send
             before the real reply (garbage, stale replies, ...).
+        extensions: firmware 1.1 (GET_DIAG, ONSET events, SET_CONFIG flags); without,
+            a plain 1.0.0 device that NAKs GET_DIAG with code 2.
+        reset_flags: what DIAG reports as the cause of the last reset.
+        flags: the SET_CONFIG flags in force (per connection).
+        onset_times_us: the device time of every ONSET sent, by request seq.
     """
 
     tactors: int = 6
@@ -48,6 +53,18 @@ class FakeFirmware:
     state: wire.State = wire.State.IDLE
     extra_replies: Callable[[wire.Packet], list[wire.Packet]] | None = None
     got_request: threading.Event = field(default_factory=threading.Event)
+    extensions: bool = False
+    reset_flags: int = 0
+    flags: int = 0
+    max_on_ms: int = 30000
+    onset_times_us: dict[int, int] = field(default_factory=dict)
+
+    #: what INFO reports as the firmware version
+    fw_version: tuple[int, int, int] = (1, 2, 3)
+
+    def now_us(self) -> int:
+        """The device clock: microseconds of time.perf_counter_ns (offset by an hour)."""
+        return time.perf_counter_ns() // 1000 + 3_600_000_000
 
     def __post_init__(self) -> None:
         if self.angles_deg is None:
@@ -63,6 +80,14 @@ class FakeFirmware:
         """The replies to one request packet."""
         if self.silent:
             return []
+        if packet.type == wire.MsgType.GET_DIAG and not self.extensions:
+            with self._lock:
+                self.seqs.append(packet.seq)  # NAKed, but a valid packet for seq tracking
+            return [wire.encode_reply(packet.seq, wire.Nak(packet.seq,
+                                                           wire.NakCode.UNKNOWN_TYPE))]
+        if (packet.type == wire.MsgType.SET_CONFIG and len(packet.payload) == 7
+                and not self.extensions):
+            return [wire.encode_reply(packet.seq, wire.Nak(packet.seq, wire.NakCode.BAD_LENGTH))]
         try:
             req = wire.parse_request(packet)
         except ProtocolError:
@@ -74,19 +99,37 @@ class FakeFirmware:
             self.seqs.append(packet.seq)
         self.got_request.set()
         out = list(self.extra_replies(packet)) if self.extra_replies else []
+        before = self.state
+        t_us = self.now_us()
         reply = self._answer(packet.seq, req)
         if reply is not None:
             out.append(wire.encode_reply(packet.seq, reply))
+        starts = isinstance(req, wire.PlayTarget) or (
+            isinstance(req, wire.SetAmplitudes) and before != wire.State.STREAMING)
+        if starts and self.flags & wire.ConfigFlag.ONSET_EVENTS:
+            self.onset_times_us[packet.seq] = t_us
+            out.append(wire.encode_reply(packet.seq, wire.Onset(packet.seq, packet.type, t_us)))
         return out
+
+    def link_closed(self) -> None:
+        """The connection ends: flags cleared (and the outputs off)."""
+        self.flags = 0
+        self.levels = [0] * self.tactors
+        self.state = wire.State.IDLE
 
     def _answer(self, seq: int, req: wire.Request) -> wire.Reply | None:
         ack = wire.Ack(seq, 0)
         if isinstance(req, wire.Ping):
-            return wire.Pong(req.nonce, int(time.monotonic() * 1e6) & 0xFFFFFFFF)
+            return wire.Pong(req.nonce, self.now_us() & 0xFFFFFFFF)
+        if isinstance(req, wire.GetDiag):
+            return wire.Diag(self.now_us(), self.reset_flags, 0, 0)
         if isinstance(req, wire.GetInfo):
             assert self.angles_deg is not None
-            return wire.Info(self.protocol_version, 1, 2, 3, len(self.angles_deg), 65535,
-                             self.heartbeat_ms, self.capabilities, tuple(self.angles_deg))
+            caps = self.capabilities
+            if self.extensions and self.reset_flags & wire.ResetFlag.WATCHDOG:
+                caps |= wire.Capability.WATCHDOG_RESET
+            return wire.Info(self.protocol_version, *self.fw_version, len(self.angles_deg),
+                             65535, self.heartbeat_ms, caps, tuple(self.angles_deg))
         if isinstance(req, wire.SetAmplitudes):
             self.levels = list(req.levels)
             self.state = wire.State.STREAMING
@@ -99,9 +142,14 @@ class FakeFirmware:
             self.state = wire.State.PLAYING
             return ack
         if isinstance(req, wire.SetConfig):
-            if not 50 <= req.heartbeat_ms <= 2000:
+            if not 50 <= req.heartbeat_ms <= 2000 or (
+                    req.flags is not None and req.flags & ~0x03):
                 return wire.Nak(seq, wire.NakCode.OUT_OF_RANGE)
             self.heartbeat_ms = req.heartbeat_ms
+            if req.max_on_ms is not None:
+                self.max_on_ms = req.max_on_ms
+            if req.flags is not None:
+                self.flags = req.flags
             return ack
         if isinstance(req, wire.GetStatus):
             return wire.Status(self.state, 0, 0, 0, 0, tuple(self.levels))
@@ -171,8 +219,11 @@ class FakeBleClient:
         fail_connect: connect() raises like an out-of-range device.
     """
 
-    def __init__(self, firmware: FakeFirmware, on_disconnect: Callable[[Any], None]) -> None:
+    def __init__(self, firmware: FakeFirmware, on_disconnect: Callable[[Any], None],
+                 mtu: int = 247) -> None:
         self.firmware = firmware
+        self.mtu_size = mtu
+        self.notifications: list[bytes] = []
         self.on_disconnect = on_disconnect
         self.address = "AA:BB:CC:DD:EE:FF"
         self.connected = False
@@ -192,6 +243,8 @@ class FakeBleClient:
         self.connected = True
 
     async def disconnect(self) -> None:
+        if self.connected:
+            self.firmware.link_closed()
         self.connected = False
         self.disconnects += 1
 
@@ -203,27 +256,47 @@ class FakeBleClient:
         if not self.connected:
             raise OSError("not connected")
         self.writes.append((char, bytes(data), response))
+        if len(data) > self.mtu_size - 3:
+            raise OSError(f"write of {len(data)} bytes exceeds the MTU")
         loop = asyncio.get_running_loop()
+        limit = self.mtu_size - 3
         for reply in self.firmware.handle(wire.decode_packet(bytes(data))):
             raw = wire.encode_packet(reply)
+            if self.firmware.flags & wire.ConfigFlag.BLE_FRAMED:  # a byte stream in pieces
+                frame = wire.encode_frame(reply)
+                for i in range(0, len(frame), limit):
+                    self._notify(loop, frame[i:i + limit])
+                continue
+            if len(raw) > limit:  # the firmware never sends what the stack would cut
+                if not self.firmware.extensions:
+                    self._notify(loop, raw[:limit])  # plain v1: cut short by the stack
+                    continue
+                raw = wire.encode_packet(wire.encode_reply(
+                    reply.seq, wire.Nak(reply.seq, wire.NakCode.REPLY_TOO_LONG)))
             if self.corrupt:
                 bad = bytearray(raw)
                 bad[2] ^= 0x55
                 loop.call_soon(self.notify, None, bad)  # type: ignore[arg-type]
                 loop.call_soon(self.notify, None, bytearray(raw[:3]))  # type: ignore[arg-type]
-            loop.call_soon(self.notify, None, bytearray(raw))  # type: ignore[arg-type]
+            self._notify(loop, raw)
+
+    def _notify(self, loop: asyncio.AbstractEventLoop, data: bytes) -> None:
+        self.notifications.append(bytes(data))
+        loop.call_soon(self.notify, None, bytearray(data))  # type: ignore[arg-type]
 
     def drop(self) -> None:
         """The device disconnects (out of range, powered off)."""
         self.connected = False
+        self.firmware.link_closed()
         self.on_disconnect(self)
 
 
 class FakeBle:
     """A client_factory that hands out FakeBleClients for one FakeFirmware."""
 
-    def __init__(self, firmware: FakeFirmware | None = None) -> None:
+    def __init__(self, firmware: FakeFirmware | None = None, mtu: int = 247) -> None:
         self.firmware = firmware or FakeFirmware()
+        self.mtu = mtu
         self.client: FakeBleClient | None = None
         self.targets: list[str] = []
         self.fail_connect = False
@@ -231,7 +304,7 @@ class FakeBle:
     async def __call__(self, target: str, on_disconnect: Callable[[Any], None],
                        scan_timeout_s: float) -> FakeBleClient:
         self.targets.append(target)
-        self.client = FakeBleClient(self.firmware, on_disconnect)
+        self.client = FakeBleClient(self.firmware, on_disconnect, self.mtu)
         self.client.fail_connect = self.fail_connect
         return self.client
 

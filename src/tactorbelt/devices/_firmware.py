@@ -18,6 +18,24 @@ What the belt does while open:
   the device has been silent for a whole heartbeat timeout (and at least two PINGs
   went unanswered), or the transport reports an error or end of file, the belt is
   *lost*: every later call raises :class:`~tactorbelt.DeviceError` naming the port.
+- Extensions (docs/protocol.md, "Extensions"): on open, after GET_INFO, the belt sends
+  GET_DIAG. A DIAG means a firmware with the extensions (1.1): the belt keeps the
+  DIAG as ``diagnostics``, warns (``log.warning``, printed by the CLI) when the device
+  was last reset by its watchdog (INFO capability bit 7 or DIAG reset flag bit 1),
+  and turns ONSET events on (SET_CONFIG with the flags byte; flags belong to the
+  connection, so this happens on every open and again after a reset it notices).
+  NAK 2 means plain v1 (firmware 1.0): no extensions, behaviour as before.
+- Clock mapping: every PING/PONG and GET_DIAG/DIAG round trip is a sample for
+  :class:`~tactorbelt.devices._clocksync.ClockSync` (device time to host
+  ``perf_counter_ns``, with its uncertainty); with extensions, the keep-alive sends a
+  GET_DIAG every :data:`SYNC_INTERVAL_S`. ONSET frames go to an onset table (never to
+  ``unmatched_replies``), and :meth:`FirmwareBelt.last_onset` maps the one of the last
+  stimulus start (a PLAY_TARGET, or the first SET_AMPLITUDES when not streaming) to
+  host time.
+- BLE with an ATT MTU below 67 (``Transport.reply_limit``): GET_DIAG first, then
+  SET_CONFIG with the framed-replies flag before GET_INFO, so that replies come as
+  COBS frames in MTU-sized pieces; NAK 5 (reply too long for the MTU) is reported as
+  a DeviceError that says so.
 - Corrupted frames and garbage from the device are counted (``host_crc_errors``,
   ``host_framing_errors``, ``bad_replies``) and skipped.
 - ``close()`` sends STOP_ALL and waits briefly for its ACK; on a dead device it logs
@@ -51,6 +69,7 @@ from numpy.typing import NDArray
 from .._errors import ConfigError, DeviceError, ProtocolError
 from ..geometry import Layout
 from . import wire
+from ._clocksync import ClockSync
 from .base import Belt
 from .calibration import Calibration
 
@@ -73,14 +92,28 @@ DEFAULT_TIMEOUT_S: Final = 0.5
 STOP_TIMEOUT_S: Final = 0.25
 #: GET_INFO attempts on open (the first bytes after opening a port may be lost).
 INFO_ATTEMPTS: Final = 3
+#: With extensions, the keep-alive sends a GET_DIAG (a clock sample) this often.
+SYNC_INTERVAL_S: Final = 0.5
+#: GET_DIAG round trips on open, to start the clock mapping.
+SYNC_BURST: Final = 8
+#: The continuous-on limit a device has at power-up (SET_CONFIG with flags must carry one).
+DEFAULT_MAX_ON_MS: Final = 30_000
+#: The heartbeat timeout a device has at power-up.
+DEFAULT_HEARTBEAT_MS: Final = 250
+#: Requests need an ATT MTU of this much (64-byte packets, 3 bytes of ATT header).
+BLE_MIN_MTU: Final = 67
+#: ONSET frames kept (by request seq).
+_ONSETS_KEPT: Final = 64
 #: Tactor angles within this of the default layout's are taken as the default layout.
 _EVEN_LAYOUT_TOLERANCE_DEG: Final = 0.0051
 
 _LAW_CODES: Final = {"paper": wire.Law.PAPER, "linear": wire.Law.LINEAR, "energy": wire.Law.ENERGY}
 _MODE_CODES: Final = {"static": wire.Mode.STATIC, "dynamic": wire.Mode.DYNAMIC}
 _REPLY_TYPES: Final = frozenset(
-    {wire.MsgType.ACK, wire.MsgType.PONG, wire.MsgType.INFO, wire.MsgType.STATUS, wire.MsgType.NAK}
+    {wire.MsgType.ACK, wire.MsgType.PONG, wire.MsgType.INFO, wire.MsgType.STATUS,
+     wire.MsgType.DIAG, wire.MsgType.ONSET, wire.MsgType.NAK}
 )
+_SYNC_TYPES: Final = frozenset({wire.MsgType.PING, wire.MsgType.GET_DIAG})
 
 
 class PacketSink(ABC):
@@ -105,6 +138,15 @@ class Transport(ABC):
     """
 
     port: str = "?"
+
+    @property
+    def reply_limit(self) -> int | None:
+        """The longest reply the link carries in one piece (BLE: ATT MTU - 3), or None
+        (no limit: serial)."""
+        return None
+
+    def use_framed_replies(self) -> None:  # noqa: B027 - only BLE needs it
+        """From now on, replies arrive as COBS frames split across notifications (BLE)."""
 
     @property
     def crc_errors(self) -> int:
@@ -215,7 +257,14 @@ class FirmwareBelt(Belt, PacketSink):
         info: what GET_INFO reported.
         port: the link's name.
         heartbeat_ms: the device's heartbeat timeout in use.
+        max_on_ms: the continuous-on limit this belt last set (30000 until it sets one).
         stream_rate_hz: the streaming rate for this link.
+        extensions: the firmware answered GET_DIAG (1.1: DIAG, ONSET, SET_CONFIG flags).
+        diagnostics: the last DIAG (None without extensions).
+        watchdog_reset: the device was reset by its watchdog (before or while open).
+        onset_events: ONSET events are on (see :meth:`last_onset`).
+        framed_replies: BLE replies come as COBS frames (an MTU below 67).
+        clock_sync: the device-to-host clock mapping (:class:`ClockSync`).
 
     Raises:
         ProtocolError: the device speaks another protocol version, or garbles INFO.
@@ -259,11 +308,28 @@ class FirmwareBelt(Belt, PacketSink):
         self.unsolicited_naks = 0
         self.frames_sent = 0
         self.heartbeat_ms = 0
+        self.max_on_ms = DEFAULT_MAX_ON_MS
         self._can_play_target = False
+        self.extensions = False
+        self.framed_replies = False
+        self.onset_events = False
+        self.diagnostics: wire.Diag | None = None
+        self.watchdog_reset = False
+        self.clock_sync = ClockSync()
+        self._sync_sent: dict[int, int] = {}
+        self._last_sync_ns = 0
+        self._onsets: dict[int, wire.Onset] = {}
+        self._onset_cond = threading.Condition()
+        self._onset_seq: int | None = None
+        self._streaming = False
+        self._reset_seen = False
         # Belt.__init__ sets _closed; until it runs, __del__ must see a closed belt.
         self._closed = True
         transport.start(self)
         try:
+            limit = transport.reply_limit
+            if limit is not None and limit < wire.MAX_PACKET:
+                self._start_framing(limit, heartbeat_ms)
             info = self._handshake()
             dev_layout = layout_from_info(info)
             if layout is not None:
@@ -287,6 +353,12 @@ class FirmwareBelt(Belt, PacketSink):
             )
             if heartbeat_ms is not None:
                 self.set_config(heartbeat_ms)
+            if not self.extensions:
+                self._probe_extensions()
+            if self.extensions:
+                self._report_reset(info)
+                self._enable_flags()
+                self._sync_burst()
         except BaseException:
             self._closed = True
             transport.close()
@@ -297,6 +369,7 @@ class FirmwareBelt(Belt, PacketSink):
 
     # -- packets in (transport thread) ------------------------------------------
     def packet_received(self, packet: wire.Packet) -> None:
+        recv_ns = time.perf_counter_ns()
         self._last_rx_ns = time.monotonic_ns()
         self._unanswered_pings = 0
         if packet.type not in _REPLY_TYPES:
@@ -309,6 +382,15 @@ class FirmwareBelt(Belt, PacketSink):
             self.bad_replies += 1
             log.debug("%s: ignoring a bad reply: %s", self.port, exc)
             return
+        if isinstance(reply, wire.Onset):  # follows the ACK of the same seq: no waiter
+            with self._onset_cond:
+                self._onsets[reply.seq] = reply
+                while len(self._onsets) > _ONSETS_KEPT:
+                    del self._onsets[next(iter(self._onsets))]
+                self._onset_cond.notify_all()
+            return
+        if isinstance(reply, wire.Pong | wire.Diag):
+            self._clock_sample(packet.seq, reply, recv_ns)
         with self._pending_lock:
             waiter = self._pending.pop(packet.seq, None)
         if waiter is None:
@@ -341,9 +423,13 @@ class FirmwareBelt(Belt, PacketSink):
         if self._lost is not None:
             raise DeviceError(self._lost)
 
-    def _send(self, build: Callable[[int], wire.Packet], waiter_name: str | None = None
-              ) -> _Waiter | None:
-        """Build a packet with the next seq and write it; register a waiter first."""
+    def _send(self, build: Callable[[int], wire.Packet], waiter_name: str | None = None,
+              onset: bool = False) -> _Waiter | None:
+        """Build a packet with the next seq and write it; register a waiter first.
+
+        ``onset``: the request starts a stimulus; its ONSET (if any) is the one
+        :meth:`last_onset` reports.
+        """
         self._check_alive()
         with self._tx_lock:
             seq = next(self._seq) & 0xFF
@@ -353,8 +439,15 @@ class FirmwareBelt(Belt, PacketSink):
                 waiter = _Waiter(seq, waiter_name)
                 with self._pending_lock:
                     self._pending[seq] = waiter
+            if onset:
+                with self._onset_cond:
+                    self._onsets.pop(seq, None)
+                    self._onset_seq = seq
+            data = self._transport.encode(packet)
+            if packet.type in _SYNC_TYPES:
+                self._sync_sent[seq] = time.perf_counter_ns()
             try:
-                self._transport.write(self._transport.encode(packet))
+                self._transport.write(data)
             except (OSError, DeviceError) as exc:
                 self._mark_lost(f"belt on {self.port} stopped answering: write failed: {exc}")
                 raise DeviceError(self._lost) from None
@@ -364,7 +457,10 @@ class FirmwareBelt(Belt, PacketSink):
     def _request(self, build: Callable[[int], wire.Packet], name: str,
                  timeout_s: float | None = None) -> wire.Reply:
         """Send a request and wait for the reply with its sequence number."""
-        waiter = self._send(build, name)
+        return self._wait(self._send(build, name), name, timeout_s)
+
+    def _wait(self, waiter: _Waiter | None, name: str, timeout_s: float | None = None
+              ) -> wire.Reply:
         assert waiter is not None
         timeout = self.timeout_s if timeout_s is None else timeout_s
         if not waiter.event.wait(timeout):
@@ -381,6 +477,13 @@ class FirmwareBelt(Belt, PacketSink):
 
     def _expect(self, reply: wire.Reply, kind: type, name: str) -> Any:
         if isinstance(reply, wire.Nak):
+            if reply.code == wire.NakCode.REPLY_TOO_LONG:
+                raise DeviceError(
+                    f"the belt on {self.port} could not send its answer to {name}: it does "
+                    f"not fit the BLE link's MTU ({self._mtu_text()}) and framed replies "
+                    "are off; let the adapter negotiate an MTU of at least "
+                    f"{BLE_MIN_MTU}, or update the firmware to 1.1 (framed replies)"
+                )
             if reply.code == wire.NakCode.OUT_OF_RANGE:
                 raise ConfigError(
                     f"the belt on {self.port} refused {name}: a value is out of range"
@@ -417,6 +520,160 @@ class FirmwareBelt(Belt, PacketSink):
             f"no tactorbelt firmware answered on {self.port} "
             f"(asked {INFO_ATTEMPTS} times for its version, {self.timeout_s * 1000:.0f} ms each)"
         ) from last
+
+    # -- extensions ----------------------------------------------------------------
+    def _mtu_text(self) -> str:
+        limit = self._transport.reply_limit
+        return "unknown" if limit is None else f"ATT MTU {limit + 3}"
+
+    def _start_framing(self, limit: int, heartbeat_ms: int | None) -> None:
+        """BLE with a small MTU: probe the extensions, then ask for framed replies.
+
+        The ACK of the SET_CONFIG that turns framing on already comes framed.
+        """
+        if not self._probe_extensions():
+            log.warning(
+                "%s: the BLE link's %s is below %d and the firmware has no framed "
+                "replies (plain v1): replies longer than %d bytes (INFO, STATUS of 6 "
+                "tactors) cannot arrive", self.port, self._mtu_text(), BLE_MIN_MTU, limit)
+            return
+        hb = DEFAULT_HEARTBEAT_MS if heartbeat_ms is None else heartbeat_ms
+        self._transport.use_framed_replies()
+        self.framed_replies = True
+        reply = self._request(
+            lambda seq: wire.set_config(seq, hb, self.max_on_ms, wire.ConfigFlag.BLE_FRAMED),
+            "the switch to framed replies")
+        self._expect(reply, wire.Ack, "the switch to framed replies")
+        log.info("%s: %s below %d: replies come framed", self.port, self._mtu_text(),
+                 BLE_MIN_MTU)
+
+    def _probe_extensions(self) -> bool:
+        """GET_DIAG: True (and ``diagnostics`` set) on a device with the extensions."""
+        try:
+            reply = self._request(wire.get_diag, "the diagnostics request")
+        except DeviceError:
+            if self._lost is not None:
+                raise
+            log.debug("%s: no answer to GET_DIAG; taking the device as plain v1", self.port)
+            return False
+        if isinstance(reply, wire.Nak) and reply.code == wire.NakCode.UNKNOWN_TYPE:
+            return False
+        diag: wire.Diag = self._expect(reply, wire.Diag, "the diagnostics request")
+        self.diagnostics = diag
+        self.extensions = True
+        return True
+
+    def _report_reset(self, info: wire.Info) -> None:
+        diag = self.diagnostics
+        if info.capabilities & wire.Capability.WATCHDOG_RESET or (
+                diag is not None and diag.watchdog_reset):
+            self._warn_watchdog("was last reset by its watchdog")
+
+    def _warn_watchdog(self, what: str) -> None:
+        self.watchdog_reset = True
+        log.warning("the belt on %s %s (its firmware stopped for 300 ms and every motor "
+                    "went off); look for a firmware hang or a brown-out", self.port, what)
+
+    def _flags(self) -> int:
+        flags = wire.ConfigFlag.ONSET_EVENTS
+        if self.framed_replies:
+            flags |= wire.ConfigFlag.BLE_FRAMED
+        return int(flags)
+
+    def _enable_flags(self) -> None:
+        """SET_CONFIG with the flags byte: ONSET events (and framed BLE replies)."""
+        hb, max_on, flags = self.heartbeat_ms, self.max_on_ms, self._flags()
+        reply = self._request(lambda seq: wire.set_config(seq, hb, max_on, flags),
+                              "the onset-report setting")
+        self._expect(reply, wire.Ack, "the onset-report setting")
+        self.onset_events = True
+
+    def _sync_burst(self, n: int = SYNC_BURST) -> None:
+        for _ in range(n):
+            # spaced, so that a device reading its clock once per loop over waiting
+            # input (the emulator) stamps each request when it arrived
+            time.sleep(0.001)
+            self._request(wire.get_diag, "the diagnostics request")
+
+    def _clock_sample(self, seq: int, reply: wire.Pong | wire.Diag, recv_ns: int) -> None:
+        send_ns = self._sync_sent.pop(seq, None)
+        if send_ns is None:
+            return
+        self._last_sync_ns = recv_ns
+        if isinstance(reply, wire.Diag):
+            fit = self.clock_sync.fit()
+            old = self.diagnostics
+            if fit is not None and reply.device_time_us * 1000 + fit.offset_ns < send_ns - 1e9:
+                # the device clock went back: the device restarted
+                self.clock_sync.reset()
+                self._device_restarted(reply)
+            elif (old is not None and reply.watchdog_reset and not old.watchdog_reset):
+                self._device_restarted(reply)
+            self.diagnostics = reply
+            self.clock_sync.add(send_ns, recv_ns, reply.device_time_us)
+        else:
+            device_us = self.clock_sync.unwrap32(reply.device_time_us, send_ns, recv_ns)
+            self.clock_sync.add(send_ns, recv_ns, device_us)
+
+    def _device_restarted(self, diag: wire.Diag) -> None:
+        """Seen from the transport thread: the keep-alive sets the flags again."""
+        if diag.watchdog_reset:
+            self._warn_watchdog("was reset by its watchdog while open")
+        else:
+            log.warning("the belt on %s restarted while open (reset flags 0x%02X)",
+                        self.port, diag.reset_flags)
+        self.onset_events = False
+        self._reset_seen = True
+        self._keepalive_kick.set()
+
+    def diag(self) -> wire.Diag:
+        """Ask the device for GET_DIAG now (a clock sample too); also noticing a reset.
+
+        Raises:
+            TactorbeltError: the firmware has no extensions (1.0).
+        """
+        self._check_open()
+        if not self.extensions:
+            from .._errors import TactorbeltError
+
+            raise TactorbeltError(f"the firmware on {self.port} ({self.firmware_version}) "
+                                  "has no GET_DIAG (needs 1.1)")
+        diag: wire.Diag = self._expect(self._request(wire.get_diag, "the diagnostics request"), wire.Diag,
+                                       "the diagnostics request")
+        if self._reset_seen:
+            self._restore_after_reset()
+        return diag
+
+    def _restore_after_reset(self) -> None:
+        self._reset_seen = False
+        with contextlib.suppress(DeviceError, ProtocolError, ConfigError):
+            self._enable_flags()
+
+    @property
+    def reports_onsets(self) -> bool:
+        """True while the device sends ONSET events (firmware 1.1, turned on at open)."""
+        return self.onset_events
+
+    def last_onset(self, timeout_s: float = 0.1) -> tuple[int, int] | None:
+        """The device-true onset of the last stimulus start, on the host's clock.
+
+        The start is the last PLAY_TARGET (``play``) or the first SET_AMPLITUDES while
+        not streaming (after open, ``stop`` or ``play``). The device's ONSET time is
+        mapped with the clock fit: ``(host_ns, uncertainty_ns)`` on
+        ``time.perf_counter_ns`` (the WallClock). Waits up to ``timeout_s`` for an
+        ONSET still on its way. None without ONSET events (firmware 1.0), before any
+        start, or when the ONSET did not come.
+        """
+        with self._onset_cond:
+            seq = self._onset_seq
+            if seq is None or not self.onset_events:
+                return None
+            self._onset_cond.wait_for(lambda: seq in self._onsets or self._lost is not None,
+                                      timeout_s)
+            got = self._onsets.get(seq)
+        if got is None:
+            return None
+        return self.clock_sync.to_host(got.device_time_us)
 
     # -- keep-alive --------------------------------------------------------------
     @property
@@ -473,11 +730,17 @@ class FirmwareBelt(Belt, PacketSink):
                 )
                 return
             try:
+                if self._reset_seen:
+                    self._restore_after_reset()
+                    continue
                 if silent_s >= hb_s / 3.0:
                     self._send(functools.partial(_ping_nonce, nonce=self._unanswered_pings + 1))
                     if self._unanswered_pings == 0:
                         self._first_ping_ns = time.monotonic_ns()
                     self._unanswered_pings += 1
+                elif self.extensions and (
+                        time.perf_counter_ns() - self._last_sync_ns >= SYNC_INTERVAL_S * 1e9):
+                    self._send(wire.get_diag)
                 else:
                     self._send(wire.heartbeat)
             except DeviceError:
@@ -486,10 +749,13 @@ class FirmwareBelt(Belt, PacketSink):
     # -- Belt backend --------------------------------------------------------------
     def _write_levels(self, levels: NDArray[np.float64]) -> None:
         lv = [wire.amplitude_to_level(float(a)) for a in levels]
-        self._send(lambda seq: wire.set_amplitudes(seq, lv))
+        starts = not self._streaming
+        self._send(lambda seq: wire.set_amplitudes(seq, lv), onset=starts)
+        self._streaming = True
 
     def _write_stop(self) -> None:
         try:
+            self._streaming = False
             reply = self._request(wire.stop_all, "the stop", max(STOP_TIMEOUT_S, self.timeout_s))
             self._expect(reply, wire.Ack, "the stop")
         except DeviceError as exc:
@@ -539,7 +805,9 @@ class FirmwareBelt(Belt, PacketSink):
             transit_ms,
             duration_ms,
         )
-        reply = self._request(lambda seq: wire.play_target(seq, *args), "the play command")
+        self._streaming = False
+        waiter = self._send(lambda seq: wire.play_target(seq, *args), "the play command", onset=True)
+        reply = self._wait(waiter, "the play command")
         self._expect(reply, wire.Ack, "the play command")
 
     def close(self) -> None:
@@ -605,6 +873,8 @@ class FirmwareBelt(Belt, PacketSink):
                               "the new settings (heartbeat, longest on-time)")
         self._expect(reply, wire.Ack, "the new settings (heartbeat, longest on-time)")
         self.heartbeat_ms = heartbeat_ms
+        if max_on_ms is not None:
+            self.max_on_ms = max_on_ms
         self._keepalive_kick.set()
 
     def write_raw(self, data: bytes) -> None:

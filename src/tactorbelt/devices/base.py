@@ -23,6 +23,9 @@ probe a belt with ``getattr``/``hasattr``:
   device rendering a stimulus);
 - ``models_vibration`` and ``vibration(t0_ns, t1_ns, rate_hz)``: the modelled vibration
   (the sim belt's motor model); other belts raise TactorbeltError.
+- ``reports_onsets`` and ``last_onset()``: the device-true onset of the last stimulus
+  start, mapped to host time with its uncertainty, ``(host_ns, uncertainty_ns)``
+  (firmware 1.1 with ONSET events); None for belts that cannot tell.
 
 The :class:`tactorbelt.player.Player` picks between streaming and device-side
 rendering, so runners simply use a Player.
@@ -170,6 +173,23 @@ class Belt(ABC):
     def models_vibration(self) -> bool:
         """True when :meth:`vibration` models the motors' vibration (the sim belt)."""
         return False
+
+    @property
+    def reports_onsets(self) -> bool:
+        """True when :meth:`last_onset` can give the device's own onset times."""
+        return False
+
+    def last_onset(self, timeout_s: float = 0.1) -> tuple[int, int] | None:
+        """The device-true onset of the last stimulus start, on the host's clock.
+
+        A start is a :meth:`play`, or the first :meth:`set_amplitudes` after the belt was
+        idle (opened, stopped) or rendering. Returns ``(host_ns, uncertainty_ns)``: the
+        moment the device changed its outputs, mapped from the device's clock to
+        ``time.perf_counter_ns`` (the WallClock), and how far off that may be. None when
+        the belt cannot tell (the default; firmware without ONSET events) or nothing
+        has started. May wait up to ``timeout_s`` for the device's report.
+        """
+        return None
 
     def vibration(self, t0_ns: int, t1_ns: int, rate_hz: float = 1000.0
                   ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:

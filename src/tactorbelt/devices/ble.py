@@ -8,6 +8,11 @@
   characteristic; the device answers with notifications on the TX characteristic,
   one packet each (see docs/protocol.md). A packet is at most 64 bytes, so the link
   needs an ATT MTU of at least 67 (BlueZ, macOS and Windows negotiate more).
+- After connecting, the transport reads the negotiated MTU (``client.mtu_size``; on
+  BlueZ it first asks for it with ``_acquire_mtu``, as bleak advises, since BlueZ
+  reports 23 until then). Below 67 the belt turns on framed replies (firmware 1.1,
+  SET_CONFIG flag bit 1): notifications are then pieces of a COBS byte stream, split
+  at 0x00 by the serial link's :class:`~tactorbelt.devices.wire.FrameDecoder`.
 - bleak is asyncio-based; the belt's API is synchronous. One event loop runs in a
   daemon thread for the whole process and every bleak call is marshalled to it with
   ``asyncio.run_coroutine_threadsafe``. Notifications are decoded on that loop and
@@ -66,6 +71,10 @@ TX_CHAR_UUID: Final = "7b1e0003-5c1a-4d8e-9f3b-6a2c74b0e1d5"
 DEVICE_NAME: Final = "tactorbelt"
 
 BLE_STREAM_RATE_HZ: Final = 40.0
+#: The ATT MTU every link starts with (20 bytes per notification).
+DEFAULT_ATT_MTU: Final = 23
+#: The MTU a 64-byte request needs in one write; below it, replies come framed.
+MIN_ATT_MTU: Final = 67
 DEFAULT_BLE_TIMEOUT_S: Final = 1.0
 DEFAULT_SCAN_TIMEOUT_S: Final = 10.0
 DEFAULT_CONNECT_TIMEOUT_S: Final = 20.0
@@ -92,6 +101,9 @@ class BleClient(Protocol):
 
     @property
     def is_connected(self) -> bool: ...
+
+    @property
+    def mtu_size(self) -> int: ...
 
     async def connect(self) -> None: ...
 
@@ -175,6 +187,19 @@ async def _bleak_client(target: str, on_disconnect: Callable[[Any], None],
     return client
 
 
+async def _negotiated_mtu(client: BleClient) -> int:
+    """The ATT MTU of the connection. On BlueZ, bleak reports 23 until asked to acquire
+    the negotiated MTU (BlueZ exchanges MTUs itself; other platforms report it)."""
+    backend = getattr(client, "_backend", None)  # a bleak client, not a belt
+    if type(backend).__name__ == "BleakClientBlueZDBus":
+        with contextlib.suppress(Exception):
+            await backend._acquire_mtu()  # type: ignore[union-attr]
+    try:
+        return max(DEFAULT_ATT_MTU, int(client.mtu_size))
+    except (AttributeError, TypeError, ValueError):
+        return DEFAULT_ATT_MTU
+
+
 # --- the transport ----------------------------------------------------------------------
 
 
@@ -207,6 +232,8 @@ class BleTransport(Transport):
         self._crc_errors = 0
         self._framing_errors = 0
         self._write_timeout_s = write_timeout_s
+        self._decoder: wire.FrameDecoder | None = None
+        self.mtu = DEFAULT_ATT_MTU
         factory = client_factory or _bleak_client
         self._client = run_on_loop(
             self._connect(factory, target, scan_timeout_s),
@@ -222,6 +249,7 @@ class BleTransport(Transport):
         try:
             await client.connect()
             await client.start_notify(TX_CHAR_UUID, self._on_notify)
+            self.mtu = await _negotiated_mtu(client)
         except DeviceError:
             raise
         except Exception as exc:
@@ -231,12 +259,25 @@ class BleTransport(Transport):
         return client
 
     @property
+    def reply_limit(self) -> int:
+        """The longest notification the link carries: ATT MTU - 3."""
+        return self.mtu - 3
+
+    @property
+    def framed(self) -> bool:
+        """True once replies arrive as a COBS byte stream (framed replies)."""
+        return self._decoder is not None
+
+    def use_framed_replies(self) -> None:
+        self._decoder = wire.FrameDecoder()
+
+    @property
     def crc_errors(self) -> int:
-        return self._crc_errors
+        return self._crc_errors + (self._decoder.crc_errors if self._decoder else 0)
 
     @property
     def framing_errors(self) -> int:
-        return self._framing_errors
+        return self._framing_errors + (self._decoder.framing_errors if self._decoder else 0)
 
     def encode(self, packet: wire.Packet) -> bytes:
         return wire.encode_packet(packet)
@@ -244,31 +285,42 @@ class BleTransport(Transport):
     def write(self, data: bytes) -> None:
         if self._closing:
             raise DeviceError(f"{self.port} is closed")
+
         try:
             run_on_loop(self._client.write_gatt_char(RX_CHAR_UUID, data, response=False),
                         self._write_timeout_s, f"writing to {self.port}")
         except DeviceError:
             raise
         except Exception as exc:
-            raise DeviceError(f"write to {self.port} failed: {_describe(exc)}") from None
+            hint = ""
+            if len(data) > self.reply_limit:
+                hint = (f" (a {len(data)}-byte request; the link reported ATT MTU {self.mtu}, "
+                        f"at most {self.reply_limit} bytes per write: the adapter must "
+                        f"negotiate an MTU of at least {MIN_ATT_MTU})")
+            raise DeviceError(f"write to {self.port} failed: {_describe(exc)}{hint}") from None
 
     def start(self, sink: PacketSink) -> None:
         self._sink = sink
 
     def _on_notify(self, _sender: Any, data: bytearray) -> None:
-        try:
-            packet = wire.decode_packet(bytes(data))
-        except ProtocolError as exc:
-            if "CRC" in str(exc):
-                self._crc_errors += 1
-            else:
-                self._framing_errors += 1
-            return
-        if self._sink is not None:
+        decoder = self._decoder
+        if decoder is not None:  # framed replies: one byte stream, split at 0x00
+            packets = decoder.feed(bytes(data))
+        else:
             try:
-                self._sink.packet_received(packet)
-            except Exception:
-                log.exception("%s: error handling a packet", self.port)
+                packets = [wire.decode_packet(bytes(data))]
+            except ProtocolError as exc:
+                if "CRC" in str(exc):
+                    self._crc_errors += 1
+                else:
+                    self._framing_errors += 1
+                return
+        for packet in packets:
+            if self._sink is not None:
+                try:
+                    self._sink.packet_received(packet)
+                except Exception:
+                    log.exception("%s: error handling a packet", self.port)
 
     def _on_disconnect(self, _client: Any) -> None:
         if not self._closing and self._sink is not None:

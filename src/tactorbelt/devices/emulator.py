@@ -30,6 +30,7 @@ from typing import IO, Any, Final
 
 from .._errors import ConfigError, DeviceError
 from ..geometry import Layout
+from . import wire
 from ._firmware import FirmwareBelt
 from .registry import check_options
 from .serial import SERIAL_STREAM_RATE_HZ, SerialTransport
@@ -45,8 +46,11 @@ BUILD_TIMEOUT_S: Final = 300.0
 
 OPTIONS: Final = frozenset({
     "tactors", "layout", "heartbeat_ms", "levels_log", "build", "timeout_s", "calibration",
-    "keepalive", "clock", "firmware_dir", "extra_args",
+    "keepalive", "clock", "firmware_dir", "extra_args", "watchdog_ms", "debug_frames",
 })
+
+#: The emulator's debug request that stops its loop (with ``--debug-frames``).
+DEBUG_HANG: Final = 0x7E
 
 _build_lock = threading.Lock()
 
@@ -150,10 +154,25 @@ class EmulatorBelt(FirmwareBelt):
     """
 
     def __init__(self, transport: SerialTransport, process: subprocess.Popen[bytes],
-                 pty_path: str, **options: Any) -> None:
+                 pty_path: str, debug_frames: bool = False, **options: Any) -> None:
         self.process = process
         self.pty_path = pty_path
+        self.debug_frames = debug_frames
         super().__init__(transport, "emulator", stream_rate_hz=SERIAL_STREAM_RATE_HZ, **options)
+
+    def hang(self) -> None:
+        """Send DEBUG_HANG: the emulator ACKs it, then its loop stops (no tick, no
+        failsafe) until its watchdog (``watchdog_ms``) resets it. For tests of the
+        watchdog; needs ``debug_frames=True``.
+
+        Raises:
+            ConfigError: the emulator was started without ``debug_frames``.
+        """
+        if not self.debug_frames:
+            raise ConfigError("hang() needs an emulator opened with debug_frames=True")
+        self._check_open()
+        reply = self._request(lambda seq: wire.Packet(DEBUG_HANG, seq), "DEBUG_HANG")
+        self._expect(reply, wire.Ack, "DEBUG_HANG")
 
     def _close(self) -> None:
         try:
@@ -194,6 +213,11 @@ def open_emulator(target: str = "", **options: Any) -> EmulatorBelt:
                 there as CSV ``t_us,state,level_0,...`` (device time since start).
             build (bool, True): run ``make -C firmware emulator`` first.
             firmware_dir: the firmware directory (default: next to the package).
+            watchdog_ms (int | None): run the board's watchdog model (1..10000 ms; the
+                board uses 300): a loop that stops for that long resets the core, and the
+                belt reports the watchdog reset. Off by default.
+            debug_frames (bool, False): accept DEBUG_HANG (0x7E), which stops the
+                emulator's loop until the watchdog resets it (:meth:`EmulatorBelt.hang`).
             extra_args (list[str]): more emulator arguments.
             timeout_s, calibration, keepalive, clock: as for every firmware belt.
 
@@ -238,6 +262,15 @@ def open_emulator(target: str = "", **options: Any) -> EmulatorBelt:
     levels_log = options.pop("levels_log", None)
     if levels_log is not None:
         args += ["--levels-log", os.fspath(levels_log)]
+    watchdog_ms = options.pop("watchdog_ms", None)
+    if watchdog_ms is not None:
+        if isinstance(watchdog_ms, bool) or not isinstance(watchdog_ms, int) or not (
+                1 <= watchdog_ms <= 10000):
+            raise ConfigError(f"watchdog_ms must be an integer in 1..10000, got {watchdog_ms!r}")
+        args += ["--watchdog-ms", str(watchdog_ms)]
+    debug_frames = bool(options.pop("debug_frames", False))
+    if debug_frames:
+        args += ["--debug-frames"]
     args += [str(a) for a in options.pop("extra_args", ())]
 
     with tempfile.TemporaryFile() as stderr:
@@ -268,7 +301,7 @@ def open_emulator(target: str = "", **options: Any) -> EmulatorBelt:
         stop_process(proc)
         raise
     try:
-        belt = EmulatorBelt(transport, proc, path, **options)
+        belt = EmulatorBelt(transport, proc, path, debug_frames=debug_frames, **options)
     except BaseException:
         transport.close()
         stop_process(proc)

@@ -1,4 +1,5 @@
-"""Protocol v1 on the wire: packets, CRC, COBS framing, and every message of it.
+"""Protocol v1 on the wire: packets, CRC, COBS framing, and every message of it
+(the extensions too: GET_DIAG/DIAG, ONSET, the SET_CONFIG flags, NAK 5).
 
 The contract is ``docs/protocol.md``; the firmware (``firmware/``) implements the
 same contract in C++ and shares nothing with this module but that document and the
@@ -40,7 +41,10 @@ __all__ = [
     "PROTOCOL_VERSION",
     "Ack",
     "Capability",
+    "ConfigFlag",
+    "Diag",
     "FrameDecoder",
+    "GetDiag",
     "GetInfo",
     "GetStatus",
     "Heartbeat",
@@ -50,12 +54,14 @@ __all__ = [
     "MsgType",
     "Nak",
     "NakCode",
+    "Onset",
     "Packet",
     "Ping",
     "PlayTarget",
     "Pong",
     "Reply",
     "Request",
+    "ResetFlag",
     "SetAmplitudes",
     "SetConfig",
     "State",
@@ -70,6 +76,7 @@ __all__ = [
     "encode_frame",
     "encode_packet",
     "encode_reply",
+    "get_diag",
     "get_info",
     "get_status",
     "heartbeat",
@@ -103,10 +110,13 @@ class MsgType(enum.IntEnum):
     HEARTBEAT = 0x14
     SET_CONFIG = 0x15
     GET_STATUS = 0x16
+    GET_DIAG = 0x17
     ACK = 0x80
     PONG = 0x81
     INFO = 0x82
     STATUS = 0x83
+    DIAG = 0x84
+    ONSET = 0x85
     NAK = 0x8F
 
 
@@ -116,6 +126,8 @@ class NakCode(enum.IntEnum):
     UNKNOWN_TYPE = 2
     BAD_LENGTH = 3
     OUT_OF_RANGE = 4
+    #: BLE only: the reply does not fit the ATT MTU (the request was carried out).
+    REPLY_TOO_LONG = 5
 
 
 class State(enum.IntEnum):
@@ -143,9 +155,28 @@ class Law(enum.IntEnum):
 
 
 class Capability(enum.IntFlag):
-    """INFO capability bits."""
+    """INFO capability bits. WATCHDOG_RESET is a status bit: the last reset was the
+    watchdog's (extensions)."""
 
     PLAY_TARGET = 0x01
+    WATCHDOG_RESET = 0x80
+
+
+class ConfigFlag(enum.IntFlag):
+    """SET_CONFIG flags (the optional 7th byte; extensions). Cleared when the link closes."""
+
+    ONSET_EVENTS = 0x01
+    BLE_FRAMED = 0x02
+
+
+class ResetFlag(enum.IntFlag):
+    """DIAG ``reset_flags``: why the device last reset (0 after power-on)."""
+
+    PIN = 0x01
+    WATCHDOG = 0x02
+    SOFTWARE = 0x04
+    LOCKUP = 0x08
+    OTHER = 0x80
 
 
 def _uint(name: str, value: int, bits: int) -> int:
@@ -418,6 +449,7 @@ class Heartbeat:
 class SetConfig:
     heartbeat_ms: int
     max_on_ms: int | None = None
+    flags: int | None = None
 
 
 @dataclass(frozen=True)
@@ -425,7 +457,13 @@ class GetStatus:
     pass
 
 
-Request = Ping | GetInfo | SetAmplitudes | StopAll | PlayTarget | Heartbeat | SetConfig | GetStatus
+@dataclass(frozen=True)
+class GetDiag:
+    pass
+
+
+Request = (Ping | GetInfo | SetAmplitudes | StopAll | PlayTarget | Heartbeat | SetConfig
+           | GetStatus | GetDiag)
 
 _PLAY_TARGET = struct.Struct("<HBBHHHI")
 
@@ -481,18 +519,29 @@ def heartbeat(seq: int) -> Packet:
     return Packet(MsgType.HEARTBEAT, seq)
 
 
-def set_config(seq: int, heartbeat_ms: int, max_on_ms: int | None = None) -> Packet:
+def set_config(seq: int, heartbeat_ms: int, max_on_ms: int | None = None,
+               flags: int | None = None) -> Packet:
     """SET_CONFIG: heartbeat timeout (50..2000 ms) and, optionally, the longest
-    continuous-on time per channel (100..600000 ms). ACK, or NAK when out of range."""
+    continuous-on time per channel (100..600000 ms) and the flags byte (extensions:
+    :class:`ConfigFlag`; needs ``max_on_ms``). ACK, or NAK when out of range."""
     payload = struct.pack("<H", _uint("heartbeat_ms", heartbeat_ms, 16))
     if max_on_ms is not None:
         payload += struct.pack("<I", _uint("max_on_ms", max_on_ms, 32))
+    if flags is not None:
+        if max_on_ms is None:
+            raise ConfigError("SET_CONFIG flags need max_on_ms (the flags are the 7th byte)")
+        payload += struct.pack("<B", _uint("flags", int(flags), 8))
     return Packet(MsgType.SET_CONFIG, seq, payload)
 
 
 def get_status(seq: int) -> Packet:
     """GET_STATUS: the device answers STATUS."""
     return Packet(MsgType.GET_STATUS, seq)
+
+
+def get_diag(seq: int) -> Packet:
+    """GET_DIAG (extensions): the device answers DIAG; a plain v1 device NAKs code 2."""
+    return Packet(MsgType.GET_DIAG, seq)
 
 
 def _expect_len(p: Packet, name: str, *sizes: int) -> None:
@@ -529,13 +578,18 @@ def parse_request(p: Packet) -> Request:
         _expect_len(p, "HEARTBEAT", 0)
         return Heartbeat()
     if t == MsgType.SET_CONFIG:
-        _expect_len(p, "SET_CONFIG", 2, 6)
+        _expect_len(p, "SET_CONFIG", 2, 6, 7)
         if len(p.payload) == 2:
             return SetConfig(*struct.unpack("<H", p.payload))
-        return SetConfig(*struct.unpack("<HI", p.payload))
+        if len(p.payload) == 6:
+            return SetConfig(*struct.unpack("<HI", p.payload))
+        return SetConfig(*struct.unpack("<HIB", p.payload))
     if t == MsgType.GET_STATUS:
         _expect_len(p, "GET_STATUS", 0)
         return GetStatus()
+    if t == MsgType.GET_DIAG:
+        _expect_len(p, "GET_DIAG", 0)
+        return GetDiag()
     raise ProtocolError(f"unknown request type 0x{t:02X}")
 
 
@@ -586,6 +640,31 @@ class Status:
 
 
 @dataclass(frozen=True)
+class Diag:
+    """What GET_DIAG tells (extensions): the 64-bit device clock, the cause of the last
+    reset (:class:`ResetFlag`) and the link counters."""
+
+    device_time_us: int
+    reset_flags: int
+    tx_dropped: int
+    ble_refused: int
+
+    @property
+    def watchdog_reset(self) -> bool:
+        """True when the device's last reset was its watchdog's."""
+        return bool(self.reset_flags & ResetFlag.WATCHDOG)
+
+
+@dataclass(frozen=True)
+class Onset:
+    """ONSET (extensions): the device time at which a request changed the outputs."""
+
+    seq: int
+    request_type: int
+    device_time_us: int
+
+
+@dataclass(frozen=True)
 class Ack:
     seq: int
     code: int = 0
@@ -597,10 +676,12 @@ class Nak:
     code: int
 
 
-Reply = Pong | Info | Status | Ack | Nak
+Reply = Pong | Info | Status | Diag | Onset | Ack | Nak
 
 _INFO_HEAD = struct.Struct("<BBBBBHHB")
 _STATUS_HEAD = struct.Struct("<BHHHH")
+_DIAG = struct.Struct("<QBHH")
+_ONSET = struct.Struct("<BBQ")
 
 
 def parse_reply(p: Packet) -> Reply:
@@ -643,6 +724,12 @@ def parse_reply(p: Packet) -> Reply:
         n = (len(payload) - head) // 2
         levels = struct.unpack_from(f"<{n}H", payload, head)
         return Status(st, failsafe, crc_errors, framing_errors, gaps, levels)
+    if t == MsgType.DIAG:
+        _expect_len(p, "DIAG", _DIAG.size)
+        return Diag(*_DIAG.unpack(payload))
+    if t == MsgType.ONSET:
+        _expect_len(p, "ONSET", _ONSET.size)
+        return Onset(*_ONSET.unpack(payload))
     if t == MsgType.ACK:
         _expect_len(p, "ACK", 2)
         return Ack(*payload)
@@ -690,6 +777,21 @@ def encode_reply(seq: int, reply: Reply) -> Packet:
             _uint("seq_gaps", reply.seq_gaps, 16),
         ) + b"".join(struct.pack("<H", _uint("level", v, 16)) for v in reply.levels)
         return Packet(MsgType.STATUS, seq, payload)
+    if isinstance(reply, Diag):
+        payload = _DIAG.pack(
+            _uint("device_time_us", reply.device_time_us, 64),
+            _uint("reset_flags", int(reply.reset_flags), 8),
+            _uint("tx_dropped", reply.tx_dropped, 16),
+            _uint("ble_refused", reply.ble_refused, 16),
+        )
+        return Packet(MsgType.DIAG, seq, payload)
+    if isinstance(reply, Onset):
+        payload = _ONSET.pack(
+            _uint("seq", reply.seq, 8),
+            _uint("request_type", int(reply.request_type), 8),
+            _uint("device_time_us", reply.device_time_us, 64),
+        )
+        return Packet(MsgType.ONSET, seq, payload)
     if isinstance(reply, Ack | Nak):
         kind = MsgType.ACK if isinstance(reply, Ack) else MsgType.NAK
         return Packet(kind, seq, bytes((_uint("seq", reply.seq, 8), _uint("code", reply.code, 8))))

@@ -113,6 +113,10 @@ class TrialResult:
         abort_reason: why the trial was aborted.
         sample_t_ns, sample_x, sample_y, sample_buttons: the cursor samples.
         samples_released: how many samples :meth:`release_samples` dropped.
+        device_onset_ns: the onset as the device saw it (its ONSET time mapped to host
+            time, :meth:`tactorbelt.devices.base.Belt.last_onset`); None when the belt
+            cannot tell.
+        onset_uncertainty_ns: how far off device_onset_ns may be.
     """
 
     trial: ScheduledTrial
@@ -132,6 +136,8 @@ class TrialResult:
     sample_buttons: list[int] = field(default_factory=list)
     #: samples dropped from memory by :meth:`release_samples` (still counted by n_samples)
     samples_released: int = field(default=0, repr=False)
+    device_onset_ns: int | None = None
+    onset_uncertainty_ns: int | None = None
 
     @property
     def n_samples(self) -> int:

@@ -9,7 +9,7 @@ namespace tb {
 
 constexpr uint8_t kProtocolVersion = 1;
 constexpr uint8_t kFirmwareMajor = 1;
-constexpr uint8_t kFirmwareMinor = 0;
+constexpr uint8_t kFirmwareMinor = 1;
 constexpr uint8_t kFirmwarePatch = 0;
 
 // A packet is type u8, seq u8, payload, crc u16 LE: at most 64 bytes before framing.

@@ -10,7 +10,8 @@ Schema (docs/study.md, "The store", plus provenance columns)::
     trials(trial_id, session_id, trial_index, block, block_index, block_name, condition,
            repetition, target_deg, on_tactor, response_deg, response_target_deg, correct,
            rt_s, onset_ns, acquired_ns, crossed_ns, stimulus_off_ns, n_samples,
-           status, abort_reason, attempts, recorded_at)      UNIQUE(session_id, trial_index)
+           status, abort_reason, attempts, recorded_at,
+           device_onset_ns, onset_uncertainty_ns)            UNIQUE(session_id, trial_index)
     samples(trial_id, t_s, x, y, buttons)
 
 Durability: while a writer has the store open it is in WAL mode with
@@ -140,7 +141,11 @@ _TRIAL_COLUMNS = (
     "repetition", "target_deg", "on_tactor", "response_deg", "response_target_deg",
     "correct", "rt_s", "onset_ns", "acquired_ns", "crossed_ns", "stimulus_off_ns",
     "n_samples", "status", "abort_reason", "attempts", "recorded_at",
+    "device_onset_ns", "onset_uncertainty_ns",
 )
+#: Nullable trial columns added after schema 1: added to older stores on open when
+#: missing (ALTER TABLE ADD COLUMN), without a schema version bump.
+_ADDED_TRIAL_COLUMNS = (("device_onset_ns", "INTEGER"), ("onset_uncertainty_ns", "INTEGER"))
 def _read_only(path: Path) -> bool:
     """True when the file cannot or must not be written (no write bit, or no access)."""
     try:
@@ -375,6 +380,10 @@ class SQLiteStore(Store):
                 for stmt in _SCHEMA.split(";"):
                     if stmt.strip():
                         conn.execute(stmt)
+                have = {r[1] for r in conn.execute("PRAGMA table_info(trials)")}
+                for column, kind in _ADDED_TRIAL_COLUMNS:
+                    if column not in have:
+                        conn.execute(f"ALTER TABLE trials ADD COLUMN {column} {kind}")
                 if app_id != APPLICATION_ID:
                     conn.execute(f"PRAGMA application_id = {APPLICATION_ID}")
                 conn.execute("INSERT OR IGNORE INTO meta(key, value) VALUES ('schema_version', ?)",
@@ -606,6 +615,7 @@ class SQLiteStore(Store):
                     result.rt_s, result.onset_ns, result.acquired_ns, result.crossed_ns,
                     result.stimulus_off_ns, result.n_samples, result.status,
                     result.abort_reason, attempts, utc_now(),
+                    result.device_onset_ns, result.onset_uncertainty_ns,
                 )
                 cur = c.execute(
                     f"INSERT INTO trials({', '.join(_TRIAL_COLUMNS)}) "
