@@ -637,9 +637,9 @@ class FirmwareBelt(Belt, PacketSink):
             from .._errors import TactorbeltError
 
             raise TactorbeltError(f"the firmware on {self.port} ({self.firmware_version}) "
-                                  "has no GET_DIAG (needs 1.1)")
-        diag: wire.Diag = self._expect(self._request(wire.get_diag, "the diagnostics request"), wire.Diag,
-                                       "the diagnostics request")
+                                  "cannot report diagnostics (needs firmware 1.1)")
+        what = "the diagnostics request"
+        diag: wire.Diag = self._expect(self._request(wire.get_diag, what), wire.Diag, what)
         if self._reset_seen:
             self._restore_after_reset()
         return diag
@@ -806,7 +806,8 @@ class FirmwareBelt(Belt, PacketSink):
             duration_ms,
         )
         self._streaming = False
-        waiter = self._send(lambda seq: wire.play_target(seq, *args), "the play command", onset=True)
+        waiter = self._send(lambda seq: wire.play_target(seq, *args), "the play command",
+                            onset=True)
         reply = self._wait(waiter, "the play command")
         self._expect(reply, wire.Ack, "the play command")
 
