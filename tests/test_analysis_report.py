@@ -215,8 +215,27 @@ def test_model_participant_data_are_called_simulated(tmp_path: Path) -> None:
     summary = analyze([db], out, n_boot=200)
     assert summary.simulated
     text = " ".join(_check_self_contained(out).text)
-    assert "come from a simulated model participant, not from people" in text
-    assert json.loads((out / "summary.json").read_text())["simulated_model_data"] is True
+    assert "answered by the model participant, not by people" in text
+    j = json.loads((out / "summary.json").read_text())
+    assert j["simulated_model_data"] is True and j["simulated_sessions"] == 3
+
+
+@pytest.mark.parametrize(("belt", "person_on_sim"), [("sim", True), ("sim:virtual", True),
+                                                     ("serial:/dev/ttyACM0", False)])
+def test_a_person_is_never_called_a_model_participant(tmp_path: Path, belt: str,
+                                                      person_on_sim: bool) -> None:
+    """A mouse session on the sim belt is a person's data on a belt that did not vibrate,
+    not the model participant's (as it was once labelled)."""
+    db = hand_store(tmp_path / "person.sqlite", participant="P01", input="mouse", belt=belt)
+    out = tmp_path / "o"
+    summary = analyze([db], out, n_boot=200)
+    j = json.loads((out / "summary.json").read_text())
+    assert j["simulated_model_data"] is False and j["simulated_sessions"] == 0
+    assert j["simulated_belt_sessions"] == int(person_on_sim)
+    text = " ".join(_check_self_contained(out).text)
+    assert "model participant" not in text.lower()
+    assert ("no motor vibrated" in text) is person_on_sim
+    assert not summary.simulated
 
 
 def test_trajectory_figure_reads_samples_of_chosen_trials(tmp_path: Path) -> None:

@@ -35,6 +35,7 @@ __all__ = [
     "analyze",
     "choose_sample_trials",
     "print_summary_table",
+    "provenance_warnings",
     "render_html",
 ]
 
@@ -301,17 +302,8 @@ def render_html(summary: Summary, figures: dict[str, bytes], *,
         + (f", generated {_e(generated_at)}" if generated_at else "")
         + f"; stores: {_e(', '.join(summary.paths))}</p>",
     ]
-    if summary.simulated_sessions:
-        if summary.simulated:
-            msg = ("These data come from a simulated model participant, not from people. "
-                   "The numbers show what the model does; they are not evidence about human "
-                   "perception.")
-        else:
-            msg = (f"{len(summary.simulated_sessions)} of {c['sessions']} sessions come from a "
-                   "simulated model participant, not from people: "
-                   + _e(", ".join(summary.simulated_sessions[:20]))
-                   + ". They are pooled with the others below.")
-        parts.append(f'<div class="warn"><strong>Simulated data.</strong> {msg}</div>')
+    for title, msg in provenance_warnings(summary):
+        parts.append(f'<div class="warn"><strong>{_e(title)}</strong> {_e(msg)}</div>')
 
     # coverage
     parts.append("<h2>What this report covers</h2>")
@@ -499,9 +491,35 @@ def print_summary_table(summary: Summary, console: Console | None = None) -> Non
                   f"[{_fmt(t.ci_low)}, {_fmt(t.ci_high)}]", highlight=False)
     else:
         con.print(f"{t.test}, {t.question}: not computed ({t.reason})")
-    if summary.simulated_sessions:
-        con.print("[bold]Note:[/] these data come from a simulated model participant, "
-                  "not from people.")
+    for title, msg in provenance_warnings(summary):
+        con.print(f"[bold]{title}[/] {msg}", highlight=False)
+
+
+def provenance_warnings(summary: Summary) -> list[tuple[str, str]]:
+    """What the reader must know about where the data come from: answers from the model
+    participant rather than people, and sessions on the simulated belt (nothing
+    vibrated), each said separately. A list of (title, message); empty for people on a
+    real belt."""
+    out: list[tuple[str, str]] = []
+    n = len(summary.sessions)
+    model, belt = summary.simulated_sessions, summary.simulated_belt_sessions
+    if model:
+        if len(model) == n:
+            msg = ("Every session was answered by the model participant, not by people. The "
+                   "numbers show what the model does; they are not evidence about human "
+                   "perception.")
+        else:
+            msg = (f"{len(model)} of {n} sessions were answered by the model participant, "
+                   f"not by people ({', '.join(model[:20])}); they are pooled with the "
+                   "others below.")
+        out.append(("Model participant.", msg))
+    people_on_sim = [k for k in belt if k not in set(model)]
+    if people_on_sim:
+        msg = (f"{len(people_on_sim)} of {n} sessions answered by a person ran on the simulated "
+               f"belt ({', '.join(people_on_sim[:20])}): no motor vibrated, so these answers "
+               "are not tactile localisation; use them to check the set-up only.")
+        out.append(("Simulated belt.", msg))
+    return out
 
 
 # -- files -----------------------------------------------------------------------------

@@ -725,7 +725,10 @@ class Summary:
         design: layout, targets and law used for the amplitude figure.
         sessions: the sessions table (provenance).
         incomplete_sessions, timeouts, aborted: rows the report names.
-        simulated_sessions: keys of sessions whose data come from a simulated model.
+        simulated_sessions: keys of sessions whose answers come from a model participant
+            (or a scripted cursor), not from a person.
+        simulated_belt_sessions: keys of sessions played on the simulated belt (no motor
+            vibrated, whoever answered).
         notes: what was noticed, assumed or could not be computed, in words.
         trials: the prepared trials table (derived columns added).
         seed, n_boot: bootstrap settings.
@@ -746,6 +749,7 @@ class Summary:
     timeouts: pd.DataFrame
     aborted: pd.DataFrame
     simulated_sessions: list[str]
+    simulated_belt_sessions: list[str]
     notes: list[str]
     trials: pd.DataFrame
     paths: list[str]
@@ -826,6 +830,7 @@ class Summary:
             "tactorbelt_analysis": 1,
             "simulated_model_data": self.simulated,
             "simulated_sessions": len(self.simulated_sessions),
+            "simulated_belt_sessions": len(self.simulated_belt_sessions),
             "counts": dict(self.counts),
             "conditions": conditions,
             "between_accuracy_test": self.between_accuracy_test.to_dict(),
@@ -858,12 +863,18 @@ def pd_numeric(s: pd.Series) -> pd.Series:
     return pd.to_numeric(s, errors="coerce")
 
 
-def _is_simulated(sessions: pd.DataFrame) -> pd.Series:
-    part = sessions["participant"].astype(str).str.lower().str.startswith("model")
-    belt = sessions["belt"].astype("string").str.lower().fillna("")
-    sim_belt = belt.str.startswith("sim") | belt.str.startswith("model")
-    inp = sessions["input"].astype("string").str.lower().fillna("") == "model"
-    return part | sim_belt | inp
+def _is_model(sessions: pd.DataFrame) -> pd.Series:
+    """Sessions answered by the model participant or a scripted cursor, not a person:
+    the stored input; a store without it (older versions) by a ``model...`` participant."""
+    inp = sessions["input"].astype("string").str.lower()
+    by_name = sessions["participant"].astype(str).str.lower().str.startswith("model")
+    return inp.isin(["model", "scripted"]).fillna(False) | (inp.isna() & by_name)
+
+
+def _on_simulated_belt(sessions: pd.DataFrame) -> pd.Series:
+    """Sessions played on the simulated belt (``sim`` URLs): no motor vibrated."""
+    scheme = sessions["belt"].astype("string").str.lower().fillna("").str.split(":").str[0]
+    return scheme.str.strip().eq("sim")
 
 
 def _design_for(sessions: pd.DataFrame, notes: list[str]) -> StudyDesign:
@@ -903,7 +914,8 @@ def summarize(data: StoreData, *, seed: int = 0, n_boot: int = DEFAULT_N_BOOT,
     rng = np.random.default_rng(seed)
     notes = list(data.notes)
     sessions = data.sessions.copy()
-    sessions["simulated"] = _is_simulated(sessions).to_numpy(dtype=bool)
+    sessions["simulated"] = _is_model(sessions).to_numpy(dtype=bool)
+    sessions["simulated_belt"] = _on_simulated_belt(sessions).to_numpy(dtype=bool)
     design = _design_for(sessions, notes)
     tr = prepare_trials(data.trials)
 
@@ -1017,6 +1029,8 @@ def summarize(data: StoreData, *, seed: int = 0, n_boot: int = DEFAULT_N_BOOT,
         incomplete_sessions=incomplete.reset_index(drop=True), timeouts=timeouts,
         aborted=aborted,
         simulated_sessions=sessions.loc[sessions["simulated"], "session_key"].tolist(),
+        simulated_belt_sessions=sessions.loc[sessions["simulated_belt"],
+                                             "session_key"].tolist(),
         notes=notes, trials=tr, paths=[str(p) for p in data.paths], seed=seed, n_boot=n_boot,
         rt_model=rt_json,
     )
