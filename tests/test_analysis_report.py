@@ -277,3 +277,40 @@ def test_all_timed_out_is_said_in_words_not_nan(tmp_path: Path) -> None:
     t = j["tests"][1]
     assert t["key"] == "between_rt" and t["computed"] is False
     assert "no answered trial" in t["reason"]
+
+
+def test_report_tables_speak_words_not_columns_or_json(tmp_path: Path) -> None:
+    """The provenance table has no empty header row; the sessions table names its columns
+    in words and shows a block order as a list, not JSON."""
+    import html.parser
+
+    db = hand_store(tmp_path / "hand.sqlite", condition_order='["static", "dynamic"]')
+    out = tmp_path / "o"
+    analyze([db], out, n_boot=200)
+    page = (out / "report.html").read_text()
+
+    class Headers(html.parser.HTMLParser):
+        def __init__(self) -> None:
+            super().__init__()
+            self.rows: list[list[str]] = []
+            self.in_th = False
+
+        def handle_starttag(self, tag: str, attrs: object) -> None:
+            if tag == "tr":
+                self.rows.append([])
+            self.in_th = tag == "th"
+
+        def handle_endtag(self, tag: str) -> None:
+            self.in_th = False
+
+        def handle_data(self, data: str) -> None:
+            if self.in_th:
+                self.rows[-1].append(data)
+
+    p = Headers()
+    p.feed(page)
+    header_rows = [r for r in p.rows if r]
+    assert all(any(h.strip() for h in r) for r in header_rows)
+    assert "<th></th>" not in page
+    assert "session_key" not in page and "condition_order" not in page
+    assert "static, dynamic" in page and '["static", "dynamic"]' not in page

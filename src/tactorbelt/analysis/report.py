@@ -111,10 +111,38 @@ def _joined(values: Sequence[Any], limit: int = 30) -> str:
     return _e(text + (" ..." if len(values) > limit else ""))
 
 
-def _table(headers: Sequence[str], rows: Sequence[Sequence[Any]], cls: str = "") -> str:
-    head = "".join(f"<th>{_e(h)}</th>" for h in headers)
+def _table(headers: Sequence[str] | None, rows: Sequence[Sequence[Any]], cls: str = "") -> str:
+    """An HTML table; ``headers=None`` for a table of label/value rows (no header row)."""
+    head = ("" if headers is None else
+            "<thead><tr>" + "".join(f"<th>{_e(h)}</th>" for h in headers) + "</tr></thead>")
     body = "\n".join("<tr>" + "".join(f"<td>{c}</td>" for c in r) + "</tr>" for r in rows)
-    return f'<table class="{cls}"><thead><tr>{head}</tr></thead><tbody>\n{body}\n</tbody></table>'
+    return f'<table class="{cls}">{head}<tbody>\n{body}\n</tbody></table>'
+
+
+#: stored column names as the report's tables name them
+_COLUMN_WORDS = {"session_key": "session", "study_name": "study",
+                 "condition_order": "block order", "started_at": "started",
+                 "ended_at": "ended", "trial_index": "trial", "target_deg": "target (°)",
+                 "response_deg": "response (°)", "rt_s": "response time (s)",
+                 "on_tactor": "on-tactor", "n_targets": "targets"}
+#: the sessions table's columns, in order
+_SESSION_COLUMNS = ("session_key", "participant", "study_name", "condition_order", "seed",
+                    "belt", "input", "started_at", "ended_at", "status")
+
+
+def _cell_text(v: Any) -> str:
+    """A stored value as a reader writes it: no NaN, and a JSON list as 'a, b'."""
+    if v is None or (isinstance(v, float) and math.isnan(v)) or str(v) == "<NA>":
+        return ""
+    text = str(v)
+    if text.startswith("["):
+        try:
+            items = json.loads(text)
+        except ValueError:
+            return text
+        if isinstance(items, list):
+            return ", ".join(str(i) for i in items)
+    return text
 
 
 # -- content ---------------------------------------------------------------------------
@@ -281,10 +309,10 @@ def _listing(df: pd.DataFrame, what: str) -> str:
         return f"<p>No {what}.</p>"
     rows = []
     for r in df.head(MAX_LISTED).itertuples(index=False):
-        rows.append([_e(v if not (isinstance(v, float) and math.isnan(v)) else "") for v in r])
+        rows.append([_e(_cell_text(v)) for v in r])
     more = (f"<p>... and {len(df) - MAX_LISTED} more (all in the store).</p>"
             if len(df) > MAX_LISTED else "")
-    return _table(list(df.columns), rows) + more
+    return _table([_COLUMN_WORDS.get(str(c), str(c)) for c in df.columns], rows) + more
 
 
 def render_html(summary: Summary, figures: dict[str, bytes], *,
@@ -423,17 +451,16 @@ def render_html(summary: Summary, figures: dict[str, bytes], *,
         ["session seeds", _joined(prov["session_seeds"])],
         ["analysis seed (bootstrap)", f"{summary.seed} ({summary.n_boot} resamples)"],
     ]
-    parts.append(_table(["", ""], prov_rows, "prov"))
+    parts.append(_table(None, prov_rows, "prov"))
     s = summary.sessions
-    cols = [col for col in ("session_key", "participant", "study_name", "condition_order",
-                            "seed", "belt", "started_at", "ended_at", "status") if col in s]
-    srows = [[_e("" if (isinstance(v, float) and math.isnan(v)) or v is None
-                 or str(v) == "<NA>" else v) for v in r]
+    cols = [col for col in _SESSION_COLUMNS if col in s]
+    srows = [[_e(_cell_text(v)) for v in r]
              for r in s[cols].head(MAX_TABLE_ROWS).itertuples(index=False)]
     more = (f"<p>First {MAX_TABLE_ROWS} of {len(s)} sessions.</p>"
             if len(s) > MAX_TABLE_ROWS else "")
+    table = _table([_COLUMN_WORDS.get(c, c) for c in cols], srows)
     parts.append(f"<h3>Sessions ({len(s)})</h3><details open><summary>start, end and status"
-                 "</summary>" + _table(cols, srows) + more + "</details>")
+                 "</summary>" + table + more + "</details>")
     parts.append('<h2>Files</h2><p>Next to this report: <a href="summary.json">summary.json</a>'
                  ' (headline numbers and tests), <a href="per_target.csv">per_target.csv</a> '
                  "(per participant, condition and target) and the figures as PNG.</p>")
