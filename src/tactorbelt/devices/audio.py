@@ -69,6 +69,8 @@ DEFAULT_RAMP_MS: Final = 5.0
 TACTOR_BAND_HZ: Final = (40.0, 500.0)
 #: Sample rates tried when listing what a device offers.
 _COMMON_RATES: Final = (8000, 16000, 22050, 32000, 44100, 48000, 88200, 96000, 192000)
+#: Samples of a dynamic stimulus computed at once (at the audio rate) by the callback.
+_CHUNK: Final = 1024
 #: Seconds ``close`` and ``settle`` wait at most beyond the ramp and the latency.
 _SETTLE_SLACK_S: Final = 1.0
 
@@ -197,27 +199,49 @@ class _Levels(_Program):
 
 class _Render(_Program):
     """A stimulus from its onset frame, for ``n_frames`` (None: until replaced); the last
-    ``ramp`` frames fade out, so the end is ramped too."""
+    ``ramp`` frames fade out, so the end is ramped too. A static stimulus's amplitudes do
+    not change in time: they are computed once."""
 
     def __init__(self, stimulus: Stimulus, calibration: Calibration, rate: float,
                  n_frames: int | None, ramp: int) -> None:
         self.stimulus = stimulus
-        self.calibration = calibration
+        self.calibration = None if calibration.is_identity else calibration
         self.rate = rate
         self.n_frames = n_frames
         self.ramp = ramp
         self.onset = 0
+        self.constant = None if stimulus.is_dynamic else self._levels(np.zeros(1))[0]
+        self._cache_start = 0
+        self._cache: FloatArray | None = None
+
+    def _levels(self, t: FloatArray) -> FloatArray:
+        a = self.stimulus.amplitudes(t)
+        return a if self.calibration is None else self.calibration.apply(a)
 
     def start(self, frame: int) -> None:
         self.onset = frame
 
+    def _chunk(self, k0: int, n: int) -> FloatArray:
+        """Levels of samples k0 .. k0+n-1 since onset, computed ``_CHUNK`` samples at a
+        time (one vectorised call of the stimulus per chunk, not per callback)."""
+        cache = self._cache
+        if cache is None or not (self._cache_start <= k0
+                                 and k0 + n <= self._cache_start + cache.shape[0]):
+            k = np.arange(k0, k0 + max(n, _CHUNK), dtype=np.int64)
+            cache = self._cache = self._levels(k / self.rate)
+            self._cache_start = k0
+        return cache[k0 - self._cache_start:k0 - self._cache_start + n]
+
     def envelope(self, idx: NDArray[np.int64]) -> FloatArray:
         k = idx - self.onset
-        env = self.calibration.apply(self.stimulus.amplitudes(k / self.rate))
-        if self.n_frames is not None:
+        if self.constant is not None:
+            env = np.broadcast_to(self.constant, (k.shape[0], self.constant.shape[0]))
+        else:
+            env = self._chunk(int(k[0]), k.shape[0])
+        if self.n_frames is not None and self.n_frames - int(k[-1]) < self.ramp:
             left = (self.n_frames - k).astype(float)
             env = env * np.clip(left / self.ramp, 0.0, 1.0)[:, None]
-        return np.asarray(env, dtype=float)
+        return env
 
 
 # -- the belt ------------------------------------------------------------------------------
@@ -266,6 +290,8 @@ class AudioBelt(Belt):
         self._phase = 0.0
         self._step = carrier_hz / samplerate
         self._map = np.asarray(mapping, dtype=np.intp)
+        self._direct = mapping == tuple(range(channels))
+        self._gain = None if np.all(self.output_gain == 1.0) else self.output_gain
         self._ar = np.arange(8192, dtype=np.int64)
         self._busy_ns = 0
         self._calls = 0
@@ -285,7 +311,7 @@ class AudioBelt(Belt):
 
     # -- the audio callback (PortAudio's thread) ---------------------------------------------
     def _callback(self, outdata: Any, frames: int, time_info: Any, status: Any) -> None:
-        t0 = time.perf_counter_ns()
+        t0 = time.thread_time_ns()
         if status.output_underflow:
             self.underruns += 1
         try:
@@ -294,7 +320,7 @@ class AudioBelt(Belt):
             outdata.fill(0)
             self._callback_error = exc
             raise _sounddevice().CallbackAbort from None
-        self._busy_ns += time.perf_counter_ns() - t0
+        self._busy_ns += time.thread_time_ns() - t0
         self._calls += 1
 
     def _render(self, outdata: Any, frames: int) -> None:
@@ -318,9 +344,15 @@ class AudioBelt(Belt):
         if not self._fading:
             self._settled_gen = gen
         carrier = np.sin((2.0 * math.pi) * (self._phase + ar * self._step))
-        out = np.clip(env * self.output_gain * carrier[:, None], -1.0, 1.0)
-        outdata.fill(0)
-        outdata[:, self._map] = out
+        out = env * carrier[:, None]
+        if self._gain is not None:
+            out *= self._gain
+        np.clip(out, -1.0, 1.0, out=out)
+        if self._direct:
+            outdata[:] = out
+        else:
+            outdata.fill(0)
+            outdata[:, self._map] = out
         self._frame += frames
         self._phase = (self._phase + frames * self._step) % 1.0
 
@@ -387,7 +419,7 @@ class AudioBelt(Belt):
 
     @property
     def callback_load(self) -> float:
-        """Mean share of real time the callback has spent rendering (0..1)."""
+        """The callback's CPU time over the audio time it rendered (0..1 of one core)."""
         if self._frame == 0:
             return 0.0
         return self._busy_ns / 1e9 / (self._frame / self.samplerate)
