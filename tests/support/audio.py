@@ -120,6 +120,8 @@ class Recorder:
         self.ports = [self.client.inports.register(f"in_{k}") for k in range(n)]
         self.buf = np.zeros((round(seconds * RATE), n), dtype=np.float32)
         self.connected = np.zeros(self.buf.shape[0], dtype=bool)
+        #: JACK's frame time of each recorded sample: a jump is a cycle the recorder lost
+        self.time = np.zeros(self.buf.shape[0], dtype=np.int64)
         self.frames = 0
         self.recording = False
         self.client.set_process_callback(self._process)
@@ -132,6 +134,7 @@ class Recorder:
         for k, port in enumerate(self.ports):
             self.buf[i:i + frames, k] = port.get_array()
         self.connected[i:i + frames] = self.ports[0].number_of_connections > 0
+        self.time[i:i + frames] = self.client.last_frame_time + np.arange(frames)
         self.frames = i + frames
 
     def sources(self, timeout_s: float = 10.0) -> list[Any]:
@@ -161,6 +164,11 @@ class Recorder:
         time.sleep(0.02)
         return self.buf[:self.frames].copy(), self.connected[:self.frames].copy()
 
+    def gaps(self) -> NDArray[np.intp]:
+        """Indices i where sample i does not follow sample i-1 (a lost cycle)."""
+        t = self.time[:self.frames]
+        return np.flatnonzero(np.diff(t) != 1) + 1
+
     def close(self) -> None:
         self.client.deactivate()
         self.client.close()
@@ -189,3 +197,12 @@ def smooth(env: NDArray[Any], carrier_hz: float, rate: float = RATE) -> NDArray[
     kernel = np.ones(w) / w
     env = np.asarray(env, dtype=float)
     return np.stack([np.convolve(env[:, k], kernel, "same") for k in range(env.shape[1])], 1)
+
+
+def max_step(x: NDArray[Any], gaps: NDArray[np.intp]) -> float:
+    """The largest sample-to-sample step of ``x``, across no recording gap."""
+    d = np.abs(np.diff(np.asarray(x, dtype=float), axis=0))
+    if d.ndim > 1:
+        d = d.max(axis=1)
+    d[np.asarray(gaps, dtype=np.intp) - 1] = 0.0
+    return float(d.max(initial=0.0))
