@@ -65,6 +65,11 @@ GOALS = [
     Goal("cli_help_s", "python_startup_s", "<=", 0.3, "s",
          "Python start-up plus click; --help imports no NumPy"),
     Goal("cli_help_vs_python", None, None, None, "x", "baseline: python -c pass"),
+    Goal("audio_callback_cpu_pct", None, "<=", 5.0, "% of a core",
+         "stimulus.amplitudes at 48 kHz x 8 channels, NumPy on 1024-sample chunks"),
+    Goal("audio_underruns_60s", None, "<=", 0.0, "",
+         "a non-realtime JACK dummy server on 2 shared cores, period 256 frames (5.3 ms)"),
+    Goal("audio_render_block_us", None, None, None, "us", "as audio_callback_cpu_pct"),
     Goal("window_sample_p99_ms", None, "<=", 1.0, "ms",
          "OS wake-up latency of the 100 Hz loop while the window draws at 60 Hz"),
 ]
