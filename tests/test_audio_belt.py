@@ -16,8 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from support.audio import (DEVICE, RATE, Recorder, ensure_jack, envelope, max_step, smooth,
-                           stop_jack)
+from support.audio import DEVICE, RATE, Recorder, ensure_jack, envelope, max_step, smooth, stop_jack
 from tactorbelt import ConfigError, DeviceError, Layout
 from tactorbelt.devices import open_belt
 from tactorbelt.devices.calibration import Calibration

@@ -185,7 +185,7 @@ class _Program:
     def envelope(self, idx: NDArray[np.int64]) -> FloatArray:
         raise NotImplementedError
 
-    def start(self, frame: int) -> None:  # noqa: B027 - optional hook
+    def start(self, frame: int) -> None:
         """Called by the callback at the frame the program begins."""
 
 
