@@ -16,12 +16,22 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from support.audio import DEVICE, RATE, Recorder, ensure_jack, envelope, max_step, smooth, stop_jack
+from support.audio import (
+    DEVICE,
+    RATE,
+    Recorder,
+    ensure_jack,
+    envelope,
+    max_step,
+    peak,
+    smooth,
+    stop_jack,
+)
 from tactorbelt import ConfigError, DeviceError, Layout
 from tactorbelt.devices import open_belt
 from tactorbelt.devices.calibration import Calibration
 from tactorbelt.player import Player
-from tactorbelt.stimuli import make_stimulus
+from tactorbelt.stimuli import Stimulus, make_stimulus
 
 CARRIER = 250.0
 URL = f"audio:{DEVICE}?channels=6&carrier_hz={CARRIER:g}"
@@ -52,11 +62,39 @@ def _record(rec: Recorder, seconds: float) -> np.ndarray:
     return x
 
 
-def _onset(x: np.ndarray) -> int:
-    """The first sample where any channel leaves silence."""
-    nz = np.flatnonzero(np.abs(x).max(axis=1) > 1e-6)
-    assert nz.size, "the recording is silent"
-    return int(nz[0])
+def _transits(piece: np.ndarray, stim: Stimulus) -> list[tuple[int, str, float]]:
+    """Where each transit starts in a recorded piece: (sample, "nf" or "fn", misfit).
+
+    Slides the stimulus's own envelope around each transit (20 ms before its start to
+    20 ms after its end, identically smoothed) along the piece's envelope (near and far
+    channels) and keeps the places where it fits within 0.02 rms.
+    """
+    from scipy.signal import correlate
+
+    pair = [stim.near_idx, stim.far_idx]
+    got = envelope(piece, CARRIER)[:, pair][400:-400]  # no moving-average edges
+    full = smooth(stim.amplitudes(np.arange(3 * round(stim.period_s * RATE)) / RATE),
+                  CARRIER)[:, pair]
+    period = round(stim.period_s * RATE)
+    before, length = RATE // 50, round((stim.transit_s + 0.04) * RATE)
+    found = []
+    for kind, start in (("nf", stim.dwell_near_s),
+                        ("fn", stim.dwell_near_s + stim.transit_s + stim.dwell_far_s)):
+        i0 = period + round(start * RATE) - before
+        tpl = full[i0:i0 + length]
+        if got.shape[0] < length:
+            continue
+        sq = np.cumsum(np.vstack([np.zeros((1, 2)), got ** 2]), axis=0)
+        sse = (sq[length:] - sq[:-length]).sum(axis=1) + (tpl ** 2).sum()
+        sse -= 2 * sum(correlate(got[:, c], tpl[:, c], "valid", "fft") for c in range(2))
+        rms = np.sqrt(np.maximum(sse, 0) / (2 * length))
+        for _ in range(8):
+            p = int(np.argmin(rms))
+            if rms[p] > 0.02:
+                break
+            found.append((p + before + 400, kind, float(rms[p])))
+            rms[max(0, p - RATE // 4):p + RATE // 4] = np.inf
+    return sorted(found)
 
 
 def test_a_dynamic_quarter_point_stimulus_keeps_its_dwells_to_the_sample(
@@ -65,29 +103,44 @@ def test_a_dynamic_quarter_point_stimulus_keeps_its_dwells_to_the_sample(
         assert recorder.connect() == 6
         stim = make_stimulus(belt.layout, 45.0, "dynamic")  # a quarter of 30..90
         assert (stim.dwell_near_s, stim.dwell_far_s) == pytest.approx((0.6, 0.2))
-        recorder.start()
-        time.sleep(0.1)
-        belt.play(stim, 2.6)
-        time.sleep(2.8)
-        x, _ = recorder.take()
-        assert belt.underruns == 0 or pytest.skip("underruns on a loaded machine")
-    s0 = _onset(x)
-    got = envelope(x[s0:s0 + round(2.5 * RATE)], CARRIER)
-    want = smooth(stim.amplitudes(np.arange(got.shape[0]) / RATE), CARRIER)
-    ramp = round(0.005 * RATE) + 2 * 192
-    near, far = stim.near_idx, stim.far_idx
-    # each transition, found by aligning the recorded envelope to the stimulus's locally
-    starts = [0.6, 0.6 + 0.1 + 0.2, 1.6, 1.6 + 0.3]
-    shifts = []
-    for t in starts:
-        i0, i1 = round((t - 0.02) * RATE), round((t + 0.12) * RATE)
-        errs = [np.abs(got[i0 + d:i1 + d, [near, far]] - want[i0:i1, [near, far]]).max()
-                for d in range(-192, 193)]
-        shifts.append(int(np.argmin(errs)) - 192)
-        assert min(errs) < 0.01
-    dwells_ms = np.diff(shifts) / RATE * 1000  # deviation of each dwell from the stimulus's
-    assert np.all(np.abs(dwells_ms) <= 2.0), (shifts, dwells_ms)
-    assert np.abs(got[ramp:] - want[ramp:]).max() < 0.01
+        belt.play(stim, None)
+        _record(recorder, 8.0)  # long enough for whole dwells between lost cycles
+    transit = round(stim.transit_s * RATE)
+    dwells: dict[str, list[float]] = {"near": [], "far": []}
+    for piece in recorder.pieces(RATE // 2):
+        marks = _transits(piece, stim)
+        for (p0, k0, _), (p1, k1, _) in zip(marks, marks[1:], strict=False):
+            assert k0 != k1, marks  # transits alternate, one per dwell
+            dwells["near" if k1 == "nf" else "far"].append((p1 - p0 - transit) / RATE * 1000)
+    if not (dwells["near"] or dwells["far"]):
+        pytest.skip("the recorder lost a JACK cycle in every dwell (a loaded machine)")
+    assert np.allclose(dwells["near"], 600.0, atol=2.0), dwells
+    assert np.allclose(dwells["far"], 200.0, atol=2.0), dwells
+
+
+def test_every_channel_follows_the_stimulus(recorder: Recorder) -> None:
+    with open_belt(URL) as belt:
+        recorder.connect()
+        stim = make_stimulus(belt.layout, 45.0, "dynamic")
+        belt.play(stim, None)
+        _record(recorder, 2.0)
+    period = round(stim.period_s * RATE)
+    want = smooth(stim.amplitudes(np.arange(3 * period) / RATE), CARRIER)[period:2 * period]
+    checked = 0
+    for piece in recorder.pieces(RATE // 4):
+        got = envelope(piece, CARRIER)[400:-400, :6]
+        (p, _, _), *_ = _transits(piece, stim) or [(None, None, None)]
+        if p is None:
+            continue
+        # sample p of the piece is where a transit starts: line the period up with it
+        kind_start = [round(stim.dwell_near_s * RATE),
+                      round((stim.dwell_near_s + stim.transit_s + stim.dwell_far_s) * RATE)]
+        best = min(np.abs(got - want[(np.arange(got.shape[0]) + 400 - p + k) % period]).max()
+                   for k in kind_start)
+        assert best < 0.02
+        checked += 1
+    if not checked:
+        pytest.skip("no piece of the recording held a transit (a loaded machine)")
 
 
 def test_a_static_stimulus_has_the_laws_ratios_and_the_carrier(recorder: Recorder) -> None:
@@ -97,13 +150,15 @@ def test_a_static_stimulus_has_the_laws_ratios_and_the_carrier(recorder: Recorde
         belt.play(stim, 1.5)
         time.sleep(0.2)
         x = _record(recorder, 1.0)
-    got = envelope(x, CARRIER)[2000:-2000].mean(axis=0)[:6]
+    got = np.nanmedian(envelope(x, CARRIER)[2000:-2000], axis=0)[:6]
     want = stim.amplitudes(np.zeros(1))[0]
     k = int(np.argmax(want))
     assert np.allclose(got / got[k], want / want[k], atol=0.01)
     assert got[k] == pytest.approx(want[k], rel=0.01)
-    crossings = np.count_nonzero(np.diff(np.signbit(x[:, k])))
-    assert crossings / 2 / (x.shape[0] / RATE) == pytest.approx(CARRIER, rel=0.005)
+    xs = max(recorder.pieces(), key=len)[:, k]  # consecutive cycles only
+    assert xs.shape[0] > RATE // 10
+    crossings = np.count_nonzero(np.diff(np.signbit(xs)))
+    assert crossings / 2 / (xs.shape[0] / RATE) == pytest.approx(CARRIER, rel=0.005)
 
 
 def test_switching_stimuli_and_streaming_frames_never_click(recorder: Recorder) -> None:
@@ -121,8 +176,8 @@ def test_switching_stimuli_and_streaming_frames_never_click(recorder: Recorder) 
         belt.stop()
         time.sleep(0.2)
         x, _ = recorder.take()
-    assert np.abs(x).max() > 0.5
-    assert max_step(x, recorder.gaps()) <= MAX_STEP or belt.underruns, belt.underruns
+    assert peak(x) > 0.5
+    assert max_step(x) <= MAX_STEP
 
 
 def test_outputs_are_silent_after_stop_and_after_close(recorder: Recorder) -> None:
@@ -132,13 +187,13 @@ def test_outputs_are_silent_after_stop_and_after_close(recorder: Recorder) -> No
         belt.set_amplitudes([1.0] * 6)
         belt.stop()
         assert belt.settle()
-        assert np.abs(_record(recorder, 0.2)).max() == 0.0
+        assert peak(_record(recorder, 0.2)) == 0.0
         belt.set_amplitudes([1.0] * 6)
         time.sleep(0.1)
     finally:
         belt.close()
     assert not belt.active
-    assert np.abs(_record(recorder, 0.2)).max() == 0.0
+    assert peak(_record(recorder, 0.2)) == 0.0
 
 
 def test_an_error_in_the_with_block_stops_the_stream_silent(recorder: Recorder) -> None:
@@ -151,8 +206,8 @@ def test_an_error_in_the_with_block_stops_the_stream_silent(recorder: Recorder) 
     x, connected = recorder.take()
     assert not belt.active
     on = x[connected]
-    assert np.abs(on).max() > 0.5 and np.abs(on[-100:]).max() == 0.0
-    assert max_step(x, recorder.gaps()) <= MAX_STEP or belt.underruns, belt.underruns
+    assert peak(on) > 0.5 and peak(on[-100:]) == 0.0
+    assert max_step(x) <= MAX_STEP
 
 
 def test_sigterm_to_tactorbelt_play_ramps_down_and_exits_143(recorder: Recorder) -> None:
@@ -173,10 +228,10 @@ def test_sigterm_to_tactorbelt_play_ramps_down_and_exits_143(recorder: Recorder)
     x, connected = recorder.take()
     assert proc.returncode == 143, err
     on = x[connected]
-    assert np.abs(on).max() > 0.2
-    assert np.abs(on[-100:]).max() == 0.0, err  # silent before its ports went away
-    assert max_step(x, recorder.gaps()) <= MAX_STEP or "underrun" in err, err
-    assert np.abs(x[~connected]).max(initial=0.0) == 0.0
+    assert peak(on) > 0.2
+    assert peak(on[-100:]) == 0.0, err  # silent before its ports went away
+    assert max_step(x) <= MAX_STEP
+    assert peak(x[~connected]) == 0.0
 
 
 def test_calibration_gain_response_and_channel_map(recorder: Recorder, tmp_path: Path) -> None:
@@ -193,7 +248,7 @@ def test_calibration_gain_response_and_channel_map(recorder: Recorder, tmp_path:
         belt.set_amplitudes([0.8, 0.8, 0.0, 0.4])
         assert belt.settle()
         x = _record(recorder, 0.3)
-    got = envelope(x, CARRIER)[1000:-1000].mean(axis=0)[:6]
+    got = np.nanmedian(envelope(x, CARRIER)[1000:-1000], axis=0)[:6]
     assert got == pytest.approx([0, 0, 0.4, 0, 0.4, 0.4], abs=0.01)
 
 

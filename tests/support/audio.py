@@ -159,15 +159,29 @@ class Recorder:
         self.frames = 0
         self.recording = True
 
-    def take(self) -> tuple[NDArray[np.float32], NDArray[np.bool_]]:
+    def take(self) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+        """What was recorded, on JACK's timeline: every block at its frame time, NaN for
+        the cycles the recorder lost (a loaded machine loses some); and per sample
+        whether our ports were connected."""
         self.recording = False
         time.sleep(0.02)
-        return self.buf[:self.frames].copy(), self.connected[:self.frames].copy()
+        n = self.frames
+        if n == 0:
+            return np.zeros((0, len(self.ports))), np.zeros(0, dtype=bool)
+        t = self.time[:n] - self.time[0]
+        y = np.full((int(t.max()) + 1, len(self.ports)), np.nan)
+        connected = np.zeros(y.shape[0], dtype=bool)
+        y[t] = self.buf[:n]
+        connected[t] = self.connected[:n]
+        return y, connected
 
-    def gaps(self) -> NDArray[np.intp]:
-        """Indices i where sample i does not follow sample i-1 (a lost cycle)."""
+    def pieces(self, min_frames: int = 0) -> list[NDArray[np.float32]]:
+        """The last recording cut at every cycle it lost or got out of step: pieces of
+        consecutive JACK cycles (at least ``min_frames`` long)."""
         t = self.time[:self.frames]
-        return np.flatnonzero(np.diff(t) != 1) + 1
+        cuts = [0, *(np.flatnonzero(np.diff(t) != 1) + 1).tolist(), self.frames]
+        return [self.buf[a:b].copy() for a, b in zip(cuts, cuts[1:], strict=False)
+                if b - a >= min_frames]
 
     def close(self) -> None:
         self.client.deactivate()
@@ -199,10 +213,12 @@ def smooth(env: NDArray[Any], carrier_hz: float, rate: float = RATE) -> NDArray[
     return np.stack([np.convolve(env[:, k], kernel, "same") for k in range(env.shape[1])], 1)
 
 
-def max_step(x: NDArray[Any], gaps: NDArray[np.intp]) -> float:
-    """The largest sample-to-sample step of ``x``, across no recording gap."""
+def max_step(x: NDArray[Any]) -> float:
+    """The largest sample-to-sample step of a recording (lost cycles left out)."""
     d = np.abs(np.diff(np.asarray(x, dtype=float), axis=0))
-    if d.ndim > 1:
-        d = d.max(axis=1)
-    d[np.asarray(gaps, dtype=np.intp) - 1] = 0.0
-    return float(d.max(initial=0.0))
+    return float(np.nanmax(d, initial=0.0))
+
+
+def peak(x: NDArray[Any]) -> float:
+    """The largest magnitude in a recording (lost cycles left out)."""
+    return float(np.nanmax(np.abs(np.asarray(x, dtype=float)), initial=0.0))
