@@ -5,6 +5,7 @@ sounddevice or JACK-Client is missing (tests/support/audio.py)."""
 
 from __future__ import annotations
 
+import itertools
 import os
 import signal
 import subprocess
@@ -109,7 +110,7 @@ def test_a_dynamic_quarter_point_stimulus_keeps_its_dwells_to_the_sample(
     dwells: dict[str, list[float]] = {"near": [], "far": []}
     for piece in recorder.pieces(RATE // 2):
         marks = _transits(piece, stim)
-        for (p0, k0, _), (p1, k1, _) in zip(marks, marks[1:], strict=False):
+        for (p0, k0, _), (p1, k1, _) in itertools.pairwise(marks):
             assert k0 != k1, marks  # transits alternate, one per dwell
             dwells["near" if k1 == "nf" else "far"].append((p1 - p0 - transit) / RATE * 1000)
     if not (dwells["near"] or dwells["far"]):

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import atexit
 import ctypes.util
+import itertools
 import os
 import shutil
 import subprocess
@@ -180,7 +181,7 @@ class Recorder:
         consecutive JACK cycles (at least ``min_frames`` long)."""
         t = self.time[:self.frames]
         cuts = [0, *(np.flatnonzero(np.diff(t) != 1) + 1).tolist(), self.frames]
-        return [self.buf[a:b].copy() for a, b in zip(cuts, cuts[1:], strict=False)
+        return [self.buf[a:b].copy() for a, b in itertools.pairwise(cuts)
                 if b - a >= min_frames]
 
     def close(self) -> None:
