@@ -298,3 +298,20 @@ def test_the_cli_plays_on_an_audio_belt(jack_server: None) -> None:
 def test_a_stimulus_for_another_layout_is_refused(jack_server: None) -> None:
     with open_belt(URL, layout=Layout.even(6)) as belt:
         assert not belt.can_render(make_stimulus(Layout.even(5), 0.0))
+
+
+def test_point_and_run_work_on_an_audio_belt(jack_server: None, tmp_path: Path) -> None:
+    from support.studies import write_study
+
+    exe = str(Path(sys.executable).with_name("tactorbelt"))
+    proc = subprocess.run([exe, "point", "--bearing", "90", "--seconds", "0.5", "--belt", URL],
+                          capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 0, proc.stderr
+    assert "motors off" in proc.stdout + proc.stderr
+    study = write_study(tmp_path, tactors=6, targets=4, repetitions=1, training=0,
+                        conditions=["dynamic"], iti_s=0.05, timeout_s=1.0)
+    proc = subprocess.run([exe, "run", str(study), "-p", "P01", "--headless", "--input",
+                           "scripted", "--db", str(tmp_path / "s.sqlite"), "--belt", URL],
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert "complete, 4/4 trials" in proc.stdout, proc.stdout
