@@ -361,6 +361,9 @@ class AudioBelt(Belt):
         err = self._callback_error
         if err is not None:
             raise DeviceError(f"the audio stream of {self.url!r} stopped: {err}")
+        if not self._stream.active:
+            raise DeviceError(f"the audio stream of {self.url!r} stopped (did the sound "
+                              f"server or the device {self.device.name!r} go away?)")
         self._generation += 1
         self._next = (self._generation, program)  # one reference: the callback sees all or none
 
@@ -368,7 +371,7 @@ class AudioBelt(Belt):
         self._send(_Levels(np.array(levels, dtype=float)))
 
     def _write_stop(self) -> None:
-        if self._callback_error is None:
+        if self._callback_error is None and self._stream.active:
             self._send(_Levels(np.zeros(self.n_tactors)))
         self._report_underruns()
 
