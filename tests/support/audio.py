@@ -98,6 +98,9 @@ def stop_jack() -> None:
     global _server
     proc, _server = _server, None
     if proc is not None and proc.poll() is None:
+        sd = sys.modules.get("sounddevice")
+        while sd is not None and sd._initialized:  # PortAudio leaves JACK first: its
+            sd._terminate()  # Pa_Terminate asserts when the server went away under it
         proc.terminate()
         try:
             proc.wait(5)
