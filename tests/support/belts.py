@@ -477,6 +477,17 @@ def ble_harness(**options: Any) -> Harness:
     return Harness(belt, _synced(belt, lambda: fake.firmware.levels))
 
 
+def audio_harness(**options: Any) -> Harness:
+    """A 6-tactor audio belt on a real JACK server (dummy backend), skipped without JACK;
+    the device side is what the audio callback last wrote to the sound card's buffer."""
+    from support.audio import DEVICE, ensure_jack
+    from tactorbelt.devices import open_belt
+
+    ensure_jack()
+    belt = open_belt(f"audio:{DEVICE}?channels=6", **options)
+    return Harness(belt, belt.output_levels)
+
+
 def loop_harness(**options: Any) -> Harness:
     """Not a registered scheme: FirmwareBelt over the in-memory loop transport."""
     options.setdefault("keepalive", False)
@@ -505,6 +516,7 @@ FACTORIES: dict[str, Callable[..., Harness]] = {
     "emulator": emulator_harness,
     "serial": serial_harness,
     "ble": ble_harness,
+    "audio": audio_harness,
 }
 #: Further cases of the contract that are not URL schemes.
 EXTRA_FACTORIES: dict[str, Callable[..., Harness]] = {

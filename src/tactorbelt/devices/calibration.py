@@ -19,6 +19,15 @@ A calibration is stored as a small TOML file (:meth:`Calibration.save`,
     start = 0.22
     gain = 1.0                         # optional, default 1.0
     ceiling = 0.85
+    channel = 3                        # optional: output channel (audio belts)
+    response = [[100.0, 1.6], [250.0, 1.0], [400.0, 1.3]]
+                                       # optional: output gain by carrier Hz (audio belts)
+
+``channel`` and ``response`` matter only to belts driven through a sound card
+(:mod:`tactorbelt.devices.audio`): which output channel is this tactor, and the gain
+that evens out its frequency response, as ``[hz, gain]`` points interpolated on a
+log-frequency axis at the carrier frequency. Other belts ignore them, and they take no
+part in :meth:`Calibration.apply` (so they do not make a calibration non-identity).
 
 Pure: NumPy and the standard library (tomllib); tomli-w is imported only to save.
 """
@@ -38,7 +47,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from .._errors import ConfigError
 
-__all__ = ["FORMAT", "Calibration", "TactorCalibration"]
+__all__ = ["FORMAT", "Calibration", "TactorCalibration", "response_gain"]
 
 #: The ``format`` key of a calibration file.
 FORMAT: Final = "tactorbelt-calibration"
@@ -46,18 +55,57 @@ FORMAT: Final = "tactorbelt-calibration"
 VERSION: Final = 1
 
 _TOP_KEYS: Final = frozenset({"format", "version", "belt", "created", "tactor"})
-_TACTOR_KEYS: Final = frozenset({"index", "angle_deg", "start", "gain", "ceiling"})
+_TACTOR_KEYS: Final = frozenset({"index", "angle_deg", "start", "gain", "ceiling", "channel",
+                                 "response"})
+#: The highest output channel a calibration may name (``channel``).
+MAX_CHANNEL: Final = 255
+
+
+def _check_response(points: Sequence[Sequence[float]]) -> None:
+    """Raise ConfigError unless ``points`` are [hz, gain] pairs, hz increasing."""
+    last = 0.0
+    for p in points:
+        ok = (isinstance(p, Sequence) and len(p) == 2
+              and all(isinstance(v, int | float) and not isinstance(v, bool) for v in p))
+        if not ok or not all(math.isfinite(v) for v in p):
+            raise ConfigError(f"a response point must be [hz, gain] (two numbers), got {p!r}")
+        hz, gain = float(p[0]), float(p[1])
+        if hz <= last:
+            raise ConfigError(f"response frequencies must be positive and increasing, got "
+                              f"{hz:g} Hz after {last:g} Hz")
+        if not 0.0 < gain <= 10.0:
+            raise ConfigError(f"a response gain must be in (0, 10], got {gain:g} at {hz:g} Hz")
+        last = hz
+
+
+def response_gain(points: Sequence[tuple[float, float]], hz: float) -> float:
+    """The gain of a frequency response at ``hz`` (1.0 with no points): linear in
+    log-frequency between points, the end values beyond them."""
+    if not points:
+        return 1.0
+    f = np.log([p[0] for p in points])
+    g = np.array([p[1] for p in points], dtype=float)
+    return float(np.interp(math.log(hz), f, g))
 
 
 @dataclass(frozen=True)
 class TactorCalibration:
-    """Calibration of one tactor: start level, gain and ceiling, each in [0, 1] (gain > 0)."""
+    """Calibration of one tactor: start level, gain and ceiling, each in [0, 1] (gain > 0);
+    for audio belts optionally its output ``channel`` and frequency ``response``
+    (``((hz, gain), ...)``, frequencies increasing)."""
 
     start: float = 0.0
     gain: float = 1.0
     ceiling: float = 1.0
+    channel: int | None = None
+    response: tuple[tuple[float, float], ...] = ()
 
     def __post_init__(self) -> None:
+        if self.channel is not None and not (
+                isinstance(self.channel, int) and 0 <= self.channel <= MAX_CHANNEL):
+            raise ConfigError(f"calibration channel must be an integer in 0..{MAX_CHANNEL}, "
+                              f"got {self.channel!r}")
+        _check_response(self.response)
         for name in ("start", "ceiling"):
             v = getattr(self, name)
             if not (0.0 <= float(v) <= 1.0):
@@ -91,7 +139,27 @@ class Calibration:
 
     @property
     def is_identity(self) -> bool:
-        return all(t == TactorCalibration() for t in self.tactors)
+        """True when :meth:`apply` changes nothing (``channel`` and ``response`` aside)."""
+        return all((t.start, t.gain, t.ceiling) == (0.0, 1.0, 1.0) for t in self.tactors)
+
+    @property
+    def channels(self) -> tuple[int, ...] | None:
+        """The output channel of each tactor, or None when the file names none.
+
+        Raises:
+            ConfigError: only some tactors name a channel, or two name the same one.
+        """
+        given = [t.channel for t in self.tactors]
+        if all(c is None for c in given):
+            return None
+        if any(c is None for c in given):
+            missing = [k for k, c in enumerate(given) if c is None]
+            raise ConfigError(f"calibration: tactor {missing[0]} has no channel; give every "
+                              "tactor a channel, or none")
+        chans = tuple(int(c) for c in given if c is not None)
+        if len(set(chans)) != len(chans):
+            raise ConfigError(f"calibration: two tactors name the same channel: {list(chans)}")
+        return chans
 
     @cached_property
     def _arrays(self) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
@@ -114,12 +182,22 @@ class Calibration:
         drive = np.clip(start + (ceiling - start) * a * gain, 0.0, ceiling)
         return np.asarray(np.where(a > 0.0, drive, 0.0))
 
-    def to_list(self) -> list[dict[str, float]]:
-        return [{"start": t.start, "gain": t.gain, "ceiling": t.ceiling} for t in self.tactors]
+    def to_list(self) -> list[dict[str, Any]]:
+        rows: list[dict[str, Any]] = []
+        for t in self.tactors:
+            row: dict[str, Any] = {"start": t.start, "gain": t.gain, "ceiling": t.ceiling}
+            if t.channel is not None:
+                row["channel"] = t.channel
+            if t.response:
+                row["response"] = [list(p) for p in t.response]
+            rows.append(row)
+        return rows
 
     @classmethod
-    def from_list(cls, rows: Sequence[dict[str, float]]) -> Calibration:
-        return cls(tuple(TactorCalibration(**r) for r in rows))
+    def from_list(cls, rows: Sequence[dict[str, Any]]) -> Calibration:
+        return cls(tuple(TactorCalibration(**{
+            **r, **({"response": tuple(tuple(p) for p in r["response"])} if "response" in r
+                    else {})}) for r in rows))
 
     # -- files ----------------------------------------------------------------------
     def to_toml(self, belt: str | None = None,
@@ -149,6 +227,11 @@ class Calibration:
                 lines.append(f"angle_deg = {float(angles_deg[k])!r}")
             lines += [f"start = {float(t.start)!r}", f"gain = {float(t.gain)!r}",
                       f"ceiling = {float(t.ceiling)!r}"]
+            if t.channel is not None:
+                lines.append(f"channel = {int(t.channel)}")
+            if t.response:
+                points = ", ".join(f"[{float(h)!r}, {float(g)!r}]" for h, g in t.response)
+                lines.append(f"response = [{points}]")
         return "\n".join(lines) + "\n"
 
     def save(self, path: str | Path, belt: str | None = None,
@@ -252,5 +335,19 @@ class Calibration:
             if values["start"] > values["ceiling"]:
                 raise fail(f"{where}.start", f"start ({values['start']:g}) must not exceed "
                            f"ceiling ({values['ceiling']:g})")
-            tactors.append(TactorCalibration(**values))
+            channel = row.get("channel")
+            if channel is not None and (isinstance(channel, bool) or not isinstance(channel, int)
+                                        or not 0 <= channel <= MAX_CHANNEL):
+                raise fail(f"{where}.channel",
+                           f"must be an integer in 0..{MAX_CHANNEL}, got {channel!r}")
+            response = row.get("response", [])
+            try:
+                if not isinstance(response, list):
+                    raise ConfigError(f"must be a list of [hz, gain] points, got {response!r}")
+                _check_response(response)
+            except ConfigError as exc:
+                raise fail(f"{where}.response", str(exc)) from None
+            tactors.append(TactorCalibration(
+                **values, channel=channel,
+                response=tuple((float(h), float(g)) for h, g in response)))
         return cls(tuple(tactors))
