@@ -360,3 +360,29 @@ def test_point_and_run_work_on_an_audio_belt(jack_server: None, tmp_path: Path) 
                           capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr
     assert "complete, 4/4 trials" in proc.stdout, proc.stdout
+
+
+def test_a_calibrated_audio_belt_still_renders_stimuli_itself_through_the_calibration(
+        recorder: Recorder) -> None:
+    """The audio callback applies the calibration, so the player hands it the stimulus
+    (exact timing) instead of streaming frames, and the output is the calibrated level."""
+    def attempt(seen: list[int]) -> None:
+        from tactorbelt.devices.calibration import TactorCalibration
+
+        c = Calibration(tuple(TactorCalibration(start=0.0, gain=0.5 if k == 0 else 1.0)
+                              for k in range(6)))
+        with open_belt(URL, calibration=c) as belt:
+            assert recorder.connect() == 6
+            stim = make_stimulus(belt.layout, 30.0, "static")  # on tactor 0 alone
+            player = Player(belt)
+            assert player.renders_on_device(stim)
+            player.start(stim, None)
+            x = _record(recorder, 0.4)
+            stats = player.stop()
+        seen[0] = belt.underruns
+        assert stats.frames == 0  # rendered in the callback, not streamed
+        got = np.nanmedian(envelope(x, CARRIER)[2000:-2000], axis=0)[:6]
+        want = c.apply(stim.amplitudes(0.0))
+        assert got == pytest.approx(list(want), abs=0.01)
+
+    _retry_on_underruns(attempt)

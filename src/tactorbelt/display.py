@@ -201,9 +201,9 @@ class DirectionDisplay:
         self.rate_hz = _positive(rate_hz, "rate_hz")
         # every stimulus the display sends has the probe's law, mode and timing
         can = belt.can_render(probe)
-        identity = belt.calibration.is_identity
+        identity = belt.calibration.is_identity or belt.renders_calibrated
         if device_render is None:
-            device_render = can and identity
+            device_render = belt.renders_with_calibration(probe)
         elif device_render and not can:
             raise ConfigError(f"belt {belt.url!r} cannot render stimuli on the device; "
                               "use device_render=False (stream frames)")

@@ -173,7 +173,7 @@ class Player:
         if device_render and not belt.can_render():
             raise ConfigError(f"belt {belt.url!r} cannot render stimuli on the device")
         if device_render is None:
-            device_render = bool(belt.can_render() and belt.calibration.is_identity)
+            device_render = belt.renders_with_calibration()
         self.device_render = bool(device_render)
 
         self._lock = threading.Lock()

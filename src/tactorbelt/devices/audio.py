@@ -257,6 +257,9 @@ class AudioBelt(Belt):
         underruns: output underflows PortAudio reported since the belt was opened.
     """
 
+    #: the callback renders through the calibration (gain, response, channel map)
+    renders_calibrated = True
+
     def __init__(self, url: str, device: AudioOutput, layout: Layout,
                  calibration: Calibration | None, channels: int, mapping: tuple[int, ...],
                  carrier_hz: float, samplerate: float, latency: float | str, blocksize: int,

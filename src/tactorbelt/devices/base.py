@@ -162,6 +162,20 @@ class Belt(ABC):
             return False
         return self._device_renders(stimulus)
 
+    #: True when rendering on the device applies this belt's calibration (the audio
+    #: belt renders in the host's audio callback, through the calibration). A firmware
+    #: device knows nothing of the host's calibration, so a calibrated firmware belt (and
+    #: the sim belt, which models one) streams instead.
+    renders_calibrated: bool = False
+
+    def renders_with_calibration(self, stimulus: Stimulus | None = None) -> bool:
+        """True when :meth:`play` renders ``stimulus`` on the device *as calibrated*:
+        the device can render it, and either the calibration is the identity or the
+        device applies it. The player and the direction display render on the device
+        by default exactly then."""
+        return self.can_render(stimulus) and (self.calibration.is_identity
+                                              or self.renders_calibrated)
+
     @property
     def levels(self) -> NDArray[np.float64] | None:
         """The drive levels last written (calibrated, one per tactor; zeros after
