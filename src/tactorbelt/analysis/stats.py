@@ -30,6 +30,7 @@ from typing import TYPE_CHECKING, Any, Final
 
 import numpy as np
 
+from .cells import cell_summary, cells_to_json, participant_cells
 from .design import StudyDesign, parse_design
 from .tables import (
     CONDITIONS,
@@ -437,6 +438,10 @@ class Summary:
     paths: list[str]
     seed: int = 0
     n_boot: int = DEFAULT_N_BOOT
+    #: per (condition, n_targets, load): :func:`~tactorbelt.analysis.cells.cell_summary`
+    cells: pd.DataFrame | None = None
+    #: per (participant, condition, n_targets, load): ``participant_cells``
+    participant_cells: pd.DataFrame | None = None
 
     @property
     def simulated(self) -> bool:
@@ -506,6 +511,7 @@ class Summary:
             "simulated_sessions": len(self.simulated_sessions),
             "counts": dict(self.counts),
             "conditions": conditions,
+            "cells": cells_to_json(self.cells),
             "between_accuracy_test": self.between_accuracy_test.to_dict(),
             "tests": [t.to_dict() for t in self.tests],
             "counting": COUNTING_RULES,
@@ -688,4 +694,5 @@ def summarize(data: StoreData, *, seed: int = 0, n_boot: int = DEFAULT_N_BOOT,
         aborted=aborted,
         simulated_sessions=sessions.loc[sessions["simulated"], "session_key"].tolist(),
         notes=notes, trials=tr, paths=[str(p) for p in data.paths], seed=seed, n_boot=n_boot,
+        cells=cell_summary(tr), participant_cells=participant_cells(tr),
     )
