@@ -43,17 +43,22 @@ class StudyOutcome:
         n_participants: its size.
         static_acc, dynamic_acc: per-participant between-tactor accuracy.
         p_value: the test's p-value (NaN when it could not be computed).
+        directional: the effect has a predicted direction (dynamic higher); an
+            interaction has none.
     """
 
     n_participants: int
     static_acc: NDArray[np.float64]
     dynamic_acc: NDArray[np.float64]
     p_value: float
+    directional: bool = True
 
     def found(self, alpha: float) -> bool:
-        """The test found the difference, in the predicted direction."""
-        return bool(np.isfinite(self.p_value) and self.p_value < alpha
-                    and self.dynamic_acc.mean() > self.static_acc.mean())
+        """The test found the effect (a difference: in the predicted direction)."""
+        if not (np.isfinite(self.p_value) and self.p_value < alpha):
+            return False
+        return (not self.directional
+                or bool(np.nanmean(self.dynamic_acc) > np.nanmean(self.static_acc)))
 
 
 def simulate_studies(protocol: Protocol, cues: StimulusCues, n_participants: int,
@@ -148,7 +153,7 @@ def power_row(outcomes: Sequence[StudyOutcome], alpha: float = 0.05) -> PowerRow
     return PowerRow(
         n_participants=n, sims=len(outcomes), found=k, power=k / len(outcomes),
         ci_low=lo, ci_high=hi,
-        static_acc=float(np.mean(np.concatenate([o.static_acc for o in outcomes]))),
-        dynamic_acc=float(np.mean(np.concatenate([o.dynamic_acc for o in outcomes]))),
+        static_acc=float(np.nanmean(np.concatenate([o.static_acc for o in outcomes]))),
+        dynamic_acc=float(np.nanmean(np.concatenate([o.dynamic_acc for o in outcomes]))),
         median_p=float(np.nanmedian(ps)) if np.isfinite(ps).any() else float("nan"),
     )
