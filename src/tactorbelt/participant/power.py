@@ -29,7 +29,8 @@ from .._errors import ConfigError
 from .params import ModelParams, Spread, draw_participant
 from .simulate import Protocol, StimulusCues, between_accuracy, simulate_participant
 
-__all__ = ["PowerRow", "StudyOutcome", "binomial_ci", "power_row", "simulate_studies"]
+__all__ = ["PowerRow", "StudyOutcome", "binomial_ci", "exact_signed_rank_p", "power_row",
+           "simulate_studies"]
 
 #: ``test(static_acc, dynamic_acc) -> p_value`` on paired per-participant accuracies.
 PairedTest = Callable[[NDArray[np.float64], NDArray[np.float64]], float]
@@ -157,3 +158,43 @@ def power_row(outcomes: Sequence[StudyOutcome], alpha: float = 0.05) -> PowerRow
         dynamic_acc=float(np.nanmean(np.concatenate([o.dynamic_acc for o in outcomes]))),
         median_p=float(np.nanmedian(ps)) if np.isfinite(ps).any() else float("nan"),
     )
+
+
+_SIGNS: dict[int, NDArray[np.float64]] = {}
+
+
+def exact_signed_rank_p(diff: NDArray[np.float64]) -> float | None:
+    """Two-sided p of ``scipy.stats.wilcoxon`` on paired differences ``diff`` where SciPy
+    runs its exact permutation test (ties or zeros among at most 13 pairs), by
+    enumerating every sign flip in one matrix product; None where SciPy does something
+    else (no ties and no zeros: its exact distribution; more than 13 pairs: the normal
+    approximation), so the caller asks SciPy.
+
+    SciPy (1.11 and later) flips the signs of all n differences (2**n arrangements,
+    zeros included, which change nothing) and counts arrangements whose signed-rank sum
+    is at most / at least the observed one, within a relative tolerance of 100 machine
+    epsilons; the same counts over the 2**m arrangements of the m non-zero differences
+    give the same proportions. ``tests/test_participant_fast.py`` checks the equality
+    on random paired accuracies.
+    """
+    from scipy.stats import rankdata
+
+    d = np.asarray(diff, dtype=float)
+    n = d.size
+    nz = d[d != 0]
+    m = nz.size
+    if n > 13 or m == 0:
+        return None
+    ranks = rankdata(np.abs(nz), method="average")
+    if m == n and np.unique(ranks).size == m:
+        return None  # no ties, no zeros: SciPy's exact null distribution
+    signs = _SIGNS.get(m)
+    if signs is None:
+        signs = ((np.arange(2**m)[:, None] >> np.arange(m)[None, :]) & 1).astype(float)
+        _SIGNS[m] = signs
+    null = signs @ ranks
+    observed = float(ranks[nz > 0].sum())
+    gamma = abs(np.finfo(float).eps * 100 * observed)
+    less = np.count_nonzero(null <= observed + gamma) / null.size
+    greater = np.count_nonzero(null >= observed - gamma) / null.size
+    return float(min(max(min(less, greater) * 2, 0.0), 1.0))
