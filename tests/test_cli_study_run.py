@@ -11,8 +11,8 @@ import pytest
 
 from tactorbelt import DeviceError
 from tactorbelt.cli import main
-from tactorbelt.experiment.store import Store
 from tactorbelt.experiment.schedule import block_order
+from tactorbelt.experiment.store import Store
 from tactorbelt.experiment.study import PAPER_STUDY_TOML, load_study, paper_study, template_toml
 
 SMALL = """\

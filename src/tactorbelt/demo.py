@@ -39,8 +39,8 @@ if TYPE_CHECKING:
 
     from .analysis.stats import Summary
     from .experiment.study import Study
-    from .participant.params import ModelParams
     from .participant.factorial import Effect, FactorialProtocol
+    from .participant.params import ModelParams
     from .participant.power import PowerRow, StudyOutcome
     from .participant.simulate import Protocol, StimulusCues
 

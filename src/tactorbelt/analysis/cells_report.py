@@ -68,15 +68,16 @@ def cells_section(summary: Summary, figures: dict[str, bytes]) -> str:
             "information transfer (bits)", "median RT (s)", "mean |error| (°)",
             "on-tactor accuracy", "between-tactor accuracy"]
     rows = []
-    for r in cells.itertuples(index=False):
-        it = _fmt(r.it_bits)
-        if math.isfinite(float(r.it_bits_sd)):
-            it += f" ± {_fmt(r.it_bits_sd, 2)}"
-        rows.append([e(str(r.condition)), str(int(r.n_targets)), e(str(r.load)),
-                     str(int(r.n_participants)), str(int(r.n)), _pct(r.accuracy), it,
-                     _fmt(r.median_rt_s), _fmt(r.mean_abs_error_deg),
-                     _pct(r.accuracy_on_tactor) + f" ({int(r.n_on_tactor)})",
-                     _pct(r.accuracy_between_tactor) + f" ({int(r.n_between_tactor)})"])
+    for r in cells.to_dict("records"):
+        it = _fmt(r["it_bits"])
+        if math.isfinite(float(r["it_bits_sd"])):
+            it += f" ± {_fmt(r['it_bits_sd'], 2)}"
+        rows.append([e(str(r["condition"])), str(int(r["n_targets"])), e(str(r["load"])),
+                     str(int(r["n_participants"])), str(int(r["n"])), _pct(r["accuracy"]),
+                     it, _fmt(r["median_rt_s"]), _fmt(r["mean_abs_error_deg"]),
+                     _pct(r["accuracy_on_tactor"]) + f" ({int(r['n_on_tactor'])})",
+                     _pct(r["accuracy_between_tactor"])
+                     + f" ({int(r['n_between_tactor'])})"])
     table = ('<table class="num"><thead><tr>' + "".join(f"<th>{h}</th>" for h in head)
              + "</tr></thead><tbody>"
              + "".join("<tr>" + "".join(f"<td>{c}</td>" for c in row) + "</tr>"

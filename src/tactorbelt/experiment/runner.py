@@ -280,7 +280,7 @@ class SessionRunner:
         self.rate_hz = float(study.session.sample_rate_hz)
         self.sim = bool(clock.simulated)
         self.player = Player(belt, clock)
-        self._stimuli: dict[tuple[float, str], Stimulus] = {}
+        self._stimuli: dict[tuple[Any, ...], Stimulus] = {}
         # set by open_session
         self.session_id = 0
         self.schedule: list[ScheduledTrial] = []
