@@ -25,6 +25,7 @@ from tactorbelt.analysis.stats import summarize
 from tactorbelt.analysis.transfer import miller_madow_transfer
 from tactorbelt.clock import SimClock
 from tactorbelt.devices import open_belt
+from tactorbelt.experiment.export import export_csv
 from tactorbelt.experiment.runner import run_session
 from tactorbelt.experiment.store import open_store
 from tactorbelt.experiment.store.base import SCHEMA_VERSION
@@ -171,6 +172,11 @@ def test_a_store_without_the_cell_columns_still_analyses(tmp_path: Path) -> None
     assert after.to_json()["cells"] == before.to_json()["cells"]
     assert [(c["n_targets"], c["load"]) for c in after.to_json()["cells"]] == \
         [(12, "none"), (12, "none")]
+    # export fills them in too
+    export_csv(db, tmp_path / "csv")
+    with (tmp_path / "csv" / "trials.csv").open() as fh:
+        exported = list(csv.DictReader(fh))
+    assert {(r["n_targets"], r["load"]) for r in exported} == {("12", "none")}
     # a paper-style study is not factorial: no cell section, no cell figures
     analyze([db], tmp_path / "out", n_boot=10)
     assert not (tmp_path / "out" / "resolution.png").exists()
