@@ -246,8 +246,10 @@ def test_belt_failure_exits_3_naming_the_port(small: Path, tmp_path: Path,
     assert code == 0 and "complete, 30/30" in out
 
 
-def test_headless_needs_model_or_scripted(small: Path, capsys: pytest.CaptureFixture[str]
-                                          ) -> None:
+def test_headless_needs_model_or_scripted(small: Path, tmp_path: Path,
+                                          capsys: pytest.CaptureFixture[str],
+                                          monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.chdir(tmp_path)  # the default --db, study.sqlite, is opened first
     for kind in ("joystick", "mouse"):
         code, _, err = run_cli(["run", str(small), "-p", "P01", "--headless", "--input", kind],
                                capsys)
