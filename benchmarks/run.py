@@ -60,6 +60,13 @@ GOALS = [
     Goal("sessions_linearity", None, "<=", 1.25, "x",
          "last 10 % of sessions over the first 10 %: 1.0 is linear growth"),
     Goal("model_session_s", None, "<=", 5.0, "s", "as session_s"),
+    Goal("factorial_session_s", None, "<=", 3.0, "s",
+         "720 trials: as session_s (SQLite commits, the ERM model, the 100 Hz loop)"),
+    Goal("factorial_trial_ms", "paper_model_trial_ms", None, None, "ms",
+         "baseline: a paper-session trial of the same model participant, same run"),
+    Goal("factorial_power_s", "paper_power_s", "<=", 60.0, "s",
+         "20,000 simulated participants x 8 blocks on the fast path; the Wilcoxon p "
+         "(exact sign flips)"),
     Goal("analyze_1000_s", None, "<=", 30.0, "s",
          "SQL aggregation over 240,000 trials; samples read only for plotted trials"),
     Goal("cli_help_s", "python_startup_s", "<=", 0.3, "s",

@@ -11,8 +11,9 @@ import pytest
 
 from tactorbelt import DeviceError
 from tactorbelt.cli import main
+from tactorbelt.experiment.schedule import block_order
 from tactorbelt.experiment.store import Store
-from tactorbelt.experiment.study import PAPER_STUDY_TOML, load_study, paper_study
+from tactorbelt.experiment.study import PAPER_STUDY_TOML, load_study, paper_study, template_toml
 
 SMALL = """\
 name = "cli"
@@ -77,6 +78,27 @@ def test_study_check_prints_counts_and_duration(tmp_path: Path,
     assert "duration    about 19 min" in out
     code, out, _ = run_cli(["study", "check", str(p), "--participant", "P02"], capsys)
     assert "P02: dynamic -> static" in out
+
+
+def test_study_init_and_check_the_resolution_template(tmp_path: Path,
+                                                      capsys: pytest.CaptureFixture[str]
+                                                      ) -> None:
+    p = tmp_path / "resolution.toml"
+    code, out, _ = run_cli(["study", "init", str(p), "--template", "resolution"], capsys)
+    assert code == 0 and "720 trials (240 training, 480 test)" in out
+    assert p.read_text() == template_toml("resolution")
+    code, out, _ = run_cli(["study", "check", str(p), "--participant", "P03"], capsys)
+    assert code == 0
+    assert "design      4 target counts x 2 conditions x 1 load = 8 cells" in out
+    assert "static-48    96 trials (static, 2 repetitions x 48 targets)" in out
+    assert "training    240 trials (1 pass x 2 conditions x (12 + 24 + 36 + 48) targets" in out
+    study = load_study(p)
+    order = " -> ".join(study.test[i].label for i in block_order(study, "P03"))
+    assert f"williams (balanced over 8 participants); P03: {order}" in out
+    assert "duration    about 47 min" in out
+    code, _, err = run_cli(["study", "init", str(tmp_path / "x.toml"), "--template", "nope"],
+                           capsys)
+    assert code == 2 and "resolution" in err
 
 
 def test_study_check_reports_file_line_field(tmp_path: Path,
@@ -224,8 +246,10 @@ def test_belt_failure_exits_3_naming_the_port(small: Path, tmp_path: Path,
     assert code == 0 and "complete, 30/30" in out
 
 
-def test_headless_needs_model_or_scripted(small: Path, capsys: pytest.CaptureFixture[str]
-                                          ) -> None:
+def test_headless_needs_model_or_scripted(small: Path, tmp_path: Path,
+                                          capsys: pytest.CaptureFixture[str],
+                                          monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.chdir(tmp_path)  # the default --db, study.sqlite, is opened first
     for kind in ("joystick", "mouse"):
         code, _, err = run_cli(["run", str(small), "-p", "P01", "--headless", "--input", kind],
                                capsys)

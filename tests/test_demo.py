@@ -189,3 +189,27 @@ def test_one_seed_policy_for_the_model_participants(demo_dir: tuple[Path, str]) 
     assert {p.pid: p.cursor_seed for p in people} == {k: v["seed"] for k, v in stored.items()}
     assert people[0].params.to_dict() == stored["model-01"]["params"]
     assert model_participants(2, 4, base)[0].cursor_seed != people[0].cursor_seed
+
+
+def test_power_plans_a_factorial_study_for_a_named_effect(tmp_path: Path) -> None:
+    study = tmp_path / "resolution.toml"
+    assert run("study", "init", str(study), "--template", "resolution")[0] == 0
+    out = tmp_path / "power"
+    code, stdout, stderr = run("power", "--study", str(study), "--participants", "6,8",
+                               "--sims", "3", "--jobs", "1", "--out", str(out),
+                               "--effect", "dynamic vs static at 36")
+    assert code == 0, stderr
+    doc = json.loads((out / "power.json").read_text())
+    assert doc["effect"] == "dynamic vs static at 36"
+    assert "36-target blocks" in doc["test"] and doc["target_counts"] == [12, 24, 36, 48]
+    assert [r["n_participants"] for r in doc["rows"]] == [6, 8]
+    # the model finds dynamic far better than static at 36 targets
+    assert all(r["dynamic_acc"] > r["static_acc"] + 0.2 for r in doc["rows"])
+    assert "Power of 'dynamic vs static at 36'" in stdout
+    code, _, stderr = run("power", "--study", str(study), "--participants", "6", "--sims",
+                          "2", "--jobs", "1", "--out", str(out), "--effect", "interaction")
+    assert code == 0, stderr
+    assert "Friedman" in json.loads((out / "power.json").read_text())["test"]
+    code, _, stderr = run("power", "--study", str(study), "--participants", "6", "--sims",
+                          "2", "--out", str(out), "--effect", "dynamic vs static at 30")
+    assert code == 2 and "no blocks of 30 targets" in stderr

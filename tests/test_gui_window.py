@@ -550,3 +550,62 @@ def test_run_command_exits_130_when_the_experimenter_aborts_in_the_window(
     with Store.open(db, readonly=True) as store:
         (s,) = store.sessions()
         assert s["status"] == "aborted"
+
+
+FACTORIAL = """\
+name = "factorial"
+[layout]
+tactors = 4
+[targets]
+count = 8
+[stimulus]
+max_presentation_s = 2.0
+[response]
+timeout_s = 3.0
+[session]
+iti_s = 0.3
+break_every = 0
+[training]
+passes = 0
+[design]
+targets = [4, 8]
+condition = ["static"]
+repetitions = 1
+order = "fixed"
+"""
+
+
+def test_the_window_draws_each_blocks_own_target_set(tmp_path: Path) -> None:
+    study = Study.from_toml(FACTORIAL)
+    seen: dict[int, int] = collections.Counter()
+    drawn = (COLORS["on_tactor"], COLORS["between"], COLORS["highlight"])
+
+    def hook(win: ExperimentWindow, kind: str) -> None:
+        if kind in ("instructions", "block", "break", "end"):
+            _key(pygame.K_SPACE)
+        cur = win.current
+        if kind != "test" or cur is None or cur.phase != "stimulus":
+            return
+        x, y = win.view(0).cursor or (0, 0)
+        if math.hypot(x, y) > 0.3:  # the cursor would cover a target
+            return
+        g = win.renderer.geometry
+        n = cur.trial.n_targets
+        for k in range(8):  # every direction of the finer set
+            (px, py), = g.targets([k * 45.0])
+            if k * 45.0 in cur.trial.target_set().angles_deg:
+                assert _pixel(win.surface, px, py) in drawn, (n, k)
+            else:  # a target of the other block is not drawn
+                assert _pixel(win.surface, px, py) not in drawn, (n, k)
+        seen[n] += 1
+
+    clock = SimClock()
+    with Store.open(tmp_path / "s.sqlite") as store, _belt(study, clock) as belt:
+        res = run_with_window(study, "P01", belt, "scripted", store, clock=clock,
+                              cursor=_cursor(study), size=(640, 480),
+                              auto_continue_s=None, on_frame=hook)
+        rows = store.trials(res.session_id)
+    assert res.status == "complete"
+    assert seen[4] > 0 and seen[8] > 0
+    # the answers snap to the block's targets (4 targets: 90 deg apart)
+    assert {r["response_target_deg"] % 90 for r in rows if r["n_targets"] == 4} == {0.0}

@@ -114,3 +114,32 @@ def test_binomial_ci() -> None:
     lo, hi = binomial_ci(5, 10)
     assert lo == pytest.approx(0.187, abs=1e-3) and hi == pytest.approx(0.813, abs=1e-3)
     assert binomial_ci(0, 10)[0] == 0.0 and binomial_ci(10, 10)[1] == 1.0
+
+
+def test_the_fast_exact_signed_rank_p_is_scipys() -> None:
+    """The power analysis' shortcut for SciPy's exact permutation Wilcoxon (ties or
+    zeros, n <= 13) gives SciPy's p-value exactly; elsewhere it defers to SciPy."""
+    import warnings
+
+    from scipy.stats import wilcoxon
+
+    from tactorbelt.participant.power import exact_signed_rank_p
+
+    rng = np.random.default_rng(5)
+    checked = 0
+    while checked < 25:
+        n = int(rng.integers(2, 14))
+        k = int(rng.choice([6, 30, 90]))
+        s = rng.integers(0, k + 1, n) / k
+        d = np.clip(s + rng.integers(-3, 8, n) / k, 0, 1)
+        if not np.any(d != s):
+            continue
+        p = exact_signed_rank_p(d - s)
+        if p is None:
+            continue
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            assert p == float(wilcoxon(d, s, alternative="two-sided").pvalue), (d, s)
+        checked += 1
+    assert exact_signed_rank_p(np.array([0.1, 0.2, 0.35])) is None  # no ties: SciPy's own
+    assert exact_signed_rank_p(np.full(14, 0.1)) is None  # n > 13: the normal approximation

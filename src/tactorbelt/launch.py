@@ -321,7 +321,7 @@ def run_study(req: RunRequest, *, progress: Callable[[int, int], None] | None = 
         if req.resume:
             row = store.find_resumable(req.participant)
             assert row is not None
-            schedule = store.schedule(int(row["session_id"]))
+            schedule = store.schedule(int(row["session_id"]), study)
             seed = int(row["seed"])
         else:
             seed = study.session.seed if r.seed is None else r.seed

@@ -38,7 +38,9 @@ __all__ = [
     "CELL_KEYS",
     "PARTICIPANT_CELL_COLUMNS",
     "cell_summary",
+    "cells_to_json",
     "infer_n_targets",
+    "is_factorial",
     "participant_cells",
     "with_cell_columns",
 ]
@@ -185,3 +187,47 @@ def cell_summary(trials: pd.DataFrame, n_targets: int | None = None) -> pd.DataF
     out["_l"] = out["load"].where(out["load"] != "none", "")  # no load first
     out = out.sort_values(["_c", "n_targets", "_l"]).drop(columns=["_c", "_l"])
     return out.reset_index(drop=True)
+
+
+def is_factorial(cells: pd.DataFrame | None) -> bool:
+    """True when the cells span more than one target count or a load other than ``none``
+    (the report then shows the per-cell section and figures)."""
+    if cells is None or cells.empty:
+        return False
+    return bool(cells["n_targets"].nunique() > 1 or (cells["load"] != "none").any())
+
+
+def _num(v: Any) -> float | None:
+    x = float(v)
+    return x if math.isfinite(x) else None
+
+
+def cells_to_json(cells: pd.DataFrame | None) -> list[dict[str, Any]]:
+    """The ``cells`` list of ``summary.json``: one object per (condition, n_targets, load).
+
+    Keys: condition, n_targets, load, n_participants, n, n_correct, n_timeout,
+    accuracy, it_bits (mean over participants of the Miller-Madow estimate), it_bits_sd,
+    it_bits_plain, it_bits_pooled, median_rt_s, mean_abs_error_deg, and ``on_tactor`` /
+    ``between_tactor`` objects with ``n`` and ``accuracy``. Numbers that cannot be
+    computed are null.
+    """
+    if cells is None:
+        return []
+    out = []
+    for r in cells.to_dict("records"):
+        out.append({
+            "condition": str(r["condition"]), "n_targets": int(r["n_targets"]),
+            "load": str(r["load"]), "n_participants": int(r["n_participants"]),
+            "n": int(r["n"]), "n_correct": int(r["n_correct"]),
+            "n_timeout": int(r["n_timeout"]), "accuracy": _num(r["accuracy"]),
+            "it_bits": _num(r["it_bits"]), "it_bits_sd": _num(r["it_bits_sd"]),
+            "it_bits_plain": _num(r["it_bits_plain"]),
+            "it_bits_pooled": _num(r["it_bits_pooled"]),
+            "median_rt_s": _num(r["median_rt_s"]),
+            "mean_abs_error_deg": _num(r["mean_abs_error_deg"]),
+            "on_tactor": {"n": int(r["n_on_tactor"]),
+                          "accuracy": _num(r["accuracy_on_tactor"])},
+            "between_tactor": {"n": int(r["n_between_tactor"]),
+                               "accuracy": _num(r["accuracy_between_tactor"])},
+        })
+    return out

@@ -9,6 +9,10 @@
   response ellipse.
 - ``paired.png``: per-participant between-tactor accuracy and median RT, static vs
   dynamic (only with several participants).
+- factorial studies (more than one target count, or a load): ``resolution.png``
+  (accuracy, information transfer and median RT against the target count, one line
+  per condition and load, with 95 % intervals across participants) and
+  ``fig1b-N.png``, the paper's Fig. 1(B) for the blocks of N targets.
 
 Static is always blue and dynamic vermillion (Okabe-Ito, colour-blind safe), with
 distinct markers and line styles as well.
@@ -26,6 +30,7 @@ from typing import TYPE_CHECKING, Any, Final
 import numpy as np
 
 from ..laws import amplitudes
+from .cells import is_factorial
 from .tables import CONDITIONS, NO_RESPONSE
 
 if TYPE_CHECKING:
@@ -40,9 +45,11 @@ __all__ = [
     "DPI",
     "confusion_figure",
     "fig1b",
+    "fig1b_per_resolution",
     "make_figures",
     "paired_figure",
     "polar_figure",
+    "resolution_figure",
     "trajectory_figure",
 ]
 
@@ -413,6 +420,102 @@ def paired_figure(per_participant: pd.DataFrame) -> bytes:
     return _png(fig)
 
 
+LOAD_STYLES: Final = ("-", ":", "-.", (0, (5, 1)), (0, (3, 1, 1, 1, 1, 1)))
+
+
+def _mean_ci(values: np.ndarray) -> tuple[float, float]:
+    """Mean and the half-width of its 95 % t interval (0 for fewer than 2 values)."""
+    from scipy.stats import t as t_dist
+
+    v = values[np.isfinite(values)]
+    if v.size == 0:
+        return float("nan"), 0.0
+    if v.size < 2:
+        return float(v.mean()), 0.0
+    se = float(v.std(ddof=1) / np.sqrt(v.size))
+    return float(v.mean()), float(t_dist.ppf(0.975, v.size - 1)) * se
+
+
+def resolution_figure(participant_cells: pd.DataFrame, cells: pd.DataFrame) -> bytes:
+    """Accuracy, information transfer and median RT against the number of targets.
+
+    One line per condition (and per load, by line style); each point is the mean over
+    participants of their per-cell value with its 95 % t interval (no bar with one
+    participant). Information transfer is the bias-corrected (Miller-Madow) estimate
+    from each participant's confusion matrix of the cell; the dotted grey line is the
+    most a cell can carry, log2(targets).
+    """
+    fig = _figure(11.5, 4.2)
+    axes = fig.subplots(1, 3)
+    loads = list(dict.fromkeys(cells["load"].tolist())) if len(cells) else ["none"]
+    counts = sorted({int(n) for n in cells["n_targets"].tolist()})
+    pc = participant_cells
+    n_part = int(pc["participant"].nunique()) if len(pc) else 0
+    specs = (("accuracy", "accuracy"), ("it_bits", "information transfer (bits)"),
+             ("median_rt_s", "median RT (s)"))
+    for ax, (col, label) in zip(axes, specs, strict=True):
+        _style(ax)
+        for cond in CONDITIONS:
+            for li, load in enumerate(loads):
+                sel = pc.loc[(pc["condition"] == cond) & (pc["load"] == load)]
+                if sel.empty:
+                    continue
+                xs, ms, hs = [], [], []
+                for n in counts:
+                    v = sel.loc[sel["n_targets"] == n, col].to_numpy(dtype=float)
+                    if v.size == 0:
+                        continue
+                    m, h = _mean_ci(v)
+                    xs.append(n)
+                    ms.append(m)
+                    hs.append(h)
+                name = cond if len(loads) == 1 else f"{cond}, load {load}"
+                ax.errorbar(xs, ms, yerr=hs, color=COLORS[cond], marker=MARKERS[cond],
+                            linestyle=LOAD_STYLES[li % len(LOAD_STYLES)] if len(loads) > 1
+                            else LINESTYLES[cond], capsize=3, linewidth=1.5, markersize=5,
+                            label=name)
+        if col == "it_bits" and counts:
+            ax.plot(counts, np.log2(counts), color="#999999", linestyle=":", linewidth=1,
+                    label="log2(targets)")
+        if col == "accuracy":
+            ax.set_ylim(-0.03, 1.03)
+        if col == "median_rt_s" and not np.isfinite(pc[col].to_numpy(dtype=float)).any():
+            _no_data(ax, "no answered trial")
+        ax.set_xticks(counts, [f"{n}\n{360 / n:g}°" for n in counts], fontsize=8)
+        ax.set_xlabel("targets (spacing)")
+        ax.set_ylabel(label)
+        if pc.empty:
+            _no_data(ax, "no counted test trials")
+    axes[0].legend(fontsize=7.5, frameon=False, loc="lower left")
+    axes[1].legend(fontsize=7.5, frameon=False, loc="upper left")
+    bars = ("bars: 95 % t interval of the mean across participants" if n_part > 1
+            else "one participant: no interval")
+    fig.suptitle(f"Performance against target resolution ({n_part} participant(s); {bars})",
+                 fontsize=10.5)
+    return _png(fig)
+
+
+def fig1b_per_resolution(design: StudyDesign, trials: pd.DataFrame) -> dict[str, bytes]:
+    """The paper's Fig. 1(B) for each target count: ``fig1b-N.png`` -> PNG bytes.
+
+    ``trials`` are the prepared trials (with ``n_targets``); a figure pools the loads
+    of its target count.
+    """
+    from dataclasses import replace
+
+    from ..geometry import TargetSet
+    from .tables import direction_summary
+
+    out: dict[str, bytes] = {}
+    counted = trials.loc[trials["counted"]]
+    for n in sorted({int(v) for v in counted["n_targets"].tolist()}):
+        sub = trials.loc[trials["n_targets"] == n]
+        d = replace(design, targets=TargetSet.even(n))
+        out[f"fig1b-{n}.png"] = fig1b(d, direction_summary(sub),
+                                      title=f"{n} targets ({360 / n:g}° apart)")
+    return out
+
+
 def make_figures(summary: Summary, samples: pd.DataFrame | None = None,
                  sample_trials: pd.DataFrame | None = None) -> dict[str, bytes]:
     """Every figure of the report: file name -> PNG bytes.
@@ -436,4 +539,8 @@ def make_figures(summary: Summary, samples: pd.DataFrame | None = None,
         figs["trajectories.png"] = trajectory_figure(samples, sample_trials, summary.design)
     if summary.counts.get("participants_with_test_trials", 0) >= 2:
         figs["paired.png"] = paired_figure(summary.per_participant)
+    if is_factorial(summary.cells) and summary.participant_cells is not None:
+        assert summary.cells is not None
+        figs["resolution.png"] = resolution_figure(summary.participant_cells, summary.cells)
+        figs.update(fig1b_per_resolution(summary.design, summary.trials))
     return figs

@@ -45,6 +45,9 @@ REQUIRED_COLUMNS: Final[dict[str, tuple[str, ...]]] = {
 }
 #: Optional session columns read when present.
 OPTIONAL_SESSION_COLUMNS: Final = ("input",)
+#: Optional trial columns (schema 2, factorial designs) read when present; trials of
+#: older stores get their session's study's target count and load ``none``.
+OPTIONAL_TRIAL_COLUMNS: Final = ("n_targets", "load")
 
 def _open(path: Path) -> Store:
     """Open read-only through the store interface (no integrity scan: stores can be
@@ -79,7 +82,8 @@ def _read_store(path: Path, store_index: int) -> tuple[pd.DataFrame, pd.DataFram
         cols = _check_schema(path, store)
         sess_cols = list(REQUIRED_COLUMNS["sessions"]) + [
             c for c in OPTIONAL_SESSION_COLUMNS if c in cols["sessions"]]
-        trial_cols = list(REQUIRED_COLUMNS["trials"])
+        trial_cols = list(REQUIRED_COLUMNS["trials"]) + [
+            c for c in OPTIONAL_TRIAL_COLUMNS if c in cols["trials"]]
         sessions = pd.DataFrame.from_records(store.read_table("sessions", sess_cols),
                                              columns=sess_cols, coerce_float=True)
         trials = pd.DataFrame.from_records(store.read_table("trials", trial_cols),
@@ -154,6 +158,7 @@ def _tidy(sessions: pd.DataFrame, trials: pd.DataFrame, labels: list[str],
         notes.append(f"{int(bad_target.sum())} trial(s) without a target angle were ignored")
         trials = trials.loc[~bad_target]
     trials["target_deg"] = np.round(np.mod(trials["target_deg"].to_numpy(), 360.0), 6) % 360.0
+    trials = _cell_columns(sessions, trials)
     unknown = ~trials["status"].isin(["done", "timeout", "aborted"])
     if unknown.any():
         vals = sorted(trials.loc[unknown, "status"].fillna("<null>").unique().tolist())
@@ -163,6 +168,29 @@ def _tidy(sessions: pd.DataFrame, trials: pd.DataFrame, labels: list[str],
         )
         trials.loc[unknown, "status"] = "aborted"
     return sessions, trials.reset_index(drop=True)
+
+
+def _cell_columns(sessions: pd.DataFrame, trials: pd.DataFrame) -> pd.DataFrame:
+    """``n_targets`` and ``load`` of every trial: as stored, else (stores written before
+    factorial designs, schema 1) the session's study's ``[targets] count`` and ``none``."""
+    import pandas as pd
+
+    from .design import parse_design
+
+    if "n_targets" not in trials.columns:
+        trials["n_targets"] = float("nan")
+    n = pd.to_numeric(trials["n_targets"], errors="coerce")
+    missing = n.isna() | (n <= 0)
+    if missing.any():
+        texts = sessions.set_index("session_key")["study_toml"]
+        counts = {key: parse_design(None if pd.isna(text) else str(text)).targets.m
+                  for key, text in texts.items()}
+        n = n.where(~missing, trials["session_key"].map(counts))
+    trials["n_targets"] = n.fillna(0).astype(int)
+    load = trials["load"] if "load" in trials.columns else pd.Series("none", index=trials.index)
+    load = load.astype("string").fillna("none").str.strip()
+    trials["load"] = load.where(load != "", "none").astype(str)
+    return trials
 
 
 def load_stores(paths: Sequence[str | Path]) -> StoreData:

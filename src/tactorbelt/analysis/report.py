@@ -22,6 +22,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Final
 
 from .._errors import ConfigError
+from .cells_report import cells_section
 from .stats import COUNTING_RULES, DEFAULT_N_BOOT, Summary, TestResult
 from .tables import CONDITIONS, KIND_LABELS, KINDS
 
@@ -372,6 +373,8 @@ def render_html(summary: Summary, figures: dict[str, bytes], *,
         parts.append("<h3>Training block (not part of any statistic)</h3>"
                      + _table(["condition", "n trials", "accuracy"], rows, "num"))
 
+    parts.append(cells_section(summary, figures))
+
     parts.append("<h2>Statistical tests</h2>")
     parts.append("<p>Two-sided tests. Intervals are 95 % bias-corrected and accelerated "
                  f"(BCa) bootstrap intervals ({summary.n_boot} resamples, seed {summary.seed}; "
@@ -622,6 +625,9 @@ def analyze(paths: Sequence[str | Path], out: str | Path, *, seed: int | None = 
         for name in FIGURE_ORDER:  # stale figures of an earlier run would mislead
             if name not in figures and (out / name).is_file():
                 (out / name).unlink()
+        for old in [*out.glob("fig1b-*.png"), out / "resolution.png"]:  # factorial figures
+            if old.name not in figures and old.is_file():
+                old.unlink()
         for name, png in figures.items():
             (out / name).write_bytes(png)
         pt = summary.per_target.copy()

@@ -32,6 +32,7 @@ from typing import TYPE_CHECKING, Any, Final
 
 import numpy as np
 
+from .cells import cell_summary, cells_to_json, participant_cells
 from .design import StudyDesign, parse_design
 from .tables import (
     CONDITIONS,
@@ -757,6 +758,10 @@ class Summary:
     n_boot: int = DEFAULT_N_BOOT
     #: the ``rt_mixed_model`` object of summary.json (None without counted trials).
     rt_model: dict[str, Any] | None = None
+    #: per (condition, n_targets, load): :func:`~tactorbelt.analysis.cells.cell_summary`
+    cells: pd.DataFrame | None = None
+    #: per (participant, condition, n_targets, load): ``participant_cells``
+    participant_cells: pd.DataFrame | None = None
 
     @property
     def mixed_model(self) -> dict[str, Any] | None:
@@ -833,6 +838,7 @@ class Summary:
             "simulated_belt_sessions": len(self.simulated_belt_sessions),
             "counts": dict(self.counts),
             "conditions": conditions,
+            "cells": cells_to_json(self.cells),
             "between_accuracy_test": self.between_accuracy_test.to_dict(),
             "tests": [t.to_dict() for t in self.tests],
             "mixed_model": self.mixed_model,
@@ -1033,4 +1039,5 @@ def summarize(data: StoreData, *, seed: int = 0, n_boot: int = DEFAULT_N_BOOT,
                                              "session_key"].tolist(),
         notes=notes, trials=tr, paths=[str(p) for p in data.paths], seed=seed, n_boot=n_boot,
         rt_model=rt_json,
+        cells=cell_summary(tr), participant_cells=participant_cells(tr),
     )

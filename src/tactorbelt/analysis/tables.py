@@ -46,8 +46,8 @@ CONDITIONS: Final = ("static", "dynamic")
 KINDS: Final = ("on_tactor", "between_tactor")
 KIND_LABELS: Final = {"on_tactor": "on-tactor", "between_tactor": "between-tactor"}
 PER_TARGET_COLUMNS: Final = [
-    "participant", "condition", "target_deg", "on_tactor", "n", "accuracy", "median_rt_s",
-    "mean_signed_error_deg",
+    "participant", "condition", "n_targets", "load", "target_deg", "on_tactor", "n",
+    "accuracy", "median_rt_s", "mean_signed_error_deg",
 ]
 NO_RESPONSE: Final = "no response"
 
@@ -141,16 +141,22 @@ def _agg(tr: pd.DataFrame, keys: list[str]) -> pd.DataFrame:
 
 
 def per_target(tr: pd.DataFrame) -> pd.DataFrame:
-    """Per participant, condition and target (the ``per_target.csv`` table).
+    """Per participant, condition, target count, load and target (``per_target.csv``).
 
     Columns exactly :data:`PER_TARGET_COLUMNS`. ``median_rt_s`` is empty (NaN) where
     every trial timed out; ``mean_signed_error_deg`` likewise where nothing was
-    answered.
+    answered. Trials without ``n_targets``/``load`` (older stores) get the target
+    count inferred from their angles and ``none``.
     """
+    if "n_targets" not in tr.columns or "load" not in tr.columns:
+        from .cells import with_cell_columns
+
+        tr = with_cell_columns(tr)
     c = tr.loc[tr["counted"]]
-    out = _agg(c, ["participant", "condition", "target_deg", "on_tactor"])
+    out = _agg(c, ["participant", "condition", "n_targets", "load", "target_deg",
+                   "on_tactor"])
     cond_order = {k: i for i, k in enumerate(CONDITIONS)}
-    out = out.sort_values(["participant", "condition", "target_deg"],
+    out = out.sort_values(["participant", "condition", "n_targets", "load", "target_deg"],
                           key=lambda s: s.map(cond_order) if s.name == "condition" else s)
     return out[PER_TARGET_COLUMNS].reset_index(drop=True)
 

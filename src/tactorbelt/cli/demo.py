@@ -126,8 +126,11 @@ def parse_sizes(text: str) -> list[int]:
               default=None, help="Study file to plan [default: the paper's protocol].")
 @click.option("--alpha", type=number(float, 0, 1, lo_open=True, hi_open=True),
               default=0.05, show_default=True, help="Significance level of the test.")
+@click.option("--effect", default=None, metavar="TEXT",
+              help="Effect to detect in a factorial study: 'dynamic vs static', 'dynamic "
+                   "vs static at 36' or 'interaction' (resolution x condition).")
 def power(sizes_text: str, sims: int, out: Path, seed: int, jobs: int | None,
-          study_file: Path | None, alpha: float) -> None:
+          study_file: Path | None, alpha: float, effect: str | None) -> None:
     """Plan a study's size by simulation with model participants.
 
     For each study size, simulates --sims studies of that many model participants
@@ -135,7 +138,9 @@ def power(sizes_text: str, sims: int, out: Path, seed: int, jobs: int | None,
     static-vs-dynamic test (paired Wilcoxon signed-rank on per-participant
     between-tactor accuracy), and counts the studies in which it finds the difference
     (p < alpha, dynamic higher). Writes power.csv, power.json and power.png (power vs
-    participants with 95 % binomial intervals) to DIR and prints the table.
+    participants with 95 % binomial intervals) to DIR and prints the table. For a
+    factorial study, --effect names what to detect (default: dynamic vs static over
+    every block).
 
     Trials are simulated directly from the model's perception (no runner, no store;
     the fast path gives the same accuracy as the full runner). The power is that of a
@@ -154,8 +159,10 @@ def power(sizes_text: str, sims: int, out: Path, seed: int, jobs: int | None,
         task = bar.add_task("simulated studies", total=sims * len(sizes))
         result = run_power_study(study, sizes, sims, seed, out, jobs=jobs, alpha=alpha,
                                  advance=lambda k: bar.advance(task, k),
-                                 study_label=str(study_file) if study_file else None)
-    table = Table(title=f"Power of the static-vs-dynamic test (alpha {alpha:g}, "
+                                 study_label=str(study_file) if study_file else None,
+                                 effect=effect)
+    what = "the static-vs-dynamic test" if effect is None else f"'{effect}'"
+    table = Table(title=f"Power of {what} (alpha {alpha:g}, "
                         f"{sims} simulated studies per size)")
     for col in ("participants", "power", "95 % CI", "static acc.", "dynamic acc.",
                 "median p"):

@@ -30,6 +30,7 @@ its interface and writes files; standard library only.
 from __future__ import annotations
 
 import csv
+import functools
 import json
 import re
 import shutil
@@ -37,8 +38,9 @@ from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
-from .._errors import ConfigError
+from .._errors import ConfigError, TactorbeltError
 from .store import Store, open_store
+from .study import Study
 
 __all__ = ["BEH_COLUMNS", "TASK", "bids_label", "export_bids", "export_csv"]
 
@@ -49,6 +51,7 @@ TRIAL_COLUMNS = [
     "block_index", "block_name", "condition", "repetition", "target_deg", "on_tactor",
     "response_deg", "response_target_deg", "correct", "rt_s", "onset_ns", "acquired_ns",
     "crossed_ns", "stimulus_off_ns", "n_samples", "status", "abort_reason", "attempts",
+    "n_targets", "load",
 ]
 SAMPLE_COLUMNS = ["participant", "session_id", "trial_index", "t_s", "x", "y", "buttons"]
 SESSION_COLUMNS = [
@@ -70,6 +73,9 @@ BEH_COLUMNS: dict[str, dict[str, Any]] = {
     "target_deg": {"Description": "Target direction; 0 = navel, clockwise seen from above.",
                    "Units": "deg"},
     "on_tactor": {"Description": "1 when the target coincides with a tactor, else 0."},
+    "n_targets": {"Description": "Target count of the trial's block (targets at "
+                  "k*360/n_targets); the response snaps to these."},
+    "load": {"Description": "Secondary task during the block ('none' without one)."},
     "response_deg": {"Description": "Direction of the cursor at acquisition "
                      "(atan2(x, y), 0 = up/front, clockwise).", "Units": "deg"},
     "response_target_deg": {"Description": "Target nearest in angle to response_deg.",
@@ -154,6 +160,28 @@ def _prepare(out: str | Path, fmt: str, force: bool, db: str | Path) -> Path:
     return o
 
 
+@functools.lru_cache(maxsize=64)
+def _study_count(study_toml: str) -> int | None:
+    """``[targets] count`` of a stored study text (None when it does not parse)."""
+    try:
+        return Study.from_toml(study_toml).targets.count
+    except TactorbeltError:
+        return None
+
+
+def _with_cell(trial: dict[str, Any], session: dict[str, Any]) -> dict[str, Any]:
+    """The trial row with ``n_targets`` and ``load``: as stored, else (a store written
+    before factorial designs) the session's study's ``[targets] count`` and ``none``."""
+    if trial.get("n_targets") is not None and trial.get("load") is not None:
+        return trial
+    out = dict(trial)
+    if out.get("n_targets") is None:
+        out["n_targets"] = _study_count(str(session.get("study_toml") or ""))
+    if out.get("load") is None:
+        out["load"] = "none"
+    return out
+
+
 def export_csv(db: str | Path, out: str | Path, *, force: bool = False) -> list[Path]:
     """Write ``sessions.csv``, ``trials.csv`` and ``samples.csv`` into directory ``out``.
 
@@ -182,6 +210,7 @@ def export_csv(db: str | Path, out: str | Path, *, force: bool = False) -> list[
                 w.writerow(TRIAL_COLUMNS)
                 for t in trials:
                     sess = by_id[int(t["session_id"])]
+                    t = _with_cell(t, sess)
                     w.writerow([sess[k] if k in ("participant", "session_number") else t[k]
                                 for k in TRIAL_COLUMNS])
             with files[2].open("w", newline="") as fh:
@@ -352,7 +381,7 @@ def export_bids(db: str | Path, out: str | Path, *, readme: str | Path | None = 
             base = o / f"sub-{lab}" / f"ses-{s['session_number']}"
             (base / "beh").mkdir(parents=True, exist_ok=True)
             (base / "motion").mkdir(parents=True, exist_ok=True)
-            trials = store.trials(s["session_id"])
+            trials = [_with_cell(t, s) for t in store.trials(s["session_id"])]
             beh = base / "beh" / f"{stem}_beh.tsv"
             cols = list(BEH_COLUMNS)
             _write_tsv(beh, cols, [

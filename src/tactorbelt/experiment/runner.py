@@ -29,16 +29,17 @@ import contextlib
 import json
 import re
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from enum import StrEnum
 from typing import TYPE_CHECKING, Any, Protocol
 
 from .._errors import ConfigError, DeviceError, StoreError, TactorbeltError
 from ..clock import Clock, Deadlines
+from ..geometry import TargetSet
 from ..inputs.base import CursorSample, CursorSource, TrialCue
 from ..interrupts import Terminated
 from . import provenance
-from .schedule import ScheduledTrial, block_order, make_schedule
+from .schedule import ScheduledTrial, block_order, make_schedule, schedule_from_json
 from .store import Store
 from .study import Study
 from .trial import ResponseRule, TrialMachine, TrialResult, TrialState
@@ -274,11 +275,12 @@ class SessionRunner:
         self.study_toml = study_toml if study_toml is not None else study.to_toml()
         self.input_name = input_name
         self.rule = ResponseRule.from_study(study)
-        self.targets = study.target_set()
+        self._targets: dict[int, TargetSet] = {}
+        self._rules: dict[float, ResponseRule] = {}
         self.rate_hz = float(study.session.sample_rate_hz)
         self.sim = bool(clock.simulated)
         self.player = Player(belt, clock)
-        self._stimuli: dict[tuple[float, str], Stimulus] = {}
+        self._stimuli: dict[tuple[Any, ...], Stimulus] = {}
         # set by open_session
         self.session_id = 0
         self.schedule: list[ScheduledTrial] = []
@@ -312,7 +314,7 @@ class SessionRunner:
                         f"{row['study_sha256'][:12]}); resume with the same study file"
                     )
             self.session_id = int(row["session_id"])
-            self.schedule = store.schedule(self.session_id)
+            self.schedule = schedule_from_json(row["schedule_json"], study)
             self.order = tuple(json.loads(row["condition_order"]))
             store.mark_resumed(self.session_id)
         else:
@@ -336,16 +338,32 @@ class SessionRunner:
         return [t for t in self.schedule if t.trial_index not in finished]
 
     def stimulus_for(self, t: ScheduledTrial) -> Stimulus:
-        """The stimulus of a trial (one per target and condition, made once)."""
+        """The stimulus of a trial (one per target, condition and block stimulus, made
+        once): its block's ``[stimulus]`` with the block's overrides."""
         from ..stimuli import make_stimulus
 
-        key = (t.target_deg, t.condition)
+        sp = self.study.trial_stimulus(t.block_name)
+        key = (t.target_deg, t.condition, sp.law, sp.falloff_deg, sp.period_s, sp.transit_s)
         if key not in self._stimuli:
-            sp = self.study.stimulus
             self._stimuli[key] = make_stimulus(self.belt.layout, t.target_deg, t.condition,
                                                sp.law, sp.falloff_deg, sp.period_s,
                                                sp.transit_s)
         return self._stimuli[key]
+
+    def targets_for(self, t: ScheduledTrial) -> TargetSet:
+        """The candidate targets of a trial's block (what the window draws, the model
+        participant chooses among and the response snaps to)."""
+        n = t.n_targets or self.study.targets.count
+        if n not in self._targets:
+            self._targets[n] = TargetSet.even(n)
+        return self._targets[n]
+
+    def rule_for(self, t: ScheduledTrial) -> ResponseRule:
+        """The response rule of a trial: the study's, with its block's longest presentation."""
+        max_s = self.study.trial_stimulus(t.block_name).max_presentation_s
+        if max_s not in self._rules:
+            self._rules[max_s] = replace(self.rule, max_presentation_ns=round(max_s * 1e9))
+        return self._rules[max_s]
 
     # -- waiting and commands --------------------------------------------------------------
     def _ticks(self, onset_ns: int | None = None, first: int = 1) -> Deadlines:
@@ -429,10 +447,11 @@ class SessionRunner:
     def present(self, t: ScheduledTrial, machine: TrialMachine) -> TrialState:
         """Play the stimulus and sample the cursor on its deadlines until an outcome."""
         layout = self.belt.layout
-        cue = TrialCue(t.trial_index, t.block, t.condition, self.targets.angles_deg, layout,
-                       t.target_deg if t.block == "training" else None)
-        onset = int(self.player.start(self.stimulus_for(t),
-                                      duration_s=self.study.stimulus.max_presentation_s))
+        cue = TrialCue(t.trial_index, t.block, t.condition, self.targets_for(t).angles_deg,
+                       layout, t.target_deg if t.block == "training" else None)
+        onset = int(self.player.start(
+            self.stimulus_for(t),
+            duration_s=self.study.trial_stimulus(t.block_name).max_presentation_s))
         machine.start(onset)
         self.cursor.trial_started(cue, onset)
         self.obs.on_trial_state(t, TrialState.STIMULUS, onset)
@@ -455,7 +474,7 @@ class SessionRunner:
         """One trial: home, stimulus and response. A pause returns it ``aborted``; any
         other way out stores nothing here, aborts it and re-raises with the result
         attached (``exc.trial_result``)."""
-        machine = TrialMachine(t, self.rule, self.targets)
+        machine = TrialMachine(t, self.rule_for(t), self.targets_for(t))
         try:
             self.wait_home(t, machine)
             state = self.present(t, machine)

@@ -389,6 +389,16 @@ class Study(_Model):
         """The stimulus of a test block: ``[stimulus]`` with the block's overrides."""
         return self.stimulus.model_copy(update=block.stimulus_overrides())
 
+    def test_block(self, name: str) -> BlockSpec | None:
+        """The test block labelled ``name`` (a scheduled trial's ``block_name``), or None."""
+        return next((b for b in self.test if b.label == name), None)
+
+    def trial_stimulus(self, block_name: str) -> StimulusSpec:
+        """The stimulus of a scheduled trial: its test block's (:meth:`block_stimulus`),
+        ``[stimulus]`` for training trials (and a block name the study does not have)."""
+        block = self.test_block(block_name)
+        return self.stimulus if block is None else self.block_stimulus(block)
+
     def target_counts(self) -> list[int]:
         """Every target count of the test blocks, ascending (what training covers)."""
         return sorted({self.block_n_targets(b) for b in self.test})

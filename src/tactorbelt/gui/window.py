@@ -171,9 +171,13 @@ class ExperimentWindow:
         self.renderer = Renderer(self.surface.get_size())
 
         layout = study.layout_obj()
-        targets = study.target_set()
-        self._targets = targets.angles_deg
-        self._on_tactor = tuple(bool(b) for b in targets.on_tactor(layout))
+        self._layout = layout
+        self._n_targets = 0
+        self._targets: tuple[float, ...] = ()
+        self._on_tactor: tuple[bool, ...] = ()
+        self._schedule: list[ScheduledTrial] = []
+        self._show_targets(study.targets.count if study.design is None
+                           else study.target_counts()[0])
         self._tactors = layout.angles_deg
         self._home_radius = float(study.response.home_radius)
 
@@ -204,7 +208,7 @@ class ExperimentWindow:
         self._banner_until_ns = 0
         self._frames = Deadlines(clock, self.fps)
         self.frames = 0
-        self._stimuli: dict[tuple[float, str], Any] = {}
+        self._stimuli: dict[tuple[Any, ...], Any] = {}
         from ..experiment.runner import Command
 
         self._Command = Command
@@ -239,8 +243,23 @@ class ExperimentWindow:
 
     # ------------------------------------------------------------------------------------
     # SessionObserver hooks (called by the runner, in this thread)
+    def _show_targets(self, n: int) -> None:
+        """Draw the candidate targets of a block of ``n`` targets (at k*360/n)."""
+        if n <= 0 or n == self._n_targets:
+            return
+        from ..geometry import TargetSet
+
+        targets = TargetSet.even(n)
+        self._n_targets = n
+        self._targets = targets.angles_deg
+        self._on_tactor = tuple(bool(b) for b in targets.on_tactor(self._layout))
+
     def on_session_start(self, info: SessionInfo, schedule: list[ScheduledTrial]) -> None:
         self.info = info
+        self._schedule = list(schedule)
+        if schedule:
+            first = schedule[min(info.n_done, len(schedule) - 1)]
+            self._show_targets(first.n_targets)
         self.n_total = info.n_total
         self.n_done = info.n_done
         self._wait_screen("instructions")
@@ -248,6 +267,12 @@ class ExperimentWindow:
     def on_block_start(self, block: str, condition: str) -> None:
         self.block = block
         self.condition = condition
+        # the block's first trial follows the current one: show its targets on the
+        # block screen already
+        nxt = self.current.trial.trial_index + 1 if self.current is not None else (
+            self.info.n_done if self.info is not None else 0)
+        if 0 <= nxt < len(self._schedule):
+            self._show_targets(self._schedule[nxt].n_targets)
         if block == "test":
             self._test_blocks_seen += 1
             self._wait_screen("block")
@@ -256,6 +281,7 @@ class ExperimentWindow:
         phase = str(getattr(state, "value", state))
         if phase == "wait_home" or self.current is None or self.current.trial is not trial:
             self.current = _Trial(trial)
+            self._show_targets(trial.n_targets)
             self.block = trial.block
             self.condition = trial.condition
             if phase == "wait_home":
@@ -681,14 +707,15 @@ class ExperimentWindow:
         cur = self.current
         if cur is None or cur.phase != "stimulus" or cur.onset_ns is None:
             return [0.0] * len(self._tactors)
-        key = (cur.trial.target_deg, cur.trial.condition)
+        sp = self.study.trial_stimulus(cur.trial.block_name)
+        key = (cur.trial.target_deg, cur.trial.condition, sp.law, sp.falloff_deg,
+               sp.period_s, sp.transit_s)
         stim = self._stimuli.get(key)
         if stim is None:
             from ..stimuli import make_stimulus
 
-            sp = self.study.stimulus
-            stim = make_stimulus(self.study.layout_obj(), key[0], key[1], sp.law,
-                                 sp.falloff_deg, sp.period_s, sp.transit_s)
+            stim = make_stimulus(self._layout, cur.trial.target_deg, cur.trial.condition,
+                                 sp.law, sp.falloff_deg, sp.period_s, sp.transit_s)
             self._stimuli[key] = stim
         return stim.amplitudes((now_ns - cur.onset_ns) / 1e9)
 

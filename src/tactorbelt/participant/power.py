@@ -29,7 +29,8 @@ from .._errors import ConfigError
 from .params import ModelParams, Spread, draw_participant
 from .simulate import Protocol, StimulusCues, between_accuracy, simulate_participant
 
-__all__ = ["PowerRow", "StudyOutcome", "binomial_ci", "power_row", "simulate_studies"]
+__all__ = ["PowerRow", "StudyOutcome", "binomial_ci", "exact_signed_rank_p", "power_row",
+           "simulate_studies"]
 
 #: ``test(static_acc, dynamic_acc) -> p_value`` on paired per-participant accuracies.
 PairedTest = Callable[[NDArray[np.float64], NDArray[np.float64]], float]
@@ -43,17 +44,22 @@ class StudyOutcome:
         n_participants: its size.
         static_acc, dynamic_acc: per-participant between-tactor accuracy.
         p_value: the test's p-value (NaN when it could not be computed).
+        directional: the effect has a predicted direction (dynamic higher); an
+            interaction has none.
     """
 
     n_participants: int
     static_acc: NDArray[np.float64]
     dynamic_acc: NDArray[np.float64]
     p_value: float
+    directional: bool = True
 
     def found(self, alpha: float) -> bool:
-        """The test found the difference, in the predicted direction."""
-        return bool(np.isfinite(self.p_value) and self.p_value < alpha
-                    and self.dynamic_acc.mean() > self.static_acc.mean())
+        """The test found the effect (a difference: in the predicted direction)."""
+        if not (np.isfinite(self.p_value) and self.p_value < alpha):
+            return False
+        return (not self.directional
+                or bool(np.nanmean(self.dynamic_acc) > np.nanmean(self.static_acc)))
 
 
 def simulate_studies(protocol: Protocol, cues: StimulusCues, n_participants: int,
@@ -148,7 +154,47 @@ def power_row(outcomes: Sequence[StudyOutcome], alpha: float = 0.05) -> PowerRow
     return PowerRow(
         n_participants=n, sims=len(outcomes), found=k, power=k / len(outcomes),
         ci_low=lo, ci_high=hi,
-        static_acc=float(np.mean(np.concatenate([o.static_acc for o in outcomes]))),
-        dynamic_acc=float(np.mean(np.concatenate([o.dynamic_acc for o in outcomes]))),
+        static_acc=float(np.nanmean(np.concatenate([o.static_acc for o in outcomes]))),
+        dynamic_acc=float(np.nanmean(np.concatenate([o.dynamic_acc for o in outcomes]))),
         median_p=float(np.nanmedian(ps)) if np.isfinite(ps).any() else float("nan"),
     )
+
+
+_SIGNS: dict[int, NDArray[np.float64]] = {}
+
+
+def exact_signed_rank_p(diff: NDArray[np.float64]) -> float | None:
+    """Two-sided p of ``scipy.stats.wilcoxon`` on paired differences ``diff`` where SciPy
+    runs its exact permutation test (ties or zeros among at most 13 pairs), by
+    enumerating every sign flip in one matrix product; None where SciPy does something
+    else (no ties and no zeros: its exact distribution; more than 13 pairs: the normal
+    approximation), so the caller asks SciPy.
+
+    SciPy (1.11 and later) flips the signs of all n differences (2**n arrangements,
+    zeros included, which change nothing) and counts arrangements whose signed-rank sum
+    is at most / at least the observed one, within a relative tolerance of 100 machine
+    epsilons; the same counts over the 2**m arrangements of the m non-zero differences
+    give the same proportions. ``tests/test_participant_fast.py`` checks the equality
+    on random paired accuracies.
+    """
+    from scipy.stats import rankdata
+
+    d = np.asarray(diff, dtype=float)
+    n = d.size
+    nz = d[d != 0]
+    m = nz.size
+    if n > 13 or m == 0:
+        return None
+    ranks = rankdata(np.abs(nz), method="average")
+    if m == n and np.unique(ranks).size == m:
+        return None  # no ties, no zeros: SciPy's exact null distribution
+    signs = _SIGNS.get(m)
+    if signs is None:
+        signs = ((np.arange(2**m)[:, None] >> np.arange(m)[None, :]) & 1).astype(float)
+        _SIGNS[m] = signs
+    null = signs @ ranks
+    observed = float(ranks[nz > 0].sum())
+    gamma = abs(np.finfo(float).eps * 100 * observed)
+    less = np.count_nonzero(null <= observed + gamma) / null.size
+    greater = np.count_nonzero(null >= observed - gamma) / null.size
+    return float(min(max(min(less, greater) * 2, 0.0), 1.0))

@@ -77,9 +77,16 @@ class Protocol:
 
     @classmethod
     def from_study(cls, study: Any) -> Protocol:
-        """From a :class:`~tactorbelt.experiment.study.Study` (read by attribute)."""
+        """From a :class:`~tactorbelt.experiment.study.Study` (read by attribute) whose
+        test blocks share one target count (several: use
+        :class:`tactorbelt.participant.factorial.FactorialProtocol`)."""
+        counts = study.target_counts()
+        if len(counts) != 1:
+            raise ConfigError(f"the study's test blocks have {len(counts)} target counts "
+                              f"({', '.join(map(str, counts))}); simulate it with "
+                              "FactorialProtocol.from_study")
         s = study.stimulus
-        return cls(study.layout_obj(), study.target_set(), s.law, float(s.falloff_deg),
+        return cls(study.layout_obj(), TargetSet.even(counts[0]), s.law, float(s.falloff_deg),
                    float(s.period_s), float(s.transit_s),
                    tuple((b.condition, int(b.repetitions)) for b in study.test),
                    float(study.response.threshold))

@@ -22,11 +22,14 @@ from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from types import TracebackType
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ..._errors import StoreError
 from ..schedule import ScheduledTrial, schedule_from_json
 from ..trial import TrialResult
+
+if TYPE_CHECKING:
+    from ..study import Study
 
 __all__ = [
     "BACKENDS",
@@ -42,7 +45,12 @@ __all__ = [
 ]
 
 #: Version of the store schema this tactorbelt writes; a store with a newer one is refused.
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2
+#: What each schema version added (a writer opening an older store migrates it).
+SCHEMA_HISTORY = {
+    1: "sessions, trials, samples",
+    2: "trials.n_targets and trials.load (factorial designs)",
+}
 SESSION_STATUSES = ("running", "complete", "aborted", "interrupted")
 TRIAL_STATUSES = ("done", "timeout", "aborted")
 #: Columns of a cursor sample row, in order.
@@ -217,9 +225,10 @@ class Store(abc.ABC):
         open_ = [s for s in self.sessions(participant) if s["status"] != "complete"]
         return open_[-1] if open_ else None
 
-    def schedule(self, session_id: int) -> list[ScheduledTrial]:
-        """The stored schedule of a session."""
-        return schedule_from_json(self.session(session_id)["schedule_json"])
+    def schedule(self, session_id: int, study: Study | None = None) -> list[ScheduledTrial]:
+        """The stored schedule of a session (``study`` fills in the target count and
+        load of a schedule stored before factorial designs)."""
+        return schedule_from_json(self.session(session_id)["schedule_json"], study)
 
     def finished_indices(self, session_id: int) -> set[int]:
         """trial_index of every trial with a final outcome (``done`` or ``timeout``)."""

@@ -10,8 +10,8 @@ Schema (docs/study.md, "The store", plus provenance columns)::
     trials(trial_id, session_id, trial_index, block, block_index, block_name, condition,
            repetition, target_deg, on_tactor, response_deg, response_target_deg, correct,
            rt_s, onset_ns, acquired_ns, crossed_ns, stimulus_off_ns, n_samples,
-           status, abort_reason, attempts, recorded_at,
-           device_onset_ns, onset_uncertainty_ns)            UNIQUE(session_id, trial_index)
+           status, abort_reason, attempts, recorded_at, n_targets, load,
+           device_onset_ns, onset_uncertainty_ns)             UNIQUE(session_id, trial_index)
     samples(trial_id, t_s, x, y, buttons)
 
 Durability: while a writer has the store open it is in WAL mode with
@@ -46,11 +46,14 @@ import sqlite3
 import stat
 from collections.abc import Iterable, Iterator, Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ..._errors import StoreError
 from ..schedule import ScheduledTrial, schedule_from_json, schedule_to_json
 from ..trial import TrialResult
+
+if TYPE_CHECKING:
+    from ..study import Study
 from .base import (
     SCHEMA_VERSION,
     SESSION_STATUSES,
@@ -123,6 +126,10 @@ CREATE TABLE IF NOT EXISTS trials(
     abort_reason TEXT,
     attempts INTEGER NOT NULL DEFAULT 1,
     recorded_at TEXT NOT NULL,
+    n_targets INTEGER,
+    load TEXT,
+    device_onset_ns INTEGER,
+    onset_uncertainty_ns INTEGER,
     UNIQUE(session_id, trial_index)
 );
 CREATE TABLE IF NOT EXISTS samples(
@@ -140,12 +147,31 @@ _TRIAL_COLUMNS = (
     "session_id", "trial_index", "block", "block_index", "block_name", "condition",
     "repetition", "target_deg", "on_tactor", "response_deg", "response_target_deg",
     "correct", "rt_s", "onset_ns", "acquired_ns", "crossed_ns", "stimulus_off_ns",
-    "n_samples", "status", "abort_reason", "attempts", "recorded_at",
+    "n_samples", "status", "abort_reason", "attempts", "recorded_at", "n_targets", "load",
     "device_onset_ns", "onset_uncertainty_ns",
 )
-#: Nullable trial columns added after schema 1: added to older stores on open when
-#: missing (ALTER TABLE ADD COLUMN), without a schema version bump.
-_ADDED_TRIAL_COLUMNS = (("device_onset_ns", "INTEGER"), ("onset_uncertainty_ns", "INTEGER"))
+#: Schema migrations: version -> statements that bring version - 1 to it. Rows written
+#: before version 2 keep NULL n_targets and load (the analysis reads them as the
+#: study's single target count and ``none``) and NULL device onsets.
+_MIGRATIONS: dict[int, tuple[str, ...]] = {
+    2: ("ALTER TABLE trials ADD COLUMN n_targets INTEGER",
+        "ALTER TABLE trials ADD COLUMN load TEXT",
+        "ALTER TABLE trials ADD COLUMN device_onset_ns INTEGER",
+        "ALTER TABLE trials ADD COLUMN onset_uncertainty_ns INTEGER"),
+}
+
+
+def _migrate(conn: sqlite3.Connection, version: int) -> None:
+    """Bring a store of schema ``version`` to :data:`SCHEMA_VERSION` (inside the opening
+    transaction; a column that is already there is left alone)."""
+    have = {str(r[1]) for r in conn.execute("PRAGMA table_info(trials)")}
+    for v in range(version + 1, SCHEMA_VERSION + 1):
+        for stmt in _MIGRATIONS.get(v, ()):
+            col = stmt.split("ADD COLUMN ")[1].split()[0]
+            if col not in have:
+                conn.execute(stmt)
+
+
 def _read_only(path: Path) -> bool:
     """True when the file cannot or must not be written (no write bit, or no access)."""
     try:
@@ -380,13 +406,13 @@ class SQLiteStore(Store):
                 for stmt in _SCHEMA.split(";"):
                     if stmt.strip():
                         conn.execute(stmt)
-                have = {r[1] for r in conn.execute("PRAGMA table_info(trials)")}
-                for column, kind in _ADDED_TRIAL_COLUMNS:
-                    if column not in have:
-                        conn.execute(f"ALTER TABLE trials ADD COLUMN {column} {kind}")
                 if app_id != APPLICATION_ID:
                     conn.execute(f"PRAGMA application_id = {APPLICATION_ID}")
-                conn.execute("INSERT OR IGNORE INTO meta(key, value) VALUES ('schema_version', ?)",
+                row = conn.execute(
+                    "SELECT value FROM meta WHERE key='schema_version'").fetchone()
+                if "trials" in tables:
+                    _migrate(conn, int(row[0]) if row is not None else 1)
+                conn.execute("INSERT OR REPLACE INTO meta(key, value) VALUES ('schema_version', ?)",
                              (str(SCHEMA_VERSION),))
                 conn.execute("COMMIT")
             except BaseException:
@@ -567,9 +593,10 @@ class SQLiteStore(Store):
             " ORDER BY session_id DESC LIMIT 1", (participant,))
         return dict(rows[0]) if rows else None
 
-    def schedule(self, session_id: int) -> list[ScheduledTrial]:
-        """The stored schedule of a session."""
-        return schedule_from_json(self.session(session_id)["schedule_json"])
+    def schedule(self, session_id: int, study: Study | None = None) -> list[ScheduledTrial]:
+        """The stored schedule of a session (``study`` fills in the target count and
+        load of a schedule stored before factorial designs)."""
+        return schedule_from_json(self.session(session_id)["schedule_json"], study)
 
     def finished_indices(self, session_id: int) -> set[int]:
         """trial_index of every trial with a final outcome (``done`` or ``timeout``)."""
@@ -614,7 +641,7 @@ class SQLiteStore(Store):
                     None if result.correct is None else int(result.correct),
                     result.rt_s, result.onset_ns, result.acquired_ns, result.crossed_ns,
                     result.stimulus_off_ns, result.n_samples, result.status,
-                    result.abort_reason, attempts, utc_now(),
+                    result.abort_reason, attempts, utc_now(), t.n_targets or None, t.load,
                     result.device_onset_ns, result.onset_uncertainty_ns,
                 )
                 cur = c.execute(

@@ -1,0 +1,225 @@
+"""The fast path and the power analysis of a factorial study (targets x condition x load).
+
+A factorial study's test blocks differ in their target count (and load). The model
+participant's answer depends only on the vibration of a (target, condition) stimulus
+and on the candidate targets, so each target count is its own
+:class:`~tactorbelt.participant.simulate.Protocol` (its blocks' conditions and
+repetitions) with its own cues, and one participant's trials are drawn block by block
+with one set of parameters and one generator (:func:`simulate_factorial_participant`).
+
+The model has no secondary task: a block under a load is simulated exactly like the
+same block without one (an assumption; docs/participant-model.md). Loads are pooled.
+
+Effects a power analysis can look for (:func:`parse_effect`):
+
+- ``dynamic vs static``: per-participant between-tactor accuracy over every block,
+  paired Wilcoxon; found when p < alpha and dynamic is higher;
+- ``dynamic vs static at N``: the same in the blocks of N targets;
+- ``interaction`` (also ``resolution x condition``): whether the dynamic-minus-static
+  difference in between-tactor accuracy changes with the target count: Friedman test
+  over the target counts on the per-participant differences (paired Wilcoxon with two
+  counts); found when p < alpha, either way.
+
+Pure: NumPy (SciPy in the interaction test), participant; the Wilcoxon test is passed in.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .._errors import ConfigError
+from ..geometry import TargetSet
+from .params import ModelParams, Spread, draw_participant
+from .power import PairedTest, StudyOutcome
+from .simulate import Protocol, StimulusCues, TrialTable, simulate_participant, stimulus_cues
+
+__all__ = [
+    "Effect",
+    "FactorialProtocol",
+    "factorial_cues",
+    "friedman_interaction",
+    "parse_effect",
+    "simulate_factorial_participant",
+    "simulate_factorial_studies",
+]
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class FactorialProtocol:
+    """One :class:`Protocol` per target count (ascending), with that count's blocks."""
+
+    parts: tuple[Protocol, ...]
+
+    @classmethod
+    def from_study(cls, study: Any) -> FactorialProtocol:
+        """From a :class:`~tactorbelt.experiment.study.Study` (its test blocks' counts,
+        conditions and repetitions; each block's stimulus overrides are not modelled
+        when they differ within a count: the first block's stimulus is used)."""
+        parts = []
+        for n in study.target_counts():
+            blocks = [b for b in study.test if study.block_n_targets(b) == n]
+            s = study.block_stimulus(blocks[0])
+            parts.append(Protocol(study.layout_obj(), TargetSet.even(n), s.law,
+                                  float(s.falloff_deg), float(s.period_s), float(s.transit_s),
+                                  tuple((b.condition, int(b.repetitions)) for b in blocks),
+                                  float(study.response.threshold)))
+        return cls(tuple(parts))
+
+    @property
+    def counts(self) -> tuple[int, ...]:
+        return tuple(p.targets.m for p in self.parts)
+
+    @property
+    def period_s(self) -> float:
+        return self.parts[0].period_s
+
+    def conditions(self) -> tuple[str, ...]:
+        return tuple(dict.fromkeys(c for p in self.parts for c in p.conditions))
+
+
+def factorial_cues(protocol: FactorialProtocol, vibrate: Callable[..., Any],
+                   params: ModelParams | None = None) -> tuple[StimulusCues, ...]:
+    """The cues of every part (see :func:`~tactorbelt.participant.simulate.stimulus_cues`)."""
+    return tuple(stimulus_cues(p, vibrate, params) for p in protocol.parts)
+
+
+def simulate_factorial_participant(protocol: FactorialProtocol, cues: Sequence[StimulusCues],
+                                   params: ModelParams, rng: np.random.Generator
+                                   ) -> dict[int, TrialTable]:
+    """Every test trial of one model participant: target count -> its trials."""
+    return {p.targets.m: simulate_participant(p, c, params, rng)
+            for p, c in zip(protocol.parts, cues, strict=True)}
+
+
+@dataclass(frozen=True)
+class Effect:
+    """The effect a factorial power analysis looks for (see :func:`parse_effect`).
+
+    Attributes:
+        kind: ``condition`` (dynamic vs static) or ``interaction``.
+        n_targets: the target count of a ``condition`` effect (None: every block).
+        text: how the user named it.
+    """
+
+    kind: str
+    n_targets: int | None = None
+    text: str = "dynamic vs static"
+
+    def describe(self) -> str:
+        if self.kind == "interaction":
+            return ("resolution x condition interaction: does the dynamic-minus-static "
+                    "between-tactor accuracy change with the target count? (Friedman test "
+                    "over the target counts; Wilcoxon with two)")
+        where = "every block" if self.n_targets is None else f"the {self.n_targets}-target blocks"
+        return (f"dynamic vs static between-tactor accuracy in {where} (paired Wilcoxon; "
+                "found = p < alpha and dynamic higher)")
+
+
+_CONDITION = re.compile(r"^\s*(dynamic\s+vs\.?\s+static|static\s+vs\.?\s+dynamic|condition)"
+                        r"(?:\s+at\s+(\d+)(?:\s+targets)?)?\s*$", re.I)
+_INTERACTION = re.compile(r"^\s*(interaction|resolution\s*x\s*condition|condition\s*x\s*"
+                          r"resolution|targets\s*x\s*condition|condition\s*x\s*targets)\s*$", re.I)
+
+
+def parse_effect(text: str | None, counts: Sequence[int]) -> Effect:
+    """Read ``--effect``: ``dynamic vs static``, ``dynamic vs static at 36`` or
+    ``interaction`` (``resolution x condition``).
+
+    Raises:
+        ConfigError: an effect it does not know, a target count the study lacks, or an
+            interaction in a study with one target count.
+    """
+    if text is None or not text.strip():
+        return Effect("condition")
+    m = _CONDITION.match(text)
+    if m:
+        n = int(m.group(2)) if m.group(2) else None
+        if n is not None and n not in counts:
+            raise ConfigError(f"effect {text!r}: the study has no blocks of {n} targets "
+                              f"(it has {', '.join(map(str, counts))})")
+        return Effect("condition", n, text.strip())
+    if _INTERACTION.match(text):
+        if len(counts) < 2:
+            raise ConfigError(f"effect {text!r} needs at least two target counts; the study "
+                              f"has {', '.join(map(str, counts))}")
+        return Effect("interaction", None, text.strip())
+    raise ConfigError(f"unknown effect {text!r}; use 'dynamic vs static', 'dynamic vs "
+                      "static at N' (N a target count of the study) or 'interaction' "
+                      "(resolution x condition)")
+
+
+def _between(tables: dict[int, TrialTable], condition: str, n: int | None) -> float:
+    sel = [tables[n]] if n is not None else list(tables.values())
+    hits = tot = 0
+    for t in sel:
+        m = (t.condition == condition) & ~t.on_tactor
+        hits += int(t.correct[m].sum())
+        tot += int(m.sum())
+    return hits / tot if tot else float("nan")
+
+
+def friedman_interaction(diff: FloatArray, paired: PairedTest) -> float:
+    """p-value of "the per-participant differences (rows) differ across the target
+    counts (columns)": Friedman, or the paired test with two counts; NaN if not computed."""
+    from scipy.stats import friedmanchisquare
+
+    d = diff[np.isfinite(diff).all(axis=1)]
+    if d.shape[0] < 2:
+        return float("nan")
+    if d.shape[1] == 2:
+        return float(paired(d[:, 0], d[:, 1]))
+    if np.all(d == d[:, :1]):
+        return 1.0
+    return float(friedmanchisquare(*d.T).pvalue)
+
+
+def simulate_factorial_studies(protocol: FactorialProtocol, cues: Sequence[StimulusCues],
+                               effect: Effect, n_participants: int, indices: Sequence[int],
+                               seed: int, test: PairedTest, base: ModelParams | None = None,
+                               spread: Spread | None = None,
+                               progress: Callable[[int], None] | None = None
+                               ) -> list[StudyOutcome]:
+    """Simulate the studies ``indices`` of size ``n_participants`` and test ``effect``.
+
+    Each study's generator is seeded by ``(seed, n_participants, index)``. The outcome's
+    ``static_acc``/``dynamic_acc`` are the between-tactor accuracies the effect is about
+    (every block for the interaction).
+    """
+    if n_participants < 2:
+        raise ConfigError(f"a study needs at least 2 participants, got {n_participants}")
+    if not {"static", "dynamic"} <= set(protocol.conditions()):
+        raise ConfigError("the power analysis needs static and dynamic test blocks")
+    base = base if base is not None else cues[0].params
+    counts = protocol.counts
+    out: list[StudyOutcome] = []
+    for i in indices:
+        rng = np.random.default_rng([int(seed), int(n_participants), int(i)])
+        st = np.empty(n_participants)
+        dy = np.empty(n_participants)
+        diff = np.empty((n_participants, len(counts)))
+        for j in range(n_participants):
+            params = draw_participant(rng, base, spread)
+            tables = simulate_factorial_participant(protocol, cues, params, rng)
+            st[j] = _between(tables, "static", effect.n_targets)
+            dy[j] = _between(tables, "dynamic", effect.n_targets)
+            if effect.kind == "interaction":
+                diff[j] = [_between(tables, "dynamic", n) - _between(tables, "static", n)
+                           for n in counts]
+        try:
+            p = (friedman_interaction(diff, test) if effect.kind == "interaction"
+                 else float(test(st, dy)))
+        except (ValueError, ZeroDivisionError, FloatingPointError):
+            p = float("nan")
+        out.append(replace(StudyOutcome(n_participants, st, dy, p),
+                           directional=effect.kind != "interaction"))
+        if progress is not None:
+            progress(1)
+    return out
