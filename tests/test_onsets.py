@@ -258,8 +258,9 @@ def test_trials_keep_device_onsets_and_older_stores_gain_the_columns(tmp_path: P
         sid = make_session(store)
         store.write_trial(sid, make_result(0))  # no device onset: NULL
     conn = sqlite3.connect(db)  # a store written before the columns existed
-    conn.execute("ALTER TABLE trials DROP COLUMN device_onset_ns")
-    conn.execute("ALTER TABLE trials DROP COLUMN onset_uncertainty_ns")
+    for column in ("device_onset_ns", "onset_uncertainty_ns", "n_targets", "load"):
+        conn.execute(f"ALTER TABLE trials DROP COLUMN {column}")
+    conn.execute("UPDATE meta SET value='1' WHERE key='schema_version'")  # schema 1
     conn.commit()
     conn.close()
     with Store.open(db) as store:
