@@ -668,6 +668,27 @@ def _study_error(exc: ValidationError, text: str, where: str) -> StudyFileError:
 
 # -- the paper's protocol ------------------------------------------------------------
 
+#: The [stimulus] and [response] tables and the start of [session] that the templates
+#: share (the paper's values, commented).
+_STIMULUS_RESPONSE_SESSION_TOML = '''\
+[stimulus]
+law = "paper"             # paper | linear | energy
+falloff_deg = 15.0        # T of the paper's Eq. 1
+period_s = 1.0            # period of the dynamic perturbation
+transit_s = 0.1           # time to move between the two tactors (2*transit < period)
+max_presentation_s = 10.0 # the stimulus stops at acquisition or after this long
+
+[response]
+home_radius = 0.15        # the cursor must be this close to the centre to start a trial
+threshold = 0.9           # acquisition: distance from the centre passes this, in (0, 1]
+dwell_s = 0.0             # ... and stays beyond it this long (0 = at once)
+timeout_s = 10.0          # no acquisition this long after onset: the trial times out
+
+[session]
+seed = 1                  # randomisation seed (with the participant id); --seed overrides
+iti_s = 1.0               # inter-trial interval
+'''
+
 PAPER_STUDY_TOML = '''\
 # tactorbelt study file: the protocol of Eguchi et al., "Between-Tactor Display
 # Using Dynamic Tactile Stimuli". Edit it, then check it with
@@ -687,22 +708,7 @@ tactors = 6
 [targets]
 count = 24                # targets at k*360/count; on-tactor where one meets a tactor
 
-[stimulus]
-law = "paper"             # paper | linear | energy
-falloff_deg = 15.0        # T of the paper's Eq. 1
-period_s = 1.0            # period of the dynamic perturbation
-transit_s = 0.1           # time to move between the two tactors (2*transit < period)
-max_presentation_s = 10.0 # the stimulus stops at acquisition or after this long
-
-[response]
-home_radius = 0.15        # the cursor must be this close to the centre to start a trial
-threshold = 0.9           # acquisition: distance from the centre passes this, in (0, 1]
-dwell_s = 0.0             # ... and stays beyond it this long (0 = at once)
-timeout_s = 10.0          # no acquisition this long after onset: the trial times out
-
-[session]
-seed = 1                  # randomisation seed (with the participant id); --seed overrides
-iti_s = 1.0               # inter-trial interval
+''' + _STIMULUS_RESPONSE_SESSION_TOML + '''\
 break_every = 48          # a break after every N trials (0 = no breaks)
 randomise = "per_repetition"  # per_repetition (each pass a new permutation) | full | none
 condition_order = "alternate" # fixed | alternate (even participants reversed) | latin
@@ -751,22 +757,7 @@ tactors = 6               # evenly spaced at 180/N + k*360/N
 [targets]
 count = 24                # not used by the [design] blocks (they set their own counts)
 
-[stimulus]
-law = "paper"             # paper | linear | energy
-falloff_deg = 15.0        # T of the paper's Eq. 1
-period_s = 1.0            # period of the dynamic perturbation
-transit_s = 0.1           # time to move between the two tactors (2*transit < period)
-max_presentation_s = 10.0 # the stimulus stops at acquisition or after this long
-
-[response]
-home_radius = 0.15        # the cursor must be this close to the centre to start a trial
-threshold = 0.9           # acquisition: distance from the centre passes this, in (0, 1]
-dwell_s = 0.0             # ... and stays beyond it this long (0 = at once)
-timeout_s = 10.0          # no acquisition this long after onset: the trial times out
-
-[session]
-seed = 1                  # randomisation seed (with the participant id); --seed overrides
-iti_s = 1.0               # inter-trial interval
+''' + _STIMULUS_RESPONSE_SESSION_TOML + '''\
 break_every = 60          # a break after every N trials (0 = no breaks)
 randomise = "per_repetition"  # per_repetition (each pass a new permutation) | full | none
 sample_rate_hz = 100.0    # cursor sampling rate
