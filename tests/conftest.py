@@ -48,3 +48,16 @@ settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "dev"))
 def reference_dir() -> Path:
     """Golden tables from an independent implementation (copied from shared/reference)."""
     return REFERENCE
+
+
+@pytest.fixture(scope="session")
+def emulator_exe() -> Path:
+    """The firmware emulator binary, built once per run (skipped where it cannot be)."""
+    import shutil
+
+    from tactorbelt.devices.emulator import build_emulator, emulator_path, firmware_dir
+
+    missing = [t for t in ("g++", "make") if shutil.which(t) is None]
+    if missing and not emulator_path(firmware_dir()).is_file():
+        pytest.skip(f"the firmware emulator needs {' and '.join(missing)} to build")
+    return build_emulator(firmware_dir())

@@ -21,7 +21,6 @@ Skipped when g++ or make is missing.
 from __future__ import annotations
 
 import os
-import shutil
 import struct
 import subprocess
 import time
@@ -31,7 +30,6 @@ from pathlib import Path
 import pytest
 
 from tactorbelt.devices import wire
-from tactorbelt.devices.emulator import build_emulator, emulator_path, firmware_dir
 
 pytestmark = pytest.mark.emulator
 
@@ -43,13 +41,6 @@ RESET_WATCHDOG = 0x02
 CAP_WATCHDOG_RESET = 0x80
 HEARTBEAT_MS = 100
 
-
-@pytest.fixture(scope="module")
-def emulator_exe() -> Path:
-    missing = [t for t in ("g++", "make") if shutil.which(t) is None]
-    if missing and not emulator_path(firmware_dir()).is_file():
-        pytest.skip(f"the firmware emulator needs {' and '.join(missing)} to build")
-    return build_emulator(firmware_dir())
 
 
 class Emu:

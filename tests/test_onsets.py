@@ -21,7 +21,6 @@ import logging
 import os
 import random
 import select
-import shutil
 import subprocess
 import time
 from collections.abc import Iterator
@@ -33,7 +32,7 @@ from tactorbelt.clock import WallClock
 from tactorbelt.devices import open_belt, wire
 from tactorbelt.devices._clocksync import ClockSync
 from tactorbelt.devices._firmware import FirmwareBelt
-from tactorbelt.devices.emulator import EmulatorBelt, build_emulator, emulator_path, firmware_dir
+from tactorbelt.devices.emulator import EmulatorBelt
 from tactorbelt.experiment.runner import run_session
 from tactorbelt.experiment.schedule import make_schedule
 from tactorbelt.experiment.store import Store
@@ -112,13 +111,6 @@ condition = "dynamic"
 repetitions = 2
 """  # 12 between-tactor trials, rendered on the device
 
-
-@pytest.fixture(scope="module")
-def emulator_exe() -> Path:
-    missing = [t for t in ("g++", "make") if shutil.which(t) is None]
-    if missing and not emulator_path(firmware_dir()).is_file():
-        pytest.skip(f"the firmware emulator needs {' and '.join(missing)} to build")
-    return build_emulator(firmware_dir())
 
 
 class BareEmulator:

@@ -31,10 +31,11 @@ from typing import Any
 import numpy as np
 import pytest
 
+from support.belts import wait_for
 from tactorbelt import DeviceError
 from tactorbelt.clock import WallClock
 from tactorbelt.devices import open_belt, wire
-from tactorbelt.devices.emulator import EmulatorBelt, build_emulator, emulator_path, firmware_dir
+from tactorbelt.devices.emulator import EmulatorBelt
 from tactorbelt.experiment.runner import NullObserver, run_session
 from tactorbelt.experiment.schedule import make_schedule
 from tactorbelt.experiment.store import Store
@@ -66,24 +67,7 @@ repetitions = 1
 """  # 6 between-tactor trials
 
 
-@pytest.fixture(scope="module")
-def emulator_exe() -> Path:
-    import shutil
 
-    missing = [t for t in ("g++", "make") if shutil.which(t) is None]
-    if missing and not emulator_path(firmware_dir()).is_file():
-        pytest.skip(f"the firmware emulator needs {' and '.join(missing)} to build")
-    return build_emulator(firmware_dir())
-
-
-def wait_for(predicate: Callable[[], object], timeout_s: float = 5.0) -> bool:
-    """Poll a condition another process makes true."""
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        if predicate():
-            return True
-        time.sleep(0.005)
-    return bool(predicate())
 
 
 def read_log(path: Path) -> np.ndarray:

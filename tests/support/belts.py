@@ -189,7 +189,7 @@ class LoopTransport(Transport):
         self.sink.link_lost("end of file")
 
 
-def wait_for(predicate: Callable[[], object], timeout_s: float = 3.0) -> bool:
+def wait_for(predicate: Callable[[], object], timeout_s: float = 5.0) -> bool:
     """Poll a condition another thread makes true (for keep-alive behaviour)."""
     deadline = time.monotonic() + timeout_s
     while time.monotonic() < deadline:
