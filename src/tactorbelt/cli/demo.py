@@ -126,7 +126,7 @@ def parse_sizes(text: str) -> list[int]:
               default=None, help="Study file to plan [default: the paper's protocol].")
 @click.option("--alpha", type=number(float, 0, 1, lo_open=True, hi_open=True),
               default=0.05, show_default=True, help="Significance level of the test.")
-@click.option("--effect", default=None, metavar="TEXT",
+@click.option("--effect", default=None, metavar="EFFECT",
               help="Effect to detect in a factorial study: 'dynamic vs static', 'dynamic "
                    "vs static at 36' or 'interaction' (resolution x condition).")
 def power(sizes_text: str, sims: int, out: Path, seed: int, jobs: int | None,

@@ -9,6 +9,8 @@ from pathlib import Path
 
 import click
 
+from ._options import seed_option
+
 __all__ = ["study"]
 
 TEMPLATE_NAMES = ("paper", "resolution")
@@ -55,8 +57,7 @@ def init(file: Path, template: str, force: bool) -> None:
 @click.argument("file", type=click.Path(dir_okay=False, path_type=Path))
 @click.option("--participant", default="P01", show_default=True,
               help="Show the block order of this participant.")
-@click.option("--seed", type=int, default=None,
-              help="Seed for design.order = random (default: session.seed).")
+@seed_option("Seed for design.order = random [default: the study's session.seed].")
 def check(file: Path, participant: str, seed: int | None) -> None:
     """Validate FILE; print its cells, trials per cell, block order and duration."""
     from ..experiment.runner import check_participant
