@@ -210,8 +210,10 @@ def test_stored_device_onsets_match_the_emulator_levels_log(
         error = abs(row["device_onset_ns"] - truth_ns)
         errors_us.append(error / 1000)
         assert error <= 500_000 + slack_ns, (row["trial_index"], error)
-        # the host's own stamp is taken before the request goes out: never after
-        assert row["onset_ns"] <= truth_ns + slack_ns
+        # (The host's own stamp is not compared with the log: the emulator stamps a
+        # request with the time its read loop began, which on a loaded machine can be
+        # milliseconds away from when the host wrote it; the device onset and the log
+        # share that stamp, which is what this test checks.)
     print(f"device onsets vs levels log: max {max(errors_us):.0f} us "
           f"(truth bracket +-{slack_ns / 1000:.0f} us)")
 
