@@ -291,6 +291,11 @@ class Store(abc.ABC):
         """
         raise StoreError(f"{self.url}: this store does not take bulk inserts")
 
+    def claim_participant(self, participant: str, site: str) -> None:
+        """Refuse (StoreError) a participant id that another site already uses. A store
+        of one site (SQLite) takes any id."""
+        return None
+
     # -- copying sessions from another store (only when capabilities.sync_target) -----
     def sync_state(self, session_uuid: str
                    ) -> tuple[int, dict[str, Any], dict[int, tuple[str, int]]] | None:

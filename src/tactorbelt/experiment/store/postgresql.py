@@ -251,6 +251,7 @@ class PostgreSQLStore(Store):
         self.conn = conn
         self.readonly = readonly
         self._closed = False
+        self._trial_columns: set[str] | None = None
 
     # -- opening -----------------------------------------------------------------------
     @classmethod
@@ -391,6 +392,12 @@ class PostgreSQLStore(Store):
             raise StoreError(
                 f"participant id {participant!r} is already taken at site {owner!r}; "
                 f"give this participant another id at site {site!r}")
+
+    def claim_participant(self, participant: str, site: str) -> None:
+        """Register the participant id at ``site`` (first come); StoreError when another
+        site already has it."""
+        with self._transaction() as c:
+            self._claim(c, participant, site)
 
     # -- sessions ----------------------------------------------------------------------
     def create_session(
@@ -619,17 +626,17 @@ class PostgreSQLStore(Store):
                 c.execute(f"SELECT setval(pg_get_serial_sequence('tactorbelt.{table}', "
                           f"'{col}'), MAX({col})) FROM tactorbelt.{table} "
                           f"HAVING MAX({col}) IS NOT NULL")
-            rows = [tuple(s) for s in samples]
-            tids = sorted({int(r[0]) for r in rows})
+            sample_rows = [tuple(s) for s in samples]
+            tids = sorted({int(r[0]) for r in sample_rows})
             nxt = {int(t): int(k) for t, k in c.execute(
                 "SELECT trial_id, MAX(sample_index) + 1 FROM tactorbelt.samples"
                 " WHERE trial_id = ANY(%s) GROUP BY trial_id", (tids,)).fetchall()}
             with c.copy("COPY tactorbelt.samples(trial_id, sample_index, t_s, x, y, buttons)"
                         " FROM STDIN") as copy:
-                for r in rows:
-                    tid = int(r[0])
+                for sr in sample_rows:
+                    tid = int(sr[0])
                     k = nxt.get(tid, 0)
-                    copy.write_row((tid, k, *r[1:]))
+                    copy.write_row((tid, k, *sr[1:]))
                     nxt[tid] = k + 1
         return ids
 
@@ -685,7 +692,9 @@ class PostgreSQLStore(Store):
         with the same status and attempts is left alone (False); an older attempt is
         replaced. Returns whether anything was written."""
         skip = {"trial_id", "session_id"}
-        have = set(self.table_columns("trials"))
+        if self._trial_columns is None:
+            self._trial_columns = set(self.table_columns("trials"))
+        have = self._trial_columns
         values = {k: v for k, v in row.items() if k not in skip and k in have}
         values["session_id"] = session_id
         with self._transaction() as c:
@@ -701,7 +710,7 @@ class PostgreSQLStore(Store):
         return True
 
 
-def setup_access(store: PostgreSQLStore, *, writers: Mapping[str, str] = {},  # noqa: B006
+def setup_access(store: PostgreSQLStore, *, writers: Mapping[str, str] | None = None,
                  analysts: Sequence[str] = ()) -> None:
     """Row-level security: each role of ``writers`` (role -> site) may insert and read
     its own site's sessions, trials and samples and nothing else; ``analysts`` read
@@ -713,6 +722,7 @@ def setup_access(store: PostgreSQLStore, *, writers: Mapping[str, str] = {},  # 
                    " WHERE role_name = current_user)")
     own_trial = "session_id IN (SELECT session_id FROM tactorbelt.sessions)"
     own_sample = "trial_id IN (SELECT trial_id FROM tactorbelt.trials)"
+    writers = dict(writers or {})
     with store._transaction("set up access in") as c:
         for role, site in writers.items():
             c.execute("INSERT INTO tactorbelt.site_writers(role_name, site) VALUES (%s, %s)"
