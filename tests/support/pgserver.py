@@ -76,6 +76,11 @@ class PgServer:
         self._run("pg_ctl", "-D", str(self.data), "-l", str(self.root / "log"), "-o", opts,
                   "-w", "-t", "60", "start")
 
+    def start_if_stopped(self) -> None:
+        """Start the server unless it runs (after a test that stopped it failed)."""
+        if self._run("pg_ctl", "-D", str(self.data), "status", check=False).returncode != 0:
+            self.start()
+
     def stop(self, mode: str = "fast") -> None:
         """Stop the server (``fast``: disconnect every client)."""
         self._run("pg_ctl", "-D", str(self.data), "-m", mode, "-w", "stop", check=False)
@@ -86,10 +91,12 @@ class PgServer:
         return f"postgresql://{user}@{quote(str(self.sock), safe='')}/{dbname}"
 
     def admin(self, sql: str, dbname: str = "postgres") -> None:
+        """Run SQL statements (``;``-separated) as the superuser."""
         import psycopg
 
         with psycopg.connect(self.url(dbname), autocommit=True) as conn:
-            conn.execute(sql)  # type: ignore[arg-type]
+            for stmt in sql.split("; "):
+                conn.execute(stmt)  # type: ignore[arg-type]
 
     def new_database(self) -> str:
         """A fresh empty database; its URL (as the admin)."""

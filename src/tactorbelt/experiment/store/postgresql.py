@@ -252,6 +252,7 @@ class PostgreSQLStore(Store):
         self.readonly = readonly
         self._closed = False
         self._trial_columns: set[str] | None = None
+        self._row_security: bool | None = None
 
     # -- opening -----------------------------------------------------------------------
     @classmethod
@@ -522,18 +523,25 @@ class PostgreSQLStore(Store):
                 row["attempts"] = int(old[2]) + 1
             return self._insert_trial(c, row, result.sample_rows())
 
-    @staticmethod
-    def _insert_trial(c: Any, row: Mapping[str, Any],
+    def _insert_trial(self, c: Any, row: Mapping[str, Any],
                       samples: Iterable[Sequence[Any]]) -> int:
         cols = list(row)
         trial_id = int(c.execute(
             f"INSERT INTO tactorbelt.trials({', '.join(cols)}) VALUES "
             f"({', '.join(['%s'] * len(cols))}) RETURNING trial_id",
             [row[k] for k in cols]).fetchone()[0])
-        with c.copy("COPY tactorbelt.samples(trial_id, sample_index, t_s, x, y, buttons)"
-                    " FROM STDIN") as copy:
-            for k, s in enumerate(samples):
-                copy.write_row((trial_id, k, *s))
+        rows = [(trial_id, k, *s) for k, s in enumerate(samples)]
+        if self._row_security is None:  # COPY is refused under row-level security
+            self._row_security = bool(c.execute(
+                "SELECT row_security_active('tactorbelt.samples')").fetchone()[0])
+        if self._row_security:
+            c.executemany("INSERT INTO tactorbelt.samples(trial_id, sample_index, t_s, x, y,"
+                          " buttons) VALUES (%s,%s,%s,%s,%s,%s)", rows)
+        else:
+            with c.copy("COPY tactorbelt.samples(trial_id, sample_index, t_s, x, y, buttons)"
+                        " FROM STDIN") as copy:
+                for r in rows:
+                    copy.write_row(r)
         return trial_id
 
     def trials(self, session_id: int | None = None) -> list[dict[str, Any]]:
