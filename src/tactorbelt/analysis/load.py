@@ -46,7 +46,15 @@ REQUIRED_COLUMNS: Final[dict[str, tuple[str, ...]]] = {
 #: Optional session columns read when present.
 OPTIONAL_SESSION_COLUMNS: Final = ("input",)
 
-def _open(path: Path) -> Store:
+def _store_ref(p: str | Path) -> Path | str:
+    """A store file's path, or a server store's URL kept as text (``postgresql://...``)."""
+    text = str(p)
+    if not isinstance(p, Path) and text.lower().startswith(("postgresql://", "postgres://")):
+        return text
+    return Path(p)
+
+
+def _open(path: Path | str) -> Store:
     """Open read-only through the store interface (no integrity scan: stores can be
     large, and a damaged page still fails the read that reaches it)."""
     from ..experiment.store import open_store
@@ -54,7 +62,7 @@ def _open(path: Path) -> Store:
     return open_store(path, create=False, readonly=True, verify=False)
 
 
-def _check_schema(path: Path, store: Store) -> dict[str, list[str]]:
+def _check_schema(path: Path | str, store: Store) -> dict[str, list[str]]:
     cols: dict[str, list[str]] = {t: store.table_columns(t) for t in REQUIRED_COLUMNS}
     missing = [t for t in REQUIRED_COLUMNS if not cols[t]]
     if missing:
@@ -72,7 +80,7 @@ def _check_schema(path: Path, store: Store) -> dict[str, list[str]]:
     return cols
 
 
-def _read_store(path: Path, store_index: int) -> tuple[pd.DataFrame, pd.DataFrame]:
+def _read_store(path: Path | str, store_index: int) -> tuple[pd.DataFrame, pd.DataFrame]:
     import pandas as pd
 
     with _open(path) as store:
@@ -92,15 +100,19 @@ def _read_store(path: Path, store_index: int) -> tuple[pd.DataFrame, pd.DataFram
     return sessions, trials
 
 
-def store_labels(paths: Sequence[Path]) -> list[str]:
-    """Short, unique names for the stores: the file name, or more of the path if needed."""
-    names = [p.name for p in paths]
+def store_labels(paths: Sequence[Path | str]) -> list[str]:
+    """Short, unique names for the stores: the file name, or more of the path if needed
+    (a server store: its URL)."""
+    if any(isinstance(p, str) for p in paths):
+        return [p if isinstance(p, str) else str(p) for p in paths]
+    files = [Path(p) for p in paths]
+    names = [p.name for p in files]
     if len(set(names)) == len(names):
         return names
-    longer = [f"{p.parent.name}/{p.name}" for p in paths]
+    longer = [f"{p.parent.name}/{p.name}" for p in files]
     if len(set(longer)) == len(longer):
         return longer
-    return [f"{i}:{p.name}" for i, p in enumerate(paths)]
+    return [f"{i}:{p.name}" for i, p in enumerate(files)]
 
 
 def _tidy(sessions: pd.DataFrame, trials: pd.DataFrame, labels: list[str],
@@ -177,11 +189,11 @@ def load_stores(paths: Sequence[str | Path]) -> StoreData:
     if not paths:
         raise StoreError("no store given; pass one or more .sqlite files")
     notes: list[str] = []
-    unique: list[Path] = []
-    seen: set[Path] = set()
+    unique: list[Path | str] = []
+    seen: set[Path | str] = set()
     for p in paths:
-        path = Path(p)
-        key = path.resolve()
+        path = _store_ref(p)
+        key = path.resolve() if isinstance(path, Path) else path
         if key in seen:
             notes.append(f"{path} was given twice and read once")
             continue
