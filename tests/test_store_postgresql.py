@@ -7,6 +7,7 @@ The store contract itself runs in tests/test_store_contract.py (both backends).
 
 from __future__ import annotations
 
+import json
 import os
 import signal
 import sqlite3
@@ -145,6 +146,27 @@ def test_two_sites_run_at_once_and_a_participant_id_belongs_to_one_site(
     synced = _cli("sync", str(other), pg_url)
     assert synced.returncode == 2 and "already taken at site 'lyon'" in synced.stderr
     assert len(_remote(pg_url)) == 2
+    # analysis from the shared store: a per-site table, --site, complete sessions only
+    assert _cli(*_run_args(study, "C01", tmp_path / "lyon.sqlite", pg_url, "--site", "lyon",
+                           "--limit", "1")).returncode == 0  # left interrupted
+    rep = _cli("analyze", pg_url, "--out", str(tmp_path / "all"))
+    assert rep.returncode == 0, rep.stderr
+    html = (tmp_path / "all" / "report.html").read_text()
+    assert "Per site" in html and "lyon" in html and "oslo" in html
+    notes = json.loads((tmp_path / "all" / "summary.json").read_text())["notes"]
+    assert any("1 session(s)" in n and "not complete" in n for n in notes), notes
+    assert _participants(tmp_path / "all") == 2
+    rep = _cli("analyze", pg_url, "--out", str(tmp_path / "lyon"), "--site", "lyon",
+               "--include-running")
+    assert rep.returncode == 0, rep.stderr
+    assert _participants(tmp_path / "lyon") == 2  # A01 and the running C01
+    out = _cli("export", pg_url, str(tmp_path / "csv"))
+    assert out.returncode == 0, out.stderr
+
+
+def _participants(report_dir: Path) -> int:
+    counts = json.loads((report_dir / "summary.json").read_text())["counts"]
+    return int(counts["participants"])
 
 
 def _wait_trials(db: Path, n: int, proc: subprocess.Popen[str], limit_s: float = 120) -> int:

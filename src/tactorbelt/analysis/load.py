@@ -44,7 +44,7 @@ REQUIRED_COLUMNS: Final[dict[str, tuple[str, ...]]] = {
     "samples": ("trial_id", "t_s", "x", "y", "buttons"),
 }
 #: Optional session columns read when present.
-OPTIONAL_SESSION_COLUMNS: Final = ("input",)
+OPTIONAL_SESSION_COLUMNS: Final = ("input", "site")
 
 def _store_ref(p: str | Path) -> Path | str:
     """A store file's path, or a server store's URL kept as text (``postgresql://...``)."""
@@ -80,10 +80,12 @@ def _check_schema(path: Path | str, store: Store) -> dict[str, list[str]]:
     return cols
 
 
-def _read_store(path: Path | str, store_index: int) -> tuple[pd.DataFrame, pd.DataFrame]:
+def _read_store(path: Path | str, store_index: int, include_running: bool = False,
+                notes: list[str] | None = None) -> tuple[pd.DataFrame, pd.DataFrame]:
     import pandas as pd
 
     with _open(path) as store:
+        shared = not store.capabilities.exclusive_writer
         cols = _check_schema(path, store)
         sess_cols = list(REQUIRED_COLUMNS["sessions"]) + [
             c for c in OPTIONAL_SESSION_COLUMNS if c in cols["sessions"]]
@@ -92,6 +94,13 @@ def _read_store(path: Path | str, store_index: int) -> tuple[pd.DataFrame, pd.Da
                                              columns=sess_cols, coerce_float=True)
         trials = pd.DataFrame.from_records(store.read_table("trials", trial_cols),
                                            columns=trial_cols, coerce_float=True)
+    if shared and not include_running:  # sites may be writing: complete sessions only
+        keep = sessions["status"] == "complete"
+        if not keep.all() and notes is not None:
+            notes.append(f"{int((~keep).sum())} session(s) of {path} that are not complete "
+                         "(running or interrupted) were left out (--include-running)")
+        sessions = sessions.loc[keep]
+        trials = trials.loc[trials["session_id"].isin(sessions["session_id"])]
     # Each session's trials in schedule order (an aborted attempt before its rerun).
     trials = trials.sort_values(["session_id", "trial_index", "trial_id"], kind="stable",
                                 na_position="first", ignore_index=True)
@@ -128,10 +137,11 @@ def _tidy(sessions: pd.DataFrame, trials: pd.DataFrame, labels: list[str],
     for c in ("status", "belt", "study_name", "study_sha256", "firmware_version",
               "package_version", "condition_order", "started_at", "ended_at"):
         sessions[c] = sessions[c].astype("string")
-    if "input" not in sessions.columns:
-        sessions["input"] = pd.Series(pd.NA, index=sessions.index, dtype="string")
-    else:
-        sessions["input"] = sessions["input"].astype("string")
+    for c in OPTIONAL_SESSION_COLUMNS:
+        if c not in sessions.columns:
+            sessions[c] = pd.Series(pd.NA, index=sessions.index, dtype="string")
+        else:
+            sessions[c] = sessions[c].astype("string")
 
     # The same session copied into two stores: keep the first copy.
     ident = ["participant", "study_sha256", "started_at"]
@@ -177,8 +187,12 @@ def _tidy(sessions: pd.DataFrame, trials: pd.DataFrame, labels: list[str],
     return sessions, trials.reset_index(drop=True)
 
 
-def load_stores(paths: Sequence[str | Path]) -> StoreData:
+def load_stores(paths: Sequence[str | Path], *, sites: Sequence[str] | None = None,
+                include_running: bool = False) -> StoreData:
     """Load every store in ``paths`` into one :class:`StoreData`.
+
+    ``sites``: only the sessions of these sites. A shared store (several writers, e.g.
+    PostgreSQL) gives only its complete sessions unless ``include_running``.
 
     Raises:
         StoreError: no path given; a file missing, not SQLite, or lacking the tactorbelt
@@ -202,7 +216,11 @@ def load_stores(paths: Sequence[str | Path]) -> StoreData:
     all_sessions = []
     all_trials = []
     for i, path in enumerate(unique):
-        sessions, trials = _read_store(path, i)
+        sessions, trials = _read_store(path, i, include_running, notes)
+        if sites is not None:
+            sessions = sessions.loc[sessions.get("site", pd.Series(pd.NA, index=sessions.index)
+                                                 ).isin(list(sites))]
+            trials = trials.loc[trials["session_id"].isin(sessions["session_id"])]
         if sessions.empty:
             if len(unique) == 1:
                 raise StoreError(

@@ -28,7 +28,7 @@ def print_summary_table(summary: Summary) -> None:
 
 
 @click.command("analyze")
-@click.argument("db", nargs=-1, required=True, type=click.Path(path_type=Path))
+@click.argument("db", nargs=-1, required=True)
 @click.option("--out", "out", type=click.Path(path_type=Path), default=None,
               help="Directory for report.html, summary.json, per_target.csv and the PNGs "
                    "[default: the directory of the first DB].")
@@ -36,7 +36,13 @@ def print_summary_table(summary: Summary) -> None:
               help="Seed of the bootstrap intervals and of the sample trajectories shown "
                    "[default: the smallest seed of the stored sessions, so the same stores "
                    "always give the same report, the demo's included].")
-def analyze(db: tuple[Path, ...], out: Path | None, seed: int | None) -> None:
+@click.option("--site", "sites", multiple=True,
+              help="Only the sessions of this site (repeat for several).")
+@click.option("--include-running", is_flag=True,
+              help="From a shared store (postgresql://), also the sessions that are not "
+                   "complete yet.")
+def analyze(db: tuple[str, ...], out: Path | None, seed: int | None, sites: tuple[str, ...],
+            include_running: bool) -> None:
     """Analyse one or more session stores and write the report.
 
     DB is a store written by 'tactorbelt run' or 'tactorbelt demo' (several may be
@@ -50,7 +56,8 @@ def analyze(db: tuple[Path, ...], out: Path | None, seed: int | None) -> None:
     from ..analysis.report import analyze as run_analysis
     from ..analysis.report import print_summary_table as _print
 
-    out_dir = out if out is not None else (db[0].parent if str(db[0].parent) else Path("."))
+    first = Path(db[0]) if "://" not in db[0] else Path(".")
+    out_dir = out if out is not None else (first.parent if str(first.parent) else Path("."))
     err = Console(stderr=True)
     with Progress(TextColumn("{task.description}"), BarColumn(), TimeElapsedColumn(),
                   console=err, transient=True, disable=not err.is_terminal) as bar:
@@ -59,7 +66,8 @@ def analyze(db: tuple[Path, ...], out: Path | None, seed: int | None) -> None:
         def progress(what: str, done: int, total: int) -> None:
             bar.update(task, description=what, completed=done, total=total)
 
-        summary = run_analysis(list(db), out_dir, seed=seed, progress=progress)
+        summary = run_analysis(list(db), out_dir, seed=seed, progress=progress,
+                               sites=list(sites) or None, include_running=include_running)
     out_console = Console()
     _print(summary, out_console)
     for note in summary.notes:

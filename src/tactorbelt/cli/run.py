@@ -142,11 +142,11 @@ def _progress_bar(label: str) -> Iterator[Callable[[int, int], None]]:
 
 
 @click.command("export")
-@click.argument("db", type=click.Path(dir_okay=False, path_type=Path))
+@click.argument("db")
 @click.argument("out", type=click.Path(file_okay=False, path_type=Path))
 @click.option("--format", "fmt", type=click.Choice(["csv", "bids"]), default="csv",
               show_default=True, help="Tidy CSV files, or a BIDS-style dataset.")
-def export(db: Path, out: Path, fmt: str) -> None:
+def export(db: str, out: Path, fmt: str) -> None:
     """Export the store DB into directory OUT (trials and cursor samples)."""
     from ..experiment.export import export_bids, export_csv
 
