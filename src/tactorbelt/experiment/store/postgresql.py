@@ -756,6 +756,8 @@ def setup_access(store: PostgreSQLStore, *, writers: Mapping[str, str] | None = 
             c.execute(sql.SQL("GRANT SELECT, INSERT, UPDATE, DELETE ON tactorbelt.sessions,"
                               " tactorbelt.trials, tactorbelt.samples, tactorbelt.run_options"
                               " TO {}").format(r))
+            c.execute("REVOKE EXECUTE ON FUNCTION tactorbelt.claim_participant(TEXT, TEXT)"
+                      " FROM PUBLIC")
             c.execute(sql.SQL("GRANT EXECUTE ON FUNCTION tactorbelt.claim_participant(TEXT,"
                               " TEXT) TO {}").format(r))
         for role in analysts:
