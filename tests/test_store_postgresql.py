@@ -310,3 +310,27 @@ def test_a_site_writer_reads_nothing_of_another_site(pg_server: Any, pg_url: str
         assert len(a.trials()) == 1
     with open_store(pg_server.url(name, "analyst1")) as a, pytest.raises(StoreError):
         make_session(a, "X01", site="lyon")
+
+
+def test_db_and_push_options_resolve(tmp_path: Path) -> None:
+    from tactorbelt import ConfigError
+    from tactorbelt.launch import resolve_db
+
+    study = tmp_path / "exp" / "study.toml"
+    url = "postgresql://lyon@db.example.org/study"
+    assert resolve_db("lab.sqlite", None, study) == (Path("lab.sqlite"), None)
+    assert resolve_db("lab.sqlite", url, study) == (Path("lab.sqlite"), url)
+    assert resolve_db(url, None, study) == (tmp_path / "exp" / "study.sqlite", url)
+    with pytest.raises(ConfigError, match="postgresql://"):
+        resolve_db("lab.sqlite", "other.sqlite", study)
+    with pytest.raises(ConfigError, match="already pushes"):
+        resolve_db(url, "postgresql://x@y/z", study)
+
+
+def test_a_url_with_a_password_is_refused_before_connecting(tmp_path: Path) -> None:
+    with pytest.raises(StoreError, match=r"\.pgpass.*PGPASSWORD"):
+        open_store("postgresql://lyon:secret@db.invalid/study")
+    study = _study(tmp_path)
+    out = _cli(*_run_args(study, "P01", tmp_path / "l.sqlite",
+                          "postgresql://lyon:secret@db.invalid/study", "--offline"))
+    assert out.returncode == 2 and "pgpass" in out.stderr and "secret" not in out.stderr

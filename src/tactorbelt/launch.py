@@ -333,6 +333,7 @@ def run_study(req: RunRequest, *, progress: Callable[[int, int], None] | None = 
     text = req.study_file.read_text(encoding="utf-8") if req.study_file.is_file() else None
     study = load_study(req.study_file)
     push_lines: list[str] = []
+    _check_push(req)  # before anything is written
     with open_store(req.db) as store:
         r = _resolve(req, _check_session(store, req))
         assert r.input_kind is not None and r.belt_url is not None
@@ -397,23 +398,29 @@ def run_study(req: RunRequest, *, progress: Callable[[int, int], None] | None = 
     return RunOutcome(result, req.db, trials, req.resume, push_lines)
 
 
-def _start_push(req: RunRequest) -> Pusher | None:
-    """The background push of ``req.push`` (None without one, or offline). Checks at
-    once that the shared store is reachable and takes the participant id at this site."""
+def _check_push(req: RunRequest) -> None:
+    """With ``req.push``: no password in the URL; unless offline, the shared store is
+    reachable and takes the participant id at this site."""
     if req.push is None:
-        return None
+        return
     from .experiment.provenance import default_site
     from .experiment.store import open_store
     from .experiment.store.postgresql import check_url
-    from .experiment.sync import Pusher
 
     check_url(req.push)
-    if req.offline:
+    if not req.offline:
+        with open_store(req.push) as remote:
+            remote.claim_participant(req.participant, req.site or default_site())
+
+
+def _start_push(req: RunRequest) -> Pusher | None:
+    """The background push of ``req.push`` (None without one, or offline)."""
+    if req.push is None or req.offline:
         return None
-    site = req.site or default_site()
-    with open_store(req.push) as remote:
-        remote.claim_participant(req.participant, site)
-    return Pusher(req.db, req.push, site=site).start()
+    from .experiment.provenance import default_site
+    from .experiment.sync import Pusher
+
+    return Pusher(req.db, req.push, site=req.site or default_site()).start()
 
 
 @contextlib.contextmanager
