@@ -69,6 +69,12 @@ GOALS = [
          "(exact sign flips)"),
     Goal("analyze_1000_s", None, "<=", 30.0, "s",
          "SQL aggregation over 240,000 trials; samples read only for plotted trials"),
+    Goal("push_trials_per_s", None, None, None, "trials/s",
+         "sync to PostgreSQL over a Unix socket: one transaction per trial (row + 150 "
+         "samples) plus a state query per session; fsync off on the throwaway server"),
+    Goal("pg_over_sqlite", None, "<=", 2.0, "x",
+         "analyze() of 100 synthetic participants from PostgreSQL over the same from "
+         "SQLite (1,000 take too long to load here)"),
     Goal("cli_help_s", "python_startup_s", "<=", 0.3, "s",
          "Python start-up plus click; --help imports no NumPy"),
     Goal("cli_help_vs_python", None, None, None, "x", "baseline: python -c pass"),

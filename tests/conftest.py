@@ -61,3 +61,22 @@ def emulator_exe() -> Path:
     if missing and not emulator_path(firmware_dir()).is_file():
         pytest.skip(f"the firmware emulator needs {' and '.join(missing)} to build")
     return build_emulator(firmware_dir())
+
+
+@pytest.fixture(scope="session")
+def pg_server():  # type: ignore[no-untyped-def]
+    """A throwaway PostgreSQL server (support.pgserver) for this test process: initdb in a
+    temporary folder, a Unix socket only; as root it runs as the ``postgres`` user.
+    Skipped (with the reason) without psycopg or the server binaries."""
+    from support import pgserver
+
+    srv = pgserver.server()
+    if srv is None:
+        pytest.skip(pgserver.skip_reason() or "no PostgreSQL server")
+    return srv
+
+
+@pytest.fixture
+def pg_url(pg_server):  # type: ignore[no-untyped-def]
+    """A fresh database on the throwaway server (its URL, as the admin role)."""
+    return pg_server.new_database()

@@ -20,16 +20,24 @@ options not given) and does everything the command does:
 
 The run's options are kept in the store's ``meta`` table under
 ``run_options:<session_id>`` (JSON), so ``--resume`` can reuse them.
+
+Multi-site studies (docs/multisite.md): with ``push`` (``--push postgresql://...``, or
+``--db postgresql://...``, which keeps the local store next to the study file) every
+trial is written to the local SQLite store first and copied to the shared store in the
+background (:class:`tactorbelt.experiment.sync.Pusher`); the shared store must be
+reachable at the start (it also refuses a participant id taken at another site) unless
+``offline``.
 """
 
 from __future__ import annotations
 
+import contextlib
 import os
 import shlex
 import statistics
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -42,13 +50,16 @@ if TYPE_CHECKING:
     from .experiment.runner import SessionInfo, SessionResult
     from .experiment.schedule import ScheduledTrial
     from .experiment.store import Store
+    from .experiment.sync import Pusher
     from .inputs.joystick import JoystickConfig
 
-__all__ = ["RunOutcome", "RunRequest", "choose_clock", "has_display", "resume_command",
-           "run_study"]
+__all__ = ["RunOutcome", "RunRequest", "choose_clock", "has_display", "resolve_db",
+           "resume_command", "run_study"]
 
 #: Seconds of real time added after each trial (to test interrupting a fast run).
 SLOW_TRIAL_ENV = "TACTORBELT_TEST_SLOW_TRIAL_S"
+#: Seconds a run waits at its end for the background push to catch up.
+PUSH_WAIT_S = 15.0
 
 
 @dataclass
@@ -96,6 +107,25 @@ class RunRequest:
     fullscreen: bool | None = None
     screenshot_dir: Path | None = None
     joystick: JoystickOptions = field(default_factory=JoystickOptions)
+    push: str | None = None
+    site: str | None = None
+    offline: bool = False
+
+
+def resolve_db(db: str, push: str | None, study_file: Path) -> tuple[Path, str | None]:
+    """``(local store, shared store URL or None)`` of ``--db`` and ``--push``.
+
+    ``--db postgresql://...`` means: push there, with the local store
+    ``<study file without suffix>.sqlite`` next to the study file.
+    """
+    if db.lower().startswith(("postgresql://", "postgres://")):
+        if push is not None and push != db:
+            raise ConfigError("--db postgresql://... already pushes there; give --db "
+                              "LOCAL.sqlite --push URL to choose the local store")
+        return study_file.with_suffix(".sqlite"), db
+    if push is not None and not push.lower().startswith(("postgresql://", "postgres://")):
+        raise ConfigError(f"--push takes a postgresql://user@host/dbname URL, not {push!r}")
+    return Path(db), push
 
 
 #: What is stored with a session and reused on resume.
@@ -110,6 +140,8 @@ class RunOutcome:
     db: Path
     trials: list[dict[str, Any]]
     resumed: bool
+    #: What happened to the background push (stderr lines; empty without --push).
+    push_lines: list[str] = field(default_factory=list)
 
     def summary(self) -> tuple[list[str], list[str]]:
         """(lines for stdout, lines for stderr) of the end-of-run summary."""
@@ -124,7 +156,7 @@ class RunOutcome:
             mine = [(x.trial.condition, bool(x.correct), x.rt_s) for x in r.results
                     if x.trial.block == "test" and x.status != "aborted"]
             out += _condition_lines(mine, "  this run ") or ["  this run: no test trials"]
-        err = []
+        err = list(self.push_lines)
         if r.status != "complete":
             err.append(f"  continue with --resume (session {r.session_id})")
         return out, err
@@ -168,9 +200,11 @@ def choose_clock(*, headless: bool, input_kind: str, belt_url: str, realtime: bo
 
 def resume_command(req: RunRequest) -> str:
     """The command that continues the participant's session (as a shell line)."""
+    push = ["--push", shlex.quote(req.push)] if req.push else []
+    site = ["--site", shlex.quote(req.site)] if req.site else []
     return " ".join(["tactorbelt", "run", shlex.quote(str(req.study_file)), "--participant",
                      shlex.quote(req.participant.strip()), "--db", shlex.quote(str(req.db)),
-                     "--resume"])
+                     *push, *site, "--resume"])
 
 
 def stored_options(store: Store, session: dict[str, Any]) -> dict[str, Any]:
@@ -229,17 +263,23 @@ def _check_session(store: Store, req: RunRequest) -> dict[str, Any]:
 class _RunObserver:
     """Stores the run's options when the session starts, then forwards to ``inner``."""
 
-    def __init__(self, inner: Any, store: Store, opts: dict[str, Any], slow_s: float) -> None:
+    def __init__(self, inner: Any, store: Store, opts: dict[str, Any], slow_s: float,
+                 pusher: Pusher | None = None) -> None:
         from .experiment.runner import NullObserver
 
         self.inner = inner if inner is not None else NullObserver()
         self.store, self.opts, self.slow_s = store, opts, slow_s
+        self.pusher = pusher
 
     def on_session_start(self, info: SessionInfo, schedule: list[ScheduledTrial]) -> None:
         self.store.set_run_options(info.session_id, self.opts)
+        if self.pusher is not None:
+            self.pusher.watch(info.session_id)
         self.inner.on_session_start(info, schedule)
 
     def on_trial_done(self, result: Any) -> None:
+        if self.pusher is not None:
+            self.pusher.notify()
         self.inner.on_trial_done(result)
         if self.slow_s > 0:
             time.sleep(self.slow_s)
@@ -305,6 +345,8 @@ def run_study(req: RunRequest, *, progress: Callable[[int, int], None] | None = 
         raise ConfigError("--resume and --new-session exclude each other")
     text = req.study_file.read_text(encoding="utf-8") if req.study_file.is_file() else None
     study = load_study(req.study_file)
+    push_lines: list[str] = []
+    _check_push(req)  # before anything is written
     _check_options(req)  # what the request gives: before a store file is created
     with open_store(req.db) as store:
         r = _resolve(req, _check_session(store, req))
@@ -327,9 +369,12 @@ def run_study(req: RunRequest, *, progress: Callable[[int, int], None] | None = 
             seed = study.session.seed if r.seed is None else r.seed
             schedule = None
         slow_s = float(os.environ.get(SLOW_TRIAL_ENV, "0") or 0)
-        with open_belt(r.belt_url, clock=clock, layout=study.layout_obj()) as belt:
+        pusher = _start_push(req)
+        with _closing_push(pusher, req, push_lines), \
+                open_belt(r.belt_url, clock=clock, layout=study.layout_obj()) as belt:
             kwargs: dict[str, Any] = dict(seed=seed, resume=req.resume, limit=req.limit,
-                                          study_toml=text, input_name=r.input_kind)
+                                          study_toml=text, input_name=r.input_kind,
+                                          site=req.site)
             cursor = None
             if r.input_kind in ("model", "scripted"):
                 cursor = make_cursor(r.input_kind, study=study, belt=belt, clock=clock,
@@ -340,7 +385,8 @@ def run_study(req: RunRequest, *, progress: Callable[[int, int], None] | None = 
                     assert cursor is not None
                     result = run_session(study, req.participant, belt, cursor, store, clock,
                                          progress=progress,
-                                         observer=_RunObserver(None, store, opts, slow_s),
+                                         observer=_RunObserver(None, store, opts, slow_s,
+                                                               pusher),
                                          **kwargs)
                 else:
                     with window(study, input=r.input_kind, participant=req.participant,
@@ -351,7 +397,7 @@ def run_study(req: RunRequest, *, progress: Callable[[int, int], None] | None = 
                         if src is None:
                             raise ConfigError(f"the window gave no cursor for --input "
                                               f"{r.input_kind}")
-                        obs = _RunObserver(win.observer, store, opts, slow_s)
+                        obs = _RunObserver(win.observer, store, opts, slow_s, pusher)
                         result = win.run(lambda: run_session(
                             study, req.participant, belt, src, store, clock, observer=obs,
                             **kwargs))
@@ -359,7 +405,53 @@ def run_study(req: RunRequest, *, progress: Callable[[int, int], None] | None = 
                 if cursor is not None:
                     cursor.close()
         trials = store.trials(result.session_id)
-    return RunOutcome(result, req.db, trials, req.resume)
+    return RunOutcome(result, req.db, trials, req.resume, push_lines)
+
+
+def _check_push(req: RunRequest) -> None:
+    """With ``req.push``: no password in the URL; unless offline, the shared store is
+    reachable and takes the participant id at this site."""
+    if req.push is None:
+        return
+    from .experiment.provenance import default_site
+    from .experiment.store import open_store
+    from .experiment.store.postgresql import check_url
+
+    check_url(req.push)
+    if not req.offline:
+        with open_store(req.push) as remote:
+            remote.claim_participant(req.participant, req.site or default_site())
+
+
+def _start_push(req: RunRequest) -> Pusher | None:
+    """The background push of ``req.push`` (None without one, or offline)."""
+    if req.push is None or req.offline:
+        return None
+    from .experiment.provenance import default_site
+    from .experiment.sync import Pusher
+
+    return Pusher(req.db, req.push, site=req.site or default_site()).start()
+
+
+@contextlib.contextmanager
+def _closing_push(pusher: Pusher | None, req: RunRequest, lines: list[str]) -> Iterator[None]:
+    """Let the push catch up at the end of the run (even an interrupted one) and say
+    what is left for ``tactorbelt sync``."""
+    try:
+        yield
+    finally:
+        if req.push is not None:
+            sync = f"tactorbelt sync {shlex.quote(str(req.db))} {shlex.quote(req.push)}"
+            pending = None if pusher is None else pusher.close(PUSH_WAIT_S)
+            if pusher is None:
+                lines.append(f"  offline: the trials are in {req.db} only; push them with "
+                             f"'{sync}'")
+            elif pending == 0 and pusher.error is None:
+                lines.append(f"  pushed to {req.push}")
+            else:
+                left = "some trials" if pending is None else f"{pending} trial(s)"
+                lines.append(f"  {left} not pushed to {req.push} yet ({pusher.error}); they "
+                             f"are safe in {req.db}: push them with '{sync}'")
 
 
 def _no_display() -> None:

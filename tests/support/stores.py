@@ -9,13 +9,13 @@ an entry here (e.g. PostgreSQL: a URL from ``TACTORBELT_TEST_POSTGRESQL_URL``).
 from __future__ import annotations
 
 import hashlib
-import os
 import sqlite3
 from collections.abc import Callable
 from pathlib import Path
 
 import pytest
 
+from support import pgserver
 from tactorbelt.experiment.schedule import ScheduledTrial, make_schedule
 from tactorbelt.experiment.store import BACKENDS, Store
 from tactorbelt.experiment.study import paper_study
@@ -37,8 +37,9 @@ def _sqlite_schema(url: str, version: int) -> None:
 #: scheme -> (fresh URL in a temporary directory, or None to skip; set schema version).
 URLS: dict[str, tuple[Callable[[Path], str | None], Callable[[str, int], None]]] = {
     "sqlite": (lambda tmp: f"sqlite://{tmp / 'contract.sqlite'}", _sqlite_schema),
-    "postgresql": (lambda tmp: os.environ.get("TACTORBELT_TEST_POSTGRESQL_URL"),
-                   lambda url, version: None),
+    # a fresh database on TACTORBELT_TEST_POSTGRESQL_URL's server, or on a throwaway
+    # server (support.pgserver); None (skipped) without psycopg or the server binaries
+    "postgresql": (lambda tmp: pgserver.contract_url(), pgserver.set_schema_version),
 }
 
 

@@ -23,7 +23,8 @@ class StoreData:
     """The tables of one or more stores, concatenated.
 
     Attributes:
-        paths: the store files, in the order given (duplicates removed).
+        paths: the store files (or server stores' URLs), in the order given (duplicates
+            removed).
         sessions: one row per session. ``store`` is the index into ``paths``;
             ``session_key`` (``"<store file name>#<session_id>"``) is unique across stores.
         trials: one row per trial with its session's ``participant`` and
@@ -33,7 +34,7 @@ class StoreData:
         notes: what the loader noticed and did (duplicates dropped, unknown values).
     """
 
-    paths: list[Path]
+    paths: list[Path | str]
     sessions: pd.DataFrame
     trials: pd.DataFrame
     notes: list[str] = field(default_factory=list)

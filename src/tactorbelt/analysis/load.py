@@ -44,12 +44,20 @@ REQUIRED_COLUMNS: Final[dict[str, tuple[str, ...]]] = {
     "samples": ("trial_id", "t_s", "x", "y", "buttons"),
 }
 #: Optional session columns read when present.
-OPTIONAL_SESSION_COLUMNS: Final = ("input",)
+OPTIONAL_SESSION_COLUMNS: Final = ("input", "site")
 #: Optional trial columns (schema 2, factorial designs) read when present; trials of
 #: older stores get their session's study's target count and load ``none``.
 OPTIONAL_TRIAL_COLUMNS: Final = ("n_targets", "load")
 
-def _open(path: Path) -> Store:
+def _store_ref(p: str | Path) -> Path | str:
+    """A store file's path, or a server store's URL kept as text (``postgresql://...``)."""
+    text = str(p)
+    if not isinstance(p, Path) and text.lower().startswith(("postgresql://", "postgres://")):
+        return text
+    return Path(p)
+
+
+def _open(path: Path | str) -> Store:
     """Open read-only through the store interface (no integrity scan: stores can be
     large, and a damaged page still fails the read that reaches it)."""
     from ..experiment.store import open_store
@@ -57,7 +65,7 @@ def _open(path: Path) -> Store:
     return open_store(path, create=False, readonly=True, verify=False)
 
 
-def _check_schema(path: Path, store: Store) -> dict[str, list[str]]:
+def _check_schema(path: Path | str, store: Store) -> dict[str, list[str]]:
     cols: dict[str, list[str]] = {t: store.table_columns(t) for t in REQUIRED_COLUMNS}
     missing = [t for t in REQUIRED_COLUMNS if not cols[t]]
     if missing:
@@ -75,10 +83,12 @@ def _check_schema(path: Path, store: Store) -> dict[str, list[str]]:
     return cols
 
 
-def _read_store(path: Path, store_index: int) -> tuple[pd.DataFrame, pd.DataFrame]:
+def _read_store(path: Path | str, store_index: int, include_running: bool = False,
+                notes: list[str] | None = None) -> tuple[pd.DataFrame, pd.DataFrame]:
     import pandas as pd
 
     with _open(path) as store:
+        shared = not store.capabilities.exclusive_writer
         cols = _check_schema(path, store)
         sess_cols = list(REQUIRED_COLUMNS["sessions"]) + [
             c for c in OPTIONAL_SESSION_COLUMNS if c in cols["sessions"]]
@@ -88,6 +98,13 @@ def _read_store(path: Path, store_index: int) -> tuple[pd.DataFrame, pd.DataFram
                                              columns=sess_cols, coerce_float=True)
         trials = pd.DataFrame.from_records(store.read_table("trials", trial_cols),
                                            columns=trial_cols, coerce_float=True)
+    if shared and not include_running:  # sites may be writing: complete sessions only
+        keep = sessions["status"] == "complete"
+        if not keep.all() and notes is not None:
+            notes.append(f"{int((~keep).sum())} session(s) of {path} that are not complete "
+                         "(running or interrupted) were left out (--include-running)")
+        sessions = sessions.loc[keep]
+        trials = trials.loc[trials["session_id"].isin(sessions["session_id"])]
     # Each session's trials in schedule order (an aborted attempt before its rerun).
     trials = trials.sort_values(["session_id", "trial_index", "trial_id"], kind="stable",
                                 na_position="first", ignore_index=True)
@@ -96,15 +113,19 @@ def _read_store(path: Path, store_index: int) -> tuple[pd.DataFrame, pd.DataFram
     return sessions, trials
 
 
-def store_labels(paths: Sequence[Path]) -> list[str]:
-    """Short, unique names for the stores: the file name, or more of the path if needed."""
-    names = [p.name for p in paths]
+def store_labels(paths: Sequence[Path | str]) -> list[str]:
+    """Short, unique names for the stores: the file name, or more of the path if needed
+    (a server store: its URL)."""
+    if any(isinstance(p, str) for p in paths):
+        return [p if isinstance(p, str) else str(p) for p in paths]
+    files = [Path(p) for p in paths]
+    names = [p.name for p in files]
     if len(set(names)) == len(names):
         return names
-    longer = [f"{p.parent.name}/{p.name}" for p in paths]
+    longer = [f"{p.parent.name}/{p.name}" for p in files]
     if len(set(longer)) == len(longer):
         return longer
-    return [f"{i}:{p.name}" for i, p in enumerate(paths)]
+    return [f"{i}:{p.name}" for i, p in enumerate(files)]
 
 
 def _tidy(sessions: pd.DataFrame, trials: pd.DataFrame, labels: list[str],
@@ -120,10 +141,11 @@ def _tidy(sessions: pd.DataFrame, trials: pd.DataFrame, labels: list[str],
     for c in ("status", "belt", "study_name", "study_sha256", "firmware_version",
               "package_version", "condition_order", "started_at", "ended_at"):
         sessions[c] = sessions[c].astype("string")
-    if "input" not in sessions.columns:
-        sessions["input"] = pd.Series(pd.NA, index=sessions.index, dtype="string")
-    else:
-        sessions["input"] = sessions["input"].astype("string")
+    for c in OPTIONAL_SESSION_COLUMNS:
+        if c not in sessions.columns:
+            sessions[c] = pd.Series(pd.NA, index=sessions.index, dtype="string")
+        else:
+            sessions[c] = sessions[c].astype("string")
 
     # The same session copied into two stores: keep the first copy.
     ident = ["participant", "study_sha256", "started_at"]
@@ -193,8 +215,12 @@ def _cell_columns(sessions: pd.DataFrame, trials: pd.DataFrame) -> pd.DataFrame:
     return trials
 
 
-def load_stores(paths: Sequence[str | Path]) -> StoreData:
+def load_stores(paths: Sequence[str | Path], *, sites: Sequence[str] | None = None,
+                include_running: bool = False) -> StoreData:
     """Load every store in ``paths`` into one :class:`StoreData`.
+
+    ``sites``: only the sessions of these sites. A shared store (several writers, e.g.
+    PostgreSQL) gives only its complete sessions unless ``include_running``.
 
     Raises:
         StoreError: no path given; a file missing, not SQLite, or lacking the tactorbelt
@@ -205,11 +231,11 @@ def load_stores(paths: Sequence[str | Path]) -> StoreData:
     if not paths:
         raise StoreError("no store given; pass one or more .sqlite files")
     notes: list[str] = []
-    unique: list[Path] = []
-    seen: set[Path] = set()
+    unique: list[Path | str] = []
+    seen: set[Path | str] = set()
     for p in paths:
-        path = Path(p)
-        key = path.resolve()
+        path = _store_ref(p)
+        key = path.resolve() if isinstance(path, Path) else path
         if key in seen:
             notes.append(f"{path} was given twice and read once")
             continue
@@ -218,7 +244,11 @@ def load_stores(paths: Sequence[str | Path]) -> StoreData:
     all_sessions = []
     all_trials = []
     for i, path in enumerate(unique):
-        sessions, trials = _read_store(path, i)
+        sessions, trials = _read_store(path, i, include_running, notes)
+        if sites is not None:
+            sessions = sessions.loc[sessions.get("site", pd.Series(pd.NA, index=sessions.index)
+                                                 ).isin(list(sites))]
+            trials = trials.loc[trials["session_id"].isin(sessions["session_id"])]
         if sessions.empty:
             if len(unique) == 1:
                 raise StoreError(

@@ -30,6 +30,8 @@ if TYPE_CHECKING:
     import pandas as pd
     from rich.console import Console
 
+    from .dataset import StoreData
+
 __all__ = [
     "FIGURE_CAPTIONS",
     "ProgressFn",
@@ -317,7 +319,8 @@ def _listing(df: pd.DataFrame, what: str) -> str:
 
 
 def render_html(summary: Summary, figures: dict[str, bytes], *,
-                generated_at: str | None = None, package_version: str | None = None) -> str:
+                generated_at: str | None = None, package_version: str | None = None,
+                sites: pd.DataFrame | None = None) -> str:
     """The whole report as one HTML string (figures embedded as data: URIs)."""
     c = summary.counts
     prov = summary.provenance()
@@ -429,6 +432,13 @@ def render_html(summary: Summary, figures: dict[str, bytes], *,
                      f"{c['participants_with_test_trials']} participants</summary>"
                      + _table(["participant", "condition", "targets", "n", "accuracy",
                                "median RT (s)"], rows, "num") + more + "</details>")
+
+    if sites is not None and len(sites):  # multi-site studies (tables.per_site)
+        parts.append("<h2>Per site</h2>" + _table(
+            ["site", "condition", "participants", "n", "accuracy", "median RT (s)"],
+            [[_e(r.site), _e(r.condition), _int(r.participants), _int(r.n), _pct(r.accuracy),
+              _fmt(r.median_rt_s, missing="all timed out")]
+             for r in sites.itertuples(index=False)], "num"))
 
     if summary.notes:
         parts.append("<h2>Notes</h2><ul>" + "".join(f"<li>{_e(n)}</li>" for n in summary.notes)
@@ -563,9 +573,20 @@ def _package_version() -> str:
         return "unknown"
 
 
+def _sites(data: StoreData, summary: Summary) -> pd.DataFrame | None:
+    """The per-site table when the sessions come from two sites or more."""
+    from .tables import per_site
+
+    s = data.sessions.dropna(subset=["site"])
+    if s["site"].nunique() < 2:
+        return None
+    return per_site(summary.trials, dict(zip(s["participant"], s["site"], strict=True)))
+
+
 def analyze(paths: Sequence[str | Path], out: str | Path, *, seed: int | None = None,
             progress: ProgressFn | None = None, n_boot: int = DEFAULT_N_BOOT,
-            engine: str = "tactorbelt") -> Summary:
+            engine: str = "tactorbelt", sites: Sequence[str] | None = None,
+            include_running: bool = False) -> Summary:
     """Analyse stores and write report.html, summary.json, per_target.csv and PNGs to ``out``.
 
     Args:
@@ -577,6 +598,8 @@ def analyze(paths: Sequence[str | Path], out: str | Path, *, seed: int | None = 
         progress: called as ``progress(description, done, total)``.
         n_boot: bootstrap resamples per interval.
         engine: who fits the mixed models, ``tactorbelt`` or ``lme4`` (R via Rscript).
+        sites: only these sites' sessions; include_running: a shared store's sessions
+            that are not complete too (see :func:`load.load_stores`).
 
     Raises:
         StoreError: a store that cannot be read (see :func:`load.load_stores`).
@@ -600,7 +623,7 @@ def analyze(paths: Sequence[str | Path], out: str | Path, *, seed: int | None = 
     if out.exists() and not out.is_dir():
         raise ConfigError(f"--out {out} is a file; give a directory for the report")
     tick("loading stores")
-    data = load_stores(list(paths))
+    data = load_stores(list(paths), sites=sites, include_running=include_running)
     if seed is None:
         seed = analysis_seed(data)
     tick("computing tables and tests")
@@ -638,7 +661,8 @@ def analyze(paths: Sequence[str | Path], out: str | Path, *, seed: int | None = 
         now = _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
         (out / "report.html").write_text(
             render_html(summary, figures, generated_at=now,
-                        package_version=_package_version()), encoding="utf-8")
+                        package_version=_package_version(), sites=_sites(data, summary)),
+            encoding="utf-8")
     except OSError as exc:
         raise ConfigError(f"cannot write the report to {out}: {exc.strerror}") from None
     tick("done")

@@ -36,6 +36,7 @@ __all__ = [
     "confusion_matrices",
     "direction_summary",
     "per_participant",
+    "per_site",
     "per_target",
     "prepare_trials",
     "training_summary",
@@ -207,6 +208,17 @@ def per_participant(tr: pd.DataFrame) -> pd.DataFrame:
     out["n"] = out["n"].fillna(0).astype(int)
     return out.reset_index()[["participant", "condition", "kind", "n", "accuracy",
                               "median_rt_s", "mean_signed_error_deg"]]
+
+
+def per_site(tr: pd.DataFrame, site_of: dict[str, str]) -> pd.DataFrame:
+    """Per site (a participant's site, ``site_of``) and condition: participants, n,
+    accuracy, median RT (multi-site studies)."""
+    c = tr.loc[tr["counted"]].copy()
+    c["site"] = c["participant"].map(site_of).fillna("(no site)")
+    out = _agg(c, ["site", "condition"])
+    parts = c.groupby(["site", "condition"], observed=True)["participant"].nunique()
+    out = out.merge(parts.rename("participants").reset_index(), on=["site", "condition"])
+    return out[["site", "condition", "participants", "n", "accuracy", "median_rt_s"]]
 
 
 def direction_summary(tr: pd.DataFrame) -> pd.DataFrame:

@@ -42,6 +42,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "study": ("tactorbelt.cli.study:study", "Write or check a study file."),
     "run": ("tactorbelt.cli.run:run", "Run a study session for one participant."),
     "export": ("tactorbelt.cli.run:export", "Export a store to CSV files or a BIDS dataset."),
+    "sync": ("tactorbelt.cli.sync:sync", "Push a local store's missing trials to PostgreSQL."),
     "demo": ("tactorbelt.cli.demo:demo", "Run the paper's study with model participants."),
     "power": ("tactorbelt.cli.demo:power", "Plan a study's size by simulation."),
     "analyze": ("tactorbelt.cli.analyze:analyze",

@@ -30,7 +30,7 @@ def print_summary_table(summary: Summary) -> None:
 
 
 @click.command("analyze")
-@click.argument("db", nargs=-1, required=True, type=click.Path(path_type=Path))
+@click.argument("db", nargs=-1, required=True)
 @output_option("directory", "Directory for report.html, summary.json, per_target.csv and "
                "the PNGs [default: the directory of the first DB].")
 @seed_option("Seed of the bootstrap intervals and of the sample trajectories shown "
@@ -40,7 +40,13 @@ def print_summary_table(summary: Summary) -> None:
               show_default=True,
               help="Who fits the mixed models: tactorbelt's Laplace GLMM, or R's lme4 through "
                    "Rscript (needs 'apt install r-base-core r-cran-lme4').")
-def analyze(db: tuple[Path, ...], out: Path | None, seed: int | None, engine: str) -> None:
+@click.option("--site", "sites", multiple=True,
+              help="Only the sessions of this site (repeat for several).")
+@click.option("--include-running", is_flag=True,
+              help="From a shared store (postgresql://), also the sessions that are not "
+                   "complete yet.")
+def analyze(db: tuple[str, ...], out: Path | None, seed: int | None, engine: str,
+            sites: tuple[str, ...], include_running: bool) -> None:
     """Analyze one or more session stores and write the report.
 
     DB is a store written by 'tactorbelt run' or 'tactorbelt demo' (several may be
@@ -54,7 +60,8 @@ def analyze(db: tuple[Path, ...], out: Path | None, seed: int | None, engine: st
     from ..analysis.report import analyze as run_analysis
     from ..analysis.report import print_summary_table as _print
 
-    out_dir = out if out is not None else (db[0].parent if str(db[0].parent) else Path("."))
+    first = Path(db[0]) if "://" not in db[0] else Path(".")
+    out_dir = out if out is not None else (first.parent if str(first.parent) else Path("."))
     err = Console(stderr=True)
     with Progress(TextColumn("{task.description}"), BarColumn(), TimeElapsedColumn(),
                   console=err, transient=True, disable=not err.is_terminal) as bar:
@@ -64,7 +71,8 @@ def analyze(db: tuple[Path, ...], out: Path | None, seed: int | None, engine: st
             bar.update(task, description=what, completed=done, total=total)
 
         summary = run_analysis(list(db), out_dir, seed=seed, progress=progress,
-                               engine=engine)
+                               engine=engine, sites=list(sites) or None,
+                               include_running=include_running)
     out_console = Console()
     _print(summary, out_console)
     for note in summary.notes:

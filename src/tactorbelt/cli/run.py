@@ -37,8 +37,18 @@ def _given(ctx: click.Context, name: str, value: Any) -> Any:
 @belt_option()
 @click.option("--input", "input_kind", type=click.Choice(INPUTS), default=None,
               help="Cursor source [default: joystick; model with --headless].")
-@click.option("--db", type=click.Path(dir_okay=False, path_type=Path), default=Path("study.sqlite"),
-              show_default=True, help="The session store (SQLite).")
+@click.option("--db", default="study.sqlite", show_default=True,
+              help="The session store (SQLite), written first; postgresql://user@host/db: "
+                   "push there, with the local store STUDY.sqlite next to the study file.")
+@click.option("--push", default=None, metavar="URL",
+              help="Also copy each trial to this shared store (postgresql://user@host/db) "
+                   "in the background; credentials from ~/.pgpass or PGPASSWORD.")
+@click.option("--site", default=None,
+              help="The lab running the session [default: $TACTORBELT_SITE, else the host "
+                   "name].")
+@click.option("--offline", is_flag=True,
+              help="With --push: run on the local store alone (push later with "
+                   "'tactorbelt sync').")
 @click.option("--resume", is_flag=True,
               help="Continue the participant's unfinished session (its stored schedule, "
                    "input, belt and window options unless given again).")
@@ -66,7 +76,8 @@ def _given(ctx: click.Context, name: str, value: Any) -> Any:
 @click.option("--invert-y", is_flag=True, help="Mirror the stick's front/back axis.")
 @click.pass_context
 def run(ctx: click.Context, study_file: Path, participant: str, belt_url: str,
-        input_kind: str | None, db: Path, resume: bool, new_session: bool, headless: bool,
+        input_kind: str | None, db: str, push: str | None, site: str | None, offline: bool,
+        resume: bool, new_session: bool, headless: bool,
         limit: int | None, seed: int | None, realtime: bool, fullscreen: bool,
         screenshot_dir: Path | None, joystick_device: str | None, axes: str,
         dead_zone: float, invert_x: bool, invert_y: bool) -> None:
@@ -77,13 +88,15 @@ def run(ctx: click.Context, study_file: Path, participant: str, belt_url: str,
     the session can then be resumed with the command printed.
     """
     from ..interrupts import Terminated
-    from ..launch import JoystickOptions, RunRequest, resume_command, run_study
+    from ..launch import JoystickOptions, RunRequest, resolve_db, resume_command, run_study
 
     if not participant.strip():
         raise click.BadParameter("must not be empty", param_hint="--participant")
     g = lambda name, value: _given(ctx, name, value)  # noqa: E731
+    local, push = resolve_db(db, push, study_file)
     req = RunRequest(
-        study_file=study_file, participant=participant, db=db,
+        study_file=study_file, participant=participant, db=local, push=push, site=site,
+        offline=offline,
         belt_url=g("belt_url", belt_url), input_kind=input_kind,
         headless=g("headless", headless), resume=resume, new_session=new_session,
         limit=limit, seed=seed, realtime=g("realtime", realtime),
@@ -129,7 +142,7 @@ def _progress_bar(label: str) -> Iterator[Callable[[int, int], None]]:
 
 
 @click.command("export")
-@click.argument("db", type=click.Path(dir_okay=False, path_type=Path))
+@click.argument("db")
 @click.argument("old_out", cls=HiddenArgument, required=False,
                 type=click.Path(file_okay=False, path_type=Path))
 @output_option("directory", "New or empty directory for the files.")
@@ -142,7 +155,7 @@ def _progress_bar(label: str) -> Iterator[Callable[[int, int], None]]:
                                    "study, the task and the columns].")
 @click.option("--authors", default=None, metavar="'A, B'",
               help="BIDS: the dataset's authors, comma-separated.")
-def export(db: Path, old_out: Path | None, out: Path | None, fmt: str, force: bool,
+def export(db: str, old_out: Path | None, out: Path | None, fmt: str, force: bool,
            readme: Path | None, authors: str | None) -> None:
     """Export the store DB (trials and cursor samples) into a new directory.
 

@@ -8,13 +8,18 @@ Imports only the standard library (and tactorbelt's version).
 
 from __future__ import annotations
 
+import os
 import socket
 import subprocess
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
 
-__all__ = ["Provenance", "collect", "git_commit", "package_version"]
+__all__ = ["SITE_ENV", "Provenance", "collect", "default_site", "git_commit",
+           "package_version"]
+
+#: The environment variable naming the lab (site) a session runs at.
+SITE_ENV = "TACTORBELT_SITE"
 
 
 @lru_cache(maxsize=1)
@@ -49,3 +54,8 @@ class Provenance:
 def collect() -> Provenance:
     """The provenance of this process."""
     return Provenance(package_version(), git_commit(), socket.gethostname())
+
+
+def default_site() -> str:
+    """The site of a session when none is given: ``TACTORBELT_SITE``, else the host name."""
+    return os.environ.get(SITE_ENV, "").strip() or socket.gethostname()

@@ -255,7 +255,8 @@ class SessionRunner:
                  resume: bool = False, limit: int | None = None,
                  observer: SessionObserver | None = None,
                  progress: Callable[[int, int], None] | None = None,
-                 study_toml: str | None = None, input_name: str | None = None) -> None:
+                 study_toml: str | None = None, input_name: str | None = None,
+                 site: str | None = None) -> None:
         from ..player import Player
 
         self.participant = check_participant(participant)
@@ -274,6 +275,7 @@ class SessionRunner:
         self.progress = progress
         self.study_toml = study_toml if study_toml is not None else study.to_toml()
         self.input_name = input_name
+        self.site = site
         self.rule = ResponseRule.from_study(study)
         self._targets: dict[int, TargetSet] = {}
         self._rules: dict[float, ResponseRule] = {}
@@ -331,7 +333,7 @@ class SessionRunner:
                 calibration=self.belt.calibration.to_list(),
                 package_version=prov.package_version, git_commit=prov.git_commit,
                 host=prov.host, input=self.input_name,
-                clock="sim" if self.sim else "wall",
+                clock="sim" if self.sim else "wall", site=self.site,
             )
         finished = store.finished_indices(self.session_id)
         self.n_done = len(finished)
@@ -605,6 +607,7 @@ def run_session(
     progress: Callable[[int, int], None] | None = None,
     study_toml: str | None = None,
     input_name: str | None = None,
+    site: str | None = None,
 ) -> SessionResult:
     """Run (or resume) one participant's session.
 
@@ -623,6 +626,8 @@ def run_session(
         progress: called as ``progress(n_done, n_total)`` after each trial.
         study_toml: the study file's text, stored verbatim (default: ``study.to_toml()``).
         input_name: the cursor source's name, stored with the session.
+        site: the lab running the session, stored with it (default
+            :func:`~tactorbelt.experiment.provenance.default_site`).
 
     Returns:
         A :class:`SessionResult`.
@@ -637,4 +642,4 @@ def run_session(
     """
     return SessionRunner(study, participant, belt, cursor, store, clock, seed=seed,
                          resume=resume, limit=limit, observer=observer, progress=progress,
-                         study_toml=study_toml, input_name=input_name).run()
+                         study_toml=study_toml, input_name=input_name, site=site).run()

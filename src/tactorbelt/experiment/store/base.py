@@ -4,7 +4,8 @@ A store holds sessions (with their provenance and schedule), trials and cursor s
 :class:`Store` is the interface; :func:`open_store` picks an implementation by URL:
 
 - a path, or ``sqlite:///path``: :class:`~.sqlite.SQLiteStore` (one file on disk);
-- ``postgresql://...``: not available yet (raises :class:`StoreError`).
+- ``postgresql://user@host/dbname``: :class:`~.postgresql.PostgreSQLStore` (psycopg 3,
+  the ``postgresql`` extra; several sites at once).
 
 Implementations register in :data:`BACKENDS` (URL scheme -> ``"module:Class"``,
 imported lazily); adding one is one line there. Every implementation must pass
@@ -60,7 +61,7 @@ SAMPLE_COLUMNS = ("trial_id", "t_s", "x", "y", "buttons")
 #: ``None`` means "planned, not available yet". A path with no scheme is ``sqlite``.
 BACKENDS: dict[str, str | None] = {
     "sqlite": ".sqlite:SQLiteStore",
-    "postgresql": None,
+    "postgresql": ".postgresql:PostgreSQLStore",
 }
 
 
@@ -79,12 +80,16 @@ class StoreCapabilities:
             copied or moved aside when closed.
         bulk_insert: :meth:`Store.bulk_insert` is supported.
         exclusive_writer: only one writer may hold the store at a time.
+        sync_target: sessions copied from another store can be imported
+            (:meth:`Store.sync_state`, :meth:`Store.import_session`,
+            :meth:`Store.import_trial`; ``tactorbelt sync`` and ``run --push``).
     """
 
     backend: str
     file: bool
     bulk_insert: bool
     exclusive_writer: bool
+    sync_target: bool = False
 
 
 def _scheme(url: str | Path) -> tuple[str, str]:
@@ -125,7 +130,7 @@ def open_store(url: str | Path, create: bool = True, readonly: bool = False,
 
     Args:
         url: a path (``study.sqlite``), ``sqlite:///abs/path`` or
-            ``sqlite:relative/path``; ``postgresql://...`` is not available yet.
+            ``sqlite:relative/path``, or ``postgresql://user@host/dbname``.
         create: make the store (its schema) when it does not exist.
         readonly: open for reading only; nothing is written, no lock is taken.
         verify: check the store's integrity when opening (a full scan of an SQLite
@@ -188,9 +193,14 @@ class Store(abc.ABC):
         belt: str | None = None, firmware_version: str | None = None,
         calibration: Any = None, package_version: str | None = None,
         git_commit: str | None = None, host: str | None = None, input: str | None = None,
-        clock: str | None = None,
+        clock: str | None = None, site: str | None = None, session_uuid: str | None = None,
     ) -> int:
-        """Record a new session (status ``running``) with its provenance; return its id."""
+        """Record a new session (status ``running``) with its provenance; return its id.
+
+        ``site`` (default :func:`~tactorbelt.experiment.provenance.default_site`) is the
+        lab that ran it; ``session_uuid`` (default a new uuid4) names the session in every
+        store it is copied to.
+        """
 
     @abc.abstractmethod
     def mark_resumed(self, session_id: int) -> None:
@@ -289,3 +299,26 @@ class Store(abc.ABC):
         Only when :attr:`StoreCapabilities.bulk_insert`.
         """
         raise StoreError(f"{self.url}: this store does not take bulk inserts")
+
+    def claim_participant(self, participant: str, site: str) -> None:
+        """Refuse (StoreError) a participant id that another site already uses. A store
+        of one site (SQLite) takes any id."""
+        return None
+
+    # -- copying sessions from another store (only when capabilities.sync_target) -----
+    def sync_state(self, session_uuid: str
+                   ) -> tuple[int, dict[str, Any], dict[int, tuple[str, int]]] | None:
+        """``(session_id, {ended_at, status, resumed}, {trial_index: (status, attempts)})``
+        of the session with this uuid here, or None."""
+        raise StoreError(f"{self.url}: this store does not take copied sessions")
+
+    def import_session(self, row: Mapping[str, Any]) -> int:
+        """Insert a session row of another store (keyed by ``session_uuid``) or update
+        its status, ended_at and resumed; return its id here."""
+        raise StoreError(f"{self.url}: this store does not take copied sessions")
+
+    def import_trial(self, session_id: int, row: Mapping[str, Any],
+                     samples: Sequence[Sequence[Any]]) -> bool:
+        """Copy a trial row of another store and its ``(t_s, x, y, buttons)`` samples in
+        one transaction; False when it is here already (nothing written)."""
+        raise StoreError(f"{self.url}: this store does not take copied sessions")

@@ -172,6 +172,27 @@ def _migrate(conn: sqlite3.Connection, version: int) -> None:
                 conn.execute(stmt)
 
 
+#: Columns added to ``sessions`` for multi-site studies (site, a globally unique id),
+#: added to older stores when opened for writing.
+_IDENTITY_COLUMNS = ("session_uuid", "site")
+
+
+def _add_session_identity(conn: sqlite3.Connection) -> None:
+    """Add ``sessions.session_uuid`` and ``sessions.site`` when missing and give every
+    session without a uuid one (inside the opening transaction)."""
+    import uuid
+
+    have = {str(r[1]) for r in conn.execute("PRAGMA table_info(sessions)")}
+    for col in _IDENTITY_COLUMNS:
+        if col not in have:
+            conn.execute(f"ALTER TABLE sessions ADD COLUMN {col} TEXT")
+    conn.execute("CREATE UNIQUE INDEX IF NOT EXISTS sessions_uuid ON sessions(session_uuid)")
+    for (sid,) in conn.execute("SELECT session_id FROM sessions WHERE session_uuid IS NULL"
+                               ).fetchall():
+        conn.execute("UPDATE sessions SET session_uuid=? WHERE session_id=?",
+                     (str(uuid.uuid4()), sid))
+
+
 def _read_only(path: Path) -> bool:
     """True when the file cannot or must not be written (no write bit, or no access)."""
     try:
@@ -414,6 +435,7 @@ class SQLiteStore(Store):
                     _migrate(conn, int(row[0]) if row is not None else 1)
                 conn.execute("INSERT OR REPLACE INTO meta(key, value) VALUES ('schema_version', ?)",
                              (str(SCHEMA_VERSION),))
+                _add_session_identity(conn)
                 conn.execute("COMMIT")
             except BaseException:
                 conn.execute("ROLLBACK")
@@ -517,8 +539,14 @@ class SQLiteStore(Store):
         host: str | None = None,
         input: str | None = None,
         clock: str | None = None,
+        site: str | None = None,
+        session_uuid: str | None = None,
     ) -> int:
         """Record a new session (status ``running``) with its provenance; return its id."""
+        import uuid
+
+        from ..provenance import default_site
+
         try:
             with self._transaction() as c:
                 row = c.execute(
@@ -529,14 +557,15 @@ class SQLiteStore(Store):
                     "INSERT INTO sessions(participant, session_number, study_name, study_sha256,"
                     " study_toml, seed, condition_order, schedule_json, n_trials, belt,"
                     " firmware_version, calibration_json, package_version, git_commit, host,"
-                    " input, clock, started_at, status)"
-                    " VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,'running')",
+                    " input, clock, started_at, status, site, session_uuid)"
+                    " VALUES (?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,?,'running',?,?)",
                     (
                         participant, int(row[0]) + 1, study_name, study_sha256, study_toml,
                         int(seed), json.dumps(condition_order), schedule_to_json(schedule),
                         len(schedule), belt, firmware_version,
                         None if calibration is None else json.dumps(calibration),
                         package_version, git_commit, host, input, clock, utc_now(),
+                        site or default_site(), session_uuid or str(uuid.uuid4()),
                     ),
                 )
                 return int(cur.lastrowid or 0)
