@@ -40,7 +40,7 @@ def print_summary_table(summary: Summary) -> None:
               show_default=True,
               help="Who fits the mixed models: tactorbelt's Laplace GLMM, or R's lme4 through "
                    "Rscript (needs 'apt install r-base-core r-cran-lme4').")
-@click.option("--site", "sites", multiple=True,
+@click.option("--site", "sites", multiple=True, metavar="NAME",
               help="Only the sessions of this site (repeat for several).")
 @click.option("--include-running", is_flag=True,
               help="From a shared store (postgresql://), also the sessions that are not "

@@ -37,13 +37,13 @@ def _given(ctx: click.Context, name: str, value: Any) -> Any:
 @belt_option()
 @click.option("--input", "input_kind", type=click.Choice(INPUTS), default=None,
               help="Cursor source [default: joystick; model with --headless].")
-@click.option("--db", default="study.sqlite", show_default=True,
+@click.option("--db", default="study.sqlite", show_default=True, metavar="STORE",
               help="The session store (SQLite), written first; postgresql://user@host/db: "
                    "push there, with the local store STUDY.sqlite next to the study file.")
 @click.option("--push", default=None, metavar="URL",
               help="Also copy each trial to this shared store (postgresql://user@host/db) "
                    "in the background; credentials from ~/.pgpass or PGPASSWORD.")
-@click.option("--site", default=None,
+@click.option("--site", default=None, metavar="NAME",
               help="The lab running the session [default: $TACTORBELT_SITE, else the host "
                    "name].")
 @click.option("--offline", is_flag=True,

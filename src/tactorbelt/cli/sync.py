@@ -16,7 +16,7 @@ __all__ = ["sync"]
 @click.command("sync")
 @click.argument("local", type=click.Path(dir_okay=False, exists=True, path_type=Path))
 @click.argument("url")
-@click.option("--site", default=None,
+@click.option("--site", metavar="NAME", default=None,
               help="Site of sessions that have none (older stores) [default: "
                    "$TACTORBELT_SITE, else the host name].")
 def sync(local: Path, url: str, site: str | None) -> None:
