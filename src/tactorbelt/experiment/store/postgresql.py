@@ -174,13 +174,6 @@ BEGIN
     RETURN owner;
 END $$""",
 )
-_TRIAL_COLUMNS = (
-    "session_id", "trial_index", "block", "block_index", "block_name", "condition",
-    "repetition", "target_deg", "on_tactor", "response_deg", "response_target_deg",
-    "correct", "rt_s", "onset_ns", "acquired_ns", "crossed_ns", "stimulus_off_ns",
-    "n_samples", "status", "abort_reason", "attempts", "recorded_at", "n_targets", "load",
-    "device_onset_ns", "onset_uncertainty_ns",
-)
 #: Session columns copied by :meth:`PostgreSQLStore.import_session` (session_id is the
 #: target store's own).
 _SESSION_COPY = (
