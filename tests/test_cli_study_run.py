@@ -9,30 +9,16 @@ from typing import Any
 
 import pytest
 
+from support.studies import study_toml
 from tactorbelt import DeviceError
 from tactorbelt.cli import main
 from tactorbelt.experiment.schedule import block_order
 from tactorbelt.experiment.store import Store
 from tactorbelt.experiment.study import PAPER_STUDY_TOML, load_study, paper_study, template_toml
 
-SMALL = """\
-name = "cli"
-[layout]
-tactors = 6
-[targets]
-count = 6
-[session]
-break_every = 0
-[training]
-passes = 1
-conditions = ["static"]
-[[test]]
-condition = "static"
-repetitions = 2
-[[test]]
-condition = "dynamic"
-repetitions = 2
-"""  # 6 training + 24 test
+# 6 training + 24 test
+SMALL = study_toml(minimal=True, name="cli", tactors=6, targets=6, break_every=0,
+                   training=1, training_conditions=["static"], repetitions=2)
 
 
 def run_cli(args: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:

@@ -9,6 +9,7 @@ from pathlib import Path
 
 import pytest
 
+from support.studies import study_toml
 from tactorbelt import ConfigError, StoreError
 from tactorbelt.clock import SimClock
 from tactorbelt.devices import open_belt
@@ -19,23 +20,8 @@ from tactorbelt.experiment.store import Store
 from tactorbelt.experiment.study import Study
 from tactorbelt.inputs.scripted import ScriptedCursor, ScriptedResponse
 
-STUDY = """\
-name = "export"
-[layout]
-tactors = 6
-[targets]
-count = 6
-[response]
-timeout_s = 1.0
-[training]
-passes = 0
-[[test]]
-condition = "static"
-repetitions = 1
-[[test]]
-condition = "dynamic"
-repetitions = 1
-"""
+STUDY = study_toml(minimal=True, name="export", tactors=6, targets=6, timeout_s=1.0,
+                   training=0, repetitions=1)
 
 
 @pytest.fixture(scope="module")

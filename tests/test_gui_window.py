@@ -17,6 +17,7 @@ import pygame
 import pytest
 
 from support.inputs import FakeBackend, FakeStick
+from support.studies import study_toml
 from tactorbelt.clock import SimClock
 from tactorbelt.devices import open_belt
 from tactorbelt.devices.base import Belt
@@ -33,29 +34,9 @@ from tactorbelt.inputs.joystick import JoystickConfig, JoystickCursor
 from tactorbelt.inputs.mouse import MouseCursor
 from tactorbelt.inputs.scripted import ScriptedCursor, ScriptedResponse
 
-SMALL = """\
-name = "small"
-[layout]
-tactors = 4
-[targets]
-count = 8
-[stimulus]
-max_presentation_s = 2.0
-[response]
-timeout_s = 3.0
-[session]
-iti_s = 0.3
-break_every = 5
-[training]
-passes = 1
-conditions = ["static"]
-[[test]]
-condition = "static"
-repetitions = 1
-[[test]]
-condition = "dynamic"
-repetitions = 1
-"""
+SMALL = study_toml(minimal=True, name="small", tactors=4, targets=8,
+                   max_presentation_s=2.0, timeout_s=3.0, iti_s=0.3, break_every=5,
+                   training=1, training_conditions=["static"], repetitions=1)
 
 SIZE = (400, 300)
 
@@ -552,27 +533,10 @@ def test_run_command_exits_130_when_the_experimenter_aborts_in_the_window(
         assert s["status"] == "aborted"
 
 
-FACTORIAL = """\
-name = "factorial"
-[layout]
-tactors = 4
-[targets]
-count = 8
-[stimulus]
-max_presentation_s = 2.0
-[response]
-timeout_s = 3.0
-[session]
-iti_s = 0.3
-break_every = 0
-[training]
-passes = 0
-[design]
-targets = [4, 8]
-condition = ["static"]
-repetitions = 1
-order = "fixed"
-"""
+FACTORIAL = study_toml(minimal=True, name="factorial", tactors=4, targets=8,
+                       max_presentation_s=2.0, timeout_s=3.0, iti_s=0.3, break_every=0,
+                       training=0, design={"targets": [4, 8], "condition": ["static"],
+                                           "repetitions": 1, "order": "fixed"})
 
 
 def test_the_window_draws_each_blocks_own_target_set(tmp_path: Path) -> None:

@@ -10,6 +10,7 @@ from typing import Any
 import numpy as np
 import pytest
 
+from support.studies import study_toml
 from tactorbelt import ConfigError, DeviceError, TactorbeltError
 from tactorbelt.clock import SimClock
 from tactorbelt.devices import open_belt
@@ -24,36 +25,13 @@ from tactorbelt.inputs.scripted import ScriptedCursor, ScriptedResponse
 
 MS = 1_000_000
 
-SMALL = """\
-name = "small"
-[layout]
-tactors = 4
-[targets]
-count = 8
-[stimulus]
-max_presentation_s = 2.0
-[response]
-timeout_s = 3.0
-[session]
-iti_s = 0.5
-break_every = 5
-[training]
-passes = 1
-conditions = ["static"]
-[[test]]
-condition = "static"
-repetitions = 1
-[[test]]
-condition = "dynamic"
-repetitions = 1
-"""
+SMALL = study_toml(minimal=True, name="small", tactors=4, targets=8,
+                   max_presentation_s=2.0, timeout_s=3.0, iti_s=0.5, break_every=5,
+                   training=1, training_conditions=["static"], repetitions=1)
 
 
-def small_study(**changes: Any) -> Study:
-    text = SMALL
-    for key, value in changes.items():
-        text = text.replace(f"{key} = ", f"{key} = {value}\n#", 1)
-    return Study.from_toml(text)
+def small_study() -> Study:
+    return Study.from_toml(SMALL)
 
 
 def _cursor(study: Study, participant: str = "P01", **resp: Any) -> ScriptedCursor:
