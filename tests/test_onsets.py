@@ -28,6 +28,7 @@ from pathlib import Path
 
 import pytest
 
+from support.studies import study_toml
 from tactorbelt.clock import WallClock
 from tactorbelt.devices import open_belt, wire
 from tactorbelt.devices._clocksync import ClockSync
@@ -91,25 +92,10 @@ def test_clock_sync_unwraps_a_pong_time_and_forgets_on_reset() -> None:
 
 # --- the emulator ---------------------------------------------------------------------------
 
-STUDY = """\
-name = "onsets"
-[layout]
-tactors = 6
-[targets]
-count = 6
-[stimulus]
-max_presentation_s = 1.0
-[response]
-timeout_s = 1.0
-[session]
-iti_s = 0.05
-break_every = 0
-[training]
-passes = 0
-[[test]]
-condition = "dynamic"
-repetitions = 2
-"""  # 12 between-tactor trials, rendered on the device
+# 12 between-tactor trials, rendered on the device
+STUDY = study_toml(minimal=True, name="onsets", tactors=6, targets=6,
+                   max_presentation_s=1.0, timeout_s=1.0, iti_s=0.05, break_every=0,
+                   training=0, conditions=["dynamic"], repetitions=2)
 
 
 

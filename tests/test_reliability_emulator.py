@@ -32,6 +32,7 @@ import numpy as np
 import pytest
 
 from support.belts import wait_for
+from support.studies import study_toml
 from tactorbelt import DeviceError
 from tactorbelt.clock import WallClock
 from tactorbelt.devices import open_belt, wire
@@ -46,25 +47,10 @@ from tactorbelt.stimuli import make_stimulus
 
 pytestmark = pytest.mark.emulator
 
-STUDY = """\
-name = "reliability"
-[layout]
-tactors = 6
-[targets]
-count = 6
-[stimulus]
-max_presentation_s = 2.0
-[response]
-timeout_s = 2.0
-[session]
-iti_s = 0.05
-break_every = 0
-[training]
-passes = 0
-[[test]]
-condition = "dynamic"
-repetitions = 1
-"""  # 6 between-tactor trials
+# 6 between-tactor trials
+STUDY = study_toml(minimal=True, name="reliability", tactors=6, targets=6,
+                   max_presentation_s=2.0, timeout_s=2.0, iti_s=0.05, break_every=0,
+                   training=0, conditions=["dynamic"], repetitions=1)
 
 
 

@@ -9,6 +9,7 @@ from pathlib import Path
 
 import pytest
 
+from support.studies import study_toml
 from tactorbelt import StoreError
 from tactorbelt.experiment.schedule import make_schedule
 from tactorbelt.experiment.store import Store
@@ -244,20 +245,8 @@ def test_a_reader_that_outlives_the_writer(tmp_path: Path) -> None:
         assert w2.finished_indices(sid) == {0, 1}
 
 
-SMALL_STUDY = """\
-name = "store-files"
-[layout]
-tactors = 6
-[targets]
-count = 12
-[session]
-break_every = 0
-[training]
-passes = 0
-[[test]]
-condition = "static"
-repetitions = 1
-"""
+SMALL_STUDY = study_toml(minimal=True, name="store-files", tactors=6, targets=12,
+                         break_every=0, training=0, conditions=["static"], repetitions=1)
 
 
 def test_run_and_resume_leave_only_the_store_file(tmp_path: Path,
