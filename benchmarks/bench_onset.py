@@ -37,8 +37,6 @@ from __future__ import annotations
 
 import itertools
 import json
-import os
-import select
 import subprocess
 import sys
 import tempfile
@@ -52,38 +50,9 @@ PINGS = 300
 
 
 def _offset_bracket(pty: str, pings: int = PINGS) -> tuple[int, int]:
-    from tactorbelt.devices import wire
+    from tactorbelt.devices.emulator import clock_offset_bracket
 
-    fd = os.open(pty, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
-    dec = wire.FrameDecoder()
-    lo, hi = -(1 << 62), 1 << 62
-    try:
-        for i in range(pings):
-            time.sleep(0.002)  # let the emulator go back to waiting: stamps are arrivals
-            send = time.perf_counter_ns()
-            os.write(fd, b"\x00" + wire.encode_frame(wire.ping(i & 0xFF, i)))
-            pong = None
-            deadline = time.monotonic() + 2.0
-            while pong is None and time.monotonic() < deadline:
-                select.select([fd], [], [], 0.05)
-                try:
-                    data = os.read(fd, 4096)
-                except BlockingIOError:
-                    continue
-                recv = time.perf_counter_ns()
-                for p in dec.feed(data):
-                    reply = wire.parse_reply(p)
-                    if isinstance(reply, wire.Pong) and reply.nonce == i:
-                        pong = reply
-            if pong is None:
-                raise RuntimeError("the emulator did not answer a PING")
-            d_ns = pong.device_time_us * 1000
-            lo, hi = max(lo, send - d_ns - 999), min(hi, recv - d_ns)
-    finally:
-        os.close(fd)
-    if lo > hi:
-        raise RuntimeError(f"inconsistent offset bracket ({lo - hi} ns)")
-    return lo, hi
+    return clock_offset_bracket(pty, pings)
 
 
 def _log_starts(log: Path) -> list[int]:

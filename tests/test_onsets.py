@@ -18,9 +18,7 @@ from __future__ import annotations
 
 import itertools
 import logging
-import os
 import random
-import select
 import subprocess
 import time
 from collections.abc import Iterator
@@ -33,7 +31,7 @@ from tactorbelt.clock import WallClock
 from tactorbelt.devices import open_belt, wire
 from tactorbelt.devices._clocksync import ClockSync
 from tactorbelt.devices._firmware import FirmwareBelt
-from tactorbelt.devices.emulator import EmulatorBelt
+from tactorbelt.devices.emulator import EmulatorBelt, clock_offset_bracket
 from tactorbelt.experiment.runner import run_session
 from tactorbelt.experiment.schedule import make_schedule
 from tactorbelt.experiment.store import Store
@@ -117,36 +115,7 @@ class BareEmulator:
 
     def offset_bracket(self, pings: int = 200) -> tuple[int, int]:
         """[lo, hi] holding the emulator's clock zero on perf_counter_ns (a fresh port)."""
-        fd = os.open(self.pty, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
-        dec = wire.FrameDecoder()
-        lo, hi = -(1 << 62), 1 << 62
-        try:
-            for i in range(pings):
-                # the emulator stamps every request of one read loop with the time the
-                # loop began: let it return to waiting, so the stamp is the arrival's
-                time.sleep(0.002)
-                send = time.perf_counter_ns()
-                os.write(fd, b"\x00" + wire.encode_frame(wire.ping(i & 0xFF, i)))
-                pong = None
-                deadline = time.monotonic() + 2.0
-                while pong is None and time.monotonic() < deadline:
-                    select.select([fd], [], [], 0.05)
-                    try:
-                        data = os.read(fd, 4096)
-                    except BlockingIOError:
-                        continue
-                    recv = time.perf_counter_ns()
-                    for p in dec.feed(data):
-                        reply = wire.parse_reply(p)
-                        if isinstance(reply, wire.Pong) and reply.nonce == i:
-                            pong = reply
-                assert pong is not None, "the emulator did not answer a PING"
-                d_ns = pong.device_time_us * 1000
-                lo, hi = max(lo, send - d_ns - 999), min(hi, recv - d_ns)
-        finally:
-            os.close(fd)
-        assert lo <= hi
-        return lo, hi
+        return clock_offset_bracket(self.pty, pings)
 
     def close(self) -> None:
         assert self.proc.stdin is not None and self.proc.stdout is not None
