@@ -37,6 +37,7 @@ from ._errors import ConfigError
 if TYPE_CHECKING:
     import numpy as np
 
+    from .analysis.power_model import NamedEffect, TrialDesign
     from .analysis.stats import Summary
     from .experiment.study import Study
     from .participant.factorial import Effect, FactorialProtocol
@@ -46,6 +47,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "MODEL_NOTE",
+    "NAMED_NOTE",
     "PREVIOUS_STORE_NAME",
     "STORE_NAME",
     "ModelParticipant",
@@ -66,6 +68,9 @@ MODEL_NOTE = ("The participants are simulated observers (the model participant):
               "results follow from the model's assumptions and are no evidence about people.")
 SMALL_STUDY_NOTE = ("with 5 or fewer participants the exact two-sided Wilcoxon test cannot "
                     "reach p < 0.05 (its smallest p is 2/2^n), whatever the effect.")
+NAMED_NOTE = ("The trials are simulated from the report's accuracy model with the effect "
+              "sizes you named, and each simulated study is analysed with that model: the "
+              "power holds if people's accuracies follow that model with those sizes.")
 
 #: ``progress(what, done, total)``: what is being done and how far.
 ProgressFn = Callable[[str, int, int], None]
@@ -256,6 +261,15 @@ def _factorial_chunk(args: tuple[FactorialProtocol, tuple[StimulusCues, ...], Ef
                                       analysis_paired_test)
 
 
+def _glmm_chunk(args: tuple[TrialDesign, NamedEffect, int, list[int], int]
+                ) -> list[StudyOutcome]:
+    """Worker: simulate and fit some model-based studies of one size (for processes)."""
+    from .analysis.power_model import simulate_glmm_studies
+
+    design, named, n, indices, seed = args
+    return simulate_glmm_studies(design, named, n, indices, seed)
+
+
 def _pool(worker: Callable[[Any], list[StudyOutcome]], work: list[tuple[int, Any]],
           sizes: Sequence[int], jobs: int, alpha: float,
           advance: Callable[[int], None] | None) -> list[PowerRow]:
@@ -348,6 +362,64 @@ class PowerStudyResult:
     notes: list[str]
     #: the effect looked for, in words
     effect: str = "dynamic vs static between-tactor accuracy"
+    #: the test each simulated study ran, in words
+    test: str = ("paired Wilcoxon signed-rank on per-participant between-tactor accuracy "
+                 "(the model-participant simulation's test, not the report's GLMM)")
+
+
+def _write_power(rows: Sequence[PowerRow], out: Path, doc: dict[str, Any]) -> None:
+    """power.csv and power.json."""
+    header = ["participants", "sims", "found", "power", "ci_low", "ci_high",
+              "mean_static_between_acc", "mean_dynamic_between_acc", "median_p"]
+    lines = [",".join(header)]
+    for r in rows:
+        lines.append(",".join([str(r.n_participants), str(r.sims), str(r.found),
+                               f"{r.power:.4f}", f"{r.ci_low:.4f}", f"{r.ci_high:.4f}",
+                               f"{r.static_acc:.4f}", f"{r.dynamic_acc:.4f}",
+                               "" if not _finite(r.median_p) else f"{r.median_p:.6g}"]))
+    (out / "power.csv").write_text("\n".join(lines) + "\n", encoding="utf-8")
+    doc = {**doc, "rows": [{k: (None if isinstance(v, float) and not math.isfinite(v) else v)
+                            for k, v in r.__dict__.items()}
+                           for r in rows]}
+    (out / "power.json").write_text(json.dumps(doc, indent=2) + "\n", encoding="utf-8")
+
+
+#: what a model-based power analysis tests, in words (power.json, the CLI and the plot).
+NAMED_TEST = ("the report's headline test: the binomial GLMM of accuracy (correct ~ "
+              "condition * on_tactor + (1 + condition | participant) + (1 | target), "
+              "simplified while singular by the report's rule; Laplace maximum likelihood), "
+              "Wald z on conditionstatic; found = p < alpha with the named sign")
+
+
+def _named_power(study: Study, eff: Effect, named: NamedEffect, sizes: Sequence[int],
+                 sims: int, seed: int, out: Path, jobs: int, alpha: float,
+                 advance: Callable[[int], None] | None) -> PowerStudyResult:
+    """Model-based power: trials drawn from the report's GLMM with the named effect sizes."""
+    from .analysis.power_model import TrialDesign
+
+    if eff.kind != "condition":
+        raise ConfigError("--odds-ratio plans for the condition effect; an interaction "
+                          "cannot be named by one odds ratio (use --effect 'dynamic vs "
+                          "static at N', or leave out --odds-ratio to simulate model "
+                          "participants)")
+    if min(sizes) < 3:
+        raise ConfigError("the report's mixed model needs at least 3 participants: use "
+                          "study sizes of 3 or more with --odds-ratio")
+    design = TrialDesign.from_study(study, eff.n_targets)
+    work = [(n, (design, named, n, idx, seed)) for n in sizes for idx in _chunks(sims, jobs)]
+    rows = _pool(_glmm_chunk, work, sizes, jobs, alpha, advance)
+    what = (f"odds ratio {named.odds_ratio:g} (dynamic over static, {design.n_targets} "
+            "targets)")
+    _write_power(rows, out, {
+        "note": NAMED_NOTE, "study": study.name, "test": NAMED_TEST,
+        "simulated_from": "the same GLMM, with the named effect sizes "
+                          "(tactorbelt.analysis.power_model)",
+        "effect": what, "effect_sizes": named.to_dict(), "n_targets": design.n_targets,
+        "trials_per_participant": design.n, "alpha": alpha, "sims": sims, "seed": seed,
+    })
+    plot = out / "power.png"
+    _plot_power(rows, plot, f"{study.name}: {what}", alpha)
+    return PowerStudyResult(rows, study.name, plot, [NAMED_NOTE], what, test=NAMED_TEST)
 
 
 def _finite(v: float) -> bool:
@@ -358,7 +430,8 @@ def run_power_study(study: Study, sizes: Sequence[int], sims: int, seed: int, ou
                     *, jobs: int | None = None, alpha: float = 0.05,
                     advance: Callable[[int], None] | None = None,
                     study_label: str | None = None,
-                    effect: str | None = None) -> PowerStudyResult:
+                    effect: str | None = None,
+                    named: NamedEffect | None = None) -> PowerStudyResult:
     """Simulate ``sims`` studies per size, write power.csv, power.json and power.png.
 
     Args:
@@ -391,6 +464,8 @@ def run_power_study(study: Study, sizes: Sequence[int], sims: int, seed: int, ou
     eff = parse_effect(effect, counts)
     n_jobs = jobs if jobs is not None else max(1, min(8, os.cpu_count() or 1))
     out = prepare_out(out)
+    if named is not None:
+        return _named_power(study, eff, named, sizes, sims, seed, out, n_jobs, alpha, advance)
     if effect is None and len(counts) == 1:  # the paper's protocol: as it always was
         protocol = Protocol.from_study(study)
         base = ModelParams().for_period(protocol.period_s)
@@ -403,15 +478,6 @@ def run_power_study(study: Study, sizes: Sequence[int], sims: int, seed: int, ou
         rows = run_factorial_power(fp, fcues, eff, sizes, sims, seed, n_jobs, alpha,
                                    advance=advance)
 
-    header = ["participants", "sims", "found", "power", "ci_low", "ci_high",
-              "mean_static_between_acc", "mean_dynamic_between_acc", "median_p"]
-    lines = [",".join(header)]
-    for r in rows:
-        lines.append(",".join([str(r.n_participants), str(r.sims), str(r.found),
-                               f"{r.power:.4f}", f"{r.ci_low:.4f}", f"{r.ci_high:.4f}",
-                               f"{r.static_acc:.4f}", f"{r.dynamic_acc:.4f}",
-                               "" if not _finite(r.median_p) else f"{r.median_p:.6g}"]))
-    (out / "power.csv").write_text("\n".join(lines) + "\n", encoding="utf-8")
     doc: dict[str, Any] = {
         "note": MODEL_NOTE,
         "study": study.name,
@@ -423,15 +489,14 @@ def run_power_study(study: Study, sizes: Sequence[int], sims: int, seed: int, ou
             "loads": "the model has no secondary task: loads are simulated alike"}),
         "alpha": alpha, "sims": sims, "seed": seed,
         "model": base.to_dict(),
-        "rows": [{k: (None if isinstance(v, float) and not math.isfinite(v) else v)
-                  for k, v in r.__dict__.items()} for r in rows],
     }
-    (out / "power.json").write_text(json.dumps(doc, indent=2) + "\n", encoding="utf-8")
+    _write_power(rows, out, doc)
     plot = out / "power.png"
     what = ("static vs dynamic between-tactor accuracy" if effect is None
             else f"effect: {eff.text}")
     _plot_power(rows, plot, f"{study.name}: {what}", alpha)
-    notes = [MODEL_NOTE]
+    notes = [MODEL_NOTE, "each simulated study ran the paired Wilcoxon test; the report's "
+                         "headline test is the accuracy GLMM: plan for it with --odds-ratio"]
     if any(r.n_participants <= 5 for r in rows):
         notes.append(SMALL_STUDY_NOTE)
     if any(b.load != "none" for b in study.test):

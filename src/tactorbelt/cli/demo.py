@@ -129,8 +129,25 @@ def parse_sizes(text: str) -> list[int]:
 @click.option("--effect", default=None, metavar="EFFECT",
               help="Effect to detect in a factorial study: 'dynamic vs static', 'dynamic "
                    "vs static at 36' or 'interaction' (resolution x condition).")
+@click.option("--odds-ratio", type=number(float, 0, 1000, lo_open=True), default=None,
+              help="Plan for the report's accuracy GLMM instead of model participants: the "
+                   "dynamic-over-static odds ratio at between-tactor targets to find.")
+@click.option("--accuracy", type=number(float, 0, 1, lo_open=True, hi_open=True),
+              default=0.5, show_default=True,
+              help="With --odds-ratio: static between-tactor accuracy.")
+@click.option("--on-tactor-accuracy", type=number(float, 0, 1, lo_open=True, hi_open=True),
+              default=0.9, show_default=True,
+              help="With --odds-ratio: accuracy at on-tactor targets.")
+@click.option("--participant-sd", type=number(float, 0, 5), default=0.5, show_default=True,
+              help="With --odds-ratio: SD of the participant intercept (log-odds).")
+@click.option("--slope-sd", type=number(float, 0, 5), default=0.3, show_default=True,
+              help="With --odds-ratio: SD of the participant's condition slope (log-odds).")
+@click.option("--target-sd", type=number(float, 0, 5), default=0.3, show_default=True,
+              help="With --odds-ratio: SD of the target intercept (log-odds).")
 def power(sizes_text: str, sims: int, out: Path, seed: int, jobs: int | None,
-          study_file: Path | None, alpha: float, effect: str | None) -> None:
+          study_file: Path | None, alpha: float, effect: str | None,
+          odds_ratio: float | None, accuracy: float, on_tactor_accuracy: float,
+          participant_sd: float, slope_sd: float, target_sd: float) -> None:
     """Plan a study's size by simulation with model participants.
 
     For each study size, simulates --sims studies of that many model participants
@@ -145,6 +162,11 @@ def power(sizes_text: str, sims: int, out: Path, seed: int, jobs: int | None,
     Trials are simulated directly from the model's perception (no runner, no store;
     the fast path gives the same accuracy as the full runner). The power is that of a
     study *if people behaved like the model* (docs/participant-model.md).
+
+    With --odds-ratio, the effect sizes are yours instead: each study's trials are
+    drawn from the report's accuracy GLMM with that odds ratio, accuracy and random-
+    effect SDs, and analyzed with the same GLMM and Wald test as the report's headline
+    (about 0.2 s a study of the paper's size: use fewer --sims for a first look).
     """
     from rich.console import Console
     from rich.table import Table
@@ -152,6 +174,12 @@ def power(sizes_text: str, sims: int, out: Path, seed: int, jobs: int | None,
     from ..demo import run_power_study
     from ..experiment.study import load_study, paper_study
 
+    named = None
+    if odds_ratio is not None:
+        from ..analysis.power_model import NamedEffect
+
+        named = NamedEffect(odds_ratio, accuracy, on_tactor_accuracy, participant_sd,
+                            slope_sd, target_sd)
     sizes = parse_sizes(sizes_text)
     study = load_study(study_file) if study_file is not None else paper_study()
     err = Console(stderr=True)
@@ -160,10 +188,12 @@ def power(sizes_text: str, sims: int, out: Path, seed: int, jobs: int | None,
         result = run_power_study(study, sizes, sims, seed, out, jobs=jobs, alpha=alpha,
                                  advance=lambda k: bar.advance(task, k),
                                  study_label=str(study_file) if study_file else None,
-                                 effect=effect)
-    what = "the static-vs-dynamic test" if effect is None else f"'{effect}'"
+                                 effect=effect, named=named)
+    what = (f"'{result.effect}'" if named is not None
+            else "the static-vs-dynamic test" if effect is None else f"'{effect}'")
     table = Table(title=f"Power of {what} (alpha {alpha:g}, "
-                        f"{sims} simulated studies per size)")
+                        f"{sims} simulated studies per size)",
+                  caption=f"test: {result.test}")
     for col in ("participants", "power", "95 % CI", "static acc.", "dynamic acc.",
                 "median p"):
         table.add_column(col, justify="right")
