@@ -300,3 +300,32 @@ def test_arithmetic_runs_the_same_way(tmp_path: Path) -> None:
         events = store.task_events()
     assert events and all(e["correct"] for e in events)
     assert all("+" in e["stimulus"] for e in events)
+
+
+def test_export_writes_task_events_and_ratings(tmp_path: Path) -> None:
+    import csv
+
+    from tactorbelt.experiment.export import export_csv
+
+    study = load_study()
+    db = tmp_path / "s.sqlite"
+    with Store.open(db) as store:
+        _run(study, store, _cursor(study, tlx=TLX))
+        events, ratings = store.task_events(), store.ratings()
+    files = export_csv(db, tmp_path / "out")
+    assert [f.name for f in files] == ["sessions.csv", "trials.csv", "samples.csv",
+                                       "task_events.csv", "ratings.csv"]
+    with files[3].open(newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    assert len(rows) == len(events)
+    assert {(r["participant"], r["session_number"]) for r in rows} == {("P01", "1")}
+    hit = next(i for i, e in enumerate(events) if e["target"] and e["response"])
+    assert (rows[hit]["target"], rows[hit]["correct"], rows[hit]["response"]) == (
+        "1", "1", "press")
+    assert float(rows[hit]["rt_s"]) == events[hit]["rt_s"]
+    assert int(rows[hit]["t_ns"]) == events[hit]["t_ns"]
+    assert rows[0]["stimulus"] == events[0]["stimulus"] and rows[0]["rt_s"] == ""
+    with files[4].open(newline="") as fh:
+        rated = list(csv.DictReader(fh))
+    assert [(r["block_index"], r["item"], float(r["value"])) for r in rated] == [
+        (str(r["block_index"]), r["item"], r["value"]) for r in ratings]
