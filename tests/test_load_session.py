@@ -329,3 +329,26 @@ def test_export_writes_task_events_and_ratings(tmp_path: Path) -> None:
         rated = list(csv.DictReader(fh))
     assert [(r["block_index"], r["item"], float(r["value"])) for r in rated] == [
         (str(r["block_index"]), r["item"], r["value"]) for r in ratings]
+
+
+def test_the_run_summary_counts_the_secondary_task(tmp_path: Path) -> None:
+    from tactorbelt.launch import task_lines
+
+    study = load_study()
+    with Store.open(tmp_path / "s.sqlite") as store:
+        _run(study, store, _cursor(study, miss_every=2, extra_presses_s=[0.9, 1.2]))
+        events = store.task_events()
+    lines = task_lines(events)
+    assert [line.split()[:3] for line in lines] == [
+        ["nb2", "practice", "6"], ["nb2", "baseline", "10"],
+        ["nb2", "dual", lines[2].split()[2]]]
+    for line, phase in zip(lines, ("practice", "baseline", "dual"), strict=True):
+        items = [e for e in events if e["phase"] == phase and e["item_index"] >= 0]
+        go = sum(e["target"] for e in items)
+        hits = sum(1 for e in items if e["target"] and e["response"])
+        assert f"{hits}/{go} go items pressed" in line
+        # item 0 (never a go item in 2-back): pressed 0.9 s after its onset, and again
+        assert f"1/{len(items) - go} false alarms" in line
+        assert "1 extra presses" in line
+        assert ("median RT 0.40 s" in line) == (hits > 0)
+    assert any(e["target"] and not e["response"] for e in events)  # every 2nd go missed
