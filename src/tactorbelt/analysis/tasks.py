@@ -33,6 +33,7 @@ __all__ = [
     "dual_task_cost",
     "secondary_task_rows",
     "secondary_task_summary",
+    "secondary_tasks_json",
     "tlx_rows",
     "tlx_summary",
 ]
@@ -320,3 +321,20 @@ def tlx_summary(rows: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
     return {"n_blocks": len(rows), "loads": loads, "per_participant": per,
             "by_load": by_load, "by_condition_load": by_cond,
             "test": _across_load(table, loads)}
+
+
+def secondary_tasks_json(events: Sequence[Mapping[str, Any]]) -> dict[str, Any] | None:
+    """``summary.json["secondary_tasks"]`` from task-event rows (None without any):
+    ``rows`` (per participant, task, phase), ``blocks`` (per participant, task, phase,
+    block), ``by_phase`` (:func:`secondary_task_summary`) and ``dual_task_cost``."""
+    if not events:
+        return None
+    rows = secondary_task_rows(events)
+    return {
+        "d_prime": "log-linear correction (Hautus 1995): H = (hits + 0.5) / (go + 1), "
+                   "F = (false alarms + 0.5) / (no-go + 1), d' = z(H) - z(F)",
+        "rows": rows,
+        "blocks": secondary_task_rows(events, by_block=True),
+        "by_phase": secondary_task_summary(rows),
+        "dual_task_cost": dual_task_cost(rows),
+    }
