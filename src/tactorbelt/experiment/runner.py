@@ -38,10 +38,12 @@ from ..clock import Clock, Deadlines
 from ..geometry import TargetSet
 from ..inputs.base import CursorSample, CursorSource, TrialCue
 from ..interrupts import Terminated
+from ..tasks import WorkloadInfo
+from ..tasks.schedule import TaskItem
 from . import provenance
 from .schedule import ScheduledTrial, block_order, make_schedule, schedule_from_json
 from .store import Store
-from .study import Study
+from .study import Study, TaskSpec
 from .trial import ResponseRule, TrialMachine, TrialResult, TrialState
 
 if TYPE_CHECKING:
@@ -114,6 +116,22 @@ class SessionObserver(Protocol):
     def poll(self, now_ns: int) -> Command | None:
         """Called at every sampling step: PAUSE (motors off at once), RESUME or ABORT."""
         ...
+    def on_task_phase(self, name: str | None, spec: TaskSpec | None, phase: str | None
+                      ) -> None:
+        """A secondary task starts (``practice`` or ``baseline`` alone, before the first
+        block with its load; ``dual`` with a test block) or ends (None, None, None).
+        May wait for the participant to go on (as at a block start)."""
+        ...
+    def on_task_item(self, item: TaskItem, onset_ns: int, spec: TaskSpec) -> None:
+        """An item will be presented at ``onset_ns`` (at least
+        :data:`~tactorbelt.tasks.TASK_LEAD_NS` ahead): schedule its sound or glyph."""
+        ...
+    def task_presses(self, now_ns: int) -> list[int]:
+        """Response presses (ns, runner clock) of the task's button since the last call."""
+        ...
+    def ask_workload(self, info: WorkloadInfo) -> dict[str, float] | None:
+        """Ask the NASA-TLX after a test block: item -> 0..100, or None (not asked)."""
+        ...
 
 
 class NullObserver:
@@ -141,6 +159,19 @@ class NullObserver:
         pass
 
     def poll(self, now_ns: int) -> Command | None:
+        return None
+
+    def on_task_phase(self, name: str | None, spec: TaskSpec | None, phase: str | None
+                      ) -> None:
+        pass
+
+    def on_task_item(self, item: TaskItem, onset_ns: int, spec: TaskSpec) -> None:
+        pass
+
+    def task_presses(self, now_ns: int) -> list[int]:
+        return []
+
+    def ask_workload(self, info: WorkloadInfo) -> dict[str, float] | None:
         return None
 
 
