@@ -93,10 +93,8 @@ def _run(spec: Spec, phase: str, n_items: int, seed: int) -> tuple[float, float,
     rts: list[float] = []
     step = round(spec.interval_s * 1e9)
     for k in range(n_items):
-        if k >= spec.n and rng.random() < 0.3:
-            s = seq[k - spec.n]
-        else:
-            s = letters[rng.integers(0, 8)]
+        repeat = k >= spec.n and rng.random() < 0.3
+        s = seq[k - spec.n] if repeat else letters[rng.integers(0, 8)]
         seq.append(s)
         onset = k * step
         t = r.item(s, onset)

@@ -16,7 +16,8 @@ Works on plain rows (dicts) with the columns of the store's ``task_events`` and
   rated block, per participant x load, and the within-participant test across load
   levels (Wilcoxon signed-rank with two levels, Friedman with more).
 
-Pure: the standard library, NumPy and SciPy (statistics), analysis.stats.
+Pure: the standard library, NumPy and SciPy (statistics), analysis.stats and the
+constants of tactorbelt.tasks.
 """
 
 from __future__ import annotations
@@ -26,6 +27,8 @@ import statistics
 from collections import defaultdict
 from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
+
+from ..tasks import PHASES, TLX_ITEMS
 
 __all__ = [
     "TLX_ITEMS",
@@ -38,11 +41,8 @@ __all__ = [
     "tlx_summary",
 ]
 
-#: The six raw NASA-TLX items (Hart & Staveland 1988).
-TLX_ITEMS = ("mental", "physical", "temporal", "performance", "effort", "frustration")
-
 #: The order the phases are reported in.
-PHASE_ORDER = ("practice", "baseline", "dual")
+PHASE_ORDER = PHASES
 
 
 def _z(p: float) -> float:

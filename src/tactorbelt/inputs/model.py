@@ -55,10 +55,10 @@ from .base import CursorSample, CursorSource, TrialCue
 if TYPE_CHECKING:
     from ..devices.base import Belt
     from ..experiment.study import TaskSpec
-    from ..tasks import WorkloadInfo
-    from ..tasks.schedule import TaskItem
     from ..geometry import Layout
     from ..stimuli import Stimulus
+    from ..tasks import WorkloadInfo
+    from ..tasks.schedule import TaskItem
 
 __all__ = ["ModelCursor", "ModelDecision", "Sense", "make_model_cursor", "sim_vibrator"]
 

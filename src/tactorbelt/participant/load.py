@@ -25,7 +25,8 @@ Sources are named where the literature gives numbers; everything else is an
 assumption (docs/participant-model.md, "Under cognitive load"). What the model does
 under load follows from these assumptions and is no evidence about people.
 
-Pure: imports the standard library, NumPy and participant.params; task specs are read
+Pure: imports the standard library, NumPy, participant.params and the constants of
+tactorbelt.tasks (the phases and the TLX items); task specs are read
 by their fields (``kind``, ``n``), so any object with them works.
 """
 
@@ -39,6 +40,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from .._errors import ConfigError
+from ..tasks import PHASES, TLX_ITEMS
 from .params import ModelParams
 
 __all__ = [
@@ -55,11 +57,6 @@ __all__ = [
     "tlx_ratings",
 ]
 
-#: The phases of a secondary task: alone (practice, baseline) or with localisation (dual).
-PHASES = ("practice", "baseline", "dual")
-
-#: The six raw NASA-TLX items (Hart & Staveland 1988), in the order of the form.
-TLX_ITEMS = ("mental", "physical", "temporal", "performance", "effort", "frustration")
 
 
 class TaskLike(Protocol):
