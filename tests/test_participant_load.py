@@ -167,3 +167,29 @@ def test_load_params_are_checked() -> None:
         LoadParams(d_prime_nback=(3.0, 2.0))  # type: ignore[arg-type]
     with pytest.raises(ConfigError, match="weber_gain"):
         LoadParams(weber_gain=-1.0)
+
+
+def test_the_fast_path_draws_loaded_blocks_with_the_loaded_observer() -> None:
+    from tactorbelt.experiment.study import Study, template_toml
+    from tactorbelt.participant.factorial import (
+        FactorialProtocol,
+        factorial_cues,
+        simulate_factorial_participant,
+    )
+
+    study = Study.from_toml(template_toml("load").replace(
+        "repetitions = 2                # every", "repetitions = 6                # every"),
+        path="load.toml")
+    fp = FactorialProtocol.from_study(study)
+    assert fp.load_levels == ((0.0, load_level(Spec("nback", 2)), 0.0,
+                               load_level(Spec("nback", 2))),)
+    base = ModelParams().for_period(fp.period_s)
+    cues = factorial_cues(fp, sim_vibrator(study.layout_obj()), base)
+    table = simulate_factorial_participant(fp, cues, base, np.random.default_rng(4))[24]
+    per_block = 24 * 6
+    blocks = [table.correct[i * per_block:(i + 1) * per_block].mean() for i in range(4)]
+    # blocks in canonical order: static-none, static-nback2, dynamic-none, dynamic-nback2
+    assert blocks[1] < blocks[0] and blocks[3] < blocks[2]
+    # a study without a load draws exactly as before loads existed
+    plain = FactorialProtocol.from_study(paper_study())
+    assert plain.load_levels == ()

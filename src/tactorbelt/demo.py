@@ -391,7 +391,8 @@ def run_power_study(study: Study, sizes: Sequence[int], sims: int, seed: int, ou
     eff = parse_effect(effect, counts)
     n_jobs = jobs if jobs is not None else max(1, min(8, os.cpu_count() or 1))
     out = prepare_out(out)
-    if effect is None and len(counts) == 1:  # the paper's protocol: as it always was
+    loaded = any(b.load != "none" for b in study.test)
+    if effect is None and len(counts) == 1 and not loaded:  # the paper's protocol
         protocol = Protocol.from_study(study)
         base = ModelParams().for_period(protocol.period_s)
         cues = stimulus_cues(protocol, sim_vibrator(protocol.layout), base)
@@ -418,9 +419,11 @@ def run_power_study(study: Study, sizes: Sequence[int], sims: int, seed: int, ou
         "test": "Wilcoxon signed-rank (two-sided) on per-participant between-tactor "
                 "accuracy, dynamic vs static (tactorbelt.analysis.stats.wilcoxon_paired); "
                 "found = p < alpha and mean dynamic > mean static",
-        **({} if effect is None and len(counts) == 1 else
+        **({} if effect is None and len(counts) == 1 and not loaded else
            {"effect": eff.text, "test": eff.describe(), "target_counts": counts,
-            "loads": "the model has no secondary task: loads are simulated alike"}),
+            **({"loads": "blocks under a load are simulated with the model localising "
+                         "under that load (tactorbelt.participant.load; assumptions)"}
+               if loaded else {})}),
         "alpha": alpha, "sims": sims, "seed": seed,
         "model": base.to_dict(),
         "rows": [{k: (None if isinstance(v, float) and not math.isfinite(v) else v)
@@ -434,8 +437,8 @@ def run_power_study(study: Study, sizes: Sequence[int], sims: int, seed: int, ou
     notes = [MODEL_NOTE]
     if any(r.n_participants <= 5 for r in rows):
         notes.append(SMALL_STUDY_NOTE)
-    if any(b.load != "none" for b in study.test):
-        notes.append("the model participant has no secondary task: blocks under a load are "
-                     "simulated like those without one")
+    if loaded:
+        notes.append("blocks under a load are simulated with the model localising worse "
+                     "under that load (a documented assumption, docs/participant-model.md)")
     return PowerStudyResult(rows, study.name, plot, notes,
                             what if effect is not None else eff.describe())

@@ -7,8 +7,10 @@ and on the candidate targets, so each target count is its own
 repetitions) with its own cues, and one participant's trials are drawn block by block
 with one set of parameters and one generator (:func:`simulate_factorial_participant`).
 
-The model has no secondary task: a block under a load is simulated exactly like the
-same block without one (an assumption; docs/participant-model.md). Loads are pooled.
+Under a load (a ``[tasks.NAME]`` secondary task) a block's trials are drawn with the
+observer localising under that task's load (:func:`~tactorbelt.participant.load.loaded_params`:
+noisier, slower, more lapses; assumptions, docs/participant-model.md); the effects
+below pool the loads.
 
 Effects a power analysis can look for (:func:`parse_effect`):
 
@@ -54,24 +56,36 @@ FloatArray = NDArray[np.float64]
 
 @dataclass(frozen=True)
 class FactorialProtocol:
-    """One :class:`Protocol` per target count (ascending), with that count's blocks."""
+    """One :class:`Protocol` per target count (ascending), with that count's blocks.
+
+    Attributes:
+        parts: the protocols.
+        load_levels: per part, the load level of each of its blocks
+            (:func:`~tactorbelt.participant.load.load_level`; empty: no load anywhere).
+    """
 
     parts: tuple[Protocol, ...]
+    load_levels: tuple[tuple[float, ...], ...] = ()
 
     @classmethod
     def from_study(cls, study: Any) -> FactorialProtocol:
         """From a :class:`~tactorbelt.experiment.study.Study` (its test blocks' counts,
         conditions and repetitions; each block's stimulus overrides are not modelled
         when they differ within a count: the first block's stimulus is used)."""
+        from .load import load_level
+
         parts = []
+        levels = []
         for n in study.target_counts():
             blocks = [b for b in study.test if study.block_n_targets(b) == n]
+            levels.append(tuple(load_level(study.tasks.get(b.load)) for b in blocks))
             s = study.block_stimulus(blocks[0])
             parts.append(Protocol(study.layout_obj(), TargetSet.even(n), s.law,
                                   float(s.falloff_deg), float(s.period_s), float(s.transit_s),
                                   tuple((b.condition, int(b.repetitions)) for b in blocks),
                                   float(study.response.threshold)))
-        return cls(tuple(parts))
+        loaded = any(v > 0 for lv in levels for v in lv)
+        return cls(tuple(parts), tuple(levels) if loaded else ())
 
     @property
     def counts(self) -> tuple[int, ...]:
@@ -94,9 +108,25 @@ def factorial_cues(protocol: FactorialProtocol, vibrate: Callable[..., Any],
 def simulate_factorial_participant(protocol: FactorialProtocol, cues: Sequence[StimulusCues],
                                    params: ModelParams, rng: np.random.Generator
                                    ) -> dict[int, TrialTable]:
-    """Every test trial of one model participant: target count -> its trials."""
-    return {p.targets.m: simulate_participant(p, c, params, rng)
-            for p, c in zip(protocol.parts, cues, strict=True)}
+    """Every test trial of one model participant: target count -> its trials.
+
+    Blocks under a load are drawn with the loaded observer, block by block; without any
+    load, each target count's blocks are drawn together (as before loads existed).
+    """
+    if not protocol.load_levels:
+        return {p.targets.m: simulate_participant(p, c, params, rng)
+                for p, c in zip(protocol.parts, cues, strict=True)}
+    from .load import loaded_params
+
+    out: dict[int, TrialTable] = {}
+    for p, c, levels in zip(protocol.parts, cues, protocol.load_levels, strict=True):
+        tables = [simulate_participant(replace(p, blocks=(block,)), c,
+                                       loaded_params(params, level), rng)
+                  for block, level in zip(p.blocks, levels, strict=True)]
+        out[p.targets.m] = TrialTable(*(np.concatenate([getattr(t, f) for t in tables])
+                                        for f in ("condition", "target_deg", "on_tactor",
+                                                  "response_deg", "correct", "rt_s")))
+    return out
 
 
 @dataclass(frozen=True)
