@@ -126,10 +126,12 @@ class ModelStudyResult:
 def run_model_study(out: Path, n_participants: int, seed: int,
                     progress: ProgressFn | None = None,
                     notify: Callable[[str], None] | None = None,
-                    study_toml: str | None = None) -> ModelStudyResult:
+                    study_toml: str | None = None,
+                    study_file: Path | None = None) -> ModelStudyResult:
     """Run a whole study with model participants into ``out`` and analyse it.
 
-    Writes ``out/study.toml`` (the paper's protocol unless ``study_toml`` is given),
+    Writes ``out/study.toml`` (the paper's protocol unless ``study_toml`` or
+    ``study_file`` is given; a study file is checked first, its errors naming it),
     moves an earlier ``out/study.sqlite`` to ``out/study.previous.sqlite``, runs each
     participant's whole session on the sim belt and a simulated clock into
     ``out/study.sqlite``, writes ``participants.json`` and the analysis report.
@@ -139,9 +141,13 @@ def run_model_study(out: Path, n_participants: int, seed: int,
             (``model-01 (1/2)``, counting trials of all participants) or the analysis
             step (``analysis: ...``).
         notify: called with a note for the user (an earlier store was moved aside).
+        study_toml: the study's text (instead of the paper's protocol).
+        study_file: a study file to run (instead of ``study_toml``).
 
     Raises:
-        ConfigError: ``out`` is unusable, or a session did not complete.
+        ConfigError: ``out`` is unusable, the study file unreadable, or a session did
+            not complete.
+        StudyFileError: the study file is not a valid study (file, line and field).
         StoreError: another run is using the store.
     """
     from .analysis.report import analyze
@@ -154,6 +160,12 @@ def run_model_study(out: Path, n_participants: int, seed: int,
     from .inputs import make_cursor
     from .participant.params import ModelParams
 
+    if study_file is not None:
+        try:
+            study_toml = Path(study_file).read_text(encoding="utf-8")
+        except OSError as exc:
+            raise ConfigError(f"cannot read study file {study_file}: {exc.strerror}") from None
+        Study.from_toml(study_toml, path=study_file)
     text = PAPER_STUDY_TOML if study_toml is None else study_toml
     out = prepare_out(out)
     study_path = out / "study.toml"
