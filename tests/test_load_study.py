@@ -13,8 +13,8 @@ from typing import Any
 
 import numpy as np
 import pytest
-from support.cli import tactorbelt
 
+from support.cli import tactorbelt
 from tactorbelt.experiment.store import open_store
 from tactorbelt.experiment.study import Study, load_study, template_toml
 from tactorbelt.inputs.model import ModelCursor
