@@ -85,6 +85,7 @@ def load_figure(participant_cells: pd.DataFrame) -> bytes:
         if col == "accuracy":
             ax.set_ylim(-0.03, 1.03)
         ax.set_xticks(x, loads, fontsize=8)
+        ax.set_xlim(-0.4, len(loads) - 0.6)
         ax.set_xlabel("load")
         ax.set_ylabel(label)
         if pc.empty:
@@ -129,6 +130,7 @@ def secondary_figure(rows: Sequence[Mapping[str, Any]]) -> bytes:
             ax.errorbar(x, means, yerr=hws, color="black", marker="s", capsize=3,
                         linewidth=1.6, markersize=5)
             ax.set_xticks(x, phases, fontsize=8)
+            ax.set_xlim(-0.4, len(phases) - 0.6)
             ax.set_ylabel(label)
             ax.set_title(task, fontsize=9)
             if col != "d_prime":
@@ -161,6 +163,7 @@ def tlx_figure(tlx: Mapping[str, Any]) -> bytes:
     else:
         _no_data(ax, "no NASA-TLX ratings")
     ax.set_xticks(x, loads, fontsize=8)
+    ax.set_xlim(-0.4, max(len(loads), 1) - 0.6)
     ax.set_ylim(0, 100)
     ax.set_xlabel("load")
     ax.set_ylabel("raw NASA-TLX (0-100)")
