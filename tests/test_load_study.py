@@ -266,3 +266,25 @@ def test_power_plans_a_load_study_with_the_loaded_model(tmp_path: Path) -> None:
     assert "loads" in doc and "under that load" in doc["loads"]
     assert result.rows[0].sims == 3
     assert any("under that load" in n for n in result.notes)
+
+
+def test_power_finds_the_models_load_effect_and_names_its_columns(tmp_path: Path) -> None:
+    from tactorbelt import ConfigError
+    from tactorbelt.demo import run_power_study
+    from tactorbelt.experiment.study import paper_study
+
+    study = Study.from_toml(_small_load_study(), path="load.toml")
+    result = run_power_study(study, [8], 20, 3, tmp_path, jobs=1, effect="load nback2")
+    (row,) = result.rows
+    assert result.pair == ("loaded", "no_load")
+    assert row.static_acc < row.dynamic_acc  # under load below without, as the model says
+    assert row.power > 0.5
+    header = (tmp_path / "power.csv").read_text().splitlines()[0]
+    assert "mean_loaded_between_acc,mean_no_load_between_acc" in header
+    doc = json.loads((tmp_path / "power.json").read_text())
+    assert {"loaded_acc", "no_load_acc"} <= set(doc["rows"][0])
+    assert "under load nback2" in doc["test"]
+    with pytest.raises(ConfigError, match="no load 'nback3'"):
+        run_power_study(study, [4], 2, 3, tmp_path, jobs=1, effect="load nback3")
+    with pytest.raises(ConfigError, match="blocks without a load and blocks under one"):
+        run_power_study(paper_study(), [4], 2, 3, tmp_path, jobs=1, effect="load")

@@ -360,6 +360,9 @@ class PowerStudyResult:
     notes: list[str]
     #: the effect looked for, in words
     effect: str = "dynamic vs static between-tactor accuracy"
+    #: what the rows' ``static_acc`` and ``dynamic_acc`` are: ``static``, ``dynamic``,
+    #: or for a load effect ``loaded`` (under load) and ``no_load``
+    pair: tuple[str, str] = ("static", "dynamic")
 
 
 def _finite(v: float) -> bool:
@@ -378,13 +381,13 @@ def run_power_study(study: Study, sizes: Sequence[int], sims: int, seed: int, ou
         advance: called with the number of simulated studies just finished.
         study_label: how to name the study in errors (its file).
         effect: the effect to detect in a factorial study (``dynamic vs static``,
-            ``dynamic vs static at N``, ``interaction``; see
+            ``dynamic vs static at N``, ``interaction``, ``load``, ``load NAME``; see
             :func:`tactorbelt.participant.factorial.parse_effect`). None: dynamic vs
             static between-tactor accuracy over every test block (the paper's test).
 
     Raises:
-        ConfigError: the study lacks a static or a dynamic test block; an unknown
-            effect; ``out`` unusable.
+        ConfigError: the study lacks a static or a dynamic test block (a load effect:
+            blocks with and without a load); an unknown effect; ``out`` unusable.
     """
     from .inputs.model import sim_vibrator
     from .participant.factorial import (
@@ -397,10 +400,12 @@ def run_power_study(study: Study, sizes: Sequence[int], sims: int, seed: int, ou
 
     counts = study.target_counts()
     conds = tuple(dict.fromkeys(b.condition for b in study.test))
-    if "static" not in conds or "dynamic" not in conds:
+    eff = parse_effect(effect, counts, tuple(dict.fromkeys(b.load for b in study.test)))
+    if eff.kind != "load" and ("static" not in conds or "dynamic" not in conds):
         raise ConfigError(f"{study_label or 'the study'} needs a static and a dynamic test "
                           f"block for the static-vs-dynamic test; it has {', '.join(conds)}")
-    eff = parse_effect(effect, counts)
+    # the two accuracies of each row: static/dynamic, or under load/without (load effect)
+    pair = ("loaded", "no_load") if eff.kind == "load" else ("static", "dynamic")
     n_jobs = jobs if jobs is not None else max(1, min(8, os.cpu_count() or 1))
     out = prepare_out(out)
     loaded = any(b.load != "none" for b in study.test)
@@ -417,7 +422,7 @@ def run_power_study(study: Study, sizes: Sequence[int], sims: int, seed: int, ou
                                    advance=advance)
 
     header = ["participants", "sims", "found", "power", "ci_low", "ci_high",
-              "mean_static_between_acc", "mean_dynamic_between_acc", "median_p"]
+              f"mean_{pair[0]}_between_acc", f"mean_{pair[1]}_between_acc", "median_p"]
     lines = [",".join(header)]
     for r in rows:
         lines.append(",".join([str(r.n_participants), str(r.sims), str(r.found),
@@ -438,7 +443,8 @@ def run_power_study(study: Study, sizes: Sequence[int], sims: int, seed: int, ou
                if loaded else {})}),
         "alpha": alpha, "sims": sims, "seed": seed,
         "model": base.to_dict(),
-        "rows": [{k: (None if isinstance(v, float) and not math.isfinite(v) else v)
+        "rows": [{_row_key(k, pair): (None if isinstance(v, float) and not math.isfinite(v)
+                                      else v)
                   for k, v in r.__dict__.items()} for r in rows],
     }
     (out / "power.json").write_text(json.dumps(doc, indent=2) + "\n", encoding="utf-8")
@@ -453,4 +459,10 @@ def run_power_study(study: Study, sizes: Sequence[int], sims: int, seed: int, ou
         notes.append("blocks under a load are simulated with the model localising worse "
                      "under that load (a documented assumption, docs/participant-model.md)")
     return PowerStudyResult(rows, study.name, plot, notes,
-                            what if effect is not None else eff.describe())
+                            what if effect is not None else eff.describe(), pair)
+
+
+def _row_key(key: str, pair: tuple[str, str]) -> str:
+    """power.json's name of a PowerRow field (``static_acc`` is ``loaded_acc`` for a
+    load effect)."""
+    return {"static_acc": f"{pair[0]}_acc", "dynamic_acc": f"{pair[1]}_acc"}.get(key, key)

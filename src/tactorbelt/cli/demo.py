@@ -133,7 +133,9 @@ def parse_sizes(text: str) -> list[int]:
               default=0.05, show_default=True, help="Significance level of the test.")
 @click.option("--effect", default=None, metavar="EFFECT",
               help="Effect to detect in a factorial study: 'dynamic vs static', 'dynamic "
-                   "vs static at 36' or 'interaction' (resolution x condition).")
+                   "vs static at 36', 'interaction' (resolution x condition) or 'load' "
+                   "(between-tactor accuracy without vs under load; 'load NAME': one "
+                   "load).")
 def power(sizes_text: str, sims: int, out: Path, seed: int, jobs: int | None,
           study_file: Path | None, alpha: float, effect: str | None) -> None:
     """Plan a study's size by simulation with model participants.
@@ -169,8 +171,8 @@ def power(sizes_text: str, sims: int, out: Path, seed: int, jobs: int | None,
     what = "the static-vs-dynamic test" if effect is None else f"'{effect}'"
     table = Table(title=f"Power of {what} (alpha {alpha:g}, "
                         f"{sims} simulated studies per size)")
-    for col in ("participants", "power", "95 % CI", "static acc.", "dynamic acc.",
-                "median p"):
+    for col in ("participants", "power", "95 % CI", f"{result.pair[0]} acc.".replace("_", " "),
+                f"{result.pair[1]} acc.".replace("_", " "), "median p"):
         table.add_column(col, justify="right")
     for r in result.rows:
         table.add_row(str(r.n_participants), f"{r.power:.2f}",
