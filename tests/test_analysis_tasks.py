@@ -117,6 +117,8 @@ def test_raw_tlx_is_the_mean_of_the_six_items_and_is_tested_across_load() -> Non
         r += _ratings(pid, i, 1, "nback2", [60 + i, 15, 50, 40, 60, 40], "dynamic")
         r += _ratings(pid, i, 2, "nback2", [70, 15, 50, 40, 60, 40])
     r += _ratings("p7", 9, 0, "none", [20, 10, 20, 20, 30, 10])[:5]  # incomplete: dropped
+    unknown = _ratings("p8", 9, 0, "none", [20, 10, 20, 20, 30, 10])
+    r += [{**x, "load": None} for x in unknown]  # its block has no stored trial: dropped
     rows = tlx_rows(r)
     assert len(rows) == 18
     assert rows[0]["raw_tlx"] == pytest.approx(110 / 6)

@@ -228,7 +228,8 @@ def _task_rows(sessions: pd.DataFrame, trials: pd.DataFrame, labels: list[str],
                ) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
     """The task-event and rating rows of the loaded sessions, each with its session's
     ``session_key`` and ``participant``; ratings also with the rated block's ``load``,
-    ``condition`` and ``n_targets`` (from the block's trials)."""
+    ``condition`` and ``n_targets`` (from the block's trials; None when no trial of the
+    block is stored)."""
     who = dict(zip(sessions["session_key"], sessions["participant"], strict=True))
 
     def tagged(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
@@ -247,7 +248,7 @@ def _task_rows(sessions: pd.DataFrame, trials: pd.DataFrame, labels: list[str],
             first["session_key"], first["block_index"], first["load"], first["condition"],
             first["n_targets"], strict=True)}
         for r in ratings:
-            lv, c, n = block.get((r["session_key"], int(r["block_index"])), ("none", None, None))
+            lv, c, n = block.get((r["session_key"], int(r["block_index"])), (None, None, None))
             r.update(load=lv, condition=c, n_targets=n)
     return events, ratings
 

@@ -226,11 +226,12 @@ def tlx_rows(ratings: Iterable[Mapping[str, Any]]) -> list[dict[str, Any]]:
     Each rating row needs ``participant, session_id, block_index, scale, item, value``
     plus the block's ``load`` and ``condition`` (and optionally ``n_targets``). Rows of
     other scales are ignored; a block missing an item is left out (raw TLX needs all
-    six).
+    six), and so is a block whose ``load`` is None (no trial of it was stored, so its
+    load is unknown); a row without a ``load`` key counts as ``none``.
     """
     blocks: dict[tuple[str, Any, int], dict[str, Any]] = {}
     for r in ratings:
-        if str(r["scale"]) != "nasa_tlx":
+        if str(r["scale"]) != "nasa_tlx" or ("load" in r and r["load"] is None):
             continue
         key = (str(r["participant"]), r["session_id"], int(r["block_index"]))
         b = blocks.setdefault(key, {
