@@ -193,3 +193,12 @@ def test_the_fast_path_draws_loaded_blocks_with_the_loaded_observer() -> None:
     # a study without a load draws exactly as before loads existed
     plain = FactorialProtocol.from_study(paper_study())
     assert plain.load_levels == ()
+
+
+def test_a_more_able_participant_detects_better() -> None:
+    spec = Spec("nback", 2)
+    typical = task_hit_fa(spec, "dual")
+    able = task_hit_fa(spec, "dual", ability=1.3)
+    assert able[0] > typical[0] and able[1] < typical[1]
+    assert task_d_prime(spec, "dual", ability=1.3) == pytest.approx(
+        1.3 * task_d_prime(spec, "dual"))

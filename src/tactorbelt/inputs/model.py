@@ -129,7 +129,9 @@ class ModelCursor(CursorSource):
         #: The running task's load level (0 without a task alongside the trials).
         self.load_level = 0.0
         task_seq, tlx_seq = np.random.SeedSequence([int(seed), 18]).spawn(2)
-        self._task = TaskResponder(np.random.default_rng(task_seq), self.load)
+        task_rng = np.random.default_rng(task_seq)
+        ability = float(np.exp(task_rng.normal(0.0, self.load.ability_sd)))
+        self._task = TaskResponder(task_rng, self.load, ability)
         self._tlx_rng = np.random.default_rng(tlx_seq)
         self._tlx_offset = float(self._tlx_rng.normal(0.0, self.load.tlx_person_sd))
         self.clock = clock

@@ -133,6 +133,12 @@ class LoadParams:
         tlx_person_sd: SD of a participant's offset, shared by its six items (10).
             Assumption.
         tlx_item_sd: SD of the noise of each answer (6). Assumption.
+
+    Individual differences in the task:
+
+    Attributes:
+        ability_sd: each model participant's d' is multiplied by ``exp(N(0, sd))``,
+            drawn once from its seed (0.15). Assumption.
     """
 
     weber_gain: float = 0.5
@@ -151,6 +157,7 @@ class LoadParams:
     tlx_per_load: tuple[float, ...] = (45.0, 5.0, 30.0, 20.0, 35.0, 30.0)
     tlx_person_sd: float = 10.0
     tlx_item_sd: float = 6.0
+    ability_sd: float = 0.15
 
     def __post_init__(self) -> None:
         for f in fields(self):
@@ -205,8 +212,10 @@ def _dual(phase: str | None) -> bool:
     return phase == "dual"
 
 
-def task_d_prime(spec: TaskLike, phase: str, load: LoadParams | None = None) -> float:
-    """The model's d' on ``spec`` in ``phase`` (lower in ``dual`` than alone)."""
+def task_d_prime(spec: TaskLike, phase: str, load: LoadParams | None = None,
+                 ability: float = 1.0) -> float:
+    """The model's d' on ``spec`` in ``phase`` (lower in ``dual`` than alone), times the
+    participant's ``ability`` (1: the typical participant)."""
     lp = load if load is not None else LoadParams()
     if spec.kind == "nback":
         d = lp.d_prime_nback[min(max(int(spec.n), 1), 3) - 1]
@@ -214,18 +223,18 @@ def task_d_prime(spec: TaskLike, phase: str, load: LoadParams | None = None) -> 
         d = lp.d_prime_arithmetic
     else:
         raise ConfigError(f"a task of kind {spec.kind!r} has no items to answer")
-    return d * (lp.dual_d_prime_factor if _dual(phase) else 1.0)
+    return d * ability * (lp.dual_d_prime_factor if _dual(phase) else 1.0)
 
 
 def _phi(x: float) -> float:
     return 0.5 * (1.0 + math.erf(x / math.sqrt(2.0)))
 
 
-def task_hit_fa(spec: TaskLike, phase: str, load: LoadParams | None = None
-                ) -> tuple[float, float]:
+def task_hit_fa(spec: TaskLike, phase: str, load: LoadParams | None = None,
+                ability: float = 1.0) -> tuple[float, float]:
     """The model's expected (hit rate, false-alarm rate): ``Phi(d'/2 - c)``, ``Phi(-d'/2 - c)``."""
     lp = load if load is not None else LoadParams()
-    d = task_d_prime(spec, phase, lp)
+    d = task_d_prime(spec, phase, lp, ability)
     return _phi(d / 2.0 - lp.criterion), _phi(-d / 2.0 - lp.criterion)
 
 
@@ -246,14 +255,18 @@ class TaskResponder:
     Args:
         rng: the participant's random generator.
         load: the dual-task model.
+        ability: the participant's d' factor (1: the typical participant).
 
     Presses stay inside the item's response window: at most ``interval_s - 0.05`` s
     after the onset (``interval_s`` given to :meth:`start`).
     """
 
-    def __init__(self, rng: np.random.Generator, load: LoadParams | None = None) -> None:
+    def __init__(self, rng: np.random.Generator, load: LoadParams | None = None,
+                 ability: float = 1.0) -> None:
         self._rng = rng
         self.load = load if load is not None else LoadParams()
+        #: this participant's d' factor (:attr:`LoadParams.ability_sd`)
+        self.ability = float(ability)
         self._spec: TaskLike | None = None
         self._phase: str | None = None
         self._memory: deque[str] = deque()
@@ -301,7 +314,7 @@ class TaskResponder:
             return None
         assert self._phase is not None
         go = self.is_go(stimulus)
-        hit, fa = task_hit_fa(spec, self._phase, self.load)
+        hit, fa = task_hit_fa(spec, self._phase, self.load, self.ability)
         u = float(self._rng.random())
         if not (u < (hit if go else fa)):
             return None
