@@ -172,6 +172,8 @@ def test_the_report_shows_the_load_section_and_its_figures(demo_dir: Path) -> No
         assert (demo_dir / name).stat().st_size > 1000
     summary = json.loads((demo_dir / "summary.json").read_text())
     assert {c["load"] for c in summary["cells"]} == {"none", "nback2"}
+    people = json.loads((demo_dir / "participants.json").read_text())
+    assert people["load_model"]["d_prime_nback"] == [3.5, 2.7, 1.8]  # what the model assumed
 
 
 def test_analyze_of_the_demo_store_gives_the_same_task_results(demo_dir: Path,

@@ -203,11 +203,16 @@ def run_model_study(out: Path, n_participants: int, seed: int,
             if result.status != "complete":
                 raise ConfigError(f"the session of {person.pid} ended {result.status}; "
                                   f"see {db}")
-    (out / "participants.json").write_text(json.dumps(
-        {"note": MODEL_NOTE, "study": study.name, "seed": seed,
-         "participants": {p.pid: {"seed": p.cursor_seed, "params": p.params.to_dict()}
-                          for p in people}},
-        indent=2) + "\n", encoding="utf-8")
+    doc: dict[str, Any] = {
+        "note": MODEL_NOTE, "study": study.name, "seed": seed,
+        "participants": {p.pid: {"seed": p.cursor_seed, "params": p.params.to_dict()}
+                         for p in people}}
+    if study.tasks or study.questionnaire.tlx:
+        from .participant.load import LoadParams
+
+        doc["load_model"] = LoadParams().to_dict()  # shared; docs/participant-model.md
+    (out / "participants.json").write_text(json.dumps(doc, indent=2) + "\n",
+                                           encoding="utf-8")
 
     def analysis_progress(what: str, done: int, steps: int) -> None:
         if progress is not None:
