@@ -202,3 +202,46 @@ def test_a_more_able_participant_detects_better() -> None:
     assert able[0] > typical[0] and able[1] < typical[1]
     assert task_d_prime(spec, "dual", ability=1.3) == pytest.approx(
         1.3 * task_d_prime(spec, "dual"))
+
+
+def test_fast_path_agrees_with_the_full_runner_under_load(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    import math
+
+    from tactorbelt import open_belt
+    from tactorbelt.clock import SimClock
+    from tactorbelt.experiment.runner import run_session
+    from tactorbelt.experiment.store import open_store
+    from tactorbelt.experiment.study import Study, template_toml
+    from tactorbelt.inputs.model import make_model_cursor
+    from tactorbelt.participant.factorial import (
+        FactorialProtocol,
+        factorial_cues,
+        simulate_factorial_participant,
+    )
+
+    text = template_toml("load").replace(
+        "repetitions = 2                # every", "repetitions = 4  # every").replace(
+        "passes = 1                # 0 = no training", "passes = 0  # none")
+    study = Study.from_toml(text, path="load.toml")
+    base = ModelParams().for_period(study.stimulus.period_s)
+    with open_store(tmp_path / "full.sqlite") as store:
+        for i in range(2):
+            clock = SimClock()
+            with open_belt("sim", clock=clock, layout=study.layout_obj()) as belt:
+                cursor = make_model_cursor(belt, clock, 31 + i, base)
+                run_session(study, f"model-{i + 1:02d}", belt, cursor, store, clock, seed=1,
+                            study_toml=text, input_name="model")
+        rows = [r for r in store.trials() if r["block"] == "test"]
+    fp = FactorialProtocol.from_study(study)
+    cues = factorial_cues(fp, sim_vibrator(study.layout_obj()), base)
+    rng = np.random.default_rng(8)
+    tables = [simulate_factorial_participant(fp, cues, base, rng)[24] for _ in range(30)]
+    for load in ("none", "nback2"):
+        for cond in ("static", "dynamic"):
+            full = [bool(r["correct"]) for r in rows
+                    if r["load"] == load and r["condition"] == cond]
+            fast = np.concatenate([t.correct[(t.load == load) & (t.condition == cond)]
+                                   for t in tables])
+            p = float(fast.mean())
+            se = math.sqrt(max(p * (1 - p), 0.01) / len(full))
+            assert abs(np.mean(full) - p) < 4 * se, (load, cond, np.mean(full), p)
