@@ -472,17 +472,21 @@ class SessionRunner:
             ts.press(p)
 
     def _start_task(self, run: _TaskRun) -> None:
-        """Start (or go on with) a task run: tell the window and the cursor source, then
-        put item ``run.next_index`` at now + the lead time."""
+        """Start (or go on with) a task run: tell the window and the cursor source, drop
+        the presses made while no task ran, then put item ``run.next_index`` at now +
+        the lead time."""
         if run.remaining is not None and run.remaining <= 0:
             self._task = None
             return
         self.obs.on_task_phase(run.name, run.spec, run.phase)
         self.cursor.task_phase(run.spec, run.phase)
+        now = self.clock.now_ns()
+        self.obs.task_presses(now)  # pressed while no task ran: not part of this run
+        self.cursor.task_presses(now)
         seed = derive_seed(self.seed_used, self.participant, run.name, run.phase,
                            run.block_index, run.next_index)
         run.session = TaskSession(run.name, run.spec, run.phase, run.block_index, seed,
-                                  self.clock.now_ns() + TASK_LEAD_NS, run.remaining,
+                                  now + TASK_LEAD_NS, run.remaining,
                                   first_index=run.next_index)
         self._task = run
 
