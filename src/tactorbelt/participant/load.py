@@ -278,7 +278,8 @@ class TaskResponder:
         return self._spec is not None
 
     def start(self, spec: TaskLike | None, phase: str | None, interval_s: float = 2.5) -> None:
-        """A task phase starts (``spec``, ``phase``) or ends (None, None)."""
+        """A task phase starts (``spec``, ``phase``) or ends (None, None). Presses still
+        planned for the previous run's items are dropped (they belong to no run)."""
         if spec is None or spec.kind == "none":
             self._spec = None
             self._phase = None
@@ -288,6 +289,7 @@ class TaskResponder:
             self._phase = phase
             self._window_s = max(0.05, float(interval_s) - 0.05)
         self._memory.clear()
+        self._pending.clear()
 
     def is_go(self, stimulus: str) -> bool | None:
         """Whether ``stimulus`` is a go item by the model's own reckoning (and remembers
