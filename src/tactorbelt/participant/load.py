@@ -12,7 +12,8 @@ differently under load follows from ``L`` and :class:`LoadParams`:
 - **the secondary task** (:class:`TaskResponder`): an equal-variance signal-detection
   observer with a sensitivity ``d'`` that falls with n (:func:`task_d_prime`) and is
   lower under dual-task (``dual_d_prime_factor``) than alone (phases ``practice`` and
-  ``baseline``), an unbiased-to-conservative criterion, and log-normal response times
+  ``baseline``) and a participant's own ``ability`` factor, a somewhat conservative
+  criterion (c = 0.3), and log-normal response times
   that grow with n and under dual-task (:func:`task_rt_median_s`);
 - **NASA-TLX** (:func:`tlx_ratings`): a linear mapping from ``L`` to each of the six
   raw-TLX items, with per-participant offsets and item noise, rounded to the slider's
@@ -21,8 +22,8 @@ differently under load follows from ``L`` and :class:`LoadParams`:
 The model never uses the schedule's answer (``TaskItem.target``): it keeps the last n
 items it heard or saw and computes the parity of ``a+b`` itself.
 
-Sources are named where the literature gives numbers; everything else is an
-assumption (docs/participant-model.md, "Under cognitive load"). What the model does
+Sources are named where the literature supports an effect's direction; every number
+is an assumption (docs/participant-model.md, "Under cognitive load"). What the model does
 under load follows from these assumptions and is no evidence about people.
 
 Pure: imports the standard library, NumPy, participant.params and the constants of
