@@ -108,16 +108,16 @@ class LoadParams:
 
     Attributes:
         d_prime_nback: single-task d' of 1-, 2- and 3-back ((3.5, 2.7, 1.8)).
-            Assumption in numbers; the fall with n is well established (Owen et al.
-            2005, meta-analysis of n-back: accuracy falls and RT rises with n).
+            Assumption in numbers; that accuracy falls as n grows is the n-back's
+            classic finding (Kirchner 1958; Jaeggi et al. 2010).
         d_prime_arithmetic: single-task d' of odd/even arithmetic (3.0). Assumption.
         dual_d_prime_factor: d' under dual-task times this (0.8). Assumption (a
             dual-task cost on the secondary task; its size depends on the pairing).
         criterion: the signal-detection criterion c (0.3: somewhat conservative, as
             go/no-go responders with rare targets are). Assumption.
         rt_s: median RT of a 1-back or arithmetic press alone (0.55 s). Assumption.
-        rt_s_per_n: median RT plus this per n above 1 (0.12 s). Assumption; RT grows
-            with n (Owen et al. 2005).
+        rt_s_per_n: median RT plus this per n above 1 (0.12 s). Assumption (slower
+            answers at higher n, as n-back studies commonly report).
         dual_rt_s: median RT plus this under dual-task (0.12 s). Assumption.
         rt_log_sd: SD of log RT (0.25). Assumption (a usual skew of RTs).
 
