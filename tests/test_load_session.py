@@ -399,3 +399,30 @@ def test_events_are_kept_when_the_session_fails_mid_block(tmp_path: Path) -> Non
     # items 0-3 were shown; item 3's window was cut short: kept only when pressed
     assert [e["item_index"] for e in dual if e["item_index"] >= 0] in ([0, 1, 2],
                                                                         [0, 1, 2, 3])
+
+
+def test_a_questionnaire_cut_short_is_asked_first_on_resume(tmp_path: Path) -> None:
+    study = load_study()
+    busy = _busy_index(study)
+
+    class Closes(TaskCursor):
+        def rate_workload(self, info: WorkloadInfo) -> dict[str, float] | None:
+            if info.block_index == busy:  # the window closed on the TLX screen
+                raise KeyboardInterrupt
+            return super().rate_workload(info)
+
+    sched = make_schedule(study, "P01")
+    answers = {t.trial_index: t.target_deg for t in sched}
+    db = tmp_path / "s.sqlite"
+    with Store.open(db) as store:
+        with pytest.raises(KeyboardInterrupt):
+            _run(study, store, Closes(answers=answers, tlx=TLX))
+        assert {r["block_index"] for r in store.ratings()} == {1 - busy}
+        assert len(store.finished_indices(1)) == len(sched)  # every trial done
+    cursor = _cursor(study, tlx=TLX)
+    with Store.open(db) as store:
+        res = _run(study, store, cursor, resume=True)
+        assert res.status == "complete" and res.n_run == 0
+        assert {r["block_index"] for r in store.ratings()} == {0, 1}
+    assert [i.block_index for i in cursor.rated] == [busy]
+    assert cursor.phases == []  # no task ran again

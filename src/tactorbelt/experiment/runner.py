@@ -575,6 +575,14 @@ class SessionRunner:
                                      check_tlx(values))
             self._rated.add(t.block_index)
 
+    def _rate_unrated_before(self, todo: list[ScheduledTrial]) -> None:
+        """On resume: the block finished just before the interruption, when its
+        NASA-TLX was not stored (the session stopped during the questionnaire)."""
+        first = todo[0].trial_index if todo else len(self.schedule)
+        before = [t for t in self.schedule if t.trial_index < first]
+        if before and not (todo and todo[0].block_index == before[-1].block_index):
+            self.rate_block(before[-1])
+
     def wait_for(self, duration_ns: int) -> None:
         """Wait ``duration_ns`` in sampling steps (the last one ends at the end), pumping
         the player and polling the observer at each."""
@@ -735,6 +743,8 @@ class SessionRunner:
         break_every = self.study.session.break_every
         n_total = len(self.schedule)
         prev_block: int | None = None
+        if self.resume:
+            self._rate_unrated_before(todo)
         i = 0
         while i < len(todo):
             t = todo[i]
