@@ -131,10 +131,12 @@ class ModelStudyResult:
 def run_model_study(out: Path, n_participants: int, seed: int,
                     progress: ProgressFn | None = None,
                     notify: Callable[[str], None] | None = None,
-                    study_toml: str | None = None) -> ModelStudyResult:
+                    study_toml: str | None = None,
+                    study_file: Path | None = None) -> ModelStudyResult:
     """Run a whole study with model participants into ``out`` and analyse it.
 
-    Writes ``out/study.toml`` (the paper's protocol unless ``study_toml`` is given),
+    Writes ``out/study.toml`` (the paper's protocol unless ``study_toml`` or
+    ``study_file`` is given; a study file is checked first, its errors naming it),
     moves an earlier ``out/study.sqlite`` to ``out/study.previous.sqlite``, runs each
     participant's whole session on the sim belt and a simulated clock into
     ``out/study.sqlite``, writes ``participants.json`` and the analysis report.
@@ -144,9 +146,13 @@ def run_model_study(out: Path, n_participants: int, seed: int,
             (``model-01 (1/2)``, counting trials of all participants) or the analysis
             step (``analysis: ...``).
         notify: called with a note for the user (an earlier store was moved aside).
+        study_toml: the study's text (instead of the paper's protocol).
+        study_file: a study file to run (instead of ``study_toml``).
 
     Raises:
-        ConfigError: ``out`` is unusable, or a session did not complete.
+        ConfigError: ``out`` is unusable, the study file unreadable, or a session did
+            not complete.
+        StudyFileError: the study file is not a valid study (file, line and field).
         StoreError: another run is using the store.
     """
     from .analysis.report import analyze
@@ -159,6 +165,12 @@ def run_model_study(out: Path, n_participants: int, seed: int,
     from .inputs import make_cursor
     from .participant.params import ModelParams
 
+    if study_file is not None:
+        try:
+            study_toml = Path(study_file).read_text(encoding="utf-8")
+        except OSError as exc:
+            raise ConfigError(f"cannot read study file {study_file}: {exc.strerror}") from None
+        Study.from_toml(study_toml, path=study_file)
     text = PAPER_STUDY_TOML if study_toml is None else study_toml
     out = prepare_out(out)
     study_path = out / "study.toml"
@@ -196,11 +208,16 @@ def run_model_study(out: Path, n_participants: int, seed: int,
             if result.status != "complete":
                 raise ConfigError(f"the session of {person.pid} ended {result.status}; "
                                   f"see {db}")
-    (out / "participants.json").write_text(json.dumps(
-        {"note": MODEL_NOTE, "study": study.name, "seed": seed,
-         "participants": {p.pid: {"seed": p.cursor_seed, "params": p.params.to_dict()}
-                          for p in people}},
-        indent=2) + "\n", encoding="utf-8")
+    doc: dict[str, Any] = {
+        "note": MODEL_NOTE, "study": study.name, "seed": seed,
+        "participants": {p.pid: {"seed": p.cursor_seed, "params": p.params.to_dict()}
+                         for p in people}}
+    if study.tasks or study.questionnaire.tlx:
+        from .participant.load import LoadParams
+
+        doc["load_model"] = LoadParams().to_dict()  # shared; docs/participant-model.md
+    (out / "participants.json").write_text(json.dumps(doc, indent=2) + "\n",
+                                           encoding="utf-8")
 
     def analysis_progress(what: str, done: int, steps: int) -> None:
         if progress is not None:
@@ -362,15 +379,19 @@ class PowerStudyResult:
     notes: list[str]
     #: the effect looked for, in words
     effect: str = "dynamic vs static between-tactor accuracy"
+    #: what the rows' ``static_acc`` and ``dynamic_acc`` are: ``static``, ``dynamic``,
+    #: or for a load effect ``loaded`` (under load) and ``no_load``
+    pair: tuple[str, str] = ("static", "dynamic")
     #: the test each simulated study ran, in words
     test: str = ("paired Wilcoxon signed-rank on per-participant between-tactor accuracy "
                  "(the model-participant simulation's test, not the report's GLMM)")
 
 
-def _write_power(rows: Sequence[PowerRow], out: Path, doc: dict[str, Any]) -> None:
-    """power.csv and power.json."""
+def _write_power(rows: Sequence[PowerRow], out: Path, doc: dict[str, Any],
+                 pair: tuple[str, str] = ("static", "dynamic")) -> None:
+    """power.csv and power.json (``pair``: what the rows' two accuracies are)."""
     header = ["participants", "sims", "found", "power", "ci_low", "ci_high",
-              "mean_static_between_acc", "mean_dynamic_between_acc", "median_p"]
+              f"mean_{pair[0]}_between_acc", f"mean_{pair[1]}_between_acc", "median_p"]
     lines = [",".join(header)]
     for r in rows:
         lines.append(",".join([str(r.n_participants), str(r.sims), str(r.found),
@@ -378,9 +399,9 @@ def _write_power(rows: Sequence[PowerRow], out: Path, doc: dict[str, Any]) -> No
                                f"{r.static_acc:.4f}", f"{r.dynamic_acc:.4f}",
                                "" if not _finite(r.median_p) else f"{r.median_p:.6g}"]))
     (out / "power.csv").write_text("\n".join(lines) + "\n", encoding="utf-8")
-    doc = {**doc, "rows": [{k: (None if isinstance(v, float) and not math.isfinite(v) else v)
-                            for k, v in r.__dict__.items()}
-                           for r in rows]}
+    doc = {**doc, "rows": [{_row_key(k, pair): (None if isinstance(v, float)
+                                                and not math.isfinite(v) else v)
+                            for k, v in r.__dict__.items()} for r in rows]}
     (out / "power.json").write_text(json.dumps(doc, indent=2) + "\n", encoding="utf-8")
 
 
@@ -398,10 +419,10 @@ def _named_power(study: Study, eff: Effect, named: NamedEffect, sizes: Sequence[
     from .analysis.power_model import TrialDesign
 
     if eff.kind != "condition":
-        raise ConfigError("--odds-ratio plans for the condition effect; an interaction "
-                          "cannot be named by one odds ratio (use --effect 'dynamic vs "
-                          "static at N', or leave out --odds-ratio to simulate model "
-                          "participants)")
+        raise ConfigError("--odds-ratio plans for the condition effect (dynamic vs static); "
+                          f"'{eff.text}' cannot be named by that odds ratio (use --effect "
+                          "'dynamic vs static at N', or leave out --odds-ratio to simulate "
+                          "model participants)")
     if min(sizes) < 3:
         raise ConfigError("the report's mixed model needs at least 3 participants: use "
                           "study sizes of 3 or more with --odds-ratio")
@@ -439,13 +460,13 @@ def run_power_study(study: Study, sizes: Sequence[int], sims: int, seed: int, ou
         advance: called with the number of simulated studies just finished.
         study_label: how to name the study in errors (its file).
         effect: the effect to detect in a factorial study (``dynamic vs static``,
-            ``dynamic vs static at N``, ``interaction``; see
+            ``dynamic vs static at N``, ``interaction``, ``load``, ``load NAME``; see
             :func:`tactorbelt.participant.factorial.parse_effect`). None: dynamic vs
             static between-tactor accuracy over every test block (the paper's test).
 
     Raises:
-        ConfigError: the study lacks a static or a dynamic test block; an unknown
-            effect; ``out`` unusable.
+        ConfigError: the study lacks a static or a dynamic test block (a load effect:
+            blocks with and without a load); an unknown effect; ``out`` unusable.
     """
     from .inputs.model import sim_vibrator
     from .participant.factorial import (
@@ -458,15 +479,18 @@ def run_power_study(study: Study, sizes: Sequence[int], sims: int, seed: int, ou
 
     counts = study.target_counts()
     conds = tuple(dict.fromkeys(b.condition for b in study.test))
-    if "static" not in conds or "dynamic" not in conds:
+    eff = parse_effect(effect, counts, tuple(dict.fromkeys(b.load for b in study.test)))
+    if eff.kind != "load" and ("static" not in conds or "dynamic" not in conds):
         raise ConfigError(f"{study_label or 'the study'} needs a static and a dynamic test "
                           f"block for the static-vs-dynamic test; it has {', '.join(conds)}")
-    eff = parse_effect(effect, counts)
+    # the two accuracies of each row: static/dynamic, or under load/without (load effect)
+    pair = ("loaded", "no_load") if eff.kind == "load" else ("static", "dynamic")
     n_jobs = jobs if jobs is not None else max(1, min(8, os.cpu_count() or 1))
     out = prepare_out(out)
     if named is not None:
         return _named_power(study, eff, named, sizes, sims, seed, out, n_jobs, alpha, advance)
-    if effect is None and len(counts) == 1:  # the paper's protocol: as it always was
+    loaded = any(b.load != "none" for b in study.test)
+    if effect is None and len(counts) == 1 and not loaded:  # the paper's protocol
         protocol = Protocol.from_study(study)
         base = ModelParams().for_period(protocol.period_s)
         cues = stimulus_cues(protocol, sim_vibrator(protocol.layout), base)
@@ -484,13 +508,15 @@ def run_power_study(study: Study, sizes: Sequence[int], sims: int, seed: int, ou
         "test": "Wilcoxon signed-rank (two-sided) on per-participant between-tactor "
                 "accuracy, dynamic vs static (tactorbelt.analysis.stats.wilcoxon_paired); "
                 "found = p < alpha and mean dynamic > mean static",
-        **({} if effect is None and len(counts) == 1 else
+        **({} if effect is None and len(counts) == 1 and not loaded else
            {"effect": eff.text, "test": eff.describe(), "target_counts": counts,
-            "loads": "the model has no secondary task: loads are simulated alike"}),
+            **({"loads": "blocks under a load are simulated with the model localising "
+                         "under that load (tactorbelt.participant.load; assumptions)"}
+               if loaded else {})}),
         "alpha": alpha, "sims": sims, "seed": seed,
         "model": base.to_dict(),
     }
-    _write_power(rows, out, doc)
+    _write_power(rows, out, doc, pair)
     plot = out / "power.png"
     what = ("static vs dynamic between-tactor accuracy" if effect is None
             else f"effect: {eff.text}")
@@ -499,8 +525,14 @@ def run_power_study(study: Study, sizes: Sequence[int], sims: int, seed: int, ou
                          "headline test is the accuracy GLMM: plan for it with --odds-ratio"]
     if any(r.n_participants <= 5 for r in rows):
         notes.append(SMALL_STUDY_NOTE)
-    if any(b.load != "none" for b in study.test):
-        notes.append("the model participant has no secondary task: blocks under a load are "
-                     "simulated like those without one")
+    if loaded:
+        notes.append("blocks under a load are simulated with the model localising worse "
+                     "under that load (a documented assumption, docs/participant-model.md)")
     return PowerStudyResult(rows, study.name, plot, notes,
-                            what if effect is not None else eff.describe())
+                            what if effect is not None else eff.describe(), pair)
+
+
+def _row_key(key: str, pair: tuple[str, str]) -> str:
+    """power.json's name of a PowerRow field (``static_acc`` is ``loaded_acc`` for a
+    load effect)."""
+    return {"static_acc": f"{pair[0]}_acc", "dynamic_acc": f"{pair[1]}_acc"}.get(key, key)

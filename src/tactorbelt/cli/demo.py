@@ -43,15 +43,19 @@ def _progress_bar(console: Any) -> Any:
 @click.option("--participants", type=number(int, 1, 999), default=1, show_default=True,
               help="Number of model participants (ids model-01, model-02, ...).")
 @seed_option("Seed of the schedules, the model participants and the analysis.", default=1)
-def demo(out: Path, participants: int, seed: int) -> None:
-    """Run the paper's study with model participants, then analyze it.
+@click.option("--study", "study_file", type=click.Path(dir_okay=False, path_type=Path),
+              default=None, help="Study file to run [default: the paper's protocol].")
+def demo(out: Path, participants: int, seed: int, study_file: Path | None) -> None:
+    """Run the paper's study (or --study FILE) with model participants, then analyze it.
 
-    Writes DIR/study.toml (the paper's protocol, as 'tactorbelt study init' writes it),
-    runs each model participant through a whole session (training, then 240 test
-    trials) on the simulated belt and a simulated clock, stores every trial and cursor
-    sample in DIR/study.sqlite, and writes the analysis report: report.html,
-    summary.json, per_target.csv and PNG figures. Then prints accuracy and median RT
-    per condition and where the report is.
+    Writes DIR/study.toml (the paper's protocol, as 'tactorbelt study init' writes it,
+    or a copy of --study FILE), runs each model participant through a whole session
+    (training, then the test blocks: 240 trials in the paper's protocol) on the
+    simulated belt and a simulated clock, stores every trial and cursor sample in
+    DIR/study.sqlite, and writes the analysis report: report.html, summary.json,
+    per_target.csv and PNG figures. Then prints accuracy and median RT per condition
+    and where the report is. Under a load (a [tasks.NAME] secondary task) the model
+    participants also do the task and answer the NASA-TLX, and the report covers them.
 
     An existing DIR/study.sqlite is moved to DIR/study.previous.sqlite (replacing an
     older one), so the demo can be run again into the same directory.
@@ -77,7 +81,8 @@ def demo(out: Path, participants: int, seed: int) -> None:
 
         result = run_model_study(out, participants, seed, progress=progress,
                                  notify=lambda note: err.print(f"note: {note}",
-                                                               highlight=False))
+                                                               highlight=False),
+                                 study_file=study_file)
         if "analysis" in tasks:
             bar.update(tasks["analysis"], completed=bar.tasks[-1].total,
                        description="analysis")
@@ -128,7 +133,9 @@ def parse_sizes(text: str) -> list[int]:
               default=0.05, show_default=True, help="Significance level of the test.")
 @click.option("--effect", default=None, metavar="EFFECT",
               help="Effect to detect in a factorial study: 'dynamic vs static', 'dynamic "
-                   "vs static at 36' or 'interaction' (resolution x condition).")
+                   "vs static at 36', 'interaction' (resolution x condition) or 'load' "
+                   "(between-tactor accuracy without vs under load; 'load NAME': one "
+                   "load).")
 @click.option("--odds-ratio", type=number(float, 0, 1000, lo_open=True), default=None,
               help="Plan for the report's accuracy GLMM instead of model participants: the "
                    "dynamic-over-static odds ratio at between-tactor targets to find.")
@@ -194,8 +201,8 @@ def power(sizes_text: str, sims: int, out: Path, seed: int, jobs: int | None,
     table = Table(title=f"Power of {what} (alpha {alpha:g}, "
                         f"{sims} simulated studies per size)",
                   caption=f"test: {result.test}")
-    for col in ("participants", "power", "95 % CI", "static acc.", "dynamic acc.",
-                "median p"):
+    for col in ("participants", "power", "95 % CI", f"{result.pair[0]} acc.".replace("_", " "),
+                f"{result.pair[1]} acc.".replace("_", " "), "median p"):
         table.add_column(col, justify="right")
     for r in result.rows:
         table.add_row(str(r.n_participants), f"{r.power:.2f}",

@@ -880,11 +880,72 @@ order = "williams"             # williams | latin | fixed | random (across parti
 # tlx = true                   # raw NASA-TLX after each test block
 '''
 
-TEMPLATES: dict[str, str] = {"paper": PAPER_STUDY_TOML, "resolution": RESOLUTION_STUDY_TOML}
+# -- the cognitive-load study --------------------------------------------------------
+
+LOAD_STUDY_TOML = '''\
+# tactorbelt study file: does a concurrent task (cognitive load) change between-tactor
+# localisation? A full factorial of condition (static, dynamic) x load (none, auditory
+# 2-back), 24 targets, each cell one test block, ordered across participants by a
+# balanced Latin square (Williams); raw NASA-TLX after every test block. Check it with
+#   tactorbelt study check THIS_FILE
+# Angles are degrees, 0 = navel (front), growing clockwise seen from above.
+
+name = "between-tactor-load"
+description = "6 tactors, 24 targets; static/dynamic x no load/auditory 2-back; NASA-TLX"
+
+[layout]
+tactors = 6               # evenly spaced at 180/N + k*360/N
+
+[targets]
+count = 24                # targets at k*360/count; on-tactor where one meets a tactor
+
+''' + _STIMULUS_RESPONSE_SESSION_TOML + '''\
+break_every = 48          # a break after every N trials (0 = no breaks)
+randomise = "per_repetition"  # per_repetition (each pass a new permutation) | full | none
+sample_rate_hz = 100.0    # cursor sampling rate
+
+[training]
+# Localisation alone, before any test block: each target is felt while its location
+# is shown; the participant points at it.
+passes = 1                # 0 = no training
+conditions = ["static", "dynamic"]
+order = "sequential"      # sequential (around the belt) | random
+
+[design]
+# One test block per cell: 2 conditions x 2 loads = 4 blocks.
+targets = [24]
+condition = ["static", "dynamic"]
+load = ["none", "nback2"]      # "none" or the name of a [tasks.NAME] table
+repetitions = 2                # every target of a block this many times
+order = "williams"             # williams | latin | fixed | random (across participants)
+
+# The secondary task of the blocks whose load is "nback2". Every task is go/no-go:
+# press the response button when the item is the same as the one n items back.
+# It runs on its own clock (one item every interval_s from the block's first trial),
+# whatever the localisation trials do.
+[tasks.nback2]
+kind = "nback"            # nback | arithmetic (odd/even of "a+b") | none (no task)
+n = 2                     # 1, 2 or 3
+modality = "auditory"     # auditory (tones) | visual (a letter off the response ellipse)
+interval_s = 2.5          # one item every interval_s (longer than stimulus_s)
+stimulus_s = 0.5          # how long a tone or a letter lasts
+response = "joystick:1"   # key:NAME | joystick:K | mouse:middle|right (not Space, Return,
+                          # joystick:0 or the left mouse button: they confirm a localisation)
+match_rate = 0.3          # share of go items (matches)
+practice = 12             # items of the task alone before its first block
+baseline = 24             # then items alone for the single-task baseline (the
+                          # dual-task cost compares it with the task during the trials)
+
+[questionnaire]
+tlx = true                # raw NASA-TLX (6 items, 0-100) after each test block
+'''
+
+TEMPLATES: dict[str, str] = {"paper": PAPER_STUDY_TOML, "resolution": RESOLUTION_STUDY_TOML,
+                             "load": LOAD_STUDY_TOML}
 
 
 def template_toml(name: str = "paper") -> str:
-    """The commented TOML of a study template: ``paper`` or ``resolution``.
+    """The commented TOML of a study template: ``paper``, ``resolution`` or ``load``.
 
     Raises:
         ConfigError: an unknown template name (the message lists the names).
