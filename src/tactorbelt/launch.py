@@ -302,6 +302,20 @@ class _RunObserver:
     def poll(self, now_ns: int) -> Any:
         return self.inner.poll(now_ns)
 
+    def on_task_phase(self, name: str | None, spec: Any, phase: str | None) -> None:
+        self.inner.on_task_phase(name, spec, phase)
+
+    def on_task_item(self, item: Any, onset_ns: int, spec: Any) -> None:
+        self.inner.on_task_item(item, onset_ns, spec)
+
+    def task_presses(self, now_ns: int) -> list[int]:
+        presses: list[int] = self.inner.task_presses(now_ns)
+        return presses
+
+    def ask_workload(self, info: Any) -> dict[str, float] | None:
+        answer: dict[str, float] | None = self.inner.ask_workload(info)
+        return answer
+
 
 def _check_options(r: RunRequest) -> None:
     """Refuse an unknown input, a window input without a window, an unknown belt URL."""

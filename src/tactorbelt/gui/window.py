@@ -51,8 +51,10 @@ if TYPE_CHECKING:
     from ..experiment.runner import Command, SessionInfo, SessionResult
     from ..experiment.schedule import ScheduledTrial
     from ..experiment.store import Store
-    from ..experiment.study import Study
+    from ..experiment.study import Study, TaskSpec
     from ..experiment.trial import TrialResult, TrialState
+    from ..tasks import WorkloadInfo
+    from ..tasks.schedule import TaskItem
     from .render import View
 
 __all__ = ["SCREEN_KINDS", "ExperimentWindow", "run_with_window"]
@@ -320,6 +322,20 @@ class ExperimentWindow:
         """Handle events, draw when a frame is due, and return a command for the runner."""
         self.step(now_ns)
         return self._command()
+
+    # -- secondary tasks and workload (issue 18; the window's part is not drawn yet) -----
+    def on_task_phase(self, name: str | None, spec: TaskSpec | None, phase: str | None
+                      ) -> None:
+        pass
+
+    def on_task_item(self, item: TaskItem, onset_ns: int, spec: TaskSpec) -> None:
+        pass
+
+    def task_presses(self, now_ns: int) -> list[int]:
+        return []
+
+    def ask_workload(self, info: WorkloadInfo) -> dict[str, float] | None:
+        return None
 
     # ------------------------------------------------------------------------------------
     # commands
