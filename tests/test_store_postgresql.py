@@ -20,7 +20,7 @@ from typing import Any
 import pytest
 
 from support.stores import make_result, make_session
-from support.studies import write_study
+from support.studies import make_study, write_study
 from tactorbelt import StoreError
 from tactorbelt.experiment.store import open_store
 
@@ -334,3 +334,49 @@ def test_a_url_with_a_password_is_refused_before_connecting(tmp_path: Path) -> N
     out = _cli(*_run_args(study, "P01", tmp_path / "l.sqlite",
                           "postgresql://lyon:secret@db.invalid/study", "--offline"))
     assert out.returncode == 2 and "pgpass" in out.stderr and "secret" not in out.stderr
+
+
+def test_sync_copies_task_events_and_ratings_once(tmp_path: Path, pg_url: str) -> None:
+    from support.tasks import TaskCursor
+    from tactorbelt.clock import SimClock
+    from tactorbelt.devices import open_belt
+    from tactorbelt.experiment.runner import run_session
+    from tactorbelt.experiment.schedule import make_schedule
+    from tactorbelt.experiment.sync import sync_stores
+    from tactorbelt.tasks import TLX_ITEMS
+    from tactorbelt.tasks.schedule import TaskEvent
+
+    study = make_study(minimal=True, name="load", tactors=4, targets=8, training=0,
+                       iti_s=0.2, break_every=0,
+                       blocks=[{"name": "busy", "condition": "static", "repetitions": 1,
+                                "load": "nb"}],
+                       tasks={"nb": {"kind": "nback", "n": 1, "interval_s": 1.0,
+                                     "practice": 4}},
+                       questionnaire={"tlx": True})
+    answers = {t.trial_index: t.target_deg for t in make_schedule(study, "P07")}
+    db, clock = tmp_path / "local.sqlite", SimClock()
+    with open_store(db) as store, open_belt("sim", clock=clock,
+                                            layout=study.layout_obj()) as belt:
+        run_session(study, "P07", belt, TaskCursor(answers=answers,
+                                                   tlx=dict.fromkeys(TLX_ITEMS, 40.0)),
+                    store, clock)
+
+    def rows(url: str | Path) -> tuple[list[Any], list[Any]]:
+        with open_store(url, create=False, readonly=True) as s:
+            drop = ("session_id",)
+            return ([{k: v for k, v in e.items() if k not in drop} for e in s.task_events()],
+                    [{k: v for k, v in r.items() if k not in drop} for r in s.ratings()])
+
+    first = sync_stores(db, pg_url)
+    local = rows(db)
+    assert len(local[0]) > 4 and len(local[1]) == 6
+    assert first.task_events == len(local[0]) and first.ratings == 6
+    assert rows(pg_url) == local
+    again = sync_stores(db, pg_url)
+    assert (again.task_events, again.ratings) == (0, 0)
+    assert "up to date" in again.summary(pg_url)
+    with open_store(db) as store:  # appended locally (a resumed block): copied again
+        store.write_task_events(1, [TaskEvent(0, "nb", "dual", 99, 1, "tone1", False, "",
+                                              True, None)])
+    assert sync_stores(db, pg_url).task_events == len(local[0]) + 1
+    assert rows(pg_url) == rows(db)

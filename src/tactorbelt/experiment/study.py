@@ -24,7 +24,15 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    ValidationError,
+    ValidationInfo,
+    field_validator,
+    model_validator,
+)
 
 from .._errors import ConfigError, StudyFileError
 from .._lawnames import LawName
@@ -216,7 +224,7 @@ class TaskSpec(_Model):
     """
 
     kind: Literal["nback", "arithmetic", "none"]
-    n: int = 2
+    n: int = Field(default=2, validate_default=True)
     modality: Literal["auditory", "visual"] = "auditory"
     interval_s: float = Field(default=2.5, gt=0, le=60)
     stimulus_s: float = Field(default=0.5, gt=0, le=60)
@@ -227,8 +235,8 @@ class TaskSpec(_Model):
 
     @field_validator("n")
     @classmethod
-    def _n(cls, v: int) -> int:
-        if not 1 <= v <= 3:
+    def _n(cls, v: int, info: ValidationInfo) -> int:
+        if info.data.get("kind") == "nback" and not 1 <= v <= 3:
             raise ValueError(f"n must be 1, 2 or 3 (got {v!r})")
         return v
 

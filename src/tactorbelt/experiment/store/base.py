@@ -367,3 +367,14 @@ class Store(abc.ABC):
         """Copy a trial row of another store and its ``(t_s, x, y, buttons)`` samples in
         one transaction; False when it is here already (nothing written)."""
         raise StoreError(f"{self.url}: this store does not take copied sessions")
+
+    def import_task_events(self, session_id: int, rows: Sequence[Mapping[str, Any]]) -> int:
+        """Make session ``session_id``'s task events those of another store's copy of it
+        (``task_events`` rows, in the order written; they are only ever appended, so a
+        copy with as many is up to date). One transaction; the rows written (0: none)."""
+        raise StoreError(f"{self.url}: this store does not take copied sessions")
+
+    def import_ratings(self, session_id: int, rows: Sequence[Mapping[str, Any]]) -> int:
+        """Make session ``session_id``'s ratings those of another store's copy of it
+        (``ratings`` rows). One transaction; the rows written (0: the same already)."""
+        raise StoreError(f"{self.url}: this store does not take copied sessions")

@@ -794,6 +794,46 @@ class PostgreSQLStore(Store):
             self._insert_trial(c, values, samples)
         return True
 
+    def import_task_events(self, session_id: int, rows: Sequence[Mapping[str, Any]]) -> int:
+        """Replace the session's task events by ``rows`` unless as many are here."""
+        cols = TASK_EVENT_COLUMNS[1:]
+        with self._transaction() as c:
+            c.execute("SELECT session_id FROM tactorbelt.sessions WHERE session_id=%s"
+                      " FOR UPDATE", (session_id,))
+            n = c.execute("SELECT count(*) FROM tactorbelt.task_events WHERE session_id=%s",
+                          (session_id,)).fetchone()[0]
+            if n == len(rows):
+                return 0
+            c.execute("DELETE FROM tactorbelt.task_events WHERE session_id=%s", (session_id,))
+            c.executemany(
+                f"INSERT INTO tactorbelt.task_events(session_id, {', '.join(cols)}) "
+                f"VALUES (%s, {', '.join(['%s'] * len(cols))})",
+                [(session_id, *(_event_value(k, r[k]) for k in cols)) for r in rows])
+        return len(rows)
+
+    def import_ratings(self, session_id: int, rows: Sequence[Mapping[str, Any]]) -> int:
+        """Replace the session's ratings by ``rows`` unless the same are here."""
+        want = [(int(r["block_index"]), str(r["scale"]), str(r["item"]), float(r["value"]))
+                for r in rows]
+        with self._transaction() as c:
+            c.execute("SELECT session_id FROM tactorbelt.sessions WHERE session_id=%s"
+                      " FOR UPDATE", (session_id,))
+            have = c.execute("SELECT block_index, scale, item, value FROM tactorbelt.ratings"
+                             " WHERE session_id=%s", (session_id,)).fetchall()
+            if sorted(tuple(h) for h in have) == sorted(want):
+                return 0
+            c.execute("DELETE FROM tactorbelt.ratings WHERE session_id=%s", (session_id,))
+            c.executemany(
+                "INSERT INTO tactorbelt.ratings(session_id, block_index, scale, item, value,"
+                " rating_order) VALUES (%s, %s, %s, %s, %s, %s)",
+                [(session_id, *w, i) for i, w in enumerate(want)])
+        return len(want)
+
+
+def _event_value(column: str, value: Any) -> Any:
+    """A task_events value for PostgreSQL (SQLite keeps the booleans as 0/1)."""
+    return bool(value) if column in ("target", "correct") else value
+
 
 def setup_access(store: PostgreSQLStore, *, writers: Mapping[str, str] | None = None,
                  analysts: Sequence[str] = ()) -> None:
