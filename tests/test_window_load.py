@@ -1,0 +1,287 @@
+"""A session under cognitive load through the experiment window (SDL's dummy video and
+audio drivers, simulated clock), with a person at the keyboard and mouse.
+
+The test plays the participant from the window's ``on_frame`` hook: it goes on from the
+waiting screens, presses the task's button after each item it judges a go item from the
+stimuli alone (as the window showed or played them), and rates every test block on the
+NASA-TLX screen with the arrow keys, the mouse or the stick. What the window took from
+SDL's event queue must reach the store (task events, ratings) and be read back.
+"""
+
+from __future__ import annotations
+
+import collections
+from pathlib import Path
+from typing import Any
+
+import pygame
+import pytest
+
+from support.inputs import FakeBackend, FakeStick
+from support.studies import make_study
+from support.tasks import judge
+from tactorbelt._errors import ConfigError
+from tactorbelt.clock import SimClock
+from tactorbelt.devices import open_belt
+from tactorbelt.experiment.schedule import make_schedule
+from tactorbelt.experiment.store import Store
+from tactorbelt.experiment.study import Study, TaskSpec
+from tactorbelt.gui.tlx import TLX_SCALES, TlxForm
+from tactorbelt.gui.window import ExperimentWindow, run_with_window
+from tactorbelt.inputs.joystick import JoystickConfig, JoystickCursor
+from tactorbelt.inputs.scripted import ScriptedCursor
+from tactorbelt.tasks import TLX_ITEMS, TLX_SCALE, WorkloadInfo
+from tactorbelt.tasks.audio import SilentTaskAudio
+
+SIZE = (640, 480)
+MS = 1_000_000
+RT_NS = 350 * MS
+#: what the participant marks on the TLX: 50 + 5 * steps right of the middle
+STEPS = (3, -8, 1, -5, 4, -2)
+WANT = {item: 50.0 + 5 * k for item, k in zip(TLX_ITEMS, STEPS, strict=True)}
+
+
+def load_study(**kw: Any) -> Study:
+    """Two test blocks with a task each: visual 1-back (J key) and auditory 2-back (right
+    mouse button), each with practice and a baseline; the TLX after every block."""
+    return make_study(
+        minimal=True, name="window-load", tactors=4, targets=8, iti_s=0.4, break_every=0,
+        training=0, timeout_s=3.0, max_presentation_s=2.0,
+        blocks=[{"name": "letters", "condition": "static", "repetitions": 1, "load": "vis"},
+                {"name": "tones", "condition": "dynamic", "repetitions": 1, "load": "aud"}],
+        tasks={"vis": {"kind": "nback", "n": 1, "modality": "visual", "interval_s": 0.9,
+                       "stimulus_s": 0.4, "response": "key:j", "practice": 5,
+                       "baseline": 4, "match_rate": 0.5},
+               "aud": {"kind": "nback", "n": 2, "modality": "auditory", "interval_s": 1.1,
+                       "stimulus_s": 0.3, "response": "mouse:right", "practice": 6,
+                       "baseline": 5, "match_rate": 0.5}},
+        questionnaire={"tlx": True}, **kw)
+
+
+def _key(key: int, down: bool = True) -> None:
+    pygame.event.post(pygame.event.Event(pygame.KEYDOWN if down else pygame.KEYUP, key=key,
+                                         mod=0, unicode="", scancode=0))
+
+
+def _click(button: int, pos: tuple[int, int] = (5, 5)) -> None:
+    for t in (pygame.MOUSEBUTTONDOWN, pygame.MOUSEBUTTONUP):
+        pygame.event.post(pygame.event.Event(t, button=button, pos=pos, touch=False))
+
+
+class Person:
+    """The participant, acting from ``on_frame``: see the module docstring."""
+
+    def __init__(self, tlx: str = "keys") -> None:
+        self.kinds: collections.Counter[str] = collections.Counter()
+        self.tlx = tlx
+        self.seen = 0
+        self.history: dict[tuple[str | None, str | None], list[str]] = {}
+        self.due: list[tuple[int, str]] = []  # (press at, response)
+        self.pressed: list[int] = []  # when the presses were posted (sim ns)
+        self.rated = 0
+        self._tlx_sent = False
+
+    def __call__(self, win: ExperimentWindow, kind: str) -> None:
+        self.kinds[kind] += 1
+        now = win.clock.now_ns()
+        if kind in ("instructions", "block", "break", "end", "task"):
+            _key(pygame.K_SPACE)
+        tasks = win.tasks
+        # judge the items announced since the last frame, from their stimuli only
+        for item, onset in tasks.items[self.seen:]:
+            spec = win.study.tasks[tasks.name or ""] if tasks.name else None
+            if spec is None:
+                continue
+            run = self.history.setdefault((tasks.name, tasks.phase), [])
+            if judge(spec, run, item.stimulus):
+                self.due.append((onset + RT_NS, spec.response))
+            run.append(item.stimulus)
+        self.seen = len(tasks.items)
+        for at, response in [d for d in self.due if d[0] <= now]:
+            self.due.remove((at, response))
+            if response == "key:j":
+                _key(pygame.K_j)
+                _key(pygame.K_j, down=False)
+            else:
+                _click(3)
+            self.pressed.append(now)
+        if kind == "tlx" and not self._tlx_sent:
+            self._tlx_sent = True
+            self.rate(win)
+        elif kind != "tlx":
+            self._tlx_sent = False
+
+    def rate(self, win: ExperimentWindow) -> None:
+        self.rated += 1
+        if self.tlx == "keys":
+            for k in STEPS:
+                _key(pygame.K_RIGHT)  # marks the middle
+                for _ in range(abs(k)):
+                    _key(pygame.K_RIGHT if k > 0 else pygame.K_LEFT)
+                _key(pygame.K_DOWN)
+            _key(pygame.K_SPACE)
+        else:  # the mouse: click each track where the value lies, then Done
+            tlx = win._tlx
+            assert tlx is not None
+            for i, item in enumerate(TLX_ITEMS):
+                r = tlx.rects[f"track{i}"]
+                x = r.left + round(r.width * WANT[item] / 100)
+                _click(1, (x, r.centery))
+            _click(1, tlx.rects["done"].center)
+
+
+def _run(study: Study, store: Store, person: Person, **kw: Any) -> Any:
+    clock = SimClock()
+    sched = make_schedule(study, "P01")
+    cursor = ScriptedCursor(answers={t.trial_index: t.target_deg for t in sched})
+    with open_belt("sim", clock=clock, layout=study.layout_obj()) as belt:
+        res = run_with_window(study, "P01", belt, "scripted", store, clock=clock,
+                              cursor=cursor, size=SIZE, auto_continue_s=None,
+                              on_frame=person, **kw)
+    return res
+
+
+@pytest.fixture(autouse=True)
+def _clean_pygame() -> Any:
+    yield
+    pygame.display.quit()
+
+
+@pytest.mark.parametrize("tlx", ["keys", "mouse"])
+def test_a_windowed_load_session_stores_the_presses_and_the_ratings(tmp_path: Path,
+                                                                    tlx: str) -> None:
+    study = load_study()
+    person = Person(tlx)
+    with Store.open(tmp_path / "s.sqlite") as store:
+        res = _run(study, store, person)
+        sid = res.session_id
+    # read back from the file, as the analysis does
+    with Store.open(tmp_path / "s.sqlite") as store:
+        events = store.task_events(sid)
+        ratings = store.ratings(sid)
+    assert res.status == "complete"
+    items = [e for e in events if e["item_index"] >= 0]
+    count = collections.Counter((e["task"], e["phase"]) for e in items)
+    assert count[("vis", "practice")] == 5 and count[("vis", "baseline")] == 4
+    assert count[("aud", "practice")] == 6 and count[("aud", "baseline")] == 5
+    assert count[("vis", "dual")] >= 2 and count[("aud", "dual")] >= 2
+    # every go item was answered by the button the study names, nothing else pressed
+    assert all(e["correct"] for e in events), [e for e in events if not e["correct"]]
+    hits = [e for e in items if e["target"]]
+    assert len(hits) >= 4 and all(e["response"] == "press" for e in hits)
+    assert not [e for e in events if e["item_index"] < 0]  # no extra presses
+    # the press time: the poll that took it from SDL's queue, within one 10 ms tick
+    assert all(RT_NS / 1e9 <= e["rt_s"] <= RT_NS / 1e9 + 0.011 for e in hits)
+    # the NASA-TLX after both test blocks, as marked on the screen
+    assert person.rated == 2
+    by_block: dict[int, dict[str, float]] = collections.defaultdict(dict)
+    for r in ratings:
+        assert r["scale"] == TLX_SCALE
+        by_block[int(r["block_index"])][r["item"]] = r["value"]
+    assert list(by_block.values()) == [WANT, WANT]
+    for kind in ("task", "task_alone", "tlx", "test", "block"):
+        assert person.kinds[kind] > 0, kind
+
+
+def test_visual_items_show_at_their_onset_and_auditory_ones_are_scheduled_for_it(
+        tmp_path: Path) -> None:
+    study = load_study()
+    person = Person()
+    seen: dict[str, Any] = {}
+
+    def hook(win: ExperimentWindow, kind: str) -> None:
+        person(win, kind)
+        seen["win"] = win
+        glyph = win.view(win.clock.now_ns()).glyph
+        if glyph is not None and kind in ("test", "task_alone"):
+            # two copies, left and right of the ellipse, clear of it, same height
+            left, right = win.renderer.glyph_rects(glyph)
+            g = win.renderer.geometry
+            assert left.right < g.cx - g.rx and right.left > g.cx + g.rx
+            assert left.centery == right.centery == round(g.cy)
+            assert (g.cx - left.centerx) == pytest.approx(right.centerx - g.cx, abs=1)
+
+    with Store.open(tmp_path / "s.sqlite") as store:
+        clock = SimClock()
+        sched = make_schedule(study, "P01")
+        cursor = ScriptedCursor(answers={t.trial_index: t.target_deg for t in sched})
+        with open_belt("sim", clock=clock, layout=study.layout_obj()) as belt:
+            res = run_with_window(study, "P01", belt, "scripted", store, clock=clock,
+                                  cursor=cursor, size=SIZE, auto_continue_s=None,
+                                  on_frame=hook)
+        events = store.task_events(res.session_id)
+    win: ExperimentWindow = seen["win"]
+    items = {(e["task"], e["phase"], e["item_index"]): e for e in events
+             if e["item_index"] >= 0}
+    # every visual item was drawn within one sampling tick (10 ms) of its onset
+    vis_onsets = sorted(e["t_ns"] for k, e in items.items() if k[0] == "vis")
+    shown = dict(win.tasks.glyph_frames)
+    assert sorted(shown) == vis_onsets
+    assert all(0 <= shown[t] - t <= 10 * MS for t in vis_onsets)
+    # every auditory item was handed to the sound output for its onset (simulated
+    # clock: the silent output records it; tests/test_task_audio.py plays real ones)
+    audio = win.tasks.audio
+    assert isinstance(audio, SilentTaskAudio)
+    aud = sorted((e["t_ns"], e["stimulus"]) for k, e in items.items() if k[0] == "aud")
+    assert sorted((p.onset_ns, p.label) for p in audio.played) == aud
+    assert all(p.label.startswith("tone") for p in audio.played)
+
+
+def test_the_tlx_is_operable_with_the_stick_alone(tmp_path: Path) -> None:
+    study = load_study()
+    clock = SimClock()
+    stick = FakeStick(100)
+    cursor = JoystickCursor(JoystickConfig(), backend=FakeBackend(stick))
+    moves = iter([(0.0, 0.0)] * 3 + [
+        *[m for k in STEPS for m in [(1.0, 0.0), (0.0, 0.0)]
+          + [(1.0 if k > 0 else -1.0, 0.0), (0.0, 0.0)] * abs(k)
+          + [(0.0, 1.0), (0.0, 0.0)]]])
+    state: dict[str, Any] = {"confirmed": False}
+
+    def hook(win: ExperimentWindow, kind: str) -> None:
+        assert kind == "tlx"
+        nxt = next(moves, None)
+        if nxt is not None:
+            stick.axes[0], stick.axes[1] = nxt  # SDL: + is right, + is pulled back
+            return
+        if not state["confirmed"]:
+            state["confirmed"] = True
+            pygame.event.post(pygame.event.Event(pygame.JOYBUTTONDOWN, button=0,
+                                                 instance_id=100, joy=0))
+
+    win = ExperimentWindow(study, clock, input_kind="joystick", size=SIZE, on_frame=hook)
+    try:
+        win.attach_cursor(cursor)
+        info = WorkloadInfo(1, "letters", "static", 8, "vis", study.tasks["vis"])
+        answer = win.ask_workload(info)
+    finally:
+        win.close()
+    # each (0, 1) above pulls the stick back (SDL's + y): down to the next scale
+    assert answer == WANT
+
+
+def test_confirming_with_a_scale_unmarked_selects_it_and_says_so() -> None:
+    form = TlxForm()
+    form.select(2)
+    form.move(1)
+    assert form.values[2] == 50 and not form.confirm()
+    assert form.selected == 0 and form.hint is not None and "6" not in form.hint
+    assert "5 not yet marked" in form.hint
+    for i in range(len(TLX_SCALES)):
+        form.set(i, 0.333)
+    assert form.values == [35] * 6 and form.confirm()
+    assert form.result() == dict.fromkeys(TLX_ITEMS, 35.0)
+    # the standard anchors
+    anchors = {s.item: (s.low, s.high) for s in TLX_SCALES}
+    assert anchors["performance"] == ("Perfect", "Failure")
+    assert all(v == ("Very low", "Very high") for k, v in anchors.items()
+               if k != "performance")
+
+
+def test_a_task_on_an_experimenter_key_is_refused_when_the_window_opens() -> None:
+    study = load_study()
+    spec = study.tasks["vis"].model_copy(update={"response": "key:p"})
+    bad = study.model_copy(update={"tasks": {"vis": spec, "aud": study.tasks["aud"]}})
+    with pytest.raises(ConfigError, match="experimenter's keys"):
+        ExperimentWindow(bad, SimClock(), size=SIZE)
+    assert isinstance(spec, TaskSpec)
