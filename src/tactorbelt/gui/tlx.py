@@ -272,7 +272,7 @@ class TlxScreen:
             surface.blit(t, t.get_rect(midtop=(w // 2, y)))
             y += t.get_height()
         y += int(10 * u)
-        bottom_room = int(120 * u)
+        bottom_room = int(150 * u)
         row_h = max(int((h - y - bottom_room) / len(TLX_SCALES)), int(40 * u))
         track_w = int(min(w * 0.56, 900 * u))
         x0 = (w - track_w) // 2
@@ -326,7 +326,14 @@ class TlxScreen:
                      border_radius=int(8 * u))
         t = text("Done", int(26 * u), colors["text"])
         surface.blit(t, t.get_rect(center=done.center))
-        help_ = f.hint or ("Up/down: choose a scale.  Left/right: move its mark.  "
-                           "Button or Space: done.  Or click on the scales.")
-        t = text(help_, int(20 * u), colors["banner"] if f.hint else colors["text_dim"])
-        surface.blit(t, t.get_rect(midleft=(x0 - int(24 * u), done.centery)))
+        help_ = ("Up/down: choose a scale.  Left/right: move its mark.  "
+                 "Button or Space: done.  Or click on the scales.")
+        t = text(help_, int(20 * u), colors["text_dim"])
+        surface.blit(t, t.get_rect(midbottom=(w // 2, done.top - int(6 * u))))
+        if f.hint:
+            lines = renderer._wrap([f.hint], int(22 * u), done.left - x0 - int(40 * u))
+            yh = done.centery - len(lines[:2]) * int(11 * u)
+            for line in lines[:2]:
+                t = text(line, int(22 * u), colors["banner"])
+                surface.blit(t, (x0 - int(24 * u), yh))
+                yh += int(22 * u)
