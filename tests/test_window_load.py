@@ -285,3 +285,29 @@ def test_a_task_on_an_experimenter_key_is_refused_when_the_window_opens() -> Non
     with pytest.raises(ConfigError, match="experimenter's keys"):
         ExperimentWindow(bad, SimClock(), size=SIZE)
     assert isinstance(spec, TaskSpec)
+
+
+def test_the_analysis_reads_the_windowed_sessions_task_events_and_ratings(
+        tmp_path: Path) -> None:
+    tasks_analysis = pytest.importorskip(
+        "tactorbelt.analysis.tasks", reason="the analysis of secondary tasks (load-model)")
+    study = load_study()
+    with Store.open(tmp_path / "s.sqlite") as store:
+        sid = _run(study, store, Person()).session_id
+    with Store.open(tmp_path / "s.sqlite") as store:
+        events = [dict(e, participant="P01") for e in store.task_events(sid)]
+        trials = store.trials(sid)
+        ratings = store.ratings(sid)
+    rows = {(r["task"], r["phase"]): r for r in tasks_analysis.secondary_task_rows(events)}
+    assert set(rows) == {(t, p) for t in ("vis", "aud") for p in ("practice", "baseline",
+                                                                   "dual")}
+    assert rows[("vis", "practice")]["items"] == 5 and rows[("aud", "baseline")]["items"] == 5
+    for r in rows.values():  # the person pressed on every match and only then
+        assert r["misses"] == r["false_alarms"] == r["extra_presses"] == 0
+        assert r["median_rt_s"] is None or r["median_rt_s"] == pytest.approx(0.35, abs=0.011)
+    block = {int(t["block_index"]): (t["load"], t["condition"]) for t in trials}
+    tlx = tasks_analysis.tlx_rows([
+        dict(r, participant="P01", load=block[int(r["block_index"])][0],
+             condition=block[int(r["block_index"])][1]) for r in ratings])
+    assert [(r["load"], r["raw_tlx"]) for r in tlx] == [
+        ("vis", sum(WANT.values()) / 6), ("aud", sum(WANT.values()) / 6)]
