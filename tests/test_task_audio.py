@@ -5,7 +5,8 @@ mixed stream to a file, in a fresh process (SDL picks its driver once per proces
 ``support/task_audio_probe.py``). The disk driver writes a block to the file as soon as
 the callback filled it, so the clock reading at the callback is the time the block's
 first frame came out; every tone must be in the file, whole, on the frame output at its
-onset (within 5 ms).
+onset (within 5 ms), unless the machine starved SDL's audio thread at that block (then
+the tone comes out late, and its placement must say so).
 """
 
 from __future__ import annotations
@@ -141,7 +142,17 @@ def test_tones_come_out_of_the_sound_stream_at_their_onsets(tmp_path: Path) -> N
         # when that frame came out: its block's write time plus its place in the block
         i = int(np.searchsorted(frames, frame, side="right")) - 1
         out_ns = written[i] + (frame - frames[i]) * 1e9 / rate
-        errors_ms.append((out_ns - onset) / 1e6)
+        error_ms = (out_ns - onset) / 1e6
+        # a block SDL's thread filled more than 4 ms after the previous one ended (the
+        # machine starved the thread) comes out late whatever the scheduler does: then
+        # the tone must say how late it is
+        starved = i > 0 and written[i] - written[i - 1] - (frames[i] - frames[i - 1]) \
+            * 1e9 / rate > 4e6
+        if starved:
+            assert late_ns / 1e6 >= error_ms - 1.0, (label, error_ms, late_ns)
+        else:
+            errors_ms.append(error_ms)
+    assert len(errors_ms) >= 4
     assert max(abs(e) for e in errors_ms) <= 5.0, errors_ms
     # closed in silence
     assert x.size >= pre + d["frames"] and not x[pre + d["frames"] - 480:].any()

@@ -836,6 +836,13 @@ class ExperimentWindow:
             else:
                 lines.append(f"last: {r.status}"
                              + (f" ({r.abort_reason})" if r.abort_reason else ""))
+        tasks = self.tasks
+        if tasks.running and tasks.spec is not None:
+            audio = tasks.audio
+            late = len(audio.late) if audio is not None else 0
+            lines.append(f"task {tasks.name} ({tasks.phase}): {len(tasks.items)} items so far, "
+                         f"response {tasks.spec.response}"
+                         + (f", {late} sounds late" if late else ""))
         live = self._live
         x, y = self._cursor_pos() or (0.0, 0.0)
         name = live.name if live is not None else None

@@ -371,6 +371,11 @@ class SdlTaskAudio(TaskAudio):
             return
         self._closed = True
         self._closing = True
+        late = self.late
+        if late:
+            log.warning("%d of %d task sounds started more than 1 ms after their onset "
+                        "(at worst %.1f ms): the audio thread did not get the CPU in time",
+                        len(late), len(self.played), max(p.late_ns for p in late) / 1e6)
         self._inbox.clear()
         end = time.monotonic() + CLOSE_WAIT_S
         while self._silent_blocks == 0 and time.monotonic() < end:
