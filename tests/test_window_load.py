@@ -130,15 +130,15 @@ class Person:
             _click(1, tlx.rects["done"].center)
 
 
-def _run(study: Study, store: Store, person: Person, **kw: Any) -> Any:
+def _run(study: Study, store: Store, on_frame: Any) -> Any:
+    """The session through the window on a simulated clock; ``on_frame`` acts."""
     clock = SimClock()
     sched = make_schedule(study, "P01")
     cursor = ScriptedCursor(answers={t.trial_index: t.target_deg for t in sched})
     with open_belt("sim", clock=clock, layout=study.layout_obj()) as belt:
-        res = run_with_window(study, "P01", belt, "scripted", store, clock=clock,
-                              cursor=cursor, size=SIZE, auto_continue_s=None,
-                              on_frame=person, **kw)
-    return res
+        return run_with_window(study, "P01", belt, "scripted", store, clock=clock,
+                               cursor=cursor, size=SIZE, auto_continue_s=None,
+                               on_frame=on_frame)
 
 
 @pytest.fixture(autouse=True)
@@ -202,13 +202,7 @@ def test_visual_items_show_at_their_onset_and_auditory_ones_are_scheduled_for_it
             assert (g.cx - left.centerx) == pytest.approx(right.centerx - g.cx, abs=1)
 
     with Store.open(tmp_path / "s.sqlite") as store:
-        clock = SimClock()
-        sched = make_schedule(study, "P01")
-        cursor = ScriptedCursor(answers={t.trial_index: t.target_deg for t in sched})
-        with open_belt("sim", clock=clock, layout=study.layout_obj()) as belt:
-            res = run_with_window(study, "P01", belt, "scripted", store, clock=clock,
-                                  cursor=cursor, size=SIZE, auto_continue_s=None,
-                                  on_frame=hook)
+        res = _run(study, store, hook)
         events = store.task_events(res.session_id)
     win: ExperimentWindow = seen["win"]
     items = {(e["task"], e["phase"], e["item_index"]): e for e in events
@@ -311,3 +305,31 @@ def test_the_analysis_reads_the_windowed_sessions_task_events_and_ratings(
              condition=block[int(r["block_index"])][1]) for r in ratings])
     assert [(r["load"], r["raw_tlx"]) for r in tlx] == [
         ("vis", sum(WANT.values()) / 6), ("aud", sum(WANT.values()) / 6)]
+
+
+def test_the_block_after_a_practice_run_shows_its_own_targets_and_task(tmp_path: Path) -> None:
+    study = make_study(
+        minimal=True, name="calm-then-busy", tactors=4, targets=8, iti_s=0.3,
+        break_every=0, training=0, timeout_s=3.0, max_presentation_s=2.0,
+        blocks=[{"name": "calm", "condition": "static", "repetitions": 1},
+                {"name": "busy", "condition": "static", "repetitions": 1, "targets": 12,
+                 "load": "vis"}],
+        tasks={"vis": {"kind": "nback", "n": 1, "modality": "visual", "interval_s": 0.9,
+                       "stimulus_s": 0.4, "response": "key:j", "practice": 3}})
+    person = Person()
+    blocks: list[tuple[int, list[str]]] = []
+    last = [""]
+
+    def hook(win: ExperimentWindow, kind: str) -> None:
+        if kind == "block" and last[0] != "block":  # each block screen once
+            blocks.append((win._n_targets, list(win.view(0).modal_lines)))
+        last[0] = kind
+        person(win, kind)
+
+    with Store.open(tmp_path / "s.sqlite") as store:
+        res = _run(study, store, hook)
+    assert res.status == "complete"
+    assert person.kinds["task"] > 0 and person.kinds["task_alone"] > 0
+    (n_calm, calm), (n_busy, busy) = blocks
+    assert n_calm == 8 and not any("also do the task" in line for line in calm)
+    assert n_busy == 12 and any("also do the task: 1-back (letters)" in line for line in busy)

@@ -226,11 +226,12 @@ class ExperimentWindow:
         from .taskview import TaskPresenter
 
         self.tasks = TaskPresenter(clock)
+        #: a practice or baseline run is on: the task alone, no trial on screen
+        self.task_alone = False
         self._task_intro: tuple[str, list[str]] | None = None
         self._intros_shown: set[tuple[str, str]] = set()
         self._block_task: tuple[str, TaskSpec] | None = None
         self._tlx: TlxScreen | None = None
-        self.ratings: list[tuple[WorkloadInfo, dict[str, float] | None]] = []
         try:
             self._open_task_audio()
         except BaseException:
@@ -368,8 +369,10 @@ class ExperimentWindow:
         ends (silence, no glyph)."""
         if name is None or spec is None or phase is None:
             self.tasks.end()
+            self.task_alone = False
             return
         self.tasks.start(name, spec, phase)
+        self.task_alone = phase in ("practice", "baseline")
         if phase in ("practice", "baseline") and (name, phase) not in self._intros_shown:
             from .taskview import instructions
 
@@ -379,7 +382,6 @@ class ExperimentWindow:
             assert self.tasks.response is not None
             self._task_intro = instructions(name, spec, phase, n,
                                             self.tasks.response.words(), go_on)
-            self.current = None  # no trial on screen during the task alone
             try:
                 self._wait_screen("task")
             finally:
@@ -420,9 +422,7 @@ class ExperimentWindow:
             self._continue = False
             self._frames = Deadlines(self.clock, self.fps)
             pg.mouse.set_visible(visible)
-        answer = form.result() if form.done and not self.abort_requested else None
-        self.ratings.append((info, answer))
-        return answer
+        return form.result() if form.done and not self.abort_requested else None
 
     # ------------------------------------------------------------------------------------
     # commands
@@ -622,9 +622,9 @@ class ExperimentWindow:
             return "pause"
         if self.screen in WAIT_KINDS or self.screen == "tlx":
             return self.screen
-        cur = self.current
-        if cur is None and self.tasks.phase in ("practice", "baseline"):
+        if self.task_alone:
             return "task_alone"
+        cur = self.current
         if cur is not None and cur.trial.block == "training":
             return "feedback" if view.chosen_deg is not None else "training"
         return "test"
@@ -655,6 +655,8 @@ class ExperimentWindow:
         if live is not None:
             x, y, _ = live.state
             return (x, y)
+        if self.task_alone:
+            return (0.0, 0.0)
         if self.current is not None and self.last_sample is not None:
             return (self.last_sample.x, self.last_sample.y)
         return (0.0, 0.0)
@@ -675,7 +677,7 @@ class ExperimentWindow:
                  tactors_deg=self._tactors, home_radius=self._home_radius)
         v.cursor = self._cursor_pos()
         go_on, move = self._input_words()
-        cur = self.current
+        cur = None if self.task_alone else self.current
         block = cur.trial.block if cur is not None else self.block
         # status line (participant-facing)
         if block == "training":
@@ -716,7 +718,7 @@ class ExperimentWindow:
         # the secondary task
         v.glyph = self.tasks.glyph_at(now_ns)
         task_phase = self.tasks.phase
-        if cur is None and task_phase in ("practice", "baseline") and self.screen == "trial":
+        if self.task_alone and self.screen == "trial":
             v.status_left = "Practice" if task_phase == "practice" else "The task alone"
             button = self.tasks.response
             spec = self.tasks.spec
