@@ -10,6 +10,8 @@ import sqlite3
 from pathlib import Path
 from typing import Any
 
+import pytest
+
 from support.studies import make_study
 from support.tasks import TaskCursor, judge
 from tactorbelt.clock import SimClock
@@ -122,7 +124,7 @@ class Window(NullObserver):
 
     def on_task_phase(self, name: str | None, spec: Any, phase: str | None) -> None:
         self.phases.append((name, phase))
-        self.spec, self.history = spec, []
+        self.spec, self.history, self.due = spec, [], []
 
     def on_task_item(self, item: Any, onset_ns: int, spec: Any) -> None:
         self.items.append((item.stimulus, onset_ns))
@@ -329,3 +331,98 @@ def test_export_writes_task_events_and_ratings(tmp_path: Path) -> None:
         rated = list(csv.DictReader(fh))
     assert [(r["block_index"], r["item"], float(r["value"])) for r in rated] == [
         (str(r["block_index"]), r["item"], r["value"]) for r in ratings]
+
+
+def test_the_run_summary_counts_the_secondary_task(tmp_path: Path) -> None:
+    from tactorbelt.launch import task_lines
+
+    study = load_study()
+    with Store.open(tmp_path / "s.sqlite") as store:
+        _run(study, store, _cursor(study, miss_every=2, extra_presses_s=[0.9, 1.2]))
+        events = store.task_events()
+    lines = task_lines(events)
+    assert [line.split()[:3] for line in lines] == [
+        ["nb2", "practice", "6"], ["nb2", "baseline", "10"],
+        ["nb2", "dual", lines[2].split()[2]]]
+    for line, phase in zip(lines, ("practice", "baseline", "dual"), strict=True):
+        items = [e for e in events if e["phase"] == phase and e["item_index"] >= 0]
+        go = sum(e["target"] for e in items)
+        hits = sum(1 for e in items if e["target"] and e["response"])
+        assert f"{hits}/{go} go items pressed" in line
+        # item 0 (never a go item in 2-back): pressed 0.9 s after its onset, and again
+        assert f"1/{len(items) - go} false alarms" in line
+        assert "1 extra presses" in line
+        assert ("median RT 0.40 s" in line) == (hits > 0)
+    assert any(e["target"] and not e["response"] for e in events)  # every 2nd go missed
+
+
+def test_a_break_ends_a_part_of_the_run_and_the_task_goes_on_after(tmp_path: Path) -> None:
+    study = make_study(
+        minimal=True, name="load", tactors=4, targets=8, iti_s=0.5, break_every=5,
+        training=0, blocks=[{"name": "busy", "condition": "static", "repetitions": 2,
+                             "load": "nb2"}],
+        tasks={"nb2": {"kind": "nback", "n": 2, "interval_s": 1.0, "practice": 0}})
+
+    class Breaks(Window):
+        def on_break(self, n_done: int, n_total: int) -> None:
+            self.phases.append(("break", None))
+
+    window = Breaks()  # the window's presses alone
+    with Store.open(tmp_path / "s.sqlite") as store:
+        _run(study, store, _scripted(study), observer=window)
+        items = [e for e in store.task_events() if e["item_index"] >= 0]
+    assert window.phases == [("nb2", "dual"), (None, None), ("break", None)] * 3 + [
+        ("nb2", "dual"), (None, None)]
+    idx = [e["item_index"] for e in items]
+    assert idx == sorted(set(idx)) and len(items) > 10
+    assert all(e["correct"] for e in items)  # each part's n-back starts afresh
+
+
+def test_events_are_kept_when_the_session_fails_mid_block(tmp_path: Path) -> None:
+    study = load_study()
+    busy = _busy_index(study)
+
+    class CtrlC(TaskCursor):
+        def task_item(self, item: Any, onset_ns: int) -> None:
+            super().task_item(item, onset_ns)
+            if len(self.items) == 6 + 10 + 5:  # the 5th item of the block's run
+                raise KeyboardInterrupt
+
+    sched = make_schedule(study, "P01")
+    with Store.open(tmp_path / "s.sqlite") as store:
+        with pytest.raises(KeyboardInterrupt):
+            _run(study, store, CtrlC(answers={t.trial_index: t.target_deg for t in sched}))
+        (session,) = store.sessions()
+        dual = [e for e in store.task_events() if e["phase"] == "dual"]
+    assert session["status"] == "interrupted"
+    assert {e["block_index"] for e in dual} == {busy}
+    # items 0-3 were shown; item 3's window was cut short: kept only when pressed
+    assert [e["item_index"] for e in dual if e["item_index"] >= 0] in ([0, 1, 2],
+                                                                        [0, 1, 2, 3])
+
+
+def test_a_questionnaire_cut_short_is_asked_first_on_resume(tmp_path: Path) -> None:
+    study = load_study()
+    busy = _busy_index(study)
+
+    class Closes(TaskCursor):
+        def rate_workload(self, info: WorkloadInfo) -> dict[str, float] | None:
+            if info.block_index == busy:  # the window closed on the TLX screen
+                raise KeyboardInterrupt
+            return super().rate_workload(info)
+
+    sched = make_schedule(study, "P01")
+    answers = {t.trial_index: t.target_deg for t in sched}
+    db = tmp_path / "s.sqlite"
+    with Store.open(db) as store:
+        with pytest.raises(KeyboardInterrupt):
+            _run(study, store, Closes(answers=answers, tlx=TLX))
+        assert {r["block_index"] for r in store.ratings()} == {1 - busy}
+        assert len(store.finished_indices(1)) == len(sched)  # every trial done
+    cursor = _cursor(study, tlx=TLX)
+    with Store.open(db) as store:
+        res = _run(study, store, cursor, resume=True)
+        assert res.status == "complete" and res.n_run == 0
+        assert {r["block_index"] for r in store.ratings()} == {0, 1}
+    assert [i.block_index for i in cursor.rated] == [busy]
+    assert cursor.phases == []  # no task ran again

@@ -17,6 +17,7 @@ from support.stores import (
     SCHEDULE,
     URLS,
     make_result,
+    make_schema_2,
     make_session,
     set_schema_version,
     store_params,
@@ -280,3 +281,22 @@ def test_a_failed_event_write_writes_none_of_them(backend: tuple[str, str]) -> N
         with pytest.raises(StoreError, match="finite"):
             store.write_ratings(sid, 0, "nasa_tlx", {"mental": float("nan")})
         assert store.task_events(sid) == [] and store.ratings(sid) == []
+
+
+def test_a_store_of_schema_2_gains_the_task_tables(backend: tuple[str, str]) -> None:
+    scheme, url = backend
+    with open_store(url) as store:
+        sid = make_session(store)
+        store.write_trial(sid, make_result(0))
+    make_schema_2(scheme, url)
+    with open_store(url, create=False, readonly=True) as reader:  # readers change nothing
+        assert reader.task_events() == [] and reader.ratings() == []
+        assert reader.table_columns("task_events") == []
+    with open_store(url) as store:  # a writer migrates it
+        assert len(store.trials(sid)) == 1
+        assert set(TASK_EVENT_COLUMNS) <= set(store.table_columns("task_events"))
+        assert set(RATING_COLUMNS) <= set(store.table_columns("ratings"))
+        store.write_task_events(sid, _events(0, "dual"))
+        store.write_ratings(sid, 0, "nasa_tlx", {"mental": 12.5})
+    with open_store(url, create=False, readonly=True) as reader:
+        assert len(reader.task_events(sid)) == 3 and reader.ratings(sid)[0]["value"] == 12.5

@@ -23,6 +23,7 @@ from support.stores import make_result, make_session
 from support.studies import make_study, write_study
 from tactorbelt import StoreError
 from tactorbelt.experiment.store import open_store
+from tactorbelt.tasks.schedule import TaskEvent
 
 pytest.importorskip("psycopg")
 
@@ -294,11 +295,17 @@ def test_a_site_writer_reads_nothing_of_another_site(pg_server: Any, pg_url: str
     with open_store(lyon_url) as lyon:
         sid = make_session(lyon, "L01", site="lyon")
         lyon.write_trial(sid, make_result(0))
+        lyon.write_task_events(sid, [TaskEvent(0, "nb", "dual", 0, 1, "K", False, "", True,
+                                               None)])
+        lyon.write_ratings(sid, 0, "nasa_tlx", {"mental": 50.0})
         assert [s["participant"] for s in lyon.sessions()] == ["L01"]
     with open_store(oslo_url) as oslo:
         make_session(oslo, "O01", site="oslo")
         assert [s["participant"] for s in oslo.sessions()] == ["O01"]
         assert oslo.trials() == [] and oslo.samples_of([1, 2, 3]) == []
+        assert oslo.task_events() == [] and oslo.ratings() == []
+        with pytest.raises(StoreError):  # nor write rows of another site's session
+            oslo.write_ratings(sid, 0, "nasa_tlx", {"mental": 1.0})
         with pytest.raises(StoreError, match="no session"):
             oslo.session(sid)
         with pytest.raises(StoreError):  # writing another site's rows is refused
@@ -308,6 +315,7 @@ def test_a_site_writer_reads_nothing_of_another_site(pg_server: Any, pg_url: str
     with open_store(pg_server.url(name, "analyst1"), create=False, readonly=True) as a:
         assert sorted(s["participant"] for s in a.sessions()) == ["L01", "O01"]
         assert len(a.trials()) == 1
+        assert len(a.task_events()) == 1 and len(a.ratings()) == 1
     with open_store(pg_server.url(name, "analyst1")) as a, pytest.raises(StoreError):
         make_session(a, "X01", site="lyon")
 
@@ -344,7 +352,6 @@ def test_sync_copies_task_events_and_ratings_once(tmp_path: Path, pg_url: str) -
     from tactorbelt.experiment.schedule import make_schedule
     from tactorbelt.experiment.sync import sync_stores
     from tactorbelt.tasks import TLX_ITEMS
-    from tactorbelt.tasks.schedule import TaskEvent
 
     study = make_study(minimal=True, name="load", tactors=4, targets=8, training=0,
                        iti_s=0.2, break_every=0,

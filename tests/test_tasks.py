@@ -226,3 +226,24 @@ def test_tlx_ratings_are_checked() -> None:
                 {k: v for k, v in good.items() if k != "physical"}, {**good, "fun": 3}):
         with pytest.raises(ConfigError, match="NASA-TLX"):
             check_tlx(bad)
+
+
+def test_study_check_shows_the_tasks_and_counts_their_time() -> None:
+    from tactorbelt.experiment.study import describe
+
+    design = {"targets": [8], "condition": ["static"], "load": ["none", "nb2", "rest"],
+              "repetitions": 1}
+    plain = make_study(design={**design, "load": ["none"]}, training=0)
+    study = make_study(design=design, training=0, questionnaire={"tlx": True},
+                       tasks={"nb2": {"kind": "nback", "n": 2, "practice": 10, "baseline": 20},
+                              "rest": {"kind": "none"}, "unused": {"kind": "arithmetic"}})
+    assert list(study.used_tasks()) == ["nb2"]
+    text = describe(study).to_text()
+    assert ("  task        nb2: auditory 2-back, an item every 2.5 s (0.5 s long), press "
+            "joystick:1 on 30% go items; 10 practice items, 20 baseline items before its "
+            "first block") in text
+    assert "unused" not in text and "rest:" not in text
+    assert "  ratings     raw NASA-TLX (6 items, 0-100) after each test block" in text
+    per_block = plain.estimate_duration_s()  # one block of 8 trials
+    assert study.estimate_duration_s() == pytest.approx(
+        3 * per_block + 30 * 2.5 + 3 * 60.0)

@@ -58,6 +58,7 @@ class TaskCursor(ScriptedCursor):
         self.spec = spec
         self.phases.append((None if spec is None else spec.kind, phase))
         self._history = []
+        self._due = []  # a new run: what was planned for the last one is dropped
         self._first_onset = None
 
     def task_item(self, item: TaskItem, onset_ns: int) -> None:

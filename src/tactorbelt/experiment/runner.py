@@ -472,17 +472,21 @@ class SessionRunner:
             ts.press(p)
 
     def _start_task(self, run: _TaskRun) -> None:
-        """Start (or go on with) a task run: tell the window and the cursor source, then
-        put item ``run.next_index`` at now + the lead time."""
+        """Start (or go on with) a task run: tell the window and the cursor source, drop
+        the presses made while no task ran, then put item ``run.next_index`` at now +
+        the lead time."""
         if run.remaining is not None and run.remaining <= 0:
             self._task = None
             return
         self.obs.on_task_phase(run.name, run.spec, run.phase)
         self.cursor.task_phase(run.spec, run.phase)
+        now = self.clock.now_ns()
+        self.obs.task_presses(now)  # pressed while no task ran: not part of this run
+        self.cursor.task_presses(now)
         seed = derive_seed(self.seed_used, self.participant, run.name, run.phase,
                            run.block_index, run.next_index)
         run.session = TaskSession(run.name, run.spec, run.phase, run.block_index, seed,
-                                  self.clock.now_ns() + TASK_LEAD_NS, run.remaining,
+                                  now + TASK_LEAD_NS, run.remaining,
                                   first_index=run.next_index)
         self._task = run
 
@@ -570,6 +574,14 @@ class SessionRunner:
             self.store.write_ratings(self.session_id, t.block_index, TLX_SCALE,
                                      check_tlx(values))
             self._rated.add(t.block_index)
+
+    def _rate_unrated_before(self, todo: list[ScheduledTrial]) -> None:
+        """On resume: the block finished just before the interruption, when its
+        NASA-TLX was not stored (the session stopped during the questionnaire)."""
+        first = todo[0].trial_index if todo else len(self.schedule)
+        before = [t for t in self.schedule if t.trial_index < first]
+        if before and not (todo and todo[0].block_index == before[-1].block_index):
+            self.rate_block(before[-1])
 
     def wait_for(self, duration_ns: int) -> None:
         """Wait ``duration_ns`` in sampling steps (the last one ends at the end), pumping
@@ -731,6 +743,8 @@ class SessionRunner:
         break_every = self.study.session.break_every
         n_total = len(self.schedule)
         prev_block: int | None = None
+        if self.resume:
+            self._rate_unrated_before(todo)
         i = 0
         while i < len(todo):
             t = todo[i]

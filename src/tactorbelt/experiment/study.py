@@ -489,12 +489,27 @@ class Study(_Model):
     def n_trials(self) -> int:
         return self.n_training_trials() + self.n_test_trials()
 
-    def estimate_duration_s(self, response_s: float = 2.0, break_s: float = 60.0) -> float:
-        """A rough session length: each trial takes ``response_s`` plus the ITI, plus breaks."""
+    def used_tasks(self) -> dict[str, TaskSpec]:
+        """The tasks that run: those of the test blocks' loads (not ``kind = "none"``),
+        in the order of their first block in the file."""
+        out: dict[str, TaskSpec] = {}
+        for b in self.test:
+            spec = self.tasks.get(b.load)
+            if spec is not None and spec.active and b.load not in out:
+                out[b.load] = spec
+        return out
+
+    def estimate_duration_s(self, response_s: float = 2.0, break_s: float = 60.0,
+                            rating_s: float = 60.0) -> float:
+        """A rough session length: each trial takes ``response_s`` plus the ITI, plus
+        breaks, the secondary tasks' practice and baseline runs, and ``rating_s`` per
+        NASA-TLX (after each test block with ``[questionnaire] tlx``)."""
         n = self.n_trials()
         rt = min(response_s, self.response.timeout_s)
         n_breaks = (n - 1) // self.session.break_every if self.session.break_every else 0
-        return n * (rt + self.session.iti_s) + n_breaks * break_s
+        alone = sum((t.practice + t.baseline) * t.interval_s for t in self.used_tasks().values())
+        ratings = len(self.test) * rating_s if self.questionnaire.tlx else 0.0
+        return n * (rt + self.session.iti_s) + n_breaks * break_s + alone + ratings
 
     # -- TOML --------------------------------------------------------------------
     @classmethod
@@ -969,15 +984,25 @@ class StudyDescription:
             out.append(f"    {c.block:<{width}s} {c.trials:4d} trials "
                        f"({c.condition}{load}, {plural(c.repetitions, 'repetition')} x "
                        f"{plural(c.n_targets, 'target')})")
+        for name, t in s.used_tasks().items():
+            what = (f"{t.n}-back" if t.kind == "nback" else "odd sums (a+b)")
+            out.append(f"  task        {name}: {t.modality} {what}, an item every "
+                       f"{t.interval_s:g} s ({t.stimulus_s:g} s long), press {t.response} "
+                       f"on {t.match_rate:.0%} go items; {plural(t.practice, 'practice item')}"
+                       f", {plural(t.baseline, 'baseline item')} before its first block")
+        if s.questionnaire.tlx:
+            out.append("  ratings     raw NASA-TLX (6 items, 0-100) after each test block")
         out.append(f"  total       {s.n_trials()} trials ({s.n_test_trials()} test)")
         out.append(f"  order       {self.order_rule} (balanced over "
                    f"{plural(self.balance_participants, 'participant')}); "
                    f"{self.participant}: {' -> '.join(self.order)}")
         out.append(f"  breaks      {self.n_breaks} (every {s.session.break_every} trials)"
                    if self.n_breaks else "  breaks      none")
+        extra = (" + the tasks' practice and baseline" if s.used_tasks() else "") + (
+            " + 1 min per NASA-TLX" if s.questionnaire.tlx else "")
         out.append(f"  duration    about {_minutes(self.duration_s)} "
                    f"(2 s per response + {s.session.iti_s:g} s ITI per trial + 1 min per "
-                   f"break); at most {_minutes(self.max_duration_s)}")
+                   f"break{extra}); at most {_minutes(self.max_duration_s)}")
         return "\n".join(out)
 
 

@@ -281,6 +281,7 @@ class PostgreSQLStore(Store):
         self._closed = False
         self._trial_columns: set[str] | None = None
         self._row_security: bool | None = None
+        self._tables: set[str] | None = None
 
     # -- opening -----------------------------------------------------------------------
     @classmethod
@@ -599,8 +600,20 @@ class PostgreSQLStore(Store):
                 f"INSERT INTO tactorbelt.task_events({', '.join(TASK_EVENT_COLUMNS)}) "
                 f"VALUES ({', '.join(['%s'] * len(TASK_EVENT_COLUMNS))})", rows)
 
+    def _has_table(self, table: str) -> bool:
+        """Whether the store has ``table`` (a store of schema 2 opened read-only lacks
+        the task tables; a writer has migrated it)."""
+        if self._tables is None:
+            self._tables = {str(r[0]) for r in self._query(
+                "SELECT table_name FROM information_schema.tables WHERE table_schema=%s",
+                (PG_SCHEMA,))}
+        return table in self._tables
+
     def task_events(self, session_id: int | None = None) -> list[dict[str, Any]]:
-        """``task_events`` rows (of one session) in the order written."""
+        """``task_events`` rows (of one session) in the order written; [] before
+        schema 3."""
+        if not self._has_table("task_events"):
+            return []
         sql = f"SELECT {', '.join(TASK_EVENT_COLUMNS)} FROM tactorbelt.task_events"
         args: tuple[Any, ...] = ()
         if session_id is not None:
@@ -621,7 +634,10 @@ class PostgreSQLStore(Store):
                 " VALUES (%s, %s, %s, %s, %s, %s)", rows)
 
     def ratings(self, session_id: int | None = None) -> list[dict[str, Any]]:
-        """``ratings`` rows (of one session) by session, block and order written."""
+        """``ratings`` rows (of one session) by session, block and order written; []
+        before schema 3."""
+        if not self._has_table("ratings"):
+            return []
         sql = f"SELECT {', '.join(RATING_COLUMNS)} FROM tactorbelt.ratings"
         args: tuple[Any, ...] = ()
         if session_id is not None:
