@@ -79,6 +79,8 @@ class Person:
         self.due: list[tuple[int, str]] = []  # (press at, response)
         self.pressed: list[int] = []  # when the presses were posted (sim ns)
         self.rated = 0
+        self.subtitles: list[str] = []
+        self.abort_tlx = False
         self._tlx_sent = False
 
     def __call__(self, win: ExperimentWindow, kind: str) -> None:
@@ -112,6 +114,12 @@ class Person:
             self._tlx_sent = False
 
     def rate(self, win: ExperimentWindow) -> None:
+        assert win._tlx is not None
+        self.subtitles.append(win._tlx.subtitle)
+        if self.abort_tlx:  # the experimenter stops the session on the TLX screen
+            _key(pygame.K_ESCAPE)
+            _key(pygame.K_ESCAPE)
+            return
         self.rated += 1
         if self.tlx == "keys":
             for k in STEPS:
@@ -130,7 +138,7 @@ class Person:
             _click(1, tlx.rects["done"].center)
 
 
-def _run(study: Study, store: Store, on_frame: Any) -> Any:
+def _run(study: Study, store: Store, on_frame: Any, **kw: Any) -> Any:
     """The session through the window on a simulated clock; ``on_frame`` acts."""
     clock = SimClock()
     sched = make_schedule(study, "P01")
@@ -138,7 +146,7 @@ def _run(study: Study, store: Store, on_frame: Any) -> Any:
     with open_belt("sim", clock=clock, layout=study.layout_obj()) as belt:
         return run_with_window(study, "P01", belt, "scripted", store, clock=clock,
                                cursor=cursor, size=SIZE, auto_continue_s=None,
-                               on_frame=on_frame)
+                               on_frame=on_frame, **kw)
 
 
 @pytest.fixture(autouse=True)
@@ -179,6 +187,8 @@ def test_a_windowed_load_session_stores_the_presses_and_the_ratings(tmp_path: Pa
         assert r["scale"] == TLX_SCALE
         by_block[int(r["block_index"])][r["item"]] = r["value"]
     assert list(by_block.values()) == [WANT, WANT]
+    assert [t.split(" is over")[0] for t in person.subtitles] == ["Test block 1 of 2",
+                                                                  "Test block 2 of 2"]
     for kind in ("task", "task_alone", "tlx", "test", "block"):
         assert person.kinds[kind] > 0, kind
 
@@ -333,3 +343,27 @@ def test_the_block_after_a_practice_run_shows_its_own_targets_and_task(tmp_path:
     (n_calm, calm), (n_busy, busy) = blocks
     assert n_calm == 8 and not any("also do the task" in line for line in calm)
     assert n_busy == 12 and any("also do the task: 1-back (letters)" in line for line in busy)
+
+
+def test_a_session_stopped_on_the_tlx_screen_asks_it_first_when_resumed(
+        tmp_path: Path) -> None:
+    study = load_study()
+    first = Person()
+    first.abort_tlx = True
+    with Store.open(tmp_path / "s.sqlite") as store:
+        res = _run(study, store, first)
+        assert res.status == "aborted" and store.ratings(res.session_id) == []
+        again = Person()
+        res2 = _run(study, store, again, resume=True)
+        ratings = store.ratings(res2.session_id)
+        events = store.task_events(res2.session_id)
+    assert res2.status == "complete" and res2.session_id == res.session_id
+    assert first.subtitles[0].startswith("Test block 1 of 2")
+    # resumed: the first block is rated first, then the second after its trials
+    assert [t.split(" is over")[0] for t in again.subtitles] == ["Test block 1 of 2",
+                                                                 "Test block 2 of 2"]
+    assert len(ratings) == 12 and {r["value"] for r in ratings} == set(WANT.values())
+    # the practice and baseline of the first task were not run again
+    count = collections.Counter((e["task"], e["phase"]) for e in events
+                                if e["item_index"] >= 0)
+    assert count[("vis", "practice")] == 5 and count[("vis", "baseline")] == 4

@@ -402,10 +402,12 @@ class ExperimentWindow:
         from .tlx import TlxForm, TlxScreen
 
         form = TlxForm()
-        k = self._test_blocks_seen
-        n = len(self.info.condition_order) if self.info is not None else k
-        sub = (f"Test block {k} of {max(n, k)} is over. Rate it: mark each scale where it "
-               "fits best.")
+        tests = sorted({t.block_index for t in self._schedule if t.block == "test"})
+        k = tests.index(info.block_index) + 1 if info.block_index in tests else \
+            self._test_blocks_seen
+        n = max(len(tests), k)
+        sub = (f"Test block {k} of {n} is over. Rate it: mark each scale where it fits "
+               "best.")
         self._tlx = TlxScreen(form, "How was that block?", sub,
                               stick=self.input_kind == "joystick")
         pg = self._pg
