@@ -11,11 +11,13 @@ the tone comes out late, and its placement must say so).
 
 from __future__ import annotations
 
+import gc
 import itertools
 import json
 import os
 import subprocess
 import sys
+import weakref
 from pathlib import Path
 from typing import Any
 
@@ -172,3 +174,13 @@ def test_the_output_is_silent_and_closed_when_the_session_fails() -> None:
     with pytest.raises(Exception, match="closed"):
         audio.schedule(tone(3, 0.2), 0)
     assert audio.played == []  # closed before its onset: never played
+
+
+def test_a_closed_output_is_released() -> None:
+    audio = SdlTaskAudio(WallClock())
+    audio.schedule(tone(0, 0.05), 0, "tone0")
+    audio.close()
+    ref = weakref.ref(audio)
+    del audio
+    gc.collect()
+    assert ref() is None  # SDL's device keeps no reference to it or its buffers

@@ -44,6 +44,7 @@ import os
 import sys
 import threading
 import time
+import weakref
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Final
 
@@ -79,8 +80,8 @@ CLOSE_WAIT_S: Final = 0.5
 #: A sound that starts more than this after its onset counts as late (ns): a stream
 #: slower than the clock (SDL's disk driver) leaves gaps of a fraction of a millisecond.
 LATE_NS: Final = 1_000_000
-#: Callback blocks remembered in :attr:`SdlTaskAudio.blocks`.
-BLOCKS_KEPT: Final = 100_000
+#: Callback blocks remembered in :attr:`SdlTaskAudio.blocks` (the last minute).
+BLOCKS_KEPT: Final = 6000
 
 FloatArray = NDArray[np.float32]
 
@@ -162,6 +163,21 @@ class _Sound:
         self.start: int | None = None
 
 
+class _Trampoline:
+    """What SDL calls: forwards to the output while it lives (a weak reference, so a
+    closed device kept in ``_RETIRED`` does not keep the output and its buffers)."""
+
+    def __init__(self, target: SdlTaskAudio) -> None:
+        self._target = weakref.ref(target)
+
+    def __call__(self, device: Any, stream: Any) -> None:
+        target = self._target()
+        if target is None:
+            np.asarray(stream).fill(0)
+        else:
+            target._callback(device, stream)
+
+
 def _driver() -> str:
     """SDL's audio driver as the environment asks for it (first of a list), or ''."""
     return os.environ.get("SDL_AUDIODRIVER", "").split(",")[0].strip().lower()
@@ -212,7 +228,8 @@ class SdlTaskAudio(TaskAudio):
 
     Attributes:
         frames: frames output so far.
-        blocks: per callback, ``(first frame, its output time, callback time)`` (ns).
+        blocks: per callback of the last minute, ``(first frame, its output time,
+            callback time)`` (ns).
         error: an exception the callback caught (it then outputs silence), or None.
 
     Raises:
@@ -253,7 +270,7 @@ class SdlTaskAudio(TaskAudio):
         try:
             sdl.init_subsystem(sdl.INIT_AUDIO)
             self._dev = sdl_audio.AudioDevice(device, False, self.rate, sdl_audio.AUDIO_F32,
-                                              1, int(block), 0, self._callback)
+                                              1, int(block), 0, _Trampoline(self))
         except Exception as exc:
             self._closed = True
             raise DeviceError(
