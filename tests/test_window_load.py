@@ -367,3 +367,27 @@ def test_a_session_stopped_on_the_tlx_screen_asks_it_first_when_resumed(
     count = collections.Counter((e["task"], e["phase"]) for e in events
                                 if e["item_index"] >= 0)
     assert count[("vis", "practice")] == 5 and count[("vis", "baseline")] == 4
+
+
+def test_pause_and_abort_silence_the_task_sounds_at_once() -> None:
+    class Output(SilentTaskAudio):
+        stops = 0
+
+        def stop(self) -> None:
+            self.stops += 1
+
+    win = ExperimentWindow(load_study(), SimClock(), size=SIZE)
+    try:
+        out = Output()
+        win.tasks.audio = out
+        _key(pygame.K_p)
+        win.step(10 * MS)
+        assert win.user_paused and out.stops == 1
+        _key(pygame.K_r)
+        win.step(20 * MS)
+        _key(pygame.K_ESCAPE)
+        _key(pygame.K_ESCAPE)
+        win.step(30 * MS)
+        assert win.abort_requested and out.stops == 2
+    finally:
+        win.close()
