@@ -391,3 +391,13 @@ def test_pause_and_abort_silence_the_task_sounds_at_once() -> None:
         assert win.abort_requested and out.stops == 2
     finally:
         win.close()
+
+
+def test_auditory_sums_longer_than_the_interval_are_refused_when_the_window_opens() -> None:
+    study = make_study(minimal=True, name="sums", tactors=4, targets=8, training=0,
+                       blocks=[{"condition": "static", "repetitions": 1, "load": "sums"}],
+                       tasks={"sums": {"kind": "arithmetic", "modality": "auditory",
+                                       "interval_s": 0.8, "stimulus_s": 0.5,
+                                       "response": "key:j"}})
+    with pytest.raises(ConfigError, match=r"tasks\.sums: an auditory sum lasts up to 0\.90 s"):
+        ExperimentWindow(study, SimClock(), size=SIZE)

@@ -29,7 +29,7 @@ from typing import TYPE_CHECKING, Any, Final
 
 from .._errors import ConfigError
 from ..tasks.audio import TaskAudio, open_task_audio
-from ..tasks.sounds import SoundBank
+from ..tasks.sounds import SoundBank, beep_slot_s
 
 if TYPE_CHECKING:
     from ..clock import Clock
@@ -147,10 +147,20 @@ def block_lines(name: str, spec: TaskSpec, button: str) -> list[str]:
 
 
 def check_responses(study: Study) -> None:
-    """Every active task's response parses and is no experimenter key (ConfigError)."""
-    for spec in study.tasks.values():
-        if spec.active:
-            parse_response(spec.response)
+    """Every active task's response parses and is no experimenter key, and an auditory
+    sum's beeps end before the next item (ConfigError)."""
+    for name, spec in study.tasks.items():
+        if not spec.active:
+            continue
+        parse_response(spec.response)
+        if spec.kind == "arithmetic" and spec.modality == "auditory":
+            slot = beep_slot_s(spec.stimulus_s)
+            longest = 9 * slot  # 4 + 4 beeps and the pause between the operands
+            if longest >= spec.interval_s:
+                raise ConfigError(
+                    f"tasks.{name}: an auditory sum lasts up to {longest:.2f} s (9 beep "
+                    f"slots of {slot:.2f} s) but interval_s is {spec.interval_s:g} s; make "
+                    f"interval_s longer than {longest:.2f} s")
 
 
 class TaskPresenter:
