@@ -401,3 +401,35 @@ def test_auditory_sums_longer_than_the_interval_are_refused_when_the_window_open
                                        "response": "key:j"}})
     with pytest.raises(ConfigError, match=r"tasks\.sums: an auditory sum lasts up to 0\.90 s"):
         ExperimentWindow(study, SimClock(), size=SIZE)
+
+
+def test_the_task_button_of_the_participants_stick_is_a_press_and_nothing_else() -> None:
+    study = load_study()
+    spec = study.tasks["vis"].model_copy(update={"response": "joystick:1"})
+    stick = FakeStick(100)
+    cursor = JoystickCursor(JoystickConfig(), backend=FakeBackend(stick))
+    win = ExperimentWindow(study, SimClock(), input_kind="joystick", size=SIZE)
+
+    def button(b: int, joy: int = 100, down: bool = True) -> None:
+        t = pygame.JOYBUTTONDOWN if down else pygame.JOYBUTTONUP
+        pygame.event.post(pygame.event.Event(t, button=b, instance_id=joy, joy=0))
+
+    try:
+        win.attach_cursor(cursor)
+        win.on_task_phase("vis", spec, "dual")
+        button(1)
+        button(1, down=False)
+        button(1, joy=200)  # another stick (the experimenter's): not the participant's
+        win.step(40 * MS)
+        assert win.task_presses(50 * MS) == [40 * MS]
+        assert not win._continue  # the task's button does not go on from a screen
+        button(0)
+        win.step(60 * MS)
+        assert win.task_presses(70 * MS) == [] and win._continue
+        win.on_task_phase(None, None, None)  # no task: button 1 is just a button again
+        win._continue = False
+        button(1)
+        win.step(80 * MS)
+        assert win.task_presses(90 * MS) == [] and win._continue
+    finally:
+        win.close()
