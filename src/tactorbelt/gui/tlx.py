@@ -167,8 +167,9 @@ class TlxScreen:
         self._dragging: int | None = None
 
     # -- input -----------------------------------------------------------------------------
-    def handle_event(self, ev: Any) -> bool:
-        """Apply ``ev`` to the form; True when it was the TLX screen's event."""
+    def handle_event(self, ev: Any, stick_id: int | None = None) -> bool:
+        """Apply ``ev`` to the form; True when it was the TLX screen's event. Joystick
+        events of a stick other than ``stick_id`` (when given) are not."""
         pg = self._pg
         f = self.form
         t = ev.type
@@ -186,6 +187,9 @@ class TlxScreen:
             else:
                 return False
             return True
+        if t in (pg.JOYBUTTONDOWN, pg.JOYHATMOTION) and stick_id is not None \
+                and getattr(ev, "instance_id", stick_id) != stick_id:
+            return False
         if t == pg.JOYBUTTONDOWN:
             f.confirm()
             return True

@@ -484,7 +484,7 @@ class ExperimentWindow:
                 live.handle_event(ev)
             if self.tasks.on_event(ev, now_ns, pg, stick_id):
                 continue  # the task's button: a response, nothing else
-            if self._tlx is not None and self._tlx.handle_event(ev):
+            if self._tlx is not None and self._tlx.handle_event(ev, stick_id):
                 continue
             t = ev.type
             if t == pg.QUIT:
