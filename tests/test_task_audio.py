@@ -122,7 +122,7 @@ def test_tones_come_out_of_the_sound_stream_at_their_onsets(tmp_path: Path) -> N
     rate = d["rate"]
     x = np.fromfile(tmp_path / "stream.raw", dtype=np.float32)
     played = {p[0]: p for p in d["played"]}
-    assert set(played) == {"marker", *(f"tone{k}" for k in range(8))}
+    assert set(played) == {"marker", "long", *(f"tone{k}" for k in range(8))}
     # the marker (an onset long past) starts on the stream's first frame: where the
     # stream begins in the file (SDL wrote silence before the device was started)
     marker = item_sound("tone7", 0.05)
@@ -156,6 +156,12 @@ def test_tones_come_out_of_the_sound_stream_at_their_onsets(tmp_path: Path) -> N
             errors_ms.append(error_ms)
     assert len(errors_ms) >= 4
     assert max(abs(e) for e in errors_ms) <= 5.0, errors_ms
+    # the long tone played until the stop, then faded out within a block and the ramp
+    long_frame = played["long"][2]
+    stop = d["stop_frame"]
+    assert np.abs(x[pre + stop - 480:pre + stop]).max() > 0.1  # sounding when stopped
+    silent_from = pre + stop + 2 * 480  # the next block fades over 5 ms (240 frames)
+    assert not x[silent_from:pre + long_frame + rate].any()
     # closed in silence
     assert x.size >= pre + d["frames"] and not x[pre + d["frames"] - 480:].any()
 
@@ -184,3 +190,14 @@ def test_a_closed_output_is_released() -> None:
     del audio
     gc.collect()
     assert ref() is None  # SDL's device keeps no reference to it or its buffers
+
+
+def test_stop_drops_the_sounds_scheduled_before_it_and_keeps_the_ones_after() -> None:
+    clock = WallClock()
+    with SdlTaskAudio(clock) as audio:
+        now = clock.now_ns()
+        audio.schedule(tone(1, 0.1), now + 150_000_000, "before")
+        audio.stop()  # the break: what was scheduled is dropped ...
+        audio.schedule(tone(2, 0.1), now + 150_000_000, "after")  # ... not what follows
+        clock.sleep_until_ns(now + 300_000_000)
+    assert [p.label for p in audio.played] == ["after"]

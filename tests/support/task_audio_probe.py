@@ -6,8 +6,9 @@ Run as a script in a fresh process (SDL picks its audio driver once per process)
 the wall clock, schedules a marker sound with an onset long past (it lands on the
 stream's first frame, which finds the stream in the file: SDL writes silence before the
 device is started), then 8 tones at onsets 150 ms + k * 230 ms from now, each announced
-100 ms ahead as the runner does, waits for them, closes the device and writes the
-placements, the callback blocks and the onsets asked for to OUT.json.
+100 ms ahead as the runner does, then a 1 s tone that it stops 0.4 s in (a pause),
+closes the device and writes the placements, the callback blocks, the onsets asked for
+and the frame count when it stopped to OUT.json.
 """
 
 from __future__ import annotations
@@ -33,12 +34,20 @@ def main(out: str) -> None:
         for k, onset in enumerate(onsets):
             clock.sleep_until_ns(onset - LEAD_NS)
             audio.schedule(item_sound(f"tone{k}", 0.1), onset, f"tone{k}")
-        clock.sleep_until_ns(onsets[-1] + 200_000_000)
+        # a long tone stopped half-way (a pause): silent within a block and the fade
+        long_onset = onsets[-1] + 300_000_000
+        clock.sleep_until_ns(long_onset - LEAD_NS)
+        audio.schedule(item_sound("tone4", 1.0), long_onset, "long")
+        clock.sleep_until_ns(long_onset + 400_000_000)
+        stop_frame = audio.frames
+        audio.stop()
+        clock.sleep_until_ns(long_onset + 800_000_000)
     finally:
         audio.close()
     time.sleep(0.05)
     with open(out, "w", encoding="utf-8") as f:
         json.dump({"rate": audio.rate, "frames": audio.frames, "driver": audio.driver,
+                   "stop_frame": stop_frame,
                    "onsets": onsets,
                    "played": [[p.label, p.onset_ns, p.frame, p.start_ns, p.late_ns]
                               for p in audio.played],

@@ -154,12 +154,16 @@ class SilentTaskAudio(TaskAudio):
 
 
 class _Sound:
-    __slots__ = ("label", "onset_ns", "samples", "start")
+    """A scheduled sound; ``gen``: the stops asked before it was scheduled (a later
+    stop silences it, an earlier one does not)."""
 
-    def __init__(self, label: str, onset_ns: int, samples: FloatArray) -> None:
+    __slots__ = ("gen", "label", "onset_ns", "samples", "start")
+
+    def __init__(self, label: str, onset_ns: int, samples: FloatArray, gen: int) -> None:
         self.label = label
         self.onset_ns = onset_ns
         self.samples = samples
+        self.gen = gen
         self.start: int | None = None
 
 
@@ -255,7 +259,6 @@ class SdlTaskAudio(TaskAudio):
         self._pending: list[_Sound] = []
         self._active: list[_Sound] = []
         self._stop_asked = 0
-        self._stop_done = 0
         self._closing = False
         self._silent_blocks = 0
         self._returned = threading.Event()
@@ -321,11 +324,11 @@ class SdlTaskAudio(TaskAudio):
             self._silent_blocks += 1
             self.frames = frame + n
             return
+        stop = self._stop_asked
         while self._inbox:
             self._pending.append(self._inbox.popleft())
-        stop = self._stop_asked
-        if stop != self._stop_done:
-            self._pending.clear()
+        # a stop drops what was scheduled before it (not what came after it)
+        self._pending = [p for p in self._pending if p.gen >= stop]
         # place what starts in this block (or should have started already)
         end = frame + n
         keep: list[_Sound] = []
@@ -343,24 +346,27 @@ class SdlTaskAudio(TaskAudio):
             self.played.append(Placement(s.label, s.onset_ns, start, start_ns, late))
             self._active.append(s)
         self._pending = keep
-        # mix
+        # mix; sounds a stop silences fade out over the ramp, then end
         alive: list[_Sound] = []
+        fading: FloatArray | None = None
         for s in self._active:
             assert s.start is not None
+            stopped = s.gen < stop
+            if stopped and fading is None:
+                fading = np.zeros(n, dtype=np.float32)
+            dest = fading if stopped and fading is not None else out
             o0 = max(s.start - frame, 0)
             i0 = max(frame - s.start, 0)
             k = min(n - o0, s.samples.shape[0] - i0)
             if k > 0:
-                out[o0:o0 + k] += s.samples[i0:i0 + k]
-            if i0 + k < s.samples.shape[0]:
+                dest[o0:o0 + k] += s.samples[i0:i0 + k]
+            if i0 + k < s.samples.shape[0] and not stopped:
                 alive.append(s)
         self._active = alive
-        if stop != self._stop_done:  # fade out over the ramp, then nothing
+        if fading is not None:
             r = min(self._ramp, n)
-            out[:r] *= np.linspace(1.0, 0.0, r, dtype=np.float32)
-            out[r:] = 0.0
-            self._active = []
-            self._stop_done = stop
+            fading[:r] *= np.linspace(1.0, 0.0, r, dtype=np.float32)
+            out[:r] += fading[:r]
         np.clip(out, -1.0, 1.0, out=out)
         self.frames = end
 
@@ -376,11 +382,10 @@ class SdlTaskAudio(TaskAudio):
         if self._closed:
             raise DeviceError("the sound output of the auditory task is closed")
         samples = np.ascontiguousarray(sound, dtype=np.float32).reshape(-1)
-        self._inbox.append(_Sound(label, int(onset_ns), samples))
+        self._inbox.append(_Sound(label, int(onset_ns), samples, self._stop_asked))
 
     def stop(self) -> None:
-        self._inbox.clear()
-        self._stop_asked += 1
+        self._stop_asked += 1  # sounds scheduled from now on are not silenced
 
     def close(self) -> None:
         """Output silence, then close the device (idempotent; never raises)."""
