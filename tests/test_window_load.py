@@ -80,12 +80,19 @@ class Person:
         self.pressed: list[int] = []  # when the presses were posted (sim ns)
         self.rated = 0
         self.subtitles: list[str] = []
+        self.prompts: set[str] = set()
+        self.intros: list[list[str]] = []
         self.abort_tlx = False
         self._tlx_sent = False
 
     def __call__(self, win: ExperimentWindow, kind: str) -> None:
         self.kinds[kind] += 1
         now = win.clock.now_ns()
+        view = win.view(now)
+        if kind == "task_alone":
+            self.prompts.add(view.prompt)
+        if kind == "task" and (not self.intros or view.modal_lines != self.intros[-1]):
+            self.intros.append(list(view.modal_lines))
         if kind in ("instructions", "block", "break", "end", "task"):
             _key(pygame.K_SPACE)
         tasks = win.tasks
@@ -191,6 +198,14 @@ def test_a_windowed_load_session_stores_the_presses_and_the_ratings(tmp_path: Pa
                                                                   "Test block 2 of 2"]
     for kind in ("task", "task_alone", "tlx", "test", "block"):
         assert person.kinds[kind] > 0, kind
+    # practice feedback, then how the practice went on the baseline's screen
+    assert "Right: that was a match" in person.prompts
+    assert not {p for p in person.prompts if p.startswith(("Missed", "Not a match"))}
+    baseline_intros = [lines for lines in person.intros if any("once more" in x for x in lines)]
+    assert len(baseline_intros) == 2
+    assert all(lines[0].startswith("In the practice you caught") and
+               lines[0].endswith("matches and never pressed wrongly.")
+               for lines in baseline_intros)
 
 
 def test_visual_items_show_at_their_onset_and_auditory_ones_are_scheduled_for_it(
@@ -433,3 +448,25 @@ def test_the_task_button_of_the_participants_stick_is_a_press_and_nothing_else()
         assert win.task_presses(90 * MS) == [] and win._continue
     finally:
         win.close()
+
+
+def test_practice_feedback_says_right_missed_and_not_a_match() -> None:
+    from tactorbelt.gui.taskview import PracticeCoach
+
+    coach = PracticeCoach(1000 * MS)
+    coach.item(0, True)
+    coach.item(1000 * MS, False)
+    coach.item(2000 * MS, True)
+    coach.press(400 * MS)
+    coach.tick(450 * MS)
+    assert coach.text == "Right: that was a match"
+    coach.press(500 * MS)  # a second press of the same item: nothing new
+    coach.press(1300 * MS)
+    coach.tick(1350 * MS)
+    assert coach.text == "Not a match: no press needed"
+    coach.tick(3000 * MS)  # the second match's time is over, not pressed
+    assert coach.text == "Missed: that was a match"
+    coach.tick(3000 * MS + 900 * MS)
+    assert coach.text is None
+    assert coach.summary() == ("In the practice you caught 1 of 2 matches and pressed 1 "
+                               "time when there was none.")

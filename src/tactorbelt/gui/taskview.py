@@ -16,7 +16,12 @@
   press, timestamped with the runner's clock at the poll that took it from SDL's queue
   (the sampling tick: within 10 ms after the press);
 - the participant's instructions for a practice run, the single-task baseline and a
-  block with the task (:func:`instructions`, :func:`block_lines`).
+  block with the task (:func:`instructions`, :func:`block_lines`);
+- feedback during the practice run only (:class:`PracticeCoach`): right after a press,
+  "Right: that was a match" or "Not a match: no press needed"; when a match's time is
+  over without a press, "Missed: that was a match"; and a summary on the next screen
+  ("In the practice you caught 4 of 5 matches ..."). The window uses ``item.target``
+  for this (the participant's button decides; the model participant never sees it).
 
 I/O: pygame (events), the task audio output; imports tactorbelt.tasks.
 """
@@ -36,9 +41,11 @@ if TYPE_CHECKING:
     from ..experiment.study import Study, TaskSpec
     from ..tasks.schedule import TaskItem
 
-__all__ = ["EXPERIMENTER_KEYS", "Response", "TaskPresenter", "block_lines",
+__all__ = ["EXPERIMENTER_KEYS", "PracticeCoach", "Response", "TaskPresenter", "block_lines",
            "check_responses", "instructions", "parse_response", "task_title"]
 
+#: How long a practice feedback line stays (ns).
+FEEDBACK_NS: Final = 900_000_000
 #: Keys the experimenter uses in the window: a task's response may not be one of them.
 EXPERIMENTER_KEYS: Final = ("p", "r", "escape", "tab", "f1", "f12")
 _MOUSE_BUTTONS: Final = {"left": 1, "middle": 2, "right": 3}
@@ -163,6 +170,66 @@ def check_responses(study: Study) -> None:
                     f"interval_s longer than {longest:.2f} s")
 
 
+class PracticeCoach:
+    """Feedback during a practice run (see the module doc). ``interval_ns``: an item's
+    time to answer (its onset to the next item's)."""
+
+    def __init__(self, interval_ns: int, go_word: str = "a match",
+                 go_plural: str = "matches") -> None:
+        self.interval_ns = interval_ns
+        self.go_word = go_word
+        self.go_plural = go_plural
+        #: (onset_ns, target, answered)
+        self._items: list[list[Any]] = []
+        self._judged = 0
+        self.text: str | None = None
+        self._until = 0
+        self.hits = self.misses = self.false_alarms = self.go = 0
+
+    def item(self, onset_ns: int, target: bool) -> None:
+        self._items.append([onset_ns, bool(target), False])
+        self.go += bool(target)
+
+    def _say(self, text: str, now_ns: int) -> None:
+        self.text = text
+        self._until = now_ns + FEEDBACK_NS
+
+    def press(self, t_ns: int) -> None:
+        """A press at ``t_ns``: judged against the item whose time it falls in."""
+        for it in reversed(self._items):
+            onset, target, answered = it
+            if onset <= t_ns < onset + self.interval_ns:
+                if answered:
+                    return
+                it[2] = True
+                if target:
+                    self.hits += 1
+                    self._say(f"Right: that was {self.go_word}", t_ns)
+                else:
+                    self.false_alarms += 1
+                    self._say(f"Not {self.go_word}: no press needed", t_ns)
+                return
+
+    def tick(self, now_ns: int) -> None:
+        """Items whose time is over: a match without a press is a miss."""
+        items = self._items
+        while self._judged < len(items) and items[self._judged][0] + self.interval_ns <= now_ns:
+            onset, target, answered = items[self._judged]
+            if target and not answered:
+                self.misses += 1
+                self._say(f"Missed: that was {self.go_word}", now_ns)
+            self._judged += 1
+        if self.text is not None and now_ns >= self._until:
+            self.text = None
+
+    def summary(self) -> str:
+        """One line on how the practice went."""
+        pressed = (f"pressed {self.false_alarms} time{'s' if self.false_alarms != 1 else ''}"
+                   " when there was none" if self.false_alarms else "never pressed wrongly")
+        return (f"In the practice you caught {self.hits} of {self.go} {self.go_plural} "
+                f"and {pressed}.")
+
+
 class TaskPresenter:
     """The window's side of the running task (see the module doc).
 
@@ -188,12 +255,25 @@ class TaskPresenter:
         self.glyph_frames: list[tuple[int, int]] = []
         #: every item announced: (item, onset_ns)
         self.items: list[tuple[TaskItem, int]] = []
+        #: the practice run's feedback (None outside practice); the last practice's
+        #: summary line stays in :attr:`practice_summary`
+        self.coach: PracticeCoach | None = None
+        self._coach_of: str | None = None
+        self.practice_summary: str | None = None
 
     # -- phases ----------------------------------------------------------------------------
     def start(self, name: str, spec: TaskSpec, phase: str) -> None:
         self.name, self.spec, self.phase = name, spec, phase
         self.response = parse_response(spec.response)
         self._presses.clear()
+        if phase == "practice":
+            if self.coach is None or self._coach_of != name:  # after a pause: the same
+                go = ("an odd sum", "odd sums") if spec.kind == "arithmetic" else \
+                    ("a match", "matches")
+                self.coach = PracticeCoach(round(spec.interval_s * 1e9), *go)
+                self._coach_of = name
+        else:
+            self.coach = None
         if spec.modality == "auditory" and self.audio is None:
             self.audio = open_task_audio(self.clock)
         if self.audio is not None and self._bank is None:
@@ -201,6 +281,8 @@ class TaskPresenter:
 
     def end(self) -> None:
         """The task run ended (or paused): silence, no glyph, no button."""
+        if self.coach is not None and self.phase == "practice":
+            self.practice_summary = self.coach.summary()
         self.name = self.spec = self.phase = None
         self.response = None
         self._glyphs.clear()
@@ -216,6 +298,8 @@ class TaskPresenter:
     def item(self, item: TaskItem, onset_ns: int, spec: TaskSpec) -> None:
         """Schedule ``item``'s sound, or its glyph, for ``onset_ns``."""
         self.items.append((item, onset_ns))
+        if self.coach is not None:
+            self.coach.item(onset_ns, item.target)
         if spec.modality == "auditory":
             if self.audio is None:
                 self.audio = open_task_audio(self.clock)
@@ -274,7 +358,17 @@ class TaskPresenter:
             return False
         if t == down:
             self._presses.append(int(now_ns))
+            if self.coach is not None:
+                self.coach.press(int(now_ns))
         return True  # its release is the task's too
+
+    def feedback(self, now_ns: int) -> str | None:
+        """The practice feedback line to show now (None: none)."""
+        coach = self.coach
+        if coach is None:
+            return None
+        coach.tick(now_ns)
+        return coach.text
 
     def presses(self) -> list[int]:
         """The presses since the last call (ns, runner clock)."""

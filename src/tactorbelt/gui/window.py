@@ -231,6 +231,7 @@ class ExperimentWindow:
         self._task_intro: tuple[str, list[str]] | None = None
         self._intros_shown: set[tuple[str, str]] = set()
         self._block_task: tuple[str, TaskSpec] | None = None
+        self._block_note: str | None = None
         self._tlx: TlxScreen | None = None
         try:
             self._open_task_audio()
@@ -308,12 +309,14 @@ class ExperimentWindow:
         nxt = self.current.trial.trial_index + 1 if self.current is not None else (
             self.info.n_done if self.info is not None else 0)
         self._block_task = None
+        self._block_note = None
         if 0 <= nxt < len(self._schedule):
             t = self._schedule[nxt]
             self._show_targets(t.n_targets)
             spec = self.study.tasks.get(t.load) if block == "test" else None
             if spec is not None and spec.active:
                 self._block_task = (t.load, spec)
+                self._block_note = self._practice_note()
         if block == "test":
             self._test_blocks_seen += 1
             self._wait_screen("block")
@@ -380,13 +383,20 @@ class ExperimentWindow:
             go_on, _ = self._input_words()
             n = spec.practice if phase == "practice" else spec.baseline
             assert self.tasks.response is not None
-            self._task_intro = instructions(name, spec, phase, n,
-                                            self.tasks.response.words(), go_on)
+            title, lines = instructions(name, spec, phase, n, self.tasks.response.words(),
+                                        go_on)
+            note = self._practice_note()
+            self._task_intro = (title, [note, "", *lines] if note else lines)
             try:
                 self._wait_screen("task")
             finally:
                 self._task_intro = None
         self.tasks.presses()  # presses on the instructions screen are not responses
+
+    def _practice_note(self) -> str | None:
+        """How the last practice went, once (the next screen after it says it)."""
+        note, self.tasks.practice_summary = self.tasks.practice_summary, None
+        return note
 
     def on_task_item(self, item: TaskItem, onset_ns: int, spec: TaskSpec) -> None:
         """Schedule the item's sound (auditory) or glyph (visual) for its onset."""
@@ -731,6 +741,9 @@ class ExperimentWindow:
                             f"{button.words()} on a match")
                 if spec.kind == "arithmetic":
                     v.prompt = f"Press {button.words()} when the sum is odd"
+            said = self.tasks.feedback(now_ns)
+            if said is not None:
+                v.prompt = said
         # modal screens
         v.modal_title, v.modal_lines = self._modal_for(go_on, move)
         if self.user_paused or self.device_paused:
@@ -775,6 +788,8 @@ class ExperimentWindow:
 
                 name, spec = self._block_task
                 extra = [*block_lines(name, spec, parse_response(spec.response).words()), ""]
+                if self._block_note:
+                    extra = [self._block_note, "", *extra]
             return f"Test block {k} of {max(n, k)}", [
                 "No feedback from now on: answer as well as you can.", "", *extra,
                 f"When you are ready, {go_on}."]
