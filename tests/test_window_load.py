@@ -470,3 +470,22 @@ def test_practice_feedback_says_right_missed_and_not_a_match() -> None:
     assert coach.text is None
     assert coach.summary() == ("In the practice you caught 1 of 2 matches and pressed 1 "
                                "time when there was none.")
+
+
+def test_a_held_stick_repeats_after_a_delay() -> None:
+    from tactorbelt.gui.tlx import REPEAT_DELAY_NS, REPEAT_NS, TlxScreen
+
+    form = TlxForm()
+    screen = TlxScreen(form, "t", stick=True)
+    screen.stick_at(0.9, 0.1, 0)  # pushed right: marks the middle
+    assert form.values[0] == 50
+    screen.stick_at(0.9, 0.0, REPEAT_DELAY_NS - 1)  # held, not yet repeating
+    assert form.values[0] == 50
+    for k in range(3):
+        screen.stick_at(0.9, 0.0, REPEAT_DELAY_NS + k * REPEAT_NS)
+    assert form.values[0] == 65
+    screen.stick_at(0.0, 0.0, 10**10)  # released
+    screen.stick_at(0.0, -0.9, 10**10 + 1)  # pulled back (cursor y down): next scale
+    assert form.selected == 1
+    screen.stick_at(0.3, 0.2, 10**10 + 2)  # a small deflection does nothing
+    assert form.selected == 1 and form.values[1] is None
