@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from tactorbelt._errors import ConfigError
+from tactorbelt._errors import ConfigError, DeviceError
 from tactorbelt.clock import SimClock, WallClock
 from tactorbelt.tasks.audio import LATE_NS, SdlTaskAudio, SilentTaskAudio, open_task_audio
 from tactorbelt.tasks.sounds import (
@@ -201,3 +201,14 @@ def test_stop_drops_the_sounds_scheduled_before_it_and_keeps_the_ones_after() ->
         audio.schedule(tone(2, 0.1), now + 150_000_000, "after")  # ... not what follows
         clock.sleep_until_ns(now + 300_000_000)
     assert [p.label for p in audio.played] == ["after"]
+
+
+def test_the_task_sound_output_is_chosen_by_name(monkeypatch: pytest.MonkeyPatch) -> None:
+    # SDL's dummy driver has one output: "System audio output device"
+    monkeypatch.setenv("TACTORBELT_TASK_AUDIO", "no such headphones")
+    with pytest.raises(DeviceError, match=r"'no such headphones' \(TACTORBELT_TASK_AUDIO\) "
+                       r"matches no SDL output; outputs: 'System audio output device'"):
+        open_task_audio(WallClock())
+    monkeypatch.setenv("TACTORBELT_TASK_AUDIO", "system OUTPUT")
+    with open_task_audio(WallClock()) as audio:
+        assert audio.plays_sound

@@ -33,7 +33,9 @@ from __future__ import annotations
 import collections
 import contextlib
 import itertools
+import logging
 import math
+import os
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -78,6 +80,8 @@ IDLE_FPS = 10.0
 TLX_FPS = 30.0
 
 FrameHook = Callable[["ExperimentWindow", str], None]
+
+log = logging.getLogger("tactorbelt.gui")
 
 
 @dataclass
@@ -246,9 +250,15 @@ class ExperimentWindow:
 
         check_responses(self.study)
         if any(t.active and t.modality == "auditory" for t in self.study.tasks.values()):
-            from ..tasks.audio import open_task_audio
+            from ..tasks.audio import DEVICE_ENV, open_task_audio
 
             self.tasks.audio = open_task_audio(self.clock)
+            belt = self.belt
+            if (belt is not None and belt.url.startswith("audio:")
+                    and self.tasks.audio.plays_sound and not os.environ.get(DEVICE_ENV)):
+                log.warning("the task sounds play on SDL's default output: make sure it is "
+                            "not the sound card that drives the tactors of %s (name the "
+                            "headphones' output in $%s)", belt.url, DEVICE_ENV)
 
     # ------------------------------------------------------------------------------------
     # cursor

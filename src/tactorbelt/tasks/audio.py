@@ -59,6 +59,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "BLOCK_FRAMES",
+    "DEVICE_ENV",
     "LATE_NS",
     "Placement",
     "SdlTaskAudio",
@@ -80,6 +81,8 @@ CLOSE_WAIT_S: Final = 0.5
 #: A sound that starts more than this after its onset counts as late (ns): a stream
 #: slower than the clock (SDL's disk driver) leaves gaps of a fraction of a millisecond.
 LATE_NS: Final = 1_000_000
+#: The environment variable naming the task sounds' output (words of an SDL output's name).
+DEVICE_ENV: Final = "TACTORBELT_TASK_AUDIO"
 #: Callback blocks remembered in :attr:`SdlTaskAudio.blocks` (the last minute).
 BLOCKS_KEPT: Final = 6000
 
@@ -182,6 +185,21 @@ class _Trampoline:
             target._callback(device, stream)
 
 
+def _find_output(words: str, sdl_audio: Any) -> str:
+    """The one SDL output whose name holds every word of ``words`` (DeviceError)."""
+    names = [str(n) for n in sdl_audio.get_audio_device_names(False)]
+    want = words.lower().split()
+    match = [n for n in names if all(w in n.lower() for w in want)]
+    exact = [n for n in match if n.lower() == words.strip().lower()]
+    match = exact or match
+    offers = "; ".join(repr(n) for n in names) or "none"
+    if len(match) != 1:
+        what = "matches no" if not match else "matches several"
+        raise DeviceError(f"the task sound output {words!r} ({DEVICE_ENV}) {what} SDL "
+                          f"output; outputs: {offers}")
+    return match[0]
+
+
 def _driver() -> str:
     """SDL's audio driver as the environment asks for it (first of a list), or ''."""
     return os.environ.get("SDL_AUDIODRIVER", "").split(",")[0].strip().lower()
@@ -228,7 +246,8 @@ class SdlTaskAudio(TaskAudio):
             ``dummy`` drivers, one block otherwise).
         follow: how fast the timeline follows a late callback, 0..1 (None: 1 for the
             ``disk`` and ``dummy`` drivers, 0.2 otherwise).
-        device: an SDL output device name (None: the default).
+        device: words of an SDL output's name (case-insensitive; None: the default
+            output).
 
     Attributes:
         frames: frames output so far.
@@ -272,8 +291,12 @@ class SdlTaskAudio(TaskAudio):
         self._closed = False
         try:
             sdl.init_subsystem(sdl.INIT_AUDIO)
-            self._dev = sdl_audio.AudioDevice(device, False, self.rate, sdl_audio.AUDIO_F32,
+            name = None if device is None else _find_output(device, sdl_audio)
+            self._dev = sdl_audio.AudioDevice(name, False, self.rate, sdl_audio.AUDIO_F32,
                                               1, int(block), 0, _Trampoline(self))
+        except DeviceError:
+            self._closed = True
+            raise
         except Exception as exc:
             self._closed = True
             raise DeviceError(
@@ -423,11 +446,15 @@ class SdlTaskAudio(TaskAudio):
 
 def open_task_audio(clock: Clock, *, sound: bool = True, **options: Any) -> TaskAudio:
     """A task-sound output for ``clock``: SDL's (sound card, or SDL_AUDIODRIVER's
-    driver) on a wall clock when ``sound``, else a :class:`SilentTaskAudio`.
+    driver) on a wall clock when ``sound``, else a :class:`SilentTaskAudio`. The output
+    is ``options["device"]``, else ``$TACTORBELT_TASK_AUDIO`` (words of an SDL output's
+    name), else SDL's default.
 
     Raises:
-        DeviceError: the sound output cannot be opened.
+        DeviceError: the sound output cannot be opened, or the one named is not there.
     """
     if not sound or clock.simulated:
         return SilentTaskAudio()
+    if options.get("device") is None and os.environ.get(DEVICE_ENV, "").strip():
+        options["device"] = os.environ[DEVICE_ENV].strip()
     return SdlTaskAudio(clock, **options)
