@@ -336,6 +336,10 @@ class Renderer:
                 t = self.text(f"T{k}", int(18 * u), COLORS["text_dim"])
                 surface.blit(t, t.get_rect(midtop=(round(bx + bw / 2), base + int(4 * u))))
 
+    def wrap(self, lines: list[str], px: int, width: int) -> list[str]:
+        """Lines broken at spaces to fit ``width`` pixels (text of ``px`` pixels)."""
+        return self._wrap(lines, px, width)
+
     def _wrap(self, lines: list[str], px: int, width: int) -> list[str]:
         """Lines broken at spaces to fit ``width`` pixels."""
         out: list[str] = []

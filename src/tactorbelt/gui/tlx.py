@@ -316,7 +316,7 @@ class TlxScreen:
                 pg.draw.circle(surface, colors["highlight"], (mx, ty), int(11 * u))
         # the selected scale's definition, the hint, Done
         yb = y + len(TLX_SCALES) * row_h + int(4 * u)
-        lines = renderer._wrap([TLX_SCALES[f.selected].definition], int(20 * u),
+        lines = renderer.wrap([TLX_SCALES[f.selected].definition], int(20 * u),
                                int(track_w + 48 * u))
         for line in lines[:3]:
             t = text(line, int(20 * u), colors["text_dim"])
@@ -335,7 +335,7 @@ class TlxScreen:
         t = text(help_, int(20 * u), colors["text_dim"])
         surface.blit(t, t.get_rect(midbottom=(w // 2, done.top - int(6 * u))))
         if f.hint:
-            lines = renderer._wrap([f.hint], int(22 * u), done.left - x0 - int(40 * u))
+            lines = renderer.wrap([f.hint], int(22 * u), done.left - x0 - int(40 * u))
             yh = done.centery - len(lines[:2]) * int(11 * u)
             for line in lines[:2]:
                 t = text(line, int(22 * u), colors["banner"])
