@@ -14,13 +14,14 @@ import collections
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pygame
 import pytest
 
 from support.inputs import FakeBackend, FakeStick
 from support.studies import make_study
 from support.tasks import judge
-from tactorbelt._errors import ConfigError
+from tactorbelt._errors import ConfigError, DeviceError
 from tactorbelt.clock import SimClock
 from tactorbelt.devices import open_belt
 from tactorbelt.experiment.schedule import make_schedule
@@ -489,3 +490,50 @@ def test_a_held_stick_repeats_after_a_delay() -> None:
     assert form.selected == 1
     screen.stick_at(0.3, 0.2, 10**10 + 2)  # a small deflection does nothing
     assert form.selected == 1 and form.values[1] is None
+
+
+@pytest.mark.slow
+def test_a_wall_clock_session_plays_the_tones_through_sdl_audio(tmp_path: Path) -> None:
+    """The same path as ``tactorbelt run`` with a person: the wall clock, SDL's dummy
+    audio driver (its thread and the callback run), the TLX marked with the keys."""
+    from tactorbelt.clock import WallClock
+    from tactorbelt.tasks.audio import SdlTaskAudio
+
+    study = make_study(
+        minimal=True, name="live", tactors=4, targets=2, iti_s=0.2, break_every=0,
+        training=0, timeout_s=2.0, max_presentation_s=1.0,
+        blocks=[{"condition": "static", "repetitions": 1, "load": "aud"}],
+        tasks={"aud": {"kind": "nback", "n": 1, "interval_s": 0.5, "stimulus_s": 0.15,
+                       "response": "key:j", "practice": 3}},
+        questionnaire={"tlx": True})
+    person = Person()
+    seen: dict[str, Any] = {}
+
+    def hook(win: ExperimentWindow, kind: str) -> None:
+        seen["audio"] = win.tasks.audio
+        seen["items"] = len(win.tasks.items)
+        person(win, kind)
+
+    clock = WallClock()
+    cursor = ScriptedCursor(answers={t.trial_index: t.target_deg
+                                     for t in make_schedule(study, "P01")})
+    with Store.open(tmp_path / "s.sqlite") as store, \
+            open_belt("sim", clock=clock, layout=study.layout_obj()) as belt:
+        res = run_with_window(study, "P01", belt, "scripted", store, clock=clock,
+                              cursor=cursor, size=SIZE, auto_continue_s=None,
+                              on_frame=hook)
+        events = store.task_events(res.session_id)
+        ratings = store.ratings(res.session_id)
+    assert res.status == "complete"
+    audio = seen["audio"]
+    assert isinstance(audio, SdlTaskAudio) and audio.error is None
+    items = [e for e in events if e["item_index"] >= 0]
+    assert len([e for e in items if e["phase"] == "practice"]) == 3
+    # every item of the runs was handed to SDL's callback and placed on the stream (an
+    # item due just after a run ended may have been placed too: its block was filled)
+    played = {(p.onset_ns, p.label) for p in audio.played}
+    assert {(e["t_ns"], e["stimulus"]) for e in items} <= played
+    assert len(played) - len(items) <= 2
+    assert len(ratings) == 6
+    with pytest.raises(DeviceError, match="closed"):
+        audio.schedule(np.zeros(10, dtype=np.float32), 0)
