@@ -212,3 +212,13 @@ def test_the_task_sound_output_is_chosen_by_name(monkeypatch: pytest.MonkeyPatch
     monkeypatch.setenv("TACTORBELT_TASK_AUDIO", "system OUTPUT")
     with open_task_audio(WallClock()) as audio:
         assert audio.plays_sound
+
+
+def test_a_measured_output_latency_is_taken_from_the_environment(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("TACTORBELT_TASK_AUDIO_LATENCY_MS", "23.5")
+    with open_task_audio(WallClock()) as audio:
+        assert isinstance(audio, SdlTaskAudio) and audio.latency_ns == 23_500_000
+    monkeypatch.setenv("TACTORBELT_TASK_AUDIO_LATENCY_MS", "fast")
+    with pytest.raises(ConfigError, match="TACTORBELT_TASK_AUDIO_LATENCY_MS must be"):
+        open_task_audio(WallClock())

@@ -40,6 +40,7 @@ import collections
 import contextlib
 import ctypes
 import logging
+import math
 import os
 import sys
 import threading
@@ -51,7 +52,7 @@ from typing import TYPE_CHECKING, Any, Final
 import numpy as np
 from numpy.typing import NDArray
 
-from .._errors import DeviceError
+from .._errors import ConfigError, DeviceError
 from .sounds import RATE
 
 if TYPE_CHECKING:
@@ -60,6 +61,7 @@ if TYPE_CHECKING:
 __all__ = [
     "BLOCK_FRAMES",
     "DEVICE_ENV",
+    "LATENCY_ENV",
     "LATE_NS",
     "Placement",
     "SdlTaskAudio",
@@ -83,6 +85,8 @@ CLOSE_WAIT_S: Final = 0.5
 LATE_NS: Final = 1_000_000
 #: The environment variable naming the task sounds' output (words of an SDL output's name).
 DEVICE_ENV: Final = "TACTORBELT_TASK_AUDIO"
+#: The environment variable giving a sound card's output latency in ms (measured).
+LATENCY_ENV: Final = "TACTORBELT_TASK_AUDIO_LATENCY_MS"
 #: Callback blocks remembered in :attr:`SdlTaskAudio.blocks` (the last minute).
 BLOCKS_KEPT: Final = 6000
 
@@ -448,13 +452,25 @@ def open_task_audio(clock: Clock, *, sound: bool = True, **options: Any) -> Task
     """A task-sound output for ``clock``: SDL's (sound card, or SDL_AUDIODRIVER's
     driver) on a wall clock when ``sound``, else a :class:`SilentTaskAudio`. The output
     is ``options["device"]``, else ``$TACTORBELT_TASK_AUDIO`` (words of an SDL output's
-    name), else SDL's default.
+    name), else SDL's default; its latency ``options["latency_s"]``, else
+    ``$TACTORBELT_TASK_AUDIO_LATENCY_MS``, else the driver's default (see the module doc).
 
     Raises:
         DeviceError: the sound output cannot be opened, or the one named is not there.
+        ConfigError: a latency that is not a number of ms in 0..1000.
     """
     if not sound or clock.simulated:
         return SilentTaskAudio()
     if options.get("device") is None and os.environ.get(DEVICE_ENV, "").strip():
         options["device"] = os.environ[DEVICE_ENV].strip()
+    text = os.environ.get(LATENCY_ENV, "").strip()
+    if options.get("latency_s") is None and text:
+        try:
+            ms = float(text)
+        except ValueError:
+            ms = math.nan
+        if not (math.isfinite(ms) and 0 <= ms <= 1000):
+            raise ConfigError(f"{LATENCY_ENV} must be the output latency in ms (0..1000), "
+                              f"got {text!r}")
+        options["latency_s"] = ms / 1000.0
     return SdlTaskAudio(clock, **options)
