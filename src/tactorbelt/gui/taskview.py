@@ -8,9 +8,10 @@
 - visual items: the glyph (a letter, or ``a+b``) is shown from its onset for
   ``stimulus_s``, as two identical copies left and right of the ellipse at the height
   of its centre: symmetric, so it cues neither side, nor front or back. The window
-  draws a frame at the first poll at or after each glyph's onset and end (not only at
-  its 60 Hz frame deadlines), and :attr:`TaskPresenter.glyph_frames` keeps when each
-  glyph was first drawn;
+  polls on the sampling ticks (10 ms); it draws a frame at the tick nearest each
+  glyph's onset and end (the first poll at or after onset - half a tick; not only at
+  its 60 Hz frame deadlines), so a glyph appears within half a tick of its onset, and
+  :attr:`TaskPresenter.glyph_frames` keeps when each glyph was first drawn;
 - responses: the button of ``spec.response`` (``key:NAME`` a pygame key name,
   ``joystick:K`` button K of the participant's stick, ``mouse:left|middle|right``) is a
   press, timestamped with the runner's clock at the poll that took it from SDL's queue
@@ -29,6 +30,7 @@ I/O: pygame (events), the task audio output; imports tactorbelt.tasks.
 from __future__ import annotations
 
 import contextlib
+import warnings
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Final
 
@@ -86,7 +88,9 @@ def parse_response(text: str) -> Response:
                 f"window ({', '.join(EXPERIMENTER_KEYS)}); give the task another key, "
                 "e.g. \"key:j\"")
         try:
-            code = int(pygame.key.key_code(value))
+            with warnings.catch_warnings():  # SDL's key table needs no initialised SDL
+                warnings.simplefilter("ignore")
+                code = int(pygame.key.key_code(value))
         except ValueError:
             raise ConfigError(f"the task response {text!r} names no key pygame knows "
                               "(key names as pygame.key.name gives them: a, j, left "
@@ -237,11 +241,15 @@ class TaskPresenter:
         clock: the runner's clock.
         audio: the task sound output (None: opened on the first auditory task, a silent
             one on a simulated clock).
+        tick_ns: the window's poll period (the runner's sampling period): glyphs
+            change at the poll nearest their onset and end.
     """
 
-    def __init__(self, clock: Clock, audio: TaskAudio | None = None) -> None:
+    def __init__(self, clock: Clock, audio: TaskAudio | None = None,
+                 tick_ns: int = 10_000_000) -> None:
         self.clock = clock
         self.audio = audio
+        self._half_tick = max(int(tick_ns) // 2, 0)
         self.name: str | None = None
         self.spec: TaskSpec | None = None
         self.phase: str | None = None
@@ -312,6 +320,7 @@ class TaskPresenter:
             self._glyphs.append((onset_ns, end, item.stimulus))
 
     def _current(self, now_ns: int) -> tuple[int, int, str] | None:
+        now_ns += self._half_tick  # the poll nearest the onset or end, not the first after
         g = self._glyphs
         while g and g[0][1] <= now_ns:
             g.pop(0)

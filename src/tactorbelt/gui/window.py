@@ -229,7 +229,8 @@ class ExperimentWindow:
         # secondary tasks and the NASA-TLX
         from .taskview import TaskPresenter
 
-        self.tasks = TaskPresenter(clock)
+        self.tasks = TaskPresenter(clock,
+                                   tick_ns=round(1e9 / study.session.sample_rate_hz))
         #: a practice or baseline run is on: the task alone, no trial on screen
         self.task_alone = False
         self._task_intro: tuple[str, list[str]] | None = None
