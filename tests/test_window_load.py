@@ -550,3 +550,20 @@ def test_a_glyph_changes_at_the_poll_nearest_its_onset_and_end() -> None:
     p.item(TaskItem(1, "M", False), 1027 * MS, spec)
     assert [p.glyph_at(t * MS) for t in (10, 20, 410, 420)] == [None, "K", "K", None]
     assert [p.glyph_at(t * MS) for t in (1020, 1030, 1420, 1430)] == [None, "M", "M", None]
+
+
+def test_the_overlay_shows_the_running_task_and_its_last_item() -> None:
+    from tactorbelt.tasks.schedule import TaskItem
+
+    study = load_study()
+    win = ExperimentWindow(study, SimClock(), size=SIZE)
+    try:
+        spec = study.tasks["vis"]
+        win.on_task_phase("vis", spec, "dual")
+        win.on_task_item(TaskItem(0, "K", False), 100 * MS, spec)
+        win.on_task_item(TaskItem(1, "K", True), 1000 * MS, spec)
+        lines = win._overlay_lines(500 * MS)
+        assert "task vis (dual): 2 items so far, last item K, response key:j" in lines
+        assert any("last item K (go)" in line for line in win._overlay_lines(1000 * MS))
+    finally:
+        win.close()

@@ -870,8 +870,13 @@ class ExperimentWindow:
         if tasks.running and tasks.spec is not None:
             audio = tasks.audio
             late = len(audio.late) if audio is not None else 0
-            lines.append(f"task {tasks.name} ({tasks.phase}): {len(tasks.items)} items so far, "
-                         f"response {tasks.spec.response}"
+            shown = [(item, onset) for item, onset in tasks.items[-4:] if onset <= now_ns]
+            last = ""
+            if shown:
+                item, _ = shown[-1]
+                last = f", last item {item.stimulus}{' (go)' if item.target else ''}"
+            lines.append(f"task {tasks.name} ({tasks.phase}): {len(tasks.items)} items so far"
+                         f"{last}, response {tasks.spec.response}"
                          + (f", {late} sounds late" if late else ""))
         live = self._live
         x, y = self._cursor_pos() or (0.0, 0.0)
