@@ -88,6 +88,11 @@ GOALS = [
     Goal("audio_render_block_us", None, None, None, "us", "as audio_callback_cpu_pct"),
     Goal("window_sample_p99_ms", None, "<=", 1.0, "ms",
          "OS wake-up latency of the 100 Hz loop while the window draws at 60 Hz"),
+    Goal("window_load_p99_delta_ms", None, "<=", 1.0, "ms",
+         "a 2-back in the window (tones: SDL's audio thread takes the GIL per 10 ms block; "
+         "letters: a frame at each onset and end) over the same session without a task"),
+    Goal("window_nback_audio_sample_p99_ms", "window_noload_sample_p99_ms", None, None, "ms",
+         "as window_load_p99_delta_ms"),
     Goal("onset_device_p99_ms", "onset_host_p99_ms", "<=", 0.5, "ms",
          "the clock fit's offset error: asymmetry of the fastest round trips"),
     Goal("onset_host_vs_device", None, ">=", 4.0, "x",
