@@ -6,6 +6,12 @@ Prints one JSON object:
   (COBS + 0x00) and decoded again by the incremental FrameDecoder, per second;
 - ``emulator_ping_p50_ms``, ``emulator_ping_p99_ms``: PING round trips (1000) through
   the serial backend to the firmware emulator;
+- ``wire_reference_per_s``: the same with the per-byte reference CRC and COBS (the
+  baseline, same run), and ``wire_speedup_vs_reference``;
+- ``wire_stream_frame_us``, ``wire_stream_cpu_pct_1khz``: host CPU to build and frame
+  one 6-tactor SET_AMPLITUDES, and that as % of one core at 1 kHz;
+- ``belt_stream_cpu_pct_1khz``: host CPU (user + system) per ``Belt.set_amplitudes`` on
+  the emulator belt, frames written back to back, as % of one core at 1 kHz;
 - ``emulator_stream_frames_per_s``: SET_AMPLITUDES frames written back to back for
   about a second, counted up to the GET_STATUS answer that follows them (the serial
   link is in order, so the emulator has handled every frame by then), with the
@@ -24,11 +30,16 @@ import time
 import numpy as np
 
 
+def _frames() -> list[list[int]]:
+    rng = np.random.default_rng(0)
+    return [[int(v) for v in rng.integers(0, 65536, 6)] for _ in range(256)]
+
+
 def bench_wire(seconds: float = 1.0) -> float:
+    """The host's codec: ``encode_frame(set_amplitudes(...))`` and ``FrameDecoder.feed``."""
     from tactorbelt.devices import wire
 
-    rng = np.random.default_rng(0)
-    frames = [[int(v) for v in rng.integers(0, 65536, 6)] for _ in range(256)]
+    frames = _frames()
     decoder = wire.FrameDecoder()
     n = 0
     t0 = time.perf_counter()
@@ -40,6 +51,68 @@ def bench_wire(seconds: float = 1.0) -> float:
             assert packet.seq == seq
         n += len(frames)
     return n / (time.perf_counter() - t0)
+
+
+def bench_wire_reference(seconds: float = 1.0) -> float:
+    """Baseline, same run: the same round trip with the per-byte reference CRC and COBS
+    (what the host ran before protocol coding moved to C: the codec of round 1)."""
+    import struct
+
+    from tactorbelt.devices import wire
+
+    frames = _frames()
+    n = 0
+    t0 = time.perf_counter()
+    deadline = t0 + seconds
+    while time.perf_counter() < deadline:
+        for seq, levels in enumerate(frames):
+            p = wire.Packet(wire.MsgType.SET_AMPLITUDES, seq,
+                            struct.pack("<6H", *[wire._uint("level", v, 16) for v in levels]))
+            body = bytes((p.type, p.seq)) + p.payload
+            raw = body + struct.pack("<H", wire.crc16_ccitt_false_reference(body))
+            data = wire.cobs_encode_reference(raw) + b"\x00"
+            got = wire.cobs_decode_reference(data[:-1])
+            (crc,) = struct.unpack_from("<H", got, len(got) - 2)
+            assert crc == wire.crc16_ccitt_false_reference(got[:-2])
+            packet = wire.Packet(got[0], got[1], got[2:-2])
+            assert packet.seq == seq
+        n += len(frames)
+    return n / (time.perf_counter() - t0)
+
+
+class _NullTransport:
+    """A serial transport that encodes like the real one and writes nowhere."""
+
+    port = "null"
+    reply_limit = None
+    crc_errors = 0
+    framing_errors = 0
+
+    def encode(self, packet: object) -> bytes:
+        from tactorbelt.devices import wire
+
+        return wire.encode_frame(packet)  # type: ignore[arg-type]
+
+    def write(self, data: bytes) -> None:
+        pass
+
+
+def bench_stream_cpu(frames: int = 20000) -> dict[str, float]:
+    """Host CPU per SET_AMPLITUDES frame through ``Belt.set_amplitudes`` (6 tactors):
+    amplitude check, calibration, levels, packet, frame, write (to nowhere, so that the
+    figure is the host's Python work, not the kernel's); as % of one core at 1 kHz."""
+    from tactorbelt.devices import wire
+
+    frame_levels = [[int(v) for v in row] for row in np.random.default_rng(1).integers(
+        0, 65536, (256, 6))]
+    t = _NullTransport()
+    # the codec part alone: levels in, bytes out
+    c0 = time.process_time()
+    for i in range(frames):
+        t.write(t.encode(wire.set_amplitudes(i & 0xFF, frame_levels[i & 0xFF])))
+    codec_s = (time.process_time() - c0) / frames
+    return {"wire_stream_frame_us": codec_s * 1e6,
+            "wire_stream_cpu_pct_1khz": codec_s * 1000.0 * 100.0}
 
 
 def bench_emulator(pings: int = 1000, stream_s: float = 1.0) -> dict[str, float]:
@@ -54,13 +127,18 @@ def bench_emulator(pings: int = 1000, stream_s: float = 1.0) -> dict[str, float]
         frame = np.full(belt.n_tactors, 0.5)
         n = 0
         t0 = time.perf_counter()
+        c0 = time.process_time()
         deadline = t0 + stream_s
         while time.perf_counter() < deadline:
             for _ in range(100):
                 belt.set_amplitudes(frame)
             n += 100
+        cpu = time.process_time() - c0
         after = belt.status()  # type: ignore[attr-defined]
         elapsed = time.perf_counter() - t0
+        # host CPU (user + system, every thread of this process) per frame, as % of one
+        # core at 1 kHz: Belt.set_amplitudes, the codec and the write to the terminal
+        out["belt_stream_cpu_pct_1khz"] = cpu / n * 1000.0 * 100.0
         out["emulator_stream_frames_per_s"] = n / elapsed
         out["emulator_stream_errors"] = float(
             after.crc_errors + after.framing_errors - before.crc_errors - before.framing_errors)
@@ -69,7 +147,12 @@ def bench_emulator(pings: int = 1000, stream_s: float = 1.0) -> dict[str, float]
 
 
 def main() -> None:
-    result: dict[str, object] = {"wire_encode_decode_per_s": bench_wire()}
+    ours = bench_wire()
+    ref = bench_wire_reference()
+    result: dict[str, object] = {"wire_encode_decode_per_s": ours,
+                                 "wire_reference_per_s": ref,
+                                 "wire_speedup_vs_reference": ours / ref}
+    result.update(bench_stream_cpu())
     try:
         result.update(bench_emulator())
     except Exception as exc:  # no g++, no firmware tree: report, do not fail the run

@@ -47,8 +47,16 @@ GOALS = [
          "OS wake-up latency and other processes on 2 cores; the player sleeps, then spins"),
     Goal("player_p99_vs_sleep_loop", None, "<=", 0.2, "x",
          "same run: a naive time.sleep(1/rate) loop, which also drifts"),
-    Goal("wire_encode_decode_per_s", None, None, None, "frames/s",
-         "pure-Python COBS and CRC-16 per byte"),
+    Goal("wire_encode_decode_per_s", "wire_reference_per_s", None, None, "frames/s",
+         "Python calls per packet (builder, Packet, split/join, struct); CRC-16 in C "
+         "(binascii.crc_hqx), COBS with bytes methods"),
+    Goal("wire_speedup_vs_reference", None, ">=", 10.0, "x",
+         "baseline: the same round trip with the per-byte reference CRC-16 and COBS"),
+    Goal("wire_stream_cpu_pct_1khz", None, "<=", 2.0, "% of a core",
+         "one 6-tactor SET_AMPLITUDES built and framed per ms (codec only)"),
+    Goal("belt_stream_cpu_pct_1khz", None, "<=", 2.0, "% of a core",
+         "Belt.set_amplitudes to the emulator: the write system call (about half), "
+         "NumPy checks and calibration on 6 values, the codec"),
     Goal("emulator_ping_p50_ms", None, None, None, "ms",
          "pseudo-terminal round trip and the reader thread's wake-up"),
     Goal("emulator_ping_p99_ms", None, None, None, "ms",

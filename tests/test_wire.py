@@ -74,6 +74,117 @@ def test_cobs_decode_rejects_malformed(bad: bytes) -> None:
         wire.cobs_decode(bad)
 
 
+# --- the fast codec against the per-byte reference ------------------------------------
+#
+# crc16_ccitt_false, cobs_encode, cobs_decode and FrameDecoder run per packet in C
+# (binascii, bytes methods); the *_reference functions are the per-byte definitions.
+
+#: Bytes with long non-zero runs (COBS's 254-byte blocks) as well as zeros.
+runs = st.lists(st.one_of(st.binary(min_size=1, max_size=3),
+                          st.binary(min_size=250, max_size=520).map(
+                              lambda b: b.replace(b"\x00", b"\x07"))),
+                max_size=4).map(b"".join)
+
+
+@given(st.one_of(st.binary(max_size=300), runs))
+def test_fast_crc_and_cobs_equal_the_reference(data: bytes) -> None:
+    assert wire.crc16_ccitt_false(data) == wire.crc16_ccitt_false_reference(data)
+    encoded = wire.cobs_encode(data)
+    assert encoded == wire.cobs_encode_reference(data)
+    assert wire.cobs_decode(encoded) == wire.cobs_decode_reference(encoded) == data
+
+
+def _decode_or_error(decode: Callable[[bytes], bytes], data: bytes) -> bytes | str:
+    try:
+        return decode(data)
+    except ProtocolError as exc:
+        return str(exc)
+
+
+@given(st.one_of(st.binary(max_size=80), runs))
+def test_fast_cobs_decode_equals_the_reference_on_any_bytes(data: bytes) -> None:
+    # malformed input too: the same error, in the same words
+    assert (_decode_or_error(wire.cobs_decode, data)
+            == _decode_or_error(wire.cobs_decode_reference, data))
+
+
+class ReferenceFrameDecoder:
+    """The per-byte decoder (round 1's FrameDecoder over the reference functions)."""
+
+    def __init__(self) -> None:
+        self.crc_errors = 0
+        self.framing_errors = 0
+        self.buf = bytearray()
+        self.overflow = False
+
+    def feed(self, data: bytes) -> list[Packet]:
+        packets = []
+        for byte in data:
+            if byte:
+                if len(self.buf) >= wire.MAX_ENCODED_PACKET:
+                    self.overflow = True
+                elif not self.overflow:
+                    self.buf.append(byte)
+                continue
+            frame, overflow = bytes(self.buf), self.overflow
+            self.buf.clear()
+            self.overflow = False
+            if overflow:
+                self.framing_errors += 1
+            elif frame:
+                try:
+                    raw = wire.cobs_decode_reference(frame)
+                except ProtocolError:
+                    self.framing_errors += 1
+                    continue
+                if not wire.MIN_PACKET <= len(raw) <= wire.MAX_PACKET:
+                    self.framing_errors += 1
+                elif (struct.unpack("<H", raw[-2:])[0]
+                      != wire.crc16_ccitt_false_reference(raw[:-2])):
+                    self.crc_errors += 1
+                else:
+                    packets.append(Packet(raw[0], raw[1], raw[2:-2]))
+        return packets
+
+
+#: A serial stream: good frames, damaged frames, garbage and lone delimiters.
+streams = st.lists(st.one_of(
+    packets.map(wire.encode_frame),
+    st.tuples(packets, st.integers(0, 80), st.integers(0, 255)).map(
+        lambda t: (lambda f: f[:t[1] % len(f)] + bytes([t[2]]) + f[t[1] % len(f) + 1:])(
+            wire.encode_frame(t[0]))),
+    st.binary(max_size=90),
+    st.just(b"\x00"),
+), max_size=8).map(b"".join)
+
+
+@given(streams, st.lists(st.integers(1, 40), max_size=12))
+def test_frame_decoder_equals_the_reference_decoder(stream: bytes, cuts: list[int]) -> None:
+    # the same packets and counters however the stream is cut into reads
+    fast, ref = wire.FrameDecoder(), ReferenceFrameDecoder()
+    got: list[Packet] = []
+    at = 0
+    for n in [*cuts, len(stream)]:
+        got += fast.feed(stream[at:at + n])
+        at += n
+    assert got == ref.feed(stream)
+    assert (fast.crc_errors, fast.framing_errors) == (ref.crc_errors, ref.framing_errors)
+
+
+@given(u8, st.lists(st.one_of(u16, st.integers(-3, 70000), st.booleans(), st.floats(0, 9)),
+                    max_size=31))
+def test_set_amplitudes_takes_only_u16_levels(seq: int, levels: list[object]) -> None:
+    valid = len(levels) <= 30 and all(
+        type(v) is int and 0 <= v <= 0xFFFF for v in levels)  # type: ignore[operator]
+    if valid:
+        p = wire.set_amplitudes(seq, levels)  # type: ignore[arg-type]
+        assert p == Packet(MsgType.SET_AMPLITUDES, seq, struct.pack(f"<{len(levels)}H", *levels))
+        assert wire.parse_request(p) == wire.SetAmplitudes(tuple(levels))  # type: ignore[arg-type]
+    else:
+        with pytest.raises(ConfigError):
+            wire.set_amplitudes(seq, levels)  # type: ignore[arg-type]
+
+
 # --- packets and frames -----------------------------------------------------------------
 
 

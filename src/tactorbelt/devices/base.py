@@ -71,6 +71,8 @@ def check_amplitudes(values: ArrayLike, n: int) -> NDArray[np.float64]:
         raise ConfigError(f"amplitudes must be one flat list of {n} numbers, got shape {a.shape}")
     if a.size != n:
         raise ConfigError(f"expected {n} amplitudes (one per tactor), got {a.size}")
+    if a.size and a.min() >= 0.0 and a.max() <= 1.0:  # the usual frame: two reductions
+        return a
     if not np.all(np.isfinite(a)):
         raise ConfigError("amplitudes must be finite numbers in [0, 1]; got NaN or infinity")
     if np.any(a < 0.0) or np.any(a > 1.0):
