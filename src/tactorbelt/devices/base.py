@@ -191,6 +191,12 @@ class Belt(ABC):
         return False
 
     @property
+    def hardware(self) -> bool:
+        """True when the belt drives real outputs a person may wear (every belt but the
+        sim belt); a session on a simulated belt may batch its store commits."""
+        return True
+
+    @property
     def reports_onsets(self) -> bool:
         """True when :meth:`last_onset` can give the device's own onset times."""
         return False

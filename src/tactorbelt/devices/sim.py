@@ -399,6 +399,10 @@ class SimBelt(Belt):
     def models_vibration(self) -> bool:
         return True
 
+    @property
+    def hardware(self) -> bool:
+        return False
+
     def _write_levels(self, levels: FloatArray) -> None:
         self._append(np.asarray(levels, dtype=float), -1)
 

@@ -15,7 +15,8 @@ from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
 
-__all__ = ["SITE_ENV", "Provenance", "collect", "default_site", "git_commit",
+__all__ = ["BATCH_TRIALS", "COMMITS_BATCHED", "COMMITS_PER_TRIAL", "SITE_ENV",
+           "Provenance", "collect", "commit_mode", "default_site", "git_commit",
            "package_version"]
 
 #: The environment variable naming the lab (site) a session runs at.
@@ -59,3 +60,25 @@ def collect() -> Provenance:
 def default_site() -> str:
     """The site of a session when none is given: ``TACTORBELT_SITE``, else the host name."""
     return os.environ.get(SITE_ENV, "").strip() or socket.gethostname()
+
+
+#: Each trial is committed (and synced to disk) on its own: a crash loses at most the
+#: trial in flight. Every session with a person, a real belt or the wall clock.
+COMMITS_PER_TRIAL = "per-trial"
+#: Trials are committed in batches of :data:`BATCH_TRIALS` (and at the end): a session on
+#: a simulated clock with the model participant on the sim belt, which a rerun with the
+#: same seed reproduces exactly, so a crash loses nothing that cannot be made again.
+COMMITS_BATCHED = "batched"
+#: Trials per commit when a session batches its commits.
+BATCH_TRIALS = 64
+
+
+def commit_mode(*, simulated_clock: bool, hardware_belt: bool, person: bool,
+                observer: bool) -> str:
+    """How a session commits its trials: :data:`COMMITS_BATCHED` only when nothing real
+    is involved (a simulated clock, no belt hardware, no person moving the cursor and no
+    window or other observer), else :data:`COMMITS_PER_TRIAL`. Stored with the session
+    (``Store.commit_mode``)."""
+    if simulated_clock and not hardware_belt and not person and not observer:
+        return COMMITS_BATCHED
+    return COMMITS_PER_TRIAL

@@ -329,6 +329,11 @@ class SessionRunner:
         self.resume = resume
         self.limit = limit
         self.obs: Any = observer if observer is not None else NullObserver()
+        #: How the session's writes are committed (provenance.commit_mode): in batches
+        #: only with nothing real involved; recorded in the store (Store.commit_mode).
+        self.commits = provenance.commit_mode(
+            simulated_clock=bool(clock.simulated), hardware_belt=belt.hardware,
+            person=cursor.person, observer=observer is not None)
         self.progress = progress
         self.study_toml = study_toml if study_toml is not None else study.to_toml()
         self.input_name = input_name
@@ -715,6 +720,17 @@ class SessionRunner:
     def run(self) -> SessionResult:
         """Run the session; see :func:`run_session`."""
         todo = self.open_session()
+        batched = (self.commits == provenance.COMMITS_BATCHED
+                   and self.store.capabilities.batch_commits)
+        if not batched:
+            return self._run(todo)
+        self.store.begin_batch(self.session_id, provenance.BATCH_TRIALS)
+        try:
+            return self._run(todo)
+        finally:
+            self.store.end_batch()
+
+    def _run(self, todo: list[ScheduledTrial]) -> SessionResult:
         n_total = len(self.schedule)
         info = SessionInfo(self.session_id, self.participant, self.study, n_total,
                            self.n_done, self.resume, self.order)

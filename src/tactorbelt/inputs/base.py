@@ -76,8 +76,11 @@ class CursorSource:
         name: the device's name for the operator's overlay, or None.
         problem: why the device cannot be used now (shown while paused), or None.
         raw_axes: the device's raw axes for the overlay, or None.
+        person: True when a person moves the cursor (every source but the model
+            participant); a session without a person may batch its store commits.
     """
 
+    person: bool = True
     geometry: EllipseGeometry | None = None
     name: str | None = None
     problem: str | None = None

@@ -112,6 +112,8 @@ class _Move:
 class ModelCursor(CursorSource):
     """A model participant driving the cursor (see the module docstring).
 
+    No person moves it (:attr:`person` is False).
+
     Args:
         sense: ``sense(t0_ns, t1_ns) -> (t_ns, vibration)`` on the runner's clock.
         seed: seeds the observer's random generator (perception, timing, movement).
@@ -119,6 +121,8 @@ class ModelCursor(CursorSource):
         clock: the runner's clock (kept for reference; reads are timed by ``now_ns``).
         load: the dual-task model (default: :class:`LoadParams`, docs/participant-model.md).
     """
+
+    person = False
 
     def __init__(self, sense: Sense, seed: int, params: ModelParams | None = None,
                  clock: Clock | None = None, load: LoadParams | None = None) -> None:

@@ -104,6 +104,8 @@ class StoreCapabilities:
         sync_target: sessions copied from another store can be imported
             (:meth:`Store.sync_state`, :meth:`Store.import_session`,
             :meth:`Store.import_trial`; ``tactorbelt sync`` and ``run --push``).
+        batch_commits: :meth:`Store.begin_batch` groups trial writes into fewer
+            commits (simulated sessions only; see ``provenance.commit_mode``).
     """
 
     backend: str
@@ -111,6 +113,7 @@ class StoreCapabilities:
     bulk_insert: bool
     exclusive_writer: bool
     sync_target: bool = False
+    batch_commits: bool = False
 
 
 def _scheme(url: str | Path) -> tuple[str, str]:
@@ -349,6 +352,22 @@ class Store(abc.ABC):
         """Refuse (StoreError) a participant id that another site already uses. A store
         of one site (SQLite) takes any id."""
         return None
+
+    # -- batched commits (only when capabilities.batch_commits) -------------------------
+    def begin_batch(self, session_id: int, every: int) -> None:
+        """From now on commit writes every ``every`` trials (and at :meth:`end_batch`)
+        instead of each trial; record that session ``session_id`` batched its commits
+        (:meth:`commit_mode`). Only for sessions with nothing real involved."""
+        raise StoreError(f"the {self.capabilities.backend} store commits every trial")
+
+    def end_batch(self) -> None:  # noqa: B027 - a store without batches has none to end
+        """Commit what the batch holds and go back to a commit per write. Safe to call
+        when no batch is open."""
+
+    def commit_mode(self, session_id: int) -> str:
+        """``per-trial`` or ``batched`` (see ``provenance.commit_mode``): how the
+        session's trials were committed (``batched`` when any run of it batched)."""
+        return "per-trial"
 
     # -- copying sessions from another store (only when capabilities.sync_target) -----
     def sync_state(self, session_uuid: str

@@ -20,7 +20,11 @@ Schema (docs/study.md, "The store", plus provenance columns)::
 
 Durability: while a writer has the store open it is in WAL mode with
 ``synchronous=FULL``, and each trial is one transaction holding the trial row and all
-its samples, so a process killed at any moment loses at most the trial in flight. An
+its samples, so a process killed at any moment loses at most the trial in flight.
+The one exception: a session with nothing real involved (simulated clock, sim belt,
+model participant, no window; ``provenance.commit_mode``) commits its writes in
+batches (:meth:`SQLiteStore.begin_batch`, each write a savepoint), which a rerun with
+the same seed reproduces; the meta row ``commits:<session_id>`` = ``batched`` says so. An
 ``aborted`` row is replaced (with its samples) when the trial is run again; a ``done``
 or ``timeout`` row is never written twice.
 
@@ -79,6 +83,8 @@ APPLICATION_ID = 0x54424C54
 SIDE_SUFFIXES = ("-wal", "-shm", "-journal")
 #: meta key of the run options kept with a session (input, belt, window options).
 _RUN_OPTIONS_KEY = "run_options:{}"
+#: meta key of a session whose trials were committed in batches (provenance.commit_mode)
+_COMMITS_KEY = "commits:{}"
 _TABLES = ("sessions", "trials", "samples", "task_events", "ratings")
 #: The tables every store has (older stores may lack the others).
 _CORE_TABLES = ("sessions", "trials", "samples")
@@ -300,7 +306,7 @@ class SQLiteStore(Store):
     """A store in one SQLite file (see the module doc). Open with :func:`open_store`."""
 
     capabilities = StoreCapabilities(backend="sqlite", file=True, bulk_insert=True,
-                                     exclusive_writer=True)
+                                     exclusive_writer=True, batch_commits=True)
 
     def __init__(self, path: Path, conn: sqlite3.Connection, lock_fd: int | None,
                  readonly: bool) -> None:
@@ -310,6 +316,8 @@ class SQLiteStore(Store):
         self._lock_fd = lock_fd
         self.readonly = readonly
         self._closed = False
+        self._batch_every = 0  # writes per commit while a batch is open (0: none open)
+        self._batch_pending = 0
 
     # -- opening -----------------------------------------------------------------------
     @classmethod
@@ -511,6 +519,8 @@ class SQLiteStore(Store):
         """
         if self._closed:
             return
+        with contextlib.suppress(StoreError):
+            self.end_batch()
         self._closed = True
         if not self.readonly:
             with contextlib.suppress(sqlite3.Error):
@@ -531,6 +541,10 @@ class SQLiteStore(Store):
     def _transaction(self) -> Iterator[sqlite3.Connection]:
         if self.readonly:
             raise StoreError(f"{self.path} was opened read-only")
+        if self._batch_every:
+            with self._batched() as conn:
+                yield conn
+            return
         try:
             self.conn.execute("BEGIN IMMEDIATE")
         except sqlite3.Error as exc:
@@ -547,6 +561,63 @@ class SQLiteStore(Store):
             with contextlib.suppress(sqlite3.Error):
                 self.conn.execute("ROLLBACK")
             raise StoreError(f"cannot write to {self.path}: {exc}") from None
+
+    @contextlib.contextmanager
+    def _batched(self) -> Iterator[sqlite3.Connection]:
+        """One write inside the open batch: a savepoint (a failed write undoes itself
+        alone); the batch commits after every ``_batch_every`` writes."""
+        try:
+            if not self.conn.in_transaction:
+                self.conn.execute("BEGIN IMMEDIATE")
+            self.conn.execute("SAVEPOINT write")
+        except sqlite3.Error as exc:
+            raise StoreError(f"cannot write to {self.path}: {exc}") from None
+        try:
+            yield self.conn
+        except BaseException:
+            with contextlib.suppress(sqlite3.Error):
+                self.conn.execute("ROLLBACK TO write")
+                self.conn.execute("RELEASE write")
+            raise
+        try:
+            self.conn.execute("RELEASE write")
+            self._batch_pending += 1
+            if self._batch_pending >= self._batch_every:
+                self._batch_pending = 0
+                self.conn.execute("COMMIT")
+        except sqlite3.Error as exc:
+            with contextlib.suppress(sqlite3.Error):
+                self.conn.execute("ROLLBACK")
+            raise StoreError(f"cannot write to {self.path}: {exc}") from None
+
+    def begin_batch(self, session_id: int, every: int) -> None:
+        """Commit every ``every`` writes (trials, status, task events) until
+        :meth:`end_batch`; recorded for the session first, in its own commit."""
+        if every < 1:
+            raise StoreError(f"a batch holds at least one write, got {every}")
+        self.end_batch()
+        with self._transaction() as c:
+            c.execute("INSERT OR REPLACE INTO meta(key, value) VALUES (?, ?)",
+                      (_COMMITS_KEY.format(session_id), "batched"))
+        self._batch_every, self._batch_pending = int(every), 0
+
+    def end_batch(self) -> None:
+        """Commit the open batch (if any); writes commit one by one again."""
+        if not self._batch_every:
+            return
+        self._batch_every, self._batch_pending = 0, 0
+        if self.conn.in_transaction:
+            try:
+                self.conn.execute("COMMIT")
+            except sqlite3.Error as exc:
+                with contextlib.suppress(sqlite3.Error):
+                    self.conn.execute("ROLLBACK")
+                raise StoreError(f"cannot write to {self.path}: {exc}") from None
+
+    def commit_mode(self, session_id: int) -> str:
+        rows = self._query("SELECT value FROM meta WHERE key=?",
+                           (_COMMITS_KEY.format(session_id),))
+        return str(rows[0][0]) if rows else "per-trial"
 
     def _query(self, sql: str, args: Sequence[Any] = ()) -> list[sqlite3.Row]:
         try:
