@@ -9,7 +9,7 @@ STAMP := $(VENV)/.installed
 HYPOTHESIS_PROFILE ?= dev
 export HYPOTHESIS_PROFILE
 
-.PHONY: demo test test-py test-firmware lint bench clean
+.PHONY: demo test test-py test-firmware lint bench bench-full clean
 
 $(STAMP): pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -32,8 +32,13 @@ lint: $(STAMP)
 	$(VENV)/bin/ruff check src tests benchmarks examples scripts
 	$(VENV)/bin/mypy
 
+# bench: the quick suite (under 5 minutes; rates on smaller stores), compared with the
+# last committed benchmarks/results.json; bench-full: 1,000-participant figures too.
 bench: $(STAMP)
 	$(PY) benchmarks/run.py
+
+bench-full: $(STAMP)
+	$(PY) benchmarks/run.py --full
 
 clean:
 	rm -rf $(VENV) build dist demo-output firmware/build

@@ -1,14 +1,26 @@
-"""Whole sessions with the model participant: one session, and 1,000 participants.
+"""Whole sessions with the model participant: one session, many participants, a long one.
 
 - ``session_s``: the paper's session (48 training + 240 test trials) with the model
-  participant on the simulated clock and the sim belt, headless, stored (SQLite, WAL,
-  synchronous=FULL, a transaction per trial): median of 3. Goal: under 2 s.
-- ``sessions_1000_s``: 1,000 such participants, one store per worker process (2 workers,
-  as many as this machine has cores), wall time.
+  participant on the simulated clock and the sim belt, headless, stored: the fast path
+  (nothing real involved, so the store commits in batches; provenance.commit_mode).
+  Median of 3. Goal: under 2 s.
+- ``session_per_trial_s``: baseline, same run, same seeds: the same sessions with one
+  commit (and fsync: WAL, synchronous=FULL) per trial, as with a person or a real belt.
+  ``session_batch_speedup`` is the ratio.
+- ``sessions_<N>_s``: N such participants on the fast path, one store per worker process
+  (2 workers, as many as this machine has cores), wall time; ``sessions_per_s`` the
+  participants per second, and ``sessions_1000_est_s`` what 1,000 take at that rate
+  (``make bench`` runs 40; ``make bench-full`` runs 1,000 and reports
+  ``sessions_1000_s``).
 - ``sessions_linearity``: mean time of the last 10 % of sessions over the first 10 %;
   1.0 means the cost per participant does not grow with the number already stored.
+- ``long_session_trials``, ``long_session_rss_mb``, ``long_session_rss_growth_mb``: one
+  session of ~10,000 test trials (the resolution template, 42 repetitions; ``make bench``:
+  9 repetitions, ~2,000), in its own process: resident memory at the end, and its growth
+  from the first 20 % of the trials to the end (goal: flat, under 20 MB).
 
-Prints one JSON object as its last line. ``--participants N`` for a shorter run.
+Prints one JSON object as its last line.
+Usage: python benchmarks/bench_sessions.py [--participants 1000] [--long-repetitions 42]
 """
 
 from __future__ import annotations
@@ -23,8 +35,9 @@ import time
 from pathlib import Path
 
 
-def _sessions(args: tuple[Path, list[int]]) -> list[float]:
-    """Run one model session per participant number into one store; their wall times."""
+def _sessions(args: tuple[Path, list[int], bool]) -> list[float]:
+    """Run one model session per participant number into one store; their wall times.
+    ``per_trial``: the model is declared a person, so the store commits every trial."""
     from tactorbelt import open_belt
     from tactorbelt.clock import SimClock
     from tactorbelt.experiment.runner import run_session
@@ -32,7 +45,7 @@ def _sessions(args: tuple[Path, list[int]]) -> list[float]:
     from tactorbelt.experiment.study import paper_study
     from tactorbelt.inputs.model import make_model_cursor
 
-    db, numbers = args
+    db, numbers, per_trial = args
     study = paper_study()
     times = []
     with Store.open(db) as store:
@@ -41,37 +54,86 @@ def _sessions(args: tuple[Path, list[int]]) -> list[float]:
             clock = SimClock()
             with open_belt("sim", clock=clock, layout=study.layout_obj()) as belt:
                 cursor = make_model_cursor(belt, clock, seed=n)
+                if per_trial:
+                    cursor.person = True  # type: ignore[misc]
                 res = run_session(study, f"model-{n:04d}", belt, cursor, store, clock, seed=n)
             assert res.status == "complete", res.status
             times.append(time.perf_counter() - t0)
     return times
 
 
+def _rss_mb() -> float:
+    with open("/proc/self/statm") as f:
+        return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE") / 2**20
+
+
+def _long_session(args: tuple[Path, int]) -> dict[str, float]:
+    """One long factorial session; resident memory at 20 % of the trials and at the end."""
+    from tactorbelt import open_belt
+    from tactorbelt.clock import SimClock
+    from tactorbelt.experiment.runner import run_session
+    from tactorbelt.experiment.store import Store
+    from tactorbelt.experiment.study import Study, template_toml
+    from tactorbelt.inputs.model import make_model_cursor
+
+    db, reps = args
+    study = Study.from_toml(template_toml("resolution")
+                            .replace("repetitions = 2  ", f"repetitions = {reps}  ")
+                            .replace("passes = 1  ", "passes = 0  "))
+    n = study.n_trials()
+    marks: dict[str, float] = {}
+
+    def progress(done: int, total: int) -> None:
+        if done == total // 5:
+            marks["rss_20"] = _rss_mb()
+
+    clock = SimClock()
+    t0 = time.perf_counter()
+    with Store.open(db) as store, open_belt("sim", clock=clock,
+                                             layout=study.layout_obj()) as belt:
+        cursor = make_model_cursor(belt, clock, seed=1)
+        res = run_session(study, "model-long", belt, cursor, store, clock, seed=1,
+                          progress=progress)
+        end = _rss_mb()
+    assert res.status == "complete" and res.n_done == n
+    return {"long_session_trials": float(n), "long_session_s": time.perf_counter() - t0,
+            "long_session_rss_mb": end, "long_session_rss_growth_mb": end - marks["rss_20"]}
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--participants", type=int, default=1000)
     ap.add_argument("--workers", type=int, default=min(2, os.cpu_count() or 1))
+    ap.add_argument("--long-repetitions", type=int, default=42)
     args = ap.parse_args()
+    out: dict[str, float] = {}
+    ctx = mp.get_context("spawn")
     with tempfile.TemporaryDirectory() as tmp:
-        single = _sessions((Path(tmp) / "one.sqlite", [1, 2, 3]))
+        fast = _sessions((Path(tmp) / "fast.sqlite", [1, 2, 3], False))
+        slow = _sessions((Path(tmp) / "slow.sqlite", [1, 2, 3], True))
+        out["session_s"] = round(statistics.median(fast), 4)
+        out["session_per_trial_s"] = round(statistics.median(slow), 4)
+        out["session_batch_speedup"] = round(statistics.median(slow) / statistics.median(fast),
+                                             3)
         numbers = list(range(1, args.participants + 1))
-        chunks = [(Path(tmp) / f"w{w}.sqlite", numbers[w::args.workers])
+        chunks = [(Path(tmp) / f"w{w}.sqlite", numbers[w::args.workers], False)
                   for w in range(args.workers)]
         t0 = time.perf_counter()
-        with mp.get_context("spawn").Pool(args.workers) as pool:
+        with ctx.Pool(args.workers) as pool:
             per_worker = pool.map(_sessions, chunks)
         total = time.perf_counter() - t0
+        with ctx.Pool(1) as pool:  # a fresh process: its memory is the session's
+            out.update(pool.apply(_long_session,
+                                  ((Path(tmp) / "long.sqlite", args.long_repetitions),)))
     # per worker, in the order its store grew
     tenth = max(1, min(len(t) for t in per_worker) // 10)
     first = statistics.mean(x for t in per_worker for x in t[:tenth])
     last = statistics.mean(x for t in per_worker for x in t[-tenth:])
-    key = "sessions_1000_s" if args.participants == 1000 else f"sessions_{args.participants}_s"
-    print(json.dumps({
-        "session_s": round(statistics.median(single), 4),
-        key: round(total, 2),
-        "sessions_per_s": round(args.participants / total, 3),
-        "sessions_linearity": round(last / first, 3),
-    }))
+    out[f"sessions_{args.participants}_s"] = round(total, 2)
+    out["sessions_per_s"] = round(args.participants / total, 3)
+    out["sessions_1000_est_s"] = round(1000 * total / args.participants, 1)
+    out["sessions_linearity"] = round(last / first, 3)
+    print(json.dumps(out))
 
 
 if __name__ == "__main__":

@@ -1,7 +1,18 @@
 """``make bench``: run every benchmark and write results.json and RESULTS.md.
 
+``make bench`` (``run.py``) is the quick suite (under 5 minutes): a figure that is a rate
+is measured on a smaller store or fewer participants (:data:`QUICK_ARGS`).
+``make bench-full`` (``run.py --full``) runs every script with its own defaults (1,000
+participants) and writes results-full.json and RESULTS-full.md.
+
 ``python benchmarks/run.py bench_player cli_help`` runs only those and keeps the other
-figures of the last full run.
+figures of the last run.
+
+Each run is compared with the last committed results file of its suite (``git show
+HEAD:benchmarks/results.json``): a figure more than 20 % worse than there is flagged in
+the terminal and in RESULTS.md (the direction of "worse" comes from the figure's goal,
+else from its unit: times, sizes, CPU and errors are better lower, rates and speed-ups
+higher).
 
 Each ``benchmarks/bench_*.py`` is a script that prints one JSON object (key -> number) as
 its last line. This runner runs each one in its own process (so one failing benchmark
@@ -34,6 +45,19 @@ class Goal:
     limit: float | None
     unit: str
     limits: str  # what limits this figure
+    full_only: bool = False  # measured by ``make bench-full`` only
+
+
+#: Arguments of the quick suite (``make bench``): rates on smaller stores and runs.
+QUICK_ARGS: dict[str, list[str]] = {
+    "bench_sessions": ["--participants", "40", "--long-repetitions", "9"],
+    "bench_analysis": ["--participants", "100"],
+    "bench_postgresql": ["--participants", "20", "--trials", "200"],
+    "bench_audio": ["--seconds", "15"],
+    "bench_player": ["--seconds", "3"],
+}
+#: A figure this much worse than in the last committed results is flagged.
+REGRESSION = 0.20
 
 
 GOALS = [
@@ -61,10 +85,20 @@ GOALS = [
          "pseudo-terminal round trip and the reader thread's wake-up"),
     Goal("emulator_ping_p99_ms", None, None, None, "ms",
          "scheduling of the reader thread and the emulator on a shared machine"),
-    Goal("session_s", None, "<=", 2.0, "s",
-         "288 SQLite commits with synchronous=FULL, the ERM model, 100 Hz runner loop"),
-    Goal("sessions_1000_s", None, None, None, "s",
-         "one store per worker, 2 workers; same costs as session_s"),
+    Goal("session_s", "session_per_trial_s", "<=", 2.0, "s",
+         "the 100 Hz runner loop in Python (~86,000 ticks: model cursor, trial machine, "
+         "player pump), the ERM model; commits batched (64 trials) on this fast path"),
+    Goal("session_batch_speedup", None, None, None, "x",
+         "baseline: the same sessions committing (and fsyncing) every trial; the disk"),
+    Goal("sessions_1000_s", None, "<=", 120.0, "s",
+         "one store per worker, 2 workers; same costs as session_s", full_only=True),
+    Goal("sessions_1000_est_s", None, "<=", 120.0, "s",
+         "make bench: 40 participants, scaled to 1,000; as session_s"),
+    Goal("sessions_per_s", None, None, None, "participants/s",
+         "the fast path (batched commits), 2 workers; as session_s"),
+    Goal("long_session_rss_growth_mb", None, "<=", 20.0, "MB",
+         "resident memory from 20 % of a long session (~2,000 trials; full: ~10,000) to "
+         "its end: the kept TrialResult rows (samples released after 2 trials)"),
     Goal("sessions_linearity", None, "<=", 1.25, "x",
          "last 10 % of sessions over the first 10 %: 1.0 is linear growth"),
     Goal("model_session_s", None, "<=", 5.0, "s", "as session_s"),
@@ -78,7 +112,12 @@ GOALS = [
     Goal("analyze_1000_s", None, "<=", 30.0, "s",
          "the accuracy and RT mixed models (Laplace GLMM, REML LMM) on 240,000 trials of "
          "participants and targets that differ; SQL aggregation; samples read only for "
-         "plotted trials"),
+         "plotted trials", full_only=True),
+    Goal("analyze_100_s", None, None, None, "s",
+         "make bench: 100 participants; as analyze_1000_s"),
+    Goal("max_rss_mb", None, "<=", 1000.0, "MB",
+         "peak resident memory of analyze (full: 1,000 participants, a 1.8 GB store): "
+         "the trial table and the mixed models' design matrices"),
     Goal("push_trials_per_s", None, None, None, "trials/s",
          "sync to PostgreSQL over a Unix socket: one transaction per trial (row + 150 "
          "samples) plus a state query per session; fsync off on the throwaway server"),
@@ -108,15 +147,72 @@ GOALS = [
 ]
 
 
-def run_script(path: Path, timeout: float) -> dict[str, float]:
+def run_script(path: Path, timeout: float, args: list[str] | None = None) -> dict[str, float]:
     env = dict(os.environ, SDL_VIDEODRIVER="dummy", SDL_AUDIODRIVER="dummy", MPLBACKEND="Agg")
-    proc = subprocess.run([sys.executable, str(path)], capture_output=True, text=True,
-                          timeout=timeout, env=env)
+    proc = subprocess.run([sys.executable, str(path), *(args or [])], capture_output=True,
+                          text=True, timeout=timeout, env=env)
     if proc.returncode != 0:
         raise RuntimeError(proc.stderr.strip().splitlines()[-1] if proc.stderr else "failed")
     last = [ln for ln in proc.stdout.splitlines() if ln.strip().startswith("{")][-1]
     data = json.loads(last)
     return {k: float(v) for k, v in data.items() if isinstance(v, int | float)}
+
+
+_LOWER_IS_BETTER = ("_s", "_ms", "_us", "_mb", "_pct", "_pct_1khz", "errors", "gaps",
+                    "missed", "underruns_60s", "xruns_60s", "linearity", "_over_sqlite",
+                    "_vs_python", "_vs_sleep_loop", "_vs_device", "delta_ms")
+_HIGHER_IS_BETTER = ("per_s", "speedup", "_fps", "_vs_loop", "_vs_reference")
+#: Figures that are counts or settings, not performance.
+_NOT_COMPARED = ("participants", "trials", "samples", "sample_rows", "store_mb",
+                 "player_frames", "push_trials", "samples_per_session", "factorial_power_at_8",
+                 "factorial_session_trials", "long_session_trials", "audio_latency_ms",
+                 "trials_pg", "trials_sqlite", "window_fps")
+
+
+def better(key: str) -> str | None:
+    """``lower``, ``higher`` or None (not a performance figure): from the figure's goal,
+    else from its name."""
+    if key in _NOT_COMPARED:
+        return None
+    for g in GOALS:
+        if g.key == key and g.op is not None:
+            return "lower" if g.op == "<=" else "higher"
+    if key.endswith(_HIGHER_IS_BETTER):
+        return "higher"
+    if key.endswith(_LOWER_IS_BETTER):
+        return "lower"
+    return None
+
+
+def committed(name: str) -> dict[str, float]:
+    """The results file ``name`` as last committed (empty when none or no git)."""
+    try:
+        proc = subprocess.run(["git", "show", f"HEAD:benchmarks/{name}"], cwd=HERE,
+                              capture_output=True, text=True, timeout=10, check=False)
+    except (OSError, subprocess.SubprocessError):
+        return {}
+    if proc.returncode != 0:
+        return {}
+    try:
+        data = json.loads(proc.stdout)
+    except json.JSONDecodeError:
+        return {}
+    return {k: float(v) for k, v in data.items() if isinstance(v, int | float)}
+
+
+def regressions(now: dict[str, float], before: dict[str, float],
+                limit: float = REGRESSION) -> list[tuple[str, float, float, float]]:
+    """Figures more than ``limit`` worse than before: (key, before, now, how much worse)."""
+    out = []
+    for key in sorted(now.keys() & before.keys()):
+        way = better(key)
+        old, new = before[key], now[key]
+        if way is None or old <= 0 or new < 0:
+            continue
+        worse = (new - old) / old if way == "lower" else (old - new) / old
+        if worse > limit:
+            out.append((key, old, new, worse))
+    return out
 
 
 def cli_help() -> dict[str, float]:
@@ -137,31 +233,49 @@ def cli_help() -> dict[str, float]:
 
 
 def main() -> int:
-    only = set(sys.argv[1:])
+    argv = sys.argv[1:]
+    full = "--full" in argv
+    only = {a for a in argv if not a.startswith("--")}
+    results_name = "results-full.json" if full else "results.json"
+    report_name = "RESULTS-full.md" if full else "RESULTS.md"
     results: dict[str, float] = {}
-    previous = HERE / "results.json"
+    previous = HERE / results_name
     if only and previous.exists():  # a partial run updates the figures it measures
         results.update(json.loads(previous.read_text()))
+    before = committed(results_name)
     failures: dict[str, str] = {}
+    seconds: dict[str, float] = {}
+    t_all = time.perf_counter()
     scripts = sorted(HERE.glob("bench_*.py"))
     for path in scripts:
         name = path.stem
         if only and name not in only:
             continue
-        print(f"running {name} ...", flush=True)
+        args = [] if full else QUICK_ARGS.get(name, [])
+        print(f"running {name} {' '.join(args)}...", flush=True)
+        t0 = time.perf_counter()
         try:
-            results.update(run_script(path, timeout=1800))
+            results.update(run_script(path, timeout=1800, args=args))
         except Exception as exc:  # report and go on: one failure must not hide the rest
             failures[name] = str(exc)
             print(f"  {name} failed: {exc}", flush=True)
+        seconds[name] = time.perf_counter() - t0
+        print(f"  {seconds[name]:.1f} s", flush=True)
     if not only or "cli_help" in only:
         results.update(cli_help())
-    (HERE / "results.json").write_text(json.dumps(results, indent=2, sort_keys=True) + "\n")
+    if not only:
+        results["bench_total_s" if not full else "bench_full_total_s"] = round(
+            time.perf_counter() - t_all, 1)
+    (HERE / results_name).write_text(json.dumps(results, indent=2, sort_keys=True) + "\n")
+    worse = regressions(results, before)
     lines = [
-        "# Benchmark results",
+        "# Benchmark results" + (" (make bench-full)" if full else ""),
         "",
         f"Machine: {os.cpu_count()} cores, Python {platform.python_version()}, "
-        f"{platform.system()} {platform.machine()}. Written by `make bench`.",
+        f"{platform.system()} {platform.machine()}. Written by "
+        f"`make {'bench-full' if full else 'bench'}`"
+        + (f" in {results['bench_total_s']:.0f} s (goal: under 300 s)."
+           if "bench_total_s" in results and not full else "."),
         "",
         "| figure | value | baseline | ratio | goal | met | what limits it |",
         "|---|---|---|---|---|---|---|",
@@ -169,7 +283,8 @@ def main() -> int:
     for g in GOALS:
         goal = f"{g.op} {g.limit:g} {g.unit}" if g.op and g.limit is not None else "none"
         if g.key not in results:
-            lines.append(f"| {g.key} | not measured | | | {goal} | | {g.limits} |")
+            where = "make bench-full only" if g.full_only and not full else "not measured"
+            lines.append(f"| {g.key} | {where} | | | {goal} | | {g.limits} |")
             continue
         v = results[g.key]
         base = results.get(g.baseline) if g.baseline else None
@@ -182,13 +297,28 @@ def main() -> int:
             f"| {g.key} | {v:.4g} | {'' if base is None else f'{base:.4g}'} | {ratio} | "
             f"{goal} | {met} | {g.limits} |"
         )
+    lines += ["", f"## Compared with the last committed {results_name}", ""]
+    if not before:
+        lines.append("No committed results to compare with.")
+    elif not worse:
+        lines.append(f"No figure is more than {REGRESSION:.0%} worse.")
+    else:
+        lines += [f"{len(worse)} figure(s) more than {REGRESSION:.0%} worse (shared, noisy "
+                  "machine: run the benchmark again alone before believing one):", "",
+                  "| figure | committed | now | worse by |", "|---|---|---|---|"]
+        lines += [f"| {k} | {old:.4g} | {new:.4g} | {w:.0%} |" for k, old, new, w in worse]
+    if seconds:
+        lines += ["", "## Time per benchmark", "", "| script | s |", "|---|---|"]
+        lines += [f"| {k} | {v:.1f} |" for k, v in seconds.items()]
     lines += ["", "## All figures", "", "| key | value |", "|---|---|"]
     lines += [f"| {k} | {v:.6g} |" for k, v in sorted(results.items())]
     if failures:
         lines += ["", "## Failed benchmarks", ""]
         lines += [f"- {k}: {v}" for k, v in failures.items()]
-    (HERE / "RESULTS.md").write_text("\n".join(lines) + "\n")
-    print((HERE / "RESULTS.md").read_text())
+    (HERE / report_name).write_text("\n".join(lines) + "\n")
+    print((HERE / report_name).read_text())
+    for k, old, new, w in worse:
+        print(f"WORSE: {k} {old:.4g} -> {new:.4g} ({w:.0%} worse than committed)", flush=True)
     return 1 if failures else 0
 
 
