@@ -71,6 +71,14 @@ GOALS = [
          "OS wake-up latency and other processes on 2 cores; the player sleeps, then spins"),
     Goal("player_p99_vs_sleep_loop", None, "<=", 0.2, "x",
          "same run: a naive time.sleep(1/rate) loop, which also drifts"),
+    Goal("display_frame_ms", "frame_budget_ms", "<=", 0.05, "ms",
+         "DirectionDisplay.update, dynamic, angle moving: the trapezoid state machine and "
+         "the paper law on 6 tactors (NumPy on one row), belt.set_amplitudes"),
+    Goal("display_static_frame_ms", "frame_budget_ms", "<=", 0.05, "ms",
+         "as display_frame_ms without the trapezoid"),
+    Goal("player_frame_ms", "frame_budget_ms", "<=", 0.05, "ms",
+         "a row of the chunked stimulus cache, the deadline, belt.set_amplitudes (about "
+         "0.008 ms on the sim belt: NumPy checks and calibration of 6 values)"),
     Goal("wire_encode_decode_per_s", "wire_reference_per_s", None, None, "frames/s",
          "Python calls per packet (builder, Packet, split/join, struct); CRC-16 in C "
          "(binascii.crc_hqx), COBS with bytes methods"),

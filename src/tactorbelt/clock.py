@@ -9,6 +9,7 @@ Imports only the standard library.
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 from fractions import Fraction
@@ -94,6 +95,14 @@ class SimClock:
         self._now += int(dt_ns)
 
 
+@functools.lru_cache(maxsize=64)
+def _period(rate_hz: float) -> tuple[int, int, int]:
+    """The period of ``rate_hz`` as the fraction p/q ns, and in whole ns (a display
+    driven by hand makes a Deadlines per frame: the Fraction arithmetic is done once)."""
+    period = Fraction(10**9) / Fraction(rate_hz).limit_denominator(1_000_000)
+    return period.numerator, period.denominator, int(period)
+
+
 class Deadlines:
     """The one deadline loop: frame ``i`` is due at ``onset + floor(i * 1e9 / rate)`` ns.
 
@@ -118,9 +127,7 @@ class Deadlines:
             raise ValueError(f"rate must be a number of Hz in (0, 100000], got {rate_hz!r}")
         self.clock = clock
         self.rate_hz = rate
-        period = Fraction(10**9) / Fraction(rate).limit_denominator(1_000_000)
-        self._p, self._q = period.numerator, period.denominator
-        self.period_ns = int(period)
+        self._p, self._q, self.period_ns = _period(rate)
         self.onset_ns = int(clock.now_ns()) if onset_ns is None else int(onset_ns)
         #: the next frame index :meth:`wait` will return (or a later one, when late).
         self.next_index = 0

@@ -63,6 +63,7 @@ the standard library (threading); no I/O library.
 
 from __future__ import annotations
 
+import bisect
 import itertools
 import math
 import threading
@@ -82,7 +83,7 @@ from .filters import (
     Hysteresis,
     OneEuroFilter,
 )
-from .geometry import Layout, normalize, wrap
+from .geometry import ANGLE_TOLERANCE_DEG, Layout, normalize, wrap
 from .laws import DEFAULT_FALLOFF_DEG, amplitudes
 from .stimuli import DEFAULT_PERIOD_S, DEFAULT_TRANSIT_S, Stimulus, make_stimulus
 
@@ -133,6 +134,19 @@ def _positive(value: object, what: str, allow_inf: bool = False) -> float:
     if math.isnan(v) or v <= 0 or (math.isinf(v) and not allow_inf):
         raise ConfigError(f"{what} must be a positive, finite number, got {value!r}")
     return v
+
+
+def _normalize1(a: float) -> float:
+    """:func:`~tactorbelt.geometry.normalize` of one float (Python's float % is
+    NumPy's mod: the same result, bit for bit)."""
+    a = a % 360.0
+    return 0.0 if a >= 360.0 else a
+
+
+def _wrap1(a: float) -> float:
+    """:func:`~tactorbelt.geometry.wrap` of one float (bit for bit)."""
+    w = 180.0 - (180.0 - a) % 360.0
+    return 180.0 if w <= -180.0 else w
 
 
 class DirectionDisplay:
@@ -219,6 +233,10 @@ class DirectionDisplay:
 
         self._lock = threading.RLock()
         self._angles = self.layout.angles
+        self._angle_list = [float(a) for a in self._angles]
+        order = sorted(range(self.layout.n), key=lambda k: self._angle_list[k])
+        self._sorted_order = order
+        self._sorted_angles = [self._angle_list[k] for k in order]
         self._gaps_cw = self.layout.gaps_deg()
         self._hold_s = self.period_s - 2.0 * self.transit_s
         self._tick_rate_hz = self.device_rate_hz if self.device_render else self.rate_hz
@@ -473,6 +491,18 @@ class DirectionDisplay:
         """Displayed angle at each (increasing) time; advances the state to the last."""
         assert self._displayed is not None and self._requested is not None
         d0, target = self._displayed, self._requested
+        if times.shape == (1,):  # one frame: the same arithmetic on floats
+            t1 = int(times[0])
+            diff1 = _wrap1(target - d0)
+            if math.isinf(self.slew_deg_per_s):
+                x1 = target
+            else:
+                travel1 = self.slew_deg_per_s * (float(max(t1 - self._t_ns, 0)) * 1e-9)
+                x1 = target if travel1 >= abs(diff1) else _normalize1(
+                    d0 + math.copysign(1.0, diff1) * travel1)
+            self._displayed = x1
+            self._t_ns = max(self._t_ns, t1)
+            return np.array([x1])
         diff = float(wrap(target - d0))
         dt = np.maximum(times - self._t_ns, 0).astype(float) * 1e-9
         if math.isinf(self.slew_deg_per_s):
@@ -498,11 +528,25 @@ class DirectionDisplay:
     def _write(self, amps: FloatArray) -> None:
         for row in amps:
             if self._last_amps is not None:
-                change = float(np.max(np.abs(row - self._last_amps)))
-                self.max_frame_change = max(self.max_frame_change, change)
+                change = float(np.abs(row - self._last_amps).max())
+                if change > self.max_frame_change:
+                    self.max_frame_change = change
             self.belt.set_amplitudes(row)
             self._last_amps = row
             self.frames_written += 1
+
+    def _pair_at(self, x: float) -> Pair:
+        """:meth:`_pairs` of one angle, in plain Python (a frame at a time: the render
+        thread at 1 kHz); the same numbers, as tests check."""
+        xn = _normalize1(x)  # as Layout.tactor_at and Layout.neighbours, on floats
+        for k, ang in enumerate(self._angle_list):
+            if abs(_wrap1(xn - ang)) < ANGLE_TOLERANCE_DEG:
+                return k, k
+        order = self._sorted_order
+        pos = bisect.bisect_right(self._sorted_angles, xn + ANGLE_TOLERANCE_DEG) - 1
+        if pos < 0:
+            pos = len(order) - 1
+        return order[pos], order[(pos + 1) % len(order)]
 
     def _pairs(self, x: FloatArray) -> tuple[IntArray, IntArray]:
         """The pair bracketing each angle: (ccw, cw), or (k, k) on tactor k."""
@@ -605,13 +649,17 @@ class DirectionDisplay:
 
     def _dynamic_locations(self, times: IntArray, x: FloatArray) -> FloatArray:
         """Felt locations of the streamed perturbation (see the module docstring)."""
-        ka, kb = self._pairs(x)
         n = times.shape[0]
         loc = np.empty(n)
-        change = np.flatnonzero((np.diff(ka) != 0) | (np.diff(kb) != 0)) + 1
-        bounds = [0, *change.tolist(), n]
+        if n == 1:  # one frame (the render thread, update()): no arrays of pairs
+            first = self._pair_at(float(x[0]))
+            bounds = [0, 1]
+        else:
+            ka, kb = self._pairs(x)
+            change = np.flatnonzero((np.diff(ka) != 0) | (np.diff(kb) != 0)) + 1
+            bounds = [0, *change.tolist(), n]
         for i0, j in itertools.pairwise(bounds):
-            target: Pair = (int(ka[i0]), int(kb[i0]))
+            target: Pair = first if n == 1 else (int(ka[i0]), int(kb[i0]))
             i = i0
             if target != self._pair:
                 if self._pair is not None and self._pair[0] != self._pair[1]:
