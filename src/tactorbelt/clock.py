@@ -84,6 +84,12 @@ class SimClock:
     def now_ns(self) -> int:
         return self._now
 
+    @property
+    def exact(self) -> bool:
+        """True without jitter: every wake-up is exactly at its deadline, so one
+        ``sleep_until_ns(t)`` ends where any series of earlier sleeps and then it would."""
+        return self._jitter is None
+
     def sleep_until_ns(self, deadline_ns: int) -> None:
         late = int(self._jitter()) if callable(self._jitter) else 0
         self._now = max(self._now, int(deadline_ns) + late)

@@ -44,7 +44,7 @@ from enum import StrEnum
 from typing import TYPE_CHECKING, Any, Protocol
 
 from .._errors import ConfigError, DeviceError, StoreError, TactorbeltError
-from ..clock import Clock, Deadlines
+from ..clock import Clock, Deadlines, SimClock
 from ..geometry import TargetSet
 from ..inputs.base import CursorSample, CursorSource, TrialCue
 from ..interrupts import Terminated
@@ -329,6 +329,9 @@ class SessionRunner:
         self.resume = resume
         self.limit = limit
         self.obs: Any = observer if observer is not None else NullObserver()
+        #: No observer: nobody sees the samples or sends commands (the runner skips
+        #: those calls in its loops).
+        self._headless = observer is None
         #: How the session's writes are committed (provenance.commit_mode): in batches
         #: only with nothing real involved; recorded in the store (Store.commit_mode).
         self.commits = provenance.commit_mode(
@@ -594,6 +597,12 @@ class SessionRunner:
         ticks = self._ticks()
         end = ticks.onset_ns + duration_ns
         now = ticks.onset_ns
+        if (self._headless and self._task is None and not self.player.playing
+                and isinstance(self.clock, SimClock) and self.clock.exact):
+            # nothing would happen at the ticks (nothing plays, nobody polls, no task):
+            # the clock ends at ``end`` as it would after them
+            self.clock.sleep_until_ns(end)
+            return
         while now < end:
             if ticks.deadline(ticks.next_index) < end:
                 now = self._tick(ticks)
@@ -637,7 +646,8 @@ class SessionRunner:
         now = self.clock.now_ns()
         s = self.cursor.read(now)
         sample = CursorSample(now, s.x, s.y, s.buttons)
-        self.obs.on_sample(sample)
+        if not self._headless:
+            self.obs.on_sample(sample)
         return now, sample
 
     def wait_home(self, t: ScheduledTrial, machine: TrialMachine) -> None:
@@ -653,7 +663,8 @@ class SessionRunner:
                     f"trial {t.trial_index}: the cursor never came back to the home zone "
                     f"(within {self.rule.home_radius:g} of the centre)"
                 )
-            self.handle(self.obs.poll(now), machine)
+            if not self._headless:
+                self.handle(self.obs.poll(now), machine)
             self._tick(ticks)
 
     def present(self, t: ScheduledTrial, machine: TrialMachine) -> TrialState:
@@ -669,18 +680,22 @@ class SessionRunner:
         self.obs.on_trial_state(t, TrialState.STIMULUS, onset)
         ticks = self._ticks(onset, first=0)
         playing = True
+        headless = self._headless
+        read, feed, tick = self.cursor.read, machine.feed, self._tick
         while True:
-            now = self._tick(ticks)
-            s = self.cursor.read(now)
-            state = machine.feed(now, s.x, s.y, s.buttons)
-            self.obs.on_sample(CursorSample(now, s.x, s.y, s.buttons))
+            now = tick(ticks)
+            s = read(now)
+            state = feed(now, s.x, s.y, s.buttons)
+            if not headless:
+                self.obs.on_sample(CursorSample(now, s.x, s.y, s.buttons))
             if playing and (machine.finished or machine.stimulus_due_off(now)):
                 self.player.stop()
                 machine.stimulus_stopped(self.clock.now_ns())
                 playing = False
             if machine.finished:
                 return state
-            self.handle(self.obs.poll(now), machine)
+            if not headless:
+                self.handle(self.obs.poll(now), machine)
 
     def run_trial(self, t: ScheduledTrial) -> TrialResult:
         """One trial: home, stimulus and response. A pause returns it ``aborted``; any
