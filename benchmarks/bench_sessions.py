@@ -17,7 +17,8 @@
 - ``long_session_trials``, ``long_session_rss_mb``, ``long_session_rss_growth_mb``: one
   session of ~10,000 test trials (the resolution template, 42 repetitions; ``make bench``:
   9 repetitions, ~2,000), in its own process: resident memory at the end, and its growth
-  from the first 20 % of the trials to the end (goal: flat, under 20 MB).
+  from the later of 20 % of the trials and trial 1,100 (the runner keeps the samples of
+  the last 1,000 trials in memory) to the end (goal: flat, under 20 MB), also per trial.
 
 Prints one JSON object as its last line.
 Usage: python benchmarks/bench_sessions.py [--participants 1000] [--long-repetitions 42]
@@ -71,7 +72,7 @@ def _long_session(args: tuple[Path, int]) -> dict[str, float]:
     """One long factorial session; resident memory at 20 % of the trials and at the end."""
     from tactorbelt import open_belt
     from tactorbelt.clock import SimClock
-    from tactorbelt.experiment.runner import run_session
+    from tactorbelt.experiment.runner import RESULT_SAMPLES_KEPT, run_session
     from tactorbelt.experiment.store import Store
     from tactorbelt.experiment.study import Study, template_toml
     from tactorbelt.inputs.model import make_model_cursor
@@ -83,9 +84,12 @@ def _long_session(args: tuple[Path, int]) -> dict[str, float]:
     n = study.n_trials()
     marks: dict[str, float] = {}
 
+    # from when the runner's window of trials that keep their samples is full
+    mark = max(n // 5, min(RESULT_SAMPLES_KEPT + 100, n // 2))
+
     def progress(done: int, total: int) -> None:
-        if done == total // 5:
-            marks["rss_20"] = _rss_mb()
+        if done == mark:
+            marks["rss_mark"] = _rss_mb()
 
     clock = SimClock()
     t0 = time.perf_counter()
@@ -97,7 +101,9 @@ def _long_session(args: tuple[Path, int]) -> dict[str, float]:
         end = _rss_mb()
     assert res.status == "complete" and res.n_done == n
     return {"long_session_trials": float(n), "long_session_s": time.perf_counter() - t0,
-            "long_session_rss_mb": end, "long_session_rss_growth_mb": end - marks["rss_20"]}
+            "long_session_rss_mb": end, "long_session_rss_growth_mb": end - marks["rss_mark"],
+            "long_session_rss_growth_kb_per_trial": (end - marks["rss_mark"]) * 1024
+            / (n - mark)}
 
 
 def main() -> None:
