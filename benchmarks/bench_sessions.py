@@ -10,13 +10,13 @@
 - ``sessions_<N>_s``: N such participants on the fast path, one store per worker process
   (2 workers, as many as this machine has cores), wall time; ``sessions_per_s`` the
   participants per second, and ``sessions_1000_est_s`` what 1,000 take at that rate
-  (``make bench`` runs 40; ``make bench-full`` runs 1,000 and reports
+  (``make bench`` runs 30; ``make bench-full`` runs 1,000 and reports
   ``sessions_1000_s``).
 - ``sessions_linearity``: mean time of the last 10 % of sessions over the first 10 %;
   1.0 means the cost per participant does not grow with the number already stored.
 - ``long_session_trials``, ``long_session_rss_mb``, ``long_session_rss_growth_mb``: one
   session of ~10,000 test trials (the resolution template, 42 repetitions; ``make bench``:
-  9 repetitions, ~2,000), in its own process: resident memory at the end, and its growth
+  8 repetitions, 1,920), in its own process: resident memory at the end, and its growth
   from the later of 20 % of the trials and trial 1,100 (the runner keeps the samples of
   the last 1,000 trials in memory) to the end (goal: flat, under 20 MB), also per trial.
 

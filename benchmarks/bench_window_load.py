@@ -26,7 +26,8 @@ of an interval is ``|interval - 10 ms|``. Prints one JSON object:
 - ``window_nback_items``: items presented per task run; ``window_nback_audio_late``:
   tones (of every round) that started more than 1 ms after their onset.
 
-Run alone: ``python benchmarks/bench_window_load.py`` (about two and a half minutes).
+Run alone: ``python benchmarks/bench_window_load.py [--rounds 2]`` (about two and a half
+minutes; ``make bench`` runs one round, about 80 s).
 """
 
 from __future__ import annotations
@@ -118,6 +119,12 @@ def _session(load: str, modality: str, db: str) -> tuple[np.ndarray, int, int]:
 
 
 def main() -> None:
+    import argparse
+
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--rounds", type=int, default=ROUNDS,
+                    help=f"rounds of the three variants (default {ROUNDS}; make bench: 1)")
+    args = ap.parse_args()
     out: dict[str, float] = {}
     variants = {"noload": ("none", "auditory"), "audio": ("nb2", "auditory"),
                 "visual": ("nb2", "visual")}
@@ -126,7 +133,7 @@ def main() -> None:
     late = 0
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory() as tmp:
-        for r in range(ROUNDS):
+        for r in range(args.rounds):
             for key, (load, modality) in variants.items():
                 errs, n, n_late = _session(load, modality,
                                            os.path.join(tmp, f"{key}{r}.sqlite"))

@@ -6,8 +6,9 @@ Prints one JSON object:
   (COBS + 0x00) and decoded again by the incremental FrameDecoder, per second;
 - ``emulator_ping_p50_ms``, ``emulator_ping_p99_ms``: PING round trips (1000) through
   the serial backend to the firmware emulator;
-- ``wire_reference_per_s``: the same with the per-byte reference CRC and COBS (the
-  baseline, same run), and ``wire_speedup_vs_reference``;
+- ``wire_reference_per_s``: the same with round 1's codec (the per-byte reference CRC
+  and COBS, its checked builder and its FrameDecoder): the baseline, measured in turns
+  with the figure above (best of 4 turns each), and ``wire_speedup_vs_reference``;
 - ``wire_stream_frame_us``, ``wire_stream_cpu_pct_1khz``: host CPU to build and frame
   one 6-tactor SET_AMPLITUDES, and that as % of one core at 1 kHz;
 - ``belt_stream_cpu_pct_1khz``: host CPU (user + system) per ``Belt.set_amplitudes`` on
@@ -53,29 +54,94 @@ def bench_wire(seconds: float = 1.0) -> float:
     return n / (time.perf_counter() - t0)
 
 
+class _RoundOneDecoder:
+    """The FrameDecoder of round 1 (before this codec moved to C), over the per-byte
+    reference COBS and CRC: the baseline's decoder, line for line."""
+
+    def __init__(self) -> None:
+        self.crc_errors = 0
+        self.framing_errors = 0
+        self._buf = bytearray()
+        self._overflow = False
+
+    def reset(self) -> None:
+        self._buf.clear()
+        self._overflow = False
+
+    def feed(self, data: bytes) -> list[object]:
+        from tactorbelt.devices import wire
+
+        packets: list[object] = []
+        start = 0
+        data = bytes(data)
+        while start < len(data):
+            end = data.find(0, start)
+            chunk = data[start:] if end < 0 else data[start:end]
+            if not self._overflow:
+                room = wire.MAX_ENCODED_PACKET - len(self._buf)
+                if len(chunk) > room:
+                    self._overflow = True
+                else:
+                    self._buf += chunk
+            if end < 0:
+                break
+            start = end + 1
+            packet = self._end_frame()
+            if packet is not None:
+                packets.append(packet)
+        return packets
+
+    def _end_frame(self) -> object | None:
+        import struct
+
+        from tactorbelt import ProtocolError
+        from tactorbelt.devices import wire
+
+        frame, overflow = bytes(self._buf), self._overflow
+        self.reset()
+        if overflow:
+            self.framing_errors += 1
+            return None
+        if not frame:
+            return None
+        try:
+            raw = wire.cobs_decode_reference(frame)
+        except ProtocolError:
+            self.framing_errors += 1
+            return None
+        if not wire.MIN_PACKET <= len(raw) <= wire.MAX_PACKET:
+            self.framing_errors += 1
+            return None
+        raw = bytes(raw)
+        (crc,) = struct.unpack_from("<H", raw, len(raw) - 2)
+        if crc != wire.crc16_ccitt_false_reference(raw[:-2]):
+            self.crc_errors += 1
+            return None
+        return wire.Packet(raw[0], raw[1], raw[2:-2])
+
+
 def bench_wire_reference(seconds: float = 1.0) -> float:
-    """Baseline, same run: the same round trip with the per-byte reference CRC and COBS
-    (what the host ran before protocol coding moved to C: the codec of round 1)."""
+    """Baseline, same run: round 1's codec (per-byte reference CRC and COBS, its checked
+    SET_AMPLITUDES builder and its FrameDecoder), the same round trip."""
     import struct
 
     from tactorbelt.devices import wire
 
     frames = _frames()
+    decoder = _RoundOneDecoder()
     n = 0
     t0 = time.perf_counter()
     deadline = t0 + seconds
     while time.perf_counter() < deadline:
         for seq, levels in enumerate(frames):
+            values = [wire._uint(f"level {k}", v, 16) for k, v in enumerate(levels)]
             p = wire.Packet(wire.MsgType.SET_AMPLITUDES, seq,
-                            struct.pack("<6H", *[wire._uint("level", v, 16) for v in levels]))
+                            struct.pack(f"<{len(values)}H", *values))
             body = bytes((p.type, p.seq)) + p.payload
             raw = body + struct.pack("<H", wire.crc16_ccitt_false_reference(body))
             data = wire.cobs_encode_reference(raw) + b"\x00"
-            got = wire.cobs_decode_reference(data[:-1])
-            (crc,) = struct.unpack_from("<H", got, len(got) - 2)
-            assert crc == wire.crc16_ccitt_false_reference(got[:-2])
-            packet = wire.Packet(got[0], got[1], got[2:-2])
-            assert packet.seq == seq
+            (packet,) = decoder.feed(data)
+            assert packet.seq == seq  # type: ignore[attr-defined]
         n += len(frames)
     return n / (time.perf_counter() - t0)
 
@@ -147,8 +213,12 @@ def bench_emulator(pings: int = 1000, stream_s: float = 1.0) -> dict[str, float]
 
 
 def main() -> None:
-    ours = bench_wire()
-    ref = bench_wire_reference()
+    # in turns, best of 4 each: a burst of load from other processes hits one turn of
+    # one of them, not a whole figure
+    ours = ref = 0.0
+    for _ in range(4):
+        ours = max(ours, bench_wire(0.3))
+        ref = max(ref, bench_wire_reference(0.3))
     result: dict[str, object] = {"wire_encode_decode_per_s": ours,
                                  "wire_reference_per_s": ref,
                                  "wire_speedup_vs_reference": ours / ref}

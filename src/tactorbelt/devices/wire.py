@@ -215,7 +215,7 @@ class Packet:
 #
 # The functions the host uses run per packet in C (binascii.crc_hqx, bytes.split,
 # bytes.join); the ``*_reference`` ones are the per-byte definitions, kept as the
-# reference that tests compare the fast ones with (docs/protocol.md, docs/performance.md).
+# reference that tests compare the fast ones with (tests/test_wire.py).
 
 
 def crc16_ccitt_false_reference(data: bytes) -> int:
