@@ -91,6 +91,11 @@ class SimClock:
         return self._jitter is None
 
     def sleep_until_ns(self, deadline_ns: int) -> None:
+        if self._jitter is None:
+            t = int(deadline_ns)
+            if t > self._now:
+                self._now = t
+            return
         late = int(self._jitter()) if callable(self._jitter) else 0
         self._now = max(self._now, int(deadline_ns) + late)
 
@@ -161,9 +166,13 @@ class Deadlines:
         frames it overslept past its end as missed and returns ``limit``).
         """
         i = self.next_index
-        self.clock.sleep_until_ns(self.deadline(i))
-        now = int(self.clock.now_ns())
-        j = max(i, self.last_due(now))
+        clock = self.clock
+        onset, p, q = self.onset_ns, self._p, self._q
+        clock.sleep_until_ns(onset + (i * p) // q)  # self.deadline(i)
+        now = int(clock.now_ns())
+        j = ((now - onset + 1) * q - 1) // p  # self.last_due(now)
+        if j < i:
+            j = i
         if limit is not None and j > limit:
             j = limit
         self.missed += j - i

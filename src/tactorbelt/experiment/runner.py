@@ -688,11 +688,12 @@ class SessionRunner:
             state = feed(now, s.x, s.y, s.buttons)
             if not headless:
                 self.obs.on_sample(CursorSample(now, s.x, s.y, s.buttons))
-            if playing and (machine.finished or machine.stimulus_due_off(now)):
+            finished = machine.finished
+            if playing and (finished or machine.stimulus_due_off(now)):
                 self.player.stop()
                 machine.stimulus_stopped(self.clock.now_ns())
                 playing = False
-            if machine.finished:
+            if finished:
                 return state
             if not headless:
                 self.handle(self.obs.poll(now), machine)
