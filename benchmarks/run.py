@@ -95,14 +95,16 @@ GOALS = [
     Goal("emulator_ping_p99_ms", None, None, None, "ms",
          "scheduling of the reader thread and the emulator on a shared machine"),
     Goal("session_s", "session_per_trial_s", "<=", 2.0, "s",
-         "the 100 Hz runner loop in Python (~86,000 ticks: model cursor, trial machine, "
-         "player pump), the ERM model; commits batched (64 trials) on this fast path"),
+         "the 100 Hz sampling loop in Python (~58,000 samples a session, ~6 us each: "
+         "model cursor, trial machine, deadline), the model's decisions on the ERM "
+         "model's vibration (~20 %), SQLite (~10 %); commits batched (64 trials) here"),
     Goal("session_batch_speedup", None, None, None, "x",
          "baseline: the same sessions committing (and fsyncing) every trial; the disk"),
     Goal("sessions_1000_s", None, "<=", 120.0, "s",
          "one store per worker, 2 workers; same costs as session_s", full_only=True),
     Goal("sessions_1000_est_s", None, "<=", 120.0, "s",
-         "make bench: 30 participants, scaled to 1,000; as session_s"),
+         "make bench: 30 participants, scaled to 1,000; as session_s (0.24 s a session "
+         "on each of 2 free cores would be needed; other processes share them)"),
     Goal("sessions_per_s", None, None, None, "participants/s",
          "the fast path (batched commits), 2 workers; as session_s"),
     Goal("long_session_rss_growth_mb", None, "<=", 20.0, "MB",
