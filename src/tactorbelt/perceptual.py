@@ -476,3 +476,62 @@ def run_perceptual_calibration(belt: Belt, clock: Clock, respondent: Respondent,
                             reference_tactor=ref, belt=belt.url, created=created,
                             fit=tuple(fits))
     return PerceptualResult(profile, fits, n_trials, (clock.now_ns() - start_ns) / 1e9)
+
+
+#: The answer sources of ``tactorbelt calibrate perceptual``.
+INPUTS: Final = ("keyboard", "model", "joystick", "mouse")
+
+
+def make_respondent(kind: str, belt: Belt, *, seed: int, read_key: Callable[[], str],
+                    say: Callable[[str], None]) -> Respondent:
+    """The respondent for ``--input KIND``.
+
+    Raises:
+        ConfigError: joystick and mouse (the window does not run this procedure yet),
+            or the model on a belt that models no vibration.
+    """
+    if kind == "model":
+        from .inputs.model import make_model_respondent
+
+        return make_model_respondent(belt, seed)
+    if kind == "keyboard":
+        return KeyboardRespondent(read_key, say)
+    if kind in ("joystick", "mouse"):
+        raise ConfigError(f"--input {kind}: the experiment window does not run the perceptual "
+                          "calibration yet; answer in the terminal with --input keyboard")
+    raise ConfigError(f"unknown input {kind!r}; allowed: {', '.join(INPUTS)}")
+
+
+def calibrate_wearer(belt_url: str, participant: str, *, input_kind: str = "keyboard",
+                     db: str | None = None, out: str | None = None, seed: int = 0,
+                     settings: CalibrationSettings | None = None,
+                     read_key: Callable[[], str] = lambda: "q",
+                     say: Callable[[str], None] = lambda text: None) -> PerceptualResult:
+    """``tactorbelt calibrate perceptual``: open the belt, run the procedure, keep the
+    profile with the participant in the store ``db`` and/or write it to ``out``.
+
+    Raises:
+        ConfigError: a bad participant id or input; StoreError: the store cannot be written.
+    """
+    from .clock import SimClock, WallClock
+    from .devices import open_belt, parse_url
+    from .experiment.runner import check_participant
+    from .experiment.store import open_store
+    from .experiment.store.base import utc_now
+
+    who = check_participant(participant)
+    # the model on the sim belt runs on a simulated clock: nothing waits in real time
+    model_on_sim = (input_kind == "model" and parse_url(belt_url)[0] == "sim"
+                    and "virtual" not in belt_url)
+    options: dict[str, Any] = {"clock": SimClock()} if model_on_sim else {}
+    with open_belt(belt_url, **options) as belt:
+        clock = belt.clock or WallClock()
+        respondent = make_respondent(input_kind, belt, seed=seed, read_key=read_key, say=say)
+        result = run_perceptual_calibration(belt, clock, respondent, participant=who,
+                                            settings=settings, seed=seed, created=utc_now())
+    if db is not None:
+        with open_store(db) as store:
+            store.save_wearer_profile(who, result.profile.to_toml())
+    if out is not None:
+        result.profile.save(out)
+    return result

@@ -5,7 +5,8 @@
 - ``belt-test``: pulse each tactor in turn, saying which one, to catch a wrongly wired
   belt before a study.
 - ``calibrate``: walk an experimenter through each tactor (the level where it is first
-  felt, then a comfortable maximum) and write a calibration file.
+  felt, then a comfortable maximum) and write a calibration file; ``calibrate
+  perceptual`` (:mod:`.perceptual`) measures a wearer's profile.
 
 Every path ends with the motors off; Ctrl-C exits 130. Heavy imports are inside commands.
 """
@@ -147,13 +148,16 @@ class _Keys:
             return ch
 
 
-@click.command()
+@click.group(invoke_without_command=True)
 @belt_option("The belt to calibrate")
 @output_option("file", "Write the calibration here [default: print it to stdout].")
 @click.option("--step", type=number(float, 0, 0.5, lo_open=True), default=0.02,
               show_default=True, help="Level change per + or - key.")
-def calibrate(belt_url: str, out: Path | None, step: float) -> None:
+@click.pass_context
+def calibrate(ctx: click.Context, belt_url: str, out: Path | None, step: float) -> None:
     """Walk through each tactor: the level where it is first felt, then a comfortable maximum.
+
+    `tactorbelt calibrate perceptual` measures a wearer's perceptual profile instead.
 
     For each tactor: raise the level with + until the vibration is just felt and
     press enter (that is the tactor's start level, below which it does not spin);
@@ -162,6 +166,8 @@ def calibrate(belt_url: str, out: Path | None, step: float) -> None:
     tactorbelt calibrate`. Prompts go to stderr; the calibration (TOML) to FILE or
     stdout.
     """
+    if ctx.invoked_subcommand is not None:
+        return
     from ..calibrate import KEYS_HELP, CalibrationQuit, walk_calibration
     from ..clock import WallClock
 
@@ -184,3 +190,12 @@ def calibrate(belt_url: str, out: Path | None, step: float) -> None:
         click.echo(f"wrote {path}", err=True)
     else:
         click.echo(calibration.to_toml(belt=belt_url, angles_deg=belt.tactor_angles_deg), nl=False)
+
+
+def _add_perceptual() -> None:
+    from .perceptual import perceptual
+
+    calibrate.add_command(perceptual)
+
+
+_add_perceptual()
