@@ -103,3 +103,30 @@ def test_isotonic_makes_measured_points_a_strictly_increasing_warp() -> None:
     assert got == pytest.approx([0.25, 0.26, 0.8])
     assert isotonic([0.0, 0.5, 1.0]) == pytest.approx([0.01, 0.5, 0.99])
     PairWarp((0.25, 0.5, 0.75), tuple(isotonic([0.9, 0.1, 0.2])))
+
+
+def test_a_profile_round_trips_through_the_store(tmp_path: Path) -> None:
+    from tactorbelt.experiment.store import open_store
+
+    p = _profile()
+    with open_store(tmp_path / "s.sqlite") as store:
+        assert store.wearer_profile("P01") is None
+        store.save_wearer_profile("P01", p.to_toml())
+        store.set_session_profile(3, p.to_toml())
+    with open_store(tmp_path / "s.sqlite") as store:
+        text = store.wearer_profile("P01")
+        assert text is not None and WearerProfile.from_toml(text) == p
+        assert store.session_profile(3) == text
+
+
+def test_calibrate_perceptual_keeps_the_models_profile(tmp_path: Path) -> None:
+    from support.cli import tactorbelt
+
+    proc = tactorbelt("calibrate", "perceptual", "-p", "M01", "--input", "model",
+                      "--db", str(tmp_path / "s.sqlite"), "-o", str(tmp_path / "M01.toml"))
+    assert proc.returncode == 0, proc.stderr
+    assert "gains: 1.00," in proc.stdout and "pair 5: 0.25 -> " in proc.stdout
+    assert WearerProfile.load(tmp_path / "M01.toml").participant == "M01"
+    proc = tactorbelt("calibrate", "perceptual", "-p", "M01", "--input", "mouse")
+    assert proc.returncode == 2
+    assert proc.stderr.startswith("error: --input mouse: the experiment window does not run")

@@ -266,7 +266,7 @@ class ModelRespondent(Respondent):
         t1 = min(interval.t1_ns, interval.t0_ns + round(self.params.observe_static_s * 1e9))
         t_ns, vib = self._sense(interval.t0_ns, t1)
         t_s = (np.asarray(t_ns, dtype=np.int64) - interval.t0_ns) / 1e9
-        return judge_side(t_s, vib, layout, marked_deg, self.params, self._rng)
+        return judge_side(t_s, vib, layout, marked_deg, self.params, self._rng, pair[0])
 
 
 def make_model_respondent(belt: Belt, seed: int, params: ModelParams | None = None

@@ -6,9 +6,12 @@ Two judgements, each from sampled vibration only (never from the stimulus value)
   is its mean vibration amplitude over the interval with log-normal noise of SD
   ``weber_amplitude`` (the same Weber fraction the location cue uses); "the second was
   stronger" when its felt magnitude is larger.
-- :func:`judge_side`: a point between two tactors; the observer perceives it as in a
-  test trial (:func:`~tactorbelt.participant.perception.perceive`, over its static
-  observation window) and answers on which side of the marked point it felt it.
+- :func:`judge_side`: a point between two tactors a and b; the observer perceives it as
+  in a test trial (:func:`~tactorbelt.participant.perception.perceive`, over its static
+  observation window) and answers on which side of the marked point it felt it. The
+  question names a and b, so the body site is not in doubt: when it felt the point in
+  that pair it compares its felt position within the pair (``fraction``) with the
+  mark's; otherwise (the vibration's strongest pair is another) its felt direction.
 
 Both lapse at the observer's lapse rate (a random answer).
 
@@ -51,10 +54,17 @@ def judge_stronger(vib_first: ArrayLike, tactor_first: int, vib_second: ArrayLik
 
 
 def judge_side(t_s: ArrayLike, vib: ArrayLike, layout: Layout, marked_deg: float,
-               params: ModelParams, rng: np.random.Generator) -> int:
-    """1 when the point felt clockwise of ``marked_deg`` (tactor b's side), else 0."""
+               params: ModelParams, rng: np.random.Generator, pair: int | None = None) -> int:
+    """1 when the point felt clockwise of ``marked_deg`` (tactor b's side), else 0.
+
+    ``pair`` is tactor a of the pair the question names (None: not named)."""
     cues = sense_cues(t_s, vib, layout, params)
     pc = perceive(cues, layout, np.array([float(marked_deg)]), params, rng)
     if bool(pc.guessed[0]):
         return int(rng.random() < 0.5)
+    a = int(cues.pair[0])
+    if pair is not None and a == pair:
+        mark = float(np.mod(marked_deg - layout.angles_deg[a], 360.0)) / float(
+            layout.gaps_deg()[a])
+        return int(float(pc.fraction[0]) > mark)
     return int(float(wrap(float(pc.perceived_deg[0]) - float(marked_deg))) > 0.0)
