@@ -535,3 +535,47 @@ def calibrate_wearer(belt_url: str, participant: str, *, input_kind: str = "keyb
     if out is not None:
         result.profile.save(out)
     return result
+
+
+def profile_for_session(study: Any, store: Any, belt: Belt, clock: Clock, participant: str,
+                        respondent: Respondent | None, *, session_id: int, resume: bool,
+                        seed: int = 0) -> WearerProfile | None:
+    """The wearer profile a session renders with (the runner calls this before training).
+
+    A study with ``[calibration] perceptual = true`` uses the participant's profile kept
+    in ``store``; when there is none, the participant is calibrated now with
+    ``respondent`` and the profile kept. A resumed session keeps the profile it started
+    with. The profile is recorded with the session (its provenance). Other studies: None.
+
+    Raises:
+        ConfigError: the study requires a profile, none is kept, and nobody can answer
+            the calibration here (a person's joystick or mouse); or the profile was
+            measured on another layout.
+    """
+    if not study.calibration.perceptual:
+        return None
+    if resume:
+        text = store.session_profile(session_id)
+        if text is not None:
+            return WearerProfile.from_toml(text, source=f"{store.url} (session {session_id})")
+    text = store.wearer_profile(participant)
+    if text is not None:
+        profile = WearerProfile.from_toml(text, source=f"{store.url} ({participant})")
+    elif respondent is None:
+        raise ConfigError(
+            f"the study requires a perceptual profile ([calibration] perceptual = true) and "
+            f"{store.url} keeps none for {participant!r}; measure it first: tactorbelt "
+            f"calibrate perceptual --participant {participant} --input keyboard --db "
+            f"{store.url}")
+    else:
+        from .experiment.store.base import utc_now
+
+        s = study.stimulus
+        settings = CalibrationSettings(law=s.law, falloff_deg=float(s.falloff_deg))
+        profile = run_perceptual_calibration(belt, clock, respondent, participant=participant,
+                                             settings=settings, seed=seed,
+                                             created=utc_now()).profile
+        store.save_wearer_profile(participant, profile.to_toml())
+    profile.check_layout(belt.layout, source=f"the wearer profile of {participant!r}")
+    store.set_session_profile(session_id, profile.to_toml())
+    return profile

@@ -283,6 +283,7 @@ class SessionRunner:
         self.sim = bool(clock.simulated)
         self.player = Player(belt, clock)
         self._stimuli: dict[tuple[Any, ...], Stimulus] = {}
+        self.profile: Any = None  # the wearer profile ([calibration] perceptual), by open_session
         # set by open_session
         self.session_id = 0
         self.schedule: list[ScheduledTrial] = []
@@ -335,6 +336,13 @@ class SessionRunner:
                 host=prov.host, input=self.input_name,
                 clock="sim" if self.sim else "wall", site=self.site,
             )
+        from ..perceptual import profile_for_session  # before training: the wearer profile
+
+        self.profile = profile_for_session(
+            study, store, self.belt, self.clock, self.participant,
+            self.cursor.calibration_respondent(int(study.session.seed if self.seed is None
+                                                   else self.seed)),
+            session_id=self.session_id, resume=self.resume)
         finished = store.finished_indices(self.session_id)
         self.n_done = len(finished)
         return [t for t in self.schedule if t.trial_index not in finished]
@@ -349,7 +357,7 @@ class SessionRunner:
         if key not in self._stimuli:
             self._stimuli[key] = make_stimulus(self.belt.layout, t.target_deg, t.condition,
                                                sp.law, sp.falloff_deg, sp.period_s,
-                                               sp.transit_s)
+                                               sp.transit_s, profile=self.profile)
         return self._stimuli[key]
 
     def targets_for(self, t: ScheduledTrial) -> TargetSet:

@@ -21,6 +21,7 @@ from ..geometry import Layout
 
 if TYPE_CHECKING:
     from ..gui.layout import EllipseGeometry
+    from ..perceptual import Respondent
 
 __all__ = ["CursorSample", "CursorSource", "TrialCue"]
 
@@ -95,3 +96,10 @@ class CursorSource:
 
     def close(self) -> None:
         """Release the device."""
+
+    def calibration_respondent(self, seed: int) -> Respondent | None:
+        """Who answers the perceptual calibration's trials when a study requires a wearer
+        profile and none is kept (:mod:`tactorbelt.perceptual`): the model participant
+        answers itself; a person's device (None, the default) cannot, so the person is
+        calibrated beforehand with ``tactorbelt calibrate perceptual --input keyboard``."""
+        return None

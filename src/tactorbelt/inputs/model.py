@@ -158,6 +158,10 @@ class ModelCursor(CursorSource):
             self._noise_i = i + 2
         return CursorSample(now, x, y, 0)
 
+    def calibration_respondent(self, seed: int) -> Respondent:
+        """The same observer answering perceptual-calibration trials on the same belt."""
+        return ModelRespondent(self._sense, seed, self.params)
+
     # -- internals -------------------------------------------------------------------------
     def _position(self, now_ns: int) -> tuple[float, float]:
         if self._move is None:
