@@ -74,3 +74,30 @@ def test_studies_without_the_key_are_unchanged() -> None:
     assert not study.calibration.perceptual
     assert "calibration" not in study.to_toml()
     assert _study()[0].calibration.perceptual
+
+
+def test_the_analysis_reports_results_with_and_without_profiles(tmp_path: Path) -> None:
+    from tactorbelt.analysis.profiles import COLUMNS, profile_table
+
+    db = tmp_path / "s.sqlite"
+    with open_store(db) as store:
+        for perceptual, people in ((True, ("M01", "M02")), (False, ("M03",))):
+            study, text = _study(perceptual)
+            for k, who in enumerate(people):
+                clock = SimClock()
+                with SimBelt(layout=study.layout_obj(), clock=clock) as belt:
+                    run_session(study, who, belt, make_model_cursor(belt, clock, seed=k),
+                                store, clock, study_toml=text)
+    table = profile_table([db])
+    assert table is not None and tuple(table.columns) == COLUMNS
+    rows = {r.profile: r for r in table.itertuples()}
+    assert rows["with"].n_participants == 2 and rows["without"].n_participants == 1
+    assert 0 < rows["with"].n <= 2 * 18 and 0.0 <= rows["with"].accuracy <= 1.0
+    study, text = _study(False)
+    plain = tmp_path / "plain.sqlite"
+    with open_store(plain) as store:
+        clock = SimClock()
+        with SimBelt(layout=study.layout_obj(), clock=clock) as belt:
+            run_session(study, "M09", belt, make_model_cursor(belt, clock, seed=1), store,
+                        clock, study_toml=text)
+    assert profile_table([plain]) is None

@@ -656,6 +656,12 @@ def analyze(paths: Sequence[str | Path], out: str | Path, *, seed: int | None = 
         pt = summary.per_target.copy()
         pt["on_tactor"] = pt["on_tactor"].astype(int)
         pt.to_csv(out / "per_target.csv", index=False)
+        from .profiles import profile_table  # sessions with and without a wearer profile
+
+        if (prof := profile_table(list(paths))) is not None:
+            prof.to_csv(out / "profile_effect.csv", index=False)
+            summary.notes.append("profile_effect.csv: between-tactor results with and "
+                                 "without the wearers' perceptual profiles")
         (out / "summary.json").write_text(
             json.dumps(summary.to_json(), indent=2, allow_nan=False) + "\n", encoding="utf-8")
         now = _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
