@@ -130,3 +130,21 @@ def test_calibrate_perceptual_keeps_the_models_profile(tmp_path: Path) -> None:
     proc = tactorbelt("calibrate", "perceptual", "-p", "M01", "--input", "mouse")
     assert proc.returncode == 2
     assert proc.stderr.startswith("error: --input mouse: the experiment window does not run")
+
+
+def test_a_person_answers_with_keys_and_q_writes_nothing(tmp_path: Path) -> None:
+    from support.cli import tactorbelt
+
+    out = tmp_path / "P01.toml"
+    # always "the second was stronger" and "nearer tactor b": a valid, extreme profile
+    proc = tactorbelt("calibrate", "perceptual", "--belt", "sim:virtual", "-p", "P01",
+                      "-o", str(out), input="2b" * 300)
+    assert proc.returncode == 0, proc.stderr
+    assert "[1] which was stronger: [1] first or [2] second?" in proc.stderr
+    assert "nearer [a] tactor 0 (30 deg) or [b] tactor 1 (90 deg) than 45 deg?" in proc.stderr
+    profile = WearerProfile.load(out)
+    assert all(w.rendered[0] < 0.05 for w in profile.warps)
+    proc = tactorbelt("calibrate", "perceptual", "--belt", "sim:virtual", "-p", "P02",
+                      "-o", str(tmp_path / "P02.toml"), input="12q")
+    assert proc.returncode == 1 and "abandoned (q); nothing was written" in proc.stderr
+    assert "error:" not in proc.stderr and not (tmp_path / "P02.toml").exists()

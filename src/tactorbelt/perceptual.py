@@ -225,33 +225,39 @@ class Respondent(ABC):
 class KeyboardRespondent(Respondent):
     """A person answering with keys in the terminal: ``1``/``2`` (first or second was
     stronger) and ``a``/``b`` (nearer tactor a or tactor b than the marked point); ``q``
-    quits. ``read_key`` returns one key; ``say`` prints a prompt."""
+    quits (:class:`~tactorbelt.calibrate.CalibrationQuit`: nothing is written).
+    ``read_key`` returns one key; ``say`` prints a prompt."""
 
     name = "keyboard"
 
     def __init__(self, read_key: Callable[[], str], say: Callable[[str], None]) -> None:
         self._read = read_key
         self._say = say
+        self._asked = 0
 
     def say(self, text: str) -> None:
         self._say(text)
 
     def _ask(self, prompt: str, keys: dict[str, int]) -> int:
-        self._say(prompt)
+        from .calibrate import CalibrationQuit
+
+        self._asked += 1
+        self._say(f"  [{self._asked}] {prompt}")
         while True:
             k = self._read().lower()
             if k == "q":
-                raise ConfigError("perceptual calibration abandoned (q); nothing was written")
+                raise CalibrationQuit("perceptual calibration abandoned (q); nothing was "
+                                      "written")
             if k in keys:
                 return keys[k]
 
     def stronger(self, first: Interval, second: Interval) -> int:
-        return self._ask("  which was stronger: [1] first or [2] second?", {"1": 0, "2": 1})
+        return self._ask("which was stronger: [1] first or [2] second?", {"1": 0, "2": 1})
 
     def side(self, interval: Interval, pair: tuple[int, int], marked_deg: float,
              layout: Layout) -> int:
         a, b = pair
-        return self._ask(f"  nearer [a] tactor {a} ({layout.angles_deg[a]:g} deg) or [b] tactor "
+        return self._ask(f"nearer [a] tactor {a} ({layout.angles_deg[a]:g} deg) or [b] tactor "
                          f"{b} ({layout.angles_deg[b]:g} deg) than {marked_deg:g} deg?",
                          {"a": 0, "b": 1})
 

@@ -41,14 +41,19 @@ def perceptual(belt_url: str, participant: str, input_kind: str, db: str | None,
     chooses each next stimulus; about 230 trials, 8 to 12 minutes with 6 tactors.
     q quits without writing. See docs/calibration-perceptual.md.
     """
+    from ..calibrate import CalibrationQuit
     from ..perceptual import calibrate_wearer
     from .play import _Keys
 
     keys = _Keys()
-    result = calibrate_wearer(belt_url, participant, input_kind=input_kind, db=db,
-                              out=None if out is None else str(out), seed=seed,
-                              read_key=keys.read,
-                              say=lambda text: click.echo(text, err=True))
+    try:
+        result = calibrate_wearer(belt_url, participant, input_kind=input_kind, db=db,
+                                  out=None if out is None else str(out), seed=seed,
+                                  read_key=keys.read,
+                                  say=lambda text: click.echo(text, err=True))
+    except CalibrationQuit as exc:
+        click.echo(str(exc), err=True)
+        raise click.exceptions.Exit(1) from None
     p = result.profile
     click.echo(f"calibrated {p.participant} on {belt_url}: {result.n_trials} trials, "
                f"{result.duration_s / 60:.1f} min of stimuli")
