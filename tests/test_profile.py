@@ -148,3 +148,17 @@ def test_a_person_answers_with_keys_and_q_writes_nothing(tmp_path: Path) -> None
                       "-o", str(tmp_path / "P02.toml"), input="12q")
     assert proc.returncode == 1 and "abandoned (q); nothing was written" in proc.stderr
     assert "error:" not in proc.stderr and not (tmp_path / "P02.toml").exists()
+
+
+def test_play_renders_for_a_wearer_and_refuses_another_belts_profile(tmp_path: Path) -> None:
+    from support.cli import tactorbelt
+
+    path = _profile().save(tmp_path / "P01.toml")
+    proc = tactorbelt("play", "45", "--belt", "sim:virtual", "--profile", str(path),
+                      "--seconds", "0.2")
+    assert proc.returncode == 0, proc.stderr
+    assert "streamed at 1000 Hz, for wearer P01" in proc.stdout
+    proc = tactorbelt("play", "45", "--belt", "sim:8,virtual", "--profile", str(path))
+    assert proc.returncode == 2
+    assert proc.stderr.startswith(f"error: {path}: tactor_angles_deg: the profile has 6 "
+                                  "tactors but the belt has 8")

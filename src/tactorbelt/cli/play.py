@@ -57,8 +57,11 @@ def _describe(belt: Belt) -> str:
 @click.option("--stats", is_flag=True,
               help="Print the player's deadline statistics as one JSON line, last "
                    "(0 frames when the belt renders the stimulus itself; add --rate).")
+@click.option("--profile", "profile_file", default=None, metavar="FILE",
+              help="Render for this wearer's profile (TOML, from `tactorbelt calibrate "
+                   "perceptual -o`).")
 def play(angle: str, belt_url: str, calibration_file: str | None, seconds: float,
-         rate: float | None, stats: bool, **stim: Any) -> None:
+         rate: float | None, stats: bool, profile_file: str | None, **stim: Any) -> None:
     """Play the stimulus for direction ANGLE (degrees, 0 = navel, clockwise) on a belt.
 
     Examples: `tactorbelt play 15 --mode dynamic`, `tactorbelt play -30 --belt
@@ -68,18 +71,27 @@ def play(angle: str, belt_url: str, calibration_file: str | None, seconds: float
 
     stimulus = build_stimulus(angle, **stim)
     calibration = load_calibration(calibration_file)
+    profile = None
+    if profile_file is not None:
+        from ..profile import WearerProfile
+
+        profile = WearerProfile.load(profile_file)
     belt, stimulus_on_belt = open_belt_for(belt_url, stimulus,
                                            explicit_layout=layout_given(**stim),
                                            calibration=calibration,
                                            calibration_file=calibration_file)
     assert stimulus_on_belt is not None
     with belt:
+        if profile is not None:  # refused here when measured on another layout
+            profile.check_layout(belt.layout, source=str(profile_file))
+            stimulus_on_belt = stimulus_on_belt.with_profile(profile)
         player = Player(belt, rate_hz=rate, device_render=False if rate is not None else None)
         how = ("rendered by the belt" if player.renders_on_device(stimulus_on_belt)
                else f"streamed at {player.rate_hz:g} Hz")
         kind = "on-tactor" if stimulus_on_belt.on_tactor else "between-tactor"
         click.echo(f"playing {stimulus_on_belt.mode} {kind} {stimulus_on_belt.target_deg:g} deg "
-                   f"({stimulus_on_belt.law} law) on {_describe(belt)} for {seconds:g} s, {how}")
+                   f"({stimulus_on_belt.law} law) on {_describe(belt)} for {seconds:g} s, {how}"
+                   + (f", for wearer {profile.participant or '(unnamed)'}" if profile else ""))
         try:
             result = player.play(stimulus_on_belt, seconds)
         except KeyboardInterrupt:
