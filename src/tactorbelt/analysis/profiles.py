@@ -28,10 +28,30 @@ COLUMNS = ("profile", "condition", "n_participants", "n", "accuracy", "mean_abs_
            "mean_error_from_near_deg")
 
 
-def _rows(paths: Sequence[str | Path]) -> pd.DataFrame:
-    from ..experiment.store import open_store
+def _layout(study_toml: str) -> Layout:
+    """The session's layout; a study text that no longer parses gives the default one."""
+    from .._errors import TactorbeltError
     from ..experiment.study import Study
 
+    try:
+        return Study.from_toml(study_toml).layout_obj()
+    except TactorbeltError:
+        return Layout.even(6)
+
+
+def _has_profiles(path: str | Path) -> bool:
+    from ..experiment.store import open_store
+
+    with open_store(path, create=False, readonly=True) as store:
+        return any(store.session_profile(int(s["session_id"])) is not None
+                   for s in store.sessions())
+
+
+def _rows(paths: Sequence[str | Path]) -> pd.DataFrame:
+    from ..experiment.store import open_store
+
+    if not any(_has_profiles(p) for p in paths):
+        return pd.DataFrame()  # no session ran with a profile: nothing to compare
     frames = []
     for path in paths:
         with open_store(path, create=False, readonly=True) as store:
@@ -45,7 +65,7 @@ def _rows(paths: Sequence[str | Path]) -> pd.DataFrame:
                 t = trials.loc[keep]
                 if t.empty:
                     continue
-                layout: Layout = Study.from_toml(s["study_toml"]).layout_obj()
+                layout = _layout(s["study_toml"])
                 tgt = t["target_deg"].to_numpy(float)
                 err = np.asarray(wrap(t["response_target_deg"].to_numpy(float) - tgt), float)
                 # signed away from the nearer tactor
