@@ -596,6 +596,8 @@ class SQLiteStore(Store):
             c.execute("INSERT OR REPLACE INTO meta(key, value) VALUES (?, ?)", (key, value))
 
     def _meta(self, key: str) -> str | None:
+        if not self._query("SELECT 1 FROM sqlite_master WHERE type='table' AND name='meta'"):
+            return None  # a bare store (written by other tools) keeps no meta rows
         rows = self._query("SELECT value FROM meta WHERE key=?", (key,))
         return str(rows[0][0]) if rows else None
 
