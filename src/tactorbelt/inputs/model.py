@@ -115,6 +115,7 @@ class ModelCursor(CursorSource):
         self.params = params if params is not None else ModelParams()
         self.clock = clock
         self._sense = sense
+        self._seed = int(seed)
         self._rng = np.random.default_rng(seed)
         self._cue: TrialCue | None = None
         self._onset_ns = 0
@@ -159,8 +160,10 @@ class ModelCursor(CursorSource):
         return CursorSample(now, x, y, 0)
 
     def calibration_respondent(self, seed: int) -> Respondent:
-        """The same observer answering perceptual-calibration trials on the same belt."""
-        return ModelRespondent(self._sense, seed, self.params)
+        """The same observer answering perceptual-calibration trials on the same belt
+        (its answers seeded from its own seed and ``seed``; its cursor's draws untouched)."""
+        state = np.random.SeedSequence([self._seed, int(seed)]).generate_state(1)[0]
+        return ModelRespondent(self._sense, int(state), self.params)
 
     # -- internals -------------------------------------------------------------------------
     def _position(self, now_ns: int) -> tuple[float, float]:
