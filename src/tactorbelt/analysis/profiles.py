@@ -6,7 +6,8 @@ A session ran *with* a profile when the store recorded one for it
 studies with ``[calibration] perceptual = true``). For each (profile, condition): the
 participants, their between-tactor test trials, accuracy, mean absolute error (answered
 target minus target, degrees) and mean signed error away from the nearer tactor (the
-bias the calibration corrects: negative = felt too near the tactor). Participants are
+bias the calibration corrects: negative = felt too near the tactor; midpoints, which
+have no nearer tactor, left out). Participants are
 averaged with equal weight.
 
 Reads stores (through the Store interface) and pandas; writes nothing itself.
@@ -68,9 +69,11 @@ def _rows(paths: Sequence[str | Path]) -> pd.DataFrame:
                 layout = _layout(s["study_toml"])
                 tgt = t["target_deg"].to_numpy(float)
                 err = np.asarray(wrap(t["response_target_deg"].to_numpy(float) - tgt), float)
-                # signed away from the nearer tactor
+                # signed away from the nearer tactor (none at a midpoint: NaN, left out)
                 d = np.asarray(wrap(tgt[:, None] - layout.angles[None, :]), float)
+                ad = np.sort(np.abs(d), axis=1)
                 near = d[np.arange(len(tgt)), np.argmin(np.abs(d), axis=1)]
+                near = np.where(ad[:, 1] - ad[:, 0] < 1e-6, np.nan, near)
                 frames.append(pd.DataFrame({
                     "participant": s["participant"], "condition": t["condition"].to_numpy(),
                     "profile": store.session_profile(sid) is not None,
