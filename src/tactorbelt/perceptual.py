@@ -85,7 +85,8 @@ class Fit:
 
 
 def fit_psychometric(x: ArrayLike, r: ArrayLike, lo: float, hi: float,
-                     start: tuple[float, float] | None = None, lapse: float = LAPSE) -> Fit:
+                     start: tuple[float, float] | None = None, lapse: float = LAPSE,
+                     prior: tuple[float, float] | None = None) -> Fit:
     """Maximum-likelihood fit of :func:`psychometric` to 0/1 answers ``r`` at stimuli ``x``.
 
     Args:
@@ -94,6 +95,9 @@ def fit_psychometric(x: ArrayLike, r: ArrayLike, lo: float, hi: float,
             ``[(hi - lo) / 200, 2 (hi - lo)]``.
         start: (pse, sd) to start from (the QUEST+ estimate); default the middle.
         lapse: the fixed lapse rate.
+        prior: (mean, sd) of a normal prior on the PSE: the fit then maximises the
+            likelihood times this prior (a penalised, maximum a posteriori fit). None:
+            plain maximum likelihood.
     """
     from scipy.optimize import minimize
     from scipy.special import log_ndtr
@@ -111,7 +115,8 @@ def fit_psychometric(x: ArrayLike, r: ArrayLike, lo: float, hi: float,
         # log P(1) and log P(0) with the lapse, computed stably
         p1 = lapse + (1 - 2 * lapse) * np.exp(log_ndtr(z))
         p0_ = lapse + (1 - 2 * lapse) * np.exp(log_ndtr(-z))
-        return float(-(ra * np.log(p1) + (1 - ra) * np.log(p0_)).sum())
+        penalty = 0.0 if prior is None else 0.5 * ((mu - prior[0]) / prior[1]) ** 2
+        return float(-(ra * np.log(p1) + (1 - ra) * np.log(p0_)).sum()) + penalty
 
     res = minimize(nll, np.array([p0[0], math.log(max(p0[1], sd_lo))]), method="Nelder-Mead",
                    options={"xatol": 1e-4, "fatol": 1e-6, "maxiter": 400})
@@ -132,17 +137,24 @@ class Track:
     """
 
     def __init__(self, stimuli: ArrayLike, pse_grid: ArrayLike, sd_grid: ArrayLike, *,
-                 min_trials: int, max_trials: int, precision: float) -> None:
+                 min_trials: int, max_trials: int, precision: float,
+                 prior: tuple[float, float] | None = None) -> None:
         import questplus
 
         self.stimuli = np.asarray(stimuli, dtype=float)
         self.min_trials, self.max_trials, self.precision = min_trials, max_trials, precision
+        self.prior = prior
+        grid = np.asarray(pse_grid, dtype=float)
+        prior_arg = None
+        if prior is not None:
+            weights = np.exp(-0.5 * ((grid - prior[0]) / prior[1]) ** 2)
+            prior_arg = {"mean": weights / weights.sum()}
         self._q = questplus.QuestPlus(
             stim_domain={"intensity": self.stimuli},
             param_domain={"mean": np.asarray(pse_grid, dtype=float),
                           "sd": np.asarray(sd_grid, dtype=float), "lapse_rate": [LAPSE]},
             outcome_domain={"response": [1, 0]},  # the function gives P(1)
-            func="norm_cdf_2", stim_scale="linear")
+            prior=prior_arg, func="norm_cdf_2", stim_scale="linear")
         self.x: list[float] = []
         self.r: list[int] = []
 
@@ -178,7 +190,7 @@ class Track:
     def fit(self) -> Fit:
         mean, sd, _ = self.estimate()
         return fit_psychometric(self.x, self.r, float(self.stimuli[0]), float(self.stimuli[-1]),
-                                start=(mean, sd))
+                                start=(mean, sd), prior=self.prior)
 
 
 # -- who answers --------------------------------------------------------------------------------
@@ -295,6 +307,8 @@ class CalibrationSettings:
     law: str = "paper"
     falloff_deg: float = 15.0
     intensity: bool = True
+    intensity_prior_sd: float | None = 0.5
+    location_prior_sd: float | None = 0.1
 
     def __post_init__(self) -> None:
         for name in ("intensity_trials", "location_trials"):
@@ -317,15 +331,22 @@ LOCATION_STIMULI: Final = np.round(np.linspace(0.02, 0.98, 25), 6)
 
 
 def intensity_track(settings: CalibrationSettings) -> Track:
+    """An intensity track; its prior centres the PSE on 0 (as strong as the reference)."""
     lo, hi = settings.intensity_trials
+    sd = settings.intensity_prior_sd
     return Track(INTENSITY_STIMULI, np.linspace(-1.0, 1.0, 41), np.geomspace(0.05, 1.0, 8),
-                 min_trials=lo, max_trials=hi, precision=settings.intensity_precision)
+                 min_trials=lo, max_trials=hi, precision=settings.intensity_precision,
+                 prior=None if sd is None else (0.0, sd))
 
 
-def location_track(settings: CalibrationSettings) -> Track:
+def location_track(settings: CalibrationSettings, mark: float | None = None) -> Track:
+    """A location track for a marked point; its prior centres the PSE on the mark (felt
+    where rendered) unless ``mark`` is None."""
     lo, hi = settings.location_trials
+    sd = settings.location_prior_sd
     return Track(LOCATION_STIMULI, np.linspace(0.02, 0.98, 49), np.geomspace(0.02, 0.5, 8),
-                 min_trials=lo, max_trials=hi, precision=settings.location_precision)
+                 min_trials=lo, max_trials=hi, precision=settings.location_precision,
+                 prior=None if sd is None or mark is None else (mark, sd))
 
 
 @dataclass
@@ -447,7 +468,7 @@ def run_perceptual_calibration(belt: Belt, clock: Clock, respondent: Respondent,
     cw, _ = layout.neighbour_indices()
     gaps = layout.gaps_deg()
     keys = [(a, m) for a in range(n) for m in s.marks]
-    ltracks = [location_track(s) for _ in keys]
+    ltracks = [location_track(s, m) for _, m in keys]
     while True:
         order = _interleave(ltracks, rng)
         if not order:
