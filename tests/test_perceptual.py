@@ -91,3 +91,14 @@ def test_the_model_participant_is_calibrated_from_what_it_feels() -> None:
     inner = np.array([w.rendered for w in p.warps])
     assert inner[:, 0].mean() > 0.27 and inner[:, 1].mean() < 0.73
     assert all(0.7 < g < 1.4 for g in p.gains)
+
+
+def test_the_prior_holds_a_few_trials_near_no_correction_and_yields_to_many() -> None:
+    rng = np.random.default_rng(11)
+    x = rng.uniform(0.02, 0.98, 4000)
+    r = (rng.random(4000) < psychometric(x, 0.4, 0.1)).astype(int)
+    many = fit_psychometric(x, r, 0.02, 0.98, prior=(0.25, 0.1))
+    assert many.pse == pytest.approx(0.4, abs=0.02)
+    few_plain = fit_psychometric(x[:10], r[:10], 0.02, 0.98)
+    few = fit_psychometric(x[:10], r[:10], 0.02, 0.98, prior=(0.25, 0.1))
+    assert abs(few.pse - 0.25) < abs(few_plain.pse - 0.25)

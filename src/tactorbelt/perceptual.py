@@ -15,12 +15,14 @@ maintained ``questplus`` package, Watson 2017; function ``norm_cdf_2``):
    PSE is the rendered fraction felt at the mark, so the pair's warp maps m -> PSE
    (made strictly monotone by :func:`tactorbelt.profile.isotonic`).
 
-Each track stops after ``max_trials`` or, after ``min_trials``, once the posterior SD
-of its PSE is at most ``precision`` (in the track's units). Afterwards every track is
-fitted by maximum likelihood (:func:`fit_psychometric`): a cumulative normal with a fixed
-lapse, ``P(second / b side) = lapse + (1 - 2 lapse) * Phi((x - pse) / sd)``, maximised
-over (pse, log sd) by Nelder-Mead from the QUEST+ estimate; the fitted PSE (clipped to
-the stimulus range) is what the profile uses.
+Each track starts from a normal prior on its PSE centred on "no correction" (as strong
+as the reference; felt where rendered) and stops after ``max_trials`` or, after
+``min_trials``, once the posterior SD of its PSE is at most ``precision`` (in the
+track's units). Afterwards every track is fitted (:func:`fit_psychometric`): a
+cumulative normal with a fixed lapse, ``P(second / b side) = lapse + (1 - 2 lapse) *
+Phi((x - pse) / sd)``, its likelihood times the same prior maximised over (pse, log sd)
+by Nelder-Mead from the QUEST+ estimate; the fitted PSE (clipped to the stimulus range)
+is what the profile uses.
 
 Who answers is a :class:`Respondent`: the model participant
 (:class:`tactorbelt.inputs.model.ModelRespondent`, from the vibration it feels), a person
@@ -292,6 +294,9 @@ class CalibrationSettings:
             after a trial (on a simulated clock the clock just moves on).
         law, falloff_deg: the amplitude law of the phantom points (the study's).
         intensity: run the intensity part (False: all gains 1).
+        intensity_prior_sd, location_prior_sd: SD of the normal prior on each track's
+            PSE, centred on no correction (log2 units; fraction of the gap); None: a
+            flat prior and a plain maximum-likelihood fit.
     """
 
     reference_tactor: int = 0
