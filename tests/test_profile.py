@@ -162,3 +162,21 @@ def test_play_renders_for_a_wearer_and_refuses_another_belts_profile(tmp_path: P
     assert proc.returncode == 2
     assert proc.stderr.startswith(f"error: {path}: tactor_angles_deg: the profile has 6 "
                                   "tactors but the belt has 8")
+
+
+@pytest.mark.parametrize("mode", ["static", "dynamic"])
+def test_the_direction_display_shows_a_wearers_stimulus(mode: str) -> None:
+    from tactorbelt.clock import SimClock
+    from tactorbelt.display import DirectionDisplay
+
+    clock = SimClock()
+    with SimBelt(layout=LAYOUT, clock=clock) as belt:
+        d = DirectionDisplay(belt, mode=mode, profile=_profile())
+        assert not d.device_render  # the profile is streamed
+        t0 = clock.now_ns()
+        d.show(45.0)
+        d.pump(t0 + 2_000_000_000)
+        got = belt.commanded(t0, t0 + 2_000_000_000, 1000.0)[1]
+    ref = make_stimulus(LAYOUT, 45.0, mode, profile=_profile()).amplitudes(
+        np.arange(2000) / 1000.0)
+    np.testing.assert_allclose(got, ref, atol=1e-6)
