@@ -101,3 +101,17 @@ def test_the_analysis_reports_results_with_and_without_profiles(tmp_path: Path) 
             run_session(study, "M09", belt, make_model_cursor(belt, clock, seed=1), store,
                         clock, study_toml=text)
     assert profile_table([plain]) is None
+
+
+def test_a_missing_profile_leaves_no_session_behind(tmp_path: Path) -> None:
+    study, text = _study()
+
+    class Person(CursorSource):
+        pass
+
+    clock = SimClock()
+    with SimBelt(layout=study.layout_obj(), clock=clock) as belt, \
+            open_store(tmp_path / "s.sqlite") as store:
+        with pytest.raises(ConfigError):
+            run_session(study, "P07", belt, Person(), store, clock, study_toml=text)
+        assert store.sessions("P07") == []

@@ -570,14 +570,16 @@ def calibrate_wearer(belt_url: str, participant: str, *, input_kind: str = "keyb
 
 
 def profile_for_session(study: Any, store: Any, belt: Belt, clock: Clock, participant: str,
-                        respondent: Respondent | None, *, session_id: int, resume: bool,
+                        respondent: Respondent | None, *, resume: bool,
                         seed: int = 0) -> WearerProfile | None:
-    """The wearer profile a session renders with (the runner calls this before training).
+    """The wearer profile a session renders with (the runner calls this before it creates
+    the session, so a missing profile leaves no empty session behind, and records it
+    with the session as its provenance).
 
     A study with ``[calibration] perceptual = true`` uses the participant's profile kept
     in ``store``; when there is none, the participant is calibrated now with
     ``respondent`` and the profile kept. A resumed session keeps the profile it started
-    with. The profile is recorded with the session (its provenance). Other studies: None.
+    with. Other studies: None.
 
     Raises:
         ConfigError: the study requires a profile, none is kept, and nobody can answer
@@ -586,10 +588,12 @@ def profile_for_session(study: Any, store: Any, belt: Belt, clock: Clock, partic
     """
     if not study.calibration.perceptual:
         return None
-    if resume:
-        text = store.session_profile(session_id)
+    row = store.find_resumable(participant) if resume else None
+    if row is not None:
+        sid = int(row["session_id"])
+        text = store.session_profile(sid)
         if text is not None:
-            return WearerProfile.from_toml(text, source=f"{store.url} (session {session_id})")
+            return WearerProfile.from_toml(text, source=f"{store.url} (session {sid})")
     text = store.wearer_profile(participant)
     if text is not None:
         profile = WearerProfile.from_toml(text, source=f"{store.url} ({participant})")
@@ -609,5 +613,4 @@ def profile_for_session(study: Any, store: Any, belt: Belt, clock: Clock, partic
                                              created=utc_now()).profile
         store.save_wearer_profile(participant, profile.to_toml())
     profile.check_layout(belt.layout, source=f"the wearer profile of {participant!r}")
-    store.set_session_profile(session_id, profile.to_toml())
     return profile

@@ -298,7 +298,13 @@ class SessionRunner:
         """Create the session (or reopen the resumed one); return the trials to run."""
         import hashlib
 
+        from ..perceptual import profile_for_session  # before training (and the session)
+
         study, store = self.study, self.store
+        self.profile = profile_for_session(
+            study, store, self.belt, self.clock, self.participant,
+            self.cursor.calibration_respondent(int(study.session.seed if self.seed is None
+                                                   else self.seed)), resume=self.resume)
         sha = hashlib.sha256(self.study_toml.encode("utf-8")).hexdigest()
         if self.resume:
             row = store.find_resumable(self.participant)
@@ -336,13 +342,8 @@ class SessionRunner:
                 host=prov.host, input=self.input_name,
                 clock="sim" if self.sim else "wall", site=self.site,
             )
-        from ..perceptual import profile_for_session  # before training: the wearer profile
-
-        self.profile = profile_for_session(
-            study, store, self.belt, self.clock, self.participant,
-            self.cursor.calibration_respondent(int(study.session.seed if self.seed is None
-                                                   else self.seed)),
-            session_id=self.session_id, resume=self.resume)
+        if self.profile is not None:  # the wearer profile is part of the session's provenance
+            store.set_session_profile(self.session_id, self.profile.to_toml())
         finished = store.finished_indices(self.session_id)
         self.n_done = len(finished)
         return [t for t in self.schedule if t.trial_index not in finished]
