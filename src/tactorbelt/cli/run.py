@@ -74,13 +74,19 @@ def _given(ctx: click.Context, name: str, value: Any) -> Any:
               show_default=True, help="Radial dead zone of the stick.")
 @click.option("--invert-x", is_flag=True, help="Mirror the stick's left/right axis.")
 @click.option("--invert-y", is_flag=True, help="Mirror the stick's front/back axis.")
+@click.option("--lsl", is_flag=True,
+              help="Send Lab Streaming Layer streams: event markers and the cursor (needs "
+                   "pylsl; a simulated run then runs in real time).")
+@click.option("--lsl-wait", type=number(float, 0.0, 3600.0), default=0.0, show_default=True,
+              help="With --lsl: seconds to wait for a recorder (LabRecorder) to connect to "
+                   "the streams before the first trial.")
 @click.pass_context
 def run(ctx: click.Context, study_file: Path, participant: str, belt_url: str,
         input_kind: str | None, db: str, push: str | None, site: str | None, offline: bool,
         resume: bool, new_session: bool, headless: bool,
         limit: int | None, seed: int | None, realtime: bool, fullscreen: bool,
         screenshot_dir: Path | None, joystick_device: str | None, axes: str,
-        dead_zone: float, invert_x: bool, invert_y: bool) -> None:
+        dead_zone: float, invert_x: bool, invert_y: bool, lsl: bool, lsl_wait: float) -> None:
     """Run a study session for one participant, storing every trial in --db.
 
     Exit status: 0 the run ended (complete, or --limit reached), 130 stopped by the
@@ -90,6 +96,8 @@ def run(ctx: click.Context, study_file: Path, participant: str, belt_url: str,
     from ..interrupts import Terminated
     from ..launch import JoystickOptions, RunRequest, resolve_db, resume_command, run_study
 
+    if lsl_wait and not lsl:
+        raise click.UsageError("--lsl-wait is for --lsl")
     if not participant.strip():
         raise click.BadParameter("must not be empty", param_hint="--participant")
     g = lambda name, value: _given(ctx, name, value)  # noqa: E731
@@ -102,7 +110,8 @@ def run(ctx: click.Context, study_file: Path, participant: str, belt_url: str,
         limit=limit, seed=seed, realtime=g("realtime", realtime),
         fullscreen=g("fullscreen", fullscreen), screenshot_dir=screenshot_dir,
         joystick=JoystickOptions(joystick_device, g("axes", axes), g("dead_zone", dead_zone),
-                                 g("invert_x", invert_x), g("invert_y", invert_y)))
+                                 g("invert_x", invert_x), g("invert_y", invert_y)),
+        lsl=lsl, lsl_wait_s=lsl_wait)
     try:
         with _progress_bar(participant) as progress:
             outcome = run_study(req, progress=progress,

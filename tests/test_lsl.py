@@ -1,0 +1,182 @@
+"""Lab Streaming Layer: `tactorbelt run --lsl` as a lab records it (docs/lsl.md).
+
+A real LSL inlet in another process, on the loopback interface only
+(support/lsl.py), records a short model-participant session run with ``--lsl``; every
+marker must arrive once, in order, saying what the store says, stamped within 1 ms of
+the store's times mapped to LSL's clock.
+"""
+
+from __future__ import annotations
+
+import bisect
+import json
+import sqlite3
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from support.lsl import inlet_result, loopback_env, pylsl_or_skip, start_inlet
+from support.studies import write_study
+from tactorbelt.experiment.runner import NullObserver
+from tactorbelt.lsl import MARKER_EVENTS, LslObserver, load_pylsl, marker
+
+pytestmark = pytest.mark.slow
+
+
+def _run(*args: str, env: dict[str, str], timeout: float = 120) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-m", "tactorbelt", *args], capture_output=True,
+                          text=True, env=env, timeout=timeout)
+
+
+def _clock_offset(pylsl: Any) -> float:
+    """LSL's clock minus the runner's (time.perf_counter), read in this process."""
+    best = None
+    for _ in range(5):
+        a = pylsl.local_clock()
+        c = time.perf_counter()
+        b = pylsl.local_clock()
+        if best is None or b - a < best[0]:
+            best = (b - a, (a + b) / 2 - c)
+    assert best is not None
+    return best[1]
+
+
+def _expected(trials: list[dict[str, Any]], status: str) -> list[tuple[str, int | None]]:
+    """(event, trial_index or block_index) of every marker, in order, from the store."""
+    want: list[tuple[str, int | None]] = [("session_start", None)]
+    block = None
+    for t in trials:
+        if t["block_index"] != block:
+            if block is not None:
+                want.append(("block_end", block))
+            block = t["block_index"]
+            want.append(("block_start", block))
+        i = t["trial_index"]
+        want += [("trial_start", i), ("stimulus_onset", i)]
+        want.append(("response", i) if t["status"] == "done" else ("timeout", i))
+        want.append(("trial_end", i))
+    return [*want, ("block_end", block), ("session_end", None)]
+
+
+def _key(m: dict[str, Any]) -> tuple[str, int | None]:
+    return m["event"], m.get("trial_index", m.get("block_index"))
+
+
+def test_run_with_lsl_streams_every_marker_once_in_order_on_lsl_time(tmp_path: Path) -> None:
+    pylsl = pylsl_or_skip()
+    study = write_study(tmp_path, name="lsl-check", targets=4, repetitions=1, training=0,
+                        conditions=["dynamic"], iti_s=0.1, break_every=0)
+    db = tmp_path / "s.sqlite"
+    env = loopback_env(tmp_path)
+    inlet = start_inlet(env, timeout_s=90)
+    proc = _run("run", str(study), "-p", "P07", "--headless", "--input", "model", "--db",
+                str(db), "--lsl", "--lsl-wait", "60", env=env)
+    got = inlet_result(inlet)
+    assert proc.returncode == 0, proc.stderr
+    assert "warning" not in proc.stderr, proc.stderr
+    offset = _clock_offset(pylsl)
+    con = sqlite3.connect(db)
+    con.row_factory = sqlite3.Row
+    trials = [dict(r) for r in con.execute("SELECT * FROM trials ORDER BY trial_index")]
+    samples = con.execute("SELECT t.onset_ns, s.t_s, s.x, s.y FROM samples s JOIN trials t "
+                          "USING (trial_id)").fetchall()
+    assert len(trials) == 4 and got["complete"]
+
+    markers = [(ts + got["time_correction"], json.loads(text)) for ts, text in got["markers"]]
+    assert [_key(m) for _, m in markers] == _expected(trials, "complete")
+    by = {_key(m): (ts, m) for ts, m in markers}
+    assert by[("session_end", None)][1]["status"] == "complete"
+    assert by[("session_start", None)][1]["participant"] == "P07"
+    for t in trials:
+        i = t["trial_index"]
+        ts, onset = by[("stimulus_onset", i)]
+        assert onset["target_deg"] == pytest.approx(t["target_deg"])
+        assert (onset["condition"], onset["n_targets"], onset["load"], onset["onset_clock"]) \
+            == (t["condition"], t["n_targets"], t["load"], "host")
+        assert abs(ts - (t["onset_ns"] / 1e9 + offset)) < 1e-3
+        ts, resp = by[("response", i)]
+        assert abs(ts - (t["acquired_ns"] / 1e9 + offset)) < 1e-3
+        assert resp["correct"] == bool(t["correct"])
+        assert resp["response_deg"] == pytest.approx(t["response_deg"])
+        assert resp["rt_s"] == pytest.approx(t["rt_s"])
+        assert by[("trial_end", i)][1]["status"] == "done"
+    # markers are stamped in the order they happened
+    stamps = [ts for ts, _ in markers]
+    assert stamps == sorted(stamps)
+
+    # every stored cursor sample is in the cursor stream, at its time, with its position
+    cursor = sorted((ts + got["time_correction"], x, y) for ts, x, y in got["cursor"])
+    stream_t = [c[0] for c in cursor]
+    for onset_ns, t_s, x, y in samples:
+        want = onset_ns / 1e9 + t_s + offset
+        k = bisect.bisect_left(stream_t, want)
+        k = min((j for j in (k - 1, k) if 0 <= j < len(cursor)),
+                key=lambda j: abs(stream_t[j] - want))
+        assert abs(cursor[k][0] - want) < 1e-3, (want, cursor[k])
+        assert cursor[k][1] == pytest.approx(x, abs=1e-6)
+        assert cursor[k][2] == pytest.approx(y, abs=1e-6)
+
+    xml = got["marker_xml"]
+    for text in ("<type>Markers</type>", "<participant>P07</participant>",
+                 "<name>lsl-check</name>", "<angle_deg>330</angle_deg>",
+                 "<marker_format>tactorbelt-markers/1</marker_format>"):
+        assert text in xml, text
+
+
+def test_lsl_without_liblsl_says_how_to_install_it(tmp_path: Path) -> None:
+    # pylsl raises RuntimeError at import when it finds no liblsl: a stand-in that does
+    fake = tmp_path / "fake" / "pylsl"
+    fake.mkdir(parents=True)
+    (fake / "__init__.py").write_text(
+        "raise RuntimeError('LSL binary library file was not found. Please make sure that "
+        "the binary file can be found in the package lib folder')\n")
+    study = write_study(tmp_path, targets=4, repetitions=1, training=0)
+    db = tmp_path / "s.sqlite"
+    env = loopback_env(tmp_path)
+    env["PYTHONPATH"] = str(tmp_path / "fake")
+    proc = _run("run", str(study), "-p", "P01", "--headless", "--input", "model", "--db",
+                str(db), "--lsl", env=env)
+    assert proc.returncode == 2
+    assert proc.stderr.startswith("error: --lsl: pylsl cannot load the liblsl library "
+                                  "(LSL binary library file was not found."), proc.stderr
+    assert "pip install 'tactorbelt[lsl]'" in proc.stderr and "Traceback" not in proc.stderr
+    assert not db.exists()
+
+
+def test_lsl_wait_needs_lsl(tmp_path: Path) -> None:
+    study = write_study(tmp_path, targets=4, repetitions=1, training=0)
+    proc = _run("run", str(study), "-p", "P01", "--headless", "--lsl-wait", "5",
+                env=loopback_env(tmp_path))
+    assert proc.returncode == 2 and "--lsl-wait is for --lsl" in proc.stderr
+
+
+def test_the_lsl_observer_forwards_every_hook_of_the_runner() -> None:
+    # a hook the runner gains must be forwarded, or the window behind it stops seeing it
+    hooks = {n for n in vars(NullObserver) if not n.startswith("_")}
+    assert hooks <= set(vars(LslObserver)), hooks - set(vars(LslObserver))
+
+
+def test_markers_are_compact_json_in_the_documented_shape() -> None:
+    text = marker("stimulus_onset", trial_index=3, target_deg=15.0, on_tactor=False,
+                  condition="dynamic", n_targets=24, load="none", block="test",
+                  onset_clock="device")
+    assert text == ('{"event":"stimulus_onset","trial_index":3,"target_deg":15.0,'
+                    '"on_tactor":false,"condition":"dynamic","n_targets":24,"load":"none",'
+                    '"block":"test","onset_clock":"device"}')
+    assert json.loads(marker("response", trial_index=1, rt_s=float("nan")))["rt_s"] is None
+    with pytest.raises(ValueError):
+        marker("stimulus_onset", response_deg=1.0)
+    docs = (Path(__file__).resolve().parents[1] / "docs" / "lsl.md").read_text()
+    for event, fields in MARKER_EVENTS.items():
+        assert f"`{event}`" in docs, event
+        for f in fields:
+            assert f"`{f}`" in docs, (event, f)
+
+
+def test_load_pylsl_is_the_real_module_here() -> None:
+    pylsl_or_skip()
+    assert load_pylsl().library_version() >= 114
