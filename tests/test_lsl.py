@@ -66,15 +66,23 @@ def _key(m: dict[str, Any]) -> tuple[str, int | None]:
     return m["event"], m.get("trial_index", m.get("block_index"))
 
 
-def test_run_with_lsl_streams_every_marker_once_in_order_on_lsl_time(tmp_path: Path) -> None:
+@pytest.mark.parametrize("belt, cursor", [
+    ("sim", "model"),
+    # firmware 1.1 reports device-true onsets: the onset marker carries the device's
+    pytest.param("emulator", "scripted", marks=pytest.mark.emulator),
+])
+def test_run_with_lsl_streams_every_marker_once_in_order_on_lsl_time(
+        tmp_path: Path, belt: str, cursor: str, request: pytest.FixtureRequest) -> None:
     pylsl = pylsl_or_skip()
+    if belt == "emulator":
+        request.getfixturevalue("emulator_exe")  # built, or skipped with the reason
     study = write_study(tmp_path, name="lsl-check", targets=4, repetitions=1, training=0,
                         conditions=["dynamic"], iti_s=0.1, break_every=0)
     db = tmp_path / "s.sqlite"
     env = loopback_env(tmp_path)
     inlet = start_inlet(env, timeout_s=90)
-    proc = _run("run", str(study), "-p", "P07", "--headless", "--input", "model", "--db",
-                str(db), "--lsl", "--lsl-wait", "60", env=env)
+    proc = _run("run", str(study), "-p", "P07", "--headless", "--input", cursor, "--belt",
+                belt, "--db", str(db), "--lsl", "--lsl-wait", "60", env=env)
     got = inlet_result(inlet)
     assert proc.returncode == 0, proc.stderr
     assert "warning" not in proc.stderr, proc.stderr
@@ -95,9 +103,12 @@ def test_run_with_lsl_streams_every_marker_once_in_order_on_lsl_time(tmp_path: P
         i = t["trial_index"]
         ts, onset = by[("stimulus_onset", i)]
         assert onset["target_deg"] == pytest.approx(t["target_deg"])
+        device = belt == "emulator"
         assert (onset["condition"], onset["n_targets"], onset["load"], onset["onset_clock"]) \
-            == (t["condition"], t["n_targets"], t["load"], "host")
-        assert abs(ts - (t["onset_ns"] / 1e9 + offset)) < 1e-3
+            == (t["condition"], t["n_targets"], t["load"], "device" if device else "host")
+        assert (t["device_onset_ns"] is not None) == device
+        stored = t["device_onset_ns"] if device else t["onset_ns"]
+        assert abs(ts - (stored / 1e9 + offset)) < 1e-3
         ts, resp = by[("response", i)]
         assert abs(ts - (t["acquired_ns"] / 1e9 + offset)) < 1e-3
         assert resp["correct"] == bool(t["correct"])
@@ -109,16 +120,16 @@ def test_run_with_lsl_streams_every_marker_once_in_order_on_lsl_time(tmp_path: P
     assert stamps == sorted(stamps)
 
     # every stored cursor sample is in the cursor stream, at its time, with its position
-    cursor = sorted((ts + got["time_correction"], x, y) for ts, x, y in got["cursor"])
-    stream_t = [c[0] for c in cursor]
+    stream = sorted((ts + got["time_correction"], x, y) for ts, x, y in got["cursor"])
+    stream_t = [c[0] for c in stream]
     for onset_ns, t_s, x, y in samples:
         want = onset_ns / 1e9 + t_s + offset
         k = bisect.bisect_left(stream_t, want)
-        k = min((j for j in (k - 1, k) if 0 <= j < len(cursor)),
+        k = min((j for j in (k - 1, k) if 0 <= j < len(stream)),
                 key=lambda j: abs(stream_t[j] - want))
-        assert abs(cursor[k][0] - want) < 1e-3, (want, cursor[k])
-        assert cursor[k][1] == pytest.approx(x, abs=1e-6)
-        assert cursor[k][2] == pytest.approx(y, abs=1e-6)
+        assert abs(stream[k][0] - want) < 1e-3, (want, stream[k])
+        assert stream[k][1] == pytest.approx(x, abs=1e-6)
+        assert stream[k][2] == pytest.approx(y, abs=1e-6)
 
     xml = got["marker_xml"]
     for text in ("<type>Markers</type>", "<participant>P07</participant>",
