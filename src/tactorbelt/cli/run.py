@@ -1,4 +1,5 @@
-"""``tactorbelt run`` (one participant's session) and ``tactorbelt export`` (CSV or BIDS).
+"""``tactorbelt run`` (one participant's session) and ``tactorbelt export`` (CSV, BIDS,
+Parquet, a tidy table for R and JASP, PsychoPy CSV).
 
 The run command parses its options into a :class:`tactorbelt.launch.RunRequest` and
 calls :func:`tactorbelt.launch.run_study`, which holds the policies (session, resume,
@@ -22,6 +23,7 @@ from ._options import HiddenArgument, belt_option, number, output_option, seed_o
 __all__ = ["export", "run"]
 
 INPUTS = ("joystick", "mouse", "model", "scripted")
+EXPORT_FORMATS = ("csv", "bids", "parquet", "tidy", "psychopy")
 
 
 def _given(ctx: click.Context, name: str, value: Any) -> Any:
@@ -155,8 +157,12 @@ def _progress_bar(label: str) -> Iterator[Callable[[int, int], None]]:
 @click.argument("old_out", cls=HiddenArgument, required=False,
                 type=click.Path(file_okay=False, path_type=Path))
 @output_option("directory", "New or empty directory for the files.")
-@click.option("--format", "fmt", type=click.Choice(["csv", "bids"]), default="csv",
-              show_default=True, help="Tidy CSV files, or a BIDS dataset (beh + motion).")
+@click.option("--format", "fmt", type=click.Choice(EXPORT_FORMATS), default="csv",
+              show_default=True,
+              help="csv: the store's tables as CSV; bids: a BIDS dataset (beh + motion); "
+                   "parquet: the same tables as Parquet; tidy: one trial table for R (lme4) "
+                   "and JASP, with its codebook; psychopy: PsychoPy's wide CSV, one file per "
+                   "session.")
 @click.option("--force", is_flag=True,
               help="Replace an earlier export of the same format in the output directory.")
 @click.option("--readme", type=click.Path(dir_okay=False, path_type=Path), default=None,
@@ -172,6 +178,7 @@ def export(db: str, old_out: Path | None, out: Path | None, fmt: str, force: boo
     B. Author"`. A directory that is not empty is refused unless --force (which replaces
     only an earlier export there).
     """
+    from ..experiment import export_formats
     from ..experiment.export import export_bids, export_csv
 
     if out is not None and old_out is not None:
@@ -179,11 +186,13 @@ def export(db: str, old_out: Path | None, out: Path | None, fmt: str, force: boo
     out = out if out is not None else old_out
     if out is None:
         raise click.UsageError("give the output directory with -o DIRECTORY")
-    if fmt == "csv" and (readme is not None or authors is not None):
+    if fmt != "bids" and (readme is not None or authors is not None):
         raise click.UsageError("--readme and --authors are for --format bids")
     names = [a.strip() for a in (authors or "").split(",") if a.strip()]
-    files = (export_csv(db, out, force=force) if fmt == "csv"
-             else export_bids(db, out, readme=readme, authors=names, force=force))
+    writers = {"csv": export_csv, "parquet": export_formats.export_parquet,
+               "tidy": export_formats.export_tidy, "psychopy": export_formats.export_psychopy}
+    files = (export_bids(db, out, readme=readme, authors=names, force=force) if fmt == "bids"
+             else writers[fmt](db, out, force=force))
     click.echo(f"wrote {len(files)} files to {out}")
     if fmt == "bids" and not names:
         click.echo("note: no --authors given, so dataset_description.json lists none "
