@@ -24,8 +24,6 @@ from support.studies import write_study
 from tactorbelt.experiment.runner import NullObserver
 from tactorbelt.lsl import MARKER_EVENTS, LslObserver, load_pylsl, marker
 
-pytestmark = pytest.mark.slow
-
 
 def _run(*args: str, env: dict[str, str], timeout: float = 120) -> subprocess.CompletedProcess[str]:
     return subprocess.run([sys.executable, "-m", "tactorbelt", *args], capture_output=True,
@@ -66,6 +64,7 @@ def _key(m: dict[str, Any]) -> tuple[str, int | None]:
     return m["event"], m.get("trial_index", m.get("block_index"))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("belt, cursor", [
     ("sim", "model"),
     # firmware 1.1 reports device-true onsets: the onset marker carries the device's
