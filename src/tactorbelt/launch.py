@@ -147,6 +147,8 @@ class RunOutcome:
     resumed: bool
     #: What happened to the background push (stderr lines; empty without --push).
     push_lines: list[str] = field(default_factory=list)
+    #: The session's secondary-task events (``Store.task_events``; empty without load).
+    task_events: list[dict[str, Any]] = field(default_factory=list)
 
     def summary(self) -> tuple[list[str], list[str]]:
         """(lines for stdout, lines for stderr) of the end-of-run summary."""
@@ -161,6 +163,7 @@ class RunOutcome:
             mine = [(x.trial.condition, bool(x.correct), x.rt_s) for x in r.results
                     if x.trial.block == "test" and x.status != "aborted"]
             out += _condition_lines(mine, "  this run ") or ["  this run: no test trials"]
+        out += task_lines(self.task_events)
         err = list(self.push_lines)
         if r.status != "complete":
             err.append(f"  continue with --resume (session {r.session_id})")
@@ -177,6 +180,29 @@ def _condition_lines(rows: list[tuple[str, bool, float | None]], prefix: str) ->
             med = f"{statistics.median(rts):.2f} s" if rts else "n/a (no response)"
             lines.append(f"{prefix}{cond:<8s} {len(rs):4d} test trials, accuracy {acc:.1%}, "
                          f"median RT {med}")
+    return lines
+
+
+def task_lines(events: list[dict[str, Any]], prefix: str = "  ") -> list[str]:
+    """One summary line per secondary task and phase (practice, baseline, dual): go
+    items pressed, false alarms among the no-go items, extra presses, median RT."""
+    lines = []
+    keys = sorted({(e["task"], e["phase"]) for e in events},
+                  key=lambda k: (k[0], ("practice", "baseline", "dual").index(k[1])))
+    for task, phase in keys:
+        rows = [e for e in events if (e["task"], e["phase"]) == (task, phase)]
+        items = [e for e in rows if e["item_index"] >= 0]
+        go = [e for e in items if e["target"]]
+        nogo = [e for e in items if not e["target"]]
+        hits = sum(1 for e in go if e["response"])
+        fas = sum(1 for e in nogo if e["response"])
+        extra = len(rows) - len(items)
+        rts = [e["rt_s"] for e in go if e["rt_s"] is not None]
+        med = f"{statistics.median(rts):.2f} s" if rts else "n/a"
+        lines.append(f"{prefix}{task} {phase:<8s} {len(items):4d} items, {hits}/{len(go)} go "
+                     f"items pressed, {fas}/{len(nogo)} false alarms"
+                     + (f", {extra} extra presses" if extra else "")
+                     + f", median RT {med}")
     return lines
 
 
@@ -307,6 +333,20 @@ class _RunObserver:
     def poll(self, now_ns: int) -> Any:
         return self.inner.poll(now_ns)
 
+    def on_task_phase(self, name: str | None, spec: Any, phase: str | None) -> None:
+        self.inner.on_task_phase(name, spec, phase)
+
+    def on_task_item(self, item: Any, onset_ns: int, spec: Any) -> None:
+        self.inner.on_task_item(item, onset_ns, spec)
+
+    def task_presses(self, now_ns: int) -> list[int]:
+        presses: list[int] = self.inner.task_presses(now_ns)
+        return presses
+
+    def ask_workload(self, info: Any) -> dict[str, float] | None:
+        answer: dict[str, float] | None = self.inner.ask_workload(info)
+        return answer
+
 
 def _check_options(r: RunRequest) -> None:
     """Refuse an unknown input, a window input without a window, an unknown belt URL."""
@@ -420,7 +460,8 @@ def run_study(req: RunRequest, *, progress: Callable[[int, int], None] | None = 
                 if lsl is not None:
                     lsl.close()
         trials = store.trials(result.session_id)
-    return RunOutcome(result, req.db, trials, req.resume, push_lines)
+        events = store.task_events(result.session_id) if study.tasks else []
+    return RunOutcome(result, req.db, trials, req.resume, push_lines, events)
 
 
 def _lsl(req: RunRequest, clock: Clock, belt: Any) -> LslObserver | None:
