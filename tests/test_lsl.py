@@ -14,6 +14,7 @@ import sqlite3
 import subprocess
 import sys
 import time
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -23,6 +24,16 @@ from support.lsl import inlet_result, loopback_env, pylsl_or_skip, start_inlet
 from support.studies import write_study
 from tactorbelt.experiment.runner import NullObserver
 from tactorbelt.lsl import MARKER_EVENTS, LslObserver, load_pylsl, marker
+
+
+@pytest.fixture(autouse=True, scope="module")
+def _lsl_on_loopback(tmp_path_factory: pytest.TempPathFactory) -> Iterator[None]:
+    """The outlets this process opens stay on this machine (liblsl reads its config at
+    its first use in a process)."""
+    env = loopback_env(tmp_path_factory.mktemp("lsl"))
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv("LSLAPICFG", env["LSLAPICFG"])
+        yield
 
 
 def _run(*args: str, env: dict[str, str], timeout: float = 120) -> subprocess.CompletedProcess[str]:
@@ -190,3 +201,80 @@ def test_markers_are_compact_json_in_the_documented_shape() -> None:
 def test_load_pylsl_is_the_real_module_here() -> None:
     pylsl_or_skip()
     assert load_pylsl().library_version() >= 114
+
+
+class _Window(NullObserver):
+    """A window stand-in: presses the button 0.5 s after each go item, answers the TLX."""
+
+    def __init__(self, tlx: dict[str, float]) -> None:
+        self.due: list[int] = []
+        self.tlx = tlx
+
+    def on_task_item(self, item: Any, onset_ns: int, spec: Any) -> None:
+        if item.target:
+            self.due.append(onset_ns + 500_000_000)
+
+    def task_presses(self, now_ns: int) -> list[int]:
+        out = [p for p in self.due if p <= now_ns]
+        self.due = [p for p in self.due if p > now_ns]
+        return out
+
+    def ask_workload(self, info: Any) -> dict[str, float] | None:
+        return self.tlx
+
+
+def test_secondary_task_items_presses_and_ratings_are_markers_at_their_times(
+        tmp_path: Path) -> None:
+    pylsl = pylsl_or_skip()
+    from support.studies import make_study
+    from tactorbelt.clock import SimClock
+    from tactorbelt.devices import open_belt
+    from tactorbelt.experiment.runner import run_session
+    from tactorbelt.experiment.schedule import make_schedule
+    from tactorbelt.experiment.store import Store
+    from tactorbelt.inputs.scripted import ScriptedCursor
+    from tactorbelt.tasks import TLX_ITEMS
+
+    study = make_study(
+        minimal=True, name="load", tactors=4, targets=8, iti_s=0.5, break_every=0,
+        training=0, timeout_s=3.0, max_presentation_s=2.0,
+        blocks=[{"name": "calm", "condition": "static", "repetitions": 1},
+                {"name": "busy", "condition": "dynamic", "repetitions": 1, "load": "nb2"}],
+        tasks={"nb2": {"kind": "nback", "n": 2, "interval_s": 1.0, "practice": 8}},
+        questionnaire={"tlx": True})
+    tlx = dict.fromkeys(TLX_ITEMS, 40.0)
+    cursor = ScriptedCursor(answers={t.trial_index: t.target_deg
+                                     for t in make_schedule(study, "P01")})
+    clock = SimClock()
+    with open_belt("sim", clock=clock, layout=study.layout_obj()) as belt, \
+            Store.open(tmp_path / "s.sqlite") as store, \
+            LslObserver(_Window(tlx), clock, belt, pylsl=pylsl) as lsl:
+        res = run_session(study, "P01", belt, cursor, store, clock, observer=lsl)
+        events = store.task_events(res.session_id)
+    assert res.status == "complete"
+    offset = lsl.to_lsl.fixed
+    assert offset is not None
+    sent = [(ts - offset, json.loads(text)) for ts, text in lsl.sent]
+    assert [t for t, _ in sent] == sorted(t for t, _ in sent)
+    # every item shown, once, at its onset, with what the store says of it
+    items = [(m["phase"], m["item_index"], m["stimulus"], m["go"], t) for t, m in sent
+             if m["event"] == "task_item"]
+    stored = [(e["phase"], e["item_index"], e["stimulus"], bool(e["target"]), e["t_ns"] / 1e9)
+              for e in events if e["item_index"] >= 0]
+    # (an item whose response window the block's end cut short, without a press, was
+    # shown, so it is a marker; the store leaves it unscored)
+    assert len(stored) <= len(items) <= len(stored) + 1
+    assert [i[:4] for i in items[:len(stored)]] == [s[:4] for s in stored]
+    assert [i[4] for i in items[:len(stored)]] == pytest.approx([s[4] for s in stored],
+                                                                 abs=1e-6)
+    assert {i[0] for i in items} == {"practice", "dual"}
+    # the window's presses, at the times the store scored them
+    presses = [t for t, m in sent if m["event"] == "task_press"]
+    hits = sorted(e["t_ns"] / 1e9 + e["rt_s"] for e in events if e["response"] == "press")
+    assert presses and presses == pytest.approx(hits, abs=1e-6)
+    phases = [(m["event"], m["phase"]) for _, m in sent if m["event"] in ("task_start",
+                                                                          "task_end")]
+    assert phases == [("task_start", "practice"), ("task_end", "practice"),
+                      ("task_start", "dual"), ("task_end", "dual")]
+    ratings = [m for _, m in sent if m["event"] == "workload"]
+    assert [r["ratings"] for r in ratings] == [tlx, tlx]  # after each test block

@@ -1,11 +1,8 @@
 """The PsychoPy helper (tactorbelt.psychopy, docs/psychopy.md): onsets locked to flips,
 motors off when the window closes and at ``core.quit()``.
 
-PsychoPy's window needs OpenGL and a display, so :class:`FlipWindow` stands in for the
-two calls the helper uses, as ``psychopy.visual.Window`` implements them
-(``visual/window.py``): ``flip()`` swaps the buffers (on a frame boundary), takes its
-timestamp, then calls the functions ``callOnFlip`` scheduled before it, in order, leaving
-those scheduled during these calls for the next flip; ``close()`` closes the window.
+PsychoPy's window needs OpenGL and a display, so ``support.flipwindow.FlipWindow`` stands
+in for the calls the helper uses, as ``psychopy.visual.Window`` implements them.
 ``core.quit()`` is PsychoPy's own when PsychoPy is installed (it ends with
 ``sys.exit(0)``), else ``sys.exit(0)``.
 """
@@ -21,39 +18,11 @@ from typing import Any
 import numpy as np
 import pytest
 
+from support.flipwindow import FRAME_NS, FlipWindow
 from tactorbelt import TactorbeltError
 from tactorbelt.clock import SimClock
 from tactorbelt.devices import open_belt
 from tactorbelt.psychopy import TactileBelt
-
-FRAME_NS = 16_666_667  # 60 Hz
-
-
-class FlipWindow:
-    """``psychopy.visual.Window``'s ``callOnFlip``, ``flip`` and ``close`` (module doc)."""
-
-    def __init__(self, clock: Any) -> None:
-        self.clock = clock
-        self._toCall: list[tuple[Any, tuple[Any, ...], dict[str, Any]]] = []
-        self.flips: list[int] = []
-        self.closed = False
-
-    def callOnFlip(self, function: Any, *args: Any, **kwargs: Any) -> None:
-        self._toCall.append((function, args, kwargs))
-
-    def flip(self) -> float:
-        now = self.clock.now_ns()
-        self.clock.sleep_until_ns((now // FRAME_NS + 1) * FRAME_NS)  # the vertical blank
-        t = self.clock.now_ns()
-        self.flips.append(t)
-        n = len(self._toCall)
-        for function, args, kwargs in self._toCall[:n]:
-            function(*args, **kwargs)
-        del self._toCall[:n]
-        return t / 1e9
-
-    def close(self) -> None:
-        self.closed = True
 
 
 @pytest.fixture
@@ -134,7 +103,7 @@ SCRIPT = """
 import atexit, sys, time
 import numpy as np
 sys.path.insert(0, {tests!r})
-from test_psychopy import FlipWindow
+from support.flipwindow import FlipWindow
 from tactorbelt.clock import WallClock
 from tactorbelt.devices import open_belt
 from tactorbelt.psychopy import TactileBelt

@@ -43,8 +43,11 @@ if TYPE_CHECKING:
     from .devices.base import Belt
     from .experiment.runner import Command, SessionInfo
     from .experiment.schedule import ScheduledTrial
+    from .experiment.study import TaskSpec
     from .experiment.trial import TrialResult, TrialState
     from .inputs.base import CursorSample
+    from .tasks import WorkloadInfo
+    from .tasks.schedule import TaskItem
 
 __all__ = ["CURSOR_STREAM", "MARKER_EVENTS", "MARKER_STREAM", "LslObserver", "load_pylsl",
            "marker"]
@@ -75,6 +78,11 @@ MARKER_EVENTS: dict[str, tuple[str, ...]] = {
     "pause": (),
     "resume": (),
     "abort": (),
+    "task_start": ("task", "kind", "phase", "n", "modality", "block_index"),
+    "task_item": ("task", "phase", "item_index", "stimulus", "go"),
+    "task_press": ("task", "phase"),
+    "task_end": ("task", "phase"),
+    "workload": ("block_index", "scale", "ratings"),
     "session_end": ("status",),
 }
 
@@ -126,6 +134,8 @@ def marker(event: str, **fields: Any) -> str:
 def _plain(v: Any) -> Any:
     if isinstance(v, bool) or v is None or isinstance(v, int | str):
         return v
+    if isinstance(v, dict):
+        return {str(k): _plain(x) for k, x in v.items()}
     if isinstance(v, float):
         return v if math.isfinite(v) else None
     return str(v)
@@ -204,6 +214,10 @@ class LslObserver:
         self._onset_pending = False
         self._paused = False
         self._timeout_ns = 0
+        # the running secondary task: (name, phase); its items wait here until their
+        # onset, so the stream stays in time order
+        self._task: tuple[str, str] | None = None
+        self._items: list[tuple[int, dict[str, Any]]] = []
         #: every marker sent: (LSL timestamp, JSON text)
         self.sent: list[tuple[float, str]] = []
 
@@ -280,10 +294,17 @@ class LslObserver:
         """Send one marker stamped at ``t_ns`` on the runner's clock."""
         if self.markers is None:
             return
+        self._flush_items(t_ns)
         text = marker(event, **fields)
         ts = self.to_lsl(t_ns, MARKER_STREAM)
         self.markers.push_sample([text], ts)
         self.sent.append((ts, text))
+
+    def _flush_items(self, until_ns: int) -> None:
+        """Send the announced task items whose onset is at or before ``until_ns``."""
+        while self._items and self._items[0][0] <= until_ns:
+            onset, fields = self._items.pop(0)
+            self.send(onset, "task_item", **fields)
 
     # -- markers from the runner's hooks ------------------------------------------------
     def _trial_fields(self, t: ScheduledTrial) -> dict[str, Any]:
@@ -341,6 +362,7 @@ class LslObserver:
                   n_targets=t.n_targets, load=t.load, block=t.block, onset_clock=clock)
 
     def on_sample(self, sample: CursorSample) -> None:
+        self._flush_items(sample.t_ns)
         if self.cursor is not None:
             self.cursor.push_sample([sample.x, sample.y], self.to_lsl(sample.t_ns, CURSOR_STREAM))
         self.inner.on_sample(sample)
@@ -371,8 +393,53 @@ class LslObserver:
         self.inner.on_break(n_done, n_total)
         self.send(self.clock.now_ns(), "break_end")
 
+    def on_task_phase(self, name: str | None, spec: TaskSpec | None, phase: str | None
+                      ) -> None:
+        now = self.clock.now_ns()
+        self._end_task(now)
+        if name is not None and spec is not None and phase is not None:
+            self.send(now, "task_start", task=name, kind=spec.kind, phase=phase,
+                      n=spec.n if spec.kind == "nback" else None, modality=spec.modality,
+                      block_index=self._block if phase == "dual" else None)
+            self._task = (name, phase)
+        self.inner.on_task_phase(name, spec, phase)
+
+    def _end_task(self, now_ns: int) -> None:
+        """The running task ends: its items shown by now are sent, the rest never were."""
+        self._flush_items(now_ns)
+        self._items.clear()
+        if self._task is not None:
+            name, phase = self._task
+            self._task = None
+            self.send(now_ns, "task_end", task=name, phase=phase)
+
+    def on_task_item(self, item: TaskItem, onset_ns: int, spec: TaskSpec) -> None:
+        name, phase = self._task if self._task is not None else ("", "")
+        self._items.append((onset_ns, {"task": name, "phase": phase,
+                                       "item_index": item.index, "stimulus": item.stimulus,
+                                       "go": item.target}))
+        self._items.sort(key=lambda x: x[0])
+        self.inner.on_task_item(item, onset_ns, spec)
+
+    def task_presses(self, now_ns: int) -> list[int]:
+        presses: list[int] = self.inner.task_presses(now_ns)
+        if self._task is not None:
+            for p in sorted(presses):
+                self.send(p, "task_press", task=self._task[0], phase=self._task[1])
+        return presses
+
+    def ask_workload(self, info: WorkloadInfo) -> dict[str, float] | None:
+        from .tasks import TLX_SCALE
+
+        values: dict[str, float] | None = self.inner.ask_workload(info)
+        if values is not None:
+            self.send(self.clock.now_ns(), "workload", block_index=info.block_index,
+                      scale=TLX_SCALE, ratings=values)
+        return values
+
     def on_session_end(self, status: str) -> None:
         now = self.clock.now_ns()
+        self._end_task(now)
         self._end_trial(now, "aborted", None)
         self._end_block(now)
         self.send(now, "session_end", status=status)
@@ -381,6 +448,7 @@ class LslObserver:
     def poll(self, now_ns: int) -> Command | None:
         from .experiment.runner import Command
 
+        self._flush_items(now_ns)
         cmd = self.inner.poll(now_ns)
         if cmd is Command.PAUSE and not self._paused:
             self._paused = True
