@@ -12,6 +12,7 @@ import pandas as pd
 import pytest
 
 from support.cli import model_store, tactorbelt
+from support.studies import write_study
 from tactorbelt.experiment.export_formats import (
     DTYPES,
     PSYCHOPY_COLUMNS,
@@ -25,6 +26,23 @@ from tactorbelt.experiment.export_formats import (
 @pytest.fixture(scope="module")
 def store(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return model_store(tmp_path_factory.mktemp("formats"), participants=("P01", "P02", "P03"))
+
+
+@pytest.fixture(scope="module")
+def load_store(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A model participant's session with a 2-back task and the NASA-TLX."""
+    d = tmp_path_factory.mktemp("load")
+    study = write_study(
+        d, name="load", tactors=4, targets=8, iti_s=0.5, break_every=0, training=0,
+        timeout_s=3.0, max_presentation_s=2.0,
+        blocks=[{"name": "calm", "condition": "static", "repetitions": 1},
+                {"name": "busy", "condition": "dynamic", "repetitions": 1, "load": "nb2"}],
+        tasks={"nb2": {"kind": "nback", "n": 2, "interval_s": 1.0, "practice": 6}},
+        questionnaire={"tlx": True})
+    proc = tactorbelt("run", str(study), "-p", "P01", "--headless", "--input", "model",
+                      "--db", str(d / "s.sqlite"))
+    assert proc.returncode == 0, proc.stderr
+    return d / "s.sqlite"
 
 
 def _export(db: Path, out: Path, fmt: str, *extra: str) -> subprocess.CompletedProcess[str]:
@@ -49,6 +67,23 @@ def test_parquet_and_csv_read_back_as_the_same_dataframes(store: Path, tmp_path:
     assert len(trials) == 3 * 18 and trials["correct"].dtype == "boolean"
     assert trials["rt_s"].notna().all()  # model participants answer every trial
     assert len(frames["samples"]) == int(trials["n_samples"].sum())
+
+
+def test_task_events_and_ratings_round_trip_too(load_store: Path, tmp_path: Path) -> None:
+    pytest.importorskip("pyarrow")
+    for fmt in ("csv", "parquet"):
+        proc = _export(load_store, tmp_path / fmt, fmt)
+        assert proc.returncode == 0, proc.stderr
+    frames = tables(load_store)
+    assert set(frames) == set(DTYPES)
+    for name in DTYPES:
+        pd.testing.assert_frame_equal(read_table(tmp_path / "csv" / f"{name}.csv"),
+                                      read_table(tmp_path / "parquet" / f"{name}.parquet"))
+    events = frames["task_events"]
+    assert set(events["phase"]) == {"practice", "dual"} and events["target"].dtype == "boolean"
+    # nothing pressed: an empty response, missing in both files
+    assert events["response"].isna().any() and not (events["response"] == "").any()
+    assert len(frames["ratings"]) == 2 * 6  # NASA-TLX after each test block
 
 
 def test_the_tidy_table_loads_into_r_and_lme4_with_the_documented_types(

@@ -34,8 +34,10 @@ from typing import TYPE_CHECKING, Any
 
 from .._errors import ConfigError
 from .export import (
+    RATING_CSV_COLUMNS,
     SAMPLE_COLUMNS,
     SESSION_COLUMNS,
+    TASK_EVENT_CSV_COLUMNS,
     TRIAL_COLUMNS,
     _open,
     _prepare,
@@ -75,10 +77,23 @@ DTYPES: dict[str, dict[str, str]] = {
         "participant": _STR, "session_id": _INT, "trial_index": _INT, "t_s": _FLOAT,
         "x": _FLOAT, "y": _FLOAT, "buttons": _INT,
     },
+    # under cognitive load (written when the store has any)
+    "task_events": {
+        "participant": _STR, "session_id": _INT, "session_number": _INT,
+        "block_index": _INT, "task": _STR, "phase": _STR, "item_index": _INT, "t_ns": _INT,
+        "stimulus": _STR, "target": _BOOL, "response": _STR, "correct": _BOOL,
+        "rt_s": _FLOAT,
+    },
+    "ratings": {
+        "participant": _STR, "session_id": _INT, "session_number": _INT,
+        "block_index": _INT, "scale": _STR, "item": _STR, "value": _FLOAT,
+    },
 }
 assert list(DTYPES["sessions"]) == SESSION_COLUMNS
 assert list(DTYPES["trials"]) == TRIAL_COLUMNS
 assert list(DTYPES["samples"]) == SAMPLE_COLUMNS
+assert list(DTYPES["task_events"]) == TASK_EVENT_CSV_COLUMNS
+assert list(DTYPES["ratings"]) == RATING_CSV_COLUMNS
 
 #: The tidy table's columns: (name, type, R type from ``read.csv(stringsAsFactors =
 #: TRUE)``, JASP type, description).
@@ -126,15 +141,19 @@ def _pandas() -> Any:
 
 
 def _frame(rows: list[list[Any]], table: str) -> pd.DataFrame:
+    """Typed rows; an empty text is missing (NA), as a CSV file cannot tell them apart
+    (``task_events.response`` is empty when nothing was pressed)."""
     pd = _pandas()
     dtypes = DTYPES[table]
-    df = pd.DataFrame(rows, columns=list(dtypes), dtype=object)
+    df = pd.DataFrame([[None if v == "" else v for v in r] for r in rows],
+                      columns=list(dtypes), dtype=object)
     return df.astype(dtypes)
 
 
 def tables(db: str | Path) -> dict[str, pd.DataFrame]:
-    """The store's ``sessions``, ``trials`` and ``samples`` as typed DataFrames (the rows
-    and columns of the CSV export, the types of :data:`DTYPES`)."""
+    """The store's ``sessions``, ``trials`` and ``samples`` (and ``task_events`` and
+    ``ratings`` when it has any) as typed DataFrames: the rows and columns of the CSV
+    export, the types of :data:`DTYPES`."""
     with _open(db) as store:
         sessions = store.sessions()
         by_id = {int(s["session_id"]): s for s in sessions}
@@ -147,10 +166,16 @@ def tables(db: str | Path) -> dict[str, pd.DataFrame]:
                                for k in TRIAL_COLUMNS])
         sample_rows = [[by_id[int(sid)]["participant"], sid, index, t_s, x, y, buttons]
                        for sid, index, t_s, x, y, buttons in store.iter_samples()]
-        return {"sessions": _frame([[s[k] for k in SESSION_COLUMNS] for s in sessions],
-                                   "sessions"),
-                "trials": _frame(trial_rows, "trials"),
-                "samples": _frame(sample_rows, "samples")}
+        out = {"sessions": _frame([[s[k] for k in SESSION_COLUMNS] for s in sessions],
+                                  "sessions"),
+               "trials": _frame(trial_rows, "trials"),
+               "samples": _frame(sample_rows, "samples")}
+        for name, rows in (("task_events", store.task_events()), ("ratings", store.ratings())):
+            if rows:
+                out[name] = _frame([[by_id.get(int(r["session_id"]), {}).get(k)
+                                     if k in ("participant", "session_number") else r[k]
+                                     for k in DTYPES[name]] for r in rows], name)
+        return out
 
 
 def read_table(path: str | Path) -> pd.DataFrame:
@@ -180,7 +205,8 @@ def _pyarrow() -> None:
 
 
 def export_parquet(db: str | Path, out: str | Path, *, force: bool = False) -> list[Path]:
-    """Write ``sessions.parquet``, ``trials.parquet`` and ``samples.parquet`` into ``out``.
+    """Write ``sessions.parquet``, ``trials.parquet`` and ``samples.parquet`` into ``out``,
+    and ``task_events.parquet`` and ``ratings.parquet`` when the store has any.
 
     Raises:
         ConfigError: pyarrow is not installed, or ``out`` is not usable (as the CSV export).
