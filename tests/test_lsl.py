@@ -76,13 +76,16 @@ def _key(m: dict[str, Any]) -> tuple[str, int | None]:
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("belt, cursor", [
-    ("sim", "model"),
+@pytest.mark.parametrize("belt, cursor, window", [
+    ("sim", "model", False),
+    # the experiment window's observer behind the LSL one (SDL's dummy video driver)
+    ("sim", "scripted", True),
     # firmware 1.1 reports device-true onsets: the onset marker carries the device's
-    pytest.param("emulator", "scripted", marks=pytest.mark.emulator),
+    pytest.param("emulator", "scripted", False, marks=pytest.mark.emulator),
 ])
 def test_run_with_lsl_streams_every_marker_once_in_order_on_lsl_time(
-        tmp_path: Path, belt: str, cursor: str, request: pytest.FixtureRequest) -> None:
+        tmp_path: Path, belt: str, cursor: str, window: bool,
+        request: pytest.FixtureRequest) -> None:
     pylsl = pylsl_or_skip()
     if belt == "emulator":
         request.getfixturevalue("emulator_exe")  # built, or skipped with the reason
@@ -90,9 +93,12 @@ def test_run_with_lsl_streams_every_marker_once_in_order_on_lsl_time(
                         conditions=["dynamic"], iti_s=0.1, break_every=0)
     db = tmp_path / "s.sqlite"
     env = loopback_env(tmp_path)
+    if window:
+        env.update(SDL_VIDEODRIVER="dummy", SDL_AUDIODRIVER="dummy")
     inlet = start_inlet(env, timeout_s=90)
-    proc = _run("run", str(study), "-p", "P07", "--headless", "--input", cursor, "--belt",
-                belt, "--db", str(db), "--lsl", "--lsl-wait", "60", env=env)
+    proc = _run("run", str(study), "-p", "P07", *([] if window else ["--headless"]),
+                "--input", cursor, "--belt", belt, "--db", str(db), "--lsl", "--lsl-wait",
+                "60", env=env)
     got = inlet_result(inlet)
     assert proc.returncode == 0, proc.stderr
     assert "warning" not in proc.stderr, proc.stderr
