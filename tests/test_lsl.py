@@ -284,3 +284,66 @@ def test_secondary_task_items_presses_and_ratings_are_markers_at_their_times(
                       ("task_start", "dual"), ("task_end", "dual")]
     ratings = [m for _, m in sent if m["event"] == "workload"]
     assert [r["ratings"] for r in ratings] == [tlx, tlx]  # after each test block
+
+
+class _Experimenter(NullObserver):
+    """Pauses during the second trial's stimulus, resumes, then aborts in the fourth."""
+
+    def __init__(self) -> None:
+        self.trial = -1
+        self.stimulus = False
+        self.polls_paused = 0
+        self.done = False
+
+    def on_trial_state(self, trial: Any, state: Any, now_ns: int) -> None:
+        self.trial, self.stimulus = trial.trial_index, state == "stimulus"
+
+    def poll(self, now_ns: int) -> Any:
+        from tactorbelt.experiment.runner import Command
+
+        if self.polls_paused or (self.trial == 1 and self.stimulus and not self.done):
+            self.polls_paused += 1
+            if self.polls_paused == 1:
+                return Command.PAUSE
+            if self.polls_paused == 50:
+                self.done, self.polls_paused = True, 0
+                return Command.RESUME
+        if self.trial == 3 and self.stimulus:
+            return Command.ABORT
+        return None
+
+
+@pytest.mark.timeout(60)
+def test_pause_resume_and_abort_are_markers_and_the_aborted_trial_ends(tmp_path: Path) -> None:
+    pylsl = pylsl_or_skip()
+    from support.studies import make_study
+    from tactorbelt.clock import SimClock
+    from tactorbelt.devices import open_belt
+    from tactorbelt.experiment.runner import run_session
+    from tactorbelt.experiment.schedule import make_schedule
+    from tactorbelt.experiment.store import Store
+    from tactorbelt.inputs.scripted import ScriptedCursor
+
+    study = make_study(tactors=4, targets=8, repetitions=1, training=0, conditions=["static"],
+                       iti_s=0.2, break_every=0)
+    cursor = ScriptedCursor(answers={t.trial_index: t.target_deg
+                                     for t in make_schedule(study, "P01")})
+    clock = SimClock()
+    with open_belt("sim", clock=clock, layout=study.layout_obj()) as belt, \
+            Store.open(tmp_path / "s.sqlite") as store, \
+            LslObserver(_Experimenter(), clock, belt, pylsl=pylsl) as lsl:
+        res = run_session(study, "P01", belt, cursor, store, clock, observer=lsl)
+    assert res.status == "aborted"
+    got = [json.loads(text) for _, text in lsl.sent]
+    seq = [(m["event"], m.get("trial_index"), m.get("status")) for m in got
+           if m["event"] not in ("stimulus_onset", "response", "block_start", "block_end")]
+    assert seq == [
+        ("session_start", None, None),
+        ("trial_start", 0, None), ("trial_end", 0, "done"),
+        ("trial_start", 1, None), ("pause", None, None), ("trial_end", 1, "aborted"),
+        ("resume", None, None),
+        ("trial_start", 1, None), ("trial_end", 1, "done"),  # run again after the pause
+        ("trial_start", 2, None), ("trial_end", 2, "done"),
+        ("trial_start", 3, None), ("abort", None, None), ("trial_end", 3, "aborted"),
+        ("session_end", None, "aborted"),
+    ]
