@@ -53,6 +53,15 @@ GOALS = [
          "pseudo-terminal round trip and the reader thread's wake-up"),
     Goal("emulator_ping_p99_ms", None, None, None, "ms",
          "scheduling of the reader thread and the emulator on a shared machine"),
+    Goal("lsl_marker_latency_p99_ms", None, "<=", 5.0, "ms",
+         "LSL markers over loopback TCP to an inlet thread; its wake-up on 2 shared cores"),
+    Goal("lsl_marker_latency_p50_ms", None, None, None, "ms", "as lsl_marker_latency_p99_ms"),
+    Goal("lsl_on_sample_us", "lsl_push_sample_us", "<=", 50.0, "us",
+         "per 100 Hz cursor sample: three brackets of LSL's clock around the runner's, "
+         "and liblsl's push (baseline: the push alone)"),
+    Goal("lsl_map_error_us", None, "<=", 50.0, "us",
+         "the runner's clock mapped to LSL's against a direct reading: the time between "
+         "the reads"),
     Goal("session_s", None, "<=", 2.0, "s",
          "288 SQLite commits with synchronous=FULL, the ERM model, 100 Hz runner loop"),
     Goal("sessions_1000_s", None, None, None, "s",
