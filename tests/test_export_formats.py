@@ -6,6 +6,7 @@ from __future__ import annotations
 import csv
 import shutil
 import subprocess
+import sys
 from pathlib import Path
 
 import pandas as pd
@@ -137,7 +138,8 @@ def test_psychopy_export_has_one_wide_file_per_session_with_loop_counters(
         date = psychopy_date(s["started_at"])
         assert f.name == f"{s['participant']}_first-use_{date}.csv"
         d = pd.read_csv(f)
-        assert list(d.columns) == PSYCHOPY_COLUMNS
+        # PsychoPy ends every line with a delimiter: pandas names that column "Unnamed"
+        assert list(d.columns) == [*PSYCHOPY_COLUMNS, f"Unnamed: {len(PSYCHOPY_COLUMNS)}"]
         assert len(d) == 18  # one row per trial
         assert (d["participant"] == s["participant"]).all() and (d["session"] == 1).all()
         assert (d["date"] == date).all() and (d["expName"] == "first-use").all()
@@ -147,6 +149,49 @@ def test_psychopy_export_has_one_wide_file_per_session_with_loop_counters(
             assert sorted(block["trials.thisIndex"]) == list(range(6))
         assert list(d["blocks.thisN"].drop_duplicates()) == [0, 1, 2]
         assert set(d["response.corr"]) <= {0, 1} and d["stimulus.started"].iloc[0] == 0.0
+
+
+PSYCHOPY_REFERENCE = """
+import sys
+from psychopy import data
+rows, out = {rows!r}, sys.argv[1]
+info = dict(participant="P01", session=1, date=data.getDateStr(), expName="first-use",
+            psychopyVersion="", frameRate="", tactorbeltVersion="0")
+exp = data.ExperimentHandler(name="first-use", extraInfo=info, dataFileName=out)
+blocks = data.TrialHandler(rows["blocks"], nReps=1, method="sequential", name="blocks")
+exp.addLoop(blocks)
+for _ in blocks:
+    trials = data.TrialHandler(rows["targets"], nReps=1, method="sequential", name="trials")
+    exp.addLoop(trials)
+    for _ in trials:
+        for name in rows["data"]:
+            exp.addData(name, 1)
+        exp.nextEntry()
+exp.saveAsWideText(out + ".csv", delim="auto")
+exp.abort()
+"""
+
+
+def test_psychopy_export_has_the_header_psychopy_itself_writes(store: Path,
+                                                                tmp_path: Path) -> None:
+    proc = subprocess.run([sys.executable, "-c", "import psychopy.data"], capture_output=True,
+                          timeout=120)
+    if proc.returncode != 0:
+        pytest.skip("PsychoPy is not installed (pip install psychopy)")
+    cols = PSYCHOPY_COLUMNS
+    rows = {"blocks": [dict.fromkeys(cols[:cols.index("target_deg")], "x")],
+            "targets": [dict.fromkeys(cols[cols.index("target_deg"):cols.index("on_tactor") + 1],
+                                      1.0)],
+            "data": cols[cols.index("stimulus.started"):cols.index("participant")]}
+    ref = tmp_path / "ref"
+    proc = subprocess.run([sys.executable, "-c", PSYCHOPY_REFERENCE.format(rows=rows),
+                           str(ref)], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    want = (tmp_path / "ref.csv").read_bytes().splitlines()[0]
+    out = tmp_path / "psychopy"
+    assert _export(store, out, "psychopy").returncode == 0
+    got = sorted(out.glob("*.csv"))[0].read_bytes().splitlines()[0]
+    assert got == want  # byte-order mark, column order, the trailing delimiter
 
 
 def test_psychopy_date_is_getdatestr_format() -> None:
@@ -184,7 +229,6 @@ def test_parquet_without_pyarrow_says_how_to_install_it(store: Path, tmp_path: P
     fake.mkdir(parents=True)
     (fake / "__init__.py").write_text("raise ImportError('No module named pyarrow')\n")
     import os
-    import sys
 
     env = dict(os.environ, PYTHONPATH=str(tmp_path / "fake"))
     proc = subprocess.run([sys.executable, "-m", "tactorbelt", "export", str(store), "-o",

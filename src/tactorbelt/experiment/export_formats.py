@@ -11,11 +11,12 @@ and JASP, and PsychoPy's trial-by-trial CSV files (docs/export.md).
   (docs/conventions.md "Analysis outputs"), ``NA`` for missing values, 0/1 for yes/no;
   its column types are :data:`TIDY_COLUMNS` and ``codebook.csv`` lists them.
 - :func:`export_psychopy`: one wide CSV per session, named and laid out as PsychoPy's
-  ``ExperimentHandler`` saves them (``P01_<study>_<date>.csv``): one row per trial, loop
-  counters ``blocks.thisN``, ``trials.thisN``, ``trials.thisRepN``, ``trials.thisTrialN``,
-  ``trials.thisIndex``, the trial's conditions, the response as ``response.*`` columns,
-  then ``participant``, ``session``, ``date``, ``expName``, ``psychopyVersion`` and
-  ``frameRate`` (empty: not a PsychoPy run).
+  ``ExperimentHandler.saveAsWideText`` saves a Builder experiment with the loops
+  ``blocks`` and ``trials`` (``P01_<study>_<date>.csv``, UTF-8 with a byte-order mark,
+  a delimiter after the last column): one row per trial, the block's and the target's
+  conditions, the loop counters (``trials.thisN``, ``trials.thisRepN``, ...), the
+  response as ``response.*`` columns, then ``participant``, ``session``, ``date``,
+  ``expName``, ``psychopyVersion`` and ``frameRate`` (:data:`PSYCHOPY_COLUMNS`).
 
 The output directory follows the CSV export's rule: new or empty, and ``force``
 replaces only an earlier export of the same format.
@@ -124,10 +125,13 @@ TIDY_COLUMNS: list[tuple[str, str, str, str, str]] = [
 ]
 
 #: The PsychoPy export's columns, in order (module doc).
+#: In ``ExperimentHandler.saveAsWideText``'s order: the loops' conditions (outer loop
+#: first), the loop counters, ``thisRow.t`` and ``notes``, the data, then ``extraInfo``.
 PSYCHOPY_COLUMNS = [
+    "block_name", "block", "condition", "n_targets", "load", "target_deg", "on_tactor",
     "blocks.thisRepN", "blocks.thisTrialN", "blocks.thisN", "blocks.thisIndex",
     "trials.thisRepN", "trials.thisTrialN", "trials.thisN", "trials.thisIndex",
-    "target_deg", "condition", "n_targets", "load", "block", "block_name", "on_tactor",
+    "thisRow.t", "notes",
     "stimulus.started", "response.deg", "response.target_deg", "response.corr",
     "response.rt", "response.status", "trial_index",
     "participant", "session", "date", "expName", "psychopyVersion", "frameRate",
@@ -334,23 +338,34 @@ def export_psychopy(db: str | Path, out: str | Path, *, force: bool = False) -> 
                 within_rep[(b, rep)] = kr + 1
                 n = int(t["n_targets"] or 0)
                 done = t["status"] == "done"
-                rows.append([
-                    0, block_n[b], block_n[b], b,
-                    rep - 1, kr, k,
-                    round(float(t["target_deg"]) * n / 360.0) % n if n else "",
-                    t["target_deg"], t["condition"], t["n_targets"], t["load"], t["block"],
-                    t["block_name"], int(bool(t["on_tactor"])),
-                    "" if t["onset_ns"] is None else (t["onset_ns"] - first_onset) / 1e9,
-                    t["response_deg"], t["response_target_deg"],
-                    int(bool(t["correct"])) if done else 0, t["rt_s"] if done else "",
-                    t["status"], t["trial_index"],
-                    s["participant"], s["session_number"], date, s["study_name"], "", "",
-                    __version__])
+                row = {
+                    "block_name": t["block_name"], "block": t["block"],
+                    "condition": t["condition"], "n_targets": t["n_targets"],
+                    "load": t["load"], "target_deg": t["target_deg"],
+                    "on_tactor": int(bool(t["on_tactor"])),
+                    "blocks.thisRepN": 0, "blocks.thisTrialN": block_n[b],
+                    "blocks.thisN": block_n[b], "blocks.thisIndex": b,
+                    "trials.thisRepN": rep - 1, "trials.thisTrialN": kr, "trials.thisN": k,
+                    "trials.thisIndex": round(float(t["target_deg"]) * n / 360.0) % n if n
+                    else None,
+                    "stimulus.started": None if t["onset_ns"] is None
+                    else (t["onset_ns"] - first_onset) / 1e9,
+                    "response.deg": t["response_deg"],
+                    "response.target_deg": t["response_target_deg"],
+                    "response.corr": int(bool(t["correct"])) if done else 0,
+                    "response.rt": t["rt_s"] if done else None,
+                    "response.status": t["status"], "trial_index": t["trial_index"],
+                    "participant": s["participant"], "session": s["session_number"],
+                    "date": date, "expName": s["study_name"], "tactorbeltVersion": __version__,
+                }
+                rows.append([row.get(c) for c in PSYCHOPY_COLUMNS])
             try:
-                with path.open("w", newline="", encoding="utf-8") as fh:
-                    w = csv.writer(fh)
-                    w.writerow(PSYCHOPY_COLUMNS)
-                    w.writerows([["" if v is None else v for v in r] for r in rows])
+                # as PsychoPy writes them: UTF-8 with a byte-order mark, a delimiter after
+                # the last column of every line
+                with path.open("w", newline="", encoding="utf-8-sig") as fh:
+                    w = csv.writer(fh, lineterminator="\n")
+                    w.writerow([*PSYCHOPY_COLUMNS, ""])
+                    w.writerows([["" if v is None else v for v in r] + [""] for r in rows])
             except OSError as exc:
                 raise ConfigError(f"cannot write to {o}: {exc.strerror}") from None
             files.append(path)
