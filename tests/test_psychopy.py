@@ -121,10 +121,10 @@ print("levels playing", float(np.max(belt.levels)), flush=True)
 """
 
 
-def _psychopy_core() -> bool:
-    """True when ``psychopy.core`` imports here (PsychoPy is not a dependency)."""
-    proc = subprocess.run([sys.executable, "-c", "import psychopy.core"], capture_output=True,
-                          timeout=60)
+def _psychopy(*modules: str) -> bool:
+    """True when these PsychoPy modules import here (PsychoPy is not a dependency)."""
+    proc = subprocess.run([sys.executable, "-c", f"import {', '.join(modules)}"],
+                          capture_output=True, timeout=60)
     return proc.returncode == 0
 
 
@@ -133,7 +133,7 @@ def _psychopy_core() -> bool:
     "from psychopy import core; core.quit()",
 ], ids=["sys-exit", "psychopy-core-quit"])
 def test_core_quit_turns_the_motors_off(quit: str) -> None:
-    if "psychopy" in quit and not _psychopy_core():
+    if "psychopy" in quit and not _psychopy("psychopy.core"):
         pytest.skip("PsychoPy is not installed (pip install psychopy)")
     tests = str(Path(__file__).resolve().parent)
     script = textwrap.dedent(SCRIPT).format(tests=tests, quit=quit)
@@ -143,3 +143,68 @@ def test_core_quit_turns_the_motors_off(quit: str) -> None:
     lines = dict(line.rsplit(" ", 1) for line in proc.stdout.splitlines() if "levels" in line)
     assert float(lines["levels playing"]) > 0
     assert float(lines["levels at exit"]) == 0.0
+
+
+EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "psychopy" / "tactile_localisation.py"
+
+#: Runs the example with PsychoPy's own core and data (ExperimentHandler, TrialHandler,
+#: the data file) and stand-ins for what needs a display: the window (FlipWindow), text
+#: stimuli, and a mouse that clicks on its third poll of each trial.
+EXAMPLE_HARNESS = """
+import runpy, sys, types
+sys.path.insert(0, {tests!r})
+import psychopy, psychopy.core, psychopy.data
+from support.flipwindow import FlipWindow
+from tactorbelt.clock import WallClock
+
+class Window(FlipWindow):
+    def __init__(self, **kwargs):
+        super().__init__(WallClock())
+
+class TextStim:
+    def __init__(self, win, **kwargs):
+        pass
+    def draw(self):
+        pass
+
+class Mouse:
+    def __init__(self, win=None):
+        self.polls = 0
+    def clickReset(self):
+        self.polls = 0
+    def getPressed(self):
+        self.polls += 1
+        return [self.polls >= 3, 0, 0]
+    def getPos(self):
+        return (0.2, 0.2)
+
+visual = types.ModuleType("psychopy.visual")
+visual.Window, visual.TextStim = Window, TextStim
+event = types.ModuleType("psychopy.event")
+event.Mouse, event.getKeys = Mouse, lambda keys=None: []
+sys.modules["psychopy.visual"], sys.modules["psychopy.event"] = visual, event
+psychopy.visual, psychopy.event = visual, event
+psychopy.core.wait = lambda s, hogCPUperiod=0.2: None
+sys.argv = ["tactile_localisation.py", "--belt", "sim", "--participant", "P09",
+            "--repetitions", "1"]
+runpy.run_path({example!r}, run_name="__main__")
+"""
+
+
+def test_the_example_experiment_runs_with_psychopys_data_handlers(tmp_path: Path) -> None:
+    if not _psychopy("psychopy.core", "psychopy.data"):
+        pytest.skip("PsychoPy is not installed (pip install psychopy)")
+    tests = str(Path(__file__).resolve().parent)
+    script = EXAMPLE_HARNESS.format(tests=tests, example=str(EXAMPLE))
+    proc = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                          timeout=120, cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    (data_file,) = (tmp_path / "data").glob("P09_tactile-localisation_*.csv")
+    import pandas as pd
+
+    d = pd.read_csv(data_file)
+    assert len(d) == 16  # 8 directions x 2 modes, once each
+    assert sorted(zip(d["target_deg"], d["mode"], strict=True)) == sorted(
+        (k * 45.0, m) for k in range(8) for m in ("static", "dynamic"))
+    assert d["belt.started"].notna().all() and (d["belt.started"].diff().dropna() > 0).all()
+    assert (d["response.deg"] == 45.0).all() and (d["participant"] == "P09").all()
