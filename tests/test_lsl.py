@@ -347,3 +347,11 @@ def test_pause_resume_and_abort_are_markers_and_the_aborted_trial_ends(tmp_path:
         ("trial_start", 3, None), ("abort", None, None), ("trial_end", 3, "aborted"),
         ("session_end", None, "aborted"),
     ]
+
+
+def test_the_resume_command_keeps_the_lsl_streams() -> None:
+    from tactorbelt.launch import RunRequest, resume_command
+
+    req = RunRequest(Path("s.toml"), "P01", lsl=True, lsl_wait_s=30.0)
+    assert resume_command(req).endswith(" --lsl --lsl-wait 30 --resume")
+    assert "--lsl" not in resume_command(RunRequest(Path("s.toml"), "P01"))

@@ -233,9 +233,11 @@ def resume_command(req: RunRequest) -> str:
     """The command that continues the participant's session (as a shell line)."""
     push = ["--push", shlex.quote(req.push)] if req.push else []
     site = ["--site", shlex.quote(req.site)] if req.site else []
+    lsl = (["--lsl"] + (["--lsl-wait", f"{req.lsl_wait_s:g}"] if req.lsl_wait_s else [])
+           if req.lsl else [])
     return " ".join(["tactorbelt", "run", shlex.quote(str(req.study_file)), "--participant",
                      shlex.quote(req.participant.strip()), "--db", shlex.quote(str(req.db)),
-                     *push, *site, "--resume"])
+                     *push, *site, *lsl, "--resume"])
 
 
 def stored_options(store: Store, session: dict[str, Any]) -> dict[str, Any]:
