@@ -242,8 +242,14 @@ class LslObserver:
             ch.append_child_value("unit", "ellipse radius")
             ch.append_child_value("description", f"cursor {label}, {what}; the response "
                                   "ellipse has radius 1")
-        self.markers = lsl.StreamOutlet(m)
-        self.cursor = lsl.StreamOutlet(c)
+        try:
+            self.markers = lsl.StreamOutlet(m)
+            self.cursor = lsl.StreamOutlet(c)
+        except (RuntimeError, OSError, ValueError) as exc:  # liblsl: no usable network
+            self.close()
+            raise ConfigError(f"--lsl: liblsl cannot open the LSL streams ({exc}); check "
+                              "the network and the LSL configuration (lsl_api.cfg, "
+                              "LSLAPICFG; docs/lsl.md)") from None
         if self.wait_s > 0:
             end = lsl.local_clock() + self.wait_s
             for name, outlet in ((MARKER_STREAM, self.markers), (CURSOR_STREAM, self.cursor)):
