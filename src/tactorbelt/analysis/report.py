@@ -91,7 +91,7 @@ def _fmt(v: Any, digits: int = 3, *, missing: str = "n/a") -> str:
 
 def _p(v: Any) -> str:
     if not _finite(v):
-        return "none (Bayesian fit)"
+        return "n/a"
     f = float(v)
     return "< 0.0001" if f < 1e-4 else f"{f:.4f}"
 
