@@ -2,12 +2,16 @@
 
 Plays a dynamic stimulus on an 8-channel ``audio:`` belt at 48 kHz through PortAudio's
 JACK host API for ``--seconds`` (default 60) with JACK's period at 256 frames (a JACK
-dummy server is started if none runs, and stopped at the end), and prints one JSON
+dummy server, with realtime scheduling as jackd's default, is started if none runs, and
+stopped at the end), and prints one JSON
 object:
 
 - ``audio_callback_cpu_pct``: the callback's CPU time (its thread's) over the audio
   time it rendered, in % of one core (goal: under 5 %);
 - ``audio_underruns_60s``: output underflows PortAudio reported, scaled to 60 s (goal 0);
+- ``jack_server_xruns_60s``: the baseline in the same run: xruns the JACK server itself
+  reported to an idle client over the same time (cycles the server ran late whatever
+  the clients did; PortAudio reports each of them as an underflow too);
 - ``audio_render_block_us``: CPU time to render one 256-frame block of the dynamic
   stimulus, measured off the stream (the part the machine's load does not change much);
 - ``audio_latency_ms``: PortAudio's reported output latency of the stream.
@@ -19,49 +23,34 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import shutil
-import subprocess
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
+# the tests' JACK server (dummy backend) and its PortAudio-safe shutdown
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
-class _NotHere(Exception):
-    """JACK, PortAudio or their Python packages are missing: nothing is measured."""
 
+class _XrunCounter:
+    """A JACK client that counts the server's own xruns: the baseline in the same run
+    (a cycle the dummy backend itself ran late, whatever its clients do)."""
 
-def _jack_running() -> bool:
-    try:
+    def __init__(self) -> None:
         import jack
-    except (ImportError, OSError) as exc:
-        raise _NotHere(f"JACK-Client cannot be imported: {exc}") from None
 
-    try:
-        jack.Client("tactorbelt-bench-probe", no_start_server=True).close()
-    except jack.JackError:
-        return False
-    return True
+        self.count = 0
+        self.client = jack.Client("tactorbelt-bench-xruns")
+        self.client.set_xrun_callback(self._xrun)
+        self.client.activate()
 
+    def _xrun(self, _delay_usecs: float) -> None:
+        self.count += 1
 
-def start_jack() -> subprocess.Popen[bytes] | None:
-    """A JACK dummy server (48 kHz, 256 frames, 8 outputs) unless one runs."""
-    if _jack_running():
-        return None
-    if shutil.which("jackd") is None:
-        raise _NotHere("jackd is not installed (Debian: apt install jackd2)")
-    proc = subprocess.Popen(
-        ["jackd", "--no-realtime", "-d", "dummy", "-r", "48000", "-p", "256", "-P", "8",
-         "-C", "2"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-        env=dict(os.environ, JACK_NO_AUDIO_RESERVATION="1"), start_new_session=True)
-    end = time.monotonic() + 15
-    while not _jack_running():
-        if proc.poll() is not None or time.monotonic() > end:
-            proc.kill()
-            raise _NotHere("jackd -d dummy did not start")
-        time.sleep(0.1)
-    return proc
+    def close(self) -> None:
+        self.client.deactivate()
+        self.client.close()
 
 
 def render_block_us(belt, stimulus, blocks: int = 2000) -> float:
@@ -80,12 +69,21 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seconds", type=float, default=60.0)
     args = ap.parse_args()
-    try:
-        server = start_jack()
-    except _NotHere as exc:  # the runner reports the figures as not measured
-        print(f"bench_audio: not measured: {exc}", file=sys.stderr)
+    import pytest
+
+    from support.audio import ensure_jack, missing, stop_jack
+
+    reason = missing()
+    if reason is None:
+        try:
+            ensure_jack(realtime=True)
+        except pytest.skip.Exception as exc:
+            reason = str(exc)
+    if reason is not None:  # the runner reports the figures as not measured
+        print(f"bench_audio: not measured: {reason}", file=sys.stderr)
         print("{}")
         return
+    xruns = _XrunCounter()
     try:
         from tactorbelt.devices import open_belt
         from tactorbelt.stimuli import make_stimulus
@@ -98,13 +96,14 @@ def main() -> None:
             underruns = belt.underruns
             latency_ms = belt.latency_s * 1000
             block_us = render_block_us(belt, stimulus)
+        server_xruns = xruns.count
     finally:
-        if server is not None:
-            server.terminate()
-            server.wait(10)
+        xruns.close()
+        stop_jack()  # only a server it started; PortAudio leaves JACK first
     print(json.dumps({
         "audio_callback_cpu_pct": 100.0 * load,
         "audio_underruns_60s": underruns * 60.0 / args.seconds,
+        "jack_server_xruns_60s": server_xruns * 60.0 / args.seconds,
         "audio_render_block_us": block_us,
         "audio_latency_ms": latency_ms,
     }))

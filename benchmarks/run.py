@@ -53,6 +53,15 @@ GOALS = [
          "pseudo-terminal round trip and the reader thread's wake-up"),
     Goal("emulator_ping_p99_ms", None, None, None, "ms",
          "scheduling of the reader thread and the emulator on a shared machine"),
+    Goal("lsl_marker_latency_p99_ms", None, "<=", 5.0, "ms",
+         "LSL markers over loopback TCP to an inlet thread; its wake-up on 2 shared cores"),
+    Goal("lsl_marker_latency_p50_ms", None, None, None, "ms", "as lsl_marker_latency_p99_ms"),
+    Goal("lsl_on_sample_us", "lsl_push_sample_us", "<=", 50.0, "us",
+         "per 100 Hz cursor sample: three brackets of LSL's clock around the runner's, "
+         "and liblsl's push (baseline: the push alone)"),
+    Goal("lsl_map_error_us", None, "<=", 50.0, "us",
+         "the runner's clock mapped to LSL's against a direct reading: the time between "
+         "the reads"),
     Goal("session_s", None, "<=", 2.0, "s",
          "288 SQLite commits with synchronous=FULL, the ERM model, 100 Hz runner loop"),
     Goal("sessions_1000_s", None, None, None, "s",
@@ -71,7 +80,9 @@ GOALS = [
          "20,000 simulated participants x 8 blocks on the fast path; the Wilcoxon p "
          "(exact sign flips)"),
     Goal("analyze_1000_s", None, "<=", 30.0, "s",
-         "SQL aggregation over 240,000 trials; samples read only for plotted trials"),
+         "the accuracy and RT mixed models (Laplace GLMM, REML LMM) on 240,000 trials of "
+         "participants and targets that differ; SQL aggregation; samples read only for "
+         "plotted trials"),
     Goal("push_trials_per_s", None, None, None, "trials/s",
          "sync to PostgreSQL over a Unix socket: one transaction per trial (row + 150 "
          "samples) plus a state query per session; fsync off on the throwaway server"),
@@ -83,11 +94,17 @@ GOALS = [
     Goal("cli_help_vs_python", None, None, None, "x", "baseline: python -c pass"),
     Goal("audio_callback_cpu_pct", None, "<=", 5.0, "% of a core",
          "stimulus.amplitudes at 48 kHz x 8 channels, NumPy on 1024-sample chunks"),
-    Goal("audio_underruns_60s", None, "<=", 0.0, "",
-         "a non-realtime JACK dummy server on 2 shared cores, period 256 frames (5.3 ms)"),
+    Goal("audio_underruns_60s", "jack_server_xruns_60s", "<=", 0.0, "",
+         "the JACK dummy server's own late cycles on 2 shared cores (baseline: its xruns "
+         "seen by an idle client in the same run), period 256 frames (5.3 ms)"),
     Goal("audio_render_block_us", None, None, None, "us", "as audio_callback_cpu_pct"),
     Goal("window_sample_p99_ms", None, "<=", 1.0, "ms",
          "OS wake-up latency of the 100 Hz loop while the window draws at 60 Hz"),
+    Goal("window_load_p99_delta_ms", None, "<=", 1.0, "ms",
+         "a 2-back in the window (tones: SDL's audio thread takes the GIL per 10 ms block; "
+         "letters: a frame at each onset and end) over the same session without a task"),
+    Goal("window_nback_audio_sample_p99_ms", "window_noload_sample_p99_ms", None, None, "ms",
+         "as window_load_p99_delta_ms"),
     Goal("onset_device_p99_ms", "onset_host_p99_ms", "<=", 0.5, "ms",
          "the clock fit's offset error: asymmetry of the fastest round trips"),
     Goal("onset_host_vs_device", None, ">=", 4.0, "x",

@@ -386,3 +386,31 @@ def test_a_calibrated_audio_belt_still_renders_stimuli_itself_through_the_calibr
         assert got == pytest.approx(list(want), abs=0.01)
 
     _retry_on_underruns(attempt)
+
+
+def test_underruns_are_the_players_missed_output(jack_server: None) -> None:
+    """A callback that stalls past JACK's cycle makes the device miss output: the
+    playback's statistics count it (``underruns``), as the streaming player counts its
+    missed frames; a playback without a stall counts only what the belt reported."""
+    with open_belt(URL) as belt:
+        render = belt._render
+        calls = [0]
+
+        def stalling(outdata: object, frames: int) -> None:
+            calls[0] += 1
+            if calls[0] in (40, 80):
+                time.sleep(0.05)  # ten JACK cycles of 5.3 ms
+            render(outdata, frames)
+
+        before = belt.dropouts()
+        belt._render = stalling  # type: ignore[method-assign]
+        with Player(belt) as player:
+            stats = player.play(make_stimulus(belt.layout, 30.0, "dynamic"), 1.0)
+        assert stats.frames == 0  # the device rendered
+        assert stats.underruns >= 1, stats
+        assert stats.underruns == belt.dropouts() - before == belt.underruns - before
+        belt._render = render  # type: ignore[method-assign]
+        with Player(belt) as player:
+            before = belt.dropouts()
+            calm = player.play(make_stimulus(belt.layout, 30.0, "static"), 0.3)
+        assert calm.underruns == belt.dropouts() - before

@@ -212,7 +212,7 @@ def test_a_writer_migrates_a_schema_1_store_and_resume_still_works(tmp_path: Pat
     version = conn.execute("SELECT value FROM meta WHERE key='schema_version'").fetchone()
     rows = conn.execute("SELECT n_targets, load FROM trials ORDER BY trial_index").fetchall()
     conn.close()
-    assert int(version[0]) == SCHEMA_VERSION == 2
+    assert int(version[0]) == SCHEMA_VERSION == 3
     assert rows[:5] == [(None, None)] * 5  # written before the migration
     assert set(rows[5:]) == {(12, "none")}
     data = load_stores([db])

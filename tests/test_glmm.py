@@ -93,3 +93,24 @@ def test_analyze_engine_lme4_without_r_exits_2_with_the_install_command(
         main(["analyze", str(store), "--out", str(tmp_path / "out"), "--engine", "lme4"])
     assert exc.value.code == 2
     assert "apt install r-base-core r-cran-lme4" in capsys.readouterr().err
+
+
+def test_synthetic_participants_can_differ_as_people_do(tmp_path: Path) -> None:
+    """The benchmark's synthetic store gives participants their own accuracy: the
+    accuracy model estimates the SD it was made with; the default store (everyone
+    alike) fits the participant SD at about 0."""
+    from tactorbelt.analysis.load import load_stores
+    from tactorbelt.analysis.stats import fit_model, model_frame
+    from tactorbelt.analysis.synthetic import synthesize_store
+    from tactorbelt.analysis.tables import prepare_trials
+
+    sds = {}
+    for name, sd in (("alike", 0.0), ("varied", 0.8)):
+        store = tmp_path / f"{name}.sqlite"
+        synthesize_store(store, 30, repetitions=2, seed=4, samples=False, timeout_rate=0.0,
+                         participant_sd=sd, target_sd=sd / 2)
+        tr = prepare_trials(load_stores([store]).trials)
+        fit, _ = fit_model(model_frame(tr))
+        sds[name] = fit.random_effects["participant"]["sd"]["(Intercept)"]
+    assert sds["alike"] < 0.2
+    assert 0.5 < sds["varied"] < 1.2, sds

@@ -240,7 +240,7 @@ def test_stats_to_dict_has_the_documented_keys() -> None:
     assert isinstance(stats, PlayerStats)
     assert set(stats.to_dict()) == {"frames", "missed", "deadline_error_p50_ms",
                                     "deadline_error_p99_ms", "deadline_error_max_ms",
-                                    "onset_ns"}
+                                    "onset_ns", "underruns"}
 
 
 def test_device_switch_restarts_on_the_device_for_the_rest_of_the_duration() -> None:

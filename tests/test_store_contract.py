@@ -8,6 +8,7 @@ to what was written, and (file stores) nothing left on disk but the store after 
 from __future__ import annotations
 
 import json
+from dataclasses import asdict
 from pathlib import Path
 
 import pytest
@@ -16,12 +17,21 @@ from support.stores import (
     SCHEDULE,
     URLS,
     make_result,
+    make_schema_2,
     make_session,
     set_schema_version,
     store_params,
 )
 from tactorbelt import StoreError
-from tactorbelt.experiment.store import SAMPLE_COLUMNS, Store, open_store
+from tactorbelt.experiment.store import (
+    RATING_COLUMNS,
+    SAMPLE_COLUMNS,
+    TASK_EVENT_COLUMNS,
+    Store,
+    open_store,
+)
+from tactorbelt.tasks import TLX_ITEMS
+from tactorbelt.tasks.schedule import TaskEvent
 
 REQUIRED = {
     "sessions": {"session_id", "participant", "study_name", "study_sha256", "study_toml",
@@ -222,3 +232,71 @@ def test_unknown_schemes() -> None:
     with pytest.raises(StoreError, match="unknown store URL scheme"):
         open_store("mysql://localhost/x")
     assert Store.open is not None
+
+
+def _events(block: int, phase: str) -> list[TaskEvent]:
+    return [TaskEvent(block, "nb2", phase, 0, 10_000_000_000, "tone3", False, "", True, None),
+            TaskEvent(block, "nb2", phase, 1, 12_500_000_000, "K", True, "press", True, 0.4321),
+            TaskEvent(block, "nb2", phase, -1, 13_000_000_000, None, False, "press", False,
+                      None)]
+
+
+def test_task_events_and_ratings_round_trip(backend: tuple[str, str]) -> None:
+    _, url = backend
+    tlx = dict(zip(TLX_ITEMS, (70.0, 5.0, 42.5, 20.0, 65.0, 30.0), strict=True))
+    with open_store(url) as store:
+        a, b = make_session(store), make_session(store, "P02")
+        assert store.task_events(a) == [] and store.ratings(a) == []
+        store.write_task_events(a, _events(3, "practice"))
+        store.write_task_events(b, _events(1, "dual"))
+        store.write_task_events(a, _events(3, "dual"))
+        store.write_ratings(a, 3, "nasa_tlx", tlx)
+        store.write_ratings(a, 3, "nasa_tlx", {**tlx, "effort": 80.0})  # asked again
+        store.write_ratings(a, 5, "nasa_tlx", tlx)
+        store.write_ratings(b, 1, "nasa_tlx", tlx)
+    with open_store(url, create=False, readonly=True) as reader:
+        rows = reader.task_events(a)
+        assert [tuple(r) for r in rows] == [TASK_EVENT_COLUMNS] * 6
+        want = [{"session_id": a, **asdict(e)} for e in _events(3, "practice") + _events(3, "dual")]
+        assert rows == want  # in the order written, booleans as booleans
+        assert len(reader.task_events()) == 9
+        ratings = reader.ratings(a)
+        assert [tuple(r) for r in ratings] == [RATING_COLUMNS] * 12
+        assert [(r["block_index"], r["item"], r["value"]) for r in ratings] == [
+            (3, k, 80.0 if k == "effort" else v) for k, v in tlx.items()] + [
+            (5, k, v) for k, v in tlx.items()]
+        assert {r["session_id"] for r in reader.ratings()} == {a, b}
+        with pytest.raises(StoreError, match="read-only"):
+            reader.write_task_events(a, _events(3, "dual"))
+
+
+def test_a_failed_event_write_writes_none_of_them(backend: tuple[str, str]) -> None:
+    _, url = backend
+    with open_store(url) as store:
+        sid = make_session(store)
+        bad = [*_events(0, "dual"), TaskEvent(0, "nb2", "rest", 2, 1, "x", False, "", True,
+                                              None)]
+        with pytest.raises(StoreError):
+            store.write_task_events(sid, bad)  # 'rest' is no phase
+        with pytest.raises(StoreError, match="finite"):
+            store.write_ratings(sid, 0, "nasa_tlx", {"mental": float("nan")})
+        assert store.task_events(sid) == [] and store.ratings(sid) == []
+
+
+def test_a_store_of_schema_2_gains_the_task_tables(backend: tuple[str, str]) -> None:
+    scheme, url = backend
+    with open_store(url) as store:
+        sid = make_session(store)
+        store.write_trial(sid, make_result(0))
+    make_schema_2(scheme, url)
+    with open_store(url, create=False, readonly=True) as reader:  # readers change nothing
+        assert reader.task_events() == [] and reader.ratings() == []
+        assert reader.table_columns("task_events") == []
+    with open_store(url) as store:  # a writer migrates it
+        assert len(store.trials(sid)) == 1
+        assert set(TASK_EVENT_COLUMNS) <= set(store.table_columns("task_events"))
+        assert set(RATING_COLUMNS) <= set(store.table_columns("ratings"))
+        store.write_task_events(sid, _events(0, "dual"))
+        store.write_ratings(sid, 0, "nasa_tlx", {"mental": 12.5})
+    with open_store(url, create=False, readonly=True) as reader:
+        assert len(reader.task_events(sid)) == 3 and reader.ratings(sid)[0]["value"] == 12.5

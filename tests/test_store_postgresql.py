@@ -20,9 +20,10 @@ from typing import Any
 import pytest
 
 from support.stores import make_result, make_session
-from support.studies import write_study
+from support.studies import make_study, write_study
 from tactorbelt import StoreError
 from tactorbelt.experiment.store import open_store
+from tactorbelt.tasks.schedule import TaskEvent
 
 pytest.importorskip("psycopg")
 
@@ -294,11 +295,17 @@ def test_a_site_writer_reads_nothing_of_another_site(pg_server: Any, pg_url: str
     with open_store(lyon_url) as lyon:
         sid = make_session(lyon, "L01", site="lyon")
         lyon.write_trial(sid, make_result(0))
+        lyon.write_task_events(sid, [TaskEvent(0, "nb", "dual", 0, 1, "K", False, "", True,
+                                               None)])
+        lyon.write_ratings(sid, 0, "nasa_tlx", {"mental": 50.0})
         assert [s["participant"] for s in lyon.sessions()] == ["L01"]
     with open_store(oslo_url) as oslo:
         make_session(oslo, "O01", site="oslo")
         assert [s["participant"] for s in oslo.sessions()] == ["O01"]
         assert oslo.trials() == [] and oslo.samples_of([1, 2, 3]) == []
+        assert oslo.task_events() == [] and oslo.ratings() == []
+        with pytest.raises(StoreError):  # nor write rows of another site's session
+            oslo.write_ratings(sid, 0, "nasa_tlx", {"mental": 1.0})
         with pytest.raises(StoreError, match="no session"):
             oslo.session(sid)
         with pytest.raises(StoreError):  # writing another site's rows is refused
@@ -308,6 +315,7 @@ def test_a_site_writer_reads_nothing_of_another_site(pg_server: Any, pg_url: str
     with open_store(pg_server.url(name, "analyst1"), create=False, readonly=True) as a:
         assert sorted(s["participant"] for s in a.sessions()) == ["L01", "O01"]
         assert len(a.trials()) == 1
+        assert len(a.task_events()) == 1 and len(a.ratings()) == 1
     with open_store(pg_server.url(name, "analyst1")) as a, pytest.raises(StoreError):
         make_session(a, "X01", site="lyon")
 
@@ -334,3 +342,48 @@ def test_a_url_with_a_password_is_refused_before_connecting(tmp_path: Path) -> N
     out = _cli(*_run_args(study, "P01", tmp_path / "l.sqlite",
                           "postgresql://lyon:secret@db.invalid/study", "--offline"))
     assert out.returncode == 2 and "pgpass" in out.stderr and "secret" not in out.stderr
+
+
+def test_sync_copies_task_events_and_ratings_once(tmp_path: Path, pg_url: str) -> None:
+    from support.tasks import TaskCursor
+    from tactorbelt.clock import SimClock
+    from tactorbelt.devices import open_belt
+    from tactorbelt.experiment.runner import run_session
+    from tactorbelt.experiment.schedule import make_schedule
+    from tactorbelt.experiment.sync import sync_stores
+    from tactorbelt.tasks import TLX_ITEMS
+
+    study = make_study(minimal=True, name="load", tactors=4, targets=8, training=0,
+                       iti_s=0.2, break_every=0,
+                       blocks=[{"name": "busy", "condition": "static", "repetitions": 1,
+                                "load": "nb"}],
+                       tasks={"nb": {"kind": "nback", "n": 1, "interval_s": 1.0,
+                                     "practice": 4}},
+                       questionnaire={"tlx": True})
+    answers = {t.trial_index: t.target_deg for t in make_schedule(study, "P07")}
+    db, clock = tmp_path / "local.sqlite", SimClock()
+    with open_store(db) as store, open_belt("sim", clock=clock,
+                                            layout=study.layout_obj()) as belt:
+        run_session(study, "P07", belt, TaskCursor(answers=answers,
+                                                   tlx=dict.fromkeys(TLX_ITEMS, 40.0)),
+                    store, clock)
+
+    def rows(url: str | Path) -> tuple[list[Any], list[Any]]:
+        with open_store(url, create=False, readonly=True) as s:
+            drop = ("session_id",)
+            return ([{k: v for k, v in e.items() if k not in drop} for e in s.task_events()],
+                    [{k: v for k, v in r.items() if k not in drop} for r in s.ratings()])
+
+    first = sync_stores(db, pg_url)
+    local = rows(db)
+    assert len(local[0]) > 4 and len(local[1]) == 6
+    assert first.task_events == len(local[0]) and first.ratings == 6
+    assert rows(pg_url) == local
+    again = sync_stores(db, pg_url)
+    assert (again.task_events, again.ratings) == (0, 0)
+    assert "up to date" in again.summary(pg_url)
+    with open_store(db) as store:  # appended locally (a resumed block): copied again
+        store.write_task_events(1, [TaskEvent(0, "nb", "dual", 99, 1, "tone1", False, "",
+                                              True, None)])
+    assert sync_stores(db, pg_url).task_events == len(local[0]) + 1
+    assert rows(pg_url) == rows(db)

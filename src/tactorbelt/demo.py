@@ -37,6 +37,7 @@ from ._errors import ConfigError
 if TYPE_CHECKING:
     import numpy as np
 
+    from .analysis.power_model import NamedEffect, TrialDesign
     from .analysis.stats import Summary
     from .experiment.study import Study
     from .participant.factorial import Effect, FactorialProtocol
@@ -46,6 +47,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "MODEL_NOTE",
+    "NAMED_NOTE",
     "PREVIOUS_STORE_NAME",
     "STORE_NAME",
     "ModelParticipant",
@@ -66,6 +68,9 @@ MODEL_NOTE = ("The participants are simulated observers (the model participant):
               "results follow from the model's assumptions and are no evidence about people.")
 SMALL_STUDY_NOTE = ("with 5 or fewer participants the exact two-sided Wilcoxon test cannot "
                     "reach p < 0.05 (its smallest p is 2/2^n), whatever the effect.")
+NAMED_NOTE = ("The trials are simulated from the report's accuracy model with the effect "
+              "sizes you named, and each simulated study is analysed with that model: the "
+              "power holds if people's accuracies follow that model with those sizes.")
 
 #: ``progress(what, done, total)``: what is being done and how far.
 ProgressFn = Callable[[str, int, int], None]
@@ -126,10 +131,12 @@ class ModelStudyResult:
 def run_model_study(out: Path, n_participants: int, seed: int,
                     progress: ProgressFn | None = None,
                     notify: Callable[[str], None] | None = None,
-                    study_toml: str | None = None) -> ModelStudyResult:
+                    study_toml: str | None = None,
+                    study_file: Path | None = None) -> ModelStudyResult:
     """Run a whole study with model participants into ``out`` and analyse it.
 
-    Writes ``out/study.toml`` (the paper's protocol unless ``study_toml`` is given),
+    Writes ``out/study.toml`` (the paper's protocol unless ``study_toml`` or
+    ``study_file`` is given; a study file is checked first, its errors naming it),
     moves an earlier ``out/study.sqlite`` to ``out/study.previous.sqlite``, runs each
     participant's whole session on the sim belt and a simulated clock into
     ``out/study.sqlite``, writes ``participants.json`` and the analysis report.
@@ -139,9 +146,13 @@ def run_model_study(out: Path, n_participants: int, seed: int,
             (``model-01 (1/2)``, counting trials of all participants) or the analysis
             step (``analysis: ...``).
         notify: called with a note for the user (an earlier store was moved aside).
+        study_toml: the study's text (instead of the paper's protocol).
+        study_file: a study file to run (instead of ``study_toml``).
 
     Raises:
-        ConfigError: ``out`` is unusable, or a session did not complete.
+        ConfigError: ``out`` is unusable, the study file unreadable, or a session did
+            not complete.
+        StudyFileError: the study file is not a valid study (file, line and field).
         StoreError: another run is using the store.
     """
     from .analysis.report import analyze
@@ -154,6 +165,12 @@ def run_model_study(out: Path, n_participants: int, seed: int,
     from .inputs import make_cursor
     from .participant.params import ModelParams
 
+    if study_file is not None:
+        try:
+            study_toml = Path(study_file).read_text(encoding="utf-8")
+        except OSError as exc:
+            raise ConfigError(f"cannot read study file {study_file}: {exc.strerror}") from None
+        Study.from_toml(study_toml, path=study_file)
     text = PAPER_STUDY_TOML if study_toml is None else study_toml
     out = prepare_out(out)
     study_path = out / "study.toml"
@@ -191,11 +208,16 @@ def run_model_study(out: Path, n_participants: int, seed: int,
             if result.status != "complete":
                 raise ConfigError(f"the session of {person.pid} ended {result.status}; "
                                   f"see {db}")
-    (out / "participants.json").write_text(json.dumps(
-        {"note": MODEL_NOTE, "study": study.name, "seed": seed,
-         "participants": {p.pid: {"seed": p.cursor_seed, "params": p.params.to_dict()}
-                          for p in people}},
-        indent=2) + "\n", encoding="utf-8")
+    doc: dict[str, Any] = {
+        "note": MODEL_NOTE, "study": study.name, "seed": seed,
+        "participants": {p.pid: {"seed": p.cursor_seed, "params": p.params.to_dict()}
+                         for p in people}}
+    if study.tasks or study.questionnaire.tlx:
+        from .participant.load import LoadParams
+
+        doc["load_model"] = LoadParams().to_dict()  # shared; docs/participant-model.md
+    (out / "participants.json").write_text(json.dumps(doc, indent=2) + "\n",
+                                           encoding="utf-8")
 
     def analysis_progress(what: str, done: int, steps: int) -> None:
         if progress is not None:
@@ -254,6 +276,15 @@ def _factorial_chunk(args: tuple[FactorialProtocol, tuple[StimulusCues, ...], Ef
     protocol, cues, effect, n, indices, seed = args
     return simulate_factorial_studies(protocol, cues, effect, n, indices, seed,
                                       analysis_paired_test)
+
+
+def _glmm_chunk(args: tuple[TrialDesign, NamedEffect, int, list[int], int]
+                ) -> list[StudyOutcome]:
+    """Worker: simulate and fit some model-based studies of one size (for processes)."""
+    from .analysis.power_model import simulate_glmm_studies
+
+    design, named, n, indices, seed = args
+    return simulate_glmm_studies(design, named, n, indices, seed)
 
 
 def _pool(worker: Callable[[Any], list[StudyOutcome]], work: list[tuple[int, Any]],
@@ -348,6 +379,68 @@ class PowerStudyResult:
     notes: list[str]
     #: the effect looked for, in words
     effect: str = "dynamic vs static between-tactor accuracy"
+    #: what the rows' ``static_acc`` and ``dynamic_acc`` are: ``static``, ``dynamic``,
+    #: or for a load effect ``loaded`` (under load) and ``no_load``
+    pair: tuple[str, str] = ("static", "dynamic")
+    #: the test each simulated study ran, in words
+    test: str = ("paired Wilcoxon signed-rank on per-participant between-tactor accuracy "
+                 "(the model-participant simulation's test, not the report's GLMM)")
+
+
+def _write_power(rows: Sequence[PowerRow], out: Path, doc: dict[str, Any],
+                 pair: tuple[str, str] = ("static", "dynamic")) -> None:
+    """power.csv and power.json (``pair``: what the rows' two accuracies are)."""
+    header = ["participants", "sims", "found", "power", "ci_low", "ci_high",
+              f"mean_{pair[0]}_between_acc", f"mean_{pair[1]}_between_acc", "median_p"]
+    lines = [",".join(header)]
+    for r in rows:
+        lines.append(",".join([str(r.n_participants), str(r.sims), str(r.found),
+                               f"{r.power:.4f}", f"{r.ci_low:.4f}", f"{r.ci_high:.4f}",
+                               f"{r.static_acc:.4f}", f"{r.dynamic_acc:.4f}",
+                               "" if not _finite(r.median_p) else f"{r.median_p:.6g}"]))
+    (out / "power.csv").write_text("\n".join(lines) + "\n", encoding="utf-8")
+    doc = {**doc, "rows": [{_row_key(k, pair): (None if isinstance(v, float)
+                                                and not math.isfinite(v) else v)
+                            for k, v in r.__dict__.items()} for r in rows]}
+    (out / "power.json").write_text(json.dumps(doc, indent=2) + "\n", encoding="utf-8")
+
+
+#: what a model-based power analysis tests, in words (power.json, the CLI and the plot).
+NAMED_TEST = ("the report's headline test: the binomial GLMM of accuracy (correct ~ "
+              "condition * on_tactor + (1 + condition | participant) + (1 | target), "
+              "simplified while singular by the report's rule; Laplace maximum likelihood), "
+              "Wald z on conditionstatic; found = p < alpha with the named sign")
+
+
+def _named_power(study: Study, eff: Effect, named: NamedEffect, sizes: Sequence[int],
+                 sims: int, seed: int, out: Path, jobs: int, alpha: float,
+                 advance: Callable[[int], None] | None) -> PowerStudyResult:
+    """Model-based power: trials drawn from the report's GLMM with the named effect sizes."""
+    from .analysis.power_model import TrialDesign
+
+    if eff.kind != "condition":
+        raise ConfigError("--odds-ratio plans for the condition effect (dynamic vs static); "
+                          f"'{eff.text}' cannot be named by that odds ratio (use --effect "
+                          "'dynamic vs static at N', or leave out --odds-ratio to simulate "
+                          "model participants)")
+    if min(sizes) < 3:
+        raise ConfigError("the report's mixed model needs at least 3 participants: use "
+                          "study sizes of 3 or more with --odds-ratio")
+    design = TrialDesign.from_study(study, eff.n_targets)
+    work = [(n, (design, named, n, idx, seed)) for n in sizes for idx in _chunks(sims, jobs)]
+    rows = _pool(_glmm_chunk, work, sizes, jobs, alpha, advance)
+    what = (f"odds ratio {named.odds_ratio:g} (dynamic over static, {design.n_targets} "
+            "targets)")
+    _write_power(rows, out, {
+        "note": NAMED_NOTE, "study": study.name, "test": NAMED_TEST,
+        "simulated_from": "the same GLMM, with the named effect sizes "
+                          "(tactorbelt.analysis.power_model)",
+        "effect": what, "effect_sizes": named.to_dict(), "n_targets": design.n_targets,
+        "trials_per_participant": design.n, "alpha": alpha, "sims": sims, "seed": seed,
+    })
+    plot = out / "power.png"
+    _plot_power(rows, plot, f"{study.name}: {what}", alpha)
+    return PowerStudyResult(rows, study.name, plot, [NAMED_NOTE], what, test=NAMED_TEST)
 
 
 def _finite(v: float) -> bool:
@@ -358,7 +451,8 @@ def run_power_study(study: Study, sizes: Sequence[int], sims: int, seed: int, ou
                     *, jobs: int | None = None, alpha: float = 0.05,
                     advance: Callable[[int], None] | None = None,
                     study_label: str | None = None,
-                    effect: str | None = None) -> PowerStudyResult:
+                    effect: str | None = None,
+                    named: NamedEffect | None = None) -> PowerStudyResult:
     """Simulate ``sims`` studies per size, write power.csv, power.json and power.png.
 
     Args:
@@ -366,13 +460,13 @@ def run_power_study(study: Study, sizes: Sequence[int], sims: int, seed: int, ou
         advance: called with the number of simulated studies just finished.
         study_label: how to name the study in errors (its file).
         effect: the effect to detect in a factorial study (``dynamic vs static``,
-            ``dynamic vs static at N``, ``interaction``; see
+            ``dynamic vs static at N``, ``interaction``, ``load``, ``load NAME``; see
             :func:`tactorbelt.participant.factorial.parse_effect`). None: dynamic vs
             static between-tactor accuracy over every test block (the paper's test).
 
     Raises:
-        ConfigError: the study lacks a static or a dynamic test block; an unknown
-            effect; ``out`` unusable.
+        ConfigError: the study lacks a static or a dynamic test block (a load effect:
+            blocks with and without a load); an unknown effect; ``out`` unusable.
     """
     from .inputs.model import sim_vibrator
     from .participant.factorial import (
@@ -385,13 +479,18 @@ def run_power_study(study: Study, sizes: Sequence[int], sims: int, seed: int, ou
 
     counts = study.target_counts()
     conds = tuple(dict.fromkeys(b.condition for b in study.test))
-    if "static" not in conds or "dynamic" not in conds:
+    eff = parse_effect(effect, counts, tuple(dict.fromkeys(b.load for b in study.test)))
+    if eff.kind != "load" and ("static" not in conds or "dynamic" not in conds):
         raise ConfigError(f"{study_label or 'the study'} needs a static and a dynamic test "
                           f"block for the static-vs-dynamic test; it has {', '.join(conds)}")
-    eff = parse_effect(effect, counts)
+    # the two accuracies of each row: static/dynamic, or under load/without (load effect)
+    pair = ("loaded", "no_load") if eff.kind == "load" else ("static", "dynamic")
     n_jobs = jobs if jobs is not None else max(1, min(8, os.cpu_count() or 1))
     out = prepare_out(out)
-    if effect is None and len(counts) == 1:  # the paper's protocol: as it always was
+    if named is not None:
+        return _named_power(study, eff, named, sizes, sims, seed, out, n_jobs, alpha, advance)
+    loaded = any(b.load != "none" for b in study.test)
+    if effect is None and len(counts) == 1 and not loaded:  # the paper's protocol
         protocol = Protocol.from_study(study)
         base = ModelParams().for_period(protocol.period_s)
         cues = stimulus_cues(protocol, sim_vibrator(protocol.layout), base)
@@ -403,39 +502,37 @@ def run_power_study(study: Study, sizes: Sequence[int], sims: int, seed: int, ou
         rows = run_factorial_power(fp, fcues, eff, sizes, sims, seed, n_jobs, alpha,
                                    advance=advance)
 
-    header = ["participants", "sims", "found", "power", "ci_low", "ci_high",
-              "mean_static_between_acc", "mean_dynamic_between_acc", "median_p"]
-    lines = [",".join(header)]
-    for r in rows:
-        lines.append(",".join([str(r.n_participants), str(r.sims), str(r.found),
-                               f"{r.power:.4f}", f"{r.ci_low:.4f}", f"{r.ci_high:.4f}",
-                               f"{r.static_acc:.4f}", f"{r.dynamic_acc:.4f}",
-                               "" if not _finite(r.median_p) else f"{r.median_p:.6g}"]))
-    (out / "power.csv").write_text("\n".join(lines) + "\n", encoding="utf-8")
     doc: dict[str, Any] = {
         "note": MODEL_NOTE,
         "study": study.name,
         "test": "Wilcoxon signed-rank (two-sided) on per-participant between-tactor "
                 "accuracy, dynamic vs static (tactorbelt.analysis.stats.wilcoxon_paired); "
                 "found = p < alpha and mean dynamic > mean static",
-        **({} if effect is None and len(counts) == 1 else
+        **({} if effect is None and len(counts) == 1 and not loaded else
            {"effect": eff.text, "test": eff.describe(), "target_counts": counts,
-            "loads": "the model has no secondary task: loads are simulated alike"}),
+            **({"loads": "blocks under a load are simulated with the model localising "
+                         "under that load (tactorbelt.participant.load; assumptions)"}
+               if loaded else {})}),
         "alpha": alpha, "sims": sims, "seed": seed,
         "model": base.to_dict(),
-        "rows": [{k: (None if isinstance(v, float) and not math.isfinite(v) else v)
-                  for k, v in r.__dict__.items()} for r in rows],
     }
-    (out / "power.json").write_text(json.dumps(doc, indent=2) + "\n", encoding="utf-8")
+    _write_power(rows, out, doc, pair)
     plot = out / "power.png"
     what = ("static vs dynamic between-tactor accuracy" if effect is None
             else f"effect: {eff.text}")
     _plot_power(rows, plot, f"{study.name}: {what}", alpha)
-    notes = [MODEL_NOTE]
+    notes = [MODEL_NOTE, "each simulated study ran the paired Wilcoxon test; the report's "
+                         "headline test is the accuracy GLMM: plan for it with --odds-ratio"]
     if any(r.n_participants <= 5 for r in rows):
         notes.append(SMALL_STUDY_NOTE)
-    if any(b.load != "none" for b in study.test):
-        notes.append("the model participant has no secondary task: blocks under a load are "
-                     "simulated like those without one")
+    if loaded:
+        notes.append("blocks under a load are simulated with the model localising worse "
+                     "under that load (a documented assumption, docs/participant-model.md)")
     return PowerStudyResult(rows, study.name, plot, notes,
-                            what if effect is not None else eff.describe())
+                            what if effect is not None else eff.describe(), pair)
+
+
+def _row_key(key: str, pair: tuple[str, str]) -> str:
+    """power.json's name of a PowerRow field (``static_acc`` is ``loaded_acc`` for a
+    load effect)."""
+    return {"static_acc": f"{pair[0]}_acc", "dynamic_acc": f"{pair[1]}_acc"}.get(key, key)

@@ -52,6 +52,7 @@ if TYPE_CHECKING:
     from .experiment.store import Store
     from .experiment.sync import Pusher
     from .inputs.joystick import JoystickConfig
+    from .lsl import LslObserver
 
 __all__ = ["RunOutcome", "RunRequest", "choose_clock", "has_display", "resolve_db",
            "resume_command", "run_study"]
@@ -110,6 +111,10 @@ class RunRequest:
     push: str | None = None
     site: str | None = None
     offline: bool = False
+    #: LSL marker and cursor streams (tactorbelt.lsl; the run is then on the wall clock)
+    lsl: bool = False
+    #: with ``lsl``: seconds to wait for a consumer of each stream before the first trial
+    lsl_wait_s: float = 0.0
 
 
 def resolve_db(db: str, push: str | None, study_file: Path) -> tuple[Path, str | None]:
@@ -142,6 +147,8 @@ class RunOutcome:
     resumed: bool
     #: What happened to the background push (stderr lines; empty without --push).
     push_lines: list[str] = field(default_factory=list)
+    #: The session's secondary-task events (``Store.task_events``; empty without load).
+    task_events: list[dict[str, Any]] = field(default_factory=list)
 
     def summary(self) -> tuple[list[str], list[str]]:
         """(lines for stdout, lines for stderr) of the end-of-run summary."""
@@ -156,6 +163,7 @@ class RunOutcome:
             mine = [(x.trial.condition, bool(x.correct), x.rt_s) for x in r.results
                     if x.trial.block == "test" and x.status != "aborted"]
             out += _condition_lines(mine, "  this run ") or ["  this run: no test trials"]
+        out += task_lines(self.task_events)
         err = list(self.push_lines)
         if r.status != "complete":
             err.append(f"  continue with --resume (session {r.session_id})")
@@ -172,6 +180,29 @@ def _condition_lines(rows: list[tuple[str, bool, float | None]], prefix: str) ->
             med = f"{statistics.median(rts):.2f} s" if rts else "n/a (no response)"
             lines.append(f"{prefix}{cond:<8s} {len(rs):4d} test trials, accuracy {acc:.1%}, "
                          f"median RT {med}")
+    return lines
+
+
+def task_lines(events: list[dict[str, Any]], prefix: str = "  ") -> list[str]:
+    """One summary line per secondary task and phase (practice, baseline, dual): go
+    items pressed, false alarms among the no-go items, extra presses, median RT."""
+    lines = []
+    keys = sorted({(e["task"], e["phase"]) for e in events},
+                  key=lambda k: (k[0], ("practice", "baseline", "dual").index(k[1])))
+    for task, phase in keys:
+        rows = [e for e in events if (e["task"], e["phase"]) == (task, phase)]
+        items = [e for e in rows if e["item_index"] >= 0]
+        go = [e for e in items if e["target"]]
+        nogo = [e for e in items if not e["target"]]
+        hits = sum(1 for e in go if e["response"])
+        fas = sum(1 for e in nogo if e["response"])
+        extra = len(rows) - len(items)
+        rts = [e["rt_s"] for e in go if e["rt_s"] is not None]
+        med = f"{statistics.median(rts):.2f} s" if rts else "n/a"
+        lines.append(f"{prefix}{task} {phase:<8s} {len(items):4d} items, {hits}/{len(go)} go "
+                     f"items pressed, {fas}/{len(nogo)} false alarms"
+                     + (f", {extra} extra presses" if extra else "")
+                     + f", median RT {med}")
     return lines
 
 
@@ -202,9 +233,11 @@ def resume_command(req: RunRequest) -> str:
     """The command that continues the participant's session (as a shell line)."""
     push = ["--push", shlex.quote(req.push)] if req.push else []
     site = ["--site", shlex.quote(req.site)] if req.site else []
+    lsl = (["--lsl"] + (["--lsl-wait", f"{req.lsl_wait_s:g}"] if req.lsl_wait_s else [])
+           if req.lsl else [])
     return " ".join(["tactorbelt", "run", shlex.quote(str(req.study_file)), "--participant",
                      shlex.quote(req.participant.strip()), "--db", shlex.quote(str(req.db)),
-                     *push, *site, "--resume"])
+                     *push, *site, *lsl, "--resume"])
 
 
 def stored_options(store: Store, session: dict[str, Any]) -> dict[str, Any]:
@@ -302,6 +335,20 @@ class _RunObserver:
     def poll(self, now_ns: int) -> Any:
         return self.inner.poll(now_ns)
 
+    def on_task_phase(self, name: str | None, spec: Any, phase: str | None) -> None:
+        self.inner.on_task_phase(name, spec, phase)
+
+    def on_task_item(self, item: Any, onset_ns: int, spec: Any) -> None:
+        self.inner.on_task_item(item, onset_ns, spec)
+
+    def task_presses(self, now_ns: int) -> list[int]:
+        presses: list[int] = self.inner.task_presses(now_ns)
+        return presses
+
+    def ask_workload(self, info: Any) -> dict[str, float] | None:
+        answer: dict[str, float] | None = self.inner.ask_workload(info)
+        return answer
+
 
 def _check_options(r: RunRequest) -> None:
     """Refuse an unknown input, a window input without a window, an unknown belt URL."""
@@ -348,6 +395,10 @@ def run_study(req: RunRequest, *, progress: Callable[[int, int], None] | None = 
     push_lines: list[str] = []
     _check_push(req)  # before anything is written
     _check_options(req)  # what the request gives: before a store file is created
+    if req.lsl:
+        from .lsl import load_pylsl
+
+        load_pylsl()  # no liblsl: an error now, before a store file is created
     with open_store(req.db) as store:
         r = _resolve(req, _check_session(store, req))
         assert r.input_kind is not None and r.belt_url is not None
@@ -357,7 +408,7 @@ def run_study(req: RunRequest, *, progress: Callable[[int, int], None] | None = 
             _no_display()
         headless = window is None
         clock = choose_clock(headless=headless, input_kind=r.input_kind,
-                             belt_url=r.belt_url, realtime=bool(r.realtime))
+                             belt_url=r.belt_url, realtime=bool(r.realtime) or req.lsl)
         opts = {k: getattr(r, k) for k in _STORED} | {"headless": headless,
                                                       "joystick": asdict(r.joystick)}
         if req.resume:
@@ -376,6 +427,7 @@ def run_study(req: RunRequest, *, progress: Callable[[int, int], None] | None = 
                                           study_toml=text, input_name=r.input_kind,
                                           site=req.site)
             cursor = None
+            lsl = _lsl(req, clock, belt)  # None without --lsl
             if r.input_kind in ("model", "scripted"):
                 cursor = make_cursor(r.input_kind, study=study, belt=belt, clock=clock,
                                      participant=req.participant, seed=seed,
@@ -385,7 +437,7 @@ def run_study(req: RunRequest, *, progress: Callable[[int, int], None] | None = 
                     assert cursor is not None
                     result = run_session(study, req.participant, belt, cursor, store, clock,
                                          progress=progress,
-                                         observer=_RunObserver(None, store, opts, slow_s,
+                                         observer=_RunObserver(lsl, store, opts, slow_s,
                                                                pusher),
                                          **kwargs)
                 else:
@@ -397,15 +449,31 @@ def run_study(req: RunRequest, *, progress: Callable[[int, int], None] | None = 
                         if src is None:
                             raise ConfigError(f"the window gave no cursor for --input "
                                               f"{r.input_kind}")
-                        obs = _RunObserver(win.observer, store, opts, slow_s, pusher)
+                        inner = win.observer
+                        if lsl is not None:
+                            lsl.inner, inner = inner, lsl
+                        obs = _RunObserver(inner, store, opts, slow_s, pusher)
                         result = win.run(lambda: run_session(
                             study, req.participant, belt, src, store, clock, observer=obs,
                             **kwargs))
             finally:
                 if cursor is not None:
                     cursor.close()
+                if lsl is not None:
+                    lsl.close()
         trials = store.trials(result.session_id)
-    return RunOutcome(result, req.db, trials, req.resume, push_lines)
+        events = store.task_events(result.session_id) if study.tasks else []
+    return RunOutcome(result, req.db, trials, req.resume, push_lines, events)
+
+
+def _lsl(req: RunRequest, clock: Clock, belt: Any) -> LslObserver | None:
+    """With ``req.lsl``: the LSL observer (tactorbelt.lsl; its streams open when the
+    session starts); else None."""
+    if not req.lsl:
+        return None
+    from .lsl import LslObserver
+
+    return LslObserver(None, clock, belt, wait_s=req.lsl_wait_s)
 
 
 def _check_push(req: RunRequest) -> None:

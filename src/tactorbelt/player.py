@@ -73,6 +73,9 @@ class PlayerStats:
             frame was written. Percentiles cover the last 2,097,152 frames (35 min
             at 1 kHz); counts and the maximum cover everything.
         onset_ns: when the playback started (the first deadline), or None.
+        underruns: when the device renders, the output blocks it could not fill in time
+            during the playback (an audio belt's underruns, :meth:`Belt.dropouts`): its
+            missed frames; 0 when streaming or when the device cannot tell.
     """
 
     frames: int
@@ -81,6 +84,7 @@ class PlayerStats:
     deadline_error_p99_ms: float
     deadline_error_max_ms: float
     onset_ns: int | None
+    underruns: int = 0
 
     def to_dict(self) -> dict[str, float | int | None]:
         """The statistics as a plain dict (for JSON)."""
@@ -188,6 +192,7 @@ class Player:
         self._onset: int | None = onset_ns
         self._dl = Deadlines(self.clock, self.rate_hz, onset_ns=onset_ns or 0)
         self._device = device
+        self._dropouts0 = self.belt.dropouts() if device else 0
         self._active = stimulus is not None
         self._end: int | None = None
         self._n_frames: int | None = None
@@ -390,8 +395,9 @@ class Player:
             else:
                 p50 = p99 = 0.0
                 mx = 0
+            under = self.belt.dropouts() - self._dropouts0 if self._device else 0
             return PlayerStats(self._frames, self._dl.missed, float(p50) / 1e6, float(p99) / 1e6,
-                               float(mx) / 1e6, self._onset)
+                               float(mx) / 1e6, self._onset, under)
 
     def _stop_motors(self) -> None:
         with contextlib.suppress(Exception):  # best effort: the original error matters more

@@ -65,8 +65,13 @@ def _running() -> bool:
     return True
 
 
-def ensure_jack(timeout_s: float = 15.0) -> None:
-    """Skip unless a JACK server runs (started here if need be, within ``timeout_s``)."""
+def ensure_jack(timeout_s: float = 15.0, realtime: bool = False) -> None:
+    """Skip unless a JACK server runs (started here if need be, within ``timeout_s``).
+
+    ``realtime``: start it with realtime scheduling (``-R``, jackd's own default and what
+    an audio lab runs; jackd falls back to normal scheduling where the system refuses).
+    The tests run it without, so they never depend on the machine's limits.
+    """
     global _server
     reason = missing()
     if reason:
@@ -76,8 +81,8 @@ def ensure_jack(timeout_s: float = 15.0) -> None:
             return
         env = dict(os.environ, JACK_NO_AUDIO_RESERVATION="1")
         _server = subprocess.Popen(
-            ["jackd", "--no-realtime", "-d", "dummy", "-r", str(RATE), "-p", str(PERIOD),
-             "-P", str(OUTPUTS), "-C", "2"],
+            ["jackd", "-R" if realtime else "--no-realtime", "-d", "dummy", "-r", str(RATE),
+             "-p", str(PERIOD), "-P", str(OUTPUTS), "-C", "2"],
             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env,
             start_new_session=True)
         atexit.register(stop_jack)

@@ -168,3 +168,12 @@ def set_schema_version(url: str, version: int) -> None:
     with psycopg.connect(url, autocommit=True) as conn, contextlib.suppress(Exception):
         conn.execute("UPDATE tactorbelt.meta SET value=%s WHERE key='schema_version'",
                      (str(version),))
+
+
+def run_sql(url: str, *statements: str) -> None:
+    """Run statements on the store's database (as its owner), e.g. to make an old schema."""
+    import psycopg
+
+    with psycopg.connect(url, autocommit=True) as conn:
+        for stmt in statements:
+            conn.execute(stmt)  # type: ignore[arg-type]

@@ -21,8 +21,8 @@ from tactorbelt.experiment.store import BACKENDS, Store
 from tactorbelt.experiment.study import paper_study
 from tactorbelt.experiment.trial import TrialResult
 
-__all__ = ["SCHEDULE", "URLS", "make_result", "make_session", "set_schema_version",
-           "store_params"]
+__all__ = ["SCHEDULE", "URLS", "make_result", "make_schema_2", "make_session",
+           "set_schema_version", "store_params"]
 
 SCHEDULE: list[ScheduledTrial] = make_schedule(paper_study(), "P01")
 
@@ -58,6 +58,21 @@ def store_params() -> list[object]:
 
 def set_schema_version(scheme: str, url: str, version: int) -> None:
     URLS[scheme][1](url, version)
+
+
+def make_schema_2(scheme: str, url: str) -> None:
+    """Make a closed store look as a tactorbelt of schema 2 left it (no task_events, no
+    ratings)."""
+    drop = ("DROP TABLE {}task_events", "DROP TABLE {}ratings")
+    if scheme == "sqlite":
+        conn = sqlite3.connect(url.removeprefix("sqlite://"))
+        for stmt in drop:
+            conn.execute(stmt.format(""))
+        conn.commit()
+        conn.close()
+    else:
+        pgserver.run_sql(url, *(stmt.format("tactorbelt.") for stmt in drop))
+    set_schema_version(scheme, url, 2)
 
 
 def make_session(store: Store, participant: str = "P01", **extra: object) -> int:

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -32,9 +32,15 @@ class StoreData:
             ``response_deg`` and ``response_target_deg`` are floats (NaN for NULL);
             ``block``, ``condition`` and ``status`` are lower-case strings.
         notes: what the loader noticed and did (duplicates dropped, unknown values).
+        task_events: the ``task_events`` rows (dicts keyed by the table's columns) with
+            their session's ``participant`` and ``session_key``.
+        ratings: the ``ratings`` rows, likewise, with the rated block's ``load``,
+            ``condition`` and ``n_targets`` (from its trials).
     """
 
     paths: list[Path | str]
     sessions: pd.DataFrame
     trials: pd.DataFrame
     notes: list[str] = field(default_factory=list)
+    task_events: list[dict[str, Any]] = field(default_factory=list)
+    ratings: list[dict[str, Any]] = field(default_factory=list)

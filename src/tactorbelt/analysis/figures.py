@@ -12,7 +12,9 @@
 - factorial studies (more than one target count, or a load): ``resolution.png``
   (accuracy, information transfer and median RT against the target count, one line
   per condition and load, with 95 % intervals across participants) and
-  ``fig1b-N.png``, the paper's Fig. 1(B) for the blocks of N targets.
+  ``fig1b-N.png``, the paper's Fig. 1(B) for the blocks of N targets;
+- studies with a load: ``load.png``, ``secondary.png``, ``tlx.png``
+  (:mod:`.tasks_figures`).
 
 Static is always blue and dynamic vermillion (Okabe-Ito, colour-blind safe), with
 distinct markers and line styles as well.
@@ -543,4 +545,24 @@ def make_figures(summary: Summary, samples: pd.DataFrame | None = None,
         assert summary.cells is not None
         figs["resolution.png"] = resolution_figure(summary.participant_cells, summary.cells)
         figs.update(fig1b_per_resolution(summary.design, summary.trials))
+    figs.update(_task_figures(summary))
+    return figs
+
+
+def _task_figures(summary: Summary) -> dict[str, bytes]:
+    """``load.png``, ``secondary.png`` and ``tlx.png`` of a study with a load
+    (:mod:`.tasks_figures`)."""
+    from .tasks_figures import load_figure, secondary_figure, tlx_figure
+    from .tasks_report import has_load
+
+    figs: dict[str, bytes] = {}
+    if not has_load(summary):
+        return figs
+    pc = summary.participant_cells
+    if pc is not None and len(pc) and pc["load"].nunique() > 1:
+        figs["load.png"] = load_figure(pc)
+    if summary.secondary_tasks is not None:
+        figs["secondary.png"] = secondary_figure(summary.secondary_tasks["rows"])
+    if summary.tlx is not None:
+        figs["tlx.png"] = tlx_figure(summary.tlx)
     return figs

@@ -458,6 +458,13 @@ class _System:
 
 # -- the binomial GLMM -------------------------------------------------------------------
 
+def _expit(eta: np.ndarray) -> np.ndarray:
+    """The logistic function, without overflow warnings at large ``|eta|``."""
+    from scipy.special import expit
+
+    return np.asarray(expit(eta))
+
+
 def _binom_dev(eta: np.ndarray, y: np.ndarray, m: np.ndarray) -> float:
     """``-2 log L`` of binomial counts (without the binomial coefficients, which Bernoulli
     rows do not have): the sum of Bernoulli deviance residuals."""
@@ -489,12 +496,31 @@ class _Laplace:
 
     def _pirls(self, theta: np.ndarray, beta: np.ndarray | None,
                tol: float = 1e-11) -> tuple[float, dict[str, Any]]:
-        """Penalised IRLS; ``beta=None``: beta jointly with u (glmer's nAGQ = 0)."""
+        """Penalised IRLS; ``beta=None``: beta jointly with u (glmer's nAGQ = 0).
+
+        Starts from the previous call's modes; where that start diverges (a singular
+        system, a non-finite deviance: the optimiser's previous trial point was far
+        off), starts again from u = 0 (and beta = 0), as glmer does for a fresh fit.
+        """
+        try:
+            out = self._pirls_from(theta, beta, tol, warm=True)
+            if math.isfinite(out[0]):
+                return out
+        except np.linalg.LinAlgError:
+            pass
+        return self._pirls_from(theta, beta, tol, warm=False)
+
+    def _pirls_from(self, theta: np.ndarray, beta: np.ndarray | None, tol: float,
+                    warm: bool) -> tuple[float, dict[str, Any]]:
         joint = beta is None
         sysm = self.sys_j if joint else self.sys_u
         v1, d = sysm.rows(self.split(theta))
-        u1 = self.u1.copy()
-        ud = np.r_[self.u2, self.beta_joint] if joint else self.u2.copy()
+        if warm:
+            u1 = self.u1.copy()
+            ud = np.r_[self.u2, self.beta_joint] if joint else self.u2.copy()
+        else:
+            u1 = np.zeros_like(self.u1)
+            ud = np.zeros(sysm.r_u + (self.p if joint else 0))
         off = 0.0 if joint else self.x @ beta
         y, m = self.y, self.m
         r_u = sysm.r_u
@@ -505,7 +531,7 @@ class _Laplace:
 
         pen, eta = objective(u1, ud)
         for _ in range(200):
-            mu = 1.0 / (1.0 + np.exp(-eta))
+            mu = _expit(eta)
             w = m * mu * (1.0 - mu)
             f = sysm.factor(v1, d, w)
             resid = y - m * mu
@@ -526,7 +552,7 @@ class _Laplace:
                     float(np.abs(step * x1).max(initial=0.0)),
                     float(np.abs(step * x2).max(initial=0.0))) < 1e-7:
                 break
-        mu = 1.0 / (1.0 + np.exp(-eta))
+        mu = _expit(eta)
         w = m * mu * (1.0 - mu)
         f = sysm.factor(v1, d, w)
         ld = sysm.logdet_u(f)
@@ -544,7 +570,7 @@ class _Laplace:
     def rx_vcov(self, par: np.ndarray) -> np.ndarray:
         """``(R_X' R_X)^{-1}``: the conditional covariance of beta given theta."""
         _, st = self._pirls(par[: self.n_theta], par[self.n_theta:])
-        mu = 1.0 / (1.0 + np.exp(-st["eta"]))
+        mu = _expit(st["eta"])
         w = self.m * mu * (1.0 - mu)
         v1, d = self.sys_j.rows(self.split(par[: self.n_theta]))
         f = self.sys_j.factor(v1, d, w)

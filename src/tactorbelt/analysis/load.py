@@ -16,7 +16,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Final
+from typing import TYPE_CHECKING, Any, Final
 
 from .._errors import StoreError
 from .dataset import StoreData
@@ -47,7 +47,7 @@ REQUIRED_COLUMNS: Final[dict[str, tuple[str, ...]]] = {
 OPTIONAL_SESSION_COLUMNS: Final = ("input", "site")
 #: Optional trial columns (schema 2, factorial designs) read when present; trials of
 #: older stores get their session's study's target count and load ``none``.
-OPTIONAL_TRIAL_COLUMNS: Final = ("n_targets", "load")
+OPTIONAL_TRIAL_COLUMNS: Final = ("n_targets", "load", "block_index")
 
 def _store_ref(p: str | Path) -> Path | str:
     """A store file's path, or a server store's URL kept as text (``postgresql://...``)."""
@@ -84,10 +84,18 @@ def _check_schema(path: Path | str, store: Store) -> dict[str, list[str]]:
 
 
 def _read_store(path: Path | str, store_index: int, include_running: bool = False,
-                notes: list[str] | None = None) -> tuple[pd.DataFrame, pd.DataFrame]:
+                notes: list[str] | None = None,
+                extra: dict[str, list[dict[str, Any]]] | None = None
+                ) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """Sessions and trials of one store; its ``task_events`` and ``ratings`` rows go to
+    ``extra`` (tagged with ``store``)."""
     import pandas as pd
 
     with _open(path) as store:
+        if extra is not None:
+            for name, rows in (("task_events", store.task_events()),
+                               ("ratings", store.ratings())):
+                extra.setdefault(name, []).extend({**r, "store": store_index} for r in rows)
         shared = not store.capabilities.exclusive_writer
         cols = _check_schema(path, store)
         sess_cols = list(REQUIRED_COLUMNS["sessions"]) + [
@@ -215,6 +223,36 @@ def _cell_columns(sessions: pd.DataFrame, trials: pd.DataFrame) -> pd.DataFrame:
     return trials
 
 
+def _task_rows(sessions: pd.DataFrame, trials: pd.DataFrame, labels: list[str],
+               extra: dict[str, list[dict[str, Any]]]
+               ) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
+    """The task-event and rating rows of the loaded sessions, each with its session's
+    ``session_key`` and ``participant``; ratings also with the rated block's ``load``,
+    ``condition`` and ``n_targets`` (from the block's trials; None when no trial of the
+    block is stored)."""
+    who = dict(zip(sessions["session_key"], sessions["participant"], strict=True))
+
+    def tagged(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
+        out = []
+        for r in rows:
+            key = f"{labels[int(r['store'])]}#{r['session_id']}"
+            if key in who:
+                out.append({**r, "session_key": key, "participant": who[key]})
+        return out
+
+    events = tagged(extra.get("task_events", []))
+    ratings = tagged(extra.get("ratings", []))
+    if ratings and "block_index" in trials.columns:
+        first = trials.drop_duplicates(["session_key", "block_index"])
+        block = {(k, int(b)): (str(lv), str(c), int(n)) for k, b, lv, c, n in zip(
+            first["session_key"], first["block_index"], first["load"], first["condition"],
+            first["n_targets"], strict=True)}
+        for r in ratings:
+            lv, c, n = block.get((r["session_key"], int(r["block_index"])), (None, None, None))
+            r.update(load=lv, condition=c, n_targets=n)
+    return events, ratings
+
+
 def load_stores(paths: Sequence[str | Path], *, sites: Sequence[str] | None = None,
                 include_running: bool = False) -> StoreData:
     """Load every store in ``paths`` into one :class:`StoreData`.
@@ -243,8 +281,9 @@ def load_stores(paths: Sequence[str | Path], *, sites: Sequence[str] | None = No
         unique.append(path)
     all_sessions = []
     all_trials = []
+    extra: dict[str, list[dict[str, Any]]] = {}
     for i, path in enumerate(unique):
-        sessions, trials = _read_store(path, i, include_running, notes)
+        sessions, trials = _read_store(path, i, include_running, notes, extra)
         if sites is not None:
             sessions = sessions.loc[sessions.get("site", pd.Series(pd.NA, index=sessions.index)
                                                  ).isin(list(sites))]
@@ -265,8 +304,11 @@ def load_stores(paths: Sequence[str | Path], *, sites: Sequence[str] | None = No
             f"the stores hold no session ({', '.join(str(p) for p in unique)}); nothing "
             "to analyse"
         )
-    sessions, trials = _tidy(sessions, trials, store_labels(unique), notes)
-    return StoreData(paths=unique, sessions=sessions, trials=trials, notes=notes)
+    labels = store_labels(unique)
+    sessions, trials = _tidy(sessions, trials, labels, notes)
+    events, ratings = _task_rows(sessions, trials, labels, extra)
+    return StoreData(paths=unique, sessions=sessions, trials=trials, notes=notes,
+                     task_events=events, ratings=ratings)
 
 
 def analysis_seed(data: StoreData) -> int:

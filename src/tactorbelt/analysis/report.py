@@ -25,6 +25,7 @@ from .._errors import ConfigError
 from .cells_report import cells_section
 from .stats import COUNTING_RULES, DEFAULT_N_BOOT, Summary, TestResult
 from .tables import CONDITIONS, KIND_LABELS, KINDS
+from .tasks_report import load_section
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -90,7 +91,7 @@ def _fmt(v: Any, digits: int = 3, *, missing: str = "n/a") -> str:
 
 def _p(v: Any) -> str:
     if not _finite(v):
-        return "none (Bayesian fit)"
+        return "n/a"
     f = float(v)
     return "< 0.0001" if f < 1e-4 else f"{f:.4f}"
 
@@ -377,6 +378,7 @@ def render_html(summary: Summary, figures: dict[str, bytes], *,
                      + _table(["condition", "n trials", "accuracy"], rows, "num"))
 
     parts.append(cells_section(summary, figures))
+    parts.append(load_section(summary, figures))
 
     parts.append("<h2>Statistical tests</h2>")
     parts.append("<p>Two-sided tests. Intervals are 95 % bias-corrected and accelerated "
@@ -609,6 +611,7 @@ def analyze(paths: Sequence[str | Path], out: str | Path, *, seed: int | None = 
     from .figures import make_figures
     from .load import analysis_seed, load_samples, load_stores
     from .stats import summarize
+    from .tasks_figures import TASK_FIGURE_ORDER
 
     total = 6
     step = 0
@@ -648,7 +651,8 @@ def analyze(paths: Sequence[str | Path], out: str | Path, *, seed: int | None = 
         for name in FIGURE_ORDER:  # stale figures of an earlier run would mislead
             if name not in figures and (out / name).is_file():
                 (out / name).unlink()
-        for old in [*out.glob("fig1b-*.png"), out / "resolution.png"]:  # factorial figures
+        for old in [*out.glob("fig1b-*.png"), out / "resolution.png",  # factorial, load
+                    *(out / n for n in TASK_FIGURE_ORDER)]:
             if old.name not in figures and old.is_file():
                 old.unlink()
         for name, png in figures.items():

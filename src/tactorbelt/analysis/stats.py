@@ -762,6 +762,11 @@ class Summary:
     cells: pd.DataFrame | None = None
     #: per (participant, condition, n_targets, load): ``participant_cells``
     participant_cells: pd.DataFrame | None = None
+    #: ``summary.json["secondary_tasks"]`` (:func:`.tasks.secondary_tasks_json`), None
+    #: without task events
+    secondary_tasks: dict[str, Any] | None = None
+    #: ``summary.json["tlx"]`` (:func:`.tasks.tlx_summary`), None without ratings
+    tlx: dict[str, Any] | None = None
 
     @property
     def mixed_model(self) -> dict[str, Any] | None:
@@ -843,6 +848,8 @@ class Summary:
             "tests": [t.to_dict() for t in self.tests],
             "mixed_model": self.mixed_model,
             "rt_mixed_model": self.rt_model,
+            "secondary_tasks": _finite_json(self.secondary_tasks),
+            "tlx": _finite_json(self.tlx),
             "counting": COUNTING_RULES,
             "study": {
                 "layout_deg": self.design.layout.to_list(),
@@ -853,6 +860,17 @@ class Summary:
             "provenance": self.provenance(),
             "notes": list(self.notes),
         }
+
+
+def _finite_json(v: Any) -> Any:
+    """``v`` with every non-finite float replaced by None (summary.json has no NaN)."""
+    if isinstance(v, dict):
+        return {k: _finite_json(x) for k, x in v.items()}
+    if isinstance(v, list | tuple):
+        return [_finite_json(x) for x in v]
+    if isinstance(v, float) and not math.isfinite(v):
+        return None
+    return v
 
 
 COUNTING_RULES: Final = (
@@ -1028,6 +1046,12 @@ def summarize(data: StoreData, *, seed: int = 0, n_boot: int = DEFAULT_N_BOOT,
         if not (counted["condition"] == cond).any() and len(counted):
             notes.append(f"no {cond} test trials: its accuracy and RT are not reported")
 
+    from .tasks import secondary_tasks_json, tlx_rows, tlx_summary
+
+    secondary = secondary_tasks_json(data.task_events)
+    tlx = tlx_summary(tlx_rows(data.ratings)) if data.ratings else None
+    if tlx is not None and tlx["test"] is not None and not tlx["test"]["computed"]:
+        notes.append(f"not computed: the NASA-TLX test across load: {tlx['test']['reason']}")
     return Summary(
         counts=counts, conditions=cond_table, per_target=pt, per_participant=pp,
         directions=directions, confusion=confusion, training=training, tests=tests,
@@ -1040,4 +1064,5 @@ def summarize(data: StoreData, *, seed: int = 0, n_boot: int = DEFAULT_N_BOOT,
         notes=notes, trials=tr, paths=[str(p) for p in data.paths], seed=seed, n_boot=n_boot,
         rt_model=rt_json,
         cells=cell_summary(tr), participant_cells=participant_cells(tr),
+        secondary_tasks=secondary, tlx=tlx,
     )

@@ -120,6 +120,9 @@ def synthesize_store(
     participant_prefix: str = "P",
     belt: str = "serial:/dev/ttyACM0",
     chunk: int = 50,
+    participant_sd: float = 0.0,
+    slope_sd: float = 0.0,
+    target_sd: float = 0.0,
 ) -> dict[str, int]:
     """Write a store of made-up sessions: ``participants * 2 * repetitions * targets`` test trials.
 
@@ -129,11 +132,22 @@ def synthesize_store(
     1.2 s (static) and 1.4 s (dynamic). A cursor path from the centre to the response is
     sampled at ``sample_rate_hz`` until the response time (about 150 samples a trial).
 
+    ``participant_sd``, ``slope_sd`` and ``target_sd`` (log-odds; default 0, every
+    participant and target alike) add what people and targets do in a real study: a
+    per-participant intercept and dynamic-condition slope and a per-target intercept
+    on the logit of those accuracies (drawn from the same generator, after the trials'
+    other draws, so the default data are unchanged).
+
     Returns:
         Counts written: ``sessions``, ``trials``, ``samples``.
     """
 
     rng = np.random.default_rng(seed)
+    varied = participant_sd > 0 or slope_sd > 0 or target_sd > 0
+    rng_re = np.random.default_rng([seed, 1])
+    u_p = rng_re.normal(0.0, participant_sd, participants)
+    v_p = rng_re.normal(0.0, slope_sd, participants)
+    w_t = rng_re.normal(0.0, target_sd, targets)
     layout = Layout.even(tactors)
     tset = TargetSet.even(targets)
     tgt = tset.angles
@@ -164,6 +178,11 @@ def synthesize_store(
         on_t = on[tidx]
         rep = np.tile(np.repeat(np.arange(repetitions), targets), 2 * k)
         p_ok = np.where(on_t, 0.9, np.where(cond_dyn, 0.75, 0.5))
+        if varied:
+            pidx = np.repeat(np.arange(start, stop), n_per)
+            eta = (np.log(p_ok / (1 - p_ok)) + u_p[pidx] + v_p[pidx] * cond_dyn
+                   + w_t[tidx])
+            p_ok = 1.0 / (1.0 + np.exp(-eta))
         ok = rng.random(n) < p_ok
         off = rng.choice([-1.0, 1.0], n) * np.where(rng.random(n) < 0.85, 1.0, 2.0)
         resp_t = np.asarray(normalize(target + np.where(ok, 0.0, off * step)))

@@ -43,15 +43,19 @@ def _progress_bar(console: Any) -> Any:
 @click.option("--participants", type=number(int, 1, 999), default=1, show_default=True,
               help="Number of model participants (ids model-01, model-02, ...).")
 @seed_option("Seed of the schedules, the model participants and the analysis.", default=1)
-def demo(out: Path, participants: int, seed: int) -> None:
-    """Run the paper's study with model participants, then analyze it.
+@click.option("--study", "study_file", type=click.Path(dir_okay=False, path_type=Path),
+              default=None, help="Study file to run [default: the paper's protocol].")
+def demo(out: Path, participants: int, seed: int, study_file: Path | None) -> None:
+    """Run the paper's study (or --study FILE) with model participants, then analyze it.
 
-    Writes DIR/study.toml (the paper's protocol, as 'tactorbelt study init' writes it),
-    runs each model participant through a whole session (training, then 240 test
-    trials) on the simulated belt and a simulated clock, stores every trial and cursor
-    sample in DIR/study.sqlite, and writes the analysis report: report.html,
-    summary.json, per_target.csv and PNG figures. Then prints accuracy and median RT
-    per condition and where the report is.
+    Writes DIR/study.toml (the paper's protocol, as 'tactorbelt study init' writes it,
+    or a copy of --study FILE), runs each model participant through a whole session
+    (training, then the test blocks: 240 trials in the paper's protocol) on the
+    simulated belt and a simulated clock, stores every trial and cursor sample in
+    DIR/study.sqlite, and writes the analysis report: report.html, summary.json,
+    per_target.csv and PNG figures. Then prints accuracy and median RT per condition
+    and where the report is. Under a load (a [tasks.NAME] secondary task) the model
+    participants also do the task and answer the NASA-TLX, and the report covers them.
 
     An existing DIR/study.sqlite is moved to DIR/study.previous.sqlite (replacing an
     older one), so the demo can be run again into the same directory.
@@ -77,7 +81,8 @@ def demo(out: Path, participants: int, seed: int) -> None:
 
         result = run_model_study(out, participants, seed, progress=progress,
                                  notify=lambda note: err.print(f"note: {note}",
-                                                               highlight=False))
+                                                               highlight=False),
+                                 study_file=study_file)
         if "analysis" in tasks:
             bar.update(tasks["analysis"], completed=bar.tasks[-1].total,
                        description="analysis")
@@ -128,9 +133,28 @@ def parse_sizes(text: str) -> list[int]:
               default=0.05, show_default=True, help="Significance level of the test.")
 @click.option("--effect", default=None, metavar="EFFECT",
               help="Effect to detect in a factorial study: 'dynamic vs static', 'dynamic "
-                   "vs static at 36' or 'interaction' (resolution x condition).")
+                   "vs static at 36', 'interaction' (resolution x condition) or 'load' "
+                   "(between-tactor accuracy without vs under load; 'load NAME': one "
+                   "load).")
+@click.option("--odds-ratio", type=number(float, 0, 1000, lo_open=True), default=None,
+              help="Plan for the report's accuracy GLMM instead of model participants: the "
+                   "dynamic-over-static odds ratio at between-tactor targets to find.")
+@click.option("--accuracy", type=number(float, 0, 1, lo_open=True, hi_open=True),
+              default=0.5, show_default=True,
+              help="With --odds-ratio: static between-tactor accuracy.")
+@click.option("--on-tactor-accuracy", type=number(float, 0, 1, lo_open=True, hi_open=True),
+              default=0.9, show_default=True,
+              help="With --odds-ratio: accuracy at on-tactor targets.")
+@click.option("--participant-sd", type=number(float, 0, 5), default=0.5, show_default=True,
+              help="With --odds-ratio: SD of the participant intercept (log-odds).")
+@click.option("--slope-sd", type=number(float, 0, 5), default=0.3, show_default=True,
+              help="With --odds-ratio: SD of the participant's condition slope (log-odds).")
+@click.option("--target-sd", type=number(float, 0, 5), default=0.3, show_default=True,
+              help="With --odds-ratio: SD of the target intercept (log-odds).")
 def power(sizes_text: str, sims: int, out: Path, seed: int, jobs: int | None,
-          study_file: Path | None, alpha: float, effect: str | None) -> None:
+          study_file: Path | None, alpha: float, effect: str | None,
+          odds_ratio: float | None, accuracy: float, on_tactor_accuracy: float,
+          participant_sd: float, slope_sd: float, target_sd: float) -> None:
     """Plan a study's size by simulation with model participants.
 
     For each study size, simulates --sims studies of that many model participants
@@ -145,6 +169,11 @@ def power(sizes_text: str, sims: int, out: Path, seed: int, jobs: int | None,
     Trials are simulated directly from the model's perception (no runner, no store;
     the fast path gives the same accuracy as the full runner). The power is that of a
     study *if people behaved like the model* (docs/participant-model.md).
+
+    With --odds-ratio, the effect sizes are yours instead: each study's trials are
+    drawn from the report's accuracy GLMM with that odds ratio, accuracy and random-
+    effect SDs, and analyzed with the same GLMM and Wald test as the report's headline
+    (about 0.2 s a study of the paper's size: use fewer --sims for a first look).
     """
     from rich.console import Console
     from rich.table import Table
@@ -152,6 +181,12 @@ def power(sizes_text: str, sims: int, out: Path, seed: int, jobs: int | None,
     from ..demo import run_power_study
     from ..experiment.study import load_study, paper_study
 
+    named = None
+    if odds_ratio is not None:
+        from ..analysis.power_model import NamedEffect
+
+        named = NamedEffect(odds_ratio, accuracy, on_tactor_accuracy, participant_sd,
+                            slope_sd, target_sd)
     sizes = parse_sizes(sizes_text)
     study = load_study(study_file) if study_file is not None else paper_study()
     err = Console(stderr=True)
@@ -160,12 +195,14 @@ def power(sizes_text: str, sims: int, out: Path, seed: int, jobs: int | None,
         result = run_power_study(study, sizes, sims, seed, out, jobs=jobs, alpha=alpha,
                                  advance=lambda k: bar.advance(task, k),
                                  study_label=str(study_file) if study_file else None,
-                                 effect=effect)
-    what = "the static-vs-dynamic test" if effect is None else f"'{effect}'"
+                                 effect=effect, named=named)
+    what = (f"'{result.effect}'" if named is not None
+            else "the static-vs-dynamic test" if effect is None else f"'{effect}'")
     table = Table(title=f"Power of {what} (alpha {alpha:g}, "
-                        f"{sims} simulated studies per size)")
-    for col in ("participants", "power", "95 % CI", "static acc.", "dynamic acc.",
-                "median p"):
+                        f"{sims} simulated studies per size)",
+                  caption=f"test: {result.test}")
+    for col in ("participants", "power", "95 % CI", f"{result.pair[0]} acc.".replace("_", " "),
+                f"{result.pair[1]} acc.".replace("_", " "), "median p"):
         table.add_column(col, justify="right")
     for r in result.rows:
         table.add_row(str(r.n_participants), f"{r.power:.2f}",

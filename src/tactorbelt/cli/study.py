@@ -13,7 +13,7 @@ from ._options import seed_option
 
 __all__ = ["study"]
 
-TEMPLATE_NAMES = ("paper", "resolution")
+TEMPLATE_NAMES = ("paper", "resolution", "load")
 
 
 @click.group("study")
@@ -26,7 +26,8 @@ def study() -> None:
 @click.option("--template", type=click.Choice(TEMPLATE_NAMES), default="paper",
               show_default=True,
               help="paper: the paper's protocol; resolution: 12/24/36/48 targets x "
-                   "static/dynamic, Williams order.")
+                   "static/dynamic, Williams order; load: static/dynamic x no load/auditory "
+                   "2-back, NASA-TLX after every block.")
 @click.option("--force", is_flag=True, help="Overwrite FILE if it exists.")
 def init(file: Path, template: str, force: bool) -> None:
     """Write a commented study file to FILE, for you to edit.
@@ -34,7 +35,9 @@ def init(file: Path, template: str, force: bool) -> None:
     paper: 6 tactors, 24 targets, paper law T = 15, period 1 s, transit 100 ms; a
     training block, then a static and a dynamic test block of 24 targets x 5
     repetitions. resolution: the factorial follow-up ([design]: 12, 24, 36, 48 targets
-    x static, dynamic, 2 repetitions, Williams order).
+    x static, dynamic, 2 repetitions, Williams order). load: 24 targets, static,
+    dynamic x no load, auditory 2-back (practice and a single-task baseline first),
+    raw NASA-TLX after every test block.
     """
     from ..experiment.study import Study, template_toml
 

@@ -424,6 +424,10 @@ class AudioBelt(Belt):
             self.settle()
         return [float(v) for v in self._last_env]
 
+    def dropouts(self) -> int:
+        """Output underflows PortAudio reported since the belt was opened."""
+        return self.underruns
+
     @property
     def callback_load(self) -> float:
         """The callback's CPU time over the audio time it rendered (0..1 of one core)."""

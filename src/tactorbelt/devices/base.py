@@ -203,6 +203,11 @@ class Belt(ABC):
         """True when :meth:`last_onset` can give the device's own onset times."""
         return False
 
+    def dropouts(self) -> int:
+        """Output blocks the device could not fill in time since the belt was opened (an
+        audio interface's underruns): 0 where the device cannot tell (the default)."""
+        return 0
+
     def last_onset(self, timeout_s: float = 0.1) -> tuple[int, int] | None:
         """The device-true onset of the last stimulus start, on the host's clock.
 

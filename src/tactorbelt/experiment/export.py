@@ -2,7 +2,10 @@
 
 CSV (:func:`export_csv`): ``sessions.csv``, ``trials.csv`` (one row per trial, with
 the participant and session number) and ``samples.csv`` (one row per cursor sample,
-with participant, session and trial index).
+with participant, session and trial index); under cognitive load also
+``task_events.csv`` (one row per secondary-task item or extra press) and
+``ratings.csv`` (one row per questionnaire item and block), each with the participant
+and session number, written when the store holds such rows.
 
 BIDS (:func:`export_bids`), which ``bids-validator`` passes::
 
@@ -54,6 +57,12 @@ TRIAL_COLUMNS = [
     "n_targets", "load",
 ]
 SAMPLE_COLUMNS = ["participant", "session_id", "trial_index", "t_s", "x", "y", "buttons"]
+TASK_EVENT_CSV_COLUMNS = [
+    "participant", "session_id", "session_number", "block_index", "task", "phase",
+    "item_index", "t_ns", "stimulus", "target", "response", "correct", "rt_s",
+]
+RATING_CSV_COLUMNS = ["participant", "session_id", "session_number", "block_index",
+                      "scale", "item", "value"]
 SESSION_COLUMNS = [
     "session_id", "participant", "session_number", "study_name", "study_sha256", "seed",
     "condition_order", "n_trials", "belt", "firmware_version", "package_version",
@@ -116,9 +125,15 @@ def _open(db: str | Path) -> Store:
 #: What an export of each format writes at the top of its directory (``--force``
 #: replaces these, and refuses a directory holding anything else).
 _OWNED = {
-    "csv": ("sessions.csv", "trials.csv", "samples.csv"),
+    "csv": ("sessions.csv", "trials.csv", "samples.csv", "task_events.csv", "ratings.csv"),
     "bids": ("dataset_description.json", "participants.tsv", "participants.json", "README",
              "README.md", "README.rst", "README.txt", "sub-*"),
+    # experiment/export_formats.py
+    "parquet": ("sessions.parquet", "trials.parquet", "samples.parquet",
+                "task_events.parquet", "ratings.parquet"),
+    "tidy": ("trials_tidy.csv", "codebook.csv"),
+    "psychopy": ("*_[0-9][0-9][0-9][0-9]-[0-9][0-9]-[0-9][0-9]_[0-9][0-9]h[0-9][0-9].*.csv",
+                 "*_session-*.csv"),
 }
 
 
@@ -182,8 +197,29 @@ def _with_cell(trial: dict[str, Any], session: dict[str, Any]) -> dict[str, Any]
     return out
 
 
+def _csv_value(v: Any) -> Any:
+    """A CSV cell: booleans as 0/1 (as trials.csv's ``correct``), floats exactly."""
+    if isinstance(v, bool):
+        return int(v)
+    if isinstance(v, float):
+        return repr(v)
+    return v
+
+
+def _write_rows(path: Path, columns: list[str], rows: list[dict[str, Any]],
+                by_id: dict[int, dict[str, Any]]) -> None:
+    with path.open("w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(columns)
+        for r in rows:
+            sess = by_id.get(int(r["session_id"]), {})
+            w.writerow([_csv_value(sess.get(k) if k in ("participant", "session_number")
+                                   else r[k]) for k in columns])
+
+
 def export_csv(db: str | Path, out: str | Path, *, force: bool = False) -> list[Path]:
-    """Write ``sessions.csv``, ``trials.csv`` and ``samples.csv`` into directory ``out``.
+    """Write ``sessions.csv``, ``trials.csv`` and ``samples.csv`` into directory ``out``,
+    and ``task_events.csv`` and ``ratings.csv`` when the store holds any.
 
     ``out`` must be new or empty; ``force`` replaces an earlier CSV export there.
 
@@ -219,6 +255,14 @@ def export_csv(db: str | Path, out: str | Path, *, force: bool = False) -> list[
                 for sid, index, t_s, x, y, buttons in store.iter_samples():
                     w.writerow([by_id[int(sid)]["participant"], sid, index, repr(t_s),
                                 repr(x), repr(y), buttons])
+            events = store.task_events()
+            if events:
+                files.append(o / "task_events.csv")
+                _write_rows(files[-1], TASK_EVENT_CSV_COLUMNS, events, by_id)
+            ratings = store.ratings()
+            if ratings:
+                files.append(o / "ratings.csv")
+                _write_rows(files[-1], RATING_CSV_COLUMNS, ratings, by_id)
         except OSError as exc:
             raise ConfigError(f"cannot write to {o}: {exc.strerror}") from None
     return files

@@ -15,6 +15,16 @@ observer, Ctrl-C (KeyboardInterrupt), SIGTERM / SIGHUP
 other exception. An interrupted trial is stored as ``aborted`` and the session is left
 ``interrupted`` (resumable with ``resume=True``).
 
+Cognitive load (``[tasks.NAME]``, docs/study.md): before the first test block with a
+load, a practice run of the task alone and then its single-task baseline; during each
+test block with the load a :class:`~tactorbelt.tasks.session.TaskSession` on its own
+clock, stepped on every sampling tick (items announced
+:data:`~tactorbelt.tasks.TASK_LEAD_NS` ahead to the window and the cursor source,
+presses collected from both); its events are written when the block ends, and also at
+a pause, a break, an abort or an error (nothing lost). With ``[questionnaire] tlx``
+the raw NASA-TLX follows every test block (the cursor source answers first: the model
+participant; else the window asks a person).
+
 The experiment window plugs in as a :class:`SessionObserver`; cursor sources
 (joystick, mouse, scripted, model participant) as a
 :class:`~tactorbelt.inputs.base.CursorSource`.
@@ -38,10 +48,13 @@ from ..clock import Clock, Deadlines
 from ..geometry import TargetSet
 from ..inputs.base import CursorSample, CursorSource, TrialCue
 from ..interrupts import Terminated
+from ..tasks import TASK_LEAD_NS, TLX_SCALE, WorkloadInfo, check_tlx
+from ..tasks.schedule import TaskItem, derive_seed
+from ..tasks.session import TaskSession
 from . import provenance
 from .schedule import ScheduledTrial, block_order, make_schedule, schedule_from_json
 from .store import Store
-from .study import Study
+from .study import Study, TaskSpec
 from .trial import ResponseRule, TrialMachine, TrialResult, TrialState
 
 if TYPE_CHECKING:
@@ -114,6 +127,22 @@ class SessionObserver(Protocol):
     def poll(self, now_ns: int) -> Command | None:
         """Called at every sampling step: PAUSE (motors off at once), RESUME or ABORT."""
         ...
+    def on_task_phase(self, name: str | None, spec: TaskSpec | None, phase: str | None
+                      ) -> None:
+        """A secondary task starts (``practice`` or ``baseline`` alone, before the first
+        block with its load; ``dual`` with a test block) or ends (None, None, None).
+        May wait for the participant to go on (as at a block start)."""
+        ...
+    def on_task_item(self, item: TaskItem, onset_ns: int, spec: TaskSpec) -> None:
+        """An item will be presented at ``onset_ns`` (at least
+        :data:`~tactorbelt.tasks.TASK_LEAD_NS` ahead): schedule its sound or glyph."""
+        ...
+    def task_presses(self, now_ns: int) -> list[int]:
+        """Response presses (ns, runner clock) of the task's button since the last call."""
+        ...
+    def ask_workload(self, info: WorkloadInfo) -> dict[str, float] | None:
+        """Ask the NASA-TLX after a test block: item -> 0..100, or None (not asked)."""
+        ...
 
 
 class NullObserver:
@@ -141,6 +170,19 @@ class NullObserver:
         pass
 
     def poll(self, now_ns: int) -> Command | None:
+        return None
+
+    def on_task_phase(self, name: str | None, spec: TaskSpec | None, phase: str | None
+                      ) -> None:
+        pass
+
+    def on_task_item(self, item: TaskItem, onset_ns: int, spec: TaskSpec) -> None:
+        pass
+
+    def task_presses(self, now_ns: int) -> list[int]:
+        return []
+
+    def ask_workload(self, info: WorkloadInfo) -> dict[str, float] | None:
         return None
 
 
@@ -175,6 +217,21 @@ class SessionResult:
         if not test:
             return None
         return sum(1 for r in done if r.correct) / len(test)
+
+
+@dataclass
+class _TaskRun:
+    """A secondary task's run in progress: the part since the last (re)start is
+    :attr:`session`; a pause or a break ends that part (its events are written) and
+    starts another, numbering its items on."""
+
+    name: str
+    spec: TaskSpec
+    phase: str
+    block_index: int
+    remaining: int | None
+    next_index: int = 0
+    session: TaskSession | None = None
 
 
 class _Aborted(Exception):
@@ -292,6 +349,12 @@ class SessionRunner:
         self.n_run = 0
         self.n_test_run = 0
         self.results: list[TrialResult] = []
+        # secondary tasks (set by open_session)
+        self.seed_used = 0
+        self._task: _TaskRun | None = None
+        self._phases_done: set[tuple[str, str]] = set()
+        self._rated: set[int] = set()
+        self._block_last: dict[int, int] = {}
 
     # -- setup -----------------------------------------------------------------------------
     def open_session(self) -> list[ScheduledTrial]:
@@ -323,11 +386,13 @@ class SessionRunner:
                         f"{row['study_sha256'][:12]}); resume with the same study file"
                     )
             self.session_id = int(row["session_id"])
+            self.seed_used = int(row["seed"])
             self.schedule = schedule_from_json(row["schedule_json"], study)
             self.order = tuple(json.loads(row["condition_order"]))
             store.mark_resumed(self.session_id)
         else:
             seed = study.session.seed if self.seed is None else int(self.seed)
+            self.seed_used = seed
             self.schedule = make_schedule(study, self.participant, seed)
             self.order = tuple(study.test[i].condition
                                for i in block_order(study, self.participant))
@@ -346,6 +411,13 @@ class SessionRunner:
             store.set_session_profile(self.session_id, self.profile.to_toml())
         finished = store.finished_indices(self.session_id)
         self.n_done = len(finished)
+        for t in self.schedule:
+            self._block_last[t.block_index] = t.trial_index
+        if self.resume and (study.tasks or study.questionnaire.tlx):
+            self._phases_done = {(e["task"], e["phase"]) for e in store.task_events(
+                self.session_id) if e["phase"] != "dual"}
+            self._rated = {int(r["block_index"]) for r in store.ratings(self.session_id)
+                           if r["scale"] == TLX_SCALE}
         return [t for t in self.schedule if t.trial_index not in finished]
 
     def stimulus_for(self, t: ScheduledTrial) -> Stimulus:
@@ -385,11 +457,140 @@ class SessionRunner:
         return ticks
 
     def _tick(self, ticks: Deadlines) -> int:
-        """Wait for the next sampling deadline; pump a simulated player; return now."""
+        """Wait for the next sampling deadline; pump a simulated player; step a running
+        secondary task; return now."""
         _, now = ticks.wait()
         if self.sim:
             self.player.pump(now)
+        if self._task is not None:
+            self._step_task(now)
         return now
+
+    # -- secondary tasks -------------------------------------------------------------------
+    def _step_task(self, now: int) -> None:
+        """Announce the items due within the lead time; collect the presses."""
+        run = self._task
+        assert run is not None and run.session is not None
+        ts = run.session
+        for item, onset in ts.announce(now, TASK_LEAD_NS):
+            self.obs.on_task_item(item, onset, run.spec)
+            self.cursor.task_item(item, onset)
+        for p in self.obs.task_presses(now):
+            ts.press(p)
+        for p in self.cursor.task_presses(now):
+            ts.press(p)
+
+    def _start_task(self, run: _TaskRun) -> None:
+        """Start (or go on with) a task run: tell the window and the cursor source, drop
+        the presses made while no task ran, then put item ``run.next_index`` at now +
+        the lead time."""
+        if run.remaining is not None and run.remaining <= 0:
+            self._task = None
+            return
+        self.obs.on_task_phase(run.name, run.spec, run.phase)
+        self.cursor.task_phase(run.spec, run.phase)
+        now = self.clock.now_ns()
+        self.obs.task_presses(now)  # pressed while no task ran: not part of this run
+        self.cursor.task_presses(now)
+        seed = derive_seed(self.seed_used, self.participant, run.name, run.phase,
+                           run.block_index, run.next_index)
+        run.session = TaskSession(run.name, run.spec, run.phase, run.block_index, seed,
+                                  now + TASK_LEAD_NS, run.remaining,
+                                  first_index=run.next_index)
+        self._task = run
+
+    def _stop_task(self) -> _TaskRun | None:
+        """End the running part of a task run and write its events (one transaction);
+        return the run (to go on with after a pause), or None when none was running."""
+        run = self._task
+        if run is None:
+            return None
+        self._task = None
+        ts = run.session
+        assert ts is not None
+        now = self.clock.now_ns()
+        events = ts.finish(now)
+        shown = sum(1 for _, onset in ts.announced if onset <= now)
+        run.next_index += shown
+        if run.remaining is not None:
+            run.remaining -= shown
+        run.session = None
+        try:
+            self.store.write_task_events(self.session_id, events)
+        finally:
+            with contextlib.suppress(Exception):
+                self.cursor.task_phase(None, None)
+            self.obs.on_task_phase(None, None, None)
+        return run
+
+    def _stop_task_quietly(self) -> None:
+        """Teardown: write what the running task has, best effort."""
+        with contextlib.suppress(Exception):
+            self._stop_task()
+        self._task = None
+
+    def _task_of(self, t: ScheduledTrial) -> tuple[str, TaskSpec] | None:
+        """The secondary task of a test trial's block (None without one)."""
+        if t.block != "test":
+            return None
+        spec = self.study.tasks.get(t.load)
+        return (t.load, spec) if spec is not None and spec.active else None
+
+    def run_alone(self, name: str, spec: TaskSpec, phase: str, block_index: int) -> None:
+        """A practice or baseline run: the task alone (no trial, the cursor idle), its
+        ``practice`` or ``baseline`` items; skipped when none or already stored."""
+        n = spec.practice if phase == "practice" else spec.baseline
+        if n <= 0 or (name, phase) in self._phases_done:
+            return
+        self._start_task(_TaskRun(name, spec, phase, block_index, n))
+        ticks = self._ticks()
+        while True:
+            now = self._tick(ticks)
+            run = self._task
+            if run is None or run.session is None or run.session.done(now):
+                break
+            self.handle(self.obs.poll(now), None)
+        self._stop_task()
+        self._phases_done.add((name, phase))
+
+    def _start_block_task(self, t: ScheduledTrial) -> None:
+        """The dual-task run of a test block, from its first trial to be run (a resumed
+        block numbers its items on from those stored)."""
+        task = self._task_of(t)
+        if task is None:
+            return
+        name, spec = task
+        stored = [e["item_index"] for e in self.store.task_events(self.session_id)
+                  if e["phase"] == "dual" and e["block_index"] == t.block_index
+                  and e["task"] == name] if self.resume else []
+        self._start_task(_TaskRun(name, spec, "dual", t.block_index, None,
+                                  max(stored, default=-1) + 1))
+
+    def rate_block(self, t: ScheduledTrial) -> None:
+        """After a test block (``[questionnaire] tlx``): the NASA-TLX, from the cursor
+        source (the model participant) or else the window; stored when answered."""
+        if (not self.study.questionnaire.tlx or t.block != "test"
+                or t.block_index in self._rated):
+            return
+        task = self._task_of(t)
+        info = WorkloadInfo(t.block_index, t.block_name, t.condition,
+                            t.n_targets or self.study.targets.count, t.load,
+                            None if task is None else task[1])
+        values = self.cursor.rate_workload(info)
+        if values is None:
+            values = self.obs.ask_workload(info)
+        if values is not None:
+            self.store.write_ratings(self.session_id, t.block_index, TLX_SCALE,
+                                     check_tlx(values))
+            self._rated.add(t.block_index)
+
+    def _rate_unrated_before(self, todo: list[ScheduledTrial]) -> None:
+        """On resume: the block finished just before the interruption, when its
+        NASA-TLX was not stored (the session stopped during the questionnaire)."""
+        first = todo[0].trial_index if todo else len(self.schedule)
+        before = [t for t in self.schedule if t.trial_index < first]
+        if before and not (todo and todo[0].block_index == before[-1].block_index):
+            self.rate_block(before[-1])
 
     def wait_for(self, duration_ns: int) -> None:
         """Wait ``duration_ns`` in sampling steps (the last one ends at the end), pumping
@@ -421,12 +622,16 @@ class SessionRunner:
         self.pause()
 
     def pause(self) -> None:
-        """Wait, motors off, until the observer resumes (or aborts) the session."""
+        """Wait, motors off, until the observer resumes (or aborts) the session. A
+        running secondary task stops (its events are written) and goes on after."""
+        run = self._stop_task()
         ticks = self._ticks()
         while True:
             ticks.wait()
             cmd = self.obs.poll(self.clock.now_ns())
             if cmd is Command.RESUME:
+                if run is not None:
+                    self._start_task(run)
                 return
             if cmd is Command.ABORT:
                 raise _Aborted
@@ -528,6 +733,7 @@ class SessionRunner:
             self.obs.on_session_start(info, self.schedule)
             status = self._trials(todo)
         except _Aborted as exc:
+            self._stop_task_quietly()
             self._record_failed(exc)
             status = "aborted"
         except BaseException as exc:
@@ -546,13 +752,21 @@ class SessionRunner:
         break_every = self.study.session.break_every
         n_total = len(self.schedule)
         prev_block: int | None = None
+        if self.resume:
+            self._rate_unrated_before(todo)
         i = 0
         while i < len(todo):
             t = todo[i]
             if self.limit is not None and t.block == "test" and self.n_test_run >= self.limit:
                 break
             if t.block_index != prev_block:
+                self._stop_task()  # a block cut short by the limit or a resume
+                task = self._task_of(t)
+                if task is not None:
+                    self.run_alone(*task, "practice", t.block_index)
+                    self.run_alone(*task, "baseline", t.block_index)
                 self.obs.on_block_start(t.block, t.condition)
+                self._start_block_task(t)
                 prev_block = t.block_index
             result = self.run_trial(t)
             self.record(result)
@@ -567,11 +781,18 @@ class SessionRunner:
             if self.progress is not None:
                 self.progress(self.n_done, n_total)
             i += 1
+            if t.trial_index == self._block_last.get(t.block_index):
+                self._stop_task()
+                self.rate_block(t)
             if i < len(todo):
                 self.obs.on_trial_state(t, TrialState.ITI, self.clock.now_ns())
                 self.wait_for(iti_ns)
                 if break_every and (t.trial_index + 1) % break_every == 0:
+                    run = self._stop_task()
                     self.obs.on_break(self.n_done, n_total)
+                    if run is not None:
+                        self._start_task(run)
+        self._stop_task()
         return "complete" if self.n_done >= n_total else "interrupted"
 
     def fail(self, exc: BaseException) -> None:
@@ -579,6 +800,7 @@ class SessionRunner:
         stored ``aborted``, the session ``interrupted`` (resumable). A device error is
         re-raised by the caller with what happened to the session."""
         _stop_quietly(self.player, self.belt)
+        self._stop_task_quietly()
         self._record_failed(exc)
         with contextlib.suppress(Exception):
             self.store.set_status(self.session_id, "interrupted")

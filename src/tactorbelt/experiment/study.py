@@ -24,7 +24,15 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    ValidationError,
+    ValidationInfo,
+    field_validator,
+    model_validator,
+)
 
 from .._errors import ConfigError, StudyFileError
 from .._lawnames import LawName
@@ -32,6 +40,7 @@ from ..geometry import Layout, TargetSet
 
 __all__ = [
     "CONDITIONS",
+    "RESERVED_RESPONSES",
     "BlockSpec",
     "Cell",
     "DesignSpec",
@@ -191,13 +200,81 @@ def plural(n: int, word: str, many: str | None = None) -> str:
 _NAME = r"^[A-Za-z][A-Za-z0-9_\-]*$"
 
 
+#: Responses that go on or confirm a localisation in the window: a task may not use them.
+RESERVED_RESPONSES: dict[str, str] = {
+    "key:space": "Space goes on from the window's screens",
+    "key:return": "Return goes on from the window's screens",
+    "key:enter": "Enter (keypad) goes on from the window's screens",
+    "joystick:0": "joystick button 0 confirms a localisation and goes on",
+    "mouse:left": "the left mouse button confirms a localisation and goes on",
+}
+_RESPONSE = re.compile(r"^(key:[a-z0-9][a-z0-9 _\[\]\-]*|joystick:\d{1,2}|"
+                       r"mouse:(left|middle|right))$")
+
+
 class TaskSpec(_Model):
-    """A secondary task (``[tasks.NAME]``), run during the test blocks whose load is NAME."""
+    """A secondary task (``[tasks.NAME]``), run during the test blocks whose load is NAME.
+
+    Every task is go/no-go: the participant presses ``response`` on a go item (n-back:
+    the item equals the one ``n`` back; arithmetic ``a+b``: the sum is odd). One item
+    every ``interval_s`` from the task's start, independent of the trials' timing; each
+    lasts ``stimulus_s``. ``practice`` items of the task alone come before the first
+    block with this load, then ``baseline`` items alone (the single-task baseline of
+    the dual-task cost). ``kind = "none"`` is a load with no task.
+    """
 
     kind: Literal["nback", "arithmetic", "none"]
-    n: int = Field(default=2, ge=1, le=9)
+    n: int = Field(default=2, validate_default=True)
     modality: Literal["auditory", "visual"] = "auditory"
     interval_s: float = Field(default=2.5, gt=0, le=60)
+    stimulus_s: float = Field(default=0.5, gt=0, le=60)
+    response: str = "joystick:1"
+    match_rate: float = Field(default=0.3, gt=0, lt=1)
+    practice: int = Field(default=12, ge=0, le=200)
+    baseline: int = Field(default=0, ge=0, le=500)
+
+    @field_validator("n")
+    @classmethod
+    def _n(cls, v: int, info: ValidationInfo) -> int:
+        if info.data.get("kind") == "nback" and not 1 <= v <= 3:
+            raise ValueError(f"n must be 1, 2 or 3 (got {v!r})")
+        return v
+
+    @field_validator("response")
+    @classmethod
+    def _response(cls, v: str) -> str:
+        text = v.strip().lower()
+        if text in RESERVED_RESPONSES:
+            raise ValueError(
+                f"{v!r} is taken: {RESERVED_RESPONSES[text]}; give the task another button, "
+                "e.g. \"joystick:1\", \"key:j\" or \"mouse:right\"")
+        if not _RESPONSE.match(text):
+            raise ValueError(
+                f"unknown response {v!r}: use \"key:NAME\" (a pygame key name, e.g. key:j), "
+                "\"joystick:K\" (button K, e.g. joystick:1) or \"mouse:left|middle|right\"")
+        return text
+
+    @model_validator(mode="after")
+    def _interval(self) -> TaskSpec:
+        if self.interval_s <= self.stimulus_s:
+            raise _at("interval_s", f"interval_s ({self.interval_s:g} s) must be longer than "
+                      f"stimulus_s ({self.stimulus_s:g} s): one item ends before the next")
+        return self
+
+    @property
+    def response_device(self) -> str:
+        """``key``, ``joystick`` or ``mouse``."""
+        return self.response.split(":", 1)[0]
+
+    @property
+    def response_button(self) -> str:
+        """The key name, the joystick button number or the mouse button (as text)."""
+        return self.response.split(":", 1)[1]
+
+    @property
+    def active(self) -> bool:
+        """A task runs (``kind`` is not ``none``)."""
+        return self.kind != "none"
 
 
 class QuestionnaireSpec(_Model):
@@ -420,12 +497,27 @@ class Study(_Model):
     def n_trials(self) -> int:
         return self.n_training_trials() + self.n_test_trials()
 
-    def estimate_duration_s(self, response_s: float = 2.0, break_s: float = 60.0) -> float:
-        """A rough session length: each trial takes ``response_s`` plus the ITI, plus breaks."""
+    def used_tasks(self) -> dict[str, TaskSpec]:
+        """The tasks that run: those of the test blocks' loads (not ``kind = "none"``),
+        in the order of their first block in the file."""
+        out: dict[str, TaskSpec] = {}
+        for b in self.test:
+            spec = self.tasks.get(b.load)
+            if spec is not None and spec.active and b.load not in out:
+                out[b.load] = spec
+        return out
+
+    def estimate_duration_s(self, response_s: float = 2.0, break_s: float = 60.0,
+                            rating_s: float = 60.0) -> float:
+        """A rough session length: each trial takes ``response_s`` plus the ITI, plus
+        breaks, the secondary tasks' practice and baseline runs, and ``rating_s`` per
+        NASA-TLX (after each test block with ``[questionnaire] tlx``)."""
         n = self.n_trials()
         rt = min(response_s, self.response.timeout_s)
         n_breaks = (n - 1) // self.session.break_every if self.session.break_every else 0
-        return n * (rt + self.session.iti_s) + n_breaks * break_s
+        alone = sum((t.practice + t.baseline) * t.interval_s for t in self.used_tasks().values())
+        ratings = len(self.test) * rating_s if self.questionnaire.tlx else 0.0
+        return n * (rt + self.session.iti_s) + n_breaks * break_s + alone + ratings
 
     # -- TOML --------------------------------------------------------------------
     @classmethod
@@ -798,11 +890,72 @@ order = "williams"             # williams | latin | fixed | random (across parti
 # tlx = true                   # raw NASA-TLX after each test block
 '''
 
-TEMPLATES: dict[str, str] = {"paper": PAPER_STUDY_TOML, "resolution": RESOLUTION_STUDY_TOML}
+# -- the cognitive-load study --------------------------------------------------------
+
+LOAD_STUDY_TOML = '''\
+# tactorbelt study file: does a concurrent task (cognitive load) change between-tactor
+# localisation? A full factorial of condition (static, dynamic) x load (none, auditory
+# 2-back), 24 targets, each cell one test block, ordered across participants by a
+# balanced Latin square (Williams); raw NASA-TLX after every test block. Check it with
+#   tactorbelt study check THIS_FILE
+# Angles are degrees, 0 = navel (front), growing clockwise seen from above.
+
+name = "between-tactor-load"
+description = "6 tactors, 24 targets; static/dynamic x no load/auditory 2-back; NASA-TLX"
+
+[layout]
+tactors = 6               # evenly spaced at 180/N + k*360/N
+
+[targets]
+count = 24                # targets at k*360/count; on-tactor where one meets a tactor
+
+''' + _STIMULUS_RESPONSE_SESSION_TOML + '''\
+break_every = 48          # a break after every N trials (0 = no breaks)
+randomise = "per_repetition"  # per_repetition (each pass a new permutation) | full | none
+sample_rate_hz = 100.0    # cursor sampling rate
+
+[training]
+# Localisation alone, before any test block: each target is felt while its location
+# is shown; the participant points at it.
+passes = 1                # 0 = no training
+conditions = ["static", "dynamic"]
+order = "sequential"      # sequential (around the belt) | random
+
+[design]
+# One test block per cell: 2 conditions x 2 loads = 4 blocks.
+targets = [24]
+condition = ["static", "dynamic"]
+load = ["none", "nback2"]      # "none" or the name of a [tasks.NAME] table
+repetitions = 2                # every target of a block this many times
+order = "williams"             # williams | latin | fixed | random (across participants)
+
+# The secondary task of the blocks whose load is "nback2". Every task is go/no-go:
+# press the response button when the item is the same as the one n items back.
+# It runs on its own clock (one item every interval_s from the block's first trial),
+# whatever the localisation trials do.
+[tasks.nback2]
+kind = "nback"            # nback | arithmetic (odd/even of "a+b") | none (no task)
+n = 2                     # 1, 2 or 3
+modality = "auditory"     # auditory (tones) | visual (a letter off the response ellipse)
+interval_s = 2.5          # one item every interval_s (longer than stimulus_s)
+stimulus_s = 0.5          # how long a tone or a letter lasts
+response = "joystick:1"   # key:NAME | joystick:K | mouse:middle|right (not Space, Return,
+                          # joystick:0 or the left mouse button: they confirm a localisation)
+match_rate = 0.3          # share of go items (matches)
+practice = 12             # items of the task alone before its first block
+baseline = 24             # then items alone for the single-task baseline (the
+                          # dual-task cost compares it with the task during the trials)
+
+[questionnaire]
+tlx = true                # raw NASA-TLX (6 items, 0-100) after each test block
+'''
+
+TEMPLATES: dict[str, str] = {"paper": PAPER_STUDY_TOML, "resolution": RESOLUTION_STUDY_TOML,
+                             "load": LOAD_STUDY_TOML}
 
 
 def template_toml(name: str = "paper") -> str:
-    """The commented TOML of a study template: ``paper`` or ``resolution``.
+    """The commented TOML of a study template: ``paper``, ``resolution`` or ``load``.
 
     Raises:
         ConfigError: an unknown template name (the message lists the names).
@@ -902,15 +1055,25 @@ class StudyDescription:
             out.append(f"    {c.block:<{width}s} {c.trials:4d} trials "
                        f"({c.condition}{load}, {plural(c.repetitions, 'repetition')} x "
                        f"{plural(c.n_targets, 'target')})")
+        for name, t in s.used_tasks().items():
+            what = (f"{t.n}-back" if t.kind == "nback" else "odd sums (a+b)")
+            out.append(f"  task        {name}: {t.modality} {what}, an item every "
+                       f"{t.interval_s:g} s ({t.stimulus_s:g} s long), press {t.response} "
+                       f"on {t.match_rate:.0%} go items; {plural(t.practice, 'practice item')}"
+                       f", {plural(t.baseline, 'baseline item')} before its first block")
+        if s.questionnaire.tlx:
+            out.append("  ratings     raw NASA-TLX (6 items, 0-100) after each test block")
         out.append(f"  total       {s.n_trials()} trials ({s.n_test_trials()} test)")
         out.append(f"  order       {self.order_rule} (balanced over "
                    f"{plural(self.balance_participants, 'participant')}); "
                    f"{self.participant}: {' -> '.join(self.order)}")
         out.append(f"  breaks      {self.n_breaks} (every {s.session.break_every} trials)"
                    if self.n_breaks else "  breaks      none")
+        extra = (" + the tasks' practice and baseline" if s.used_tasks() else "") + (
+            " + 1 min per NASA-TLX" if s.questionnaire.tlx else "")
         out.append(f"  duration    about {_minutes(self.duration_s)} "
                    f"(2 s per response + {s.session.iti_s:g} s ITI per trial + 1 min per "
-                   f"break); at most {_minutes(self.max_duration_s)}")
+                   f"break{extra}); at most {_minutes(self.max_duration_s)}")
         return "\n".join(out)
 
 

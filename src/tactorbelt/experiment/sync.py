@@ -3,7 +3,10 @@ the runner's background push).
 
 Sessions are matched by their globally unique ``session_uuid``, trials by
 ``(session, trial_index)`` with their status and attempts, so a copy brings over exactly
-what the target lacks and running it twice changes nothing. A session is first copied
+what the target lacks and running it twice changes nothing. A session's secondary-task
+events and workload ratings (schema 3) are copied with it: rewritten in one
+transaction when the target's copy differs (events: fewer rows, as they are only
+appended), left alone otherwise. A session is first copied
 ``running`` (so an analysis of complete sessions never sees it half copied), then its
 trials, each with its samples in one transaction, then its status.
 
@@ -44,6 +47,8 @@ class SyncReport:
     samples: int = 0
     already: int = 0
     errors: list[str] = field(default_factory=list)
+    task_events: int = 0
+    ratings: int = 0
 
     def add(self, other: SyncReport) -> None:
         self.sessions_new += other.sessions_new
@@ -52,13 +57,20 @@ class SyncReport:
         self.samples += other.samples
         self.already += other.already
         self.errors += other.errors
+        self.task_events += other.task_events
+        self.ratings += other.ratings
 
     def summary(self, target: str) -> str:
-        if not (self.sessions_new or self.sessions_updated or self.trials):
+        if not (self.sessions_new or self.sessions_updated or self.trials
+                or self.task_events or self.ratings):
             return f"{target} is up to date ({self.already} trials there already)"
+        extra = ""
+        if self.task_events or self.ratings:
+            extra = (f", {self.task_events} task event(s) and {self.ratings} rating(s) "
+                     "rewritten")
         return (f"pushed to {target}: {self.sessions_new} new session(s), "
                 f"{self.sessions_updated} updated, {self.trials} trial(s) with "
-                f"{self.samples} samples ({self.already} trials there already)")
+                f"{self.samples} samples{extra} ({self.already} trials there already)")
 
 
 def _mutable(row: Mapping[str, Any]) -> dict[str, Any]:
@@ -104,6 +116,9 @@ def sync_session(local: Store, remote: Store, row: Mapping[str, Any],
             rep.samples += len(samples)
         else:
             rep.already += 1
+    local_id = int(row["session_id"])
+    rep.task_events += remote.import_task_events(sid, local.task_events(local_id))
+    rep.ratings += remote.import_ratings(sid, local.ratings(local_id))
     if _mutable(have) != _mutable(full):
         remote.import_session(full)
         rep.sessions_updated += 0 if rep.sessions_new else 1

@@ -73,6 +73,9 @@ class View:
         overlay: draw the experimenter overlay.
         overlay_lines: text of the overlay panel.
         levels: live amplitude of each tactor in [0, 1] (overlay), or None.
+        glyph: a visual secondary-task item (a letter, ``3+4``), drawn as two identical
+            copies left and right of the ellipse at the height of its centre (so it
+            cues no direction), or None.
     """
 
     screen: str = "trial"
@@ -94,6 +97,7 @@ class View:
     overlay: bool = False
     overlay_lines: list[str] = field(default_factory=list)
     levels: Any = None
+    glyph: str | None = None
 
 
 class Renderer:
@@ -247,6 +251,8 @@ class Renderer:
             rect = t.get_rect(center=(round(g.cx), round(y)))
             surface.blit(t, rect)
             self.rects["prompt"] = rect
+        if view.glyph:
+            self._draw_glyph(surface, view.glyph)
         if view.overlay:
             self._draw_overlay_panel(surface, view)
         if view.modal_title is not None:
@@ -255,6 +261,24 @@ class Renderer:
             t = self.text(view.banner, int(28 * u), COLORS["banner"])
             surface.blit(t, t.get_rect(midbottom=(self.size[0] // 2,
                                                   self.size[1] - int(10 * u))))
+
+    def glyph_rects(self, glyph: str) -> list[Any]:
+        """Where :meth:`draw` puts the two copies of a task glyph (pygame Rects): left and
+        right of the ellipse, clear of the targets and tactor labels, centred on the
+        ellipse's height, inside the window."""
+        g = self.geometry
+        t = self.text(glyph, int(72 * self.unit), COLORS["text"])
+        gap = 3.2 * self.target_radius + t.get_width() / 2
+        w = self.size[0]
+        left_x = max(g.cx - g.rx - gap, self.panel_width + t.get_width() / 2 + 4)
+        right_x = min(g.cx + g.rx + gap, w - t.get_width() / 2 - 4)
+        return [t.get_rect(center=(round(x), round(g.cy))) for x in (left_x, right_x)]
+
+    def _draw_glyph(self, surface: Any, glyph: str) -> None:
+        t = self.text(glyph, int(72 * self.unit), COLORS["text"])
+        for rect in self.glyph_rects(glyph):
+            surface.blit(t, rect)
+        self.rects["glyph"] = self.glyph_rects(glyph)
 
     def _draw_tactors(self, surface: Any, view: View) -> None:
         g = self.geometry
@@ -311,6 +335,10 @@ class Renderer:
                                      pygame.Rect(round(bx), round(by), round(bw), round(bh)))
                 t = self.text(f"T{k}", int(18 * u), COLORS["text_dim"])
                 surface.blit(t, t.get_rect(midtop=(round(bx + bw / 2), base + int(4 * u))))
+
+    def wrap(self, lines: list[str], px: int, width: int) -> list[str]:
+        """Lines broken at spaces to fit ``width`` pixels (text of ``px`` pixels)."""
+        return self._wrap(lines, px, width)
 
     def _wrap(self, lines: list[str], px: int, width: int) -> list[str]:
         """Lines broken at spaces to fit ``width`` pixels."""

@@ -33,7 +33,9 @@ from __future__ import annotations
 import collections
 import contextlib
 import itertools
+import logging
 import math
+import os
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -51,23 +53,35 @@ if TYPE_CHECKING:
     from ..experiment.runner import Command, SessionInfo, SessionResult
     from ..experiment.schedule import ScheduledTrial
     from ..experiment.store import Store
-    from ..experiment.study import Study
+    from ..experiment.study import Study, TaskSpec
     from ..experiment.trial import TrialResult, TrialState
+    from ..tasks import WorkloadInfo
+    from ..tasks.schedule import TaskItem
     from .render import View
+    from .tlx import TlxScreen
 
-__all__ = ["SCREEN_KINDS", "ExperimentWindow", "run_with_window"]
+__all__ = ["SCREEN_KINDS", "TASK_SCREEN_KINDS", "ExperimentWindow", "run_with_window"]
 
 #: Kinds of screen passed to ``on_frame`` and saved by ``screenshot_dir``.
 SCREEN_KINDS = ("instructions", "block", "training", "feedback", "test", "overlay", "break",
                 "pause", "end")
+#: Kinds of screen of a study with secondary tasks or the NASA-TLX: a task's instructions,
+#: the task alone (practice, baseline), the TLX sliders.
+TASK_SCREEN_KINDS = ("task", "task_alone", "tlx")
+#: Waiting screens (the participant goes on from them).
+WAIT_KINDS = ("instructions", "block", "break", "end", "task")
 
 #: Two presses of Esc within this many seconds abort the session.
 ESC_WINDOW_S = 2.0
 #: Frames per second of the waiting screens on the wall clock (they wait on events in
 #: between: a key, a button or a stick move wakes them at once).
 IDLE_FPS = 10.0
+#: Frames per second of the NASA-TLX screen on the wall clock (a held stick repeats).
+TLX_FPS = 30.0
 
 FrameHook = Callable[["ExperimentWindow", str], None]
+
+log = logging.getLogger("tactorbelt.gui")
 
 
 @dataclass
@@ -212,6 +226,40 @@ class ExperimentWindow:
         from ..experiment.runner import Command
 
         self._Command = Command
+        # secondary tasks and the NASA-TLX
+        from .taskview import TaskPresenter
+
+        self.tasks = TaskPresenter(clock,
+                                   tick_ns=round(1e9 / study.session.sample_rate_hz))
+        #: a practice or baseline run is on: the task alone, no trial on screen
+        self.task_alone = False
+        self._task_intro: tuple[str, list[str]] | None = None
+        self._intros_shown: set[tuple[str, str]] = set()
+        self._block_task: tuple[str, TaskSpec] | None = None
+        self._block_note: str | None = None
+        self._tlx: TlxScreen | None = None
+        try:
+            self._open_task_audio()
+        except BaseException:
+            self.close()
+            raise
+
+    def _open_task_audio(self) -> None:
+        """Check the tasks' buttons; open the sound output now when a task is auditory
+        (a sound card that cannot be opened stops the run before the session starts)."""
+        from .taskview import check_responses
+
+        check_responses(self.study)
+        if any(t.active and t.modality == "auditory" for t in self.study.tasks.values()):
+            from ..tasks.audio import DEVICE_ENV, open_task_audio
+
+            self.tasks.audio = open_task_audio(self.clock)
+            belt = self.belt
+            if (belt is not None and belt.url.startswith("audio:")
+                    and self.tasks.audio.plays_sound and not os.environ.get(DEVICE_ENV)):
+                log.warning("the task sounds play on SDL's default output: make sure it is "
+                            "not the sound card that drives the tactors of %s (name the "
+                            "headphones' output in $%s)", belt.url, DEVICE_ENV)
 
     # ------------------------------------------------------------------------------------
     # cursor
@@ -271,8 +319,15 @@ class ExperimentWindow:
         # block screen already
         nxt = self.current.trial.trial_index + 1 if self.current is not None else (
             self.info.n_done if self.info is not None else 0)
+        self._block_task = None
+        self._block_note = None
         if 0 <= nxt < len(self._schedule):
-            self._show_targets(self._schedule[nxt].n_targets)
+            t = self._schedule[nxt]
+            self._show_targets(t.n_targets)
+            spec = self.study.tasks.get(t.load) if block == "test" else None
+            if spec is not None and spec.active:
+                self._block_task = (t.load, spec)
+                self._block_note = self._practice_note()
         if block == "test":
             self._test_blocks_seen += 1
             self._wait_screen("block")
@@ -321,6 +376,77 @@ class ExperimentWindow:
         self.step(now_ns)
         return self._command()
 
+    # -- secondary tasks and workload ------------------------------------------------------
+    def on_task_phase(self, name: str | None, spec: TaskSpec | None, phase: str | None
+                      ) -> None:
+        """A task run starts (practice and baseline: its instructions first, once) or
+        ends (silence, no glyph)."""
+        if name is None or spec is None or phase is None:
+            self.tasks.end()
+            self.task_alone = False
+            return
+        self.tasks.start(name, spec, phase)
+        self.task_alone = phase in ("practice", "baseline")
+        if phase in ("practice", "baseline") and (name, phase) not in self._intros_shown:
+            from .taskview import instructions
+
+            self._intros_shown.add((name, phase))
+            go_on, _ = self._input_words()
+            n = spec.practice if phase == "practice" else spec.baseline
+            assert self.tasks.response is not None
+            title, lines = instructions(name, spec, phase, n, self.tasks.response.words(),
+                                        go_on)
+            note = self._practice_note()
+            self._task_intro = (title, [note, "", *lines] if note else lines)
+            try:
+                self._wait_screen("task")
+            finally:
+                self._task_intro = None
+        self.tasks.presses()  # presses on the instructions screen are not responses
+
+    def _practice_note(self) -> str | None:
+        """How the last practice went, once (the next screen after it says it)."""
+        note, self.tasks.practice_summary = self.tasks.practice_summary, None
+        return note
+
+    def on_task_item(self, item: TaskItem, onset_ns: int, spec: TaskSpec) -> None:
+        """Schedule the item's sound (auditory) or glyph (visual) for its onset."""
+        self.tasks.item(item, onset_ns, spec)
+
+    def task_presses(self, now_ns: int) -> list[int]:
+        """Presses of the task's button since the last call (runner clock)."""
+        return self.tasks.presses()
+
+    def ask_workload(self, info: WorkloadInfo) -> dict[str, float] | None:
+        """The NASA-TLX screen; the six ratings, or None when the session was aborted
+        (or nobody answered within ``auto_continue_s``)."""
+        from .tlx import TlxForm, TlxScreen
+
+        form = TlxForm()
+        tests = sorted({t.block_index for t in self._schedule if t.block == "test"})
+        k = tests.index(info.block_index) + 1 if info.block_index in tests else \
+            self._test_blocks_seen
+        n = max(len(tests), k)
+        sub = (f"Test block {k} of {n} is over. Rate it: mark each scale where it fits "
+               "best.")
+        self._tlx = TlxScreen(form, "How was that block?", sub,
+                              stick=self.input_kind == "joystick")
+        pg = self._pg
+        visible = bool(pg.mouse.get_visible())
+        pg.mouse.set_visible(True)
+        prev = self.screen
+        try:
+            self._idle("tlx", lambda: form.done and not (self.user_paused
+                                                        or self.device_paused),
+                       fps=TLX_FPS)
+        finally:
+            self._tlx = None
+            self.screen = prev
+            self._continue = False
+            self._frames = Deadlines(self.clock, self.fps)
+            pg.mouse.set_visible(visible)
+        return form.result() if form.done and not self.abort_requested else None
+
     # ------------------------------------------------------------------------------------
     # commands
     def _command(self) -> Command | None:
@@ -336,15 +462,23 @@ class ExperimentWindow:
             return Command.RESUME
         return None
 
+    def _silence(self) -> None:
+        audio = self.tasks.audio
+        if audio is not None:
+            with contextlib.suppress(Exception):
+                audio.stop()
+
     def _motors_off(self) -> None:
         if self.belt is not None:
             with contextlib.suppress(Exception):
                 self.belt.stop()
 
     def pause(self) -> None:
-        """Pause the session now (the experimenter's P): motors off at once."""
+        """Pause the session now (the experimenter's P): motors off and task sounds
+        silent at once."""
         self.user_paused = True
         self._motors_off()
+        self._silence()
 
     def resume(self) -> None:
         """Resume after :meth:`pause`."""
@@ -355,6 +489,7 @@ class ExperimentWindow:
         self.abort_requested = True
         self._banner = None
         self._motors_off()
+        self._silence()
 
     # ------------------------------------------------------------------------------------
     # events
@@ -364,9 +499,14 @@ class ExperimentWindow:
         events = pg.event.get()
         if first is not None:
             events.insert(0, first)
+        stick_id = live.instance_id if live is not None else None
         for ev in events:
             if live is not None:
                 live.handle_event(ev)
+            if self.tasks.on_event(ev, now_ns, pg, stick_id):
+                continue  # the task's button: a response, nothing else
+            if self._tlx is not None and self._tlx.handle_event(ev, stick_id):
+                continue
             t = ev.type
             if t == pg.QUIT:
                 self.abort()
@@ -435,12 +575,18 @@ class ExperimentWindow:
     # ------------------------------------------------------------------------------------
     # the loop
     def step(self, now_ns: int, event: Any = None) -> None:
-        """Handle pending events (``event`` first), and draw a frame if one is due."""
+        """Handle pending events (``event`` first), and draw a frame if one is due (or a
+        task glyph appeared or ended since the last frame)."""
         self._handle_events(now_ns, event)
-        if self._frames.due(now_ns) is not None:
+        tlx = self._tlx
+        live = self._live
+        if tlx is not None and live is not None:
+            x, y, _ = live.state
+            tlx.stick_at(x, y, now_ns)
+        if self._frames.due(now_ns) is not None or self.tasks.frame_due(now_ns):
             self.draw(now_ns)
 
-    def _idle(self, kind: str, done: Callable[[], bool]) -> None:
+    def _idle(self, kind: str, done: Callable[[], bool], fps: float = IDLE_FPS) -> None:
         """Show the waiting screen ``kind`` until ``done()``, an abort, or
         ``auto_continue_s``. On the wall clock it waits on SDL's event queue between
         frames (``pygame.event.wait`` with a timeout): no spinning, and a signal is
@@ -449,7 +595,7 @@ class ExperimentWindow:
         self.screen = kind
         self._continue = False
         sim = bool(self.clock.simulated)
-        self._frames = Deadlines(self.clock, self.fps if sim else min(self.fps, IDLE_FPS))
+        self._frames = Deadlines(self.clock, self.fps if sim else min(self.fps, fps))
         start = self._frames.onset_ns
         limit = None if self.auto_continue_s is None else round(self.auto_continue_s * 1e9)
         event = None
@@ -495,10 +641,12 @@ class ExperimentWindow:
     # drawing
     def _kind(self, view: View) -> str:
         """The kind of screen a view shows (for screenshots and ``on_frame``)."""
-        if self.screen in ("instructions", "block", "break", "end"):
-            return self.screen
-        if self.user_paused or self.device_paused:
+        if (self.user_paused or self.device_paused) and self.screen not in WAIT_KINDS:
             return "pause"
+        if self.screen in WAIT_KINDS or self.screen == "tlx":
+            return self.screen
+        if self.task_alone:
+            return "task_alone"
         cur = self.current
         if cur is not None and cur.trial.block == "training":
             return "feedback" if view.chosen_deg is not None else "training"
@@ -508,8 +656,15 @@ class ExperimentWindow:
         """Draw one frame now; return its kind."""
         now = self.clock.now_ns() if now_ns is None else now_ns
         view = self.view(now)
-        self.renderer.draw(self.surface, view)
+        tlx = self._tlx
+        if tlx is not None and view.modal_title is None:
+            from .render import COLORS
+
+            tlx.draw(self.surface, self.renderer, COLORS)
+        else:
+            self.renderer.draw(self.surface, view)
         self._pg.display.flip()
+        self.tasks.drawn(now)
         self.frames += 1
         kind = self._kind(view)
         if self.screenshot_dir is not None:
@@ -523,6 +678,8 @@ class ExperimentWindow:
         if live is not None:
             x, y, _ = live.state
             return (x, y)
+        if self.task_alone:
+            return (0.0, 0.0)
         if self.current is not None and self.last_sample is not None:
             return (self.last_sample.x, self.last_sample.y)
         return (0.0, 0.0)
@@ -543,7 +700,7 @@ class ExperimentWindow:
                  tactors_deg=self._tactors, home_radius=self._home_radius)
         v.cursor = self._cursor_pos()
         go_on, move = self._input_words()
-        cur = self.current
+        cur = None if self.task_alone else self.current
         block = cur.trial.block if cur is not None else self.block
         # status line (participant-facing)
         if block == "training":
@@ -581,6 +738,23 @@ class ExperimentWindow:
                     else:
                         v.prompt = "Too slow: no answer"
                 v.home_state = "idle" if at_home else "wait"
+        # the secondary task
+        v.glyph = self.tasks.glyph_at(now_ns)
+        task_phase = self.tasks.phase
+        if self.task_alone and self.screen == "trial":
+            v.status_left = "Practice" if task_phase == "practice" else "The task alone"
+            button = self.tasks.response
+            spec = self.tasks.spec
+            if button is not None and spec is not None:
+                from .taskview import task_title
+
+                v.prompt = (f"{task_title(self.tasks.name or '', spec)}: press "
+                            f"{button.words()} on a match")
+                if spec.kind == "arithmetic":
+                    v.prompt = f"Press {button.words()} when the sum is odd"
+            said = self.tasks.feedback(now_ns)
+            if said is not None:
+                v.prompt = said
         # modal screens
         v.modal_title, v.modal_lines = self._modal_for(go_on, move)
         if self.user_paused or self.device_paused:
@@ -619,9 +793,19 @@ class ExperimentWindow:
         if s == "block":
             k = self._test_blocks_seen
             n = len(self.info.condition_order) if self.info is not None else k
+            extra: list[str] = []
+            if self._block_task is not None:
+                from .taskview import block_lines, parse_response
+
+                name, spec = self._block_task
+                extra = [*block_lines(name, spec, parse_response(spec.response).words()), ""]
+                if self._block_note:
+                    extra = [self._block_note, "", *extra]
             return f"Test block {k} of {max(n, k)}", [
-                "No feedback from now on: answer as well as you can.", "",
+                "No feedback from now on: answer as well as you can.", "", *extra,
                 f"When you are ready, {go_on}."]
+        if s == "task" and self._task_intro is not None:
+            return self._task_intro
         if s == "break":
             return "Break", [f"{self.n_done} of {self.n_total} trials done.",
                              "Take a rest.", "", f"When you are ready, {go_on}."]
@@ -682,6 +866,18 @@ class ExperimentWindow:
             else:
                 lines.append(f"last: {r.status}"
                              + (f" ({r.abort_reason})" if r.abort_reason else ""))
+        tasks = self.tasks
+        if tasks.running and tasks.spec is not None:
+            audio = tasks.audio
+            late = len(audio.late) if audio is not None else 0
+            shown = [(item, onset) for item, onset in tasks.items[-4:] if onset <= now_ns]
+            last = ""
+            if shown:
+                item, _ = shown[-1]
+                last = f", last item {item.stimulus}{' (go)' if item.target else ''}"
+            lines.append(f"task {tasks.name} ({tasks.phase}): {len(tasks.items)} items so far"
+                         f"{last}, response {tasks.spec.response}"
+                         + (f", {late} sounds late" if late else ""))
         live = self._live
         x, y = self._cursor_pos() or (0.0, 0.0)
         name = live.name if live is not None else None
@@ -784,8 +980,10 @@ class ExperimentWindow:
             self.screen = prev
 
     def close(self) -> None:
-        """Close the window (motors off first)."""
+        """Close the window (motors off and the task sound output closed first)."""
         self._motors_off()
+        with contextlib.suppress(Exception):
+            self.tasks.close()
         live = self._live
         if live is not None:
             live.attach_refresh(None)

@@ -9,7 +9,13 @@ The runner tells the source when a trial's stimulus starts and ends, with only w
 participant in the study would know (:class:`TrialCue`): the candidate targets, and
 during training the highlighted target. Never the answer in a test trial.
 
-Imports only the standard library and tactorbelt.geometry.
+Under cognitive load (issue 18) the runner also tells the source when a secondary task
+runs and which items it presents, and asks it for response presses and workload
+ratings: no-ops here, so a person's device answers nothing (the window collects a
+person's presses and ratings); the model participant answers them itself.
+
+Imports only the standard library and tactorbelt.geometry (the task and study types
+for annotations).
 """
 
 from __future__ import annotations
@@ -20,8 +26,11 @@ from typing import TYPE_CHECKING
 from ..geometry import Layout
 
 if TYPE_CHECKING:
+    from ..experiment.study import TaskSpec
     from ..gui.layout import EllipseGeometry
     from ..perceptual import Respondent
+    from ..tasks import WorkloadInfo
+    from ..tasks.schedule import TaskItem
 
 __all__ = ["CursorSample", "CursorSource", "TrialCue"]
 
@@ -102,4 +111,23 @@ class CursorSource:
         profile and none is kept (:mod:`tactorbelt.perceptual`): the model participant
         answers itself; a person's device (None, the default) cannot, so the person is
         calibrated beforehand with ``tactorbelt calibrate perceptual --input keyboard``."""
+        return None
+
+    # -- secondary tasks and workload (no-ops unless the source answers them) ---------
+    def task_phase(self, spec: TaskSpec | None, phase: str | None) -> None:
+        """A secondary task starts (its spec and phase: ``practice``, ``baseline``,
+        ``dual``) or ends (None, None)."""
+
+    def task_item(self, item: TaskItem, onset_ns: int) -> None:
+        """A task item will be presented at ``onset_ns``. A source that answers the task
+        works out whether it is a go item from the stimuli (never ``item.target``)."""
+
+    def task_presses(self, now_ns: int) -> list[int]:
+        """The source's response presses (ns, runner clock) due by ``now_ns`` and not
+        reported yet; [] by default."""
+        return []
+
+    def rate_workload(self, info: WorkloadInfo) -> dict[str, float] | None:
+        """The source's NASA-TLX ratings after a block (item -> 0..100), or None when a
+        person answers (the window asks)."""
         return None

@@ -14,6 +14,15 @@ and the window see what they would see with a person:
   movement from home to it, which starts after the decision time;
 - :meth:`~ModelCursor.trial_ended` springs the cursor back home.
 
+Under cognitive load (:mod:`tactorbelt.participant.load`) the runner tells it when a
+secondary task runs (:meth:`~ModelCursor.task_phase`) and which items come
+(:meth:`~ModelCursor.task_item`): it localises with the loaded observer while a task
+runs alongside the trials (phase ``dual``), presses the response button for the items
+it judges go items (:meth:`~ModelCursor.task_presses`; it keeps its own memory of the
+last n items and never reads the schedule's answer) and answers the NASA-TLX after a
+block (:meth:`~ModelCursor.rate_workload`). The task and the TLX draw from generators
+of their own, so a session without a load is the same as before.
+
 The model is a simulated observer; what it does follows from its assumptions and is
 no evidence about people (docs/participant-model.md).
 
@@ -39,6 +48,7 @@ from numpy.typing import NDArray
 from .._errors import ConfigError
 from ..clock import Clock
 from ..geometry import TargetSet
+from ..participant.load import LoadParams, TaskResponder, load_level, loaded_params, tlx_ratings
 from ..participant.params import ModelParams
 from ..participant.perception import Percepts, perceive_vibration
 from ..participant.timing import decision_s, observation_s
@@ -47,8 +57,11 @@ from .base import CursorSample, CursorSource, TrialCue
 
 if TYPE_CHECKING:
     from ..devices.base import Belt
+    from ..experiment.study import TaskSpec
     from ..geometry import Layout
     from ..stimuli import Stimulus
+    from ..tasks import WorkloadInfo
+    from ..tasks.schedule import TaskItem
 
 __all__ = ["ModelCursor", "ModelDecision", "ModelRespondent", "Sense", "make_model_cursor",
            "make_model_respondent", "sim_vibrator"]
@@ -108,11 +121,23 @@ class ModelCursor(CursorSource):
         seed: seeds the observer's random generator (perception, timing, movement).
         params: the observer (default: the typical observer, :class:`ModelParams`).
         clock: the runner's clock (kept for reference; reads are timed by ``now_ns``).
+        load: the dual-task model (default: :class:`LoadParams`, docs/participant-model.md).
     """
 
     def __init__(self, sense: Sense, seed: int, params: ModelParams | None = None,
-                 clock: Clock | None = None) -> None:
+                 clock: Clock | None = None, load: LoadParams | None = None) -> None:
         self.params = params if params is not None else ModelParams()
+        self.load = load if load is not None else LoadParams()
+        #: The observer localising now (``params`` under the running task's load).
+        self.active_params = self.params
+        #: The running task's load level (0 without a task alongside the trials).
+        self.load_level = 0.0
+        task_seq, tlx_seq = np.random.SeedSequence([int(seed), 18]).spawn(2)
+        task_rng = np.random.default_rng(task_seq)
+        ability = float(np.exp(task_rng.normal(0.0, self.load.ability_sd)))
+        self._task = TaskResponder(task_rng, self.load, ability)
+        self._tlx_rng = np.random.default_rng(tlx_seq)
+        self._tlx_offset = float(self._tlx_rng.normal(0.0, self.load.tlx_person_sd))
         self.clock = clock
         self._sense = sense
         self._seed = int(seed)
@@ -165,6 +190,26 @@ class ModelCursor(CursorSource):
         state = np.random.SeedSequence([self._seed, int(seed)]).generate_state(1)[0]
         return ModelRespondent(self._sense, int(state), self.params)
 
+    # -- secondary tasks and workload -------------------------------------------------------
+    def task_phase(self, spec: TaskSpec | None, phase: str | None) -> None:
+        """A task starts (practice or baseline: alone; dual: alongside the trials) or
+        ends (None, None)."""
+        interval = float(spec.interval_s) if spec is not None else 2.5
+        self._task.start(spec, phase, interval)
+        self.load_level = load_level(spec) if phase == "dual" else 0.0
+        self.active_params = loaded_params(self.params, self.load_level, self.load)
+
+    def task_item(self, item: TaskItem, onset_ns: int) -> None:
+        """The model hears or sees ``item`` at ``onset_ns`` and may plan a press."""
+        self._task.item(item.stimulus, int(onset_ns))
+
+    def task_presses(self, now_ns: int) -> list[int]:
+        return self._task.presses(int(now_ns))
+
+    def rate_workload(self, info: WorkloadInfo) -> dict[str, float] | None:
+        """The model's raw NASA-TLX after a block (:func:`tlx_ratings` of its load)."""
+        return tlx_ratings(load_level(info.task), self._tlx_rng, self._tlx_offset, self.load)
+
     # -- internals -------------------------------------------------------------------------
     def _position(self, now_ns: int) -> tuple[float, float]:
         if self._move is None:
@@ -181,7 +226,7 @@ class ModelCursor(CursorSource):
         cue = self._cue
         assert cue is not None
         self._decide_ns = None
-        p = self.params
+        p = self.active_params
         percept: Percepts | None = None
         if cue.block == "training" and cue.shown_target_deg is not None:
             answer = float(cue.shown_target_deg)
@@ -203,7 +248,8 @@ class ModelCursor(CursorSource):
 
 
 def make_model_cursor(belt: Belt, clock: Clock, seed: int, params: ModelParams | None = None,
-                      sense: Sense | None = None) -> CursorSource:
+                      sense: Sense | None = None, load: LoadParams | None = None
+                      ) -> CursorSource:
     """A model participant that feels ``belt`` and answers with a cursor.
 
     Args:
@@ -214,6 +260,7 @@ def make_model_cursor(belt: Belt, clock: Clock, seed: int, params: ModelParams |
         params: the observer (default: the typical observer).
         sense: ``sense(t0_ns, t1_ns) -> (t_ns, vibration (n, N))`` to use instead of
             ``belt.vibration``.
+        load: the dual-task model (default: :class:`LoadParams`).
 
     Raises:
         ConfigError: the belt models no vibration and no ``sense`` was given, or the
@@ -233,7 +280,9 @@ def make_model_cursor(belt: Belt, clock: Clock, seed: int, params: ModelParams |
         sense = belt.vibration
     if params is not None and not isinstance(params, ModelParams):
         raise ConfigError(f"params must be a ModelParams, got {type(params).__name__}")
-    return ModelCursor(sense, int(seed), params, clock)
+    if load is not None and not isinstance(load, LoadParams):
+        raise ConfigError(f"load must be a LoadParams, got {type(load).__name__}")
+    return ModelCursor(sense, int(seed), params, clock, load)
 
 
 class ModelRespondent(Respondent):

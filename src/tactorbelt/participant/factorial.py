@@ -7,8 +7,10 @@ and on the candidate targets, so each target count is its own
 repetitions) with its own cues, and one participant's trials are drawn block by block
 with one set of parameters and one generator (:func:`simulate_factorial_participant`).
 
-The model has no secondary task: a block under a load is simulated exactly like the
-same block without one (an assumption; docs/participant-model.md). Loads are pooled.
+Under a load (a ``[tasks.NAME]`` secondary task) a block's trials are drawn with the
+observer localising under that task's load (:func:`~tactorbelt.participant.load.loaded_params`:
+noisier, slower, more lapses; assumptions, docs/participant-model.md); the condition
+and interaction effects pool the loads.
 
 Effects a power analysis can look for (:func:`parse_effect`):
 
@@ -18,7 +20,10 @@ Effects a power analysis can look for (:func:`parse_effect`):
 - ``interaction`` (also ``resolution x condition``): whether the dynamic-minus-static
   difference in between-tactor accuracy changes with the target count: Friedman test
   over the target counts on the per-participant differences (paired Wilcoxon with two
-  counts); found when p < alpha, either way.
+  counts); found when p < alpha, either way;
+- ``load`` (``load NAME``): per-participant between-tactor accuracy (both conditions)
+  without a load vs under a load (every load, or the load NAME), paired Wilcoxon;
+  found when p < alpha and accuracy under load is lower.
 
 Pure: NumPy (SciPy in the interaction test), participant; the Wilcoxon test is passed in.
 """
@@ -54,24 +59,41 @@ FloatArray = NDArray[np.float64]
 
 @dataclass(frozen=True)
 class FactorialProtocol:
-    """One :class:`Protocol` per target count (ascending), with that count's blocks."""
+    """One :class:`Protocol` per target count (ascending), with that count's blocks.
+
+    Attributes:
+        parts: the protocols.
+        load_levels: per part, the load level of each of its blocks
+            (:func:`~tactorbelt.participant.load.load_level`; empty: no load anywhere).
+        loads: per part, the load name of each of its blocks (empty likewise).
+    """
 
     parts: tuple[Protocol, ...]
+    load_levels: tuple[tuple[float, ...], ...] = ()
+    loads: tuple[tuple[str, ...], ...] = ()
 
     @classmethod
     def from_study(cls, study: Any) -> FactorialProtocol:
         """From a :class:`~tactorbelt.experiment.study.Study` (its test blocks' counts,
         conditions and repetitions; each block's stimulus overrides are not modelled
         when they differ within a count: the first block's stimulus is used)."""
+        from .load import load_level
+
         parts = []
+        levels = []
+        names = []
         for n in study.target_counts():
             blocks = [b for b in study.test if study.block_n_targets(b) == n]
+            levels.append(tuple(load_level(study.tasks.get(b.load)) for b in blocks))
+            names.append(tuple(str(b.load) for b in blocks))
             s = study.block_stimulus(blocks[0])
             parts.append(Protocol(study.layout_obj(), TargetSet.even(n), s.law,
                                   float(s.falloff_deg), float(s.period_s), float(s.transit_s),
                                   tuple((b.condition, int(b.repetitions)) for b in blocks),
                                   float(study.response.threshold)))
-        return cls(tuple(parts))
+        loaded = any(v > 0 for lv in levels for v in lv)
+        return cls(tuple(parts), tuple(levels) if loaded else (),
+                   tuple(names) if loaded else ())
 
     @property
     def counts(self) -> tuple[int, ...]:
@@ -84,6 +106,12 @@ class FactorialProtocol:
     def conditions(self) -> tuple[str, ...]:
         return tuple(dict.fromkeys(c for p in self.parts for c in p.conditions))
 
+    def load_names(self) -> tuple[str, ...]:
+        """The loads of the blocks (``("none",)`` without a load)."""
+        if not self.loads:
+            return ("none",)
+        return tuple(dict.fromkeys(lv for names in self.loads for lv in names))
+
 
 def factorial_cues(protocol: FactorialProtocol, vibrate: Callable[..., Any],
                    params: ModelParams | None = None) -> tuple[StimulusCues, ...]:
@@ -94,9 +122,32 @@ def factorial_cues(protocol: FactorialProtocol, vibrate: Callable[..., Any],
 def simulate_factorial_participant(protocol: FactorialProtocol, cues: Sequence[StimulusCues],
                                    params: ModelParams, rng: np.random.Generator
                                    ) -> dict[int, TrialTable]:
-    """Every test trial of one model participant: target count -> its trials."""
-    return {p.targets.m: simulate_participant(p, c, params, rng)
-            for p, c in zip(protocol.parts, cues, strict=True)}
+    """Every test trial of one model participant: target count -> its trials.
+
+    Blocks under a load are drawn with the loaded observer, block by block; without any
+    load, each target count's blocks are drawn together (as before loads existed).
+    """
+    if not protocol.load_levels:
+        return {p.targets.m: simulate_participant(p, c, params, rng)
+                for p, c in zip(protocol.parts, cues, strict=True)}
+    from .load import loaded_params
+
+    out: dict[int, TrialTable] = {}
+    for p, c, levels, names in zip(protocol.parts, cues, protocol.load_levels,
+                                   protocol.loads, strict=True):
+        tables = [simulate_participant(replace(p, blocks=(block,)), c,
+                                       loaded_params(params, level), rng)
+                  for block, level in zip(p.blocks, levels, strict=True)]
+        def cat(field: str, parts: list[TrialTable] = tables) -> Any:
+            return np.concatenate([getattr(t, field) for t in parts])
+
+        out[p.targets.m] = TrialTable(
+            condition=cat("condition"), target_deg=cat("target_deg"),
+            on_tactor=cat("on_tactor"), response_deg=cat("response_deg"),
+            correct=cat("correct"), rt_s=cat("rt_s"),
+            load=np.concatenate([np.full(t.n, name)
+                                 for t, name in zip(tables, names, strict=True)]))
+    return out
 
 
 @dataclass(frozen=True)
@@ -104,16 +155,23 @@ class Effect:
     """The effect a factorial power analysis looks for (see :func:`parse_effect`).
 
     Attributes:
-        kind: ``condition`` (dynamic vs static) or ``interaction``.
+        kind: ``condition`` (dynamic vs static), ``interaction`` or ``load``.
         n_targets: the target count of a ``condition`` effect (None: every block).
         text: how the user named it.
+        load: the load of a ``load`` effect (None: every load but ``none``).
     """
 
     kind: str
     n_targets: int | None = None
     text: str = "dynamic vs static"
+    load: str | None = None
 
     def describe(self) -> str:
+        if self.kind == "load":
+            which = "any load" if self.load is None else f"load {self.load}"
+            return (f"between-tactor accuracy (static and dynamic blocks) without a load vs "
+                    f"under {which} (paired Wilcoxon; found = p < alpha and lower under "
+                    "load)")
         if self.kind == "interaction":
             return ("resolution x condition interaction: does the dynamic-minus-static "
                     "between-tactor accuracy change with the target count? (Friedman test "
@@ -125,17 +183,20 @@ class Effect:
 
 _CONDITION = re.compile(r"^\s*(dynamic\s+vs\.?\s+static|static\s+vs\.?\s+dynamic|condition)"
                         r"(?:\s+at\s+(\d+)(?:\s+targets)?)?\s*$", re.I)
+_LOAD = re.compile(r"^\s*load(?:\s+([A-Za-z][A-Za-z0-9_\-]*))?\s*$", re.I)
 _INTERACTION = re.compile(r"^\s*(interaction|resolution\s*x\s*condition|condition\s*x\s*"
                           r"resolution|targets\s*x\s*condition|condition\s*x\s*targets)\s*$", re.I)
 
 
-def parse_effect(text: str | None, counts: Sequence[int]) -> Effect:
-    """Read ``--effect``: ``dynamic vs static``, ``dynamic vs static at 36`` or
-    ``interaction`` (``resolution x condition``).
+def parse_effect(text: str | None, counts: Sequence[int],
+                 loads: Sequence[str] = ("none",)) -> Effect:
+    """Read ``--effect``: ``dynamic vs static``, ``dynamic vs static at 36``,
+    ``interaction`` (``resolution x condition``) or ``load`` (``load NAME``).
 
     Raises:
-        ConfigError: an effect it does not know, a target count the study lacks, or an
-            interaction in a study with one target count.
+        ConfigError: an effect it does not know, a target count or load the study
+            lacks, an interaction in a study with one target count, or a load effect in
+            a study without blocks with and without a load.
     """
     if text is None or not text.strip():
         return Effect("condition")
@@ -146,21 +207,44 @@ def parse_effect(text: str | None, counts: Sequence[int]) -> Effect:
             raise ConfigError(f"effect {text!r}: the study has no blocks of {n} targets "
                               f"(it has {', '.join(map(str, counts))})")
         return Effect("condition", n, text.strip())
+    m = _LOAD.match(text)
+    if m:
+        name = m.group(1)
+        loaded = [lv for lv in loads if lv != "none"]
+        if "none" not in loads or not loaded:
+            raise ConfigError(f"effect {text!r} needs test blocks without a load and blocks "
+                              f"under one; the study's loads are {', '.join(loads)}")
+        if name is not None and name not in loaded:
+            raise ConfigError(f"effect {text!r}: the study has no load {name!r} (it has "
+                              f"{', '.join(loaded)})")
+        return Effect("load", None, text.strip(), name)
     if _INTERACTION.match(text):
         if len(counts) < 2:
             raise ConfigError(f"effect {text!r} needs at least two target counts; the study "
                               f"has {', '.join(map(str, counts))}")
         return Effect("interaction", None, text.strip())
     raise ConfigError(f"unknown effect {text!r}; use 'dynamic vs static', 'dynamic vs "
-                      "static at N' (N a target count of the study) or 'interaction' "
-                      "(resolution x condition)")
+                      "static at N' (N a target count of the study), 'interaction' "
+                      "(resolution x condition) or 'load' ('load NAME': one load)")
 
 
-def _between(tables: dict[int, TrialTable], condition: str, n: int | None) -> float:
+def _between(tables: dict[int, TrialTable], condition: str | None, n: int | None,
+             load: str | None = None, loaded: bool | None = None) -> float:
+    """Between-tactor accuracy in ``condition`` (None: both), the blocks of ``n``
+    targets (None: all), of the load ``load`` or, with ``loaded``, under any load
+    (True) or none (False)."""
     sel = [tables[n]] if n is not None else list(tables.values())
     hits = tot = 0
     for t in sel:
-        m = (t.condition == condition) & ~t.on_tactor
+        m = ~t.on_tactor
+        if condition is not None:
+            m &= t.condition == condition
+        if load is not None or loaded is not None:
+            names = t.load if t.load is not None else np.full(t.n, "none")
+            if load is not None:
+                m &= names == load
+            else:
+                m &= (names != "none") if loaded else (names == "none")
         hits += int(t.correct[m].sum())
         tot += int(m.sum())
     return hits / tot if tot else float("nan")
@@ -191,11 +275,12 @@ def simulate_factorial_studies(protocol: FactorialProtocol, cues: Sequence[Stimu
 
     Each study's generator is seeded by ``(seed, n_participants, index)``. The outcome's
     ``static_acc``/``dynamic_acc`` are the between-tactor accuracies the effect is about
-    (every block for the interaction).
+    (every block for the interaction); for the load effect they are the accuracy under
+    load and without a load (so "found" keeps meaning "p < alpha and the second higher").
     """
     if n_participants < 2:
         raise ConfigError(f"a study needs at least 2 participants, got {n_participants}")
-    if not {"static", "dynamic"} <= set(protocol.conditions()):
+    if effect.kind != "load" and not {"static", "dynamic"} <= set(protocol.conditions()):
         raise ConfigError("the power analysis needs static and dynamic test blocks")
     base = base if base is not None else cues[0].params
     counts = protocol.counts
@@ -208,6 +293,12 @@ def simulate_factorial_studies(protocol: FactorialProtocol, cues: Sequence[Stimu
         for j in range(n_participants):
             params = draw_participant(rng, base, spread)
             tables = simulate_factorial_participant(protocol, cues, params, rng)
+            if effect.kind == "load":
+                # the outcome's pair is (under load, without): found = higher without
+                st[j] = (_between(tables, None, None, loaded=True) if effect.load is None
+                         else _between(tables, None, None, load=effect.load))
+                dy[j] = _between(tables, None, None, loaded=False)
+                continue
             st[j] = _between(tables, "static", effect.n_targets)
             dy[j] = _between(tables, "dynamic", effect.n_targets)
             if effect.kind == "interaction":

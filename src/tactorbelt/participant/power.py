@@ -46,6 +46,8 @@ class StudyOutcome:
         p_value: the test's p-value (NaN when it could not be computed).
         directional: the effect has a predicted direction (dynamic higher); an
             interaction has none.
+        direction_ok: the test's own estimate has the predicted sign (a model-based
+            test); None: the direction is read from the mean accuracies.
     """
 
     n_participants: int
@@ -53,11 +55,14 @@ class StudyOutcome:
     dynamic_acc: NDArray[np.float64]
     p_value: float
     directional: bool = True
+    direction_ok: bool | None = None
 
     def found(self, alpha: float) -> bool:
         """The test found the effect (a difference: in the predicted direction)."""
         if not (np.isfinite(self.p_value) and self.p_value < alpha):
             return False
+        if self.direction_ok is not None:
+            return self.direction_ok
         return (not self.directional
                 or bool(np.nanmean(self.dynamic_acc) > np.nanmean(self.static_acc)))
 

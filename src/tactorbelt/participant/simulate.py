@@ -153,6 +153,8 @@ class TrialTable:
         response_deg: the chosen target.
         correct: response == target.
         rt_s: onset to acquisition.
+        load: the block's load (``[tasks.NAME]`` name or ``none``) per trial, or None
+            when the protocol has no loads (every trial without one).
     """
 
     condition: NDArray[np.str_]
@@ -161,6 +163,7 @@ class TrialTable:
     response_deg: FloatArray
     correct: NDArray[np.bool_]
     rt_s: FloatArray
+    load: NDArray[np.str_] | None = None
 
     @property
     def n(self) -> int:

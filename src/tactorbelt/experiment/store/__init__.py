@@ -8,9 +8,11 @@ from __future__ import annotations
 
 from .base import (
     BACKENDS,
+    RATING_COLUMNS,
     SAMPLE_COLUMNS,
     SCHEMA_VERSION,
     SESSION_STATUSES,
+    TASK_EVENT_COLUMNS,
     TRIAL_STATUSES,
     Store,
     StoreCapabilities,
@@ -21,9 +23,11 @@ from .base import (
 
 __all__ = [
     "BACKENDS",
+    "RATING_COLUMNS",
     "SAMPLE_COLUMNS",
     "SCHEMA_VERSION",
     "SESSION_STATUSES",
+    "TASK_EVENT_COLUMNS",
     "TRIAL_STATUSES",
     "Store",
     "StoreCapabilities",

@@ -1,6 +1,8 @@
 """The store seam: what the runner, export, analysis and the model study need of a store.
 
-A store holds sessions (with their provenance and schedule), trials and cursor samples.
+A store holds sessions (with their provenance and schedule), trials and cursor samples,
+and under cognitive load the secondary tasks' events (``task_events``) and the workload
+ratings (``ratings``).
 :class:`Store` is the interface; :func:`open_store` picks an implementation by URL:
 
 - a path, or ``sqlite:///path``: :class:`~.sqlite.SQLiteStore` (one file on disk);
@@ -30,32 +32,42 @@ from ..schedule import ScheduledTrial, schedule_from_json
 from ..trial import TrialResult
 
 if TYPE_CHECKING:
+    from ...tasks.schedule import TaskEvent
     from ..study import Study
 
 __all__ = [
     "BACKENDS",
+    "RATING_COLUMNS",
     "SAMPLE_COLUMNS",
     "SCHEMA_VERSION",
     "SESSION_STATUSES",
+    "TASK_EVENT_COLUMNS",
     "TRIAL_STATUSES",
     "Store",
     "StoreCapabilities",
     "backend_for",
     "open_store",
+    "rating_value",
     "utc_now",
 ]
 
 #: Version of the store schema this tactorbelt writes; a store with a newer one is refused.
-SCHEMA_VERSION = 2
+SCHEMA_VERSION = 3
 #: What each schema version added (a writer opening an older store migrates it).
 SCHEMA_HISTORY = {
     1: "sessions, trials, samples",
     2: "trials.n_targets and trials.load (factorial designs)",
+    3: "task_events and ratings (secondary tasks, NASA-TLX)",
 }
 SESSION_STATUSES = ("running", "complete", "aborted", "interrupted")
 TRIAL_STATUSES = ("done", "timeout", "aborted")
 #: Columns of a cursor sample row, in order.
 SAMPLE_COLUMNS = ("trial_id", "t_s", "x", "y", "buttons")
+#: Columns of a ``task_events`` row (the keys of :meth:`Store.task_events`), in order.
+TASK_EVENT_COLUMNS = ("session_id", "block_index", "task", "phase", "item_index", "t_ns",
+                      "stimulus", "target", "response", "correct", "rt_s")
+#: Columns of a ``ratings`` row (the keys of :meth:`Store.ratings`), in order.
+RATING_COLUMNS = ("session_id", "block_index", "scale", "item", "value")
 
 #: URL scheme -> "module:Class" (relative to this package) of each store implementation.
 #: ``None`` means "planned, not available yet". A path with no scheme is ``sqlite``.
@@ -63,6 +75,15 @@ BACKENDS: dict[str, str | None] = {
     "sqlite": ".sqlite:SQLiteStore",
     "postgresql": ".postgresql:PostgreSQLStore",
 }
+
+
+def rating_value(item: str, value: Any) -> float:
+    """A rating as a float, or StoreError when it is not a finite number."""
+    import math
+
+    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+        raise StoreError(f"rating {item!r} must be a finite number (got {value!r})")
+    return float(value)
 
 
 def utc_now() -> str:
@@ -289,10 +310,34 @@ class Store(abc.ABC):
     def samples(self, trial_id: int) -> list[tuple[float, float, float, int]]:
         """(t_s, x, y, buttons) of one trial, in time order."""
 
+    # -- secondary tasks and workload ratings (schema 3) --------------------------------
+    def write_task_events(self, session_id: int, events: Sequence[TaskEvent]) -> None:
+        """Append a task run's events (:class:`~tactorbelt.tasks.schedule.TaskEvent`) in
+        one transaction: all of them or, on failure (StoreError), none."""
+        raise StoreError(f"{self.url}: this store does not keep task events")
+
+    def task_events(self, session_id: int | None = None) -> list[dict[str, Any]]:
+        """``task_events`` rows (of one session) as dicts keyed by
+        :data:`TASK_EVENT_COLUMNS` (``target``, ``correct`` as bool), in the order they
+        were written; [] for a store written before schema 3."""
+        return []
+
+    def write_ratings(self, session_id: int, block_index: int, scale: str,
+                      values: Mapping[str, float]) -> None:
+        """Store a questionnaire's answers after a block (item -> value), replacing that
+        block's earlier rows of the same scale (one transaction)."""
+        raise StoreError(f"{self.url}: this store does not keep ratings")
+
+    def ratings(self, session_id: int | None = None) -> list[dict[str, Any]]:
+        """``ratings`` rows (of one session) as dicts keyed by :data:`RATING_COLUMNS`,
+        by session, block and the order written; [] before schema 3."""
+        return []
+
     # -- bulk reads (export, analysis) -------------------------------------------------
     @abc.abstractmethod
     def table_columns(self, table: str) -> list[str]:
-        """Column names of ``sessions``, ``trials`` or ``samples`` ([] when absent)."""
+        """Column names of ``sessions``, ``trials``, ``samples``, ``task_events`` or
+        ``ratings`` ([] when absent)."""
 
     @abc.abstractmethod
     def read_table(self, table: str, columns: Sequence[str]) -> list[tuple[Any, ...]]:
@@ -345,4 +390,15 @@ class Store(abc.ABC):
                      samples: Sequence[Sequence[Any]]) -> bool:
         """Copy a trial row of another store and its ``(t_s, x, y, buttons)`` samples in
         one transaction; False when it is here already (nothing written)."""
+        raise StoreError(f"{self.url}: this store does not take copied sessions")
+
+    def import_task_events(self, session_id: int, rows: Sequence[Mapping[str, Any]]) -> int:
+        """Make session ``session_id``'s task events those of another store's copy of it
+        (``task_events`` rows, in the order written; they are only ever appended, so a
+        copy with as many is up to date). One transaction; the rows written (0: none)."""
+        raise StoreError(f"{self.url}: this store does not take copied sessions")
+
+    def import_ratings(self, session_id: int, rows: Sequence[Mapping[str, Any]]) -> int:
+        """Make session ``session_id``'s ratings those of another store's copy of it
+        (``ratings`` rows). One transaction; the rows written (0: the same already)."""
         raise StoreError(f"{self.url}: this store does not take copied sessions")

@@ -13,6 +13,10 @@ Schema (docs/study.md, "The store", plus provenance columns)::
            status, abort_reason, attempts, recorded_at, n_targets, load,
            device_onset_ns, onset_uncertainty_ns)             UNIQUE(session_id, trial_index)
     samples(trial_id, t_s, x, y, buttons)
+    task_events(event_id, session_id, block_index, task, phase, item_index, t_ns,
+                stimulus, target, response, correct, rt_s)          (schema 3)
+    ratings(session_id, block_index, scale, item, value)
+                                      PRIMARY KEY(session_id, block_index, scale, item)
 
 Durability: while a writer has the store open it is in WAL mode with
 ``synchronous=FULL``, and each trial is one transaction holding the trial row and all
@@ -53,13 +57,17 @@ from ..schedule import ScheduledTrial, schedule_from_json, schedule_to_json
 from ..trial import TrialResult
 
 if TYPE_CHECKING:
+    from ...tasks.schedule import TaskEvent
     from ..study import Study
 from .base import (
+    RATING_COLUMNS,
     SCHEMA_VERSION,
     SESSION_STATUSES,
+    TASK_EVENT_COLUMNS,
     TRIAL_STATUSES,
     Store,
     StoreCapabilities,
+    rating_value,
     utc_now,
 )
 
@@ -71,7 +79,9 @@ APPLICATION_ID = 0x54424C54
 SIDE_SUFFIXES = ("-wal", "-shm", "-journal")
 #: meta key of the run options kept with a session (input, belt, window options).
 _RUN_OPTIONS_KEY = "run_options:{}"
-_TABLES = ("sessions", "trials", "samples")
+_TABLES = ("sessions", "trials", "samples", "task_events", "ratings")
+#: The tables every store has (older stores may lack the others).
+_CORE_TABLES = ("sessions", "trials", "samples")
 
 _SCHEMA = """
 CREATE TABLE IF NOT EXISTS meta(
@@ -139,6 +149,29 @@ CREATE TABLE IF NOT EXISTS samples(
     y REAL NOT NULL,
     buttons INTEGER NOT NULL
 );
+CREATE TABLE IF NOT EXISTS task_events(
+    event_id INTEGER PRIMARY KEY AUTOINCREMENT,
+    session_id INTEGER NOT NULL REFERENCES sessions(session_id),
+    block_index INTEGER NOT NULL,
+    task TEXT NOT NULL,
+    phase TEXT NOT NULL CHECK (phase IN ('practice','baseline','dual')),
+    item_index INTEGER NOT NULL,
+    t_ns INTEGER NOT NULL,
+    stimulus TEXT,
+    target INTEGER NOT NULL,
+    response TEXT NOT NULL,
+    correct INTEGER NOT NULL,
+    rt_s REAL
+);
+CREATE TABLE IF NOT EXISTS ratings(
+    session_id INTEGER NOT NULL REFERENCES sessions(session_id),
+    block_index INTEGER NOT NULL,
+    scale TEXT NOT NULL,
+    item TEXT NOT NULL,
+    value REAL NOT NULL,
+    PRIMARY KEY (session_id, block_index, scale, item)
+);
+CREATE INDEX IF NOT EXISTS task_events_session ON task_events(session_id);
 CREATE INDEX IF NOT EXISTS trials_session ON trials(session_id);
 CREATE INDEX IF NOT EXISTS samples_trial ON samples(trial_id);
 CREATE INDEX IF NOT EXISTS sessions_participant ON sessions(participant);
@@ -152,7 +185,8 @@ _TRIAL_COLUMNS = (
 )
 #: Schema migrations: version -> statements that bring version - 1 to it. Rows written
 #: before version 2 keep NULL n_targets and load (the analysis reads them as the
-#: study's single target count and ``none``) and NULL device onsets.
+#: study's single target count and ``none``) and NULL device onsets. Version 3 adds
+#: the tables task_events and ratings (made by the schema's CREATE TABLE IF NOT EXISTS).
 _MIGRATIONS: dict[int, tuple[str, ...]] = {
     2: ("ALTER TABLE trials ADD COLUMN n_targets INTEGER",
         "ALTER TABLE trials ADD COLUMN load TEXT",
@@ -402,14 +436,14 @@ class SQLiteStore(Store):
                 raise StoreError(
                     f"{p} is an SQLite database but not a tactorbelt store "
                     f"(tables: {', '.join(sorted(tables))}; a store has tables "
-                    f"{', '.join(_TABLES)}); give another file"
+                    f"{', '.join(_CORE_TABLES)}); give another file"
                 )
             if "sessions" in tables and app_id not in (0, APPLICATION_ID):
                 raise StoreError(f"{p} is not a tactorbelt store (application_id {app_id:#x})")
             if readonly:
                 if "sessions" not in tables:
                     raise StoreError(f"{p} is not a tactorbelt store: it holds no tables "
-                                     f"(a store has tables {', '.join(_TABLES)})")
+                                     f"(a store has tables {', '.join(_CORE_TABLES)})")
                 return conn
             if "meta" in tables:
                 version = conn.execute(
@@ -710,6 +744,68 @@ class SQLiteStore(Store):
         rows = self._query("SELECT t_s, x, y, buttons FROM samples WHERE trial_id=?"
                            " ORDER BY rowid", (trial_id,))
         return [(r[0], r[1], r[2], r[3]) for r in rows]
+
+    # -- secondary tasks and workload ratings ------------------------------------------
+    def _has_table(self, table: str) -> bool:
+        return bool(self._query("SELECT 1 FROM sqlite_master WHERE type='table' AND name=?",
+                                (table,)))
+
+    def write_task_events(self, session_id: int, events: Sequence[TaskEvent]) -> None:
+        """Append a task run's events in one transaction (all or none)."""
+        rows = [(session_id, e.block_index, e.task, e.phase, e.item_index, int(e.t_ns),
+                 e.stimulus, int(e.target), e.response, int(e.correct), e.rt_s)
+                for e in events]
+        if not rows:
+            return
+        try:
+            with self._transaction() as c:
+                c.executemany(
+                    f"INSERT INTO task_events({', '.join(TASK_EVENT_COLUMNS)}) "
+                    f"VALUES ({', '.join('?' * len(TASK_EVENT_COLUMNS))})", rows)
+        except sqlite3.DatabaseError as exc:
+            raise StoreError(f"cannot write task events to {self.path}: {exc}") from None
+
+    def task_events(self, session_id: int | None = None) -> list[dict[str, Any]]:
+        """``task_events`` rows (of one session) in the order written; [] before schema 3."""
+        if not self._has_table("task_events"):
+            return []
+        sql = f"SELECT {', '.join(TASK_EVENT_COLUMNS)} FROM task_events"
+        args: tuple[Any, ...] = ()
+        if session_id is not None:
+            sql += " WHERE session_id=?"
+            args = (session_id,)
+        out = []
+        for r in self._query(sql + " ORDER BY event_id", args):
+            d = dict(r)
+            d["target"], d["correct"] = bool(d["target"]), bool(d["correct"])
+            out.append(d)
+        return out
+
+    def write_ratings(self, session_id: int, block_index: int, scale: str,
+                      values: Mapping[str, float]) -> None:
+        """Replace a block's ratings of ``scale`` with ``values`` (one transaction)."""
+        rows = [(session_id, block_index, scale, str(k), rating_value(k, v))
+                for k, v in values.items()]
+        try:
+            with self._transaction() as c:
+                c.execute("DELETE FROM ratings WHERE session_id=? AND block_index=? AND scale=?",
+                          (session_id, block_index, scale))
+                c.executemany(
+                    f"INSERT INTO ratings({', '.join(RATING_COLUMNS)}) VALUES (?,?,?,?,?)", rows)
+        except sqlite3.DatabaseError as exc:
+            raise StoreError(f"cannot write ratings to {self.path}: {exc}") from None
+
+    def ratings(self, session_id: int | None = None) -> list[dict[str, Any]]:
+        """``ratings`` rows (of one session) by session, block and order written."""
+        if not self._has_table("ratings"):
+            return []
+        sql = f"SELECT {', '.join(RATING_COLUMNS)} FROM ratings"
+        args: tuple[Any, ...] = ()
+        if session_id is not None:
+            sql += " WHERE session_id=?"
+            args = (session_id,)
+        rows = self._query(sql + " ORDER BY session_id, block_index, rowid", args)
+        return [dict(r) for r in rows]
 
     # -- bulk reads --------------------------------------------------------------------
     def table_columns(self, table: str) -> list[str]:
