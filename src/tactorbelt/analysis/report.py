@@ -63,7 +63,8 @@ FIGURE_CAPTIONS: Final = {
 }
 FIGURE_ORDER: Final = ("fig1b.png", "polar.png", "confusion.png", "trajectories.png",
                        "paired.png")
-KNOWN_OUTPUTS: Final = ("report.html", "summary.json", "per_target.csv", *FIGURE_ORDER)
+KNOWN_OUTPUTS: Final = ("report.html", "summary.json", "per_target.csv", "profile_effect.csv",
+                        *FIGURE_ORDER)
 MAX_TABLE_ROWS: Final = 200
 MAX_LISTED: Final = 50
 
@@ -666,6 +667,8 @@ def analyze(paths: Sequence[str | Path], out: str | Path, *, seed: int | None = 
             prof.to_csv(out / "profile_effect.csv", index=False)
             summary.notes.append("profile_effect.csv: between-tactor results with and "
                                  "without the wearers' perceptual profiles")
+        elif (out / "profile_effect.csv").is_file():  # a stale one would mislead
+            (out / "profile_effect.csv").unlink()
         (out / "summary.json").write_text(
             json.dumps(summary.to_json(), indent=2, allow_nan=False) + "\n", encoding="utf-8")
         now = _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
