@@ -280,7 +280,7 @@ class KeyboardRespondent(Respondent):
 
 @dataclass(frozen=True)
 class CalibrationSettings:
-    """The procedure's settings (defaults: about 230 trials, 8 to 10 minutes for a person
+    """The procedure's settings (defaults: at most 228 trials, about 9 minutes for a person
     with 6 tactors; docs/calibration-perceptual.md).
 
     Attributes:

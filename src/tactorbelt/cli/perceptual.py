@@ -38,7 +38,7 @@ def perceptual(belt_url: str, participant: str, input_kind: str, db: str | None,
     Part 1: each tactor against tactor 0, "which of the two vibrations was stronger"
     (keys 1 / 2). Part 2: for each adjacent pair, a point between the two tactors,
     "was it nearer tactor a or tactor b than the marked point" (keys a / b). QUEST+
-    chooses each next stimulus; about 230 trials, 8 to 12 minutes with 6 tactors.
+    chooses each next stimulus; at most 228 trials, about 9 minutes with 6 tactors.
     q quits without writing. See docs/calibration-perceptual.md.
     """
     from ..calibrate import CalibrationQuit
