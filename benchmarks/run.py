@@ -94,6 +94,15 @@ GOALS = [
          "pseudo-terminal round trip and the reader thread's wake-up"),
     Goal("emulator_ping_p99_ms", None, None, None, "ms",
          "scheduling of the reader thread and the emulator on a shared machine"),
+    Goal("lsl_marker_latency_p99_ms", None, "<=", 5.0, "ms",
+         "LSL markers over loopback TCP to an inlet thread; its wake-up on 2 shared cores"),
+    Goal("lsl_marker_latency_p50_ms", None, None, None, "ms", "as lsl_marker_latency_p99_ms"),
+    Goal("lsl_on_sample_us", "lsl_push_sample_us", "<=", 50.0, "us",
+         "per 100 Hz cursor sample: three brackets of LSL's clock around the runner's, "
+         "and liblsl's push (baseline: the push alone)"),
+    Goal("lsl_map_error_us", None, "<=", 50.0, "us",
+         "the runner's clock mapped to LSL's against a direct reading: the time between "
+         "the reads"),
     Goal("session_s", "session_per_trial_s", "<=", 2.0, "s",
          "the 100 Hz sampling loop in Python (~58,000 samples a session, ~6 us each: "
          "model cursor, trial machine, deadline), the model's decisions on the ERM "
@@ -114,6 +123,9 @@ GOALS = [
     Goal("sessions_linearity", None, "<=", 1.25, "x",
          "last 10 % of sessions over the first 10 %: 1.0 is linear growth"),
     Goal("model_session_s", None, "<=", 5.0, "s", "as session_s"),
+    Goal("perceptual_calibration_s", None, "<=", 2.0, "s",
+         "QUEST+ (questplus, xarray) updates and chooses in ~5 ms per trial, ~230 trials"),
+    Goal("perceptual_trial_ms", None, None, None, "ms", "as perceptual_calibration_s"),
     Goal("factorial_session_s", None, "<=", 3.0, "s",
          "720 trials: as session_s (SQLite commits, the ERM model, the 100 Hz loop)"),
     Goal("factorial_trial_ms", "paper_model_trial_ms", None, None, "ms",

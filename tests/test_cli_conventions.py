@@ -17,10 +17,12 @@ from support.cli import tactorbelt
 from tactorbelt.cli import COMMANDS
 
 DOCS = Path(__file__).resolve().parents[1] / "docs" / "cli.md"
-GROUPS = {"figure": ["amplitudes"], "study": ["init", "check"]}
+GROUPS = {"figure": ["amplitudes"], "study": ["init", "check"],
+          "calibrate": [None, "perceptual"]}
 COMMAND_PATHS = [[c, *([s] if s else [])] for c in COMMANDS for s in GROUPS.get(c, [None])]
 #: commands that write files, and so have -o/--output
-WRITERS = {"render", "figure amplitudes", "calibrate", "export", "demo", "power", "analyze"}
+WRITERS = {"render", "figure amplitudes", "calibrate", "calibrate perceptual", "export", "demo",
+           "power", "analyze"}
 #: options whose value is text that is not a number
 TEXT_OPTIONS = {"--tactor-angles", "--participant", "--joystick", "--axes", "--participants"}
 

@@ -28,7 +28,7 @@ def test_help_imports_no_heavy_library():
         "from tactorbelt.cli import main\n"
         "try:\n    main(['--help'])\nexcept SystemExit:\n    pass\n"
         "heavy = [m for m in ('numpy', 'matplotlib', 'pandas', 'pygame', 'serial', 'bleak',"
-        " 'scipy', 'statsmodels') if m in sys.modules]\n"
+        " 'scipy', 'statsmodels', 'pylsl', 'pyarrow') if m in sys.modules]\n"
         "print('HEAVY', heavy)\n"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True).stdout

@@ -89,6 +89,7 @@ from .stimuli import DEFAULT_PERIOD_S, DEFAULT_TRANSIT_S, Stimulus, make_stimulu
 
 if TYPE_CHECKING:
     from .devices.base import Belt
+    from .profile import WearerProfile
 
 __all__ = [
     "DEFAULT_DEVICE_RATE_HZ",
@@ -172,6 +173,8 @@ class DirectionDisplay:
         device_rate_hz: tick rate of the device-render loop (default 20 Hz).
         min_cutoff_hz, beta, d_cutoff_hz: the heading filter's parameters (see
             :mod:`tactorbelt.filters`).
+        profile: render for this wearer's perceptual profile (:mod:`tactorbelt.profile`);
+            one that is not the identity is streamed (the firmware cannot apply it).
 
     Raises:
         ConfigError: a bad parameter, or ``device_render=True`` on a belt that cannot.
@@ -195,11 +198,14 @@ class DirectionDisplay:
         min_cutoff_hz: float = DEFAULT_MIN_CUTOFF_HZ,
         beta: float = DEFAULT_BETA,
         d_cutoff_hz: float = DEFAULT_D_CUTOFF_HZ,
+        profile: WearerProfile | None = None,
     ) -> None:
         self.belt = belt
         self.layout: Layout = belt.layout
-        # validates mode, law, falloff, period and transit together
-        probe = make_stimulus(self.layout, 0.0, mode, law, falloff_deg, period_s, transit_s)
+        self.profile = profile
+        # validates mode, law, falloff, period, transit and the profile's layout together
+        probe = make_stimulus(self.layout, 0.0, mode, law, falloff_deg, period_s, transit_s,
+                              profile=profile)
         self.mode = probe.mode
         self.law = probe.law
         self.falloff_deg = probe.falloff_deg
@@ -523,7 +529,11 @@ class DirectionDisplay:
         x = self._slew(times)
         dynamic = self.mode == "dynamic" and times.size > 0
         loc = self._dynamic_locations(times, x) if dynamic else x
-        return amplitudes(self.layout, loc, self.law, self.falloff_deg)
+        if self.profile is None:
+            return amplitudes(self.layout, loc, self.law, self.falloff_deg)
+        loc = self.profile.warp_deg(self.layout, loc)
+        return self.profile.apply_gains(amplitudes(self.layout, loc, self.law,
+                                                   self.falloff_deg))
 
     def _write(self, amps: FloatArray) -> None:
         for row in amps:
@@ -677,7 +687,7 @@ class DirectionDisplay:
     # -- device rendering ---------------------------------------------------------------------
     def _stimulus(self, angle: float) -> Stimulus:
         return make_stimulus(self.layout, angle, self.mode, self.law, self.falloff_deg,
-                             self.period_s, self.transit_s)
+                             self.period_s, self.transit_s, profile=self.profile)
 
     def _device_tick(self, now: int) -> None:
         """Slew to ``now``; send a PLAY_TARGET when the direction moved by > step_deg."""

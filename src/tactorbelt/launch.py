@@ -52,6 +52,7 @@ if TYPE_CHECKING:
     from .experiment.store import Store
     from .experiment.sync import Pusher
     from .inputs.joystick import JoystickConfig
+    from .lsl import LslObserver
 
 __all__ = ["RunOutcome", "RunRequest", "choose_clock", "has_display", "resolve_db",
            "resume_command", "run_study"]
@@ -110,6 +111,10 @@ class RunRequest:
     push: str | None = None
     site: str | None = None
     offline: bool = False
+    #: LSL marker and cursor streams (tactorbelt.lsl; the run is then on the wall clock)
+    lsl: bool = False
+    #: with ``lsl``: seconds to wait for a consumer of each stream before the first trial
+    lsl_wait_s: float = 0.0
 
 
 def resolve_db(db: str, push: str | None, study_file: Path) -> tuple[Path, str | None]:
@@ -228,9 +233,11 @@ def resume_command(req: RunRequest) -> str:
     """The command that continues the participant's session (as a shell line)."""
     push = ["--push", shlex.quote(req.push)] if req.push else []
     site = ["--site", shlex.quote(req.site)] if req.site else []
+    lsl = (["--lsl"] + (["--lsl-wait", f"{req.lsl_wait_s:g}"] if req.lsl_wait_s else [])
+           if req.lsl else [])
     return " ".join(["tactorbelt", "run", shlex.quote(str(req.study_file)), "--participant",
                      shlex.quote(req.participant.strip()), "--db", shlex.quote(str(req.db)),
-                     *push, *site, "--resume"])
+                     *push, *site, *lsl, "--resume"])
 
 
 def stored_options(store: Store, session: dict[str, Any]) -> dict[str, Any]:
@@ -388,6 +395,10 @@ def run_study(req: RunRequest, *, progress: Callable[[int, int], None] | None = 
     push_lines: list[str] = []
     _check_push(req)  # before anything is written
     _check_options(req)  # what the request gives: before a store file is created
+    if req.lsl:
+        from .lsl import load_pylsl
+
+        load_pylsl()  # no liblsl: an error now, before a store file is created
     with open_store(req.db) as store:
         r = _resolve(req, _check_session(store, req))
         assert r.input_kind is not None and r.belt_url is not None
@@ -397,7 +408,7 @@ def run_study(req: RunRequest, *, progress: Callable[[int, int], None] | None = 
             _no_display()
         headless = window is None
         clock = choose_clock(headless=headless, input_kind=r.input_kind,
-                             belt_url=r.belt_url, realtime=bool(r.realtime))
+                             belt_url=r.belt_url, realtime=bool(r.realtime) or req.lsl)
         opts = {k: getattr(r, k) for k in _STORED} | {"headless": headless,
                                                       "joystick": asdict(r.joystick)}
         if req.resume:
@@ -416,6 +427,7 @@ def run_study(req: RunRequest, *, progress: Callable[[int, int], None] | None = 
                                           study_toml=text, input_name=r.input_kind,
                                           site=req.site)
             cursor = None
+            lsl = _lsl(req, clock, belt)  # None without --lsl
             if r.input_kind in ("model", "scripted"):
                 cursor = make_cursor(r.input_kind, study=study, belt=belt, clock=clock,
                                      participant=req.participant, seed=seed,
@@ -425,7 +437,7 @@ def run_study(req: RunRequest, *, progress: Callable[[int, int], None] | None = 
                     assert cursor is not None
                     result = run_session(study, req.participant, belt, cursor, store, clock,
                                          progress=progress,
-                                         observer=_RunObserver(None, store, opts, slow_s,
+                                         observer=_RunObserver(lsl, store, opts, slow_s,
                                                                pusher),
                                          **kwargs)
                 else:
@@ -437,16 +449,31 @@ def run_study(req: RunRequest, *, progress: Callable[[int, int], None] | None = 
                         if src is None:
                             raise ConfigError(f"the window gave no cursor for --input "
                                               f"{r.input_kind}")
-                        obs = _RunObserver(win.observer, store, opts, slow_s, pusher)
+                        inner = win.observer
+                        if lsl is not None:
+                            lsl.inner, inner = inner, lsl
+                        obs = _RunObserver(inner, store, opts, slow_s, pusher)
                         result = win.run(lambda: run_session(
                             study, req.participant, belt, src, store, clock, observer=obs,
                             **kwargs))
             finally:
                 if cursor is not None:
                     cursor.close()
+                if lsl is not None:
+                    lsl.close()
         trials = store.trials(result.session_id)
         events = store.task_events(result.session_id) if study.tasks else []
     return RunOutcome(result, req.db, trials, req.resume, push_lines, events)
+
+
+def _lsl(req: RunRequest, clock: Clock, belt: Any) -> LslObserver | None:
+    """With ``req.lsl``: the LSL observer (tactorbelt.lsl; its streams open when the
+    session starts); else None."""
+    if not req.lsl:
+        return None
+    from .lsl import LslObserver
+
+    return LslObserver(None, clock, belt, wait_s=req.lsl_wait_s)
 
 
 def _check_push(req: RunRequest) -> None:

@@ -14,6 +14,13 @@ amplitudes it produces, ``amplitudes(t) = law(location(t))``.
   The transit goes through the target (across the gap that holds it); for every gap
   under 180 degrees that is the short way round.
 
+A stimulus may carry a wearer profile (:mod:`tactorbelt.profile`, from the perceptual
+calibration): its amplitudes are then ``gains * law(warp(location(t)))``, so a static
+point is rendered where this wearer feels the intended point. The firmware knows no
+profile: a belt renders such a stimulus itself only when it declares
+``renders_profiles`` (the audio belt); every other belt streams it
+(:meth:`tactorbelt.devices.base.Belt.can_render`).
+
 Rendering samples at ``t = i/rate`` for ``i in range(round(duration*rate))``.
 Everything is vectorised over t (and over targets in :func:`render_batch`).
 
@@ -24,7 +31,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Final, Literal
+from typing import TYPE_CHECKING, Final, Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -32,6 +39,9 @@ from numpy.typing import ArrayLike, NDArray
 from ._errors import ConfigError
 from .geometry import Layout, normalize, wrap
 from .laws import DEFAULT_FALLOFF_DEG, amplitudes, check_law
+
+if TYPE_CHECKING:
+    from .profile import WearerProfile
 
 __all__ = [
     "DEFAULT_PERIOD_S",
@@ -95,6 +105,7 @@ class Stimulus:
         on_tactor: True when the target coincides with a tactor (then always static).
         near_idx, far_idx: the nearer and farther bracketing tactors (equal when on-tactor).
         dwell_near_s, dwell_far_s: dwell times of the perturbation (0 when static).
+        profile: the wearer profile it is rendered for (None: as the law says).
     """
 
     layout: Layout
@@ -109,6 +120,7 @@ class Stimulus:
     far_idx: int
     dwell_near_s: float
     dwell_far_s: float
+    profile: WearerProfile | None = None
 
     @property
     def is_dynamic(self) -> bool:
@@ -147,7 +159,24 @@ class Stimulus:
 
     def amplitudes(self, t: ArrayLike) -> NDArray[np.float64]:
         """Amplitudes at time(s) t: shape ``t.shape + (N,)``, values in [0, 1]."""
-        return amplitudes(self.layout, self.location(t), self.law, self.falloff_deg)
+        loc = self.location(t)
+        if self.profile is None:
+            return amplitudes(self.layout, loc, self.law, self.falloff_deg)
+        loc = self.profile.warp_deg(self.layout, loc)
+        return self.profile.apply_gains(amplitudes(self.layout, loc, self.law,
+                                                   self.falloff_deg))
+
+    def with_profile(self, profile: WearerProfile | None) -> Stimulus:
+        """The same stimulus rendered for a wearer (None: without a profile).
+
+        Raises:
+            ConfigError: the profile was measured on another layout.
+        """
+        from dataclasses import replace
+
+        if profile is not None:
+            profile.check_layout(self.layout)
+        return replace(self, profile=profile)
 
     def render(self, rate_hz: float = 1000.0, duration_s: float | None = None) -> tuple[
         NDArray[np.float64], NDArray[np.float64]
@@ -161,7 +190,7 @@ class Stimulus:
 
     def describe(self) -> dict[str, object]:
         """A plain dict of the parameters, for JSON and the store."""
-        return {
+        out: dict[str, object] = {
             "target_deg": self.target_deg,
             "mode": self.mode,
             "law": self.law,
@@ -175,6 +204,9 @@ class Stimulus:
             "dwell_near_s": self.dwell_near_s,
             "dwell_far_s": self.dwell_far_s,
         }
+        if self.profile is not None:
+            out["wearer_profile"] = self.profile.participant or "unnamed"
+        return out
 
 
 def make_stimulus(
@@ -185,13 +217,17 @@ def make_stimulus(
     falloff_deg: float = DEFAULT_FALLOFF_DEG,
     period_s: float = DEFAULT_PERIOD_S,
     transit_s: float = DEFAULT_TRANSIT_S,
+    profile: WearerProfile | None = None,
 ) -> Stimulus:
-    """Build a validated stimulus.
+    """Build a validated stimulus (rendered for a wearer's ``profile`` when given).
 
     Raises:
         ConfigError: unknown mode or law, a non-finite angle, a non-positive falloff
-            or period, a negative transit, or ``2*transit >= period``.
+            or period, a negative transit, ``2*transit >= period``, or a profile
+            measured on another layout.
     """
+    if profile is not None:
+        profile.check_layout(layout)
     if mode not in MODES:
         raise ConfigError(f"unknown mode {mode!r}; allowed: {', '.join(MODES)}")
     check_law(law, falloff_deg)
@@ -218,7 +254,7 @@ def make_stimulus(
     on = layout.tactor_at(x)
     if on >= 0:
         return Stimulus(layout, x, mode, law, float(falloff_deg), period, transit,  # type: ignore[arg-type]
-                        True, int(on), int(on), 0.0, 0.0)
+                        True, int(on), int(on), 0.0, 0.0, profile)
     ccw, cw = layout.neighbours(x)
     d_ccw = abs(float(wrap(x - layout.angles_deg[ccw])))
     d_cw = abs(float(wrap(layout.angles_deg[cw] - x)))
@@ -231,7 +267,7 @@ def make_stimulus(
     dwell_near = hold * df / (dn + df)
     dwell_far = hold * dn / (dn + df)
     return Stimulus(layout, x, mode, law, float(falloff_deg), period, transit,  # type: ignore[arg-type]
-                    False, int(near), int(far), dwell_near, dwell_far)
+                    False, int(near), int(far), dwell_near, dwell_far, profile)
 
 
 def render_batch(
@@ -246,8 +282,14 @@ def render_batch(
         raise ConfigError("render_batch needs at least one stimulus")
     first = stimuli[0]
     for s in stimuli[1:]:
-        if s.layout != first.layout or s.law != first.law or s.falloff_deg != first.falloff_deg:
-            raise ConfigError("render_batch: every stimulus must share layout, law and falloff")
+        if (s.layout != first.layout or s.law != first.law or s.falloff_deg != first.falloff_deg
+                or s.profile != first.profile):
+            raise ConfigError("render_batch: every stimulus must share layout, law, falloff "
+                              "and wearer profile")
     t = sample_times(rate_hz, duration_s)
     loc = np.stack([s.location(t) for s in stimuli])
-    return t, amplitudes(first.layout, loc, first.law, first.falloff_deg)
+    if first.profile is None:
+        return t, amplitudes(first.layout, loc, first.law, first.falloff_deg)
+    loc = first.profile.warp_deg(first.layout, loc)
+    return t, first.profile.apply_gains(amplitudes(first.layout, loc, first.law,
+                                                   first.falloff_deg))

@@ -16,6 +16,8 @@ import math
 import re
 from typing import TYPE_CHECKING, Any, Final
 
+from ._format import number as _fmt
+from ._format import percent as _pct
 from .cells import is_factorial
 
 if TYPE_CHECKING:
@@ -39,22 +41,6 @@ def cell_figure_names(names: Any) -> list[str]:
     """The factorial figures among ``names``, in report order."""
     per = sorted((int(m.group(1)), n) for n in names if (m := _FIG1B.match(n)))
     return (["resolution.png"] if "resolution.png" in names else []) + [n for _, n in per]
-
-
-def _fmt(v: Any, digits: int = 3) -> str:
-    try:
-        x = float(v)
-    except (TypeError, ValueError):
-        return "n/a"
-    return f"{x:.{digits}g}" if math.isfinite(x) else "n/a"
-
-
-def _pct(v: Any) -> str:
-    try:
-        x = float(v)
-    except (TypeError, ValueError):
-        return "n/a"
-    return f"{100 * x:.1f} %" if math.isfinite(x) else "n/a"
 
 
 def cells_section(summary: Summary, figures: dict[str, bytes]) -> str:

@@ -63,7 +63,8 @@ FIGURE_CAPTIONS: Final = {
 }
 FIGURE_ORDER: Final = ("fig1b.png", "polar.png", "confusion.png", "trajectories.png",
                        "paired.png")
-KNOWN_OUTPUTS: Final = ("report.html", "summary.json", "per_target.csv", *FIGURE_ORDER)
+KNOWN_OUTPUTS: Final = ("report.html", "summary.json", "per_target.csv", "profile_effect.csv",
+                        *FIGURE_ORDER)
 MAX_TABLE_ROWS: Final = 200
 MAX_LISTED: Final = 50
 
@@ -91,7 +92,7 @@ def _fmt(v: Any, digits: int = 3, *, missing: str = "n/a") -> str:
 
 def _p(v: Any) -> str:
     if not _finite(v):
-        return "none (Bayesian fit)"
+        return "n/a"
     f = float(v)
     return "< 0.0001" if f < 1e-4 else f"{f:.4f}"
 
@@ -660,6 +661,14 @@ def analyze(paths: Sequence[str | Path], out: str | Path, *, seed: int | None = 
         pt = summary.per_target.copy()
         pt["on_tactor"] = pt["on_tactor"].astype(int)
         pt.to_csv(out / "per_target.csv", index=False)
+        from .profiles import profile_table  # sessions with and without a wearer profile
+
+        if (prof := profile_table(list(paths))) is not None:
+            prof.to_csv(out / "profile_effect.csv", index=False)
+            summary.notes.append("profile_effect.csv: between-tactor results with and "
+                                 "without the wearers' perceptual profiles")
+        elif (out / "profile_effect.csv").is_file():  # a stale one would mislead
+            (out / "profile_effect.csv").unlink()
         (out / "summary.json").write_text(
             json.dumps(summary.to_json(), indent=2, allow_nan=False) + "\n", encoding="utf-8")
         now = _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")

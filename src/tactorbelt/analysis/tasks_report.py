@@ -11,10 +11,12 @@ from __future__ import annotations
 
 import base64
 import html
-import math
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
+from ._format import number as _f
+from ._format import p_value as _p
+from ._format import percent as _pct
 from .tasks_figures import TASK_FIGURE_CAPTIONS, TASK_FIGURE_ORDER
 
 if TYPE_CHECKING:
@@ -29,30 +31,6 @@ def has_load(summary: Summary) -> bool:
     loads = set() if cells is None or cells.empty else {str(v) for v in cells["load"]}
     return bool(loads - {"none"}) or summary.secondary_tasks is not None or \
         summary.tlx is not None
-
-
-def _f(v: Any, digits: int = 3) -> str:
-    try:
-        x = float(v)
-    except (TypeError, ValueError):
-        return "n/a"
-    return f"{x:.{digits}g}" if math.isfinite(x) else "n/a"
-
-
-def _pct(v: Any) -> str:
-    try:
-        x = float(v)
-    except (TypeError, ValueError):
-        return "n/a"
-    return f"{100 * x:.1f} %" if math.isfinite(x) else "n/a"
-
-
-def _p(v: Any) -> str:
-    try:
-        x = float(v)
-    except (TypeError, ValueError):
-        return "n/a"
-    return "< 0.001" if x < 0.001 else f"{x:.3g}"
 
 
 def _table(head: Sequence[str], rows: Sequence[Sequence[str]]) -> str:

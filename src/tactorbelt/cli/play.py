@@ -5,7 +5,8 @@
 - ``belt-test``: pulse each tactor in turn, saying which one, to catch a wrongly wired
   belt before a study.
 - ``calibrate``: walk an experimenter through each tactor (the level where it is first
-  felt, then a comfortable maximum) and write a calibration file.
+  felt, then a comfortable maximum) and write a calibration file; ``calibrate
+  perceptual`` (:mod:`.perceptual`) measures a wearer's profile.
 
 Every path ends with the motors off; Ctrl-C exits 130. Heavy imports are inside commands.
 """
@@ -56,8 +57,11 @@ def _describe(belt: Belt) -> str:
 @click.option("--stats", is_flag=True,
               help="Print the player's deadline statistics as one JSON line, last "
                    "(0 frames when the belt renders the stimulus itself; add --rate).")
+@click.option("--profile", "profile_file", default=None, metavar="FILE",
+              help="Render for this wearer's profile (TOML, from `tactorbelt calibrate "
+                   "perceptual -o`).")
 def play(angle: str, belt_url: str, calibration_file: str | None, seconds: float,
-         rate: float | None, stats: bool, **stim: Any) -> None:
+         rate: float | None, stats: bool, profile_file: str | None, **stim: Any) -> None:
     """Play the stimulus for direction ANGLE (degrees, 0 = navel, clockwise) on a belt.
 
     Examples: `tactorbelt play 15 --mode dynamic`, `tactorbelt play -30 --belt
@@ -67,18 +71,27 @@ def play(angle: str, belt_url: str, calibration_file: str | None, seconds: float
 
     stimulus = build_stimulus(angle, **stim)
     calibration = load_calibration(calibration_file)
+    profile = None
+    if profile_file is not None:
+        from ..profile import WearerProfile
+
+        profile = WearerProfile.load(profile_file)
     belt, stimulus_on_belt = open_belt_for(belt_url, stimulus,
                                            explicit_layout=layout_given(**stim),
                                            calibration=calibration,
                                            calibration_file=calibration_file)
     assert stimulus_on_belt is not None
     with belt:
+        if profile is not None:  # refused here when measured on another layout
+            profile.check_layout(belt.layout, source=str(profile_file))
+            stimulus_on_belt = stimulus_on_belt.with_profile(profile)
         player = Player(belt, rate_hz=rate, device_render=False if rate is not None else None)
         how = ("rendered by the belt" if player.renders_on_device(stimulus_on_belt)
                else f"streamed at {player.rate_hz:g} Hz")
         kind = "on-tactor" if stimulus_on_belt.on_tactor else "between-tactor"
         click.echo(f"playing {stimulus_on_belt.mode} {kind} {stimulus_on_belt.target_deg:g} deg "
-                   f"({stimulus_on_belt.law} law) on {_describe(belt)} for {seconds:g} s, {how}")
+                   f"({stimulus_on_belt.law} law) on {_describe(belt)} for {seconds:g} s, {how}"
+                   + (f", for wearer {profile.participant or '(unnamed)'}" if profile else ""))
         try:
             result = player.play(stimulus_on_belt, seconds)
         except KeyboardInterrupt:
@@ -147,13 +160,16 @@ class _Keys:
             return ch
 
 
-@click.command()
+@click.group(invoke_without_command=True)
 @belt_option("The belt to calibrate")
 @output_option("file", "Write the calibration here [default: print it to stdout].")
 @click.option("--step", type=number(float, 0, 0.5, lo_open=True), default=0.02,
               show_default=True, help="Level change per + or - key.")
-def calibrate(belt_url: str, out: Path | None, step: float) -> None:
+@click.pass_context
+def calibrate(ctx: click.Context, belt_url: str, out: Path | None, step: float) -> None:
     """Walk through each tactor: the level where it is first felt, then a comfortable maximum.
+
+    `tactorbelt calibrate perceptual` measures a wearer's perceptual profile instead.
 
     For each tactor: raise the level with + until the vibration is just felt and
     press enter (that is the tactor's start level, below which it does not spin);
@@ -162,6 +178,8 @@ def calibrate(belt_url: str, out: Path | None, step: float) -> None:
     tactorbelt calibrate`. Prompts go to stderr; the calibration (TOML) to FILE or
     stdout.
     """
+    if ctx.invoked_subcommand is not None:
+        return
     from ..calibrate import KEYS_HELP, CalibrationQuit, walk_calibration
     from ..clock import WallClock
 
@@ -184,3 +202,12 @@ def calibrate(belt_url: str, out: Path | None, step: float) -> None:
         click.echo(f"wrote {path}", err=True)
     else:
         click.echo(calibration.to_toml(belt=belt_url, angles_deg=belt.tactor_angles_deg), nl=False)
+
+
+def _add_perceptual() -> None:
+    from .perceptual import perceptual
+
+    calibrate.add_command(perceptual)
+
+
+_add_perceptual()

@@ -56,11 +56,14 @@ __all__ = ["HeadingReader", "HeadingSample", "point"]
               help="Margin past a tactor's sector before the cue changes tactor, degrees.")
 @click.option("--stream", is_flag=True,
               help="Stream frames from the host even if the belt can render itself.")
+@click.option("--profile", "profile_file", default=None, metavar="FILE",
+              help="Render for this wearer's profile (TOML, from `tactorbelt calibrate "
+                   "perceptual -o`); streamed.")
 @click.option("-q", "--quiet", is_flag=True, help="Print nothing but errors.")
 def point(belt_url: str, bearing: float | None, heading_from: str | None,
           heading_rate: float, sweep: bool, sweep_period: float, seconds: float | None,
           mode: str, law: str, falloff: float, period: float, transit: float, slew: float,
-          hysteresis: float, stream: bool, quiet: bool) -> None:
+          hysteresis: float, stream: bool, profile_file: str | None, quiet: bool) -> None:
     """Keep a bearing displayed on a belt while the wearer's heading changes.
 
     The belt shows BEARING - HEADING (0 = navel, clockwise). Examples:
@@ -94,6 +97,11 @@ def point(belt_url: str, bearing: float | None, heading_from: str | None,
     }
     make_stimulus(Layout.even(6), 0.0, mode, law, display_opts["falloff_deg"],
                   display_opts["period_s"], display_opts["transit_s"])
+    if profile_file is not None:
+        from ..profile import WearerProfile
+
+        profile = WearerProfile.load(profile_file)
+        display_opts["profile"] = profile
     samples: list[HeadingSample] | None = None
     timed = False
     if heading_from is not None and heading_from != "-":
@@ -107,6 +115,8 @@ def point(belt_url: str, bearing: float | None, heading_from: str | None,
     with open_belt(belt_url) as belt:
         if stream:
             display_opts["device_render"] = False
+        if profile_file is not None:
+            profile.check_layout(belt.layout, source=profile_file)
         display = DirectionDisplay(belt, **display_opts)
         if display.clock.simulated and limit_s is None and heading_from is None:
             raise ConfigError(f"belt {belt.url!r} runs on a simulated clock, where only "

@@ -1,4 +1,5 @@
-"""``tactorbelt run`` (one participant's session) and ``tactorbelt export`` (CSV or BIDS).
+"""``tactorbelt run`` (one participant's session) and ``tactorbelt export`` (CSV, BIDS,
+Parquet, a tidy table for R and JASP, PsychoPy CSV).
 
 The run command parses its options into a :class:`tactorbelt.launch.RunRequest` and
 calls :func:`tactorbelt.launch.run_study`, which holds the policies (session, resume,
@@ -22,6 +23,7 @@ from ._options import HiddenArgument, belt_option, number, output_option, seed_o
 __all__ = ["export", "run"]
 
 INPUTS = ("joystick", "mouse", "model", "scripted")
+EXPORT_FORMATS = ("csv", "bids", "parquet", "tidy", "psychopy")
 
 
 def _given(ctx: click.Context, name: str, value: Any) -> Any:
@@ -74,13 +76,19 @@ def _given(ctx: click.Context, name: str, value: Any) -> Any:
               show_default=True, help="Radial dead zone of the stick.")
 @click.option("--invert-x", is_flag=True, help="Mirror the stick's left/right axis.")
 @click.option("--invert-y", is_flag=True, help="Mirror the stick's front/back axis.")
+@click.option("--lsl", is_flag=True,
+              help="Send Lab Streaming Layer streams: event markers and the cursor (needs "
+                   "pylsl; a simulated run then runs in real time).")
+@click.option("--lsl-wait", type=number(float, 0.0, 3600.0), default=0.0, show_default=True,
+              help="With --lsl: seconds to wait for a recorder (LabRecorder) to connect to "
+                   "the streams before the first trial.")
 @click.pass_context
 def run(ctx: click.Context, study_file: Path, participant: str, belt_url: str,
         input_kind: str | None, db: str, push: str | None, site: str | None, offline: bool,
         resume: bool, new_session: bool, headless: bool,
         limit: int | None, seed: int | None, realtime: bool, fullscreen: bool,
         screenshot_dir: Path | None, joystick_device: str | None, axes: str,
-        dead_zone: float, invert_x: bool, invert_y: bool) -> None:
+        dead_zone: float, invert_x: bool, invert_y: bool, lsl: bool, lsl_wait: float) -> None:
     """Run a study session for one participant, storing every trial in --db.
 
     Exit status: 0 the run ended (complete, or --limit reached), 130 stopped by the
@@ -90,6 +98,8 @@ def run(ctx: click.Context, study_file: Path, participant: str, belt_url: str,
     from ..interrupts import Terminated
     from ..launch import JoystickOptions, RunRequest, resolve_db, resume_command, run_study
 
+    if lsl_wait and not lsl:
+        raise click.UsageError("--lsl-wait is for --lsl")
     if not participant.strip():
         raise click.BadParameter("must not be empty", param_hint="--participant")
     g = lambda name, value: _given(ctx, name, value)  # noqa: E731
@@ -102,7 +112,8 @@ def run(ctx: click.Context, study_file: Path, participant: str, belt_url: str,
         limit=limit, seed=seed, realtime=g("realtime", realtime),
         fullscreen=g("fullscreen", fullscreen), screenshot_dir=screenshot_dir,
         joystick=JoystickOptions(joystick_device, g("axes", axes), g("dead_zone", dead_zone),
-                                 g("invert_x", invert_x), g("invert_y", invert_y)))
+                                 g("invert_x", invert_x), g("invert_y", invert_y)),
+        lsl=lsl, lsl_wait_s=lsl_wait)
     try:
         with _progress_bar(participant) as progress:
             outcome = run_study(req, progress=progress,
@@ -146,8 +157,12 @@ def _progress_bar(label: str) -> Iterator[Callable[[int, int], None]]:
 @click.argument("old_out", cls=HiddenArgument, required=False,
                 type=click.Path(file_okay=False, path_type=Path))
 @output_option("directory", "New or empty directory for the files.")
-@click.option("--format", "fmt", type=click.Choice(["csv", "bids"]), default="csv",
-              show_default=True, help="Tidy CSV files, or a BIDS dataset (beh + motion).")
+@click.option("--format", "fmt", type=click.Choice(EXPORT_FORMATS), default="csv",
+              show_default=True,
+              help="csv: the store's tables as CSV; bids: a BIDS dataset (beh + motion); "
+                   "parquet: the same tables as Parquet; tidy: one trial table for R (lme4) "
+                   "and JASP, with its codebook; psychopy: PsychoPy's wide CSV, one file per "
+                   "session.")
 @click.option("--force", is_flag=True,
               help="Replace an earlier export of the same format in the output directory.")
 @click.option("--readme", type=click.Path(dir_okay=False, path_type=Path), default=None,
@@ -163,6 +178,7 @@ def export(db: str, old_out: Path | None, out: Path | None, fmt: str, force: boo
     B. Author"`. A directory that is not empty is refused unless --force (which replaces
     only an earlier export there).
     """
+    from ..experiment import export_formats
     from ..experiment.export import export_bids, export_csv
 
     if out is not None and old_out is not None:
@@ -170,11 +186,13 @@ def export(db: str, old_out: Path | None, out: Path | None, fmt: str, force: boo
     out = out if out is not None else old_out
     if out is None:
         raise click.UsageError("give the output directory with -o DIRECTORY")
-    if fmt == "csv" and (readme is not None or authors is not None):
+    if fmt != "bids" and (readme is not None or authors is not None):
         raise click.UsageError("--readme and --authors are for --format bids")
     names = [a.strip() for a in (authors or "").split(",") if a.strip()]
-    files = (export_csv(db, out, force=force) if fmt == "csv"
-             else export_bids(db, out, readme=readme, authors=names, force=force))
+    writers = {"csv": export_csv, "parquet": export_formats.export_parquet,
+               "tidy": export_formats.export_tidy, "psychopy": export_formats.export_psychopy}
+    files = (export_bids(db, out, readme=readme, authors=names, force=force) if fmt == "bids"
+             else writers[fmt](db, out, force=force))
     click.echo(f"wrote {len(files)} files to {out}")
     if fmt == "bids" and not names:
         click.echo("note: no --authors given, so dataset_description.json lists none "

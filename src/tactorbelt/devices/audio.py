@@ -259,6 +259,7 @@ class AudioBelt(Belt):
 
     #: the callback renders through the calibration (gain, response, channel map)
     renders_calibrated = True
+    renders_profiles = True
 
     def __init__(self, url: str, device: AudioOutput, layout: Layout,
                  calibration: Calibration | None, channels: int, mapping: tuple[int, ...],

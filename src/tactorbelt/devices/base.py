@@ -18,7 +18,8 @@ probe a belt with ``getattr``/``hasattr``:
 - ``clock``: the belt's own clock (the sim belt's), or None (wall time);
 - ``stream_rate_hz``: the rate a Player streams at (1000; 40 over BLE);
 - ``can_render(stimulus)``: True when the device renders that stimulus itself (a law or
-  mode the firmware lacks is streamed instead); ``can_render()``: renders any at all;
+  mode the firmware lacks, or a wearer profile the device cannot apply
+  (``renders_profiles``), is streamed instead); ``can_render()``: renders any at all;
 - ``levels``: the drive levels last written (calibrated), or None when not known (a
   device rendering a stimulus);
 - ``models_vibration`` and ``vibration(t0_ns, t1_ns, rate_hz)``: the modelled vibration
@@ -162,6 +163,9 @@ class Belt(ABC):
         """
         if stimulus is not None and stimulus.layout != self.layout:
             return False
+        if (stimulus is not None and stimulus.profile is not None
+                and not stimulus.profile.is_identity and not self.renders_profiles):
+            return False  # the firmware knows no wearer profile: stream it
         return self._device_renders(stimulus)
 
     #: True when rendering on the device applies this belt's calibration (the audio
@@ -169,6 +173,12 @@ class Belt(ABC):
     #: device knows nothing of the host's calibration, so a calibrated firmware belt (and
     #: the sim belt, which models one) streams instead.
     renders_calibrated: bool = False
+
+    #: True when rendering on the device applies a stimulus's wearer profile
+    #: (:mod:`tactorbelt.profile`): the audio belt renders ``stimulus.amplitudes`` in the
+    #: host. The firmware (PLAY_TARGET) carries no warp or gains, so a stimulus with a
+    #: non-identity profile is streamed on every other belt, the sim belt included.
+    renders_profiles: bool = False
 
     def renders_with_calibration(self, stimulus: Stimulus | None = None) -> bool:
         """True when :meth:`play` renders ``stimulus`` on the device *as calibrated*:

@@ -128,6 +128,12 @@ _OWNED = {
     "csv": ("sessions.csv", "trials.csv", "samples.csv", "task_events.csv", "ratings.csv"),
     "bids": ("dataset_description.json", "participants.tsv", "participants.json", "README",
              "README.md", "README.rst", "README.txt", "sub-*"),
+    # experiment/export_formats.py
+    "parquet": ("sessions.parquet", "trials.parquet", "samples.parquet",
+                "task_events.parquet", "ratings.parquet"),
+    "tidy": ("trials_tidy.csv", "codebook.csv"),
+    "psychopy": ("*_[0-9][0-9][0-9][0-9]-[0-9][0-9]-[0-9][0-9]_[0-9][0-9]h[0-9][0-9].*.csv",
+                 "*_session-*.csv"),
 }
 
 

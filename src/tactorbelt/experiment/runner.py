@@ -348,6 +348,7 @@ class SessionRunner:
         self.sim = bool(clock.simulated)
         self.player = Player(belt, clock)
         self._stimuli: dict[tuple[Any, ...], Stimulus] = {}
+        self.profile: Any = None  # the wearer profile ([calibration] perceptual), by open_session
         # set by open_session
         self.session_id = 0
         self.schedule: list[ScheduledTrial] = []
@@ -368,7 +369,13 @@ class SessionRunner:
         """Create the session (or reopen the resumed one); return the trials to run."""
         import hashlib
 
+        from ..perceptual import profile_for_session  # before training (and the session)
+
         study, store = self.study, self.store
+        self.profile = profile_for_session(
+            study, store, self.belt, self.clock, self.participant,
+            self.cursor.calibration_respondent(int(study.session.seed if self.seed is None
+                                                   else self.seed)), resume=self.resume)
         sha = hashlib.sha256(self.study_toml.encode("utf-8")).hexdigest()
         if self.resume:
             row = store.find_resumable(self.participant)
@@ -408,6 +415,8 @@ class SessionRunner:
                 host=prov.host, input=self.input_name,
                 clock="sim" if self.sim else "wall", site=self.site,
             )
+        if self.profile is not None:  # the wearer profile is part of the session's provenance
+            store.set_session_profile(self.session_id, self.profile.to_toml())
         finished = store.finished_indices(self.session_id)
         self.n_done = len(finished)
         for t in self.schedule:
@@ -429,7 +438,7 @@ class SessionRunner:
         if key not in self._stimuli:
             self._stimuli[key] = make_stimulus(self.belt.layout, t.target_deg, t.condition,
                                                sp.law, sp.falloff_deg, sp.period_s,
-                                               sp.transit_s)
+                                               sp.transit_s, profile=self.profile)
         return self._stimuli[key]
 
     def targets_for(self, t: ScheduledTrial) -> TargetSet:

@@ -283,6 +283,13 @@ class QuestionnaireSpec(_Model):
     tlx: bool = False
 
 
+class CalibrationSpec(_Model):
+    """``perceptual = true``: the study renders for each wearer's perceptual profile,
+    measured before training when none is kept (docs/calibration-perceptual.md)."""
+
+    perceptual: bool = False
+
+
 class BlockSpec(_Model):
     """A test block: every target ``repetitions`` times in one condition.
 
@@ -392,6 +399,7 @@ class Study(_Model):
     design: DesignSpec | None = None
     tasks: dict[str, TaskSpec] = Field(default_factory=dict)
     questionnaire: QuestionnaireSpec = Field(default_factory=QuestionnaireSpec)
+    calibration: CalibrationSpec = Field(default_factory=CalibrationSpec)
 
     @model_validator(mode="before")
     @classmethod
@@ -555,6 +563,8 @@ class Study(_Model):
             data.pop("tasks")
         if self.questionnaire == QuestionnaireSpec():
             data.pop("questionnaire")
+        if self.calibration == CalibrationSpec():
+            data.pop("calibration")
         return tomli_w.dumps(data)
 
     def sha256(self) -> str:

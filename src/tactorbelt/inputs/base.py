@@ -28,6 +28,7 @@ from ..geometry import Layout
 if TYPE_CHECKING:
     from ..experiment.study import TaskSpec
     from ..gui.layout import EllipseGeometry
+    from ..perceptual import Respondent
     from ..tasks import WorkloadInfo
     from ..tasks.schedule import TaskItem
 
@@ -107,6 +108,13 @@ class CursorSource:
 
     def close(self) -> None:
         """Release the device."""
+
+    def calibration_respondent(self, seed: int) -> Respondent | None:
+        """Who answers the perceptual calibration's trials when a study requires a wearer
+        profile and none is kept (:mod:`tactorbelt.perceptual`): the model participant
+        answers itself; a person's device (None, the default) cannot, so the person is
+        calibrated beforehand with ``tactorbelt calibrate perceptual --input keyboard``."""
+        return None
 
     # -- secondary tasks and workload (no-ops unless the source answers them) ---------
     def task_phase(self, spec: TaskSpec | None, phase: str | None) -> None:

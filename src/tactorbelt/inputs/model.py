@@ -26,7 +26,9 @@ of their own, so a session without a load is the same as before.
 The model is a simulated observer; what it does follows from its assumptions and is
 no evidence about people (docs/participant-model.md).
 
-Also :func:`sim_vibrator`, the vibration of one stimulus on a fresh ``sim`` belt, for
+Also :class:`ModelRespondent`, the model answering the perceptual calibration's trials
+(:mod:`tactorbelt.perceptual`) from the vibration it feels, and :func:`sim_vibrator`,
+the vibration of one stimulus on a fresh ``sim`` belt, for
 the fast (runner-free) simulations of :mod:`tactorbelt.participant.simulate`.
 
 I/O edge: imports tactorbelt.participant (pure) and, in :func:`sim_vibrator`, the sim
@@ -50,6 +52,7 @@ from ..participant.load import LoadParams, TaskResponder, load_level, loaded_par
 from ..participant.params import ModelParams
 from ..participant.perception import Percepts, perceive_vibration
 from ..participant.timing import decision_s, observation_s
+from ..perceptual import Interval, Respondent
 from .base import CursorSample, CursorSource, TrialCue
 
 if TYPE_CHECKING:
@@ -60,7 +63,8 @@ if TYPE_CHECKING:
     from ..tasks import WorkloadInfo
     from ..tasks.schedule import TaskItem
 
-__all__ = ["ModelCursor", "ModelDecision", "Sense", "make_model_cursor", "sim_vibrator"]
+__all__ = ["ModelCursor", "ModelDecision", "ModelRespondent", "Sense", "make_model_cursor",
+           "make_model_respondent", "sim_vibrator"]
 
 #: Sensor noise is drawn this many values at a time.
 _NOISE_BLOCK = 4096
@@ -140,6 +144,7 @@ class ModelCursor(CursorSource):
         self._tlx_offset = float(self._tlx_rng.normal(0.0, self.load.tlx_person_sd))
         self.clock = clock
         self._sense = sense
+        self._seed = int(seed)
         self._rng = np.random.default_rng(seed)
         self._cue: TrialCue | None = None
         self._onset_ns = 0
@@ -182,6 +187,12 @@ class ModelCursor(CursorSource):
             y += j * self._noise[i + 1]
             self._noise_i = i + 2
         return CursorSample(now, x, y, 0)
+
+    def calibration_respondent(self, seed: int) -> Respondent:
+        """The same observer answering perceptual-calibration trials on the same belt
+        (its answers seeded from its own seed and ``seed``; its cursor's draws untouched)."""
+        state = np.random.SeedSequence([self._seed, int(seed)]).generate_state(1)[0]
+        return ModelRespondent(self._sense, int(state), self.params)
 
     # -- secondary tasks and workload -------------------------------------------------------
     def task_phase(self, spec: TaskSpec | None, phase: str | None) -> None:
@@ -276,6 +287,61 @@ def make_model_cursor(belt: Belt, clock: Clock, seed: int, params: ModelParams |
     if load is not None and not isinstance(load, LoadParams):
         raise ConfigError(f"load must be a LoadParams, got {type(load).__name__}")
     return ModelCursor(sense, int(seed), params, clock, load)
+
+
+class ModelRespondent(Respondent):
+    """The model participant answering perceptual-calibration trials
+    (a :class:`tactorbelt.perceptual.Respondent`) from the vibration it feels on the belt.
+
+    It reads only ``sense(t0_ns, t1_ns)`` of each interval (never the stimulus value):
+    intensity from the whole interval, location from its static observation window.
+
+    Args:
+        sense: ``sense(t0_ns, t1_ns) -> (t_ns, vibration)``, by default the sim belt's.
+        seed: seeds its judgements.
+        params: the observer.
+    """
+
+    name = "model"
+
+    def __init__(self, sense: Sense, seed: int, params: ModelParams | None = None) -> None:
+        self.params = params if params is not None else ModelParams()
+        self._sense = sense
+        self._rng = np.random.default_rng(seed)
+
+    def say(self, text: str) -> None:
+        """The model reads no instructions."""
+
+    def stronger(self, first: Interval, second: Interval) -> int:
+        from ..participant.calibration import judge_stronger
+
+        _, v1 = self._sense(first.t0_ns, first.t1_ns)
+        _, v2 = self._sense(second.t0_ns, second.t1_ns)
+        return judge_stronger(v1, first.tactor, v2, second.tactor, self.params, self._rng)
+
+    def side(self, interval: Interval, pair: tuple[int, int], marked_deg: float,
+             layout: Layout) -> int:
+        from ..participant.calibration import judge_side
+
+        t1 = min(interval.t1_ns, interval.t0_ns + round(self.params.observe_static_s * 1e9))
+        t_ns, vib = self._sense(interval.t0_ns, t1)
+        t_s = (np.asarray(t_ns, dtype=np.int64) - interval.t0_ns) / 1e9
+        return judge_side(t_s, vib, layout, marked_deg, self.params, self._rng, pair[0])
+
+
+def make_model_respondent(belt: Belt, seed: int, params: ModelParams | None = None
+                          ) -> ModelRespondent:
+    """The model participant answering calibration trials on ``belt`` (a belt that models
+    its vibration: ``--belt sim``).
+
+    Raises:
+        ConfigError: the belt models no vibration.
+    """
+    if not belt.models_vibration:
+        raise ConfigError(f"the model participant feels the vibration a simulated belt "
+                          f"models; belt {belt.url!r} models none. Use --belt sim with "
+                          "--input model")
+    return ModelRespondent(belt.vibration, int(seed), params)
 
 
 def sim_vibrator(layout: Layout, **sim_options: Any

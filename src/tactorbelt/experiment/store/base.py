@@ -247,6 +247,30 @@ class Store(abc.ABC):
     def run_options(self, session_id: int) -> dict[str, Any] | None:
         """The options kept by :meth:`set_run_options`, or None (older sessions)."""
 
+    # -- wearer profiles (the perceptual calibration, tactorbelt.profile) -------------------
+    def _set_meta(self, key: str, value: str) -> None:
+        """Keep one text value under ``key`` (implementations with a meta table)."""
+        raise StoreError(f"{self.url}: this store keeps no wearer profiles")
+
+    def _meta(self, key: str) -> str | None:
+        return None
+
+    def save_wearer_profile(self, participant: str, toml_text: str) -> None:
+        """Keep a participant's wearer profile (TOML text), replacing an older one."""
+        self._set_meta(f"wearer_profile:{participant}", toml_text)
+
+    def wearer_profile(self, participant: str) -> str | None:
+        """The participant's wearer profile (TOML text), or None."""
+        return self._meta(f"wearer_profile:{participant}")
+
+    def set_session_profile(self, session_id: int, toml_text: str) -> None:
+        """Record the wearer profile a session was run with (its provenance)."""
+        self._set_meta(f"session_profile:{session_id}", toml_text)
+
+    def session_profile(self, session_id: int) -> str | None:
+        """The wearer profile a session was run with (TOML text), or None."""
+        return self._meta(f"session_profile:{session_id}")
+
     def session(self, session_id: int) -> dict[str, Any]:
         """One session row as a dict."""
         for s in self.sessions():

@@ -503,6 +503,15 @@ class PostgreSQLStore(Store):
                       " ON CONFLICT (session_id) DO UPDATE SET options=EXCLUDED.options",
                       (session_id, json.dumps(dict(options))))
 
+    def _set_meta(self, key: str, value: str) -> None:
+        with self._transaction() as c:
+            c.execute("INSERT INTO tactorbelt.meta(key, value) VALUES (%s,%s)"
+                      " ON CONFLICT (key) DO UPDATE SET value=EXCLUDED.value", (key, value))
+
+    def _meta(self, key: str) -> str | None:
+        rows = self._query("SELECT value FROM tactorbelt.meta WHERE key=%s", (key,))
+        return str(rows[0][0]) if rows else None
+
     def run_options(self, session_id: int) -> dict[str, Any] | None:
         rows = self._query("SELECT options FROM tactorbelt.run_options WHERE session_id=%s",
                            (session_id,))

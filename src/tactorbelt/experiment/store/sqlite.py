@@ -696,6 +696,16 @@ class SQLiteStore(Store):
         opts: dict[str, Any] = json.loads(rows[0][0])
         return opts
 
+    def _set_meta(self, key: str, value: str) -> None:
+        with self._transaction() as c:
+            c.execute("INSERT OR REPLACE INTO meta(key, value) VALUES (?, ?)", (key, value))
+
+    def _meta(self, key: str) -> str | None:
+        if not self._query("SELECT 1 FROM sqlite_master WHERE type='table' AND name='meta'"):
+            return None  # a bare store (written by other tools) keeps no meta rows
+        rows = self._query("SELECT value FROM meta WHERE key=?", (key,))
+        return str(rows[0][0]) if rows else None
+
     def set_status(self, session_id: int, status: str) -> None:
         """Set a session's status; any status but ``running`` also sets ``ended_at``."""
         if status not in SESSION_STATUSES:

@@ -1,0 +1,467 @@
+"""Lab Streaming Layer (LSL) streams of a session: event markers and the cursor.
+
+Labs record EEG, pupil size, heart rate or motion alongside a task and synchronise
+everything with LSL (docs/lsl.md). :class:`LslObserver` is a session observer
+(:class:`~tactorbelt.experiment.runner.SessionObserver`) that forwards every hook to the
+observer it wraps (the experiment window, or nothing) and, when the session starts,
+opens two LSL outlets:
+
+- ``tactorbelt-markers`` (type ``Markers``, irregular rate, one string channel): one
+  JSON object per event (:data:`MARKER_EVENTS`, docs/lsl.md "Markers"), for example
+  ``{"event":"stimulus_onset","trial_index":3,"target_deg":15.0,...}``;
+- ``tactorbelt-cursor`` (type ``Position``, two float32 channels ``x``, ``y`` at the
+  study's sampling rate): every cursor sample the runner takes.
+
+Each sample is stamped with LSL's clock at the moment of its event: the runner's time of
+the event (its clock's nanoseconds) mapped to :func:`pylsl.local_clock` by a bracketed
+reading of both clocks at push time. Where the belt reports device-true onsets
+(:attr:`tactorbelt.devices.base.Belt.reports_onsets`, firmware 1.1), the onset marker
+carries the device's onset instead of the host's and is sent when the trial ends. The
+streams' XML description holds the study, the participant, the session and the belt's
+tactor layout.
+
+``pylsl`` (``pip install 'tactorbelt[lsl]'``) is imported only here and only when a
+stream opens; without it or without the liblsl library, :func:`load_pylsl` raises a
+ConfigError saying how to install them.
+
+I/O edge: imports the experiment's pure types; pylsl lazily.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import math
+import time
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
+
+from ._errors import ConfigError
+
+if TYPE_CHECKING:
+    from .clock import Clock
+    from .devices.base import Belt
+    from .experiment.runner import Command, SessionInfo
+    from .experiment.schedule import ScheduledTrial
+    from .experiment.study import TaskSpec
+    from .experiment.trial import TrialResult, TrialState
+    from .inputs.base import CursorSample
+    from .tasks import WorkloadInfo
+    from .tasks.schedule import TaskItem
+
+__all__ = ["CURSOR_STREAM", "MARKER_EVENTS", "MARKER_STREAM", "LslObserver", "load_pylsl",
+           "marker"]
+
+log = logging.getLogger(__name__)
+
+#: The names of the two streams.
+MARKER_STREAM = "tactorbelt-markers"
+CURSOR_STREAM = "tactorbelt-cursor"
+#: The version of the marker JSON shape (in each stream's description).
+MARKER_FORMAT = "tactorbelt-markers/1"
+#: Seconds an outlet stays open after the session, for its last samples to go out.
+LINGER_S = 0.5
+
+#: Every marker's ``event`` and the fields it carries besides ``event`` (docs/lsl.md).
+MARKER_EVENTS: dict[str, tuple[str, ...]] = {
+    "session_start": ("session_id", "participant", "study", "n_trials", "n_done", "resumed"),
+    "block_start": ("block_index", "block", "block_name", "condition", "n_targets", "load"),
+    "trial_start": ("trial_index", "block_index", "block", "condition", "n_targets", "load"),
+    "stimulus_onset": ("trial_index", "target_deg", "on_tactor", "condition", "n_targets",
+                       "load", "block", "onset_clock"),
+    "response": ("trial_index", "response_deg", "response_target_deg", "correct", "rt_s"),
+    "timeout": ("trial_index",),
+    "trial_end": ("trial_index", "status", "abort_reason"),
+    "block_end": ("block_index",),
+    "break_start": ("n_done", "n_total"),
+    "break_end": (),
+    "pause": (),
+    "resume": (),
+    "abort": (),
+    "task_start": ("task", "kind", "phase", "n", "modality", "block_index"),
+    "task_item": ("task", "phase", "item_index", "stimulus", "go"),
+    "task_press": ("task", "phase"),
+    "task_end": ("task", "phase"),
+    "workload": ("block_index", "scale", "ratings"),
+    "session_end": ("status",),
+}
+
+INSTALL_HINT = (
+    "install it with: pip install 'tactorbelt[lsl]' (the pylsl wheels bundle liblsl for "
+    "Linux x86_64, macOS and Windows); elsewhere install liblsl itself (conda install -c "
+    "conda-forge liblsl, or a liblsl package from github.com/sccn/liblsl/releases) and set "
+    "PYLSL_LIB to the library's path"
+)
+
+
+def load_pylsl() -> Any:
+    """The ``pylsl`` module with its liblsl loaded.
+
+    Raises:
+        ConfigError: pylsl is not installed, or it cannot load the liblsl library.
+    """
+    try:
+        import pylsl
+    except ModuleNotFoundError as exc:
+        if exc.name != "pylsl":
+            raise
+        raise ConfigError(f"--lsl needs the pylsl package, which is not installed; "
+                          f"{INSTALL_HINT}") from None
+    except (RuntimeError, OSError) as exc:  # pylsl raises RuntimeError without liblsl
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise ConfigError(f"--lsl: pylsl cannot load the liblsl library ({first}); "
+                          f"{INSTALL_HINT}") from None
+    return pylsl
+
+
+def marker(event: str, **fields: Any) -> str:
+    """One marker: compact JSON with ``event`` first, then the event's fields in the
+    order of :data:`MARKER_EVENTS` (None as ``null``, floats as JSON numbers).
+
+    Raises:
+        ValueError: an unknown event or field (a programming error).
+    """
+    allowed = MARKER_EVENTS.get(event)
+    if allowed is None:
+        raise ValueError(f"unknown marker event {event!r}")
+    extra = set(fields) - set(allowed)
+    if extra:
+        raise ValueError(f"marker {event!r} has no field(s) {sorted(extra)}")
+    body = {"event": event} | {k: _plain(fields[k]) for k in allowed if k in fields}
+    return json.dumps(body, separators=(",", ":"), allow_nan=False)
+
+
+def _plain(v: Any) -> Any:
+    if isinstance(v, bool) or v is None or isinstance(v, int | str):
+        return v
+    if isinstance(v, dict):
+        return {str(k): _plain(x) for k, x in v.items()}
+    if isinstance(v, float):
+        return v if math.isfinite(v) else None
+    return str(v)
+
+
+class _ToLsl:
+    """Maps the runner's clock (ns) to LSL's clock (s).
+
+    On the wall clock both are read at each call, LSL's on both sides of the runner's
+    (the narrowest of three brackets), so the offset is current and the drift between
+    the two clocks does not accumulate. A simulated clock is mapped with the offset
+    read once, when the streams open.
+    """
+
+    def __init__(self, clock: Clock, local_clock: Callable[[], float]) -> None:
+        self.clock = clock
+        self.local_clock = local_clock
+        self.fixed = self._offset() if clock.simulated else None
+        self._last: dict[str, tuple[int, float]] = {}
+
+    def _offset(self) -> float:
+        best: tuple[float, float] | None = None
+        for _ in range(3):
+            a = self.local_clock()
+            c = self.clock.now_ns()
+            b = self.local_clock()
+            if best is None or b - a < best[0]:
+                best = (b - a, (a + b) / 2 - c / 1e9)
+        assert best is not None
+        return best[1]
+
+    def __call__(self, t_ns: int, stream: str = "") -> float:
+        """``t_ns`` on LSL's clock; events of a ``stream`` in the order of their times
+        keep that order (the reading's jitter, tens of nanoseconds, cannot swap them)."""
+        offset = self.fixed if self.fixed is not None else self._offset()
+        ts = t_ns / 1e9 + offset
+        last = self._last.get(stream)
+        if last is not None and t_ns >= last[0] and ts < last[1]:
+            ts = last[1]
+        self._last[stream] = (t_ns, ts)
+        return ts
+
+
+class LslObserver:
+    """A session observer that sends LSL markers and cursor samples (module doc), and
+    forwards every hook to ``inner``.
+
+    Args:
+        inner: the observer to forward to (the experiment window's), or None.
+        clock: the runner's clock (event times are on it).
+        belt: the session's belt (its URL, firmware, layout and whether it reports
+            device-true onsets).
+        wait_s: when the streams open, wait up to this long for a consumer (LabRecorder,
+            an analysis script) on each stream before the first trial; markers sent
+            while none is connected are lost.
+        pylsl: the pylsl module (default: :func:`load_pylsl`).
+
+    Use as a context manager (or call :meth:`close`) to close the outlets.
+    """
+
+    def __init__(self, inner: Any, clock: Clock, belt: Belt, *, wait_s: float = 0.0,
+                 pylsl: Any = None) -> None:
+        from .experiment.runner import NullObserver
+
+        self.inner = inner if inner is not None else NullObserver()
+        self.clock = clock
+        self.belt = belt
+        self.wait_s = float(wait_s)
+        self.lsl = pylsl if pylsl is not None else load_pylsl()
+        self.to_lsl = _ToLsl(clock, self.lsl.local_clock)
+        self.markers: Any = None
+        self.cursor: Any = None
+        self._block_ns: int | None = None
+        self._block: int | None = None
+        self._trial: ScheduledTrial | None = None
+        self._onset_pending = False
+        self._paused = False
+        self._timeout_ns = 0
+        # the running secondary task: (name, phase); its items wait here until their
+        # onset, so the stream stays in time order
+        self._task: tuple[str, str] | None = None
+        self._items: list[tuple[int, dict[str, Any]]] = []
+        #: every marker sent: (LSL timestamp, JSON text)
+        self.sent: list[tuple[float, str]] = []
+
+    # -- streams -----------------------------------------------------------------------
+    def open(self, info: SessionInfo) -> None:
+        """Open both outlets with the session's metadata and wait for consumers."""
+        lsl = self.lsl
+        study = info.study
+        source = f"tactorbelt/{info.participant}/session-{info.session_id}"
+        m = lsl.StreamInfo(MARKER_STREAM, "Markers", 1, lsl.IRREGULAR_RATE, "string",
+                           f"{source}/markers")
+        self._describe(m, info)
+        m.desc().append_child_value("marker_format", MARKER_FORMAT)
+        c = lsl.StreamInfo(CURSOR_STREAM, "Position", 2, float(study.session.sample_rate_hz),
+                           "float32", f"{source}/cursor")
+        self._describe(c, info)
+        chans = c.desc().append_child("channels")
+        for label, what in (("x", "right positive"), ("y", "up (front) positive")):
+            ch = chans.append_child("channel")
+            ch.append_child_value("label", label)
+            ch.append_child_value("type", "Position")
+            ch.append_child_value("unit", "ellipse radius")
+            ch.append_child_value("description", f"cursor {label}, {what}; the response "
+                                  "ellipse has radius 1")
+        try:
+            self.markers = lsl.StreamOutlet(m)
+            self.cursor = lsl.StreamOutlet(c)
+        except (RuntimeError, OSError, ValueError) as exc:  # liblsl: no usable network
+            self.close()
+            raise ConfigError(f"--lsl: liblsl cannot open the LSL streams ({exc}); check "
+                              "the network and the LSL configuration (lsl_api.cfg, "
+                              "LSLAPICFG; docs/lsl.md)") from None
+        if self.wait_s > 0:
+            end = lsl.local_clock() + self.wait_s
+            for name, outlet in ((MARKER_STREAM, self.markers), (CURSOR_STREAM, self.cursor)):
+                if not outlet.wait_for_consumers(max(end - lsl.local_clock(), 0.0)):
+                    log.warning("no LSL consumer connected to %s within %g s; what it sends "
+                                "before one connects is lost", name, self.wait_s)
+
+    def _describe(self, si: Any, info: SessionInfo) -> None:
+        from . import __version__
+
+        d = si.desc()
+        acq = d.append_child("acquisition")
+        acq.append_child_value("manufacturer", "tactorbelt")
+        acq.append_child_value("version", __version__)
+        acq.append_child_value("clock", "sim" if self.clock.simulated else "wall")
+        st = d.append_child("study")
+        st.append_child_value("name", info.study.name)
+        st.append_child_value("condition_order", ",".join(info.condition_order))
+        d.append_child_value("participant", info.participant)
+        d.append_child_value("session_id", str(info.session_id))
+        b = d.append_child("belt")
+        b.append_child_value("url", self.belt.url)
+        b.append_child_value("firmware_version", str(self.belt.firmware_version or ""))
+        b.append_child_value("reports_onsets", "true" if self.belt.reports_onsets else "false")
+        tactors = b.append_child("tactors")
+        for k, angle in enumerate(self.belt.layout.angles_deg):
+            t = tactors.append_child("tactor")
+            t.append_child_value("index", str(k))
+            t.append_child_value("angle_deg", f"{angle:g}")
+
+    def close(self) -> None:
+        """Close both outlets (consumers see the streams end). With a consumer connected,
+        first wait :data:`LINGER_S` (real time) so that the last samples reach it: liblsl
+        drops what is still queued when an outlet closes."""
+        outlets = [o for o in (self.markers, self.cursor) if o is not None]
+        self.markers = self.cursor = None
+        if any(o.have_consumers() for o in outlets):
+            time.sleep(LINGER_S)
+        outlets.clear()
+
+    def __enter__(self) -> LslObserver:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def send(self, t_ns: int, event: str, **fields: Any) -> None:
+        """Send one marker stamped at ``t_ns`` on the runner's clock."""
+        if self.markers is None:
+            return
+        self._flush_items(t_ns)
+        text = marker(event, **fields)
+        ts = self.to_lsl(t_ns, MARKER_STREAM)
+        self.markers.push_sample([text], ts)
+        self.sent.append((ts, text))
+
+    def _flush_items(self, until_ns: int) -> None:
+        """Send the announced task items whose onset is at or before ``until_ns``."""
+        while self._items and self._items[0][0] <= until_ns:
+            onset, fields = self._items.pop(0)
+            self.send(onset, "task_item", **fields)
+
+    # -- markers from the runner's hooks ------------------------------------------------
+    def _trial_fields(self, t: ScheduledTrial) -> dict[str, Any]:
+        return {"trial_index": t.trial_index, "block_index": t.block_index, "block": t.block,
+                "condition": t.condition, "n_targets": t.n_targets, "load": t.load}
+
+    def _end_block(self, now_ns: int) -> None:
+        if self._block is not None:
+            self.send(now_ns, "block_end", block_index=self._block)
+            self._block = None
+
+    def _end_trial(self, now_ns: int, status: str, reason: str | None) -> None:
+        if self._trial is not None:
+            self.send(now_ns, "trial_end", trial_index=self._trial.trial_index, status=status,
+                      abort_reason=reason)
+            self._trial = None
+
+    def on_session_start(self, info: SessionInfo, schedule: list[ScheduledTrial]) -> None:
+        self._timeout_ns = round(info.study.response.timeout_s * 1e9)
+        self.open(info)
+        self.send(self.clock.now_ns(), "session_start", session_id=info.session_id,
+                  participant=info.participant, study=info.study.name,
+                  n_trials=info.n_total, n_done=info.n_done, resumed=info.resumed)
+        self.inner.on_session_start(info, schedule)
+
+    def on_block_start(self, block: str, condition: str) -> None:
+        # sent with the block's first trial, which names it fully
+        self._block_ns = self.clock.now_ns()
+        self.inner.on_block_start(block, condition)
+
+    def on_trial_state(self, trial: ScheduledTrial, state: TrialState, now_ns: int) -> None:
+        from .experiment.trial import TrialState
+
+        if state is TrialState.WAIT_HOME:
+            if self._block_ns is not None or self._block != trial.block_index:
+                at = self._block_ns if self._block_ns is not None else now_ns
+                self._end_block(at)
+                self.send(at, "block_start", block_index=trial.block_index, block=trial.block,
+                          block_name=trial.block_name, condition=trial.condition,
+                          n_targets=trial.n_targets, load=trial.load)
+                self._block, self._block_ns = trial.block_index, None
+            self._trial = trial
+            self._onset_pending = False
+            self.send(now_ns, "trial_start", **self._trial_fields(trial))
+        elif state is TrialState.STIMULUS:
+            if self.belt.reports_onsets:
+                self._onset_pending = True  # the device's onset comes with the result
+            else:
+                self._send_onset(trial, now_ns, "host")
+        self.inner.on_trial_state(trial, state, now_ns)
+
+    def _send_onset(self, t: ScheduledTrial, onset_ns: int, clock: str) -> None:
+        self.send(onset_ns, "stimulus_onset", trial_index=t.trial_index,
+                  target_deg=t.target_deg, on_tactor=t.on_tactor, condition=t.condition,
+                  n_targets=t.n_targets, load=t.load, block=t.block, onset_clock=clock)
+
+    def on_sample(self, sample: CursorSample) -> None:
+        self._flush_items(sample.t_ns)
+        if self.cursor is not None:
+            self.cursor.push_sample([sample.x, sample.y], self.to_lsl(sample.t_ns, CURSOR_STREAM))
+        self.inner.on_sample(sample)
+
+    def on_trial_done(self, result: TrialResult) -> None:
+        t = result.trial
+        if self._onset_pending and result.onset_ns is not None:
+            if result.device_onset_ns is not None:
+                self._send_onset(t, result.device_onset_ns, "device")
+            else:
+                self._send_onset(t, result.onset_ns, "host")
+        self._onset_pending = False
+        if result.status == "done" and result.acquired_ns is not None:
+            self.send(result.acquired_ns, "response", trial_index=t.trial_index,
+                      response_deg=result.response_deg,
+                      response_target_deg=result.response_target_deg,
+                      correct=result.correct, rt_s=result.rt_s)
+        elif result.status == "timeout":
+            at = (result.onset_ns + self._timeout_ns if result.onset_ns is not None
+                  else self.clock.now_ns())
+            self.send(at, "timeout", trial_index=t.trial_index)
+        self._trial = t
+        self._end_trial(self.clock.now_ns(), result.status, result.abort_reason)
+        self.inner.on_trial_done(result)
+
+    def on_break(self, n_done: int, n_total: int) -> None:
+        self.send(self.clock.now_ns(), "break_start", n_done=n_done, n_total=n_total)
+        self.inner.on_break(n_done, n_total)
+        self.send(self.clock.now_ns(), "break_end")
+
+    def on_task_phase(self, name: str | None, spec: TaskSpec | None, phase: str | None
+                      ) -> None:
+        now = self.clock.now_ns()
+        self._end_task(now)
+        if name is not None and spec is not None and phase is not None:
+            self.send(now, "task_start", task=name, kind=spec.kind, phase=phase,
+                      n=spec.n if spec.kind == "nback" else None, modality=spec.modality,
+                      block_index=self._block if phase == "dual" else None)
+            self._task = (name, phase)
+        self.inner.on_task_phase(name, spec, phase)
+
+    def _end_task(self, now_ns: int) -> None:
+        """The running task ends: its items shown by now are sent, the rest never were."""
+        self._flush_items(now_ns)
+        self._items.clear()
+        if self._task is not None:
+            name, phase = self._task
+            self._task = None
+            self.send(now_ns, "task_end", task=name, phase=phase)
+
+    def on_task_item(self, item: TaskItem, onset_ns: int, spec: TaskSpec) -> None:
+        name, phase = self._task if self._task is not None else ("", "")
+        self._items.append((onset_ns, {"task": name, "phase": phase,
+                                       "item_index": item.index, "stimulus": item.stimulus,
+                                       "go": item.target}))
+        self._items.sort(key=lambda x: x[0])
+        self.inner.on_task_item(item, onset_ns, spec)
+
+    def task_presses(self, now_ns: int) -> list[int]:
+        presses: list[int] = self.inner.task_presses(now_ns)
+        if self._task is not None:
+            for p in sorted(presses):
+                self.send(p, "task_press", task=self._task[0], phase=self._task[1])
+        return presses
+
+    def ask_workload(self, info: WorkloadInfo) -> dict[str, float] | None:
+        from .tasks import TLX_SCALE
+
+        values: dict[str, float] | None = self.inner.ask_workload(info)
+        if values is not None:
+            self.send(self.clock.now_ns(), "workload", block_index=info.block_index,
+                      scale=TLX_SCALE, ratings=values)
+        return values
+
+    def on_session_end(self, status: str) -> None:
+        now = self.clock.now_ns()
+        self._end_task(now)
+        self._end_trial(now, "aborted", None)
+        self._end_block(now)
+        self.send(now, "session_end", status=status)
+        self.inner.on_session_end(status)
+
+    def poll(self, now_ns: int) -> Command | None:
+        from .experiment.runner import Command
+
+        self._flush_items(now_ns)
+        cmd = self.inner.poll(now_ns)
+        if cmd is Command.PAUSE and not self._paused:
+            self._paused = True
+            self.send(now_ns, "pause")
+        elif cmd is Command.RESUME and self._paused:
+            self._paused = False
+            self.send(now_ns, "resume")
+        elif cmd is Command.ABORT:
+            self.send(now_ns, "abort")
+        return cmd

@@ -1,0 +1,365 @@
+"""Wearer profiles: what per-wearer perceptual calibration changes in the stimulus engine.
+
+A belt feels different on every wearer: motors differ, and skin sensitivity varies around
+the torso. :class:`WearerProfile` holds, for one wearer on one belt layout,
+
+- ``gains``: one per tactor, multiplying that tactor's amplitude (law output) so every
+  tactor feels as strong as the reference tactor (the result is clipped to 1);
+- ``warps``: one per adjacent pair (a, b) with b the clockwise neighbour of a, a monotone
+  map from the *intended* position in the gap (0 at a, 1 at b) to the *rendered* one,
+  piecewise linear through knots ``(intended, rendered)`` that always include (0, 0) and
+  (1, 1). Pair k is tactor k and its clockwise neighbour.
+
+A stimulus made with a profile (:func:`tactorbelt.stimuli.make_stimulus`, ``profile=``)
+renders ``gains * law(warp(location(t)))``: static stimuli are moved to where the wearer
+feels the intended point; the dynamic perturbation's dwell on each tactor is unchanged
+(the warp keeps tactors in place) and its transit is warped like a static point.
+
+A profile is stored as TOML (:meth:`WearerProfile.to_toml`, :meth:`WearerProfile.load`)::
+
+    format = "tactorbelt-wearer-profile"
+    version = 1
+    participant = "P01"
+    law = "paper"                  # the law and falloff it was measured with
+    falloff_deg = 15.0
+    tactor_angles_deg = [30.0, 90.0, 150.0, 210.0, 270.0, 330.0]
+    gains = [1.0, 1.08, 0.95, 1.0, 1.02, 0.97]
+    reference_tactor = 0
+
+    [[pair]]                       # one per adjacent pair, pair k = tactors k, k+1
+    intended = [0.25, 0.5, 0.75]   # inner knots; 0 and 1 are implied
+    rendered = [0.31, 0.5, 0.69]
+
+Validation refuses a wrong number of gains or pairs for the tactor angles, gains outside
+(0, 10], and warps that are not strictly increasing (``error: FILE: pair[2].rendered: ...``).
+
+Pure: NumPy, the standard library (tomllib) and tactorbelt.geometry; tomli-w only to save.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Final
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ._errors import ConfigError
+from .geometry import Layout, normalize
+
+__all__ = ["FORMAT", "PairWarp", "WearerProfile", "isotonic"]
+
+FORMAT: Final = "tactorbelt-wearer-profile"
+VERSION: Final = 1
+_TOP_KEYS: Final = frozenset({"format", "version", "participant", "belt", "created", "law",
+                              "falloff_deg", "tactor_angles_deg", "gains", "reference_tactor",
+                              "pair", "fit"})
+_PAIR_KEYS: Final = frozenset({"index", "tactors", "intended", "rendered"})
+#: Knots of a warp closer than this (as a fraction of the gap) count as equal.
+_EPS: Final = 1e-9
+
+
+def isotonic(values: Sequence[float], lo: float = 0.0, hi: float = 1.0,
+             min_step: float = 0.01) -> list[float]:
+    """The closest non-decreasing sequence (pool adjacent violators), clipped to
+    [lo + min_step, hi - min_step] and spread to rise by at least ``min_step`` per knot:
+    what turns measured points of subjective equality into a strictly monotone warp."""
+    blocks: list[list[float]] = []  # [mean, weight]
+    for v in values:
+        blocks.append([float(v), 1.0])
+        while len(blocks) > 1 and blocks[-2][0] > blocks[-1][0]:
+            m2, w2 = blocks.pop()
+            m1, w1 = blocks.pop()
+            blocks.append([(m1 * w1 + m2 * w2) / (w1 + w2), w1 + w2])
+    out: list[float] = []
+    for m, w in blocks:
+        out += [m] * int(w)
+    n = len(out)
+    for i in range(n):  # room for the knots before and after
+        out[i] = min(max(out[i], lo + min_step * (i + 1)), hi - min_step * (n - i))
+    for i in range(1, n):
+        out[i] = max(out[i], out[i - 1] + min_step)
+    return out
+
+
+@dataclass(frozen=True)
+class PairWarp:
+    """The warp of one pair: inner knots ``intended -> rendered``, both strictly increasing
+    in (0, 1); (0, 0) and (1, 1) are implied."""
+
+    intended: tuple[float, ...] = ()
+    rendered: tuple[float, ...] = ()
+
+    def __post_init__(self) -> None:
+        problem = _warp_problem(self.intended, self.rendered)
+        if problem:
+            field_, message = problem
+            raise ConfigError(f"warp {field_}: {message}")
+
+    @property
+    def is_identity(self) -> bool:
+        return all(abs(i - r) < _EPS for i, r in zip(self.intended, self.rendered, strict=True))
+
+    def apply(self, fraction: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Rendered fractions for intended ones (vectorised)."""
+        xs = np.concatenate([[0.0], self.intended, [1.0]])
+        ys = np.concatenate([[0.0], self.rendered, [1.0]])
+        return np.asarray(np.interp(fraction, xs, ys))
+
+
+def _warp_problem(intended: Sequence[Any], rendered: Sequence[Any]) -> tuple[str, str] | None:
+    """(field, message) of what is wrong with a warp's knots, or None."""
+    for name, values in (("intended", intended), ("rendered", rendered)):
+        if not all(isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
+                   for v in values):
+            return name, f"must be finite numbers, got {list(values)!r}"
+    if len(intended) != len(rendered):
+        return "rendered", (f"has {len(rendered)} values for {len(intended)} intended "
+                            "positions; give one rendered position per intended one")
+    for name, values in (("intended", intended), ("rendered", rendered)):
+        pts = [0.0, *map(float, values), 1.0]
+        for k in range(1, len(pts)):
+            if pts[k] <= pts[k - 1] + _EPS:
+                return name, (f"must increase strictly from 0 to 1 (a monotone warp), got "
+                              f"{list(values)!r}")
+    return None
+
+
+@dataclass(frozen=True)
+class WearerProfile:
+    """One wearer's perceptual calibration for a belt layout (see the module docstring).
+
+    Attributes:
+        tactor_angles_deg: the layout it was measured on (N tactors).
+        gains: N per-tactor amplitude gains.
+        warps: N pair warps, pair k = tactor k and its clockwise neighbour.
+        participant: who it belongs to.
+        law, falloff_deg: the amplitude law it was measured with.
+        reference_tactor: the tactor the others were matched to.
+        belt: the belt URL it was measured on (informative).
+        created: when (ISO 8601, informative).
+        fit: per-track results (PSE, slope, trials) for the record; not used to render.
+    """
+
+    tactor_angles_deg: tuple[float, ...]
+    gains: tuple[float, ...]
+    warps: tuple[PairWarp, ...]
+    participant: str = ""
+    law: str = "paper"
+    falloff_deg: float = 15.0
+    reference_tactor: int = 0
+    belt: str = ""
+    created: str = ""
+    fit: tuple[Mapping[str, Any], ...] = field(default=(), compare=False)
+
+    def __post_init__(self) -> None:
+        n = len(self.tactor_angles_deg)
+        if len(self.gains) != n:
+            raise ConfigError(f"a wearer profile for {n} tactors needs {n} gains, "
+                              f"got {len(self.gains)}")
+        if len(self.warps) != n:
+            raise ConfigError(f"a wearer profile for {n} tactors needs {n} pair warps, "
+                              f"got {len(self.warps)}")
+        for k, g in enumerate(self.gains):
+            if not (math.isfinite(g) and 0.0 < g <= 10.0):
+                raise ConfigError(f"gain of tactor {k} must be in (0, 10], got {g!r}")
+
+    @classmethod
+    def identity(cls, layout: Layout, **info: Any) -> WearerProfile:
+        """The profile that changes nothing (gains 1, identity warps)."""
+        return cls(tuple(layout.angles_deg), (1.0,) * layout.n,
+                   tuple(PairWarp() for _ in range(layout.n)), **info)
+
+    @property
+    def n(self) -> int:
+        return len(self.gains)
+
+    @property
+    def is_identity(self) -> bool:
+        """True when rendering with the profile changes nothing."""
+        return all(g == 1.0 for g in self.gains) and all(w.is_identity for w in self.warps)
+
+    def layout(self) -> Layout:
+        return Layout(tuple(self.tactor_angles_deg))
+
+    def check_layout(self, layout: Layout, source: str = "wearer profile") -> None:
+        """Raise ConfigError unless the profile was measured on ``layout``."""
+        if layout.n != self.n:
+            raise ConfigError(f"{source}: tactor_angles_deg: the profile has {self.n} tactors "
+                              f"but the belt has {layout.n}; calibrate this wearer on this belt")
+        if not np.allclose(layout.angles_deg, self.tactor_angles_deg, atol=1e-6):
+            raise ConfigError(f"{source}: tactor_angles_deg: measured on tactors at "
+                              f"{list(self.tactor_angles_deg)}, the belt has "
+                              f"{list(layout.angles_deg)}")
+
+    def with_warps(self, warps: Sequence[PairWarp]) -> WearerProfile:
+        from dataclasses import replace
+
+        return replace(self, warps=tuple(warps))
+
+    # -- rendering ------------------------------------------------------------------------
+    def warp_deg(self, layout: Layout, x: ArrayLike) -> NDArray[np.float64]:
+        """Rendered locations for intended ones (degrees, any shape; vectorised).
+
+        A location is placed in its gap (pair k: from tactor k clockwise to k + 1) and
+        its fraction of the gap mapped by that pair's warp; tactors stay where they are.
+        """
+        xa = np.asarray(x, dtype=float)
+        if all(w.is_identity for w in self.warps):
+            return xa
+        angles = layout.angles
+        gaps = layout.gaps_deg()
+        off = np.mod(xa[..., None] - angles, 360.0)            # clockwise from each tactor
+        inside = off < gaps                                      # exactly one k (the gap)
+        k = np.argmax(inside, axis=-1)
+        frac = np.take_along_axis(off, k[..., None], axis=-1)[..., 0] / gaps[k]
+        out = np.array(frac, dtype=float, copy=True)
+        for j, w in enumerate(self.warps):
+            if not w.is_identity:
+                sel = k == j
+                out[sel] = w.apply(frac[sel])
+        return np.asarray(normalize(angles[k] + out * gaps[k]), dtype=float)
+
+    def apply_gains(self, amplitudes: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Amplitudes (last axis = tactors) times the gains, clipped to [0, 1]."""
+        if all(g == 1.0 for g in self.gains):
+            return amplitudes
+        return np.asarray(np.clip(amplitudes * np.asarray(self.gains), 0.0, 1.0))
+
+    # -- files ----------------------------------------------------------------------------
+    def to_mapping(self) -> dict[str, Any]:
+        doc: dict[str, Any] = {"format": FORMAT, "version": VERSION}
+        for key in ("participant", "belt", "created"):
+            if getattr(self, key):
+                doc[key] = getattr(self, key)
+        doc.update(law=self.law, falloff_deg=float(self.falloff_deg),
+                   tactor_angles_deg=[float(a) for a in self.tactor_angles_deg],
+                   gains=[float(g) for g in self.gains],
+                   reference_tactor=int(self.reference_tactor))
+        doc["pair"] = [{"index": k, "tactors": [k, (k + 1) % self.n],
+                        "intended": [float(v) for v in w.intended],
+                        "rendered": [float(v) for v in w.rendered]}
+                       for k, w in enumerate(self.warps)]
+        if self.fit:
+            doc["fit"] = [dict(f) for f in self.fit]
+        return doc
+
+    def to_toml(self) -> str:
+        import tomli_w
+
+        head = ("# tactorbelt wearer profile: per-tactor gains and per-pair warps "
+                "(docs/calibration-perceptual.md)\n")
+        return head + tomli_w.dumps(self.to_mapping())
+
+    def save(self, path: str | Path) -> Path:
+        p = Path(path)
+        try:
+            if p.parent != Path(""):
+                p.parent.mkdir(parents=True, exist_ok=True)
+            p.write_text(self.to_toml(), encoding="utf-8")
+        except OSError as exc:
+            raise ConfigError(f"cannot write wearer profile {str(p)!r}: {exc.strerror}") from None
+        return p
+
+    @classmethod
+    def load(cls, path: str | Path) -> WearerProfile:
+        """Read a profile file; errors name the file and the field."""
+        p = Path(path)
+        try:
+            text = p.read_text(encoding="utf-8")
+        except FileNotFoundError:
+            raise ConfigError(f"wearer profile {str(p)!r} not found") from None
+        except (OSError, UnicodeDecodeError) as exc:
+            raise ConfigError(f"cannot read wearer profile {str(p)!r}: {exc}") from None
+        return cls.from_toml(text, source=str(p))
+
+    @classmethod
+    def from_toml(cls, text: str, source: str = "<wearer profile>") -> WearerProfile:
+        try:
+            doc = tomllib.loads(text)
+        except tomllib.TOMLDecodeError as exc:
+            raise ConfigError(f"{source}: not valid TOML: {exc}") from None
+        return cls.from_mapping(doc, source)
+
+    @classmethod
+    def from_mapping(cls, doc: Mapping[str, Any], source: str = "<wearer profile>"
+                     ) -> WearerProfile:
+        """Build and validate a profile from its TOML structure."""
+
+        def fail(where: str, message: str) -> ConfigError:
+            return ConfigError(f"{source}: {where}: {message}")
+
+        def number(v: Any) -> bool:
+            return isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
+
+        unknown = sorted(set(doc) - _TOP_KEYS)
+        if unknown:
+            raise fail(unknown[0], f"unknown key; allowed: {', '.join(sorted(_TOP_KEYS))}")
+        if doc.get("format") != FORMAT:
+            raise fail("format", f"must be {FORMAT!r}, got {doc.get('format')!r}")
+        if doc.get("version") != VERSION:
+            raise fail("version", f"unsupported version {doc.get('version')!r}; "
+                       f"allowed: {VERSION}")
+        angles = doc.get("tactor_angles_deg")
+        if not isinstance(angles, list) or len(angles) < 2 or not all(map(number, angles)):
+            raise fail("tactor_angles_deg", "must be a list of at least 2 angles (degrees)")
+        n = len(angles)
+        gains = doc.get("gains")
+        if not isinstance(gains, list) or not all(map(number, gains)):
+            raise fail("gains", "must be a list of numbers, one per tactor")
+        if len(gains) != n:
+            raise fail("gains", f"has {len(gains)} values for {n} tactors; give one gain "
+                       "per tactor")
+        for k, g in enumerate(gains):
+            if not 0.0 < g <= 10.0:
+                raise fail(f"gains[{k}]", f"must be in (0, 10], got {g!r}")
+        ref = doc.get("reference_tactor", 0)
+        if isinstance(ref, bool) or not isinstance(ref, int) or not 0 <= ref < n:
+            raise fail("reference_tactor", f"must be a tactor index in 0..{n - 1}, got {ref!r}")
+        law = doc.get("law", "paper")
+        from .laws import LAWS
+
+        if law not in LAWS:
+            raise fail("law", f"unknown law {law!r}; allowed: {', '.join(LAWS)}")
+        falloff = doc.get("falloff_deg", 15.0)
+        if not number(falloff) or falloff <= 0:
+            raise fail("falloff_deg", f"must be a positive number of degrees, got {falloff!r}")
+        pairs = doc.get("pair")
+        if not isinstance(pairs, list):
+            raise fail("pair", "missing: add one [[pair]] table per adjacent pair")
+        if len(pairs) != n:
+            raise fail("pair", f"has {len(pairs)} tables for {n} tactors; give one [[pair]] "
+                       "per adjacent pair (pair k = tactors k and k + 1)")
+        warps: list[PairWarp] = []
+        for k, row in enumerate(pairs):
+            where = f"pair[{k}]"
+            if not isinstance(row, Mapping):
+                raise fail(where, "must be a table with intended and rendered")
+            extra = sorted(set(row) - _PAIR_KEYS)
+            if extra:
+                raise fail(f"{where}.{extra[0]}",
+                           f"unknown key; allowed: {', '.join(sorted(_PAIR_KEYS))}")
+            if "index" in row and row["index"] != k:
+                raise fail(f"{where}.index", f"must be {k} (pairs in order), got {row['index']!r}")
+            if "tactors" in row and list(row["tactors"]) != [k, (k + 1) % n]:
+                raise fail(f"{where}.tactors", f"must be [{k}, {(k + 1) % n}], got "
+                           f"{row['tactors']!r}")
+            intended, rendered = row.get("intended", []), row.get("rendered", [])
+            if not isinstance(intended, list) or not isinstance(rendered, list):
+                raise fail(where, "intended and rendered must be lists of fractions in (0, 1)")
+            problem = _warp_problem(intended, rendered)
+            if problem:
+                raise fail(f"{where}.{problem[0]}", problem[1])
+            warps.append(PairWarp(tuple(map(float, intended)), tuple(map(float, rendered))))
+        fit = doc.get("fit", [])
+        return cls(tuple(map(float, angles)), tuple(map(float, gains)), tuple(warps),
+                   participant=str(doc.get("participant", "")), law=law,
+                   falloff_deg=float(falloff), reference_tactor=ref,
+                   belt=str(doc.get("belt", "")), created=str(doc.get("created", "")),
+                   fit=tuple(fit) if isinstance(fit, list) else ())
+
+
