@@ -196,7 +196,7 @@ _NOT_COMPARED = ("participants", "trials", "samples", "sample_rows", "store_mb",
 def better(key: str) -> str | None:
     """``lower``, ``higher`` or None (not a performance figure): from the figure's goal,
     else from its name."""
-    if key in _NOT_COMPARED:
+    if key in _NOT_COMPARED or key.startswith("time_"):  # a script's run time: noisy
         return None
     for g in GOALS:
         if g.key == key and g.op is not None:
@@ -284,6 +284,7 @@ def main() -> int:
             failures[name] = str(exc)
             print(f"  {name} failed: {exc}", flush=True)
         seconds[name] = time.perf_counter() - t0
+        results[f"time_{name}_s"] = round(seconds[name], 1)  # kept by partial runs
         print(f"  {seconds[name]:.1f} s", flush=True)
     if not only or "cli_help" in only:
         results.update(cli_help())
@@ -331,11 +332,16 @@ def main() -> int:
                   "machine: run the benchmark again alone before believing one):", "",
                   "| figure | committed | now | worse by |", "|---|---|---|---|"]
         lines += [f"| {k} | {old:.4g} | {new:.4g} | {w:.0%} |" for k, old, new, w in worse]
-    if seconds:
-        lines += ["", "## Time per benchmark", "", "| script | s |", "|---|---|"]
-        lines += [f"| {k} | {v:.1f} |" for k, v in seconds.items()]
+    times = {k[len("time_"):-len("_s")]: v for k, v in sorted(results.items())
+             if k.startswith("time_")}
+    if times:
+        lines += ["", "## Time per benchmark", "",
+                  f"Sum: {sum(times.values()):.0f} s (scripts; cli_help adds about 1 s).", "",
+                  "| script | s |", "|---|---|"]
+        lines += [f"| {k} | {v:.1f} |" for k, v in times.items()]
     lines += ["", "## All figures", "", "| key | value |", "|---|---|"]
-    lines += [f"| {k} | {v:.6g} |" for k, v in sorted(results.items())]
+    lines += [f"| {k} | {v:.6g} |" for k, v in sorted(results.items())
+              if not k.startswith("time_")]
     if failures:
         lines += ["", "## Failed benchmarks", ""]
         lines += [f"- {k}: {v}" for k, v in failures.items()]
