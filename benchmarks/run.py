@@ -301,6 +301,8 @@ def main() -> int:
         f"`make {'bench-full' if full else 'bench'}`"
         + (f" in {results['bench_total_s']:.0f} s (goal: under 300 s)."
            if "bench_total_s" in results and not full else "."),
+        *([f"A partial run: {', '.join(sorted(only))} measured now; every other figure is "
+           f"from an earlier run (their dates are in git)."] if only else []),
         "",
         "| figure | value | baseline | ratio | goal | met | what limits it |",
         "|---|---|---|---|---|---|---|",
