@@ -268,14 +268,10 @@ class WearerProfile:
     @classmethod
     def load(cls, path: str | Path) -> WearerProfile:
         """Read a profile file; errors name the file and the field."""
+        from ._textfile import read_user_text
+
         p = Path(path)
-        try:
-            text = p.read_text(encoding="utf-8")
-        except FileNotFoundError:
-            raise ConfigError(f"wearer profile {str(p)!r} not found") from None
-        except (OSError, UnicodeDecodeError) as exc:
-            raise ConfigError(f"cannot read wearer profile {str(p)!r}: {exc}") from None
-        return cls.from_toml(text, source=str(p))
+        return cls.from_toml(read_user_text(p, "wearer profile"), source=str(p))
 
     @classmethod
     def from_toml(cls, text: str, source: str = "<wearer profile>") -> WearerProfile:

@@ -263,17 +263,10 @@ class Calibration:
                 field is missing or out of range; the message names the file and the
                 field (``cal.toml: tactor[2].start: ...``).
         """
+        from .._textfile import read_user_text
+
         p = Path(path)
-        try:
-            text = p.read_text(encoding="utf-8")
-        except FileNotFoundError:
-            raise ConfigError(f"calibration file {str(p)!r} not found") from None
-        except IsADirectoryError:
-            raise ConfigError(f"calibration file {str(p)!r} is a directory") from None
-        except UnicodeDecodeError:
-            raise ConfigError(f"{p}: not a text (UTF-8) calibration file") from None
-        except OSError as exc:
-            raise ConfigError(f"cannot read calibration file {str(p)!r}: {exc.strerror}") from None
+        text = read_user_text(p, "calibration file")
         return cls.from_toml(text, source=str(p))
 
     @classmethod
