@@ -127,9 +127,22 @@ def test_calibrate_perceptual_keeps_the_models_profile(tmp_path: Path) -> None:
     assert proc.returncode == 0, proc.stderr
     assert "gains: 1.00," in proc.stdout and "pair 5: 0.25 -> " in proc.stdout
     assert WearerProfile.load(tmp_path / "M01.toml").participant == "M01"
-    proc = tactorbelt("calibrate", "perceptual", "-p", "M01", "--input", "mouse")
+
+
+
+def test_window_answers_without_a_display_are_a_clear_error() -> None:
+    import os
+    import subprocess
+    import sys
+
+    env = {k: v for k, v in os.environ.items()
+           if k not in ("DISPLAY", "WAYLAND_DISPLAY", "SDL_VIDEODRIVER")}
+    proc = subprocess.run([sys.executable, "-m", "tactorbelt", "calibrate", "perceptual",
+                           "-p", "M01", "--input", "mouse"], env=env, capture_output=True,
+                          text=True, timeout=60, check=False)
     assert proc.returncode == 2
-    assert proc.stderr.startswith("error: --input mouse: the experiment window does not run")
+    assert proc.stderr.startswith("error: no display")
+    assert "--input keyboard" in proc.stderr
 
 
 def test_a_person_answers_with_keys_and_q_writes_nothing(tmp_path: Path) -> None:

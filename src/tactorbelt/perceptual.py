@@ -235,6 +235,9 @@ class Respondent(ABC):
     def say(self, text: str) -> None:  # noqa: B027 - optional hook
         """A message for the person (the model ignores it)."""
 
+    def close(self) -> None:  # noqa: B027 - optional hook
+        """Release what it holds (the window's respondent closes its window)."""
+
 
 class KeyboardRespondent(Respondent):
     """A person answering with keys in the terminal: ``1``/``2`` (first or second was
@@ -519,8 +522,8 @@ def make_respondent(kind: str, belt: Belt, *, seed: int, read_key: Callable[[], 
     """The respondent for ``--input KIND``.
 
     Raises:
-        ConfigError: joystick and mouse (the window does not run this procedure yet),
-            or the model on a belt that models no vibration.
+        ConfigError: joystick or mouse without a display, or the model on a belt that
+            models no vibration; DeviceError: ``joystick`` without a joystick.
     """
     if kind == "model":
         from .inputs.model import make_model_respondent
@@ -529,8 +532,15 @@ def make_respondent(kind: str, belt: Belt, *, seed: int, read_key: Callable[[], 
     if kind == "keyboard":
         return KeyboardRespondent(read_key, say)
     if kind in ("joystick", "mouse"):
-        raise ConfigError(f"--input {kind}: the experiment window does not run the perceptual "
-                          "calibration yet; answer in the terminal with --input keyboard")
+        from .launch import has_display
+
+        if not has_display():
+            raise ConfigError(f"no display (DISPLAY and WAYLAND_DISPLAY are not set) for the "
+                              f"window --input {kind} answers in; answer in the terminal "
+                              "with --input keyboard")
+        from .gui.perceptual import WindowRespondent
+
+        return WindowRespondent(belt.layout, joystick=kind == "joystick")
     raise ConfigError(f"unknown input {kind!r}; allowed: {', '.join(INPUTS)}")
 
 
@@ -559,8 +569,12 @@ def calibrate_wearer(belt_url: str, participant: str, *, input_kind: str = "keyb
     with open_belt(belt_url, **options) as belt:
         clock = belt.clock or WallClock()
         respondent = make_respondent(input_kind, belt, seed=seed, read_key=read_key, say=say)
-        result = run_perceptual_calibration(belt, clock, respondent, participant=who,
-                                            settings=settings, seed=seed, created=utc_now())
+        try:
+            result = run_perceptual_calibration(belt, clock, respondent, participant=who,
+                                                settings=settings, seed=seed,
+                                                created=utc_now())
+        finally:
+            respondent.close()
     if db is not None:
         with open_store(db) as store:
             store.save_wearer_profile(who, result.profile.to_toml())

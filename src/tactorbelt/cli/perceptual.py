@@ -23,9 +23,9 @@ _INPUTS = ("keyboard", "model", "joystick", "mouse")
               help="Participant id: letters, digits, '-' or '_' (e.g. P01).")
 @click.option("--input", "input_kind", type=click.Choice(_INPUTS), default="keyboard",
               show_default=True,
-              help="Who answers: keyboard (a person, in the terminal) or model (the model "
-                   "participant, on the sim belt); joystick and mouse need the window, "
-                   "which does not run this yet.")
+              help="Who answers: keyboard (a person, keys in the terminal), mouse (a "
+                   "person in a window: mouse or keys), joystick (a person in a window: "
+                   "the stick and a button) or model (the model participant).")
 @click.option("--db", default=None, metavar="STORE",
               help="Keep the profile with the participant in this store (SQLite path or "
                    "postgresql://...); `run` then renders the study for this wearer.")
@@ -39,7 +39,8 @@ def perceptual(belt_url: str, participant: str, input_kind: str, db: str | None,
     (keys 1 / 2). Part 2: for each adjacent pair, a point between the two tactors,
     "was it nearer tactor a or tactor b than the marked point" (keys a / b). QUEST+
     chooses each next stimulus; at most 228 trials, about 9 minutes with 6 tactors.
-    q quits without writing. See docs/calibration-perceptual.md.
+    q quits without writing. --input mouse or joystick asks in a window instead (the
+    marked point drawn on the belt; Esc Esc quits). See docs/calibration-perceptual.md.
     """
     from ..calibrate import CalibrationQuit
     from ..perceptual import calibrate_wearer
