@@ -21,6 +21,7 @@ pygame, imported when the window opens.
 from __future__ import annotations
 
 import math
+import os
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -92,6 +93,7 @@ class WindowRespondent(Respondent):
                  size: tuple[int, int] = (1000, 700),
                  events: Callable[[], Sequence[Any]] | None = None,
                  on_frame: Callable[[Any, str], None] | None = None) -> None:
+        os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")
         import pygame
 
         from ..calibrate import CalibrationQuit
