@@ -4,7 +4,7 @@ Every layer that needs time takes a :class:`Clock`, so tests and simulations run
 exactly and fast on :class:`SimClock`. Times are integer nanoseconds on a monotonic
 scale (``time.perf_counter_ns`` for the wall clock).
 
-Imports only the standard library.
+Imports only the standard library (numpy in :meth:`Deadlines.deadlines`).
 """
 
 from __future__ import annotations
@@ -13,7 +13,11 @@ import functools
 import math
 import time
 from fractions import Fraction
-from typing import Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Protocol, runtime_checkable
+
+if TYPE_CHECKING:
+    import numpy as np
+    from numpy.typing import NDArray
 
 __all__ = ["Clock", "Deadlines", "SimClock", "WallClock", "ns", "seconds"]
 
@@ -148,6 +152,18 @@ class Deadlines:
     def deadline(self, i: int) -> int:
         """The deadline of frame ``i`` (integer ns)."""
         return self.onset_ns + (i * self._p) // self._q
+
+    def deadlines(self, first: int, n: int) -> NDArray[np.int64]:
+        """The deadlines of frames ``first`` .. ``first + n - 1`` (int64 ns), as
+        :meth:`deadline` computes them one by one."""
+        import numpy as np
+
+        last = first + max(int(n), 1) - 1
+        if first < 0 or last * self._p >= 2**62 or abs(self.onset_ns) >= 2**62:
+            return np.array([self.deadline(i) for i in range(first, first + int(n))],
+                            dtype=np.int64)
+        i = np.arange(first, first + int(n), dtype=np.int64)
+        return np.asarray(self.onset_ns + (i * self._p) // self._q, dtype=np.int64)
 
     def time_s(self, i: int) -> float:
         """The time of frame ``i`` since the onset, in seconds."""

@@ -227,6 +227,12 @@ class Player:
             return self.clock.now_ns() < self._end
         return True
 
+    @property
+    def pumped(self) -> bool:
+        """True while :meth:`pump` writes frames: a streamed playback on a simulated clock
+        (a device-rendered one, or one written by the background thread, needs no pump)."""
+        return self._active and not self._device and self._thread is None
+
     def renders_on_device(self, stimulus: Stimulus) -> bool:
         """True when :meth:`start` hands ``stimulus`` to the belt (else it streams it)."""
         from .stimuli import Stimulus

@@ -540,11 +540,22 @@ class SimBelt(Belt):
                 t_a, w_a = self._ck_t[j], self._ck_w[j]
             else:
                 t_a, w_a = self._base_t, self._base_w
-        grid = _sorted_unique(np.concatenate([np.array([t_a], dtype=np.int64),
+        # the latest time no future command can change (its state is remembered below)
+        settled = max(min(int(self.clock.now_ns()), t_last), t_a)
+        grid = _sorted_unique(np.concatenate([np.array([t_a, settled], dtype=np.int64),
                                               self._breakpoints(t_a, t_last), times]))
-        w = erm_speed(grid, self._levels_at(grid), w_a, self.params)
+        levels = self._levels_at(grid)
+        # a breakpoint where the drive stays the same is no step: over a constant drive
+        # the speed relaxes as one exponential (the times asked for are kept)
+        keep = np.empty(grid.shape[0], dtype=bool)
+        keep[0] = True
+        np.any(levels[1:] != levels[:-1], axis=1, out=keep[1:])
+        keep[np.searchsorted(grid, times)] = True
+        keep[np.searchsorted(grid, settled)] = True
+        if not keep.all():
+            grid, levels = grid[keep], levels[keep]
+        w = erm_speed(grid, levels, w_a, self.params)
         # remember the state at the latest time no future command can change
-        settled = min(int(self.clock.now_ns()), t_last)
         js = int(np.searchsorted(grid, settled, side="right")) - 1
         if js > 0 and (not self._ck_t or int(grid[js]) > self._ck_t[-1]):
             self._add_checkpoint(int(grid[js]), w[js].copy())

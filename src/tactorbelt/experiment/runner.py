@@ -35,6 +35,7 @@ I/O edge: imports the pure experiment modules, the store, tactorbelt.stimuli and
 
 from __future__ import annotations
 
+import bisect
 import contextlib
 import json
 import re
@@ -79,6 +80,9 @@ SIM_HOME_LIMIT_NS = 600_000_000_000
 #: SessionResult.results keeps the cursor samples of this many most recent trials; older
 #: results drop theirs (they are in the store), so a long session's memory stays flat.
 RESULT_SAMPLES_KEPT = 1000
+#: A simulated session nobody watches reads the model participant's cursor in runs of
+#: up to this many sampling ticks (:meth:`SessionRunner._present_runs`).
+RUN_TICKS = 256
 
 
 class Command(StrEnum):
@@ -688,6 +692,10 @@ class SessionRunner:
         self.cursor.trial_started(cue, onset)
         self.obs.on_trial_state(t, TrialState.STIMULUS, onset)
         ticks = self._ticks(onset, first=0)
+        if (self._headless and self._task is None and self.cursor.reads_runs
+                and isinstance(self.clock, SimClock) and self.clock.exact
+                and not self.player.pumped):
+            return self._present_runs(machine, ticks)
         playing = True
         headless = self._headless
         read, feed, tick = self.cursor.read, machine.feed, self._tick
@@ -706,6 +714,39 @@ class SessionRunner:
                 return state
             if not headless:
                 self.handle(self.obs.poll(now), machine)
+
+    def _present_runs(self, machine: TrialMachine, ticks: Deadlines) -> TrialState:
+        """:meth:`present`'s loop when nothing but the samples depends on the ticks: a
+        simulated session on an exact clock that nobody watches, no task running, a
+        device-rendered stimulus and a cursor that reads in runs (the model
+        participant). The cursor is read for runs of up to :data:`RUN_TICKS` ticks
+        (:meth:`~tactorbelt.inputs.base.CursorSource.read_run`) and the trial machine
+        takes them up to the one that ends the trial; the clock stands at a run's first
+        tick when it is read and at its last sample after, and a run ends at the tick
+        the stimulus is due off, so every effect (the model's decision reading the
+        belt, the stimulus stopping) happens at the time it happens sample by sample,
+        and the stored samples are the same."""
+        clock, cursor, machine_feed = self.clock, self.cursor, machine.feed_run
+        onset = ticks.onset_ns
+        off_ns = onset + machine.rule.max_presentation_ns
+        playing = True
+        while True:
+            first = ticks.next_index
+            times = ticks.deadlines(first, RUN_TICKS)
+            if playing and int(times[-1]) >= off_ns:
+                times = times[: bisect.bisect_left(times.tolist(), off_ns) + 1]
+            clock.sleep_until_ns(int(times[0]))
+            n = cursor.read_run(times, machine_feed)
+            now = int(times[n - 1])
+            clock.sleep_until_ns(now)
+            ticks.next_index = first + n
+            finished = machine.finished
+            if playing and (finished or machine.stimulus_due_off(now)):
+                self.player.stop()
+                machine.stimulus_stopped(clock.now_ns())
+                playing = False
+            if finished:
+                return machine.state
 
     def run_trial(self, t: ScheduledTrial) -> TrialResult:
         """One trial: home, stimulus and response. A pause returns it ``aborted``; any

@@ -20,7 +20,7 @@
 The machine is pure: it never reads a clock or a device; times come in with the
 samples (integer nanoseconds on the runner's clock).
 
-Imports only the standard library and tactorbelt.geometry / experiment.schedule.
+Imports numpy, the standard library and tactorbelt.geometry / experiment.schedule.
 """
 
 from __future__ import annotations
@@ -28,11 +28,17 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from enum import StrEnum
+from typing import TYPE_CHECKING
+
+import numpy as np
 
 from .._errors import TactorbeltError
 from ..geometry import TargetSet, normalize, wrap
 from ..inputs.base import CursorSample
 from .schedule import ScheduledTrial
+
+if TYPE_CHECKING:
+    from numpy.typing import NDArray
 
 __all__ = [
     "ResponseRule",
@@ -225,6 +231,38 @@ class TrialMachine:
             r.crossed_ns = None
             self.state = TrialState.TIMEOUT
         return self.state
+
+    def feed_run(self, t_ns: NDArray[np.int64], x: NDArray[np.float64],
+                 y: NDArray[np.float64]) -> int:
+        """:meth:`feed` for a run of samples (no buttons) in time order, up to the one
+        that ends the trial; returns how many were recorded. The outcome is the one
+        :meth:`feed` gives sample by sample."""
+        self._expect(TrialState.STIMULUS)
+        n = len(t_ns)
+        if self.rule.dwell_ns > 0:  # the crossing time carries over from sample to sample
+            for i in range(n):
+                if self.feed(int(t_ns[i]), float(x[i]), float(y[i])) is not TrialState.STIMULUS:
+                    return i + 1
+            return n
+        r = self.result
+        assert r.onset_ns is not None
+        above = x * x + y * y > self._thr2
+        ends = np.flatnonzero(above | (t_ns - r.onset_ns >= self.rule.timeout_ns))
+        m = int(ends[0]) + 1 if ends.size else n
+        r.sample_t_ns.extend(t_ns[:m].tolist())
+        r.sample_x.extend(x[:m].tolist())
+        r.sample_y.extend(y[:m].tolist())
+        r.sample_buttons.extend([0] * m)
+        r.crossed_ns = None
+        if ends.size:
+            i = m - 1
+            if above[i]:
+                r.crossed_ns = int(t_ns[i])
+                self._respond(int(t_ns[i]), float(x[i]), float(y[i]))
+            else:
+                r.status = "timeout"
+                self.state = TrialState.TIMEOUT
+        return m
 
     def _respond(self, t_ns: int, x: float, y: float) -> None:
         r = self.result

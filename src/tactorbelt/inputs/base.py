@@ -14,25 +14,33 @@ runs and which items it presents, and asks it for response presses and workload
 ratings: no-ops here, so a person's device answers nothing (the window collects a
 person's presses and ratings); the model participant answers them itself.
 
-Imports only the standard library and tactorbelt.geometry (the task and study types
-for annotations).
+Imports only the standard library and tactorbelt.geometry (numpy and the task and study
+types for annotations).
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from ..geometry import Layout
 
 if TYPE_CHECKING:
+    import numpy as np
+    from numpy.typing import NDArray
+
     from ..experiment.study import TaskSpec
     from ..gui.layout import EllipseGeometry
     from ..perceptual import Respondent
     from ..tasks import WorkloadInfo
     from ..tasks.schedule import TaskItem
 
-__all__ = ["CursorSample", "CursorSource", "TrialCue"]
+__all__ = ["CursorSample", "CursorSource", "RunTaker", "TrialCue"]
+
+#: ``take(t_ns, x, y) -> m``: what :meth:`CursorSource.read_run` hands a run of samples
+#: to (the trial machine's :meth:`~tactorbelt.experiment.trial.TrialMachine.feed_run`).
+RunTaker = Callable[[Any, Any, Any], int]
 
 
 @dataclass(frozen=True)
@@ -79,9 +87,13 @@ class CursorSource:
         raw_axes: the device's raw axes for the overlay, or None.
         person: True when a person moves the cursor (every source but the model
             participant); a session without a person may batch its store commits.
+        reads_runs: True when the source can be read for a run of sampling times at
+            once (:meth:`read_run`; the model participant): a simulated session that
+            nobody watches samples it that way, with the same samples.
     """
 
     person: bool = True
+    reads_runs: bool = False
     geometry: EllipseGeometry | None = None
     name: str | None = None
     problem: str | None = None
@@ -99,6 +111,19 @@ class CursorSource:
     def read(self, now_ns: int) -> CursorSample:
         """The cursor at ``now_ns`` (the runner's clock)."""
         raise NotImplementedError
+
+    def read_run(self, times_ns: NDArray[np.int64], take: RunTaker) -> int:
+        """Read the cursor at the first k of ``times_ns`` (increasing sampling times, the
+        clock at ``times_ns[0]``) as k calls of :meth:`read` would, hand them to
+        ``take(t_ns, x, y)`` (arrays of length k), which returns how many m (1..k) it
+        used, and go on as if only those m reads had been made; return m.
+
+        The source chooses k >= 1: a run never goes past a point where reading has an
+        effect beyond the run (the model participant's decision, which reads the belt,
+        only ever at a run's first time). Buttons are never pressed in a run. Only for
+        sources with :attr:`reads_runs`.
+        """
+        raise NotImplementedError(f"{type(self).__name__} cannot be read in runs")
 
     def trial_started(self, cue: TrialCue, onset_ns: int) -> None:
         """The stimulus of a trial started at ``onset_ns``."""

@@ -53,7 +53,7 @@ from ..participant.params import ModelParams
 from ..participant.perception import Percepts, perceive_vibration
 from ..participant.timing import decision_s, observation_s
 from ..perceptual import Interval, Respondent
-from .base import CursorSample, CursorSource, TrialCue
+from .base import CursorSample, CursorSource, RunTaker, TrialCue
 
 if TYPE_CHECKING:
     from ..devices.base import Belt
@@ -112,6 +112,20 @@ class _Move:
         f = s * s * s * (10.0 - 15.0 * s + 6.0 * s * s)  # minimum jerk (timing.min_jerk)
         return self.x0 + (self.x1 - self.x0) * f, self.y0 + (self.y1 - self.y0) * f
 
+    def at_many(self, t_ns: NDArray[np.int64]) -> tuple[NDArray[np.float64],
+                                                        NDArray[np.float64]]:
+        """:meth:`at` for many times, with the same floating-point operations in the
+        same order (so each value is bit for bit what :meth:`at` gives)."""
+        s = (t_ns - self.start_ns) / self.duration_ns
+        f = s * s * s * (10.0 - 15.0 * s + 6.0 * s * s)
+        x = self.x0 + (self.x1 - self.x0) * f
+        y = self.y0 + (self.y1 - self.y0) * f
+        before, after = s <= 0.0, s >= 1.0
+        if before.any() or after.any():
+            x = np.where(before, self.x0, np.where(after, self.x1, x))
+            y = np.where(before, self.y0, np.where(after, self.y1, y))
+        return x, y
+
 
 class ModelCursor(CursorSource):
     """A model participant driving the cursor (see the module docstring).
@@ -127,6 +141,7 @@ class ModelCursor(CursorSource):
     """
 
     person = False
+    reads_runs = True
 
     def __init__(self, sense: Sense, seed: int, params: ModelParams | None = None,
                  clock: Clock | None = None, load: LoadParams | None = None) -> None:
@@ -152,6 +167,7 @@ class ModelCursor(CursorSource):
         self._move: _Move | None = None
         self._targets: dict[tuple[float, ...], TargetSet] = {}
         self._noise: list[float] = []
+        self._noise_arr: NDArray[np.float64] = np.zeros(0)
         self._noise_i = 0
         #: The decision of the latest trial (None before the first decision).
         self.last_decision: ModelDecision | None = None
@@ -180,13 +196,48 @@ class ModelCursor(CursorSource):
         j = self.params.jitter
         if j > 0:
             if self._noise_i + 2 > len(self._noise):
-                self._noise = self._rng.standard_normal(_NOISE_BLOCK).tolist()
-                self._noise_i = 0
+                self._refill_noise()
             i = self._noise_i
             x += j * self._noise[i]
             y += j * self._noise[i + 1]
             self._noise_i = i + 2
         return CursorSample(now, x, y, 0)
+
+    def read_run(self, times_ns: NDArray[np.int64], take: RunTaker) -> int:
+        """:meth:`read` at a run of sampling times (the runner's fast path): the same
+        positions, decision and sensor noise, in the same order of random draws.
+
+        A run decides (reads the belt) only at its first time and ends before the next
+        decision is due and where the drawn noise runs out, so what ``take`` leaves
+        unread has had no effect."""
+        times = np.asarray(times_ns, dtype=np.int64)
+        first = int(times[0])
+        if self._cue is not None and self._decide_ns is not None and first >= self._decide_ns:
+            self._decide(first)
+        n = times.shape[0]
+        if self._cue is not None and self._decide_ns is not None:
+            n = min(n, int(np.searchsorted(times, self._decide_ns, side="left")))
+        j = self.params.jitter
+        if j > 0:
+            if self._noise_i + 2 > len(self._noise):
+                self._refill_noise()
+            n = min(n, (len(self._noise) - self._noise_i) // 2)
+        t = times[:n]
+        if self._move is None:
+            x, y = np.zeros(n), np.zeros(n)
+        else:
+            x, y = self._move.at_many(t)
+        if j > 0:
+            i = self._noise_i
+            noise = self._noise_arr[i : i + 2 * n]
+            x = x + j * noise[0::2]
+            y = y + j * noise[1::2]
+        m = int(take(t, x, y))
+        if not 1 <= m <= n:
+            raise ValueError(f"take() used {m} of a run of {n} samples")
+        if j > 0:
+            self._noise_i += 2 * m
+        return m
 
     def calibration_respondent(self, seed: int) -> Respondent:
         """The same observer answering perceptual-calibration trials on the same belt
@@ -219,6 +270,11 @@ class ModelCursor(CursorSource):
         if self._move is None:
             return 0.0, 0.0
         return self._move.at(now_ns)
+
+    def _refill_noise(self) -> None:
+        self._noise_arr = self._rng.standard_normal(_NOISE_BLOCK)
+        self._noise = self._noise_arr.tolist()
+        self._noise_i = 0
 
     def _target_set(self, cue: TrialCue) -> TargetSet:
         key = tuple(cue.targets_deg)
