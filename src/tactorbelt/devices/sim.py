@@ -169,6 +169,7 @@ class _Render:
         self.end_ns = end_ns
         self.calibration = calibration
         self._table: FloatArray | None = None
+        self._changes: IntArray | None = None
         self._table_ticks = 0
         self._tables = tables
         ticks_per_s = 1e9 / RENDER_TICK_NS
@@ -179,23 +180,45 @@ class _Render:
             if abs(per - round(per)) < 1e-9 and 0 < round(per) <= self.MAX_TABLE:
                 self._table_ticks = round(per)
 
+    def _period_table(self) -> FloatArray:
+        """The levels of one period, tick by tick (periodic renders only)."""
+        if self._table is None:
+            key = (self.stimulus, self.calibration)
+            table = self._tables.get(key) if self._tables is not None else None
+            if table is None:
+                k = np.arange(self._table_ticks)
+                table = self.calibration.apply(
+                    self.stimulus.amplitudes(k / (1e9 / RENDER_TICK_NS)))
+                if self._tables is not None:
+                    if len(self._tables) >= _MAX_TABLES:
+                        del self._tables[next(iter(self._tables))]
+                    self._tables[key] = table
+            self._table = table
+        return self._table
+
+    def change_ticks(self, k0: int, k1: int) -> IntArray:
+        """The ticks in [k0, k1) (counted from the onset) at which the levels may differ
+        from the tick before: every tick, or for a periodic render only those where its
+        period's table changes (none for a constant one)."""
+        if not self._table_ticks:
+            return np.arange(k0, k1, dtype=np.int64)
+        if self._changes is None:
+            table = self._period_table()
+            self._changes = np.flatnonzero(np.any(table != np.roll(table, 1, axis=0),
+                                                  axis=1)).astype(np.int64)
+        c, period = self._changes, self._table_ticks
+        if c.size == 0 or k1 <= k0:
+            return np.zeros(0, dtype=np.int64)
+        p0, p1 = k0 // period, (k1 - 1) // period
+        ks = (np.arange(p0, p1 + 1, dtype=np.int64)[:, None] * period + c[None, :]).ravel()
+        return np.asarray(ks[(ks >= k0) & (ks < k1)])
+
     def levels(self, times: IntArray) -> FloatArray:
         """Drive levels at ``times`` (all at or after the onset)."""
         ticks = (times - self.onset_ns) // RENDER_TICK_NS
         ticks_per_s = 1e9 / RENDER_TICK_NS
         if self._table_ticks:
-            if self._table is None:
-                key = (self.stimulus, self.calibration)
-                table = self._tables.get(key) if self._tables is not None else None
-                if table is None:
-                    k = np.arange(self._table_ticks)
-                    table = self.calibration.apply(self.stimulus.amplitudes(k / ticks_per_s))
-                    if self._tables is not None:
-                        if len(self._tables) >= _MAX_TABLES:
-                            del self._tables[next(iter(self._tables))]
-                        self._tables[key] = table
-                self._table = table
-            levels = self._table[ticks % self._table_ticks]
+            levels = self._period_table()[ticks % self._table_ticks]
         else:
             levels = self.calibration.apply(self.stimulus.amplitudes(ticks / ticks_per_s))
         if self.end_ns is not None:
@@ -501,7 +524,7 @@ class SimBelt(Belt):
             k0 = -((render.onset_ns - seg_start) // RENDER_TICK_NS)  # ceil
             k1 = -((render.onset_ns - seg_end) // RENDER_TICK_NS)
             if k1 > k0:
-                parts.append(render.onset_ns + np.arange(k0, k1, dtype=np.int64) * RENDER_TICK_NS)
+                parts.append(render.onset_ns + render.change_ticks(k0, k1) * RENDER_TICK_NS)
         return np.concatenate(parts)
 
     def _add_checkpoint(self, t_ns: int, w: FloatArray) -> None:

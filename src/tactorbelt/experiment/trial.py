@@ -182,6 +182,7 @@ class TrialMachine:
         self.trial = trial
         self.rule = rule
         self._targets = targets.angles_deg
+        self._target_arr = np.asarray(self._targets, dtype=float)
         self.state = TrialState.WAIT_HOME
         self.result = TrialResult(trial)
         self._thr2 = rule.threshold * rule.threshold
@@ -268,8 +269,7 @@ class TrialMachine:
         r = self.result
         assert r.onset_ns is not None
         angle = cursor_angle_deg(x, y)
-        d = [abs(wrap(angle - a)) for a in self._targets]
-        chosen = self._targets[d.index(min(d))]
+        chosen = self._targets[int(np.argmin(np.abs(wrap(angle - self._target_arr))))]
         r.acquired_ns = t_ns
         r.response_deg = angle
         r.response_target_deg = float(chosen)
