@@ -151,6 +151,18 @@ class SimCommand:
     end_ns: int | None = None
 
 
+class _Period:
+    """One period of a periodic render: its levels tick by tick and the ticks where they
+    change from the tick before (cyclically; none for a constant stimulus)."""
+
+    __slots__ = ("changes", "levels")
+
+    def __init__(self, levels: FloatArray) -> None:
+        self.levels = levels
+        self.changes: IntArray = np.flatnonzero(
+            np.any(levels != np.roll(levels, 1, axis=0), axis=1)).astype(np.int64)
+
+
 class _Render:
     """A stimulus the sim belt renders itself from ``onset_ns`` (1 kHz ticks).
 
@@ -163,13 +175,12 @@ class _Render:
 
     def __init__(self, stimulus: Stimulus, onset_ns: int, end_ns: int | None,
                  calibration: Calibration,
-                 tables: dict[tuple[Stimulus, Calibration], FloatArray] | None = None) -> None:
+                 tables: dict[tuple[Stimulus, Calibration], _Period] | None = None) -> None:
         self.stimulus = stimulus
         self.onset_ns = onset_ns
         self.end_ns = end_ns
         self.calibration = calibration
-        self._table: FloatArray | None = None
-        self._changes: IntArray | None = None
+        self._table: _Period | None = None
         self._table_ticks = 0
         self._tables = tables
         ticks_per_s = 1e9 / RENDER_TICK_NS
@@ -180,20 +191,21 @@ class _Render:
             if abs(per - round(per)) < 1e-9 and 0 < round(per) <= self.MAX_TABLE:
                 self._table_ticks = round(per)
 
-    def _period_table(self) -> FloatArray:
-        """The levels of one period, tick by tick (periodic renders only)."""
+    def _period(self) -> _Period:
+        """One period's levels tick by tick (periodic renders only), shared by the renders
+        of the same stimulus on the belt."""
         if self._table is None:
             key = (self.stimulus, self.calibration)
-            table = self._tables.get(key) if self._tables is not None else None
-            if table is None:
+            period = self._tables.get(key) if self._tables is not None else None
+            if period is None:
                 k = np.arange(self._table_ticks)
-                table = self.calibration.apply(
-                    self.stimulus.amplitudes(k / (1e9 / RENDER_TICK_NS)))
+                period = _Period(self.calibration.apply(
+                    self.stimulus.amplitudes(k / (1e9 / RENDER_TICK_NS))))
                 if self._tables is not None:
                     if len(self._tables) >= _MAX_TABLES:
                         del self._tables[next(iter(self._tables))]
-                    self._tables[key] = table
-            self._table = table
+                    self._tables[key] = period
+            self._table = period
         return self._table
 
     def change_ticks(self, k0: int, k1: int) -> IntArray:
@@ -202,11 +214,7 @@ class _Render:
         period's table changes (none for a constant one)."""
         if not self._table_ticks:
             return np.arange(k0, k1, dtype=np.int64)
-        if self._changes is None:
-            table = self._period_table()
-            self._changes = np.flatnonzero(np.any(table != np.roll(table, 1, axis=0),
-                                                  axis=1)).astype(np.int64)
-        c, period = self._changes, self._table_ticks
+        c, period = self._period().changes, self._table_ticks
         if c.size == 0 or k1 <= k0:
             return np.zeros(0, dtype=np.int64)
         p0, p1 = k0 // period, (k1 - 1) // period
@@ -218,7 +226,7 @@ class _Render:
         ticks = (times - self.onset_ns) // RENDER_TICK_NS
         ticks_per_s = 1e9 / RENDER_TICK_NS
         if self._table_ticks:
-            levels = self._period_table()[ticks % self._table_ticks]
+            levels = self._period().levels[ticks % self._table_ticks]
         else:
             levels = self.calibration.apply(self.stimulus.amplitudes(ticks / ticks_per_s))
         if self.end_ns is not None:
@@ -404,7 +412,7 @@ class SimBelt(Belt):
         self._lo = 0
         self._hi = 0
         self._renders: dict[int, _Render] = {}
-        self._tables: dict[tuple[Stimulus, Calibration], FloatArray] = {}
+        self._tables: dict[tuple[Stimulus, Calibration], _Period] = {}
         self._next_rid = 0
         self._base_t = int(self.clock.now_ns())
         self._base_w = np.zeros(n)

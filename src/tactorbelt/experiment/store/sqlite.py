@@ -47,6 +47,7 @@ modules; never devices, inputs or the window.
 from __future__ import annotations
 
 import contextlib
+import itertools
 import json
 import os
 import shutil
@@ -793,9 +794,13 @@ class SQLiteStore(Store):
                     f"VALUES ({', '.join('?' * len(_TRIAL_COLUMNS))})", values)
                 trial_id = int(cur.lastrowid or 0)
                 if result.n_samples:
+                    onset = result.onset_ns or 0
                     c.executemany(
                         "INSERT INTO samples(trial_id, t_s, x, y, buttons) VALUES (?,?,?,?,?)",
-                        [(trial_id, *row) for row in result.sample_rows()],
+                        zip(itertools.repeat(trial_id, len(result.sample_t_ns)),
+                            [(t - onset) / 1e9 for t in result.sample_t_ns],
+                            result.sample_x, result.sample_y, result.sample_buttons,
+                            strict=True),
                     )
                 return trial_id
         except sqlite3.DatabaseError as exc:
