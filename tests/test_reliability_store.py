@@ -212,13 +212,21 @@ class _FailingConn:
         self._conn = conn
         self._message = message
         self._after = after
-        self.inserts = 0
+        self.trials = 0
+
+    def _check(self, sql: str) -> None:
+        head = sql.lstrip().upper()
+        if head.startswith("INSERT INTO TRIALS"):
+            self.trials += 1
+        elif head.startswith("INSERT INTO SAMPLES") and self.trials > self._after:
+            raise sqlite3.OperationalError(self._message)
+
+    def execute(self, sql: str, *args: Any) -> Any:
+        self._check(sql)
+        return self._conn.execute(sql, *args)
 
     def executemany(self, sql: str, rows: Any) -> Any:
-        if sql.lstrip().upper().startswith("INSERT INTO SAMPLES"):
-            self.inserts += 1
-            if self.inserts > self._after:
-                raise sqlite3.OperationalError(self._message)
+        self._check(sql)
         return self._conn.executemany(sql, rows)
 
     def __getattr__(self, name: str) -> Any:

@@ -303,6 +303,34 @@ def _path_of(url: str | Path) -> Path:
     return Path(text)
 
 
+#: Samples are inserted this many rows to a statement (a statement per row costs about
+#: twice as much; 100 rows are 500 parameters, well within SQLite's limit).
+_SAMPLE_ROWS_PER_INSERT = 100
+
+
+def _samples_sql(n_rows: int) -> str:
+    return ("INSERT INTO samples(trial_id, t_s, x, y, buttons) VALUES "
+            + ",".join(["(?,?,?,?,?)"] * n_rows))
+
+
+_SAMPLES_SQL = _samples_sql(_SAMPLE_ROWS_PER_INSERT)
+
+
+def _insert_samples(c: sqlite3.Connection, trial_id: int, result: TrialResult) -> None:
+    """A trial's samples, in order, ``_SAMPLE_ROWS_PER_INSERT`` rows to a statement."""
+    onset = result.onset_ns or 0
+    n = len(result.sample_t_ns)
+    values = list(itertools.chain.from_iterable(zip(
+        itertools.repeat(trial_id, n), [(t - onset) / 1e9 for t in result.sample_t_ns],
+        result.sample_x, result.sample_y, result.sample_buttons, strict=True)))
+    step = 5 * _SAMPLE_ROWS_PER_INSERT
+    full = n // _SAMPLE_ROWS_PER_INSERT
+    for k in range(full):
+        c.execute(_SAMPLES_SQL, values[k * step : (k + 1) * step])
+    if n > full * _SAMPLE_ROWS_PER_INSERT:
+        c.execute(_samples_sql(n - full * _SAMPLE_ROWS_PER_INSERT), values[full * step :])
+
+
 class SQLiteStore(Store):
     """A store in one SQLite file (see the module doc). Open with :func:`open_store`."""
 
@@ -794,14 +822,7 @@ class SQLiteStore(Store):
                     f"VALUES ({', '.join('?' * len(_TRIAL_COLUMNS))})", values)
                 trial_id = int(cur.lastrowid or 0)
                 if result.n_samples:
-                    onset = result.onset_ns or 0
-                    c.executemany(
-                        "INSERT INTO samples(trial_id, t_s, x, y, buttons) VALUES (?,?,?,?,?)",
-                        zip(itertools.repeat(trial_id, len(result.sample_t_ns)),
-                            [(t - onset) / 1e9 for t in result.sample_t_ns],
-                            result.sample_x, result.sample_y, result.sample_buttons,
-                            strict=True),
-                    )
+                    _insert_samples(c, trial_id, result)
                 return trial_id
         except sqlite3.DatabaseError as exc:
             raise StoreError(f"cannot write trial {t.trial_index} to {self.path}: {exc}") from None
