@@ -6,6 +6,8 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from tactorbelt import ConfigError, TactorbeltError
 from tactorbelt.clock import SimClock
@@ -109,6 +111,28 @@ def test_exact_solution_matches_step_by_step_reference_on_random_frames() -> Non
     t = np.arange(levels.shape[0], dtype=np.int64) * MS
     fast = erm_speed(t, levels, np.zeros(6), p)
     np.testing.assert_allclose(fast, reference_speed(levels, 1e-3, p), atol=1e-12)
+
+
+@given(seed=st.integers(0, 2**32 - 1), n_changes=st.integers(0, 14),
+       w0=st.lists(st.floats(0.0, 1.0), min_size=6, max_size=6))
+def test_a_drive_with_few_changes_matches_the_step_by_step_reference(
+        seed: int, n_changes: int, w0: list[float]) -> None:
+    """Few changes of drive (a static stimulus, stops, gaps) take the closed form stretch
+    by stretch; many take the recurrence: both are the model, from any starting speed."""
+    rng = np.random.default_rng(seed)
+    p = ErmParams()
+    n = 400
+    cuts = np.sort(rng.choice(np.arange(1, n - 1), size=n_changes, replace=False))
+    rows = rng.random((n_changes + 1, 6)) * (rng.random((n_changes + 1, 6)) < 0.7)
+    levels = rows[np.searchsorted(cuts, np.arange(n), side="right")]
+    t = np.arange(n, dtype=np.int64) * MS
+    ref = np.zeros((n, 6))
+    w = np.array(w0)
+    for j in range(n):
+        ref[j] = w
+        u = np.where(levels[j] >= p.start_level, levels[j], 0.0)
+        w = u + (w - u) * np.exp(-1e-3 / np.where(u > w, p.rise_tau_s, p.fall_tau_s))
+    np.testing.assert_allclose(erm_speed(t, levels, np.array(w0), p), ref, atol=1e-12)
 
 
 def test_vibration_state_carries_over_between_queries() -> None:

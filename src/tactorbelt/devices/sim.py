@@ -67,6 +67,9 @@ _TIE: Final = 1e-12
 _MAX_ITERATIONS: Final = 12
 #: A checkpoint is taken at least every this many commands (cheap: ~0.3 ms each).
 _CHECKPOINT_EVERY: Final = 256
+#: A drive that changes at fewer steps than this is solved stretch by stretch in closed
+#: form (:func:`_erm_segments`), cheaper than the vectorised recurrence.
+_SEGMENT_STEPS: Final = 16
 #: Rendered one-period tables kept per belt (a study uses a few dozen stimuli).
 _MAX_TABLES: Final = 128
 #: Checkpoints of the motor state kept to start later simulations from.
@@ -317,6 +320,9 @@ def erm_speed(t_ns: IntArray, levels: FloatArray, w0: FloatArray,
     out[0] = w0
     if m <= 1:
         return out
+    starts = np.flatnonzero(np.any(levels[1:-1] != levels[:-2], axis=1)) + 1
+    if starts.shape[0] < _SEGMENT_STEPS:
+        return _erm_segments(t_ns, levels, w0, params, [0, *starts.tolist(), m - 1])
     target = params.steady_speed(levels[:-1])  # (m-1, N)
     # only motors that move at all need solving
     cols = np.flatnonzero(target.any(axis=0) | (w0 > 0.0))
@@ -356,6 +362,27 @@ def erm_speed(t_ns: IntArray, levels: FloatArray, w0: FloatArray,
             w[:, j + 1] = u[:, j] + (w[:, j] - u[:, j]) * np.exp(-kj)
     out[:, cols] = np.clip(w.T, 0.0, 1.0)
     return out
+
+
+def _erm_segments(t_ns: IntArray, levels: FloatArray, w0: FloatArray, params: ErmParams,
+                  bounds: list[int]) -> FloatArray:
+    """:func:`erm_speed` for a drive that changes at few steps (``bounds``: the first
+    step of each constant stretch, then the last time's index): each stretch in closed
+    form from its start, ``w = s + (w0 - s) * exp(-t / tau)``, the time constant chosen
+    at its start (the speed moves monotonically towards ``s``, so the choice holds)."""
+    m, n = levels.shape
+    out = np.empty((m, n))
+    out[0] = w0
+    w = w0
+    rise, fall = params.rise_tau_s, params.fall_tau_s
+    for a, b in itertools.pairwise(bounds):
+        u = params.steady_speed(levels[a])
+        tau = np.where(u > w, rise, fall)
+        dt = (t_ns[a + 1 : b + 1] - t_ns[a]).astype(float) * 1e-9
+        seg = u + (w - u) * np.exp(-np.minimum(dt[:, None] / tau, _MAX_DECAY))
+        out[a + 1 : b + 1] = seg
+        w = seg[-1]
+    return np.asarray(np.clip(out, 0.0, 1.0))
 
 
 class SimBelt(Belt):
