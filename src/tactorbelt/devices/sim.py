@@ -32,6 +32,7 @@ I/O library.
 from __future__ import annotations
 
 import bisect
+import functools
 import itertools
 import math
 from dataclasses import dataclass
@@ -237,6 +238,13 @@ class _Render:
         return np.asarray(levels)
 
 
+@functools.lru_cache(maxsize=64)
+def _grid_period(rate: float) -> tuple[int, int]:
+    """The sampling period of ``rate`` Hz as the fraction p/q ns."""
+    period = Fraction(10**9) / Fraction(rate).limit_denominator(1_000_000)
+    return period.numerator, period.denominator
+
+
 def sample_grid(t0_ns: int, t1_ns: int, rate_hz: float) -> IntArray:
     """Sample times ``t0 + round-down(i * 1e9 / rate)`` in [t0, t1), integer ns, no drift."""
     try:
@@ -248,8 +256,7 @@ def sample_grid(t0_ns: int, t1_ns: int, rate_hz: float) -> IntArray:
     t0, t1 = int(t0_ns), int(t1_ns)
     if t1 < t0:
         raise ConfigError(f"the interval ends ({t1} ns) before it starts ({t0} ns)")
-    period = Fraction(10**9) / Fraction(rate).limit_denominator(1_000_000)
-    p, q = period.numerator, period.denominator
+    p, q = _grid_period(rate)
     # number of i with floor(i*p/q) < t1 - t0, i.e. i*p < (t1 - t0)*q
     n = -((-(t1 - t0) * q) // p)
     i = np.arange(n, dtype=np.int64)
@@ -272,7 +279,10 @@ def _sorted_unique(a: IntArray) -> IntArray:
 def _blocks(step_decay: FloatArray) -> list[tuple[int, int]]:
     """Cut steps into blocks whose total decay stays below about 2 * _MAX_DECAY."""
     m = step_decay.shape[0]
-    block = np.floor(np.cumsum(step_decay) / _MAX_DECAY).astype(np.int64)
+    total = np.cumsum(step_decay)
+    if m == 0 or total[-1] < _MAX_DECAY:
+        return [(0, m)] if m else []
+    block = np.floor(total / _MAX_DECAY).astype(np.int64)
     cuts = np.flatnonzero(np.diff(block)) + 1
     bounds = [0, *cuts.tolist(), m]
     return [(s, e) for s, e in itertools.pairwise(bounds) if e > s]

@@ -7,7 +7,10 @@ late samples skipped), drives the trial state machine, stores each
 trial (with its samples) in one transaction, and keeps the inter-trial interval and
 the breaks. On a :class:`~tactorbelt.clock.SimClock` nothing sleeps, so a whole paper
 session runs in well under a second of CPU; on the wall clock it paces a real
-participant.
+participant. When nothing but the samples depends on the ticks (an exact simulated
+clock, no observer, no task running, a device-rendered stimulus) a cursor source that
+reads in runs (the model participant) is sampled a run of ticks at a time
+(:meth:`SessionRunner._present_runs`), with the same stored results.
 
 Every exit path turns the motors off: normal end, a pause or abort from the
 observer, Ctrl-C (KeyboardInterrupt), SIGTERM / SIGHUP
