@@ -12,7 +12,8 @@
   participants per second, and ``sessions_1000_est_s`` what 1,000 take at that rate
   (``make bench`` runs 30; ``make bench-full`` runs 1,000 and reports
   ``sessions_1000_s``).
-- ``sessions_linearity``: mean time of the last 10 % of sessions over the first 10 %;
+- ``sessions_linearity``: mean time of the last 10 % of sessions over the first 10 %
+  (at least 3 a worker);
   1.0 means the cost per participant does not grow with the number already stored.
 - ``long_session_trials``, ``long_session_rss_mb``, ``long_session_rss_growth_mb``: one
   session of ~10,000 test trials (the resolution template, 42 repetitions; ``make bench``:
@@ -132,7 +133,9 @@ def main() -> None:
             out.update(pool.apply(_long_session,
                                   ((Path(tmp) / "long.sqlite", args.long_repetitions),)))
     # per worker, in the order its store grew
-    tenth = max(1, min(len(t) for t in per_worker) // 10)
+    # (at least 3 sessions a worker at each end: one session alone is noise)
+    shortest = min(len(t) for t in per_worker)
+    tenth = min(max(3, shortest // 10), max(1, shortest // 2))
     first = statistics.mean(x for t in per_worker for x in t[:tenth])
     last = statistics.mean(x for t in per_worker for x in t[-tenth:])
     out[f"sessions_{args.participants}_s"] = round(total, 2)

@@ -172,6 +172,17 @@ def test_closing_while_python_is_busy_never_hangs(tmp_path: Path) -> None:
     assert "closed 20" in proc.stdout
 
 
+def test_without_sdl_through_ctypes_the_output_is_refused_before_it_opens(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """Closing through pygame keeps the GIL and can hang: refused, with what to do."""
+    from tactorbelt.tasks import audio as audio_mod
+
+    monkeypatch.setattr(audio_mod, "_sdl_library", lambda: None)
+    with pytest.raises(DeviceError, match=r"cannot reach the SDL2 library pygame loaded "
+                       r"through ctypes.*install pygame from its wheel"):
+        SdlTaskAudio(WallClock())
+
+
 def test_the_output_is_silent_and_closed_when_the_session_fails() -> None:
     audio = SdlTaskAudio(WallClock())
     with pytest.raises(KeyboardInterrupt), audio:

@@ -24,8 +24,9 @@ Silence and closing: :meth:`TaskAudio.stop` fades whatever sounds out over 5 ms;
 silence and closes the device. SDL runs the callback holding the device's lock, and
 the callback needs Python's GIL, so pausing or closing the device from Python while
 holding the GIL can deadlock; the device is paused and closed through ``ctypes`` (which
-releases the GIL) on the same SDL library pygame loaded, or, where that library cannot
-be found, right after a callback returned.
+releases the GIL) on the same SDL library pygame loaded. Where ctypes cannot reach that
+library the output is refused before it opens (a ``DeviceError``): closing it through
+pygame, which keeps the GIL, can hang a session (a hang seen under load).
 
 :class:`SilentTaskAudio` schedules nothing and records the same placements (a simulated
 clock has no time to play sound in; tests and the model participant use it).
@@ -39,11 +40,11 @@ from __future__ import annotations
 import collections
 import contextlib
 import ctypes
+import ctypes.util
 import logging
 import math
 import os
 import sys
-import threading
 import time
 import weakref
 from dataclasses import dataclass
@@ -228,6 +229,9 @@ def _sdl_library() -> Any:
             with contextlib.suppress(OSError):
                 paths += [os.path.join(folder, n) for n in os.listdir(folder)
                           if n in ("SDL2.dll",) or n.startswith("libSDL2-2.0")]
+    found = ctypes.util.find_library("SDL2")
+    if found:
+        paths.append(found)
     for path in paths:
         with contextlib.suppress(OSError, AttributeError):
             lib = ctypes.CDLL(path)
@@ -284,7 +288,6 @@ class SdlTaskAudio(TaskAudio):
         self._stop_asked = 0
         self._closing = False
         self._silent_blocks = 0
-        self._returned = threading.Event()
         self.frames = 0
         self._base_ns: int | None = None
         self._prev_n = 0
@@ -295,6 +298,13 @@ class SdlTaskAudio(TaskAudio):
         self._closed = False
         try:
             sdl.init_subsystem(sdl.INIT_AUDIO)
+            self._lib = _sdl_library()  # the SDL pygame loaded, to close without the GIL
+            if self._lib is None:
+                raise DeviceError(
+                    "cannot reach the SDL2 library pygame loaded through ctypes, so the "
+                    "sound output for the auditory task could not be closed safely (closing "
+                    "it through pygame can hang); install pygame from its wheel (it bundles "
+                    "SDL2) or make libSDL2 findable, or use a visual task")
             name = None if device is None else _find_output(device, sdl_audio)
             self._dev = sdl_audio.AudioDevice(name, False, self.rate, sdl_audio.AUDIO_F32,
                                               1, int(block), 0, _Trampoline(self))
@@ -311,7 +321,6 @@ class SdlTaskAudio(TaskAudio):
         lat = latency_s if latency_s is not None else (
             0.0 if immediate else self.block / self.rate)
         self.latency_ns = round(float(lat) * 1e9)
-        self._lib = _sdl_library()
         self._dev.pause(0)  # safe here: the device opened paused, no callback runs yet
 
     # -- the callback (SDL's audio thread) -------------------------------------------------
@@ -324,7 +333,6 @@ class SdlTaskAudio(TaskAudio):
             out.fill(0.0)
             if self.error is None:
                 self.error = exc
-        self._returned.set()
 
     def _timeline(self, t_cb: int, n: int) -> int:
         """The output time of this block's first frame (runner clock, ns)."""
@@ -430,19 +438,11 @@ class SdlTaskAudio(TaskAudio):
         while self._silent_blocks == 0 and time.monotonic() < end:
             time.sleep(0.001)
         dev = self._dev
-        lib = self._lib
         with contextlib.suppress(Exception):
-            if lib is not None:
-                devid = int(dev.deviceid)
-                lib.SDL_PauseAudioDevice(devid, 1)  # ctypes releases the GIL
-                lib.SDL_CloseAudioDevice(devid)
-                _RETIRED.append(dev)  # pygame must not close this id again
-            else:
-                # just after a callback returned: SDL's thread is writing or waiting,
-                # not holding the lock while it waits for the GIL
-                self._returned.clear()
-                self._returned.wait(CLOSE_WAIT_S)
-                dev.close()
+            devid = int(dev.deviceid)
+            self._lib.SDL_PauseAudioDevice(devid, 1)  # ctypes releases the GIL
+            self._lib.SDL_CloseAudioDevice(devid)
+            _RETIRED.append(dev)  # pygame must not close this id again
 
     def __enter__(self) -> SdlTaskAudio:
         return self
