@@ -71,6 +71,17 @@ def main() -> int:
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("-o", "--output", type=Path, required=True, help="JSON file to write")
     args = ap.parse_args()
+    from tactorbelt import ConfigError
+    from tactorbelt.experiment.study import template_toml
+
+    try:
+        template_toml(args.template)
+    except ConfigError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    if args.seeds < 1 or args.workers < 1:
+        print("error: --seeds and --workers must be at least 1", file=sys.stderr)
+        return 2
     seeds = list(range(1, args.seeds + 1))
     w = max(1, min(args.workers, len(seeds)))
     t0 = time.perf_counter()
