@@ -31,7 +31,7 @@ from __future__ import annotations
 import hashlib
 import json
 import re
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass, fields
 from typing import Any
 
 import numpy as np
@@ -86,7 +86,12 @@ class ScheduledTrial:
         return TargetSet.even(self.n_targets)
 
     def to_dict(self) -> dict[str, Any]:
-        return asdict(self)
+        """The fields by name (every one a plain scalar)."""
+        return {name: getattr(self, name) for name in _TRIAL_FIELDS}
+
+
+#: ScheduledTrial's fields, in order (to_dict without dataclasses.asdict's deep copies).
+_TRIAL_FIELDS = tuple(f.name for f in fields(ScheduledTrial))
 
 
 def participant_number(participant: str) -> int:
