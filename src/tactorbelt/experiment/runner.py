@@ -38,7 +38,6 @@ I/O edge: imports the pure experiment modules, the store, tactorbelt.stimuli and
 
 from __future__ import annotations
 
-import bisect
 import contextlib
 import json
 import re
@@ -737,7 +736,7 @@ class SessionRunner:
             first = ticks.next_index
             times = ticks.deadlines(first, RUN_TICKS)
             if playing and int(times[-1]) >= off_ns:
-                times = times[: bisect.bisect_left(times.tolist(), off_ns) + 1]
+                times = times[: int(times.searchsorted(off_ns)) + 1]
             clock.sleep_until_ns(int(times[0]))
             n = cursor.read_run(times, machine_feed)
             now = int(times[n - 1])

@@ -318,11 +318,9 @@ _SAMPLES_SQL = _samples_sql(_SAMPLE_ROWS_PER_INSERT)
 
 def _insert_samples(c: sqlite3.Connection, trial_id: int, result: TrialResult) -> None:
     """A trial's samples, in order, ``_SAMPLE_ROWS_PER_INSERT`` rows to a statement."""
-    onset = result.onset_ns or 0
-    n = len(result.sample_t_ns)
-    values = list(itertools.chain.from_iterable(zip(
-        itertools.repeat(trial_id, n), [(t - onset) / 1e9 for t in result.sample_t_ns],
-        result.sample_x, result.sample_y, result.sample_buttons, strict=True)))
+    rows = result.sample_rows()
+    n = len(rows)
+    values = list(itertools.chain.from_iterable((trial_id, *row) for row in rows))
     step = 5 * _SAMPLE_ROWS_PER_INSERT
     full = n // _SAMPLE_ROWS_PER_INSERT
     for k in range(full):
