@@ -184,6 +184,88 @@ def test_streamed_frames_and_rendered_stimulus_give_the_same_vibration() -> None
                                atol=1e-12)
 
 
+class _GridBelt(SimBelt):
+    """A sim belt that always takes the general solution (every breakpoint on one grid)."""
+
+    def _speed_pieces(self, times, t_a, w_a):  # type: ignore[no-untyped-def]
+        return None
+
+
+_OPS = st.one_of(
+    st.tuples(st.just("advance"), st.integers(1, 900_000_000)),
+    st.tuples(st.just("play"), st.floats(0.0, 359.0), st.sampled_from(["static", "dynamic"]),
+              st.sampled_from([None, 0.25, 1.0, 1.5003]),
+              st.sampled_from([1.0, 0.5, 0.3337])),
+    st.tuples(st.just("set"), st.lists(st.floats(0.0, 1.0), min_size=6, max_size=6)),
+    st.tuples(st.just("stop"),),
+    st.tuples(st.just("query"), st.integers(0, 3_000_000_000), st.integers(1, 900),
+              st.sampled_from([1000.0, 997.0, 250.0])),
+)
+
+
+@given(ops=st.lists(_OPS, min_size=1, max_size=25))
+def test_piecewise_solution_equals_the_general_one_for_any_history(ops: list[tuple]) -> None:
+    """Constant stretches in closed form and periodic renders from their response from
+    rest (by superposition) give the model's speeds: those of the general solution, for
+    any commands, durations, periods (whole ticks or not) and query times."""
+    clock = SimClock()
+    fast = SimBelt(clock=clock)
+    grid = _GridBelt(clock=clock)
+    for op in ops:
+        if op[0] == "advance":
+            clock.advance(op[1])
+        elif op[0] == "play":
+            stim = make_stimulus(fast.layout, op[1], op[2], period_s=op[4],
+                                 transit_s=min(0.2, op[4] / 4))
+            fast.play(stim, op[3])
+            grid.play(stim, op[3])
+        elif op[0] == "set":
+            fast.set_amplitudes(op[1])
+            grid.set_amplitudes(op[1])
+        elif op[0] == "stop":
+            fast.stop()
+            grid.stop()
+        else:
+            t0 = max(0, clock.now_ns() - op[1])
+            t1 = t0 + op[2] * MS
+            a, b = fast.vibration(t0, t1, op[3]), grid.vibration(t0, t1, op[3])
+            np.testing.assert_array_equal(a[0], b[0])
+            np.testing.assert_allclose(a[1], b[1], rtol=0, atol=1e-12)
+    t_end = clock.now_ns() + 500 * MS
+    np.testing.assert_allclose(fast.vibration(0, t_end)[1], grid.vibration(0, t_end)[1],
+                               rtol=0, atol=1e-12)
+
+
+def test_a_render_started_on_spinning_motors_is_solved_exactly() -> None:
+    """From rest the render's motors rise; from full speed they fall at first: another
+    rise/fall pattern, where superposition on the response from rest would be wrong."""
+    clock = SimClock()
+    fast, grid = SimBelt(clock=clock), _GridBelt(clock=clock)
+    for belt in (fast, grid):
+        belt.set_amplitudes([1.0] * 6)
+    clock.advance(S)
+    stim = make_stimulus(fast.layout, 15.0, "dynamic")
+    for belt in (fast, grid):
+        belt.play(stim, 1.0)
+    clock.advance(1500 * MS)
+    a, b = fast.vibration(S, 2500 * MS)[1], grid.vibration(S, 2500 * MS)[1]
+    np.testing.assert_allclose(a, b, rtol=0, atol=1e-12)
+    assert a[0, 0] > 0.99 and a[:, 0].min() < 0.5  # it did fall from full speed
+
+
+def test_a_render_beyond_its_tabulated_response_takes_the_general_solution() -> None:
+    clock = SimClock()
+    fast, grid = SimBelt(clock=clock), _GridBelt(clock=clock)
+    stim = make_stimulus(fast.layout, 40.0, "dynamic")
+    fast.play(stim)
+    grid.play(stim)
+    clock.advance(12 * S)  # past the 10 s kept from rest
+    np.testing.assert_allclose(fast.vibration(11 * S, 12 * S)[1],
+                               grid.vibration(11 * S, 12 * S)[1], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(fast.vibration(0, 12 * S)[1], grid.vibration(0, 12 * S)[1],
+                               rtol=0, atol=1e-12)
+
+
 # -- device-side rendering --------------------------------------------------------------
 
 

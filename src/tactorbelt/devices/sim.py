@@ -35,6 +35,7 @@ import bisect
 import functools
 import itertools
 import math
+import threading
 from dataclasses import dataclass
 from fractions import Fraction
 from typing import TYPE_CHECKING, Any, Final
@@ -75,11 +76,17 @@ _SEGMENT_STEPS: Final = 16
 _MAX_TABLES: Final = 128
 #: Checkpoints of the motor state kept to start later simulations from.
 _MAX_CHECKPOINTS: Final = 64
+#: Responses from rest of periodic renders kept per process (:class:`_Response`).
+_MAX_RESPONSES: Final = 64
+#: A response from rest is solved up to this many ticks (10 s); a query further into a
+#: render takes the general solution.
+_RESPONSE_MAX_TICKS: Final = 10_000
 
 _OPTIONS: Final = ("layout", "clock", "calibration", "params", "horizon_s", "name")
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
+BoolArray = NDArray[np.bool_]
 
 
 @dataclass(frozen=True)
@@ -186,6 +193,7 @@ class _Render:
         self.calibration = calibration
         self._table: _Period | None = None
         self._table_ticks = 0
+        self._response: tuple[ErmParams, _Response] | None = None
         self._tables = tables
         ticks_per_s = 1e9 / RENDER_TICK_NS
         if not stimulus.is_dynamic:
@@ -224,6 +232,22 @@ class _Render:
         p0, p1 = k0 // period, (k1 - 1) // period
         ks = (np.arange(p0, p1 + 1, dtype=np.int64)[:, None] * period + c[None, :]).ravel()
         return np.asarray(ks[(ks >= k0) & (ks < k1)])
+
+    def constant(self) -> FloatArray | None:
+        """The drive levels of a render that never changes (a static stimulus), or None."""
+        if not self._table_ticks:
+            return None
+        period = self._period()
+        return period.levels[0] if period.changes.size == 0 else None
+
+    def response(self, params: ErmParams) -> _Response | None:
+        """The motors' response from rest to a periodic render (None: not periodic)."""
+        if not self._table_ticks:
+            return None
+        if self._response is None or self._response[0] is not params:
+            self._response = (params, _response(self.stimulus, self.calibration, params,
+                                                self._period().levels))
+        return self._response[1]
 
     def levels(self, times: IntArray) -> FloatArray:
         """Drive levels at ``times`` (all at or after the onset)."""
@@ -393,6 +417,89 @@ def _erm_segments(t_ns: IntArray, levels: FloatArray, w0: FloatArray, params: Er
         out[a + 1 : b + 1] = seg
         w = seg[-1]
     return np.asarray(np.clip(out, 0.0, 1.0))
+
+
+def _relax(u: FloatArray, w: FloatArray, dt_ns: IntArray, params: ErmParams) -> FloatArray:
+    """Speeds ``dt_ns`` after a state ``w`` under a constant drive whose steady speeds are
+    ``u`` (rows: times; ``u`` and ``w`` one row, or one row per time): the closed form of
+    one stretch, the time constant chosen at its start (the speed moves monotonically)."""
+    tau = np.where(u > w, params.rise_tau_s, params.fall_tau_s)
+    dt = dt_ns.astype(float) * 1e-9
+    return np.asarray(u + (w - u) * np.exp(-np.minimum(dt[:, None] / tau, _MAX_DECAY)))
+
+
+class _Response:
+    """The speed of every motor under a periodic render started from rest, tick by tick.
+
+    For ticks ``0..K`` it keeps the speed at each tick's start ``w`` (from rest at tick
+    0), the steady speeds ``u`` and the rise/fall choice ``rising`` of each tick, and the
+    cumulative decay exponent ``d`` along those choices. From any other state at a tick
+    ``k0`` the model's speed at a later tick ``k`` is, by superposition,
+    ``w[k] + (state - w[k0]) * exp(-(d[k] - d[k0]))``, exact as long as every tick in
+    between makes the same rise/fall choice; :meth:`SimBelt._speed_pieces` checks that and
+    otherwise takes the general solution. Shared by every sim belt of the process (keyed by
+    the stimulus, the calibration and the motor constants), solved lazily in growing
+    chunks up to ``_RESPONSE_MAX_TICKS``.
+    """
+
+    __slots__ = ("_levels", "_lock", "_params", "_state")
+
+    def __init__(self, period_levels: FloatArray, params: ErmParams) -> None:
+        self._levels = period_levels
+        self._params = params
+        n = period_levels.shape[1]
+        self._lock = threading.Lock()
+        self._state: tuple[FloatArray, FloatArray, FloatArray, BoolArray] = (
+            np.zeros((1, n)), np.zeros((1, n)), np.zeros((0, n)), np.zeros((0, n), dtype=bool))
+
+    def upto(self, k: int) -> tuple[FloatArray, FloatArray, FloatArray, BoolArray] | None:
+        """``(w, d, u, rising)`` covering at least ticks ``0..k`` (``w`` and ``d``) and
+        ``0..k-1`` (``u`` and ``rising``); None beyond ``_RESPONSE_MAX_TICKS``."""
+        state = self._state
+        if state[0].shape[0] > k:
+            return state
+        if k > _RESPONSE_MAX_TICKS:
+            return None
+        with self._lock:
+            state = self._state
+            have = state[0].shape[0] - 1
+            if have >= k:
+                return state
+            upto = min(max(k, 2 * have, 2048), _RESPONSE_MAX_TICKS)
+            ticks = np.arange(have, upto + 1, dtype=np.int64)
+            levels = self._levels[ticks % self._levels.shape[0]]
+            p = self._params
+            w = erm_speed(ticks * RENDER_TICK_NS, levels, state[0][-1], p)
+            u = p.steady_speed(levels[:-1])
+            rising = u > w[:-1]
+            h = float(RENDER_TICK_NS) * 1e-9
+            k_step = np.where(rising, min(h / p.rise_tau_s, _MAX_DECAY),
+                              min(h / p.fall_tau_s, _MAX_DECAY))
+            d = state[1][-1] + np.cumsum(k_step, axis=0)
+            self._state = state = (np.concatenate([state[0], w[1:]]),
+                                   np.concatenate([state[1], d]),
+                                   np.concatenate([state[2], u]),
+                                   np.concatenate([state[3], rising]))
+            return state
+
+
+_RESPONSES: dict[tuple[Stimulus, Calibration, ErmParams], _Response] = {}
+_RESPONSES_LOCK = threading.Lock()
+
+
+def _response(stimulus: Stimulus, calibration: Calibration, params: ErmParams,
+              period: FloatArray) -> _Response:
+    """The process-wide :class:`_Response` of a periodic render (made on first use)."""
+    key = (stimulus, calibration, params)
+    resp = _RESPONSES.get(key)
+    if resp is None:
+        with _RESPONSES_LOCK:
+            resp = _RESPONSES.get(key)
+            if resp is None:
+                if len(_RESPONSES) >= _MAX_RESPONSES:
+                    del _RESPONSES[next(iter(_RESPONSES))]
+                resp = _RESPONSES[key] = _Response(period, params)
+    return resp
 
 
 class SimBelt(Belt):
@@ -608,8 +715,163 @@ class SimBelt(Belt):
                 t_a, w_a = self._ck_t[j], self._ck_w[j]
             else:
                 t_a, w_a = self._base_t, self._base_w
-        # the latest time no future command can change (its state is remembered below)
+        # the latest time no future command can change (its state is remembered)
         settled = max(min(int(self.clock.now_ns()), t_last), t_a)
+        remember = settled > t_a and (not self._ck_t or settled > self._ck_t[-1])
+        at = times
+        if remember:
+            pos = int(np.searchsorted(times, settled))
+            if pos == times.shape[0] or int(times[pos]) != settled:
+                at = np.insert(times, pos, settled)
+        solved = self._speed_pieces(at, t_a, np.asarray(w_a, dtype=float))
+        if solved is None:
+            return self._speed_grid(times, t_a, w_a, settled)
+        out = np.clip(solved, 0.0, 1.0)
+        if remember:
+            pos = int(np.searchsorted(at, settled))
+            self._add_checkpoint(settled, out[pos].copy())
+            if at is not times:
+                out = np.delete(out, pos, axis=0)
+        return np.asarray(out)
+
+    def _pieces(self, t_a: int, t_last: int
+                ) -> list[tuple[int, FloatArray | None, _Render | None]] | None:
+        """The drive over [t_a, t_last] as pieces ``(start, levels, render)``, in order:
+        constant levels (``render`` None; equal neighbours merged) or a changing periodic
+        render (``levels`` None). None when a render is neither constant nor periodic."""
+        lo, hi = self._lo, self._hi
+        zeros = np.zeros(self.n_tactors)
+        row = self._row_in_force(t_a) if hi > lo else lo - 1
+        pieces: list[tuple[int, FloatArray | None, _Render | None]] = []
+
+        def add(start: int, levels: FloatArray | None, render: _Render | None) -> None:
+            if pieces and pieces[-1][0] == start:
+                pieces.pop()  # an empty piece: a later command at the same time
+            if (levels is not None and pieces and pieces[-1][1] is not None
+                    and np.array_equal(pieces[-1][1], levels)):
+                return
+            pieces.append((start, levels, render))
+
+        if row < lo:
+            add(t_a, zeros, None)
+            row = lo
+            if hi == lo or int(self._t[lo]) > t_last:
+                return pieces
+        while row < hi:
+            start = max(int(self._t[row]), t_a)
+            if start > t_last:
+                break
+            rid = int(self._rid[row])
+            if rid < 0:
+                add(start, self._lv[row], None)
+            else:
+                render = self._renders[rid]
+                end = render.end_ns
+                if end is not None and end <= start:
+                    add(start, zeros, None)
+                else:
+                    const = render.constant()
+                    if const is not None:
+                        add(start, const, None)
+                    elif render.response(self.params) is None:
+                        return None
+                    else:
+                        add(start, None, render)
+                    if end is not None and end <= t_last and (
+                            row + 1 >= hi or end < int(self._t[row + 1])):
+                        add(end, zeros, None)
+            row += 1
+        return pieces
+
+    def _speed_pieces(self, times: IntArray, t_a: int, w_a: FloatArray) -> FloatArray | None:
+        """Speeds at increasing ``times`` (from ``t_a``, where the speeds are ``w_a``),
+        piece by piece: a constant drive in closed form, a periodic render from its
+        response from rest (:class:`_Response`). None where that does not apply (a render
+        neither constant nor periodic, more than ``_RESPONSE_MAX_TICKS`` into a render, or
+        a state whose rise/fall choices differ from the response's): then the caller
+        takes the general solution."""
+        t_last = int(times[-1])
+        pieces = self._pieces(t_a, t_last)
+        if pieces is None:
+            return None
+        p = self.params
+        out = np.empty((times.shape[0], self.n_tactors))
+        w = w_a
+        i = 0
+        for k, (start, levels, render) in enumerate(pieces):
+            end = pieces[k + 1][0] if k + 1 < len(pieces) else None
+            j = times.shape[0] if end is None else int(np.searchsorted(times, end))
+            if levels is not None:
+                u = p.steady_speed(levels)
+                if j > i:
+                    out[i:j] = _relax(u, w, times[i:j] - start, p)
+                if end is not None:
+                    w = _relax(u, w, np.array([end - start]), p)[0]
+            else:
+                assert render is not None
+                got = self._render_piece(render, start, end, w, times[i:j], t_last)
+                if got is None:
+                    return None
+                out[i:j], w = got
+            i = j
+        return out
+
+    def _render_piece(self, render: _Render, start: int, end: int | None, w: FloatArray,
+                      times: IntArray, t_last: int) -> tuple[FloatArray, FloatArray] | None:
+        """Speeds at ``times`` in [start, end) of a periodic render, from the state ``w`` at
+        ``start``, and the state at ``end`` (None: the times run to ``t_last``)."""
+        p = self.params
+        resp = render.response(p)
+        assert resp is not None
+        onset = render.onset_ns
+        stop = t_last if end is None else end
+        k_stop = (stop - onset) // RENDER_TICK_NS
+        tables = resp.upto(k_stop + 1)
+        if tables is None:
+            return None
+        tw, td, tu, trise = tables
+        out = np.empty((times.shape[0], w.shape[0]))
+        k0 = (start - onset) // RENDER_TICK_NS
+        t0 = onset + k0 * RENDER_TICK_NS
+        if start != t0:  # the rest of a tick: one constant stretch
+            nxt = t0 + RENDER_TICK_NS
+            head = int(np.searchsorted(times, nxt))
+            if head:
+                out[:head] = _relax(tu[k0], w, times[:head] - start, p)
+            if stop < nxt:
+                return out, _relax(tu[k0], w, np.array([stop - start]), p)[0]
+            w = _relax(tu[k0], w, np.array([nxt - start]), p)[0]
+            k0 += 1
+            times, rest = times[head:], out[head:]
+        else:
+            rest = out
+        # every tick start from k0 to k_stop, by superposition on the response from rest
+        decay = np.exp(-(td[k0 : k_stop + 1] - td[k0]))
+        ws = tw[k0 : k_stop + 1] + (w - tw[k0]) * decay
+        gap = tu[k0:k_stop] - ws[:-1]
+        if np.any(((gap > 0.0) != trise[k0:k_stop]) & (np.abs(gap) > _TIE)):
+            return None  # another rise/fall pattern than from rest
+        if times.shape[0]:
+            tick = (times - onset) // RENDER_TICK_NS
+            base = ws[tick - k0]
+            into = times - (onset + tick * RENDER_TICK_NS)
+            on_tick = into == 0
+            if on_tick.all():
+                rest[:] = base
+            else:
+                rest[:] = np.where(on_tick[:, None], base, _relax(tu[tick], base, into, p))
+        if end is None:
+            return out, ws[-1]
+        into_stop = stop - (onset + k_stop * RENDER_TICK_NS)
+        if into_stop == 0:
+            return out, ws[-1]
+        return out, _relax(tu[k_stop], ws[-1], np.array([into_stop]), p)[0]
+
+    def _speed_grid(self, times: IntArray, t_a: int, w_a: FloatArray,
+                    settled: int) -> FloatArray:
+        """:meth:`_speed_at` by the general solution: every breakpoint of the drive from
+        ``t_a`` on one grid, solved by :func:`erm_speed`."""
+        t_last = int(times[-1])
         grid = _sorted_unique(np.concatenate([np.array([t_a, settled], dtype=np.int64),
                                               self._breakpoints(t_a, t_last), times]))
         levels = self._levels_at(grid)
