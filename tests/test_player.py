@@ -235,6 +235,14 @@ def test_wrong_layout_and_unrendering_belt() -> None:
         Player(belt).switch(STATIC)
 
 
+def test_anything_but_a_stimulus_or_a_playable_is_refused() -> None:
+    belt = FrameLog(SimClock())
+    for bad in ("left", 30.0, np.ones(6)):
+        with pytest.raises(ConfigError, match="expected a Stimulus"):
+            Player(belt).start(bad, 1.0)  # type: ignore[arg-type]
+    assert belt.writes == []
+
+
 def test_stats_to_dict_has_the_documented_keys() -> None:
     stats = Player(FrameLog(SimClock())).play(STATIC, 0.01)
     assert isinstance(stats, PlayerStats)

@@ -208,7 +208,9 @@ class Player:
             raise err
 
     def _check_stimulus(self, stimulus: Stimulus) -> None:
-        if not isinstance(stimulus, Playable):
+        from .stimuli import Stimulus as _Stimulus  # a protocol check is slow; most are one
+
+        if not isinstance(stimulus, _Stimulus) and not isinstance(stimulus, Playable):
             raise ConfigError(f"expected a Stimulus, got {type(stimulus).__name__}")
         layout = stimulus.layout
         if layout.n != self.belt.n_tactors:

@@ -158,15 +158,15 @@ class TrialResult:
         for samples in (self.sample_t_ns, self.sample_x, self.sample_y, self.sample_buttons):
             samples.clear()
 
+    def sample_times_s(self) -> list[float]:
+        """Each sample's time in seconds from the onset."""
+        onset = self.onset_ns or 0
+        return [(t - onset) / 1e9 for t in self.sample_t_ns]
+
     def sample_rows(self) -> list[tuple[float, float, float, int]]:
         """(t_s from onset, x, y, buttons) per sample."""
-        onset = self.onset_ns or 0
-        return [
-            ((t - onset) / 1e9, x, y, b)
-            for t, x, y, b in zip(
-                self.sample_t_ns, self.sample_x, self.sample_y, self.sample_buttons, strict=True
-            )
-        ]
+        return list(zip(self.sample_times_s(), self.sample_x, self.sample_y,
+                        self.sample_buttons, strict=True))
 
 
 class TrialMachine:

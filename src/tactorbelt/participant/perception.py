@@ -122,10 +122,12 @@ def _sample_durations(t_s: FloatArray) -> FloatArray:
     n = t_s.shape[0]
     if n == 1:
         return np.array([1e-3])
-    step = np.diff(t_s)
-    if np.any(step <= 0):
+    dt = np.empty(n)
+    np.subtract(t_s[1:], t_s[:-1], out=dt[:-1])
+    if not dt[:-1].min() > 0:
         raise ConfigError("vibration sample times must be strictly increasing")
-    return np.append(step, step[-1])
+    dt[-1] = dt[-2]
+    return dt
 
 
 def sense_cues(t_s: ArrayLike, vib: ArrayLike, layout: Layout,

@@ -47,7 +47,6 @@ modules; never devices, inputs or the window.
 from __future__ import annotations
 
 import contextlib
-import itertools
 import json
 import os
 import shutil
@@ -318,9 +317,15 @@ _SAMPLES_SQL = _samples_sql(_SAMPLE_ROWS_PER_INSERT)
 
 def _insert_samples(c: sqlite3.Connection, trial_id: int, result: TrialResult) -> None:
     """A trial's samples, in order, ``_SAMPLE_ROWS_PER_INSERT`` rows to a statement."""
-    rows = result.sample_rows()
-    n = len(rows)
-    values = list(itertools.chain.from_iterable((trial_id, *row) for row in rows))
+    t_s = result.sample_times_s()
+    n = len(t_s)
+    if not (len(result.sample_x) == len(result.sample_y) == len(result.sample_buttons) == n):
+        raise StoreError(f"trial {result.trial.trial_index}: sample columns of unequal length")
+    values: list[Any] = [trial_id] * (5 * n)  # the rows' values in one flat list
+    values[1::5] = t_s
+    values[2::5] = result.sample_x
+    values[3::5] = result.sample_y
+    values[4::5] = result.sample_buttons
     step = 5 * _SAMPLE_ROWS_PER_INSERT
     full = n // _SAMPLE_ROWS_PER_INSERT
     for k in range(full):
