@@ -72,7 +72,7 @@ _CHECKPOINT_EVERY: Final = 256
 #: A drive that changes at fewer steps than this is solved stretch by stretch in closed
 #: form (:func:`_erm_segments`), cheaper than the vectorised recurrence.
 _SEGMENT_STEPS: Final = 16
-#: Rendered one-period tables kept per belt (a study uses a few dozen stimuli).
+#: Rendered one-period tables kept per process (a study uses a few dozen stimuli).
 _MAX_TABLES: Final = 128
 #: Checkpoints of the motor state kept to start later simulations from.
 _MAX_CHECKPOINTS: Final = 64
@@ -174,6 +174,12 @@ class _Period:
             np.any(levels != np.roll(levels, 1, axis=0), axis=1)).astype(np.int64)
 
 
+#: One-period tables of periodic renders, by (stimulus, calibration), for every sim belt of
+#: the process; and the lock that guards additions to it and to ``_RESPONSES``.
+_PERIODS: dict[tuple[Stimulus, Calibration], _Period] = {}
+_CACHE_LOCK = threading.Lock()
+
+
 class _Render:
     """A stimulus the sim belt renders itself from ``onset_ns`` (1 kHz ticks).
 
@@ -185,8 +191,7 @@ class _Render:
     MAX_TABLE: Final = 20_000
 
     def __init__(self, stimulus: Stimulus, onset_ns: int, end_ns: int | None,
-                 calibration: Calibration,
-                 tables: dict[tuple[Stimulus, Calibration], _Period] | None = None) -> None:
+                 calibration: Calibration) -> None:
         self.stimulus = stimulus
         self.onset_ns = onset_ns
         self.end_ns = end_ns
@@ -194,7 +199,6 @@ class _Render:
         self._table: _Period | None = None
         self._table_ticks = 0
         self._response: tuple[ErmParams, _Response] | None = None
-        self._tables = tables
         ticks_per_s = 1e9 / RENDER_TICK_NS
         if not stimulus.is_dynamic:
             self._table_ticks = 1
@@ -205,18 +209,19 @@ class _Render:
 
     def _period(self) -> _Period:
         """One period's levels tick by tick (periodic renders only), shared by the renders
-        of the same stimulus on the belt."""
+        of the same stimulus and calibration in the process (read-only)."""
         if self._table is None:
             key = (self.stimulus, self.calibration)
-            period = self._tables.get(key) if self._tables is not None else None
+            period = _PERIODS.get(key)
             if period is None:
                 k = np.arange(self._table_ticks)
                 period = _Period(self.calibration.apply(
                     self.stimulus.amplitudes(k / (1e9 / RENDER_TICK_NS))))
-                if self._tables is not None:
-                    if len(self._tables) >= _MAX_TABLES:
-                        del self._tables[next(iter(self._tables))]
-                    self._tables[key] = period
+                period.levels.setflags(write=False)
+                with _CACHE_LOCK:
+                    if len(_PERIODS) >= _MAX_TABLES:
+                        del _PERIODS[next(iter(_PERIODS))]
+                    _PERIODS[key] = period
             self._table = period
         return self._table
 
@@ -428,6 +433,14 @@ def _relax(u: FloatArray, w: FloatArray, dt_ns: IntArray, params: ErmParams) -> 
     return np.asarray(u + (w - u) * np.exp(-np.minimum(dt[:, None] / tau, _MAX_DECAY)))
 
 
+def _relax_to(u: FloatArray, w: FloatArray, dt_ns: int, params: ErmParams) -> FloatArray:
+    """:func:`_relax` at one time: the state (N,) ``dt_ns`` after ``w`` (the same
+    arithmetic)."""
+    tau = np.where(u > w, params.rise_tau_s, params.fall_tau_s)
+    dt = float(dt_ns) * 1e-9
+    return np.asarray(u + (w - u) * np.exp(-np.minimum(dt / tau, _MAX_DECAY)))
+
+
 class _Response:
     """The speed of every motor under a periodic render started from rest, tick by tick.
 
@@ -484,7 +497,6 @@ class _Response:
 
 
 _RESPONSES: dict[tuple[Stimulus, Calibration, ErmParams], _Response] = {}
-_RESPONSES_LOCK = threading.Lock()
 
 
 def _response(stimulus: Stimulus, calibration: Calibration, params: ErmParams,
@@ -493,7 +505,7 @@ def _response(stimulus: Stimulus, calibration: Calibration, params: ErmParams,
     key = (stimulus, calibration, params)
     resp = _RESPONSES.get(key)
     if resp is None:
-        with _RESPONSES_LOCK:
+        with _CACHE_LOCK:
             resp = _RESPONSES.get(key)
             if resp is None:
                 if len(_RESPONSES) >= _MAX_RESPONSES:
@@ -556,7 +568,6 @@ class SimBelt(Belt):
         self._lo = 0
         self._hi = 0
         self._renders: dict[int, _Render] = {}
-        self._tables: dict[tuple[Stimulus, Calibration], _Period] = {}
         self._next_rid = 0
         self._base_t = int(self.clock.now_ns())
         self._base_w = np.zeros(n)
@@ -589,7 +600,7 @@ class SimBelt(Belt):
         self._next_rid += 1
         onset = self._append(np.zeros(self.n_tactors), rid, register=False)
         end = None if duration_s is None else onset + round(duration_s * 1e9)
-        self._renders[rid] = _Render(stimulus, onset, end, self.calibration, self._tables)
+        self._renders[rid] = _Render(stimulus, onset, end, self.calibration)
 
     # -- the log ----------------------------------------------------------------------
     def _append(self, levels: FloatArray, rid: int, register: bool = True) -> int:
@@ -806,7 +817,7 @@ class SimBelt(Belt):
                 if j > i:
                     out[i:j] = _relax(u, w, times[i:j] - start, p)
                 if end is not None:
-                    w = _relax(u, w, np.array([end - start]), p)[0]
+                    w = _relax_to(u, w, end - start, p)
             else:
                 assert render is not None
                 got = self._render_piece(render, start, end, w, times[i:j], t_last)
@@ -839,8 +850,8 @@ class SimBelt(Belt):
             if head:
                 out[:head] = _relax(tu[k0], w, times[:head] - start, p)
             if stop < nxt:
-                return out, _relax(tu[k0], w, np.array([stop - start]), p)[0]
-            w = _relax(tu[k0], w, np.array([nxt - start]), p)[0]
+                return out, _relax_to(tu[k0], w, stop - start, p)
+            w = _relax_to(tu[k0], w, nxt - start, p)
             k0 += 1
             times, rest = times[head:], out[head:]
         else:
@@ -865,7 +876,7 @@ class SimBelt(Belt):
         into_stop = stop - (onset + k_stop * RENDER_TICK_NS)
         if into_stop == 0:
             return out, ws[-1]
-        return out, _relax(tu[k_stop], ws[-1], np.array([into_stop]), p)[0]
+        return out, _relax_to(tu[k_stop], ws[-1], into_stop, p)
 
     def _speed_grid(self, times: IntArray, t_a: int, w_a: FloatArray,
                     settled: int) -> FloatArray:
