@@ -84,6 +84,26 @@ def test_a_person_commits_every_trial_and_the_model_batches(tmp_path: Path) -> N
         assert len(store.trials()) == len(seen)
 
 
+def test_a_batch_commits_without_fsync_and_durability_returns_after_it(
+        tmp_path: Path) -> None:
+    """Inside a batch SQLite syncs only at checkpoints (synchronous=NORMAL, 1); before and
+    after it, and in a session with a person, every commit is synced (FULL, 2)."""
+    for person, during in ((False, {1}), (True, {2})):
+        seen: list[int] = []
+        clock = SimClock()
+        with Store.open(tmp_path / f"s{person}.sqlite") as store, open_belt(
+                "sim", clock=clock, layout=STUDY.layout_obj()) as belt:
+            assert store.conn.execute("PRAGMA synchronous").fetchone()[0] == 2
+            cursor = make_model_cursor(belt, clock, seed=7)
+            if person:
+                cursor.__class__ = PersonCursor
+            run_session(STUDY, "model-07", belt, cursor, store, clock, seed=3,
+                        progress=lambda done, total, store=store, seen=seen: seen.append(
+                            store.conn.execute("PRAGMA synchronous").fetchone()[0]))
+            assert seen and set(seen) == during
+            assert store.conn.execute("PRAGMA synchronous").fetchone()[0] == 2
+
+
 def test_the_rule_batches_only_when_nothing_real_is_involved() -> None:
     rule = provenance.commit_mode
     assert rule(simulated_clock=True, hardware_belt=False, person=False,

@@ -67,7 +67,8 @@ def default_site() -> str:
 COMMITS_PER_TRIAL = "per-trial"
 #: Trials are committed in batches of :data:`BATCH_TRIALS` (and at the end): a session on
 #: a simulated clock with the model participant on the sim belt, which a rerun with the
-#: same seed reproduces exactly, so a crash loses nothing that cannot be made again.
+#: same seed reproduces exactly, so a crash loses nothing that cannot be made again (and
+#: the batch's commits skip the fsync: SQLite's synchronous=NORMAL while it lasts).
 COMMITS_BATCHED = "batched"
 #: Trials per commit when a session batches its commits.
 BATCH_TRIALS = 64

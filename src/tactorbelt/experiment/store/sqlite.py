@@ -631,6 +631,9 @@ class SQLiteStore(Store):
         with self._transaction() as c:
             c.execute("INSERT OR REPLACE INTO meta(key, value) VALUES (?, ?)",
                       (_COMMITS_KEY.format(session_id), "batched"))
+        # a batch's commits need no fsync: WAL with synchronous=NORMAL never corrupts the
+        # file, a power cut may lose the latest batches, which a rerun makes again
+        self._pragma("synchronous = NORMAL")
         self._batch_every, self._batch_pending = int(every), 0
 
     def end_batch(self) -> None:
@@ -638,13 +641,23 @@ class SQLiteStore(Store):
         if not self._batch_every:
             return
         self._batch_every, self._batch_pending = 0, 0
-        if self.conn.in_transaction:
-            try:
-                self.conn.execute("COMMIT")
-            except sqlite3.Error as exc:
-                with contextlib.suppress(sqlite3.Error):
-                    self.conn.execute("ROLLBACK")
-                raise StoreError(f"cannot write to {self.path}: {exc}") from None
+        try:
+            if self.conn.in_transaction:
+                try:
+                    self.conn.execute("COMMIT")
+                except sqlite3.Error as exc:
+                    with contextlib.suppress(sqlite3.Error):
+                        self.conn.execute("ROLLBACK")
+                    raise StoreError(f"cannot write to {self.path}: {exc}") from None
+        finally:  # every later commit is durable again
+            with contextlib.suppress(sqlite3.Error):
+                self.conn.execute("PRAGMA synchronous = FULL")
+
+    def _pragma(self, setting: str) -> None:
+        try:
+            self.conn.execute(f"PRAGMA {setting}")
+        except sqlite3.Error as exc:
+            raise StoreError(f"cannot set {setting} on {self.path}: {exc}") from None
 
     def commit_mode(self, session_id: int) -> str:
         rows = self._query("SELECT value FROM meta WHERE key=?",
