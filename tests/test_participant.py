@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from tactorbelt import ConfigError
 from tactorbelt.geometry import Layout, TargetSet, wrap
@@ -16,7 +18,16 @@ from tactorbelt.participant import (
     perceive_vibration,
     sense_cues,
 )
-from tactorbelt.participant.perception import KIND_FUNNELLED, KIND_NONE, KIND_SINGLE
+from tactorbelt.participant.perception import (
+    _CUE_FIELDS,
+    KIND_FUNNELLED,
+    KIND_NONE,
+    KIND_SINGLE,
+    Percepts,
+    _perceive_many,
+    _perceive_one,
+    _sense_many,
+)
 from tactorbelt.stimuli import make_stimulus
 
 T_S = np.arange(300) / 1000.0  # a 0.3 s window at 1 kHz
@@ -245,3 +256,63 @@ def test_sense_cues_checks_shapes() -> None:
         sense_cues(T_S[:10], np.zeros((T_S.size, 6)), layout)
     with pytest.raises(ConfigError, match="increasing"):
         sense_cues(np.zeros(3), np.zeros((3, 6)), layout)
+
+
+# -- one trial at a time: the same numbers as a batch ------------------------------------
+
+
+def _window(rng: np.random.Generator, n: int, kind: int) -> np.ndarray:
+    """A vibration window of a few shapes: silent, one tactor, a pair, a moving pair."""
+    v = np.zeros((n, 6))
+    a = int(rng.integers(0, 6))
+    b = (a + 1) % 6
+    if kind >= 1:
+        v[:, a] = rng.uniform(0.0, 1.0) * (1.0 - np.exp(-np.arange(n) / 40.0))
+    if kind >= 2:
+        v[:, b] = rng.uniform(0.0, 1.0) * (1.0 - np.exp(-np.arange(n) / 40.0))
+    if kind >= 3:
+        swing = 0.5 + 0.5 * np.sin(np.arange(n) / rng.uniform(20.0, 200.0))
+        v[:, a] *= swing
+        v[:, b] *= 1.0 - swing
+    return v * (rng.random((n, 6)) < 0.98)  # a few dropped samples
+
+
+@given(seed=st.integers(0, 2**32 - 1), n=st.integers(1, 900), kind=st.integers(0, 3))
+def test_one_window_gives_the_cues_of_the_batch_path(seed: int, n: int, kind: int) -> None:
+    """The one-window path (the pair's columns only) and the batch path give the same
+    numbers, bit for bit."""
+    rng = np.random.default_rng(seed)
+    layout = Layout.even(6)
+    p = ModelParams()
+    t = np.arange(n) / 1000.0
+    v = _window(rng, n, kind)
+    one = sense_cues(t, v, layout, p)
+    w = v[None] ** p.gamma
+    dt = np.full(n, 1e-3) if n == 1 else np.append(np.diff(t), np.diff(t)[-1])
+    total = float(dt.sum())
+    w_mean = np.einsum("knj,n->kj", w, dt) / total
+    cw, _ = layout.neighbour_indices()
+    many = _sense_many(v[None], w, w_mean, one.pair, cw[one.pair], dt, total, p)
+    for f in _CUE_FIELDS:
+        a, b = np.asarray(getattr(one, f)), np.asarray(getattr(many, f))
+        assert a.shape == b.shape == (1,) and a.tolist() == b.tolist(), f
+
+
+@given(seed=st.integers(0, 2**32 - 1), n=st.integers(1, 900), kind=st.integers(0, 3),
+       params=st.sampled_from([ModelParams(), ModelParams(lapse=0.5, p_two_points=0.9)]))
+def test_one_trial_is_perceived_as_in_a_batch(seed: int, n: int, kind: int,
+                                              params: ModelParams) -> None:
+    """The one-trial path (scalars) and the batch path give the same numbers, bit for bit,
+    from the same cues and draws."""
+    rng = np.random.default_rng(seed)
+    layout = Layout.even(6)
+    cues = sense_cues(np.arange(n) / 1000.0, _window(rng, n, kind), layout, params)
+    tgt = TargetSet.even(24).angles
+    z, u, g = rng.standard_normal((3, 1)), rng.random((2, 1)), rng.integers(0, 24, size=1)
+    cw, _ = layout.neighbour_indices()
+    one = _perceive_one(cues, layout.angles, cw, layout.gaps_deg(), tgt, params,
+                        z[:, 0].tolist(), u[:, 0].tolist(), int(g[0]))
+    many = _perceive_many(cues, layout.angles, cw, layout.gaps_deg(), tgt, params, z, u, g)
+    for f in Percepts.__dataclass_fields__:
+        a, b = np.asarray(getattr(one, f)), np.asarray(getattr(many, f))
+        assert a.shape == b.shape == (1,) and a.tolist() == b.tolist(), f

@@ -168,7 +168,15 @@ def sense_cues(t_s: ArrayLike, vib: ArrayLike, layout: Layout,
     w_mean = np.einsum("knj,n->kj", w, dt) / total            # (K, N)
     cw, _ = layout.neighbour_indices()
     pair = np.argmax(w_mean + w_mean[:, cw], axis=1)          # (K,)
-    b = cw[pair]
+    if v.shape[0] == 1:
+        return _sense_one(v[0], w[0], w_mean[0], int(pair[0]), int(cw[pair[0]]), dt, total, p)
+    return _sense_many(v, w, w_mean, pair, cw[pair], dt, total, p)
+
+
+def _sense_many(v: FloatArray, w: FloatArray, w_mean: FloatArray, pair: IntArray,
+                b: IntArray, dt: FloatArray, total: float, p: ModelParams) -> Cues:
+    """:func:`sense_cues` of a batch of windows (``v``, ``w``: (K, n, N)) once each one's
+    pair (``pair``, ``b``) is known."""
     rows = np.arange(v.shape[0])
     peak = v.max(axis=1)                                      # (K, N)
     felt_a = peak[rows, pair] > p.detect_amplitude
@@ -191,6 +199,32 @@ def sense_cues(t_s: ArrayLike, vib: ArrayLike, layout: Layout,
         dwell_a_s=dom_a @ dt, dwell_b_s=dom_b @ dt,
         overlap=np.asarray(overlap),
         duration_s=np.full(v.shape[0], total),
+    )
+
+
+def _sense_one(v: FloatArray, w: FloatArray, w_mean: FloatArray, a: int, b: int,
+               dt: FloatArray, total: float, p: ModelParams) -> Cues:
+    """:func:`sense_cues` of one window (``v``, ``w``: (n, N)) once its pair (a, b) is
+    known: the same arithmetic on the pair's columns only."""
+    det = p.detect_amplitude
+    va, vb = v[:, a], v[:, b]
+    wa, wb = w[:, a], w[:, b]
+    tot = wa + wb
+    share_b = np.divide(wb, tot, out=np.full_like(tot, 0.5), where=tot > 0)
+    on_a, on_b = va > det, vb > det
+    active = on_a | on_b
+    dom_b = active & (share_b > 0.5 + p.dominance_margin)
+    dom_a = active & (share_b < 0.5 - p.dominance_margin)
+    felt_time = active[None] @ dt
+    overlap = np.divide((on_a & on_b)[None] @ dt, felt_time, out=np.zeros_like(felt_time),
+                        where=felt_time > 0)
+    return Cues(
+        pair=np.array([a], dtype=np.intp),
+        w_a=w_mean[a : a + 1], w_b=w_mean[b : b + 1],
+        felt_a=np.array([va.max() > det]), felt_b=np.array([vb.max() > det]),
+        dwell_a_s=dom_a[None] @ dt, dwell_b_s=dom_b[None] @ dt,
+        overlap=np.asarray(overlap),
+        duration_s=np.array([total]),
     )
 
 
@@ -247,7 +281,17 @@ def perceive(cues: Cues, layout: Layout, targets: TargetSet | ArrayLike,
     z = rng.standard_normal((3, n))
     u = rng.random((2, n))
     guess_idx = rng.integers(0, tgt.size, size=n)
+    if n == 1:
+        return _perceive_one(cues, angles, cw, gaps, tgt, p, z[:, 0].tolist(),
+                             u[:, 0].tolist(), int(guess_idx[0]))
+    return _perceive_many(cues, angles, cw, gaps, tgt, p, z, u, guess_idx)
 
+
+def _perceive_many(cues: Cues, angles: FloatArray, cw: IntArray, gaps: FloatArray,
+                   tgt: FloatArray, p: ModelParams, z: FloatArray, u: FloatArray,
+                   guess_idx: IntArray) -> Percepts:
+    """:func:`perceive` of a batch of trials with their draws taken (vectorised)."""
+    n = cues.n
     a = cues.pair
     b = cw[a]
     felt_a, felt_b = cues.felt_a, cues.felt_b
@@ -300,6 +344,66 @@ def perceive(cues: Cues, layout: Layout, targets: TargetSet | ArrayLike,
         perceived_deg=perceived, site_deg=site, fraction=np.asarray(fraction),
         kind=np.asarray(kind, dtype=np.intp), two_points=np.asarray(two),
         dynamic_cue=np.asarray(dyn & ~single), guessed=np.asarray(guessed),
+    )
+
+
+def _perceive_one(cues: Cues, angles: FloatArray, cw: IntArray, gaps: FloatArray,
+                  tgt: FloatArray, p: ModelParams, z: list[float], u: list[float],
+                  guess: int) -> Percepts:
+    """:func:`perceive` of one trial with its draws taken: the same arithmetic on scalars
+    (NumPy's functions for log, exp and the angles, Python's for + - * /, which are
+    the same IEEE operations)."""
+    a = int(cues.pair[0])
+    b = int(cw[a])
+    felt_a, felt_b = bool(cues.felt_a[0]), bool(cues.felt_b[0])
+    both = felt_a and felt_b
+    one = felt_a != felt_b
+    nothing = not (felt_a or felt_b)
+    w_a, w_b = float(cues.w_a[0]), float(cues.w_b[0])
+    dwell_a, dwell_b = float(cues.dwell_a_s[0]), float(cues.dwell_b_s[0])
+
+    sd_s = p.gamma * math.sqrt(2.0) * p.weber_amplitude
+    sd_d = math.sqrt(2.0) * p.weber_duration
+    ell_s = float(np.log((w_b + _TINY) / (w_a + _TINY))) + sd_s * z[0]
+    dyn = both and dwell_a >= p.min_dwell_s and dwell_b >= p.min_dwell_s
+    ell_d = float(np.log(max(dwell_b, _TINY) / max(dwell_a, _TINY))) + sd_d * z[1]
+    rel_s = 1.0 / max(sd_s * sd_s, _TINY)
+    rel_d = 1.0 / max(sd_d * sd_d, _TINY) if dyn else 0.0
+    ell = (rel_s * ell_s + rel_d * ell_d) / (rel_s + rel_d)
+    fraction = 1.0 / (1.0 + float(np.exp(-min(max(ell, -700.0), 700.0))))
+
+    two = both and u[0] < p.p_two_points * float(cues.overlap[0])
+    single = one or two
+    stronger_b = felt_b if one else ell_s > 0.0
+    single_at = b if stronger_b else a
+    if single:
+        fraction = float(stronger_b)
+    kind = KIND_NONE if nothing else (KIND_SINGLE if single else KIND_FUNNELLED)
+
+    mids = angles + gaps / 2.0
+    centre = float(angles[single_at] if single else mids[a])
+    site = float(normalize(centre + float(bias_deg(centre, p))
+                           + max(float(localisation_sd_deg(centre, p)), 0.0) * z[2]))
+    if single:
+        cand, cand_sd = angles, np.maximum(localisation_sd_deg(angles, p), _SD_FLOOR)
+    else:
+        cand, cand_sd = mids, np.maximum(localisation_sd_deg(mids, p), _SD_FLOOR)
+    d = wrap(site - cand) / cand_sd
+    ident = int(np.argmax(-0.5 * d * d - np.log(cand_sd)))
+    perceived = float(angles[ident]) if single else float(angles[ident]) + fraction * float(
+        gaps[ident])
+    perceived = float(normalize(perceived))
+
+    choice = int(np.argmin(np.abs(wrap(perceived - tgt))))
+    guessed = nothing or u[1] < p.lapse
+    if guessed:
+        choice = guess
+    return Percepts(
+        response_deg=tgt[choice : choice + 1], response_index=np.array([choice], dtype=np.intp),
+        perceived_deg=np.array([perceived]), site_deg=np.array([site]),
+        fraction=np.array([fraction]), kind=np.array([kind], dtype=np.intp),
+        two_points=np.array([two]), dynamic_cue=np.array([dyn and not single]),
+        guessed=np.array([guessed]),
     )
 
 
