@@ -38,7 +38,7 @@ import math
 import threading
 from dataclasses import dataclass
 from fractions import Fraction
-from typing import TYPE_CHECKING, Any, Final
+from typing import TYPE_CHECKING, Any, Final, NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
@@ -441,59 +441,78 @@ def _relax_to(u: FloatArray, w: FloatArray, dt_ns: int, params: ErmParams) -> Fl
     return np.asarray(u + (w - u) * np.exp(-np.minimum(dt / tau, _MAX_DECAY)))
 
 
+class _Tables(NamedTuple):
+    """A :class:`_Response` solved up to tick K (see there)."""
+
+    w: FloatArray  #: (K+1, N) speed at each tick's start, from rest at tick 0
+    d: FloatArray  #: (K+1, N) cumulative decay exponent along the rise/fall choices
+    u: FloatArray  #: (K, N) steady speed of each tick's drive
+    rising: BoolArray  #: (K, N) the rise/fall choice of each tick
+    rise_margin: FloatArray  #: (N,) the least u - w over rising ticks (inf: none)
+    fall_margin: FloatArray  #: (N,) the least w - u over the other ticks (inf: none)
+
+
 class _Response:
     """The speed of every motor under a periodic render started from rest, tick by tick.
 
-    For ticks ``0..K`` it keeps the speed at each tick's start ``w`` (from rest at tick
-    0), the steady speeds ``u`` and the rise/fall choice ``rising`` of each tick, and the
-    cumulative decay exponent ``d`` along those choices. From any other state at a tick
-    ``k0`` the model's speed at a later tick ``k`` is, by superposition,
+    For ticks ``0..K`` it keeps (:class:`_Tables`) the speed at each tick's start ``w``
+    (from rest at tick 0), the steady speeds ``u`` and the rise/fall choice ``rising`` of
+    each tick, and the cumulative decay exponent ``d`` along those choices. From any other
+    state at a tick ``k0`` the model's speed at a later tick ``k`` is, by superposition,
     ``w[k] + (state - w[k0]) * exp(-(d[k] - d[k0]))``, exact as long as every tick in
-    between makes the same rise/fall choice; :meth:`SimBelt._speed_pieces` checks that and
-    otherwise takes the general solution. Shared by every sim belt of the process (keyed by
-    the stimulus, the calibration and the motor constants), solved lazily in growing
-    chunks up to ``_RESPONSE_MAX_TICKS``.
+    between makes the same rise/fall choice. The offset ``state - w[k0]`` only shrinks, so
+    that holds wherever it is smaller than the margins (``rise_margin``, ``fall_margin``,
+    plus the tie tolerance); otherwise :meth:`SimBelt._render_piece` checks each tick and,
+    where a choice differs, takes the general solution. Shared by every sim belt of the
+    process (keyed by the stimulus, the calibration and the motor constants), solved lazily
+    in growing chunks up to ``_RESPONSE_MAX_TICKS``.
     """
 
-    __slots__ = ("_levels", "_lock", "_params", "_state")
+    __slots__ = ("_levels", "_lock", "_params", "_tables")
 
     def __init__(self, period_levels: FloatArray, params: ErmParams) -> None:
         self._levels = period_levels
         self._params = params
         n = period_levels.shape[1]
         self._lock = threading.Lock()
-        self._state: tuple[FloatArray, FloatArray, FloatArray, BoolArray] = (
-            np.zeros((1, n)), np.zeros((1, n)), np.zeros((0, n)), np.zeros((0, n), dtype=bool))
+        inf = np.full(n, np.inf)
+        self._tables = _Tables(np.zeros((1, n)), np.zeros((1, n)), np.zeros((0, n)),
+                               np.zeros((0, n), dtype=bool), inf, inf)
 
-    def upto(self, k: int) -> tuple[FloatArray, FloatArray, FloatArray, BoolArray] | None:
-        """``(w, d, u, rising)`` covering at least ticks ``0..k`` (``w`` and ``d``) and
-        ``0..k-1`` (``u`` and ``rising``); None beyond ``_RESPONSE_MAX_TICKS``."""
-        state = self._state
-        if state[0].shape[0] > k:
-            return state
+    def upto(self, k: int) -> _Tables | None:
+        """The tables covering at least ticks ``0..k`` (``w`` and ``d``) and ``0..k-1``
+        (``u`` and ``rising``); None beyond ``_RESPONSE_MAX_TICKS``."""
+        tables = self._tables
+        if tables.w.shape[0] > k:
+            return tables
         if k > _RESPONSE_MAX_TICKS:
             return None
         with self._lock:
-            state = self._state
-            have = state[0].shape[0] - 1
+            tables = self._tables
+            have = tables.w.shape[0] - 1
             if have >= k:
-                return state
+                return tables
             upto = min(max(k, 2 * have, 2048), _RESPONSE_MAX_TICKS)
             ticks = np.arange(have, upto + 1, dtype=np.int64)
             levels = self._levels[ticks % self._levels.shape[0]]
             p = self._params
-            w = erm_speed(ticks * RENDER_TICK_NS, levels, state[0][-1], p)
+            w = erm_speed(ticks * RENDER_TICK_NS, levels, tables.w[-1], p)
             u = p.steady_speed(levels[:-1])
             rising = u > w[:-1]
             h = float(RENDER_TICK_NS) * 1e-9
             k_step = np.where(rising, min(h / p.rise_tau_s, _MAX_DECAY),
                               min(h / p.fall_tau_s, _MAX_DECAY))
-            d = state[1][-1] + np.cumsum(k_step, axis=0)
-            self._state = state = (np.concatenate([state[0], w[1:]]),
-                                   np.concatenate([state[1], d]),
-                                   np.concatenate([state[2], u]),
-                                   np.concatenate([state[3], rising]))
-            return state
+            d = tables.d[-1] + np.cumsum(k_step, axis=0)
+            gap = u - w[:-1]
+            rise_margin = np.minimum(tables.rise_margin,
+                                     np.where(rising, gap, np.inf).min(axis=0))
+            fall_margin = np.minimum(tables.fall_margin,
+                                     np.where(rising, np.inf, -gap).min(axis=0))
+            self._tables = tables = _Tables(
+                np.concatenate([tables.w, w[1:]]), np.concatenate([tables.d, d]),
+                np.concatenate([tables.u, u]), np.concatenate([tables.rising, rising]),
+                rise_margin, fall_margin)
+            return tables
 
 
 _RESPONSES: dict[tuple[Stimulus, Calibration, ErmParams], _Response] = {}
@@ -840,7 +859,7 @@ class SimBelt(Belt):
         tables = resp.upto(k_stop + 1)
         if tables is None:
             return None
-        tw, td, tu, trise = tables
+        tw, td, tu, trise = tables.w, tables.d, tables.u, tables.rising
         out = np.empty((times.shape[0], w.shape[0]))
         k0 = (start - onset) // RENDER_TICK_NS
         t0 = onset + k0 * RENDER_TICK_NS
@@ -857,11 +876,20 @@ class SimBelt(Belt):
         else:
             rest = out
         # every tick start from k0 to k_stop, by superposition on the response from rest
-        decay = np.exp(-(td[k0 : k_stop + 1] - td[k0]))
-        ws = tw[k0 : k_stop + 1] + (w - tw[k0]) * decay
-        gap = tu[k0:k_stop] - ws[:-1]
-        if np.any(((gap > 0.0) != trise[k0:k_stop]) & (np.abs(gap) > _TIE)):
-            return None  # another rise/fall pattern than from rest
+        offset = w - tw[k0]
+        if not (np.all(offset <= tables.rise_margin + _TIE)
+                and np.all(-offset <= tables.fall_margin + _TIE)):
+            # the offset may change a rise/fall choice: check every tick
+            decay = np.exp(-(td[k0 : k_stop + 1] - td[k0]))
+            ws = tw[k0 : k_stop + 1] + offset * decay
+            gap = tu[k0:k_stop] - ws[:-1]
+            if np.any(((gap > 0.0) != trise[k0:k_stop]) & (np.abs(gap) > _TIE)):
+                return None  # another rise/fall pattern than from rest
+        elif times.shape[0]:
+            ws = tw[k0 : k_stop + 1] + offset * np.exp(-(td[k0 : k_stop + 1] - td[k0]))
+        else:  # only the state at the end is wanted
+            ws = tw[k_stop : k_stop + 1] + offset * np.exp(-(td[k_stop] - td[k0]))
+            k0 = k_stop
         if times.shape[0]:
             tick = (times - onset) // RENDER_TICK_NS
             base = ws[tick - k0]
