@@ -116,3 +116,20 @@ def test_bad_layouts(angles, match):
 def test_even_layout_needs_two_tactors():
     with pytest.raises(ConfigError):
         Layout.even(1)
+
+
+@given(st.floats(allow_nan=True, allow_infinity=True))
+@example(EDGES[0])
+@example(EDGES[3])
+@example(-0.0)
+@example(math.nextafter(0.0, -1.0))
+def test_a_float_is_wrapped_and_normalised_as_in_an_array(a):
+    """The scalar path (Python's %) gives the array path's numbers, bit for bit."""
+    with np.errstate(invalid="ignore"):
+        arr_n, arr_w = normalize(np.array([a]))[0], wrap(np.array([a]))[0]
+    n, w = normalize(a), wrap(a)
+    assert type(n) is float and type(w) is float
+    assert (math.isnan(n) and math.isnan(arr_n)) or (n == arr_n and math.copysign(1, n)
+                                                      == math.copysign(1, arr_n))
+    assert (math.isnan(w) and math.isnan(arr_w)) or (w == arr_w and math.copysign(1, w)
+                                                      == math.copysign(1, arr_w))

@@ -37,6 +37,9 @@ FloatArray = NDArray[np.float64]
 
 def normalize(angle: ArrayLike) -> Any:
     """Normalise angles to [0, 360). Works on scalars and arrays."""
+    if type(angle) is float:  # Python's % is NumPy's mod for floats (fmod, sign fix-up)
+        r = angle % 360.0
+        return 0.0 if r >= 360.0 else r
     a = np.mod(np.asarray(angle, dtype=float), 360.0)
     # np.mod(-1e-17, 360) == 360.0 in floating point: fold it back to 0.
     a = np.where(a >= 360.0, 0.0, a)
@@ -45,6 +48,9 @@ def normalize(angle: ArrayLike) -> Any:
 
 def wrap(angle: ArrayLike) -> Any:
     """Wrap angle differences into (-180, 180]. Works on scalars and arrays."""
+    if type(angle) is float:  # Python's % is NumPy's mod for floats (fmod, sign fix-up)
+        r = 180.0 - (180.0 - angle) % 360.0
+        return 180.0 if r <= -180.0 else r
     a = np.asarray(angle, dtype=float)
     w = 180.0 - np.mod(180.0 - a, 360.0)
     # np.mod(-3e-14, 360) == 360.0 (for a just above 180): fold -180 back to 180.

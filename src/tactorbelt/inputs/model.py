@@ -117,6 +117,9 @@ class _Move:
         """:meth:`at` for many times, with the same floating-point operations in the
         same order (so each value is bit for bit what :meth:`at` gives)."""
         s = (t_ns - self.start_ns) / self.duration_ns
+        if s[-1] <= 0.0 or s[0] >= 1.0:  # all before the movement, or all after it
+            x_end, y_end = (self.x0, self.y0) if s[-1] <= 0.0 else (self.x1, self.y1)
+            return np.full(s.shape[0], x_end), np.full(s.shape[0], y_end)
         f = s * s * s * (10.0 - 15.0 * s + 6.0 * s * s)
         x = self.x0 + (self.x1 - self.x0) * f
         y = self.y0 + (self.y1 - self.y0) * f
@@ -166,7 +169,7 @@ class ModelCursor(CursorSource):
         self._decide_ns: int | None = None
         self._move: _Move | None = None
         self._targets: dict[tuple[float, ...], TargetSet] = {}
-        self._noise: list[float] = []
+        self._noise: list[float] | None = None  # the block as a list, for tick-by-tick reads
         self._noise_arr: NDArray[np.float64] = np.zeros(0)
         self._noise_i = 0
         #: The decision of the latest trial (None before the first decision).
@@ -195,11 +198,14 @@ class ModelCursor(CursorSource):
         x, y = self._position(now)
         j = self.params.jitter
         if j > 0:
-            if self._noise_i + 2 > len(self._noise):
+            if self._noise_i + 2 > self._noise_arr.shape[0]:
                 self._refill_noise()
+            noise = self._noise
+            if noise is None:  # indexing a list is faster than an array, tick by tick
+                noise = self._noise = self._noise_arr.tolist()
             i = self._noise_i
-            x += j * self._noise[i]
-            y += j * self._noise[i + 1]
+            x += j * noise[i]
+            y += j * noise[i + 1]
             self._noise_i = i + 2
         return CursorSample(now, x, y, 0)
 
@@ -219,9 +225,9 @@ class ModelCursor(CursorSource):
             n = min(n, int(np.searchsorted(times, self._decide_ns, side="left")))
         j = self.params.jitter
         if j > 0:
-            if self._noise_i + 2 > len(self._noise):
+            if self._noise_i + 2 > self._noise_arr.shape[0]:
                 self._refill_noise()
-            n = min(n, (len(self._noise) - self._noise_i) // 2)
+            n = min(n, (self._noise_arr.shape[0] - self._noise_i) // 2)
         t = times[:n]
         if self._move is None:
             x, y = np.zeros(n), np.zeros(n)
@@ -273,7 +279,7 @@ class ModelCursor(CursorSource):
 
     def _refill_noise(self) -> None:
         self._noise_arr = self._rng.standard_normal(_NOISE_BLOCK)
-        self._noise = self._noise_arr.tolist()
+        self._noise = None
         self._noise_i = 0
 
     def _target_set(self, cue: TrialCue) -> TargetSet:

@@ -307,6 +307,10 @@ def _path_of(url: str | Path) -> Path:
 _SAMPLE_ROWS_PER_INSERT = 100
 
 
+_INSERT_TRIAL_SQL = (f"INSERT INTO trials({', '.join(_TRIAL_COLUMNS)}) "
+                     f"VALUES ({', '.join('?' * len(_TRIAL_COLUMNS))})")
+
+
 def _samples_sql(n_rows: int) -> str:
     return ("INSERT INTO samples(trial_id, t_s, x, y, buttons) VALUES "
             + ",".join(["(?,?,?,?,?)"] * n_rows))
@@ -833,9 +837,7 @@ class SQLiteStore(Store):
                     result.abort_reason, attempts, utc_now(), t.n_targets or None, t.load,
                     result.device_onset_ns, result.onset_uncertainty_ns,
                 )
-                cur = c.execute(
-                    f"INSERT INTO trials({', '.join(_TRIAL_COLUMNS)}) "
-                    f"VALUES ({', '.join('?' * len(_TRIAL_COLUMNS))})", values)
+                cur = c.execute(_INSERT_TRIAL_SQL, values)
                 trial_id = int(cur.lastrowid or 0)
                 if result.n_samples:
                     _insert_samples(c, trial_id, result)
