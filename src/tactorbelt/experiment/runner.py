@@ -57,7 +57,7 @@ from ..tasks.session import TaskSession
 from . import provenance
 from .schedule import ScheduledTrial, block_order, make_schedule, schedule_from_json
 from .store import Store
-from .study import Study, TaskSpec
+from .study import StimulusSpec, Study, TaskSpec
 from .trial import ResponseRule, TrialMachine, TrialResult, TrialState
 
 if TYPE_CHECKING:
@@ -354,6 +354,7 @@ class SessionRunner:
         self.sim = bool(clock.simulated)
         self.player = Player(belt, clock)
         self._stimuli: dict[tuple[Any, ...], Stimulus] = {}
+        self._block_stimuli: dict[str, StimulusSpec] = {}
         self.profile: Any = None  # the wearer profile ([calibration] perceptual), by open_session
         # set by open_session
         self.session_id = 0
@@ -434,12 +435,20 @@ class SessionRunner:
                            if r["scale"] == TLX_SCALE}
         return [t for t in self.schedule if t.trial_index not in finished]
 
+    def trial_stimulus(self, t: ScheduledTrial) -> StimulusSpec:
+        """The ``[stimulus]`` settings of a trial's block (``Study.trial_stimulus``, made
+        once per block)."""
+        spec = self._block_stimuli.get(t.block_name)
+        if spec is None:
+            spec = self._block_stimuli[t.block_name] = self.study.trial_stimulus(t.block_name)
+        return spec
+
     def stimulus_for(self, t: ScheduledTrial) -> Stimulus:
         """The stimulus of a trial (one per target, condition and block stimulus, made
         once): its block's ``[stimulus]`` with the block's overrides."""
         from ..stimuli import make_stimulus
 
-        sp = self.study.trial_stimulus(t.block_name)
+        sp = self.trial_stimulus(t)
         key = (t.target_deg, t.condition, sp.law, sp.falloff_deg, sp.period_s, sp.transit_s)
         if key not in self._stimuli:
             self._stimuli[key] = make_stimulus(self.belt.layout, t.target_deg, t.condition,
@@ -457,7 +466,7 @@ class SessionRunner:
 
     def rule_for(self, t: ScheduledTrial) -> ResponseRule:
         """The response rule of a trial: the study's, with its block's longest presentation."""
-        max_s = self.study.trial_stimulus(t.block_name).max_presentation_s
+        max_s = self.trial_stimulus(t).max_presentation_s
         if max_s not in self._rules:
             self._rules[max_s] = replace(self.rule, max_presentation_ns=round(max_s * 1e9))
         return self._rules[max_s]
@@ -689,7 +698,7 @@ class SessionRunner:
                        layout, t.target_deg if t.block == "training" else None)
         onset = int(self.player.start(
             self.stimulus_for(t),
-            duration_s=self.study.trial_stimulus(t.block_name).max_presentation_s))
+            duration_s=self.trial_stimulus(t).max_presentation_s))
         machine.start(onset)
         self.cursor.trial_started(cue, onset)
         self.obs.on_trial_state(t, TrialState.STIMULUS, onset)
