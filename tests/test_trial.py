@@ -5,12 +5,15 @@ from __future__ import annotations
 import math
 
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from tactorbelt import TactorbeltError
 from tactorbelt.experiment.schedule import ScheduledTrial
 from tactorbelt.experiment.trial import (
     ResponseRule,
     TrialMachine,
+    TrialResult,
     TrialState,
     cursor_angle_deg,
 )
@@ -150,3 +153,15 @@ def test_rule_from_study() -> None:
     assert rule.sample_period_ns == 10 * MS
     assert rule.threshold == 0.9
     assert rule.timeout_ns == 10_000 * MS
+
+
+@given(onset=st.one_of(st.none(), st.integers(-2**62, 2**62)),
+       offsets=st.lists(st.integers(-2**60, 2**60), max_size=50))
+def test_sample_times_are_the_exact_formula(onset: int | None, offsets: list[int]) -> None:
+    """``sample_times_s`` (vectorised) is ``(t - onset) / 1e9`` per sample, bit for bit,
+    also where the difference is too large for an exact float."""
+    res = TrialResult(trial=_machine().result.trial, onset_ns=onset)
+    res.sample_t_ns = [(onset or 0) + d for d in offsets]
+    expected = [(t - (onset or 0)) / 1e9 for t in res.sample_t_ns]
+    got = res.sample_times_s()
+    assert got == expected and all(type(v) is float for v in got)

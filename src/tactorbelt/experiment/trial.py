@@ -159,9 +159,13 @@ class TrialResult:
             samples.clear()
 
     def sample_times_s(self) -> list[float]:
-        """Each sample's time in seconds from the onset."""
+        """Each sample's time in seconds from the onset (``(t - onset) / 1e9``: an exact
+        integer difference, converted exactly while below 2**53 ns, then divided)."""
         onset = self.onset_ns or 0
-        return [(t - onset) / 1e9 for t in self.sample_t_ns]
+        t = np.array(self.sample_t_ns, dtype=np.int64) - onset
+        if t.size and max(-int(t.min()), int(t.max())) >= 2**53:
+            return [(v - onset) / 1e9 for v in self.sample_t_ns]  # beyond exact floats
+        return (t / 1e9).tolist()
 
     def sample_rows(self) -> list[tuple[float, float, float, int]]:
         """(t_s from onset, x, y, buttons) per sample."""

@@ -47,6 +47,7 @@ modules; never devices, inputs or the window.
 from __future__ import annotations
 
 import contextlib
+import functools
 import json
 import os
 import shutil
@@ -311,6 +312,7 @@ _INSERT_TRIAL_SQL = (f"INSERT INTO trials({', '.join(_TRIAL_COLUMNS)}) "
                      f"VALUES ({', '.join('?' * len(_TRIAL_COLUMNS))})")
 
 
+@functools.lru_cache(maxsize=_SAMPLE_ROWS_PER_INSERT + 1)
 def _samples_sql(n_rows: int) -> str:
     return ("INSERT INTO samples(trial_id, t_s, x, y, buttons) VALUES "
             + ",".join(["(?,?,?,?,?)"] * n_rows))
