@@ -21,9 +21,12 @@ modelled vibration over any interval; the model participant and the tests read t
 
 The motor model is solved exactly: the drive is piecewise constant (it changes only at
 commands and at 1 kHz render ticks), and on each piece the speed relaxes exponentially
-towards its steady state with the rise or the fall time constant. The recurrence over
-pieces is solved vectorised (over tactors and over time, by cumulative products), with
-the rise/fall choice found by fixed-point iteration; no Python loop per sample.
+towards its steady state with the rise or the fall time constant. A query walks the
+commands piece by piece: a constant drive in closed form, a periodic render from its
+response from rest (solved once per process, :class:`_Response`) by superposition where
+the rise/fall pattern holds; otherwise the recurrence over all pieces is solved
+vectorised (over tactors and over time, by cumulative products), with the rise/fall
+choice found by fixed-point iteration. No Python loop per sample (docs/belts.md).
 
 Imports NumPy and tactorbelt (geometry, clock, stimuli types, devices.base); never an
 I/O library.
