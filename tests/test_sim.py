@@ -12,6 +12,7 @@ from hypothesis import strategies as st
 from tactorbelt import ConfigError, TactorbeltError
 from tactorbelt.clock import SimClock
 from tactorbelt.devices import open_belt
+from tactorbelt.devices import sim as sim_module
 from tactorbelt.devices.calibration import Calibration, TactorCalibration
 from tactorbelt.devices.sim import ErmParams, SimBelt, erm_speed, open_sim, sample_grid
 from tactorbelt.geometry import Layout
@@ -251,6 +252,27 @@ def test_a_render_started_on_spinning_motors_is_solved_exactly() -> None:
     a, b = fast.vibration(S, 2500 * MS)[1], grid.vibration(S, 2500 * MS)[1]
     np.testing.assert_allclose(a, b, rtol=0, atol=1e-12)
     assert a[0, 0] > 0.99 and a[:, 0].min() < 0.5  # it did fall from full speed
+
+
+def test_the_process_wide_tables_stay_within_their_memory_and_stay_exact(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """Many stimuli: the least recently used tables and responses are dropped to keep
+    within the budget; a dropped one is made again, and every query stays exact."""
+    monkeypatch.setattr(sim_module, "_RESPONSES_BUDGET", 300_000)
+    monkeypatch.setattr(sim_module, "_TABLES_BUDGET", 200_000)
+    clock = SimClock()
+    fast, grid = SimBelt(clock=clock), _GridBelt(clock=clock)
+    for k in range(12):
+        stim = make_stimulus(fast.layout, 7.0 + 10.0 * (k % 6) + 0.5 * k, "dynamic")
+        t0 = clock.now_ns()
+        for belt in (fast, grid):
+            belt.play(stim, 0.6)
+        clock.advance(800 * MS)
+        np.testing.assert_allclose(fast.vibration(t0, clock.now_ns())[1],
+                                   grid.vibration(t0, clock.now_ns())[1], rtol=0, atol=1e-12)
+        assert sum(r.nbytes for r in sim_module._RESPONSES.values()) <= 300_000
+        assert sum(t.nbytes for t in sim_module._PERIODS.values()) <= 200_000
+    assert 1 <= len(sim_module._RESPONSES) < 12 and len(sim_module._PERIODS) < 12
 
 
 def test_a_render_beyond_its_tabulated_response_takes_the_general_solution() -> None:

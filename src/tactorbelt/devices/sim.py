@@ -41,7 +41,7 @@ import math
 import threading
 from dataclasses import dataclass
 from fractions import Fraction
-from typing import TYPE_CHECKING, Any, Final, NamedTuple
+from typing import TYPE_CHECKING, Any, Final
 
 import numpy as np
 from numpy.typing import NDArray
@@ -75,15 +75,19 @@ _CHECKPOINT_EVERY: Final = 256
 #: A drive that changes at fewer steps than this is solved stretch by stretch in closed
 #: form (:func:`_erm_segments`), cheaper than the vectorised recurrence.
 _SEGMENT_STEPS: Final = 16
-#: Rendered one-period tables kept per process (a study uses a few dozen stimuli).
-_MAX_TABLES: Final = 128
+#: Memory for the one-period tables of periodic renders kept per process (the least
+#: recently used go first; a dynamic stimulus's 1 s period on 6 tactors takes 48 KB).
+_TABLES_BUDGET: Final = 8 * 2**20
 #: Checkpoints of the motor state kept to start later simulations from.
 _MAX_CHECKPOINTS: Final = 64
-#: Responses from rest of periodic renders kept per process (:class:`_Response`).
-_MAX_RESPONSES: Final = 64
-#: A response from rest is solved up to this many ticks (10 s); a query further into a
-#: render takes the general solution.
-_RESPONSE_MAX_TICKS: Final = 10_000
+#: Memory for the responses from rest of periodic renders kept per process
+#: (:class:`_Response`, the least recently used go first; a dynamic stimulus on its 2
+#: moving motors takes ~100 KB: 240 stimuli).
+_RESPONSES_BUDGET: Final = 24 * 2**20
+#: A response from rest is solved for this many ticks (4 s; half the model participant's
+#: queries reach 2 s into a render); a query further into a render takes the general
+#: solution.
+_RESPONSE_MAX_TICKS: Final = 4_096
 
 _OPTIONS: Final = ("layout", "clock", "calibration", "params", "horizon_s", "name")
 
@@ -171,6 +175,10 @@ class _Period:
 
     __slots__ = ("changes", "levels")
 
+    @property
+    def nbytes(self) -> int:
+        return int(self.levels.nbytes + self.changes.nbytes)
+
     def __init__(self, levels: FloatArray) -> None:
         self.levels = levels
         self.changes: IntArray = np.flatnonzero(
@@ -178,9 +186,37 @@ class _Period:
 
 
 #: One-period tables of periodic renders, by (stimulus, calibration), for every sim belt of
-#: the process; and the lock that guards additions to it and to ``_RESPONSES``.
+#: the process, least recently used first; and the lock that guards changes to it and to
+#: ``_RESPONSES``.
 _PERIODS: dict[tuple[Stimulus, Calibration], _Period] = {}
 _CACHE_LOCK = threading.Lock()
+
+
+def _cached(cache: dict[Any, Any], key: Any) -> Any:
+    """``cache[key]`` (None if absent), now the most recently used."""
+    value = cache.get(key)
+    if value is not None:
+        with _CACHE_LOCK:
+            if cache.get(key) is value:
+                del cache[key]
+                cache[key] = value
+    return value
+
+
+def _remember(cache: dict[Any, Any], key: Any, value: Any, budget: int) -> None:
+    """Add ``value`` (with an ``nbytes``) and drop the least recently used entries while
+    the cache's memory exceeds ``budget`` (the newest stays)."""
+    with _CACHE_LOCK:
+        cache[key] = value
+        _trim(cache, budget)
+
+
+def _trim(cache: dict[Any, Any], budget: int) -> None:
+    """Drop the least recently used entries beyond ``budget`` bytes (call with the lock)."""
+    total = sum(v.nbytes for v in cache.values())
+    while total > budget and len(cache) > 1:
+        oldest = next(iter(cache))
+        total -= cache.pop(oldest).nbytes
 
 
 class _Render:
@@ -215,16 +251,13 @@ class _Render:
         of the same stimulus and calibration in the process (read-only)."""
         if self._table is None:
             key = (self.stimulus, self.calibration)
-            period = _PERIODS.get(key)
+            period = _cached(_PERIODS, key)
             if period is None:
                 k = np.arange(self._table_ticks)
                 period = _Period(self.calibration.apply(
                     self.stimulus.amplitudes(k / (1e9 / RENDER_TICK_NS))))
                 period.levels.setflags(write=False)
-                with _CACHE_LOCK:
-                    if len(_PERIODS) >= _MAX_TABLES:
-                        del _PERIODS[next(iter(_PERIODS))]
-                    _PERIODS[key] = period
+                _remember(_PERIODS, key, period, _TABLES_BUDGET)
             self._table = period
         return self._table
 
@@ -444,78 +477,67 @@ def _relax_to(u: FloatArray, w: FloatArray, dt_ns: int, params: ErmParams) -> Fl
     return np.asarray(u + (w - u) * np.exp(-np.minimum(dt / tau, _MAX_DECAY)))
 
 
-class _Tables(NamedTuple):
-    """A :class:`_Response` solved up to tick K (see there)."""
-
-    w: FloatArray  #: (K+1, N) speed at each tick's start, from rest at tick 0
-    d: FloatArray  #: (K+1, N) cumulative decay exponent along the rise/fall choices
-    u: FloatArray  #: (K, N) steady speed of each tick's drive
-    rising: BoolArray  #: (K, N) the rise/fall choice of each tick
-    rise_margin: FloatArray  #: (N,) the least u - w over rising ticks (inf: none)
-    fall_margin: FloatArray  #: (N,) the least w - u over the other ticks (inf: none)
-
-
 class _Response:
-    """The speed of every motor under a periodic render started from rest, tick by tick.
+    """The speed of the moving motors under a periodic render started from rest.
 
-    For ticks ``0..K`` it keeps (:class:`_Tables`) the speed at each tick's start ``w``
-    (from rest at tick 0), the steady speeds ``u`` and the rise/fall choice ``rising`` of
-    each tick, and the cumulative decay exponent ``d`` along those choices. From any other
-    state at a tick ``k0`` the model's speed at a later tick ``k`` is, by superposition,
-    ``w[k] + (state - w[k0]) * exp(-(d[k] - d[k0]))``, exact as long as every tick in
-    between makes the same rise/fall choice. The offset ``state - w[k0]`` only shrinks, so
-    that holds wherever it is smaller than the margins (``rise_margin``, ``fall_margin``,
-    plus the tie tolerance); otherwise :meth:`SimBelt._render_piece` checks each tick and,
-    where a choice differs, takes the general solution. Shared by every sim belt of the
-    process (keyed by the stimulus, the calibration and the motor constants), solved lazily
-    in growing chunks up to ``_RESPONSE_MAX_TICKS``.
+    ``cols`` are the motors the render ever drives above the dead zone; the others are
+    driven at 0 all along (a constant drive, in closed form). For the moving ones and the
+    ticks ``0..K`` (K = ``_RESPONSE_MAX_TICKS``) it keeps the speed at each tick's start
+    ``w`` (from rest at tick 0) and how many ticks before each rose (``risen``: the
+    rise/fall choice of tick k is ``u[k] > w[k]``, ``u`` the steady speed of its drive,
+    ``u_period[k % P]``). Along those choices the decay exponent from tick k0 to k is
+    ``kf * (k - k0) + (kr - kf) * (risen[k] - risen[k0])`` (kr, kf: one tick's exponent
+    rising and falling), so from any other state at k0 the speed at k is, by
+    superposition, ``w[k] + (state - w[k0]) * exp(-exponent)``: exact as long as every tick
+    in between makes the same rise/fall choice. The offset ``state - w[k0]`` only
+    shrinks, so that holds wherever it is smaller than the margins (``rise_margin``: the
+    least ``u - w`` over rising ticks, ``fall_margin``: the least ``w - u`` over the
+    others, plus the tie tolerance); otherwise :meth:`SimBelt._moving` checks each tick
+    and, where a choice differs, the general solution is taken.
+
+    Solved once, on first use, and shared by every sim belt of the process (keyed by the
+    stimulus, the calibration and the motor constants; read-only): ~100 KB for a dynamic
+    stimulus on its 2 moving motors.
     """
 
-    __slots__ = ("_levels", "_lock", "_params", "_tables")
+    __slots__ = ("cols", "fall_margin", "k_fall", "k_rise", "rise_margin", "risen",
+                 "u_period", "w")
 
     def __init__(self, period_levels: FloatArray, params: ErmParams) -> None:
-        self._levels = period_levels
-        self._params = params
-        n = period_levels.shape[1]
-        self._lock = threading.Lock()
-        inf = np.full(n, np.inf)
-        self._tables = _Tables(np.zeros((1, n)), np.zeros((1, n)), np.zeros((0, n)),
-                               np.zeros((0, n), dtype=bool), inf, inf)
+        u_period = params.steady_speed(period_levels)
+        self.cols: IntArray = np.flatnonzero(u_period.any(axis=0)).astype(np.int64)
+        self.u_period: FloatArray = np.ascontiguousarray(u_period[:, self.cols])
+        ticks = np.arange(_RESPONSE_MAX_TICKS + 1, dtype=np.int64)
+        u = self.u(ticks)  # steady speeds are their own drive levels
+        w = erm_speed(ticks * RENDER_TICK_NS, u, np.zeros(self.cols.shape[0]), params)
+        rising = u[:-1] > w[:-1]
+        risen = np.zeros(w.shape, dtype=np.int16)
+        np.cumsum(rising, axis=0, out=risen[1:])
+        h = float(RENDER_TICK_NS) * 1e-9
+        self.k_rise = min(h / params.rise_tau_s, _MAX_DECAY)
+        self.k_fall = min(h / params.fall_tau_s, _MAX_DECAY)
+        gap = u[:-1] - w[:-1]
+        self.rise_margin: FloatArray = np.where(rising, gap, np.inf).min(axis=0)
+        self.fall_margin: FloatArray = np.where(rising, np.inf, -gap).min(axis=0)
+        self.w: FloatArray = w
+        self.risen: NDArray[np.int16] = risen
+        for a in (self.u_period, self.w, self.risen, self.rise_margin, self.fall_margin):
+            a.setflags(write=False)
 
-    def upto(self, k: int) -> _Tables | None:
-        """The tables covering at least ticks ``0..k`` (``w`` and ``d``) and ``0..k-1``
-        (``u`` and ``rising``); None beyond ``_RESPONSE_MAX_TICKS``."""
-        tables = self._tables
-        if tables.w.shape[0] > k:
-            return tables
-        if k > _RESPONSE_MAX_TICKS:
-            return None
-        with self._lock:
-            tables = self._tables
-            have = tables.w.shape[0] - 1
-            if have >= k:
-                return tables
-            upto = min(max(k, 2 * have, 2048), _RESPONSE_MAX_TICKS)
-            ticks = np.arange(have, upto + 1, dtype=np.int64)
-            levels = self._levels[ticks % self._levels.shape[0]]
-            p = self._params
-            w = erm_speed(ticks * RENDER_TICK_NS, levels, tables.w[-1], p)
-            u = p.steady_speed(levels[:-1])
-            rising = u > w[:-1]
-            h = float(RENDER_TICK_NS) * 1e-9
-            k_step = np.where(rising, min(h / p.rise_tau_s, _MAX_DECAY),
-                              min(h / p.fall_tau_s, _MAX_DECAY))
-            d = tables.d[-1] + np.cumsum(k_step, axis=0)
-            gap = u - w[:-1]
-            rise_margin = np.minimum(tables.rise_margin,
-                                     np.where(rising, gap, np.inf).min(axis=0))
-            fall_margin = np.minimum(tables.fall_margin,
-                                     np.where(rising, np.inf, -gap).min(axis=0))
-            self._tables = tables = _Tables(
-                np.concatenate([tables.w, w[1:]]), np.concatenate([tables.d, d]),
-                np.concatenate([tables.u, u]), np.concatenate([tables.rising, rising]),
-                rise_margin, fall_margin)
-            return tables
+    @property
+    def nbytes(self) -> int:
+        return int(self.w.nbytes + self.risen.nbytes + self.u_period.nbytes)
+
+    def u(self, ticks: IntArray | int) -> FloatArray:
+        """Steady speeds of the moving motors during the given ticks."""
+        return np.asarray(self.u_period[np.asarray(ticks) % self.u_period.shape[0]])
+
+    def decay(self, k0: int, a: int, b: int) -> FloatArray:
+        """``exp(-exponent)`` from tick ``k0`` to each tick in ``a..b-1``, along the
+        response's choices (rows: ticks; columns: the moving motors)."""
+        steps = np.arange(a - k0, b - k0, dtype=np.float64)[:, None]
+        rose = self.risen[a:b] - self.risen[k0]
+        return np.asarray(np.exp(-(self.k_fall * steps + (self.k_rise - self.k_fall) * rose)))
 
 
 _RESPONSES: dict[tuple[Stimulus, Calibration, ErmParams], _Response] = {}
@@ -525,14 +547,10 @@ def _response(stimulus: Stimulus, calibration: Calibration, params: ErmParams,
               period: FloatArray) -> _Response:
     """The process-wide :class:`_Response` of a periodic render (made on first use)."""
     key = (stimulus, calibration, params)
-    resp = _RESPONSES.get(key)
+    resp = _cached(_RESPONSES, key)
     if resp is None:
-        with _CACHE_LOCK:
-            resp = _RESPONSES.get(key)
-            if resp is None:
-                if len(_RESPONSES) >= _MAX_RESPONSES:
-                    del _RESPONSES[next(iter(_RESPONSES))]
-                resp = _RESPONSES[key] = _Response(period, params)
+        resp = _Response(period, params)
+        _remember(_RESPONSES, key, resp, _RESPONSES_BUDGET)
     return resp
 
 
@@ -852,46 +870,62 @@ class SimBelt(Belt):
     def _render_piece(self, render: _Render, start: int, end: int | None, w: FloatArray,
                       times: IntArray, t_last: int) -> tuple[FloatArray, FloatArray] | None:
         """Speeds at ``times`` in [start, end) of a periodic render, from the state ``w`` at
-        ``start``, and the state at ``end`` (None: the times run to ``t_last``)."""
+        ``start``, and the state at ``end`` (None: the times run to ``t_last``). The
+        motors the render never drives take the closed form of a zero drive."""
         p = self.params
         resp = render.response(p)
         assert resp is not None
-        onset = render.onset_ns
         stop = t_last if end is None else end
+        out = _relax(np.zeros_like(w), w, times - start, p)
+        w_end = _relax_to(np.zeros_like(w), w, stop - start, p)
+        cols = resp.cols
+        if cols.shape[0]:
+            got = self._moving(resp, render.onset_ns, start, stop, end is None, w[cols],
+                               times)
+            if got is None:
+                return None
+            out[:, cols], w_end[cols] = got
+        return out, w_end
+
+    def _moving(self, resp: _Response, onset: int, start: int, stop: int, open_end: bool,
+                w: FloatArray, times: IntArray) -> tuple[FloatArray, FloatArray] | None:
+        """:meth:`_render_piece` for the render's moving motors (``resp.cols``): by
+        superposition on the response from rest, tick by tick."""
+        p = self.params
         k_stop = (stop - onset) // RENDER_TICK_NS
-        tables = resp.upto(k_stop + 1)
-        if tables is None:
+        if k_stop >= _RESPONSE_MAX_TICKS:
             return None
-        tw, td, tu, trise = tables.w, tables.d, tables.u, tables.rising
+        tw = resp.w
         out = np.empty((times.shape[0], w.shape[0]))
         k0 = (start - onset) // RENDER_TICK_NS
         t0 = onset + k0 * RENDER_TICK_NS
         if start != t0:  # the rest of a tick: one constant stretch
             nxt = t0 + RENDER_TICK_NS
             head = int(np.searchsorted(times, nxt))
+            u0 = resp.u(k0)
             if head:
-                out[:head] = _relax(tu[k0], w, times[:head] - start, p)
+                out[:head] = _relax(u0, w, times[:head] - start, p)
             if stop < nxt:
-                return out, _relax_to(tu[k0], w, stop - start, p)
-            w = _relax_to(tu[k0], w, nxt - start, p)
+                return out, _relax_to(u0, w, stop - start, p)
+            w = _relax_to(u0, w, nxt - start, p)
             k0 += 1
             times, rest = times[head:], out[head:]
         else:
             rest = out
         # every tick start from k0 to k_stop, by superposition on the response from rest
         offset = w - tw[k0]
-        if not (np.all(offset <= tables.rise_margin + _TIE)
-                and np.all(-offset <= tables.fall_margin + _TIE)):
+        if not (np.all(offset <= resp.rise_margin + _TIE)
+                and np.all(-offset <= resp.fall_margin + _TIE)):
             # the offset may change a rise/fall choice: check every tick
-            decay = np.exp(-(td[k0 : k_stop + 1] - td[k0]))
-            ws = tw[k0 : k_stop + 1] + offset * decay
-            gap = tu[k0:k_stop] - ws[:-1]
-            if np.any(((gap > 0.0) != trise[k0:k_stop]) & (np.abs(gap) > _TIE)):
+            ws = tw[k0 : k_stop + 1] + offset * resp.decay(k0, k0, k_stop + 1)
+            u = resp.u(np.arange(k0, k_stop))
+            gap = u - ws[:-1]
+            if np.any(((gap > 0.0) != (u > tw[k0:k_stop])) & (np.abs(gap) > _TIE)):
                 return None  # another rise/fall pattern than from rest
         elif times.shape[0]:
-            ws = tw[k0 : k_stop + 1] + offset * np.exp(-(td[k0 : k_stop + 1] - td[k0]))
+            ws = tw[k0 : k_stop + 1] + offset * resp.decay(k0, k0, k_stop + 1)
         else:  # only the state at the end is wanted
-            ws = tw[k_stop : k_stop + 1] + offset * np.exp(-(td[k_stop] - td[k0]))
+            ws = tw[k_stop : k_stop + 1] + offset * resp.decay(k0, k_stop, k_stop + 1)
             k0 = k_stop
         if times.shape[0]:
             tick = (times - onset) // RENDER_TICK_NS
@@ -901,13 +935,11 @@ class SimBelt(Belt):
             if on_tick.all():
                 rest[:] = base
             else:
-                rest[:] = np.where(on_tick[:, None], base, _relax(tu[tick], base, into, p))
-        if end is None:
-            return out, ws[-1]
+                rest[:] = np.where(on_tick[:, None], base, _relax(resp.u(tick), base, into, p))
         into_stop = stop - (onset + k_stop * RENDER_TICK_NS)
-        if into_stop == 0:
+        if open_end or into_stop == 0:
             return out, ws[-1]
-        return out, _relax_to(tu[k_stop], ws[-1], into_stop, p)
+        return out, _relax_to(resp.u(k_stop), ws[-1], into_stop, p)
 
     def _speed_grid(self, times: IntArray, t_a: int, w_a: FloatArray,
                     settled: int) -> FloatArray:
