@@ -477,6 +477,14 @@ def _relax_to(u: FloatArray, w: FloatArray, dt_ns: int, params: ErmParams) -> Fl
     return np.asarray(u + (w - u) * np.exp(-np.minimum(dt / tau, _MAX_DECAY)))
 
 
+def _fall_factor(dt_ns: IntArray, params: ErmParams) -> FloatArray:
+    """How much an undriven motor's speed falls in ``dt_ns``: :func:`_relax` with ``u = 0``
+    is ``w * exp(-dt / fall_tau)``, the same factor for every motor (the same
+    arithmetic)."""
+    dt = dt_ns.astype(float) * 1e-9
+    return np.asarray(np.exp(-np.minimum(dt / params.fall_tau_s, _MAX_DECAY)))
+
+
 class _Response:
     """The speed of the moving motors under a periodic render started from rest.
 
@@ -500,12 +508,14 @@ class _Response:
     stimulus on its 2 moving motors.
     """
 
-    __slots__ = ("cols", "fall_margin", "k_fall", "k_rise", "rise_margin", "risen",
+    __slots__ = ("cols", "fall_margin", "idle", "k_fall", "k_rise", "rise_margin", "risen",
                  "u_period", "w")
 
     def __init__(self, period_levels: FloatArray, params: ErmParams) -> None:
         u_period = params.steady_speed(period_levels)
-        self.cols: IntArray = np.flatnonzero(u_period.any(axis=0)).astype(np.int64)
+        moving = u_period.any(axis=0)
+        self.cols: IntArray = np.flatnonzero(moving).astype(np.int64)
+        self.idle: IntArray = np.flatnonzero(~moving).astype(np.int64)
         self.u_period: FloatArray = np.ascontiguousarray(u_period[:, self.cols])
         ticks = np.arange(_RESPONSE_MAX_TICKS + 1, dtype=np.int64)
         u = self.u(ticks)  # steady speeds are their own drive levels
@@ -876,15 +886,19 @@ class SimBelt(Belt):
         resp = render.response(p)
         assert resp is not None
         stop = t_last if end is None else end
-        out = _relax(np.zeros_like(w), w, times - start, p)
-        w_end = _relax_to(np.zeros_like(w), w, stop - start, p)
-        cols = resp.cols
+        out = np.empty((times.shape[0], w.shape[0]))
+        w_end = np.empty(w.shape[0])
+        cols, idle = resp.cols, resp.idle
         if cols.shape[0]:
             got = self._moving(resp, render.onset_ns, start, stop, end is None, w[cols],
                                times)
             if got is None:
                 return None
             out[:, cols], w_end[cols] = got
+        if idle.shape[0]:  # a zero drive: every idle motor falls by the same factor
+            fall = _fall_factor(np.append(times, stop) - start, p)
+            out[:, idle] = w[idle] * fall[:-1, None]
+            w_end[idle] = w[idle] * fall[-1]
         return out, w_end
 
     def _moving(self, resp: _Response, onset: int, start: int, stop: int, open_end: bool,
