@@ -82,12 +82,12 @@ _TABLES_BUDGET: Final = 8 * 2**20
 _MAX_CHECKPOINTS: Final = 64
 #: Memory for the responses from rest of periodic renders kept per process
 #: (:class:`_Response`, the least recently used go first; a dynamic stimulus on its 2
-#: moving motors takes ~100 KB: 240 stimuli).
+#: moving motors takes ~110 KB: 220 stimuli).
 _RESPONSES_BUDGET: Final = 24 * 2**20
-#: A response from rest is solved for this many ticks (4 s; half the model participant's
-#: queries reach 2 s into a render); a query further into a render takes the general
-#: solution.
-_RESPONSE_MAX_TICKS: Final = 4_096
+#: A response from rest is solved for this many ticks (3 s; half the model participant's
+#: queries reach 2 s into a render, 1 % 3 s); a query further into a render takes the
+#: general solution.
+_RESPONSE_MAX_TICKS: Final = 3_072
 
 _OPTIONS: Final = ("layout", "clock", "calibration", "params", "horizon_s", "name")
 
@@ -491,25 +491,23 @@ class _Response:
     ``cols`` are the motors the render ever drives above the dead zone; the others are
     driven at 0 all along (a constant drive, in closed form). For the moving ones and the
     ticks ``0..K`` (K = ``_RESPONSE_MAX_TICKS``) it keeps the speed at each tick's start
-    ``w`` (from rest at tick 0) and how many ticks before each rose (``risen``: the
-    rise/fall choice of tick k is ``u[k] > w[k]``, ``u`` the steady speed of its drive,
-    ``u_period[k % P]``). Along those choices the decay exponent from tick k0 to k is
-    ``kf * (k - k0) + (kr - kf) * (risen[k] - risen[k0])`` (kr, kf: one tick's exponent
-    rising and falling), so from any other state at k0 the speed at k is, by
-    superposition, ``w[k] + (state - w[k0]) * exp(-exponent)``: exact as long as every tick
-    in between makes the same rise/fall choice. The offset ``state - w[k0]`` only
-    shrinks, so that holds wherever it is smaller than the margins (``rise_margin``: the
-    least ``u - w`` over rising ticks, ``fall_margin``: the least ``w - u`` over the
-    others, plus the tie tolerance); otherwise :meth:`SimBelt._moving` checks each tick
-    and, where a choice differs, the general solution is taken.
+    ``w`` (from rest at tick 0) and the cumulative decay exponent ``d`` along the
+    rise/fall choices (tick k rises when ``u[k] > w[k]``, ``u`` the steady speed of its
+    drive, ``u_period[k % P]``). From any other state at a tick ``k0`` the speed at a
+    later tick ``k`` is, by superposition, ``w[k] + (state - w[k0]) * exp(-(d[k] -
+    d[k0]))``: exact as long as every tick in between makes the same rise/fall choice.
+    The offset ``state - w[k0]`` only shrinks, so that holds wherever it is smaller than
+    the margins (``rise_margin``: the least ``u - w`` over rising ticks,
+    ``fall_margin``: the least ``w - u`` over the others, plus the tie tolerance);
+    otherwise :meth:`SimBelt._moving` checks each tick and, where a choice differs, the
+    general solution is taken.
 
     Solved once, on first use, and shared by every sim belt of the process (keyed by the
-    stimulus, the calibration and the motor constants; read-only): ~100 KB for a dynamic
+    stimulus, the calibration and the motor constants; read-only): ~110 KB for a dynamic
     stimulus on its 2 moving motors.
     """
 
-    __slots__ = ("cols", "fall_margin", "idle", "k_fall", "k_rise", "rise_margin", "risen",
-                 "u_period", "w")
+    __slots__ = ("cols", "d", "fall_margin", "idle", "rise_margin", "u_period", "w")
 
     def __init__(self, period_levels: FloatArray, params: ErmParams) -> None:
         u_period = params.steady_speed(period_levels)
@@ -521,22 +519,21 @@ class _Response:
         u = self.u(ticks)  # steady speeds are their own drive levels
         w = erm_speed(ticks * RENDER_TICK_NS, u, np.zeros(self.cols.shape[0]), params)
         rising = u[:-1] > w[:-1]
-        risen = np.zeros(w.shape, dtype=np.int16)
-        np.cumsum(rising, axis=0, out=risen[1:])
         h = float(RENDER_TICK_NS) * 1e-9
-        self.k_rise = min(h / params.rise_tau_s, _MAX_DECAY)
-        self.k_fall = min(h / params.fall_tau_s, _MAX_DECAY)
+        d = np.zeros(w.shape)
+        np.cumsum(np.where(rising, min(h / params.rise_tau_s, _MAX_DECAY),
+                           min(h / params.fall_tau_s, _MAX_DECAY)), axis=0, out=d[1:])
         gap = u[:-1] - w[:-1]
         self.rise_margin: FloatArray = np.where(rising, gap, np.inf).min(axis=0)
         self.fall_margin: FloatArray = np.where(rising, np.inf, -gap).min(axis=0)
         self.w: FloatArray = w
-        self.risen: NDArray[np.int16] = risen
-        for a in (self.u_period, self.w, self.risen, self.rise_margin, self.fall_margin):
+        self.d: FloatArray = d
+        for a in (self.u_period, self.w, self.d, self.rise_margin, self.fall_margin):
             a.setflags(write=False)
 
     @property
     def nbytes(self) -> int:
-        return int(self.w.nbytes + self.risen.nbytes + self.u_period.nbytes)
+        return int(self.w.nbytes + self.d.nbytes + self.u_period.nbytes)
 
     def u(self, ticks: IntArray | int) -> FloatArray:
         """Steady speeds of the moving motors during the given ticks."""
@@ -545,9 +542,7 @@ class _Response:
     def decay(self, k0: int, a: int, b: int) -> FloatArray:
         """``exp(-exponent)`` from tick ``k0`` to each tick in ``a..b-1``, along the
         response's choices (rows: ticks; columns: the moving motors)."""
-        steps = np.arange(a - k0, b - k0, dtype=np.float64)[:, None]
-        rose = self.risen[a:b] - self.risen[k0]
-        return np.asarray(np.exp(-(self.k_fall * steps + (self.k_rise - self.k_fall) * rose)))
+        return np.asarray(np.exp(-(self.d[a:b] - self.d[k0])))
 
 
 _RESPONSES: dict[tuple[Stimulus, Calibration, ErmParams], _Response] = {}
