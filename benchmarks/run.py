@@ -104,19 +104,20 @@ GOALS = [
          "the runner's clock mapped to LSL's against a direct reading: the time between "
          "the reads"),
     Goal("session_s", "session_per_trial_s", "<=", 2.0, "s",
-         "the model's decisions (about half: the ERM model's vibration over each observed "
-         "window and the rest of the previous stimulus, ~0.6 ms a trial in many NumPy "
-         "calls on small arrays, dynamic stimuli most; perception ~0.25 ms), SQLite "
-         "(~20 %: ~58,000 sample rows, 100 to an INSERT), the runner (~20 %); the 100 Hz "
-         "sampling reads the model in runs of ticks; commits batched (64 trials) here"),
+         "SQLite (a third: ~58,000 sample rows, 100 to an INSERT, with the foreign-key "
+         "check and the trial_id index; ~0.6 us a row in SQLite itself), the model's "
+         "decisions (~30 %: the ERM model's vibration ~0.15 ms a query, periodic renders "
+         "read from their response from rest; perception ~0.15 ms a trial), the 100 Hz "
+         "sampling read in runs of ticks (~15 %), the runner (~15 %): some 300 small "
+         "operations a trial; commits batched (64 trials, no fsync) here"),
     Goal("session_batch_speedup", None, None, None, "x",
          "baseline: the same sessions committing (and fsyncing) every trial; the disk"),
     Goal("sessions_1000_s", None, "<=", 120.0, "s",
          "one store per worker, 2 workers; same costs as session_s", full_only=True),
     Goal("sessions_1000_est_s", None, "<=", 120.0, "s",
          "make bench: 30 participants, scaled to 1,000; as session_s (0.24 s a session "
-         "on each of 2 free cores would be needed: the per-trial NumPy work of the ERM "
-         "model and perception, and the SQLite rows, cost ~1.3 ms a trial)"),
+         "on each of 2 free cores would be needed, ~0.83 ms a trial; two workers also "
+         "run ~5 % slower than one alone)"),
     Goal("sessions_per_s", None, None, None, "participants/s",
          "the fast path (batched commits), 2 workers; as session_s"),
     Goal("long_session_rss_growth_mb", None, "<=", 20.0, "MB",
