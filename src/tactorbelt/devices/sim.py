@@ -1045,10 +1045,11 @@ class SimBelt(Belt):
             # cut at a remembered state when there is one close before the cut: no work
             j = bisect.bisect_right(self._ck_t, cut) - 1
             if j >= 0 and self._ck_t[j] > max(self._base_t, cut - self._slack_ns):
-                cut = self._ck_t[j]
-            if cut <= self._base_t:
+                cut, w_cut = self._ck_t[j], self._ck_w[j]
+            elif cut <= self._base_t:
                 return
-            w_cut = self._speed_at(np.array([cut], dtype=np.int64))[0]
+            else:
+                w_cut = self._speed_at(np.array([cut], dtype=np.int64))[0]
             keep = max(self._row_in_force(cut), self._lo)
             self._lo = keep
             self._base_t, self._base_w, self._pruned = cut, w_cut, True
