@@ -256,7 +256,7 @@ def test_a_render_started_on_spinning_motors_is_solved_exactly() -> None:
 
 def test_the_process_wide_tables_stay_within_their_memory_and_stay_exact(
         monkeypatch: pytest.MonkeyPatch) -> None:
-    """Many stimuli: the least recently used tables and responses are dropped to keep
+    """Many stimuli: the oldest tables and responses are dropped to keep
     within the budget; a dropped one is made again, and every query stays exact."""
     monkeypatch.setattr(sim_module, "_RESPONSES_BUDGET", 300_000)
     monkeypatch.setattr(sim_module, "_TABLES_BUDGET", 200_000)
@@ -273,6 +273,34 @@ def test_the_process_wide_tables_stay_within_their_memory_and_stay_exact(
         assert sum(r.nbytes for r in sim_module._RESPONSES.values()) <= 300_000
         assert sum(t.nbytes for t in sim_module._PERIODS.values()) <= 200_000
     assert 1 <= len(sim_module._RESPONSES) < 12 and len(sim_module._PERIODS) < 12
+
+
+def test_a_stimulus_object_played_again_shares_its_tables_until_pruned() -> None:
+    """A study plays the same stimulus objects again and again: later renders take the
+    first one's table and response (no lookup) and stay exact; once the first render
+    leaves the kept history, the belt forgets the object (memory stays bounded)."""
+    clock = SimClock()
+    fast, grid = SimBelt(clock=clock, horizon_s=3.0), _GridBelt(clock=clock, horizon_s=3.0)
+    stims = [make_stimulus(fast.layout, a, "dynamic") for a in (20.0, 80.0)]
+    shared = 0
+    for k in range(8):
+        t0 = clock.now_ns()
+        for belt in (fast, grid):
+            belt.play(stims[k % 2], 0.7)
+        clock.advance(900 * MS)
+        np.testing.assert_allclose(fast.vibration(t0, clock.now_ns())[1],
+                                   grid.vibration(t0, clock.now_ns())[1], rtol=0, atol=1e-12)
+        first = fast._played[id(stims[k % 2])]
+        latest = fast._renders[max(fast._renders)]
+        if latest is not first:  # (a first render pruned from the history: a new first)
+            assert latest._table is first._table
+            assert latest._response is first._response
+            shared += 1
+    assert shared >= 4
+    for _ in range(10):  # past the horizon and its slack: the history is pruned
+        clock.advance(S)
+        fast.stop()
+    assert not fast._played
 
 
 def test_a_render_beyond_its_tabulated_response_takes_the_general_solution() -> None:

@@ -75,13 +75,13 @@ _CHECKPOINT_EVERY: Final = 256
 #: A drive that changes at fewer steps than this is solved stretch by stretch in closed
 #: form (:func:`_erm_segments`), cheaper than the vectorised recurrence.
 _SEGMENT_STEPS: Final = 16
-#: Memory for the one-period tables of periodic renders kept per process (the least
-#: recently used go first; a dynamic stimulus's 1 s period on 6 tactors takes 48 KB).
+#: Memory for the one-period tables of periodic renders kept per process (the oldest
+#: go first; a dynamic stimulus's 1 s period on 6 tactors takes 48 KB).
 _TABLES_BUDGET: Final = 8 * 2**20
 #: Checkpoints of the motor state kept to start later simulations from.
 _MAX_CHECKPOINTS: Final = 64
 #: Memory for the responses from rest of periodic renders kept per process
-#: (:class:`_Response`, the least recently used go first; a dynamic stimulus on its 2
+#: (:class:`_Response`, the oldest go first; a dynamic stimulus on its 2
 #: moving motors takes ~110 KB: 220 stimuli).
 _RESPONSES_BUDGET: Final = 24 * 2**20
 #: A response from rest is solved for this many ticks (3 s; half the model participant's
@@ -186,33 +186,27 @@ class _Period:
 
 
 #: One-period tables of periodic renders, by (stimulus, calibration), for every sim belt of
-#: the process, least recently used first; and the lock that guards changes to it and to
+#: the process, oldest first; and the lock that guards changes to it and to
 #: ``_RESPONSES``.
 _PERIODS: dict[tuple[Stimulus, Calibration], _Period] = {}
 _CACHE_LOCK = threading.Lock()
 
 
 def _cached(cache: dict[Any, Any], key: Any) -> Any:
-    """``cache[key]`` (None if absent), now the most recently used."""
-    value = cache.get(key)
-    if value is not None:
-        with _CACHE_LOCK:
-            if cache.get(key) is value:
-                del cache[key]
-                cache[key] = value
-    return value
+    """``cache[key]`` (None if absent)."""
+    return cache.get(key)
 
 
 def _remember(cache: dict[Any, Any], key: Any, value: Any, budget: int) -> None:
-    """Add ``value`` (with an ``nbytes``) and drop the least recently used entries while
-    the cache's memory exceeds ``budget`` (the newest stays)."""
+    """Add ``value`` (with an ``nbytes``) and drop the oldest entries while the cache's
+    memory exceeds ``budget`` (the newest stays)."""
     with _CACHE_LOCK:
         cache[key] = value
         _trim(cache, budget)
 
 
 def _trim(cache: dict[Any, Any], budget: int) -> None:
-    """Drop the least recently used entries beyond ``budget`` bytes (call with the lock)."""
+    """Drop the oldest entries beyond ``budget`` bytes (call with the lock)."""
     total = sum(v.nbytes for v in cache.values())
     while total > budget and len(cache) > 1:
         oldest = next(iter(cache))
@@ -273,6 +267,12 @@ class _Render:
         p0, p1 = k0 // period, (k1 - 1) // period
         ks = (np.arange(p0, p1 + 1, dtype=np.int64)[:, None] * period + c[None, :]).ravel()
         return np.asarray(ks[(ks >= k0) & (ks < k1)])
+
+    def share(self, other: _Render) -> None:
+        """Take the period table and the response ``other`` (the same stimulus and
+        calibration) has found or will find."""
+        self._table = other._period() if self._table_ticks else None
+        self._response = other._response
 
     def constant(self) -> FloatArray | None:
         """The drive levels of a render that never changes (a static stimulus), or None."""
@@ -507,13 +507,12 @@ class _Response:
     stimulus on its 2 moving motors.
     """
 
-    __slots__ = ("cols", "d", "fall_margin", "idle", "rise_margin", "u_period", "w")
+    __slots__ = ("cols", "d", "fall_limit", "fall_margin", "rise_limit", "rise_margin",
+                 "u_period", "w")
 
     def __init__(self, period_levels: FloatArray, params: ErmParams) -> None:
         u_period = params.steady_speed(period_levels)
-        moving = u_period.any(axis=0)
-        self.cols: IntArray = np.flatnonzero(moving).astype(np.int64)
-        self.idle: IntArray = np.flatnonzero(~moving).astype(np.int64)
+        self.cols: IntArray = np.flatnonzero(u_period.any(axis=0)).astype(np.int64)
         self.u_period: FloatArray = np.ascontiguousarray(u_period[:, self.cols])
         ticks = np.arange(_RESPONSE_MAX_TICKS + 1, dtype=np.int64)
         u = self.u(ticks)  # steady speeds are their own drive levels
@@ -526,6 +525,9 @@ class _Response:
         gap = u[:-1] - w[:-1]
         self.rise_margin: FloatArray = np.where(rising, gap, np.inf).min(axis=0)
         self.fall_margin: FloatArray = np.where(rising, np.inf, -gap).min(axis=0)
+        #: the largest offsets up and down that change no choice beyond a tie
+        self.rise_limit: FloatArray = self.rise_margin + _TIE
+        self.fall_limit: FloatArray = self.fall_margin + _TIE
         self.w: FloatArray = w
         self.d: FloatArray = d
         for a in (self.u_period, self.w, self.d, self.rise_margin, self.fall_margin):
@@ -613,6 +615,9 @@ class SimBelt(Belt):
         self._lo = 0
         self._hi = 0
         self._renders: dict[int, _Render] = {}
+        #: a kept render of each stimulus object played (by id; the render keeps the
+        #: object alive, and leaves with it when the history is pruned)
+        self._played: dict[int, _Render] = {}
         self._next_rid = 0
         self._base_t = int(self.clock.now_ns())
         self._base_w = np.zeros(n)
@@ -645,7 +650,16 @@ class SimBelt(Belt):
         self._next_rid += 1
         onset = self._append(np.zeros(self.n_tactors), rid, register=False)
         end = None if duration_s is None else onset + round(duration_s * 1e9)
-        self._renders[rid] = _Render(stimulus, onset, end, self.calibration)
+        render = _Render(stimulus, onset, end, self.calibration)
+        # the same stimulus object again (a study plays each of its stimuli many times):
+        # its table and response without looking them up (hashing a stimulus is slow)
+        before = self._played.get(id(stimulus))
+        if before is not None and before.stimulus is stimulus \
+                and before.calibration is self.calibration:
+            render.share(before)
+        else:
+            self._played[id(stimulus)] = render
+        self._renders[rid] = render
 
     # -- the log ----------------------------------------------------------------------
     def _append(self, levels: FloatArray, rid: int, register: bool = True) -> int:
@@ -881,19 +895,17 @@ class SimBelt(Belt):
         resp = render.response(p)
         assert resp is not None
         stop = t_last if end is None else end
-        out = np.empty((times.shape[0], w.shape[0]))
-        w_end = np.empty(w.shape[0])
-        cols, idle = resp.cols, resp.idle
+        # every motor as if undriven (a zero drive falls by one factor for all of them);
+        # then the moving ones from the response
+        out = w * _fall_factor(times - start, p)[:, None]
+        w_end = w * _fall_factor(np.array([stop - start]), p)[0]
+        cols = resp.cols
         if cols.shape[0]:
             got = self._moving(resp, render.onset_ns, start, stop, end is None, w[cols],
                                times)
             if got is None:
                 return None
             out[:, cols], w_end[cols] = got
-        if idle.shape[0]:  # a zero drive: every idle motor falls by the same factor
-            fall = _fall_factor(np.append(times, stop) - start, p)
-            out[:, idle] = w[idle] * fall[:-1, None]
-            w_end[idle] = w[idle] * fall[-1]
         return out, w_end
 
     def _moving(self, resp: _Response, onset: int, start: int, stop: int, open_end: bool,
@@ -923,8 +935,7 @@ class SimBelt(Belt):
             rest = out
         # every tick start from k0 to k_stop, by superposition on the response from rest
         offset = w - tw[k0]
-        if not (np.all(offset <= resp.rise_margin + _TIE)
-                and np.all(-offset <= resp.fall_margin + _TIE)):
+        if not (np.all(offset <= resp.rise_limit) and np.all(-offset <= resp.fall_limit)):
             # the offset may change a rise/fall choice: check every tick
             ws = tw[k0 : k_stop + 1] + offset * resp.decay(k0, k0, k_stop + 1)
             u = resp.u(np.arange(k0, k_stop))
@@ -1059,7 +1070,9 @@ class SimBelt(Belt):
             live = live[live >= 0]
             oldest = int(live.min()) if live.size else self._next_rid
             for rid in [r for r in self._renders if r < oldest]:
-                del self._renders[rid]
+                render = self._renders.pop(rid)
+                if self._played.get(id(render.stimulus)) is render:
+                    del self._played[id(render.stimulus)]
 
 
 def _parse_target(target: str) -> tuple[int | None, bool]:

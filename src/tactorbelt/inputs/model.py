@@ -114,19 +114,20 @@ class _Move:
 
     def at_many(self, t_ns: NDArray[np.int64]) -> tuple[NDArray[np.float64],
                                                         NDArray[np.float64]]:
-        """:meth:`at` for many times, with the same floating-point operations in the
-        same order (so each value is bit for bit what :meth:`at` gives)."""
+        """:meth:`at` for many increasing times, with the same floating-point operations
+        in the same order (so each value is bit for bit what :meth:`at` gives)."""
         s = (t_ns - self.start_ns) / self.duration_ns
-        if s[-1] <= 0.0 or s[0] >= 1.0:  # all before the movement, or all after it
-            x_end, y_end = (self.x0, self.y0) if s[-1] <= 0.0 else (self.x1, self.y1)
-            return np.full(s.shape[0], x_end), np.full(s.shape[0], y_end)
-        f = s * s * s * (10.0 - 15.0 * s + 6.0 * s * s)
-        x = self.x0 + (self.x1 - self.x0) * f
-        y = self.y0 + (self.y1 - self.y0) * f
-        before, after = s <= 0.0, s >= 1.0
-        if before.any() or after.any():
-            x = np.where(before, self.x0, np.where(after, self.x1, x))
-            y = np.where(before, self.y0, np.where(after, self.y1, y))
+        # the times are increasing: before the movement (s <= 0), during it, after it
+        i0 = int(np.searchsorted(s, 0.0, side="right"))
+        i1 = int(np.searchsorted(s, 1.0, side="left"))
+        x, y = np.full(s.shape[0], self.x0), np.full(s.shape[0], self.y0)
+        if i1 < s.shape[0]:
+            x[i1:], y[i1:] = self.x1, self.y1
+        if i1 > i0:
+            m = s[i0:i1]
+            f = m * m * m * (10.0 - 15.0 * m + 6.0 * m * m)
+            x[i0:i1] = self.x0 + (self.x1 - self.x0) * f
+            y[i0:i1] = self.y0 + (self.y1 - self.y0) * f
         return x, y
 
 
