@@ -593,6 +593,10 @@ class SQLiteStore(Store):
             with contextlib.suppress(sqlite3.Error):
                 self.conn.execute("ROLLBACK")
             raise
+        self._commit()
+
+    def _commit(self) -> None:
+        """Commit the open transaction; on failure roll it back and raise StoreError."""
         try:
             self.conn.execute("COMMIT")
         except sqlite3.Error as exc:
@@ -649,12 +653,7 @@ class SQLiteStore(Store):
         self._batch_every, self._batch_pending = 0, 0
         try:
             if self.conn.in_transaction:
-                try:
-                    self.conn.execute("COMMIT")
-                except sqlite3.Error as exc:
-                    with contextlib.suppress(sqlite3.Error):
-                        self.conn.execute("ROLLBACK")
-                    raise StoreError(f"cannot write to {self.path}: {exc}") from None
+                self._commit()
         finally:  # every later commit is durable again
             with contextlib.suppress(sqlite3.Error):
                 self.conn.execute("PRAGMA synchronous = FULL")
