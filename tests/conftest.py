@@ -19,10 +19,17 @@ pytest puts ``tests/`` on ``sys.path`` (rootdir conftest, no ``tests/__init__.py
 from __future__ import annotations
 
 import os
+import signal
 from pathlib import Path
 
 import pytest
 from hypothesis import HealthCheck, settings
+
+# A shell that starts a command in the background (``make test &``) makes it ignore
+# SIGINT, and a child process inherits that across exec: the tests that press Ctrl-C on
+# a real process would then fail. Handling SIGINT here gives every child the default.
+if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 
 os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
 os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
