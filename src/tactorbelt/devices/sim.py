@@ -93,7 +93,6 @@ _OPTIONS: Final = ("layout", "clock", "calibration", "params", "horizon_s", "nam
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
-BoolArray = NDArray[np.bool_]
 
 
 @dataclass(frozen=True)
@@ -192,11 +191,6 @@ _PERIODS: dict[tuple[Stimulus, Calibration], _Period] = {}
 _CACHE_LOCK = threading.Lock()
 
 
-def _cached(cache: dict[Any, Any], key: Any) -> Any:
-    """``cache[key]`` (None if absent)."""
-    return cache.get(key)
-
-
 def _remember(cache: dict[Any, Any], key: Any, value: Any, budget: int) -> None:
     """Add ``value`` (with an ``nbytes``) and drop the oldest entries while the cache's
     memory exceeds ``budget`` (the newest stays)."""
@@ -245,7 +239,7 @@ class _Render:
         of the same stimulus and calibration in the process (read-only)."""
         if self._table is None:
             key = (self.stimulus, self.calibration)
-            period = _cached(_PERIODS, key)
+            period = _PERIODS.get(key)
             if period is None:
                 k = np.arange(self._table_ticks)
                 period = _Period(self.calibration.apply(
@@ -449,12 +443,8 @@ def _erm_segments(t_ns: IntArray, levels: FloatArray, w0: FloatArray, params: Er
     out = np.empty((m, n))
     out[0] = w0
     w = w0
-    rise, fall = params.rise_tau_s, params.fall_tau_s
     for a, b in itertools.pairwise(bounds):
-        u = params.steady_speed(levels[a])
-        tau = np.where(u > w, rise, fall)
-        dt = (t_ns[a + 1 : b + 1] - t_ns[a]).astype(float) * 1e-9
-        seg = u + (w - u) * np.exp(-np.minimum(dt[:, None] / tau, _MAX_DECAY))
+        seg = _relax(params.steady_speed(levels[a]), w, t_ns[a + 1 : b + 1] - t_ns[a], params)
         out[a + 1 : b + 1] = seg
         w = seg[-1]
     return np.asarray(np.clip(out, 0.0, 1.0))
@@ -496,19 +486,18 @@ class _Response:
     drive, ``u_period[k % P]``). From any other state at a tick ``k0`` the speed at a
     later tick ``k`` is, by superposition, ``w[k] + (state - w[k0]) * exp(-(d[k] -
     d[k0]))``: exact as long as every tick in between makes the same rise/fall choice.
-    The offset ``state - w[k0]`` only shrinks, so that holds wherever it is smaller than
-    the margins (``rise_margin``: the least ``u - w`` over rising ticks,
-    ``fall_margin``: the least ``w - u`` over the others, plus the tie tolerance);
-    otherwise :meth:`SimBelt._moving` checks each tick and, where a choice differs, the
-    general solution is taken.
+    The offset ``state - w[k0]`` only shrinks, so that holds wherever it is within the
+    limits (``rise_limit``: the least ``u - w`` over rising ticks, ``fall_limit``: the
+    least ``w - u`` over the others, each plus the tie tolerance); otherwise
+    :meth:`SimBelt._moving` checks each tick and, where a choice differs, the general
+    solution is taken.
 
     Solved once, on first use, and shared by every sim belt of the process (keyed by the
     stimulus, the calibration and the motor constants; read-only): ~110 KB for a dynamic
     stimulus on its 2 moving motors.
     """
 
-    __slots__ = ("cols", "d", "fall_limit", "fall_margin", "rise_limit", "rise_margin",
-                 "u_period", "w")
+    __slots__ = ("cols", "d", "fall_limit", "rise_limit", "u_period", "w")
 
     def __init__(self, period_levels: FloatArray, params: ErmParams) -> None:
         u_period = params.steady_speed(period_levels)
@@ -523,14 +512,13 @@ class _Response:
         np.cumsum(np.where(rising, min(h / params.rise_tau_s, _MAX_DECAY),
                            min(h / params.fall_tau_s, _MAX_DECAY)), axis=0, out=d[1:])
         gap = u[:-1] - w[:-1]
-        self.rise_margin: FloatArray = np.where(rising, gap, np.inf).min(axis=0)
-        self.fall_margin: FloatArray = np.where(rising, np.inf, -gap).min(axis=0)
-        #: the largest offsets up and down that change no choice beyond a tie
-        self.rise_limit: FloatArray = self.rise_margin + _TIE
-        self.fall_limit: FloatArray = self.fall_margin + _TIE
+        # the largest offsets up and down that change no choice beyond a tie: the margins
+        # plus the tie tolerance
+        self.rise_limit: FloatArray = np.where(rising, gap, np.inf).min(axis=0) + _TIE
+        self.fall_limit: FloatArray = np.where(rising, np.inf, -gap).min(axis=0) + _TIE
         self.w: FloatArray = w
         self.d: FloatArray = d
-        for a in (self.u_period, self.w, self.d, self.rise_margin, self.fall_margin):
+        for a in (self.u_period, self.w, self.d, self.rise_limit, self.fall_limit):
             a.setflags(write=False)
 
     @property
@@ -554,7 +542,7 @@ def _response(stimulus: Stimulus, calibration: Calibration, params: ErmParams,
               period: FloatArray) -> _Response:
     """The process-wide :class:`_Response` of a periodic render (made on first use)."""
     key = (stimulus, calibration, params)
-    resp = _cached(_RESPONSES, key)
+    resp = _RESPONSES.get(key)
     if resp is None:
         resp = _Response(period, params)
         _remember(_RESPONSES, key, resp, _RESPONSES_BUDGET)
