@@ -270,3 +270,23 @@ def test_run_and_resume_leave_only_the_store_file(tmp_path: Path,
     with Store.open(db, readonly=True) as store:
         assert len(store.trials()) == 12
     assert sorted(p.name for p in db.parent.iterdir()) == ["s.sqlite"]
+
+
+def test_a_failed_write_in_a_batch_undoes_itself_alone(tmp_path: Path) -> None:
+    """Inside a batch each write is a savepoint (kept in memory): a trial that fails half
+    written leaves no row and no samples, and the batch's other trials are stored."""
+    with Store.open(tmp_path / "s.sqlite") as store:
+        sid = _session(store)
+        store.begin_batch(sid, 64)
+        store.write_trial(sid, _result(0, n=150))
+        bad = _result(1, n=150)
+        bad.sample_y.pop()  # fails after the trial row is inserted
+        with pytest.raises(StoreError, match="unequal length"):
+            store.write_trial(sid, bad)
+        store.write_trial(sid, _result(2, n=150))
+        store.end_batch()
+        assert [r["trial_index"] for r in store.trials(sid)] == [0, 2]
+        assert store.conn.execute("SELECT count(*) FROM samples").fetchone()[0] == 300
+        bad.sample_y.append(0.3)  # mended, it can be written now
+        store.write_trial(sid, bad)
+        assert [r["trial_index"] for r in store.trials(sid)] == [0, 2, 1]
