@@ -44,11 +44,11 @@ from numpy.typing import NDArray
 
 from ._errors import ConfigError, TactorbeltError
 from .clock import SPIN_NS, Clock, Deadlines, WallClock
+from .stimuli import Stimulus
 
 if TYPE_CHECKING:
     from .devices.base import Belt
     from .geometry import Layout
-    from .stimuli import Stimulus
 
 __all__ = ["DEFAULT_RATE_HZ", "Player", "PlayerStats"]
 
@@ -208,9 +208,8 @@ class Player:
             raise err
 
     def _check_stimulus(self, stimulus: Stimulus) -> None:
-        from .stimuli import Stimulus as _Stimulus  # a protocol check is slow; most are one
-
-        if not isinstance(stimulus, _Stimulus) and not isinstance(stimulus, Playable):
+        # a protocol check is slow; most are a Stimulus
+        if not isinstance(stimulus, Stimulus) and not isinstance(stimulus, Playable):
             raise ConfigError(f"expected a Stimulus, got {type(stimulus).__name__}")
         layout = stimulus.layout
         if layout.n != self.belt.n_tactors:
@@ -237,8 +236,6 @@ class Player:
 
     def renders_on_device(self, stimulus: Stimulus) -> bool:
         """True when :meth:`start` hands ``stimulus`` to the belt (else it streams it)."""
-        from .stimuli import Stimulus
-
         return (self.device_render and isinstance(stimulus, Stimulus)
                 and self.belt.can_render(stimulus))
 

@@ -686,7 +686,7 @@ class SimBelt(Belt):
 
     def _row_in_force(self, t_ns: int) -> int:
         """Absolute index of the command in force at ``t_ns`` (lo - 1 when none)."""
-        rel = int(np.searchsorted(self._t[self._lo : self._hi], t_ns, side="right")) - 1
+        rel = int(self._t[self._lo : self._hi].searchsorted(t_ns, side="right")) - 1
         return self._lo + rel
 
     def _levels_at(self, times: IntArray) -> FloatArray:
@@ -695,7 +695,7 @@ class SimBelt(Belt):
         lo, hi = self._lo, self._hi
         if hi == lo or times.shape[0] == 0:
             return out
-        idx = np.searchsorted(self._t[lo:hi], times, side="right") - 1
+        idx = self._t[lo:hi].searchsorted(times, side="right") - 1
         pos = np.flatnonzero(idx >= 0)
         rows = idx[pos] + lo
         rid = self._rid[rows]
@@ -778,7 +778,7 @@ class SimBelt(Belt):
         remember = settled > t_a and (not self._ck_t or settled > self._ck_t[-1])
         at = times
         if remember:
-            pos = int(np.searchsorted(times, settled))
+            pos = int(times.searchsorted(settled))
             if pos == times.shape[0] or int(times[pos]) != settled:
                 at = np.insert(times, pos, settled)
         solved = self._speed_pieces(at, t_a, np.asarray(w_a, dtype=float))
@@ -786,7 +786,7 @@ class SimBelt(Belt):
             return self._speed_grid(times, t_a, w_a, settled)
         out = np.clip(solved, 0.0, 1.0)
         if remember:
-            pos = int(np.searchsorted(at, settled))
+            pos = int(at.searchsorted(settled))
             self._add_checkpoint(settled, out[pos].copy())
             if at is not times:
                 out = np.delete(out, pos, axis=0)
@@ -858,7 +858,7 @@ class SimBelt(Belt):
         i = 0
         for k, (start, levels, render) in enumerate(pieces):
             end = pieces[k + 1][0] if k + 1 < len(pieces) else None
-            j = times.shape[0] if end is None else int(np.searchsorted(times, end))
+            j = times.shape[0] if end is None else int(times.searchsorted(end))
             if levels is not None:
                 u = p.steady_speed(levels)
                 if j > i:
@@ -910,7 +910,7 @@ class SimBelt(Belt):
         t0 = onset + k0 * RENDER_TICK_NS
         if start != t0:  # the rest of a tick: one constant stretch
             nxt = t0 + RENDER_TICK_NS
-            head = int(np.searchsorted(times, nxt))
+            head = int(times.searchsorted(nxt))
             u0 = resp.u(k0)
             if head:
                 out[:head] = _relax(u0, w, times[:head] - start, p)
@@ -923,12 +923,12 @@ class SimBelt(Belt):
             rest = out
         # every tick start from k0 to k_stop, by superposition on the response from rest
         offset = w - tw[k0]
-        if not (np.all(offset <= resp.rise_limit) and np.all(-offset <= resp.fall_limit)):
+        if not ((offset <= resp.rise_limit).all() and (-offset <= resp.fall_limit).all()):
             # the offset may change a rise/fall choice: check every tick
             ws = tw[k0 : k_stop + 1] + offset * resp.decay(k0, k0, k_stop + 1)
             u = resp.u(np.arange(k0, k_stop))
             gap = u - ws[:-1]
-            if np.any(((gap > 0.0) != (u > tw[k0:k_stop])) & (np.abs(gap) > _TIE)):
+            if (((gap > 0.0) != (u > tw[k0:k_stop])) & (np.abs(gap) > _TIE)).any():
                 return None  # another rise/fall pattern than from rest
         elif times.shape[0]:
             ws = tw[k0 : k_stop + 1] + offset * resp.decay(k0, k0, k_stop + 1)
@@ -962,16 +962,16 @@ class SimBelt(Belt):
         keep = np.empty(grid.shape[0], dtype=bool)
         keep[0] = True
         np.any(levels[1:] != levels[:-1], axis=1, out=keep[1:])
-        keep[np.searchsorted(grid, times)] = True
-        keep[np.searchsorted(grid, settled)] = True
+        keep[grid.searchsorted(times)] = True
+        keep[grid.searchsorted(settled)] = True
         if not keep.all():
             grid, levels = grid[keep], levels[keep]
         w = erm_speed(grid, levels, w_a, self.params)
         # remember the state at the latest time no future command can change
-        js = int(np.searchsorted(grid, settled, side="right")) - 1
+        js = int(grid.searchsorted(settled, side="right")) - 1
         if js > 0 and (not self._ck_t or int(grid[js]) > self._ck_t[-1]):
             self._add_checkpoint(int(grid[js]), w[js].copy())
-        return np.asarray(w[np.searchsorted(grid, times)])
+        return np.asarray(w[grid.searchsorted(times)])
 
     # -- public queries -----------------------------------------------------------------
     @property

@@ -446,11 +446,11 @@ class SessionRunner:
     def stimulus_for(self, t: ScheduledTrial) -> Stimulus:
         """The stimulus of a trial (one per target, condition and block stimulus, made
         once): its block's ``[stimulus]`` with the block's overrides."""
-        from ..stimuli import make_stimulus
-
         sp = self.trial_stimulus(t)
         key = (t.target_deg, t.condition, sp.law, sp.falloff_deg, sp.period_s, sp.transit_s)
         if key not in self._stimuli:
+            from ..stimuli import make_stimulus
+
             self._stimuli[key] = make_stimulus(self.belt.layout, t.target_deg, t.condition,
                                                sp.law, sp.falloff_deg, sp.period_s,
                                                sp.transit_s, profile=self.profile)

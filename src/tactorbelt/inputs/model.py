@@ -118,8 +118,8 @@ class _Move:
         in the same order (so each value is bit for bit what :meth:`at` gives)."""
         s = (t_ns - self.start_ns) / self.duration_ns
         # the times are increasing: before the movement (s <= 0), during it, after it
-        i0 = int(np.searchsorted(s, 0.0, side="right"))
-        i1 = int(np.searchsorted(s, 1.0, side="left"))
+        i0 = int(s.searchsorted(0.0, side="right"))
+        i1 = int(s.searchsorted(1.0, side="left"))
         x, y = np.full(s.shape[0], self.x0), np.full(s.shape[0], self.y0)
         if i1 < s.shape[0]:
             x[i1:], y[i1:] = self.x1, self.y1
@@ -223,7 +223,7 @@ class ModelCursor(CursorSource):
             self._decide(first)
         n = times.shape[0]
         if self._cue is not None and self._decide_ns is not None:
-            n = min(n, int(np.searchsorted(times, self._decide_ns, side="left")))
+            n = min(n, int(times.searchsorted(self._decide_ns, side="left")))
         j = self.params.jitter
         if j > 0:
             if self._noise_i + 2 > self._noise_arr.shape[0]:

@@ -159,7 +159,7 @@ def sense_cues(t_s: ArrayLike, vib: ArrayLike, layout: Layout,
     if t.shape[0] == 0 or v.shape[1] != t.shape[0]:
         raise ConfigError(f"{t.shape[0]} sample times for {v.shape[1]} vibration samples; "
                           "a window needs at least one sample and one time per sample")
-    if not np.all(np.isfinite(v)):
+    if not np.isfinite(v).all():
         raise ConfigError("vibration amplitudes must be finite")
     v = np.clip(v, 0.0, 1.0)
     dt = _sample_durations(t)
