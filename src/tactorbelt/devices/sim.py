@@ -297,6 +297,9 @@ class _Render:
         return np.asarray(levels)
 
 
+_INT64_MAX: Final = 2**63 - 1
+
+
 @functools.lru_cache(maxsize=64)
 def _grid_period(rate: float) -> tuple[int, int]:
     """The sampling period of ``rate`` Hz as the fraction p/q ns."""
@@ -319,7 +322,7 @@ def sample_grid(t0_ns: int, t1_ns: int, rate_hz: float) -> IntArray:
     # number of i with floor(i*p/q) < t1 - t0, i.e. i*p < (t1 - t0)*q
     n = -((-(t1 - t0) * q) // p)
     i = np.arange(n, dtype=np.int64)
-    if n and (n - 1) * p > np.iinfo(np.int64).max // 2:
+    if n and (n - 1) * p > _INT64_MAX // 2:
         raise ConfigError("interval too long for this rate")
     return np.asarray(t0 + (i * p) // q, dtype=np.int64)
 
@@ -806,7 +809,7 @@ class SimBelt(Belt):
             if pieces and pieces[-1][0] == start:
                 pieces.pop()  # an empty piece: a later command at the same time
             if (levels is not None and pieces and pieces[-1][1] is not None
-                    and np.array_equal(pieces[-1][1], levels)):
+                    and (pieces[-1][1] == levels).all()):  # both (N,)
                 return
             pieces.append((start, levels, render))
 
