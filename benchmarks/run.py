@@ -104,20 +104,23 @@ GOALS = [
          "the runner's clock mapped to LSL's against a direct reading: the time between "
          "the reads"),
     Goal("session_s", "session_per_trial_s", "<=", 2.0, "s",
-         "SQLite (a third: ~58,000 sample rows, 100 to an INSERT, with the foreign-key "
-         "check and the trial_id index; ~0.6 us a row in SQLite itself), the model's "
-         "decisions (~30 %: the ERM model's vibration ~0.15 ms a query, periodic renders "
-         "read from their response from rest; perception ~0.15 ms a trial), the 100 Hz "
-         "sampling read in runs of ticks (~15 %), the runner (~15 %): some 300 small "
-         "operations a trial; commits batched (64 trials, no fsync) here"),
+         "the store (a quarter: ~58,000 sample rows, 100 to an INSERT, with the "
+         "foreign-key check and the trial_id index, each trial a savepoint kept in "
+         "memory; SQLite's own code ~14 % of the session), the model's decisions (~30 %: "
+         "the ERM model's vibration ~0.15 ms a query, periodic renders read from their "
+         "response from rest; perception ~0.15 ms a trial), the 100 Hz sampling read in "
+         "runs of ticks (~15 %), the runner (~15 %): some 300 small operations a trial, "
+         "three quarters of the time in the interpreter and NumPy's cost per call; "
+         "commits batched (64 trials, no fsync) here"),
     Goal("session_batch_speedup", None, None, None, "x",
          "baseline: the same sessions committing (and fsyncing) every trial; the disk"),
     Goal("sessions_1000_s", None, "<=", 120.0, "s",
          "one store per worker, 2 workers; same costs as session_s", full_only=True),
     Goal("sessions_1000_est_s", None, "<=", 120.0, "s",
          "make bench: 30 participants, scaled to 1,000; as session_s (0.24 s a session "
-         "on each of 2 free cores would be needed, ~0.83 ms a trial; two workers also "
-         "run ~5 % slower than one alone)"),
+         "on each of 2 free cores would be needed, ~0.83 ms a trial, with the later "
+         "sessions ~8 % slower as each worker's store grows; this machine's speed drifts "
+         "by 10 % within minutes)"),
     Goal("sessions_per_s", None, None, None, "participants/s",
          "the fast path (batched commits), 2 workers; as session_s"),
     Goal("long_session_rss_growth_mb", None, "<=", 20.0, "MB",
