@@ -27,6 +27,9 @@ from tactorbelt.participant.perception import (
     _perceive_many,
     _perceive_one,
     _sense_many,
+    _sites,
+    bias_deg,
+    localisation_sd_deg,
 )
 from tactorbelt.stimuli import make_stimulus
 
@@ -298,19 +301,43 @@ def test_one_window_gives_the_cues_of_the_batch_path(seed: int, n: int, kind: in
         assert a.shape == b.shape == (1,) and a.tolist() == b.tolist(), f
 
 
+@pytest.mark.parametrize("layout", [Layout.even(6), Layout.from_angles([0, 50, 110, 180,
+                                                                         250, 300])])
+def test_the_sites_made_once_are_those_of_each_trial(layout: Layout) -> None:
+    """The candidate sites, their SDs and the centre terms one trial's percept reads
+    from the cache are, bit for bit, what the observer's functions give for them."""
+    p = ModelParams(loc_sd_min_deg=3.0, midline_bias_deg=6.0)
+    s = _sites(layout, p)
+    mids = layout.angles + layout.gaps_deg() / 2.0
+    for (sites, sd, log_sd), want in ((s.single, layout.angles), (s.pair, mids)):
+        want_sd = np.maximum(localisation_sd_deg(want, p), 1e-9)
+        assert sites.tolist() == want.tolist() and sd.tolist() == want_sd.tolist()
+        assert log_sd.tolist() == np.log(want_sd).tolist()
+    assert len(s.centre) == 2 * layout.n
+    for c in [*layout.angles.tolist(), *mids.tolist()]:
+        assert s.centre[c] == (float(bias_deg(c, p)),
+                               max(float(localisation_sd_deg(c, p)), 0.0))
+    assert _sites(Layout(tuple(layout.angles_deg)), ModelParams(loc_sd_min_deg=3.0,
+                  midline_bias_deg=6.0)) is s  # equal layouts and observers share it
+    assert _sites(layout, ModelParams()) is not s
+
+
 @given(seed=st.integers(0, 2**32 - 1), n=st.integers(1, 900), kind=st.integers(0, 3),
-       params=st.sampled_from([ModelParams(), ModelParams(lapse=0.5, p_two_points=0.9)]))
+       params=st.sampled_from([ModelParams(), ModelParams(lapse=0.5, p_two_points=0.9),
+                               ModelParams(loc_sd_min_deg=3.0, midline_bias_deg=6.0)]),
+       layout=st.sampled_from([Layout.even(6), Layout.from_angles([0, 50, 110, 180, 250,
+                                                                   300])]))
 def test_one_trial_is_perceived_as_in_a_batch(seed: int, n: int, kind: int,
-                                              params: ModelParams) -> None:
-    """The one-trial path (scalars) and the batch path give the same numbers, bit for bit,
-    from the same cues and draws."""
+                                              params: ModelParams, layout: Layout) -> None:
+    """The one-trial path (scalars, with the sites of its layout and observer made once)
+    and the batch path give the same numbers, bit for bit, from the same cues and
+    draws."""
     rng = np.random.default_rng(seed)
-    layout = Layout.even(6)
     cues = sense_cues(np.arange(n) / 1000.0, _window(rng, n, kind), layout, params)
     tgt = TargetSet.even(24).angles
     z, u, g = rng.standard_normal((3, 1)), rng.random((2, 1)), rng.integers(0, 24, size=1)
     cw, _ = layout.neighbour_indices()
-    one = _perceive_one(cues, layout.angles, cw, layout.gaps_deg(), tgt, params,
+    one = _perceive_one(cues, _sites(layout, params), tgt, params,
                         z[:, 0].tolist(), u[:, 0].tolist(), int(g[0]))
     many = _perceive_many(cues, layout.angles, cw, layout.gaps_deg(), tgt, params, z, u, g)
     for f in Percepts.__dataclass_fields__:

@@ -22,6 +22,7 @@ Pure: imports NumPy, tactorbelt.geometry and participant.params; never an I/O la
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -282,9 +283,43 @@ def perceive(cues: Cues, layout: Layout, targets: TargetSet | ArrayLike,
     u = rng.random((2, n))
     guess_idx = rng.integers(0, tgt.size, size=n)
     if n == 1:
-        return _perceive_one(cues, angles, cw, gaps, tgt, p, z[:, 0].tolist(),
+        return _perceive_one(cues, _sites(layout, p), tgt, p, z[:, 0].tolist(),
                              u[:, 0].tolist(), int(guess_idx[0]))
     return _perceive_many(cues, angles, cw, gaps, tgt, p, z, u, guess_idx)
+
+
+@dataclass(frozen=True)
+class _Sites:
+    """What one trial's percept reads of a layout and observer: the tactors and the pair
+    midpoints as candidate sites, with their localisation SDs (floored) and the SDs'
+    logs, and per site the bias and SD of a felt centre there (read-only; made once
+    by :func:`_sites`)."""
+
+    angles: FloatArray
+    cw: IntArray
+    gaps: FloatArray
+    mids: FloatArray
+    single: tuple[FloatArray, FloatArray, FloatArray]  # sites, SDs, log SDs
+    pair: tuple[FloatArray, FloatArray, FloatArray]
+    centre: dict[float, tuple[float, float]]  # centre -> (bias, SD at least 0)
+
+
+@functools.lru_cache(maxsize=32)
+def _sites(layout: Layout, p: ModelParams) -> _Sites:
+    """:class:`_Sites` of a layout and observer, with the arithmetic of one trial's
+    percept (each value as :func:`_perceive_one` computed it, trial by trial, before)."""
+    angles = layout.angles
+    cw, _ = layout.neighbour_indices()
+    gaps = layout.gaps_deg()
+    mids = angles + gaps / 2.0
+    sd_t = np.maximum(localisation_sd_deg(angles, p), _SD_FLOOR)
+    sd_m = np.maximum(localisation_sd_deg(mids, p), _SD_FLOOR)
+    centre = {c: (float(bias_deg(c, p)), max(float(localisation_sd_deg(c, p)), 0.0))
+              for c in [float(x) for x in angles] + [float(x) for x in mids]}
+    for arr in (angles, cw, gaps, mids, sd_t, sd_m):
+        arr.setflags(write=False)
+    return _Sites(angles, cw, gaps, mids, (angles, sd_t, np.log(sd_t)),
+                  (mids, sd_m, np.log(sd_m)), centre)
 
 
 def _perceive_many(cues: Cues, angles: FloatArray, cw: IntArray, gaps: FloatArray,
@@ -347,14 +382,14 @@ def _perceive_many(cues: Cues, angles: FloatArray, cw: IntArray, gaps: FloatArra
     )
 
 
-def _perceive_one(cues: Cues, angles: FloatArray, cw: IntArray, gaps: FloatArray,
-                  tgt: FloatArray, p: ModelParams, z: list[float], u: list[float],
-                  guess: int) -> Percepts:
+def _perceive_one(cues: Cues, sites: _Sites, tgt: FloatArray, p: ModelParams,
+                  z: list[float], u: list[float], guess: int) -> Percepts:
     """:func:`perceive` of one trial with its draws taken: the same arithmetic on scalars
     (NumPy's functions for log, exp and the angles, Python's for + - * /, which are
     the same IEEE operations)."""
+    angles, gaps = sites.angles, sites.gaps
     a = int(cues.pair[0])
-    b = int(cw[a])
+    b = int(sites.cw[a])
     felt_a, felt_b = bool(cues.felt_a[0]), bool(cues.felt_b[0])
     both = felt_a and felt_b
     one = felt_a != felt_b
@@ -380,16 +415,12 @@ def _perceive_one(cues: Cues, angles: FloatArray, cw: IntArray, gaps: FloatArray
         fraction = float(stronger_b)
     kind = KIND_NONE if nothing else (KIND_SINGLE if single else KIND_FUNNELLED)
 
-    mids = angles + gaps / 2.0
-    centre = float(angles[single_at] if single else mids[a])
-    site = float(normalize(centre + float(bias_deg(centre, p))
-                           + max(float(localisation_sd_deg(centre, p)), 0.0) * z[2]))
-    if single:
-        cand, cand_sd = angles, np.maximum(localisation_sd_deg(angles, p), _SD_FLOOR)
-    else:
-        cand, cand_sd = mids, np.maximum(localisation_sd_deg(mids, p), _SD_FLOOR)
+    centre = float(angles[single_at] if single else sites.mids[a])
+    bias, sd = sites.centre[centre]
+    site = float(normalize(centre + bias + sd * z[2]))
+    cand, cand_sd, log_sd = sites.single if single else sites.pair
     d = wrap(site - cand) / cand_sd
-    ident = int(np.argmax(-0.5 * d * d - np.log(cand_sd)))
+    ident = int((-0.5 * d * d - log_sd).argmax())
     perceived = float(angles[ident]) if single else float(angles[ident]) + fraction * float(
         gaps[ident])
     perceived = float(normalize(perceived))
