@@ -146,7 +146,7 @@ def test_feeding_a_run_is_feeding_sample_by_sample(radii: list[float], dwell_ms:
 
 
 @given(rate=st.sampled_from([100.0, 1000.0, 60.0, 144.0, 30.0]),
-       onset=st.integers(0, 10**15), first=st.integers(0, 10**6), n=st.integers(1, 300))
+       onset=st.integers(-10**15, 10**15), first=st.integers(0, 10**6), n=st.integers(0, 300))
 def test_deadlines_in_bulk_are_the_deadlines(rate: float, onset: int, first: int,
                                              n: int) -> None:
     ticks = Deadlines(SimClock(), rate, onset)

@@ -252,14 +252,18 @@ class TrialMachine:
         r = self.result
         assert r.onset_ns is not None
         above = x * x + y * y > self._thr2
-        ends = np.flatnonzero(above | (t_ns - r.onset_ns >= self.rule.timeout_ns))
-        m = int(ends[0]) + 1 if ends.size else n
+        # the first sample past the response radius, and the first at or past the timeout
+        # (the times increase)
+        out = int(above.argmax()) if n else 0
+        end = min(out if n and above[out] else n,
+                  int(t_ns.searchsorted(r.onset_ns + self.rule.timeout_ns)))
+        m = end + 1 if end < n else n
         r.sample_t_ns.extend(t_ns[:m].tolist())
         r.sample_x.extend(x[:m].tolist())
         r.sample_y.extend(y[:m].tolist())
         r.sample_buttons.extend([0] * m)
         r.crossed_ns = None
-        if ends.size:
+        if end < n:
             i = m - 1
             if above[i]:
                 r.crossed_ns = int(t_ns[i])

@@ -817,32 +817,36 @@ class SQLiteStore(Store):
         if result.samples_released:
             raise StoreError(f"trial {t.trial_index}: its samples were released from memory "
                              "after it was stored; it cannot be written again")
+        def values(attempts: int) -> tuple[Any, ...]:
+            return (
+                session_id, t.trial_index, t.block, t.block_index, t.block_name,
+                t.condition, t.repetition, t.target_deg, int(t.on_tactor),
+                result.response_deg, result.response_target_deg,
+                None if result.correct is None else int(result.correct),
+                result.rt_s, result.onset_ns, result.acquired_ns, result.crossed_ns,
+                result.stimulus_off_ns, result.n_samples, result.status,
+                result.abort_reason, attempts, utc_now(), t.n_targets or None, t.load,
+                result.device_onset_ns, result.onset_uncertainty_ns,
+            )
+
         try:
             with self._transaction() as c:
-                attempts = 1
-                old = c.execute("SELECT trial_id, status, attempts FROM trials"
-                                " WHERE session_id=? AND trial_index=?",
-                                (session_id, t.trial_index)).fetchone()
-                if old is not None:
+                try:  # the usual case: the trial's first row
+                    cur = c.execute(_INSERT_TRIAL_SQL, values(1))
+                except sqlite3.IntegrityError:  # UNIQUE(session_id, trial_index), or not
+                    old = c.execute("SELECT trial_id, status, attempts FROM trials"
+                                    " WHERE session_id=? AND trial_index=?",
+                                    (session_id, t.trial_index)).fetchone()
+                    if old is None:
+                        raise
                     if old["status"] != "aborted":
                         raise StoreError(
                             f"trial {t.trial_index} of session {session_id} is already "
                             f"recorded ({old['status']}); a trial is never written twice"
-                        )
+                        ) from None
                     c.execute("DELETE FROM samples WHERE trial_id=?", (old["trial_id"],))
                     c.execute("DELETE FROM trials WHERE trial_id=?", (old["trial_id"],))
-                    attempts = int(old["attempts"]) + 1
-                values = (
-                    session_id, t.trial_index, t.block, t.block_index, t.block_name,
-                    t.condition, t.repetition, t.target_deg, int(t.on_tactor),
-                    result.response_deg, result.response_target_deg,
-                    None if result.correct is None else int(result.correct),
-                    result.rt_s, result.onset_ns, result.acquired_ns, result.crossed_ns,
-                    result.stimulus_off_ns, result.n_samples, result.status,
-                    result.abort_reason, attempts, utc_now(), t.n_targets or None, t.load,
-                    result.device_onset_ns, result.onset_uncertainty_ns,
-                )
-                cur = c.execute(_INSERT_TRIAL_SQL, values)
+                    cur = c.execute(_INSERT_TRIAL_SQL, values(int(old["attempts"]) + 1))
                 trial_id = int(cur.lastrowid or 0)
                 if result.n_samples:
                     _insert_samples(c, trial_id, result)
