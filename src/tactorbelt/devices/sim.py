@@ -145,7 +145,10 @@ class ErmParams:
 
     def amplitude(self, speed: FloatArray) -> FloatArray:
         """Vibration amplitude in [0, 1] for a normalised speed."""
-        w = np.clip(np.asarray(speed, dtype=float), 0.0, 1.0)
+        return self._amplitude_of(np.clip(np.asarray(speed, dtype=float), 0.0, 1.0))
+
+    def _amplitude_of(self, w: FloatArray) -> FloatArray:
+        """:meth:`amplitude` of speeds already in [0, 1] (float)."""
         if self.amplitude_exponent == 2.0:
             return np.asarray(w * w)
         return np.asarray(w**self.amplitude_exponent)
@@ -758,7 +761,8 @@ class SimBelt(Belt):
         self._since_ck = 0
 
     def _speed_at(self, times: IntArray) -> FloatArray:
-        """Modelled motor speed at increasing times (the state carries over exactly)."""
+        """Modelled motor speed at increasing times (the state carries over exactly), in
+        [0, 1]."""
         n = self.n_tactors
         if times.shape[0] == 0:
             return np.zeros((0, n))
@@ -786,7 +790,7 @@ class SimBelt(Belt):
                 at = np.insert(times, pos, settled)
         solved = self._speed_pieces(at, t_a, np.asarray(w_a, dtype=float))
         if solved is None:
-            return self._speed_grid(times, t_a, w_a, settled)
+            return np.clip(self._speed_grid(times, t_a, w_a, settled), 0.0, 1.0)
         out = np.clip(solved, 0.0, 1.0)
         if remember:
             pos = int(at.searchsorted(settled))
@@ -1012,16 +1016,16 @@ class SimBelt(Belt):
             (n, N) in [0, 1], 1 = a motor at rated speed.
         """
         times = sample_grid(t0_ns, t1_ns, rate_hz)
-        with self._lock:
-            return times, self.params.amplitude(self._speed_at(times))
+        with self._lock:  # the speeds are in [0, 1]
+            return times, self.params._amplitude_of(self._speed_at(times))
 
     def vibration_at(self, times_ns: Any) -> FloatArray:
         """Modelled vibration amplitude (len(times), N) at arbitrary increasing times."""
         times = np.asarray(times_ns, dtype=np.int64).reshape(-1)
         if times.size > 1 and np.any(np.diff(times) < 0):
             raise ConfigError("vibration_at needs increasing times")
-        with self._lock:
-            return self.params.amplitude(self._speed_at(times))
+        with self._lock:  # the speeds are in [0, 1]
+            return self.params._amplitude_of(self._speed_at(times))
 
     def commands(self) -> list[SimCommand]:
         """The commands kept in the history, oldest first."""

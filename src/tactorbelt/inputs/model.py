@@ -120,7 +120,9 @@ class _Move:
         # the times are increasing: before the movement (s <= 0), during it, after it
         i0 = int(s.searchsorted(0.0, side="right"))
         i1 = int(s.searchsorted(1.0, side="left"))
-        x, y = np.full(s.shape[0], self.x0), np.full(s.shape[0], self.y0)
+        x, y = np.empty(s.shape[0]), np.empty(s.shape[0])
+        x.fill(self.x0)
+        y.fill(self.y0)
         if i1 < s.shape[0]:
             x[i1:], y[i1:] = self.x1, self.y1
         if i1 > i0:
