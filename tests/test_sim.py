@@ -188,7 +188,7 @@ def test_streamed_frames_and_rendered_stimulus_give_the_same_vibration() -> None
 class _GridBelt(SimBelt):
     """A sim belt that always takes the general solution (every breakpoint on one grid)."""
 
-    def _speed_pieces(self, times, t_a, w_a):  # type: ignore[no-untyped-def]
+    def _speed_pieces(self, times, t_a, w_a, grid=None):  # type: ignore[no-untyped-def]
         return None
 
 
@@ -235,6 +235,52 @@ def test_piecewise_solution_equals_the_general_one_for_any_history(ops: list[tup
     t_end = clock.now_ns() + 500 * MS
     np.testing.assert_allclose(fast.vibration(0, t_end)[1], grid.vibration(0, t_end)[1],
                                rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("mode", ["static", "dynamic"])
+@pytest.mark.parametrize("before", [0.0, 0.3, 1.0])
+def test_a_window_from_a_render_onset_is_the_same_to_the_bit_trial_after_trial(
+        mode: str, before: float) -> None:
+    """The model participant reads each trial's stimulus over the same window from its
+    onset (1 kHz, from the motors' state then): the terms memoised for that window give
+    exactly the speeds of the same times read without it (``vibration_at``), whether the
+    motors were still falling from the trial before (``before``), at rest, or spinning
+    too fast for the response from rest (then the general path is taken)."""
+    clock = SimClock()
+    a, b = SimBelt(clock=clock), SimBelt(clock=clock)
+    layout = a.layout
+    for trial, target in enumerate([37.5, 37.5, 100.0, 37.5, 0.0, 37.5]):
+        stim = make_stimulus(layout, target, mode)
+        if before:
+            for belt in (a, b):
+                belt.set_amplitudes([before] * layout.n)
+            clock.advance(200 * MS)
+            for belt in (a, b):
+                belt.stop()
+            clock.advance((50 + 30 * trial) * MS)  # still falling at the next onset
+        onset = clock.now_ns()
+        for belt in (a, b):
+            belt.play(stim, 2.0)
+        clock.advance(900 * MS)
+        times, got = a.vibration(onset, clock.now_ns())
+        np.testing.assert_array_equal(got, b.vibration_at(times))
+        assert got[-1].max() > 0.1  # the stimulus is felt
+        clock.advance(1100 * MS)
+        for belt in (a, b):
+            belt.stop()
+        clock.advance(700 * MS)
+
+
+@given(w=st.lists(st.floats(0.0, 1.0), min_size=6, max_size=6),
+       dt_ns=st.integers(0, 30_000_000_000))
+def test_an_undriven_stretch_is_one_fall_factor_to_the_bit(w: list[float], dt_ns: int) -> None:
+    """Between trials no motor is driven: the state after such a stretch is the state
+    times one fall factor, exactly what the closed form of a stretch gives for a zero
+    drive (so the stored results do not depend on the shortcut)."""
+    p = ErmParams()
+    state = np.array(w)
+    expected = sim_module._relax_to(np.zeros(6), state, dt_ns, p)
+    np.testing.assert_array_equal(state * sim_module._fall_factor_to(dt_ns, p), expected)
 
 
 def test_a_render_started_on_spinning_motors_is_solved_exactly() -> None:

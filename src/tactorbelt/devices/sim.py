@@ -175,16 +175,19 @@ class _Period:
     """One period of a periodic render: its levels tick by tick and the ticks where they
     change from the tick before (cyclically; none for a constant stimulus)."""
 
-    __slots__ = ("changes", "levels")
+    __slots__ = ("changes", "const", "levels")
 
     @property
     def nbytes(self) -> int:
         return int(self.levels.nbytes + self.changes.nbytes)
 
     def __init__(self, levels: FloatArray) -> None:
+        levels.setflags(write=False)
         self.levels = levels
         self.changes: IntArray = np.flatnonzero(
             np.any(levels != np.roll(levels, 1, axis=0), axis=1)).astype(np.int64)
+        #: the levels of a period that never changes (a static stimulus), or None
+        self.const: FloatArray | None = levels[0] if self.changes.size == 0 else None
 
 
 #: One-period tables of periodic renders, by (stimulus, calibration), for every sim belt of
@@ -247,7 +250,6 @@ class _Render:
                 k = np.arange(self._table_ticks)
                 period = _Period(self.calibration.apply(
                     self.stimulus.amplitudes(k / (1e9 / RENDER_TICK_NS))))
-                period.levels.setflags(write=False)
                 _remember(_PERIODS, key, period, _TABLES_BUDGET)
             self._table = period
         return self._table
@@ -275,8 +277,7 @@ class _Render:
         """The drive levels of a render that never changes (a static stimulus), or None."""
         if not self._table_ticks:
             return None
-        period = self._period()
-        return period.levels[0] if period.changes.size == 0 else None
+        return self._period().const
 
     def response(self, params: ErmParams) -> _Response | None:
         """The motors' response from rest to a periodic render (None: not periodic)."""
@@ -473,6 +474,13 @@ def _relax_to(u: FloatArray, w: FloatArray, dt_ns: int, params: ErmParams) -> Fl
     return np.asarray(u + (w - u) * np.exp(-np.minimum(dt / tau, _MAX_DECAY)))
 
 
+def _fall_factor_to(dt_ns: int, params: ErmParams) -> np.float64:
+    """:func:`_fall_factor` at one time: :func:`_relax_to` with ``u = 0`` is ``w`` times it
+    (the same arithmetic; NumPy's exp gives a scalar what it gives an array)."""
+    dt = float(dt_ns) * 1e-9
+    return np.float64(np.exp(-min(dt / params.fall_tau_s, _MAX_DECAY)))
+
+
 def _fall_factor(dt_ns: IntArray, params: ErmParams) -> FloatArray:
     """How much an undriven motor's speed falls in ``dt_ns``: :func:`_relax` with ``u = 0``
     is ``w * exp(-dt / fall_tau)``, the same factor for every motor (the same
@@ -555,6 +563,59 @@ def _response(stimulus: Stimulus, calibration: Calibration, params: ErmParams,
     return resp
 
 
+class _OnsetGrid:
+    """The terms of a render's speeds over a regular sample grid from its onset that do not
+    depend on the state at the onset (:meth:`SimBelt._onset_piece`): the undriven motors'
+    fall factor ``ff`` (n,) and, for the moving motors, the response from rest ``tw`` and
+    its decay ``d`` (n, moving) at each sample's tick. ``ff`` alone where a sample falls
+    between ticks or beyond the response (then the general path is taken)."""
+
+    __slots__ = ("d", "ff", "tw")
+
+    def __init__(self, resp: _Response, params: ErmParams, dt: IntArray) -> None:
+        self.ff: FloatArray = _fall_factor(dt, params)
+        self.tw: FloatArray | None = None
+        self.d: FloatArray | None = None
+        tick = dt // RENDER_TICK_NS
+        k_stop = int(tick[-1])
+        if k_stop < _RESPONSE_MAX_TICKS and bool((dt == tick * RENDER_TICK_NS).all()):
+            self.tw = resp.w[tick]
+            self.d = resp.decay(0, 0, k_stop + 1)[tick]
+
+    @property
+    def nbytes(self) -> int:
+        return int(self.ff.nbytes + (0 if self.tw is None or self.d is None
+                                     else self.tw.nbytes + self.d.nbytes))
+
+
+#: Memoised grid terms (:class:`_OnsetGrid`, and a constant drive's decay factors by its
+#: rise/fall choices) of the sampling windows that start at a render's onset, for every
+#: sim belt of the process, oldest first: a model participant senses each stimulus over
+#: the same window trial after trial.
+_GRIDS: dict[tuple[Any, ...], Any] = {}
+_GRIDS_BUDGET: Final = 8 * 2**20
+
+
+def _grid_dt(n: int, grid: tuple[int, int]) -> IntArray:
+    """The first ``n`` offsets of a :func:`sample_grid` from its start, ns."""
+    return np.asarray((np.arange(n, dtype=np.int64) * grid[0]) // grid[1])
+
+
+def _relax_grid(u: FloatArray, w: FloatArray, n: int, grid: tuple[int, int],
+                params: ErmParams) -> FloatArray:
+    """:func:`_relax` at the first ``n`` times of a regular grid from the stretch's start
+    (the same arithmetic; the decay factors of each rise/fall choice memoised)."""
+    tau = np.where(u > w, params.rise_tau_s, params.fall_tau_s)
+    key = ("relax", params, n, grid, tau.tobytes())
+    e = _GRIDS.get(key)
+    if e is None:
+        dt = _grid_dt(n, grid).astype(float) * 1e-9
+        e = np.exp(-np.minimum(dt[:, None] / tau, _MAX_DECAY))
+        e.setflags(write=False)
+        _remember(_GRIDS, key, e, _GRIDS_BUDGET)
+    return np.asarray(u + (w - u) * e)
+
+
 class SimBelt(Belt):
     """A simulated belt of N ERM motors (see the module docstring).
 
@@ -615,6 +676,8 @@ class SimBelt(Belt):
         self._next_rid = 0
         self._base_t = int(self.clock.now_ns())
         self._base_w = np.zeros(n)
+        self._zeros = np.zeros(n)  # no drive (read-only)
+        self._zeros.setflags(write=False)
         self._pruned = False
         self._ck_t: list[int] = []
         self._ck_w: list[FloatArray] = []
@@ -760,9 +823,10 @@ class SimBelt(Belt):
             del ck_t[0], ck_w[0]
         self._since_ck = 0
 
-    def _speed_at(self, times: IntArray) -> FloatArray:
+    def _speed_at(self, times: IntArray, grid: tuple[int, int] | None = None) -> FloatArray:
         """Modelled motor speed at increasing times (the state carries over exactly), in
-        [0, 1]."""
+        [0, 1]. ``grid``: the times are a :func:`sample_grid` of this ``(p, q)`` period
+        from ``times[0]`` (the terms of a render from there are memoised)."""
         n = self.n_tactors
         if times.shape[0] == 0:
             return np.zeros((0, n))
@@ -788,7 +852,8 @@ class SimBelt(Belt):
             pos = int(times.searchsorted(settled))
             if pos == times.shape[0] or int(times[pos]) != settled:
                 at = np.insert(times, pos, settled)
-        solved = self._speed_pieces(at, t_a, np.asarray(w_a, dtype=float))
+        solved = self._speed_pieces(at, t_a, np.asarray(w_a, dtype=float),
+                                    grid if at is times else None)
         if solved is None:
             return np.clip(self._speed_grid(times, t_a, w_a, settled), 0.0, 1.0)
         out = np.clip(solved, 0.0, 1.0)
@@ -805,7 +870,7 @@ class SimBelt(Belt):
         constant levels (``render`` None; equal neighbours merged) or a changing periodic
         render (``levels`` None). None when a render is neither constant nor periodic."""
         lo, hi = self._lo, self._hi
-        zeros = np.zeros(self.n_tactors)
+        zeros = self._zeros
         row = self._row_in_force(t_a) if hi > lo else lo - 1
         pieces: list[tuple[int, FloatArray | None, _Render | None]] = []
 
@@ -848,7 +913,8 @@ class SimBelt(Belt):
             row += 1
         return pieces
 
-    def _speed_pieces(self, times: IntArray, t_a: int, w_a: FloatArray) -> FloatArray | None:
+    def _speed_pieces(self, times: IntArray, t_a: int, w_a: FloatArray,
+                      grid: tuple[int, int] | None = None) -> FloatArray | None:
         """Speeds at increasing ``times`` (from ``t_a``, where the speeds are ``w_a``),
         piece by piece: a constant drive in closed form, a periodic render from its
         response from rest (:class:`_Response`). None where that does not apply (a render
@@ -863,23 +929,68 @@ class SimBelt(Belt):
         out = np.empty((times.shape[0], self.n_tactors))
         w = w_a
         i = 0
+        # the times from ``first`` on are the grid from a piece's start: memoised terms
+        first = int(times[0]) if grid is not None else None
         for k, (start, levels, render) in enumerate(pieces):
             end = pieces[k + 1][0] if k + 1 < len(pieces) else None
             j = times.shape[0] if end is None else int(times.searchsorted(end))
             if levels is not None:
+                if (j == i and end is not None and (levels is self._zeros or not levels.any())
+                        and w.min() >= 0.0):
+                    # no drive and no time asked for: every motor falls (none is below the
+                    # steady speed 0) by one factor
+                    w = w * _fall_factor_to(end - start, p)
+                    continue
                 u = p.steady_speed(levels)
                 if j > i:
-                    out[i:j] = _relax(u, w, times[i:j] - start, p)
+                    if i == 0 and start == first:
+                        assert grid is not None
+                        out[:j] = _relax_grid(u, w, j, grid, p)
+                    else:
+                        out[i:j] = _relax(u, w, times[i:j] - start, p)
                 if end is not None:
                     w = _relax_to(u, w, end - start, p)
             else:
                 assert render is not None
-                got = self._render_piece(render, start, end, w, times[i:j], t_last)
+                got = None
+                if end is None and i == 0 and start == first == render.onset_ns:
+                    assert grid is not None
+                    got = self._onset_piece(render, w, j, grid)
+                if got is None:
+                    got = self._render_piece(render, start, end, w, times[i:j], t_last)
                 if got is None:
                     return None
                 out[i:j], w = got
             i = j
         return out
+
+    def _onset_piece(self, render: _Render, w: FloatArray, n: int, grid: tuple[int, int]
+                     ) -> tuple[FloatArray, FloatArray] | None:
+        """:meth:`_render_piece` from the render's onset (state ``w``) over the first ``n``
+        times of a regular grid from it, to the last of them: the same arithmetic, with
+        the terms that do not depend on ``w`` memoised (:class:`_OnsetGrid`). None where
+        :meth:`_moving` would check tick by tick (then the caller takes that path)."""
+        p = self.params
+        resp = render.response(p)
+        assert resp is not None
+        key = ("onset", resp, p, n, grid)
+        g = _GRIDS.get(key)
+        if g is None:
+            g = _OnsetGrid(resp, p, _grid_dt(n, grid))
+            _remember(_GRIDS, key, g, _GRIDS_BUDGET)
+        out = w * g.ff[:, None]
+        w_end = w * g.ff[-1]
+        cols = resp.cols
+        if cols.shape[0]:
+            if g.tw is None or g.d is None:
+                return None
+            offset = w[cols] - resp.w[0]
+            if not ((offset <= resp.rise_limit).all() and (-offset <= resp.fall_limit).all()):
+                return None
+            moving = g.tw + offset * g.d
+            out[:, cols] = moving
+            w_end[cols] = moving[-1]
+        return out, w_end
 
     def _render_piece(self, render: _Render, start: int, end: int | None, w: FloatArray,
                       times: IntArray, t_last: int) -> tuple[FloatArray, FloatArray] | None:
@@ -892,7 +1003,8 @@ class SimBelt(Belt):
         stop = t_last if end is None else end
         # every motor as if undriven (a zero drive falls by one factor for all of them);
         # then the moving ones from the response
-        out = w * _fall_factor(times - start, p)[:, None]
+        out = (w * _fall_factor(times - start, p)[:, None] if times.shape[0]
+               else np.empty((0, w.shape[0])))
         w_end = w * _fall_factor(np.array([stop - start]), p)[0]
         cols = resp.cols
         if cols.shape[0]:
@@ -1017,7 +1129,8 @@ class SimBelt(Belt):
         """
         times = sample_grid(t0_ns, t1_ns, rate_hz)
         with self._lock:  # the speeds are in [0, 1]
-            return times, self.params._amplitude_of(self._speed_at(times))
+            return times, self.params._amplitude_of(
+                self._speed_at(times, _grid_period(float(rate_hz))))
 
     def vibration_at(self, times_ns: Any) -> FloatArray:
         """Modelled vibration amplitude (len(times), N) at arbitrary increasing times."""
