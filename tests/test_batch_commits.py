@@ -86,20 +86,22 @@ def test_a_person_commits_every_trial_and_the_model_batches(tmp_path: Path) -> N
 
 def test_a_batch_commits_without_fsync_and_durability_returns_after_it(
         tmp_path: Path) -> None:
-    """Inside a batch SQLite syncs only at checkpoints (synchronous=NORMAL, 1) and keeps
-    its savepoints' pages in memory (temp_store=MEMORY, 2); before and after it, and in a
-    session with a person, every commit is synced (FULL, 2) and temporary data may go to
-    disk (DEFAULT, 0)."""
-    def settings(store: Store) -> tuple[int, int]:
+    """Inside a batch SQLite syncs only at checkpoints (synchronous=NORMAL, 1), keeps
+    its savepoints' pages in memory (temp_store=MEMORY, 2) and looks up no foreign key
+    per row (foreign_keys 0); before and after it, and in a session with a person, every
+    commit is synced (FULL, 2), temporary data may go to disk (DEFAULT, 0) and every
+    foreign key is checked (1)."""
+    def settings(store: Store) -> tuple[int, int, int]:
         return (store.conn.execute("PRAGMA synchronous").fetchone()[0],
-                store.conn.execute("PRAGMA temp_store").fetchone()[0])
+                store.conn.execute("PRAGMA temp_store").fetchone()[0],
+                store.conn.execute("PRAGMA foreign_keys").fetchone()[0])
 
-    for person, during in ((False, {(1, 2)}), (True, {(2, 0)})):
+    for person, during in ((False, {(1, 2, 0)}), (True, {(2, 0, 1)})):
         seen: list[tuple[int, int]] = []
         clock = SimClock()
         with Store.open(tmp_path / f"s{person}.sqlite") as store, open_belt(
                 "sim", clock=clock, layout=STUDY.layout_obj()) as belt:
-            assert settings(store) == (2, 0)
+            assert settings(store) == (2, 0, 1)
             cursor = make_model_cursor(belt, clock, seed=7)
             if person:
                 cursor.__class__ = PersonCursor
@@ -107,7 +109,10 @@ def test_a_batch_commits_without_fsync_and_durability_returns_after_it(
                         progress=lambda done, total, store=store, seen=seen: seen.append(
                             settings(store)))
             assert seen and set(seen) == during
-            assert settings(store) == (2, 0)
+            assert settings(store) == (2, 0, 1)
+            # what the batch wrote unchecked references what exists
+            assert store.conn.execute("PRAGMA foreign_key_check").fetchall() == []
+            assert store.conn.execute("SELECT count(*) FROM samples").fetchone()[0] > 0
 
 
 def test_the_rule_batches_only_when_nothing_real_is_involved() -> None:

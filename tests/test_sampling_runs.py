@@ -143,6 +143,23 @@ def test_feeding_a_run_is_feeding_sample_by_sample(radii: list[float], dwell_ms:
         i += used
     assert runs.state is one.state
     assert runs.result == one.result
+    # the times from the onset (converted run by run) are those of the samples one by one
+    got, expected = runs.result.sample_times_s(), one.result.sample_times_s()
+    assert got == expected and all(type(v) is float for v in got)
+
+
+@pytest.mark.parametrize("onset", [0, -2**62, 2**62])
+def test_a_run_far_from_its_onset_keeps_the_exact_times(onset: int) -> None:
+    """Times more than 2**53 ns from the onset have no exact float difference: they are
+    converted from the exact integer difference, as sample by sample."""
+    rule = ResponseRule(threshold=0.9, dwell_ns=0, timeout_ns=2**63 - 1 - abs(onset))
+    machine = TrialMachine(_trial(), rule, TargetSet.even(12))
+    machine.start(onset)
+    t = np.array([onset + 1, onset + 2**53 + 3, onset + 2**60 + 7], dtype=np.int64)
+    if onset > 0:
+        t = np.array([onset + 1, onset + 5, onset + 2**40], dtype=np.int64)
+    assert machine.feed_run(t, np.zeros(3), np.zeros(3)) == 3
+    assert machine.result.sample_times_s() == [(int(v) - onset) / 1e9 for v in t]
 
 
 @given(rate=st.sampled_from([100.0, 1000.0, 60.0, 144.0, 30.0]),

@@ -144,6 +144,11 @@ class TrialResult:
     samples_released: int = field(default=0, repr=False)
     device_onset_ns: int | None = None
     onset_uncertainty_ns: int | None = None
+    #: :meth:`sample_times_s` of the samples recorded in runs so far (each run's
+    #: converted at once), and the onset they count from
+    _times_s: list[float] = field(default_factory=list, init=False, repr=False,
+                                  compare=False)
+    _times_onset: int | None = field(default=None, init=False, repr=False, compare=False)
 
     @property
     def n_samples(self) -> int:
@@ -155,13 +160,16 @@ class TrialResult:
         ``n_samples`` still counts them; the store refuses to write such a result again.
         """
         self.samples_released += len(self.sample_t_ns)
-        for samples in (self.sample_t_ns, self.sample_x, self.sample_y, self.sample_buttons):
+        for samples in (self.sample_t_ns, self.sample_x, self.sample_y, self.sample_buttons,
+                        self._times_s):
             samples.clear()
 
     def sample_times_s(self) -> list[float]:
         """Each sample's time in seconds from the onset (``(t - onset) / 1e9``: an exact
         integer difference, converted exactly while below 2**53 ns, then divided)."""
         onset = self.onset_ns or 0
+        if self._times_onset == onset and len(self._times_s) == len(self.sample_t_ns):
+            return list(self._times_s)  # converted run by run as they were recorded
         t = np.array(self.sample_t_ns, dtype=np.int64) - onset
         if t.size and max(-int(t.min()), int(t.max())) >= 2**53:
             return [(v - onset) / 1e9 for v in self.sample_t_ns]  # beyond exact floats
@@ -258,6 +266,13 @@ class TrialMachine:
         end = min(out if n and above[out] else n,
                   int(t_ns.searchsorted(r.onset_ns + self.rule.timeout_ns)))
         m = end + 1 if end < n else n
+        if r._times_onset is None and not r.sample_t_ns:
+            r._times_onset = r.onset_ns
+        if r._times_onset == r.onset_ns and len(r._times_s) == len(r.sample_t_ns):
+            # their times from the onset, as sample_times_s gives them (exact below 2**53)
+            since = t_ns[:m] - r.onset_ns
+            if m and max(-int(since[0]), int(since[-1])) < 2**53:
+                r._times_s.extend((since / 1e9).tolist())
         r.sample_t_ns.extend(t_ns[:m].tolist())
         r.sample_x.extend(x[:m].tolist())
         r.sample_y.extend(y[:m].tolist())

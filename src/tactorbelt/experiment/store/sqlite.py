@@ -647,6 +647,10 @@ class SQLiteStore(Store):
         # each write's savepoint keeps the pages it changes in memory, not in a temporary
         # file (some 35 page writes a trial, a tenth of a batched session's time)
         self._pragma("temp_store = MEMORY")
+        # no foreign-key lookup per sample row (a sixth of a batched session's store
+        # time): every row a batch writes references its session or the trial row the
+        # same write inserted (write_trial), which tests/test_batch_commits.py checks
+        self._pragma("foreign_keys = OFF")
         self._batch_every, self._batch_pending = int(every), 0
 
     def end_batch(self) -> None:
@@ -661,6 +665,7 @@ class SQLiteStore(Store):
             with contextlib.suppress(sqlite3.Error):
                 self.conn.execute("PRAGMA synchronous = FULL")
                 self.conn.execute("PRAGMA temp_store = DEFAULT")
+                self.conn.execute("PRAGMA foreign_keys = ON")
 
     def _pragma(self, setting: str) -> None:
         try:
