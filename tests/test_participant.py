@@ -343,3 +343,28 @@ def test_one_trial_is_perceived_as_in_a_batch(seed: int, n: int, kind: int,
     for f in Percepts.__dataclass_fields__:
         a, b = np.asarray(getattr(one, f)), np.asarray(getattr(many, f))
         assert a.shape == b.shape == (1,) and a.tolist() == b.tolist(), f
+
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
+def test_a_window_with_a_non_finite_amplitude_is_refused(bad: float) -> None:
+    layout = Layout.even(6)
+    vib = np.full((50, 6), 0.2)
+    vib[17, 3] = bad
+    with pytest.raises(ConfigError, match="finite"):
+        sense_cues(np.arange(50) / 1000.0, vib, layout)
+
+
+@pytest.mark.parametrize("low, high", [(-0.3, 0.9), (0.1, 1.4), (-0.3, 1.4)])
+def test_amplitudes_outside_0_1_are_felt_as_their_nearest_bound(low: float,
+                                                                 high: float) -> None:
+    """A sense function may return amplitudes a little outside [0, 1]: they are felt as
+    0 and 1, exactly as the clipped window."""
+    layout = Layout.even(6)
+    rng = np.random.default_rng(4)
+    vib = rng.uniform(low, high, (120, 6))
+    t = np.arange(120) / 1000.0
+    got, expected = sense_cues(t, vib, layout), sense_cues(t, np.clip(vib, 0.0, 1.0), layout)
+    for name in ("pair", "w_a", "w_b", "felt_a", "felt_b", "dwell_a_s", "dwell_b_s",
+                 "overlap", "duration_s"):
+        np.testing.assert_array_equal(getattr(got, name), getattr(expected, name))
+    assert float(got.w_a[0]) <= 1.0 and float(got.w_b[0]) <= 1.0

@@ -160,9 +160,11 @@ def sense_cues(t_s: ArrayLike, vib: ArrayLike, layout: Layout,
     if t.shape[0] == 0 or v.shape[1] != t.shape[0]:
         raise ConfigError(f"{t.shape[0]} sample times for {v.shape[1]} vibration samples; "
                           "a window needs at least one sample and one time per sample")
-    if not np.isfinite(v).all():
+    lo, hi = float(v.min()), float(v.max())  # NaN and infinities reach both
+    if not (math.isfinite(lo) and math.isfinite(hi)):
         raise ConfigError("vibration amplitudes must be finite")
-    v = np.clip(v, 0.0, 1.0)
+    if lo < 0.0 or hi > 1.0:
+        v = np.clip(v, 0.0, 1.0)
     dt = _sample_durations(t)
     total = float(dt.sum())
     w = v**p.gamma                                            # (K, n, N)
