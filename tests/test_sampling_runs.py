@@ -146,6 +146,7 @@ def test_feeding_a_run_is_feeding_sample_by_sample(radii: list[float], dwell_ms:
     # the times from the onset (converted run by run) are those of the samples one by one
     got, expected = runs.result.sample_times_s(), one.result.sample_times_s()
     assert got == expected and all(type(v) is float for v in got)
+    assert runs.result.sample_times_s() == expected  # again (converted anew once handed over)
 
 
 @pytest.mark.parametrize("onset", [0, -2**62, 2**62])

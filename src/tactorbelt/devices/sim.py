@@ -591,9 +591,9 @@ class _OnsetGrid:
 #: Memoised grid terms (:class:`_OnsetGrid`, and a constant drive's decay factors by its
 #: rise/fall choices) of the sampling windows that start at a render's onset, for every
 #: sim belt of the process, oldest first: a model participant senses each stimulus over
-#: the same window trial after trial.
+#: the same window trial after trial. The paper study's 36 windows take ~1 MB.
 _GRIDS: dict[tuple[Any, ...], Any] = {}
-_GRIDS_BUDGET: Final = 8 * 2**20
+_GRIDS_BUDGET: Final = 2 * 2**20
 
 
 def _grid_dt(n: int, grid: tuple[int, int]) -> IntArray:

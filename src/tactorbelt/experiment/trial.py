@@ -145,7 +145,8 @@ class TrialResult:
     device_onset_ns: int | None = None
     onset_uncertainty_ns: int | None = None
     #: :meth:`sample_times_s` of the samples recorded in runs so far (each run's
-    #: converted at once), and the onset they count from
+    #: converted at once; handed over by the first call, the store's), and the onset
+    #: they count from
     _times_s: list[float] = field(default_factory=list, init=False, repr=False,
                                   compare=False)
     _times_onset: int | None = field(default=None, init=False, repr=False, compare=False)
@@ -168,8 +169,11 @@ class TrialResult:
         """Each sample's time in seconds from the onset (``(t - onset) / 1e9``: an exact
         integer difference, converted exactly while below 2**53 ns, then divided)."""
         onset = self.onset_ns or 0
-        if self._times_onset == onset and len(self._times_s) == len(self.sample_t_ns):
-            return list(self._times_s)  # converted run by run as they were recorded
+        if (self._times_onset == onset and len(self._times_s) == len(self.sample_t_ns)
+                and self._times_s):
+            # converted run by run as they were recorded: handed over, not kept twice
+            times, self._times_s, self._times_onset = self._times_s, [], None
+            return times
         t = np.array(self.sample_t_ns, dtype=np.int64) - onset
         if t.size and max(-int(t.min()), int(t.max())) >= 2**53:
             return [(v - onset) / 1e9 for v in self.sample_t_ns]  # beyond exact floats
