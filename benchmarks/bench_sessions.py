@@ -12,6 +12,10 @@
   participants per second, and ``sessions_1000_est_s`` what 1,000 take at that rate
   (``make bench`` runs 30; ``make bench-full`` runs 1,000 and reports
   ``sessions_1000_s``).
+- ``session_after_s``, ``machine_drift``: the sessions of ``session_s`` again after the
+  many, and the ratio: how far this machine's speed moved during the run (1.0: not at
+  all; a shared machine moves by 10-30 % within minutes, so a figure within that of its
+  goal is not met or missed by one run).
 - ``sessions_linearity``: mean time of the last 10 % of sessions over the first 10 %
   (at least 3 a worker);
   1.0 means the cost per participant does not grow with the number already stored.
@@ -129,6 +133,10 @@ def main() -> None:
         with ctx.Pool(args.workers) as pool:
             per_worker = pool.map(_sessions, chunks)
         total = time.perf_counter() - t0
+        # the first three sessions again: how far the machine's speed moved meanwhile
+        after = _sessions((Path(tmp) / "after.sqlite", [1, 2, 3], False))
+        out["session_after_s"] = round(statistics.median(after), 4)
+        out["machine_drift"] = round(statistics.median(after) / statistics.median(fast), 3)
         with ctx.Pool(1) as pool:  # a fresh process: its memory is the session's
             out.update(pool.apply(_long_session,
                                   ((Path(tmp) / "long.sqlite", args.long_repetitions),)))
