@@ -115,7 +115,8 @@ GOALS = [
     Goal("session_batch_speedup", None, None, None, "x",
          "baseline: the same sessions committing (and fsyncing) every trial; the disk"),
     Goal("sessions_1000_s", None, "<=", 120.0, "s",
-         "one store per worker, 2 workers; same costs as session_s", full_only=True),
+         "one store per worker, 2 workers; same costs as session_s; 109 s on a steady "
+         "machine, 122-152 s in its slow spells (see machine_drift)", full_only=True),
     Goal("sessions_1000_est_s", None, "<=", 120.0, "s",
          "make bench: 30 participants, scaled to 1,000; as session_s (0.24 s a session "
          "on each of 2 cores busy at once, ~0.83 ms a trial; this machine's speed moves "
