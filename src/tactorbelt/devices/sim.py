@@ -462,8 +462,14 @@ def _relax(u: FloatArray, w: FloatArray, dt_ns: IntArray, params: ErmParams) -> 
     ``u`` (rows: times; ``u`` and ``w`` one row, or one row per time): the closed form of
     one stretch, the time constant chosen at its start (the speed moves monotonically)."""
     tau = np.where(u > w, params.rise_tau_s, params.fall_tau_s)
+    return np.asarray(u + (w - u) * _decay_factors(dt_ns, tau))
+
+
+def _decay_factors(dt_ns: IntArray, tau: FloatArray) -> FloatArray:
+    """``exp(-dt / tau)`` (rows: times; columns: the time constants), the exponent capped
+    at ``_MAX_DECAY``: the decay of a stretch under a constant drive."""
     dt = dt_ns.astype(float) * 1e-9
-    return np.asarray(u + (w - u) * np.exp(-np.minimum(dt[:, None] / tau, _MAX_DECAY)))
+    return np.asarray(np.exp(-np.minimum(dt[:, None] / tau, _MAX_DECAY)))
 
 
 def _relax_to(u: FloatArray, w: FloatArray, dt_ns: int, params: ErmParams) -> FloatArray:
@@ -543,6 +549,11 @@ class _Response:
         """Steady speeds of the moving motors during the given ticks."""
         return np.asarray(self.u_period[np.asarray(ticks) % self.u_period.shape[0]])
 
+    def within_limits(self, offset: FloatArray) -> bool:
+        """True when a state ``offset`` from the response at a tick changes no rise/fall
+        choice from there on (so superposition on the response is exact)."""
+        return bool((offset <= self.rise_limit).all() and (-offset <= self.fall_limit).all())
+
     def decay(self, k0: int, a: int, b: int) -> FloatArray:
         """``exp(-exponent)`` from tick ``k0`` to each tick in ``a..b-1``, along the
         response's choices (rows: ticks; columns: the moving motors)."""
@@ -609,8 +620,7 @@ def _relax_grid(u: FloatArray, w: FloatArray, n: int, grid: tuple[int, int],
     key = ("relax", params, n, grid, tau.tobytes())
     e = _GRIDS.get(key)
     if e is None:
-        dt = _grid_dt(n, grid).astype(float) * 1e-9
-        e = np.exp(-np.minimum(dt[:, None] / tau, _MAX_DECAY))
+        e = _decay_factors(_grid_dt(n, grid), tau)
         e.setflags(write=False)
         _remember(_GRIDS, key, e, _GRIDS_BUDGET)
     return np.asarray(u + (w - u) * e)
@@ -985,7 +995,7 @@ class SimBelt(Belt):
             if g.tw is None or g.d is None:
                 return None
             offset = w[cols] - resp.w[0]
-            if not ((offset <= resp.rise_limit).all() and (-offset <= resp.fall_limit).all()):
+            if not resp.within_limits(offset):
                 return None
             moving = g.tw + offset * g.d
             out[:, cols] = moving
@@ -1042,7 +1052,7 @@ class SimBelt(Belt):
             rest = out
         # every tick start from k0 to k_stop, by superposition on the response from rest
         offset = w - tw[k0]
-        if not ((offset <= resp.rise_limit).all() and (-offset <= resp.fall_limit).all()):
+        if not resp.within_limits(offset):
             # the offset may change a rise/fall choice: check every tick
             ws = tw[k0 : k_stop + 1] + offset * resp.decay(k0, k0, k_stop + 1)
             u = resp.u(np.arange(k0, k_stop))

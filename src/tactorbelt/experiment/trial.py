@@ -101,6 +101,11 @@ class ResponseRule:
         )
 
 
+#: Times from the onset below this many ns convert to float exactly (the sample times
+#: in seconds are computed from the exact integer difference up to it).
+_EXACT_NS = 2**53
+
+
 @dataclass(slots=True)
 class TrialResult:
     """What a trial produced; the store writes it in one transaction.
@@ -175,7 +180,7 @@ class TrialResult:
             times, self._times_s, self._times_onset = self._times_s, [], None
             return times
         t = np.array(self.sample_t_ns, dtype=np.int64) - onset
-        if t.size and max(-int(t.min()), int(t.max())) >= 2**53:
+        if t.size and max(-int(t.min()), int(t.max())) >= _EXACT_NS:
             return [(v - onset) / 1e9 for v in self.sample_t_ns]  # beyond exact floats
         return (t / 1e9).tolist()
 
@@ -273,9 +278,9 @@ class TrialMachine:
         if r._times_onset is None and not r.sample_t_ns:
             r._times_onset = r.onset_ns
         if r._times_onset == r.onset_ns and len(r._times_s) == len(r.sample_t_ns):
-            # their times from the onset, as sample_times_s gives them (exact below 2**53)
+            # their times from the onset, as sample_times_s gives them
             since = t_ns[:m] - r.onset_ns
-            if m and max(-int(since[0]), int(since[-1])) < 2**53:
+            if m and max(-int(since[0]), int(since[-1])) < _EXACT_NS:
                 r._times_s.extend((since / 1e9).tolist())
         r.sample_t_ns.extend(t_ns[:m].tolist())
         r.sample_x.extend(x[:m].tolist())
