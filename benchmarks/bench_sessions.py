@@ -19,6 +19,15 @@
 - ``sessions_linearity``: mean time of the last 10 % of sessions over the first 10 %
   (at least 3 a worker);
   1.0 means the cost per participant does not grow with the number already stored.
+- ``session_fastest_tenth_s``, ``session_slowest_tenth_s``: the run cut into ten
+  consecutive parts (each worker's sessions in order), the mean session time of the
+  fastest and of the slowest part. ``sessions_tenths_spread`` is their ratio: a slow
+  spell in the middle of the run, which ``machine_drift`` (the ends only) misses.
+  ``sessions_1000_steady_s``: the run's wall time at its fastest part's pace (the
+  code's cost when the machine's other load lets it run; not a goal figure).
+- ``session_cpu_s``: CPU seconds (user + system) the workers took per session, and
+  ``sessions_core_use`` those seconds over wall time times workers (1.0: both cores
+  busy throughout; less: waiting, for the disk or an unbalanced split).
 - ``long_session_trials``, ``long_session_rss_mb``, ``long_session_rss_growth_mb``: one
   session of ~10,000 test trials (the resolution template, 42 repetitions; ``make bench``:
   8 repetitions, 1,920), in its own process: resident memory at the end, and its growth
@@ -35,6 +44,7 @@ import argparse
 import json
 import multiprocessing as mp
 import os
+import resource
 import statistics
 import tempfile
 import time
@@ -66,6 +76,24 @@ def _sessions(args: tuple[Path, list[int], bool]) -> list[float]:
             assert res.status == "complete", res.status
             times.append(time.perf_counter() - t0)
     return times
+
+
+def _tenths(per_worker: list[list[float]]) -> list[float]:
+    """Mean session time of each tenth of the run: each worker's sessions, in order, cut
+    into ten consecutive parts (fewer when a worker ran fewer than ten sessions)."""
+    parts = min(10, min(len(t) for t in per_worker))
+    out = []
+    for k in range(parts):
+        part = [x for t in per_worker
+                for x in t[k * len(t) // parts : (k + 1) * len(t) // parts]]
+        out.append(statistics.mean(part))
+    return out
+
+
+def _children_cpu_s() -> float:
+    """User plus system CPU seconds of this process's finished, joined children."""
+    r = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return r.ru_utime + r.ru_stime
 
 
 def _rss_mb() -> float:
@@ -129,10 +157,12 @@ def main() -> None:
         numbers = list(range(1, args.participants + 1))
         chunks = [(Path(tmp) / f"w{w}.sqlite", numbers[w::args.workers], False)
                   for w in range(args.workers)]
+        cpu0 = _children_cpu_s()
         t0 = time.perf_counter()
         with ctx.Pool(args.workers) as pool:
             per_worker = pool.map(_sessions, chunks)
         total = time.perf_counter() - t0
+        cpu = _children_cpu_s() - cpu0  # the workers have been joined: theirs is counted
         # the first three sessions again: how far the machine's speed moved meanwhile
         after = _sessions((Path(tmp) / "after.sqlite", [1, 2, 3], False))
         out["session_after_s"] = round(statistics.median(after), 4)
@@ -150,6 +180,15 @@ def main() -> None:
     out["sessions_per_s"] = round(args.participants / total, 3)
     out["sessions_1000_est_s"] = round(1000 * total / args.participants, 1)
     out["sessions_linearity"] = round(last / first, 3)
+    tenths = _tenths(per_worker)
+    mean = sum(map(sum, per_worker)) / args.participants
+    out["session_fastest_tenth_s"] = round(min(tenths), 4)
+    out["session_slowest_tenth_s"] = round(max(tenths), 4)
+    out["sessions_tenths_spread"] = round(max(tenths) / min(tenths), 3)
+    out["sessions_1000_steady_s"] = round(1000 * total / args.participants
+                                          * min(tenths) / mean, 1)
+    out["session_cpu_s"] = round(cpu / args.participants, 4)
+    out["sessions_core_use"] = round(cpu / (total * args.workers), 3)
     print(json.dumps(out))
 
 

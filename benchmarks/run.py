@@ -130,6 +130,18 @@ GOALS = [
     Goal("sessions_linearity", None, "<=", 1.25, "x",
          "last 10 % of sessions over the first 10 %: 1.0 is linear growth (the "
          "machine's drift during the run counts in it)"),
+    Goal("sessions_tenths_spread", None, None, None, "x",
+         "the slowest tenth of the run's sessions over the fastest (each worker's "
+         "sessions in order): a slow spell anywhere in the run, which machine_drift "
+         "(the ends only) misses; 1.0: a steady machine"),
+    Goal("sessions_1000_steady_s", None, None, None, "s",
+         "sessions_1000_s at the pace of the run's fastest tenth: the code's cost when "
+         "the machine's other load lets it run (not the goal figure)"),
+    Goal("session_cpu_s", None, None, None, "s",
+         "CPU seconds (user + system) of the workers per session: as session_s"),
+    Goal("sessions_core_use", None, None, None, "x",
+         "the workers' CPU seconds over wall time x workers: 1.0 is both cores busy "
+         "throughout (less: waiting on the disk, or one worker done early)"),
     Goal("machine_drift", None, None, None, "x",
          "session_s's sessions again after the many-session run over before it: how far "
          "the machine's speed moved meanwhile (1.0: not at all)"),
