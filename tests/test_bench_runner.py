@@ -38,3 +38,47 @@ def test_every_goal_figure_has_a_direction() -> None:
             assert run.better(g.key) == ("lower" if g.op == "<=" else "higher"), g.key
     assert run.better("emulator_ping_p99_ms") == "lower"
     assert run.better("fast_participants_per_s") == "higher"
+
+
+def _sandbox(tmp_path: Path, monkeypatch: object) -> tuple[ModuleType, Path]:
+    """run.py pointed at a folder holding one benchmark that leaves a mark when run."""
+    run = _run_module()
+    marker = tmp_path / "ran"
+    (tmp_path / "bench_mark.py").write_text(
+        f"from pathlib import Path\nPath({str(marker)!r}).write_text('x')\n"
+        "print('{\"session_s\": 9.0}')\n")
+    monkeypatch.setattr(run, "HERE", tmp_path)  # type: ignore[attr-defined]
+    return run, marker
+
+
+def test_help_and_a_wrong_name_run_no_benchmark(tmp_path: Path, monkeypatch: object) -> None:
+    import pytest
+
+    run, marker = _sandbox(tmp_path, monkeypatch)
+    with pytest.raises(SystemExit) as ok:
+        run.main(["--help"])
+    assert ok.value.code == 0
+    with pytest.raises(SystemExit) as bad:
+        run.main(["bench_nope"])
+    assert bad.value.code == 2
+    assert not marker.exists()
+    assert not (tmp_path / "results.json").exists()
+
+
+def test_report_rewrites_the_table_from_stored_figures_without_measuring(
+        tmp_path: Path, monkeypatch: object) -> None:
+    run, marker = _sandbox(tmp_path, monkeypatch)
+    (tmp_path / "results-full.json").write_text('{"session_s": 0.5, "sessions_1000_s": 130.0}')
+    assert run.main(["--full", "--report"]) == 0
+    assert not marker.exists()
+    text = (tmp_path / "RESULTS-full.md").read_text()
+    assert "Rewritten by `run.py --report`" in text
+    # the goals table: figure | value | baseline | ratio | goal | met | what limits it
+    table = [[c.strip() for c in line.strip("|").split("|")] for line in text.splitlines()
+             if line.startswith("| session")]
+    rows = {cells[0]: cells for cells in table if len(cells) == 7}
+    assert rows["session_s"][1] == "0.5" and rows["session_s"][5] == "yes"
+    assert rows["sessions_1000_s"][1] == "130" and rows["sessions_1000_s"][5] == "NO"
+    # nothing stored yet: a clear error, not an empty report
+    (tmp_path / "results-full.json").unlink()
+    assert run.main(["--full", "--report"]) == 2
