@@ -82,3 +82,22 @@ def test_report_rewrites_the_table_from_stored_figures_without_measuring(
     # nothing stored yet: a clear error, not an empty report
     (tmp_path / "results-full.json").unlink()
     assert run.main(["--full", "--report"]) == 2
+
+
+def test_a_slow_spell_mid_run_shows_in_the_tenths_and_not_only_at_the_ends() -> None:
+    import pytest
+
+    spec = importlib.util.spec_from_file_location(
+        "bench_sessions", RUN.parent / "bench_sessions.py")
+    assert spec is not None and spec.loader is not None
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    # two workers of 20 sessions; both slowed to 0.3 s in their 9th-12th sessions
+    worker = [0.2] * 8 + [0.3] * 4 + [0.2] * 8
+    tenths = mod._tenths([worker, list(worker)])
+    assert len(tenths) == 10
+    assert tenths[0] == tenths[-1] == 0.2  # the ends, all machine_drift compares, agree
+    assert max(tenths) == 0.3 and tenths.index(0.3) == 4  # the 9th-10th sessions
+    # as many parts as the shortest worker has sessions; the longer one's last part
+    # takes its remainder
+    assert mod._tenths([[0.1, 0.3], [0.1, 0.3, 0.5]]) == pytest.approx([0.1, 1.1 / 3])
