@@ -284,6 +284,11 @@ def cli_help() -> dict[str, float]:
     return {"cli_help_s": ours, "python_startup_s": base, "cli_help_vs_python": ours / base}
 
 
+def _files(full: bool) -> tuple[str, str]:
+    """The results file and the report of the quick or the full suite."""
+    return ("results-full.json", "RESULTS-full.md") if full else ("results.json", "RESULTS.md")
+
+
 def _parse(argv: list[str]) -> argparse.Namespace:
     names = [*sorted(p.stem for p in HERE.glob("bench_*.py")), "cli_help"]
     ap = argparse.ArgumentParser(
@@ -313,7 +318,7 @@ def main(argv: list[str] | None = None) -> int:
     args = _parse(sys.argv[1:] if argv is None else argv)
     full = args.full
     only = set(args.names)
-    results_name = "results-full.json" if full else "results.json"
+    results_name = _files(full)[0]
     previous = HERE / results_name
     before = committed(results_name)
     if args.report:
@@ -335,11 +340,11 @@ def main(argv: list[str] | None = None) -> int:
         name = path.stem
         if only and name not in only:
             continue
-        args_ = [] if full else QUICK_ARGS.get(name, [])
-        print(f"running {name} {' '.join(args_)}...", flush=True)
+        script_args = [] if full else QUICK_ARGS.get(name, [])
+        print(f"running {name} {' '.join(script_args)}...", flush=True)
         t0 = time.perf_counter()
         try:
-            results.update(run_script(path, timeout=1800, args=args_))
+            results.update(run_script(path, timeout=1800, args=script_args))
         except Exception as exc:  # report and go on: one failure must not hide the rest
             failures[name] = str(exc)
             print(f"  {name} failed: {exc}", flush=True)
@@ -361,8 +366,7 @@ def write_report(results: dict[str, float], full: bool, only: set[str],
                  rewritten: bool = False) -> None:
     """Write RESULTS.md (RESULTS-full.md) from ``results`` and print it, then the figures
     more than :data:`REGRESSION` worse than ``before`` (the committed results)."""
-    results_name = "results-full.json" if full else "results.json"
-    report_name = "RESULTS-full.md" if full else "RESULTS.md"
+    results_name, report_name = _files(full)
     worse = regressions(results, before)
     lines = [
         "# Benchmark results" + (" (make bench-full)" if full else ""),

@@ -7,16 +7,24 @@ import sys
 from pathlib import Path
 from types import ModuleType
 
-RUN = Path(__file__).resolve().parents[1] / "benchmarks" / "run.py"
+import pytest
+
+BENCHMARKS = Path(__file__).resolve().parents[1] / "benchmarks"
+
+
+def _bench_module(script: str) -> ModuleType:
+    """``benchmarks/<script>.py`` imported (the folder is not a package)."""
+    name = f"bench_{script}"
+    spec = importlib.util.spec_from_file_location(name, BENCHMARKS / f"{script}.py")
+    assert spec is not None and spec.loader is not None
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules[name] = mod  # dataclasses look their module up
+    spec.loader.exec_module(mod)
+    return mod
 
 
 def _run_module() -> ModuleType:
-    spec = importlib.util.spec_from_file_location("bench_run", RUN)
-    assert spec is not None and spec.loader is not None
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules["bench_run"] = mod  # dataclasses look their module up
-    spec.loader.exec_module(mod)
-    return mod
+    return _bench_module("run")
 
 
 def test_a_figure_more_than_20_percent_worse_is_flagged_either_way() -> None:
@@ -40,20 +48,19 @@ def test_every_goal_figure_has_a_direction() -> None:
     assert run.better("fast_participants_per_s") == "higher"
 
 
-def _sandbox(tmp_path: Path, monkeypatch: object) -> tuple[ModuleType, Path]:
+def _sandbox(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> tuple[ModuleType, Path]:
     """run.py pointed at a folder holding one benchmark that leaves a mark when run."""
     run = _run_module()
     marker = tmp_path / "ran"
     (tmp_path / "bench_mark.py").write_text(
         f"from pathlib import Path\nPath({str(marker)!r}).write_text('x')\n"
         "print('{\"session_s\": 9.0}')\n")
-    monkeypatch.setattr(run, "HERE", tmp_path)  # type: ignore[attr-defined]
+    monkeypatch.setattr(run, "HERE", tmp_path)
     return run, marker
 
 
-def test_help_and_a_wrong_name_run_no_benchmark(tmp_path: Path, monkeypatch: object) -> None:
-    import pytest
-
+def test_help_and_a_wrong_name_run_no_benchmark(tmp_path: Path,
+                                                monkeypatch: pytest.MonkeyPatch) -> None:
     run, marker = _sandbox(tmp_path, monkeypatch)
     with pytest.raises(SystemExit) as ok:
         run.main(["--help"])
@@ -66,7 +73,7 @@ def test_help_and_a_wrong_name_run_no_benchmark(tmp_path: Path, monkeypatch: obj
 
 
 def test_report_rewrites_the_table_from_stored_figures_without_measuring(
-        tmp_path: Path, monkeypatch: object) -> None:
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     run, marker = _sandbox(tmp_path, monkeypatch)
     (tmp_path / "results-full.json").write_text('{"session_s": 0.5, "sessions_1000_s": 130.0}')
     assert run.main(["--full", "--report"]) == 0
@@ -85,13 +92,7 @@ def test_report_rewrites_the_table_from_stored_figures_without_measuring(
 
 
 def test_a_slow_spell_mid_run_shows_in_the_tenths_and_not_only_at_the_ends() -> None:
-    import pytest
-
-    spec = importlib.util.spec_from_file_location(
-        "bench_sessions", RUN.parent / "bench_sessions.py")
-    assert spec is not None and spec.loader is not None
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
+    mod = _bench_module("bench_sessions")
     # two workers of 20 sessions; both slowed to 0.3 s in their 9th-12th sessions
     worker = [0.2] * 8 + [0.3] * 4 + [0.2] * 8
     tenths = mod._tenths([worker, list(worker)])
