@@ -8,6 +8,8 @@ participants) and writes results-full.json and RESULTS-full.md.
 ``python benchmarks/run.py bench_player cli_help`` runs only those and keeps the other
 figures of the last run; ``--report`` measures nothing and rewrites RESULTS.md (with
 ``--full``, RESULTS-full.md) from the stored figures, after a goal or its text changed.
+Ctrl-C (exit 130) or SIGTERM (143) stops the benchmark running, its worker processes
+too, and writes no results.
 
 Each run is compared with the last committed results file of its suite (``git show
 HEAD:benchmarks/results.json``): a figure more than 20 % worse than there is flagged in
@@ -27,9 +29,11 @@ these machines are shared and noisy: an absolute time alone says little.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import platform
+import signal
 import subprocess
 import sys
 import time
@@ -200,14 +204,37 @@ GOALS = [
 
 
 def run_script(path: Path, timeout: float, args: list[str] | None = None) -> dict[str, float]:
+    """Run one benchmark script and return the figures of its last JSON line.
+
+    The script runs in a process group of its own. On a timeout, Ctrl-C or SIGTERM (see
+    :func:`main`) the whole group is stopped, the script's worker processes too, before
+    the exception goes on: none is left running after the runner."""
     env = dict(os.environ, SDL_VIDEODRIVER="dummy", SDL_AUDIODRIVER="dummy", MPLBACKEND="Agg")
-    proc = subprocess.run([sys.executable, str(path), *(args or [])], capture_output=True,
-                          text=True, timeout=timeout, env=env)
+    proc = subprocess.Popen([sys.executable, str(path), *(args or [])], env=env, text=True,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            start_new_session=True)
+    try:
+        stdout, stderr = proc.communicate(timeout=timeout)
+    except BaseException:
+        _stop_group(proc)
+        raise
     if proc.returncode != 0:
-        raise RuntimeError(proc.stderr.strip().splitlines()[-1] if proc.stderr else "failed")
-    last = [ln for ln in proc.stdout.splitlines() if ln.strip().startswith("{")][-1]
+        raise RuntimeError(stderr.strip().splitlines()[-1] if stderr.strip() else "failed")
+    last = [ln for ln in stdout.splitlines() if ln.strip().startswith("{")][-1]
     data = json.loads(last)
     return {k: float(v) for k, v in data.items() if isinstance(v, int | float)}
+
+
+def _stop_group(proc: subprocess.Popen[str]) -> None:
+    """SIGTERM to a script's process group; 5 s later SIGKILL to whatever of it is left
+    (worker processes outlive a script that ends on SIGTERM)."""
+    with contextlib.suppress(ProcessLookupError):
+        os.killpg(proc.pid, signal.SIGTERM)
+    with contextlib.suppress(subprocess.TimeoutExpired):
+        proc.communicate(timeout=5.0)
+    with contextlib.suppress(ProcessLookupError):
+        os.killpg(proc.pid, signal.SIGKILL)
+    proc.communicate()
 
 
 _LOWER_IS_BETTER = ("_s", "_ms", "_us", "_mb", "_pct", "_pct_1khz", "errors", "gaps",
@@ -312,6 +339,10 @@ def _parse(argv: list[str]) -> argparse.Namespace:
     if args.report and args.names:
         ap.error("--report measures nothing; give no benchmark names with it")
     return args
+
+
+def _terminated(signum: int, frame: object) -> None:
+    raise SystemExit(128 + signum)  # through run_script's clean-up: its group is stopped
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -432,4 +463,15 @@ def write_report(results: dict[str, float], full: bool, only: set[str],
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    signal.signal(signal.SIGTERM, _terminated)
+    try:
+        sys.exit(main())
+    except KeyboardInterrupt:
+        code = 130
+    except SystemExit as exc:
+        if exc.code != 128 + signal.SIGTERM:
+            raise
+        code = exc.code
+    print("run.py: stopped; the benchmark running was stopped and no results were written",
+          file=sys.stderr)
+    sys.exit(code)

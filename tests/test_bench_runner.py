@@ -3,7 +3,12 @@
 from __future__ import annotations
 
 import importlib.util
+import os
+import shutil
+import signal
+import subprocess
 import sys
+import time
 from pathlib import Path
 from types import ModuleType
 
@@ -102,3 +107,45 @@ def test_a_slow_spell_mid_run_shows_in_the_tenths_and_not_only_at_the_ends() -> 
     # as many parts as the shortest worker has sessions; the longer one's last part
     # takes its remainder
     assert mod._tenths([[0.1, 0.3], [0.1, 0.3, 0.5]]) == pytest.approx([0.1, 1.1 / 3])
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])
+def test_stopping_the_runner_stops_the_benchmark_and_its_workers(
+        tmp_path: Path, sig: signal.Signals) -> None:
+    # run.py copied beside one benchmark that starts a worker process and waits
+    shutil.copy(BENCHMARKS / "run.py", tmp_path / "run.py")
+    pids = tmp_path / "pids"
+    (tmp_path / "bench_hang.py").write_text(
+        "import os, subprocess, sys, time\n"
+        "w = subprocess.Popen([sys.executable, '-c', 'import time; time.sleep(120)'])\n"
+        f"open({str(pids)!r}, 'w').write(f'{{os.getpid()}} {{w.pid}}')\n"
+        "time.sleep(120)\n")
+    # as from a terminal: Ctrl-C raises KeyboardInterrupt (even where the test's own
+    # parent ignores SIGINT)
+    start = ("import runpy, signal, sys; signal.signal(signal.SIGINT, "
+             "signal.default_int_handler); sys.argv = [sys.argv[1], 'bench_hang']; "
+             "runpy.run_path(sys.argv[0], run_name='__main__')")
+    runner = subprocess.Popen([sys.executable, "-c", start, str(tmp_path / "run.py")],
+                              stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 60
+    while not (pids.exists() and len(pids.read_text().split()) == 2):
+        assert time.monotonic() < deadline and runner.poll() is None
+        time.sleep(0.05)
+    script, worker = (int(x) for x in pids.read_text().split())
+    runner.send_signal(sig)  # to the runner alone, as `kill PID` does
+    _, err = runner.communicate(timeout=30)
+    assert runner.returncode == (143 if sig == signal.SIGTERM else 130)
+    assert "no results were written" in err
+
+    def alive(pid: int) -> bool:
+        try:
+            os.kill(pid, 0)
+        except ProcessLookupError:
+            return False
+        return True
+
+    gone = time.monotonic() + 10
+    while (alive(script) or alive(worker)) and time.monotonic() < gone:
+        time.sleep(0.05)
+    assert not alive(script) and not alive(worker)
+    assert not (tmp_path / "results.json").exists()  # nothing half-written
