@@ -15,7 +15,11 @@ Each run is compared with the last committed results file of its suite (``git sh
 HEAD:benchmarks/results.json``): a figure more than 20 % worse than there is flagged in
 the terminal and in RESULTS.md (the direction of "worse" comes from the figure's goal,
 else from its unit: times, sizes, CPU and errors are better lower, rates and speed-ups
-higher).
+higher). The machine's speed is allowed for: a fixed workload (:func:`speed_ref`) is
+timed before and after each script and stored as ``speed_ref_<script>_s``; a time, CPU
+share or rate is compared with the committed one scaled by how much slower or faster the
+workload ran around the same script then and now (these shared machines move by 10-50 %
+from one hour to the next).
 
 Each ``benchmarks/bench_*.py`` is a script that prints one JSON object (key -> number) as
 its last line. This runner runs each one in its own process (so one failing benchmark
@@ -65,6 +69,8 @@ QUICK_ARGS: dict[str, list[str]] = {
 }
 #: A figure this much worse than in the last committed results is flagged.
 REGRESSION = 0.20
+#: The reference workload is timed this many times (the median is kept) before each script.
+SPEED_REPEATS = 3
 
 
 GOALS = [
@@ -251,7 +257,8 @@ _NOT_COMPARED = ("participants", "trials", "samples", "sample_rows", "store_mb",
 def better(key: str) -> str | None:
     """``lower``, ``higher`` or None (not a performance figure): from the figure's goal,
     else from its name."""
-    if key in _NOT_COMPARED or key.startswith("time_"):  # a script's run time: noisy
+    # a script's run time (noisy) and the reference workload's time are not compared
+    if key in _NOT_COMPARED or key.startswith(("time_", "speed_ref_")):
         return None
     for g in GOALS:
         if g.key == key and g.op is not None:
@@ -279,18 +286,84 @@ def committed(name: str) -> dict[str, float]:
     return {k: float(v) for k, v in data.items() if isinstance(v, int | float)}
 
 
+def _workload() -> float:
+    """What :func:`speed_ref` times: interpreted arithmetic and dict stores, then NumPy
+    calls on small arrays (most of tactorbelt's time goes to such work), ~40 ms."""
+    import math
+
+    import numpy as np
+
+    a = np.linspace(0.0, 1.0, 256)
+    acc = 0.0
+    table: dict[int, float] = {}
+    for i in range(150_000):
+        acc += math.sin(i) * 0.5
+        table[i & 255] = acc
+    for i in range(15_000):
+        acc += float((a * i).sum())
+    return acc
+
+
+def speed_ref(repeats: int = SPEED_REPEATS) -> float:
+    """Seconds the reference workload takes now (median of ``repeats``): this machine's
+    current speed, to compare figures measured at different times."""
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        _workload()
+        times.append(time.perf_counter() - t0)
+    return sorted(times)[len(times) // 2]
+
+
+def speed_key(script: str) -> str:
+    """The results key of the reference time around ``script``."""
+    return f"speed_ref_{script}_s"
+
+
+def scales_with_speed(key: str) -> int:
+    """How a figure moves with the machine's speed: 1 (a time or a CPU share: twice as
+    slow a machine, twice the figure), -1 (a rate: half the figure) or 0 (a ratio to a
+    baseline of the same run, a size or a count)."""
+    way = better(key)
+    if way is None:
+        return 0
+    if way == "higher":
+        return -1 if key.endswith("per_s") else 0
+    return 1 if key.endswith(("_s", "_ms", "_us", "_pct", "_pct_1khz")) else 0
+
+
+def speed_factors(now: dict[str, float], before: dict[str, float],
+                  measured: dict[str, str]) -> dict[str, float]:
+    """Per figure measured now (``measured``: figure -> script), how much slower the
+    machine ran around its script now than in ``before``: the ratio of the reference
+    times (absent where either run lacks one)."""
+    out = {}
+    for key, script in measured.items():
+        ref_now, ref_then = now.get(speed_key(script)), before.get(speed_key(script))
+        if ref_now and ref_then and ref_now > 0 and ref_then > 0:
+            out[key] = ref_now / ref_then
+    return out
+
+
 def regressions(now: dict[str, float], before: dict[str, float],
-                limit: float = REGRESSION) -> list[tuple[str, float, float, float]]:
-    """Figures more than ``limit`` worse than before: (key, before, now, how much worse)."""
+                limit: float = REGRESSION, speed: dict[str, float] | None = None
+                ) -> list[tuple[str, float, float, float, float]]:
+    """Figures more than ``limit`` worse than before: (key, before, now, how much worse,
+    the machine's slowdown allowed for). ``speed``: per figure, how much slower the
+    machine ran now (:func:`speed_factors`); a time is expected that much longer, a rate
+    that much lower."""
     out = []
     for key in sorted(now.keys() & before.keys()):
         way = better(key)
         old, new = before[key], now[key]
         if way is None or old <= 0 or new < 0:
             continue
-        worse = (new - old) / old if way == "lower" else (old - new) / old
+        slower = (speed or {}).get(key, 1.0) if scales_with_speed(key) else 1.0
+        expected = old * slower if scales_with_speed(key) >= 0 else old / slower
+        worse = ((new - expected) / expected if way == "lower"
+                 else (expected - new) / expected)
         if worse > limit:
-            out.append((key, old, new, worse))
+            out.append((key, old, new, worse, slower))
     return out
 
 
@@ -357,7 +430,7 @@ def main(argv: list[str] | None = None) -> int:
             print(f"run.py: no {previous} to report; run the benchmarks first",
                   file=sys.stderr)
             return 2
-        write_report(json.loads(previous.read_text()), full, only, {}, before,
+        write_report(json.loads(previous.read_text()), full, only, {}, before, {},
                      rewritten=True)
         return 0
     results: dict[str, float] = {}
@@ -365,6 +438,7 @@ def main(argv: list[str] | None = None) -> int:
         results.update(json.loads(previous.read_text()))
     failures: dict[str, str] = {}
     seconds: dict[str, float] = {}
+    measured: dict[str, str] = {}  # figure -> the script that measured it now
     t_all = time.perf_counter()
     scripts = sorted(HERE.glob("bench_*.py"))
     for path in scripts:
@@ -373,32 +447,44 @@ def main(argv: list[str] | None = None) -> int:
             continue
         script_args = [] if full else QUICK_ARGS.get(name, [])
         print(f"running {name} {' '.join(script_args)}...", flush=True)
+        ref_before = speed_ref()
         t0 = time.perf_counter()
         try:
-            results.update(run_script(path, timeout=1800, args=script_args))
+            figures = run_script(path, timeout=1800, args=script_args)
         except Exception as exc:  # report and go on: one failure must not hide the rest
             failures[name] = str(exc)
             print(f"  {name} failed: {exc}", flush=True)
+        else:
+            results.update(figures)
+            measured.update(dict.fromkeys(figures, name))
         seconds[name] = time.perf_counter() - t0
         results[f"time_{name}_s"] = round(seconds[name], 1)  # kept by partial runs
+        # the machine's speed around the script: the mean of before and after
+        results[speed_key(name)] = round((ref_before + speed_ref()) / 2, 5)
         print(f"  {seconds[name]:.1f} s", flush=True)
     if not only or "cli_help" in only:
-        results.update(cli_help())
+        ref_before = speed_ref()
+        figures = cli_help()
+        results.update(figures)
+        measured.update(dict.fromkeys(figures, "cli_help"))
+        results[speed_key("cli_help")] = round((ref_before + speed_ref()) / 2, 5)
     if not only:
         results["bench_total_s" if not full else "bench_full_total_s"] = round(
             time.perf_counter() - t_all, 1)
     previous.write_text(json.dumps(results, indent=2, sort_keys=True) + "\n")
-    write_report(results, full, only, failures, before)
+    write_report(results, full, only, failures, before,
+                 speed_factors(results, before, measured))
     return 1 if failures else 0
 
 
 def write_report(results: dict[str, float], full: bool, only: set[str],
                  failures: dict[str, str], before: dict[str, float],
-                 rewritten: bool = False) -> None:
+                 speed: dict[str, float], rewritten: bool = False) -> None:
     """Write RESULTS.md (RESULTS-full.md) from ``results`` and print it, then the figures
-    more than :data:`REGRESSION` worse than ``before`` (the committed results)."""
+    more than :data:`REGRESSION` worse than ``before`` (the committed results), the
+    machine's speed allowed for (``speed``: :func:`speed_factors`)."""
     results_name, report_name = _files(full)
-    worse = regressions(results, before)
+    worse = regressions(results, before, speed=speed)
     lines = [
         "# Benchmark results" + (" (make bench-full)" if full else ""),
         "",
@@ -434,6 +520,14 @@ def write_report(results: dict[str, float], full: bool, only: set[str],
             f"{goal} | {met} | {g.limits} |"
         )
     lines += ["", f"## Compared with the last committed {results_name}", ""]
+    if before and speed:
+        lo, hi = min(speed.values()), max(speed.values())
+        lines += [f"The reference workload ran {lo:.2f}-{hi:.2f} x as long as around the same "
+                  "scripts in the committed run: times, CPU shares and rates measured now "
+                  "are compared with the committed ones scaled by that.", ""]
+    elif before and not rewritten:
+        lines += ["The committed results hold no reference times (speed_ref_*): figures "
+                  "are compared as measured.", ""]
     if not before:
         lines.append("No committed results to compare with.")
     elif not worse:
@@ -441,25 +535,34 @@ def write_report(results: dict[str, float], full: bool, only: set[str],
     else:
         lines += [f"{len(worse)} figure(s) more than {REGRESSION:.0%} worse (shared, noisy "
                   "machine: run the benchmark again alone before believing one):", "",
-                  "| figure | committed | now | worse by |", "|---|---|---|---|"]
-        lines += [f"| {k} | {old:.4g} | {new:.4g} | {w:.0%} |" for k, old, new, w in worse]
+                  "| figure | committed | now | machine now/then | worse by |",
+                  "|---|---|---|---|---|"]
+        lines += [f"| {k} | {old:.4g} | {new:.4g} | "
+                  f"{f'{slower:.2f}' if k in speed else 'not measured'} | {w:.0%} |"
+                  for k, old, new, w, slower in worse]
     times = {k[len("time_"):-len("_s")]: v for k, v in sorted(results.items())
              if k.startswith("time_")}
     if times:
         lines += ["", "## Time per benchmark", "",
-                  f"Sum: {sum(times.values()):.0f} s (scripts; cli_help adds about 1 s).", "",
-                  "| script | s |", "|---|---|"]
-        lines += [f"| {k} | {v:.1f} |" for k, v in times.items()]
+                  f"Sum: {sum(times.values()):.0f} s (scripts; cli_help adds about 1 s). "
+                  "The reference workload's time around each script shows the machine's "
+                  "speed then (lower: faster).", "",
+                  "| script | s | reference workload, ms |", "|---|---|---|"]
+        lines += [f"| {k} | {v:.1f} | "
+                  f"{'' if speed_key(k) not in results else f'{results[speed_key(k)] * 1e3:.1f}'} |"
+                  for k, v in times.items()]
     lines += ["", "## All figures", "", "| key | value |", "|---|---|"]
     lines += [f"| {k} | {v:.6g} |" for k, v in sorted(results.items())
-              if not k.startswith("time_")]
+              if not k.startswith(("time_", "speed_ref_"))]
     if failures:
         lines += ["", "## Failed benchmarks", ""]
         lines += [f"- {k}: {v}" for k, v in failures.items()]
     (HERE / report_name).write_text("\n".join(lines) + "\n")
     print((HERE / report_name).read_text())
-    for k, old, new, w in worse:
-        print(f"WORSE: {k} {old:.4g} -> {new:.4g} ({w:.0%} worse than committed)", flush=True)
+    for k, old, new, w, slower in worse:
+        machine = f", the machine {slower:.2f} x as slow" if k in speed else ""
+        print(f"WORSE: {k} {old:.4g} -> {new:.4g} ({w:.0%} worse than committed{machine})",
+              flush=True)
 
 
 if __name__ == "__main__":
