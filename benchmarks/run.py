@@ -16,10 +16,10 @@ HEAD:benchmarks/results.json``): a figure more than 20 % worse than there is fla
 the terminal and in RESULTS.md (the direction of "worse" comes from the figure's goal,
 else from its unit: times, sizes, CPU and errors are better lower, rates and speed-ups
 higher). The machine's speed is allowed for: a fixed workload (:func:`speed_ref`) is
-timed before and after each script and stored as ``speed_ref_<script>_s``; a time, CPU
-share or rate is compared with the committed one scaled by how much slower or faster the
-workload ran around the same script then and now (these shared machines move by 10-50 %
-from one hour to the next).
+timed before, during and after each script (:class:`SpeedSampler`) and the median stored
+as ``speed_ref_<script>_s``; a time, CPU share or rate is compared with the committed one
+scaled by how much slower or faster the workload ran during the same script then and now
+(these shared machines move by 10-70 % from one minute to the next).
 
 Each ``benchmarks/bench_*.py`` is a script that prints one JSON object (key -> number) as
 its last line. This runner runs each one in its own process (so one failing benchmark
@@ -69,8 +69,11 @@ QUICK_ARGS: dict[str, list[str]] = {
 }
 #: A figure this much worse than in the last committed results is flagged.
 REGRESSION = 0.20
-#: The reference workload is timed this many times (the median is kept) before each script.
-SPEED_REPEATS = 3
+#: The reference workload is timed this many times (the median is kept) before and after
+#: each script: short runs, like the benchmarks' own repeats, so that other processes
+#: taking turns on the cores (which a median of short runs does not see) do not count,
+#: and a slower machine (which every run sees) does.
+SPEED_REPEATS = 101
 
 
 GOALS = [
@@ -288,7 +291,7 @@ def committed(name: str) -> dict[str, float]:
 
 def _workload() -> float:
     """What :func:`speed_ref` times: interpreted arithmetic and dict stores, then NumPy
-    calls on small arrays (most of tactorbelt's time goes to such work), ~40 ms."""
+    calls on small arrays (most of tactorbelt's time goes to such work), ~0.2 ms."""
     import math
 
     import numpy as np
@@ -296,10 +299,10 @@ def _workload() -> float:
     a = np.linspace(0.0, 1.0, 256)
     acc = 0.0
     table: dict[int, float] = {}
-    for i in range(150_000):
+    for i in range(750):
         acc += math.sin(i) * 0.5
         table[i & 255] = acc
-    for i in range(15_000):
+    for i in range(75):
         acc += float((a * i).sum())
     return acc
 
@@ -313,6 +316,41 @@ def speed_ref(repeats: int = SPEED_REPEATS) -> float:
         _workload()
         times.append(time.perf_counter() - t0)
     return sorted(times)[len(times) // 2]
+
+
+class SpeedSampler:
+    """The machine's speed while a script runs: :func:`speed_ref` before, every ``every``
+    seconds from a thread (about 1 % of a core; the script is another process) and after;
+    :attr:`seconds` is the median of them all. The machine's speed moves within a script
+    as well as between scripts."""
+
+    def __init__(self, every: float = 0.25, repeats: int = 11) -> None:
+        import threading
+
+        self.every, self.repeats = every, repeats
+        self.samples: list[float] = []
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._sample, name="speed-ref", daemon=True)
+
+    def _sample(self) -> None:
+        while not self._stop.wait(self.every):
+            self.samples.append(speed_ref(self.repeats))
+
+    def __enter__(self) -> SpeedSampler:
+        self.samples.append(speed_ref())
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._stop.set()
+        self._thread.join()
+        if exc[0] is None:
+            self.samples.append(speed_ref())
+
+    @property
+    def seconds(self) -> float:
+        ordered = sorted(self.samples)
+        return ordered[len(ordered) // 2]
 
 
 def speed_key(script: str) -> str:
@@ -447,27 +485,26 @@ def main(argv: list[str] | None = None) -> int:
             continue
         script_args = [] if full else QUICK_ARGS.get(name, [])
         print(f"running {name} {' '.join(script_args)}...", flush=True)
-        ref_before = speed_ref()
         t0 = time.perf_counter()
-        try:
-            figures = run_script(path, timeout=1800, args=script_args)
-        except Exception as exc:  # report and go on: one failure must not hide the rest
-            failures[name] = str(exc)
-            print(f"  {name} failed: {exc}", flush=True)
-        else:
-            results.update(figures)
-            measured.update(dict.fromkeys(figures, name))
+        with SpeedSampler() as speed:
+            try:
+                figures = run_script(path, timeout=1800, args=script_args)
+            except Exception as exc:  # report and go on: one failure must not hide the rest
+                failures[name] = str(exc)
+                print(f"  {name} failed: {exc}", flush=True)
+            else:
+                results.update(figures)
+                measured.update(dict.fromkeys(figures, name))
         seconds[name] = time.perf_counter() - t0
         results[f"time_{name}_s"] = round(seconds[name], 1)  # kept by partial runs
-        # the machine's speed around the script: the mean of before and after
-        results[speed_key(name)] = round((ref_before + speed_ref()) / 2, 5)
+        results[speed_key(name)] = round(speed.seconds, 9)  # the machine's speed meanwhile
         print(f"  {seconds[name]:.1f} s", flush=True)
     if not only or "cli_help" in only:
-        ref_before = speed_ref()
-        figures = cli_help()
+        with SpeedSampler() as speed:
+            figures = cli_help()
         results.update(figures)
         measured.update(dict.fromkeys(figures, "cli_help"))
-        results[speed_key("cli_help")] = round((ref_before + speed_ref()) / 2, 5)
+        results[speed_key("cli_help")] = round(speed.seconds, 9)
     if not only:
         results["bench_total_s" if not full else "bench_full_total_s"] = round(
             time.perf_counter() - t_all, 1)
@@ -547,9 +584,9 @@ def write_report(results: dict[str, float], full: bool, only: set[str],
                   f"Sum: {sum(times.values()):.0f} s (scripts; cli_help adds about 1 s). "
                   "The reference workload's time around each script shows the machine's "
                   "speed then (lower: faster).", "",
-                  "| script | s | reference workload, ms |", "|---|---|---|"]
+                  "| script | s | reference workload, us |", "|---|---|---|"]
         lines += [f"| {k} | {v:.1f} | "
-                  f"{'' if speed_key(k) not in results else f'{results[speed_key(k)] * 1e3:.1f}'} |"
+                  f"{'' if speed_key(k) not in results else f'{results[speed_key(k)] * 1e6:.1f}'} |"
                   for k, v in times.items()]
     lines += ["", "## All figures", "", "| key | value |", "|---|---|"]
     lines += [f"| {k} | {v:.6g} |" for k, v in sorted(results.items())

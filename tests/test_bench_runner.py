@@ -9,6 +9,7 @@ import shutil
 import signal
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 from types import ModuleType
@@ -126,7 +127,7 @@ def test_a_run_stores_the_machines_speed_and_allows_for_it(
     run, marker = _sandbox(tmp_path, monkeypatch)
     # the benchmark gives session_s 9.0; the committed run gave 5.0 with the reference
     # workload at 20 ms around the same script, and the machine now runs it in 40 ms
-    monkeypatch.setattr(run, "speed_ref", lambda: 0.040)
+    monkeypatch.setattr(run, "speed_ref", lambda repeats=3: 0.040)
     committed = {"session_s": 5.0, "speed_ref_bench_mark_s": 0.020}
     monkeypatch.setattr(run, "committed", lambda name: committed)
     assert run.main(["bench_mark"]) == 0
@@ -141,6 +142,21 @@ def test_a_run_stores_the_machines_speed_and_allows_for_it(
     text = (tmp_path / "RESULTS.md").read_text()
     assert "hold no reference times" in text
     assert "| session_s | 5 | 9 | not measured | 80% |" in text
+
+
+def test_the_machines_speed_is_sampled_while_the_script_runs(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    run = _run_module()
+    # the runner's thread times the workload before and after the script (fast then);
+    # the sampler's thread while it runs (three times slower meanwhile)
+    monkeypatch.setattr(run, "speed_ref", lambda repeats=3: (
+        1.0 if threading.current_thread() is threading.main_thread() else 3.0))
+    with run.SpeedSampler(every=0.005) as speed:
+        deadline = time.monotonic() + 30.0
+        while len(speed.samples) < 5 and time.monotonic() < deadline:
+            time.sleep(0.005)
+    assert speed.samples[0] == speed.samples[-1] == 1.0
+    assert len(speed.samples) >= 6 and speed.seconds == 3.0
 
 
 def test_a_slow_spell_mid_run_shows_in_the_tenths_and_not_only_at_the_ends() -> None:
