@@ -74,6 +74,9 @@ REGRESSION = 0.20
 #: taking turns on the cores (which a median of short runs does not see) do not count,
 #: and a slower machine (which every run sees) does.
 SPEED_REPEATS = 101
+#: Stored as ``speed_ref_workload``: change it with :func:`_workload` (reference times of
+#: another workload are not compared).
+SPEED_WORKLOAD = 2
 
 
 GOALS = [
@@ -374,8 +377,10 @@ def speed_factors(now: dict[str, float], before: dict[str, float],
                   measured: dict[str, str]) -> dict[str, float]:
     """Per figure measured now (``measured``: figure -> script), how much slower the
     machine ran around its script now than in ``before``: the ratio of the reference
-    times (absent where either run lacks one)."""
-    out = {}
+    times (none where either run lacks one, or timed another workload)."""
+    out: dict[str, float] = {}
+    if now.get("speed_ref_workload") != before.get("speed_ref_workload"):
+        return out
     for key, script in measured.items():
         ref_now, ref_then = now.get(speed_key(script)), before.get(speed_key(script))
         if ref_now and ref_then and ref_now > 0 and ref_then > 0:
@@ -505,6 +510,7 @@ def main(argv: list[str] | None = None) -> int:
         results.update(figures)
         measured.update(dict.fromkeys(figures, "cli_help"))
         results[speed_key("cli_help")] = round(speed.seconds, 9)
+    results["speed_ref_workload"] = SPEED_WORKLOAD
     if not only:
         results["bench_total_s" if not full else "bench_full_total_s"] = round(
             time.perf_counter() - t_all, 1)
@@ -563,8 +569,8 @@ def write_report(results: dict[str, float], full: bool, only: set[str],
                   "scripts in the committed run: times, CPU shares and rates measured now "
                   "are compared with the committed ones scaled by that.", ""]
     elif before and not rewritten:
-        lines += ["The committed results hold no reference times (speed_ref_*): figures "
-                  "are compared as measured.", ""]
+        lines += ["The committed results hold no reference times of this workload "
+                  "(speed_ref_*): figures are compared as measured.", ""]
     if not before:
         lines.append("No committed results to compare with.")
     elif not worse:

@@ -49,12 +49,14 @@ def test_a_figure_more_than_20_percent_worse_is_flagged_either_way() -> None:
 def test_the_machines_speed_around_a_script_is_allowed_for() -> None:
     run = _run_module()
     before = {"session_s": 1.0, "sessions_per_s": 1000.0, "render_speedup_vs_loop": 100.0,
-              "speed_ref_bench_sessions_s": 0.040, "speed_ref_bench_render_s": 0.040}
+              "speed_ref_bench_sessions_s": 0.040, "speed_ref_bench_render_s": 0.040,
+              "speed_ref_workload": run.SPEED_WORKLOAD}
     measured = {"session_s": "bench_sessions", "sessions_per_s": "bench_sessions",
                 "render_speedup_vs_loop": "bench_render"}
     # the reference workload ran 1.5 x as long around bench_sessions now
     now = {"session_s": 1.4, "sessions_per_s": 700.0, "render_speedup_vs_loop": 70.0,
-           "speed_ref_bench_sessions_s": 0.060, "speed_ref_bench_render_s": 0.060}
+           "speed_ref_bench_sessions_s": 0.060, "speed_ref_bench_render_s": 0.060,
+           "speed_ref_workload": run.SPEED_WORKLOAD}
     speed = run.speed_factors(now, before, measured)
     assert speed == pytest.approx({k: 1.5 for k in measured})
     flagged = {k: round(w, 2) for k, _, _, w, _ in run.regressions(now, before, speed=speed)}
@@ -62,12 +64,14 @@ def test_the_machines_speed_around_a_script_is_allowed_for() -> None:
     # baseline of the same run does not move with the machine's speed and is flagged
     assert flagged == {"render_speedup_vs_loop": 0.3}
     # a machine 1.3 x as fast: the same time as then is 30 % worse than expected
-    fast = {"session_s": 1.0, "speed_ref_bench_sessions_s": 0.040 / 1.3}
+    fast = {"session_s": 1.0, "speed_ref_bench_sessions_s": 0.040 / 1.3,
+            "speed_ref_workload": run.SPEED_WORKLOAD}
     speed = run.speed_factors(fast, before, {"session_s": "bench_sessions"})
     flagged = {k: round(w, 2) for k, _, _, w, _ in run.regressions(fast, before, speed=speed)}
     assert flagged == {"session_s": 0.3}
-    # no reference in the committed run: compared as measured
+    # no reference in the committed run, or one of another workload: compared as measured
     assert run.speed_factors(now, {"session_s": 1.0}, measured) == {}
+    assert run.speed_factors(now, {**before, "speed_ref_workload": 1.0}, measured) == {}
 
 
 def test_every_goal_figure_has_a_direction() -> None:
@@ -128,19 +132,21 @@ def test_a_run_stores_the_machines_speed_and_allows_for_it(
     # the benchmark gives session_s 9.0; the committed run gave 5.0 with the reference
     # workload at 20 ms around the same script, and the machine now runs it in 40 ms
     monkeypatch.setattr(run, "speed_ref", lambda repeats=3: 0.040)
-    committed = {"session_s": 5.0, "speed_ref_bench_mark_s": 0.020}
+    committed = {"session_s": 5.0, "speed_ref_bench_mark_s": 0.020,
+                 "speed_ref_workload": run.SPEED_WORKLOAD}
     monkeypatch.setattr(run, "committed", lambda name: committed)
     assert run.main(["bench_mark"]) == 0
     assert marker.exists()
     stored = json.loads((tmp_path / "results.json").read_text())
     assert stored["session_s"] == 9.0 and stored["speed_ref_bench_mark_s"] == 0.040
+    assert stored["speed_ref_workload"] == run.SPEED_WORKLOAD
     text = (tmp_path / "RESULTS.md").read_text()
     assert "ran 2.00-2.00 x as long" in text and "No figure is more than 20% worse" in text
     # the same figures against a committed run without reference times: flagged
     committed.pop("speed_ref_bench_mark_s")
     assert run.main(["bench_mark"]) == 0
     text = (tmp_path / "RESULTS.md").read_text()
-    assert "hold no reference times" in text
+    assert "hold no reference times of this workload" in text
     assert "| session_s | 5 | 9 | not measured | 80% |" in text
 
 
