@@ -39,6 +39,7 @@ import json
 import os
 import platform
 import signal
+import statistics
 import subprocess
 import sys
 import time
@@ -71,9 +72,10 @@ QUICK_ARGS: dict[str, list[str]] = {
 #: A figure this much worse than in the last committed results is flagged.
 REGRESSION = 0.20
 #: The reference workload is timed this many times (the median is kept) before and after
-#: each script: short runs, like the benchmarks' own repeats, so that other processes
-#: taking turns on the cores (which a median of short runs does not see) do not count,
-#: and a slower machine (which every run sees) does.
+#: each script (:class:`SpeedSampler` takes fewer while it runs): short runs, like the
+#: benchmarks' own repeats, so that other processes taking turns on the cores (which a
+#: median of short runs does not see) do not count, and a slower machine (which every
+#: run sees) does.
 SPEED_REPEATS = 101
 #: Stored as ``speed_ref_workload``: change it with :func:`_workload` (reference times of
 #: another workload are not compared).
@@ -319,7 +321,7 @@ def speed_ref(repeats: int = SPEED_REPEATS) -> float:
         t0 = time.perf_counter()
         _workload()
         times.append(time.perf_counter() - t0)
-    return sorted(times)[len(times) // 2]
+    return statistics.median_high(times)
 
 
 class SpeedSampler:
@@ -353,8 +355,7 @@ class SpeedSampler:
 
     @property
     def seconds(self) -> float:
-        ordered = sorted(self.samples)
-        return ordered[len(ordered) // 2]
+        return statistics.median_high(self.samples)
 
 
 def speed_key(script: str) -> str:
@@ -473,25 +474,21 @@ def main(argv: list[str] | None = None) -> int:
         script_args = [] if full else QUICK_ARGS.get(name, [])
         print(f"running {name} {' '.join(script_args)}...", flush=True)
         t0 = time.perf_counter()
+        figures = {}
         with SpeedSampler() as speed:
             try:
                 figures = run_script(path, timeout=1800, args=script_args)
             except Exception as exc:  # report and go on: one failure must not hide the rest
                 failures[name] = str(exc)
                 print(f"  {name} failed: {exc}", flush=True)
-            else:
-                results.update(figures)
-                measured.update(dict.fromkeys(figures, name))
+        _keep(results, measured, name, figures, speed)
         seconds[name] = time.perf_counter() - t0
         results[f"time_{name}_s"] = round(seconds[name], 1)  # kept by partial runs
-        results[speed_key(name)] = round(speed.seconds, 9)  # the machine's speed meanwhile
         print(f"  {seconds[name]:.1f} s", flush=True)
     if not only or "cli_help" in only:
         with SpeedSampler() as speed:
             figures = cli_help()
-        results.update(figures)
-        measured.update(dict.fromkeys(figures, "cli_help"))
-        results[speed_key("cli_help")] = round(speed.seconds, 9)
+        _keep(results, measured, "cli_help", figures, speed)
     results["speed_ref_workload"] = SPEED_WORKLOAD
     if not only:
         results["bench_total_s" if not full else "bench_full_total_s"] = round(
@@ -500,6 +497,15 @@ def main(argv: list[str] | None = None) -> int:
     write_report(results, full, only, failures, before,
                  speed_factors(results, before, measured))
     return 1 if failures else 0
+
+
+def _keep(results: dict[str, float], measured: dict[str, str], name: str,
+          figures: dict[str, float], speed: SpeedSampler) -> None:
+    """Add what ``name`` measured to ``results``, noting each figure's script in
+    ``measured``, and the reference workload's time meanwhile (kept by partial runs)."""
+    results.update(figures)
+    measured.update(dict.fromkeys(figures, name))
+    results[speed_key(name)] = round(speed.seconds, 9)
 
 
 def write_report(results: dict[str, float], full: bool, only: set[str],
