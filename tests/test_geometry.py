@@ -59,6 +59,22 @@ def test_wrap_and_normalize_arrays_fold_the_edges():
     assert np.all((n >= 0.0) & (n < 360.0))
 
 
+@given(st.lists(st.one_of(st.floats(allow_nan=True, allow_infinity=True),
+                          st.sampled_from(EDGES)), max_size=30))
+def test_an_array_is_wrapped_element_by_element(values):
+    """Every element of an array (NaNs and the folded edges mixed in any order) is
+    wrapped as the float alone, bit for bit; the input array is left as it was."""
+    arr = np.array(values, dtype=float)
+    before = arr.copy()
+    with np.errstate(invalid="ignore"):
+        got = wrap(arr)
+    assert got.shape == arr.shape and np.array_equal(arr, before, equal_nan=True)
+    for g, a in zip(got.tolist(), values, strict=True):
+        w = wrap(float(a))
+        assert (math.isnan(g) and math.isnan(w)) or (g == w and math.copysign(1, g)
+                                                      == math.copysign(1, w))
+
+
 def test_wrap_edges():
     assert wrap(180.0) == 180.0
     assert wrap(-180.0) == 180.0

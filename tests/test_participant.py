@@ -31,6 +31,7 @@ from tactorbelt.participant.perception import (
     bias_deg,
     localisation_sd_deg,
 )
+from tactorbelt.participant.timing import decision_s, one_decision_s
 from tactorbelt.stimuli import make_stimulus
 
 T_S = np.arange(300) / 1000.0  # a 0.3 s window at 1 kHz
@@ -343,6 +344,42 @@ def test_one_trial_is_perceived_as_in_a_batch(seed: int, n: int, kind: int,
     for f in Percepts.__dataclass_fields__:
         a, b = np.asarray(getattr(one, f)), np.asarray(getattr(many, f))
         assert a.shape == b.shape == (1,) and a.tolist() == b.tolist(), f
+
+
+@given(seed=st.integers(0, 2**32 - 1), kind=st.integers(0, 3),
+       n_targets=st.sampled_from([1, 2, 6, 7, 24, 25, 48, 360]))
+def test_one_trial_takes_the_draws_of_a_batch_of_one(seed: int, kind: int,
+                                                     n_targets: int) -> None:
+    """perceive() of one trial draws its guess without a size; the answer and the
+    generator's state after it are those of the batch path's draws of size 1."""
+    layout, p = Layout.even(6), ModelParams(lapse=0.5)
+    cues = sense_cues(np.arange(300) / 1000.0, _window(np.random.default_rng(seed), 300,
+                                                       kind), layout, p)
+    tgt = TargetSet.even(n_targets).angles
+    got_rng, want_rng = np.random.default_rng(seed), np.random.default_rng(seed)
+    got = perceive(cues, layout, tgt, p, got_rng)
+    z, u = want_rng.standard_normal((3, 1)), want_rng.random((2, 1))
+    g = want_rng.integers(0, tgt.size, size=1)
+    cw, _ = layout.neighbour_indices()
+    want = _perceive_many(cues, layout.angles, cw, layout.gaps_deg(), tgt, p, z, u, g)
+    for f in Percepts.__dataclass_fields__:
+        assert np.asarray(getattr(got, f)).tolist() == np.asarray(getattr(want, f)).tolist(), f
+    assert got_rng.bit_generator.state == want_rng.bit_generator.state
+
+
+@given(seed=st.integers(0, 2**32 - 1), n_targets=st.sampled_from([1, 2, 6, 24, 25]),
+       params=st.sampled_from([ModelParams(), ModelParams(exgauss_sigma_s=0.4,
+                                                          nondecision_s=0.0)]))
+def test_one_decision_time_is_the_draw_of_size_one(seed: int, n_targets: int,
+                                                   params: ModelParams) -> None:
+    """The model's per-trial decision time equals decision_s of one draw, bit for bit,
+    and leaves the generator where decision_s leaves it (the floor included)."""
+    got_rng, want_rng = np.random.default_rng(seed), np.random.default_rng(seed)
+    for _ in range(20):
+        got = one_decision_s(got_rng, n_targets, params)
+        want = decision_s(want_rng, 1, n_targets, params)
+        assert type(got) is float and got == float(want[0])
+    assert got_rng.bit_generator.state == want_rng.bit_generator.state
 
 
 @pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])

@@ -52,10 +52,14 @@ def wrap(angle: ArrayLike) -> Any:
         r = 180.0 - (180.0 - angle) % 360.0
         return 180.0 if r <= -180.0 else r
     a = np.asarray(angle, dtype=float)
-    w = 180.0 - np.mod(180.0 - a, 360.0)
+    if a.ndim == 0:
+        return wrap(float(a))
+    w = np.mod(np.subtract(180.0, a), 360.0)
+    np.subtract(180.0, w, out=w)
     # np.mod(-3e-14, 360) == 360.0 (for a just above 180): fold -180 back to 180.
-    w = np.where(w <= -180.0, 180.0, w)
-    return float(w) if w.ndim == 0 else w
+    if w.size and not w.min() > -180.0:  # (a NaN anywhere: look at every element)
+        w[w <= -180.0] = 180.0
+    return w
 
 
 def parse_angle(text: str | float, what: str = "angle") -> float:

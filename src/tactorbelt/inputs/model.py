@@ -51,7 +51,7 @@ from ..geometry import TargetSet
 from ..participant.load import LoadParams, TaskResponder, load_level, loaded_params, tlx_ratings
 from ..participant.params import ModelParams
 from ..participant.perception import Percepts, perceive_vibration
-from ..participant.timing import decision_s, observation_s
+from ..participant.timing import observation_s, one_decision_s
 from ..perceptual import Interval, Respondent
 from .base import CursorSample, CursorSource, RunTaker, TrialCue
 
@@ -305,7 +305,7 @@ class ModelCursor(CursorSource):
             targets = self._target_set(cue)
             percept = perceive_vibration(t_s, vib, cue.layout, targets, p, self._rng)
             answer = float(percept.response_deg[0])
-        wait = float(decision_s(self._rng, 1, len(cue.targets_deg), p)[0])
+        wait = one_decision_s(self._rng, len(cue.targets_deg), p)
         angle = math.radians(answer + float(self._rng.normal(0.0, p.endpoint_sd_deg)))
         start = now_ns + round(wait * 1e9)
         x0, y0 = self._position(now_ns)

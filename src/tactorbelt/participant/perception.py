@@ -278,16 +278,16 @@ def perceive(cues: Cues, layout: Layout, targets: TargetSet | ArrayLike,
     if tgt.size == 0:
         raise ConfigError("perceive needs at least one candidate target")
     n = cues.n
-    angles = layout.angles
-    cw, _ = layout.neighbour_indices()
-    gaps = layout.gaps_deg()
     z = rng.standard_normal((3, n))
     u = rng.random((2, n))
-    guess_idx = rng.integers(0, tgt.size, size=n)
     if n == 1:
+        # one draw without a size is the draw of size 1 (the same bits, the same state
+        # after), at a fifth of the cost; tests/test_perception.py checks it
         return _perceive_one(cues, _sites(layout, p), tgt, p, z[:, 0].tolist(),
-                             u[:, 0].tolist(), int(guess_idx[0]))
-    return _perceive_many(cues, angles, cw, gaps, tgt, p, z, u, guess_idx)
+                             u[:, 0].tolist(), int(rng.integers(0, tgt.size)))
+    guess_idx = rng.integers(0, tgt.size, size=n)
+    cw, _ = layout.neighbour_indices()
+    return _perceive_many(cues, layout.angles, cw, layout.gaps_deg(), tgt, p, z, u, guess_idx)
 
 
 @dataclass(frozen=True)

@@ -28,6 +28,7 @@ __all__ = [
     "min_jerk",
     "min_jerk_inverse",
     "observation_s",
+    "one_decision_s",
     "reach_fraction",
 ]
 
@@ -81,3 +82,12 @@ def decision_s(rng: np.random.Generator, n: int, n_targets: int,
     normal = rng.standard_normal(n) * params.exgauss_sigma_s
     expo = rng.exponential(1.0, n) * params.exgauss_tau_s
     return np.asarray(np.maximum(params.nondecision_s + hick + normal + expo, MIN_DECISION_S))
+
+
+def one_decision_s(rng: np.random.Generator, n_targets: int, params: ModelParams) -> float:
+    """:func:`decision_s` of one draw: the same draws and arithmetic on scalars (a draw
+    without a size is the draw of size 1; a model session takes one per trial)."""
+    hick = params.hick_s_per_bit * math.log2(max(int(n_targets), 1))
+    normal = rng.standard_normal() * params.exgauss_sigma_s
+    expo = rng.exponential(1.0) * params.exgauss_tau_s
+    return max(params.nondecision_s + hick + normal + expo, MIN_DECISION_S)
