@@ -282,7 +282,7 @@ def perceive(cues: Cues, layout: Layout, targets: TargetSet | ArrayLike,
     u = rng.random((2, n))
     if n == 1:
         # one draw without a size is the draw of size 1 (the same bits, the same state
-        # after), at a fifth of the cost; tests/test_perception.py checks it
+        # after), at a fifth of the cost; tests/test_participant.py checks it
         return _perceive_one(cues, _sites(layout, p), tgt, p, z[:, 0].tolist(),
                              u[:, 0].tolist(), int(rng.integers(0, tgt.size)))
     guess_idx = rng.integers(0, tgt.size, size=n)

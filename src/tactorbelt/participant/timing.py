@@ -72,13 +72,18 @@ def observation_s(condition: str, params: ModelParams) -> float:
     return params.observe_static_s
 
 
+def _hick_s(n_targets: int, params: ModelParams) -> float:
+    """The Hick-Hyman term of a choice among ``n_targets`` (0 for one or none)."""
+    return params.hick_s_per_bit * math.log2(max(int(n_targets), 1))
+
+
 def decision_s(rng: np.random.Generator, n: int, n_targets: int,
                params: ModelParams) -> FloatArray:
     """Decision times after the observation, until the movement starts (n draws).
 
     ``nondecision + hick * log2(n_targets) + N(0, sigma) + Exp(tau)``, at least 0.05 s.
     """
-    hick = params.hick_s_per_bit * math.log2(max(int(n_targets), 1))
+    hick = _hick_s(n_targets, params)
     normal = rng.standard_normal(n) * params.exgauss_sigma_s
     expo = rng.exponential(1.0, n) * params.exgauss_tau_s
     return np.asarray(np.maximum(params.nondecision_s + hick + normal + expo, MIN_DECISION_S))
@@ -87,7 +92,7 @@ def decision_s(rng: np.random.Generator, n: int, n_targets: int,
 def one_decision_s(rng: np.random.Generator, n_targets: int, params: ModelParams) -> float:
     """:func:`decision_s` of one draw: the same draws and arithmetic on scalars (a draw
     without a size is the draw of size 1; a model session takes one per trial)."""
-    hick = params.hick_s_per_bit * math.log2(max(int(n_targets), 1))
+    hick = _hick_s(n_targets, params)
     normal = rng.standard_normal() * params.exgauss_sigma_s
     expo = rng.exponential(1.0) * params.exgauss_tau_s
     return max(params.nondecision_s + hick + normal + expo, MIN_DECISION_S)
