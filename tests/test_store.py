@@ -92,6 +92,27 @@ def test_session_provenance_and_trials_round_trip(tmp_path: Path) -> None:
         assert store.session(_session(store))["session_number"] == 2
 
 
+@pytest.mark.parametrize("n", [1, 99, 100, 101, 250])
+@pytest.mark.parametrize("pressed", [None, 0, -1])
+def test_samples_round_trip_in_order_across_statements(tmp_path: Path, n: int,
+                                                        pressed: int | None) -> None:
+    """Every sample comes back in order with its values and types, whether a trial has
+    fewer rows than one INSERT takes or spans several, with or without a button held
+    (``pressed``: the sample holding buttons 5, none when None)."""
+    r = _result(3, n=n)
+    if pressed is not None:
+        r.sample_buttons[pressed] = 5
+    with Store.open(tmp_path / "s.sqlite") as store:
+        sid = _session(store)
+        tid = store.write_trial(sid, r)
+        other = store.write_trial(sid, _result(4, n=2))  # a trial after it: its own rows
+        got = store.samples(tid)
+        assert got == list(zip(r.sample_times_s(), r.sample_x, r.sample_y, r.sample_buttons,
+                               strict=True))
+        assert [type(v) for row in got for v in row] == [float, float, float, int] * n
+        assert len(store.samples(other)) == 2
+
+
 def test_a_final_trial_is_never_written_twice(tmp_path: Path) -> None:
     with Store.open(tmp_path / "s.sqlite") as store:
         sid = _session(store)
