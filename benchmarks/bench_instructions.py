@@ -1,0 +1,93 @@
+"""What one model session costs in instructions: a figure a shared machine does not move.
+
+- ``session_instructions``: the user-space instructions of one paper session on the fast
+  path (the sessions of ``bench_sessions``: model participant, sim belt, runner, SQLite
+  store), counted by valgrind's cachegrind: a process running ``1 + k`` sessions minus
+  one running 1 (so start-up, imports and the first session's one-time work cancel
+  out), over ``k``. Wall-time figures move 10-30 % with this machine's other load;
+  this one moves by about 0.3 % from run to run (``PYTHONHASHSEED`` fixed), so a change
+  of a few per cent in what a session costs shows here first. The kernel's share (file
+  writes, about 4 % of a session) is not counted.
+- ``session_instructions_sessions``: ``k``.
+
+Needs valgrind (Debian: ``apt-get install valgrind``); without it the script exits with
+the reason, and ``run.py`` reports the figure as not measured.
+
+Prints one JSON object as its last line.
+Usage: python benchmarks/bench_instructions.py [--sessions 2]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+
+#: What the counted process runs: ``n`` sessions (participants 1..n) into a new store.
+_CHILD = """
+import sys
+from pathlib import Path
+sys.path.insert(0, {here!r})
+from bench_sessions import _sessions
+_sessions((Path({db!r}), list(range(1, {n} + 1)), False))
+"""
+
+
+def _count(valgrind: str, n: int, tmp: Path) -> subprocess.Popen[str]:
+    """Start counting the instructions of a process that runs ``n`` sessions."""
+    code = _CHILD.format(here=str(HERE), db=str(tmp / f"s{n}.sqlite"), n=n)
+    env = dict(os.environ, PYTHONHASHSEED="0")
+    return subprocess.Popen(
+        [valgrind, "--tool=cachegrind", "--cache-sim=no", "--cachegrind-out-file=/dev/null",
+         sys.executable, "-c", code],
+        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env)
+
+
+def _instructions(proc: subprocess.Popen[str], timeout: float) -> int:
+    """The instruction count valgrind reports when ``proc`` ends."""
+    try:
+        out, _ = proc.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.communicate()
+        raise SystemExit(f"valgrind did not finish within {timeout:g} s") from None
+    m = re.search(r"I\s+refs:\s+([\d,]+)", out)
+    if proc.returncode != 0 or m is None:
+        raise SystemExit(f"valgrind failed (exit {proc.returncode}):\n{out[-2000:]}")
+    return int(m.group(1).replace(",", ""))
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--sessions", type=int, default=2,
+                    help="sessions counted beyond the first (default 2)")
+    args = ap.parse_args()
+    if args.sessions < 1:
+        ap.error("--sessions must be at least 1")
+    valgrind = shutil.which("valgrind")
+    if valgrind is None:
+        raise SystemExit("valgrind is not installed (Debian: apt-get install valgrind)")
+    with tempfile.TemporaryDirectory() as tmp:
+        # both at once: each is one thread, and the counts do not depend on the timing
+        procs = [_count(valgrind, n, Path(tmp)) for n in (1, 1 + args.sessions)]
+        try:
+            one, more = (_instructions(p, timeout=900) for p in procs)
+        finally:
+            for p in procs:
+                if p.poll() is None:
+                    p.kill()
+                    p.wait()
+    print(json.dumps({"session_instructions": round((more - one) / args.sessions),
+                      "session_instructions_sessions": args.sessions}))
+
+
+if __name__ == "__main__":
+    main()
