@@ -5,7 +5,7 @@
   store), counted by valgrind's cachegrind: a process running ``1 + k`` sessions minus
   one running 1 (so start-up, imports and the first session's one-time work cancel
   out), over ``k``. Wall-time figures move 10-30 % with this machine's other load;
-  this one moves by about 0.3 % from run to run (``PYTHONHASHSEED`` fixed), so a change
+  this one moves by about 1 % from run to run (``PYTHONHASHSEED`` fixed), so a change
   of a few per cent in what a session costs shows here first. The kernel's share (file
   writes, about 4 % of a session) is not counted.
 - ``session_instructions_sessions``: ``k``.

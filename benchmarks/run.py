@@ -14,7 +14,7 @@ too, and writes no results.
 Each run is compared with the last committed results file of its suite (``git show
 HEAD:benchmarks/results.json``): a figure more than 20 % worse than there is flagged in
 the terminal and in RESULTS.md (an instruction count, which the machine does not move,
-at 2 %: :data:`TOLERANCE`) (the direction of "worse" comes from the figure's goal,
+at 3 %: :data:`TOLERANCE`) (the direction of "worse" comes from the figure's goal,
 else from its unit: times, sizes, CPU and errors are better lower, rates and speed-ups
 higher). Beside each flagged figure stands how long a fixed reference workload
 (:func:`speed_ref`) took during the same script now over then (:class:`SpeedSampler`
@@ -73,7 +73,7 @@ QUICK_ARGS: dict[str, list[str]] = {
 #: A figure this much worse than in the last committed results is flagged.
 REGRESSION = 0.20
 #: Figures flagged at a smaller change: counts a shared machine does not move.
-TOLERANCE: dict[str, float] = {"session_instructions": 0.02}
+TOLERANCE: dict[str, float] = {"session_instructions": 0.03}
 #: The reference workload is timed this many times (the median is kept) before and after
 #: each script (:class:`SpeedSampler` takes fewer while it runs): short runs, like the
 #: benchmarks' own repeats, so that other processes taking turns on the cores (which a
@@ -128,9 +128,12 @@ GOALS = [
          "the runner's clock mapped to LSL's against a direct reading: the time between "
          "the reads"),
     Goal("session_s", "session_per_trial_s", "<=", 2.0, "s",
-         "the store (~30 %: ~58,000 sample rows, 100 to an INSERT, each with its "
-         "trial_id index entry, each trial a savepoint kept in memory, a WAL checkpoint "
-         "every 1,000 pages; no foreign-key lookup per row in a batch), the model's "
+         "the store (~30 %; a third of the instructions: ~58,000 sample rows, 100 to an "
+         "INSERT with the trial_id bound once and the rest in 64, 32, ..., 1 rows (8 "
+         "statement texts, which PRAGMA foreign_keys makes SQLite parse again every "
+         "session), each with its trial_id index entry, each trial a savepoint kept in "
+         "memory, a WAL checkpoint every 1,000 pages; no foreign-key lookup per row in a "
+         "batch), the model's "
          "decisions (~30 %: the ERM model's vibration ~0.08-0.11 ms a query, the "
          "window's terms memoised; sensing ~0.065 ms and perceiving ~0.03 ms a trial), "
          "the 100 Hz sampling read in runs of ticks (~15 %), the runner (~20 %): some "
@@ -140,10 +143,11 @@ GOALS = [
          "baseline: the same sessions committing (and fsyncing) every trial; the disk"),
     Goal("sessions_1000_s", None, "<=", 120.0, "s",
          "one store per worker, 2 workers; same costs as session_s, each session "
-         "slower with both cores busy (0.22-0.26 s at the runs' fastest, 0.21 s alone); "
-         "114-119 s over 3 runs of this code (sessions_1000_steady_s 99-108 s), "
-         "109-152 s over 14 runs of the code before it, with the machine's slow spells "
-         "(sessions_tenths_spread up to 1.38)",
+         "slower with both cores busy (0.21 s of CPU, 0.19-0.22 s alone); 107-110 s "
+         "over 3 runs of this code (sessions_1000_steady_s 103-105 s); 114-119 s over 3 "
+         "runs of the code 6 % of instructions before it, and 132-145 s over 3 runs of "
+         "the code 5 % before it during a slow spell of this machine (session_s 0.24-0.36 "
+         "s alone, while the reference workload ran at its usual speed)",
          full_only=True),
     Goal("sessions_1000_est_s", None, "<=", 120.0, "s",
          "make bench: 30 participants, scaled to 1,000; as session_s (0.24 s a session "
@@ -169,8 +173,8 @@ GOALS = [
          "CPU seconds (user + system) of the workers per session: as session_s"),
     Goal("session_instructions", None, None, None, "instructions",
          "user-space instructions of one paper session (session_s's work), counted by "
-         "valgrind: unlike the wall-time figures it moves ~0.3 % from run to run, so it "
-         "is flagged when 2 % worse than in the committed results; ~23 % of it is "
+         "valgrind: unlike the wall-time figures it moves ~1 % from run to run, so it "
+         "is flagged when 3 % worse than in the committed results; ~23 % of it is "
          "SQLite inserting rows (sqlite3_step), the rest the interpreter and NumPy"),
     Goal("sessions_core_use", None, None, None, "x",
          "the workers' CPU seconds over wall time x workers: 1.0 is both cores busy "
@@ -518,7 +522,7 @@ def _keep(results: dict[str, float], measured: dict[str, str], name: str,
 
 
 def _limits_text() -> str:
-    """How much worse a figure may get: ``20 % (session_instructions: 2 %)``."""
+    """How much worse a figure may get: ``20 % (session_instructions: 3 %)``."""
     others = ", ".join(f"{k}: {v:.0%}" for k, v in TOLERANCE.items())
     return f"{REGRESSION:.0%}" + (f" ({others})" if others else "")
 
