@@ -7,6 +7,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from tactorbelt import ConfigError
 from tactorbelt.devices.calibration import Calibration, TactorCalibration
@@ -107,3 +109,30 @@ def test_binary_file(tmp_path: Path) -> None:
     p.write_bytes(b"\xff\xfe\x00garbage")
     with pytest.raises(ConfigError, match=r"bin\.toml"):
         Calibration.load(p)
+
+
+_levels = st.floats(0.0, 1.0, allow_nan=False)
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.tuples(_levels, st.floats(0.01, 10.0), _levels), min_size=1, max_size=8),
+       st.data())
+def test_apply_is_the_clipped_affine_map_bit_for_bit(rows: list[tuple[float, float, float]],
+                                                     data: st.DataObject) -> None:
+    """apply() gives exactly ``where(a > 0, clip(start + (ceiling - start) * a * gain, 0,
+    ceiling), 0)`` (the formula it computes without np.clip), for any amplitudes:
+    in range, out of range, signed zeros, NaN and infinities."""
+    tactors = tuple(TactorCalibration(start=min(s, c), gain=g, ceiling=max(s, c))
+                    for s, g, c in rows)
+    cal = Calibration(tactors)
+    a = np.array(data.draw(st.lists(
+        st.one_of(st.floats(-2.0, 2.0), st.sampled_from([0.0, -0.0, math.inf, -math.inf])),
+        min_size=len(rows), max_size=len(rows))), dtype=float)
+    start = np.array([t.start for t in tactors])
+    gain = np.array([t.gain for t in tactors])
+    ceiling = np.array([t.ceiling for t in tactors])
+    with np.errstate(invalid="ignore"):  # 0 * inf where start == ceiling
+        want = np.where(a > 0.0, np.clip(start + (ceiling - start) * a * gain, 0.0, ceiling),
+                        0.0)
+        got = cal.apply(a)
+    assert got.tobytes() == want.tobytes()

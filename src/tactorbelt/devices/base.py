@@ -58,6 +58,10 @@ __all__ = ["DEFAULT_STREAM_RATE_HZ", "Belt", "check_amplitudes"]
 DEFAULT_STREAM_RATE_HZ = 1000.0
 
 
+#: ``a.min()`` and ``a.max()`` without ndarray's Python wrappers (NaN reaches both).
+_MIN, _MAX = np.minimum.reduce, np.maximum.reduce
+
+
 def check_amplitudes(values: ArrayLike, n: int) -> NDArray[np.float64]:
     """Validate one frame: exactly ``n`` finite values in [0, 1].
 
@@ -72,7 +76,7 @@ def check_amplitudes(values: ArrayLike, n: int) -> NDArray[np.float64]:
         raise ConfigError(f"amplitudes must be one flat list of {n} numbers, got shape {a.shape}")
     if a.size != n:
         raise ConfigError(f"expected {n} amplitudes (one per tactor), got {a.size}")
-    if a.size and a.min() >= 0.0 and a.max() <= 1.0:  # the usual frame: two reductions
+    if a.size and _MIN(a) >= 0.0 and _MAX(a) <= 1.0:  # the usual frame: two reductions
         return a
     if not np.all(np.isfinite(a)):
         raise ConfigError("amplitudes must be finite numbers in [0, 1]; got NaN or infinity")
