@@ -150,6 +150,11 @@ def _wrap1(a: float) -> float:
     return 180.0 if w <= -180.0 else w
 
 
+def _clip01(v: float) -> float:
+    """``np.clip(v, 0.0, 1.0)`` of one float, bit for bit (-0.0 gives 0.0, NaN stays)."""
+    return 0.0 if v <= 0.0 else (1.0 if v >= 1.0 else v)
+
+
 class DirectionDisplay:
     """Keep one direction displayed on a belt; move it smoothly when it changes.
 
@@ -244,6 +249,7 @@ class DirectionDisplay:
         self._sorted_order = order
         self._sorted_angles = [self._angle_list[k] for k in order]
         self._gaps_cw = self.layout.gaps_deg()
+        self._gap_list = [float(g) for g in self._gaps_cw]
         self._hold_s = self.period_s - 2.0 * self.transit_s
         self._tick_rate_hz = self.device_rate_hz if self.device_render else self.rate_hz
         self._tick_ns = 1e9 / self._tick_rate_hz
@@ -576,13 +582,20 @@ class DirectionDisplay:
         off = np.asarray(wrap(x - self._angles[a] - gap / 2.0)) + gap / 2.0
         return np.asarray(np.clip(off / gap, 0.0, 1.0))
 
+    def _r1(self, pair: Pair, x: float) -> float:
+        """:meth:`_r` of one angle, on floats (the same numbers)."""
+        a, _ = pair
+        gap = self._gap_list[a]
+        off = _wrap1(x - self._angle_list[a] - gap / 2.0) + gap / 2.0
+        return _clip01(off / gap)
+
     def _enter_pair(self, pair: Pair, t_ns: int, x: float) -> None:
         """Start the perturbation in ``pair`` at the dwell on its nearer tactor."""
         if self._pair is not None:
             self.pair_changes += 1
         self._pair = pair
         a, b = pair
-        r = float(self._r(pair, np.array([x]))[0]) if a != b else 0.0
+        r = self._r1(pair, x) if a != b else 0.0
         # nearer = ccw tactor when r <= 0.5 (at an exact midpoint too, as make_stimulus does)
         self._seg = _DWELL_A if r <= 0.5 else _DWELL_B
         self._seg_start_ns = t_ns
@@ -659,17 +672,70 @@ class DirectionDisplay:
 
     def _dynamic_locations(self, times: IntArray, x: FloatArray) -> FloatArray:
         """Felt locations of the streamed perturbation (see the module docstring)."""
+        if times.shape[0] == 1:  # one frame (the render thread, update()): on floats
+            return np.array([self._location1(int(times[0]), float(x[0]))])
+        return self._locations(times, x)
+
+    def _location1(self, t: int, x: float) -> float:
+        """:meth:`_locations` of one frame at ``t`` (angle ``x``), on floats: the same
+        numbers and the same state after, as tests/test_display_frame.py checks."""
+        target = self._pair_at(x)
+        loc: float | None = None
+        if target != self._pair:
+            if self._pair is not None and self._pair[0] != self._pair[1]:
+                s = self._crossed(x)
+                if s in target:  # wait until dwelling on the crossed tactor
+                    loc = self._segment1(t, x, stop_on=s)
+            if loc is None:
+                self._enter_pair(target, t, x)
+        if loc is None:
+            loc = self._segment1(t, x)
+        assert loc is not None
+        self._last_frame_ns = t
+        return _normalize1(loc)
+
+    def _segment1(self, t: int, x: float, stop_on: int | None = None) -> float | None:
+        """:meth:`_segments` of one frame: its location, or None when ``stop_on`` stops
+        it (then the frame is not rendered)."""
+        assert self._pair is not None
+        a, b = self._pair
+        if a == b:
+            return None if stop_on is not None else self._angle_list[a]
+        ang_a, gap = self._angle_list[a], self._gap_list[a]
+        tr_ns = self.transit_s * 1e9
+        hold_ns = self._hold_s * 1e9
+        while True:
+            if stop_on is not None and self._dwelling_on(stop_on):
+                return None
+            seg, s0 = self._seg, self._seg_start_ns
+            elapsed = float(t - s0)
+            if seg == _DWELL_A:
+                dur = hold_ns * (1.0 - self._r1(self._pair, x))
+            elif seg == _DWELL_B:
+                dur = hold_ns * self._r1(self._pair, x)
+            else:
+                dur = tr_ns
+            if not elapsed >= dur:
+                if seg == _DWELL_A:
+                    return ang_a
+                if seg == _DWELL_B:
+                    return ang_a + gap
+                frac = _clip01(elapsed / tr_ns)
+                return ang_a + gap * (frac if seg == _TO_B else 1.0 - frac)
+            # the segment ended at s0 + dur, before this frame: the next one from there
+            end = int(s0 + round(dur))
+            self._seg = (seg + 1) % 4
+            self._seg_start_ns = max(end, self._last_frame_ns)
+
+    def _locations(self, times: IntArray, x: FloatArray) -> FloatArray:
+        """:meth:`_dynamic_locations` of any number of frames, on arrays."""
         n = times.shape[0]
         loc = np.empty(n)
-        if n == 1:  # one frame (the render thread, update()): no arrays of pairs
-            first = self._pair_at(float(x[0]))
-            bounds = [0, 1]
-        else:
-            ka, kb = self._pairs(x)
-            change = np.flatnonzero((np.diff(ka) != 0) | (np.diff(kb) != 0)) + 1
-            bounds = [0, *change.tolist(), n]
+        ka, kb = self._pairs(x)
+        change = np.flatnonzero((np.diff(ka) != 0) | (np.diff(kb) != 0)) + 1
+        bounds = [0, *change.tolist(), n]
         for i0, j in itertools.pairwise(bounds):
-            target: Pair = first if n == 1 else (int(ka[i0]), int(kb[i0]))
+            target: Pair = (int(ka[i0]), int(kb[i0]))
             i = i0
             if target != self._pair:
                 if self._pair is not None and self._pair[0] != self._pair[1]:

@@ -121,9 +121,11 @@ class Layout:
         cw[idx] = np.roll(idx, -1)
         ccw[idx] = np.roll(idx, 1)
         gaps = np.mod(arr[cw] - arr, 360.0)
-        for a in (arr, cw, ccw, gaps):
+        gaps_ccw = gaps[ccw]
+        for a in (arr, cw, ccw, gaps, gaps_ccw):
             a.setflags(write=False)
-        object.__setattr__(self, "_cache", {"angles": arr, "cw": cw, "ccw": ccw, "gaps": gaps})
+        object.__setattr__(self, "_cache", {"angles": arr, "cw": cw, "ccw": ccw, "gaps": gaps,
+                                            "gaps_ccw": gaps_ccw})
 
     @classmethod
     def even(cls, n: int = 6) -> Layout:
@@ -168,6 +170,11 @@ class Layout:
     def gaps_deg(self) -> FloatArray:
         """Clockwise gap from each tactor to its clockwise neighbour (read-only), by index."""
         return self._cache["gaps"]
+
+    def gaps_ccw_deg(self) -> FloatArray:
+        """Gap from each tactor's counter-clockwise neighbour to it (read-only), by index:
+        ``gaps_deg()[neighbour_indices()[1]]``."""
+        return self._cache["gaps_ccw"]
 
     def neighbour_indices(self) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
         """For each tactor, the index of its clockwise and counter-clockwise neighbours."""

@@ -64,8 +64,7 @@ def _distances(layout: Layout, x: ArrayLike) -> tuple[NDArray[np.float64], NDArr
     signed = wrap(xa[..., None] - d)  # (-180, 180]
     dist = np.abs(signed)
     gaps_cw = layout.gaps_deg()  # k -> its clockwise neighbour
-    _, ccw = layout.neighbour_indices()
-    gaps_ccw = gaps_cw[ccw]  # k's counter-clockwise neighbour -> k
+    gaps_ccw = layout.gaps_ccw_deg()  # k's counter-clockwise neighbour -> k
     spacing = np.where(signed >= 0.0, gaps_cw, gaps_ccw)
     return np.asarray(dist), np.asarray(spacing)
 
@@ -98,8 +97,16 @@ def amplitudes(
 
 def _paper(dist: NDArray[np.float64], spacing: NDArray[np.float64],
            falloff_deg: float) -> NDArray[np.float64]:
+    if falloff_deg >= _NO_OVERFLOW_FALLOFF_DEG:  # exp(< 180 / falloff) is finite
+        return np.asarray(1.0 - np.exp(-(spacing - dist) / falloff_deg))
     with np.errstate(over="ignore"):  # far tactors: exp overflows to inf, clipped to 0
         return np.asarray(1.0 - np.exp(-(spacing - dist) / falloff_deg))
+
+
+#: With a falloff of at least this, the paper law's exponent (below 180 / falloff: D is at
+#: most 180 degrees, s more than 0) stays under 709, where exp overflows: no warning to
+#: silence (np.errstate costs more than the law on 6 tactors).
+_NO_OVERFLOW_FALLOFF_DEG: Final = 0.26
 
 
 def _linear(dist: NDArray[np.float64], spacing: NDArray[np.float64],
