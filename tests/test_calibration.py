@@ -115,13 +115,16 @@ _levels = st.floats(0.0, 1.0, allow_nan=False)
 
 
 @settings(max_examples=200, deadline=None)
-@given(st.lists(st.tuples(_levels, st.floats(0.01, 10.0), _levels), min_size=1, max_size=8),
+@given(st.lists(st.one_of(st.tuples(_levels, st.floats(0.01, 10.0), _levels),
+                          st.just((0.0, 1.0, 1.0))),  # an identity tactor
+                min_size=1, max_size=8),
        st.data())
 def test_apply_is_the_clipped_affine_map_bit_for_bit(rows: list[tuple[float, float, float]],
                                                      data: st.DataObject) -> None:
     """apply() gives exactly ``where(a > 0, clip(start + (ceiling - start) * a * gain, 0,
-    ceiling), 0)`` (the formula it computes without np.clip), for any amplitudes:
-    in range, out of range, signed zeros, NaN and infinities."""
+    ceiling), 0)`` (the formula it computes without np.clip, and for an identity
+    calibration in three operations), for any amplitudes: in range, out of range, signed
+    zeros, NaN and infinities."""
     tactors = tuple(TactorCalibration(start=min(s, c), gain=g, ceiling=max(s, c))
                     for s, g, c in rows)
     cal = Calibration(tactors)

@@ -6,6 +6,7 @@ slave side with pyserial exactly as it opens /dev/ttyACM0.
 
 from __future__ import annotations
 
+import os
 from collections.abc import Iterator
 
 import pytest
@@ -148,3 +149,73 @@ def test_a_program_that_forgets_to_close_stops_the_motors_at_exit(
     subprocess.run([sys.executable, "-c", script], check=True, timeout=30)
     assert isinstance(pty_device.firmware.requests[-1], wire.StopAll)
     assert pty_device.firmware.levels == [0] * 6
+
+
+@pytest.mark.skipif(not hasattr(os, "openpty"), reason="needs a pseudo-terminal")
+def test_writes_past_a_full_buffer_arrive_whole_and_in_order() -> None:
+    """The transport writes a frame with one os.write when the port takes it, and hands
+    the rest of a partial or refused write to pyserial, which waits for room: frames
+    written much faster than the other end reads (a terminal's buffer holds a few KB)
+    all arrive, byte for byte, in order."""
+    import termios
+    import threading
+    import time
+
+    controller, device = os.openpty()
+    attrs = termios.tcgetattr(controller)
+    attrs[3] &= ~(termios.ECHO | termios.ICANON)  # raw: bytes come through as written
+    termios.tcsetattr(controller, termios.TCSANOW, attrs)
+    transport = serial_backend.SerialTransport(os.ttyname(device), write_timeout_s=10.0)
+    frames = [bytes([k & 0xFF]) * 19 + b"\x00" for k in range(20_000)]  # 400 KB
+    got = bytearray()
+
+    def read() -> None:
+        time.sleep(0.3)  # let the writer fill the buffer first
+        deadline = time.monotonic() + 20.0
+        while len(got) < 20 * len(frames) and time.monotonic() < deadline:
+            got.extend(os.read(controller, 65536))
+
+    reader = threading.Thread(target=read, daemon=True)
+    reader.start()
+    try:
+        for f in frames:
+            transport.write(f)
+        reader.join(25.0)
+    finally:
+        transport.close()
+        os.close(device)
+        os.close(controller)
+    assert bytes(got) == b"".join(frames)
+
+
+@pytest.mark.skipif(not hasattr(os, "openpty"), reason="needs a pseudo-terminal")
+def test_a_refused_or_partial_write_goes_on_through_pyserial(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """What os.write did not take (all of a frame the port refused, the tail of a
+    partial write) is written by pyserial, which waits for room: nothing is lost or
+    sent twice."""
+    controller, device = os.openpty()
+    transport = serial_backend.SerialTransport(os.ttyname(device))
+    sent: list[bytes] = []
+    answers = iter(["all", "refuse", 7, "all", 1])
+
+    def fake_write(fd: int, data: bytes) -> int:
+        how = next(answers)
+        if how == "refuse":
+            raise BlockingIOError
+        n = len(data) if how == "all" else int(how)
+        sent.append(bytes(data[:n]))
+        return n
+
+    monkeypatch.setattr(serial_backend.os, "write", fake_write)
+    monkeypatch.setattr(transport._ser, "write", lambda data: sent.append(bytes(data)))
+    frames = [bytes([k]) * 20 for k in range(1, 6)]
+    try:
+        for f in frames:
+            transport.write(f)
+    finally:
+        monkeypatch.undo()
+        transport.close()
+        os.close(device)
+        os.close(controller)
+    assert b"".join(sent) == b"".join(frames)

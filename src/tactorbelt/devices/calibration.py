@@ -162,6 +162,10 @@ class Calibration:
         return chans
 
     @cached_property
+    def _identity(self) -> bool:
+        return self.is_identity
+
+    @cached_property
     def _arrays(self) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64],
                                NDArray[np.float64]]:
         """start, gain, ceiling and ceiling - start of every tactor (read-only)."""
@@ -183,6 +187,8 @@ class Calibration:
         if a.ndim == 0 or a.shape[-1] != self.n:
             got = 1 if a.ndim == 0 else a.shape[-1]
             raise ConfigError(f"expected {self.n} amplitudes (one per tactor), got {got}")
+        if self._identity:  # start 0, gain 1, ceiling 1: x below is a itself where a > 0
+            return np.asarray(np.where(a > 0.0, np.minimum(a, 1.0), 0.0))
         start, gain, ceiling, span = self._arrays
         # np.clip(x, 0, ceiling) as two ufuncs, without np.clip's Python layers (a third of
         # a streamed frame's cost): where a > 0, x >= start >= 0 is never -0.0 or below 0,

@@ -19,6 +19,7 @@ import contextlib
 import errno
 import functools
 import logging
+import os
 import threading
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -89,6 +90,15 @@ class SerialTransport(Transport):
             elif "lock" in text or "busy" in text:
                 hint = " (another program has it open: close the serial monitor)"
             raise DeviceError(f"cannot open serial port {port}: {exc}{hint}") from None
+        # pyserial's write() follows every write with a select() for the timeout: on a
+        # non-blocking POSIX port, one os.write() usually takes the whole frame, and only
+        # the rest of a partial or refused write goes through pyserial (the timeout then)
+        self._fd: int | None = None
+        if os.name == "posix":
+            with contextlib.suppress(AttributeError, OSError, ValueError):
+                fd = self._ser.fileno()
+                if not os.get_blocking(fd):
+                    self._fd = fd
         self._decoder = wire.FrameDecoder()
         self._stopping = False
         self._thread: threading.Thread | None = None
@@ -110,6 +120,14 @@ class SerialTransport(Transport):
         if self._closed:
             raise DeviceError(f"serial port {self.port} is closed")
         try:
+            if self._fd is not None:
+                try:
+                    n = os.write(self._fd, data)
+                except BlockingIOError:  # the device's buffer is full: wait in pyserial
+                    n = 0
+                if n == len(data):
+                    return
+                data = data[n:]
             self._ser.write(data)
         except (self._serial_exception, OSError) as exc:
             raise DeviceError(f"write to serial port {self.port} failed: {exc}") from None
