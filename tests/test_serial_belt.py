@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Iterator
+from pathlib import Path
 
 import pytest
 
@@ -219,3 +220,23 @@ def test_a_refused_or_partial_write_goes_on_through_pyserial(
         os.close(device)
         os.close(controller)
     assert b"".join(sent) == b"".join(frames)
+
+
+@pytest.mark.skipif(not hasattr(os, "openpty"), reason="needs a pseudo-terminal")
+def test_a_write_after_close_is_a_device_error_not_a_write_to_another_file(
+        tmp_path: Path) -> None:
+    """After close(), write() reports the port closed and touches no file descriptor,
+    even one the closed port's number now belongs to."""
+    controller, device = os.openpty()
+    transport = serial_backend.SerialTransport(os.ttyname(device))
+    transport.close()
+    reused = os.open(tmp_path / "other", os.O_WRONLY | os.O_CREAT)  # may take the old number
+    transport._closed = False  # as a writer that checked before close() went on would
+    try:
+        with pytest.raises(DeviceError, match="failed"):
+            transport.write(b"frame")
+    finally:
+        os.close(reused)
+        os.close(device)
+        os.close(controller)
+    assert (tmp_path / "other").read_bytes() == b""

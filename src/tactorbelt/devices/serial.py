@@ -94,6 +94,7 @@ class SerialTransport(Transport):
         # non-blocking POSIX port, one os.write() usually takes the whole frame, and only
         # the rest of a partial or refused write goes through pyserial (the timeout then)
         self._fd: int | None = None
+        self._fd_lock = threading.Lock()  # close() never frees the fd under an os.write
         if os.name == "posix":
             with contextlib.suppress(AttributeError, OSError, ValueError):
                 fd = self._ser.fileno()
@@ -121,14 +122,16 @@ class SerialTransport(Transport):
             raise DeviceError(f"serial port {self.port} is closed")
         try:
             if self._fd is not None:
-                try:
-                    n = os.write(self._fd, data)
-                except BlockingIOError:  # the device's buffer is full: wait in pyserial
-                    n = 0
+                with self._fd_lock:
+                    fd = self._fd
+                    try:
+                        n = os.write(fd, data) if fd is not None else 0
+                    except BlockingIOError:  # the device's buffer is full: wait in pyserial
+                        n = 0
                 if n == len(data):
                     return
                 data = data[n:]
-            self._ser.write(data)
+            self._ser.write(data)  # (after close(): pyserial's "port not open")
         except (self._serial_exception, OSError) as exc:
             raise DeviceError(f"write to serial port {self.port} failed: {exc}") from None
 
@@ -162,6 +165,8 @@ class SerialTransport(Transport):
             return
         self._closed = True
         self._stopping = True
+        with self._fd_lock:
+            self._fd = None
         with contextlib.suppress(Exception):
             self._ser.cancel_read()
         t = self._thread
