@@ -26,6 +26,7 @@ Pure: imports only NumPy and tactorbelt.geometry.
 
 from __future__ import annotations
 
+import contextlib
 import math
 from collections.abc import Callable
 from typing import Final
@@ -97,9 +98,10 @@ def amplitudes(
 
 def _paper(dist: NDArray[np.float64], spacing: NDArray[np.float64],
            falloff_deg: float) -> NDArray[np.float64]:
-    if falloff_deg >= _NO_OVERFLOW_FALLOFF_DEG:  # exp(< 180 / falloff) is finite
-        return np.asarray(1.0 - np.exp(-(spacing - dist) / falloff_deg))
-    with np.errstate(over="ignore"):  # far tactors: exp overflows to inf, clipped to 0
+    # far tactors: exp may overflow to inf (clipped to 0), only with a falloff this small
+    quiet = (np.errstate(over="ignore") if falloff_deg < _NO_OVERFLOW_FALLOFF_DEG
+             else contextlib.nullcontext())
+    with quiet:
         return np.asarray(1.0 - np.exp(-(spacing - dist) / falloff_deg))
 
 
