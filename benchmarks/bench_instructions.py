@@ -11,7 +11,8 @@
 - ``session_instructions_sessions``: ``k``.
 
 Needs valgrind (Debian: ``apt-get install valgrind``); without it the script exits with
-the reason, and ``run.py`` reports the figure as not measured.
+the reason, and ``run.py`` reports the figure as not measured. Ctrl-C or SIGTERM (exit
+143) stops both counted processes first.
 
 Prints one JSON object as its last line.
 Usage: python benchmarks/bench_instructions.py [--sessions 2]
@@ -24,6 +25,7 @@ import json
 import os
 import re
 import shutil
+import signal
 import subprocess
 import sys
 import tempfile
@@ -75,6 +77,8 @@ def main() -> None:
     valgrind = shutil.which("valgrind")
     if valgrind is None:
         raise SystemExit("valgrind is not installed (Debian: apt-get install valgrind)")
+    # SIGTERM as Ctrl-C: out through the finally below, which stops the valgrind children
+    signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))
     with tempfile.TemporaryDirectory() as tmp:
         # both at once: each is one thread, and the counts do not depend on the timing
         procs = [_count(valgrind, n, Path(tmp)) for n in (1, 1 + args.sessions)]
