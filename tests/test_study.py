@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import pytest
@@ -156,3 +157,13 @@ def test_duration_estimate_counts_breaks() -> None:
     s = paper_study()
     # 288 trials x (2 s + 1 s ITI) + 5 breaks x 60 s
     assert s.estimate_duration_s() == pytest.approx(288 * 3.0 + 5 * 60.0)
+
+
+@pytest.mark.parametrize("key, where", [('"[" = []', "name = "), ('"a[b" = 1', "passes = ")])
+def test_an_unknown_key_with_a_bracket_is_named(key: str, where: str) -> None:
+    """An unknown key holding '[' (which pydantic's own labels also hold) is reported as
+    the unknown key it is, not as a crash."""
+    text = PAPER_STUDY_TOML.replace(where, f"{key}\n{where}", 1)
+    name = key.split(" = ")[0].strip('"')
+    with pytest.raises(StudyFileError, match=rf"unknown key '{re.escape(name)}'; allowed"):
+        Study.from_toml(text, path="s.toml")

@@ -705,21 +705,26 @@ def _dotted(loc: tuple[str | int, ...]) -> str | None:
     return text or None
 
 
-def _clean_loc(raw: tuple[Any, ...]) -> tuple[str | int, ...]:
-    return tuple(p for p in raw if not (isinstance(p, str) and "[" in p))
+def _clean_loc(raw: tuple[Any, ...], key_last: bool = False) -> tuple[str | int, ...]:
+    """``raw`` without pydantic's labels of validators and unions (``function-after[...]``).
+    ``key_last``: the last part is the file's own key (an unknown key's error), kept
+    whatever it holds (a key may be ``"["``)."""
+    head, last = (raw[:-1], raw[-1:]) if key_last else (raw, ())
+    return (*(p for p in head if not (isinstance(p, str) and "[" in p)), *last)
 
 
 def _study_error(exc: ValidationError, text: str, where: str) -> StudyFileError:
     errors = exc.errors(include_url=False)
     err = errors[0]
-    loc = _clean_loc(err["loc"])
+    loc = _clean_loc(err["loc"], key_last=err["type"] == "extra_forbidden")
     lines = _key_lines(text)
     kind = err["type"]
     msg = err["msg"]
     got = err.get("input")
     # a misspelt required key: report the unknown key and the missing one together
     missing = {_clean_loc(e["loc"]) for e in errors if e["type"] == "missing"}
-    extra = [_clean_loc(e["loc"]) for e in errors if e["type"] == "extra_forbidden"]
+    extra = [_clean_loc(e["loc"], key_last=True) for e in errors
+             if e["type"] == "extra_forbidden"]
     pair = None
     for x in extra:
         for m in missing:
