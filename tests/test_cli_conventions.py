@@ -18,13 +18,14 @@ from tactorbelt.cli import COMMANDS
 
 DOCS = Path(__file__).resolve().parents[1] / "docs" / "cli.md"
 GROUPS = {"figure": ["amplitudes"], "study": ["init", "check"],
-          "calibrate": [None, "perceptual"]}
+          "calibrate": [None, "perceptual"], "firmware": ["export", "build", "upload"]}
 COMMAND_PATHS = [[c, *([s] if s else [])] for c in COMMANDS for s in GROUPS.get(c, [None])]
 #: commands that write files, and so have -o/--output
 WRITERS = {"render", "figure amplitudes", "calibrate", "calibrate perceptual", "export", "demo",
            "power", "analyze"}
 #: options whose value is text that is not a number
-TEXT_OPTIONS = {"--tactor-angles", "--participant", "--joystick", "--axes", "--participants"}
+TEXT_OPTIONS = {"--tactor-angles", "--participant", "--joystick", "--axes", "--participants",
+                "--port"}
 
 
 def _options(help_text: str) -> list[tuple[str, str]]:

@@ -39,6 +39,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "belt-test": ("tactorbelt.cli.play:belt_test", "Pulse each tactor in turn to check wiring."),
     "calibrate": ("tactorbelt.cli.play:calibrate", "Walk through each tactor's calibration."),
     "devices": ("tactorbelt.cli.devices:devices", "List serial ports and BLE belts."),
+    "firmware": ("tactorbelt.cli.firmware:firmware",
+                 "Export, build or upload the belt's firmware (Nano 33 BLE)."),
     "study": ("tactorbelt.cli.study:study", "Write or check a study file."),
     "run": ("tactorbelt.cli.run:run", "Run a study session for one participant."),
     "export": ("tactorbelt.cli.run:export",

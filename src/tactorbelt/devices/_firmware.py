@@ -145,6 +145,17 @@ class Transport(ABC):
         (no limit: serial)."""
         return None
 
+    @property
+    def usb_port(self) -> str | None:
+        """The serial port the board's firmware can be uploaded through (serial links),
+        or None (BLE, where the board must be connected by USB to update it)."""
+        return None
+
+    def silence_hint(self) -> str:
+        """Why the device may not be answering, as far as the link can tell (serial: the
+        DTR line low), or "" when it cannot tell."""
+        return ""
+
     def use_framed_replies(self) -> None:  # noqa: B027 - only BLE needs it
         """From now on, replies arrive as COBS frames split across notifications (BLE)."""
 
@@ -331,6 +342,11 @@ class FirmwareBelt(Belt, PacketSink):
             if limit is not None and limit < wire.MAX_PACKET:
                 self._start_framing(limit, heartbeat_ms)
             info = self._handshake()
+            from ..firmware import version_note
+
+            note = version_note(info.firmware_version, transport.usb_port)
+            if note:
+                log.warning("%s: %s", self.port, note)
             dev_layout = layout_from_info(info)
             if layout is not None:
                 if layout.n != dev_layout.n:
@@ -510,15 +526,23 @@ class FirmwareBelt(Belt, PacketSink):
                 continue
             info: wire.Info = self._expect(reply, wire.Info, "the version request")
             if info.protocol_version != wire.PROTOCOL_VERSION:
+                from ..firmware import update_command
+
+                fix = (update_command(self._transport.usb_port)
+                       if info.protocol_version < wire.PROTOCOL_VERSION else
+                       "update tactorbelt (pip install -U tactorbelt), or put this "
+                       f"tactorbelt's firmware on it: {update_command(self._transport.usb_port)}")
                 raise ProtocolError(
                     f"the device on {self.port} speaks protocol version {info.protocol_version} "
                     f"(firmware {info.firmware_version}); this tactorbelt speaks version "
-                    f"{wire.PROTOCOL_VERSION}: update the firmware or tactorbelt so they match"
+                    f"{wire.PROTOCOL_VERSION}: {fix}"
                 )
             return info
+        hint = self._transport.silence_hint()
         raise DeviceError(
             f"no tactorbelt firmware answered on {self.port} "
             f"(asked {INFO_ATTEMPTS} times for its version, {self.timeout_s * 1000:.0f} ms each)"
+            + (f": {hint}" if hint else "")
         ) from last
 
     # -- extensions ----------------------------------------------------------------

@@ -431,6 +431,9 @@ def discover(timeout_s: float = 5.0, probe_all: bool = False) -> Discovery:
             row.note = str(exc)
         else:
             with belt:
+                from ..firmware import version_note
+
                 row.firmware_version, row.tactors = belt.firmware_version, belt.n_tactors
+                row.note = version_note(belt.firmware_version, None)
         rows.append(row)
     return Discovery(rows, None, empty)

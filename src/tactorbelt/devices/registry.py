@@ -250,7 +250,9 @@ BACKENDS: dict[str, Backend] = {b.scheme: b for b in (
     Backend("serial", "tactorbelt.devices.serial:open_serial",
             "firmware over USB serial", ("serial:/dev/ttyACM0", "serial:auto"), target="PORT",
             options=(_TIMEOUT, _HEARTBEAT,
-                     UrlOption("baudrate", int, "for real UARTs", 300, 4_000_000)),
+                     UrlOption("baudrate", int, "for real UARTs", 300, 4_000_000),
+                     UrlOption("dtr", bool, "assert DTR (default 1; the board is mute "
+                               "without it)")),
             discover="tactorbelt.devices.serial:discover", title="Serial ports",
             docs="docs/devices.md", allowed=("serial:PORT", "serial:auto")),
     Backend("ble", "tactorbelt.devices.ble:open_ble",

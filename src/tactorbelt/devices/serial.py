@@ -51,7 +51,8 @@ AUTO_PROBE_TIMEOUT_S: Final = 0.3
 
 #: Options open_serial accepts (passed on to FirmwareBelt but ``baudrate``).
 OPTIONS: Final = frozenset(
-    {"baudrate", "timeout_s", "heartbeat_ms", "calibration", "layout", "keepalive", "clock"}
+    {"baudrate", "dtr", "timeout_s", "heartbeat_ms", "calibration", "layout", "keepalive",
+     "clock"}
 )
 
 
@@ -62,21 +63,35 @@ class SerialTransport(Transport):
         port: the device path (``/dev/ttyACM0``, a pseudo-terminal, ``COM3``).
         baudrate: ignored by USB CDC and pseudo-terminals, kept for real UARTs.
         write_timeout_s: a write that blocks this long means the device is gone.
+        dtr: assert DTR while the port is open (the default: the board's USB serial
+            sends nothing without it); False only for adapters where DTR resets a board.
+
+    Attributes:
+        dtr_line: the DTR line as the OS reports it after open (None: no modem lines,
+            as on a pseudo-terminal).
 
     Raises:
         DeviceError: the port cannot be opened (missing, busy, no permission).
     """
 
-    def __init__(self, port: str, baudrate: int = 115200, write_timeout_s: float = 1.0) -> None:
+    def __init__(self, port: str, baudrate: int = 115200, write_timeout_s: float = 1.0,
+                 dtr: bool = True) -> None:
         import serial
 
         self.port = port
         self._serial_exception = serial.SerialException
+        self._dtr_asked = dtr
         try:
+            # DTR set before open(): pyserial applies it while opening on every platform
+            # (POSIX: TIOCMBIS; Windows: the DCB's fDtrControl), so the board's USB CDC
+            # sees the terminal connected from the first byte (docs/devices.md, "DTR")
             self._ser = serial.Serial(
-                port, baudrate=baudrate, timeout=None, write_timeout=write_timeout_s,
-                exclusive=True,
+                None, baudrate=baudrate, timeout=None, write_timeout=write_timeout_s,
+                exclusive=True, dsrdtr=False,
             )
+            self._ser.dtr = dtr
+            self._ser.port = port
+            self._ser.open()
         except (serial.SerialException, OSError, ValueError) as exc:
             hint = ""
             text = str(exc).lower()
@@ -100,11 +115,31 @@ class SerialTransport(Transport):
                 fd = self._ser.fileno()
                 if not os.get_blocking(fd):
                     self._fd = fd
+        self.dtr_line = _read_dtr(self._ser) if dtr else False
         self._decoder = wire.FrameDecoder()
         self._stopping = False
         self._thread: threading.Thread | None = None
         self._sink: PacketSink | None = None
         self._closed = False
+
+    @property
+    def usb_port(self) -> str | None:
+        return self.port
+
+    def silence_hint(self) -> str:
+        """Why the device may be mute: the DTR line low (the board's USB serial sends
+        nothing until the host asserts DTR), or "" when DTR is high or the port has no
+        modem lines (a pseudo-terminal)."""
+        if not self._dtr_asked:
+            return (f"DTR is low on {self.port} (the port was opened with dtr=0); the "
+                    "Nano 33 BLE's USB serial sends nothing until the host asserts DTR: "
+                    "open it without ?dtr=0")
+        if self.dtr_line is False:
+            return (f"DTR is low on {self.port} although tactorbelt asserted it (the "
+                    "driver or another program lowered it); the Nano 33 BLE's USB serial "
+                    "sends nothing until the host asserts DTR: close other programs using "
+                    "the port and plug the board in again")
+        return ""
 
     @property
     def crc_errors(self) -> int:
@@ -178,6 +213,23 @@ class SerialTransport(Transport):
             log.debug("closing %s: %s", self.port, exc)
 
 
+def _read_dtr(ser: Any) -> bool | None:
+    """The DTR line as the OS reports it after open: True or False, or None where the
+    port has no modem lines (a pseudo-terminal) or the OS cannot say (then pyserial's
+    own record on Windows, where the DCB set it)."""
+    if os.name != "posix":
+        return bool(ser.dtr)
+    import fcntl
+    import struct
+    import termios
+
+    try:
+        bits = fcntl.ioctl(ser.fileno(), termios.TIOCMGET, struct.pack("I", 0))
+    except (OSError, AttributeError, ValueError):
+        return None
+    return bool(struct.unpack("I", bits)[0] & termios.TIOCM_DTR)
+
+
 def open_serial_port(port: str, url: str | None = None, **options: Any) -> FirmwareBelt:
     """Open the firmware belt on one serial port (no auto-detection).
 
@@ -190,7 +242,7 @@ def open_serial_port(port: str, url: str | None = None, **options: Any) -> Firmw
     url = url or f"serial:{port}"
     check_options(options, OPTIONS, url)
     baudrate = int(options.pop("baudrate", 115200))
-    transport = SerialTransport(port, baudrate=baudrate)
+    transport = SerialTransport(port, baudrate=baudrate, dtr=bool(options.pop("dtr", True)))
     try:
         return FirmwareBelt(transport, url, stream_rate_hz=SERIAL_STREAM_RATE_HZ, **options)
     except BaseException:
@@ -300,7 +352,10 @@ def _probe(open_: Callable[[], FirmwareBelt]) -> tuple[str | None, int | None, s
     except TactorbeltError as exc:
         return None, None, str(exc)
     with belt:
-        return belt.firmware_version, belt.n_tactors, ""
+        from ..firmware import version_note
+
+        version = belt.firmware_version
+        return version, belt.n_tactors, version_note(version, belt.port)
 
 
 #: Longest wait for one device's answer while ``tactorbelt devices`` probes.
