@@ -1,8 +1,6 @@
 #include "nrf_pwm_motors.h"
 
-#if __has_include("nrf.h")
-#include "nrf.h"
-#endif
+#include "nrf.h"  // nRF52840 MDK: NRF_PWM0/1, NRF_P0/1 and their bit fields
 
 #include "src/core/pwm_sequencer.h"
 

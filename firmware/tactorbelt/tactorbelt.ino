@@ -6,14 +6,15 @@
 // and docs/hardware.md for wiring, parts and how to build and flash.
 //
 // Board: "Arduino Mbed OS Nano Boards" > Arduino Nano 33 BLE. Library: ArduinoBLE.
+// What this file relies on in the core and the libraries, with the header lines:
+// docs/hardware.md, "What the firmware relies on in the core and libraries".
 
 #include <Arduino.h>
 #include <ArduinoBLE.h>
+#include <USB/PluggableUSBSerial.h>  // the core's USB CDC device, _SerialUSB
 
-#if __has_include("nrf.h")
-#include "nrf.h"
-#endif
-#include "utility/ATT.h"  // ArduinoBLE: the negotiated ATT MTU
+#include "nrf.h"           // nRF52840 MDK: NRF_WDT, NRF_POWER
+#include "utility/ATT.h"  // ArduinoBLE: the negotiated ATT MTU per connection
 
 #include "nrf_pwm_motors.h"
 #include "src/core/controller.h"
@@ -48,15 +49,9 @@ constexpr uint32_t kWatchdogMs = tb::kWatchdogTimeoutMs;  // 300 ms
 tb::Layout g_layout;
 NrfPwmMotors g_motors;
 tb::Controller g_controller(g_layout, g_motors, NrfPwmMotors::kSteps);
-
-BLEService g_service(kServiceUuid);
-BLECharacteristic g_rx(kRxUuid, BLEWriteWithoutResponse | BLEWrite, tb::kMaxPacket);
-BLECharacteristic g_tx(kTxUuid, BLENotify, tb::kMaxPacket);
-bool g_ble_ok = false;
-bool g_serial_open = false;
 uint64_t g_next_tick_us = 0;
-uint16_t g_ble_conn_handle = 0xFFFF;
 
+// --- clock -------------------------------------------------------------------------
 // micros() wraps every 71.6 minutes; the controller wants a monotonic 64-bit clock.
 uint64_t micros64() {
   static uint32_t last = 0;
@@ -67,10 +62,13 @@ uint64_t micros64() {
   return high | now;
 }
 
+// --- watchdog and reset reason -----------------------------------------------------
 // The nRF52840 watchdog: started once in setup(), then it cannot be stopped or
 // changed until a reset. Fed (RR[0]) only by the controller's tick, after it has
 // updated the outputs: a loop() that stops ticking is reset within kWatchdogMs,
 // and a reset leaves every pin an input (the drivers' pull-downs: motors off).
+// A soft reset does not stop a running WDT: then CONFIG, CRV and RREN are read-only
+// and these writes change nothing (they write the same values).
 class NrfWatchdog : public tb::Watchdog {
  public:
   void start(uint32_t timeout_ms) {
@@ -100,29 +98,85 @@ uint8_t read_and_clear_reset_reason() {
   return flags;
 }
 
-// Serial replies: COBS frames into the core's bounded TX ring (whole frames or
-// nothing; what does not fit is dropped and counted), drained here with
-// USBCDC::send_nb, which copies what the CDC buffer has room for and never waits.
-// (Serial.write ends in USBCDC::send, which waits until the host reads: a host
-// that holds the port open and stops reading would stall loop(), the tick and the
-// failsafe.)
+// --- USB serial link ----------------------------------------------------------------
+// On this core `Serial` and `SerialUSB` are both `_UART_USB_`, an arduino::UART that
+// forwards to the USB CDC device. The device itself is `_SerialUSB`, an
+// arduino::USBSerial derived from USBCDC; the link uses it directly, since only
+// USBCDC has send_nb. The core's main() calls _SerialUSB.begin() before setup(), so
+// the sketch does not (a second begin() would attach its receive callback twice).
+arduino::USBSerial& g_usb = _SerialUSB;
+
+// Replies: COBS frames into the core's bounded TX ring (whole frames or nothing; what
+// does not fit is dropped and counted), drained with USBCDC::send_nb, which copies
+// what the CDC's 64-byte packet buffer takes and never waits. (Serial.write ends in
+// USBCDC::send, which waits until the host reads: a host that holds the port open and
+// stops reading would stall loop(), the tick and the failsafe.)
 tb::SerialTx g_serial_tx(g_controller.link_counters());
+bool g_serial_open = false;
+
+// The port is open while USBCDC's terminal is connected: from the host's
+// SET_CONTROL_LINE_STATE with DTR set (pyserial asserts DTR when it opens the port)
+// until one with DTR clear, a USB bus reset, or the device leaving the Configured
+// state. That is the very flag send_nb and receive_nb test, so "open" means "the core
+// moves bytes"; dtr() alone is the last request's DTR bit, which a bus reset leaves
+// set. While the port is closed (DTR low):
+// - nothing arrives (receive_nb hands over no bytes); bytes of the last host still in
+//   USBSerial's receive ring are read and discarded, not decoded, so a request sent
+//   just before the close cannot start the motors after it;
+// - nothing is sent: SerialTx is closed, so a reply is neither queued nor counted
+//   (tx_dropped counts frames dropped for lack of room while the port is open; while
+//   it is closed no request is decoded, so there is nothing to reply to), and what was
+//   queued for the last host is discarded;
+// - the open -> closed edge turns the outputs off (Controller::link_closed).
+void poll_serial(uint64_t now_us) {
+  const bool open = g_usb.connected();
+  if (g_serial_open && !open) g_controller.link_closed(now_us);
+  g_serial_open = open;
+  g_serial_tx.set_open(open);
+  uint8_t buf[kSerialChunk];
+  int n = 0;
+  while (n < kSerialChunk && g_usb.available() > 0) {
+    const int c = g_usb.read();
+    if (c < 0) break;
+    buf[n++] = static_cast<uint8_t>(c);
+  }
+  if (n > 0 && open) g_controller.receive_bytes(buf, static_cast<size_t>(n), now_us, g_serial_tx);
+}
 
 void drain_serial() {
   const uint8_t* data = nullptr;
   const size_t n = g_serial_tx.peek(&data);
   if (n == 0) return;
   uint32_t sent = 0;
-  Serial.send_nb(const_cast<uint8_t*>(data), static_cast<uint32_t>(n), &sent, true);
+  // send_nb's buffer is not const, but it only reads it (a copy into the CDC buffer).
+  g_usb.send_nb(const_cast<uint8_t*>(data), static_cast<uint32_t>(n), &sent, true);
   g_serial_tx.consume(sent);
 }
+
+// --- BLE link -----------------------------------------------------------------------
+BLEService g_service(kServiceUuid);
+BLECharacteristic g_rx(kRxUuid, BLEWriteWithoutResponse | BLEWrite, tb::kMaxPacket);
+BLECharacteristic g_tx(kTxUuid, BLENotify, tb::kMaxPacket);
+bool g_ble_ok = false;
+
+// The central's connection handle, which ATT.mtu() needs. ArduinoBLE does not pass
+// it to the connect handler, so loop() looks for it after BLE.poll(): the first
+// handle ATT.connected() knows (Cordio numbers connections from 0; one central at a
+// time, since advertising stops on a connection). Not inside the handler: ATT.connected()
+// runs HCI.poll(), and a nested HCI.poll() would overwrite the HCI receive buffer
+// that the connection event is still being read from. Until found, and when not
+// found: kNoConnection, and replies are held to the default MTU (23: 20 bytes).
+constexpr uint16_t kNoConnection = 0xFFFF;
+constexpr uint16_t kConnectionHandles = 16;  // handles tried (DM_CONN_MAX is 5)
+uint16_t g_ble_conn_handle = kNoConnection;
+bool g_ble_find_handle = false;
 
 // BLE replies: at most MTU - 3 bytes per notification (the core's BleTx splits
 // framed replies or refuses an unframed one that does not fit with NAK 5).
 class ArduinoBleNotifier : public tb::BleNotifier {
  public:
   uint16_t att_mtu() override {
-    return g_ble_conn_handle == 0xFFFF ? tb::kDefaultAttMtu : ATT.mtu(g_ble_conn_handle);
+    return g_ble_conn_handle == kNoConnection ? tb::kDefaultAttMtu : ATT.mtu(g_ble_conn_handle);
   }
   bool notify(const uint8_t* data, size_t n) override {
     return g_tx.writeValue(data, static_cast<int>(n)) != 0;
@@ -136,22 +190,25 @@ void on_ble_written(BLEDevice, BLECharacteristic characteristic) {
                               g_ble_tx);
 }
 
-// ArduinoBLE does not expose the central's connection handle, which ATT.mtu()
-// needs; Cordio numbers connections from 0, so look for the connected one once.
-// Not found: 0xFFFF, and replies are held to the default MTU (23: 20 bytes).
 void on_ble_connected(BLEDevice) {
-  g_ble_conn_handle = 0xFFFF;
-  for (uint16_t h = 0; h < 16; ++h) {
-    if (ATT.connected(h)) {
-      g_ble_conn_handle = h;
-      break;
-    }
-  }
+  g_ble_conn_handle = kNoConnection;
+  g_ble_find_handle = true;  // in loop(), after BLE.poll() has returned
 }
 
 void on_ble_disconnected(BLEDevice) {
-  g_ble_conn_handle = 0xFFFF;
+  g_ble_conn_handle = kNoConnection;
+  g_ble_find_handle = false;
   g_controller.link_closed(micros64());  // BLE disconnect: outputs off
+}
+
+void find_ble_conn_handle() {
+  g_ble_find_handle = false;
+  for (uint16_t h = 0; h < kConnectionHandles; ++h) {
+    if (ATT.connected(h)) {
+      g_ble_conn_handle = h;
+      return;
+    }
+  }
 }
 
 void begin_ble() {
@@ -170,21 +227,21 @@ void begin_ble() {
   g_ble_ok = true;
 }
 
-void poll_serial(uint64_t now_us) {
-  // The port is open while the host holds DTR (pyserial sets it on open and
-  // clears it on close). Closing the port stops the outputs.
-  const bool open = Serial.dtr();
-  if (g_serial_open && !open) g_controller.link_closed(now_us);
-  g_serial_open = open;
-  g_serial_tx.set_open(open);
-  uint8_t buf[kSerialChunk];
-  int n = 0;
-  while (n < kSerialChunk && Serial.available() > 0) {
-    const int c = Serial.read();
-    if (c < 0) break;
-    buf[n++] = static_cast<uint8_t>(c);
-  }
-  if (n > 0) g_controller.receive_bytes(buf, static_cast<size_t>(n), now_us, g_serial_tx);
+void poll_ble() {
+  if (!g_ble_ok) return;
+  BLE.poll();
+  if (g_ble_find_handle) find_ble_conn_handle();
+}
+
+// --- the controller's tick ------------------------------------------------------------
+void tick_if_due() {
+  const uint64_t now = micros64();
+  if (now < g_next_tick_us) return;
+  if (now - g_next_tick_us > kMaxLagUs) g_next_tick_us = now;
+  g_next_tick_us += kTickUs;
+  g_controller.tick(now);
+  const tb::State s = g_controller.state();
+  digitalWrite(kStateLed, s == tb::State::kStreaming || s == tb::State::kPlaying ? HIGH : LOW);
 }
 
 }  // namespace
@@ -197,25 +254,20 @@ void setup() {
   g_layout.set_even(kChannels);
   g_controller.set_reset_flags(read_and_clear_reset_reason());
   g_controller.begin(micros64());
-  Serial.begin(115200);  // USB CDC: the baud rate is ignored
+  // USB CDC: already started by the core's main() (any baud rate; see g_usb).
   begin_ble();
-  // Last, so that USB and BLE start-up (not fed) cannot trip it.
+  // Last, so that BLE start-up (not fed) cannot trip it.
   g_controller.set_watchdog(&g_watchdog);
   g_watchdog.start(kWatchdogMs);
   g_watchdog.feed(0);
   g_next_tick_us = micros64() + kTickUs;
 }
 
+// One pass: each link's input (requests are answered as they are decoded), the serial
+// replies out, then the 1 kHz tick. Nothing here waits on a host.
 void loop() {
   poll_serial(micros64());
   drain_serial();
-  if (g_ble_ok) BLE.poll();
-  const uint64_t now = micros64();
-  if (now >= g_next_tick_us) {
-    if (now - g_next_tick_us > kMaxLagUs) g_next_tick_us = now;
-    g_next_tick_us += kTickUs;
-    g_controller.tick(now);
-    const tb::State s = g_controller.state();
-    digitalWrite(kStateLed, s == tb::State::kStreaming || s == tb::State::kPlaying ? HIGH : LOW);
-  }
+  poll_ble();
+  tick_if_due();
 }

@@ -7,7 +7,7 @@
 // enables the peripheral and triggers SEQSTART[0].
 //
 // Templated on the register block so that the host tests can run it against a
-// fake one (test/test_pwm.cpp) and the sketch against NRF_PWM_Type. Portable C++17.
+// fake one (test/test_extensions.cpp) and the sketch against NRF_PWM_Type. Portable C++17.
 #pragma once
 
 #include <stdint.h>
