@@ -12,21 +12,18 @@ player and the command line use it exactly as they use hardware. It
   ``calibration(stimulus.amplitudes(k / 1000))`` with ``k`` the whole number of
   milliseconds since onset (a 1 kHz tick), until ``stop``, the end of the duration or
   the next command;
-- models each motor (:class:`ErmParams`): first-order speed response with a rise and a
-  fall time constant, no spin below the start level (dead zone), vibration amplitude
-  growing with the square of the speed.
+- models each motor with :mod:`tactorbelt.devices.erm` (:class:`ErmParams`: first-order
+  speed response with a rise and a fall time constant, no spin below the start level,
+  vibration amplitude growing with the square of the speed).
 
 :meth:`SimBelt.commanded` and :meth:`SimBelt.vibration` sample the drive levels and the
 modelled vibration over any interval; the model participant and the tests read them.
 
-The motor model is solved exactly: the drive is piecewise constant (it changes only at
-commands and at 1 kHz render ticks), and on each piece the speed relaxes exponentially
-towards its steady state with the rise or the fall time constant. A query walks the
-commands piece by piece: a constant drive in closed form, a periodic render from its
-response from rest (solved once per process, :class:`_Response`) by superposition where
-the rise/fall pattern holds; otherwise the recurrence over all pieces is solved
-vectorised (over tactors and over time, by cumulative products), with the rise/fall
-choice found by fixed-point iteration. No Python loop per sample (docs/belts.md).
+The physics and its exact solution are in :mod:`tactorbelt.devices.erm`; this module keeps
+the commands and walks them piece by piece: a constant drive in closed form, a periodic
+render from its response from rest (solved once per process, ``erm._Response``) by
+superposition where the rise/fall pattern holds, otherwise the vectorised recurrence
+(:func:`~tactorbelt.devices.erm.erm_speed`). No Python loop per sample (docs/belts.md).
 
 Imports NumPy and tactorbelt (geometry, clock, stimuli types, devices.base); never an
 I/O library.
@@ -35,46 +32,50 @@ I/O library.
 from __future__ import annotations
 
 import bisect
-import functools
-import itertools
 import math
 import threading
 from dataclasses import dataclass
-from fractions import Fraction
 from typing import TYPE_CHECKING, Any, Final
 
 import numpy as np
-from numpy.typing import NDArray
 
 from .._errors import ConfigError
 from ..clock import Clock, WallClock
 from ..geometry import Layout
 from .base import Belt
 from .calibration import Calibration
+from .erm import (
+    _RESPONSE_MAX_TICKS,
+    _TIE,
+    RENDER_TICK_NS,
+    ErmParams,
+    FloatArray,
+    IntArray,
+    _decay_factors,
+    _fall_factor,
+    _fall_factor_to,
+    _grid_period,
+    _relax,
+    _relax_to,
+    _Response,
+    _sorted_unique,
+    erm_speed,
+    sample_grid,
+)
 
 if TYPE_CHECKING:
     from ..stimuli import Stimulus
 
-__all__ = ["DEFAULT_HORIZON_S", "ErmParams", "SimBelt", "SimCommand", "open_sim"]
+__all__ = ["DEFAULT_HORIZON_S", "RENDER_TICK_NS", "ErmParams", "SimBelt", "SimCommand",
+           "erm_speed", "open_sim", "sample_grid"]
 
 #: How much command history a sim belt keeps by default (seconds).
 DEFAULT_HORIZON_S: Final = 120.0
-#: The sim belt renders played stimuli at 1 kHz, like the firmware.
-RENDER_TICK_NS: Final = 1_000_000
 #: History is pruned in steps of at least this much (or an eighth of the horizon), at a
 #: checkpoint, so pruning replays nothing.
 _PRUNE_SLACK_NS: Final = 1_000_000_000
-#: A step's decay exponent is capped here: exp(-300) is zero for every purpose.
-_MAX_DECAY: Final = 300.0
-#: Speed differences below this are ties for the rise/fall choice.
-_TIE: Final = 1e-12
-#: Fixed-point iterations for the rise/fall choice before finishing step by step.
-_MAX_ITERATIONS: Final = 12
 #: A checkpoint is taken at least every this many commands (cheap: ~0.3 ms each).
 _CHECKPOINT_EVERY: Final = 256
-#: A drive that changes at fewer steps than this is solved stretch by stretch in closed
-#: form (:func:`_erm_segments`), cheaper than the vectorised recurrence.
-_SEGMENT_STEPS: Final = 16
 #: Memory for the one-period tables of periodic renders kept per process (the oldest
 #: go first; a dynamic stimulus's 1 s period on 6 tactors takes 48 KB).
 _TABLES_BUDGET: Final = 8 * 2**20
@@ -84,75 +85,8 @@ _MAX_CHECKPOINTS: Final = 64
 #: (:class:`_Response`, the oldest go first; a dynamic stimulus on its 2
 #: moving motors takes ~110 KB: 220 stimuli).
 _RESPONSES_BUDGET: Final = 24 * 2**20
-#: A response from rest is solved for this many ticks (3 s; half the model participant's
-#: queries reach 2 s into a render, 1 % 3 s); a query further into a render takes the
-#: general solution.
-_RESPONSE_MAX_TICKS: Final = 3_072
 
 _OPTIONS: Final = ("layout", "clock", "calibration", "params", "horizon_s", "name")
-
-FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.int64]
-
-
-@dataclass(frozen=True)
-class ErmParams:
-    """Constants of the ERM motor model (one set for every tactor).
-
-    Speed ``w`` is normalised so that full drive (level 1) spins the motor at its rated
-    speed (``w = 1``); vibration amplitude is normalised so that rated speed gives 1.
-
-    Attributes:
-        rise_tau_s: time constant of the speed while it rises (0.040 s). Source:
-            Precision Microdrives, AB-004 "Understanding ERM vibration motor
-            characteristics", and the rise times listed in their datasheets of 7-10 mm
-            ERMs (several tens of ms to reach half the rated vibration). With amplitude
-            ~ speed squared, 50 % amplitude is reached after ``-tau*ln(1 - 0.5**0.5)``
-            = 1.23 tau = 49 ms. Not measured on the paper's motor: an assumption within
-            that range.
-        fall_tau_s: time constant while the speed falls (0.050 s); source as above
-            (AB-004's stop time, longer than the rise since only friction and back-EMF
-            brake an undriven motor). An assumption within the quoted range.
-        start_level: the dead zone (0.25): below this drive level the motor does not
-            start. The paper's motor (Vybronics VZ7AL2B1692082, 3 V rated) has a start
-            voltage well below its rated voltage; 0.25 of full drive is an assumption
-            (measure your motors with ``tactorbelt calibrate``).
-        amplitude_exponent: vibration amplitude ~ speed ** exponent (2.0): the
-            centripetal force of the eccentric mass is ``m * r * w**2`` (Precision
-            Microdrives AB-004, AB-028). Physics, not an assumption.
-    """
-
-    rise_tau_s: float = 0.040
-    fall_tau_s: float = 0.050
-    start_level: float = 0.25
-    amplitude_exponent: float = 2.0
-
-    def __post_init__(self) -> None:
-        for name in ("rise_tau_s", "fall_tau_s", "amplitude_exponent"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, int | float) or not (
-                math.isfinite(v) and v > 0
-            ):
-                raise ConfigError(f"ErmParams.{name} must be a positive, finite number, got {v!r}")
-        s = self.start_level
-        if isinstance(s, bool) or not isinstance(s, int | float) or not (0.0 <= s < 1.0):
-            raise ConfigError(f"ErmParams.start_level must be in [0, 1), got {s!r}")
-
-    def steady_speed(self, levels: FloatArray) -> FloatArray:
-        """Steady-state speed for drive levels: 0 below the start level, else the level."""
-        lv = np.asarray(levels, dtype=float)
-        return np.asarray(np.where(lv >= self.start_level, lv, 0.0))
-
-    def amplitude(self, speed: FloatArray) -> FloatArray:
-        """Vibration amplitude in [0, 1] for a normalised speed."""
-        return self._amplitude_of(np.clip(np.asarray(speed, dtype=float), 0.0, 1.0))
-
-    def _amplitude_of(self, w: FloatArray) -> FloatArray:
-        """:meth:`amplitude` of speeds already in [0, 1] (float)."""
-        if self.amplitude_exponent == 2.0:
-            return np.asarray(w * w)
-        return np.asarray(w**self.amplitude_exponent)
-
 
 @dataclass(frozen=True)
 class SimCommand:
@@ -299,265 +233,6 @@ class _Render:
         if self.end_ns is not None:
             levels[times >= self.end_ns] = 0.0
         return np.asarray(levels)
-
-
-_INT64_MAX: Final = 2**63 - 1
-
-
-@functools.lru_cache(maxsize=64)
-def _grid_period(rate: float) -> tuple[int, int]:
-    """The sampling period of ``rate`` Hz as the fraction p/q ns."""
-    period = Fraction(10**9) / Fraction(rate).limit_denominator(1_000_000)
-    return period.numerator, period.denominator
-
-
-def sample_grid(t0_ns: int, t1_ns: int, rate_hz: float) -> IntArray:
-    """Sample times ``t0 + round-down(i * 1e9 / rate)`` in [t0, t1), integer ns, no drift."""
-    try:
-        rate = float(rate_hz)
-    except (TypeError, ValueError):
-        raise ConfigError(f"rate must be a positive number of Hz, got {rate_hz!r}") from None
-    if not (math.isfinite(rate) and rate > 0):
-        raise ConfigError(f"rate must be a positive, finite number of Hz, got {rate_hz!r}")
-    t0, t1 = int(t0_ns), int(t1_ns)
-    if t1 < t0:
-        raise ConfigError(f"the interval ends ({t1} ns) before it starts ({t0} ns)")
-    p, q = _grid_period(rate)
-    # number of i with floor(i*p/q) < t1 - t0, i.e. i*p < (t1 - t0)*q
-    n = -((-(t1 - t0) * q) // p)
-    i = np.arange(n, dtype=np.int64)
-    if n and (n - 1) * p > _INT64_MAX // 2:
-        raise ConfigError("interval too long for this rate")
-    return np.asarray(t0 + (i * p) // q, dtype=np.int64)
-
-
-def _sorted_unique(a: IntArray) -> IntArray:
-    """``np.unique`` for a 1-D int array, by sorting (faster than hashing here)."""
-    a = np.sort(a)
-    if a.shape[0] < 2:
-        return a
-    keep = np.empty(a.shape[0], dtype=bool)
-    keep[0] = True
-    np.not_equal(a[1:], a[:-1], out=keep[1:])
-    return np.asarray(a[keep])
-
-
-def _blocks(step_decay: FloatArray) -> list[tuple[int, int]]:
-    """Cut steps into blocks whose total decay stays below about 2 * _MAX_DECAY."""
-    m = step_decay.shape[0]
-    total = np.cumsum(step_decay)
-    if m == 0 or total[-1] < _MAX_DECAY:
-        return [(0, m)] if m else []
-    block = np.floor(total / _MAX_DECAY).astype(np.int64)
-    cuts = np.flatnonzero(np.diff(block)) + 1
-    bounds = [0, *cuts.tolist(), m]
-    return [(s, e) for s, e in itertools.pairwise(bounds) if e > s]
-
-
-def _linear_recurrence(w0: FloatArray, log_a: FloatArray, c: FloatArray,
-                       blocks: list[tuple[int, int]]) -> FloatArray:
-    """Solve ``w[:, j+1] = exp(log_a[:, j]) * w[:, j] + c[:, j]`` for every row at once.
-
-    Rows are motors, columns are steps. ``log_a <= 0`` and ``c >= 0``, so the
-    cumulative sums below never cancel; within a block the total decay stays below
-    ~600 (exp(600) ~ 1e260), so the cumulative products neither overflow nor underflow.
-    """
-    n, m = log_a.shape
-    out = np.empty((n, m + 1))
-    out[:, 0] = w0
-    for s, e in blocks:
-        lb = np.cumsum(log_a[:, s:e], axis=1)
-        acc = np.cumsum(c[:, s:e] * np.exp(-lb), axis=1)
-        acc += out[:, s : s + 1]
-        out[:, s + 1 : e + 1] = np.exp(lb) * acc
-    return out
-
-
-def erm_speed(t_ns: IntArray, levels: FloatArray, w0: FloatArray,
-              params: ErmParams) -> FloatArray:
-    """Motor speed at each time of a piecewise-constant drive, exactly.
-
-    On a step of length h with drive u (steady speed ``s(u)``) the speed relaxes as
-    ``w' = s + (w - s) * exp(-h / tau)``, tau = rise time constant if ``s > w`` else the
-    fall one (the speed moves monotonically within a step, so the choice is exact).
-
-    Args:
-        t_ns: increasing times (m,); ``levels[j]`` is the drive on ``[t_ns[j], t_ns[j+1])``.
-        levels: drive levels (m, N) in [0, 1].
-        w0: the speed of each motor at ``t_ns[0]`` (N,).
-        params: the motor constants.
-
-    Returns:
-        Speeds (m, N): row j is the speed at ``t_ns[j]``.
-    """
-    m, n = levels.shape
-    w0 = np.asarray(w0, dtype=float)
-    out = np.zeros((m, n))
-    out[0] = w0
-    if m <= 1:
-        return out
-    starts = np.flatnonzero(np.any(levels[1:-1] != levels[:-2], axis=1)) + 1
-    if starts.shape[0] < _SEGMENT_STEPS:
-        return _erm_segments(t_ns, levels, w0, params, [0, *starts.tolist(), m - 1])
-    target = params.steady_speed(levels[:-1])  # (m-1, N)
-    # only motors that move at all need solving
-    cols = np.flatnonzero(target.any(axis=0) | (w0 > 0.0))
-    if cols.size == 0:
-        return out
-    u = np.ascontiguousarray(target[:, cols].T)  # (motors, steps)
-    h = np.diff(t_ns).astype(float) * 1e-9
-    k_rise = np.minimum(h / params.rise_tau_s, _MAX_DECAY)
-    k_fall = np.minimum(h / params.fall_tau_s, _MAX_DECAY)
-    blocks = _blocks(np.maximum(k_rise, k_fall))
-    g_rise = -np.expm1(-k_rise)
-    g_fall = -np.expm1(-k_fall)
-    start = w0[cols]
-    # first guess: the mean time constant; then fix the rise/fall choice until stable
-    tau_mid = 2.0 / (1.0 / params.rise_tau_s + 1.0 / params.fall_tau_s)
-    k_mid = np.minimum(h / tau_mid, _MAX_DECAY)
-    w = _linear_recurrence(start, np.broadcast_to(-k_mid, u.shape), -np.expm1(-k_mid) * u,
-                           blocks)
-    rising = u > w[:, :-1]
-    for _ in range(_MAX_ITERATIONS):
-        k = np.where(rising, k_rise, k_fall)
-        w = _linear_recurrence(start, -k, np.where(rising, g_rise, g_fall) * u, blocks)
-        gap = u - w[:, :-1]
-        new_rising = gap > 0.0
-        changed = new_rising != rising
-        # a choice that flips where the speed already equals its target (to 1e-12) changes
-        # the result by less than 1e-14: such near-ties count as settled
-        if not np.any(changed & (np.abs(gap) > _TIE)):
-            break
-        rising = new_rising
-    else:
-        # not settled (pathological ties): finish exactly, step by step, from the first
-        # step whose choice was still changing (everything before it is right)
-        bad = np.flatnonzero((new_rising != rising).any(axis=0))
-        for j in range(int(bad[0]) if bad.size else u.shape[1], u.shape[1]):
-            kj = np.where(u[:, j] > w[:, j], k_rise[j], k_fall[j])
-            w[:, j + 1] = u[:, j] + (w[:, j] - u[:, j]) * np.exp(-kj)
-    out[:, cols] = np.clip(w.T, 0.0, 1.0)
-    return out
-
-
-def _erm_segments(t_ns: IntArray, levels: FloatArray, w0: FloatArray, params: ErmParams,
-                  bounds: list[int]) -> FloatArray:
-    """:func:`erm_speed` for a drive that changes at few steps (``bounds``: the first
-    step of each constant stretch, then the last time's index): each stretch in closed
-    form from its start, ``w = s + (w0 - s) * exp(-t / tau)``, the time constant chosen
-    at its start (the speed moves monotonically towards ``s``, so the choice holds)."""
-    m, n = levels.shape
-    out = np.empty((m, n))
-    out[0] = w0
-    w = w0
-    for a, b in itertools.pairwise(bounds):
-        seg = _relax(params.steady_speed(levels[a]), w, t_ns[a + 1 : b + 1] - t_ns[a], params)
-        out[a + 1 : b + 1] = seg
-        w = seg[-1]
-    return np.asarray(np.clip(out, 0.0, 1.0))
-
-
-def _relax(u: FloatArray, w: FloatArray, dt_ns: IntArray, params: ErmParams) -> FloatArray:
-    """Speeds ``dt_ns`` after a state ``w`` under a constant drive whose steady speeds are
-    ``u`` (rows: times; ``u`` and ``w`` one row, or one row per time): the closed form of
-    one stretch, the time constant chosen at its start (the speed moves monotonically)."""
-    tau = np.where(u > w, params.rise_tau_s, params.fall_tau_s)
-    return np.asarray(u + (w - u) * _decay_factors(dt_ns, tau))
-
-
-def _decay_factors(dt_ns: IntArray, tau: FloatArray) -> FloatArray:
-    """``exp(-dt / tau)`` (rows: times; columns: the time constants), the exponent capped
-    at ``_MAX_DECAY``: the decay of a stretch under a constant drive."""
-    dt = dt_ns.astype(float) * 1e-9
-    return np.asarray(np.exp(-np.minimum(dt[:, None] / tau, _MAX_DECAY)))
-
-
-def _relax_to(u: FloatArray, w: FloatArray, dt_ns: int, params: ErmParams) -> FloatArray:
-    """:func:`_relax` at one time: the state (N,) ``dt_ns`` after ``w`` (the same
-    arithmetic)."""
-    tau = np.where(u > w, params.rise_tau_s, params.fall_tau_s)
-    dt = float(dt_ns) * 1e-9
-    return np.asarray(u + (w - u) * np.exp(-np.minimum(dt / tau, _MAX_DECAY)))
-
-
-def _fall_factor_to(dt_ns: int, params: ErmParams) -> np.float64:
-    """:func:`_fall_factor` at one time: :func:`_relax_to` with ``u = 0`` is ``w`` times it
-    (the same arithmetic; NumPy's exp gives a scalar what it gives an array)."""
-    dt = float(dt_ns) * 1e-9
-    return np.float64(np.exp(-min(dt / params.fall_tau_s, _MAX_DECAY)))
-
-
-def _fall_factor(dt_ns: IntArray, params: ErmParams) -> FloatArray:
-    """How much an undriven motor's speed falls in ``dt_ns``: :func:`_relax` with ``u = 0``
-    is ``w * exp(-dt / fall_tau)``, the same factor for every motor (the same
-    arithmetic)."""
-    dt = dt_ns.astype(float) * 1e-9
-    return np.asarray(np.exp(-np.minimum(dt / params.fall_tau_s, _MAX_DECAY)))
-
-
-class _Response:
-    """The speed of the moving motors under a periodic render started from rest.
-
-    ``cols`` are the motors the render ever drives above the dead zone; the others are
-    driven at 0 all along (a constant drive, in closed form). For the moving ones and the
-    ticks ``0..K`` (K = ``_RESPONSE_MAX_TICKS``) it keeps the speed at each tick's start
-    ``w`` (from rest at tick 0) and the cumulative decay exponent ``d`` along the
-    rise/fall choices (tick k rises when ``u[k] > w[k]``, ``u`` the steady speed of its
-    drive, ``u_period[k % P]``). From any other state at a tick ``k0`` the speed at a
-    later tick ``k`` is, by superposition, ``w[k] + (state - w[k0]) * exp(-(d[k] -
-    d[k0]))``: exact as long as every tick in between makes the same rise/fall choice.
-    The offset ``state - w[k0]`` only shrinks, so that holds wherever it is within the
-    limits (``rise_limit``: the least ``u - w`` over rising ticks, ``fall_limit``: the
-    least ``w - u`` over the others, each plus the tie tolerance); otherwise
-    :meth:`SimBelt._moving` checks each tick and, where a choice differs, the general
-    solution is taken.
-
-    Solved once, on first use, and shared by every sim belt of the process (keyed by the
-    stimulus, the calibration and the motor constants; read-only): ~110 KB for a dynamic
-    stimulus on its 2 moving motors.
-    """
-
-    __slots__ = ("cols", "d", "fall_limit", "rise_limit", "u_period", "w")
-
-    def __init__(self, period_levels: FloatArray, params: ErmParams) -> None:
-        u_period = params.steady_speed(period_levels)
-        self.cols: IntArray = np.flatnonzero(u_period.any(axis=0)).astype(np.int64)
-        self.u_period: FloatArray = np.ascontiguousarray(u_period[:, self.cols])
-        ticks = np.arange(_RESPONSE_MAX_TICKS + 1, dtype=np.int64)
-        u = self.u(ticks)  # steady speeds are their own drive levels
-        w = erm_speed(ticks * RENDER_TICK_NS, u, np.zeros(self.cols.shape[0]), params)
-        rising = u[:-1] > w[:-1]
-        h = float(RENDER_TICK_NS) * 1e-9
-        d = np.zeros(w.shape)
-        np.cumsum(np.where(rising, min(h / params.rise_tau_s, _MAX_DECAY),
-                           min(h / params.fall_tau_s, _MAX_DECAY)), axis=0, out=d[1:])
-        gap = u[:-1] - w[:-1]
-        # the largest offsets up and down that change no choice beyond a tie: the margins
-        # plus the tie tolerance
-        self.rise_limit: FloatArray = np.where(rising, gap, np.inf).min(axis=0) + _TIE
-        self.fall_limit: FloatArray = np.where(rising, np.inf, -gap).min(axis=0) + _TIE
-        self.w: FloatArray = w
-        self.d: FloatArray = d
-        for a in (self.u_period, self.w, self.d, self.rise_limit, self.fall_limit):
-            a.setflags(write=False)
-
-    @property
-    def nbytes(self) -> int:
-        return int(self.w.nbytes + self.d.nbytes + self.u_period.nbytes)
-
-    def u(self, ticks: IntArray | int) -> FloatArray:
-        """Steady speeds of the moving motors during the given ticks."""
-        return np.asarray(self.u_period[np.asarray(ticks) % self.u_period.shape[0]])
-
-    def within_limits(self, offset: FloatArray) -> bool:
-        """True when a state ``offset`` from the response at a tick changes no rise/fall
-        choice from there on (so superposition on the response is exact)."""
-        return bool((offset <= self.rise_limit).all() and (-offset <= self.fall_limit).all())
-
-    def decay(self, k0: int, a: int, b: int) -> FloatArray:
-        """``exp(-exponent)`` from tick ``k0`` to each tick in ``a..b-1``, along the
-        response's choices (rows: ticks; columns: the moving motors)."""
-        return np.asarray(np.exp(-(self.d[a:b] - self.d[k0])))
 
 
 _RESPONSES: dict[tuple[Stimulus, Calibration, ErmParams], _Response] = {}
