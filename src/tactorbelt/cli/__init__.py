@@ -37,7 +37,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "figure": ("tactorbelt.cli.render:figure", "Draw the paper's figures (amplitude law)."),
     "play": ("tactorbelt.cli.play:play", "Play a stimulus on a belt."),
     "belt-test": ("tactorbelt.cli.play:belt_test", "Pulse each tactor in turn to check wiring."),
-    "calibrate": ("tactorbelt.cli.play:calibrate", "Walk through each tactor's calibration."),
+    "calibrate": ("tactorbelt.cli.calibrate:calibrate", "Walk through each tactor's calibration."),
     "devices": ("tactorbelt.cli.devices:devices", "List serial ports and BLE belts."),
     "firmware": ("tactorbelt.cli.firmware:firmware",
                  "Export, build or upload the belt's firmware (Nano 33 BLE)."),

@@ -44,9 +44,9 @@ def perceptual(belt_url: str, participant: str, input_kind: str, db: str | None,
     """
     from ..calibrate import CalibrationQuit
     from ..perceptual import calibrate_wearer
-    from .play import _Keys
+    from ._terminal import Keys
 
-    keys = _Keys()
+    keys = Keys()
     try:
         result = calibrate_wearer(belt_url, participant, input_kind=input_kind, db=db,
                                   out=None if out is None else str(out), seed=seed,

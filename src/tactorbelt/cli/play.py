@@ -1,12 +1,11 @@
-"""``tactorbelt play``, ``tactorbelt belt-test`` and ``tactorbelt calibrate``: belts by hand.
+"""``tactorbelt play`` and ``tactorbelt belt-test``: belts by hand.
 
 - ``play ANGLE``: play a static or dynamic stimulus on a belt (``--stats`` prints the
   player's deadline statistics as one JSON line, last).
 - ``belt-test``: pulse each tactor in turn, saying which one, to catch a wrongly wired
   belt before a study.
-- ``calibrate``: walk an experimenter through each tactor (the level where it is first
-  felt, then a comfortable maximum) and write a calibration file; ``calibrate
-  perceptual`` (:mod:`.perceptual`) measures a wearer's profile.
+
+``tactorbelt calibrate`` is in :mod:`.calibrate`.
 
 Every path ends with the motors off; Ctrl-C exits 130. Heavy imports are inside commands.
 """
@@ -14,9 +13,7 @@ Every path ends with the motors off; Ctrl-C exits 130. Heavy imports are inside 
 from __future__ import annotations
 
 import json
-import sys
-from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import click
 
@@ -24,25 +21,17 @@ from ..devices import open_belt_for
 from ._options import (
     POSITIVE,
     AngleCommand,
-    belt_option,
     belt_options,
     build_stimulus,
     layout_given,
     load_calibration,
     number,
-    output_option,
     stimulus_options,
 )
+from ._terminal import describe_belt
 from ._types import AliasOption
 
-if TYPE_CHECKING:
-    from ..devices.base import Belt
-
-__all__ = ["belt_test", "calibrate", "play"]
-
-
-def _describe(belt: Belt) -> str:
-    return f"{belt.name} ({belt.url}, {belt.n_tactors} tactors)"
+__all__ = ["belt_test", "play"]
 
 
 @click.command(cls=AngleCommand)
@@ -90,7 +79,7 @@ def play(angle: str, belt_url: str, calibration_file: str | None, seconds: float
                else f"streamed at {player.rate_hz:g} Hz")
         kind = "on-tactor" if stimulus_on_belt.on_tactor else "between-tactor"
         click.echo(f"playing {stimulus_on_belt.mode} {kind} {stimulus_on_belt.target_deg:g} deg "
-                   f"({stimulus_on_belt.law} law) on {_describe(belt)} for {seconds:g} s, {how}"
+                   f"({stimulus_on_belt.law} law) on {describe_belt(belt)} for {seconds:g} s, {how}"
                    + (f", for wearer {profile.participant or '(unnamed)'}" if profile else ""))
         try:
             result = player.play(stimulus_on_belt, seconds)
@@ -131,83 +120,8 @@ def belt_test(belt_url: str, calibration_file: str | None, seconds_each: float, 
                             calibration_file=calibration_file)
     with belt:
         clock = belt.clock or WallClock()
-        click.echo(f"belt-test on {_describe(belt)}: {seconds_each:g} s per tactor")
+        click.echo(f"belt-test on {describe_belt(belt)}: {seconds_each:g} s per tactor")
         pulse_each(belt, clock, seconds_each=seconds_each, gap=gap, level=level,
                    say=lambda k, angle: click.echo(
                        f"tactor {k} at {angle:g} deg ({region_name(angle)})"))
     click.echo("done: all motors off")
-
-
-# -- calibrate ----------------------------------------------------------------------------------
-
-class _Keys:
-    """Single key presses from a terminal, or characters from piped input."""
-
-    def __init__(self) -> None:
-        self._stdin = sys.stdin
-        self._tty = self._stdin.isatty()
-        self._last = ""
-
-    def read(self) -> str:
-        while True:
-            ch = click.getchar() if self._tty else self._stdin.read(1)
-            if ch == "":
-                raise click.UsageError("input ended before the calibration was finished; "
-                                       "nothing was written")
-            prev, self._last = self._last, ch
-            if ch == "\n" and prev == "\r":  # a CR LF pair is one enter
-                continue
-            return ch
-
-
-@click.group(invoke_without_command=True)
-@belt_option("The belt to calibrate")
-@output_option("file", "Write the calibration here [default: print it to stdout].")
-@click.option("--step", type=number(float, 0, 0.5, lo_open=True), default=0.02,
-              show_default=True, help="Level change per + or - key.")
-@click.pass_context
-def calibrate(ctx: click.Context, belt_url: str, out: Path | None, step: float) -> None:
-    """Walk through each tactor: the level where it is first felt, then a comfortable maximum.
-
-    `tactorbelt calibrate perceptual` measures a wearer's perceptual profile instead.
-
-    For each tactor: raise the level with + until the vibration is just felt and
-    press enter (that is the tactor's start level, below which it does not spin);
-    then raise it to the strongest level that is still comfortable and press enter
-    (its ceiling). Works with piped input too: `printf '+++\\n+++++\\n...' |
-    tactorbelt calibrate`. Prompts go to stderr; the calibration (TOML) to FILE or
-    stdout.
-    """
-    if ctx.invoked_subcommand is not None:
-        return
-    from ..calibrate import KEYS_HELP, CalibrationQuit, walk_calibration
-    from ..clock import WallClock
-
-    keys = _Keys()
-    from ..geometry import region_name
-
-    belt, _ = open_belt_for(belt_url, None)
-    with belt:
-        clock = belt.clock or WallClock()
-        click.echo(f"calibrating {_describe(belt)}; {KEYS_HELP}", err=True)
-        try:
-            calibration = walk_calibration(belt, clock, keys.read, step,
-                                           lambda line: click.echo(line, err=True),
-                                           region=region_name)
-        except CalibrationQuit as exc:
-            click.echo(str(exc), err=True)
-            raise click.exceptions.Exit(1) from None
-    if out:
-        path = calibration.save(out, belt=belt_url, angles_deg=belt.tactor_angles_deg)
-        click.echo(f"wrote {path}", err=True)
-    else:
-        click.echo(calibration.to_toml(belt=belt_url, angles_deg=belt.tactor_angles_deg), nl=False)
-
-
-def _add_perceptual() -> None:
-    from .perceptual import perceptual
-
-    calibrate.add_command(perceptual)
-
-
-_add_perceptual()
