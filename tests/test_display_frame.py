@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 
 from tactorbelt import Layout, open_belt
 from tactorbelt.clock import SimClock
-from tactorbelt.display import DirectionDisplay, _normalize1, _wrap1
+from tactorbelt.display.direction import DirectionDisplay, _normalize1, _wrap1
 from tactorbelt.geometry import normalize, wrap
 
 LAYOUTS = [Layout.even(6), Layout.even(8), Layout((0.0, 50.0, 130.0, 180.0, 250.0))]

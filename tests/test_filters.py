@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from tactorbelt import ConfigError, Layout
-from tactorbelt.filters import STEP_LAG_S, Hysteresis, OneEuroFilter, step_lag_s
+from tactorbelt.display.filters import STEP_LAG_S, Hysteresis, OneEuroFilter, step_lag_s
 
 
 def _signed(a: np.ndarray) -> np.ndarray:

@@ -19,7 +19,7 @@ import click
 
 from .._errors import ConfigError
 from .._lawnames import LAWS
-from ..heading import HeadingReader, HeadingSample, read_headings
+from ..display.heading import HeadingReader, HeadingSample, read_headings
 from ._options import FLOAT, POSITIVE, belt_option, number
 
 __all__ = ["HeadingReader", "HeadingSample", "point"]
@@ -109,7 +109,7 @@ def point(belt_url: str, bearing: float | None, heading_from: str | None,
 
     from ..devices import open_belt
     from ..display import DirectionDisplay
-    from ..heading import run_point
+    from ..display.heading import run_point
 
     say = (lambda msg: None) if quiet else (lambda msg: click.echo(msg, err=True))
     with open_belt(belt_url) as belt:

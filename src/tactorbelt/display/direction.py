@@ -73,8 +73,11 @@ from typing import TYPE_CHECKING, Final
 import numpy as np
 from numpy.typing import NDArray
 
-from ._errors import ConfigError, TactorbeltError
-from .clock import Clock, Deadlines, WallClock
+from .._errors import ConfigError, TactorbeltError
+from ..clock import Clock, Deadlines, WallClock
+from ..geometry import ANGLE_TOLERANCE_DEG, Layout, normalize, wrap
+from ..laws import DEFAULT_FALLOFF_DEG, amplitudes
+from ..stimuli import DEFAULT_PERIOD_S, DEFAULT_TRANSIT_S, Stimulus, make_stimulus
 from .filters import (
     DEFAULT_BETA,
     DEFAULT_D_CUTOFF_HZ,
@@ -83,13 +86,10 @@ from .filters import (
     Hysteresis,
     OneEuroFilter,
 )
-from .geometry import ANGLE_TOLERANCE_DEG, Layout, normalize, wrap
-from .laws import DEFAULT_FALLOFF_DEG, amplitudes
-from .stimuli import DEFAULT_PERIOD_S, DEFAULT_TRANSIT_S, Stimulus, make_stimulus
 
 if TYPE_CHECKING:
-    from .devices.base import Belt
-    from .profile import WearerProfile
+    from ..devices.base import Belt
+    from ..profile import WearerProfile
 
 __all__ = [
     "DEFAULT_DEVICE_RATE_HZ",

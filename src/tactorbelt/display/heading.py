@@ -22,10 +22,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, TYPE_CHECKING
 
-from ._errors import ConfigError
+from .._errors import ConfigError
 
 if TYPE_CHECKING:
-    from .display import DirectionDisplay
+    from .direction import DirectionDisplay
 
 __all__ = ["HeadingReader", "HeadingSample", "PointReport", "read_headings", "run_point"]
 

@@ -41,8 +41,8 @@ import math
 from dataclasses import dataclass
 from typing import Final
 
-from ._errors import ConfigError
-from .geometry import ANGLE_TOLERANCE_DEG, Layout, normalize, wrap
+from .._errors import ConfigError
+from ..geometry import ANGLE_TOLERANCE_DEG, Layout, normalize, wrap
 
 __all__ = [
     "DEFAULT_BETA",
