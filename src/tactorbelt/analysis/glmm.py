@@ -52,6 +52,7 @@ from __future__ import annotations
 
 import itertools
 import math
+import re
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Final
@@ -64,6 +65,8 @@ if TYPE_CHECKING:
 __all__ = [
     "SINGULAR_TOL",
     "FixedEffect",
+    "GlmmData",
+    "LmmData",
     "MixedModelFit",
     "ModelSpec",
     "RandomTerm",
@@ -71,7 +74,10 @@ __all__ = [
     "fit_lmm",
     "fit_simplified",
     "fixed_design",
+    "glmm_fit",
     "simplify_step",
+    "term_column",
+    "term_levels",
 ]
 
 #: lme4's ``isSingular`` tolerance on the elements of theta bounded below by 0.
@@ -203,19 +209,68 @@ def _is_numeric(s: pd.Series) -> bool:
     return bool(pd.api.types.is_numeric_dtype(s) and not pd.api.types.is_bool_dtype(s))
 
 
-def _factor_columns(df: pd.DataFrame, col: str) -> tuple[list[np.ndarray], list[str]]:
-    """The contrast columns of one variable, R's treatment coding."""
+_FACTOR_CALL = re.compile(r"^factor\((\w+)\)$")
+
+
+def term_column(term: str) -> str:
+    """The data column of a fixed-effect term: ``factor(n_targets)`` -> ``n_targets``."""
+    m = _FACTOR_CALL.match(term)
+    return m.group(1) if m else term
+
+
+def _r_number(v: float) -> str:
+    """A number as R's ``as.character`` writes it (``24``, ``0.5``), for level names."""
+    f = float(v)
+    return str(int(f)) if f.is_integer() and abs(f) < 1e15 else repr(f)
+
+
+def term_levels(df: pd.DataFrame, term: str) -> list[Any] | None:
+    """The levels of a factor term in R's order (None for a numeric column).
+
+    A text column: its values sorted as text (R's ``factor``). ``factor(col)`` of a
+    numeric column: its values sorted as numbers (``factor(n_targets)``: 12, 24, 36, 48).
+    """
+    col = term_column(term)
     s = df[col]
+    if term != col:
+        if _is_numeric(s):
+            return sorted({float(v) for v in s.dropna().to_numpy(dtype=float)})
+        return sorted(set(s.astype(str).tolist()))
     if _is_numeric(s):
-        return [s.to_numpy(dtype=float)], [col]
+        return None
+    return sorted(set(s.astype(str).to_numpy().tolist()))
+
+
+def _factor_columns(df: pd.DataFrame, term: str,
+                    levels: list[Any] | None = None) -> tuple[list[np.ndarray], list[str]]:
+    """The contrast columns of one term, R's treatment coding (``levels``: the fitted
+    data's, when ``df`` is a reference grid)."""
+    col = term_column(term)
+    s = df[col]
+    if levels is None:
+        levels = term_levels(df, term)
+    if levels is None:
+        return [s.to_numpy(dtype=float)], [term]
+    if levels and isinstance(levels[0], float):
+        vals_f = s.to_numpy(dtype=float)
+        return ([(vals_f == lv).astype(float) for lv in levels[1:]],
+                [f"{term}{_r_number(lv)}" for lv in levels[1:]])
     vals = s.astype(str).to_numpy()
-    levels = sorted(set(vals.tolist()))
     return ([(vals == lv).astype(float) for lv in levels[1:]],
-            [f"{col}{lv}" for lv in levels[1:]])
+            [f"{term}{lv}" for lv in levels[1:]])
 
 
-def fixed_design(df: pd.DataFrame, fixed: Sequence[str]) -> tuple[np.ndarray, list[str], list[str]]:
+def fixed_design(df: pd.DataFrame, fixed: Sequence[str], *,
+                 levels: dict[str, list[Any] | None] | None = None,
+                 check_rank: bool = True) -> tuple[np.ndarray, list[str], list[str]]:
     """``model.matrix(~ a * b * ...)`` with R's defaults.
+
+    Args:
+        df: the data (or a reference grid, with ``levels`` of the fitted data).
+        fixed: the terms, fully crossed; ``factor(col)`` codes a numeric column as a
+            factor, as R does.
+        levels: per term, the levels to code (default: the data's own).
+        check_rank: drop columns that are linear combinations of earlier ones.
 
     Returns:
         ``(X, names, dropped)``: the design (with ``(Intercept)`` first), its column
@@ -225,7 +280,8 @@ def fixed_design(df: pd.DataFrame, fixed: Sequence[str]) -> tuple[np.ndarray, li
     n = len(df)
     cols: list[np.ndarray] = [np.ones(n)]
     names: list[str] = ["(Intercept)"]
-    per = {c: _factor_columns(df, c) for c in fixed}
+    per = {c: _factor_columns(df, c, None if levels is None else levels.get(c))
+           for c in fixed}
     for degree in range(1, len(fixed) + 1):
         for combo in itertools.combinations(fixed, degree):
             parts = [per[c] for c in combo]
@@ -238,12 +294,15 @@ def fixed_design(df: pd.DataFrame, fixed: Sequence[str]) -> tuple[np.ndarray, li
                 cols.append(col)
                 names.append(":".join(p[1][i] for p, i in zip(parts, idx, strict=True)))
     x = np.column_stack(cols)
+    if not check_rank:
+        return x, names, []
     keep: list[int] = []
     dropped: list[str] = []
+    xu = np.unique(x, axis=0)  # the same rank, far fewer rows
     for j in range(x.shape[1]):
         trial = [*keep, j]
-        if np.linalg.matrix_rank(x[:, trial], tol=1e-7 * max(1.0, np.abs(x).max()) * n) == len(
-                trial):
+        tol = 1e-7 * max(1.0, float(np.abs(xu).max(initial=0.0))) * max(xu.shape[0], 1)
+        if np.linalg.matrix_rank(xu[:, trial], tol=tol) == len(trial):
             keep.append(j)
         else:
             dropped.append(names[j])
@@ -638,9 +697,10 @@ def _minimize(f: Any, x0: np.ndarray, lower: Sequence[float], *, ftol: float = 1
     return np.asarray(res.x, dtype=float), ok, msg
 
 
-def _pool(df: pd.DataFrame, x: np.ndarray, terms: list[_Term],
-          y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[_Term]]:
-    """Pool rows with equal covariates and groups: ``(x, sum of y, count, terms)``."""
+def _pool(x: np.ndarray, terms: list[_Term], y: np.ndarray
+          ) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[_Term], np.ndarray]:
+    """Pool rows with equal covariates and groups: ``(x, sum of y, count, terms, cell of
+    each row)``."""
     key = np.column_stack([x] + [np.c_[t.group, t.z] for t in terms])
     uniq, inv = np.unique(key, axis=0, return_inverse=True)
     inv = inv.ravel()
@@ -650,7 +710,7 @@ def _pool(df: pd.DataFrame, x: np.ndarray, terms: list[_Term],
     first = np.zeros(n_cells, dtype=np.int64)
     first[inv[::-1]] = np.arange(len(inv))[::-1]
     pooled = [_Term(t.name, t.group[first], t.z[first], t.columns, t.n_levels) for t in terms]
-    return x[first], ys, ms, pooled
+    return x[first], ys, ms, pooled, inv
 
 
 def _fixed_table(names: list[str], beta: np.ndarray, vcov: np.ndarray) -> dict[str, FixedEffect]:
@@ -686,7 +746,8 @@ def _random_table(terms: list[_Term], thetas: list[np.ndarray],
 
 
 def _check(df: pd.DataFrame, spec: ModelSpec) -> None:
-    missing = [c for c in (spec.response, *spec.fixed, *(t.group for t in spec.random),
+    missing = [c for c in (spec.response, *(term_column(f) for f in spec.fixed),
+                           *(t.group for t in spec.random),
                            *(s for t in spec.random for s in t.slopes)) if c not in df]
     if missing:
         raise ValueError("the data lack column(s) " + ", ".join(missing))
@@ -728,8 +789,66 @@ def _start(previous: MixedModelFit | None, theta_names: list[str],
     return np.asarray(out, dtype=float)
 
 
+class GlmmData:
+    """A binomial GLMM's data, prepared once: design, random terms, pooled cells.
+
+    Refits with other responses (the parametric bootstrap) reuse the design and the
+    pooling (which depend on covariates and groups only) and the structured system.
+    """
+
+    def __init__(self, df: pd.DataFrame, spec: ModelSpec) -> None:
+        _check(df, spec)
+        self.spec = spec
+        self.y = spec.response_values(df)
+        self.x, self.names, self.dropped = fixed_design(df, spec.fixed)
+        self.terms = _random_terms(df, spec)
+        self.xc, self.ys, self.ms, self.pterms, self.inv = _pool(self.x, self.terms, self.y)
+        self.n_obs = len(df)
+        self._lap: _Laplace | None = None
+
+    @property
+    def theta_names(self) -> list[str]:
+        return [nm for t in self.pterms for nm in t.theta_names()]
+
+    def pooled(self, y: np.ndarray) -> np.ndarray:
+        """Per-row responses summed per pooled cell."""
+        out: np.ndarray = np.bincount(self.inv, weights=y, minlength=self.ms.size)
+        return out
+
+    def laplace(self, ys: np.ndarray | None = None) -> _Laplace:
+        """The Laplace deviance for pooled successes ``ys`` (default: the data's)."""
+        if self._lap is None:
+            self._lap = _Laplace(self.pterms, self.xc, self.ys, self.ms)
+        lap = self._lap
+        lap.y = self.ys if ys is None else ys
+        lap.u1 = np.zeros_like(lap.u1)
+        lap.u2 = np.zeros_like(lap.u2)
+        lap.beta_joint = np.zeros(lap.p)
+        return lap
+
+    def linear_predictor(self, fit: MixedModelFit, rng: np.random.Generator,
+                         n_sim: int) -> np.ndarray:
+        """``(n_sim, N)`` linear predictors with new random effects drawn from ``fit``
+        (``b = Lambda(theta) u``, ``u ~ N(0, I)``; lme4's ``simulate(use.u = FALSE)``)."""
+        beta = np.array([fit.fixed_effects[nm].estimate for nm in self.names])
+        th = dict(zip(fit.theta_names, fit.theta, strict=True))
+        fixed = self.x @ beta
+        eta = np.repeat(fixed[None, :], n_sim, axis=0)
+        for t in self.terms:
+            tm = t.tri(np.array([th[nm] for nm in t.theta_names()]))
+            u = rng.standard_normal((n_sim, t.n_levels, t.b))
+            b = u @ tm.T  # (n_sim, levels, b)
+            eta += np.einsum("snb,nb->sn", b[:, t.group, :], t.z)
+        return eta
+
+    def simulate(self, fit: MixedModelFit, rng: np.random.Generator, n_sim: int) -> np.ndarray:
+        """``(n_sim, N)`` 0/1 responses simulated from ``fit`` (a fit of this model)."""
+        eta = self.linear_predictor(fit, rng, n_sim)
+        return (rng.random(eta.shape) < _expit(eta)).astype(float)
+
+
 def fit_glmm(df: pd.DataFrame, spec: ModelSpec, *, skip_se_if_simplified: bool = False,
-             start: MixedModelFit | None = None) -> MixedModelFit:
+             start: MixedModelFit | None = None, se: bool = True) -> MixedModelFit:
     """A binomial (logit) GLMM by maximum likelihood, Laplace approximation (glmer's nAGQ=1).
 
     Args:
@@ -740,22 +859,31 @@ def fit_glmm(df: pd.DataFrame, spec: ModelSpec, *, skip_se_if_simplified: bool =
         start: a fit of a model with these and more random effects on the same data (the
             previous step of :func:`fit_simplified`): stage 2 starts from its estimates
             instead of running stage 1 (the dropped components were at 0).
+        se: compute the standard errors (False: NaN, for refits that need the deviance
+            only).
 
     Raises:
         ValueError: a missing column, fewer than 2 levels of a grouping factor.
     """
-    _check(df, spec)
-    y = spec.response_values(df)
-    x, names, dropped = fixed_design(df, spec.fixed)
-    terms = _random_terms(df, spec)
-    xc, ys, ms, pterms = _pool(df, x, terms, y)
-    lap = _Laplace(pterms, xc, ys, ms)
+    data = GlmmData(df, spec)
+    par0 = _start(start, data.theta_names, data.names)
+    return glmm_fit(data, skip_se_if_simplified=skip_se_if_simplified, start_par=par0, se=se)
+
+
+def glmm_fit(data: GlmmData, y: np.ndarray | None = None, *,
+             skip_se_if_simplified: bool = False, start_par: np.ndarray | None = None,
+             se: bool = True) -> MixedModelFit:
+    """:func:`fit_glmm` on prepared data, optionally with another per-row response ``y``
+    (a refit, as lme4's ``refit(m, newresp = y)``) and a starting ``(theta, beta)``."""
+    spec = data.spec
+    lap = data.laplace(None if y is None else data.pooled(np.asarray(y, dtype=float)))
+    names, pterms = data.names, data.pterms
     messages: list[str] = []
-    if dropped:
+    if data.dropped:
         messages.append("fixed-effect model matrix is rank deficient so dropping "
-                        f"{len(dropped)} column(s): " + ", ".join(dropped))
+                        f"{len(data.dropped)} column(s): " + ", ".join(data.dropped))
     lower = lap.lower()
-    par0 = _start(start, [nm for t in pterms for nm in t.theta_names()], names)
+    par0 = start_par
     ok1 = True
     if par0 is None:
         theta0 = np.array([1.0 if b == 0.0 else 0.0 for b in lower])
@@ -768,7 +896,7 @@ def fit_glmm(df: pd.DataFrame, spec: ModelSpec, *, skip_se_if_simplified: bool =
     par, ok2, msg2 = _minimize(lap.dev, par0, lower + [-np.inf] * lap.p, gtol=1e-4)
     dev = lap.dev(par)
     theta, beta = par[: lap.n_theta], par[lap.n_theta:]
-    theta_names = [nm for t in pterms for nm in t.theta_names()]
+    theta_names = data.theta_names
     singular = bool(any(th < SINGULAR_TOL for th, lb in zip(theta, lower, strict=True)
                         if lb == 0.0))
     zero = [nm for nm, th, lb in zip(theta_names, theta, lower, strict=True)
@@ -776,7 +904,10 @@ def fit_glmm(df: pd.DataFrame, spec: ModelSpec, *, skip_se_if_simplified: bool =
     vcov_method = ("2 x inverse of the finite-difference Hessian of the Laplace deviance over "
                    "(theta, beta), as glmer's default vcov")
     vcov: np.ndarray | None
-    if singular and skip_se_if_simplified and simplify_step(spec, zero)[0] is not None:
+    if not se:
+        vcov = np.full((lap.p, lap.p), np.nan)
+        vcov_method = "not computed (a refit: only the deviance is needed)"
+    elif singular and skip_se_if_simplified and simplify_step(spec, zero)[0] is not None:
         vcov = np.full((lap.p, lap.p), np.nan)
         vcov_method = "not computed: a singular fit the simplification rule replaces"
     else:
@@ -795,47 +926,53 @@ def fit_glmm(df: pd.DataFrame, spec: ModelSpec, *, skip_se_if_simplified: bool =
         spec=spec, family="binomial", fixed_effects=_fixed_table(names, beta, vcov),
         vcov=vcov, random_effects=_random_table(pterms, lap.split(theta)), theta=theta,
         singular=singular, deviance=dev, loglik=-dev / 2.0, vcov_method=vcov_method,
-        converged=ok1 and ok2, messages=messages, n_obs=len(df), n_cells=int(ys.size),
+        converged=ok1 and ok2, messages=messages, n_obs=data.n_obs, n_cells=int(lap.y.size),
         theta_names=theta_names,
-        groups={t.name: t.n_levels for t in terms},
+        groups={t.name: t.n_levels for t in data.terms},
     )
 
 
 # -- the linear mixed model (REML) --------------------------------------------------------
 
-def fit_lmm(df: pd.DataFrame, spec: ModelSpec, *, reml: bool = True,
-            start: MixedModelFit | None = None) -> MixedModelFit:
-    """A linear mixed model by REML (``reml=False``: ML), as ``lme4::lmer``.
-
-    The profiled criterion of Bates et al. (2015, eq. 34/41) is minimised over theta
-    (L-BFGS-B, diagonal of theta >= 0); ``vcov = sigma^2 (R_X' R_X)^{-1}`` as lmer's.
-    z and p are Wald (normal) values; lmer itself prints t without a p.
+class LmmData:
+    """A linear mixed model's data, pooled (counts, sums and sums of squares per cell
+    of equal covariates and groups), and its profiled criterion as a function of theta.
     """
-    _check(df, spec)
-    y_obs = spec.response_values(df)
-    x_obs, names, dropped = fixed_design(df, spec.fixed)
-    n, p = x_obs.shape
-    # pool rows with equal covariates and groups: counts, sums and sums of squares
-    x, ysum, w, terms = _pool(df, x_obs, _random_terms(df, spec), y_obs)
-    y2sum = _pool(df, x_obs, _random_terms(df, spec), y_obs**2)[1]
-    sysm = _System(terms, x)
-    lower = [b for t in terms for b in t.lower_bounds()]
 
-    def split(theta: np.ndarray) -> list[np.ndarray]:
+    def __init__(self, df: pd.DataFrame, spec: ModelSpec) -> None:
+        _check(df, spec)
+        self.spec = spec
+        y_obs = spec.response_values(df)
+        x_obs, self.names, self.dropped = fixed_design(df, spec.fixed)
+        self.n, self.p = x_obs.shape
+        x, self.ysum, self.w, self.terms, inv = _pool(x_obs, _random_terms(df, spec), y_obs)
+        self.y2sum = np.bincount(inv, weights=y_obs**2, minlength=self.w.size)
+        self.sysm = _System(self.terms, x)
+        self.lower = [b for t in self.terms for b in t.lower_bounds()]
+
+    @property
+    def theta_names(self) -> list[str]:
+        return [nm for t in self.terms for nm in t.theta_names()]
+
+    def split(self, theta: np.ndarray) -> list[np.ndarray]:
         out, k = [], 0
-        for t in terms:
+        for t in self.terms:
             out.append(theta[k:k + t.n_theta])
             k += t.n_theta
         return out
 
-    def solve(theta: np.ndarray) -> tuple[float, dict[str, Any]]:
-        v1, d = sysm.rows(split(theta))
+    def state(self, theta: np.ndarray, reml: bool = True) -> dict[str, Any]:
+        """At ``theta``: the profiled criterion ``crit`` (REML or ML), ``log det(L L')``
+        (``ldl2``), ``log det(R_X' R_X)`` (``ldx``), the penalised weighted RSS
+        (``pwrss``), ``beta`` and ``R_X' R_X`` (``sbb``)."""
+        sysm, w, ysum, n, p = self.sysm, self.w, self.ysum, self.n, self.p
+        v1, d = sysm.rows(self.split(theta))
         f = sysm.factor(v1, d, w)
         r1 = sysm.scatter1(v1, ysum)
         r2 = d.tdot(ysum)
         x1, x2 = sysm.solve(f, r1, r2)
         fitted = sysm.eta_random(v1, d, x1, x2)
-        rss = float((y2sum - 2.0 * fitted * ysum + w * fitted**2).sum())
+        rss = float((self.y2sum - 2.0 * fitted * ysum + w * fitted**2).sum())
         pwrss = rss + float((x1**2).sum() + (x2[: sysm.r_u] ** 2).sum())
         ld = sysm.logdet_u(f)
         s = f["s"]
@@ -849,19 +986,33 @@ def fit_lmm(df: pd.DataFrame, spec: ModelSpec, *, reml: bool = True,
             crit = ld + ldx + dof * (1.0 + math.log(2.0 * math.pi * pwrss / dof))
         else:
             crit = ld + n * (1.0 + math.log(2.0 * math.pi * pwrss / n))
-        return crit, {"beta": x2[r_u:], "pwrss": pwrss, "sbb": sbb}
+        return {"crit": crit, "ldl2": ld, "ldx": ldx, "pwrss": pwrss, "beta": x2[r_u:],
+                "sbb": sbb}
 
-    theta0 = _start(start, [nm for t in terms for nm in t.theta_names()])
+
+def fit_lmm(df: pd.DataFrame, spec: ModelSpec, *, reml: bool = True,
+            start: MixedModelFit | None = None) -> MixedModelFit:
+    """A linear mixed model by REML (``reml=False``: ML), as ``lme4::lmer``.
+
+    The profiled criterion of Bates et al. (2015, eq. 34/41) is minimised over theta
+    (L-BFGS-B, diagonal of theta >= 0); ``vcov = sigma^2 (R_X' R_X)^{-1}`` as lmer's.
+    z and p are Wald (normal) values; :func:`tactorbelt.analysis.satterthwaite.satterthwaite`
+    gives lmerTest's t tests.
+    """
+    data = LmmData(df, spec)
+    n, p, lower = data.n, data.p, data.lower
+    theta0 = _start(start, data.theta_names)
     if theta0 is None:
         theta0 = np.array([1.0 if b == 0.0 else 0.0 for b in lower])
-    theta, ok, msg = _minimize(lambda t: solve(t)[0], theta0, lower)
-    crit, st = solve(theta)
+    theta, ok, msg = _minimize(lambda t: data.state(t, reml)["crit"], theta0, lower)
+    st = data.state(theta, reml)
+    crit = st["crit"]
     sigma2 = st["pwrss"] / ((n - p) if reml else n)
     vcov = sigma2 * np.linalg.inv(st["sbb"])
     messages = []
-    if dropped:
+    if data.dropped:
         messages.append("fixed-effect model matrix is rank deficient so dropping "
-                        f"{len(dropped)} column(s): " + ", ".join(dropped))
+                        f"{len(data.dropped)} column(s): " + ", ".join(data.dropped))
     if not ok:
         messages.append(f"optimizer: {msg}")
     singular = bool(any(th < SINGULAR_TOL for th, lb in zip(theta, lower, strict=True)
@@ -869,15 +1020,15 @@ def fit_lmm(df: pd.DataFrame, spec: ModelSpec, *, reml: bool = True,
     if singular:
         messages.append("boundary (singular) fit: see help('isSingular')")
     sigma = math.sqrt(sigma2)
-    re = _random_table(terms, split(theta), scale=sigma)
+    re = _random_table(data.terms, data.split(theta), scale=sigma)
     re["Residual"] = {"sd": {"(Intercept)": sigma}}
     return MixedModelFit(
-        spec=spec, family="gaussian", fixed_effects=_fixed_table(names, st["beta"], vcov),
+        spec=spec, family="gaussian", fixed_effects=_fixed_table(data.names, st["beta"], vcov),
         vcov=vcov, random_effects=re, theta=theta, singular=singular, deviance=crit,
         loglik=-crit / 2.0, vcov_method="sigma^2 (R_X' R_X)^-1, as lmer's vcov",
-        converged=ok, messages=messages, n_obs=n, n_cells=int(w.size),
-        theta_names=[nm for t in terms for nm in t.theta_names()],
-        groups={t.name: t.n_levels for t in terms},
+        converged=ok, messages=messages, n_obs=n, n_cells=int(data.w.size),
+        theta_names=data.theta_names,
+        groups={t.name: t.n_levels for t in data.terms},
         criterion="REML" if reml else "ML",
     )
 
