@@ -139,3 +139,98 @@ def test_apply_is_the_clipped_affine_map_bit_for_bit(rows: list[tuple[float, flo
                         0.0)
         got = cal.apply(a)
     assert got.tobytes() == want.tobytes()
+
+
+# -- measured timing (tactorbelt validate onsets) ------------------------------------------
+TIMED = Calibration(
+    (TactorCalibration(0.2, 1.0, 0.8, latency_ms=15.0, latency_sd_ms=0.3, rise_ms=100.0,
+                       rise_sd_ms=1.0, fall_ms=55.0, fall_sd_ms=0.5),
+     TactorCalibration(0.0, 2.0, 0.5, latency_ms=21.0, latency_sd_ms=0.4),
+     TactorCalibration(0.3, 0.5, 1.0)),
+    validated="2025-03-01T10:12:00+01:00", validation_method="model: belt.vibration at 10 kHz")
+
+
+def test_timing_round_trips_through_the_file_and_leaves_apply_alone(tmp_path: Path) -> None:
+    path = TIMED.save(tmp_path / "cal.toml", belt="sim")
+    back = Calibration.load(path)
+    assert back == TIMED
+    assert back.tactors[0].rise_ms == 100.0 and back.tactors[1].fall_ms is None
+    assert back.validated == "2025-03-01T10:12:00+01:00"
+    assert back.has_timing and not CAL.has_timing
+    frames = np.linspace(0, 1, 30).reshape(10, 3)
+    np.testing.assert_array_equal(back.apply(frames), CAL.apply(frames))
+    assert Calibration.identity(3).with_timing([None] * 3, "d", "m").is_identity
+    text = path.read_text()
+    assert "latency_ms = 15.0" in text and 'validation_method = "model' in text
+
+
+def test_old_files_load_without_timing(tmp_path: Path) -> None:
+    p = tmp_path / "old.toml"
+    p.write_text('format = "tactorbelt-calibration"\nversion = 1\nbelt = "sim"\n\n'
+                 "[[tactor]]\nindex = 0\nstart = 0.1\nceiling = 0.9\n")
+    cal = Calibration.load(p)
+    assert cal.validated is None and cal.tactors[0].latency_ms is None and not cal.has_timing
+
+
+def test_a_toml_date_is_read_as_text(tmp_path: Path) -> None:
+    p = tmp_path / "dated.toml"
+    p.write_text("validated = 2025-03-01T10:12:00Z\n[[tactor]]\nstart = 0.1\nceiling = 0.9\n"
+                 "latency_ms = 14\n")
+    cal = Calibration.load(p)
+    assert cal.validated == "2025-03-01T10:12:00+00:00" and cal.tactors[0].latency_ms == 14.0
+
+
+@pytest.mark.parametrize(("row", "where"), [
+    ("latency_ms = 'slow'", r"tactor\[0\]\.latency_ms: must be a finite number"),
+    ("rise_ms = -1.0", r"tactor\[0\]\.rise_ms: must be in \[0, 60000\]"),
+    ("fall_sd_ms = nan", r"tactor\[0\]\.fall_sd_ms: must be a finite number"),
+    ("latency_ms = true", r"tactor\[0\]\.latency_ms"),
+])
+def test_bad_timing_names_the_field(tmp_path: Path, row: str, where: str) -> None:
+    p = tmp_path / "bad.toml"
+    p.write_text(f"[[tactor]]\nstart = 0.1\nceiling = 0.9\n{row}\n")
+    with pytest.raises(ConfigError, match=where):
+        Calibration.load(p)
+
+
+def test_skin_latency_of_one_tactor_and_of_a_set() -> None:
+    assert TIMED.skin_latency([0]) == pytest.approx((15.0, 0.3))
+    ms, sd = TIMED.skin_latency({1, 0})
+    assert ms == pytest.approx(18.0)
+    # within-tactor variance (0.09 + 0.16) / 2 plus between-tactor variance 3**2
+    assert sd == pytest.approx(math.sqrt(0.125 + 9.0))
+    assert TIMED.skin_latency([0, 0]) == TIMED.skin_latency([0])
+
+
+@pytest.mark.parametrize(("tactors", "message"), [
+    ([], "at least one tactor"),
+    ([3], "tactor 3 is not on this 3-tactor calibration"),
+    ([0, 2], "tactor 2 has no measured latency.*validate onsets --calibration"),
+])
+def test_skin_latency_refuses_what_it_cannot_tell(tactors: list[int], message: str) -> None:
+    with pytest.raises(ConfigError, match=message):
+        TIMED.skin_latency(tactors)
+
+
+def test_update_timing_keeps_the_rest_of_the_file_and_creates_a_missing_one(
+        tmp_path: Path) -> None:
+    from tactorbelt.devices.calibration import update_timing
+
+    p = tmp_path / "cal.toml"
+    CAL.save(p, belt="serial:/dev/ttyACM0", angles_deg=[30.0, 150.0, 270.0])
+    timing = {"latency_ms": 12.5, "latency_sd_ms": 0.2, "rise_ms": 80.0, "rise_sd_ms": 1.0,
+              "fall_ms": 40.0, "fall_sd_ms": 0.5}
+    new = update_timing(p, 3, [timing, None, timing], "2025-01-01", "audio:USB?channel=0",
+                        belt="sim")
+    back = Calibration.load(p)
+    assert back == new and back.validation_method == "audio:USB?channel=0"
+    assert [t.start for t in back.tactors] == [t.start for t in CAL.tactors]
+    assert back.tactors[2].latency_ms == 12.5 and back.tactors[1].latency_ms is None
+    text = p.read_text()
+    assert 'belt = "serial:/dev/ttyACM0"' in text and "angle_deg = 150.0" in text
+    assert not [f for f in tmp_path.iterdir() if f.name != "cal.toml"]  # no temporary left
+    fresh = update_timing(tmp_path / "new" / "cal.toml", 2, [timing, timing], "d", "m",
+                          belt="sim", angles_deg=[90.0, 270.0])
+    assert fresh.is_identity and fresh.skin_latency([0, 1]) == pytest.approx((12.5, 0.2))
+    with pytest.raises(ConfigError, match="has 3 tactors but the belt has 6"):
+        update_timing(p, 6, [timing] * 6, "d", "m")

@@ -29,15 +29,41 @@ that evens out its frequency response, as ``[hz, gain]`` points interpolated on 
 log-frequency axis at the carrier frequency. Other belts ignore them, and they take no
 part in :meth:`Calibration.apply` (so they do not make a calibration non-identity).
 
+Measured timing, written by ``tactorbelt validate onsets --calibration FILE``
+(docs/validation.md), all optional: at the top ``validated`` (the date, ISO 8601) and
+``validation_method`` (the sensor and estimator); per tactor ``latency_ms`` (command to
+10 % of the steady vibration), ``rise_ms`` (10 to 90 %), ``fall_ms`` (90 to 10 % after
+the stop) and the spread of each over pulses (``latency_sd_ms``, ``rise_sd_ms``,
+``fall_sd_ms``). They take no part in :meth:`Calibration.apply` either;
+:meth:`Calibration.skin_latency` gives a tactor set's skin-onset offset from them. Files
+without them load as before::
+
+    validated = "2025-03-01T10:12:00+01:00"
+    validation_method = "audio:USB?channel=0: rectified moving mean, 4 ms"
+
+    [[tactor]]
+    start = 0.22
+    ceiling = 0.85
+    latency_ms = 15.2
+    latency_sd_ms = 0.4
+    rise_ms = 103.6
+    rise_sd_ms = 1.1
+    fall_ms = 54.9
+    fall_sd_ms = 0.8
+
 Pure: NumPy and the standard library (tomllib); tomli-w is imported only to save.
 """
 
 from __future__ import annotations
 
+import contextlib
+import datetime as _dt
 import math
+import os
+import tempfile
 import tomllib
-from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass, replace
 from functools import cached_property
 from pathlib import Path
 from typing import Any, Final
@@ -47,16 +73,24 @@ from numpy.typing import ArrayLike, NDArray
 
 from .._errors import ConfigError
 
-__all__ = ["FORMAT", "Calibration", "TactorCalibration", "response_gain"]
+__all__ = ["FORMAT", "TIMING_KEYS", "Calibration", "TactorCalibration", "response_gain",
+           "update_timing"]
 
 #: The ``format`` key of a calibration file.
 FORMAT: Final = "tactorbelt-calibration"
 #: The version of the file format written by :meth:`Calibration.save`.
 VERSION: Final = 1
 
-_TOP_KEYS: Final = frozenset({"format", "version", "belt", "created", "tactor"})
+#: The per-tactor timing keys (milliseconds) ``tactorbelt validate onsets`` measures.
+TIMING_KEYS: Final = ("latency_ms", "latency_sd_ms", "rise_ms", "rise_sd_ms", "fall_ms",
+                      "fall_sd_ms")
+#: The largest timing a file may hold (ms): a minute is no motor's response.
+_MAX_TIMING_MS: Final = 60_000.0
+
+_TOP_KEYS: Final = frozenset({"format", "version", "belt", "created", "tactor", "validated",
+                              "validation_method"})
 _TACTOR_KEYS: Final = frozenset({"index", "angle_deg", "start", "gain", "ceiling", "channel",
-                                 "response"})
+                                 "response", *TIMING_KEYS})
 #: The highest output channel a calibration may name (``channel``).
 MAX_CHANNEL: Final = 255
 
@@ -78,6 +112,31 @@ def _check_response(points: Sequence[Sequence[float]]) -> None:
         last = hz
 
 
+def _check_timing(name: str, value: object) -> str | None:
+    """Why ``value`` is not a valid ``name`` (a timing key), or None. A latency may be
+    negative (an onset stamped after the device changed its outputs); the rest may not."""
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+        return f"must be a finite number of milliseconds, got {value!r}"
+    low = -_MAX_TIMING_MS if name == "latency_ms" else 0.0
+    if not low <= float(value) <= _MAX_TIMING_MS:
+        return f"must be in [{low:g}, {_MAX_TIMING_MS:g}] ms, got {value!r}"
+    return None
+
+
+def _ms(value: Any) -> float | None:
+    return None if value is None else float(value)
+
+
+def _with_timing(t: TactorCalibration, timing: Mapping[str, Any]) -> TactorCalibration:
+    """``t`` with the :data:`TIMING_KEYS` of ``timing`` (a missing key: None)."""
+    return replace(t, latency_ms=_ms(timing.get("latency_ms")),
+                   latency_sd_ms=_ms(timing.get("latency_sd_ms")),
+                   rise_ms=_ms(timing.get("rise_ms")), rise_sd_ms=_ms(timing.get("rise_sd_ms")),
+                   fall_ms=_ms(timing.get("fall_ms")), fall_sd_ms=_ms(timing.get("fall_sd_ms")))
+
+
 def response_gain(points: Sequence[tuple[float, float]], hz: float) -> float:
     """The gain of a frequency response at ``hz`` (1.0 with no points): linear in
     log-frequency between points, the end values beyond them."""
@@ -92,15 +151,26 @@ def response_gain(points: Sequence[tuple[float, float]], hz: float) -> float:
 class TactorCalibration:
     """Calibration of one tactor: start level, gain and ceiling, each in [0, 1] (gain > 0);
     for audio belts optionally its output ``channel`` and frequency ``response``
-    (``((hz, gain), ...)``, frequencies increasing)."""
+    (``((hz, gain), ...)``, frequencies increasing); optionally its measured timing in ms
+    (:data:`TIMING_KEYS`, from ``tactorbelt validate onsets``; None: not measured)."""
 
     start: float = 0.0
     gain: float = 1.0
     ceiling: float = 1.0
     channel: int | None = None
     response: tuple[tuple[float, float], ...] = ()
+    latency_ms: float | None = None
+    latency_sd_ms: float | None = None
+    rise_ms: float | None = None
+    rise_sd_ms: float | None = None
+    fall_ms: float | None = None
+    fall_sd_ms: float | None = None
 
     def __post_init__(self) -> None:
+        for name in TIMING_KEYS:
+            problem = _check_timing(name, getattr(self, name))
+            if problem:
+                raise ConfigError(f"calibration {name} {problem}")
         if self.channel is not None and not (
                 isinstance(self.channel, int) and 0 <= self.channel <= MAX_CHANNEL):
             raise ConfigError(f"calibration channel must be an integer in 0..{MAX_CHANNEL}, "
@@ -120,13 +190,23 @@ class TactorCalibration:
 
 @dataclass(frozen=True)
 class Calibration:
-    """Calibration of every tactor of a belt (index k is tactor k)."""
+    """Calibration of every tactor of a belt (index k is tactor k).
+
+    ``validated`` (an ISO 8601 date) and ``validation_method`` say when and how the
+    tactors' timing was measured (``tactorbelt validate onsets``); None when it was not.
+    """
 
     tactors: tuple[TactorCalibration, ...]
+    validated: str | None = None
+    validation_method: str | None = None
 
     def __post_init__(self) -> None:
         if not self.tactors:
             raise ConfigError("a calibration needs at least one tactor")
+        for name in ("validated", "validation_method"):
+            v = getattr(self, name)
+            if v is not None and not isinstance(v, str):
+                raise ConfigError(f"calibration {name} must be text, got {v!r}")
 
     @classmethod
     def identity(cls, n: int) -> Calibration:
@@ -160,6 +240,65 @@ class Calibration:
         if len(set(chans)) != len(chans):
             raise ConfigError(f"calibration: two tactors name the same channel: {list(chans)}")
         return chans
+
+    @property
+    def has_timing(self) -> bool:
+        """True when some tactor has a measured latency (``validate onsets``)."""
+        return any(t.latency_ms is not None for t in self.tactors)
+
+    def with_timing(self, timings: Sequence[Mapping[str, float | None] | None],
+                    validated: str, method: str) -> Calibration:
+        """This calibration with each tactor's timing replaced (``timings[k]``: the
+        :data:`TIMING_KEYS` of tactor k, None to leave a tactor as it is), dated
+        ``validated`` by ``method``. :meth:`apply` is unchanged.
+
+        Raises:
+            ConfigError: not one entry per tactor, an unknown key, a value out of range.
+        """
+        if len(timings) != self.n:
+            raise ConfigError(f"expected the timing of {self.n} tactors, got {len(timings)}")
+        rows = []
+        for k, (t, timing) in enumerate(zip(self.tactors, timings, strict=True)):
+            if timing is None:
+                rows.append(t)
+                continue
+            unknown = sorted(set(timing) - set(TIMING_KEYS))
+            if unknown:
+                raise ConfigError(f"tactor {k}: unknown timing key {unknown[0]!r}; allowed: "
+                                  f"{', '.join(TIMING_KEYS)}")
+            rows.append(_with_timing(t, timing))
+        return replace(self, tactors=tuple(rows), validated=str(validated),
+                       validation_method=str(method))
+
+    def skin_latency(self, tactors: Iterable[int]) -> tuple[float, float]:
+        """The skin-onset offset of a stimulus on ``tactors``: ``(ms, sd_ms)``.
+
+        ``ms`` is the mean of the tactors' ``latency_ms`` (command to 10 % of the steady
+        vibration, as ``tactorbelt validate onsets`` measured it); add it to a trial's
+        stored onset to get when the skin was stimulated. ``sd_ms`` is how far one onset
+        may be from that, pulse to pulse: the root of the tactors' mean variance
+        (``latency_sd_ms**2``) plus the variance of their latencies about the mean (the
+        onsets of a set of tactors spread by both). It is not the error of the mean.
+
+        Raises:
+            ConfigError: no tactor given, a tactor not on this belt, or a tactor without
+                a measured latency (the message says how to measure it).
+        """
+        ks = sorted({int(k) for k in tactors})
+        if not ks:
+            raise ConfigError("skin_latency needs at least one tactor")
+        bad = [k for k in ks if not 0 <= k < self.n]
+        if bad:
+            raise ConfigError(f"tactor {bad[0]} is not on this {self.n}-tactor calibration")
+        missing = [k for k in ks if self.tactors[k].latency_ms is None]
+        if missing:
+            raise ConfigError(f"tactor {missing[0]} has no measured latency in the calibration; "
+                              "measure it with 'tactorbelt validate onsets --calibration FILE'")
+        lat = np.array([self.tactors[k].latency_ms for k in ks], dtype=float)
+        sd = np.array([self.tactors[k].latency_sd_ms or 0.0 for k in ks], dtype=float)
+        mean = float(lat.mean())
+        spread = float(np.sqrt(np.mean(sd**2) + np.mean((lat - mean) ** 2)))
+        return mean, spread
 
     @cached_property
     def _identity(self) -> bool:
@@ -204,23 +343,29 @@ class Calibration:
                 row["channel"] = t.channel
             if t.response:
                 row["response"] = [list(p) for p in t.response]
+            for name in TIMING_KEYS:
+                if getattr(t, name) is not None:
+                    row[name] = getattr(t, name)
             rows.append(row)
         return rows
 
     @classmethod
     def from_list(cls, rows: Sequence[dict[str, Any]]) -> Calibration:
+        """The calibration of :meth:`to_list`'s rows (the top-level ``validated`` and
+        ``validation_method`` are not in them)."""
         return cls(tuple(TactorCalibration(**{
             **r, **({"response": tuple(tuple(p) for p in r["response"])} if "response" in r
                     else {})}) for r in rows))
 
     # -- files ----------------------------------------------------------------------
     def to_toml(self, belt: str | None = None,
-                angles_deg: Sequence[float] | None = None) -> str:
+                angles_deg: Sequence[float] | None = None, created: str | None = None) -> str:
         """The calibration as TOML text (see the module docstring for the format).
 
         Args:
             belt: the belt URL, recorded for the reader's information.
             angles_deg: tactor angles, recorded for the reader's information.
+            created: when the calibration was made, recorded for the reader.
         """
         import tomli_w
 
@@ -233,8 +378,11 @@ class Calibration:
             f'format = "{FORMAT}"',
             f"version = {VERSION}",
         ]
-        if belt:
-            lines.append(tomli_w.dumps({"belt": str(belt)}).strip())
+        top = {"belt": belt, "created": created, "validated": self.validated,
+               "validation_method": self.validation_method}
+        for key, value in top.items():
+            if value:
+                lines.append(tomli_w.dumps({key: str(value)}).strip())
         for k, t in enumerate(self.tactors):
             lines += ["", "[[tactor]]", f"index = {k}"]
             if angles_deg is not None:
@@ -246,11 +394,18 @@ class Calibration:
             if t.response:
                 points = ", ".join(f"[{float(h)!r}, {float(g)!r}]" for h, g in t.response)
                 lines.append(f"response = [{points}]")
+            for name in TIMING_KEYS:
+                value = getattr(t, name)
+                if value is not None:
+                    lines.append(f"{name} = {float(value)!r}")
         return "\n".join(lines) + "\n"
 
     def save(self, path: str | Path, belt: str | None = None,
-             angles_deg: Sequence[float] | None = None) -> Path:
+             angles_deg: Sequence[float] | None = None, created: str | None = None) -> Path:
         """Write the calibration to a TOML file (parent directories are created).
+
+        Atomic: the text goes to a temporary file beside it, which then replaces the
+        file, so a reader (or a crash) never sees half a calibration.
 
         Returns:
             The path written.
@@ -259,13 +414,31 @@ class Calibration:
             ConfigError: the file cannot be written (the message names it).
         """
         p = Path(path)
-        text = self.to_toml(belt, angles_deg)
+        text = self.to_toml(belt, angles_deg, created)
+        tmp: str | None = None
         try:
             if p.parent != Path(""):
                 p.parent.mkdir(parents=True, exist_ok=True)
-            p.write_text(text, encoding="utf-8")
+            fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp",
+                                       dir=p.parent if p.parent != Path("") else ".")
+            with os.fdopen(fd, "w", encoding="utf-8") as f:
+                f.write(text)
+                f.flush()
+                os.fsync(f.fileno())
+            if p.exists():  # keep the file's permissions
+                os.chmod(tmp, p.stat().st_mode & 0o7777)
+            else:
+                umask = os.umask(0)
+                os.umask(umask)
+                os.chmod(tmp, 0o666 & ~umask)
+            os.replace(tmp, p)
+            tmp = None
         except OSError as exc:
             raise ConfigError(f"cannot write calibration file {str(p)!r}: {exc.strerror}") from None
+        finally:
+            if tmp is not None:
+                with contextlib.suppress(OSError):
+                    os.unlink(tmp)
         return p
 
     @classmethod
@@ -306,6 +479,14 @@ class Calibration:
             raise fail("format", f"must be {FORMAT!r}, got {doc['format']!r}")
         if "version" in doc and doc["version"] != VERSION:
             raise fail("version", f"unsupported version {doc['version']!r}; allowed: {VERSION}")
+        top: dict[str, str | None] = {}
+        for name in ("validated", "validation_method"):
+            v = doc.get(name)
+            if isinstance(v, _dt.date | _dt.time):  # a TOML date or date-time
+                v = v.isoformat()
+            if v is not None and not isinstance(v, str):
+                raise fail(name, f"must be text (or a TOML date), got {v!r}")
+            top[name] = v
         rows = doc.get("tactor")
         if rows is None:
             raise fail("tactor", "missing: add one [[tactor]] table per tactor")
@@ -354,7 +535,56 @@ class Calibration:
                 _check_response(response)
             except ConfigError as exc:
                 raise fail(f"{where}.response", str(exc)) from None
-            tactors.append(TactorCalibration(
+            for name in TIMING_KEYS:
+                problem = _check_timing(name, row.get(name))
+                if problem:
+                    raise fail(f"{where}.{name}", problem)
+            tactor = TactorCalibration(
                 **values, channel=channel,
-                response=tuple((float(h), float(g)) for h, g in response)))
-        return cls(tuple(tactors))
+                response=tuple((float(h), float(g)) for h, g in response))
+            tactors.append(_with_timing(tactor, row))
+        return cls(tuple(tactors), **top)
+
+
+def update_timing(path: str | Path, n: int,
+                  timings: Sequence[Mapping[str, float | None] | None], validated: str,
+                  method: str, belt: str | None = None,
+                  angles_deg: Sequence[float] | None = None) -> Calibration:
+    """Write measured timings into the calibration file ``path``, in place, atomically.
+
+    An existing file keeps everything else (start, gain, ceiling, channel, response, and
+    its ``belt``, ``created`` and ``angle_deg`` notes); a missing file is created with an
+    identity calibration of ``n`` tactors (``belt`` and ``angles_deg`` noted).
+
+    Returns:
+        The calibration written.
+
+    Raises:
+        ConfigError: the file is not a calibration, has another number of tactors than
+            ``n``, or cannot be written.
+    """
+    from .._textfile import read_user_text
+
+    p = Path(path)
+    created: str | None = None
+    if p.exists():
+        text = read_user_text(p, "calibration file")
+        cal = Calibration.from_toml(text, source=str(p))
+        doc = tomllib.loads(text)
+        belt = str(doc["belt"]) if doc.get("belt") else belt
+        created = str(doc["created"]) if doc.get("created") else None
+        rows = doc.get("tactor", [])
+        noted = [r.get("angle_deg") for r in rows if isinstance(r, Mapping)]
+        angles = [float(a) for a in noted if isinstance(a, int | float)]
+        if angles and len(angles) == len(noted) == cal.n:
+            angles_deg = angles
+        if cal.n != n:
+            raise ConfigError(f"calibration file {str(p)!r} has {cal.n} tactors but the belt "
+                              f"has {n}")
+    else:
+        cal = Calibration.identity(n)
+    if angles_deg is not None and len(angles_deg) != n:
+        angles_deg = None
+    new = cal.with_timing(timings, validated, method)
+    new.save(p, belt=belt, angles_deg=angles_deg, created=created)
+    return new
