@@ -6,12 +6,16 @@ A cell is one (condition, n_targets, load) combination. Counting follows
 
 Information transfer is estimated from each participant's confusion matrix of the
 cell (rows: the n targets, columns: the response snapped to the nearest of those n
-targets), with the Miller-Madow correction of :mod:`.transfer`, then averaged over
-participants (``it_bits``). Pooling every participant's trials into one matrix
-would count the differences between participants' response biases as transfer and
-give one number without a spread; the pooled value is reported as well
-(``it_bits_pooled``) for comparison. Timeouts carry no response and are left out of
-the matrices (they count in ``n`` and against ``accuracy``).
+targets) by :func:`.transfer.estimate_transfer` (the estimator chosen by simulation,
+:data:`.transfer.ESTIMATOR`, clamped to ``[0, log2 n]``), then averaged over
+participants (``it_bits``), with a two-level bootstrap interval
+(:func:`.transfer.cell_interval`: participants resampled, and each one's trials
+resampled within each target; ``it_bits_ci_low``, ``it_bits_ci_high``). Pooling every
+participant's trials into one matrix would count the differences between
+participants' response biases as transfer and give one number without a spread; the
+pooled value is reported as well (``it_bits_pooled``) for comparison. Timeouts carry
+no response and are left out of the matrices (they count in ``n`` and against
+``accuracy``).
 
 Trials of stores written before factorial designs have no ``n_targets`` or
 ``load`` column: they get the single target count (``n_targets`` argument, or
@@ -23,12 +27,13 @@ Pure: NumPy and pandas; never an I/O layer.
 from __future__ import annotations
 
 import math
+import zlib
 from typing import TYPE_CHECKING, Any, Final, cast
 
 import numpy as np
 
 from .tables import prepare_trials
-from .transfer import information_transfer, miller_madow_transfer
+from .transfer import ESTIMATOR, cell_interval, estimate_transfer, information_transfer
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -36,6 +41,9 @@ if TYPE_CHECKING:
 __all__ = [
     "CELL_COLUMNS",
     "CELL_KEYS",
+    "IT_CI_LEVEL",
+    "IT_CI_METHOD",
+    "IT_N_BOOT",
     "PARTICIPANT_CELL_COLUMNS",
     "cell_summary",
     "cells_to_json",
@@ -52,9 +60,19 @@ PARTICIPANT_CELL_COLUMNS: Final = [
 ]
 CELL_COLUMNS: Final = [
     *CELL_KEYS, "n_participants", "n", "n_correct", "n_timeout", "accuracy", "it_bits",
-    "it_bits_sd", "it_bits_plain", "it_bits_pooled", "median_rt_s", "mean_abs_error_deg",
+    "it_bits_sd", "it_bits_ci_low", "it_bits_ci_high", "it_bits_plain", "it_bits_pooled",
+    "median_rt_s", "mean_abs_error_deg",
     "n_on_tactor", "accuracy_on_tactor", "n_between_tactor", "accuracy_between_tactor",
 ]
+
+#: resamples and level of the cell interval of ``it_bits``
+IT_N_BOOT: Final = 2000
+IT_CI_LEVEL: Final = 0.95
+#: summary.json's ``it_bits_ci_method``
+IT_CI_METHOD: Final = (
+    "95 % percentile bootstrap, two-level: participants resampled with replacement, and "
+    "each drawn participant's trials resampled within each target (multinomial), the "
+    f"estimate recomputed and recentred on that participant's; {IT_N_BOOT} resamples")
 
 
 def infer_n_targets(target_deg: np.ndarray) -> int:
@@ -123,8 +141,9 @@ def _stats(c: pd.DataFrame) -> dict[str, float | int]:
 def participant_cells(trials: pd.DataFrame, n_targets: int | None = None) -> pd.DataFrame:
     """One row per (participant, condition, n_targets, load): :data:`PARTICIPANT_CELL_COLUMNS`.
 
-    ``it_bits`` is the Miller-Madow estimate from the participant's confusion matrix
-    of the cell, ``it_bits_plain`` the plug-in one.
+    ``it_bits`` is :func:`~.transfer.estimate_transfer` of the participant's confusion
+    matrix of the cell (clamped to ``[0, log2 n_targets]``), ``it_bits_plain`` the
+    plug-in estimate.
     """
     import pandas as pd
 
@@ -135,12 +154,18 @@ def participant_cells(trials: pd.DataFrame, n_targets: int | None = None) -> pd.
         n = int(n_obj)
         m = _matrix(g, n)
         rows.append({"participant": p, "condition": cond, "n_targets": n, "load": load,
-                     **_stats(g), "it_bits": miller_madow_transfer(m),
-                     "it_bits_plain": information_transfer(m)})
+                     **_stats(g), "it_bits": float(estimate_transfer(m)),
+                     "it_bits_plain": float(information_transfer(m))})
     return pd.DataFrame(rows, columns=PARTICIPANT_CELL_COLUMNS)
 
 
-def cell_summary(trials: pd.DataFrame, n_targets: int | None = None) -> pd.DataFrame:
+def _cell_rng(seed: int, cond: Any, n: int, load: Any) -> np.random.Generator:
+    """The cell's own generator: its interval does not depend on the other cells."""
+    return np.random.default_rng([seed, zlib.crc32(f"{cond}|{n}|{load}".encode())])
+
+
+def cell_summary(trials: pd.DataFrame, n_targets: int | None = None, *, seed: int = 0,
+                 n_boot: int = IT_N_BOOT) -> pd.DataFrame:
     """One row per (condition, n_targets, load): :data:`CELL_COLUMNS`.
 
     Args:
@@ -148,11 +173,15 @@ def cell_summary(trials: pd.DataFrame, n_targets: int | None = None) -> pd.DataF
             with or without :func:`~tactorbelt.analysis.tables.prepare_trials`).
         n_targets: the target count of trials without an ``n_targets`` value (old
             stores); None infers it from the angles.
+        seed, n_boot: the bootstrap of the ``it_bits`` interval (each cell draws from
+            its own generator, seeded by ``seed`` and the cell's keys).
 
     ``accuracy``, ``median_rt_s`` and ``mean_abs_error_deg`` pool the cell's trials;
-    ``it_bits`` is the mean over participants of each one's Miller-Madow estimate
-    (``it_bits_sd`` their SD, NaN for one participant), ``it_bits_plain`` the mean
-    plug-in estimate, ``it_bits_pooled`` the Miller-Madow estimate of the pooled matrix.
+    ``it_bits`` is the mean over participants of each one's estimate
+    (:func:`~.transfer.estimate_transfer`; ``it_bits_sd`` their SD, NaN for one
+    participant; ``it_bits_ci_low``/``it_bits_ci_high`` its 95 % interval,
+    :func:`~.transfer.cell_interval`), ``it_bits_plain`` the mean plug-in estimate,
+    ``it_bits_pooled`` the estimate of the pooled matrix.
     Rows are sorted by condition (static first), n_targets and load (``none`` first).
     """
     import pandas as pd
@@ -167,13 +196,18 @@ def cell_summary(trials: pd.DataFrame, n_targets: int | None = None) -> pd.DataF
                      & (per["load"] == load)]
         on = g.loc[g["on_tactor"].astype(bool)]
         between = g.loc[~g["on_tactor"].astype(bool)]
+        mats = [_matrix(gp, n) for _, gp in g.groupby("participant", sort=True,
+                                                      observed=True)]
+        lo, hi = cell_interval(mats, rng=_cell_rng(seed, cond, n, load), n_boot=n_boot,
+                               level=IT_CI_LEVEL)
         rows.append({
             "condition": cond, "n_targets": n, "load": load,
             "n_participants": int(g["participant"].nunique()), **_stats(g),
             "it_bits": float(pp["it_bits"].mean()),
             "it_bits_sd": float(pp["it_bits"].std(ddof=1)) if len(pp) > 1 else float("nan"),
+            "it_bits_ci_low": lo, "it_bits_ci_high": hi,
             "it_bits_plain": float(pp["it_bits_plain"].mean()),
-            "it_bits_pooled": miller_madow_transfer(_matrix(g, n)),
+            "it_bits_pooled": float(estimate_transfer(_matrix(g, n))),
             "n_on_tactor": len(on),
             "accuracy_on_tactor": float(on["is_correct"].mean()) if len(on) else float("nan"),
             "n_between_tactor": len(between),
@@ -206,9 +240,11 @@ def cells_to_json(cells: pd.DataFrame | None) -> list[dict[str, Any]]:
     """The ``cells`` list of ``summary.json``: one object per (condition, n_targets, load).
 
     Keys: condition, n_targets, load, n_participants, n, n_correct, n_timeout,
-    accuracy, it_bits (mean over participants of the Miller-Madow estimate), it_bits_sd,
-    it_bits_plain, it_bits_pooled, median_rt_s, mean_abs_error_deg, and ``on_tactor`` /
-    ``between_tactor`` objects with ``n`` and ``accuracy``. Numbers that cannot be
+    accuracy, it_bits (mean over participants of each one's estimate), it_bits_sd,
+    it_bits_ci_low, it_bits_ci_high (its 95 % interval), it_bits_method (the estimator,
+    :data:`.transfer.ESTIMATOR`), it_bits_ci_method (:data:`IT_CI_METHOD`),
+    it_bits_plain, it_bits_pooled, median_rt_s, mean_abs_error_deg, and ``on_tactor``
+    / ``between_tactor`` objects with ``n`` and ``accuracy``. Numbers that cannot be
     computed are null.
     """
     if cells is None:
@@ -221,6 +257,10 @@ def cells_to_json(cells: pd.DataFrame | None) -> list[dict[str, Any]]:
             "n": int(r["n"]), "n_correct": int(r["n_correct"]),
             "n_timeout": int(r["n_timeout"]), "accuracy": _num(r["accuracy"]),
             "it_bits": _num(r["it_bits"]), "it_bits_sd": _num(r["it_bits_sd"]),
+            "it_bits_ci_low": _num(r["it_bits_ci_low"]),
+            "it_bits_ci_high": _num(r["it_bits_ci_high"]),
+            "it_bits_method": f"{ESTIMATOR}, clamped to [0, log2 n_targets]",
+            "it_bits_ci_method": IT_CI_METHOD,
             "it_bits_plain": _num(r["it_bits_plain"]),
             "it_bits_pooled": _num(r["it_bits_pooled"]),
             "median_rt_s": _num(r["median_rt_s"]),

@@ -18,7 +18,8 @@ from typing import TYPE_CHECKING, Any, Final
 
 from ._format import number as _fmt
 from ._format import percent as _pct
-from .cells import is_factorial
+from .cells import IT_N_BOOT, is_factorial
+from .transfer import ESTIMATOR
 
 if TYPE_CHECKING:
     from .stats import Summary
@@ -26,10 +27,13 @@ if TYPE_CHECKING:
 __all__ = ["CELL_FIGURE_CAPTIONS", "cell_figure_names", "cells_section"]
 
 CELL_FIGURE_CAPTIONS: Final = {
-    "resolution.png": "Accuracy, information transfer (bits, Miller-Madow bias-corrected, "
-                      "from each participant's confusion matrix of the cell) and median RT "
-                      "against the number of targets; one line per condition (and load). "
-                      "Points are means over participants, bars their 95 % t intervals.",
+    "resolution.png": "Accuracy, information transfer (bits, from each participant's "
+                      f"confusion matrix of the cell, {ESTIMATOR} bias-corrected and clamped "
+                      "to [0, log2 targets], then averaged) and median RT against the "
+                      "number of targets; one line per condition (and load). Points are "
+                      "means over participants; accuracy and RT bars their 95 % t "
+                      "intervals, information-transfer bars the 95 % two-level bootstrap "
+                      "interval (participants, and trials within each target, resampled).",
     "fig1b": "Fig. 1(B) of the paper for the blocks of {n} targets: amplitude of each "
              "tactor against direction, accuracy and median RT per direction, static vs "
              "dynamic (loads pooled).",
@@ -51,13 +55,13 @@ def cells_section(summary: Summary, figures: dict[str, bytes]) -> str:
     assert cells is not None
     e = html.escape
     head = ["condition", "targets", "load", "participants", "n trials", "accuracy",
-            "information transfer (bits)", "median RT (s)", "mean |error| (°)",
+            "information transfer, bits [95 % CI]", "median RT (s)", "mean |error| (°)",
             "on-tactor accuracy", "between-tactor accuracy"]
     rows = []
     for r in cells.to_dict("records"):
         it = _fmt(r["it_bits"])
-        if math.isfinite(float(r["it_bits_sd"])):
-            it += f" ± {_fmt(r['it_bits_sd'], 2)}"
+        if math.isfinite(float(r["it_bits_ci_low"])):
+            it += f" [{_fmt(r['it_bits_ci_low'])}, {_fmt(r['it_bits_ci_high'])}]"
         rows.append([e(str(r["condition"])), str(int(r["n_targets"])), e(str(r["load"])),
                      str(int(r["n_participants"])), str(int(r["n"])), _pct(r["accuracy"]),
                      it, _fmt(r["median_rt_s"]), _fmt(r["mean_abs_error_deg"]),
@@ -69,9 +73,18 @@ def cells_section(summary: Summary, figures: dict[str, bytes]) -> str:
              + "".join("<tr>" + "".join(f"<td>{c}</td>" for c in row) + "</tr>"
                        for row in rows) + "</tbody></table>")
     parts = ["<h2>Results by cell (condition x targets x load)</h2>", table,
-             "<p><small>Accuracy, RT and error pool the cell's trials; information "
-             "transfer is the mean (± SD) over participants of each one's bias-corrected "
-             "estimate (summary.json <code>cells</code>; docs/analysis.md).</small></p>"]
+             "<p><small>Accuracy, RT and error pool the cell's trials. Information "
+             "transfer is the mean over participants of each one's estimate from their "
+             "confusion matrix of the cell: the mutual information between target and "
+             f"response with the {e(ESTIMATOR)} bias correction (coverage-adjusted "
+             "entropies, Chao &amp; Shen 2003; chosen as the estimator with the smallest "
+             "error in a simulation with known truth), clamped to [0, log2 targets] "
+             "(no channel carries more, no information is negative). The interval is a "
+             f"95 % percentile bootstrap ({IT_N_BOOT} resamples) of that mean, at two "
+             "levels: participants resampled, and each one's trials resampled within "
+             "each target. With few trials per target the estimate is still biased "
+             "upwards, most for diffuse answers (summary.json <code>cells</code>; "
+             "docs/analysis.md).</small></p>"]
     for name in cell_figure_names(figures):
         m = _FIG1B.match(name)
         cap = (CELL_FIGURE_CAPTIONS["fig1b"].format(n=m.group(1)) if m

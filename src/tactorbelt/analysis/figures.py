@@ -442,18 +442,24 @@ def resolution_figure(participant_cells: pd.DataFrame, cells: pd.DataFrame) -> b
     """Accuracy, information transfer and median RT against the number of targets.
 
     One line per condition (and per load, by line style); each point is the mean over
-    participants of their per-cell value with its 95 % t interval (no bar with one
-    participant). Information transfer is the bias-corrected (Miller-Madow) estimate
-    from each participant's confusion matrix of the cell; the dotted grey line is the
-    most a cell can carry, log2(targets).
+    participants of their per-cell value. Accuracy and RT bars: the 95 % t interval of
+    that mean (no bar with one participant). Information transfer: each participant's
+    estimate from their confusion matrix of the cell
+    (:func:`tactorbelt.analysis.transfer.estimate_transfer`), averaged; its bars are
+    the cell's bootstrap interval (``it_bits_ci_low``/``it_bits_ci_high`` of ``cells``,
+    :func:`tactorbelt.analysis.transfer.cell_interval`), drawn with one participant
+    too. The dotted grey line is the most a cell can carry, log2(targets).
     """
+    from .transfer import ESTIMATOR
+
     fig = _figure(11.5, 4.2)
     axes = fig.subplots(1, 3)
     loads = list(dict.fromkeys(cells["load"].tolist())) if len(cells) else ["none"]
     counts = sorted({int(n) for n in cells["n_targets"].tolist()})
     pc = participant_cells
     n_part = int(pc["participant"].nunique()) if len(pc) else 0
-    specs = (("accuracy", "accuracy"), ("it_bits", "information transfer (bits)"),
+    specs = (("accuracy", "accuracy"),
+             ("it_bits", f"information transfer (bits, {ESTIMATOR})"),
              ("median_rt_s", "median RT (s)"))
     for ax, (col, label) in zip(axes, specs, strict=True):
         _style(ax)
@@ -462,23 +468,33 @@ def resolution_figure(participant_cells: pd.DataFrame, cells: pd.DataFrame) -> b
                 sel = pc.loc[(pc["condition"] == cond) & (pc["load"] == load)]
                 if sel.empty:
                     continue
-                xs, ms, hs = [], [], []
+                xs, ms, lo, hi = [], [], [], []
                 for n in counts:
                     v = sel.loc[sel["n_targets"] == n, col].to_numpy(dtype=float)
                     if v.size == 0:
                         continue
                     m, h = _mean_ci(v)
+                    down, up = h, h
+                    c = cells.loc[(cells["condition"] == cond) & (cells["load"] == load)
+                                  & (cells["n_targets"] == n)]
+                    if col == "it_bits" and len(c):
+                        m = float(c["it_bits"].iloc[0])
+                        ci = c[["it_bits_ci_low", "it_bits_ci_high"]].iloc[0].to_numpy(float)
+                        down, up = ((max(0.0, m - ci[0]), max(0.0, ci[1] - m))
+                                    if np.isfinite(ci).all() else (0.0, 0.0))
                     xs.append(n)
                     ms.append(m)
-                    hs.append(h)
+                    lo.append(down)
+                    hi.append(up)
                 name = cond if len(loads) == 1 else f"{cond}, load {load}"
-                ax.errorbar(xs, ms, yerr=hs, color=COLORS[cond], marker=MARKERS[cond],
+                ax.errorbar(xs, ms, yerr=[lo, hi], color=COLORS[cond], marker=MARKERS[cond],
                             linestyle=LOAD_STYLES[li % len(LOAD_STYLES)] if len(loads) > 1
                             else LINESTYLES[cond], capsize=3, linewidth=1.5, markersize=5,
                             label=name)
         if col == "it_bits" and counts:
             ax.plot(counts, np.log2(counts), color="#999999", linestyle=":", linewidth=1,
                     label="log2(targets)")
+            ax.set_ylim(bottom=0)
         if col == "accuracy":
             ax.set_ylim(-0.03, 1.03)
         if col == "median_rt_s" and not np.isfinite(pc[col].to_numpy(dtype=float)).any():
@@ -490,10 +506,11 @@ def resolution_figure(participant_cells: pd.DataFrame, cells: pd.DataFrame) -> b
             _no_data(ax, "no counted test trials")
     axes[0].legend(fontsize=7.5, frameon=False, loc="lower left")
     axes[1].legend(fontsize=7.5, frameon=False, loc="upper left")
-    bars = ("bars: 95 % t interval of the mean across participants" if n_part > 1
-            else "one participant: no interval")
-    fig.suptitle(f"Performance against target resolution ({n_part} participant(s); {bars})",
-                 fontsize=10.5)
+    bars = ("accuracy and RT bars: 95 % t interval across participants; " if n_part > 1
+            else "one participant: no accuracy or RT bars; ")
+    fig.suptitle(f"Performance against target resolution ({n_part} participant(s))\n{bars}"
+                 "information-transfer bars: 95 % bootstrap interval (participants and "
+                 "trials resampled)", fontsize=10)
     return _png(fig)
 
 
