@@ -404,8 +404,11 @@ class LslObserver:
         now = self.clock.now_ns()
         self._end_task(now)
         if name is not None and spec is not None and phase is not None:
+            from .tasks.kinds import task_kind
+
+            fields = {"n": None, **task_kind(spec.kind).stream_fields(spec)}
             self.send(now, "task_start", task=name, kind=spec.kind, phase=phase,
-                      n=spec.n if spec.kind == "nback" else None, modality=spec.modality,
+                      **fields, modality=spec.modality,
                       block_index=self._block if phase == "dual" else None)
             self._task = (name, phase)
         self.inner.on_task_phase(name, spec, phase)

@@ -37,6 +37,7 @@ from pydantic import (
 from .._errors import ConfigError, StudyFileError
 from .._lawnames import LawName
 from ..geometry import Layout, TargetSet
+from ..tasks.kinds import NO_TASK, task_kind
 
 __all__ = [
     "CONDITIONS",
@@ -223,7 +224,7 @@ class TaskSpec(_Model):
     the dual-task cost). ``kind = "none"`` is a load with no task.
     """
 
-    kind: Literal["nback", "arithmetic", "none"]
+    kind: str
     n: int = Field(default=2, validate_default=True)
     modality: Literal["auditory", "visual"] = "auditory"
     interval_s: float = Field(default=2.5, gt=0, le=60)
@@ -233,11 +234,19 @@ class TaskSpec(_Model):
     practice: int = Field(default=12, ge=0, le=200)
     baseline: int = Field(default=0, ge=0, le=500)
 
+    @field_validator("kind")
+    @classmethod
+    def _kind(cls, v: str) -> str:
+        if v != NO_TASK:
+            task_kind(v)  # ValueError naming the registered kinds
+        return v
+
     @field_validator("n")
     @classmethod
     def _n(cls, v: int, info: ValidationInfo) -> int:
-        if info.data.get("kind") == "nback" and not 1 <= v <= 3:
-            raise ValueError(f"n must be 1, 2 or 3 (got {v!r})")
+        kind = info.data.get("kind")
+        if kind is not None and kind != NO_TASK:
+            task_kind(kind).check_fields(v)
         return v
 
     @field_validator("response")
@@ -274,7 +283,7 @@ class TaskSpec(_Model):
     @property
     def active(self) -> bool:
         """A task runs (``kind`` is not ``none``)."""
-        return self.kind != "none"
+        return self.kind != NO_TASK
 
 
 class QuestionnaireSpec(_Model):
@@ -1061,7 +1070,7 @@ class StudyDescription:
                        f"({c.condition}{load}, {plural(c.repetitions, 'repetition')} x "
                        f"{plural(c.n_targets, 'target')})")
         for name, t in s.used_tasks().items():
-            what = (f"{t.n}-back" if t.kind == "nback" else "odd sums (a+b)")
+            what = task_kind(t.kind).describe(t)
             out.append(f"  task        {name}: {t.modality} {what}, an item every "
                        f"{t.interval_s:g} s ({t.stimulus_s:g} s long), press {t.response} "
                        f"on {t.match_rate:.0%} go items; {plural(t.practice, 'practice item')}"

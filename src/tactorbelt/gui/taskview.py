@@ -36,7 +36,8 @@ from typing import TYPE_CHECKING, Any, Final
 
 from .._errors import ConfigError
 from ..tasks.audio import TaskAudio, open_task_audio
-from ..tasks.sounds import SoundBank, beep_slot_s
+from ..tasks.kinds import task_kind
+from ..tasks.sounds import SoundBank
 
 if TYPE_CHECKING:
     from ..clock import Clock
@@ -105,32 +106,12 @@ def parse_response(text: str) -> Response:
 
 
 def task_title(name: str, spec: TaskSpec) -> str:
-    """``2-back (tones)``, ``arithmetic (beeps)`` ... in the participant's words."""
-    what = {"auditory": "tones", "visual": "letters"}[spec.modality]
-    if spec.kind == "arithmetic":
-        what = "beeps" if spec.modality == "auditory" else "sums"
-        return f"Odd sums ({what})"
-    return f"{spec.n}-back ({what})"
+    """``2-back (tones)``, ``Odd sums (beeps)`` ... in the participant's words."""
+    return task_kind(spec.kind).title(spec)
 
 
 def _rule(spec: TaskSpec, button: str) -> list[str]:
-    every = f"every {spec.interval_s:g} s"
-    back = {1: "the one just before it", 2: "the one two before it",
-            3: "the one three before it"}.get(spec.n, f"the one {spec.n} before it")
-    if spec.kind == "arithmetic":
-        if spec.modality == "auditory":
-            return [f"You will hear high beeps, then low beeps, {every}.",
-                    "Count both and add them up.",
-                    f"Press {button} when the sum is odd (3, 5, 7); otherwise do nothing."]
-        return [f"A sum like 3+4 appears left and right of the ellipse {every}.",
-                f"Press {button} when the sum is odd; otherwise do nothing."]
-    if spec.modality == "auditory":
-        return [f"You will hear a tone {every}.",
-                f"Press {button} when a tone is the same as {back};",
-                "otherwise do nothing."]
-    return [f"A letter appears left and right of the ellipse {every}.",
-            f"Press {button} when it is the same letter as {back};",
-            "otherwise do nothing."]
+    return task_kind(spec.kind).rule(spec, button)
 
 
 def instructions(name: str, spec: TaskSpec, phase: str, n_items: int, button: str,
@@ -164,14 +145,9 @@ def check_responses(study: Study) -> None:
         if not spec.active:
             continue
         parse_response(spec.response)
-        if spec.kind == "arithmetic" and spec.modality == "auditory":
-            slot = beep_slot_s(spec.stimulus_s)
-            longest = 9 * slot  # 4 + 4 beeps and the pause between the operands
-            if longest >= spec.interval_s:
-                raise ConfigError(
-                    f"tasks.{name}: an auditory sum lasts up to {longest:.2f} s (9 beep "
-                    f"slots of {slot:.2f} s) but interval_s is {spec.interval_s:g} s; make "
-                    f"interval_s longer than {longest:.2f} s")
+        problem = task_kind(spec.kind).check_timing(name, spec)
+        if problem is not None:
+            raise ConfigError(problem)
 
 
 class PracticeCoach:
@@ -276,9 +252,8 @@ class TaskPresenter:
         self._presses.clear()
         if phase == "practice":
             if self.coach is None or self._coach_of != name:  # after a pause: the same
-                go = ("an odd sum", "odd sums") if spec.kind == "arithmetic" else \
-                    ("a match", "matches")
-                self.coach = PracticeCoach(round(spec.interval_s * 1e9), *go)
+                self.coach = PracticeCoach(round(spec.interval_s * 1e9),
+                                           *task_kind(spec.kind).go_words)
                 self._coach_of = name
         else:
             self.coach = None
@@ -313,8 +288,8 @@ class TaskPresenter:
                 self.audio = open_task_audio(self.clock)
             if self._bank is None:
                 self._bank = SoundBank(self.audio.rate)
-            self.audio.schedule(self._bank.get(item.stimulus, spec.stimulus_s), onset_ns,
-                                item.stimulus)
+            self.audio.schedule(self._bank.get(item.stimulus, spec.stimulus_s, spec.kind),
+                                onset_ns, item.stimulus)
         else:
             end = onset_ns + round(spec.stimulus_s * 1e9)
             self._glyphs.append((onset_ns, end, item.stimulus))

@@ -746,12 +746,9 @@ class ExperimentWindow:
             button = self.tasks.response
             spec = self.tasks.spec
             if button is not None and spec is not None:
-                from .taskview import task_title
+                from ..tasks.kinds import task_kind
 
-                v.prompt = (f"{task_title(self.tasks.name or '', spec)}: press "
-                            f"{button.words()} on a match")
-                if spec.kind == "arithmetic":
-                    v.prompt = f"Press {button.words()} when the sum is odd"
+                v.prompt = task_kind(spec.kind).prompt(spec, button.words())
             said = self.tasks.feedback(now_ns)
             if said is not None:
                 v.prompt = said

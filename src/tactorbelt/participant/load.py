@@ -19,15 +19,17 @@ differently under load follows from ``L`` and :class:`LoadParams`:
   raw-TLX items, with per-participant offsets and item noise, rounded to the slider's
   step of 5.
 
-The model never uses the schedule's answer (``TaskItem.target``): it keeps the last n
-items it heard or saw and computes the parity of ``a+b`` itself.
+The model never uses the schedule's answer (``TaskItem.target``): each task kind
+(:mod:`tactorbelt.tasks.kinds`) works it out from the items, as a person would (an
+n-back keeps the last n items it heard or saw, arithmetic computes the parity of
+``a+b``), and says how hard it is (its load level, d' and response-time steps).
 
 Sources are named where the literature supports an effect's direction; every number
 is an assumption (docs/participant-model.md, "Under cognitive load"). What the model does
 under load follows from these assumptions and is no evidence about people.
 
-Pure: imports the standard library, NumPy, participant.params and the constants of
-tactorbelt.tasks (the phases and the TLX items); task specs are read
+Pure: imports the standard library, NumPy, participant.params, the constants of
+tactorbelt.tasks (the phases and the TLX items) and its kinds; task specs are read
 by their fields (``kind``, ``n``), so any object with them works.
 """
 
@@ -42,6 +44,7 @@ import numpy as np
 
 from .._errors import ConfigError
 from ..tasks import PHASES, TLX_ITEMS
+from ..tasks.kinds import NO_TASK, TaskKind, task_kind
 from .params import ModelParams
 
 __all__ = [
@@ -70,18 +73,20 @@ class TaskLike(Protocol):
     def n(self) -> int: ...
 
 
+def _kind(spec: TaskLike) -> TaskKind:
+    try:
+        return task_kind(spec.kind)
+    except ValueError as exc:
+        raise ConfigError(f"unknown secondary task kind: {exc}") from None
+
+
 def load_level(spec: TaskLike | None) -> float:
     """The task's load level L in [0, 1]: 0 without a task (or ``kind = "none"``),
     ``n / 3`` for an n-back (1/3, 2/3, 1), 2/3 for arithmetic (assumption: odd/even of a
     one-digit sum is about as demanding as a 2-back)."""
-    if spec is None or spec.kind == "none":
+    if spec is None or spec.kind == NO_TASK:
         return 0.0
-    if spec.kind == "nback":
-        return min(max(int(spec.n), 1), 3) / 3.0
-    if spec.kind == "arithmetic":
-        return 2.0 / 3.0
-    raise ConfigError(f"unknown secondary task kind {spec.kind!r}; use nback, arithmetic "
-                      "or none")
+    return _kind(spec).load_level(spec)
 
 
 @dataclass(frozen=True)
@@ -218,12 +223,9 @@ def task_d_prime(spec: TaskLike, phase: str, load: LoadParams | None = None,
     """The model's d' on ``spec`` in ``phase`` (lower in ``dual`` than alone), times the
     participant's ``ability`` (1: the typical participant)."""
     lp = load if load is not None else LoadParams()
-    if spec.kind == "nback":
-        d = lp.d_prime_nback[min(max(int(spec.n), 1), 3) - 1]
-    elif spec.kind == "arithmetic":
-        d = lp.d_prime_arithmetic
-    else:
+    if spec.kind == NO_TASK:
         raise ConfigError(f"a task of kind {spec.kind!r} has no items to answer")
+    d = _kind(spec).model_d_prime(spec, lp)
     return d * ability * (lp.dual_d_prime_factor if _dual(phase) else 1.0)
 
 
@@ -242,9 +244,8 @@ def task_hit_fa(spec: TaskLike, phase: str, load: LoadParams | None = None,
 def task_rt_median_s(spec: TaskLike, phase: str, load: LoadParams | None = None) -> float:
     """The model's median press RT (seconds from the item's onset)."""
     lp = load if load is not None else LoadParams()
-    n = int(spec.n) if spec.kind == "nback" else 1
-    return lp.rt_s + lp.rt_s_per_n * (min(max(n, 1), 3) - 1) + (lp.dual_rt_s if _dual(phase)
-                                                                else 0.0)
+    steps = _kind(spec).model_rt_steps(spec)
+    return lp.rt_s + lp.rt_s_per_n * steps + (lp.dual_rt_s if _dual(phase) else 0.0)
 
 
 class TaskResponder:
@@ -281,7 +282,7 @@ class TaskResponder:
     def start(self, spec: TaskLike | None, phase: str | None, interval_s: float = 2.5) -> None:
         """A task phase starts (``spec``, ``phase``) or ends (None, None). Presses still
         planned for the previous run's items are dropped (they belong to no run)."""
-        if spec is None or spec.kind == "none":
+        if spec is None or spec.kind == NO_TASK:
             self._spec = None
             self._phase = None
         else:
@@ -297,17 +298,7 @@ class TaskResponder:
         it); None while an n-back's memory holds fewer than n items."""
         spec = self._spec
         assert spec is not None
-        if spec.kind == "arithmetic":
-            a, _, b = stimulus.partition("+")
-            return (int(a) + int(b)) % 2 == 1
-        n = int(spec.n)
-        go: bool | None = None
-        if len(self._memory) >= n:
-            go = self._memory[-n] == stimulus
-        self._memory.append(stimulus)
-        while len(self._memory) > n:
-            self._memory.popleft()
-        return go
+        return _kind(spec).model_is_go(spec, stimulus, self._memory)
 
     def item(self, stimulus: str, onset_ns: int) -> int | None:
         """The model perceives an item presented at ``onset_ns``; returns the time of its

@@ -3,21 +3,14 @@
 :func:`item_sequence` gives a task's items, seeded and endless: the same spec and seed
 give the same items on every machine. Every task is go/no-go:
 
-- n-back: an item is a go item (``target``) when it equals the item ``n`` back. With
-  probability ``match_rate`` an item (from the n-th on) repeats the one n back;
-  otherwise it is drawn from the other seven, so no item is a match by accident.
-  Auditory items are tones ``tone0`` .. ``tone7`` (:data:`NBACK_TONES`), visual items
-  letters from :data:`NBACK_LETTERS`.
-- arithmetic: an item ``a+b`` is a go item when the sum is odd (probability
-  ``match_rate``). Visual operands are 1..9; auditory ones 1..4 (played as beep
-  counts).
+each kind (:mod:`.kinds`: n-back, arithmetic) says which of its items are go items.
 
 :func:`classify` scores presses against items with onsets: a press belongs to the
 latest item whose onset <= press < onset + interval; the first press of an item is its
 response, any later one (and a press that belongs to no item) is an extra press, a
 false alarm of its own row.
 
-Pure: imports the standard library only.
+Pure: imports the standard library and the task kinds only.
 """
 
 from __future__ import annotations
@@ -28,6 +21,10 @@ import random
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
+
+from .items import TaskItem
+from .kinds import NO_TASK, task_kind
+from .kinds.nback import NBACK_LETTERS, NBACK_TONES
 
 if TYPE_CHECKING:
     from ..experiment.study import TaskSpec
@@ -41,28 +38,6 @@ __all__ = [
     "derive_seed",
     "item_sequence",
 ]
-
-#: The 8 tones of auditory n-back (the window plays tone k at its own pitch).
-NBACK_TONES = tuple(f"tone{k}" for k in range(8))
-#: The 8 consonants of visual n-back (distinct shapes, no vowels: no words form).
-NBACK_LETTERS = ("B", "F", "H", "K", "M", "Q", "R", "X")
-
-
-@dataclass(frozen=True)
-class TaskItem:
-    """One item of a task.
-
-    Attributes:
-        index: position in the task run (0-based).
-        stimulus: ``tone3`` (auditory n-back), ``K`` (visual n-back) or ``3+4``
-            (arithmetic).
-        target: a go item (press the response button). Scoring only: a participant
-            (and the model participant) must work it out from the stimuli.
-    """
-
-    index: int
-    stimulus: str
-    target: bool
 
 
 @dataclass(frozen=True)
@@ -103,47 +78,17 @@ def derive_seed(*parts: object) -> int:
     return int.from_bytes(hashlib.sha256(text).digest()[:8], "big") >> 1
 
 
-def _nback(rng: random.Random, pool: Sequence[str], n: int, p: float) -> Iterator[TaskItem]:
-    recent: list[str] = []
-    k = 0
-    while True:
-        if len(recent) >= n and rng.random() < p:
-            stim, target = recent[-n], True
-        else:
-            avoid = recent[-n] if len(recent) >= n else None
-            choices = [s for s in pool if s != avoid]
-            stim, target = choices[rng.randrange(len(choices))], False
-        yield TaskItem(k, stim, target)
-        recent.append(stim)
-        if len(recent) > n:
-            del recent[0]
-        k += 1
-
-
-def _arithmetic(rng: random.Random, top: int, p: float) -> Iterator[TaskItem]:
-    k = 0
-    while True:
-        odd = rng.random() < p
-        a = rng.randint(1, top)
-        bs = [b for b in range(1, top + 1) if (a + b) % 2 == int(odd)]
-        b = bs[rng.randrange(len(bs))]
-        yield TaskItem(k, f"{a}+{b}", odd)
-        k += 1
-
-
 def item_sequence(spec: TaskSpec, seed: int) -> Iterator[TaskItem]:
-    """The items of a task, endless and deterministic in ``(spec, seed)``.
+    """The items of a task, endless and deterministic in ``(spec, seed)``: its kind's
+    (:mod:`.kinds`) items, drawn from a generator seeded by the spec and ``seed``.
 
     Raises:
         ValueError: a task of kind ``none`` (it has no items).
     """
+    if spec.kind == NO_TASK:
+        raise ValueError(f"a task of kind {spec.kind!r} has no items")
     rng = random.Random(derive_seed("items", spec.kind, spec.modality, spec.n, seed))
-    if spec.kind == "nback":
-        pool = NBACK_TONES if spec.modality == "auditory" else NBACK_LETTERS
-        return _nback(rng, pool, spec.n, spec.match_rate)
-    if spec.kind == "arithmetic":
-        return _arithmetic(rng, 4 if spec.modality == "auditory" else 9, spec.match_rate)
-    raise ValueError(f"a task of kind {spec.kind!r} has no items")
+    return task_kind(spec.kind).items(spec, rng)
 
 
 def classify(items_with_onsets: Sequence[tuple[TaskItem, int]], presses_ns: Sequence[int],

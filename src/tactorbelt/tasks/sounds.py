@@ -149,14 +149,21 @@ class SoundBank:
 
     def __init__(self, rate: int = RATE) -> None:
         self.rate = int(rate)
-        self._cache: dict[tuple[str, float], FloatArray] = {}
+        self._cache: dict[tuple[str | None, str, float], FloatArray] = {}
 
-    def get(self, stimulus: str, stimulus_s: float) -> FloatArray:
-        """The sound of ``stimulus`` (see :func:`item_sound`), read-only."""
-        key = (stimulus, float(stimulus_s))
+    def get(self, stimulus: str, stimulus_s: float, kind: str | None = None) -> FloatArray:
+        """The sound of ``stimulus``, read-only: as its task ``kind`` makes it
+        (:mod:`.kinds`), or without a kind as :func:`item_sound` does."""
+        key = (kind, stimulus, float(stimulus_s))
         s = self._cache.get(key)
         if s is None:
-            s = item_sound(stimulus, stimulus_s, self.rate)
+            if kind is None:
+                s = item_sound(stimulus, stimulus_s, self.rate)
+            else:
+                from .kinds import task_kind
+
+                s = np.asarray(task_kind(kind).sound(stimulus, stimulus_s, self.rate),
+                               dtype=float)
             s.flags.writeable = False
             self._cache[key] = s
         return s
