@@ -312,3 +312,16 @@ def test_the_wheel_carries_the_sketch_and_it_compiles_on_the_real_core(tmp_path:
                                str(tmp_path / "objects")],
                               capture_output=True, text=True, timeout=600)
     assert compiled.returncode == 0, (compiled.stdout + compiled.stderr)[-4000:]
+
+
+def test_1200_baud_is_refused_before_the_port_is_touched() -> None:
+    """Opening a Nano 33 BLE at 1200 baud and closing it resets it into its bootloader."""
+    from tactorbelt import ConfigError
+
+    dev = PtyDevice(FakeFirmware())
+    try:
+        with pytest.raises(ConfigError, match="bootloader"):
+            open_belt(f"serial:{dev.path}?baudrate=1200")
+        assert dev.firmware.requests == []
+    finally:
+        dev.close()

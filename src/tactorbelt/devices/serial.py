@@ -25,7 +25,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, Final
 
-from .._errors import DeviceError, ProtocolError
+from .._errors import ConfigError, DeviceError, ProtocolError
 from . import wire
 from ._firmware import DEFAULT_TIMEOUT_S, FirmwareBelt, PacketSink, Transport
 from .registry import Discovery, Found, check_options
@@ -242,6 +242,10 @@ def open_serial_port(port: str, url: str | None = None, **options: Any) -> Firmw
     url = url or f"serial:{port}"
     check_options(options, OPTIONS, url)
     baudrate = int(options.pop("baudrate", 115200))
+    if baudrate == 1200:  # the mbed core's "1200 baud touch": the board resets into its
+        raise ConfigError(  # bootloader when the port closes (docs/hardware.md)
+            f"baudrate=1200 on {port} would reset a Nano 33 BLE into its bootloader when "
+            "the port closes (the upload trigger); use any other rate (USB ignores it)")
     transport = SerialTransport(port, baudrate=baudrate, dtr=bool(options.pop("dtr", True)))
     try:
         return FirmwareBelt(transport, url, stream_rate_hz=SERIAL_STREAM_RATE_HZ, **options)
