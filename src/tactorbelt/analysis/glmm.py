@@ -618,7 +618,59 @@ class _Laplace:
         self.u1, self.u2 = u1, ud[:r_u]
         if joint:
             self.beta_joint = ud[r_u:]
-        return pen + ld, {"eta": eta, "factor": f, "system": sysm, "u1": u1, "ud": ud}
+        return pen + ld, {"eta": eta, "factor": f, "system": sysm, "u1": u1, "ud": ud,
+                          "v1": v1, "d": d, "w": w, "mu": mu}
+
+    def beta_gradient(self, st: dict[str, Any]) -> np.ndarray:
+        """The gradient of the Laplace deviance over beta (theta fixed), analytically.
+
+        ``D(beta) = dev(eta*) + |u*|^2 + log det A`` with ``A = Lambda'Z'WZ Lambda + I``
+        at the conditional modes ``u*(beta)``. The first two terms: by the envelope
+        theorem ``-2 X'(y - m mu)``. The log det: ``sum_i h_i w'_i deta_i/dbeta`` with
+        ``h_i = V_i A^-1 V_i'`` (``V = Z Lambda``), ``w' = dW/deta = m mu (1 - mu)
+        (1 - 2 mu)`` and ``deta/dbeta = X - V A^-1 V'WX`` (the modes move with beta).
+        """
+        sysm, f, v1, d = st["system"], st["factor"], st["v1"], st["d"]
+        mu, w = st["mu"], st["w"]
+        x = self.x
+        g_dev = -2.0 * (x.T @ (self.y - self.m * mu))
+        # h_i: the term-1 block and the dense part (Schur complement S)
+        g1 = sysm.g1
+        h = np.einsum("ib,ibc,ic->i", v1, f["inv11"][g1], v1)
+        r = sysm.r
+        if r:
+            q = np.einsum("ibr,ib->ir", f["inv_a12"][g1], v1)
+            np.subtract.at(q, (np.arange(q.shape[0])[:, None], d.cols), d.vals)
+            sinv = np.linalg.inv(f["s"])
+            h = h + np.einsum("ir,rs,is->i", q, sinv, q)
+        # deta/dbeta = X - V A^-1 V' W X, one solve per column of X
+        wx = w[:, None] * x
+        dx = x.copy()
+        for j in range(x.shape[1]):
+            t1, t2 = sysm.solve(f, sysm.scatter1(v1, wx[:, j]), d.tdot(wx[:, j]))
+            dx[:, j] -= sysm.eta_random(v1, d, t1, t2)
+        wprime = w * (1.0 - 2.0 * mu)
+        return np.asarray(g_dev + dx.T @ (h * wprime))
+
+    def dev_and_grad(self, par: np.ndarray, lower: np.ndarray,
+                     h: float = 1e-5) -> tuple[float, np.ndarray]:
+        """The deviance and its gradient: analytic over beta, central differences over
+        theta (one-sided at a bound)."""
+        th, beta = par[: self.n_theta], par[self.n_theta:]
+        dev, st = self._pirls(th, beta)
+        g_beta = self.beta_gradient(st)
+        u1, u2 = self.u1.copy(), self.u2.copy()
+        g = np.zeros(par.size)
+        for i in range(self.n_theta):
+            e = np.zeros(par.size)
+            e[i] = h
+            if par[i] - h < lower[i]:
+                g[i] = (self.dev(par + e) - dev) / h
+            else:
+                g[i] = (self.dev(par + e) - self.dev(par - e)) / (2 * h)
+        self.u1, self.u2 = u1, u2  # warm starts from the point, not its neighbours
+        g[self.n_theta:] = g_beta
+        return dev, g
 
     def dev_theta(self, theta: np.ndarray) -> float:
         return self._pirls(theta, None)[0]
@@ -628,6 +680,11 @@ class _Laplace:
 
     def rx_vcov(self, par: np.ndarray) -> np.ndarray:
         """``(R_X' R_X)^{-1}``: the conditional covariance of beta given theta."""
+        return np.asarray(np.linalg.inv(self.rx(par)))
+
+    def rx(self, par: np.ndarray) -> np.ndarray:
+        """``R_X' R_X`` at ``(theta, beta)``: half the Hessian of the deviance over beta
+        when the modes are held (the conditional information)."""
         _, st = self._pirls(par[: self.n_theta], par[self.n_theta:])
         mu = _expit(st["eta"])
         w = self.m * mu * (1.0 - mu)
@@ -638,7 +695,7 @@ class _Laplace:
         sbb = s[r_u:, r_u:]
         if r_u:
             sbb = sbb - s[r_u:, :r_u] @ np.linalg.solve(s[:r_u, :r_u], s[:r_u, r_u:])
-        return np.asarray(np.linalg.inv(sbb))
+        return np.asarray(sbb)
 
 
 def _central_grad(f: Any, x: np.ndarray, lower: np.ndarray, h: float = 1e-5,
@@ -695,6 +752,48 @@ def _minimize(f: Any, x0: np.ndarray, lower: Sequence[float], *, ftol: float = 1
     msg = str(res.message)
     ok = bool(res.success) or "ABNORMAL" in msg.upper()
     return np.asarray(res.x, dtype=float), ok, msg
+
+
+def _minimize_fg(fg: Any, x0: np.ndarray, lower: Sequence[float], *, ftol: float = 1e-12,
+                 gtol: float = 1e-5) -> tuple[np.ndarray, bool, str]:
+    """L-BFGS-B with ``fg(x, lower) -> (f, gradient)``."""
+    from scipy.optimize import minimize
+
+    lo = np.array([(-np.inf if not math.isfinite(b) else b) for b in lower])
+    bounds = [(None if not math.isfinite(b) else b, None) for b in lower]
+    x0 = np.maximum(x0, np.where(np.isfinite(lo), lo, -np.inf))
+    res = minimize(lambda x: fg(x, lo), x0, jac=True, method="L-BFGS-B", bounds=bounds,
+                   options={"maxiter": 1000, "ftol": ftol, "gtol": gtol})
+    msg = str(res.message)
+    ok = bool(res.success) or "ABNORMAL" in msg.upper()
+    return np.asarray(res.x, dtype=float), ok, msg
+
+
+def _stage2(lap: _Laplace, par0: np.ndarray,
+            lower: list[float]) -> tuple[np.ndarray, bool, str]:
+    """Minimise the Laplace deviance over (theta, beta) from ``par0``.
+
+    beta is preconditioned: optimised as ``gamma = C'(beta - beta0)`` with ``C C'`` the
+    conditional information ``2 R_X' R_X`` at the start, so the optimiser sees a
+    Hessian near the identity (the design's dummy columns are strongly correlated
+    otherwise, and L-BFGS-B crawls).
+    """
+    k = lap.n_theta
+    beta0 = par0[k:].copy()
+    try:
+        c = np.linalg.cholesky(2.0 * lap.rx(par0))
+    except np.linalg.LinAlgError:
+        c = np.eye(lap.p)
+
+    def to_par(z: np.ndarray) -> np.ndarray:
+        return np.r_[z[:k], beta0 + np.linalg.solve(c.T, z[k:])]
+
+    def fg(z: np.ndarray, lo: np.ndarray) -> tuple[float, np.ndarray]:
+        f, g = lap.dev_and_grad(to_par(z), lo)
+        return f, np.r_[g[:k], np.linalg.solve(c, g[k:])]
+
+    z, ok, msg = _minimize_fg(fg, np.r_[par0[:k], np.zeros(lap.p)], lower + [-np.inf] * lap.p)
+    return to_par(z), ok, msg
 
 
 def _pool(x: np.ndarray, terms: list[_Term], y: np.ndarray
@@ -893,7 +992,7 @@ def glmm_fit(data: GlmmData, y: np.ndarray | None = None, *,
         lap.dev_theta(theta1)
         par0 = np.r_[theta1, lap.beta_joint]
     # stage 2 (nAGQ = 1): the Laplace deviance over (theta, beta)
-    par, ok2, msg2 = _minimize(lap.dev, par0, lower + [-np.inf] * lap.p, gtol=1e-4)
+    par, ok2, msg2 = _stage2(lap, par0, lower)
     dev = lap.dev(par)
     theta, beta = par[: lap.n_theta], par[lap.n_theta:]
     theta_names = data.theta_names

@@ -509,7 +509,8 @@ def model_spec(frame: pd.DataFrame, response: str = "correct",
         if col not in frame:
             continue
         if frame[col].nunique(dropna=True) > 1:
-            fixed.append(col)
+            # the target count is a factor: no straight line in log-odds across counts
+            fixed.append("factor(n_targets)" if col == "n_targets" else col)
         elif col == "on_tactor":
             notes.append("on_tactor left out of the model: all targets are of one kind")
     random = []
