@@ -556,15 +556,15 @@ def calibrate_wearer(belt_url: str, participant: str, *, input_kind: str = "keyb
         ConfigError: a bad participant id or input; StoreError: the store cannot be written.
     """
     from .clock import SimClock, WallClock
-    from .devices import open_belt, parse_url
+    from .devices import open_belt, runs_on_simulated_time
     from .experiment.runner import check_participant
     from .experiment.store import open_store
     from .experiment.store.base import utc_now
 
     who = check_participant(participant)
     # the model on the sim belt runs on a simulated clock: nothing waits in real time
-    model_on_sim = (input_kind == "model" and parse_url(belt_url)[0] == "sim"
-                    and "virtual" not in belt_url)
+    # (its backend declares that it can: Backend.simulated_time)
+    model_on_sim = input_kind == "model" and runs_on_simulated_time(belt_url)
     options: dict[str, Any] = {"clock": SimClock()} if model_on_sim else {}
     with open_belt(belt_url, **options) as belt:
         clock = belt.clock or WallClock()

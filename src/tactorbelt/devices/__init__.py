@@ -18,14 +18,15 @@ import importlib
 from typing import TYPE_CHECKING, Any
 
 from .._errors import ConfigError
-from .registry import BACKENDS, parse_url, resolve
+from .registry import BACKENDS, parse_url, resolve, runs_on_simulated_time
 
 if TYPE_CHECKING:
     from ..stimuli import Stimulus
     from .base import Belt
     from .calibration import Calibration
 
-__all__ = ["BACKENDS", "Belt", "open_belt", "open_belt_for", "parse_url"]
+__all__ = ["BACKENDS", "Belt", "open_belt", "open_belt_for", "parse_url",
+           "runs_on_simulated_time"]
 
 
 def open_belt(url: str = "sim", **options: Any) -> Belt:

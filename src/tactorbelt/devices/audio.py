@@ -261,6 +261,10 @@ class AudioBelt(Belt):
     renders_calibrated = True
     renders_profiles = True
 
+    @property
+    def uses_sound_output(self) -> bool:
+        return True
+
     def __init__(self, url: str, device: AudioOutput, layout: Layout,
                  calibration: Calibration | None, channels: int, mapping: tuple[int, ...],
                  carrier_hz: float, samplerate: float, latency: float | str, blocksize: int,

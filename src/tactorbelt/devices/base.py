@@ -211,6 +211,12 @@ class Belt(ABC):
         return True
 
     @property
+    def uses_sound_output(self) -> bool:
+        """True when the tactors are driven through one of the computer's sound outputs
+        (the audio belt): other sounds (a secondary task's) must not go to that output."""
+        return False
+
+    @property
     def reports_onsets(self) -> bool:
         """True when :meth:`last_onset` can give the device's own onset times."""
         return False

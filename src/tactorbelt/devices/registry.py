@@ -36,6 +36,7 @@ __all__ = [
     "check_options",
     "parse_url",
     "resolve",
+    "runs_on_simulated_time",
 ]
 
 
@@ -105,6 +106,9 @@ class Backend:
     #: its own; None when the suite needs a harness with a fake device
     #: (tests/support/belts.py).
     contract_url: str | None = None
+    #: the belt can run on a simulated clock (``clock=SimClock()``): a model participant
+    #: on it needs no real time (``run``, ``calibrate perceptual``, the demo)
+    simulated_time: bool = False
 
     @property
     def needs_target(self) -> bool:
@@ -206,6 +210,13 @@ def resolve(url: str) -> tuple[Backend, str, dict[str, Any]]:
     return backend, target, options
 
 
+def runs_on_simulated_time(url: str) -> bool:
+    """True when the belt ``url`` opens can run on a simulated clock (its backend says
+    so: :attr:`Backend.simulated_time`)."""
+    backend, _, _ = resolve(url)
+    return backend.simulated_time
+
+
 def parse_url(url: str) -> tuple[str, str]:
     """Split ``scheme:target`` (the URL options are checked, then dropped)."""
     backend, target, _ = resolve(url)
@@ -238,7 +249,7 @@ BACKENDS: dict[str, Backend] = {b.scheme: b for b in (
             "simulated ERM belt (sim:8 tactors; sim:virtual runs on a simulated clock)",
             ("sim", "sim:virtual", "sim:8"),
             options=(UrlOption("horizon_s", float, "seconds of history kept", 0.001, 1e6),),
-            docs="docs/belts.md"),
+            docs="docs/belts.md", simulated_time=True),
     Backend("emulator", "tactorbelt.devices.emulator:open_emulator",
             "the firmware core built for this computer, on a pseudo-terminal",
             ("emulator",),

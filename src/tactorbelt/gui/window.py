@@ -255,7 +255,7 @@ class ExperimentWindow:
 
             self.tasks.audio = open_task_audio(self.clock)
             belt = self.belt
-            if (belt is not None and belt.url.startswith("audio:")
+            if (belt is not None and belt.uses_sound_output
                     and self.tasks.audio.plays_sound and not os.environ.get(DEVICE_ENV)):
                 log.warning("the task sounds play on SDL's default output: make sure it is "
                             "not the sound card that drives the tactors of %s (name the "
@@ -266,9 +266,10 @@ class ExperimentWindow:
     def attach_cursor(self, cursor: CursorSource) -> None:
         """Use ``cursor``: live sources (joystick, mouse) are fed by this window."""
         self.cursor = cursor
-        if isinstance(cursor, LiveCursor):
-            cursor.geometry = self.renderer.geometry
-            cursor.attach_refresh(self._refresh_live)
+        live = cursor.live_input()
+        if live is not None:
+            live.geometry = self.renderer.geometry
+            live.attach_refresh(self._refresh_live)
 
     def _refresh_live(self) -> None:
         """Pump SDL's events and re-read the device (from ``read``, main thread only).
@@ -279,15 +280,15 @@ class ExperimentWindow:
         """
         pg = self._pg
         pg.event.pump()
-        live = self.cursor
-        if isinstance(live, LiveCursor):
+        live = self._live
+        if live is not None:
             for ev in pg.event.get((pg.JOYDEVICEADDED, pg.JOYDEVICEREMOVED)):
                 live.handle_event(ev)
             live.update()
 
     @property
     def _live(self) -> LiveCursor | None:
-        return self.cursor if isinstance(self.cursor, LiveCursor) else None
+        return self.cursor.live_input() if self.cursor is not None else None
 
     # ------------------------------------------------------------------------------------
     # SessionObserver hooks (called by the runner, in this thread)

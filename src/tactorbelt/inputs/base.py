@@ -35,6 +35,7 @@ if TYPE_CHECKING:
     from ..perceptual import Respondent
     from ..tasks import WorkloadInfo
     from ..tasks.schedule import TaskItem
+    from .joystick import LiveCursor
 
 __all__ = ["CursorSample", "CursorSource", "RunTaker", "TrialCue"]
 
@@ -102,6 +103,11 @@ class CursorSource:
     @property
     def instance_id(self) -> int | None:
         """SDL's instance id of the device (its events carry it), or None."""
+        return None
+
+    def live_input(self) -> LiveCursor | None:
+        """The part of this source the window's event loop feeds (a joystick's or a
+        mouse's state), or None: a source that reads itself (scripted, the model)."""
         return None
 
     def describe_wanted(self) -> str:

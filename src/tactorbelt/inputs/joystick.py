@@ -114,6 +114,9 @@ class LiveCursor(CursorSource):
         self._refresh: Callable[[], None] | None = None
         self._owner: int | None = None
 
+    def live_input(self) -> LiveCursor:
+        return self
+
     def attach_refresh(self, refresh: Callable[[], None] | None) -> None:
         """Call ``refresh`` (pump and update) in :meth:`read` when read from this thread."""
         self._refresh = refresh
