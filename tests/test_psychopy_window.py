@@ -13,7 +13,6 @@ microseconds), not at 60 Hz. "Within one frame" is a 60 Hz display's frame.
 
 from __future__ import annotations
 
-import functools
 import json
 import os
 import signal
@@ -59,7 +58,6 @@ def display() -> Iterator[str]:
         yield d
 
 
-@functools.lru_cache(maxsize=None)
 def _no_window(display: str) -> str:
     """Why PsychoPy cannot open a window on ``display``, or ''."""
     proc = subprocess.run([sys.executable, "-c", "import psychopy.visual"],

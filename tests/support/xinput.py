@@ -52,7 +52,7 @@ class XUser:
                     continue
                 g = w.get_geometry()
                 pos = w.translate_coords(self._root, 0, 0)
-            except Exception:  # noqa: BLE001 - a window that went away meanwhile
+            except Exception:
                 continue
             if g.width > 1 and g.height > 1:
                 out.append((-pos.x, -pos.y, int(g.width), int(g.height)))

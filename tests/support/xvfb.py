@@ -19,6 +19,7 @@ soon as Mesa has drawn the frame (a few hundred microseconds), not at 60 Hz.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import select
 import shutil
@@ -51,7 +52,7 @@ class Xvfb:
         self.stop_timeout_s = stop_timeout_s
         self.display: str | None = None
         self._proc: subprocess.Popen[bytes] | None = None
-        self._stderr: tempfile._TemporaryFileWrapper[bytes] | None = None
+        self._log_path: str | None = None
 
     @staticmethod
     def available() -> bool:
@@ -65,15 +66,16 @@ class Xvfb:
             raise XvfbError("Xvfb is not installed (apt-get install xvfb)")
         w, h, depth = self.size
         read_fd, write_fd = os.pipe()
-        self._stderr = tempfile.NamedTemporaryFile(prefix="xvfb-", suffix=".log")
+        log_fd, self._log_path = tempfile.mkstemp(prefix="xvfb-", suffix=".log")
         try:
             self._proc = subprocess.Popen(
                 [exe, "-displayfd", str(write_fd), "-screen", "0", f"{w}x{h}x{depth}",
                  "-nolisten", "tcp", "-noreset"],
                 pass_fds=(write_fd,), stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
-                stderr=self._stderr, start_new_session=True)
+                stderr=log_fd, start_new_session=True)
         finally:
             os.close(write_fd)
+            os.close(log_fd)
         try:
             number = self._read_display(read_fd)
         except BaseException:
@@ -108,9 +110,9 @@ class Xvfb:
         return int(got.strip())
 
     def _log(self) -> str:
-        if self._stderr is None:
+        if self._log_path is None:
             return ""
-        with open(self._stderr.name, "rb") as f:
+        with open(self._log_path, "rb") as f:
             text = f.read().decode(errors="replace").strip()
         return f": {text[-2000:]}" if text else ""
 
@@ -124,9 +126,10 @@ class Xvfb:
             except subprocess.TimeoutExpired:
                 proc.kill()
                 proc.wait(self.stop_timeout_s)
-        if self._stderr is not None:
-            self._stderr.close()
-            self._stderr = None
+        if self._log_path is not None:
+            with contextlib.suppress(OSError):
+                os.unlink(self._log_path)
+            self._log_path = None
         self.display = None
 
     def __enter__(self) -> str:
