@@ -634,15 +634,7 @@ class _Laplace:
         mu, w = st["mu"], st["w"]
         x = self.x
         g_dev = -2.0 * (x.T @ (self.y - self.m * mu))
-        # h_i: the term-1 block and the dense part (Schur complement S)
-        g1 = sysm.g1
-        h = np.einsum("ib,ibc,ic->i", v1, f["inv11"][g1], v1)
-        r = sysm.r
-        if r:
-            q = np.einsum("ibr,ib->ir", f["inv_a12"][g1], v1)
-            np.subtract.at(q, (np.arange(q.shape[0])[:, None], d.cols), d.vals)
-            sinv = np.linalg.inv(f["s"])
-            h = h + np.einsum("ir,rs,is->i", q, sinv, q)
+        h = self._leverage(st)["h"]
         # deta/dbeta = X - V A^-1 V' W X, one solve per column of X
         wx = w[:, None] * x
         dx = x.copy()
@@ -652,25 +644,92 @@ class _Laplace:
         wprime = w * (1.0 - 2.0 * mu)
         return np.asarray(g_dev + dx.T @ (h * wprime))
 
-    def dev_and_grad(self, par: np.ndarray, lower: np.ndarray,
-                     h: float = 1e-5) -> tuple[float, np.ndarray]:
-        """The deviance and its gradient: analytic over beta, central differences over
-        theta (one-sided at a bound)."""
+    @staticmethod
+    def _leverage(st: dict[str, Any]) -> dict[str, Any]:
+        """``h_i = V_i A^-1 V_i'`` and the pieces of ``A^-1`` per row (cached in ``st``)."""
+        if "leverage" in st:
+            return dict(st["leverage"])
+        sysm, f, v1, d = st["system"], st["factor"], st["v1"], st["d"]
+        g1 = sysm.g1
+        inv11 = f["inv11"][g1]  # (N, b1, b1)
+        h = (np.matmul(inv11, v1[:, :, None])[:, :, 0] * v1).sum(axis=1)
+        pg = qs = None
+        if sysm.r:
+            pg = f["inv_a12"][g1]  # (N, b1, r): P_g = A11^-1 A12
+            q = np.matmul(v1[:, None, :], pg)[:, 0, :]
+            np.subtract.at(q, (np.arange(g1.size)[:, None], d.cols), d.vals)
+            qs = q @ np.linalg.inv(f["s"])  # (N, r): S^-1 q_i
+            h = h + (q * qs).sum(axis=1)
+        st["leverage"] = {"h": h, "inv11": inv11, "pg": pg, "qs": qs}
+        return dict(st["leverage"])
+
+    def theta_gradient(self, st: dict[str, Any]) -> np.ndarray:
+        """The gradient of the Laplace deviance over theta (beta fixed), analytically.
+
+        With ``V = Z Lambda``, ``V_k = Z dLambda/dtheta_k`` (``theta_k`` is element
+        ``(i, j)`` of a term's ``T``: row r of ``V_k`` holds ``z_r[i]`` at the column
+        of its level and ``j``), ``r = y - m mu``, ``s_k = V_k u*``::
+
+            dD/dtheta_k = -2 r's_k + 2 sum_i w_i (V_k A^-1 V')_ii
+                          + sum_i h_i w'_i deta_i/dtheta_k
+            deta/dtheta_k = s_k + V A^-1 (V_k' r - V' W s_k)
+
+        (the modes move with theta: implicit differentiation of ``V'r = u``).
+        Bilinear forms in ``A^-1`` use its block structure: for rows with term-1
+        parts ``x1, y1`` (level g) and dense parts ``x2, y2``,
+        ``x'A^-1 y = x1' A11^-1 y1 + (P_g'x1 - x2)' S^-1 (P_g'y1 - y2)``.
+        """
+        sysm, f, v1, d = st["system"], st["factor"], st["v1"], st["d"]
+        mu, w = st["mu"], st["w"]
+        u1, ud = st["u1"], st["ud"]
+        resid = self.y - self.m * mu
+        g1 = sysm.g1
+        rows = np.arange(g1.size)
+        lev = self._leverage(st)
+        h, inv11, pg, qs = lev["h"], lev["inv11"], lev["pg"], lev["qs"]
+        r = sysm.r
+        wprime = w * (1.0 - 2.0 * mu)
+        grad = np.zeros(self.n_theta)
+        k = 0
+        dense_col = 0
+        for ti, t in enumerate(self.terms):
+            first = ti == 0
+            for j in range(t.b):
+                for i in range(j, t.b):
+                    zi = t.z[:, i]
+                    if first:
+                        s_k = zi * u1[g1, j]
+                        # a1 = zi e_j (term-1 block), a2 = 0
+                        bil = zi * (inv11[:, j, :] * v1).sum(axis=1)
+                        if r:
+                            bil = bil + zi * (pg[:, j, :] * qs).sum(axis=1)
+                        rhs1 = np.zeros((sysm.m1, sysm.b1))
+                        np.add.at(rhs1[:, j], g1, zi * resid)
+                        rhs2 = np.zeros(r)
+                    else:
+                        col = d.cols[:, dense_col + j]
+                        s_k = zi * ud[col]
+                        bil = -zi * qs[rows, col]  # a1 = 0, a2 = zi at col
+                        rhs1 = np.zeros((sysm.m1, sysm.b1))
+                        rhs2 = _bsum(col, zi * resid, r)
+                    ws = w * s_k
+                    rhs1 = rhs1 - sysm.scatter1(v1, ws)
+                    rhs2 = rhs2 - d.tdot(ws)
+                    du1, du2 = sysm.solve(f, rhs1, rhs2)
+                    deta = s_k + sysm.eta_random(v1, d, du1, du2)
+                    grad[k] = (-2.0 * float(resid @ s_k) + 2.0 * float(w @ bil)
+                               + float((h * wprime) @ deta))
+                    k += 1
+            if not first:
+                dense_col += t.b
+        return grad
+
+    def dev_and_grad(self, par: np.ndarray, lower: np.ndarray) -> tuple[float, np.ndarray]:
+        """The deviance and its gradient over (theta, beta), both analytic
+        (:meth:`theta_gradient`, :meth:`beta_gradient`)."""
         th, beta = par[: self.n_theta], par[self.n_theta:]
         dev, st = self._pirls(th, beta)
-        g_beta = self.beta_gradient(st)
-        u1, u2 = self.u1.copy(), self.u2.copy()
-        g = np.zeros(par.size)
-        for i in range(self.n_theta):
-            e = np.zeros(par.size)
-            e[i] = h
-            if par[i] - h < lower[i]:
-                g[i] = (self.dev(par + e) - dev) / h
-            else:
-                g[i] = (self.dev(par + e) - self.dev(par - e)) / (2 * h)
-        self.u1, self.u2 = u1, u2  # warm starts from the point, not its neighbours
-        g[self.n_theta:] = g_beta
-        return dev, g
+        return dev, np.r_[self.theta_gradient(st), self.beta_gradient(st)]
 
     def dev_theta(self, theta: np.ndarray) -> float:
         return self._pirls(theta, None)[0]

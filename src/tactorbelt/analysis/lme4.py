@@ -20,7 +20,7 @@ import tempfile
 from pathlib import Path
 from typing import TYPE_CHECKING, Final
 
-from .glmm import FixedEffect, MixedModelFit, ModelSpec, _fixed_table
+from .glmm import FixedEffect, MixedModelFit, ModelSpec, _fixed_table, term_column
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -89,7 +89,7 @@ def _frame(df: pd.DataFrame, spec: ModelSpec) -> pd.DataFrame:
     """The columns the formula uses; booleans as 0/1 (lme4 then names them plainly)."""
     import pandas as pd
 
-    cols = list(dict.fromkeys([spec.response, *spec.fixed,
+    cols = list(dict.fromkeys([spec.response, *(term_column(f) for f in spec.fixed),
                                *(t.group for t in spec.random),
                                *(s for t in spec.random for s in t.slopes)]))
     out = df[cols].copy()
