@@ -51,6 +51,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "analyze": ("tactorbelt.cli.analyze:analyze",
                 "Analyze one or more stores and write the report."),
     "point": ("tactorbelt.cli.point:point", "Keep a bearing displayed on a belt."),
+    "validate": ("tactorbelt.cli.validate:validate", "Check a belt's onsets against a sensor."),
 }
 
 

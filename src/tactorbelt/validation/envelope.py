@@ -1,0 +1,294 @@
+"""Envelopes, crossings and statistics of sensed vibration pulses (pure NumPy).
+
+A pulse is one tactor driven at one level from ``t_on`` to ``t_off`` (the command times,
+on the clock the commands were stamped with), sensed over a window from a little before
+``t_on`` to the next command. :func:`measure_pulse` reads in it:
+
+- the **baseline** (median of the envelope before ``t_on``) and its noise (1.4826 x the
+  median absolute deviation);
+- the **steady amplitude** (median over the last :data:`STEADY_FRACTION` of the on-time,
+  minus the baseline); the pulse is *seen* when it exceeds :data:`MIN_SNR` times the
+  noise and :data:`MIN_AMPLITUDE` (a silent or unconnected input is never seen);
+- on the envelope normalised to 0 (baseline) .. 1 (steady): the **latency** from ``t_on``
+  to the 10 % crossing, the **rise** from the 10 % to the 90 % crossing, the **fall** from
+  the 90 % to the 10 % crossing after ``t_off`` (and the stop latency, ``t_off`` to 90 %).
+
+Crossings are linear interpolations between samples, found from the middle out so noise
+at the foot or the top does not decide them: the first sample at or above 50 % after
+``t_on``; the 10 % crossing is the last upward crossing of 10 % before it, the 90 % one
+the first upward crossing of 90 % from it (and mirrored for the fall).
+
+:func:`rectified_envelope` is the estimator for raw signals (a sound card's input, an
+accelerometer): the full-wave rectified signal, a centred moving mean over ``window_s``
+(about one carrier period), times pi/2 so a steady sine of amplitude A reads A. Its bias
+(docs/validation.md): zero-phase, so it moves no crossing of a linearly changing envelope;
+it spreads a corner of the envelope over half a window each side (a step reads as a ramp
+of one window), and bends a curved stretch by ``w**2 / 24`` times the envelope's second
+derivative (for a first-order rise of time constant tau, a delay of ``w**2 / (24 tau)``:
+0.07 ms for w = 4 ms, tau = 10 ms). A window that is not a whole number of half-periods
+of the vibration leaves a ripple of at most about ``1 / (2 * periods)`` of the amplitude.
+
+Imports NumPy only.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any, Final
+
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = [
+    "HIGH",
+    "LOW",
+    "MIN_AMPLITUDE",
+    "MIN_SNR",
+    "STEADY_FRACTION",
+    "PulseMeasure",
+    "TactorSummary",
+    "linearity",
+    "measure_pulse",
+    "rectified_envelope",
+    "summarise",
+]
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+
+#: The onset and top thresholds, of the steady amplitude above the baseline.
+LOW: Final = 0.1
+HIGH: Final = 0.9
+#: The steady amplitude is the median over this last fraction of the on-time.
+STEADY_FRACTION: Final = 0.2
+#: A pulse is seen when its steady amplitude exceeds this many times the baseline noise...
+MIN_SNR: Final = 10.0
+#: ... and this much (sensor units: an exactly silent input is never a pulse).
+MIN_AMPLITUDE: Final = 1e-6
+#: A pulse has settled when the two halves of its steady stretch differ by less than this
+#: fraction of its amplitude.
+SETTLED: Final = 0.02
+#: Points of each pulse's trace kept for the figure (at most).
+TRACE_POINTS: Final = 1500
+
+
+def rectified_envelope(x: Any, rate_hz: float, window_s: float) -> FloatArray:
+    """The amplitude envelope of a vibration signal: ``pi/2`` x the centred moving mean of
+    ``|x|`` over ``round(window_s * rate_hz)`` samples (at least 1; the ends average the
+    samples there are). See the module docstring for its bias."""
+    a = np.abs(np.asarray(x, dtype=float))
+    n = a.shape[0]
+    w = max(1, round(window_s * rate_hz))
+    if n == 0 or w == 1:
+        return np.asarray(a * (math.pi / 2))
+    c = np.concatenate([[0.0], np.cumsum(a)])
+    i = np.arange(n)
+    lo = np.clip(i - w // 2, 0, n)
+    hi = np.clip(i - w // 2 + w, 0, n)
+    return np.asarray((c[hi] - c[lo]) / (hi - lo) * (math.pi / 2))
+
+
+def _cross(t: FloatArray, y: FloatArray, i: int, level: float) -> float:
+    """Where the segment from sample i to i + 1 crosses ``level`` (linear)."""
+    y0, y1 = y[i], y[i + 1]
+    if y1 == y0:
+        return float(t[i + 1])
+    return float(t[i] + (level - y0) / (y1 - y0) * (t[i + 1] - t[i]))
+
+
+def _edge(t: FloatArray, y: FloatArray, start: int, up: bool) -> tuple[float, float] | None:
+    """The 10 % and 90 % crossings (in time order of the edge: up: 10 then 90; down: 90
+    then 10) of the first edge from sample ``start`` on, found from its 50 % point; None
+    when the envelope never crosses 50 % that way."""
+    s = y[start:] if up else -y[start:]
+    mid = np.flatnonzero(s >= (0.5 if up else -0.5))
+    if mid.size == 0:
+        return None
+    m = start + int(mid[0])
+    first, last = (LOW, HIGH) if up else (HIGH, LOW)
+    # the last crossing of the first level before the midpoint
+    before = y[start:m] < first if up else y[start:m] > first
+    idx = np.flatnonzero(before)
+    if idx.size == 0:  # already past it at the window's start
+        return None
+    i = start + int(idx[-1])
+    t_first = _cross(t, y, i, first)
+    # the first crossing of the second level from the midpoint on
+    after = y[m:] >= last if up else y[m:] <= last
+    jdx = np.flatnonzero(after)
+    if jdx.size == 0:
+        return None
+    j = m + int(jdx[0])
+    t_last = float(t[j]) if j == 0 else _cross(t, y, j - 1, last)
+    return t_first, t_last
+
+
+@dataclass
+class PulseMeasure:
+    """What one sensed pulse showed.
+
+    Times in ms: ``latency_ms`` from the command to 10 %, ``rise_ms`` 10 to 90 %,
+    ``stop_latency_ms`` from the stop command to 90 %, ``fall_ms`` 90 to 10 % (NaN when
+    the envelope did not get there within the window). ``amplitude`` and ``baseline``
+    are in the sensor's units. ``seen`` False: the sensor showed no pulse (the other
+    figures are NaN). ``trace_ms``/``trace`` (from ``t_on``) and ``off_ms`` (``t_off``
+    from ``t_on``) draw it normalised.
+    """
+
+    tactor: int
+    level: float
+    seen: bool
+    amplitude: float
+    baseline: float
+    noise: float
+    latency_ms: float = math.nan
+    rise_ms: float = math.nan
+    stop_latency_ms: float = math.nan
+    fall_ms: float = math.nan
+    settled: bool = True
+    off_ms: float = math.nan
+    trace_ms: FloatArray = field(default_factory=lambda: np.zeros(0), repr=False)
+    trace: FloatArray = field(default_factory=lambda: np.zeros(0), repr=False)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"tactor": self.tactor, "level": self.level,
+                "latency_ms": _num(self.latency_ms), "rise_ms": _num(self.rise_ms),
+                "stop_latency_ms": _num(self.stop_latency_ms), "fall_ms": _num(self.fall_ms),
+                "amplitude": _num(self.amplitude), "baseline": _num(self.baseline),
+                "noise": _num(self.noise), "settled": self.settled}
+
+
+def _num(v: float) -> float | None:
+    return None if not math.isfinite(v) else float(v)
+
+
+def measure_pulse(t_ns: IntArray, env: FloatArray, t_on_ns: int, t_off_ns: int, *,
+                  tactor: int, level: float) -> PulseMeasure:
+    """Measure one pulse from its sensed envelope ``env`` at times ``t_ns`` (increasing,
+    on the commands' clock), commanded on at ``t_on_ns`` and off at ``t_off_ns``. The
+    window must start before ``t_on_ns`` (the baseline) and may end at the next command.
+    """
+    t = np.asarray(t_ns, dtype=np.int64)
+    y = np.asarray(env, dtype=float)
+    pre = y[t < t_on_ns]
+    if pre.size == 0 or t.size < 4:
+        raise ValueError("the window must start before the pulse's command")
+    on_ns = t_off_ns - t_on_ns
+    steady_sel = (t >= t_off_ns - round(on_ns * STEADY_FRACTION)) & (t < t_off_ns)
+    steady_y = y[steady_sel]
+    if steady_y.size == 0:
+        steady_y = y[(t >= t_on_ns) & (t < t_off_ns)][-1:]
+    baseline = float(np.median(pre))
+    noise = float(1.4826 * np.median(np.abs(pre - baseline)))
+    amplitude = float(np.median(steady_y)) - baseline
+    seen = amplitude > max(MIN_SNR * noise, MIN_AMPLITUDE)
+    out = PulseMeasure(tactor, float(level), bool(seen), amplitude, baseline, noise)
+    if not seen:
+        return out
+    half = steady_y.size // 2
+    if half:
+        drift = abs(float(np.mean(steady_y[half:]) - np.mean(steady_y[:half])))
+        out.settled = drift < SETTLED * amplitude
+    rel = (t - t_on_ns).astype(float) / 1e6  # ms from the command
+    norm = (y - baseline) / amplitude
+    i_on = int(np.searchsorted(t, t_on_ns))
+    rise = _edge(rel, norm, max(i_on - 1, 0), up=True)
+    if rise is not None:
+        out.latency_ms, t90 = rise
+        out.rise_ms = t90 - out.latency_ms
+    i_off = int(np.searchsorted(t, t_off_ns))
+    off_ms = (t_off_ns - t_on_ns) / 1e6
+    out.off_ms = off_ms
+    if i_off < t.size - 1:
+        fall = _edge(rel, norm, max(i_off - 1, 0), up=False)
+        if fall is not None:
+            out.stop_latency_ms = fall[0] - off_ms
+            out.fall_ms = fall[1] - fall[0]
+    step = max(1, rel.size // TRACE_POINTS)
+    out.trace_ms = rel[::step].copy()
+    out.trace = norm[::step].copy()
+    return out
+
+
+def linearity(levels: Sequence[float], amplitudes: Sequence[float]
+              ) -> tuple[float, float, float] | None:
+    """Least squares of amplitude against level: ``(slope, intercept, r2)``; None with
+    fewer than two distinct levels. r2 is 1 for a perfect line (also when every amplitude
+    is the same: then the slope is 0)."""
+    x = np.asarray(levels, dtype=float)
+    y = np.asarray(amplitudes, dtype=float)
+    ok = np.isfinite(x) & np.isfinite(y)
+    x, y = x[ok], y[ok]
+    if np.unique(x).size < 2:
+        return None
+    slope, intercept = np.polyfit(x, y, 1)
+    ss_res = float(np.sum((y - (slope * x + intercept)) ** 2))
+    ss_tot = float(np.sum((y - y.mean()) ** 2))
+    r2 = 1.0 if ss_tot == 0.0 else 1.0 - ss_res / ss_tot
+    return float(slope), float(intercept), r2
+
+
+def _stat(values: Sequence[float]) -> tuple[float, float, int]:
+    """Mean, sample standard deviation (0 for one value) and count of the finite values."""
+    v = np.asarray(values, dtype=float)
+    v = v[np.isfinite(v)]
+    if v.size == 0:
+        return math.nan, math.nan, 0
+    return float(v.mean()), float(v.std(ddof=1)) if v.size > 1 else 0.0, int(v.size)
+
+
+@dataclass
+class TactorSummary:
+    """A tactor's figures over its pulses (see :func:`summarise`)."""
+
+    tactor: int
+    pulses: list[PulseMeasure]
+
+    def _over(self, name: str, level: float | None = None) -> tuple[float, float, int]:
+        return _stat([getattr(p, name) for p in self.pulses
+                      if level is None or p.level == level])
+
+    def to_dict(self) -> dict[str, Any]:
+        """``validation.json``'s entry of this tactor."""
+        row: dict[str, Any] = {"tactor": self.tactor}
+        for name in ("latency_ms", "rise_ms", "fall_ms", "stop_latency_ms"):
+            mean, sd, _ = self._over(name)
+            row[name] = _num(mean)
+            row[name.replace("_ms", "_sd_ms")] = _num(sd)
+        levels = sorted({p.level for p in self.pulses})
+        row["pulses"] = len(self.pulses)
+        row["levels"] = levels
+        amps = [self._over("amplitude", lv) for lv in levels]
+        row["amplitudes"] = [_num(a[0]) for a in amps]
+        row["amplitude_sds"] = [_num(a[1]) for a in amps]
+        fit = linearity([p.level for p in self.pulses], [p.amplitude for p in self.pulses])
+        row["linearity"] = (None if fit is None else
+                            {"slope": fit[0], "intercept": fit[1], "r2": fit[2]})
+        row["settled"] = all(p.settled for p in self.pulses)
+        row["by_level"] = []
+        for lv in levels:
+            entry: dict[str, Any] = {"level": lv}
+            for name in ("latency_ms", "rise_ms", "fall_ms"):
+                mean, sd, n = self._over(name, lv)
+                entry[name] = _num(mean)
+                entry[name.replace("_ms", "_sd_ms")] = _num(sd)
+            entry["pulses"] = sum(1 for p in self.pulses if p.level == lv)
+            row["by_level"].append(entry)
+        return row
+
+    def timing(self) -> dict[str, float | None]:
+        """The calibration file's timing keys of this tactor (None where not measured)."""
+        row = self.to_dict()
+        return {k: None if row[k] is None else round(row[k], 3)  # to the microsecond
+                for k in ("latency_ms", "latency_sd_ms", "rise_ms", "rise_sd_ms", "fall_ms",
+                          "fall_sd_ms")}
+
+
+def summarise(pulses: Sequence[PulseMeasure]) -> list[TactorSummary]:
+    """Group measured pulses by tactor (in tactor order)."""
+    by: dict[int, list[PulseMeasure]] = {}
+    for p in pulses:
+        by.setdefault(p.tactor, []).append(p)
+    return [TactorSummary(k, by[k]) for k in sorted(by)]

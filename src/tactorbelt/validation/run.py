@@ -1,0 +1,419 @@
+"""``tactorbelt validate onsets``: pulse each tactor, sense it, measure its timing.
+
+:func:`validate_onsets` drives an open belt and reads an open sensor
+(:mod:`~tactorbelt.validation.sensors`); :func:`run_onsets` is the whole command as a
+library function: it opens both, runs, writes ``validation.json`` and the figure, and
+updates a calibration file.
+
+The procedure (docs/validation.md): after a lead-in for the sensor's baseline, each
+tactor in turn is pulsed ``pulses`` times at each level (levels interleaved), one tactor
+and one pulse at a time: on for ``on_s``, off for ``off_s`` (long enough for a motor to
+settle and to stop), timed on the belt's clock (``clock.sleep_until_ns``; a
+``sim:virtual`` belt runs instantly). The command time of a pulse is what the runner
+stores as a trial's onset: the clock time just before ``belt.set_amplitudes`` (as
+``Player.start`` returns it), or ``belt.last_onset()`` where the belt ``reports_onsets``
+(the device-true onset). Each pulse is measured over its window, from shortly before its
+command to the next command (:func:`~tactorbelt.validation.envelope.measure_pulse`), while
+the next pulse is on. A pulse whose window lost samples (the sensor reports an overflow,
+or the belt an output underrun) is pulsed again, up to ``max_repeats`` times. A pulse the
+sensor does not see stops the run with :class:`NoPulseError` naming the tactor and level.
+
+Imports NumPy and tactorbelt's devices; matplotlib only for the figure.
+"""
+
+from __future__ import annotations
+
+import bisect
+import contextlib
+import datetime as _dt
+import json
+import math
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Final
+
+import numpy as np
+
+from .._errors import ConfigError, DeviceError
+from ..clock import WallClock
+from .envelope import HIGH, LOW, PulseMeasure, TactorSummary, measure_pulse, summarise
+from .sensors import Sensor
+
+if TYPE_CHECKING:
+    from ..devices.base import Belt
+
+__all__ = ["NoPulseError", "OnsetSettings", "OnsetValidation", "parse_levels", "run_onsets",
+           "validate_onsets"]
+
+#: The results file and the figure ``run_onsets`` writes.
+RESULTS: Final = "validation.json"
+FIGURE: Final = "onsets.png"
+#: The format of validation.json.
+FORMAT: Final = "tactorbelt-validation"
+VERSION: Final = 1
+#: The baseline before each command: this long, at most half the off-time (s).
+BASELINE_S: Final = 0.1
+#: ``last_onset`` waits this long for a device's report (s).
+ONSET_TIMEOUT_S: Final = 0.5
+#: The pause between pulses of different tactors when the sensor senses each tactor
+#: apart (s); one that senses them together waits the whole off-time.
+GAP_S: Final = 0.05
+#: A baseline above this fraction of the steady amplitude is a motor not yet stopped.
+BASELINE_LIMIT: Final = 0.02
+
+
+class NoPulseError(DeviceError):
+    """The sensor did not see a pulse: names the tactor and the level."""
+
+    def __init__(self, message: str, tactor: int, level: float) -> None:
+        super().__init__(message)
+        self.tactor = tactor
+        self.level = level
+
+
+def parse_levels(text: str | Sequence[float]) -> tuple[float, ...]:
+    """Levels from ``"0.5,1.0"`` (or numbers): each in (0, 1], no repeats, sorted.
+
+    Raises:
+        ConfigError: not numbers, out of range, none.
+    """
+    parts: list[Any] = ([p for p in text.replace(" ", "").split(",") if p]
+                        if isinstance(text, str) else list(text))
+    try:
+        values = [float(p) for p in parts]
+    except (TypeError, ValueError):
+        raise ConfigError(f"levels must be numbers in (0, 1] separated by commas, "
+                          f"got {text!r}") from None
+    if not values:
+        raise ConfigError("give at least one level in (0, 1]")
+    bad = [v for v in values if not (math.isfinite(v) and 0.0 < v <= 1.0)]
+    if bad:
+        raise ConfigError(f"levels must be in (0, 1], got {bad[0]:g}")
+    return tuple(sorted(set(values)))
+
+
+@dataclass(frozen=True)
+class OnsetSettings:
+    """How the tactors are pulsed.
+
+    Attributes:
+        pulses: pulses per tactor at each level.
+        levels: the amplitudes pulsed (through the belt's calibration), in (0, 1].
+        on_s: how long each pulse is on (the vibration must settle: the steady amplitude
+            is the median over its last fifth).
+        off_s: how long a tactor rests after its pulse (its vibration must stop: the
+            fall is measured in it, and the baseline of its next pulse is the last 0.1 s
+            of it).
+        max_repeats: a pulse whose samples were lost is pulsed again at most this often.
+        lead_s: the sensor records this long before the first pulse.
+    """
+
+    pulses: int = 10
+    levels: tuple[float, ...] = (1.0,)
+    on_s: float = 0.3
+    off_s: float = 0.3
+    max_repeats: int = 3
+    lead_s: float = 0.2
+
+    def __post_init__(self) -> None:
+        if isinstance(self.pulses, bool) or not isinstance(self.pulses, int) or self.pulses < 1:
+            raise ConfigError(f"pulses must be a whole number of at least 1, got {self.pulses!r}")
+        object.__setattr__(self, "levels", parse_levels(self.levels))
+        for name in ("on_s", "off_s", "lead_s"):
+            v = getattr(self, name)
+            if not (isinstance(v, int | float) and math.isfinite(v) and 0 < v <= 3600):
+                raise ConfigError(f"{name} must be a number of seconds in (0, 3600], got {v!r}")
+        if not 0 <= int(self.max_repeats) <= 100:
+            raise ConfigError(f"max_repeats must be in 0..100, got {self.max_repeats!r}")
+
+    @property
+    def baseline_s(self) -> float:
+        return min(BASELINE_S, 0.5 * self.off_s)
+
+
+@dataclass
+class OnsetValidation:
+    """The results of :func:`validate_onsets` (``to_dict`` is validation.json)."""
+
+    belt: str
+    belt_name: str
+    sensor: str
+    sensor_description: str
+    method: str
+    unit: str
+    onset_reference: str
+    settings: OnsetSettings
+    tactors: list[TactorSummary]
+    date: str
+    angles_deg: tuple[float, ...]
+    seconds: float
+    repeats: list[dict[str, Any]] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
+    onset_uncertainty_ms: float | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        from importlib.metadata import PackageNotFoundError, version
+
+        try:
+            ours = version("tactorbelt")
+        except PackageNotFoundError:  # pragma: no cover - a source tree
+            ours = "unknown"
+        return {
+            "format": FORMAT, "version": VERSION, "kind": "onsets",
+            "tactors": [t.to_dict() for t in self.tactors],
+            "belt": self.belt, "belt_name": self.belt_name,
+            "sensor": self.sensor, "sensor_description": self.sensor_description,
+            "method": self.method, "unit": self.unit,
+            "onset_reference": self.onset_reference,
+            "onset_uncertainty_ms": self.onset_uncertainty_ms,
+            "thresholds": {"onset": LOW, "top": HIGH},
+            "date": self.date, "tactorbelt": ours,
+            "settings": {**asdict(self.settings), "levels": list(self.settings.levels)},
+            "angles_deg": list(self.angles_deg),
+            "seconds": round(self.seconds, 3),
+            "repeats": self.repeats, "warnings": self.warnings,
+            "pulses": [p.to_dict() for t in self.tactors for p in t.pulses],
+        }
+
+    def timings(self) -> list[dict[str, float | None] | None]:
+        """Per tactor of the belt, the calibration file's timing keys (None: a tactor not
+        validated)."""
+        by = {t.tactor: t.timing() for t in self.tactors}
+        return [by.get(k) for k in range(len(self.angles_deg))]
+
+
+def _now_iso() -> str:
+    return _dt.datetime.now(_dt.UTC).astimezone().isoformat(timespec="seconds")
+
+
+@dataclass
+class _Pulse:
+    tactor: int
+    level: float
+    attempt: int
+    t_on: int = 0
+    t_off: int = 0
+
+
+class _Dropouts:
+    """The belt's dropout count noted at every command, to tell whether a window held one
+    (an output underrun anywhere between the notes around it)."""
+
+    def __init__(self, belt: Belt) -> None:
+        self.belt = belt
+        self.t: list[int] = []
+        self.n: list[int] = []
+
+    def note(self, t_ns: int) -> None:
+        self.t.append(t_ns)
+        self.n.append(self.belt.dropouts())
+
+    def within(self, t0_ns: int, t1_ns: int) -> bool:
+        i = max(0, bisect.bisect_right(self.t, t0_ns) - 1)
+        j = bisect.bisect_left(self.t, t1_ns)
+        now = self.belt.dropouts() if j >= len(self.n) else self.n[j]
+        return bool(self.n) and now > self.n[i]
+
+    def forget_before(self, t_ns: int) -> None:
+        i = max(0, bisect.bisect_right(self.t, t_ns) - 2)
+        del self.t[:i], self.n[:i]
+
+
+def validate_onsets(belt: Belt, sensor: Sensor, settings: OnsetSettings | None = None,
+                    progress: Callable[[int, int], None] | None = None,
+                    tactors: Sequence[int] | None = None) -> OnsetValidation:
+    """Pulse ``tactors`` (default: all) of an open ``belt``, sensed by an open ``sensor``,
+    and measure each (see the module docstring). The motors are off when it returns or
+    raises (the last pulse is stopped; the caller's ``with belt`` does the rest).
+
+    The pulses go round the tactors (pulse 1 of every tactor at every level, then pulse
+    2, ...), one motor on at a time. Each tactor rests ``off_s`` after its pulse, and its
+    window (from :data:`BASELINE_S` before its command to ``off_s`` after its stop) is
+    measured when it is over. A sensor that senses every tactor on one signal
+    (``separates_tactors`` False: one input channel, an IMU) also waits ``off_s`` after
+    every pulse before the next, whichever tactor is next; one that senses each tactor
+    apart (its model, one input channel per tactor) only :data:`GAP_S`.
+
+    ``progress(done, total)`` is called after each pulse is measured.
+
+    Raises:
+        NoPulseError: the sensor saw no pulse on a tactor at a level.
+        DeviceError: the sensor lost input in every attempt at a pulse, or stopped.
+    """
+    s = settings or OnsetSettings()
+    clock = belt.clock or WallClock()
+    ks = list(range(belt.n_tactors)) if tactors is None else [int(k) for k in tactors]
+    bad = [k for k in ks if not 0 <= k < belt.n_tactors]
+    if bad:
+        raise ConfigError(f"tactor {bad[0]} is not on belt {belt.url!r} "
+                          f"({belt.n_tactors} tactors)")
+    queue = [_Pulse(k, lv, 0) for _ in range(s.pulses) for lv in s.levels for k in ks]
+    total = len(queue)
+    on_ns, off_ns = round(s.on_s * 1e9), round(s.off_s * 1e9)
+    base_ns = round(s.baseline_s * 1e9)
+    gap_ns = round(GAP_S * 1e9) if sensor.separates_tactors else off_ns
+    device_onsets = belt.reports_onsets
+    uncertainties: list[int] = []
+    measured: list[PulseMeasure] = []
+    repeats: list[dict[str, Any]] = []
+    warned: dict[tuple[int, float, str], str] = {}
+    dropouts = _Dropouts(belt)
+    pending: list[_Pulse] = []
+    wall0 = time.perf_counter()
+
+    def measure(p: _Pulse) -> None:
+        t_end = p.t_off + off_ns
+        window = sensor.envelope(p.tactor, p.t_on - base_ns, t_end)
+        problem = window.problem
+        if problem is None and dropouts.within(p.t_on - base_ns, t_end):
+            problem = "the belt reported an output underrun"
+        if problem is not None:
+            if p.attempt >= s.max_repeats:
+                raise DeviceError(
+                    f"tactor {p.tactor} at level {p.level:g}: {problem} in each of "
+                    f"{p.attempt + 1} attempts (an overloaded machine? raise the sound "
+                    "card's latency, or JACK's period)")
+            repeats.append({"tactor": p.tactor, "level": p.level, "reason": problem})
+            queue.insert(0, _Pulse(p.tactor, p.level, p.attempt + 1))
+            return
+        m = measure_pulse(window.t_ns, window.env, p.t_on, p.t_off, tactor=p.tactor,
+                          level=p.level)
+        if not m.seen:
+            raise NoPulseError(
+                f"the sensor ({sensor.url}) saw no pulse on tactor {p.tactor} at level "
+                f"{p.level:g}: its steady amplitude {m.amplitude:.3g} is not above the "
+                f"baseline's noise ({m.noise:.3g}; {sensor.unit}). Is the sensor on that "
+                "tactor and connected, and does the tactor vibrate at this level (an "
+                "ERM's dead zone; see 'tactorbelt belt-test')?", p.tactor, p.level)
+        for bad_value, text in ((not m.settled, "was still changing at the end of the "
+                                 "pulse: raise --on"),
+                                (math.isnan(m.fall_ms), "had not fallen to 10 % within --off "
+                                 "after the pulse: raise --off"),
+                                (math.isnan(m.latency_ms), "was above 10 % before the "
+                                 "command: raise --off"),
+                                (m.baseline > BASELINE_LIMIT * m.amplitude
+                                 and m.noise < BASELINE_LIMIT * m.amplitude,
+                                 "had not stopped before the pulse (a baseline above "
+                                 f"{BASELINE_LIMIT:.0%} of the steady amplitude): raise "
+                                 "--off")):
+            if bad_value:
+                warned.setdefault((p.tactor, p.level, text),
+                                  f"tactor {p.tactor} at level {p.level:g}: the vibration "
+                                  f"{text}")
+        measured.append(m)
+        if progress is not None:
+            progress(len(measured), total)
+
+    def measure_due(now_ns: int) -> None:
+        for p in [p for p in pending if p.t_off + off_ns <= now_ns]:
+            pending.remove(p)
+            measure(p)
+
+    free_at: dict[int, int] = {}  # when each tactor has rested after its last pulse
+    sensor.start()
+    t_next = int(clock.now_ns()) + round(s.lead_s * 1e9)
+    try:
+        while queue or pending:
+            if not queue:  # wait out the last windows
+                clock.sleep_until_ns(max(p.t_off + off_ns for p in pending))
+                measure_due(int(clock.now_ns()))
+                continue
+            p = queue.pop(0)
+            frame = np.zeros(belt.n_tactors)
+            frame[p.tactor] = p.level
+            clock.sleep_until_ns(max(t_next, free_at.get(p.tactor, t_next)))
+            p.t_on = int(clock.now_ns())
+            dropouts.note(p.t_on)
+            belt.set_amplitudes(frame)
+            if device_onsets:
+                got = belt.last_onset(timeout_s=ONSET_TIMEOUT_S)
+                if got is not None:
+                    p.t_on = int(got[0])
+                    uncertainties.append(int(got[1]))
+            measure_due(int(clock.now_ns()))  # while this pulse is on
+            clock.sleep_until_ns(p.t_on + on_ns)
+            p.t_off = int(clock.now_ns())
+            belt.stop()
+            dropouts.note(p.t_off)
+            pending.append(p)
+            free_at[p.tactor] = p.t_off + off_ns
+            t_next = p.t_off + gap_ns
+            oldest = min([q.t_on for q in pending] + [t_next]) - base_ns
+            sensor.forget_before(oldest)
+            dropouts.forget_before(oldest)
+    finally:
+        with contextlib.suppress(Exception):  # the with block closes it in any case
+            belt.stop()
+    return OnsetValidation(
+        belt=belt.url, belt_name=belt.name, sensor=sensor.url,
+        sensor_description=sensor.description, method=sensor.method, unit=sensor.unit,
+        onset_reference=("device: belt.last_onset(), the device-true onset" if device_onsets
+                         and uncertainties else
+                         "host: the clock time just before the command (Player.start)"),
+        settings=s, tactors=summarise(measured), date=_now_iso(),
+        angles_deg=tuple(belt.tactor_angles_deg), seconds=time.perf_counter() - wall0,
+        repeats=repeats, warnings=list(warned.values()),
+        onset_uncertainty_ms=(float(np.median(uncertainties)) / 1e6 if uncertainties
+                              else None))
+
+
+def run_onsets(belt_url: str, out_dir: str | Path, *, sense_url: str | None = None,
+               settings: OnsetSettings | None = None, calibration_file: str | Path | None = None,
+               force: bool = False, progress: Callable[[int, int], None] | None = None,
+               on_open: Callable[[Belt, Sensor], None] | None = None,
+               ) -> tuple[OnsetValidation, dict[str, Path]]:
+    """The whole ``tactorbelt validate onsets``: open the belt (through the calibration
+    file when it exists) and the sensor, validate, write ``validation.json`` and
+    ``onsets.png`` into ``out_dir``, and with ``calibration_file`` write the timings into
+    it (in place, atomically; created when missing). ``on_open(belt, sensor)`` is called
+    once both are open.
+
+    Returns:
+        The results and the paths written (``results``, ``figure``, ``calibration``).
+
+    Raises:
+        ConfigError: a bad URL or setting, an existing validation.json without ``force``,
+            a calibration file for another belt.
+        DeviceError: the belt or the sensor cannot be used, or a pulse was not seen.
+    """
+    from ..devices import open_belt
+    from ..devices.calibration import Calibration, update_timing
+    from .figure import onset_figure
+    from .sensors import open_sensor, resolve_sensor
+
+    out = Path(out_dir)
+    results = out / RESULTS
+    if out.exists() and not out.is_dir():
+        raise ConfigError(f"output {str(out)!r} is a file, not a directory")
+    if results.exists() and not force:
+        raise ConfigError(f"{str(results)!r} exists: give another directory, or --force to "
+                          "replace it")
+    if sense_url is not None:
+        resolve_sensor(sense_url)  # a bad URL fails before the belt is opened
+    calibration = None
+    if calibration_file is not None and Path(calibration_file).exists():
+        calibration = Calibration.load(calibration_file)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ConfigError(f"cannot create output directory {str(out)!r}: {exc.strerror}"
+                          ) from None
+    belt = open_belt(belt_url, **({"calibration": calibration} if calibration else {}))
+    with belt, open_sensor(sense_url, belt) as sensor:
+        if on_open is not None:
+            on_open(belt, sensor)
+        result = validate_onsets(belt, sensor, settings, progress)
+    paths = {"results": results}
+    text = json.dumps(result.to_dict(), indent=2, allow_nan=False) + "\n"
+    tmp = results.with_name(f".{RESULTS}.tmp")
+    tmp.write_text(text, encoding="utf-8")
+    tmp.replace(results)
+    paths["figure"] = onset_figure(result, out / FIGURE)
+    if calibration_file is not None:
+        update_timing(calibration_file, len(result.angles_deg), result.timings(),
+                      result.date, f"{result.sensor}: {result.method}", belt=result.belt,
+                      angles_deg=result.angles_deg)
+        paths["calibration"] = Path(calibration_file)
+    return result, paths

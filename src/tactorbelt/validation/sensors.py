@@ -1,0 +1,603 @@
+"""Sensors of a belt's vibration, and their registry (``--sense URL``).
+
+Every sensor gives, for a tactor and an interval of the commands' clock, the envelope of
+the vibration it sensed there (:meth:`Sensor.envelope`), with time stamps on the same
+clock as the commands (the belt's clock, or ``time.perf_counter_ns`` for a belt on wall
+time). :mod:`tactorbelt.validation.run` pulses the tactors and measures the envelopes.
+
+The registry, :data:`SENSORS`, is modelled on the belt registry
+(:mod:`tactorbelt.devices.registry`): one :class:`SensorBackend` per URL scheme, its
+opener imported only when used, its ``?key=value`` options parsed and checked here, in
+one place (:func:`resolve_sensor`), and the ``--sense`` help generated from it:
+
+- ``model``: the belt's own vibration model (``belt.vibration``; the sim belt). Taken
+  when no ``--sense`` is given and the belt ``models_vibration``.
+- ``audio:DEVICE?channel=N``: an input channel of a sound card through PortAudio (a
+  loopback cable from an audio belt's output, or a piezo disc or an analog accelerometer
+  on a tactor); :class:`AudioSensor`.
+- ``board``: the belt's own IMU. Declared, not yet available: it needs firmware that
+  streams acceleration samples with device time stamps (:class:`SampledSensor` is where
+  it plugs in, see below).
+
+Sensors of raw signals subclass :class:`SampledSensor`: they deliver samples with time
+stamps on the commands' clock (:meth:`SampledSensor.samples`) and the envelope is
+estimated in one place (:func:`~tactorbelt.validation.envelope.rectified_envelope`). A
+board IMU sensor delivers the magnitude of its acceleration with gravity removed (a
+high-pass), its device time stamps mapped to host time with the belt's clock fit (as
+``Belt.last_onset`` maps the device's onsets), and says in ``problem`` when samples were
+lost in the interval.
+
+Imports the standard library and NumPy; sounddevice only when an audio sensor opens.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import importlib
+import math
+import threading
+import time
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+from types import TracebackType
+from typing import TYPE_CHECKING, Any, Final
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .._errors import ConfigError, DeviceError
+from ..devices.registry import UrlOption, check_options
+from .envelope import rectified_envelope
+
+if TYPE_CHECKING:
+    from ..devices.base import Belt
+
+__all__ = [
+    "SENSORS",
+    "AudioSensor",
+    "ModelSensor",
+    "SampledSensor",
+    "Sensor",
+    "SensorBackend",
+    "Window",
+    "open_sensor",
+    "resolve_sensor",
+    "sense_url_help",
+]
+
+IntArray = NDArray[np.int64]
+FloatArray = NDArray[np.float64]
+
+#: The model sensor samples the belt's model at this rate by default (Hz).
+MODEL_RATE_HZ: Final = 10_000.0
+#: The audio sensor's envelope window by default: one period of a 250 Hz carrier (ms).
+DEFAULT_WINDOW_MS: Final = 4.0
+#: The host-time mapping of an audio input is the earliest callback within this long of
+#: the interval asked for (so the sound card's clock may drift from the host's).
+MAP_SPAN_NS: Final = 2_000_000_000
+#: How long :meth:`AudioSensor.samples` waits beyond an interval's end for its samples.
+ARRIVAL_TIMEOUT_S: Final = 2.0
+
+
+@dataclass
+class Window:
+    """A sensed interval: times (ns, the commands' clock), the envelope, and why it cannot
+    be used (``problem``: samples were lost in it), or None."""
+
+    t_ns: IntArray
+    env: FloatArray
+    problem: str | None = None
+
+
+class Sensor(ABC):
+    """Senses a belt's vibration (see the module docstring). A context manager.
+
+    Attributes:
+        url: how it was opened (``model``, ``audio:3?channel=0``).
+        description: a human-readable name.
+        method: how the envelope is had (written to validation.json).
+        unit: the unit of the envelope.
+    """
+
+    url: str
+    description: str
+    method: str
+    unit: str = "arbitrary units"
+    #: True when each tactor is sensed on a signal of its own (the model; one input
+    #: channel per tactor): pulses of other tactors may then follow one another closely.
+    separates_tactors: bool = False
+
+    def start(self) -> None:  # noqa: B027 - optional hook
+        """Begin recording (called after the belt is open, before the first pulse)."""
+
+    @abstractmethod
+    def envelope(self, tactor: int, t0_ns: int, t1_ns: int) -> Window:
+        """The envelope of ``tactor``'s vibration over [t0, t1) on the commands' clock;
+        waits for samples still to come.
+
+        Raises:
+            DeviceError: the sensor stopped delivering samples.
+        """
+
+    def forget_before(self, t_ns: int) -> None:  # noqa: B027 - optional hook
+        """Nothing before ``t_ns`` will be asked for again (a recording may drop it)."""
+
+    def close(self) -> None:  # noqa: B027 - optional hook
+        """Stop recording and release the device."""
+
+    def __enter__(self) -> Sensor:
+        return self
+
+    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
+                 tb: TracebackType | None) -> None:
+        self.close()
+
+
+class ModelSensor(Sensor):
+    """The belt's own vibration model as the sensor (``belt.vibration``): exact, no noise,
+    on the belt's clock (instant on ``sim:virtual``)."""
+
+    unit = "vibration amplitude (1 = rated speed)"
+    separates_tactors = True
+
+    def __init__(self, belt: Belt, rate_hz: float = MODEL_RATE_HZ, url: str = "model") -> None:
+        if not belt.models_vibration:
+            raise ConfigError(f"belt {belt.url!r} models no vibration, so it cannot be its "
+                              "own sensor; give --sense audio:DEVICE?channel=N (a piezo or "
+                              "accelerometer on the tactor, or a loopback cable)")
+        self.belt = belt
+        self.rate_hz = float(rate_hz)
+        self.url = url
+        self.description = f"the vibration model of belt {belt.url!r}"
+        self.method = (f"belt.vibration() of {belt.url!r} sampled at {self.rate_hz:g} Hz "
+                       "(the modelled amplitude, no estimator)")
+
+    def envelope(self, tactor: int, t0_ns: int, t1_ns: int) -> Window:
+        t, vib = self.belt.vibration(t0_ns, t1_ns, self.rate_hz)
+        return Window(t, np.ascontiguousarray(vib[:, tactor]))
+
+
+class SampledSensor(Sensor):
+    """A sensor of raw samples: the envelope is :func:`rectified_envelope` of them over
+    ``window_s`` (one carrier period by default). Subclasses implement :meth:`samples`;
+    the interval is widened by a window each side, so the estimate has no edge there."""
+
+    window_s: float = DEFAULT_WINDOW_MS / 1000.0
+    rate_hz: float
+
+    @abstractmethod
+    def samples(self, tactor: int, t0_ns: int, t1_ns: int
+                ) -> tuple[IntArray, FloatArray, str | None]:
+        """Raw samples of ``tactor``'s channel over [t0, t1): times (ns on the commands'
+        clock), values, and why the interval cannot be used (None: it can)."""
+
+    def envelope(self, tactor: int, t0_ns: int, t1_ns: int) -> Window:
+        pad = round(self.window_s * 1e9)
+        t, x, problem = self.samples(tactor, t0_ns - pad, t1_ns + pad)
+        env = rectified_envelope(x, self.rate_hz, self.window_s)
+        keep = (t >= t0_ns) & (t < t1_ns)
+        return Window(t[keep], env[keep], problem)
+
+
+# -- the audio input sensor -----------------------------------------------------------------
+def _sounddevice() -> Any:
+    try:
+        import sounddevice
+    except ImportError:
+        raise DeviceError("audio sensors need the sounddevice package: "
+                          "pip install 'tactorbelt[audio]'") from None
+    except OSError as exc:
+        raise DeviceError(f"audio sensors need the PortAudio library ({exc}); on Debian or "
+                          "Ubuntu: apt install libportaudio2") from None
+    return sounddevice
+
+
+@dataclass(frozen=True)
+class AudioInput:
+    """One PortAudio device with input channels."""
+
+    index: int
+    name: str
+    hostapi: str
+    channels: int
+    samplerate: float
+
+    def label(self) -> str:
+        return (f"{self.index} {self.name!r} ({self.hostapi}, {self.channels} input channels, "
+                f"{self.samplerate:g} Hz)")
+
+
+def list_inputs() -> list[AudioInput]:
+    """Every PortAudio device with at least one input channel."""
+    sd = _sounddevice()
+    apis = sd.query_hostapis()
+    return [AudioInput(int(d["index"]), str(d["name"]), str(apis[d["hostapi"]]["name"]),
+                       int(d["max_input_channels"]), float(d["default_samplerate"]))
+            for d in sd.query_devices() if d["max_input_channels"] > 0]
+
+
+def find_input(target: str) -> AudioInput:
+    """The input device named by ``target``: an index, ``default``, or words that all
+    appear (case-insensitive) in exactly one input's ``name, host API``.
+
+    Raises:
+        DeviceError: no such input, or several match (the message lists the inputs).
+    """
+    sd = _sounddevice()
+    inputs = list_inputs()
+    offers = "; ".join(i.label() for i in inputs) or "none (is the sound server running?)"
+    text = target.strip()
+    if text.lower() in ("", "default"):
+        index = sd.default.device[0]
+        index = -1 if index is None else int(index)
+        if index < 0:
+            index = int(sd.query_hostapis(sd.default.hostapi)["default_input_device"])
+        match = [i for i in inputs if i.index == index]
+        if not match:
+            raise DeviceError(f"there is no default audio input; inputs: {offers}")
+        return match[0]
+    if text.isdigit():
+        match = [i for i in inputs if i.index == int(text)]
+    else:
+        words = text.lower().split()
+        match = [i for i in inputs if all(w in f"{i.name}, {i.hostapi}".lower() for w in words)]
+        exact = [i for i in match if i.name.lower() == text.lower()]
+        match = exact if len(exact) == 1 else match
+    if not match:
+        raise DeviceError(f"audio input {text!r} not found; inputs: {offers}")
+    if len(match) > 1:
+        raise DeviceError(f"audio input {text!r} matches several inputs: "
+                          f"{'; '.join(i.label() for i in match)}; give its index (audio:N)")
+    return match[0]
+
+
+class AudioSensor(SampledSensor):
+    """An input channel of a sound card (see docs/validation.md).
+
+    Time stamps: every callback notes the host time it was called
+    (``time.perf_counter_ns``) and the number of frames delivered before it. A callback
+    is never early, so the host time of frame k is at most ``t_callback - (k - k_block) /
+    rate`` for the callback delivering it; the least of ``t_callback - k_block / rate`` over
+    the callbacks within :data:`MAP_SPAN_NS` of an interval (the most punctual of them)
+    maps the frames to host time, and PortAudio's reported input latency of the stream is
+    subtracted, for the time the signal was at the input (the ADC). A callback that
+    reports an input overflow (frames lost: an xrun) starts a new stretch, mapped on its
+    own; an interval across two stretches is reported as a ``problem`` (the pulse is
+    measured again).
+
+    Attributes:
+        device: the input; ``channels``: the input channel of each tactor.
+        samplerate; latency_s: PortAudio's reported input latency of the stream.
+        overflows: callbacks that reported lost input.
+    """
+
+    unit = "input amplitude (1 = full scale)"
+
+    def __init__(self, url: str, device: AudioInput, channels: tuple[int, ...] | int,
+                 n_tactors: int, samplerate: float, latency: float | str, blocksize: int,
+                 window_ms: float) -> None:
+        sd = _sounddevice()
+        self.url = url
+        self.device = device
+        self.channels = ((channels,) * n_tactors if isinstance(channels, int)
+                         else tuple(channels))
+        self.separates_tactors = len(set(self.channels)) == len(self.channels)
+        self.samplerate = self.rate_hz = float(samplerate)
+        self.window_s = window_ms / 1000.0
+        self.description = f"audio input {device.label()}"
+        opened = sorted(set(self.channels))
+        self._col = {c: i for i, c in enumerate(opened)}
+        self._lock = threading.Lock()
+        self._blocks: list[tuple[int, int, bool, NDArray[np.float32]]] = []
+        self._first = 0  # frames before the first kept block
+        self._frames = 0
+        self._recording = False
+        self._error: BaseException | None = None
+        self.overflows = 0
+        n_open = max(opened) + 1
+        self._pick = np.asarray(opened, dtype=np.intp)
+        try:
+            self._stream = sd.InputStream(device=device.index, channels=n_open,
+                                          samplerate=self.samplerate, dtype="float32",
+                                          latency=latency, blocksize=blocksize,
+                                          callback=self._callback)
+        except Exception as exc:
+            raise DeviceError(f"cannot open audio input {device.label()} ({n_open} channels "
+                              f"at {self.samplerate:g} Hz): {exc}") from None
+        self.latency_s = float(self._stream.latency)
+        chans = (f"channel {self.channels[0]}" if len(set(self.channels)) == 1
+                 else f"channels {','.join(map(str, self.channels))}")
+        self.method = (f"input {device.name!r} ({device.hostapi}) {chans} at "
+                       f"{self.samplerate:g} Hz; envelope: full-wave rectified, centred "
+                       f"moving mean over {window_ms:g} ms, x pi/2; time: the earliest "
+                       f"callback's host time minus the frame position, minus PortAudio's "
+                       f"input latency ({self.latency_s * 1e3:.2f} ms)")
+
+    def _callback(self, indata: Any, frames: int, time_info: Any, status: Any) -> None:
+        t = time.perf_counter_ns()
+        try:
+            overflow = bool(status.input_overflow)
+            if overflow:
+                self.overflows += 1
+            if not self._recording:
+                return
+            block = np.array(indata[:, self._pick], dtype=np.float32)
+            with self._lock:
+                self._blocks.append((t, self._frames, overflow, block))
+                self._frames += frames
+        except BaseException as exc:  # tell the next caller
+            self._error = exc
+            raise _sounddevice().CallbackAbort from None
+
+    def start(self) -> None:
+        self._recording = True
+        try:
+            self._stream.start()
+        except Exception as exc:
+            raise DeviceError(f"cannot start audio input {self.device.label()}: {exc}") from None
+
+    def forget_before(self, t_ns: int) -> None:
+        cut = t_ns - MAP_SPAN_NS
+        with self._lock:
+            drop = 0
+            while drop < len(self._blocks) and self._blocks[drop][0] < cut:
+                drop += 1
+            del self._blocks[:drop]  # the stretches of the rest stay as they were
+
+    def _snapshot(self) -> tuple[IntArray, IntArray, IntArray, list[NDArray[np.float32]]]:
+        with self._lock:
+            blocks = list(self._blocks)
+        t = np.array([b[0] for b in blocks], dtype=np.int64)
+        k = np.array([b[1] for b in blocks], dtype=np.int64)
+        stretch = np.cumsum([b[2] for b in blocks], dtype=np.int64)
+        return t, k, stretch, [b[3] for b in blocks]
+
+    def _mapped(self, t0_ns: int, t1_ns: int
+                ) -> tuple[IntArray, FloatArray, str | None, bool] | None:
+        """The interval's frames if they have all arrived: (times, the block data's rows,
+        problem, complete); None when nothing is recorded yet."""
+        t_cb, k, stretch, data = self._snapshot()
+        if t_cb.size == 0:
+            return None
+        period = 1e9 / self.samplerate
+        offset = t_cb - np.round(k * period).astype(np.int64)  # host time of frame 0
+        near = (t_cb >= t0_ns - MAP_SPAN_NS) & (t_cb <= t1_ns + MAP_SPAN_NS)
+        lat = round(self.latency_s * 1e9)
+        # each stretch's mapping, from its blocks near the interval
+        times = np.empty(t_cb.size, dtype=np.int64)  # host time of each block's first frame
+        for s in np.unique(stretch):
+            mine = stretch == s
+            pick = mine & near
+            off = int(offset[pick].min() if pick.any() else offset[mine].min())
+            times[mine] = off + np.round(k[mine] * period).astype(np.int64) - lat
+        lengths = np.array([d.shape[0] for d in data], dtype=np.int64)
+        ends = times + np.round(lengths * period).astype(np.int64)
+        inside = np.flatnonzero((ends > t0_ns) & (times < t1_ns))
+        complete = bool(ends[-1] >= t1_ns)
+        problem = None
+        if inside.size == 0 or times[inside[0]] > t0_ns:
+            problem = "the sensor recorded nothing at the start of the interval"
+        elif np.unique(stretch[inside]).size > 1:
+            problem = "the sensor lost input (an overflow) in the interval"
+        if inside.size == 0:
+            return np.zeros(0, dtype=np.int64), np.zeros((0, len(self._col))), problem, complete
+        rows = np.concatenate([data[i] for i in inside]).astype(float)
+        frame_t = np.concatenate([times[i] + np.round(np.arange(lengths[i]) * period)
+                                  .astype(np.int64) for i in inside])
+        return frame_t, rows, problem, complete
+
+    def samples(self, tactor: int, t0_ns: int, t1_ns: int
+                ) -> tuple[IntArray, FloatArray, str | None]:
+        end = time.monotonic() + ARRIVAL_TIMEOUT_S + max(0.0, (t1_ns - time.perf_counter_ns())
+                                                         / 1e9)
+        while True:
+            if self._error is not None:
+                raise DeviceError(f"the audio input {self.device.label()} failed: "
+                                  f"{self._error}")
+            got = self._mapped(t0_ns, t1_ns)
+            if got is not None and got[3]:
+                break
+            if time.monotonic() > end or not self._stream.active:
+                raise DeviceError(f"the audio input {self.device.label()} delivered no "
+                                  "samples for the last pulse (did the sound server or the "
+                                  "device go away?)")
+            time.sleep(0.005)
+        frame_t, rows, problem, _ = got
+        col = self._col[self.channels[tactor]]
+        keep = (frame_t >= t0_ns) & (frame_t < t1_ns)
+        return frame_t[keep], rows[keep, col], problem
+
+    def close(self) -> None:
+        self._recording = False
+        with contextlib.suppress(Exception):
+            self._stream.stop()
+        with contextlib.suppress(Exception):
+            self._stream.close()
+
+
+# -- openers ----------------------------------------------------------------------------------
+def open_model(target: str, belt: Belt, **options: Any) -> ModelSensor:
+    """``model``: the belt's own vibration model (``rate_hz``: its sampling rate)."""
+    check_options(options, ("rate_hz",), "model")
+    return ModelSensor(belt, float(options.get("rate_hz", MODEL_RATE_HZ)),
+                       url="model" + (f"?rate_hz={options['rate_hz']:g}" if options else ""))
+
+
+def _parse_channels(text: str, url: str, n: int) -> tuple[int, ...]:
+    try:
+        chans = tuple(int(p) for p in text.replace(" ", "").split(",") if p != "")
+    except ValueError:
+        chans = ()
+    if not chans or min(chans) < 0:
+        raise ConfigError(f"option 'map' of sensor URL {url!r} must be input channels "
+                          f"separated by commas (map=0,1,2,3,4,5), got {text!r}")
+    if len(chans) != n:
+        raise ConfigError(f"sensor URL {url!r} maps {len(chans)} input channels but the belt "
+                          f"has {n} tactors")
+    return chans
+
+
+def open_audio_sensor(target: str, belt: Belt, **options: Any) -> AudioSensor:
+    """``audio:DEVICE?channel=N``: an input channel of a sound card (see docs/validation.md).
+
+    Options: ``channel`` (the input channel that senses every tactor, one at a time;
+    default 0) or ``map`` (tactor k's input channel), ``samplerate`` (the device's
+    default), ``latency`` (``low``, ``high`` or seconds; default ``low``), ``blocksize``
+    (0: PortAudio's), ``window_ms`` (the envelope's window, 4 ms: one period of 250 Hz).
+
+    Raises:
+        ConfigError: both ``channel`` and ``map``, a bad map, a belt on a simulated clock.
+        DeviceError: no such input, too few channels, no PortAudio.
+    """
+    url = f"audio:{target}"
+    check_options(options, ("channel", "map", "samplerate", "latency", "blocksize",
+                            "window_ms"), url)
+    if belt.clock is not None and belt.clock.simulated:
+        raise ConfigError(f"belt {belt.url!r} runs on a simulated clock: a sound card cannot "
+                          "sense it (use the sim belt on wall time, --belt sim)")
+    if "channel" in options and "map" in options:
+        raise ConfigError(f"sensor URL {url!r}: give channel= or map=, not both")
+    channels: tuple[int, ...] | int = int(options.get("channel", 0))
+    if "map" in options:
+        channels = _parse_channels(str(options["map"]), url, belt.n_tactors)
+    latency: float | str = str(options.get("latency", "low")).strip().lower()
+    if latency not in ("low", "high"):
+        try:
+            latency = float(latency)
+        except ValueError:
+            latency = math.nan
+        if not (math.isfinite(latency) and 0.0 < latency <= 2.0):
+            raise ConfigError(f"option 'latency' of sensor URL {url!r} must be low, high or "
+                              f"seconds in (0, 2], got {options['latency']!r}")
+    device = find_input(target)
+    need = (channels if isinstance(channels, int) else max(channels)) + 1
+    if device.channels < need:
+        raise DeviceError(f"audio input {device.label()} has {device.channels} input "
+                          f"channels; sensor {url!r} needs channel {need - 1}")
+    rate = float(options.get("samplerate") or device.samplerate)
+    return AudioSensor(url, device, channels, belt.n_tactors, rate, latency,
+                       int(options.get("blocksize", 0)),
+                       float(options.get("window_ms", DEFAULT_WINDOW_MS)))
+
+
+def open_board(target: str, belt: Belt, **options: Any) -> Sensor:
+    """``board``: the belt's own IMU. Not available yet (see the message)."""
+    raise DeviceError(
+        f"sensor 'board' (the belt's own IMU) is not available for belt {belt.url!r}: it "
+        "needs belt firmware that streams IMU acceleration samples with device time "
+        "stamps, which this firmware does not; use --sense audio:DEVICE?channel=N with a "
+        "piezo disc or an analog accelerometer on the tactor")
+
+
+# -- the registry -------------------------------------------------------------------------------
+class SensorOption(UrlOption):
+    """A ``?key=value`` option of a sensor URL (errors say "sensor URL")."""
+
+    def parse(self, text: str, url: str) -> Any:
+        try:
+            return super().parse(text, url)
+        except ConfigError as exc:
+            raise ConfigError(str(exc).replace("of belt URL", "of sensor URL")) from None
+
+
+@dataclass(frozen=True)
+class SensorBackend:
+    """One registered sensor: its URL scheme, its opener (``"module:function"``, called
+    as ``opener(target, belt, **options)``), a summary and examples for the help, whether
+    the URL needs a target (``audio:DEVICE``), its options, its docs page."""
+
+    scheme: str
+    opener: str
+    summary: str
+    examples: tuple[str, ...]
+    target: str = ""
+    options: tuple[SensorOption, ...] = ()
+    docs: str = "docs/validation.md"
+
+    @property
+    def usage(self) -> str:
+        return f"{self.scheme}:{self.target}" if self.target else self.scheme
+
+
+SENSORS: dict[str, SensorBackend] = {s.scheme: s for s in (
+    SensorBackend("model", "tactorbelt.validation.sensors:open_model",
+                  "the belt's own vibration model (the sim belt; the default there)",
+                  ("model",),
+                  options=(SensorOption("rate_hz", float, "samples per second", 100.0,
+                                        1e6),)),
+    SensorBackend("audio", "tactorbelt.validation.sensors:open_audio_sensor",
+                  "an input channel of a sound card: a loopback cable, or a piezo or "
+                  "accelerometer on the tactor",
+                  ("audio:default?channel=0", "audio:3?map=0,1,2,3,4,5"), target="DEVICE",
+                  options=(SensorOption("channel", int, "the input channel that senses "
+                                        "every tactor", 0, 255),
+                           SensorOption("map", str, "tactor k's input channel: 0,1,2,3,4,5"),
+                           SensorOption("samplerate", int, "sample rate (Hz)", 1000, 768_000),
+                           SensorOption("latency", str, "low, high or seconds (PortAudio)"),
+                           SensorOption("blocksize", int, "frames per callback (0: "
+                                        "PortAudio's)", 0, 16384),
+                           SensorOption("window_ms", float, "the envelope's moving mean "
+                                        "(ms; about one carrier period)", 0.05, 1000.0))),
+    SensorBackend("board", "tactorbelt.validation.sensors:open_board",
+                  "the belt's own IMU (needs firmware that streams it; not yet)", ("board",)),
+)}
+
+
+def resolve_sensor(url: str) -> tuple[SensorBackend, str, dict[str, Any]]:
+    """Split ``scheme:target?key=value&...`` into its sensor, target and options.
+
+    Raises:
+        ConfigError: not a string, an unknown scheme, a missing target, an unknown or
+            malformed option (every message names the URL).
+    """
+    if not isinstance(url, str) or not url.strip():
+        raise ConfigError(f"sensor URL must be a non-empty string, got {url!r}")
+    head, _, query = url.strip().partition("?")
+    scheme, _, target = head.partition(":")
+    backend = SENSORS.get(scheme.lower())
+    if backend is None:
+        allowed = ", ".join(s.usage for s in SENSORS.values())
+        raise ConfigError(f"unknown sensor URL {url!r}; allowed: {allowed}")
+    if backend.target and not target:
+        raise ConfigError(f"sensor URL {url!r} needs a device, e.g. {backend.examples[0]}")
+    if not backend.target and target:
+        raise ConfigError(f"sensor URL {url!r} takes no target; use {backend.usage!r}")
+    known = {o.name: o for o in backend.options}
+    options: dict[str, Any] = {}
+    for item in filter(None, query.split("&")):
+        key, eq, value = item.partition("=")
+        if not eq:
+            raise ConfigError(f"sensor URL {url!r}: expected key=value after '?', got "
+                              f"{item!r}")
+        opt = known.get(key.strip())
+        if opt is None:
+            raise ConfigError(f"unknown option {key.strip()!r} in sensor URL {url!r}; "
+                              f"allowed: {', '.join(known) or 'none'}")
+        options[opt.name] = opt.parse(value.strip(), url)
+    return backend, target, options
+
+
+def open_sensor(url: str | None, belt: Belt) -> Sensor:
+    """Open the sensor at ``url`` for ``belt`` (None: the belt's own model, when it has
+    one).
+
+    Raises:
+        ConfigError: a bad URL, or no URL for a belt that models no vibration.
+        DeviceError: the sensor cannot be opened (or is not available, ``board``).
+    """
+    if url is None:
+        if not belt.models_vibration:
+            raise ConfigError(f"belt {belt.url!r} models no vibration: say what senses it, "
+                              "--sense audio:DEVICE?channel=N (a piezo or accelerometer on "
+                              "the tactor, or a loopback cable from an audio belt)")
+        return ModelSensor(belt)
+    backend, target, options = resolve_sensor(url)
+    module_name, _, func = backend.opener.partition(":")
+    opener = vars(importlib.import_module(module_name))[func]
+    sensor: Sensor = opener(target, belt, **options)
+    return sensor
+
+
+def sense_url_help() -> str:
+    """The ``--sense URL`` help: every registered sensor with an example."""
+    return "; ".join(f"{', '.join(s.examples)}: {s.summary}" for s in SENSORS.values())
