@@ -24,7 +24,7 @@ true transfer.
 It prints the Markdown tables of docs/analysis.md ("Information transfer") and writes
 ``docs/img/it_estimators.png``:
 
-    python scripts/it_estimators.py            # ~2-3 min on one core
+    python scripts/it_estimators.py            # about 3 minutes on one free core
 
 The seed is fixed (``--seed``), so the numbers are the same on every run.
 """
@@ -39,7 +39,13 @@ from pathlib import Path
 import numpy as np
 from scipy.stats import norm
 
-from tactorbelt.analysis.transfer import ESTIMATORS, cell_interval, estimate_transfer
+from tactorbelt.analysis.transfer import (
+    ESTIMATOR,
+    ESTIMATORS,
+    estimate_transfer,
+    expanded_levels,
+    two_level_means,
+)
 
 COUNTS = (12, 24, 36, 48)
 REPS = (2, 3, 5, 10)
@@ -185,50 +191,64 @@ def print_tables(rows: list[dict[str, object]], panel: int) -> str:
 
 
 def coverage(sims: int, seed: int) -> list[dict[str, object]]:
-    """Coverage of the cell interval against the population mean transfer."""
+    """Coverage of cell intervals: of the population mean transfer (several participants)
+    and of the participants' own mean true transfer (every n, the only target for one)."""
+    from scipy.stats import t as t_dist
+
     rng = np.random.default_rng(seed + 1)
     out: list[dict[str, object]] = []
+    methods = ("expanded", "percentile", "participants", "t")
     for m in (12, 24):
         # the population: log-normal angular error around 20 degrees (SD of log 0.4)
         pop = np.exp(np.log(20.0) + 0.4 * rng.standard_normal(400))
         truth = float(np.mean([true_transfer(channel("angular", s, m)) for s in pop]))
         for reps in (3, 5):
             for n in (1, 4, 12):
-                hits = {"two-level": 0, "participants": 0, "t": 0}
-                width = {k: 0.0 for k in hits}
-                est_sum = 0.0
+                hits = dict.fromkeys(methods, 0)
+                own = dict.fromkeys(methods, 0)
+                width = dict.fromkeys(methods, 0.0)
+                err = 0.0
                 for _ in range(sims):
                     sig = np.exp(np.log(20.0) + 0.4 * rng.standard_normal(n))
-                    mats = [draw(channel("angular", s, m), reps, 1, rng)[0] for s in sig]
+                    chans = [channel("angular", s, m) for s in sig]
+                    mine = float(np.mean([true_transfer(c) for c in chans]))
+                    mats = [draw(c, reps, 1, rng)[0] for c in chans]
                     vals = np.array([float(estimate_transfer(x)) for x in mats])
-                    est_sum += vals.mean()
-                    ivs = {"two-level": cell_interval(mats, rng=rng, n_boot=1000)}
+                    err += vals.mean() - truth
+                    boot = two_level_means(mats, rng=rng, n_boot=4000)
+                    ivs = {"expanded": np.quantile(boot, expanded_levels(n)),
+                           "percentile": np.quantile(boot, [0.025, 0.975])}
                     if n > 1:
-                        b = rng.integers(n, size=(2000, n))
-                        means = vals[b].mean(axis=1)
-                        ivs["participants"] = (float(np.quantile(means, 0.025)),
-                                               float(np.quantile(means, 0.975)))
-                        from scipy.stats import t as t_dist
+                        b = rng.integers(n, size=(4000, n))
+                        ivs["participants"] = np.quantile(vals[b].mean(axis=1), [0.025, 0.975])
                         h = float(t_dist.ppf(0.975, n - 1) * vals.std(ddof=1) / math.sqrt(n))
-                        ivs["t"] = (vals.mean() - h, vals.mean() + h)
+                        ivs["t"] = np.array([vals.mean() - h, vals.mean() + h])
                     for k, (lo, hi) in ivs.items():
                         hits[k] += int(lo <= truth <= hi)
+                        own[k] += int(lo <= mine <= hi)
                         width[k] += hi - lo
                 out.append({"m": m, "reps": reps, "n": n, "truth": truth,
-                            "bias": est_sum / sims - truth,
-                            **{f"cov {k}": hits[k] / sims for k in hits},
-                            **{f"width {k}": width[k] / sims for k in width}})
+                            "bias": err / sims,
+                            **{f"cov {k}": hits[k] / sims for k in methods},
+                            **{f"own {k}": own[k] / sims for k in methods},
+                            **{f"width {k}": width[k] / sims for k in methods}})
+    print()
+    print("Coverage of the population mean (of these participants' own mean with one "
+          "participant), mean width in bits:")
     print()
     print("| targets | repetitions | participants | true mean IT | bias of the cell value | "
-          "coverage: two-level bootstrap (width) | participants only | t interval |")
-    print("|---|---|---|---|---|---|---|---|")
+          "two-level, expanded (used) | two-level, plain percentile | participants only, "
+          "percentile | t interval |")
+    print("|---|---|---|---|---|---|---|---|---|")
     for r in out:
         def c(k: str, r: dict[str, object] = r) -> str:
-            if r["n"] == 1 and k != "two-level":
-                return "-"
+            if r["n"] == 1:
+                if k in ("participants", "t"):
+                    return "-"
+                return f"{r['own ' + k]:.2f} ({r['width ' + k]:.2f})"
             return f"{r['cov ' + k]:.2f} ({r['width ' + k]:.2f})"
         print(f"| {r['m']} | {r['reps']} | {r['n']} | {r['truth']:.2f} | {r['bias']:+.2f} | "
-              f"{c('two-level')} | {c('participants')} | {c('t')} |")
+              + " | ".join(c(k) for k in methods) + " |")
     return out
 
 
@@ -236,12 +256,13 @@ def figure(rows: list[dict[str, object]], path: Path) -> None:
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    fig = Figure(figsize=(12, 6.2))
+    fig = Figure(figsize=(12, 9))
     FigureCanvasAgg(fig)
-    axes = fig.subplots(2, len(COUNTS), sharex=True, sharey="row")
+    axes = fig.subplots(3, len(COUNTS), sharey="row")
     styles = {"plug-in": ("#000000", "o", "-"), "Miller-Madow": ("#E69F00", "s", "--"),
               "Panzeri-Treves": ("#56B4E9", "^", "-."), "jackknife": ("#009E73", "D", "-"),
               "Chao-Shen": ("#CC79A7", "v", ":"), "bootstrap": ("#D55E00", "P", "--")}
+    shades = {2: "#f4a6d7", 3: "#d46bb0", 5: "#a0327f", 10: "#5c0a47"}
     for j, m in enumerate(COUNTS):
         for name in NAMES:
             col, mk, ls = styles[name]
@@ -253,21 +274,42 @@ def figure(rows: list[dict[str, object]], path: Path) -> None:
                 e.append(s[2])
             axes[0, j].plot(REPS, b, color=col, marker=mk, linestyle=ls, label=name)
             axes[1, j].plot(REPS, e, color=col, marker=mk, linestyle=ls, label=name)
-        axes[0, j].axhline(0, color="#999999", linewidth=0.8)
+        # the chosen estimator's bias against the true transfer, channel by channel
+        for reps in REPS:
+            sel = sorted((r for r in rows if r["m"] == m and r["reps"] == reps),
+                         key=lambda r: float(r["truth"]))  # type: ignore[arg-type]
+            axes[2, j].plot([float(r["truth"]) for r in sel],  # type: ignore[arg-type]
+                            [float(np.mean(r[ESTIMATOR])) for r in sel],  # type: ignore
+                            color=shades[reps], marker="v", linewidth=1.2,
+                            label=f"{ESTIMATOR}, {reps} reps")
+        sel = sorted((r for r in rows if r["m"] == m and r["reps"] == 3),
+                     key=lambda r: float(r["truth"]))  # type: ignore[arg-type]
+        axes[2, j].plot([float(r["truth"]) for r in sel],  # type: ignore[arg-type]
+                        [float(np.mean(r["plug-in"])) for r in sel],  # type: ignore
+                        color="#000000", marker="o", linestyle="--", linewidth=1,
+                        label="plug-in, 3 reps")
         axes[0, j].set_title(f"{m} targets (log2 = {math.log2(m):.2f} bits)", fontsize=10)
         axes[1, j].set_xlabel("repetitions per target")
-        axes[1, j].set_xticks(REPS)
+        axes[2, j].set_xlabel("true information transfer (bits)")
+        for ax in axes[:2, j]:
+            ax.set_xticks(REPS)
         for ax in axes[:, j]:
             ax.grid(alpha=0.3)
+            if ax is not axes[1, j]:
+                ax.axhline(0, color="#999999", linewidth=0.8)
     axes[0, 0].set_ylabel("mean bias (bits)")
     axes[1, 0].set_ylabel("RMSE (bits)")
+    axes[2, 0].set_ylabel("bias (bits), per channel")
     axes[0, 0].legend(fontsize=8, frameon=False)
+    axes[2, 0].legend(fontsize=7.5, frameon=False)
     fig.suptitle("Information-transfer estimators on one participant's confusion matrix "
-                 f"(clamped to [0, log2 M]; mean over {len(CHANNELS)} channels, "
-                 "perfect to chance)", fontsize=10.5)
+                 "(clamped to [0, log2 M])\nrows 1-2: mean over "
+                 f"{len(CHANNELS)} channels from perfect to chance; row 3: each channel "
+                 f"(the chosen {ESTIMATOR} estimator, and the plug-in at 3 repetitions)",
+                 fontsize=10.5)
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
+    fig.savefig(path, dpi=100)
 
 
 def main() -> None:

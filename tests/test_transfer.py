@@ -235,8 +235,10 @@ def _truth(p: np.ndarray) -> float:
     return float(information_transfer(p / p.shape[0] * 1e12))
 
 
-# (targets, repetitions, error SD): the chosen estimator's bias in the simulation of
-# scripts/it_estimators.py (docs/analysis.md) and the plug-in's, in bits
+# (targets, repetitions, angular error SD in degrees) of a belt-like channel. With 2,000
+# matrices each (scripts/it_estimators.py's channel), the chosen estimator's bias was
+# -0.005, -0.111, +0.017 and -0.104 bits, the plug-in's +0.55, +0.77, +0.32 and +0.77,
+# Miller-Madow's +0.52, +0.57, +0.18 and +0.57
 KNOWN = [(12, 3, 20.0), (24, 5, 20.0), (36, 10, 10.0), (48, 5, 10.0)]
 
 
@@ -252,8 +254,8 @@ def test_chosen_estimator_bias_on_known_channels(m: int, reps: int, sd: float) -
     se = est.std() / math.sqrt(len(est))
     bias = est.mean() - truth
     assert ESTIMATOR == "Chao-Shen"
-    # the simulation's bias on these channels is at most +0.30 bits (see docs); the
-    # plug-in's and Miller-Madow's are two to ten times larger
-    assert abs(bias) < 0.30 + 4 * se
+    # within 0.15 bits (the simulation: 0.11 at most), with room for the sampling
+    # error of 300 matrices; the plug-in overshoots by far more
+    assert abs(bias) < 0.15 + 4 * se
     assert plain.mean() - truth > 2 * abs(bias) + 4 * se
     assert np.mean((est - truth) ** 2) < np.mean((mm - truth) ** 2)

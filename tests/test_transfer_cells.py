@@ -145,3 +145,23 @@ def test_interval_contains_the_mean_estimate_and_respects_the_bounds(
     lo, hi = cell_interval(mats, rng=np.random.default_rng(seed), n_boot=400)
     assert 0.0 <= lo <= hi <= math.log2(size) + 1e-12
     assert lo - 1e-12 <= est <= hi + 1e-12
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_fast_resamples_give_the_estimator_of_the_full_matrices(seed: int) -> None:
+    from tactorbelt.analysis.transfer import _Plan
+
+    rng = np.random.default_rng(seed)
+    m = rng.multinomial(3, np.full(9, 1 / 9), size=12) * (rng.random((12, 9)) < 0.4)
+    m[5] = 0  # a target without an answer
+    m[0, 0] += 2
+    plan = _Plan(m.astype(float))
+    c = plan.draw(300, np.random.default_rng(99))
+    full = plan.dense(c)
+    assert (full.sum(axis=2) == m.sum(axis=1)).all()     # every row keeps its total
+    assert ((full > 0) <= (m > 0)).all()                 # and stays on its cells
+    fast = bootstrap_draws(m, 300, np.random.default_rng(99))
+    assert fast == pytest.approx(np.asarray(estimate_transfer(full)), abs=1e-12)
+    # and the resamples are multinomial: the mean count of each cell is the original
+    many = plan.dense(plan.draw(20000, np.random.default_rng(7))).mean(axis=0)
+    assert many == pytest.approx(m, abs=0.05)

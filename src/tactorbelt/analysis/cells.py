@@ -10,7 +10,8 @@ targets) by :func:`.transfer.estimate_transfer` (the estimator chosen by simulat
 :data:`.transfer.ESTIMATOR`, clamped to ``[0, log2 n]``), then averaged over
 participants (``it_bits``), with a two-level bootstrap interval
 (:func:`.transfer.cell_interval`: participants resampled, and each one's trials
-resampled within each target; ``it_bits_ci_low``, ``it_bits_ci_high``). Pooling every
+resampled within each target; expanded percentile; ``it_bits_ci_low``,
+``it_bits_ci_high``). Pooling every
 participant's trials into one matrix would count the differences between
 participants' response biases as transfer and give one number without a spread; the
 pooled value is reported as well (``it_bits_pooled``) for comparison. Timeouts carry
@@ -66,13 +67,15 @@ CELL_COLUMNS: Final = [
 ]
 
 #: resamples and level of the cell interval of ``it_bits``
-IT_N_BOOT: Final = 2000
+IT_N_BOOT: Final = 4000
 IT_CI_LEVEL: Final = 0.95
 #: summary.json's ``it_bits_ci_method``
 IT_CI_METHOD: Final = (
-    "95 % percentile bootstrap, two-level: participants resampled with replacement, and "
-    "each drawn participant's trials resampled within each target (multinomial), the "
-    f"estimate recomputed and recentred on that participant's; {IT_N_BOOT} resamples")
+    "95 % two-level bootstrap: participants resampled with replacement, and each drawn "
+    "participant's trials resampled within each target (multinomial), the estimate "
+    "recomputed and recentred on that participant's; expanded percentile interval "
+    f"(Hesterberg 2015) of the {IT_N_BOOT} resampled means (plain percentile with one "
+    "participant)")
 
 
 def infer_n_targets(target_deg: np.ndarray) -> int:

@@ -33,7 +33,8 @@ CELL_FIGURE_CAPTIONS: Final = {
                       "number of targets; one line per condition (and load). Points are "
                       "means over participants; accuracy and RT bars their 95 % t "
                       "intervals, information-transfer bars the 95 % two-level bootstrap "
-                      "interval (participants, and trials within each target, resampled).",
+                      "interval (participants, and trials within each target, resampled; "
+                      "expanded percentile).",
     "fig1b": "Fig. 1(B) of the paper for the blocks of {n} targets: amplitude of each "
              "tactor against direction, accuracy and median RT per direction, static vs "
              "dynamic (loads pooled).",
@@ -80,9 +81,11 @@ def cells_section(summary: Summary, figures: dict[str, bytes]) -> str:
              "entropies, Chao &amp; Shen 2003; chosen as the estimator with the smallest "
              "error in a simulation with known truth), clamped to [0, log2 targets] "
              "(no channel carries more, no information is negative). The interval is a "
-             f"95 % percentile bootstrap ({IT_N_BOOT} resamples) of that mean, at two "
-             "levels: participants resampled, and each one's trials resampled within "
-             "each target. With few trials per target the estimate is still biased "
+             f"95 % bootstrap interval of that mean ({IT_N_BOOT} resamples at two levels: "
+             "participants resampled, and each one's trials resampled within each "
+             "target; Hesterberg's expanded percentile interval, which widens the plain "
+             "one for few participants). With few trials per target the estimate is "
+             "still biased "
              "upwards, most for diffuse answers (summary.json <code>cells</code>; "
              "docs/analysis.md).</small></p>"]
     for name in cell_figure_names(figures):
