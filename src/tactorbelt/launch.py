@@ -11,15 +11,18 @@ options not given) and does everything the command does:
 - the display: a window needs one (``DISPLAY`` / ``WAYLAND_DISPLAY``, or an explicit
   ``SDL_VIDEODRIVER``); without it the run fails at once instead of drawing into an
   invisible window;
-- the clock policy (:func:`choose_clock`): a headless model or scripted run on the sim
-  belt runs on a SimClock (as fast as the CPU allows) unless ``realtime``; everything
-  else on the wall clock;
+- the clock policy (:func:`clock_kind`, :func:`choose_clock`): ``clock`` ``sim`` (a
+  SimClock, as fast as the CPU allows; only for a headless model or scripted run on the
+  sim belt) or ``wall`` (real time); not given, ``sim`` where it can be, else ``wall``;
+  ``lsl`` runs on the wall clock;
 - the cursor (:func:`tactorbelt.inputs.make_cursor`, one seed policy);
 - the run, headless or in the experiment window, and a :class:`RunOutcome` whose
   :meth:`~RunOutcome.summary` counts the session's totals (and this run's share).
 
 The run's options are kept in the store's ``meta`` table under
-``run_options:<session_id>`` (JSON), so ``--resume`` can reuse them.
+``run_options:<session_id>`` (JSON), so ``--resume`` can reuse them; a resumed run
+reports (``note``) each option it reuses and the option that overrides it
+(:func:`reuse_lines`).
 
 Multi-site studies (docs/multisite.md): with ``push`` (``--push postgresql://...``, or
 ``--db postgresql://...``, which keeps the local store next to the study file) every
@@ -54,8 +57,11 @@ if TYPE_CHECKING:
     from .inputs.joystick import JoystickConfig
     from .lsl import LslObserver
 
-__all__ = ["RunOutcome", "RunRequest", "choose_clock", "has_display", "resolve_db",
-           "resume_command", "run_study"]
+__all__ = ["CLOCKS", "RunOutcome", "RunRequest", "choose_clock", "clock_kind", "has_display",
+           "resolve_db", "resume_command", "reuse_lines", "run_study"]
+
+#: The values of ``RunRequest.clock`` (``--clock``).
+CLOCKS = ("sim", "wall")
 
 #: Seconds of real time added after each trial (to test interrupting a fast run).
 SLOW_TRIAL_ENV = "TACTORBELT_TEST_SLOW_TRIAL_S"
@@ -104,6 +110,9 @@ class RunRequest:
     new_session: bool = False
     limit: int | None = None
     seed: int | None = None
+    #: ``sim`` or ``wall`` (:data:`CLOCKS`); None: sim where it can be, else wall
+    clock: str | None = None
+    #: the old spelling of ``clock="wall"`` (``--realtime``)
     realtime: bool | None = None
     fullscreen: bool | None = None
     screenshot_dir: Path | None = None
@@ -115,6 +124,8 @@ class RunRequest:
     lsl: bool = False
     #: with ``lsl``: seconds to wait for a consumer of each stream before the first trial
     lsl_wait_s: float = 0.0
+    #: with ``lsl_wait_s``: wait for a consumer of every stream, not only the markers
+    lsl_wait_all: bool = False
 
 
 def resolve_db(db: str, push: str | None, study_file: Path) -> tuple[Path, str | None]:
@@ -134,7 +145,7 @@ def resolve_db(db: str, push: str | None, study_file: Path) -> tuple[Path, str |
 
 
 #: What is stored with a session and reused on resume.
-_STORED = ("belt_url", "input_kind", "headless", "realtime", "fullscreen")
+_STORED = ("belt_url", "input_kind", "headless", "clock", "fullscreen")
 
 
 @dataclass
@@ -217,16 +228,46 @@ def has_display(environ: dict[str, str] | None = None, platform: str = sys.platf
     return True
 
 
-def choose_clock(*, headless: bool, input_kind: str, belt_url: str, realtime: bool) -> Clock:
-    """A SimClock for a headless model or scripted run on the sim belt (not realtime);
-    else the wall clock."""
-    from .clock import SimClock, WallClock
-    from .devices import parse_url
+def _no_sim(*, headless: bool, input_kind: str, belt_url: str) -> str | None:
+    """Why this run cannot be on a simulated clock (None: it can)."""
+    from .devices import runs_on_simulated_time
 
-    scheme, _ = parse_url(belt_url)
-    simulated = headless and input_kind in ("model", "scripted") and not realtime \
-        and scheme == "sim"
-    return SimClock() if simulated else WallClock()
+    if not headless:
+        return "the experiment window runs in real time"
+    if input_kind not in ("model", "scripted"):
+        return f"--input {input_kind} is a person, in real time"
+    if not runs_on_simulated_time(belt_url):
+        return f"the belt {belt_url} runs in real time"
+    return None
+
+
+def clock_kind(*, headless: bool, input_kind: str, belt_url: str,
+               clock: str | None = None) -> str:
+    """``sim`` or ``wall``: ``clock`` when given, else ``sim`` for a headless model or
+    scripted run on the sim belt and ``wall`` for anything else.
+
+    Raises:
+        ConfigError: ``clock`` is not one of :data:`CLOCKS`, or ``sim`` for a run that
+            cannot be simulated (a window, a person, a real belt).
+    """
+    if clock is not None and clock not in CLOCKS:
+        raise ConfigError(f"unknown clock {clock!r}; allowed: {', '.join(CLOCKS)}")
+    why = _no_sim(headless=headless, input_kind=input_kind, belt_url=belt_url)
+    if clock == "sim" and why is not None:
+        raise ConfigError(f"--clock sim is for a headless run (--headless) with --input "
+                          f"model or scripted on the sim belt; here {why}: use --clock wall")
+    return clock or ("sim" if why is None else "wall")
+
+
+def choose_clock(*, headless: bool, input_kind: str, belt_url: str,
+                 clock: str | None = None, realtime: bool = False) -> Clock:
+    """The clock of :func:`clock_kind` (``realtime``: the old spelling of ``clock="wall"``):
+    a SimClock or the wall clock."""
+    from .clock import SimClock, WallClock
+
+    kind = clock_kind(headless=headless, input_kind=input_kind, belt_url=belt_url,
+                      clock="wall" if realtime and clock is None else clock)
+    return SimClock() if kind == "sim" else WallClock()
 
 
 def resume_command(req: RunRequest) -> str:
@@ -234,6 +275,7 @@ def resume_command(req: RunRequest) -> str:
     push = ["--push", shlex.quote(req.push)] if req.push else []
     site = ["--site", shlex.quote(req.site)] if req.site else []
     lsl = (["--lsl"] + (["--lsl-wait", f"{req.lsl_wait_s:g}"] if req.lsl_wait_s else [])
+           + (["--lsl-wait-all"] if req.lsl_wait_s and req.lsl_wait_all else [])
            if req.lsl else [])
     return " ".join(["tactorbelt", "run", shlex.quote(str(req.study_file)), "--participant",
                      shlex.quote(req.participant.strip()), "--db", shlex.quote(str(req.db)),
@@ -243,14 +285,18 @@ def resume_command(req: RunRequest) -> str:
 def stored_options(store: Store, session: dict[str, Any]) -> dict[str, Any]:
     """The run options stored with a session (older sessions: their input and belt)."""
     opts = store.run_options(session["session_id"])
-    if opts is not None:
-        return opts
-    return {"input_kind": session.get("input"), "belt_url": session.get("belt")}
+    if opts is None:
+        return {"input_kind": session.get("input"), "belt_url": session.get("belt")}
+    if "clock" not in opts:  # stored before --clock: realtime true or false
+        opts["clock"] = "wall" if opts.get("realtime") else None
+    return opts
 
 
 def _resolve(req: RunRequest, stored: dict[str, Any]) -> RunRequest:
     """The request with stored values for what it does not give, then the defaults."""
     got = asdict(req)
+    if got["clock"] is None and req.realtime:
+        got["clock"] = "wall"
     if req.headless is None and req.input_kind in ("joystick", "mouse"):
         got["headless"] = False  # a live input given again brings the window back
     for name in _STORED:
@@ -262,7 +308,7 @@ def _resolve(req: RunRequest, stored: dict[str, Any]) -> RunRequest:
     res = RunRequest(**got)
     res.belt_url = res.belt_url or "sim"
     res.headless = bool(res.headless)
-    res.realtime = bool(res.realtime)
+    res.realtime = res.clock == "wall"
     res.fullscreen = bool(res.fullscreen)
     if res.input_kind is None:
         res.input_kind = "model" if res.headless else "joystick"
@@ -350,8 +396,10 @@ class _RunObserver:
         return answer
 
 
-def _check_options(r: RunRequest) -> None:
-    """Refuse an unknown input, a window input without a window, an unknown belt URL."""
+def _check_options(r: RunRequest, given: bool = False) -> None:
+    """Refuse an unknown input, a window input without a window, an unknown belt URL,
+    an unknown clock; ``given`` (the request as given): ``sim`` with LSL, and (a new
+    session) ``sim`` where it cannot be."""
     from .devices import parse_url
 
     if r.input_kind is not None and r.input_kind not in INPUTS:
@@ -361,6 +409,83 @@ def _check_options(r: RunRequest) -> None:
                           "--headless, or use --input model or --input scripted")
     if r.belt_url is not None:
         parse_url(r.belt_url)
+    if r.clock is not None and r.clock not in CLOCKS:
+        raise ConfigError(f"unknown clock {r.clock!r}; allowed: {', '.join(CLOCKS)}")
+    if given and r.clock == "sim" and r.lsl:
+        raise ConfigError("--lsl runs on the wall clock (LSL timestamps are real times); "
+                          "drop --clock sim")
+    if given and r.clock == "sim" and not r.resume:
+        clock_kind(headless=bool(r.headless), belt_url=r.belt_url or "sim", clock="sim",
+                   input_kind=r.input_kind or ("model" if r.headless else "joystick"))
+
+
+def _pick_clock(req: RunRequest, r: RunRequest, headless: bool) -> tuple[str | None, str]:
+    """(the clock to store with the session, the clock of this run): the one given, else
+    the stored one where it still fits (a stored ``sim`` does not once the window is
+    back, nor with ``lsl``), else the default; ``lsl`` runs on the wall clock."""
+    given = req.clock or ("wall" if req.realtime else None)
+    keep = given if given is not None else r.clock
+    if given is None and keep == "sim" and (req.lsl or _no_sim(
+            headless=headless, input_kind=str(r.input_kind), belt_url=str(r.belt_url))):
+        keep = None
+    want = "wall" if req.lsl else keep
+    return keep, clock_kind(headless=headless, input_kind=str(r.input_kind),
+                            belt_url=str(r.belt_url), clock=want)
+
+
+def reuse_lines(req: RunRequest, r: RunRequest, stored: dict[str, Any],
+                session: dict[str, Any], n_done: int, *, headless: bool,
+                clock: str) -> list[str]:
+    """What a resumed run says about its options: for each, its value in this run, where
+    it comes from (given again, the session's stored one, or the default) and the option
+    that overrides it.
+
+    Args:
+        req: the request as given (None: not given).
+        r: the request with the stored options filled in (``_resolve``).
+        stored: the options stored with the session (:func:`stored_options`).
+        session: the session's row; ``n_done``: its trials done.
+        headless: the run has no window; ``clock``: ``sim`` or ``wall``, this run's.
+    """
+    def source(given: bool, key: str) -> str:
+        if given:
+            was = stored.get(key)
+            return "given" + (f" (stored: {was})" if was is not None else "")
+        return "stored" if stored.get(key) is not None else "default"
+
+    joy = r.joystick
+    no_sim = _no_sim(headless=headless, input_kind=str(r.input_kind),
+                     belt_url=str(r.belt_url))
+    clock_how = ("--lsl runs in real time" if req.lsl else "--clock wall" if clock == "sim"
+                 else "--clock sim" if no_sim is None else f"none ({no_sim})")
+    window_given = req.headless is not None or (req.fullscreen is not None and not headless)
+    rows: list[tuple[str, str, str, str]] = [
+        ("input", str(r.input_kind), source(req.input_kind is not None, "input_kind"),
+         "--input " + "|".join(k for k in INPUTS if k != r.input_kind)),
+        ("window", "none (headless)" if headless else "full screen" if r.fullscreen
+         else "yes", source(window_given, "headless"),
+         "--window" if headless else
+         "--headless, " + ("--no-fullscreen" if r.fullscreen else "--fullscreen")),
+        ("belt", str(r.belt_url), source(req.belt_url is not None, "belt_url"), "--belt URL"),
+        ("clock", f"{clock} ({'simulated time' if clock == 'sim' else 'real time'})",
+         "--lsl" if req.lsl and req.clock is None else
+         source(req.clock is not None or bool(req.realtime), "clock"), clock_how),
+    ]
+    if r.input_kind == "joystick":
+        inv = [a for a, on in (("x", joy.invert_x), ("y", joy.invert_y)) if on]
+        rows.append(("joystick", f"{joy.device or 'the first stick'}, axes {joy.axes or '0,1'}"
+                     f", dead zone {0.05 if joy.dead_zone is None else joy.dead_zone:g}"
+                     + (f", {' and '.join(inv)} inverted" if inv else ""),
+                     "given" if req.joystick != JoystickOptions() else "stored",
+                     "--joystick, --axes, --dead-zone, --[no-]invert-x, --[no-]invert-y"))
+    rows.append(("seed", str(session["seed"]), "stored",
+                 "none (the session's schedule is stored)"))
+    head = (f"resuming session {session['session_id']} of {r.participant} ({n_done}/"
+            f"{session['n_trials']} trials done) with these options:")
+    wv = max(len(v) for _, v, _, _ in rows)
+    ws = max(len(src) for _, _, src, _ in rows)
+    return [head] + [f"  {name:<8s} {value:<{wv}s}  {src:<{ws}s}  override: {how}"
+                     for name, value, src, how in rows]
 
 
 def run_study(req: RunRequest, *, progress: Callable[[int, int], None] | None = None,
@@ -394,21 +519,23 @@ def run_study(req: RunRequest, *, progress: Callable[[int, int], None] | None = 
     study = load_study(req.study_file)
     push_lines: list[str] = []
     _check_push(req)  # before anything is written
-    _check_options(req)  # what the request gives: before a store file is created
+    _check_options(req, given=True)  # what the request gives: before a store file is created
     if req.lsl:
         from .lsl import load_pylsl
 
         load_pylsl()  # no liblsl: an error now, before a store file is created
     with open_store(req.db) as store:
-        r = _resolve(req, _check_session(store, req))
+        stored = _check_session(store, req)
+        r = _resolve(req, stored)
         assert r.input_kind is not None and r.belt_url is not None
         _check_options(r)  # with the stored options of a resumed session
         window = None if r.headless else _window_factory(r.input_kind, note)
         if window is not None and not has_display():
             _no_display()
         headless = window is None
+        r.clock, kind = _pick_clock(req, r, headless)
         clock = choose_clock(headless=headless, input_kind=r.input_kind,
-                             belt_url=r.belt_url, realtime=bool(r.realtime) or req.lsl)
+                             belt_url=r.belt_url, clock=kind)
         opts = {k: getattr(r, k) for k in _STORED} | {"headless": headless,
                                                       "joystick": asdict(r.joystick)}
         if req.resume:
@@ -416,6 +543,11 @@ def run_study(req: RunRequest, *, progress: Callable[[int, int], None] | None = 
             assert row is not None
             schedule = store.schedule(int(row["session_id"]), study)
             seed = int(row["seed"])
+            if note is not None:
+                done = len(store.finished_indices(int(row["session_id"])))
+                for line in reuse_lines(req, r, stored, row, done, headless=headless,
+                                        clock=kind):
+                    note(line)
         else:
             seed = study.session.seed if r.seed is None else r.seed
             schedule = None
@@ -427,7 +559,7 @@ def run_study(req: RunRequest, *, progress: Callable[[int, int], None] | None = 
                                           study_toml=text, input_name=r.input_kind,
                                           site=req.site)
             cursor = None
-            lsl = _lsl(req, clock, belt)  # None without --lsl
+            lsl = _lsl(req, clock, belt, note)  # None without --lsl
             if r.input_kind in ("model", "scripted"):
                 cursor = make_cursor(r.input_kind, study=study, belt=belt, clock=clock,
                                      participant=req.participant, seed=seed,
@@ -466,14 +598,16 @@ def run_study(req: RunRequest, *, progress: Callable[[int, int], None] | None = 
     return RunOutcome(result, req.db, trials, req.resume, push_lines, events)
 
 
-def _lsl(req: RunRequest, clock: Clock, belt: Any) -> LslObserver | None:
+def _lsl(req: RunRequest, clock: Clock, belt: Any,
+         note: Callable[[str], None] | None) -> LslObserver | None:
     """With ``req.lsl``: the LSL observer (tactorbelt.lsl; its streams open when the
     session starts); else None."""
     if not req.lsl:
         return None
     from .lsl import LslObserver
 
-    return LslObserver(None, clock, belt, wait_s=req.lsl_wait_s)
+    return LslObserver(None, clock, belt, wait_s=req.lsl_wait_s,
+                       wait_all=req.lsl_wait_all, report=note)
 
 
 def _check_push(req: RunRequest) -> None:

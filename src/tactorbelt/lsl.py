@@ -61,6 +61,12 @@ CURSOR_STREAM = "tactorbelt-cursor"
 MARKER_FORMAT = "tactorbelt-markers/1"
 #: Seconds an outlet stays open after the session, for its last samples to go out.
 LINGER_S = 0.5
+#: While waiting for consumers: how often the outlets are asked (s), how often the time
+#: left is reported (s), and how long the other streams are given once the markers have
+#: a consumer (a recorder connects to the streams it records within a moment).
+WAIT_POLL_S = 0.05
+WAIT_REPORT_S = 5.0
+WAIT_GRACE_S = 0.5
 
 #: Every marker's ``event`` and the fields it carries besides ``event`` (docs/lsl.md).
 MARKER_EVENTS: dict[str, tuple[str, ...]] = {
@@ -189,14 +195,22 @@ class LslObserver:
         belt: the session's belt (its URL, firmware, layout and whether it reports
             device-true onsets).
         wait_s: when the streams open, wait up to this long for a consumer (LabRecorder,
-            an analysis script) on each stream before the first trial; markers sent
-            while none is connected are lost.
+            an analysis script) before the first trial: the session starts as soon as
+            the marker stream has one (the cursor stream is given
+            :data:`WAIT_GRACE_S` more); samples sent while no consumer is connected are
+            lost.
+        wait_all: wait for a consumer of every stream, not only the markers.
+        report: called with a line for the experimenter while waiting: which streams
+            have a consumer and how long is left (default: the log, at INFO). ``inner``
+            with a ``show_wait(title, lines)`` method (the experiment window) also shows
+            it, and keeps handling its events (Esc Esc ends the wait).
         pylsl: the pylsl module (default: :func:`load_pylsl`).
 
     Use as a context manager (or call :meth:`close`) to close the outlets.
     """
 
     def __init__(self, inner: Any, clock: Clock, belt: Belt, *, wait_s: float = 0.0,
+                 wait_all: bool = False, report: Callable[[str], None] | None = None,
                  pylsl: Any = None) -> None:
         from .experiment.runner import NullObserver
 
@@ -204,6 +218,8 @@ class LslObserver:
         self.clock = clock
         self.belt = belt
         self.wait_s = float(wait_s)
+        self.wait_all = bool(wait_all)
+        self.report = report if report is not None else log.info
         self.lsl = pylsl if pylsl is not None else load_pylsl()
         self.to_lsl = _ToLsl(clock, self.lsl.local_clock)
         self.markers: Any = None
@@ -251,11 +267,79 @@ class LslObserver:
                               "the network and the LSL configuration (lsl_api.cfg, "
                               "LSLAPICFG; docs/lsl.md)") from None
         if self.wait_s > 0:
-            end = lsl.local_clock() + self.wait_s
-            for name, outlet in ((MARKER_STREAM, self.markers), (CURSOR_STREAM, self.cursor)):
-                if not outlet.wait_for_consumers(max(end - lsl.local_clock(), 0.0)):
-                    log.warning("no LSL consumer connected to %s within %g s; what it sends "
-                                "before one connects is lost", name, self.wait_s)
+            self.wait_for_consumers()
+
+    def wait_for_consumers(self) -> dict[str, bool]:
+        """Wait up to ``wait_s`` for consumers (see the class), saying which streams have
+        one and how long is left; returns whether each stream has one."""
+        lsl = self.lsl
+        outlets = {MARKER_STREAM: self.markers, CURSOR_STREAM: self.cursor}
+        need = list(outlets) if self.wait_all else [MARKER_STREAM]
+        show = getattr(self.inner, "show_wait", None)
+        start = lsl.local_clock()
+        end = start + self.wait_s
+        have = dict.fromkeys(outlets, False)
+        self.report(f"LSL: waiting up to {self.wait_s:g} s for a recorder (LabRecorder) on "
+                    + " and ".join(need) + "; the session starts as soon as "
+                    + ("every stream has" if self.wait_all else f"{MARKER_STREAM} has")
+                    + " a consumer")
+        next_report = start + WAIT_REPORT_S
+        ready_at: float | None = None
+        stopped = False
+        try:
+            while True:
+                now = lsl.local_clock()
+                changed = False
+                for name, outlet in outlets.items():
+                    got = bool(outlet.have_consumers())
+                    changed |= got != have[name]
+                    have[name] = got
+                if all(have[n] for n in need):
+                    ready_at = now if ready_at is None else ready_at
+                else:
+                    ready_at = None
+                done = all(have.values()) or (ready_at is not None
+                                              and now - ready_at >= WAIT_GRACE_S)
+                if done or now >= end:
+                    break
+                if changed or now >= next_report:
+                    self.report(f"LSL: {self._consumers(have)}; {max(end - now, 0):.0f} s "
+                                "left")
+                    next_report = now + WAIT_REPORT_S
+                if show is not None and show("Waiting for the recorder", self._wait_lines(
+                        have, end - now)):
+                    stopped = True  # the experimenter stopped the session
+                    break
+                time.sleep(WAIT_POLL_S)
+        finally:
+            if show is not None:
+                show(None, [])
+        took = lsl.local_clock() - start
+        if stopped:
+            self.report(f"LSL: the wait was stopped in the window after {took:.1f} s")
+            return have
+        late = [n for n in need if not have[n]]
+        if late:
+            log.warning("no LSL consumer connected to %s within %g s; what it sends before "
+                        "one connects is lost", " or ".join(late), self.wait_s)
+        other = [n for n in outlets if n not in need and not have[n]]
+        self.report(f"LSL: starting after {took:.1f} s; {self._consumers(have)}"
+                    + (f" ({', '.join(other)}: what it sends before a consumer connects is "
+                       "lost; --lsl-wait-all waits for every stream)" if other else ""))
+        return have
+
+    @staticmethod
+    def _consumers(have: dict[str, bool]) -> str:
+        return ", ".join(f"{n} {'has a consumer' if h else 'has none'}"
+                         for n, h in have.items())
+
+    def _wait_lines(self, have: dict[str, bool], left_s: float) -> list[str]:
+        """The window's text while waiting for the recorder."""
+        return ["The session starts when the lab's recorder (LabRecorder) records "
+                + ("every stream." if self.wait_all else f"{MARKER_STREAM}."), "",
+                *[f"{n}: {'recorded' if h else 'no recorder yet'}" for n, h in have.items()],
+                "", f"{max(left_s, 0):.0f} s left",
+                "", "Esc twice: stop the session (saved, can be resumed)."]
 
     def _describe(self, si: Any, info: SessionInfo) -> None:
         from . import __version__

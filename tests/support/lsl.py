@@ -5,6 +5,7 @@
     pylsl = pylsl_or_skip()                    # skips, with the reason, without liblsl
     env = loopback_env(tmp_path)               # LSLAPICFG: this machine only, own session
     inlet = start_inlet(env, timeout_s=60)     # a recorder in another process
+    inlet = start_inlet(env, streams=("tactorbelt-markers",))   # one that takes the markers
     ...                                        # run tactorbelt with --lsl and env
     got = inlet_result(inlet)                  # {"markers": [[ts, text], ...], ...}
 
@@ -15,7 +16,8 @@ leaves the machine. The inlet process resolves the two tactorbelt streams, conne
 pulls until the ``session_end`` marker (or its time limit) and prints one JSON object:
 ``markers`` (``[timestamp, text]`` in arrival order), ``cursor`` (``[timestamp, x, y]``),
 ``time_correction`` (the sender's clock minus the receiver's, seconds) and
-``marker_xml`` (the marker stream's description).
+``marker_xml`` (the marker stream's description). With ``streams`` it connects to
+those streams only (``cursor`` is then empty when the cursor stream is not among them).
 """
 
 from __future__ import annotations
@@ -37,16 +39,17 @@ import json, sys
 import pylsl, pylsl.util
 
 limit = float(sys.argv[1])
+names = sys.argv[2].split(",")
 end = pylsl.local_clock() + limit
 inlets = {}
-for name in ("tactorbelt-markers", "tactorbelt-cursor"):
+for name in names:
     found = pylsl.resolve_byprop("name", name, 1, max(end - pylsl.local_clock(), 0.1))
     if not found:
         print(json.dumps({"error": f"no LSL stream {name} within {limit} s"}))
         sys.exit(1)
     inlets[name] = pylsl.StreamInlet(found[0], max_buflen=60)
-markers, cursor = inlets["tactorbelt-markers"], inlets["tactorbelt-cursor"]
-for inlet in (markers, cursor):
+markers, cursor = inlets["tactorbelt-markers"], inlets.get("tactorbelt-cursor")
+for inlet in inlets.values():
     inlet.open_stream(max(end - pylsl.local_clock(), 0.1))
 xml = markers.info(5.0).as_xml()
 tc = markers.time_correction(5.0)
@@ -60,10 +63,12 @@ while pylsl.local_clock() < end and not done:
     if sample is not None:
         got.append([ts, sample[0]])
         done = json.loads(sample[0])["event"] == "session_end"
-    chunk, stamps = cursor.pull_chunk(0.0)
+    if cursor is not None:
+        chunk, stamps = cursor.pull_chunk(0.0)
+        samples += [[t, x, y] for t, (x, y) in zip(stamps, chunk)]
+if cursor is not None:
+    chunk, stamps = cursor.pull_chunk(0.5)
     samples += [[t, x, y] for t, (x, y) in zip(stamps, chunk)]
-chunk, stamps = cursor.pull_chunk(0.5)
-samples += [[t, x, y] for t, (x, y) in zip(stamps, chunk)]
 print(json.dumps({"markers": got, "cursor": samples, "time_correction": tc,
                   "marker_xml": xml, "complete": done}))
 """
@@ -91,10 +96,13 @@ def loopback_env(directory: Path) -> dict[str, str]:
     return env
 
 
-def start_inlet(env: dict[str, str], timeout_s: float = 60.0) -> subprocess.Popen[str]:
-    """Start the recorder process (module doc); it gives up after ``timeout_s``."""
-    return subprocess.Popen([sys.executable, "-c", INLET, str(timeout_s)], env=env,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+def start_inlet(env: dict[str, str], timeout_s: float = 60.0,
+                streams: tuple[str, ...] = ("tactorbelt-markers", "tactorbelt-cursor")
+                ) -> subprocess.Popen[str]:
+    """Start the recorder process (module doc), connecting to ``streams``; it gives up
+    after ``timeout_s``."""
+    return subprocess.Popen([sys.executable, "-c", INLET, str(timeout_s), ",".join(streams)],
+                            env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 
 def inlet_result(proc: subprocess.Popen[str], timeout_s: float = 90.0) -> dict[str, Any]:

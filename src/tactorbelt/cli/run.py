@@ -1,10 +1,10 @@
-"""``tactorbelt run`` (one participant's session) and ``tactorbelt export`` (CSV, BIDS,
-Parquet, a tidy table for R and JASP, PsychoPy CSV).
+"""``tactorbelt run`` (one participant's session); ``export`` lives in ``cli/export.py``
+(imported here for the command table).
 
 The run command parses its options into a :class:`tactorbelt.launch.RunRequest` and
 calls :func:`tactorbelt.launch.run_study`, which holds the policies (session, resume,
 display, clock, cursor). Options not given are ``None``, so ``--resume`` reuses what the
-session stored.
+session stored (and says which, with the option that overrides each).
 
 Imports click at import time; everything else only when a command runs.
 """
@@ -18,12 +18,12 @@ from typing import Any
 
 import click
 
-from ._options import HiddenArgument, belt_option, number, output_option, seed_option
+from ._options import belt_option, number, seed_option
+from .export import export
 
 __all__ = ["export", "run"]
 
 INPUTS = ("joystick", "mouse", "model", "scripted")
-EXPORT_FORMATS = ("csv", "bids", "parquet", "tidy", "psychopy")
 
 
 def _given(ctx: click.Context, name: str, value: Any) -> Any:
@@ -53,17 +53,24 @@ def _given(ctx: click.Context, name: str, value: Any) -> Any:
                    "'tactorbelt sync').")
 @click.option("--resume", is_flag=True,
               help="Continue the participant's unfinished session (its stored schedule, "
-                   "input, belt and window options unless given again).")
+                   "input, belt, window and clock options unless given again; it prints "
+                   "them, each with the option that overrides it).")
 @click.option("--new-session", is_flag=True,
               help="Start a new session even though the participant has an unfinished or "
                    "a complete one.")
-@click.option("--headless", is_flag=True, help="No window (model or scripted input only).")
+@click.option("--headless/--window", default=None,
+              help="--headless: no window (model or scripted input only); --window: the "
+                   "experiment window (the default; brings it back on --resume).")
 @click.option("--limit", type=number(int, 0), default=None,
               help="Stop after this many test trials (the session stays resumable).")
 @seed_option("Randomisation seed [default: the study's session.seed].")
-@click.option("--realtime", is_flag=True,
-              help="Run a headless simulated session on the wall clock (real time).")
-@click.option("--fullscreen", is_flag=True, help="Open the window full screen.")
+@click.option("--clock", type=click.Choice(("sim", "wall")), default=None,
+              help="sim: simulated time, as fast as the CPU allows (a headless model or "
+                   "scripted run on the sim belt); wall: real time [default: sim where it "
+                   "can be, else wall; on --resume the session's].")
+@click.option("--realtime", is_flag=True, hidden=True)  # the old spelling of --clock wall
+@click.option("--fullscreen/--no-fullscreen", default=None,
+              help="Open the window full screen, or not [default: not].")
 @click.option("--screenshot", "screenshot_dir", type=click.Path(file_okay=False, path_type=Path),
               default=None, metavar="DIRECTORY",
               help="Save a PNG of each kind of screen into DIRECTORY.")
@@ -74,21 +81,26 @@ def _given(ctx: click.Context, name: str, value: Any) -> Any:
               help="Stick axis indices for left/right and front/back.")
 @click.option("--dead-zone", type=number(float, 0.0, 1.0, hi_open=True), default=0.05,
               show_default=True, help="Radial dead zone of the stick.")
-@click.option("--invert-x", is_flag=True, help="Mirror the stick's left/right axis.")
-@click.option("--invert-y", is_flag=True, help="Mirror the stick's front/back axis.")
+@click.option("--invert-x/--no-invert-x", default=None,
+              help="Mirror the stick's left/right axis, or not.")
+@click.option("--invert-y/--no-invert-y", default=None,
+              help="Mirror the stick's front/back axis, or not.")
 @click.option("--lsl", is_flag=True,
               help="Send Lab Streaming Layer streams: event markers and the cursor (needs "
                    "pylsl; a simulated run then runs in real time).")
 @click.option("--lsl-wait", type=number(float, 0.0, 3600.0), default=0.0, show_default=True,
-              help="With --lsl: seconds to wait for a recorder (LabRecorder) to connect to "
-                   "the streams before the first trial.")
+              help="With --lsl: seconds to wait for a recorder (LabRecorder) before the "
+                   "first trial; it starts as soon as the markers stream has one.")
+@click.option("--lsl-wait-all", is_flag=True,
+              help="With --lsl-wait: wait for a consumer of every stream (the cursor too).")
 @click.pass_context
 def run(ctx: click.Context, study_file: Path, participant: str, belt_url: str,
         input_kind: str | None, db: str, push: str | None, site: str | None, offline: bool,
-        resume: bool, new_session: bool, headless: bool,
-        limit: int | None, seed: int | None, realtime: bool, fullscreen: bool,
+        resume: bool, new_session: bool, headless: bool | None, limit: int | None,
+        seed: int | None, clock: str | None, realtime: bool, fullscreen: bool | None,
         screenshot_dir: Path | None, joystick_device: str | None, axes: str,
-        dead_zone: float, invert_x: bool, invert_y: bool, lsl: bool, lsl_wait: float) -> None:
+        dead_zone: float, invert_x: bool | None, invert_y: bool | None, lsl: bool,
+        lsl_wait: float, lsl_wait_all: bool) -> None:
     """Run a study session for one participant, storing every trial in --db.
 
     Exit status: 0 the run ended (complete, or --limit reached), 130 stopped by the
@@ -100,6 +112,10 @@ def run(ctx: click.Context, study_file: Path, participant: str, belt_url: str,
 
     if lsl_wait and not lsl:
         raise click.UsageError("--lsl-wait is for --lsl")
+    if lsl_wait_all and not lsl_wait:
+        raise click.UsageError("--lsl-wait-all is for --lsl-wait SECONDS")
+    if realtime and clock == "sim":
+        raise click.UsageError("--realtime is --clock wall; give --clock once")
     if not participant.strip():
         raise click.BadParameter("must not be empty", param_hint="--participant")
     g = lambda name, value: _given(ctx, name, value)  # noqa: E731
@@ -107,13 +123,13 @@ def run(ctx: click.Context, study_file: Path, participant: str, belt_url: str,
     req = RunRequest(
         study_file=study_file, participant=participant, db=local, push=push, site=site,
         offline=offline,
-        belt_url=g("belt_url", belt_url), input_kind=input_kind,
-        headless=g("headless", headless), resume=resume, new_session=new_session,
-        limit=limit, seed=seed, realtime=g("realtime", realtime),
-        fullscreen=g("fullscreen", fullscreen), screenshot_dir=screenshot_dir,
+        belt_url=g("belt_url", belt_url), input_kind=input_kind, headless=headless,
+        resume=resume, new_session=new_session, limit=limit, seed=seed,
+        clock=clock or ("wall" if realtime else None), fullscreen=fullscreen,
+        screenshot_dir=screenshot_dir,
         joystick=JoystickOptions(joystick_device, g("axes", axes), g("dead_zone", dead_zone),
-                                 g("invert_x", invert_x), g("invert_y", invert_y)),
-        lsl=lsl, lsl_wait_s=lsl_wait)
+                                 invert_x, invert_y),
+        lsl=lsl, lsl_wait_s=lsl_wait, lsl_wait_all=lsl_wait_all)
     try:
         with _progress_bar(participant) as progress:
             outcome = run_study(req, progress=progress,
@@ -150,50 +166,3 @@ def _progress_bar(label: str) -> Iterator[Callable[[int, int], None]]:
             bar.update(task, completed=done, total=total)
 
         yield progress
-
-
-@click.command("export")
-@click.argument("db")
-@click.argument("old_out", cls=HiddenArgument, required=False,
-                type=click.Path(file_okay=False, path_type=Path))
-@output_option("directory", "New or empty directory for the files.")
-@click.option("--format", "fmt", type=click.Choice(EXPORT_FORMATS), default="csv",
-              show_default=True,
-              help="csv: the store's tables as CSV; bids: a BIDS dataset (beh + motion); "
-                   "parquet: the same tables as Parquet; tidy: one trial table for R (lme4) "
-                   "and JASP, with its codebook; psychopy: PsychoPy's wide CSV, one file per "
-                   "session.")
-@click.option("--force", is_flag=True,
-              help="Replace an earlier export of the same format in the output directory.")
-@click.option("--readme", type=click.Path(dir_okay=False, path_type=Path), default=None,
-              metavar="FILE", help="BIDS: README to include [default: one describing the "
-                                   "study, the task and the columns].")
-@click.option("--authors", default=None, metavar="'A, B'",
-              help="BIDS: the dataset's authors, comma-separated.")
-def export(db: str, old_out: Path | None, out: Path | None, fmt: str, force: bool,
-           readme: Path | None, authors: str | None) -> None:
-    """Export the store DB (trials and cursor samples) into a new directory.
-
-    Example: `tactorbelt export study.sqlite -o bids --format bids --authors "A. Author,
-    B. Author"`. A directory that is not empty is refused unless --force (which replaces
-    only an earlier export there).
-    """
-    from ..experiment import export_formats
-    from ..experiment.export import export_bids, export_csv
-
-    if out is not None and old_out is not None:
-        raise click.UsageError("give the output directory once, with -o DIRECTORY")
-    out = out if out is not None else old_out
-    if out is None:
-        raise click.UsageError("give the output directory with -o DIRECTORY")
-    if fmt != "bids" and (readme is not None or authors is not None):
-        raise click.UsageError("--readme and --authors are for --format bids")
-    names = [a.strip() for a in (authors or "").split(",") if a.strip()]
-    writers = {"csv": export_csv, "parquet": export_formats.export_parquet,
-               "tidy": export_formats.export_tidy, "psychopy": export_formats.export_psychopy}
-    files = (export_bids(db, out, readme=readme, authors=names, force=force) if fmt == "bids"
-             else writers[fmt](db, out, force=force))
-    click.echo(f"wrote {len(files)} files to {out}")
-    if fmt == "bids" and not names:
-        click.echo("note: no --authors given, so dataset_description.json lists none "
-                   "(the BIDS validator warns NO_AUTHORS)", err=True)

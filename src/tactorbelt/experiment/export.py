@@ -11,8 +11,16 @@ BIDS (:func:`export_bids`), which ``bids-validator`` passes::
 
     dataset_description.json  README.md  participants.tsv  participants.json
     sub-<id>/ses-<n>/beh/sub-<id>_ses-<n>_task-betweentactor_beh.tsv   (+ .json sidecar)
+    sub-<id>/ses-<n>/beh/sub-<id>_ses-<n>_task-betweentactor_events.tsv (+ .json; under
+                                           a cognitive load: the secondary-task events)
+    sub-<id>/ses-<n>/beh/sub-<id>_ses-<n>_task-nasatlx_beh.tsv (+ .json; with ratings:
+                                           one row per rated block)
     sub-<id>/ses-<n>/motion/sub-<id>_ses-<n>_task-betweentactor_tracksys-cursor_motion.tsv
                                            ..._channels.tsv, ..._motion.json
+
+Every column of every table is described in its sidecar (:data:`BEH_COLUMNS`,
+:data:`EVENT_COLUMNS`, :data:`TLX_COLUMNS`). ``Authors`` in ``dataset_description.json``
+are the ones given, else the study files' ``authors``.
 
 ``<id>`` is the participant id with everything but letters and digits removed (BIDS
 labels are alphanumeric); two ids that collapse to the same label are an error.
@@ -45,9 +53,12 @@ from .._errors import ConfigError, TactorbeltError
 from .store import Store, open_store
 from .study import Study
 
-__all__ = ["BEH_COLUMNS", "TASK", "bids_label", "export_bids", "export_csv"]
+__all__ = ["BEH_COLUMNS", "EVENT_COLUMNS", "TASK", "TLX_COLUMNS", "TLX_TASK", "bids_label",
+           "export_bids", "export_csv", "study_authors"]
 
 TASK = "betweentactor"
+#: The BIDS task label of the NASA-TLX ratings (a questionnaire after each test block).
+TLX_TASK = "nasatlx"
 
 TRIAL_COLUMNS = [
     "participant", "session_id", "session_number", "trial_id", "trial_index", "block",
@@ -95,6 +106,65 @@ BEH_COLUMNS: dict[str, dict[str, Any]] = {
     "status": {"Description": "Outcome of the trial.", "Levels": {
         "done": "a response was acquired", "timeout": "no response before the timeout",
         "aborted": "interrupted (pause, device error, Ctrl-C)"}},
+}
+
+#: Every column of the BIDS ``_events.tsv`` (the secondary-task events) and its
+#: description (the JSON sidecar).
+EVENT_COLUMNS: dict[str, dict[str, Any]] = {
+    "onset": {"Description": "Onset of the item (its sound or glyph), or the time of a "
+              "press that answered no item, from the onset of the session's first trial "
+              "(the origin of the motion recording's latency); negative before it.",
+              "Units": "s"},
+    "duration": {"Description": "How long the item was presented (the task's stimulus_s); "
+                 "0 for a press that answered no item.", "Units": "s"},
+    "trial_type": {"Description": "Kind of secondary-task event.", "Levels": {
+        "go": "an item to press on (a match of the n-back, an odd sum)",
+        "nogo": "an item not to press on",
+        "extra_press": "a press that answered no item"}},
+    "task": {"Description": "Name of the secondary task in the study file ([tasks.NAME])."},
+    "phase": {"Description": "When the task ran.", "Levels": {
+        "practice": "the task alone, before its first block, with feedback",
+        "baseline": "the task alone, for the single-task baseline",
+        "dual": "during a test block, with the localisation trials"}},
+    "block_index": {"Description": "The test block the event belongs to (position in the "
+                    "session's schedule, 0-based; practice and baseline take the index of "
+                    "the block they precede)."},
+    "item_index": {"Description": "Position of the item in its run of the task, 0-based; "
+                   "-1 for a press that answered no item."},
+    "stimulus": {"Description": "The item: a tone (tone0, tone1, ...), a letter or a sum "
+                 "(3+4)."},
+    "response": {"Description": "The participant's response to the item (n/a: none).",
+                 "Levels": {"press": "the task's response button was pressed"}},
+    "response_time": {"Description": "Time from the item's onset to the press (n/a "
+                      "without one).", "Units": "s"},
+    "correct": {"Description": "1 when pressed on a go item or not pressed on a no-go "
+                "item, else 0 (0 for an extra press)."},
+}
+
+#: The NASA-TLX items in the BIDS ratings file (``task-nasatlx_beh.tsv``), 0..100.
+_TLX_ITEMS = {
+    "mental": "Mental demand: how mentally demanding was the task?",
+    "physical": "Physical demand: how physically demanding was the task?",
+    "temporal": "Temporal demand: how hurried or rushed was the pace of the task?",
+    "performance": "Performance: how successful were you in accomplishing what you were "
+                   "asked to do? (0 = perfect, 100 = failure)",
+    "effort": "Effort: how hard did you have to work to accomplish your level of "
+              "performance?",
+    "frustration": "Frustration: how insecure, discouraged, irritated, stressed and "
+                   "annoyed were you?",
+}
+#: Every column of the BIDS ratings file and its description (the JSON sidecar).
+TLX_COLUMNS: dict[str, dict[str, Any]] = {
+    "block_index": {"Description": "The test block rated (position in the session's "
+                    "schedule, 0-based); joins block_index of the _beh.tsv."},
+    "block_name": {"Description": "Name of the block in the study file."},
+    "condition": BEH_COLUMNS["condition"],
+    "n_targets": BEH_COLUMNS["n_targets"],
+    "load": BEH_COLUMNS["load"],
+    **{k: {"Description": f"{v} Rated after the block on a slider from 0 (very low) to "
+           "100 (very high)."} for k, v in _TLX_ITEMS.items()},
+    "raw_tlx": {"Description": "Raw TLX: the mean of the six items, 0-100 (no pairwise "
+                "weighting)."},
 }
 
 CHANNELS = [
@@ -293,8 +363,18 @@ def _studies(sessions: list[dict[str, Any]]) -> list[Any]:
     return list(seen.values())
 
 
+def study_authors(studies: Sequence[Any]) -> list[str]:
+    """The authors the study files name (``authors``), each once, in order."""
+    out: list[str] = []
+    for st in studies:
+        for a in getattr(st, "authors", None) or []:
+            if a not in out:
+                out.append(a)
+    return out
+
+
 def _readme(name: str, studies: list[Any], sessions: list[dict[str, Any]],
-            labels: dict[str, str]) -> str:
+            labels: dict[str, str], events: bool = False, ratings: bool = False) -> str:
     """A README describing the study, the task and every file and column."""
     lines = [f"# {name}", "",
              "Exported by tactorbelt from a session store "
@@ -337,6 +417,18 @@ def _readme(name: str, studies: list[Any], sessions: list[dict[str, Any]],
         "## Trial columns (`_beh.tsv`)", ""]
     lines += [f"- `{k}`: {v['Description']}" + (f" ({v['Units']})" if "Units" in v else "")
               for k, v in BEH_COLUMNS.items()]
+    if events:
+        lines += ["", "## Secondary-task events (`_events.tsv`)", "",
+                  "Under a cognitive load, `beh/*_task-betweentactor_events.tsv` has one row "
+                  "per item of the secondary task (practice, baseline and during the test "
+                  "blocks) and per press that answered no item:", ""]
+        lines += [f"- `{k}`: {v['Description']}" + (f" ({v['Units']})" if "Units" in v
+                                                      else "") for k, v in EVENT_COLUMNS.items()]
+    if ratings:
+        lines += ["", f"## Workload ratings (`_task-{TLX_TASK}_beh.tsv`)", "",
+                  f"`beh/*_task-{TLX_TASK}_beh.tsv` has one row per test block rated with the "
+                  "raw NASA-TLX after it:", ""]
+        lines += [f"- `{k}`: {v['Description']}" for k, v in TLX_COLUMNS.items()]
     lines += ["", "## Motion columns (`_motion.tsv`)", ""]
     lines += [f"- `{n}` ({typ}): {d}" + (f" ({u})" if u != "n/a" else "")
               for n, typ, u, d in CHANNELS]
@@ -354,13 +446,52 @@ def _motion_rows(store: Store, session_id: int, trials: list[dict[str, Any]]
         yield [index, f"{(onset - start) / 1e9 + t_s:.6f}", repr(x), repr(y), buttons]
 
 
+def _event_rows(events: list[dict[str, Any]], origin_ns: int, study: Any
+                ) -> list[list[Any]]:
+    """``_events.tsv`` rows (:data:`EVENT_COLUMNS`) of a session's task events, by onset."""
+    rows = []
+    for e in events:
+        extra = e["item_index"] < 0
+        spec = (study.tasks.get(e["task"]) if study is not None else None)
+        duration = 0.0 if extra else (spec.stimulus_s if spec is not None else None)
+        kind = "extra_press" if extra else ("go" if e["target"] else "nogo")
+        rows.append([f"{(e['t_ns'] - origin_ns) / 1e9:.6f}", duration, kind, e["task"],
+                     e["phase"], e["block_index"], e["item_index"], e["stimulus"],
+                     e["response"] or None,
+                     None if e["rt_s"] is None else repr(float(e["rt_s"])), int(e["correct"])])
+    rows.sort(key=lambda r: float(r[0]))
+    return rows
+
+
+def _tlx_rows(ratings: list[dict[str, Any]], trials: list[dict[str, Any]]) -> list[list[Any]]:
+    """Ratings-file rows (:data:`TLX_COLUMNS`): one per rated block, with its cell."""
+    blocks: dict[int, dict[str, float]] = {}
+    for r in ratings:
+        if r["scale"] == "nasa_tlx":
+            blocks.setdefault(int(r["block_index"]), {})[r["item"]] = float(r["value"])
+    cells: dict[int, dict[str, Any]] = {}
+    for t in trials:
+        cells.setdefault(int(t["block_index"]), t)
+    rows = []
+    for b, values in sorted(blocks.items()):
+        t = cells.get(b, {})
+        items = [values.get(k) for k in _TLX_ITEMS]
+        known = [v for v in items if v is not None]
+        mean = sum(known) / len(known) if len(known) == len(items) else None
+        rows.append([b, t.get("block_name"), t.get("condition"), t.get("n_targets"),
+                     t.get("load"), *[None if v is None else f"{v:g}" for v in items],
+                     None if mean is None else f"{mean:.6g}"])
+    return rows
+
+
 def export_bids(db: str | Path, out: str | Path, *, readme: str | Path | None = None,
-                authors: Sequence[str] = (), force: bool = False) -> list[Path]:
+                authors: Sequence[str] | None = None, force: bool = False) -> list[Path]:
     """Write a BIDS behavioural and motion dataset into directory ``out`` (module doc).
 
     Args:
         readme: a README file to copy; default: one generated from the study files.
-        authors: the dataset's authors (``dataset_description.json``).
+        authors: the dataset's authors (``dataset_description.json``); None: the ones the
+            study files name (:func:`study_authors`).
         force: replace an earlier BIDS export in ``out`` (which must otherwise be new or
             empty).
 
@@ -399,6 +530,8 @@ def export_bids(db: str | Path, out: str | Path, *, readme: str | Path | None = 
             "BIDSVersion": "1.9.0",
             "DatasetType": "raw",
         }
+        if authors is None:
+            authors = study_authors(studies)
         if authors:
             desc["Authors"] = list(authors)
         desc["GeneratedBy"] = [{"Name": "tactorbelt", "Version": __version__}]
@@ -407,7 +540,9 @@ def export_bids(db: str | Path, out: str | Path, *, readme: str | Path | None = 
         written.append(p)
         p = o / readme_name
         p.write_text(readme_text if readme_text is not None
-                     else _readme(name, studies, sessions, labels), encoding="utf-8")
+                     else _readme(name, studies, sessions, labels,
+                                  events=bool(store.task_events()),
+                                  ratings=bool(store.ratings())), encoding="utf-8")
         written.append(p)
         p = o / "participants.tsv"
         _write_tsv(p, ["participant_id", "source_id"],
@@ -441,6 +576,7 @@ def export_bids(db: str | Path, out: str | Path, *, readme: str | Path | None = 
             bj = beh.with_suffix(".json")
             bj.write_text(json.dumps(sidecar, indent=2) + "\n")
             written += [beh, bj]
+            written += _task_files(store, s, trials, base / "beh", stem, lab)
             mstem = f"{stem}_tracksys-cursor"
             motion = base / "motion" / f"{mstem}_motion.tsv"
             _write_tsv(motion, None, _motion_rows(store, s["session_id"], trials))
@@ -471,4 +607,41 @@ def export_bids(db: str | Path, out: str | Path, *, readme: str | Path | None = 
                 "TrackedPointsCount": 1,
             }, indent=2) + "\n")
             written += [motion, ch, mj]
+    return written
+
+
+def _session_study(session: dict[str, Any]) -> Any:
+    """The session's study (None when its stored text does not parse)."""
+    try:
+        return Study.from_toml(session["study_toml"])
+    except Exception:
+        return None
+
+
+def _task_files(store: Store, s: dict[str, Any], trials: list[dict[str, Any]], beh: Path,
+                stem: str, lab: str) -> list[Path]:
+    """A session's secondary-task events (``_events.tsv``) and NASA-TLX ratings
+    (``task-nasatlx_beh.tsv``), each with its sidecar, when it has any."""
+    written: list[Path] = []
+    events = store.task_events(s["session_id"])
+    if events:
+        onsets = [t["onset_ns"] for t in trials if t["onset_ns"] is not None]
+        origin = min(onsets) if onsets else min(e["t_ns"] for e in events)
+        ev = beh / f"{stem}_events.tsv"
+        _write_tsv(ev, list(EVENT_COLUMNS), _event_rows(events, origin, _session_study(s)))
+        ej = ev.with_suffix(".json")
+        ej.write_text(json.dumps(EVENT_COLUMNS, indent=2) + "\n")
+        written += [ev, ej]
+    rows = _tlx_rows(store.ratings(s["session_id"]), trials)
+    if rows:
+        tp = beh / f"sub-{lab}_ses-{s['session_number']}_task-{TLX_TASK}_beh.tsv"
+        _write_tsv(tp, list(TLX_COLUMNS), rows)
+        tj = tp.with_suffix(".json")
+        tj.write_text(json.dumps({
+            "TaskName": TLX_TASK,
+            "TaskDescription": "Raw NASA Task Load Index (NASA-TLX): six workload items "
+                               "rated on 0-100 sliders after each test block of the "
+                               f"{TASK} task.",
+            **TLX_COLUMNS}, indent=2) + "\n")
+        written += [tp, tj]
     return written

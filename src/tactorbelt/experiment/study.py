@@ -392,12 +392,14 @@ class Study(_Model):
     Attributes:
         name: a short name, stored with every session.
         description: free text.
+        authors: the people who ran the study (the BIDS export's ``Authors``).
         layout, targets, stimulus, response, session, training: see the classes.
         test: the test blocks, in their default (participant 1) order.
     """
 
     name: str = Field(min_length=1, max_length=200)
     description: str = ""
+    authors: list[str] = Field(default_factory=list, max_length=500)
     layout: LayoutSpec
     targets: TargetsSpec
     stimulus: StimulusSpec = Field(default_factory=StimulusSpec)
@@ -409,6 +411,14 @@ class Study(_Model):
     tasks: dict[str, TaskSpec] = Field(default_factory=dict)
     questionnaire: QuestionnaireSpec = Field(default_factory=QuestionnaireSpec)
     calibration: CalibrationSpec = Field(default_factory=CalibrationSpec)
+
+    @field_validator("authors")
+    @classmethod
+    def _authors(cls, v: list[str]) -> list[str]:
+        names = [a.strip() for a in v]
+        if not all(names):
+            raise ValueError("each author is a name, not an empty string")
+        return names
 
     @model_validator(mode="before")
     @classmethod

@@ -210,6 +210,7 @@ class ExperimentWindow:
         self._sample_times: collections.deque[int] = collections.deque(maxlen=256)
         # what is on screen
         self.screen = "trial"
+        self._wait_text: tuple[str, list[str]] | None = None  # show_wait's
         self.overlay = False
         # commands
         self.user_paused = False
@@ -629,6 +630,22 @@ class ExperimentWindow:
             self._continue = False
             self._frames = Deadlines(self.clock, self.fps)
 
+    def show_wait(self, title: str | None, lines: list[str]) -> bool:
+        """Show ``title`` and ``lines`` (screen kind ``wait``), handle the pending events
+        and draw, once: call it again and again during a wait outside the runner's hooks
+        (LSL's wait for a recorder); ``title`` None takes the screen down. Returns True
+        when the experimenter stopped the session (Esc Esc, Ctrl-Q, closing the window)."""
+        if title is None:
+            self._wait_text = None
+            self.screen = "trial" if self.screen == "wait" else self.screen
+            return self.abort_requested
+        self._wait_text = (title, list(lines))
+        self.screen = "wait"
+        now = self.clock.now_ns()
+        self._handle_events(now)
+        self.draw(now)
+        return self.abort_requested
+
     def show_end(self, status: str | None = None) -> None:
         """The end screen: wait for the participant (or ``auto_continue_s``)."""
         if status is not None:
@@ -644,7 +661,7 @@ class ExperimentWindow:
         """The kind of screen a view shows (for screenshots and ``on_frame``)."""
         if (self.user_paused or self.device_paused) and self.screen not in WAIT_KINDS:
             return "pause"
-        if self.screen in WAIT_KINDS or self.screen == "tlx":
+        if self.screen in WAIT_KINDS or self.screen in ("tlx", "wait"):
             return self.screen
         if self.task_alone:
             return "task_alone"
@@ -804,6 +821,8 @@ class ExperimentWindow:
                 f"When you are ready, {go_on}."]
         if s == "task" and self._task_intro is not None:
             return self._task_intro
+        if s == "wait" and self._wait_text is not None:
+            return self._wait_text
         if s == "break":
             return "Break", [f"{self.n_done} of {self.n_total} trials done.",
                              "Take a rest.", "", f"When you are ready, {go_on}."]
