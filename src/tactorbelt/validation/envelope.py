@@ -14,9 +14,11 @@ on the clock the commands were stamped with), sensed over a window from a little
   the 90 % to the 10 % crossing after ``t_off`` (and the stop latency, ``t_off`` to 90 %).
 
 Crossings are linear interpolations between samples, found from the middle out so noise
-at the foot or the top does not decide them: the first sample at or above 50 % after
-``t_on``; the 10 % crossing is the last upward crossing of 10 % before it, the 90 % one
-the first upward crossing of 90 % from it (and mirrored for the fall).
+at the foot or the top does not decide them: the first sample at or above 50 % in the
+window; the 10 % crossing is the last upward crossing of 10 % before it, the 90 % one
+the first upward crossing of 90 % from it; mirrored for the fall, from the steady
+stretch on. A crossing may come before its command (a latency below 0): an estimator's
+smoothing spreads a fast edge half a window early.
 
 :func:`rectified_envelope` is the estimator for raw signals (a sound card's input, an
 accelerometer): the full-wave rectified signal, a centred moving mean over ``window_s``
@@ -133,7 +135,9 @@ class PulseMeasure:
     ``stop_latency_ms`` from the stop command to 90 %, ``fall_ms`` 90 to 10 % (NaN when
     the envelope did not get there within the window). ``amplitude`` and ``baseline``
     are in the sensor's units. ``seen`` False: the sensor showed no pulse (the other
-    figures are NaN). ``trace_ms``/``trace`` (from ``t_on``) and ``off_ms`` (``t_off``
+    figures are NaN). ``settled``: the steady stretch changed by less than
+    :data:`SETTLED` of the amplitude; ``stopped``: so did the baseline (no motor still
+    running down from before). ``trace_ms``/``trace`` (from ``t_on``) and ``off_ms`` (``t_off``
     from ``t_on``) draw it normalised.
     """
 
@@ -148,6 +152,7 @@ class PulseMeasure:
     stop_latency_ms: float = math.nan
     fall_ms: float = math.nan
     settled: bool = True
+    stopped: bool = True
     off_ms: float = math.nan
     trace_ms: FloatArray = field(default_factory=lambda: np.zeros(0), repr=False)
     trace: FloatArray = field(default_factory=lambda: np.zeros(0), repr=False)
@@ -157,7 +162,8 @@ class PulseMeasure:
                 "latency_ms": _num(self.latency_ms), "rise_ms": _num(self.rise_ms),
                 "stop_latency_ms": _num(self.stop_latency_ms), "fall_ms": _num(self.fall_ms),
                 "amplitude": _num(self.amplitude), "baseline": _num(self.baseline),
-                "noise": _num(self.noise), "settled": self.settled}
+                "noise": _num(self.noise), "settled": self.settled,
+                "stopped": self.stopped}
 
 
 def _num(v: float) -> float | None:
@@ -191,18 +197,23 @@ def measure_pulse(t_ns: IntArray, env: FloatArray, t_on_ns: int, t_off_ns: int, 
     if half:
         drift = abs(float(np.mean(steady_y[half:]) - np.mean(steady_y[:half])))
         out.settled = drift < SETTLED * amplitude
+    half = pre.size // 2
+    if half:  # still falling from a pulse before
+        out.stopped = float(np.mean(pre[:half]) - np.mean(pre[half:])) < SETTLED * amplitude
     rel = (t - t_on_ns).astype(float) / 1e6  # ms from the command
     norm = (y - baseline) / amplitude
-    i_on = int(np.searchsorted(t, t_on_ns))
-    rise = _edge(rel, norm, max(i_on - 1, 0), up=True)
+    # an edge is searched from the stretch before it (the baseline; the steady part), not
+    # from its command: an estimator's smoothing (or a stamp taken late) may put a
+    # crossing a little before the command
+    rise = _edge(rel, norm, 0, up=True)
     if rise is not None:
         out.latency_ms, t90 = rise
         out.rise_ms = t90 - out.latency_ms
-    i_off = int(np.searchsorted(t, t_off_ns))
+    i_steady = int(np.searchsorted(t, t_off_ns - round(on_ns * STEADY_FRACTION)))
     off_ms = (t_off_ns - t_on_ns) / 1e6
     out.off_ms = off_ms
-    if i_off < t.size - 1:
-        fall = _edge(rel, norm, max(i_off - 1, 0), up=False)
+    if int(np.searchsorted(t, t_off_ns)) < t.size - 1:
+        fall = _edge(rel, norm, i_steady, up=False)
         if fall is not None:
             out.stop_latency_ms = fall[0] - off_ms
             out.fall_ms = fall[1] - fall[0]

@@ -261,9 +261,10 @@ class AudioSensor(SampledSensor):
     the callbacks within :data:`MAP_SPAN_NS` of an interval (the most punctual of them)
     maps the frames to host time, and PortAudio's reported input latency of the stream is
     subtracted, for the time the signal was at the input (the ADC). A callback that
-    reports an input overflow (frames lost: an xrun) starts a new stretch, mapped on its
-    own; an interval across two stretches is reported as a ``problem`` (the pulse is
-    measured again).
+    reports an input overflow (an xrun: frames may be lost) starts a new stretch, mapped
+    on its own; stretches whose mappings agree within half a block lost nothing and are
+    joined again (lost frames move the mapping by a whole block). An interval across two
+    stretches is reported as a ``problem`` (the pulse is measured again).
 
     Attributes:
         device: the input; ``channels``: the input channel of each tactor.
@@ -301,7 +302,10 @@ class AudioSensor(SampledSensor):
                                           samplerate=self.samplerate, dtype="float32",
                                           latency=latency, blocksize=blocksize,
                                           callback=self._callback)
+            self._stream.start()  # running (its ports connected) from now; kept from start()
         except Exception as exc:
+            with contextlib.suppress(Exception):
+                self._stream.close()
             raise DeviceError(f"cannot open audio input {device.label()} ({n_open} channels "
                               f"at {self.samplerate:g} Hz): {exc}") from None
         self.latency_s = float(self._stream.latency)
@@ -331,10 +335,6 @@ class AudioSensor(SampledSensor):
 
     def start(self) -> None:
         self._recording = True
-        try:
-            self._stream.start()
-        except Exception as exc:
-            raise DeviceError(f"cannot start audio input {self.device.label()}: {exc}") from None
 
     def forget_before(self, t_ns: int) -> None:
         cut = t_ns - MAP_SPAN_NS
@@ -352,6 +352,30 @@ class AudioSensor(SampledSensor):
         stretch = np.cumsum([b[2] for b in blocks], dtype=np.int64)
         return t, k, stretch, [b[3] for b in blocks]
 
+    @staticmethod
+    def _merge(stretch: IntArray, offset: IntArray, near: NDArray[np.bool_],
+               block_ns: float) -> IntArray:
+        """Join consecutive stretches whose mappings agree within half a block: their
+        overflow lost no frames here (an xrun of another client of the sound server, or
+        a late callback that still got every frame). Frames lost move the mapping by a
+        whole block or more."""
+        ids = np.unique(stretch)
+        if ids.size == 1:
+            return stretch
+        group = np.zeros(ids.size, dtype=np.int64)
+        ref = None
+        for i, s in enumerate(ids):
+            mine = stretch == s
+            pick = mine & near
+            off = int(offset[pick].min() if pick.any() else offset[mine].min())
+            if ref is not None and abs(off - ref) >= block_ns / 2:
+                group[i] = group[i - 1] + 1
+                ref = off
+            else:
+                group[i] = group[i - 1] if i else 0
+                ref = off if ref is None else min(ref, off)
+        return np.asarray(group[np.searchsorted(ids, stretch)])
+
     def _mapped(self, t0_ns: int, t1_ns: int
                 ) -> tuple[IntArray, FloatArray, str | None, bool] | None:
         """The interval's frames if they have all arrived: (times, the block data's rows,
@@ -363,14 +387,14 @@ class AudioSensor(SampledSensor):
         offset = t_cb - np.round(k * period).astype(np.int64)  # host time of frame 0
         near = (t_cb >= t0_ns - MAP_SPAN_NS) & (t_cb <= t1_ns + MAP_SPAN_NS)
         lat = round(self.latency_s * 1e9)
-        # each stretch's mapping, from its blocks near the interval
+        lengths = np.array([d.shape[0] for d in data], dtype=np.int64)
+        stretch = self._merge(stretch, offset, near, float(np.median(lengths)) * period)
         times = np.empty(t_cb.size, dtype=np.int64)  # host time of each block's first frame
-        for s in np.unique(stretch):
+        for s in np.unique(stretch):  # each stretch's mapping, from its blocks near
             mine = stretch == s
             pick = mine & near
             off = int(offset[pick].min() if pick.any() else offset[mine].min())
             times[mine] = off + np.round(k[mine] * period).astype(np.int64) - lat
-        lengths = np.array([d.shape[0] for d in data], dtype=np.int64)
         ends = times + np.round(lengths * period).astype(np.int64)
         inside = np.flatnonzero((ends > t0_ns) & (times < t1_ns))
         complete = bool(ends[-1] >= t1_ns)
