@@ -18,14 +18,15 @@ import shutil
 import subprocess
 import tempfile
 from pathlib import Path
-from typing import TYPE_CHECKING, Final
+from typing import TYPE_CHECKING, Any, Final
 
 from .glmm import FixedEffect, MixedModelFit, ModelSpec, _fixed_table, term_column
 
 if TYPE_CHECKING:
     import pandas as pd
 
-__all__ = ["INSTALL_HINT", "Lme4Unavailable", "fit_lme4", "lme4_available"]
+__all__ = ["INSTALL_HINT", "Lme4Unavailable", "condition_tests_lme4", "fit_lme4",
+           "lme4_available"]
 
 INSTALL_HINT: Final = ("R with lme4 is needed for --engine lme4: install it with "
                        "'apt install r-base-core r-cran-lme4' (Debian/Ubuntu), or "
@@ -39,13 +40,18 @@ g <- readLines(file.path(dir, "groups.txt"))
 d <- read.csv(file.path(dir, "data.csv"), stringsAsFactors = FALSE,
               colClasses = setNames(rep("character", length(g)), g))
 msgs <- character(0)
+lt <- family != "binomial" && requireNamespace("lmerTest", quietly = TRUE)
 m <- withCallingHandlers(
-  if (family == "binomial") glmer(form, data = d, family = binomial) else lmer(form, data = d),
+  if (family == "binomial") glmer(form, data = d, family = binomial) else
+    if (lt) lmerTest::lmer(form, data = d) else lmer(form, data = d),
   warning = function(w) { msgs <<- c(msgs, conditionMessage(w)); invokeRestart("muffleWarning") },
   message = function(w) { msgs <<- c(msgs, conditionMessage(w)); invokeRestart("muffleMessage") })
 cf <- summary(m)$coefficients
-write.csv(data.frame(term = rownames(cf), estimate = cf[, 1], se = cf[, 2]),
-          file.path(dir, "fixef.csv"), row.names = FALSE)
+fx <- data.frame(term = rownames(cf), estimate = cf[, 1], se = cf[, 2])
+if ("df" %in% colnames(cf)) {
+  fx$df <- cf[, "df"]; fx$t <- cf[, "t value"]; fx$p <- cf[, "Pr(>|t|)"]
+}
+write.csv(fx, file.path(dir, "fixef.csv"), row.names = FALSE)
 V <- as.matrix(vcov(m))
 write.csv(V, file.path(dir, "vcov.csv"), row.names = FALSE)
 th <- getME(m, "theta")
@@ -153,6 +159,10 @@ def fit_lme4(df: pd.DataFrame, spec: ModelSpec, *, family: str = "binomial",
     for g, n in groups.items():
         if g in random:
             random[g]["levels"] = n
+    satt = None
+    if "df" in fx:
+        satt = {str(r.term): {"df": float(r.df), "t": float(r.t), "p": float(r.p)}
+                for r in fx.itertuples(index=False)}
     dev = float(info["deviance"])
     return MixedModelFit(
         spec=spec, family=family, fixed_effects=fixed, vcov=vcov, random_effects=random,
@@ -165,4 +175,113 @@ def fit_lme4(df: pd.DataFrame, spec: ModelSpec, *, family: str = "binomial",
         messages=[*msgs, f"lme4 {info['lme4_version']}, R {info['R_version']}"],
         n_obs=int(info["nobs"]), n_cells=int(info["nobs"]), groups=groups,
         criterion="ML (Laplace)" if family == "binomial" else "REML",
+        satterthwaite=satt,
     )
+
+
+_TESTS_SCRIPT: Final = r"""
+suppressPackageStartupMessages(library(lme4))
+args <- commandArgs(trailingOnly = TRUE)
+dir <- args[1]; nsim <- as.integer(args[2]); seed <- as.integer(args[3])
+want_em <- args[4] == "1"
+form <- as.formula(readLines(file.path(dir, "formula.txt")))
+form0 <- as.formula(readLines(file.path(dir, "formula0.txt")))
+g <- readLines(file.path(dir, "groups.txt"))
+d <- read.csv(file.path(dir, "data.csv"), stringsAsFactors = FALSE,
+              colClasses = setNames(rep("character", length(g)), g))
+quiet <- function(expr) suppressWarnings(suppressMessages(expr))
+m <- quiet(glmer(form, data = d, family = binomial))
+m0 <- quiet(glmer(form0, data = d, family = binomial))
+a <- anova(m0, m)
+out <- c(lrt = a$Chisq[2], lrt_df = a$Df[2], lrt_p = a[["Pr(>Chisq)"]][2],
+         deviance = -2 * as.numeric(logLik(m)), deviance0 = -2 * as.numeric(logLik(m0)))
+t0 <- proc.time()[["elapsed"]]
+if (file.exists(file.path(dir, "sims.csv")) || nsim > 0) {
+  suppressPackageStartupMessages(library(pbkrtest))
+  if (file.exists(file.path(dir, "sims.csv"))) {
+    Y <- read.csv(file.path(dir, "sims.csv"))
+    ref <- vapply(Y, function(y) {
+      s0 <- quiet(refit(m0, newresp = y)); s1 <- quiet(refit(m, newresp = y))
+      2 * (as.numeric(logLik(s1)) - as.numeric(logLik(s0)))
+    }, numeric(1))
+    pb <- PBmodcomp(m, m0, ref = ref)
+  } else {
+    pb <- quiet(PBmodcomp(m, m0, nsim = nsim, seed = seed))
+    ref <- pb$ref
+  }
+  if (is.null(ref)) ref <- attr(pb, "ref")
+  out <- c(out, pb_p = pb$test["PBtest", "p.value"], pb_nsim = length(ref),
+           pb_npos = sum(ref > 0))
+  writeLines(format(unname(ref), digits = 15), file.path(dir, "ref.txt"))
+}
+out <- c(out, seconds_tests = proc.time()[["elapsed"]] - t0)
+write.csv(data.frame(key = names(out), value = format(unname(out), digits = 15)),
+          file.path(dir, "tests.csv"), row.names = FALSE)
+if (want_em) {
+  suppressPackageStartupMessages(library(emmeans))
+  by_count <- grepl("factor(n_targets)", paste(deparse(form), collapse = ""), fixed = TRUE)
+  em <- if (by_count)
+    emmeans(m, ~ condition | n_targets, at = list(on_tactor = 0)) else
+    emmeans(m, ~ condition, at = list(on_tactor = 0))
+  lo <- as.data.frame(test(pairs(em), adjust = "holm", by = NULL))
+  pr <- as.data.frame(test(pairs(regrid(em)), adjust = "holm", by = NULL))
+  lo$scale <- "log-odds"; pr$scale <- "probability"
+  if (!"n_targets" %in% names(lo)) { lo$n_targets <- NA; pr$n_targets <- NA }
+  keep <- c("contrast", "n_targets", "estimate", "SE", "z.ratio", "p.value", "scale")
+  write.csv(rbind(lo[, keep], pr[, keep]), file.path(dir, "contrasts.csv"), row.names = FALSE)
+}
+"""
+
+
+def condition_tests_lme4(df: pd.DataFrame, spec: ModelSpec, spec0: ModelSpec, *,
+                         n_sim: int = 0, seed: int = 0, responses: Any = None,
+                         contrasts: bool = False, rscript: str = "Rscript",
+                         timeout_s: float = 3600.0) -> dict[str, Any]:
+    """R's tests of the condition for the accuracy GLMM ``spec`` against ``spec0``.
+
+    Fits both with ``glmer`` and returns ``anova(m0, m)`` (``lrt``, ``lrt_df``,
+    ``lrt_p``), with ``n_sim`` or ``responses`` pbkrtest's ``PBmodcomp(m, m0)``
+    (``pb_p``, ``pb_nsim``, ``pb_npos``, ``ref``; ``responses``: an ``(n_sim, N)`` array
+    of 0/1 responses to refit instead of ``simulate(m0)``), and with ``contrasts`` the
+    emmeans contrasts ``test(pairs(emmeans(m, ~ condition | n_targets, at =
+    list(on_tactor = 0))), adjust = "holm", by = NULL)`` on the log-odds and (``regrid``)
+    probability scales (``contrasts``: a DataFrame).
+
+    Raises:
+        Lme4Unavailable: no Rscript or lme4; RuntimeError: R failed.
+    """
+    import numpy as np
+    import pandas as pd
+
+    exe = shutil.which(rscript)
+    if exe is None:
+        raise Lme4Unavailable(f"'{rscript}' is not on PATH. {INSTALL_HINT}")
+    with tempfile.TemporaryDirectory(prefix="tactorbelt-lme4-") as tmp:
+        d = Path(tmp)
+        _frame(df, spec).to_csv(d / "data.csv", index=False)
+        (d / "formula.txt").write_text(spec.formula() + "\n")
+        (d / "formula0.txt").write_text(spec0.formula() + "\n")
+        (d / "groups.txt").write_text("".join(f"{t.group}\n" for t in spec.random))
+        if responses is not None:
+            y = np.asarray(responses, dtype=int)
+            pd.DataFrame(y.T, columns=[f"s{i}" for i in range(y.shape[0])]).to_csv(
+                d / "sims.csv", index=False)
+        (d / "tests.R").write_text(_TESTS_SCRIPT)
+        try:
+            r = subprocess.run([exe, str(d / "tests.R"), str(d), str(int(n_sim)), str(int(seed)),
+                                "1" if contrasts else "0"], capture_output=True, text=True,
+                               timeout=timeout_s)
+        except subprocess.TimeoutExpired as exc:
+            raise RuntimeError(f"R took longer than {timeout_s:g} s") from exc
+        if r.returncode != 0:
+            err = r.stderr.strip()
+            if "there is no package called" in err:
+                raise Lme4Unavailable("an R package is missing: " + err.splitlines()[-1])
+            raise RuntimeError("R failed: " + " | ".join(err.splitlines()[-5:]))
+        vals = dict(pd.read_csv(d / "tests.csv").itertuples(index=False, name=None))
+        out: dict[str, Any] = {k: float(v) for k, v in vals.items()}
+        if (d / "ref.txt").exists():
+            out["ref"] = np.array([float(v) for v in (d / "ref.txt").read_text().split()])
+        if contrasts:
+            out["contrasts"] = pd.read_csv(d / "contrasts.csv")
+    return out

@@ -27,7 +27,7 @@ Pure: NumPy, SciPy and the GLMM engine; the randomness comes from the ``seed``.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Final
 
@@ -50,7 +50,7 @@ __all__ = [
 ]
 
 #: simulations of the report's parametric bootstrap (docs/analysis.md).
-DEFAULT_PB_SIMS: Final = 200
+DEFAULT_PB_SIMS: Final = 100
 TERM: Final = "condition"
 
 
@@ -135,12 +135,14 @@ class PBResult:
     n_positive: int
     n_extreme: int
     ref: np.ndarray
-    seed: int
+    seed: Any
     failed: int = 0
     notes: list[str] = field(default_factory=list)
 
     def to_dict(self) -> dict[str, Any]:
+        se = math.sqrt(self.p * (1 - self.p) / self.n_positive) if self.n_positive else math.nan
         return {"term": TERM, "method": "parametric bootstrap", "statistic": self.statistic,
+                "p_mc_ci95": [max(0.0, self.p - 1.96 * se), min(1.0, self.p + 1.96 * se)],
                 "df": self.df, "p": self.p, "n_sim": self.n_sim,
                 "n_positive": self.n_positive, "n_extreme": self.n_extreme,
                 "failed_refits": self.failed, "seed": self.seed,
@@ -158,7 +160,7 @@ def _par(fit: MixedModelFit, data: GlmmData) -> np.ndarray:
 
 
 def parametric_bootstrap(frame: pd.DataFrame, fit: MixedModelFit, fit0: MixedModelFit,
-                         n_sim: int = DEFAULT_PB_SIMS, seed: int = 0,
+                         n_sim: int = DEFAULT_PB_SIMS, seed: int | Sequence[int] = 0,
                          responses: np.ndarray | None = None,
                          progress: Callable[[int, int], None] | None = None) -> PBResult:
     """pbkrtest's ``PBmodcomp(m, m0, nsim = n_sim)`` with this package's GLMM engine.
@@ -167,7 +169,8 @@ def parametric_bootstrap(frame: pd.DataFrame, fit: MixedModelFit, fit0: MixedMod
         frame: the data both models were fitted to.
         fit, fit0: the model and the null model (:func:`null_spec`), binomial.
         n_sim: simulated responses.
-        seed: seeds the simulations (``numpy.random.default_rng(seed)``).
+        seed: seeds the simulations (``numpy.random.default_rng(seed)``; an int or a
+            sequence of ints).
         responses: ``(n_sim, N)`` 0/1 responses to use instead of simulating (to refit
             the very responses R refits, in the tests).
         progress: called with ``(done, n_sim)``.

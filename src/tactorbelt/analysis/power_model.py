@@ -94,6 +94,14 @@ class NamedEffect:
                 raise ConfigError(f"{name.replace('_', ' ')} must be between 0 and 5 "
                                   f"(log-odds), got {v!r}")
 
+    @classmethod
+    def no_effect(cls, **sizes: float) -> NamedEffect:
+        """The same model with no condition effect (odds ratio 1): the null, for
+        false-positive rates and the bootstrap's reference distribution."""
+        eff = cls(2.0, **sizes)
+        object.__setattr__(eff, "odds_ratio", 1.0)
+        return eff
+
     @property
     def headline(self) -> float:
         """The true ``conditionstatic`` coefficient: ``-log(odds_ratio)``."""
@@ -117,10 +125,18 @@ class TrialDesign:
     target_deg: np.ndarray
     on_tactor: np.ndarray
     n_targets: int
+    #: the target count of each trial, when the design has several (the model then
+    #: has ``factor(n_targets)``); None: one count, ``n_targets``
+    counts: np.ndarray | None = None
 
     @classmethod
-    def from_study(cls, study: Any, n_targets: int | None = None) -> TrialDesign:
+    def from_study(cls, study: Any, n_targets: int | None = None, *,
+                   all_counts: bool = False) -> TrialDesign:
         """The test trials of a study (read by attribute), or of its ``n_targets`` blocks.
+
+        Args:
+            all_counts: every test block, whatever its target count (``n_targets`` is
+                then the first count; ``counts`` holds each trial's).
 
         Raises:
             ConfigError: several target counts and none chosen; a count it lacks; no
@@ -129,6 +145,12 @@ class TrialDesign:
         from ..geometry import TargetSet
 
         counts = list(study.target_counts())
+        if all_counts and len(counts) > 1:
+            parts = [cls.from_study(study, c) for c in counts]
+            return cls(np.concatenate([p.condition for p in parts]),
+                       np.concatenate([p.target_deg for p in parts]),
+                       np.concatenate([p.on_tactor for p in parts]), int(counts[0]),
+                       np.concatenate([np.full(p.n, p.n_targets) for p in parts]))
         if n_targets is None:
             if len(counts) != 1:
                 raise ConfigError(
@@ -182,7 +204,7 @@ def simulate_frame(design: TrialDesign, effect: NamedEffect, n_participants: int
            + w[t_index][None, :])
     correct = rng.random(eta.shape) < 1.0 / (1.0 + np.exp(-eta))
     n = design.n
-    return pd.DataFrame({
+    frame = pd.DataFrame({
         "correct": correct.ravel().astype(int),
         "condition": np.tile(design.condition, n_participants),
         "on_tactor": np.tile(on.astype(int), n_participants),
@@ -191,6 +213,9 @@ def simulate_frame(design: TrialDesign, effect: NamedEffect, n_participants: int
         "rt_s": np.nan,
         "status": "done",
     })
+    if design.counts is not None:
+        frame["n_targets"] = np.tile(design.counts, n_participants)
+    return frame
 
 
 def headline_coefficient(frame: pd.DataFrame) -> tuple[float, float]:

@@ -265,9 +265,102 @@ def _model_paragraph(m: dict[str, Any], what: str, timeouts: str) -> str:
 
 
 def _fixed_rows(m: dict[str, Any]) -> list[list[str]]:
-    return [[f"<code>{_e(k)}</code>", _fmt(v["estimate"]), _fmt(v["se"]), _fmt(v["z"], 2),
-             _p(v["p"]), f"[{_fmt(v['ci_low'])}, {_fmt(v['ci_high'])}]"]
-            for k, v in m["fixed_effects"].items()]
+    satt = any("df" in v for v in m["fixed_effects"].values())
+    rows = []
+    for k, v in m["fixed_effects"].items():
+        row = [f"<code>{_e(k)}</code>", _fmt(v["estimate"]), _fmt(v["se"])]
+        row += ([_fmt(v.get("df"), 1), _fmt(v.get("t"), 2)] if satt else [_fmt(v["z"], 2)])
+        row += [_p(v["p"]), f"[{_fmt(v['ci_low'])}, {_fmt(v['ci_high'])}]"]
+        rows.append(row)
+    return rows
+
+
+def _fixed_headers(m: dict[str, Any]) -> list[str]:
+    if any("df" in v for v in m["fixed_effects"].values()):
+        return ["term", "estimate", "SE", "df (Satterthwaite)", "t", "p (t on that df)",
+                "95 % t interval"]
+    return ["term", "estimate", "SE", "z", "p (Wald z)", "95 % Wald interval"]
+
+
+def _tests_table(m: dict[str, Any]) -> str:
+    """The tests of the condition (Wald, LRT, parametric bootstrap) and why the headline
+    is the one it is."""
+    tests = m.get("tests") or []
+    if not tests:
+        return ""
+    head = m.get("headline_test", {})
+    words = {"Wald": "Wald chi-square over every condition term",
+             "LRT": "likelihood ratio, chi-square reference (anova(m0, m))",
+             "parametric bootstrap": "likelihood ratio, parametric-bootstrap reference "
+                                     "(pbkrtest's PBmodcomp)"}
+    rows = []
+    for t in tests:
+        method = str(t.get("method"))
+        name = words.get(method, method)
+        if method == head.get("method"):
+            name = f"<strong>{_e(name)} (headline)</strong>"
+        else:
+            name = _e(name)
+        if t.get("computed") is False:
+            rows.append([name, "", "", f'<span class="nc">{_e(t.get("reason", ""))}</span>', ""])
+            continue
+        extra = ""
+        if method == "parametric bootstrap":
+            extra = (f"{t.get('n_sim')} simulations ({t.get('n_positive', t.get('n_sim'))} "
+                     "with LRT* > 0)")
+            ci = t.get("p_mc_ci95")
+            if ci:
+                extra += f"; Monte Carlo 95 % interval of p [{_fmt(ci[0])}, {_fmt(ci[1])}]"
+        rows.append([name, _fmt(t.get("statistic"), 2), _e(t.get("df", "")), _p(t.get("p")),
+                     _e(extra)])
+    text = ("<p><strong>Tests of the condition.</strong> Each tests whether the condition "
+            "has any effect in the accuracy model: every fixed-effect term containing "
+            "<code>condition</code> (" + _e(", ".join(
+                next((t.get("terms", []) for t in tests if t.get("method") == "Wald"), [])))
+            + ") against 0; the likelihood ratio compares the model with the same model "
+            "without those terms (same random effects, both by maximum likelihood). "
+            + _e(head.get("why", "")) + "</p>")
+    return text + _table(["test", "statistic", "df", "p", "reference distribution"], rows,
+                         "num")
+
+
+def contrasts_section(summary: Summary) -> str:
+    """Dynamic against static at each target count (between-tactor targets), on the
+    log-odds and the probability scale, Holm-adjusted across the counts."""
+    cs = summary.contrasts
+    if not cs:
+        return ""
+    k = len(cs)
+    rows = []
+    for c in cs:
+        pr = c["probability"]
+        n = c["by"].get("n_targets")
+        rows.append([_e(n if n is not None else "all"),
+                     f"{_fmt(c['estimate'])} ({_fmt(c['se'])})", _fmt(c["z"], 2), _p(c["p"]),
+                     _p(c["p_adjusted"]),
+                     f"{_pct(pr['dynamic'])} vs {_pct(pr['static'])}",
+                     f"{_fmt(100 * pr['estimate'] if _finite(pr['estimate']) else None, 1)} "
+                     f"({_fmt(100 * pr['se'] if _finite(pr['se']) else None, 1)})",
+                     _p(pr["p_adjusted"])])
+    title = ("Dynamic against static at each target count" if k > 1 else
+             "Dynamic against static")
+    head = ["targets", "log-odds difference (SE)", "z", "p", f"p, Holm ({k})",
+            "model accuracy, dynamic vs static", "difference, percentage points (SE)",
+            f"p, Holm ({k})"]
+    text = ("<p>From the accuracy model (below): dynamic minus static at between-tactor "
+            "targets (on_tactor = 0)"
+            + (", loads averaged with equal weights" if "load" in str(
+                summary.mixed_model and summary.mixed_model.get("formula")) else "")
+            + ". Left: the log-odds difference, its SE from the model's covariance matrix, "
+            "Wald z and two-sided p, as R's <code>emmeans(m, ~ condition | n_targets, at = "
+            "list(on_tactor = 0))</code> and <code>pairs()</code>. Right: the same on the "
+            "probability scale (emmeans' <code>regrid</code>: the model's accuracy of a "
+            "typical participant and target, delta-method SE). "
+            + (f"Holm-adjusted p control the family-wise error over the {k} target counts "
+               "(<code>adjust = \"holm\"</code> across every count); the unadjusted p are "
+               "beside them." if k > 1 else "One target count: nothing to adjust.")
+            + "</p>")
+    return f"<h2>{_e(title)}</h2>" + text + _table(head, rows, "num")
 
 
 def _random_text(m: dict[str, Any]) -> str:
@@ -282,7 +375,6 @@ def _random_text(m: dict[str, Any]) -> str:
 def _model_sections(summary: Summary) -> list[str]:
     """One paragraph and one coefficient table per mixed model."""
     out: list[str] = []
-    headers = ["term", "estimate", "SE", "z", "p", "95 % Wald interval"]
     acc = summary.mixed_model
     rt = summary.rt_model
     if acc is None and not (rt and rt.get("computed")):
@@ -291,7 +383,8 @@ def _model_sections(summary: Summary) -> list[str]:
     if acc is not None:
         out.append(_model_paragraph(
             acc, "Accuracy", "Timeouts count as incorrect answers (the counting rules)."))
-        out.append(_table(headers, _fixed_rows(acc), "num"))
+        out.append(_tests_table(acc))
+        out.append(_table(_fixed_headers(acc), _fixed_rows(acc), "num"))
         out.append(_random_text(acc))
     if rt and rt.get("computed"):
         cells = rt.get("timeouts_by_cell", [])
@@ -304,7 +397,7 @@ def _model_sections(summary: Summary) -> list[str]:
         if rt.get("timeout_note"):
             tt += " Note: " + rt["timeout_note"] + "."
         out.append(_model_paragraph(rt, "Response time", _e(tt)))
-        out.append(_table(headers, _fixed_rows(rt), "num"))
+        out.append(_table(_fixed_headers(rt), _fixed_rows(rt), "num"))
         out.append(_random_text(rt))
     return out
 
@@ -378,6 +471,7 @@ def render_html(summary: Summary, figures: dict[str, bytes], *,
         parts.append("<h3>Training block (not part of any statistic)</h3>"
                      + _table(["condition", "n trials", "accuracy"], rows, "num"))
 
+    parts.append(contrasts_section(summary))
     parts.append(cells_section(summary, figures))
     parts.append(load_section(summary, figures))
 
@@ -589,7 +683,7 @@ def _sites(data: StoreData, summary: Summary) -> pd.DataFrame | None:
 def analyze(paths: Sequence[str | Path], out: str | Path, *, seed: int | None = None,
             progress: ProgressFn | None = None, n_boot: int = DEFAULT_N_BOOT,
             engine: str = "tactorbelt", sites: Sequence[str] | None = None,
-            include_running: bool = False) -> Summary:
+            include_running: bool = False, pb_sims: int | None = None) -> Summary:
     """Analyse stores and write report.html, summary.json, per_target.csv and PNGs to ``out``.
 
     Args:
@@ -603,6 +697,10 @@ def analyze(paths: Sequence[str | Path], out: str | Path, *, seed: int | None = 
         engine: who fits the mixed models, ``tactorbelt`` or ``lme4`` (R via Rscript).
         sites: only these sites' sessions; include_running: a shared store's sessions
             that are not complete too (see :func:`load.load_stores`).
+        pb_sims: simulations of the accuracy model's parametric bootstrap (None: the
+            default, :data:`~tactorbelt.analysis.lrt.DEFAULT_PB_SIMS`; 0: not computed);
+            computed only for studies of up to
+            :data:`~tactorbelt.analysis.stats.PB_HEADLINE_MAX_PARTICIPANTS` participants.
 
     Raises:
         StoreError: a store that cannot be read (see :func:`load.load_stores`).
@@ -633,8 +731,13 @@ def analyze(paths: Sequence[str | Path], out: str | Path, *, seed: int | None = 
     tick("computing tables and tests")
     from .lme4 import Lme4Unavailable
 
+    def boot(done: int, n_sim: int) -> None:
+        if progress is not None:
+            progress(f"computing tables and tests (bootstrap {done}/{n_sim})", step - 1, total)
+
     try:
-        summary = summarize(data, seed=seed, n_boot=n_boot, engine=engine)
+        summary = summarize(data, seed=seed, n_boot=n_boot, engine=engine, pb_sims=pb_sims,
+                            progress=boot)
     except Lme4Unavailable as exc:
         raise ConfigError(str(exc)) from None
     tick("reading sample trajectories")

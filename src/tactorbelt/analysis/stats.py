@@ -34,6 +34,7 @@ import numpy as np
 
 from .cells import cell_summary, cells_to_json, participant_cells
 from .design import StudyDesign, parse_design
+from .lrt import DEFAULT_PB_SIMS
 from .tables import (
     CONDITIONS,
     condition_summary,
@@ -52,9 +53,13 @@ if TYPE_CHECKING:
 
 __all__ = [
     "DEFAULT_N_BOOT",
+    "DEFAULT_PB_SIMS",
+    "PB_HEADLINE_MAX_PARTICIPANTS",
     "Summary",
     "TestResult",
+    "condition_tests",
     "fisher_accuracy",
+    "headline_method",
     "mann_whitney_rt",
     "matched_pairs_rank_biserial",
     "mixed_model",
@@ -63,6 +68,7 @@ __all__ = [
 ]
 
 DEFAULT_N_BOOT: Final = 2000
+Z95: Final = 1.959963984540054
 COMPLETE_STATUSES: Final = frozenset({"complete", "completed", "done", "finished"})
 
 
@@ -542,9 +548,29 @@ def _fitter(engine: str, family: str) -> Any:
 
 
 def model_json(fit: Any, steps: list[dict[str, Any]], engine: str,
-               notes: list[str]) -> dict[str, Any]:
-    """The ``summary.json`` object of one fitted model (docs/conventions.md)."""
+               notes: list[str], satt: dict[str, dict[str, Any]] | None = None
+               ) -> dict[str, Any]:
+    """The ``summary.json`` object of one fitted model (docs/conventions.md).
+
+    ``satt``: lmerTest's Satterthwaite ``df``, ``t``, ``p`` (and t intervals) per fixed
+    effect of an LMM; they replace the Wald p and interval.
+    """
     binomial = fit.family == "binomial"
+    fixed = {k: v.to_dict() for k, v in fit.fixed_effects.items()}
+    p_method, ci_method = "Wald z, two-sided, normal reference", "Wald"
+    if satt is not None:
+        for k, v in fixed.items():
+            sv = satt.get(k)
+            if sv is None:
+                continue
+            v["df"] = _num(sv["df"])
+            v["t"] = _num(sv["t"])
+            v["p"] = _num(sv["p"])
+            if "ci_low" in sv:
+                v["ci_low"], v["ci_high"] = _num(sv["ci_low"]), _num(sv["ci_high"])
+        p_method = ("t = estimate / SE on Satterthwaite's degrees of freedom, two-sided, as "
+                    "lmerTest's summary (z: the same ratio)")
+        ci_method = "t on the Satterthwaite df"
     return {
         "engine": ENGINE_NAMES[engine],
         "family": "binomial (logit link)" if binomial else "gaussian (identity link)",
@@ -552,9 +578,9 @@ def model_json(fit: Any, steps: list[dict[str, Any]], engine: str,
                       if binomial else "REML (lmer's default)"),
         "formula": fit.spec.formula(),
         "scale": "log-odds" if binomial else "log(seconds)",
-        "fixed_effects": {k: v.to_dict() for k, v in fit.fixed_effects.items()},
-        "ci_method": "Wald",
-        "p_method": "Wald z, two-sided, normal reference",
+        "fixed_effects": fixed,
+        "ci_method": ci_method,
+        "p_method": p_method,
         "vcov_method": fit.vcov_method,
         "random_effects": fit.random_effects,
         "singular": bool(fit.singular),
@@ -564,7 +590,9 @@ def model_json(fit: Any, steps: list[dict[str, Any]], engine: str,
         "n": {"observations": int(fit.n_obs), **{f"{g}s": int(n) for g, n in
                                                   fit.groups.items()}},
         "coding": "treatment coding, alphabetically first level the reference "
-                  "(condition: dynamic); on_tactor numeric 0/1 (1 = on a tactor)",
+                  "(condition: dynamic); on_tactor numeric 0/1 (1 = on a tactor); "
+                  "factor(n_targets): the target count as a factor, the smallest the "
+                  "reference",
         "notes": notes,
     }
 
@@ -583,7 +611,29 @@ def fit_model(frame: pd.DataFrame, *, engine: str = "tactorbelt",
     data = frame.loc[frame["status"] == "done"] if rt else frame
     spec, notes = model_spec(data, "rt_s" if rt else "correct", "log" if rt else None)
     fit, steps = fit_simplified(data, spec, _fitter(engine, "gaussian" if rt else "binomial"))
-    return fit, model_json(fit, steps, engine, notes)
+    satt = None
+    if rt:
+        satt = rt_satterthwaite(data, fit)
+        notes = notes + list(satt.pop("_", {}).get("notes", []))
+    return fit, model_json(fit, steps, engine, notes, satt)
+
+
+def rt_satterthwaite(data: pd.DataFrame, fit: Any) -> dict[str, dict[str, Any]]:
+    """lmerTest's Satterthwaite df, t and p of an LMM's fixed effects: R's own numbers
+    for a fit by R with lmerTest, else :func:`.satterthwaite.satterthwaite` (which also
+    takes R's fit)."""
+    from scipy.stats import t as t_dist
+
+    from .satterthwaite import satterthwaite
+
+    if getattr(fit, "satterthwaite", None):
+        out: dict[str, dict[str, Any]] = {}
+        for k, v in fit.satterthwaite.items():
+            fe = fit.fixed_effects[k]
+            q = float(t_dist.ppf(0.975, v["df"]))
+            out[k] = {**v, "ci_low": fe.estimate - q * fe.se, "ci_high": fe.estimate + q * fe.se}
+        return out
+    return satterthwaite(data, fit)
 
 
 def timeout_cells(frame: pd.DataFrame) -> list[dict[str, Any]]:
@@ -600,22 +650,133 @@ def timeout_cells(frame: pd.DataFrame) -> list[dict[str, Any]]:
     return out
 
 
-def mixed_model(tr: pd.DataFrame, *, engine: str = "tactorbelt") -> TestResult:
-    """Binomial GLMM of accuracy: ``correct ~ condition * on_tactor [* n_targets * load] +
-    (1 + condition | participant) + (1 | target)``, simplified while singular.
+#: Up to this many participants the report's headline test of the condition is the
+#: parametric bootstrap of the likelihood ratio, above it the likelihood ratio's
+#: chi-square p (docs/analysis.md "Tests of the condition": the false-positive table).
+PB_HEADLINE_MAX_PARTICIPANTS: Final = 16
+
+
+def headline_method(n_participants: int) -> str:
+    """The report's headline test of the condition for a study of this size:
+    ``"parametric bootstrap"`` up to :data:`PB_HEADLINE_MAX_PARTICIPANTS` participants,
+    else ``"LRT"``."""
+    return "parametric bootstrap" if n_participants <= PB_HEADLINE_MAX_PARTICIPANTS else "LRT"
+
+
+HEADLINE_WHY: Final = {
+    "parametric bootstrap": (
+        "With {n} participants the likelihood ratio's chi-square p and the Wald tests find "
+        "a condition effect that is not there more often than their nominal level (the "
+        "random effects are estimated from few participants: docs/analysis.md, 'Tests of "
+        "the condition'); the parametric bootstrap refers the likelihood ratio to its "
+        "distribution under the fitted null model instead, which holds its level at this "
+        "size."),
+    "LRT": (
+        "With {n} participants (more than {max}) the likelihood ratio's chi-square p holds "
+        "its level in simulated studies without an effect (docs/analysis.md, 'Tests of the "
+        "condition'), and the parametric bootstrap would cost minutes for no gain."),
+}
+METHOD_WORDS: Final = {
+    "Wald": "Wald chi-square over every condition term",
+    "LRT": "likelihood-ratio test (chi-square)",
+    "parametric bootstrap": "parametric bootstrap of the likelihood ratio",
+}
+
+
+def _average_contrast(fit: Any, frame: pd.DataFrame) -> tuple[float, float]:
+    """Static minus dynamic log-odds at between-tactor targets, averaged over the target
+    counts and loads (emmeans' ``pairs(emmeans(m, ~ condition, at = list(on_tactor =
+    0)))``, reversed): ``(estimate, se)``."""
+    from .contrasts import contrast_matrix
+
+    _, xd, xs = contrast_matrix(fit, frame)
+    lvec = (xs - xd).mean(axis=0)
+    beta = np.array([fe.estimate for fe in fit.fixed_effects.values()])
+    return float(lvec @ beta), float(math.sqrt(max(float(lvec @ fit.vcov @ lvec), 0.0)))
+
+
+def condition_tests(frame: pd.DataFrame, fit: Any, *, engine: str = "tactorbelt",
+                    pb_sims: int | None = DEFAULT_PB_SIMS, seed: int = 0,
+                    progress: Any = None) -> tuple[list[dict[str, Any]], Any]:
+    """The Wald, likelihood-ratio and (for a study of up to
+    :data:`PB_HEADLINE_MAX_PARTICIPANTS` participants) parametric-bootstrap tests of the
+    condition (:mod:`.lrt`), as ``summary.json`` objects, and the null fit.
+
+    Args:
+        pb_sims: the bootstrap's simulations (0: not computed; None: the default).
+        seed: seeds the bootstrap.
+        progress: ``progress(done, total)`` as the bootstrap refits.
+    """
+    from .lrt import likelihood_ratio, null_spec, parametric_bootstrap, wald_condition
+
+    n_sim = DEFAULT_PB_SIMS if pb_sims is None else int(pb_sims)
+    n_p = int(frame["participant"].nunique())
+    spec0 = null_spec(fit.spec)
+    tests: list[dict[str, Any]] = [wald_condition(fit)]
+    fit0 = None
+    if engine == "lme4":
+        from .lme4 import fit_lme4
+
+        fit0 = fit_lme4(frame, spec0)
+    else:
+        from .glmm import fit_glmm
+
+        fit0 = fit_glmm(frame, spec0, se=False)
+    lr = likelihood_ratio(fit, fit0)
+    tests.append(lr)
+    pb: dict[str, Any] = {"term": "condition", "method": "parametric bootstrap",
+                          "n_sim": n_sim, "p": None}
+    if headline_method(n_p) != "parametric bootstrap":
+        pb.update(computed=False, reason=f"not computed with more than "
+                  f"{PB_HEADLINE_MAX_PARTICIPANTS} participants (the likelihood ratio's "
+                  "chi-square p holds its level there)")
+    elif n_sim <= 0:
+        pb.update(computed=False, reason="not computed: --bootstrap-sims 0")
+    elif engine == "lme4":
+        from .lme4 import condition_tests_lme4
+
+        r = condition_tests_lme4(frame, fit.spec, spec0, n_sim=n_sim, seed=seed)
+        pb.update(computed=True, statistic=lr["statistic"], df=lr["df"], p=r["pb_p"],
+                  n_sim=int(r["pb_nsim"]), n_positive=int(r["pb_npos"]), seed=seed,
+                  description="pbkrtest's PBmodcomp(m, m0, nsim) in R, set.seed(seed)")
+    else:
+        res = parametric_bootstrap(frame, fit, fit0, n_sim=n_sim, seed=seed,
+                                   progress=progress)
+        pb = {**res.to_dict(), "computed": True}
+        if res.notes:
+            pb["notes"] = res.notes
+    tests.append(pb)
+    return [_finite_json(t) for t in tests], fit0
+
+
+def mixed_model(tr: pd.DataFrame, *, engine: str = "tactorbelt",
+                pb_sims: int | None = DEFAULT_PB_SIMS, seed: int = 0,
+                progress: Any = None) -> TestResult:
+    """Binomial GLMM of accuracy: ``correct ~ condition * on_tactor [* factor(n_targets) *
+    load] + (1 + condition | participant) + (1 | target)``, simplified while singular,
+    with its tests of the condition and the contrasts per target count.
 
     Maximum likelihood with the Laplace approximation (:mod:`.glmm`, or lme4's glmer
-    with ``engine="lme4"``). The headline is the ``conditionstatic`` coefficient: the
-    log-odds of a correct answer, static minus dynamic, at between-tactor targets
-    (``on_tactor = 0``; the reference level of condition is ``dynamic``). Wald z, p and
-    interval. ``details["model"]`` is the ``summary.json`` ``mixed_model`` object.
+    with ``engine="lme4"``). The test reported is the headline test of the condition
+    for the study's size (:func:`headline_method`): the parametric bootstrap of the
+    likelihood ratio (every condition term against none) up to
+    :data:`PB_HEADLINE_MAX_PARTICIPANTS` participants, its chi-square p above. The
+    effect is the static minus dynamic log-odds at between-tactor targets (averaged
+    over target counts and loads). ``details["model"]`` is the ``summary.json``
+    ``mixed_model`` object (with ``tests``), ``details["contrasts"]`` the per-count
+    contrasts (:func:`.contrasts.condition_contrasts`).
 
     Args:
         tr: prepared trials (:func:`~tactorbelt.analysis.tables.prepare_trials`),
             only the counted ones are used.
         engine: ``tactorbelt`` (this package) or ``lme4`` (R, through Rscript).
+        pb_sims: the parametric bootstrap's simulations (0: not computed).
+        seed: seeds the bootstrap.
+        progress: ``progress(done, total)`` as the bootstrap refits.
     """
-    key, question = "mixed_model", "accuracy, static vs dynamic, at between-tactor targets"
+    from .contrasts import condition_contrasts
+
+    key, question = "mixed_model", "accuracy, dynamic vs static (every condition term)"
     frame = model_frame(tr)
     n_p = int(frame["participant"].nunique())
     test = f"binomial GLMM, Laplace ML ({ENGINE_NAMES.get(engine, engine)})"
@@ -639,6 +800,13 @@ def mixed_model(tr: pd.DataFrame, *, engine: str = "tactorbelt") -> TestResult:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             fit, js = fit_model(frame, engine=engine)
+            fe = fit.fixed_effects.get("conditionstatic")
+            if fe is None or not (math.isfinite(fe.estimate) and math.isfinite(fe.se)):
+                return _not_computed(key, test, question, "the fit gave no finite condition "
+                                     "coefficient (separation?)", **n)
+            tests, _ = condition_tests(frame, fit, engine=engine, pb_sims=pb_sims, seed=seed,
+                                       progress=progress)
+            contrasts = condition_contrasts(fit, frame)
     except Exception as exc:  # an engine may raise many kinds (LinAlgError, R errors, ...)
         from .lme4 import Lme4Unavailable
 
@@ -646,27 +814,48 @@ def mixed_model(tr: pd.DataFrame, *, engine: str = "tactorbelt") -> TestResult:
             raise
         return _not_computed(key, test, question,
                              f"the model fit failed: {type(exc).__name__}: {exc}", **n)
-    fe = fit.fixed_effects.get("conditionstatic")
-    if fe is None or not (math.isfinite(fe.estimate) and math.isfinite(fe.se)):
-        return _not_computed(key, test, question,
-                             "the fit gave no finite condition coefficient (separation?)", **n)
+    method = headline_method(n_p)
+    by = {t["method"]: t for t in tests}
+    head = by[method]
+    if method == "parametric bootstrap" and not head.get("computed"):
+        method, head = "LRT", by["LRT"]  # the bootstrap was switched off
+    why = HEADLINE_WHY.get(method, "").format(n=n_p, max=PB_HEADLINE_MAX_PARTICIPANTS)
+    if head is by["LRT"] and headline_method(n_p) == "parametric bootstrap":
+        why = ("The parametric bootstrap was not computed (--bootstrap-sims 0), so the "
+               "likelihood ratio's chi-square p is reported; with this few participants it "
+               "finds effects that are not there more often than its nominal level.")
+    js["tests"] = tests
+    js["headline_test"] = {"method": method, "why": why,
+                           "max_participants_for_bootstrap": PB_HEADLINE_MAX_PARTICIPANTS}
+    est, se = _average_contrast(fit, frame)
+    lo, hi = est - Z95 * se, est + Z95 * se
+    several = "factor(n_targets)" in fit.spec.fixed or "load" in fit.spec.fixed
     details: dict[str, Any] = {
-        "method": f"{js['criterion']}; {js['formula']}; Wald z, p and 95 % interval",
-        "formula": js["formula"], "model": js,
-        "odds_ratio": math.exp(fe.estimate),
-        "odds_ratio_interval": [math.exp(fe.ci_low), math.exp(fe.ci_high)],
+        "method": f"{js['criterion']}; {js['formula']}; {METHOD_WORDS[method]}",
+        "formula": js["formula"], "model": js, "contrasts": contrasts,
+        "headline_test": method, "why": why,
+        "tests": tests,
+        "odds_ratio": math.exp(est),
+        "odds_ratio_interval": [math.exp(lo), math.exp(hi)],
+        "wald_z_conditionstatic": {"z": fe.z, "p": fe.p},
+        "p_method": (f"{METHOD_WORDS[method]}" + (
+            f", {head.get('n_sim')} simulations (pbkrtest's p)"
+            if method == "parametric bootstrap" else f", {head.get('df')} df")),
     }
     if js["notes"]:
         details["notes"] = list(js["notes"])
     if fit.singular or not fit.converged:
         details["warnings"] = list(fit.messages)
     return TestResult(
-        key=key, test=test, question=question, statistic=fe.z,
-        statistic_name="Wald z (conditionstatic)", p_value=fe.p,
-        effect_name="conditionstatic: log-odds, static - dynamic, between-tactor targets",
-        effect=fe.estimate,
-        ci_name="conditionstatic, 95 % Wald interval (model-based, not bootstrap)",
-        ci_low=fe.ci_low, ci_high=fe.ci_high, n=n, details=details,
+        key=key, test=f"{test}: {METHOD_WORDS[method]}", question=question,
+        statistic=head.get("statistic"),
+        statistic_name=f"likelihood ratio chi-square, {by['LRT']['df']} df",
+        p_value=head.get("p"),
+        effect_name=("log-odds, static - dynamic, between-tactor targets"
+                     + (" (averaged over target counts and loads)" if several else "")),
+        effect=est,
+        ci_name="static - dynamic log-odds, 95 % Wald interval (model-based, not bootstrap)",
+        ci_low=lo, ci_high=hi, n=n, details=details,
     )
 
 
@@ -776,6 +965,13 @@ class Summary:
         return t.details.get("model") if t is not None and t.computed else None
 
     @property
+    def contrasts(self) -> list[dict[str, Any]]:
+        """``summary.json["contrasts"]``: dynamic - static per target count at
+        between-tactor targets, Holm-adjusted (empty without the accuracy model)."""
+        t = self.test("mixed_model")
+        return list(t.details.get("contrasts", [])) if t is not None and t.computed else []
+
+    @property
     def simulated(self) -> bool:
         """True when every session's data come from a simulated model participant."""
         return bool(self.simulated_sessions) and len(self.simulated_sessions) == len(self.sessions)
@@ -848,6 +1044,7 @@ class Summary:
             "between_accuracy_test": self.between_accuracy_test.to_dict(),
             "tests": [t.to_dict() for t in self.tests],
             "mixed_model": self.mixed_model,
+            "contrasts": _finite_json(self.contrasts),
             "rt_mixed_model": self.rt_model,
             "secondary_tasks": _finite_json(self.secondary_tasks),
             "tlx": _finite_json(self.tlx),
@@ -925,7 +1122,8 @@ def _design_for(sessions: pd.DataFrame, notes: list[str]) -> StudyDesign:
 
 
 def summarize(data: StoreData, *, seed: int = 0, n_boot: int = DEFAULT_N_BOOT,
-              engine: str = "tactorbelt") -> Summary:
+              engine: str = "tactorbelt", pb_sims: int | None = DEFAULT_PB_SIMS,
+              progress: Any = None) -> Summary:
     """Compute every table and test from loaded stores. Pure: no files, no clock.
 
     Args:
@@ -935,6 +1133,10 @@ def summarize(data: StoreData, *, seed: int = 0, n_boot: int = DEFAULT_N_BOOT,
         engine: who fits the mixed models: ``tactorbelt`` (:mod:`.glmm`) or ``lme4``
             (R through Rscript; raises :class:`~tactorbelt.analysis.lme4.Lme4Unavailable`
             without it).
+        pb_sims: simulations of the accuracy model's parametric bootstrap (computed up to
+            :data:`PB_HEADLINE_MAX_PARTICIPANTS` participants; 0: never), seeded by
+            ``seed``.
+        progress: ``progress(done, total)`` as the bootstrap refits.
     """
     rng = np.random.default_rng(seed)
     notes = list(data.notes)
@@ -1035,7 +1237,8 @@ def summarize(data: StoreData, *, seed: int = 0, n_boot: int = DEFAULT_N_BOOT,
                 rng, n_boot, key="between_rt", what="median RT", unit=", s"))
     rt_json: dict[str, Any] | None = None
     if len(counted):
-        tests.append(mixed_model(tr, engine=engine))
+        tests.append(mixed_model(tr, engine=engine, pb_sims=pb_sims, seed=seed,
+                                 progress=progress))
         rt_json = rt_model(tr, engine=engine)
         if rt_json.get("timeout_note"):
             notes.append("RT model: " + rt_json["timeout_note"])

@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING
 
 import click
 
-from ._options import output_option, seed_option
+from ._options import number, output_option, seed_option
 
 if TYPE_CHECKING:
     from ..analysis.stats import Summary
@@ -42,11 +42,15 @@ def print_summary_table(summary: Summary) -> None:
                    "Rscript (needs 'apt install r-base-core r-cran-lme4').")
 @click.option("--site", "sites", multiple=True, metavar="NAME",
               help="Only the sessions of this site (repeat for several).")
+@click.option("--bootstrap-sims", "pb_sims", type=number(int, 0, 100_000), default=None,
+              help="Simulations of the accuracy model's parametric bootstrap, the headline "
+                   "test up to 16 participants [default: 100; 0: skip it and report the "
+                   "likelihood-ratio test].")
 @click.option("--include-running", is_flag=True,
               help="From a shared store (postgresql://), also the sessions that are not "
                    "complete yet.")
 def analyze(db: tuple[str, ...], out: Path | None, seed: int | None, engine: str,
-            sites: tuple[str, ...], include_running: bool) -> None:
+            sites: tuple[str, ...], include_running: bool, pb_sims: int | None) -> None:
     """Analyze one or more session stores and write the report.
 
     DB is a store written by 'tactorbelt run' or 'tactorbelt demo' (several may be
@@ -72,7 +76,7 @@ def analyze(db: tuple[str, ...], out: Path | None, seed: int | None, engine: str
 
         summary = run_analysis(list(db), out_dir, seed=seed, progress=progress,
                                engine=engine, sites=list(sites) or None,
-                               include_running=include_running)
+                               include_running=include_running, pb_sims=pb_sims)
     out_console = Console()
     _print(summary, out_console)
     for note in summary.notes:

@@ -1,0 +1,176 @@
+"""False-positive rates of the accuracy model's condition tests, by simulation.
+
+Studies with **no condition effect** are simulated from the report's accuracy GLMM
+(:func:`tactorbelt.analysis.power_model.simulate_frame` with the ``tactorbelt power
+--odds-ratio`` defaults: static = dynamic between-tactor accuracy 0.5, on-tactor 0.9,
+SDs 0.5 (participant), 0.3 (condition slope), 0.3 (target), log-odds) and analysed as
+the report analyses them (:func:`tactorbelt.analysis.stats.fit_model`: the maximal
+model simplified while singular). Per study:
+
+- ``wald_z``: Wald z of ``conditionstatic`` (the old headline), two-sided;
+  ``wald_z_one_sided``: the same, found in the direction ``tactorbelt power`` names
+  (dynamic better), whose nominal rate is alpha / 2;
+- ``wald_chi2``: the Wald chi-square over every condition term;
+- ``lrt``: the likelihood ratio against the model without the condition terms;
+- ``pb``: its parametric bootstrap (pbkrtest's p) with ``--pb-sims`` simulations,
+  on the first ``--pb-studies`` studies of each size.
+
+A test *finds* an effect when ``p <= alpha``: with ``n_sim + 1`` a multiple of
+``1 / alpha`` (39 at 0.05) the bootstrap's level is then exactly alpha when its
+reference distribution is right, so its rate measures only how wrong the null fit's
+reference distribution is.
+
+Every study draws from ``numpy.random.default_rng([seed, n, i])`` (its bootstrap from
+``[seed, n, i, 1]``); results are appended to ``--out`` as JSON lines, one per study,
+and a rerun skips the studies already there, so the run can be stopped and resumed.
+``--table`` prints the Markdown table of docs/analysis.md from that file.
+
+Usage::
+
+    python scripts/false_positive_rates.py --sizes 4,8,16 --studies 400 \\
+        --pb-studies 150 --pb-sims 39 --out fp-paper.jsonl
+    python scripts/false_positive_rates.py --design resolution --out fp-res.jsonl ...
+    python scripts/false_positive_rates.py --table --out fp-paper.jsonl
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from tactorbelt.analysis.glmm import fit_glmm
+from tactorbelt.analysis.lrt import (
+    likelihood_ratio,
+    null_spec,
+    parametric_bootstrap,
+    wald_condition,
+)
+from tactorbelt.analysis.power_model import NamedEffect, TrialDesign, simulate_frame
+from tactorbelt.analysis.stats import fit_model
+from tactorbelt.experiment.study import Study, paper_study, template_toml
+from tactorbelt.participant.power import binomial_ci
+
+TESTS = ("wald_z", "wald_z_one_sided", "wald_chi2", "lrt", "pb")
+LABELS = {"wald_z": "Wald z, `conditionstatic` (two-sided)",
+          "wald_z_one_sided": "Wald z, one-sided (nominal alpha/2)",
+          "wald_chi2": "Wald chi-square, all condition terms",
+          "lrt": "likelihood ratio (chi-square)",
+          "pb": "parametric bootstrap of the LRT"}
+
+
+def design_of(name: str) -> TrialDesign:
+    if name == "paper":
+        return TrialDesign.from_study(paper_study())
+    return TrialDesign.from_study(Study.from_toml(template_toml("resolution")), all_counts=True)
+
+
+def one_study(design: TrialDesign, n: int, i: int, seed: int, pb_sims: int) -> dict[str, object]:
+    rng = np.random.default_rng([seed, n, i])
+    frame = simulate_frame(design, NamedEffect.no_effect(), n, rng)
+    t0 = time.process_time()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        fit, js = fit_model(frame)
+        fit0 = fit_glmm(frame, null_spec(fit.spec), se=False)
+    fe = fit.fixed_effects["conditionstatic"]
+    wald = wald_condition(fit)
+    lr = likelihood_ratio(fit, fit0)
+    out: dict[str, object] = {
+        "n": n, "i": i, "formula": fit.spec.formula(), "singular": fit.singular,
+        "wald_z": fe.p, "z": fe.z, "wald_chi2": wald["p"], "lrt": lr["p"],
+        "lrt_stat": lr["statistic"], "df": lr["df"],
+    }
+    if pb_sims:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            pb = parametric_bootstrap(frame, fit, fit0, n_sim=pb_sims, seed=[seed, n, i, 1])
+        out.update({"pb": pb.p, "pb_sims": pb.n_sim, "pb_positive": pb.n_positive,
+                    "pb_failed": pb.failed})
+    out["cpu_s"] = time.process_time() - t0
+    return out
+
+
+def found(rec: dict[str, object], test: str, alpha: float) -> bool | None:
+    if test == "wald_z_one_sided":
+        p, z = rec.get("wald_z"), rec.get("z")
+        if p is None or z is None or not math.isfinite(float(p)):  # type: ignore[arg-type]
+            return None
+        return float(p) <= alpha and float(z) < 0  # type: ignore[arg-type]  # dynamic better
+    p = rec.get(test)
+    if p is None or not math.isfinite(float(p)):  # type: ignore[arg-type]
+        return None
+    return float(p) <= alpha  # type: ignore[arg-type]
+
+
+def table(path: Path, alpha: float) -> str:
+    recs = [json.loads(line) for line in path.read_text().splitlines() if line.strip()]
+    sizes = sorted({int(r["n"]) for r in recs})
+    head = "| test | " + " | ".join(f"{n} participants" for n in sizes) + " |"
+    lines = [head, "|---|" + "---|" * len(sizes)]
+    for test in TESTS:
+        cells = []
+        for n in sizes:
+            hits = [found(r, test, alpha) for r in recs if int(r["n"]) == n]
+            hits = [h for h in hits if h is not None]
+            if not hits:
+                cells.append("-")
+                continue
+            k = int(sum(hits))
+            lo, hi = binomial_ci(k, len(hits))
+            cells.append(f"{100 * k / len(hits):.1f} % [{100 * lo:.1f}, {100 * hi:.1f}] "
+                         f"({k}/{len(hits)})")
+        lines.append(f"| {LABELS[test]} | " + " | ".join(cells) + " |")
+    cpu = {n: np.mean([float(r["cpu_s"]) for r in recs if int(r["n"]) == n and "pb" in r] or
+                      [math.nan]) for n in sizes}
+    lines.append("")
+    lines.append("CPU seconds per study with the bootstrap: " + ", ".join(
+        f"{n}: {v:.0f}" for n, v in cpu.items()))
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--design", choices=("paper", "resolution"), default="paper")
+    ap.add_argument("--sizes", default="4,8,16")
+    ap.add_argument("--studies", type=int, default=400)
+    ap.add_argument("--pb-studies", type=int, default=150)
+    ap.add_argument("--pb-sims", type=int, default=39)
+    ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--alpha", type=float, default=0.05)
+    ap.add_argument("--out", type=Path, default=Path("false-positives.jsonl"))
+    ap.add_argument("--table", action="store_true", help="print the table of --out and stop")
+    a = ap.parse_args(argv)
+    if a.table:
+        print(table(a.out, a.alpha))
+        return 0
+    design = design_of(a.design)
+    done = set()
+    if a.out.exists():
+        done = {(int(r["n"]), int(r["i"])) for r in
+                (json.loads(x) for x in a.out.read_text().splitlines() if x.strip())}
+    sizes = [int(s) for s in a.sizes.split(",")]
+    # interleave the sizes so that a stopped run has some of each
+    for i in range(a.studies):
+        for n in sizes:
+            if (n, i) in done:
+                continue
+            pb = a.pb_sims if i < a.pb_studies else 0
+            rec = one_study(design, n, i, a.seed, pb)
+            rec["design"] = a.design
+            with a.out.open("a") as fh:
+                fh.write(json.dumps(rec) + "\n")
+            print(f"n={n} i={i} lrt p={rec['lrt']:.3f} pb p={rec.get('pb', float('nan')):.3f} "
+                  f"cpu {rec['cpu_s']:.1f} s", file=sys.stderr, flush=True)
+    print(table(a.out, a.alpha))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
