@@ -10,9 +10,13 @@ default 6-tactor layout, an 8-tactor layout and an uneven layout.
 
 ``vectors_ext.json`` holds the protocol extensions (docs/protocol.md, "Extensions"):
 GET_DIAG/DIAG, ONSET, the SET_CONFIG flags byte, NAK 5, a scripted exchange with
-ONSET events, and the BLE reply paths (refused, unframed, framed in MTU pieces).
+ONSET events, and the BLE reply paths (refused, unframed, framed in MTU pieces); the
+board's accelerometer (firmware 1.2): SENSE_START/SENSE_STOP/SENSE_DATA and NAK 6, a
+scripted sensing session with a fake accelerometer (every SENSE_DATA byte for byte), and
+the ERM motor model of the emulator's IMU against ``tactorbelt.devices.erm``.
 
-The sources of truth are ``tactorbelt.devices.wire`` and ``tactorbelt.stimuli``.
+The sources of truth are ``tactorbelt.devices.wire``, ``tactorbelt.devices.erm`` and
+``tactorbelt.stimuli``.
 ``tests/test_firmware_vectors.py`` fails when the committed file no longer matches.
 
 Usage:
@@ -32,6 +36,7 @@ from typing import Any
 import numpy as np
 
 from tactorbelt.devices import wire
+from tactorbelt.devices.erm import ErmParams, erm_speed
 from tactorbelt.devices.wire import (
     Ack,
     ConfigFlag,
@@ -44,6 +49,8 @@ from tactorbelt.devices.wire import (
     Packet,
     Pong,
     ResetFlag,
+    SenseData,
+    SenseFlag,
     State,
     Status,
 )
@@ -61,7 +68,7 @@ LAWS = ("paper", "linear", "energy")
 
 # What the firmware reports for itself (firmware/tactorbelt/src/core/protocol.h) and
 # what the exchange below runs against (6 tactors, default layout, 800 PWM steps).
-FW_VERSION = (1, 1, 0)
+FW_VERSION = (1, 2, 0)
 EXCHANGE_PWM_STEPS = 800
 
 
@@ -108,7 +115,7 @@ def cobs_vectors() -> list[dict[str, Any]]:
     return [{"data": _hex(d), "encoded": _hex(wire.cobs_encode(d))} for d in datas]
 
 
-def default_info(channels: int = 6, heartbeat_ms: int = 250) -> Info:
+def default_info(channels: int = 6, heartbeat_ms: int = 250, capabilities: int = 1) -> Info:
     layout = Layout.even(channels)
     return Info(
         wire.PROTOCOL_VERSION,
@@ -116,7 +123,7 @@ def default_info(channels: int = 6, heartbeat_ms: int = 250) -> Info:
         channels,
         EXCHANGE_PWM_STEPS,
         heartbeat_ms,
-        int(wire.Capability.PLAY_TARGET),
+        capabilities,
         tuple(wire.angle_to_cdeg(a) / 100.0 for a in layout.angles_deg),
     )
 
@@ -375,6 +382,21 @@ def ext_packet_vectors() -> list[dict[str, Any]]:
          wire.set_config(8, 250, 30000, flags)),
         ("NAK seq 9 code 5 (reply too long for the BLE MTU)",
          wire.encode_reply(9, Nak(9, NakCode.REPLY_TOO_LONG))),
+        ("SENSE_START seq 10: highest rate, 2000 ms, any tactor",
+         wire.sense_start(10, 0, 2000)),
+        ("SENSE_START seq 11: 400 Hz, 3600000 ms, tactor 5",
+         wire.sense_start(11, 400, 3_600_000, 5)),
+        ("SENSE_STOP seq 12", wire.sense_stop(12)),
+        ("SENSE_DATA of seq 10: 7 samples from index 0x01020304 at 0x123456789 us, 625 us "
+         "apart, +-8 g, the last", wire.encode_reply(10, SenseData(
+             10, SenseFlag.LAST, 0x01020304, 0x123456789, 625, 8000,
+             (0, 1, -1, 32767, -32768, 256, 4096, -4096, 8192, 1, 2, 3, -3, -2, -1,
+              0x1234, -0x1234, 0, 100, 200, 300)))),
+        ("SENSE_DATA of seq 10: no sample, the last, samples dropped before it",
+         wire.encode_reply(10, SenseData(10, SenseFlag.LAST | SenseFlag.DROPPED, 9, 5000,
+                                         1051, 8000, ()))),
+        ("NAK seq 13 code 6 (the IMU did not start)",
+         wire.encode_reply(13, Nak(13, NakCode.UNAVAILABLE))),
     ]
     return [_frame_entry(name, p) for name, p in entries]
 
@@ -425,6 +447,10 @@ def ext_exchange_vectors() -> dict[str, Any]:
     step(12_000, "STOP_ALL", wire.stop_all(11), [ack(11)])
     step(13_000, "PLAY_TARGET without the flag: ACK only", wire.play_target(12, *play),
          [ack(12)])
+    step(14_000, "SENSE_START without an accelerometer (firmware 1.1): NAK 2",
+         wire.sense_start(13, 0, 1000), [nak(13, NakCode.UNKNOWN_TYPE)])
+    step(15_000, "SENSE_STOP without an accelerometer: NAK 2", wire.sense_stop(14),
+         [nak(14, NakCode.UNKNOWN_TYPE)])
     return {"tactors": 6, "pwm_steps": EXCHANGE_PWM_STEPS, "steps": steps}
 
 
@@ -445,17 +471,206 @@ def ext_ble_vectors() -> dict[str, Any]:
     }
 
 
+# --- the board's accelerometer (firmware 1.2) -------------------------------------------------
+
+#: The fake accelerometer of the sensing exchange: its shortest period and full scale.
+FAKE_PERIOD_US = 1000
+FAKE_FULL_SCALE_MG = 8000
+
+
+def fake_sample(stamp_us: int) -> tuple[int, int, int]:
+    """What the exchange's fake accelerometer reads for a sample stamped ``stamp_us``."""
+    k = stamp_us // 1000
+    return (k & 0x3FFF, -(k & 0x3FFF), 4096 + (k & 0xF))
+
+
+class _SenseModel:
+    """The device's sampling (firmware/tactorbelt/src/core/sense.cpp) in Python, for the
+    exchange: what SENSE_DATA it sends, and when. Its link never lacks room."""
+
+    def __init__(self, min_period_us: int, full_scale_mg: int) -> None:
+        self.min_period = min_period_us
+        self.full_scale = full_scale_mg
+        self.active = False
+        self.out: list[Packet] = []
+        self.batch: list[tuple[int, int, int]] = []
+
+    def start(self, seq: int, rate_hz: int, duration_ms: int, now: int) -> None:
+        if self.active:
+            self._finish()
+        period = self.min_period
+        if rate_hz:
+            period = max(period, -(-1_000_000 // rate_hz))
+        self.period = min(period, 0xFFFF)
+        self.session, self.index, self.batch = seq, 0, []
+        self.next, self.end, self.active = now, now + duration_ms * 1000, True
+
+    def stop(self) -> None:
+        if self.active:
+            self._finish()
+
+    def poll(self, now: int) -> None:
+        if self.active and now >= self.next:
+            stamp = self.next
+            if stamp < self.end and now - stamp > self.period // 2:
+                self._close(0)
+                stamp = now
+            if stamp >= self.end:
+                self._finish()
+                return
+            if not self.batch:
+                self.t0, self.first = stamp, self.index
+            self.batch.append(fake_sample(stamp))
+            if len(self.batch) == wire.SENSE_MAX_SAMPLES:
+                self._close(0)
+            self.index += 1
+            self.next = stamp + self.period
+        elif self.active and now >= self.end:
+            self._finish()
+
+    def _finish(self) -> None:
+        self._close(SenseFlag.LAST)
+        self.active = False
+
+    def _close(self, flags: int) -> None:
+        if not self.batch and not flags & SenseFlag.LAST:
+            return
+        if not self.batch:
+            self.first, self.t0 = self.index, min(self.next, self.end)
+        values = tuple(v for sample in self.batch for v in sample)
+        self.out.append(wire.encode_reply(self.session, SenseData(
+            self.session, int(flags), self.first, self.t0, self.period, self.full_scale,
+            values)))
+        self.batch = []
+
+
+def sense_exchange_vectors() -> dict[str, Any]:
+    """A scripted session with a 6-tactor controller whose fake accelerometer (shortest
+    period 1000 us, +-8 g) reads :func:`fake_sample` of each sample's stamp. The runner
+    ticks the controller every millisecond up to a step's time and polls the sensing after
+    each tick, then hands it the step's input and polls once more (the order of the
+    sketch's loop); a step's output is everything sent since the previous step, byte for
+    byte."""
+    steps: list[dict[str, Any]] = []
+    model = _SenseModel(FAKE_PERIOD_US, FAKE_FULL_SCALE_MG)
+    clock = [0]
+
+    def take() -> list[Packet]:
+        out, model.out = model.out, []
+        return out
+
+    def step(t_us: int, note: str, requests: list[Packet]) -> None:
+        out: list[Packet] = []
+        while clock[0] + 1000 <= t_us:
+            clock[0] += 1000
+            model.poll(clock[0])
+        out += take()
+        clock[0] = t_us
+        for p in requests:
+            out += answer(p, t_us)
+        model.poll(t_us)
+        out += take()
+        steps.append({
+            "t_us": t_us,
+            "note": note,
+            "input": _hex(b"".join(wire.encode_frame(p) for p in requests)),
+            "output": _hex(b"".join(wire.encode_frame(p) for p in out)),
+        })
+
+    def answer(p: Packet, t_us: int) -> list[Packet]:
+        seq = p.seq
+        if p.type == MsgType.SENSE_START:
+            if len(p.payload) != 7:
+                return [wire.encode_reply(seq, Nak(seq, NakCode.BAD_LENGTH))]
+            req = wire.parse_request(p)
+            assert isinstance(req, wire.SenseStart)
+            if not 1 <= req.duration_ms <= wire.SENSE_MAX_DURATION_MS or (
+                    req.tactor != wire.SENSE_ANY_TACTOR and req.tactor >= 6):
+                return [wire.encode_reply(seq, Nak(seq, NakCode.OUT_OF_RANGE))]
+            model.start(seq, req.rate_hz, req.duration_ms, t_us)
+            return [*take(), wire.encode_reply(seq, Ack(seq))]
+        if p.type == MsgType.SENSE_STOP:
+            model.stop()
+            return [*take(), wire.encode_reply(seq, Ack(seq))]
+        if p.type == MsgType.GET_INFO:
+            caps = int(wire.Capability.PLAY_TARGET | wire.Capability.SENSE)
+            return [wire.encode_reply(seq, default_info(capabilities=caps))]
+        if p.type == MsgType.GET_STATUS:
+            return [wire.encode_reply(seq, Status(State.IDLE, 0, 0, 0, 0, (0,) * 6))]
+        if p.type == MsgType.GET_DIAG:
+            return [wire.encode_reply(seq, Diag(t_us, 0, 0, 0))]
+        raise AssertionError(f"no answer for {p}")
+
+    step(1_000, "GET_INFO: capability bit 1, the accelerometer", [wire.get_info(0)])
+    step(2_000, "SENSE_START at the highest rate (1000 us) for 20 ms: ACK; the first sample "
+         "is read at once", [wire.sense_start(1, 0, 20)])
+    step(10_000, "GET_STATUS while sensing: the first batch (7 samples) came before it",
+         [wire.get_status(2)])
+    step(30_000, "GET_DIAG: the second batch, and the third (6 samples, the last: 20 ms "
+         "passed at 22000)", [wire.get_diag(3)])
+    step(31_000, "SENSE_START at 400 Hz (2500 us; read on the 1 ms polls, up to 500 us "
+         "late, stamped on time), tactor 2", [wire.sense_start(4, 400, 1000, 2)])
+    step(50_000, "SENSE_STOP: the first batch came at 46000; the last (1 sample), then ACK",
+         [wire.sense_stop(5)])
+    step(51_000, "SENSE_STOP again: ACK only", [wire.sense_stop(6)])
+    step(52_000, "SENSE_START for tactor 6 of 6, for 0 ms, for more than an hour: NAK 4",
+         [wire.sense_start(7, 0, 1000, 6), wire.sense_start(8, 0, 0),
+          wire.sense_start(9, 0, wire.SENSE_MAX_DURATION_MS + 1)])
+    step(53_000, "SENSE_START with 6 bytes: NAK 3", [Packet(MsgType.SENSE_START, 10, bytes(6))])
+    step(60_000, "SENSE_START for 100 ms", [wire.sense_start(11, 0, 100, 0)])
+    step(62_000, "SENSE_START while sensing: the last batch of the old session (3 samples), "
+         "the ACK, the new session's first sample", [wire.sense_start(12, 0, 100, 1)])
+    step(63_000, "SENSE_STOP: the last batch (2 samples), then the ACK", [wire.sense_stop(13)])
+    step(70_000, "GET_STATUS: nothing more", [wire.get_status(14)])
+    return {"tactors": 6, "pwm_steps": EXCHANGE_PWM_STEPS, "accelerometer": {
+        "min_period_us": FAKE_PERIOD_US, "full_scale_mg": FAKE_FULL_SCALE_MG,
+        "sample": "k = stamp_us / 1000: x = k & 0x3FFF, y = -x, z = 4096 + (k & 0xF)"},
+        "steps": steps}
+
+
+def erm_vectors() -> dict[str, Any]:
+    """The ERM model (tactorbelt.devices.erm) on a drive history of two motors: speeds and
+    amplitudes every millisecond, from rest; the emulator's ErmBank must give the same."""
+    params = ErmParams()
+    t_ms = np.arange(0, 601)
+    amps = np.zeros((t_ms.size, 2))
+    for lo, hi, a in ((5, 150, 1.0), (150, 250, 0.5), (250, 300, 0.2), (300, 400, 0.8),
+                      (400, 420, 0.26), (420, 430, 0.24)):
+        amps[(t_ms >= lo) & (t_ms < hi), 0] = a
+    for lo, hi, a in ((0, 100, 0.3), (200, 500, 1.0), (500, 503, 0.6)):
+        amps[(t_ms >= lo) & (t_ms < hi), 1] = a
+    levels = np.array([[wire.amplitude_to_level(a) for a in row] for row in amps], dtype=np.int64)
+    speed = erm_speed(t_ms.astype(np.int64) * 1_000_000, levels / 65535.0, np.zeros(2), params)
+    amplitude = params.amplitude(speed)
+    return {
+        "params": {"rise_tau_s": params.rise_tau_s, "fall_tau_s": params.fall_tau_s,
+                   "start_level": params.start_level,
+                   "amplitude_exponent": params.amplitude_exponent},
+        "note": "each step: the levels that drive [t_us, the next step's t_us), and the "
+                "speed and amplitude at t_us (erm_speed, from rest)",
+        "steps": [
+            {"t_us": int(t) * 1000, "levels": [int(v) for v in lv],
+             "speed": [_num(v) for v in sp], "amplitude": [_num(v) for v in am]}
+            for t, lv, sp, am in zip(t_ms, levels, speed, amplitude, strict=True)
+        ],
+    }
+
+
 def build_ext_vectors() -> dict[str, Any]:
     """The extensions' vectors (firmware/test/vectors_ext.json)."""
     return {
         "format": FORMAT,
         "generated_by": "scripts/gen_firmware_vectors.py (do not edit by hand)",
         "about": "Protocol v1 extensions (docs/protocol.md, 'Extensions'): GET_DIAG/DIAG, "
-                 "ONSET, the SET_CONFIG flags byte, NAK 5 and BLE chunking; checked by the "
-                 "firmware host tests (test/test_extensions.cpp).",
+                 "ONSET, the SET_CONFIG flags byte, NAK 5 and BLE chunking; SENSE_START, "
+                 "SENSE_STOP, SENSE_DATA and NAK 6 (firmware 1.2), and the ERM model of the "
+                 "emulator's IMU; checked by the firmware host tests "
+                 "(test/test_extensions.cpp, test/test_sense.cpp).",
         "packets": ext_packet_vectors(),
         "exchange": ext_exchange_vectors(),
         "ble": ext_ble_vectors(),
+        "sense": sense_exchange_vectors(),
+        "erm": erm_vectors(),
     }
 
 

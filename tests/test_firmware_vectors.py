@@ -89,15 +89,16 @@ def test_committed_vectors_match_the_package(
 
 
 def test_committed_extension_vectors_match_the_package(gen: ModuleType) -> None:
-    """vectors_ext.json (GET_DIAG, ONSET, flags, NAK 5, BLE pieces) comes from the script
-    too, with the firmware version of INFO (1.1.0) that protocol.h reports."""
+    """vectors_ext.json (GET_DIAG, ONSET, flags, NAK 5, BLE pieces, SENSE, the ERM model)
+    comes from the script too, with the firmware version of INFO (1.2.0) that protocol.h
+    reports."""
     committed = json.loads((VECTORS.parent / "vectors_ext.json").read_text())
     _assert_same(committed, json.loads(json.dumps(gen.build_ext_vectors())))
     header = (REPO / "firmware" / "tactorbelt" / "src" / "core" / "protocol.h").read_text()
     version = tuple(
         int(header.split(f"kFirmware{part} = ")[1].split(";")[0])
         for part in ("Major", "Minor", "Patch"))
-    assert version == gen.FW_VERSION == (1, 1, 0)
+    assert version == gen.FW_VERSION == (1, 2, 0)
 
 
 def test_the_generator_is_deterministic(gen: ModuleType, fresh: dict[str, Any]) -> None:

@@ -3,6 +3,7 @@
 //
 //   emulator [--tactors N | --tactor-angles A,B,...] [--heartbeat-ms MS]
 //            [--max-on-ms MS] [--levels-log FILE] [--watchdog-ms MS] [--debug-frames]
+//            [--imu bmi270|lsm9ds1|none|broken]
 //
 // Contract (docs/protocol.md, "The emulator"):
 // - The first stdout line is the pseudo-terminal's slave path (then stdout is
@@ -21,6 +22,11 @@
 //   fresh core (power-up settings, the watchdog reset flag set).
 // - --debug-frames: accepts DEBUG_HANG (0x7E), which stops the loop (no tick, no
 //   reading, no feeding) until the watchdog resets it (forever without one).
+// - --imu: the board's accelerometer that SENSE_START streams (firmware 1.2), simulated
+//   from the ERM model of the motors (erm_model.h): bmi270 (the default; Nano 33 BLE
+//   Rev2, 1600 Hz), lsm9ds1 (Rev1, 952 Hz); none: no accelerometer at all (SENSE_START
+//   NAKed as unknown, like firmware 1.1); broken: an IMU that did not start (NAK 6).
+//   The motors' model runs whatever --imu says (the levels drive it in device time).
 #include <errno.h>
 #include <fcntl.h>
 #include <poll.h>
@@ -39,6 +45,7 @@
 
 #include "../tactorbelt/src/core/controller.h"
 #include "../tactorbelt/src/core/links.h"
+#include "erm_model.h"
 
 namespace {
 
@@ -68,7 +75,8 @@ timespec to_timespec(int64_t ns) {
 
 constexpr const char kUsage[] =
     "usage: emulator [--tactors N | --tactor-angles A,B,...] [--heartbeat-ms MS]"
-    " [--max-on-ms MS] [--levels-log FILE] [--watchdog-ms MS] [--debug-frames]\n";
+    " [--max-on-ms MS] [--levels-log FILE] [--watchdog-ms MS] [--debug-frames]"
+    " [--imu bmi270|lsm9ds1|none|broken]\n";
 
 [[noreturn]] void usage_error(const char* message) {
   fprintf(stderr, "emulator: error: %s\n%s", message, kUsage);
@@ -145,9 +153,18 @@ class LevelsLog {
   uint16_t levels_[tb::kMaxChannels] = {};
 };
 
-class NullMotors : public tb::MotorDriver {
+// The device time of the controller call in progress: what the motors' model takes a
+// level change's time from (MotorDriver::write carries none).
+uint64_t g_call_us = 0;
+
+// The motors: their levels drive the ERM model (the simulated IMU senses it).
+class SimMotors : public tb::MotorDriver {
  public:
-  void write(const uint16_t*, uint8_t) override {}
+  explicit SimMotors(emu::ErmBank& bank) : bank_(bank) {}
+  void write(const uint16_t* levels, uint8_t n) override { bank_.set_levels(g_call_us, levels, n); }
+
+ private:
+  emu::ErmBank& bank_;
 };
 
 class HangHook : public tb::DebugHook {
@@ -162,9 +179,9 @@ class HangHook : public tb::DebugHook {
 // Everything a reset starts afresh: the core and its TX ring. (The watchdog is
 // not in here: like the WDT it outlives the reset, and its thread reads it.)
 struct Device {
-  explicit Device(const tb::Layout& layout)
-      : controller(layout, motors, kPwmSteps), tx(controller.link_counters()) {}
-  NullMotors motors;
+  Device(const tb::Layout& layout, emu::ErmBank& bank)
+      : motors(bank), controller(layout, motors, kPwmSteps), tx(controller.link_counters()) {}
+  SimMotors motors;
   tb::Controller controller;
   tb::SerialTx tx;
 };
@@ -202,6 +219,7 @@ int main(int argc, char** argv) {
   const char* log_path = nullptr;
   long watchdog_ms = 0;
   bool debug_frames = false;
+  const char* imu = "bmi270";
   for (int i = 1; i < argc; ++i) {
     const char* a = argv[i];
     const bool has_value = i + 1 < argc;
@@ -244,6 +262,13 @@ int main(int argc, char** argv) {
       log_path = v;
     } else if (strcmp(a, "--watchdog-ms") == 0) {
       watchdog_ms = parse_long(v, "--watchdog-ms", 0, 10000);
+    } else if (strcmp(a, "--imu") == 0) {
+      if (strcmp(v, "bmi270") != 0 && strcmp(v, "lsm9ds1") != 0 && strcmp(v, "none") != 0 &&
+          strcmp(v, "broken") != 0) {
+        snprintf(msg, sizeof msg, "--imu takes bmi270, lsm9ds1, none or broken, got '%s'", v);
+        usage_error(msg);
+      }
+      imu = v;
     } else {
       snprintf(msg, sizeof msg, "unknown option '%s'", a);
       usage_error(msg);
@@ -256,11 +281,18 @@ int main(int argc, char** argv) {
   }
   HangHook hang_hook;
   tb::WatchdogModel watchdog(static_cast<uint32_t>(watchdog_ms));
+  // The motors and the IMU outlive a reset, as on the board (a motor spins down).
+  emu::ErmBank bank(layout.size());
+  const bool imu_lsm9ds1 = strcmp(imu, "lsm9ds1") == 0;
+  emu::SimImu sim_imu(bank, imu_lsm9ds1 ? 1051 : 625, strcmp(imu, "broken") != 0);
+  const bool has_imu = strcmp(imu, "none") != 0;
   std::unique_ptr<Device> dev;
   // Power-up (and a watchdog reset): a fresh core with the command line's settings.
   auto boot = [&](uint64_t t_us, uint8_t reset_flags) {
-    dev = std::make_unique<Device>(layout);
+    g_call_us = t_us;
+    dev = std::make_unique<Device>(layout, bank);
     tb::Controller& c = dev->controller;
+    if (has_imu) c.set_accelerometer(&sim_imu);
     if (heartbeat_ms >= 0) c.set_heartbeat_ms(static_cast<uint16_t>(heartbeat_ms));
     if (max_on_ms >= 0) c.set_max_on_ms(static_cast<uint32_t>(max_on_ms));
     c.set_reset_flags(reset_flags);
@@ -354,6 +386,8 @@ int main(int argc, char** argv) {
       // Watchdog reset: the pins go to inputs (driver pull-downs: motors off) at
       // the moment it fires; the firmware boots again and reports the cause.
       const uint64_t t_fire = g_wdt_fired_us;
+      const uint16_t off[tb::kMaxChannels] = {};
+      bank.set_levels(t_fire, off, layout.size());
       levels_log.record_off(t_fire, layout.size());
       levels_log.flush();
       fprintf(stderr, "emulator: watchdog reset (not fed for %ld ms)\n", watchdog_ms);
@@ -364,12 +398,26 @@ int main(int argc, char** argv) {
       continue;
     }
     const int64_t now = mono_ns();
+    // A SENSE sample due (SENSE_START): taken on time, between ticks too.
+    const uint64_t sense_us = dev->controller.next_sense_us();
+    const int64_t sense_ns =
+        sense_us == UINT64_MAX ? INT64_MAX : t0 + static_cast<int64_t>(sense_us) * 1000;
+    if (now >= sense_ns && now < next) {
+      const uint64_t t = now_us();
+      g_call_us = t;
+      dev->controller.poll_sense(t);
+      drain(*dev, master);
+      continue;
+    }
     if (now >= next) {
       // The 1 kHz tick, on absolute deadlines.
       if (now - next > kMaxLagNs) next = now;  // suspended or starved: skip, do not burst
       next += kTickNs;
       const uint64_t t = now_us();
+      g_call_us = t;
+      dev->controller.poll_sense(t);  // samples due before the tick changes the levels
       dev->controller.tick(t);
+      dev->controller.poll_sense(t);
       if (!connected) {
         // Without an opener the master reports POLLHUP at once, so it is not
         // waited on; look for an opener once per tick instead.
@@ -395,13 +443,15 @@ int main(int argc, char** argv) {
       stdin_i = static_cast<int>(nfds);
       fds[nfds++] = {STDIN_FILENO, POLLIN, 0};
     }
-    const timespec timeout = to_timespec(next - now);
+    const timespec timeout = to_timespec((sense_ns < next ? sense_ns : next) - now);
     const int ready = ppoll(fds, nfds, &timeout, nullptr);
     if (ready < 0 && errno != EINTR) break;
     if (ready <= 0) continue;
     const uint64_t t = now_us();
+    g_call_us = t;
     if (master_i >= 0 && fds[master_i].revents != 0) {
       if (fds[master_i].revents & POLLIN) {
+        dev->controller.poll_sense(t);  // samples due before a request changes the levels
         dev->controller.tick(t);  // outputs as of now, so that a STATUS reports them
         while (!g_hang) {
           const ssize_t r = read(master, buf, sizeof buf);
@@ -413,6 +463,8 @@ int main(int argc, char** argv) {
           if (r < 0 && errno == EINTR) continue;
           break;  // EAGAIN: drained; EIO: no opener any more (POLLHUP)
         }
+        dev->controller.poll_sense(t);  // a SENSE_START's first sample, at once
+        drain(*dev, master);
       }
       if (fds[master_i].revents & (POLLHUP | POLLERR)) {
         // every opener closed the port: like the USB port closing
@@ -433,6 +485,7 @@ int main(int argc, char** argv) {
   g_stop = 1;
   if (watchdog_thread.joinable()) watchdog_thread.join();
   const uint64_t t = now_us();
+  g_call_us = t;
   dev->controller.link_closed(t);
   levels_log.record(t, dev->controller, true);
   levels_log.flush();

@@ -1,5 +1,6 @@
 """Protocol v1 on the wire: packets, CRC, COBS framing, and every message of it
-(the extensions too: GET_DIAG/DIAG, ONSET, the SET_CONFIG flags, NAK 5).
+(the extensions too: GET_DIAG/DIAG, ONSET, the SET_CONFIG flags, NAK 5, and the
+board's accelerometer: SENSE_START, SENSE_STOP, SENSE_DATA, NAK 6).
 
 The contract is ``docs/protocol.md``; the firmware (``firmware/``) implements the
 same contract in C++ and shares nothing with this module but that document and the
@@ -40,6 +41,9 @@ __all__ = [
     "MAX_PAYLOAD",
     "MIN_PACKET",
     "PROTOCOL_VERSION",
+    "SENSE_ANY_TACTOR",
+    "SENSE_MAX_DURATION_MS",
+    "SENSE_MAX_SAMPLES",
     "Ack",
     "Capability",
     "ConfigFlag",
@@ -63,6 +67,10 @@ __all__ = [
     "Reply",
     "Request",
     "ResetFlag",
+    "SenseData",
+    "SenseFlag",
+    "SenseStart",
+    "SenseStop",
     "SetAmplitudes",
     "SetConfig",
     "State",
@@ -88,6 +96,8 @@ __all__ = [
     "parse_request",
     "ping",
     "play_target",
+    "sense_start",
+    "sense_stop",
     "set_amplitudes",
     "set_config",
     "stop_all",
@@ -101,6 +111,14 @@ MIN_PACKET = 4
 MAX_PAYLOAD = MAX_PACKET - MIN_PACKET
 #: Longest COBS encoding of a packet (the 0x00 delimiter not counted).
 MAX_ENCODED_PACKET = MAX_PACKET + MAX_PACKET // 254 + 1
+#: SENSE_START's tactor when the host does not say which tactor the board is on.
+SENSE_ANY_TACTOR = 0xFF
+#: The longest SENSE_START duration (one hour).
+SENSE_MAX_DURATION_MS = 3_600_000
+#: SENSE_DATA header: session seq, flags, first index u32, t0 u64, period u16, full scale u16.
+SENSE_DATA_HEADER = 18
+#: Samples (x, y, z int16) in one SENSE_DATA: as many as fit a 64-byte packet.
+SENSE_MAX_SAMPLES = (MAX_PAYLOAD - SENSE_DATA_HEADER) // 6
 
 
 class MsgType(enum.IntEnum):
@@ -115,12 +133,15 @@ class MsgType(enum.IntEnum):
     SET_CONFIG = 0x15
     GET_STATUS = 0x16
     GET_DIAG = 0x17
+    SENSE_START = 0x18
+    SENSE_STOP = 0x19
     ACK = 0x80
     PONG = 0x81
     INFO = 0x82
     STATUS = 0x83
     DIAG = 0x84
     ONSET = 0x85
+    SENSE_DATA = 0x86
     NAK = 0x8F
 
 
@@ -132,6 +153,9 @@ class NakCode(enum.IntEnum):
     OUT_OF_RANGE = 4
     #: BLE only: the reply does not fit the ATT MTU (the request was carried out).
     REPLY_TOO_LONG = 5
+    #: The device knows the request but its hardware did not start (SENSE_START on a
+    #: board whose IMU did not answer).
+    UNAVAILABLE = 6
 
 
 class State(enum.IntEnum):
@@ -160,9 +184,11 @@ class Law(enum.IntEnum):
 
 class Capability(enum.IntFlag):
     """INFO capability bits. WATCHDOG_RESET is a status bit: the last reset was the
-    watchdog's (extensions)."""
+    watchdog's (extensions). SENSE (firmware 1.2): the board's accelerometer started and
+    SENSE_START streams it."""
 
     PLAY_TARGET = 0x01
+    SENSE = 0x02
     WATCHDOG_RESET = 0x80
 
 
@@ -171,6 +197,16 @@ class ConfigFlag(enum.IntFlag):
 
     ONSET_EVENTS = 0x01
     BLE_FRAMED = 0x02
+
+
+class SenseFlag(enum.IntFlag):
+    """SENSE_DATA flags."""
+
+    #: The session ended with this batch (its duration passed, or SENSE_STOP).
+    LAST = 0x01
+    #: Samples before this batch were lost on the device (its queue was full, a read
+    #: failed); their indices are skipped.
+    DROPPED = 0x02
 
 
 class ResetFlag(enum.IntFlag):
@@ -542,10 +578,34 @@ class GetDiag:
     pass
 
 
+@dataclass(frozen=True)
+class SenseStart:
+    """SENSE_START: stream the board's accelerometer (firmware 1.2).
+
+    Attributes:
+        rate_hz: the rate asked for; 0 = the sensor's highest. The device samples at the
+            highest rate it can at or below it (period ``ceil(1e6 / rate_hz)`` us, at
+            least the sensor's shortest, at most 65535 us).
+        duration_ms: how long (1..3600000); SENSE_STOP ends it sooner.
+        tactor: the tactor the board is on (the emulator simulates that one), or
+            :data:`SENSE_ANY_TACTOR`.
+    """
+
+    rate_hz: int
+    duration_ms: int
+    tactor: int = SENSE_ANY_TACTOR
+
+
+@dataclass(frozen=True)
+class SenseStop:
+    pass
+
+
 Request = (Ping | GetInfo | SetAmplitudes | StopAll | PlayTarget | Heartbeat | SetConfig
-           | GetStatus | GetDiag)
+           | GetStatus | GetDiag | SenseStart | SenseStop)
 
 _PLAY_TARGET = struct.Struct("<HBBHHHI")
+_SENSE_START = struct.Struct("<HIB")
 #: ``_LEVELS[n]`` packs the payload of SET_AMPLITUDES with ``n`` levels.
 _LEVELS = tuple(struct.Struct(f"<{n}H") for n in range(MAX_PAYLOAD // 2 + 1))
 _SET_AMPLITUDES = MsgType.SET_AMPLITUDES
@@ -637,6 +697,25 @@ def get_diag(seq: int) -> Packet:
     return Packet(MsgType.GET_DIAG, seq)
 
 
+def sense_start(seq: int, rate_hz: int, duration_ms: int,
+                tactor: int = SENSE_ANY_TACTOR) -> Packet:
+    """SENSE_START (firmware 1.2): ACK, then SENSE_DATA batches until ``duration_ms`` has
+    passed or SENSE_STOP; NAK 2 from a firmware without it, NAK 6 when the board's IMU did
+    not start, NAK 4 for a duration of 0 or above an hour or a tactor the belt lacks."""
+    payload = _SENSE_START.pack(
+        _uint("rate_hz", rate_hz, 16),
+        _uint("duration_ms", duration_ms, 32),
+        _uint("tactor", tactor, 8),
+    )
+    return Packet(MsgType.SENSE_START, seq, payload)
+
+
+def sense_stop(seq: int) -> Packet:
+    """SENSE_STOP (firmware 1.2): the session ends now (its last batch comes with
+    :attr:`SenseFlag.LAST`); ACK, also when none runs."""
+    return Packet(MsgType.SENSE_STOP, seq)
+
+
 def _expect_len(p: Packet, name: str, *sizes: int) -> None:
     if len(p.payload) not in sizes:
         want = " or ".join(str(s) for s in sizes)
@@ -683,6 +762,12 @@ def parse_request(p: Packet) -> Request:
     if t == MsgType.GET_DIAG:
         _expect_len(p, "GET_DIAG", 0)
         return GetDiag()
+    if t == MsgType.SENSE_START:
+        _expect_len(p, "SENSE_START", _SENSE_START.size)
+        return SenseStart(*_SENSE_START.unpack(p.payload))
+    if t == MsgType.SENSE_STOP:
+        _expect_len(p, "SENSE_STOP", 0)
+        return SenseStop()
     raise ProtocolError(f"unknown request type 0x{t:02X}")
 
 
@@ -718,6 +803,12 @@ class Info:
     def can_play_target(self) -> bool:
         """True when the device renders PLAY_TARGET itself."""
         return bool(self.capabilities & Capability.PLAY_TARGET)
+
+    @property
+    def can_sense(self) -> bool:
+        """True when SENSE_START streams the board's accelerometer (firmware 1.2, its IMU
+        started)."""
+        return bool(self.capabilities & Capability.SENSE)
 
 
 @dataclass(frozen=True)
@@ -758,6 +849,43 @@ class Onset:
 
 
 @dataclass(frozen=True)
+class SenseData:
+    """SENSE_DATA (firmware 1.2): consecutive accelerometer samples of one session.
+
+    Sample ``i`` was taken at device time ``t0_us + i * period_us`` (read at most half a
+    period after it); ``samples`` holds x, y, z of each in turn (int16, ``full_scale_mg``
+    milli-g at 32768).
+
+    Attributes:
+        session_seq: the seq of the SENSE_START that began the session (also the header's).
+        flags: :class:`SenseFlag` bits.
+        first_index: the index of the first sample within the session (a gap in the
+            indices is samples lost).
+        t0_us: the device time of the first sample (us, the clock of DIAG and ONSET).
+        period_us: the sampling period.
+        full_scale_mg: the acceleration a raw 32768 stands for (milli-g).
+        samples: ``x0, y0, z0, x1, ...`` (3 per sample, at most :data:`SENSE_MAX_SAMPLES`).
+    """
+
+    session_seq: int
+    flags: int
+    first_index: int
+    t0_us: int
+    period_us: int
+    full_scale_mg: int
+    samples: tuple[int, ...] = ()
+
+    @property
+    def n_samples(self) -> int:
+        return len(self.samples) // 3
+
+    @property
+    def last(self) -> bool:
+        """True when the session ended with this batch."""
+        return bool(self.flags & SenseFlag.LAST)
+
+
+@dataclass(frozen=True)
 class Ack:
     seq: int
     code: int = 0
@@ -769,12 +897,15 @@ class Nak:
     code: int
 
 
-Reply = Pong | Info | Status | Diag | Onset | Ack | Nak
+Reply = Pong | Info | Status | Diag | Onset | SenseData | Ack | Nak
 
 _INFO_HEAD = struct.Struct("<BBBBBHHB")
 _STATUS_HEAD = struct.Struct("<BHHHH")
 _DIAG = struct.Struct("<QBHH")
 _ONSET = struct.Struct("<BBQ")
+_SENSE_HEAD = struct.Struct("<BBIQHH")
+#: ``_SENSE_SAMPLES[n]`` unpacks n samples (3n int16).
+_SENSE_SAMPLES = tuple(struct.Struct(f"<{3 * n}h") for n in range(SENSE_MAX_SAMPLES + 1))
 
 
 def parse_reply(p: Packet) -> Reply:
@@ -823,6 +954,17 @@ def parse_reply(p: Packet) -> Reply:
     if t == MsgType.ONSET:
         _expect_len(p, "ONSET", _ONSET.size)
         return Onset(*_ONSET.unpack(payload))
+    if t == MsgType.SENSE_DATA:
+        head = _SENSE_HEAD.size
+        n, odd = divmod(len(payload) - head, 6)
+        if len(payload) < head or odd:
+            raise ProtocolError(f"SENSE_DATA: payload of {len(payload)} bytes, expected "
+                                f"{head} + 6*N")
+        seq, flags, index, t0, period, fs = _SENSE_HEAD.unpack_from(payload)
+        if period == 0:
+            raise ProtocolError("SENSE_DATA: a sampling period of 0 us")
+        return SenseData(seq, flags, index, t0, period, fs,
+                         _SENSE_SAMPLES[n].unpack_from(payload, head))
     if t == MsgType.ACK:
         _expect_len(p, "ACK", 2)
         return Ack(*payload)
@@ -885,6 +1027,22 @@ def encode_reply(seq: int, reply: Reply) -> Packet:
             _uint("device_time_us", reply.device_time_us, 64),
         )
         return Packet(MsgType.ONSET, seq, payload)
+    if isinstance(reply, SenseData):
+        if len(reply.samples) % 3 or len(reply.samples) > 3 * SENSE_MAX_SAMPLES:
+            raise ConfigError(f"SENSE_DATA: {len(reply.samples)} values; 3 per sample, at most "
+                              f"{SENSE_MAX_SAMPLES} samples")
+        for v in reply.samples:
+            if isinstance(v, bool) or not isinstance(v, int) or not -32768 <= v <= 32767:
+                raise ConfigError(f"SENSE_DATA: sample value {v!r} is not an int16")
+        payload = _SENSE_HEAD.pack(
+            _uint("session_seq", reply.session_seq, 8),
+            _uint("flags", int(reply.flags), 8),
+            _uint("first_index", reply.first_index, 32),
+            _uint("t0_us", reply.t0_us, 64),
+            _uint("period_us", reply.period_us, 16),
+            _uint("full_scale_mg", reply.full_scale_mg, 16),
+        ) + _SENSE_SAMPLES[len(reply.samples) // 3].pack(*reply.samples)
+        return Packet(MsgType.SENSE_DATA, seq, payload)
     if isinstance(reply, Ack | Nak):
         kind = MsgType.ACK if isinstance(reply, Ack) else MsgType.NAK
         return Packet(kind, seq, bytes((_uint("seq", reply.seq, 8), _uint("code", reply.code, 8))))

@@ -7,6 +7,7 @@ Controller::Controller(const Layout& layout, MotorDriver& motors, uint16_t pwm_s
 
 void Controller::begin(uint64_t now_us) {
   state_ = State::kIdle;
+  sense_.abort();
   for (uint8_t k = 0; k < kMaxChannels; ++k) out_[k] = 0;
   motors_.write(out_, channels());  // off, whatever the driver did before
   update_outputs(now_us);
@@ -62,6 +63,7 @@ void Controller::link_closed(uint64_t now_us) {
   decoder_.reset();
   have_seq_ = false;
   flags_ = 0;  // extensions are per connection: the next host starts with plain v1
+  sense_.abort();  // and so is sensing: nothing more is sent to the closed link
   state_ = State::kIdle;
   update_outputs(now_us);
 }
@@ -121,6 +123,7 @@ void Controller::handle(const Packet& p, uint64_t now_us, ReplySink& sink) {
       put_u16(payload + 5, pwm_steps_);
       put_u16(payload + 7, heartbeat_ms_);
       payload[9] = kCapPlayTarget;
+      if (sense_.ready()) payload[9] |= kCapSense;
       if (reset_flags_ & reset::kWatchdog) payload[9] |= kCapWatchdogReset;
       for (uint8_t k = 0; k < n; ++k) {
         uint32_t cdeg = static_cast<uint32_t>(layout_.angle(k) * 100.0f + 0.5f);
@@ -200,6 +203,19 @@ void Controller::handle(const Packet& p, uint64_t now_us, ReplySink& sink) {
       put_u16(payload + 9, counters_.tx_dropped);
       put_u16(payload + 11, counters_.ble_refused);
       return reply(sink, msg::kDiag, p.seq, payload, kDiagPayload);
+    }
+    case msg::kSenseStart: {
+      if (!sense_.installed()) return nak(sink, p.seq, nak::kUnknownType);
+      if (p.len != kSenseStartPayload) return nak(sink, p.seq, nak::kBadLength);
+      const uint8_t code = sense_.start(p.seq, p.payload, n, now_us, sink);
+      if (code != 0) return nak(sink, p.seq, code);
+      return ack(sink, p.seq);  // the first sample is read on the next poll_sense()
+    }
+    case msg::kSenseStop: {
+      if (!sense_.installed()) return nak(sink, p.seq, nak::kUnknownType);
+      if (p.len != 0) return nak(sink, p.seq, nak::kBadLength);
+      sense_.stop();  // the last batch (flag kLast) is queued, sent before or after the ACK
+      return ack(sink, p.seq);
     }
     default:
       if (debug_ != nullptr && p.type >= msg::kDebugFirst && p.type <= msg::kDebugLast &&

@@ -9,6 +9,7 @@
 
 #include "protocol.h"
 #include "renderer.h"
+#include "sense.h"
 #include "watchdog.h"
 #include "wire.h"
 
@@ -29,6 +30,12 @@ class MotorDriver {
 class ReplySink {
  public:
   virtual void send(const uint8_t* packet, size_t n) = 0;
+  // Whether a streamed packet (SENSE_DATA) of n bytes may go now without crowding out
+  // the replies to requests; a link that never drops says true (the default).
+  virtual bool can_stream(size_t n) {
+    (void)n;
+    return true;
+  }
 
  protected:
   ~ReplySink() = default;
@@ -75,6 +82,11 @@ class Controller {
   void receive_packet(const uint8_t* raw, size_t n, uint64_t now_us, ReplySink& reply);
   // Call at 1 kHz: failsafe deadline, end of play, rendering, continuous-on limit.
   void tick(uint64_t now_us);
+  // Call on every pass of the main loop: SENSE samples that are due, and their
+  // batches out on the link SENSE_START came from (sense.h).
+  void poll_sense(uint64_t now_us) { sense_.poll(now_us); }
+  // When poll_sense() next has a sample to take (UINT64_MAX when not sensing).
+  uint64_t next_sense_us() const { return sense_.next_due_us(); }
   // The USB port closed or BLE disconnected: outputs off, state idle.
   void link_closed(uint64_t now_us);
 
@@ -86,6 +98,9 @@ class Controller {
   void set_watchdog(Watchdog* w) { watchdog_ = w; }
   // Handles debug requests (emulator only; null on the device).
   void set_debug_hook(DebugHook* h) { debug_ = h; }
+  // The accelerometer SENSE_START streams (firmware 1.2). Without one (null), SENSE_START
+  // and SENSE_STOP are NAKed as unknown (code 2), as by firmware 1.1.
+  void set_accelerometer(Accelerometer* a) { sense_.set_accelerometer(a); }
   // Why the device last reset (reset::* bits, from RESETREAS at boot): GET_DIAG
   // reports them, INFO sets kCapWatchdogReset when the watchdog did it.
   void set_reset_flags(uint8_t flags) { reset_flags_ = flags; }
@@ -99,6 +114,7 @@ class Controller {
   uint8_t reset_flags() const { return reset_flags_; }
   uint16_t heartbeat_ms() const { return heartbeat_ms_; }
   uint32_t max_on_ms() const { return max_on_ms_; }
+  const SenseStream& sense() const { return sense_; }
 
  private:
   void handle(const Packet& p, uint64_t now_us, ReplySink& reply);
@@ -124,6 +140,7 @@ class Controller {
   uint8_t reset_flags_ = 0;  // reset::*
   Watchdog* watchdog_ = nullptr;
   DebugHook* debug_ = nullptr;
+  SenseStream sense_;
 
   uint16_t stream_[kMaxChannels] = {};  // the last SET_AMPLITUDES (state streaming)
   Stimulus stimulus_;

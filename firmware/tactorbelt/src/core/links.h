@@ -22,7 +22,10 @@
 
 namespace tb {
 
-constexpr size_t kSerialTxCapacity = 256;  // bytes: 3 INFO/STATUS frames and then some
+constexpr size_t kSerialTxCapacity = 512;  // bytes: 7 INFO/STATUS frames and then some
+// Streamed packets (SENSE_DATA) leave this much of the ring to replies: two of the
+// longest frames.
+constexpr size_t kSerialReplyReserve = 2 * kMaxFrame;
 
 class SerialTx : public ReplySink {
  public:
@@ -40,6 +43,13 @@ class SerialTx : public ReplySink {
       buf_[(head_ + size_) % kSerialTxCapacity] = frame[i];
       ++size_;
     }
+  }
+
+  // A streamed packet goes only while it leaves kSerialReplyReserve bytes free (a COBS
+  // frame is at most 2 bytes longer than its packet), so a host that reads slowly still
+  // gets its replies; the stream waits in its own queue.
+  bool can_stream(size_t n) override {
+    return open_ && n + 2u + kSerialReplyReserve <= kSerialTxCapacity - size_;
   }
 
   // The longest run of queued bytes that is contiguous in memory (0 when empty).

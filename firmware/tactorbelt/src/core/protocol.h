@@ -9,7 +9,7 @@ namespace tb {
 
 constexpr uint8_t kProtocolVersion = 1;
 constexpr uint8_t kFirmwareMajor = 1;
-constexpr uint8_t kFirmwareMinor = 1;
+constexpr uint8_t kFirmwareMinor = 2;
 constexpr uint8_t kFirmwarePatch = 0;
 
 // A packet is type u8, seq u8, payload, crc u16 LE: at most 64 bytes before framing.
@@ -27,8 +27,10 @@ constexpr uint8_t kMaxChannels = 16;
 // INFO capability bits. kCapWatchdogReset is a status bit: the last reset was the
 // watchdog's. The extensions (GET_DIAG, ONSET events, the SET_CONFIG flags byte) are
 // all opt-in, so a v1 host that never asks sees exactly v1.0 behaviour; a host finds
-// them by sending GET_DIAG (a device without them NAKs it with code 2).
+// them by sending GET_DIAG (a device without them NAKs it with code 2). kCapSense
+// (firmware 1.2): the board's accelerometer started and SENSE_START streams it.
 constexpr uint8_t kCapPlayTarget = 0x01;
+constexpr uint8_t kCapSense = 0x02;
 constexpr uint8_t kCapWatchdogReset = 0x80;
 
 // SET_CONFIG flags (the optional 7th payload byte). Cleared when the link closes.
@@ -55,12 +57,15 @@ constexpr uint8_t kHeartbeat = 0x14;
 constexpr uint8_t kSetConfig = 0x15;
 constexpr uint8_t kGetStatus = 0x16;
 constexpr uint8_t kGetDiag = 0x17;
+constexpr uint8_t kSenseStart = 0x18;  // firmware 1.2: stream the accelerometer
+constexpr uint8_t kSenseStop = 0x19;
 constexpr uint8_t kAck = 0x80;
 constexpr uint8_t kPong = 0x81;
 constexpr uint8_t kInfo = 0x82;
 constexpr uint8_t kStatus = 0x83;
 constexpr uint8_t kDiag = 0x84;
 constexpr uint8_t kOnset = 0x85;
+constexpr uint8_t kSenseData = 0x86;  // firmware 1.2: accelerometer samples
 constexpr uint8_t kNak = 0x8F;
 // 0x70..0x7F: debug requests, handled only by a build that installs a DebugHook
 // (the emulator with --debug-frames); the device NAKs them as unknown (code 2).
@@ -74,6 +79,7 @@ constexpr uint8_t kUnknownType = 2;
 constexpr uint8_t kBadLength = 3;
 constexpr uint8_t kOutOfRange = 4;
 constexpr uint8_t kReplyTooLong = 5;  // BLE: the reply does not fit the negotiated ATT MTU
+constexpr uint8_t kUnavailable = 6;   // the request is known but its hardware did not start
 }  // namespace nak
 
 enum class State : uint8_t { kIdle = 0, kStreaming = 1, kPlaying = 2, kFailsafe = 3 };
@@ -86,6 +92,7 @@ constexpr size_t kSetConfigPayloadLong = 6;
 constexpr size_t kSetConfigPayloadFlags = 7;
 constexpr size_t kDiagPayload = 13;
 constexpr size_t kOnsetPayload = 10;
+constexpr size_t kSenseStartPayload = 7;
 
 // Configuration limits.
 constexpr uint16_t kDefaultHeartbeatMs = 250;
