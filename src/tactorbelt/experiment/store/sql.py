@@ -1,0 +1,424 @@
+"""What the SQL stores share: every query and method whose logic is the same, written once.
+
+:class:`SqlStore` implements :class:`~.base.Store` over a :class:`~.schema.Dialect`
+(its class attribute ``dialect``); the queries are written in SQLite's spelling and
+:meth:`~.schema.Dialect.sql` gives the dialect's. A subclass (:class:`~.sqlite.SQLiteStore`,
+:class:`~.postgresql.PostgreSQLStore`) brings the connection and what only its database
+does:
+
+- ``_transaction(what)``: a context manager giving an object with ``execute`` and
+  ``executemany`` (the connection, a cursor), committing at its end, rolling back and
+  raising StoreError (``cannot {what} {url}: ...``) on a database error;
+- ``_query(sql, args)`` (rows that index like tuples), ``_dicts(sql, args)`` (dicts) and
+  ``_stream(sql, args)`` (rows without holding them all), StoreError on a failed read;
+- ``_write_samples(c, trial_id, result)`` and ``_bulk_samples(c, rows)``: the sample
+  rows of a trial and of :meth:`bulk_insert` (SQLite's multi-row INSERTs, PostgreSQL's
+  COPY);
+- hooks with a default here: ``_put_trial`` (how an earlier row of the trial is found:
+  a row lock first, or an INSERT that fails on the UNIQUE key), ``_claim`` (participant
+  ids owned by a site), ``_bulk_session`` and ``_bulk_ids`` (bulk inserts' ids).
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Iterable, Iterator, Mapping, Sequence
+from contextlib import AbstractContextManager
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, ClassVar
+
+from ..._errors import StoreError
+from ..schedule import ScheduledTrial, schedule_to_json
+from ..trial import TrialResult
+from .base import (
+    RATING_COLUMNS,
+    SESSION_STATUSES,
+    TASK_EVENT_COLUMNS,
+    TRIAL_STATUSES,
+    Store,
+    rating_value,
+    utc_now,
+)
+from .schema import Dialect
+from .schema import table as schema_table
+
+if TYPE_CHECKING:
+    from ...tasks.schedule import TaskEvent
+
+__all__ = ["TRIAL_COLUMNS", "SqlStore"]
+
+#: The columns a run writes of a trial row, in the order of :meth:`SqlStore.write_trial`.
+TRIAL_COLUMNS = tuple(c.name for c in schema_table("trials").columns if c.name != "trial_id")
+_ATTEMPTS = TRIAL_COLUMNS.index("attempts")
+#: The tables :meth:`SqlStore.table_columns` reads.
+_TABLES = ("sessions", "trials", "samples", "task_events", "ratings")
+#: meta key of the run options kept with a session, where they have no table of their own
+_RUN_OPTIONS_KEY = "run_options:{}"
+#: meta key of a session whose trials were committed in batches (provenance.commit_mode)
+COMMITS_KEY = "commits:{}"
+
+
+class SqlStore(Store):
+    """A store in an SQL database (see the module doc)."""
+
+    #: How this store's database spells the schema and the queries.
+    dialect: ClassVar[Dialect]
+    conn: Any
+
+    def __init__(self, url: str, path: Path | None, conn: Any, readonly: bool) -> None:
+        self.url = url
+        self.path = path
+        self.conn = conn
+        self.readonly = readonly
+        self._closed = False
+        self._tables: set[str] = set()  # tables seen (a table is never dropped)
+        self._insert_trial_sql = self.dialect.insert("trials", TRIAL_COLUMNS)
+
+    # -- what a subclass brings ------------------------------------------------------
+    def _transaction(self, what: str = "write to") -> AbstractContextManager[Any]:
+        raise NotImplementedError
+
+    def _query(self, sql: str, args: Sequence[Any] = ()) -> list[Any]:
+        raise NotImplementedError
+
+    def _dicts(self, sql: str, args: Sequence[Any] = ()) -> list[dict[str, Any]]:
+        raise NotImplementedError
+
+    def _stream(self, sql: str, args: Sequence[Any]) -> Iterator[Sequence[Any]]:
+        raise NotImplementedError
+
+    def _write_samples(self, c: Any, trial_id: int, result: TrialResult) -> None:
+        raise NotImplementedError
+
+    def _bulk_samples(self, c: Any, rows: Iterable[Sequence[Any]]) -> None:
+        raise NotImplementedError
+
+    def _claim(self, c: Any, participant: str, site: str) -> None:
+        """Claim a participant id for ``site`` (a store of one site takes any id)."""
+
+    # -- helpers ---------------------------------------------------------------------
+    def _sql(self, text: str) -> str:
+        return self.dialect.sql(text)
+
+    def _insert(self, c: Any, name: str, row: Mapping[str, Any], key: str) -> int:
+        """Insert ``row`` into table ``name``; the new row's ``key`` (its id)."""
+        cols = list(row)
+        sql = self.dialect.insert(name, cols)
+        if self.dialect.returning:
+            return int(c.execute(f"{sql} RETURNING {key}", [row[k] for k in cols]).fetchone()[0])
+        return int(c.execute(sql, [row[k] for k in cols]).lastrowid or 0)
+
+    def _has_table(self, name: str) -> bool:
+        """Whether the store has table ``name`` (a store of an older schema, opened
+        read-only, may lack the newer ones; a writer has migrated it)."""
+        if name not in self._tables:
+            self._tables = {str(r[0]) for r in self._query(self._sql(self.dialect.tables_query))}
+        return name in self._tables
+
+    # -- sessions ----------------------------------------------------------------------
+    def create_session(
+        self, *, participant: str, study_name: str, study_toml: str, study_sha256: str,
+        seed: int, condition_order: list[str], schedule: list[ScheduledTrial],
+        belt: str | None = None, firmware_version: str | None = None,
+        calibration: Any = None, package_version: str | None = None,
+        git_commit: str | None = None, host: str | None = None, input: str | None = None,
+        clock: str | None = None, site: str | None = None, session_uuid: str | None = None,
+    ) -> int:
+        """Record a new session (status ``running``) with its provenance; return its id.
+
+        Raises:
+            StoreError: the participant id is taken at another site, or the write failed.
+        """
+        import uuid
+
+        from ..provenance import default_site
+
+        site = site or default_site()
+        with self._transaction() as c:
+            self._claim(c, participant, site)
+            (n,) = c.execute(self._sql("SELECT COALESCE(MAX(session_number), 0) FROM sessions"
+                                       " WHERE participant=?"), (participant,)).fetchone()
+            row = {
+                "participant": participant, "session_number": int(n) + 1,
+                "study_name": study_name, "study_sha256": study_sha256,
+                "study_toml": study_toml, "seed": int(seed),
+                "condition_order": json.dumps(condition_order),
+                "schedule_json": schedule_to_json(schedule), "n_trials": len(schedule),
+                "belt": belt, "firmware_version": firmware_version,
+                "calibration_json": None if calibration is None else json.dumps(calibration),
+                "package_version": package_version, "git_commit": git_commit, "host": host,
+                "input": input, "clock": clock, "started_at": utc_now(), "status": "running",
+                "site": site, "session_uuid": session_uuid or str(uuid.uuid4()),
+            }
+            return self._insert(c, "sessions", row, "session_id")
+
+    def mark_resumed(self, session_id: int) -> None:
+        """A resumed session is ``running`` again (and counts one more resume)."""
+        with self._transaction() as c:
+            c.execute(self._sql("UPDATE sessions SET status='running', ended_at=NULL,"
+                                " resumed=resumed+1 WHERE session_id=?"), (session_id,))
+
+    def set_status(self, session_id: int, status: str) -> None:
+        """Set a session's status; any status but ``running`` also sets ``ended_at``."""
+        if status not in SESSION_STATUSES:
+            raise StoreError(f"unknown session status {status!r}; allowed: {SESSION_STATUSES}")
+        with self._transaction() as c:
+            c.execute(self._sql("UPDATE sessions SET status=?, ended_at=? WHERE session_id=?"),
+                      (status, None if status == "running" else utc_now(), session_id))
+
+    def sessions(self, participant: str | None = None) -> list[dict[str, Any]]:
+        """Every session (of one participant), oldest first."""
+        if participant is None:
+            return self._dicts(self._sql("SELECT * FROM sessions ORDER BY session_id"))
+        return self._dicts(self._sql("SELECT * FROM sessions WHERE participant=?"
+                                     " ORDER BY session_id"), (participant,))
+
+    def session(self, session_id: int) -> dict[str, Any]:
+        """One session row as a dict."""
+        rows = self._dicts(self._sql("SELECT * FROM sessions WHERE session_id=?"),
+                           (session_id,))
+        if not rows:
+            raise StoreError(f"{self.url}: no session {session_id}")
+        return rows[0]
+
+    def find_resumable(self, participant: str) -> dict[str, Any] | None:
+        """The participant's latest session that is not complete, or None."""
+        rows = self._dicts(self._sql("SELECT * FROM sessions WHERE participant=? AND"
+                                     " status<>'complete' ORDER BY session_id DESC LIMIT 1"),
+                           (participant,))
+        return rows[0] if rows else None
+
+    def finished_indices(self, session_id: int) -> set[int]:
+        """trial_index of every trial with a final outcome (``done`` or ``timeout``)."""
+        rows = self._query(self._sql("SELECT trial_index FROM trials WHERE session_id=?"
+                                     " AND status IN ('done','timeout')"), (session_id,))
+        return {int(r[0]) for r in rows}
+
+    def set_run_options(self, session_id: int, options: Mapping[str, Any]) -> None:
+        text = json.dumps(dict(options))
+        if not self.dialect.has("multisite"):
+            self._set_meta(_RUN_OPTIONS_KEY.format(session_id), text)
+            return
+        with self._transaction() as c:  # a site's writer may not write meta
+            c.execute(self.dialect.upsert("run_options", ("session_id", "options"),
+                                          ("session_id",)), (session_id, text))
+
+    def run_options(self, session_id: int) -> dict[str, Any] | None:
+        if self.dialect.has("multisite"):
+            rows = self._query(self._sql("SELECT options FROM run_options"
+                                         " WHERE session_id=?"), (session_id,))
+            text = str(rows[0][0]) if rows else None
+        else:
+            text = self._meta(_RUN_OPTIONS_KEY.format(session_id))
+        if text is None:
+            return None
+        opts: dict[str, Any] = json.loads(text)
+        return opts
+
+    def _set_meta(self, key: str, value: str) -> None:
+        with self._transaction() as c:
+            c.execute(self.dialect.upsert("meta", ("key", "value"), ("key",)), (key, value))
+
+    def _meta(self, key: str) -> str | None:
+        if not self._has_table("meta"):
+            return None  # a bare store (written by other tools) keeps no meta rows
+        rows = self._query(self._sql("SELECT value FROM meta WHERE key=?"), (key,))
+        return str(rows[0][0]) if rows else None
+
+    def commit_mode(self, session_id: int) -> str:
+        return self._meta(COMMITS_KEY.format(session_id)) or "per-trial"
+
+    # -- trials ------------------------------------------------------------------------
+    def write_trial(self, session_id: int, result: TrialResult) -> int:
+        """Write a trial and its samples in one transaction; return its trial_id.
+
+        An earlier ``aborted`` row of the same trial is replaced (with its samples).
+
+        Raises:
+            StoreError: the trial already has a final row, or the write failed.
+        """
+        t = result.trial
+        if result.status not in TRIAL_STATUSES:
+            raise StoreError(f"unknown trial status {result.status!r}")
+        if result.samples_released:
+            raise StoreError(f"trial {t.trial_index}: its samples were released from memory "
+                             "after it was stored; it cannot be written again")
+        values = [  # in the order of TRIAL_COLUMNS
+            session_id, t.trial_index, t.block, t.block_index, t.block_name,
+            t.condition, t.repetition, t.target_deg, int(t.on_tactor),
+            result.response_deg, result.response_target_deg,
+            None if result.correct is None else int(result.correct),
+            result.rt_s, result.onset_ns, result.acquired_ns, result.crossed_ns,
+            result.stimulus_off_ns, result.n_samples, result.status,
+            result.abort_reason, None, utc_now(), t.n_targets or None, t.load or "none",
+            result.device_onset_ns, result.onset_uncertainty_ns,
+        ]
+        with self._transaction(f"write trial {t.trial_index} to") as c:
+            trial_id = self._put_trial(c, session_id, t.trial_index, values)
+            if result.n_samples:
+                self._write_samples(c, trial_id, result)
+            return trial_id
+
+    def _put_trial(self, c: Any, session_id: int, trial_index: int,
+                   values: list[Any]) -> int:
+        """Insert a trial row (``values`` of :data:`TRIAL_COLUMNS`) in place of an aborted
+        one; its trial_id. Here: the earlier row, locked, first."""
+        return self._insert_trial_row(
+            c, values, self._replace_aborted(c, session_id, trial_index) or 1)
+
+    def _insert_trial_row(self, c: Any, values: list[Any], attempts: int) -> int:
+        values[_ATTEMPTS] = attempts
+        if self.dialect.returning:
+            return int(c.execute(self._insert_trial_sql + " RETURNING trial_id", values)
+                       .fetchone()[0])
+        return int(c.execute(self._insert_trial_sql, values).lastrowid or 0)
+
+    def _replace_aborted(self, c: Any, session_id: int, trial_index: int) -> int | None:
+        """Delete the trial's earlier ``aborted`` row (and its samples); the attempt the new
+        row is, or None when there is no earlier row. StoreError for a final one."""
+        old = c.execute(self._sql("SELECT trial_id, status, attempts FROM trials"
+                                  " WHERE session_id=? AND trial_index=?") + self.dialect.lock,
+                        (session_id, trial_index)).fetchone()
+        if old is None:
+            return None
+        if old[1] != "aborted":
+            raise StoreError(f"trial {trial_index} of session {session_id} is already "
+                             f"recorded ({old[1]}); a trial is never written twice")
+        c.execute(self._sql("DELETE FROM samples WHERE trial_id=?"), (old[0],))
+        c.execute(self._sql("DELETE FROM trials WHERE trial_id=?"), (old[0],))
+        return int(old[2]) + 1
+
+    def trials(self, session_id: int | None = None) -> list[dict[str, Any]]:
+        """Trial rows (of one session), in the order they were recorded."""
+        if session_id is None:
+            return self._dicts(self._sql("SELECT * FROM trials ORDER BY trial_id"))
+        return self._dicts(self._sql("SELECT * FROM trials WHERE session_id=?"
+                                     " ORDER BY trial_id"), (session_id,))
+
+    def samples(self, trial_id: int) -> list[tuple[float, float, float, int]]:
+        """(t_s, x, y, buttons) of one trial, in time order."""
+        rows = self._query(self._sql("SELECT t_s, x, y, buttons FROM samples WHERE trial_id=?"
+                                     f" ORDER BY {self.dialect.order('samples')}"),
+                           (trial_id,))
+        return [(r[0], r[1], r[2], r[3]) for r in rows]
+
+    # -- secondary tasks and workload ratings ------------------------------------------
+    def write_task_events(self, session_id: int, events: Sequence[TaskEvent]) -> None:
+        """Append a task run's events in one transaction (all or none)."""
+        b = self.dialect.bool_value
+        rows = [(session_id, e.block_index, e.task, e.phase, e.item_index, int(e.t_ns),
+                 e.stimulus, b(e.target), e.response, b(e.correct), e.rt_s) for e in events]
+        if not rows:
+            return
+        with self._transaction("write task events to") as c:
+            c.executemany(self.dialect.insert("task_events", TASK_EVENT_COLUMNS), rows)
+
+    def task_events(self, session_id: int | None = None) -> list[dict[str, Any]]:
+        """``task_events`` rows (of one session) in the order written; [] before schema 3."""
+        out = self._rows_of("task_events", TASK_EVENT_COLUMNS, session_id, "event_id")
+        for d in out:
+            d["target"], d["correct"] = bool(d["target"]), bool(d["correct"])
+        return out
+
+    def _rows_of(self, table: str, cols: Sequence[str], session_id: int | None,
+                 order: str) -> list[dict[str, Any]]:
+        """``cols`` of ``table``'s rows (of one session) as dicts; [] without the table."""
+        if not self._has_table(table):
+            return []
+        where = "" if session_id is None else " WHERE session_id=?"
+        args = () if session_id is None else (session_id,)
+        return self._dicts(self._sql(f"SELECT {', '.join(cols)} FROM {table}{where}"
+                                     f" ORDER BY {order}"), args)
+
+    def write_ratings(self, session_id: int, block_index: int, scale: str,
+                      values: Mapping[str, float]) -> None:
+        """Replace a block's ratings of ``scale`` with ``values`` (one transaction)."""
+        rows: list[tuple[Any, ...]] = [(session_id, block_index, scale, str(k),
+                                        rating_value(k, v)) for k, v in values.items()]
+        cols: tuple[str, ...] = RATING_COLUMNS
+        if self.dialect.has("order_columns"):
+            cols += ("rating_order",)
+            rows = [(*r, i) for i, r in enumerate(rows)]
+        with self._transaction("write ratings to") as c:
+            c.execute(self._sql("DELETE FROM ratings WHERE session_id=? AND block_index=?"
+                                " AND scale=?"), (session_id, block_index, scale))
+            c.executemany(self.dialect.insert("ratings", cols), rows)
+
+    def ratings(self, session_id: int | None = None) -> list[dict[str, Any]]:
+        """``ratings`` rows (of one session) by session, block and order written; []
+        before schema 3."""
+        return self._rows_of("ratings", RATING_COLUMNS, session_id,
+                             f"session_id, block_index, {self.dialect.order('ratings')}")
+
+    # -- bulk reads --------------------------------------------------------------------
+    def table_columns(self, table: str) -> list[str]:
+        if table not in _TABLES:
+            raise StoreError(f"unknown table {table!r}; a store has {', '.join(_TABLES)}")
+        return [str(r[0]) for r in self._query(self._sql(self.dialect.columns_query),
+                                               (table,))]
+
+    def read_table(self, table: str, columns: Sequence[str]) -> list[tuple[Any, ...]]:
+        order = {"sessions": "session_id", "trials": "session_id, trial_id"}.get(table)
+        if order is None:
+            raise StoreError(f"read_table reads sessions or trials, not {table!r}")
+        have = set(self.table_columns(table))
+        bad = [c for c in columns if c not in have]
+        if bad:
+            raise StoreError(f"{self.url}: table {table} lacks column(s) {', '.join(bad)}")
+        rows = self._query(self._sql(f"SELECT {', '.join(columns)} FROM {table}"
+                                     f" ORDER BY {order}"))
+        return [tuple(r) for r in rows]
+
+    def samples_of(self, trial_ids: Sequence[int]) -> list[tuple[int, float, float, float, int]]:
+        ids = sorted({int(t) for t in trial_ids})
+        step = self.dialect.max_in or max(1, len(ids))
+        order = f"trial_id, t_s, {self.dialect.order('samples')}"
+        out: list[tuple[int, float, float, float, int]] = []
+        for start in range(0, len(ids), step):
+            cond, args = self.dialect.any_of(ids[start:start + step])
+            rows = self._query(self._sql("SELECT trial_id, t_s, x, y, buttons FROM samples"
+                                         f" WHERE trial_id {cond} ORDER BY {order}"), args)
+            out += [(r[0], r[1], r[2], r[3], r[4]) for r in rows]
+        return out
+
+    def iter_samples(self, session_id: int | None = None
+                     ) -> Iterator[tuple[int, int, float, float, float, int]]:
+        sql = ("SELECT t.session_id, t.trial_index, p.t_s, p.x, p.y, p.buttons"
+               " FROM samples p JOIN trials t USING (trial_id)")
+        args: tuple[Any, ...] = ()
+        if session_id is not None:
+            sql += " WHERE t.session_id=?"
+            args = (session_id,)
+        sql += f" ORDER BY t.session_id, t.trial_id, p.{self.dialect.order('samples')}"
+        for r in self._stream(self._sql(sql), args):
+            yield (r[0], r[1], r[2], r[3], r[4], r[5])
+
+    # -- bulk writes -------------------------------------------------------------------
+    def bulk_insert(self, *, sessions: Iterable[Mapping[str, Any]] = (),
+                    trials: Iterable[Mapping[str, Any]] = (),
+                    samples: Iterable[Sequence[Any]] = ()) -> list[int]:
+        """Insert ready-made rows in one transaction; return the new sessions' ids.
+
+        Rows go in as given (explicit ids are kept, missing columns get the schema's
+        defaults); for synthetic data, not for runs (:meth:`write_trial` checks trials).
+        """
+        ids: list[int] = []
+        with self._transaction() as c:
+            for row in sessions:
+                ids.append(self._insert(c, "sessions", self._bulk_session(row), "session_id"))
+            trial_rows = list(trials)
+            if trial_rows:
+                cols = sorted({k for r in trial_rows for k in r})
+                c.executemany(self.dialect.insert("trials", cols),
+                              ([r.get(k) for k in cols] for r in trial_rows))
+            self._bulk_ids(c)
+            self._bulk_samples(c, samples)
+        return ids
+
+    def _bulk_session(self, row: Mapping[str, Any]) -> Mapping[str, Any]:
+        """A session row of :meth:`bulk_insert` as inserted."""
+        return row
+
+    def _bulk_ids(self, c: Any) -> None:
+        """After rows with explicit ids: the next generated ids follow them."""
+
