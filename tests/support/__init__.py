@@ -7,6 +7,12 @@ pytest puts ``tests/`` (the directory of the rootdir conftest; there is no
 - :mod:`support.inputs`: pygame-like joystick fakes.
 - :mod:`support.belts`: firmware, loop-transport, serial-pty and BLE fakes, and the
   belt factories of the contract suite.
+- :mod:`support.xvfb`, :mod:`support.xinput`, :mod:`support.recordingbelt`: a real
+  PsychoPy window under Xvfb, input into it, a belt whose commands another process reads.
+- :mod:`support.toy_task`: a toy secondary-task kind; :mod:`support.jack_filter`: a
+  JACK client with a known first-order response.
+
+docs/testing.md lists every helper.
 
 Test files never import each other; what two of them share goes here.
 """
