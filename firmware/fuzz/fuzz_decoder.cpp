@@ -1,7 +1,9 @@
-// libFuzzer target: the serial frame decoder and, behind it, the controller.
+// libFuzzer target: the serial frame decoder and, behind it, the controller (with an
+// accelerometer, so SENSE_START/SENSE_STOP and the sampling run too).
 // Any input must leave both consistent: no crash, no sanitizer report, every
-// decoded packet re-encodes to a frame that decodes to itself, and the outputs
-// are off whenever the state is not streaming or playing.
+// decoded packet re-encodes to a frame that decodes to itself, the outputs
+// are off whenever the state is not streaming or playing, and SENSE_DATA packets are
+// whole batches (at most 7 samples) of the session that asked for them.
 #include <stddef.h>
 #include <stdint.h>
 #include <string.h>
@@ -15,6 +17,23 @@ class NullMotors : public tb::MotorDriver {
   void write(const uint16_t*, uint8_t) override {}
 };
 
+class FakeAccelerometer : public tb::Accelerometer {
+ public:
+  bool ready() const override { return true; }
+  uint16_t min_period_us() const override { return 625; }
+  uint16_t full_scale_mg() const override { return 8000; }
+  bool read(uint64_t stamp_us, int16_t xyz[3]) override {
+    if (stamp_us < last_) __builtin_trap();  // stamps never go back within a session
+    last_ = stamp_us;
+    xyz[0] = xyz[1] = xyz[2] = static_cast<int16_t>(stamp_us);
+    return (stamp_us & 0xFF) != 0x42;  // now and then a failed read
+  }
+  void begin_sensing(uint8_t) override { last_ = 0; }
+
+ private:
+  uint64_t last_ = 0;
+};
+
 // Replies must be well-formed packets.
 class CheckingSink : public tb::ReplySink {
  public:
@@ -22,7 +41,17 @@ class CheckingSink : public tb::ReplySink {
     tb::Packet p;
     if (tb::parse_packet(packet, n, &p) != tb::PacketStatus::kOk) __builtin_trap();
     if (p.type < 0x80) __builtin_trap();
+    if (p.type == tb::msg::kSenseData) {
+      if (p.len < tb::kSenseDataHeader || (p.len - tb::kSenseDataHeader) % 6 != 0) __builtin_trap();
+      if ((p.len - tb::kSenseDataHeader) / 6 > tb::kSenseMaxSamples) __builtin_trap();
+      if (p.payload[0] != p.seq || tb::get_u16(p.payload + 14) < 625) __builtin_trap();
+    }
   }
+  // a link that is full now and then
+  bool can_stream(size_t) override { return (++calls_ & 3) != 0; }
+
+ private:
+  unsigned calls_ = 0;
 };
 
 void check_decoder(const uint8_t* data, size_t size) {
@@ -66,7 +95,9 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   if (!ready) __builtin_trap();
   NullMotors motors;
   CheckingSink sink;
+  FakeAccelerometer acc;
   tb::Controller c(layout, motors, 800);
+  c.set_accelerometer(&acc);
   uint64_t now = 0;
   c.begin(now);
   size_t start = 0;
@@ -81,6 +112,8 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
       while (now < until) {
         now += 1000;
         c.tick(now);
+        c.poll_sense(now - 300);
+        c.poll_sense(now);
         check_outputs(c);
       }
       ++i;

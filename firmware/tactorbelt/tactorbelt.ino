@@ -1,11 +1,14 @@
 // tactorbelt firmware for the Arduino Nano 33 BLE (nRF52840): protocol v1 over
-// USB serial and BLE, 6 ERM tactors on the nRF PWM peripherals.
+// USB serial and BLE, 6 ERM tactors on the nRF PWM peripherals, and the board's IMU
+// streamed on request (SENSE_START, firmware 1.2).
 //
 // A thin shell around the portable core in src/core (framing, decoder, renderer,
 // controller with the heartbeat failsafe); see docs/protocol.md for the protocol
 // and docs/hardware.md for wiring, parts and how to build and flash.
 //
-// Board: "Arduino Mbed OS Nano Boards" > Arduino Nano 33 BLE. Library: ArduinoBLE.
+// Board: "Arduino Mbed OS Nano Boards" > Arduino Nano 33 BLE. Libraries: ArduinoBLE, and
+// the IMU's: Arduino_BMI270_BMM150 (Rev2, the default) or Arduino_LSM9DS1 (Rev1), chosen
+// in imu_config.h.
 // What this file relies on in the core and the libraries, with the header lines:
 // docs/hardware.md, "What the firmware relies on in the core and libraries".
 
@@ -16,6 +19,7 @@
 #include "nrf.h"           // nRF52840 MDK: NRF_WDT, NRF_POWER
 #include "utility/ATT.h"  // ArduinoBLE: the negotiated ATT MTU per connection
 
+#include "board_imu.h"
 #include "nrf_pwm_motors.h"
 #include "src/core/controller.h"
 #include "src/core/links.h"
@@ -49,6 +53,7 @@ constexpr uint32_t kWatchdogMs = tb::kWatchdogTimeoutMs;  // 300 ms
 tb::Layout g_layout;
 NrfPwmMotors g_motors;
 tb::Controller g_controller(g_layout, g_motors, NrfPwmMotors::kSteps);
+BoardImu g_imu;
 uint64_t g_next_tick_us = 0;
 
 // --- clock -------------------------------------------------------------------------
@@ -254,6 +259,10 @@ void setup() {
   g_layout.set_even(kChannels);
   g_controller.set_reset_flags(read_and_clear_reset_reason());
   g_controller.begin(micros64());
+  // The IMU (SENSE_START): installed either way; one that does not start is reported as
+  // unavailable (no INFO capability bit, NAK 6), not as a firmware without it.
+  g_imu.begin();
+  g_controller.set_accelerometer(&g_imu);
   // USB CDC: already started by the core's main() (any baud rate; see g_usb).
   begin_ble();
   // Last, so that BLE start-up (not fed) cannot trip it.
@@ -263,11 +272,13 @@ void setup() {
   g_next_tick_us = micros64() + kTickUs;
 }
 
-// One pass: each link's input (requests are answered as they are decoded), the serial
-// replies out, then the 1 kHz tick. Nothing here waits on a host.
+// One pass: each link's input (requests are answered as they are decoded), the 1 kHz
+// tick, a SENSE sample when one is due (one I2C read, about 0.25 ms), then the serial
+// replies out. Nothing here waits on a host.
 void loop() {
   poll_serial(micros64());
-  drain_serial();
   poll_ble();
   tick_if_due();
+  g_controller.poll_sense(micros64());
+  drain_serial();
 }
