@@ -3,11 +3,19 @@
 The researcher's path: run a session, export it as BIDS with the CLI, run
 ``bids-validator`` (npm ``bids-validator@1.15.0``, installed by ``.ci/run``) on it: no
 error and no warning of ours. Skipped, saying why, when the validator is not installed.
+
+Three studies as a researcher meets them: the demo (the paper's protocol), a resolution
+study and a load study (secondary-task events and NASA-TLX ratings), each from its
+template (``study init --template``) run by ``tactorbelt demo --study``. The one
+warning the validator gives on each, ``CUSTOM_COLUMN_WITHOUT_DESCRIPTION`` on the
+headerless ``_motion.tsv`` files, is the validator's (``NOT_OURS``), and it is the only
+one.
 """
 
 from __future__ import annotations
 
 import json
+import re
 import shutil
 import subprocess
 from pathlib import Path
@@ -96,3 +104,85 @@ def test_a_readme_of_ones_own_is_copied(store: Path, tmp_path: Path) -> None:
     assert not (out / "README.md").exists()
     errors, warnings = _validate(out)
     assert errors == [] and _ours(warnings) == [], _summary(errors + _ours(warnings))
+
+
+# -- the demo, a resolution study and a load study, as `study init` writes them -------------------
+def _demo(directory: Path, template: str | None = None, authors: str | None = None,
+          participants: int = 1) -> Path:
+    """``tactorbelt demo`` of the paper's protocol, or of a template made smaller (one
+    repetition per block) and with ``authors`` at the top; returns the store."""
+    args = ["demo", "-o", str(directory / "demo"), "--participants", str(participants)]
+    if template is not None:
+        study = directory / f"{template}.toml"
+        proc = tactorbelt("study", "init", "--template", template, str(study))
+        assert proc.returncode == 0, proc.stderr
+        text, n = re.subn(r"(?m)^repetitions = 2\b", "repetitions = 1", study.read_text())
+        assert n == 1
+        if authors is not None:
+            text = re.sub(r"(?m)^(name = .*)$", rf"\1\nauthors = {authors}", text, count=1)
+        study.write_text(text)
+        args += ["--study", str(study)]
+    proc = tactorbelt(*args)
+    assert proc.returncode == 0, proc.stderr
+    return directory / "demo" / "study.sqlite"
+
+
+def _only_the_validators_own(warnings: list[dict]) -> None:
+    """The validator's one warning of its own, on the motion files only, and no other."""
+    assert _ours(warnings) == [], _summary(_ours(warnings))
+    assert [w["key"] for w in warnings] == ["CUSTOM_COLUMN_WITHOUT_DESCRIPTION"]
+
+
+@pytest.mark.slow
+def test_the_demo_exports_with_authors_from_the_command_line(tmp_path: Path) -> None:
+    db = _demo(tmp_path)
+    out = tmp_path / "bids"
+    proc = tactorbelt("export", str(db), "-o", str(out), "--format", "bids", "--authors",
+                      "Ada Lovelace, Alan Turing")
+    assert proc.returncode == 0, proc.stderr
+    assert "  Authors: Ada Lovelace, Alan Turing (from --authors)" in proc.stdout
+    assert "CUSTOM_COLUMN_WITHOUT_DESCRIPTION" in proc.stderr  # the note on the motion files
+    assert "NO_AUTHORS" not in proc.stderr
+    errors, warnings = _validate(out)
+    assert errors == [], _summary(errors)
+    _only_the_validators_own(warnings)
+
+
+@pytest.mark.slow
+def test_a_resolution_study_exports_cleanly(tmp_path: Path) -> None:
+    db = _demo(tmp_path, "resolution", authors='["Ada Lovelace", "Grace Hopper"]')
+    out = tmp_path / "bids"
+    proc = tactorbelt("export", str(db), "-o", str(out), "--format", "bids")
+    assert proc.returncode == 0, proc.stderr
+    assert ("  Authors: Ada Lovelace, Grace Hopper (from the study file's authors; --authors "
+            "'A, B' replaces them)") in proc.stdout
+    errors, warnings = _validate(out)
+    assert errors == [], _summary(errors)
+    _only_the_validators_own(warnings)
+    beh = next(out.glob("sub-*/ses-1/beh/*_task-betweentactor_beh.tsv"))
+    counts = {line.split("\t")[7] for line in beh.read_text().splitlines()[1:]}
+    assert counts == {"12", "24", "36", "48"}  # n_targets: every cell of the design
+
+
+@pytest.mark.slow
+def test_a_load_study_exports_its_task_events_and_ratings_cleanly(tmp_path: Path) -> None:
+    db = _demo(tmp_path, "load", authors='["Ada Lovelace", "Alan Turing"]', participants=2)
+    out = tmp_path / "bids"
+    proc = tactorbelt("export", str(db), "-o", str(out), "--format", "bids")
+    assert proc.returncode == 0, proc.stderr
+    assert "  events: 2 file(s) *_events.tsv" in proc.stdout
+    assert "  ratings: 2 file(s) *_task-nasatlx_beh.tsv" in proc.stdout
+    desc = json.loads((out / "dataset_description.json").read_text())
+    assert desc["Authors"] == ["Ada Lovelace", "Alan Turing"]
+    errors, warnings = _validate(out)
+    assert errors == [], _summary(errors)
+    _only_the_validators_own(warnings)
+    events = sorted(out.glob("sub-*/ses-1/beh/*_task-betweentactor_events.tsv"))
+    ratings = sorted(out.glob("sub-*/ses-1/beh/*_task-nasatlx_beh.tsv"))
+    assert len(events) == len(ratings) == 2
+    rows = [line.split("\t") for line in events[0].read_text().splitlines()]
+    assert rows[0][:3] == ["onset", "duration", "trial_type"]
+    assert {r[2] for r in rows[1:]} <= {"go", "nogo", "extra_press"}
+    assert {r[4] for r in rows[1:]} == {"practice", "baseline", "dual"}
+    tlx = [line.split("\t") for line in ratings[0].read_text().splitlines()]
+    assert len(tlx) == 1 + 4  # a row per test block

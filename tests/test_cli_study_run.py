@@ -354,3 +354,42 @@ def test_a_usage_error_leaves_no_store_behind(small: Path, tmp_path: Path, bad: 
                             *bad], capsys)
     assert code == 2 and err.startswith("error:")
     assert not db.exists() and not list(tmp_path.glob("never.sqlite*"))
+
+
+def test_the_clock_option_and_the_old_realtime_spelling(
+        small: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, _ = run_cli(["run", "--help"], capsys)
+    assert code == 0 and "--clock [sim|wall]" in out and "--realtime" not in out
+    assert "--headless / --window" in out and "--lsl-wait-all" in out
+    db = tmp_path / "s.sqlite"
+    base = ["run", str(small), "-p", "P01", "--db", str(db), "--headless"]
+    code, _, err = run_cli([*base, "--realtime", "--clock", "sim"], capsys)
+    assert code == 2 and "--realtime is --clock wall" in err
+    code, _, err = run_cli([*base, "--clock", "sim", "--lsl"], capsys)
+    assert code == 2 and "--lsl runs on the wall clock" in err
+    code, _, err = run_cli([*base, "--clock", "sim", "--belt", "emulator"], capsys)
+    assert code == 2 and err.startswith("error: --clock sim is for a headless run") and \
+        "use --clock wall" in err
+    assert not db.exists()  # refused before the store is written
+    code, out, err = run_cli([*base, "--input", "scripted", "--clock", "sim", "--limit", "1"],
+                             capsys)
+    assert code == 0, err
+    with Store.open(db, readonly=True) as store:
+        (s,) = store.sessions()
+        assert s["clock"] == "sim" and store.run_options(s["session_id"])["clock"] == "sim"
+
+
+def test_options_stored_before_the_clock_option_resume_on_their_clock() -> None:
+    from tactorbelt.launch import stored_options
+
+    class Old:
+        def __init__(self, opts: dict[str, Any]) -> None:
+            self.opts = opts
+
+        def run_options(self, session_id: int) -> dict[str, Any]:
+            return dict(self.opts)
+
+    row = {"session_id": 1}
+    assert stored_options(Old({"realtime": True}), row)["clock"] == "wall"  # type: ignore[arg-type]
+    assert stored_options(Old({"realtime": False}), row)["clock"] is None  # type: ignore[arg-type]
+    assert stored_options(Old({"clock": "sim"}), row)["clock"] == "sim"  # type: ignore[arg-type]

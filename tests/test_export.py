@@ -124,3 +124,111 @@ def test_export_into_a_file_is_refused(db: Path, tmp_path: Path) -> None:
     f.write_text("x")
     with pytest.raises(ConfigError, match="not a directory"):
         export_csv(db, f)
+
+
+# -- BIDS under cognitive load: task events, ratings, authors ------------------------------------
+@pytest.fixture(scope="module")
+def load_db(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """Two model participants with a 2-back (in the first block, so its practice comes
+    before the first trial) and the NASA-TLX; the study file names two authors."""
+    from support.cli import tactorbelt
+    from support.studies import write_study
+
+    d = tmp_path_factory.mktemp("load")
+    study = write_study(
+        d, name="load", tactors=4, targets=8, iti_s=0.5, break_every=0, training=0,
+        timeout_s=3.0, max_presentation_s=2.0,
+        blocks=[{"name": "busy", "condition": "dynamic", "repetitions": 1, "load": "nb2"},
+                {"name": "calm", "condition": "static", "repetitions": 1}],
+        tasks={"nb2": {"kind": "nback", "n": 2, "interval_s": 1.0, "practice": 6}},
+        questionnaire={"tlx": True})
+    study.write_text(study.read_text().replace(
+        'name = "load"\n', 'name = "load"\nauthors = ["Ada Lovelace", " Alan Turing "]\n', 1))
+    for pid in ("P01", "P02"):
+        proc = tactorbelt("run", str(study), "-p", pid, "--headless", "--input", "model",
+                          "--db", str(d / "s.sqlite"))
+        assert proc.returncode == 0, proc.stderr
+    return d / "s.sqlite"
+
+
+def test_bids_task_events_and_ratings_with_every_column_described(load_db: Path,
+                                                                   tmp_path: Path) -> None:
+    from tactorbelt.experiment.export import EVENT_COLUMNS, TLX_COLUMNS
+
+    out = tmp_path / "bids"
+    files = export_bids(load_db, out)
+    desc = json.loads((out / "dataset_description.json").read_text())
+    assert desc["Authors"] == ["Ada Lovelace", "Alan Turing"]  # from the study file
+    beh = out / "sub-P01" / "ses-1" / "beh"
+    ev = beh / "sub-P01_ses-1_task-betweentactor_events.tsv"
+    tlx = beh / "sub-P01_ses-1_task-nasatlx_beh.tsv"
+    assert {ev, ev.with_suffix(".json"), tlx, tlx.with_suffix(".json")} <= set(files)
+    # every column of every table is described in its sidecar
+    for tsv in out.glob("sub-*/ses-*/beh/*.tsv"):
+        header = tsv.read_text().splitlines()[0].split("\t")
+        sidecar = json.loads(tsv.with_suffix(".json").read_text())
+        assert all(sidecar[c]["Description"] for c in header), tsv
+    events = _read(ev, "\t")
+    assert list(events[0]) == list(EVENT_COLUMNS)
+    with Store.open(load_db, readonly=True) as store:
+        (sess,) = store.sessions("P01")
+        stored = store.task_events(sess["session_id"])
+        trials = store.trials(sess["session_id"])
+        ratings = store.ratings(sess["session_id"])
+    assert len(events) == len(stored)
+    onsets = [float(e["onset"]) for e in events]
+    assert onsets == sorted(onsets) and onsets[0] < 0  # practice before the first trial
+    first = min(t["onset_ns"] for t in trials)
+    by_item = {(e["phase"], e["item_index"]): e for e in stored}
+    for e in events:
+        s = by_item[(e["phase"], int(e["item_index"]))]
+        assert float(e["onset"]) == pytest.approx((s["t_ns"] - first) / 1e9, abs=1e-6)
+        assert e["trial_type"] == ("extra_press" if s["item_index"] < 0 else
+                                   "go" if s["target"] else "nogo")
+        assert e["response"] == (s["response"] or "n/a")
+        assert e["response_time"] == ("n/a" if s["rt_s"] is None else repr(s["rt_s"]))
+        assert e["duration"] in ("0.5", "0.0")
+    # the ratings: one row per rated block, the six items and their mean
+    rows = _read(tlx, "\t")
+    assert list(rows[0]) == list(TLX_COLUMNS)
+    assert [r["block_name"] for r in rows] == ["busy", "calm"]
+    for r in rows:
+        mine = {x["item"]: x["value"] for x in ratings if x["block_index"] == int(r["block_index"])}
+        assert {k: float(r[k]) for k in mine} == mine
+        assert float(r["raw_tlx"]) == pytest.approx(sum(mine.values()) / 6, abs=1e-3)
+    readme = (out / "README.md").read_text()
+    assert "## Secondary-task events" in readme and "## Workload ratings" in readme
+
+
+def test_bids_authors_given_replace_the_study_files(load_db: Path, tmp_path: Path) -> None:
+    export_bids(load_db, tmp_path / "a", authors=["Grace Hopper"])
+    desc = json.loads((tmp_path / "a" / "dataset_description.json").read_text())
+    assert desc["Authors"] == ["Grace Hopper"]
+    export_bids(load_db, tmp_path / "b", authors=[])
+    assert "Authors" not in json.loads((tmp_path / "b" / "dataset_description.json")
+                                       .read_text())
+
+
+def test_the_export_command_says_where_the_authors_came_from(load_db: Path,
+                                                              tmp_path: Path) -> None:
+    from support.cli import tactorbelt
+
+    proc = tactorbelt("export", str(load_db), "-o", str(tmp_path / "a"), "--format", "bids",
+                      "--authors", "Grace Hopper")
+    assert proc.returncode == 0, proc.stderr
+    assert "  Authors: Grace Hopper (from --authors)" in proc.stdout
+    assert "note: one author (Grace Hopper): the BIDS validator warns TOO_FEW_AUTHORS" in \
+        proc.stderr
+    proc = tactorbelt("export", str(load_db), "-o", str(tmp_path / "b"), "--format", "bids",
+                      "--authors", " , ")
+    assert proc.returncode == 2
+    assert "Invalid value for '--authors': name at least one author" in proc.stderr
+
+
+def test_a_study_file_author_must_be_a_name() -> None:
+    from tactorbelt import StudyFileError
+
+    text = STUDY.replace('name = "export"\n', 'name = "export"\nauthors = ["A", " "]\n', 1)
+    with pytest.raises(StudyFileError, match="authors"):
+        Study.from_toml(text)
+    assert Study.from_toml(STUDY).authors == []

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import bisect
 import json
+import re
 import sqlite3
 import subprocess
 import sys
@@ -354,4 +355,103 @@ def test_the_resume_command_keeps_the_lsl_streams() -> None:
 
     req = RunRequest(Path("s.toml"), "P01", lsl=True, lsl_wait_s=30.0)
     assert resume_command(req).endswith(" --lsl --lsl-wait 30 --resume")
+    req.lsl_wait_all = True
+    assert resume_command(req).endswith(" --lsl --lsl-wait 30 --lsl-wait-all --resume")
     assert "--lsl" not in resume_command(RunRequest(Path("s.toml"), "P01"))
+
+
+# -- waiting for the recorder ------------------------------------------------------------------
+def _wait_study(tmp_path: Path) -> Path:
+    return write_study(tmp_path, name="lsl-wait", targets=4, repetitions=1, training=0,
+                       conditions=["static"], iti_s=0.1, break_every=0)
+
+
+@pytest.mark.slow
+def test_a_recorder_of_the_markers_alone_starts_the_session_at_once(tmp_path: Path) -> None:
+    pylsl_or_skip()
+    env = loopback_env(tmp_path)
+    inlet = start_inlet(env, timeout_s=90, streams=("tactorbelt-markers",))
+    t0 = time.monotonic()
+    proc = _run("run", str(_wait_study(tmp_path)), "-p", "P01", "--headless", "--input",
+                "scripted", "--db", str(tmp_path / "s.sqlite"), "--lsl", "--lsl-wait", "60",
+                env=env)
+    took = time.monotonic() - t0
+    got = inlet_result(inlet)
+    assert proc.returncode == 0, proc.stderr
+    lines = [line for line in proc.stderr.splitlines() if line.startswith("LSL: ")]
+    assert lines[0] == ("LSL: waiting up to 60 s for a recorder (LabRecorder) on "
+                        "tactorbelt-markers; the session starts as soon as tactorbelt-markers "
+                        "has a consumer")
+    assert re.fullmatch(r"LSL: tactorbelt-markers has a consumer, tactorbelt-cursor has none; "
+                        r"\d+ s left", lines[1]), lines
+    started = re.fullmatch(r"LSL: starting after ([\d.]+) s; tactorbelt-markers has a "
+                           r"consumer, tactorbelt-cursor has none \(tactorbelt-cursor: .*"
+                           r"--lsl-wait-all waits for every stream\)", lines[-1])
+    assert started, lines
+    assert float(started.group(1)) < 20 and took < 50  # not the whole minute
+    assert "warning" not in proc.stderr, proc.stderr
+    assert got["complete"] and got["cursor"] == []
+    events = [json.loads(text)["event"] for _, text in got["markers"]]
+    assert events[0] == "session_start" and events[-1] == "session_end"
+
+
+@pytest.mark.slow
+def test_lsl_wait_all_waits_for_every_stream_and_names_the_one_nobody_took(
+        tmp_path: Path) -> None:
+    pylsl_or_skip()
+    env = loopback_env(tmp_path)
+    inlet = start_inlet(env, timeout_s=90, streams=("tactorbelt-markers",))
+    proc = _run("run", str(_wait_study(tmp_path)), "-p", "P01", "--headless", "--input",
+                "scripted", "--db", str(tmp_path / "s.sqlite"), "--lsl", "--lsl-wait", "4",
+                "--lsl-wait-all", env=env)
+    inlet_result(inlet)
+    assert proc.returncode == 0, proc.stderr
+    assert ("on tactorbelt-markers and tactorbelt-cursor; the session starts as soon as every "
+            "stream has a consumer") in proc.stderr
+    assert ("warning: no LSL consumer connected to tactorbelt-cursor within 4 s"
+            in proc.stderr), proc.stderr
+    started = re.search(r"LSL: starting after ([\d.]+) s", proc.stderr)
+    assert started and float(started.group(1)) >= 4.0
+
+
+def test_lsl_wait_all_needs_lsl_wait(tmp_path: Path) -> None:
+    proc = _run("run", str(_wait_study(tmp_path)), "-p", "P01", "--headless", "--lsl",
+                "--lsl-wait-all", env=loopback_env(tmp_path))
+    assert proc.returncode == 2 and "--lsl-wait-all is for --lsl-wait" in proc.stderr
+
+
+class _WaitWindow(NullObserver):
+    """A window stand-in: shows the wait; the experimenter stops it at the third frame."""
+
+    def __init__(self) -> None:
+        self.shown: list[tuple[str | None, list[str]]] = []
+
+    def show_wait(self, title: str | None, lines: list[str]) -> bool:
+        self.shown.append((title, lines))
+        return len(self.shown) >= 3
+
+
+@pytest.mark.timeout(30)
+def test_the_window_shows_the_wait_and_esc_esc_ends_it() -> None:
+    pylsl = pylsl_or_skip()
+    from tactorbelt.clock import WallClock
+    from tactorbelt.devices import open_belt
+
+    said: list[str] = []
+    window = _WaitWindow()
+    clock = WallClock()
+    with open_belt("sim", clock=clock) as belt:
+        lsl = LslObserver(window, clock, belt, wait_s=20, report=said.append, pylsl=pylsl)
+        for name, kind in (("tactorbelt-markers", "Markers"), ("tactorbelt-cursor", "Position")):
+            outlet = pylsl.StreamOutlet(pylsl.StreamInfo(name, kind, 1))
+            setattr(lsl, "markers" if kind == "Markers" else "cursor", outlet)
+        t0 = time.monotonic()
+        have = lsl.wait_for_consumers()
+        lsl.close()
+    assert time.monotonic() - t0 < 5
+    assert have == {"tactorbelt-markers": False, "tactorbelt-cursor": False}
+    title, lines = window.shown[0]
+    assert title == "Waiting for the recorder"
+    assert "tactorbelt-markers: no recorder yet" in lines and "20 s left" in lines
+    assert window.shown[-1] == (None, [])  # the wait screen taken down
+    assert said[-1].startswith("LSL: the wait was stopped in the window after ")

@@ -4,6 +4,7 @@ also after the process is killed with SIGKILL."""
 from __future__ import annotations
 
 import os
+import re
 import shlex
 import signal
 import sqlite3
@@ -242,3 +243,104 @@ def test_ctrl_c_exits_130_without_an_error_line(tmp_path: Path) -> None:
     assert code == 130
     assert "error:" not in err and "Traceback" not in err
     assert "interrupted: motors off" in err and "--resume'" in err
+
+
+# -- the clock of a resumed run --------------------------------------------------------------
+CLOCK_STUDY = study_toml(minimal=True, name="clock", tactors=6, targets=6, iti_s=0.2,
+                         break_every=0, training=0, repetitions=1)  # 12 test trials
+
+
+def _kill_after(args: list[str], db: Path, n: int) -> None:
+    """Start ``args``; once ``n`` trials are stored, SIGKILL it (nothing is marked)."""
+    proc = subprocess.Popen(args, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 90
+        while (_count(db, "SELECT COUNT(*) FROM trials") < n and time.monotonic() < deadline
+               and proc.poll() is None):
+            time.sleep(0.05)
+        assert proc.poll() is None, proc.communicate()[1]
+        os.kill(proc.pid, signal.SIGKILL)
+    finally:
+        proc.communicate()
+
+
+def _timed(args: list[str]) -> tuple[subprocess.CompletedProcess[str], float]:
+    t0 = time.monotonic()
+    out = subprocess.run(args, capture_output=True, text=True, check=False, timeout=120)
+    return out, time.monotonic() - t0
+
+
+def _clock_span_s(db: Path, after: int) -> float:
+    """Seconds of the session's clock from the first onset to the last acquisition of the
+    trials stored after the first ``after`` (the ones a resumed run ran)."""
+    with Store.open(db, readonly=True) as store:
+        rows = sorted(store.trials(), key=lambda t: t["trial_id"])[after:]
+    assert rows
+    return (max(t["acquired_ns"] or t["onset_ns"] for t in rows)
+            - min(t["onset_ns"] for t in rows)) / 1e9
+
+
+def test_a_wall_clock_run_killed_then_resumed_keeps_its_clock_unless_told_otherwise(
+        tmp_path: Path) -> None:
+    study_file = tmp_path / "study.toml"
+    study_file.write_text(CLOCK_STUDY)
+    db = tmp_path / "s.sqlite"
+    _kill_after([*_tactorbelt(), "run", str(study_file), "-p", "P05", "--headless", "--input",
+                 "model", "--clock", "wall", "--db", str(db)], db, 2)
+    resume = [*_tactorbelt(), "run", str(study_file), "-p", "P05", "--db", str(db), "--resume"]
+    n = _count(db, "SELECT COUNT(*) FROM trials")
+
+    # resumed as it was started: on the wall clock, and it says so, with the override
+    out, took = _timed([*resume, "--limit", "2"])
+    assert out.returncode == 0, out.stderr
+    lines = out.stderr.splitlines()
+    assert lines[0] == f"resuming session 1 of P05 ({n}/12 trials done) with these options:"
+    assert re.search(r"^  clock +wall \(real time\) +stored +override: --clock sim$",
+                     out.stderr, re.M), out.stderr
+    assert re.search(r"^  input +model +stored +override: --input joystick\|mouse\|scripted$",
+                     out.stderr, re.M), out.stderr
+    assert re.search(r"^  window +none \(headless\) +stored +override: --window$", out.stderr,
+                     re.M), out.stderr
+    assert re.search(r"^  belt +sim +stored +override: --belt URL$", out.stderr, re.M)
+    span = _clock_span_s(db, n)
+    assert 0 < span <= took  # the model answered in real time
+
+    # --clock sim on resume overrides the stored wall clock: simulated time, fast
+    n = _count(db, "SELECT COUNT(*) FROM trials")
+    out, took = _timed([*resume, "--clock", "sim"])
+    assert out.returncode == 0, out.stderr
+    assert "complete, 12/12 trials done" in out.stdout
+    assert re.search(r"^  clock +sim \(simulated time\) +given \(stored: wall\) +override: "
+                     r"--clock wall$", out.stderr, re.M), out.stderr
+    assert _clock_span_s(db, n) > took  # more session time than real time went by
+    with Store.open(db, readonly=True) as store:
+        (sess,) = store.sessions()
+        assert store.run_options(sess["session_id"])["clock"] == "sim"  # stored in its place
+    _check_complete(db, "P05", Study.from_toml(CLOCK_STUDY))
+
+
+def test_a_stored_simulated_clock_gives_way_to_the_window(tmp_path: Path) -> None:
+    """A session started with --clock sim and resumed in the window runs on the wall
+    clock (the window is real time), and says so; --clock sim given then is refused."""
+    study_file = tmp_path / "study.toml"
+    study_file.write_text(CLOCK_STUDY)
+    db = tmp_path / "s.sqlite"
+    base = [*_tactorbelt(), "run", str(study_file), "-p", "P06", "--db", str(db)]
+    out, _ = _timed([*base, "--headless", "--input", "scripted", "--clock", "sim", "--limit",
+                     "10"])
+    assert out.returncode == 0, out.stderr
+    env = _env(window=True)
+    out = subprocess.run([*base, "--resume", "--window", "--clock", "sim"], env=env,
+                         capture_output=True, text=True, check=False, timeout=120)
+    assert out.returncode == 2
+    assert out.stderr.startswith("error: --clock sim is for a headless run") and \
+        "the experiment window runs in real time" in out.stderr, out.stderr
+    out = subprocess.run([*base, "--resume", "--window"], env=env, capture_output=True,
+                         text=True, check=False, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert re.search(r"^  window +yes +given \(stored: none\) +override: --headless, "
+                     r"--fullscreen$", out.stderr, re.M), out.stderr
+    assert re.search(r"^  clock +wall \(real time\) +default \(stored sim does not fit\) +"
+                     r"override: none \(the experiment window runs in real time\)$",
+                     out.stderr, re.M), out.stderr
+    assert "complete, 12/12 trials done" in out.stdout

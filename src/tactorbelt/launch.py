@@ -447,11 +447,15 @@ def reuse_lines(req: RunRequest, r: RunRequest, stored: dict[str, Any],
         session: the session's row; ``n_done``: its trials done.
         headless: the run has no window; ``clock``: ``sim`` or ``wall``, this run's.
     """
-    def source(given: bool, key: str) -> str:
+    def source(given: bool, key: str, now: Any) -> str:
+        was = stored.get(key)
+        if key == "headless" and was is not None:
+            was = "none" if was else "yes"
         if given:
-            was = stored.get(key)
-            return "given" + (f" (stored: {was})" if was is not None else "")
-        return "stored" if stored.get(key) is not None else "default"
+            return "given" + (f" (stored: {was})" if was is not None and was != now else "")
+        if was is None:
+            return "default"
+        return "stored" if was == now else f"default (stored {was} does not fit)"
 
     joy = r.joystick
     no_sim = _no_sim(headless=headless, input_kind=str(r.input_kind),
@@ -460,16 +464,18 @@ def reuse_lines(req: RunRequest, r: RunRequest, stored: dict[str, Any],
                  else "--clock sim" if no_sim is None else f"none ({no_sim})")
     window_given = req.headless is not None or (req.fullscreen is not None and not headless)
     rows: list[tuple[str, str, str, str]] = [
-        ("input", str(r.input_kind), source(req.input_kind is not None, "input_kind"),
+        ("input", str(r.input_kind),
+         source(req.input_kind is not None, "input_kind", r.input_kind),
          "--input " + "|".join(k for k in INPUTS if k != r.input_kind)),
         ("window", "none (headless)" if headless else "full screen" if r.fullscreen
-         else "yes", source(window_given, "headless"),
+         else "yes", source(window_given, "headless", "none" if headless else "yes"),
          "--window" if headless else
          "--headless, " + ("--no-fullscreen" if r.fullscreen else "--fullscreen")),
-        ("belt", str(r.belt_url), source(req.belt_url is not None, "belt_url"), "--belt URL"),
+        ("belt", str(r.belt_url), source(req.belt_url is not None, "belt_url", r.belt_url),
+         "--belt URL"),
         ("clock", f"{clock} ({'simulated time' if clock == 'sim' else 'real time'})",
          "--lsl" if req.lsl and req.clock is None else
-         source(req.clock is not None or bool(req.realtime), "clock"), clock_how),
+         source(req.clock is not None or bool(req.realtime), "clock", clock), clock_how),
     ]
     if r.input_kind == "joystick":
         inv = [a for a, on in (("x", joy.invert_x), ("y", joy.invert_y)) if on]

@@ -68,7 +68,7 @@ def export(db: str, old_out: Path | None, out: Path | None, fmt: str, force: boo
     names = None if authors is None else [a.strip() for a in authors.split(",") if a.strip()]
     if names == []:
         raise click.BadParameter("name at least one author, e.g. 'A. Author, B. Author'",
-                                 param_hint="--authors")
+                                 param_hint="'--authors'")
     writers = {"csv": export_csv, "parquet": export_formats.export_parquet,
                "tidy": export_formats.export_tidy, "psychopy": export_formats.export_psychopy}
     files = (export_bids(db, out, readme=readme, authors=names, force=force) if fmt == "bids"
@@ -93,6 +93,11 @@ def _bids_notes(out: Path, files: list[Path], names: list[str] | None,
                    "dataset_description.json lists no authors (the BIDS validator warns "
                    "NO_AUTHORS); add --authors 'A, B', or authors = [\"A\", \"B\"] at the top "
                    "of the study file", err=True)
+    if len(got) == 1:
+        click.echo(f"note: one author ({got[0]}): the BIDS validator warns TOO_FEW_AUTHORS "
+                   "(it takes a list of names in one string for one author); ignore it if "
+                   "that is everyone, else name each: --authors 'A, B', or authors = "
+                   "[\"A\", \"B\"] in the study file", err=True)
     if readme is None:
         click.echo("  README.md: generated from the study file (--readme FILE for your own)")
     kinds = {"events": "_events.tsv", "ratings": "_task-nasatlx_beh.tsv"}
