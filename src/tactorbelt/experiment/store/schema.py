@@ -30,7 +30,7 @@ from __future__ import annotations
 import re
 import uuid
 from collections.abc import Callable, Iterator, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 from .base import SESSION_STATUSES, TRIAL_STATUSES
@@ -94,38 +94,36 @@ def _c(name: str, type_: str, *, nn: bool = False, req: str | None = None,
     return Column(name, type_, not_null=nn, required=req, **kw)
 
 
-_ID = "id"
+def _cs(type_: str, *names: str, nn: bool = False, req: str | None = None,
+        **kw: Any) -> tuple[Column, ...]:
+    """Several columns alike."""
+    return tuple(_c(n, type_, nn=nn, req=req, **kw) for n in names)
+
+
 TABLES: tuple[Table, ...] = (
     Table("meta", (_c("key", "text", primary_key=True), _c("value", "text", nn=True))),
     Table("sessions", (
-        _c("session_id", _ID, req="column"),
+        _c("session_id", "id", req="column"),
         _c("participant", "text", nn=True, req="value"),
         _c("session_number", "int", nn=True),
-        _c("study_name", "text", nn=True, req="column"),
-        _c("study_sha256", "text", nn=True, req="column"),
-        _c("study_toml", "text", nn=True, req="column"),
+        *_cs("text", "study_name", "study_sha256", "study_toml", nn=True, req="column"),
         _c("seed", "int64", nn=True, req="column"),
         _c("condition_order", "text", nn=True, req="column"),
         _c("schedule_json", "text", nn=True),
         _c("n_trials", "int", nn=True),
-        _c("belt", "text", req="column"),
-        _c("firmware_version", "text", req="column"),
+        *_cs("text", "belt", "firmware_version", req="column"),
         _c("calibration_json", "text"),
         _c("package_version", "text", req="column"),
-        _c("git_commit", "text"),
-        _c("host", "text"),
-        _c("input", "text"),
-        _c("clock", "text"),
+        *_cs("text", "git_commit", "host", "input", "clock"),
         _c("started_at", "text", nn=True, req="column"),
         _c("ended_at", "text", req="column"),
         _c("status", "text", nn=True, check=SESSION_STATUSES, req="column"),
         _c("resumed", "int", nn=True, default="0"),
         # multi-site identity: a uuid4 naming the session in every store, and its lab
-        _c("session_uuid", "text", added=True),
-        _c("site", "text", added=True),
+        *_cs("text", "session_uuid", "site", added=True),
     )),
     Table("trials", (
-        _c("trial_id", _ID, req="column"),
+        _c("trial_id", "id", req="column"),
         _c("session_id", "ref", nn=True, references="sessions", req="value"),
         _c("trial_index", "int", nn=True, req="column"),
         _c("block", "text", nn=True, check=("training", "test"), req="value"),
@@ -135,14 +133,11 @@ TABLES: tuple[Table, ...] = (
         _c("repetition", "int", nn=True, req="column"),
         _c("target_deg", "real", nn=True, req="value"),
         _c("on_tactor", "int", nn=True, req="value"),
-        _c("response_deg", "real", req="column"),
-        _c("response_target_deg", "real", req="column"),
+        *_cs("real", "response_deg", "response_target_deg", req="column"),
         _c("correct", "int", req="column"),
         _c("rt_s", "real", req="column"),
         _c("onset_ns", "int64", req="column"),
-        _c("acquired_ns", "int64"),
-        _c("crossed_ns", "int64"),
-        _c("stimulus_off_ns", "int64"),
+        *_cs("int64", "acquired_ns", "crossed_ns", "stimulus_off_ns"),
         _c("n_samples", "int", nn=True),
         _c("status", "text", nn=True, check=TRIAL_STATUSES, req="value"),
         _c("abort_reason", "text"),
@@ -151,28 +146,23 @@ TABLES: tuple[Table, ...] = (
         # schema 2: factorial designs and device-side onsets
         _c("n_targets", "int", added=True),
         _c("load", "text", nn=True, default="'none'", added=True),
-        _c("device_onset_ns", "int64", added=True),
-        _c("onset_uncertainty_ns", "int64", added=True),
+        *_cs("int64", "device_onset_ns", "onset_uncertainty_ns", added=True),
     ), unique=(("session_id", "trial_index"),)),
     Table("samples", (
         _c("trial_id", "ref", nn=True, references="trials", cascade=True, req="value"),
         _c("sample_index", "int", nn=True, only="order_columns"),
-        _c("t_s", "real", nn=True, req="value"),
-        _c("x", "real", nn=True, req="value"),
-        _c("y", "real", nn=True, req="value"),
+        *_cs("real", "t_s", "x", "y", nn=True, req="value"),
         _c("buttons", "int", nn=True, req="value"),
     ), primary_key=("trial_id", "sample_index"), order="sample_index"),
-    Table("run_options", (
-        _c("session_id", "ref", primary_key=True, references="sessions"),
-        _c("options", "text", nn=True),
-    ), only="multisite"),
+    Table("run_options", (_c("session_id", "ref", primary_key=True, references="sessions"),
+                          _c("options", "text", nn=True)), only="multisite"),
     Table("participants", (_c("participant", "text", primary_key=True),
                            _c("site", "text", nn=True)), only="multisite"),
     Table("site_writers", (_c("role_name", "text", primary_key=True),
                            _c("site", "text", nn=True)), only="multisite"),
     # schema 3: secondary tasks and workload ratings
     Table("task_events", (
-        _c("event_id", _ID),
+        _c("event_id", "id"),
         _c("session_id", "ref", nn=True, references="sessions"),
         _c("block_index", "int", nn=True),
         _c("task", "text", nn=True),
@@ -188,8 +178,7 @@ TABLES: tuple[Table, ...] = (
     Table("ratings", (
         _c("session_id", "ref", nn=True, references="sessions"),
         _c("block_index", "int", nn=True),
-        _c("scale", "text", nn=True),
-        _c("item", "text", nn=True),
+        *_cs("text", "scale", "item", nn=True),
         _c("value", "real", nn=True),
         _c("rating_order", "int", nn=True, default="0", only="order_columns"),
     ), primary_key=("session_id", "block_index", "scale", "item"),
@@ -212,40 +201,34 @@ def table(name: str) -> Table:
     return _BY_NAME[name]
 
 
+@dataclass(eq=False)
 class Dialect:
     """How one database spells the schema and the queries (see the module doc)."""
 
-    def __init__(self, name: str, *, param: str, namespace: str, types: Mapping[str, str],
-                 features: frozenset[str], returning: bool, lock: str,
-                 max_in: int | None, bool_value: Callable[[Any], Any], upsert: str,
-                 tables_query: str, columns_query: str) -> None:
-        self.name = name
-        #: The placeholder of a bound value.
-        self.param = param
-        #: The database schema holding the tables ("" for none).
-        self.namespace = namespace
-        #: Logical type -> SQL type; ``id`` is the whole declaration of an identity key.
-        self.types = dict(types)
-        self.features = features
-        #: New ids come from ``INSERT ... RETURNING`` (else the cursor's ``lastrowid``).
-        self.returning = returning
-        #: What a SELECT appends to lock the rows it reads until the transaction ends.
-        self.lock = lock
-        #: How many values an ``IN (...)`` list may bind (None: one array, ``= ANY(?)``).
-        self.max_in = max_in
-        #: How a boolean is bound (int: 0/1).
-        self.bool_value = bool_value
-        #: ``replace`` (INSERT OR REPLACE) or ``on_conflict`` (ON CONFLICT DO UPDATE).
-        self.upsert_style = upsert
-        #: A query of the names of the store's tables; of a table's columns (``?``: it).
-        self.tables_query = tables_query
-        self.columns_query = columns_query
-        self._compiled: dict[str, str] = {}
-        names = "|".join(TABLE_NAMES)
-        self._names = re.compile(rf"(?<![\w.])({names})\b(?!\.)")
-
-    def __repr__(self) -> str:
-        return f"Dialect({self.name!r})"
+    name: str
+    #: The placeholder of a bound value.
+    param: str
+    #: The database schema holding the tables ("" for none).
+    namespace: str
+    #: Logical type -> SQL type; ``id`` is the whole declaration of an identity key.
+    types: Mapping[str, str]
+    features: frozenset[str]
+    #: New ids come from ``INSERT ... RETURNING`` (else the cursor's ``lastrowid``).
+    returning: bool
+    #: What a SELECT appends to lock the rows it reads until the transaction ends.
+    lock: str
+    #: How many values an ``IN (...)`` list may bind (None: one array, ``= ANY(?)``).
+    max_in: int | None
+    #: How a boolean is bound (int: 0/1).
+    bool_value: Callable[[Any], Any]
+    #: ``replace`` (INSERT OR REPLACE) or ``on_conflict`` (ON CONFLICT DO UPDATE).
+    upsert_style: str
+    #: A query of the names of the store's tables; of a table's columns (``?``: it).
+    tables_query: str
+    columns_query: str
+    _compiled: dict[str, str] = field(default_factory=dict, repr=False)
+    _names: re.Pattern[str] = field(
+        default=re.compile(rf"(?<![\w.])({'|'.join(TABLE_NAMES)})\b(?!\.)"), repr=False)
 
     def has(self, feature: str | None) -> bool:
         return feature is None or feature in self.features
@@ -297,7 +280,7 @@ SQLITE = Dialect(
            "int64": "INTEGER", "real": "REAL", "text": "TEXT", "bool": "INTEGER"},
     features=frozenset({"rowid"}), returning=False, lock="",
     max_in=500,  # stay well under SQLite's parameter limit
-    bool_value=int, upsert="replace",
+    bool_value=int, upsert_style="replace",
     tables_query="SELECT name FROM sqlite_master WHERE type='table'",
     columns_query="SELECT name FROM pragma_table_info(?)",
 )
@@ -307,7 +290,7 @@ POSTGRESQL = Dialect(
            "int": "INTEGER", "int64": "BIGINT", "real": "DOUBLE PRECISION", "text": "TEXT",
            "bool": "BOOLEAN"},
     features=frozenset({"order_columns", "multisite", "backfill"}), returning=True,
-    lock=" FOR UPDATE", max_in=None, bool_value=bool, upsert="on_conflict",
+    lock=" FOR UPDATE", max_in=None, bool_value=bool, upsert_style="on_conflict",
     tables_query="SELECT table_name FROM information_schema.tables"
                  " WHERE table_schema='tactorbelt'",
     columns_query="SELECT column_name FROM information_schema.columns"
@@ -404,7 +387,7 @@ def bare_statements(extra_columns: bool = False) -> list[str]:
     out = []
     for name in ("sessions", "trials", "samples"):
         cols = [c for c in table(name).columns if c.required]
-        defs = [f"{c.name} " + ("INTEGER PRIMARY KEY" if c.type == _ID else SQLITE.types[c.type]
+        defs = [f"{c.name} " + ("INTEGER PRIMARY KEY" if c.type == "id" else SQLITE.types[c.type]
                                 + (" NOT NULL" if c.required == "value" else ""))
                 for c in cols]
         out.append(f"CREATE TABLE {name}(\n    " + ",\n    ".join(defs) + "\n)")
