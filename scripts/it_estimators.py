@@ -314,8 +314,8 @@ def figure(rows: list[dict[str, object]], path: Path) -> None:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--sims", type=int, default=400, help="matrices per grid point")
-    ap.add_argument("--boot-sims", type=int, default=100,
+    ap.add_argument("--sims", type=int, default=300, help="matrices per grid point")
+    ap.add_argument("--boot-sims", type=int, default=60,
                     help="matrices per grid point for the (slow) bootstrap correction")
     ap.add_argument("--coverage-sims", type=int, default=150)
     ap.add_argument("--panel", type=int, default=12, help="participants per cell (table)")

@@ -201,7 +201,7 @@ def fig1b(design: StudyDesign, directions: pd.DataFrame, *, title: str | None = 
                       frameon=False, borderaxespad=0.1)
     step = 45.0 if targets.m > 12 else 360.0 / max(targets.m, 1)
     ticks = np.arange(0.0, 360.0 + 1e-9, step)
-    ax_rt.set_xticks(ticks, [_direction_label(t) for t in ticks], fontsize=8)
+    ax_rt.set_xticks(ticks, [_direction_label(float(t)) for t in ticks], fontsize=8)
     ax_rt.set_xlim(-8, 368 if targets.m > 1 else 360)
     ax_rt.set_xticks(tg, minor=True)
     if title:
@@ -461,6 +461,9 @@ def resolution_figure(participant_cells: pd.DataFrame, cells: pd.DataFrame) -> b
     specs = (("accuracy", "accuracy"),
              ("it_bits", f"information transfer (bits, {ESTIMATOR})"),
              ("median_rt_s", "median RT (s)"))
+    # lines side by side (0.5 target apart) so that their bars do not hide each other
+    lines = [(c, ld) for c in CONDITIONS for ld in loads]
+    dodge = {key: 0.5 * (i - (len(lines) - 1) / 2) for i, key in enumerate(lines)}
     for ax, (col, label) in zip(axes, specs, strict=True):
         _style(ax)
         for cond in CONDITIONS:
@@ -468,7 +471,8 @@ def resolution_figure(participant_cells: pd.DataFrame, cells: pd.DataFrame) -> b
                 sel = pc.loc[(pc["condition"] == cond) & (pc["load"] == load)]
                 if sel.empty:
                     continue
-                xs, ms, lo, hi = [], [], [], []
+                xs: list[float] = []
+                ms, lo, hi = [], [], []
                 for n in counts:
                     v = sel.loc[sel["n_targets"] == n, col].to_numpy(dtype=float)
                     if v.size == 0:
@@ -482,7 +486,7 @@ def resolution_figure(participant_cells: pd.DataFrame, cells: pd.DataFrame) -> b
                         ci = c[["it_bits_ci_low", "it_bits_ci_high"]].iloc[0].to_numpy(float)
                         down, up = ((max(0.0, m - ci[0]), max(0.0, ci[1] - m))
                                     if np.isfinite(ci).all() else (0.0, 0.0))
-                    xs.append(n)
+                    xs.append(n + dodge[(cond, load)])
                     ms.append(m)
                     lo.append(down)
                     hi.append(up)

@@ -470,8 +470,8 @@ def cell_interval(matrices: Sequence[Counts], *, rng: np.random.Generator,
     docs/analysis.md); with one participant it is the plain percentile interval of the
     trial-level bootstrap. ``(nan, nan)`` without matrices.
 
-    A participant contributes ``clip(ceil(2 n_boot / n), 50, n_boot)`` trial resamples,
-    so the work grows with the participants only past ``n_boot / 25`` of them.
+    A participant contributes ``clip(ceil(n_boot / n), 50, n_boot)`` trial resamples,
+    so the work grows with the participants only past ``n_boot / 50`` of them.
     """
     if len(matrices) == 0:
         return float("nan"), float("nan")
@@ -487,7 +487,7 @@ def two_level_means(matrices: Sequence[Counts], *, rng: np.random.Generator,
     n = len(mats)
     est = np.array([float(estimate_transfer(m)) for m in mats])
     ceil = np.array([float(_stimulus_entropy(m)) for m in mats])
-    per = int(np.clip(math.ceil(2 * n_boot / n), 50, n_boot))
+    per = int(np.clip(math.ceil(n_boot / n), 50, n_boot))
     noise = np.empty((n, per))
     for i, m in enumerate(mats):
         d = bootstrap_draws(m, per, rng)
