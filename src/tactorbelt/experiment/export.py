@@ -141,17 +141,21 @@ EVENT_COLUMNS: dict[str, dict[str, Any]] = {
                 "item, else 0 (0 for an extra press)."},
 }
 
-#: The NASA-TLX items in the BIDS ratings file (``task-nasatlx_beh.tsv``), 0..100.
+#: The NASA-TLX items in the BIDS ratings file (``task-nasatlx_beh.tsv``): the question
+#: of NASA's form and the anchors of 0 and 100 (as the window's sliders, gui/tlx.py).
 _TLX_ITEMS = {
-    "mental": "Mental demand: how mentally demanding was the task?",
-    "physical": "Physical demand: how physically demanding was the task?",
-    "temporal": "Temporal demand: how hurried or rushed was the pace of the task?",
-    "performance": "Performance: how successful were you in accomplishing what you were "
-                   "asked to do? (0 = perfect, 100 = failure)",
-    "effort": "Effort: how hard did you have to work to accomplish your level of "
-              "performance?",
-    "frustration": "Frustration: how insecure, discouraged, irritated, stressed and "
-                   "annoyed were you?",
+    "mental": ("Mental demand: how mentally demanding was the task?", "very low",
+               "very high"),
+    "physical": ("Physical demand: how physically demanding was the task?", "very low",
+                 "very high"),
+    "temporal": ("Temporal demand: how hurried or rushed was the pace of the task?",
+                 "very low", "very high"),
+    "performance": ("Performance: how successful were you in accomplishing what you were "
+                    "asked to do?", "perfect", "failure"),
+    "effort": ("Effort: how hard did you have to work to accomplish your level of "
+               "performance?", "very low", "very high"),
+    "frustration": ("Frustration: how insecure, discouraged, irritated, stressed and "
+                    "annoyed were you?", "very low", "very high"),
 }
 #: Every column of the BIDS ratings file and its description (the JSON sidecar).
 TLX_COLUMNS: dict[str, dict[str, Any]] = {
@@ -161,8 +165,8 @@ TLX_COLUMNS: dict[str, dict[str, Any]] = {
     "condition": BEH_COLUMNS["condition"],
     "n_targets": BEH_COLUMNS["n_targets"],
     "load": BEH_COLUMNS["load"],
-    **{k: {"Description": f"{v} Rated after the block on a slider from 0 (very low) to "
-           "100 (very high)."} for k, v in _TLX_ITEMS.items()},
+    **{k: {"Description": f"{q} Rated after the block on a slider from 0 ({lo}) to 100 "
+           f"({hi})."} for k, (q, lo, hi) in _TLX_ITEMS.items()},
     "raw_tlx": {"Description": "Raw TLX: the mean of the six items, 0-100 (no pairwise "
                 "weighting)."},
 }
