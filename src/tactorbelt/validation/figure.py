@@ -35,6 +35,8 @@ def onset_figure(result: OnsetValidation, path: str | Path) -> Path:
     from ..figures import _pyplot, save_figure, tactor_colors
 
     plt = _pyplot()
+    from matplotlib.lines import Line2D
+
     rows = result.tactors
     n = max(1, len(rows))
     fig, axes = plt.subplots(n, 2, figsize=(10, 1.9 * n + 1.0), sharey=True, squeeze=False,
@@ -82,6 +84,10 @@ def onset_figure(result: OnsetValidation, path: str | Path) -> Path:
     for ax in axes[:, 0]:
         ax.set_ylim(-0.1, 1.2)
         ax.set_yticks(np.array([0.0, LOW, 0.5, HIGH, 1.0]))
+    if len(levels) > 1:
+        handles = [Line2D([], [], color="black", lw=0.9, ls=styles[i % len(styles)],
+                          label=f"level {x:g}") for i, x in enumerate(levels)]
+        axes[0, 1].legend(handles=handles, loc="upper right", fontsize=7, frameon=False)
     lv = ", ".join(f"{x:g}" for x in levels)
     fig.suptitle(f"Onset validation of {result.belt} sensed by {result.sensor} "
                  f"({len(result.tactors[0].pulses) if result.tactors else 0} pulses a "

@@ -5,18 +5,20 @@
 library function: it opens both, runs, writes ``validation.json`` and the figure, and
 updates a calibration file.
 
-The procedure (docs/validation.md): after a lead-in for the sensor's baseline, each
-tactor in turn is pulsed ``pulses`` times at each level (levels interleaved), one tactor
-and one pulse at a time: on for ``on_s``, off for ``off_s`` (long enough for a motor to
-settle and to stop), timed on the belt's clock (``clock.sleep_until_ns``; a
-``sim:virtual`` belt runs instantly). The command time of a pulse is what the runner
-stores as a trial's onset: the clock time just before ``belt.set_amplitudes`` (as
-``Player.start`` returns it), or ``belt.last_onset()`` where the belt ``reports_onsets``
-(the device-true onset). Each pulse is measured over its window, from shortly before its
-command to the next command (:func:`~tactorbelt.validation.envelope.measure_pulse`), while
-the next pulse is on. A pulse whose window lost samples (the sensor reports an overflow,
-or the belt an output underrun) is pulsed again, up to ``max_repeats`` times. A pulse the
-sensor does not see stops the run with :class:`NoPulseError` naming the tactor and level.
+The procedure (docs/validation.md): after a lead-in for the sensor's baseline, the
+pulses go round the tactors (pulse 1 of every tactor at every level, then pulse 2, ...),
+one motor on at a time, each on for ``on_s`` (long enough for the vibration to settle),
+each tactor then resting ``off_s`` (long enough for it to stop), timed on the belt's
+clock (``clock.sleep_until_ns``; a ``sim:virtual`` belt runs instantly). The command time
+of a pulse is what the runner stores as a trial's onset: the clock time just before
+``belt.set_amplitudes`` (as ``Player.start`` returns it), or ``belt.last_onset()`` where
+the belt ``reports_onsets`` (the device-true onset). Each pulse is measured over its
+window, from :data:`BASELINE_S` before its command to ``off_s`` after its stop
+(:func:`~tactorbelt.validation.envelope.measure_pulse`), once the window is over, while
+later pulses go on. A pulse whose samples were lost (the sensor reports lost input in its
+window, or the belt an output underrun while it was on) is pulsed again, up to
+``max_repeats`` times. A pulse the sensor does not see stops the run with
+:class:`NoPulseError` naming the tactor and level.
 
 Imports NumPy and tactorbelt's devices; matplotlib only for the figure.
 """
@@ -112,7 +114,7 @@ class OnsetSettings:
     levels: tuple[float, ...] = (1.0,)
     on_s: float = 0.3
     off_s: float = 0.3
-    max_repeats: int = 3
+    max_repeats: int = 5
     lead_s: float = 0.2
 
     def __post_init__(self) -> None:
@@ -265,7 +267,7 @@ def validate_onsets(belt: Belt, sensor: Sensor, settings: OnsetSettings | None =
         t_end = p.t_off + off_ns
         window = sensor.envelope(p.tactor, p.t_on - base_ns, t_end)
         problem = window.problem
-        if problem is None and dropouts.within(p.t_on - base_ns, t_end):
+        if problem is None and dropouts.within(p.t_on, p.t_off):  # while it was on
             problem = "the belt reported an output underrun"
         m = measure_pulse(window.t_ns, window.env, p.t_on, p.t_off, tactor=p.tactor,
                           level=p.level)

@@ -619,6 +619,7 @@ def open_sensor(url: str | None, belt: Belt) -> Sensor:
     module_name, _, func = backend.opener.partition(":")
     opener = vars(importlib.import_module(module_name))[func]
     sensor: Sensor = opener(target, belt, **options)
+    sensor.url = url.strip()  # as given, options and all (validation.json records it)
     return sensor
 
 
