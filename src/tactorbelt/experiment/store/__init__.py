@@ -1,7 +1,9 @@
 """Session stores: the :class:`Store` interface and :func:`open_store` (see :mod:`.base`).
 
-``from tactorbelt.experiment.store import Store, open_store``. The SQLite
-implementation is :class:`~.sqlite.SQLiteStore`.
+``from tactorbelt.experiment.store import Store, open_store``. The implementations,
+:class:`~.sqlite.SQLiteStore` and :class:`~.postgresql.PostgreSQLStore`, share one SQL
+core: the schema declared once with a dialect per database (:mod:`.schema`) and the
+queries and methods that are the same (:class:`~.sql.SqlStore`).
 """
 
 from __future__ import annotations

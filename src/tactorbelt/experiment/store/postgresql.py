@@ -55,7 +55,7 @@ from .sql import SqlStore
 __all__ = ["PG_SCHEMA", "PostgreSQLStore", "check_url", "setup_access"]
 
 #: The database schema (namespace) holding a tactorbelt store.
-PG_SCHEMA = "tactorbelt"
+PG_SCHEMA = POSTGRESQL.namespace
 #: Seconds to wait for a server when connecting.
 CONNECT_TIMEOUT_S = 5
 
@@ -182,9 +182,7 @@ class PostgreSQLStore(SqlStore):
         import psycopg
 
         try:
-            tables = {r[0] for r in conn.execute(
-                "SELECT table_name FROM information_schema.tables WHERE table_schema=%s",
-                (PG_SCHEMA,))}
+            tables = {r[0] for r in conn.execute(POSTGRESQL.tables_query)}
             if tables and "meta" not in tables:
                 raise StoreError(
                     f"{url}: the database's schema {PG_SCHEMA!r} is not a tactorbelt store "
