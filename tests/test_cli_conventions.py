@@ -18,11 +18,12 @@ from tactorbelt.cli import COMMANDS
 
 DOCS = Path(__file__).resolve().parents[1] / "docs" / "cli.md"
 GROUPS = {"figure": ["amplitudes"], "study": ["init", "check"],
-          "calibrate": [None, "perceptual"], "firmware": ["export", "build", "upload"]}
+          "calibrate": [None, "perceptual"], "firmware": ["export", "build", "upload"],
+          "validate": ["onsets"]}
 COMMAND_PATHS = [[c, *([s] if s else [])] for c in COMMANDS for s in GROUPS.get(c, [None])]
 #: commands that write files, and so have -o/--output
 WRITERS = {"render", "figure amplitudes", "calibrate", "calibrate perceptual", "export", "demo",
-           "power", "analyze"}
+           "power", "analyze", "validate onsets"}
 #: options whose value is text that is not a number
 TEXT_OPTIONS = {"--tactor-angles", "--participant", "--joystick", "--axes", "--participants",
                 "--port"}
