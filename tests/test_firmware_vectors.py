@@ -26,6 +26,7 @@ from pathlib import Path
 from types import ModuleType
 from typing import Any
 
+import numpy as np
 import pytest
 
 from tactorbelt.devices import wire
@@ -99,6 +100,30 @@ def test_committed_extension_vectors_match_the_package(gen: ModuleType) -> None:
         int(header.split(f"kFirmware{part} = ")[1].split(";")[0])
         for part in ("Major", "Minor", "Patch"))
     assert version == gen.FW_VERSION == (1, 2, 0)
+
+
+def test_extension_vectors_cover_sensing_and_the_erm_model(gen: ModuleType) -> None:
+    """The SENSE session and the ERM trace the firmware host tests replay: the session
+    streams whole batches, ends one by its duration, one by SENSE_STOP and one by a new
+    SENSE_START, and NAKs bad requests; the ERM trace rises, falls and sits in the dead
+    zone."""
+    ext = json.loads((VECTORS.parent / "vectors_ext.json").read_text())
+    frames = b"".join(bytes.fromhex(s["output"]) for s in ext["sense"]["steps"])
+    replies = [wire.parse_reply(p) for p in wire.FrameDecoder().feed(frames)]
+    batches = [r for r in replies if isinstance(r, wire.SenseData)]
+    assert {b.n_samples for b in batches} >= {wire.SENSE_MAX_SAMPLES, 1}
+    assert sum(b.last for b in batches) == 4  # one per session
+    assert {b.period_us for b in batches} == {1000, 2500}
+    naks = {r.code for r in replies if isinstance(r, wire.Nak)}
+    assert naks == {wire.NakCode.OUT_OF_RANGE, wire.NakCode.BAD_LENGTH}
+    info = next(r for r in replies if isinstance(r, wire.Info))
+    assert info.can_sense and info.firmware_version == "1.2.0"
+    speed = np.array([s["speed"] for s in ext["erm"]["steps"]])
+    assert speed.max() > 0.99 and speed[-1, 0] < 0.05  # up to full speed, and down again
+    # 0.24 from 420 ms is in the dead zone: the motor falls from its 0.26
+    t = np.array([s["t_us"] for s in ext["erm"]["steps"]])
+    dead = (t > 421_000) & (t < 430_000)
+    assert np.all(np.diff(speed[dead, 0]) < 0)
 
 
 def test_the_generator_is_deterministic(gen: ModuleType, fresh: dict[str, Any]) -> None:
@@ -273,7 +298,7 @@ def test_emulator_ignores_dev_null_stdin_and_ends_on_sigterm(emulator_exe: Path)
 @pytest.mark.emulator
 @pytest.mark.parametrize(
     "args", [["--tactors", "1"], ["--heartbeat-ms", "49"], ["--tactor-angles", "10,10"],
-             ["--bogus", "1"]]
+             ["--bogus", "1"], ["--imu", "bmx160"], ["--imu"]]
 )
 def test_emulator_rejects_bad_arguments(emulator_exe: Path, args: list[str]) -> None:
     proc = subprocess.run([str(emulator_exe), *args], capture_output=True, timeout=5,

@@ -414,6 +414,11 @@ replies = st.one_of(
     st.builds(Nak, u8, st.sampled_from(NakCode)),
     st.builds(wire.Diag, st.integers(0, (1 << 64) - 1), u8, u16, u16),
     st.builds(wire.Onset, u8, u8, st.integers(0, (1 << 64) - 1)),
+    st.builds(wire.SenseData, u8, u8, u32, st.integers(0, (1 << 64) - 1),
+              st.integers(1, 0xFFFF), u16,
+              st.integers(0, wire.SENSE_MAX_SAMPLES).flatmap(
+                  lambda n: st.lists(st.integers(-32768, 32767), min_size=3 * n,
+                                     max_size=3 * n).map(tuple))),
 )
 
 
@@ -504,11 +509,13 @@ def test_message_codes_are_the_contract() -> None:
     assert {m.name: m.value for m in MsgType} == {
         "PING": 0x01, "GET_INFO": 0x02, "SET_AMPLITUDES": 0x10, "STOP_ALL": 0x11,
         "PLAY_TARGET": 0x12, "HEARTBEAT": 0x14, "SET_CONFIG": 0x15, "GET_STATUS": 0x16,
-        "GET_DIAG": 0x17, "ACK": 0x80, "PONG": 0x81, "INFO": 0x82, "STATUS": 0x83,
-        "DIAG": 0x84, "ONSET": 0x85, "NAK": 0x8F,
+        "GET_DIAG": 0x17, "SENSE_START": 0x18, "SENSE_STOP": 0x19, "ACK": 0x80, "PONG": 0x81,
+        "INFO": 0x82, "STATUS": 0x83, "DIAG": 0x84, "ONSET": 0x85, "SENSE_DATA": 0x86,
+        "NAK": 0x8F,
     }
-    assert [c.value for c in NakCode] == [2, 3, 4, 5]
+    assert [c.value for c in NakCode] == [2, 3, 4, 5, 6]
     assert (wire.Capability.WATCHDOG_RESET, wire.ResetFlag.WATCHDOG) == (0x80, 0x02)
+    assert (wire.Capability.SENSE, wire.SenseFlag.LAST, wire.SenseFlag.DROPPED) == (2, 1, 2)
     assert (wire.ConfigFlag.ONSET_EVENTS, wire.ConfigFlag.BLE_FRAMED) == (0x01, 0x02)
     assert [s.value for s in State] == [0, 1, 2, 3]
     assert (wire.PROTOCOL_VERSION, wire.MAX_PACKET) == (1, 64)
@@ -564,3 +571,70 @@ def test_set_config_flags_round_trip() -> None:
         wire.parse_reply(Packet(0x84, 0, bytes(12)))
     with pytest.raises(ProtocolError, match="ONSET"):
         wire.parse_reply(Packet(0x85, 0, bytes(11)))
+
+
+# --- the board's accelerometer (firmware 1.2) ------------------------------------------------
+
+
+def test_sense_requests_layout_and_round_trip() -> None:
+    p = wire.sense_start(4, 0, 2000)
+    assert (p.type, p.payload) == (0x18, struct.pack("<HIB", 0, 2000, 0xFF))
+    assert wire.parse_request(p) == wire.SenseStart(0, 2000, wire.SENSE_ANY_TACTOR)
+    p = wire.sense_start(5, 400, wire.SENSE_MAX_DURATION_MS, 3)
+    assert wire.parse_request(p) == wire.SenseStart(400, 3_600_000, 3)
+    assert wire.parse_request(wire.sense_stop(6)) == wire.SenseStop()
+    assert wire.sense_stop(6) == Packet(0x19, 6)
+    with pytest.raises(ConfigError, match="rate_hz"):
+        wire.sense_start(0, 70000, 1000)
+    with pytest.raises(ConfigError, match="tactor"):
+        wire.sense_start(0, 0, 1000, 256)
+    with pytest.raises(ProtocolError, match="SENSE_START"):
+        wire.parse_request(Packet(0x18, 0, bytes(6)))
+    with pytest.raises(ProtocolError, match="SENSE_STOP"):
+        wire.parse_request(Packet(0x19, 0, b"\x00"))
+
+
+def test_sense_data_layout_fills_one_packet() -> None:
+    """18 bytes of header and 7 samples of 3 int16: 60 bytes, the most a packet carries
+    (one serial frame, one notification at an ATT MTU of 67 or framed below)."""
+    assert wire.SENSE_MAX_SAMPLES == 7
+    values = tuple(range(-10, 11))
+    data = wire.SenseData(9, wire.SenseFlag.LAST, 0x01020304, 0x0102030405060708, 625, 8000,
+                          values)
+    p = wire.encode_reply(9, data)
+    assert len(p.payload) == wire.MAX_PAYLOAD and len(wire.encode_packet(p)) == wire.MAX_PACKET
+    assert p.payload[:18] == struct.pack("<BBIQHH", 9, 1, 0x01020304, 0x0102030405060708,
+                                         625, 8000)
+    assert p.payload[18:] == struct.pack("<21h", *values)
+    back = wire.parse_reply(p)
+    assert back == data and isinstance(back, wire.SenseData)
+    assert back.n_samples == 7 and back.last
+    empty = wire.parse_reply(wire.encode_reply(9, wire.SenseData(9, 0, 0, 0, 625, 8000)))
+    assert isinstance(empty, wire.SenseData) and empty.n_samples == 0 and not empty.last
+
+
+@pytest.mark.parametrize("p", [
+    Packet(0x86, 0, bytes(17)),  # shorter than the header
+    Packet(0x86, 0, bytes(18 + 5)),  # not whole samples
+    Packet(0x86, 0, bytes(18)),  # a period of 0
+])
+def test_parse_sense_data_rejects_malformed(p: Packet) -> None:
+    with pytest.raises(ProtocolError, match="SENSE_DATA"):
+        wire.parse_reply(p)
+
+
+def test_sense_data_builder_checks_its_samples() -> None:
+    with pytest.raises(ConfigError, match="at most 7"):
+        wire.encode_reply(0, wire.SenseData(0, 0, 0, 0, 625, 8000, (0,) * 24))
+    with pytest.raises(ConfigError, match="3 per sample"):
+        wire.encode_reply(0, wire.SenseData(0, 0, 0, 0, 625, 8000, (0, 0)))
+    with pytest.raises(ConfigError, match="int16"):
+        wire.encode_reply(0, wire.SenseData(0, 0, 0, 0, 625, 8000, (32768, 0, 0)))
+
+
+def test_info_reports_the_sense_capability() -> None:
+    payload = bytes([1, 1, 2, 0, 2]) + struct.pack("<HHB", 800, 250, 0x03) + bytes(4)
+    info = wire.parse_reply(Packet(0x82, 0, payload))
+    assert isinstance(info, Info) and info.can_sense and info.can_play_target
+    other = wire.parse_reply(Packet(0x82, 0, payload[:9] + b"\x81" + bytes(4)))
+    assert isinstance(other, Info) and not other.can_sense

@@ -208,6 +208,43 @@ TEST(every_sample_is_read_within_half_a_period_of_its_stamp) {
   CHECK(acc.stamps.size() > 600u);  // of 800: the long passes skip slots
 }
 
+TEST(a_model_that_reads_the_past_catches_up_on_late_polls) {
+  // the emulator's IMU (reads_past): a poll that comes late reads the slots it missed at
+  // their own stamps, a batch at most per poll, so a loaded host loses no sample
+  struct PastReader : FakeAccelerometer {
+    bool reads_past() const override { return true; }
+  };
+  tb::Layout layout;
+  layout.set_even(6);
+  support::FakeMotors motors;
+  tb::Controller c(layout, motors, 800);
+  PastReader acc;
+  acc.period = 625;
+  c.set_accelerometer(&acc);
+  c.begin(0);
+  support::FramingSink sink;
+  const auto start = frame_of(tb::msg::kSenseStart, 2, sense_start_payload(0, 100, 0xFF));
+  c.receive_bytes(start.data(), start.size(), 0, sink);
+  for (uint64_t t = 0; t <= 200000; t += (t % 3 == 0 ? 7000 : 400)) {
+    acc.now = t;
+    c.poll_sense(t);
+    while (c.next_sense_us() <= t) c.poll_sense(t);  // as the emulator's loop does
+  }
+  CHECK(!c.sense().active());
+  CHECK_EQ(acc.stamps.size(), 160u);  // 100 ms at 625 us
+  for (size_t i = 0; i < acc.stamps.size(); ++i) CHECK_EQ(acc.stamps[i], 625u * i);
+  const auto batches = batches_of(sink.packets);
+  uint64_t next_t = 0;
+  uint32_t next_index = 0;
+  for (const auto& b : batches) {
+    CHECK_EQ(b.t0, next_t);  // one grid from start to end
+    CHECK_EQ(b.index, next_index);
+    next_t = b.t0 + 625u * b.n;
+    next_index += static_cast<uint32_t>(b.n);
+  }
+  CHECK_EQ(next_index, 160u);
+}
+
 TEST(a_slow_serial_host_still_gets_its_replies_and_sees_the_losses) {
   tb::Layout layout;
   layout.set_even(6);

@@ -39,6 +39,11 @@ class FakeFirmware:
         reset_flags: what DIAG reports as the cause of the last reset.
         flags: the SET_CONFIG flags in force (per connection).
         onset_times_us: the device time of every ONSET sent, by request seq.
+        sense: SENSE_START (firmware 1.2): a function of the request, its seq and the
+            device time giving the SENSE_DATA batches sent at once after the ACK (the
+            whole session, its last batch included); None: no SENSE (NAK 2, firmware
+            1.1). INFO's capability bit 1 is the test's to set (``capabilities``).
+        sense_unavailable: SENSE_START is NAKed with code 6 (the IMU did not start).
     """
 
     tactors: int = 6
@@ -58,6 +63,8 @@ class FakeFirmware:
     flags: int = 0
     max_on_ms: int = 30000
     onset_times_us: dict[int, int] = field(default_factory=dict)
+    sense: Callable[[wire.SenseStart, int, int], list[wire.SenseData]] | None = None
+    sense_unavailable: bool = False
 
     #: what INFO reports as the firmware version
     fw_version: tuple[int, int, int] = (1, 2, 3)
@@ -88,6 +95,12 @@ class FakeFirmware:
         if (packet.type == wire.MsgType.SET_CONFIG and len(packet.payload) == 7
                 and not self.extensions):
             return [wire.encode_reply(packet.seq, wire.Nak(packet.seq, wire.NakCode.BAD_LENGTH))]
+        if (packet.type in (wire.MsgType.SENSE_START, wire.MsgType.SENSE_STOP)
+                and self.sense is None and not self.sense_unavailable):
+            with self._lock:
+                self.seqs.append(packet.seq)
+            return [wire.encode_reply(packet.seq, wire.Nak(packet.seq,
+                                                           wire.NakCode.UNKNOWN_TYPE))]
         try:
             req = wire.parse_request(packet)
         except ProtocolError:
@@ -104,6 +117,9 @@ class FakeFirmware:
         reply = self._answer(packet.seq, req)
         if reply is not None:
             out.append(wire.encode_reply(packet.seq, reply))
+        if isinstance(req, wire.SenseStart) and isinstance(reply, wire.Ack):
+            assert self.sense is not None
+            out += [wire.encode_reply(packet.seq, b) for b in self.sense(req, packet.seq, t_us)]
         starts = isinstance(req, wire.PlayTarget) or (
             isinstance(req, wire.SetAmplitudes) and before != wire.State.STREAMING)
         if starts and self.flags & wire.ConfigFlag.ONSET_EVENTS:
@@ -153,6 +169,15 @@ class FakeFirmware:
             return ack
         if isinstance(req, wire.GetStatus):
             return wire.Status(self.state, 0, 0, 0, 0, tuple(self.levels))
+        if isinstance(req, wire.SenseStart):
+            if self.sense_unavailable:
+                return wire.Nak(seq, wire.NakCode.UNAVAILABLE)
+            if not 1 <= req.duration_ms <= wire.SENSE_MAX_DURATION_MS or (
+                    req.tactor != wire.SENSE_ANY_TACTOR and req.tactor >= self.tactors):
+                return wire.Nak(seq, wire.NakCode.OUT_OF_RANGE)
+            return ack
+        if isinstance(req, wire.SenseStop):
+            return ack
         return None  # HEARTBEAT
 
 

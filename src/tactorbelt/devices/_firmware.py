@@ -32,6 +32,10 @@ What the belt does while open:
   ``unmatched_replies``), and :meth:`FirmwareBelt.last_onset` maps the one of the last
   stimulus start (a PLAY_TARGET, or the first SET_AMPLITUDES when not streaming) to
   host time.
+- The board's accelerometer (firmware 1.2, INFO capability bit 1): :meth:`FirmwareBelt.sense`
+  sends SENSE_START and returns a :class:`SenseRecording`, which collects the SENSE_DATA
+  batches (routed by the SENSE_START's seq, never to ``unmatched_replies``) and maps their
+  device time stamps to host time with the same clock fit as the onsets.
 - BLE with an ATT MTU below 67 (``Transport.reply_limit``): GET_DIAG first, then
   SET_CONFIG with the framed-replies flag before GET_INFO, so that replies come as
   COBS frames in MTU-sized pieces; NAK 5 (reply too long for the MTU) is reported as
@@ -69,7 +73,7 @@ from numpy.typing import NDArray
 from .._errors import ConfigError, DeviceError, ProtocolError
 from ..geometry import Layout
 from . import wire
-from ._clocksync import ClockSync
+from ._clocksync import ClockFit, ClockSync
 from .base import Belt
 from .calibration import Calibration
 
@@ -80,6 +84,7 @@ __all__ = [
     "DEFAULT_TIMEOUT_S",
     "FirmwareBelt",
     "PacketSink",
+    "SenseRecording",
     "Transport",
     "layout_from_info",
 ]
@@ -106,12 +111,16 @@ BLE_MIN_MTU: Final = 67
 _ONSETS_KEPT: Final = 64
 #: Tactor angles within this of the default layout's are taken as the default layout.
 _EVEN_LAYOUT_TOLERANCE_DEG: Final = 0.0051
+#: How long :meth:`FirmwareBelt.sense` waits for the first samples after the ACK.
+SENSE_FIRST_TIMEOUT_S: Final = 1.0
+#: How long :meth:`SenseRecording.stop` waits for the session's last batch after the ACK.
+SENSE_LAST_TIMEOUT_S: Final = 1.0
 
 _LAW_CODES: Final = {"paper": wire.Law.PAPER, "linear": wire.Law.LINEAR, "energy": wire.Law.ENERGY}
 _MODE_CODES: Final = {"static": wire.Mode.STATIC, "dynamic": wire.Mode.DYNAMIC}
 _REPLY_TYPES: Final = frozenset(
     {wire.MsgType.ACK, wire.MsgType.PONG, wire.MsgType.INFO, wire.MsgType.STATUS,
-     wire.MsgType.DIAG, wire.MsgType.ONSET, wire.MsgType.NAK}
+     wire.MsgType.DIAG, wire.MsgType.ONSET, wire.MsgType.SENSE_DATA, wire.MsgType.NAK}
 )
 _SYNC_TYPES: Final = frozenset({wire.MsgType.PING, wire.MsgType.GET_DIAG})
 
@@ -233,6 +242,247 @@ def _ms(value_s: float, what: str, lo: int, hi: int) -> int:
     return ms
 
 
+class SenseRecording:
+    """Samples of the accelerometer on a firmware belt's own board, with host-clock times.
+
+    Made by :meth:`FirmwareBelt.sense`, which returns once the first samples arrived; the
+    device goes on sampling until the duration has passed or :meth:`stop`. A context
+    manager: ``with belt.sense(10.0) as rec: ...`` stops it on exit.
+
+    The device samples on its own microsecond clock, every ``period_us`` (sample k of a
+    batch at ``t0 + k * period``, each read within half a period after its stamp); the
+    times :meth:`samples` gives are those stamps mapped to ``time.perf_counter_ns`` (the
+    WallClock, as :meth:`FirmwareBelt.last_onset`) with the belt's clock fit as it is when
+    asked (so later calls use more round trips), give or take :attr:`uncertainty_ns`. The
+    IMU's own delays (the age of its last conversion, at most one of its periods, and its
+    filter's) are not taken off.
+
+    Samples the device or the link lost show as gaps in the batches' indices:
+    :meth:`lost` counts them, :meth:`problem` says so for an interval. Thread-safe: the
+    belt's reader thread adds batches while callers read.
+
+    Attributes:
+        tactor: the tactor the board was said to be on (None: not said).
+        rate_hz: the sampling rate, ``1e6 / period_us``.
+        period_us: the sampling period (us).
+        full_scale_g: the acceleration of a raw value of 32768 (g).
+        duration_s: how long the device was asked to sense.
+    """
+
+    def __init__(self, belt: FirmwareBelt, tactor: int | None, duration_s: float) -> None:
+        self._belt = belt
+        self.tactor = tactor
+        self.duration_s = duration_s
+        self.seq = -1
+        self.period_us = 0
+        self.rate_hz = 0.0
+        self.full_scale_g = 0.0
+        self._cond = threading.Condition()
+        self._chunks_t: list[NDArray[np.int64]] = []
+        self._chunks_a: list[NDArray[np.int16]] = []
+        self._t_us: NDArray[np.int64] = np.zeros(0, dtype=np.int64)
+        self._acc: NDArray[np.int16] = np.zeros((0, 3), dtype=np.int16)
+        self._next_index = 0
+        self._last_t_us: int | None = None
+        self._gaps: list[tuple[int, int, int]] = []  # (after device us, before device us, n)
+        self._first = False
+        self.finished = False
+        self._broken: str | None = None
+        self._fit: ClockFit | None = None
+
+    # -- the reader thread -----------------------------------------------------------
+    def _add(self, batch: wire.SenseData) -> None:
+        n = batch.n_samples
+        with self._cond:
+            if not self._first:
+                self._first = True
+                self.period_us = batch.period_us
+                self.rate_hz = 1e6 / batch.period_us
+                self.full_scale_g = batch.full_scale_mg / 1000.0
+            if batch.first_index > self._next_index:
+                after = self._last_t_us if self._last_t_us is not None else batch.t0_us
+                self._gaps.append((after, batch.t0_us, batch.first_index - self._next_index))
+            if n:
+                t = batch.t0_us + batch.period_us * np.arange(n, dtype=np.int64)
+                self._chunks_t.append(t)
+                self._chunks_a.append(np.asarray(batch.samples, dtype=np.int16).reshape(n, 3))
+                self._last_t_us = int(t[-1])
+            self._next_index = max(self._next_index, batch.first_index + n)
+            if batch.last:
+                self.finished = True
+            self._cond.notify_all()
+
+    def _end(self, reason: str, fit: ClockFit | None = None) -> None:
+        """The recording stops here (the belt closed, was lost or restarted); with ``fit``,
+        its times stay mapped with that fit (the device clock it was taken on)."""
+        with self._cond:
+            if fit is not None and self._fit is None:
+                self._fit = fit
+            if not self.finished and self._broken is None:
+                self._broken = reason
+            self._cond.notify_all()
+
+    # -- the caller's side -------------------------------------------------------------
+    @property
+    def active(self) -> bool:
+        """True while the device may still send samples of this recording."""
+        with self._cond:
+            return not self.finished and self._broken is None
+
+    @property
+    def interrupted(self) -> str | None:
+        """Why the recording ended before its time (the belt closed, lost, restarted), or
+        None."""
+        with self._cond:
+            return self._broken
+
+    def __len__(self) -> int:
+        with self._cond:
+            return int(self._t_us.shape[0]) + sum(c.shape[0] for c in self._chunks_t)
+
+    def _consolidate(self) -> tuple[NDArray[np.int64], NDArray[np.int16]]:
+        with self._cond:
+            if self._chunks_t:
+                self._t_us = np.concatenate([self._t_us, *self._chunks_t])
+                self._acc = np.concatenate([self._acc, *self._chunks_a])
+                self._chunks_t, self._chunks_a = [], []
+            return self._t_us, self._acc
+
+    def _current_fit(self) -> ClockFit:
+        fit = self._fit or self._belt.clock_sync.fit()
+        if fit is None:  # pragma: no cover - the belt syncs before sense() returns
+            raise DeviceError(f"the belt on {self._belt.port} has no clock mapping yet")
+        return fit
+
+    @staticmethod
+    def _to_host(fit: ClockFit, device_us: NDArray[np.int64]) -> NDArray[np.int64]:
+        d = device_us.astype(np.float64)
+        host = d * 1000.0 + fit.offset_ns + fit.drift * (d - fit.ref_us) * 1000.0
+        return np.asarray(np.rint(host), dtype=np.int64)
+
+    @staticmethod
+    def _to_device(fit: ClockFit, host_ns: int) -> float:
+        # the inverse of _to_host (the fit is linear in device time)
+        return (host_ns - fit.offset_ns + fit.drift * fit.ref_us * 1000.0) / (
+            1000.0 * (1.0 + fit.drift))
+
+    def samples(self, t0_ns: int | None = None, t1_ns: int | None = None
+                ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+        """The samples taken in [t0, t1) (host ns; None: from the first, to the last).
+
+        Returns:
+            ``(t_ns, acc)``: host times (int64 ns on ``time.perf_counter_ns``, increasing
+            within a batch; a late read starts a new batch), and acceleration (float64,
+            shape (n, 3): x, y, z of the board in g).
+        """
+        t_us, acc = self._consolidate()
+        fit = self._current_fit()
+        lo = 0 if t0_ns is None else int(np.searchsorted(
+            t_us, math.ceil(self._to_device(fit, t0_ns) - 1.0), "left"))
+        hi = t_us.shape[0] if t1_ns is None else int(np.searchsorted(
+            t_us, math.floor(self._to_device(fit, t1_ns) + 1.0), "right"))
+        t_ns = self._to_host(fit, t_us[lo:hi])
+        keep = np.ones(t_ns.shape[0], dtype=bool)
+        if t0_ns is not None:
+            keep &= t_ns >= t0_ns
+        if t1_ns is not None:
+            keep &= t_ns < t1_ns
+        g = acc[lo:hi][keep].astype(np.float64) * (self.full_scale_g / 32768.0)
+        return np.asarray(t_ns[keep]), g
+
+    @property
+    def uncertainty_ns(self) -> int:
+        """How far off the mapped times may be: half the fastest round trips, the fit's
+        error (at the middle of the recording) and the device clock's resolution."""
+        t_us, _ = self._consolidate()
+        mid = int(t_us[t_us.shape[0] // 2]) if t_us.shape[0] else 0
+        return self._current_fit().to_host(mid)[1]
+
+    def lost(self, t0_ns: int | None = None, t1_ns: int | None = None) -> int:
+        """Samples lost (on the device or the link) in [t0, t1) (host ns; None: all): each
+        gap in the indices counts whole when it overlaps the interval."""
+        with self._cond:
+            gaps = list(self._gaps)
+        if not gaps:
+            return 0
+        fit = self._current_fit()
+        lo = -math.inf if t0_ns is None else self._to_device(fit, t0_ns)
+        hi = math.inf if t1_ns is None else self._to_device(fit, t1_ns)
+        return sum(n for after, before, n in gaps if before > lo and after < hi)
+
+    def problem(self, t0_ns: int | None = None, t1_ns: int | None = None) -> str | None:
+        """Why [t0, t1) cannot be used as it is (samples lost in it, the recording ended
+        before its end), or None."""
+        n = self.lost(t0_ns, t1_ns)
+        if n:
+            return (f"{n} sample{'s' if n != 1 else ''} of the board's IMU were lost in the "
+                    "interval (the link did not keep up, or the IMU did not answer)")
+        with self._cond:
+            broken = self._broken
+            last = self._last_t_us
+        if broken is not None and t1_ns is not None and (
+                last is None or self._to_host(self._current_fit(),
+                                              np.array([last], dtype=np.int64))[0] < t1_ns):
+            return f"the recording ended early: {broken}"
+        return None
+
+    def wait_for(self, t_ns: int, timeout_s: float = 2.0) -> bool:
+        """Wait until samples at or after host time ``t_ns`` have arrived. False when the
+        recording ends before it or ``timeout_s`` passes."""
+        deadline = time.monotonic() + timeout_s
+        while True:
+            with self._cond:
+                last = self._last_t_us
+                ended = self.finished or self._broken is not None
+            if last is not None and self._to_host(
+                    self._current_fit(), np.array([last], dtype=np.int64))[0] >= t_ns:
+                return True
+            left = deadline - time.monotonic()
+            if ended or left <= 0:
+                return False
+            with self._cond:
+                self._cond.wait(min(left, 0.05))
+
+    def forget_before(self, t_ns: int) -> None:
+        """Drop the samples before host time ``t_ns`` (a long recording need not keep them)."""
+        t_us, _ = self._consolidate()
+        cut = int(np.searchsorted(t_us, math.floor(self._to_device(self._current_fit(), t_ns)),
+                                  "left"))
+        with self._cond:
+            self._t_us = self._t_us[cut:]
+            self._acc = self._acc[cut:]
+
+    def stop(self) -> None:
+        """End the recording now (SENSE_STOP) and wait for its last samples. Safe to call
+        twice, and after the belt closed.
+
+        Raises:
+            DeviceError: the belt stopped answering.
+        """
+        if not self.active:
+            return
+        self._belt._stop_sensing(self)
+        with self._cond:
+            self._cond.wait_for(lambda: self.finished or self._broken is not None,
+                                SENSE_LAST_TIMEOUT_S)
+            if not self.finished and self._broken is None:
+                self._broken = "its last samples did not arrive"
+            self.finished = True
+
+    def __enter__(self) -> SenseRecording:
+        return self
+
+    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
+                 tb: object) -> None:
+        with contextlib.suppress(DeviceError):
+            self.stop()
+
+    def __repr__(self) -> str:
+        state = "active" if self.active else "ended"
+        return (f"<SenseRecording of {self._belt.port}: {len(self)} samples at "
+                f"{self.rate_hz:g} Hz, {state}>")
+
+
 #: Belts still open, closed (motors stopped) at interpreter exit.
 _OPEN_BELTS: weakref.WeakSet[FirmwareBelt] = weakref.WeakSet()
 
@@ -274,6 +524,8 @@ class FirmwareBelt(Belt, PacketSink):
         diagnostics: the last DIAG (None without extensions).
         watchdog_reset: the device was reset by its watchdog (before or while open).
         onset_events: ONSET events are on (see :meth:`last_onset`).
+        stray_sense_batches: SENSE_DATA of no recording of this belt (an earlier
+            connection's, or one that came after its recording ended).
         framed_replies: BLE replies come as COBS frames (an MTU below 67).
         clock_sync: the device-to-host clock mapping (:class:`ClockSync`).
 
@@ -334,6 +586,11 @@ class FirmwareBelt(Belt, PacketSink):
         self._onset_seq: int | None = None
         self._streaming = False
         self._reset_seen = False
+        self._sense_lock = threading.Lock()
+        self._recordings: dict[int, SenseRecording] = {}  # by SENSE_START seq, until ended
+        self._all_recordings: weakref.WeakSet[SenseRecording] = weakref.WeakSet()
+        self._sensing: SenseRecording | None = None  # the device's current session
+        self.stray_sense_batches = 0
         # Belt.__init__ sets _closed; until it runs, __del__ must see a closed belt.
         self._closed = True
         transport.start(self)
@@ -398,6 +655,16 @@ class FirmwareBelt(Belt, PacketSink):
             self.bad_replies += 1
             log.debug("%s: ignoring a bad reply: %s", self.port, exc)
             return
+        if isinstance(reply, wire.SenseData):  # the header's seq is the SENSE_START's
+            with self._sense_lock:
+                rec = self._recordings.get(reply.session_seq)
+                if rec is not None and reply.last:
+                    del self._recordings[reply.session_seq]
+            if rec is None:
+                self.stray_sense_batches += 1
+            else:
+                rec._add(reply)
+            return
         if isinstance(reply, wire.Onset):  # follows the ACK of the same seq: no waiter
             with self._onset_cond:
                 self._onsets[reply.seq] = reply
@@ -423,11 +690,21 @@ class FirmwareBelt(Belt, PacketSink):
     def link_lost(self, reason: str) -> None:
         self._mark_lost(f"belt on {self.port} stopped answering: {reason}")
 
+    def _end_recordings(self, reason: str, fit: ClockFit | None = None) -> None:
+        """Every recording of this belt ends (``fit``: the clock fit their times keep)."""
+        with self._sense_lock:
+            recordings = list(self._all_recordings)
+            self._recordings.clear()
+            self._sensing = None
+        for rec in recordings:
+            rec._end(reason, fit)
+
     def _mark_lost(self, message: str) -> None:
         if self._lost is None:
             self._lost = message
             if not self._closing and not self._closed:
                 log.warning("%s", message)
+            self._end_recordings(message)
         with self._pending_lock:
             waiters = list(self._pending.values())
             self._pending.clear()
@@ -628,10 +905,13 @@ class FirmwareBelt(Belt, PacketSink):
             fit = self.clock_sync.fit()
             old = self.diagnostics
             if fit is not None and reply.device_time_us * 1000 + fit.offset_ns < send_ns - 1e9:
-                # the device clock went back: the device restarted
+                # the device clock went back: the device restarted; recordings keep the
+                # fit of the clock they were taken on
+                self._end_recordings("the belt restarted", fit)
                 self.clock_sync.reset()
                 self._device_restarted(reply)
             elif (old is not None and reply.watchdog_reset and not old.watchdog_reset):
+                self._end_recordings("the belt restarted", fit)
                 self._device_restarted(reply)
             self.diagnostics = reply
             self.clock_sync.add(send_ns, recv_ns, reply.device_time_us)
@@ -698,6 +978,119 @@ class FirmwareBelt(Belt, PacketSink):
         if got is None:
             return None
         return self.clock_sync.to_host(got.device_time_us)
+
+    # -- the board's accelerometer (firmware 1.2) -----------------------------------------
+    @property
+    def senses_vibration(self) -> bool:
+        """True when :meth:`sense` records the board's own accelerometer: firmware 1.2 (or
+        later) whose IMU started (INFO capability bit 1)."""
+        return self.extensions and self.info.can_sense
+
+    def _no_sense_message(self, imu_failed: bool = False) -> str:
+        if imu_failed:
+            return (f"the IMU of the board on {self.port} (firmware {self.firmware_version}) did "
+                    "not start: a Nano 33 BLE Rev1 (LSM9DS1) needs the firmware built with "
+                    "TACTORBELT_IMU_LSM9DS1, a Rev2 (BMI270) the default build "
+                    "(docs/hardware.md, \"The IMU\")")
+        from ..firmware import update_command
+
+        return (f"this board's firmware ({self.firmware_version} on {self.port}) cannot stream "
+                f"its IMU: {update_command(self._transport.usb_port)}")
+
+    def sense(self, duration_s: float | None = None, *, rate_hz: float | None = None,
+              tactor: int | None = None) -> SenseRecording:
+        """Record the board's accelerometer (SENSE_START): returns once the first samples
+        arrived; the device samples until ``duration_s`` has passed or
+        :meth:`SenseRecording.stop`.
+
+        Args:
+            duration_s: how long, up to an hour (None: an hour; stop it when done).
+            rate_hz: the sampling rate to ask for (None: the IMU's highest, 1600 Hz on a
+                Rev2 board, 952 on a Rev1); the device takes the highest it can at or
+                below it. Over BLE, a lower rate keeps the link from falling behind.
+            tactor: the tactor the board is on (the emulator simulates that one; a real
+                board senses whatever is under it). None: not said.
+
+        Raises:
+            DeviceError: the firmware cannot stream its IMU (older than 1.2: the message
+                names the upload command), the IMU did not start, or no samples came.
+            ConfigError: a duration, rate or tactor out of range.
+        """
+        self._check_open()
+        if not self.senses_vibration and (
+                not self.extensions or (self.info.fw_major, self.info.fw_minor) < (1, 2)):
+            raise DeviceError(self._no_sense_message())  # known without asking
+        if duration_s is None:
+            duration_ms = wire.SENSE_MAX_DURATION_MS
+        else:
+            try:
+                d = float(duration_s)
+            except (TypeError, ValueError):
+                d = math.nan
+            duration_ms = round(d * 1000.0) if math.isfinite(d) else -1
+            if not 1 <= duration_ms <= wire.SENSE_MAX_DURATION_MS:
+                raise ConfigError(f"duration_s must be 0.001 to "
+                                  f"{wire.SENSE_MAX_DURATION_MS // 1000} s, got {duration_s!r}")
+        rate = 0
+        if rate_hz is not None:
+            try:
+                r = float(rate_hz)
+            except (TypeError, ValueError):
+                r = math.nan
+            rate = round(r) if math.isfinite(r) else 0
+            if not 1 <= rate <= 0xFFFF:
+                raise ConfigError(f"rate_hz must be 1 to 65535 Hz, got {rate_hz!r}")
+        if tactor is not None and (isinstance(tactor, bool) or not isinstance(tactor, int)
+                                   or not 0 <= tactor < self.n_tactors):
+            raise ConfigError(f"tactor must be an index 0..{self.n_tactors - 1}, got {tactor!r}")
+        rec = SenseRecording(self, tactor, duration_ms / 1000.0)
+        t = wire.SENSE_ANY_TACTOR if tactor is None else tactor
+
+        def build(seq: int) -> wire.Packet:
+            rec.seq = seq
+            with self._sense_lock:
+                self._recordings[seq] = rec
+                self._all_recordings.add(rec)
+            return wire.sense_start(seq, rate, duration_ms, t)
+
+        what = "the sensing request"
+        try:
+            # without the capability bit, a firmware 1.2 says why: NAK 6 (its IMU did not
+            # start) or NAK 2 (a build without SENSE)
+            reply = self._request(build, what)
+            if isinstance(reply, wire.Nak) and reply.code == wire.NakCode.UNKNOWN_TYPE:
+                raise DeviceError(self._no_sense_message())
+            if isinstance(reply, wire.Nak) and reply.code == wire.NakCode.UNAVAILABLE:
+                raise DeviceError(self._no_sense_message(imu_failed=True))
+            self._expect(reply, wire.Ack, what)
+        except BaseException:
+            with self._sense_lock:
+                self._recordings.pop(rec.seq, None)
+            raise
+        with self._sense_lock:
+            # a recording running before ends on the device now (its last batch comes)
+            self._sensing = rec
+        with rec._cond:
+            got = rec._cond.wait_for(lambda: rec._first or rec._broken is not None,
+                                     SENSE_FIRST_TIMEOUT_S)
+        if not got or not rec._first:
+            rec._end("no samples came")
+            raise DeviceError(f"the belt on {self.port} accepted the sensing request but sent "
+                              f"no samples within {SENSE_FIRST_TIMEOUT_S:g} s")
+        return rec
+
+    def _stop_sensing(self, rec: SenseRecording) -> None:
+        """SENSE_STOP for ``rec`` when it is the device's current session (a newer one has
+        already ended it on the device)."""
+        with self._sense_lock:
+            current = self._sensing is rec
+        if not current or self._closed or self._lost is not None:
+            return
+        what = "the end of sensing"
+        self._expect(self._request(wire.sense_stop, what), wire.Ack, what)
+        with self._sense_lock:
+            if self._sensing is rec:
+                self._sensing = None
 
     # -- keep-alive --------------------------------------------------------------
     @property
@@ -847,6 +1240,7 @@ class FirmwareBelt(Belt, PacketSink):
 
     def _close(self) -> None:
         _OPEN_BELTS.discard(self)
+        self._end_recordings("the belt was closed", self.clock_sync.fit())
         self.stop_keepalive()
         self._transport.close()
         self._mark_lost(f"belt on {self.port} is closed")

@@ -27,6 +27,10 @@ probe a belt with ``getattr``/``hasattr``:
 - ``reports_onsets`` and ``last_onset()``: the device-true onset of the last stimulus
   start, mapped to host time with its uncertainty, ``(host_ns, uncertainty_ns)``
   (firmware 1.1 with ONSET events); None for belts that cannot tell.
+- ``senses_vibration`` and ``sense(duration_s, rate_hz=, tactor=)``: the belt's own board
+  records its accelerometer (firmware 1.2 with an IMU that started), a
+  :class:`~tactorbelt.devices._firmware.SenseRecording` with host-clock times; other
+  belts raise DeviceError.
 
 The :class:`tactorbelt.player.Player` picks between streaming and device-side
 rendering, so runners simply use a Player.
@@ -44,13 +48,14 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .._errors import ConfigError, TactorbeltError
+from .._errors import ConfigError, DeviceError, TactorbeltError
 from ..clock import Clock
 from ..geometry import Layout
 from .calibration import Calibration
 
 if TYPE_CHECKING:
     from ..stimuli import Stimulus
+    from ._firmware import SenseRecording
 
 __all__ = ["DEFAULT_STREAM_RATE_HZ", "Belt", "check_amplitudes"]
 
@@ -237,6 +242,23 @@ class Belt(ABC):
         has started. May wait up to ``timeout_s`` for the device's report.
         """
         return None
+
+    @property
+    def senses_vibration(self) -> bool:
+        """True when :meth:`sense` records the vibration with a sensor of the belt's own
+        (a firmware belt whose board's IMU streams: firmware 1.2)."""
+        return False
+
+    def sense(self, duration_s: float | None = None, *, rate_hz: float | None = None,
+              tactor: int | None = None) -> SenseRecording:
+        """Start recording the belt's own accelerometer: samples (host ns, g) until
+        ``duration_s`` passes or the recording's ``stop()``; see
+        :meth:`tactorbelt.devices._firmware.FirmwareBelt.sense`.
+
+        Raises:
+            DeviceError: the belt has no sensor of its own (``senses_vibration`` False).
+        """
+        raise DeviceError("this belt has no sensor of its own; give --sense URL")
 
     def vibration(self, t0_ns: int, t1_ns: int, rate_hz: float = 1000.0
                   ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:

@@ -3,7 +3,9 @@
 ``open_belt("emulator")`` builds ``firmware/build/emulator`` if needed (``make -C
 firmware emulator``; needs make and g++), starts it, reads the pseudo-terminal path
 it prints as its first line, and talks to it through the serial backend: the same
-frames, decoder, renderer and failsafe as on the board, with the host's clock.
+frames, decoder, renderer and failsafe as on the board, with the host's clock. Its board
+has an IMU (``imu``, a BMI270 by default) simulated from the ERM motor model, which
+``belt.sense()`` records as on a real board (docs/protocol.md, "The emulator").
 
 Closing the belt stops the motors, closes the port, then ends the emulator (closing
 its stdin, then SIGTERM, then SIGKILL if it lingers).
@@ -48,8 +50,10 @@ BUILD_TIMEOUT_S: Final = 300.0
 
 OPTIONS: Final = frozenset({
     "tactors", "layout", "heartbeat_ms", "levels_log", "build", "timeout_s", "calibration",
-    "keepalive", "clock", "firmware_dir", "extra_args", "watchdog_ms", "debug_frames",
+    "keepalive", "clock", "firmware_dir", "extra_args", "watchdog_ms", "debug_frames", "imu",
 })
+#: What the emulator's ``--imu`` takes.
+IMU_KINDS: Final = ("bmi270", "lsm9ds1", "none", "broken")
 
 #: The emulator's debug request that stops its loop (with ``--debug-frames``).
 DEBUG_HANG: Final = 0x7E
@@ -220,6 +224,9 @@ def open_emulator(target: str = "", **options: Any) -> EmulatorBelt:
                 belt reports the watchdog reset. Off by default.
             debug_frames (bool, False): accept DEBUG_HANG (0x7E), which stops the
                 emulator's loop until the watchdog resets it (:meth:`EmulatorBelt.hang`).
+            imu (str, "bmi270"): the board's simulated IMU: "bmi270" (1600 Hz, a Rev2
+                board), "lsm9ds1" (952 Hz, Rev1), "none" (no IMU streaming: firmware
+                1.1's behaviour), "broken" (an IMU that did not start).
             extra_args (list[str]): more emulator arguments.
             timeout_s, calibration, keepalive, clock: as for every firmware belt.
 
@@ -248,6 +255,9 @@ def open_emulator(target: str = "", **options: Any) -> EmulatorBelt:
         or not 50 <= heartbeat_ms <= 2000
     ):
         raise ConfigError(f"heartbeat_ms must be an integer in 50..2000, got {heartbeat_ms!r}")
+    imu = options.pop("imu", None)
+    if imu is not None and imu not in IMU_KINDS:
+        raise ConfigError(f"imu must be one of {', '.join(IMU_KINDS)}, got {imu!r}")
     fw = firmware_dir(options.pop("firmware_dir", None))
     if options.pop("build", True):
         exe = build_emulator(fw)
@@ -273,6 +283,8 @@ def open_emulator(target: str = "", **options: Any) -> EmulatorBelt:
     debug_frames = bool(options.pop("debug_frames", False))
     if debug_frames:
         args += ["--debug-frames"]
+    if imu is not None:
+        args += ["--imu", str(imu)]
     args += [str(a) for a in options.pop("extra_args", ())]
 
     with tempfile.TemporaryFile() as stderr:

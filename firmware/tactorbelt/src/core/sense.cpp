@@ -62,38 +62,42 @@ uint64_t SenseStream::next_due_us() const {
 }
 
 void SenseStream::poll(uint64_t now_us) {
-  if (active_ && now_us >= next_us_) {
-    uint64_t stamp = next_us_;
-    if (stamp < end_us_ && now_us - stamp > period_us_ / 2u) {
-      // Read too late for its slot: the batch so far keeps its exact times, and this
-      // sample starts the next one at the time it is read.
-      close_batch(0);
-      stamp = now_us;
-    }
-    if (stamp >= end_us_) {
-      finish();
-    } else {
-      int16_t xyz[3] = {0, 0, 0};
-      if (acc_->read(stamp, xyz)) {
-        if (batch_n_ == 0) {
-          batch_t0_ = stamp;
-          batch_index_ = index_;
-        }
-        for (int a = 0; a < 3; ++a) batch_[batch_n_][a] = xyz[a];
-        ++batch_n_;
-        if (batch_n_ == kSenseMaxSamples) close_batch(0);
-      } else {
-        // a failed read: the sample is lost (its index is skipped)
-        close_batch(0);
-        pending_flags_ |= sense_flag::kDropped;
-      }
-      ++index_;
-      next_us_ = stamp + period_us_;
-    }
-  } else if (active_ && now_us >= end_us_) {
-    finish();
-  }
+  const bool catch_up = acc_ != nullptr && acc_->reads_past();
+  const uint8_t reads = catch_up ? kSenseMaxSamples : 1;
+  for (uint8_t i = 0; i < reads && active_ && now_us >= next_us_; ++i) take(now_us, catch_up);
+  if (active_ && now_us >= end_us_ && next_us_ > now_us) finish();
   drain();
+}
+
+// The sample due at next_us_ (now_us >= next_us_), or the end of the session.
+void SenseStream::take(uint64_t now_us, bool catch_up) {
+  uint64_t stamp = next_us_;
+  if (!catch_up && stamp < end_us_ && now_us - stamp > period_us_ / 2u) {
+    // Read too late for its slot: the batch so far keeps its exact times, and this
+    // sample starts the next one at the time it is read.
+    close_batch(0);
+    stamp = now_us;
+  }
+  if (stamp >= end_us_) {
+    finish();
+    return;
+  }
+  int16_t xyz[3] = {0, 0, 0};
+  if (acc_->read(stamp, xyz)) {
+    if (batch_n_ == 0) {
+      batch_t0_ = stamp;
+      batch_index_ = index_;
+    }
+    for (int a = 0; a < 3; ++a) batch_[batch_n_][a] = xyz[a];
+    ++batch_n_;
+    if (batch_n_ == kSenseMaxSamples) close_batch(0);
+  } else {
+    // a failed read: the sample is lost (its index is skipped)
+    close_batch(0);
+    pending_flags_ |= sense_flag::kDropped;
+  }
+  ++index_;
+  next_us_ = stamp + period_us_;
 }
 
 void SenseStream::finish() {

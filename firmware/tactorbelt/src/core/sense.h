@@ -7,7 +7,9 @@
 // sensor once it is due. A sample is stamped with its due time when it is read within
 // half a period of it; a read later than that (a long loop pass) starts a new batch
 // stamped with the time of the read. So every sample was read between its stamp and
-// half a period after it, and the samples of one batch are exactly `period` apart.
+// half a period after it, and the samples of one batch are exactly `period` apart. (A
+// sensor model that can be read in the past, Accelerometer::reads_past, catches up on
+// the slots it missed instead.)
 // The sensor's own output (its last conversion at its output data rate) is what the
 // read returns: at most one of its periods old, plus its filter's delay.
 #pragma once
@@ -39,6 +41,10 @@ class Accelerometer {
   // One sample of the three axes, read now; stamp_us is the device time it will carry
   // (at most half a period before now). False when the read failed.
   virtual bool read(uint64_t stamp_us, int16_t xyz[3]) = 0;
+  // True for a sensor that gives the value at any time already past (the emulator's
+  // model): a poll that comes late reads the slots it missed at their own stamps (up to a
+  // batch per poll) instead of starting a new batch at the time of the read.
+  virtual bool reads_past() const { return false; }
 
  protected:
   ~Accelerometer() = default;
@@ -89,6 +95,7 @@ class SenseStream {
   size_t queued() const { return q_size_; }
 
  private:
+  void take(uint64_t now_us, bool catch_up);
   void close_batch(uint8_t flags);
   void finish();
   void drain();
