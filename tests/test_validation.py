@@ -305,18 +305,18 @@ def test_the_command_on_sim_virtual_creates_the_calibration(tmp_path: Path) -> N
 ])
 def test_the_command_refuses_clearly(tmp_path: Path, args: list[str], code: int,
                                      message: str) -> None:
-    proc = tactorbelt("validate", "onsets", "--belt", "sim:virtual", "-o", str(tmp_path),
+    proc = tactorbelt("validate", "onsets", "--belt", "sim:virtual", "-o", str(tmp_path / "out"),
                       *args)
     assert proc.returncode == code, proc.stderr
     assert re.search(message, proc.stderr), proc.stderr
     assert "Traceback" not in proc.stderr
-    assert not (tmp_path / "validation.json").exists()
+    assert not (tmp_path / "out").exists()
 
 
 def test_ctrl_c_during_the_pulses_stops_with_the_motors_off_and_writes_nothing(
         tmp_path: Path) -> None:
     proc = subprocess.Popen([sys.executable, "-m", "tactorbelt", "validate", "onsets",
-                             "--belt", "sim", "--pulses", "50", "-o", str(tmp_path)],
+                             "--belt", "sim", "--pulses", "50", "-o", str(tmp_path / "out")],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         assert proc.stdout is not None
@@ -329,4 +329,4 @@ def test_ctrl_c_during_the_pulses_stops_with_the_motors_off_and_writes_nothing(
             proc.kill()
     assert proc.returncode == 130, err
     assert "stopped: motors off; nothing written" in err and "error" not in err
-    assert not (tmp_path / "validation.json").exists()
+    assert not (tmp_path / "out").exists()

@@ -307,6 +307,8 @@ def validate_onsets(belt: Belt, sensor: Sensor, settings: OnsetSettings | None =
             measure(p)
 
     free_at: dict[int, int] = {}  # when each tactor has rested after its last pulse
+    if progress is not None:
+        progress(0, total)
     sensor.start()
     t_next = int(clock.now_ns()) + round(s.lead_s * 1e9)
     try:
@@ -390,16 +392,23 @@ def run_onsets(belt_url: str, out_dir: str | Path, *, sense_url: str | None = No
     calibration = None
     if calibration_file is not None and Path(calibration_file).exists():
         calibration = Calibration.load(calibration_file)
+    made = not out.exists()
     try:
-        out.mkdir(parents=True, exist_ok=True)
+        out.mkdir(parents=True, exist_ok=True)  # before the pulses: fail early
     except OSError as exc:
         raise ConfigError(f"cannot create output directory {str(out)!r}: {exc.strerror}"
                           ) from None
-    belt = open_belt(belt_url, **({"calibration": calibration} if calibration else {}))
-    with belt, open_sensor(sense_url, belt) as sensor:
-        if on_open is not None:
-            on_open(belt, sensor)
-        result = validate_onsets(belt, sensor, settings, progress)
+    try:
+        belt = open_belt(belt_url, **({"calibration": calibration} if calibration else {}))
+        with belt, open_sensor(sense_url, belt) as sensor:
+            if on_open is not None:
+                on_open(belt, sensor)
+            result = validate_onsets(belt, sensor, settings, progress)
+    except BaseException:  # an error, Ctrl-C, SIGTERM: leave no empty directory behind
+        if made:
+            with contextlib.suppress(OSError):
+                out.rmdir()
+        raise
     paths = {"results": results}
     text = json.dumps(result.to_dict(), indent=2, allow_nan=False) + "\n"
     tmp = results.with_name(f".{RESULTS}.tmp")
