@@ -74,10 +74,7 @@ class Table:
     unique: tuple[tuple[str, ...], ...] = ()
     primary_key: tuple[str, ...] = ()
     only: str | None = None
-    order: str = "rowid"
-
-    def column(self, name: str) -> Column:
-        return next(c for c in self.columns if c.name == name)
+    order: str = ""
 
 
 @dataclass(frozen=True)
@@ -396,9 +393,3 @@ def bare_statements(extra_columns: bool = False) -> list[str]:
                 "ALTER TABLE trials ADD COLUMN notes TEXT"]
     return out
 
-
-#: The columns every store has (a bare store too): table -> column names.
-REQUIRED_COLUMNS: dict[str, tuple[str, ...]] = {
-    name: tuple(c.name for c in table(name).columns if c.required)
-    for name in ("sessions", "trials", "samples")
-}

@@ -100,13 +100,15 @@ class SqlStore(Store):
     def _sql(self, text: str) -> str:
         return self.dialect.sql(text)
 
-    def _insert(self, c: Any, name: str, row: Mapping[str, Any], key: str) -> int:
-        """Insert ``row`` into table ``name``; the new row's ``key`` (its id)."""
-        cols = list(row)
-        sql = self.dialect.insert(name, cols)
+    def _new_id(self, c: Any, sql: str, values: Sequence[Any], key: str) -> int:
+        """Run an INSERT of one row; the new row's ``key`` (its id)."""
         if self.dialect.returning:
-            return int(c.execute(f"{sql} RETURNING {key}", [row[k] for k in cols]).fetchone()[0])
-        return int(c.execute(sql, [row[k] for k in cols]).lastrowid or 0)
+            return int(c.execute(f"{sql} RETURNING {key}", values).fetchone()[0])
+        return int(c.execute(sql, values).lastrowid or 0)
+
+    def _insert(self, c: Any, name: str, row: Mapping[str, Any], key: str) -> int:
+        """Insert ``row`` into table ``name``; the new row's ``key``."""
+        return self._new_id(c, self.dialect.insert(name, list(row)), list(row.values()), key)
 
     def _has_table(self, name: str) -> bool:
         """Whether the store has table ``name`` (a store of an older schema, opened
@@ -268,10 +270,7 @@ class SqlStore(Store):
 
     def _insert_trial_row(self, c: Any, values: list[Any], attempts: int) -> int:
         values[_ATTEMPTS] = attempts
-        if self.dialect.returning:
-            return int(c.execute(self._insert_trial_sql + " RETURNING trial_id", values)
-                       .fetchone()[0])
-        return int(c.execute(self._insert_trial_sql, values).lastrowid or 0)
+        return self._new_id(c, self._insert_trial_sql, values, "trial_id")
 
     def _replace_aborted(self, c: Any, session_id: int, trial_index: int) -> int | None:
         """Delete the trial's earlier ``aborted`` row (and its samples); the attempt the new
