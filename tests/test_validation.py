@@ -84,13 +84,16 @@ def test_sim_virtual_measures_the_models_analytic_latency_rise_and_fall(
 def test_sim_on_the_wall_clock_measures_the_same() -> None:
     latency, rise, fall = analytic(ErmParams())
     with open_belt("sim") as belt, open_sensor(None, belt) as sensor:
-        result = validate_onsets(belt, sensor, OnsetSettings(pulses=2, lead_s=0.05),
+        result = validate_onsets(belt, sensor, OnsetSettings(pulses=3, lead_s=0.05),
                                  tactors=[2])
     (t,) = result.tactors
     d = t.to_dict()
-    assert t.tactor == 2 and d["pulses"] == 2
-    # host stamps a little before the sim belt's own: a few tens of microseconds later
-    assert d["latency_ms"] == pytest.approx(latency, rel=0.05)
+    assert t.tactor == 2 and d["pulses"] == 3
+    # the host stamp comes before the sim belt's own by what set_amplitudes takes (tens
+    # of microseconds; more where the OS preempted the thread): never early
+    got = [p.latency_ms for p in t.pulses]
+    assert min(got) >= latency * (1 - TOLERANCE)
+    assert min(got) == pytest.approx(latency, rel=0.03)
     assert d["rise_ms"] == pytest.approx(rise, rel=TOLERANCE)
     assert d["fall_ms"] == pytest.approx(fall, rel=TOLERANCE)
 
