@@ -20,8 +20,10 @@ from tactorbelt.analysis.power_model import (
     NamedEffect,
     TrialDesign,
     headline_coefficient,
+    headline_statistics,
     simulate_frame,
     simulate_glmm_studies,
+    simulate_null_lrt,
 )
 from tactorbelt.analysis.stats import fit_model
 from tactorbelt.experiment.study import Study, paper_study, template_toml
@@ -62,15 +64,40 @@ def test_the_report_model_recovers_the_named_odds_ratio() -> None:
 
 
 def test_large_effects_are_found_and_no_effect_rarely() -> None:
+    """Up to 16 participants the headline is the likelihood ratio referred to studies
+    simulated without an effect (the report's parametric bootstrap): a large effect is
+    found, no effect about as rarely as alpha / 2 in the named direction."""
     design = TrialDesign.from_study(paper_study())
-    big = simulate_glmm_studies(design, NamedEffect(4.0), 6, range(8), seed=2)
+    ref = simulate_null_lrt(design, NamedEffect(4.0), 6, range(20), seed=2)
+    assert len(ref) == 20 and all(v > -1e-6 for v in ref)
+    big = simulate_glmm_studies(design, NamedEffect(4.0), 6, range(6), seed=2, null_lrt=ref)
     assert all(o.found(0.05) for o in big)
-    null = simulate_glmm_studies(design, NamedEffect(1.000001), 8, range(20), seed=2)
-    assert sum(o.found(0.05) for o in null) <= 4  # one-sided rate ~0.025-0.05 (docs)
+    assert all(o.p_value == 1 / 21 for o in big)  # above every null ratio: (1 + 0) / (1 + 20)
+    null = simulate_glmm_studies(design, NamedEffect.no_effect(), 6, range(12), seed=3,
+                                 null_lrt=ref)
+    assert sum(o.found(0.05) for o in null) <= 3
     # OR < 1 names "static better": found in that direction
-    reverse = simulate_glmm_studies(design, NamedEffect(1 / 4.0), 6, range(4), seed=2)
+    reverse = simulate_glmm_studies(design, NamedEffect(1 / 4.0), 6, range(3), seed=2,
+                                    null_lrt=ref)
     assert all(o.found(0.05) for o in reverse)
     assert all(np.mean(o.static_acc) > np.mean(o.dynamic_acc) for o in reverse)
+    with pytest.raises(ValueError, match="null_lrt"):
+        simulate_glmm_studies(design, NamedEffect(4.0), 6, range(1), seed=2)
+
+
+def test_above_16_participants_power_uses_the_chi_square_p_of_the_likelihood_ratio() -> None:
+    design = TrialDesign.from_study(paper_study())
+    frame = simulate_frame(design, NamedEffect(2.0), 17, np.random.default_rng([5, 17, 0]))
+    res = headline_statistics(frame)
+    (out,) = simulate_glmm_studies(design, NamedEffect(2.0), 17, [0], seed=5)
+    assert out.p_value == pytest.approx(res.lrt_p) and res.lrt > 0
+    assert out.direction_ok == (res.estimate < 0)
+
+
+def test_null_effect_is_an_odds_ratio_of_one() -> None:
+    eff = NamedEffect.no_effect(accuracy=0.6)
+    assert eff.odds_ratio == 1.0 and eff.headline == 0.0 and eff.accuracy == 0.6
+    assert eff.dynamic_accuracy() == pytest.approx(0.6)
 
 
 @pytest.mark.parametrize("kwargs, message", [
@@ -91,6 +118,10 @@ def test_a_factorial_study_needs_the_count_named() -> None:
     d = TrialDesign.from_study(study, 36)
     assert d.n_targets == 36 and np.unique(d.target_deg).size == 36
     assert d.n == 36 * 2 * 2  # static and dynamic blocks of 36, 2 repetitions each
+    every = TrialDesign.from_study(study, all_counts=True)
+    assert every.counts is not None and every.n == (12 + 24 + 36 + 48) * 2 * 2
+    frame = simulate_frame(every, NamedEffect(2.0), 3, np.random.default_rng(0))
+    assert sorted(frame["n_targets"].unique().tolist()) == [12, 24, 36, 48]
 
 
 def test_power_command_with_named_effect(tmp_path) -> None:  # type: ignore[no-untyped-def]
@@ -98,7 +129,7 @@ def test_power_command_with_named_effect(tmp_path) -> None:  # type: ignore[no-u
     proc = tactorbelt("power", "--odds-ratio", "3", "--participants", "3,6", "--sims", "4",
                       "--jobs", "1", "-o", str(out))
     assert proc.returncode == 0, proc.stderr
-    assert "GLMM" in proc.stdout and "conditionstatic" in proc.stdout
+    assert "GLMM" in proc.stdout and "likelihood ratio" in proc.stdout
     doc = json.loads((out / "power.json").read_text())
     assert "headline" in doc["test"] and doc["effect_sizes"]["odds_ratio"] == 3.0
     assert [r["n_participants"] for r in doc["rows"]] == [3, 6]

@@ -37,7 +37,7 @@ from ._errors import ConfigError
 if TYPE_CHECKING:
     import numpy as np
 
-    from .analysis.power_model import NamedEffect, TrialDesign
+    from .analysis.power_model import NamedEffect
     from .analysis.stats import Summary
     from .experiment.study import Study
     from .participant.factorial import Effect, FactorialProtocol
@@ -278,15 +278,6 @@ def _factorial_chunk(args: tuple[FactorialProtocol, tuple[StimulusCues, ...], Ef
                                       analysis_paired_test)
 
 
-def _glmm_chunk(args: tuple[TrialDesign, NamedEffect, int, list[int], int]
-                ) -> list[StudyOutcome]:
-    """Worker: simulate and fit some model-based studies of one size (for processes)."""
-    from .analysis.power_model import simulate_glmm_studies
-
-    design, named, n, indices, seed = args
-    return simulate_glmm_studies(design, named, n, indices, seed)
-
-
 def _pool(worker: Callable[[Any], list[StudyOutcome]], work: list[tuple[int, Any]],
           sizes: Sequence[int], jobs: int, alpha: float,
           advance: Callable[[int], None] | None) -> list[PowerRow]:
@@ -408,8 +399,11 @@ def _write_power(rows: Sequence[PowerRow], out: Path, doc: dict[str, Any],
 #: what a model-based power analysis tests, in words (power.json, the CLI and the plot).
 NAMED_TEST = ("the report's headline test: the binomial GLMM of accuracy (correct ~ "
               "condition * on_tactor + (1 + condition | participant) + (1 | target), "
-              "simplified while singular by the report's rule; Laplace maximum likelihood), "
-              "Wald z on conditionstatic; found = p < alpha with the named sign")
+              "simplified while singular by the report's rule; Laplace maximum likelihood) "
+              "against the same model without the condition terms: the likelihood ratio "
+              "referred to its distribution in studies simulated without an effect (the "
+              "report's parametric bootstrap) up to 16 participants, its chi-square p "
+              "above; found = p < alpha with the named sign")
 
 
 def _named_power(study: Study, eff: Effect, named: NamedEffect, sizes: Sequence[int],
@@ -426,9 +420,10 @@ def _named_power(study: Study, eff: Effect, named: NamedEffect, sizes: Sequence[
     if min(sizes) < 3:
         raise ConfigError("the report's mixed model needs at least 3 participants: use "
                           "study sizes of 3 or more with --odds-ratio")
+    from .analysis.power_model import named_power
+
     design = TrialDesign.from_study(study, eff.n_targets)
-    work = [(n, (design, named, n, idx, seed)) for n in sizes for idx in _chunks(sims, jobs)]
-    rows = _pool(_glmm_chunk, work, sizes, jobs, alpha, advance)
+    rows = named_power(design, named, sizes, sims, seed, jobs, alpha, advance)
     what = (f"odds ratio {named.odds_ratio:g} (dynamic over static, {design.n_targets} "
             "targets)")
     _write_power(rows, out, {

@@ -188,6 +188,9 @@ class MixedModelFit:
     n_cells: int = 0
     groups: dict[str, int] = field(default_factory=dict)
     criterion: str = "ML (Laplace)"
+    #: per fixed effect, lmerTest's Satterthwaite ``df``, ``t``, ``p`` (an LMM fitted by
+    #: R with lmerTest; None otherwise)
+    satterthwaite: dict[str, dict[str, float]] | None = None
 
     def zero_components(self) -> list[str]:
         """Names of theta elements bounded by 0 and estimated below :data:`SINGULAR_TOL`
@@ -828,8 +831,40 @@ def _minimize_fg(fg: Any, x0: np.ndarray, lower: Sequence[float], *, ftol: float
     return np.asarray(res.x, dtype=float), ok, msg
 
 
-def _stage2(lap: _Laplace, par0: np.ndarray,
-            lower: list[float]) -> tuple[np.ndarray, bool, str]:
+def _escape_boundary(lap: _Laplace, par: np.ndarray, dev: float, lower: list[float],
+                     ftol: float, ok: bool, msg: str) -> tuple[np.ndarray, float, bool, str]:
+    """Leave a variance component at 0 only where 0 is a minimum along it.
+
+    The deviance is even in a diagonal element of theta at 0, so its gradient there is
+    0 whether 0 is a minimum or a maximum along it; a gradient method started at 0 (a
+    simplified model started from a singular fit) stays there. Where a positive value
+    of such an element lowers the deviance, stage 2 is run again from it (lme4's
+    derivative-free optimisers probe such steps by themselves).
+    """
+    for _ in range(4):
+        zero = [i for i, lb in enumerate(lower) if lb == 0.0 and par[i] < SINGULAR_TOL]
+        best = None
+        for i in zero:
+            for delta in (0.05, 0.2, 0.5, 1.0):
+                trial = par.copy()
+                trial[i] = delta
+                d = lap.dev(trial)
+                if d < dev - 1e-6 and (best is None or d < best[0]):
+                    best = (d, trial)
+        lap.dev(par)  # the modes back at the optimum
+        if best is None:
+            break
+        new, ok_new, msg_new = _stage2(lap, best[1], lower, ftol=ftol)
+        d_new = lap.dev(new)
+        if d_new >= dev:
+            lap.dev(par)
+            break
+        par, dev, ok, msg = new, d_new, ok_new, msg_new
+    return par, dev, ok, msg
+
+
+def _stage2(lap: _Laplace, par0: np.ndarray, lower: list[float],
+            ftol: float = 1e-12) -> tuple[np.ndarray, bool, str]:
     """Minimise the Laplace deviance over (theta, beta) from ``par0``.
 
     beta is preconditioned: optimised as ``gamma = C'(beta - beta0)`` with ``C C'`` the
@@ -851,7 +886,8 @@ def _stage2(lap: _Laplace, par0: np.ndarray,
         f, g = lap.dev_and_grad(to_par(z), lo)
         return f, np.r_[g[:k], np.linalg.solve(c, g[k:])]
 
-    z, ok, msg = _minimize_fg(fg, np.r_[par0[:k], np.zeros(lap.p)], lower + [-np.inf] * lap.p)
+    z, ok, msg = _minimize_fg(fg, np.r_[par0[:k], np.zeros(lap.p)], lower + [-np.inf] * lap.p,
+                              ftol=ftol)
     return to_par(z), ok, msg
 
 
@@ -1030,7 +1066,7 @@ def fit_glmm(df: pd.DataFrame, spec: ModelSpec, *, skip_se_if_simplified: bool =
 
 def glmm_fit(data: GlmmData, y: np.ndarray | None = None, *,
              skip_se_if_simplified: bool = False, start_par: np.ndarray | None = None,
-             se: bool = True) -> MixedModelFit:
+             se: bool = True, ftol: float = 1e-12) -> MixedModelFit:
     """:func:`fit_glmm` on prepared data, optionally with another per-row response ``y``
     (a refit, as lme4's ``refit(m, newresp = y)``) and a starting ``(theta, beta)``."""
     spec = data.spec
@@ -1051,8 +1087,9 @@ def glmm_fit(data: GlmmData, y: np.ndarray | None = None, *,
         lap.dev_theta(theta1)
         par0 = np.r_[theta1, lap.beta_joint]
     # stage 2 (nAGQ = 1): the Laplace deviance over (theta, beta)
-    par, ok2, msg2 = _stage2(lap, par0, lower)
+    par, ok2, msg2 = _stage2(lap, par0, lower, ftol=ftol)
     dev = lap.dev(par)
+    par, dev, ok2, msg2 = _escape_boundary(lap, par, dev, lower, ftol, ok2, msg2)
     theta, beta = par[: lap.n_theta], par[lap.n_theta:]
     theta_names = data.theta_names
     singular = bool(any(th < SINGULAR_TOL for th, lb in zip(theta, lower, strict=True)
