@@ -130,6 +130,25 @@ def test_the_command_time_is_the_device_onset_where_the_belt_reports_it() -> Non
     assert result.onset_uncertainty_ms == pytest.approx(0.1)
 
 
+@pytest.mark.emulator
+def test_the_boards_own_imu_senses_the_emulators_motors(emulator_exe: Path) -> None:
+    """The emulator's board simulates its IMU from the same ERM model; its samples come
+    with device times mapped to the host clock, and the commands are timed from the
+    device's own onsets (firmware 1.1+)."""
+    latency, rise, fall = analytic(ErmParams())
+    with open_belt("emulator", build=False) as belt, open_sensor("board", belt) as sensor:
+        result = validate_onsets(belt, sensor, OnsetSettings(pulses=2), tactors=[1, 4])
+    assert result.onset_reference.startswith("device") and sensor.url == "board"
+    for t in result.tactors:
+        d = t.to_dict()
+        # the IMU's 1600 Hz samples, each read up to a period after its stamp, and a 5 ms
+        # window: within 5 % of the model
+        assert d["latency_ms"] == pytest.approx(latency, rel=0.05)
+        assert d["rise_ms"] == pytest.approx(rise, rel=0.05)
+        assert d["fall_ms"] == pytest.approx(fall, rel=0.05)
+        assert d["amplitudes"] == pytest.approx([2.0], rel=0.05)  # the emulator's 2 g
+
+
 class _Lossy(ModelSensor):
     """The model, but the first ``lose`` windows asked for report lost samples."""
 

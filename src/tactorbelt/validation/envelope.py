@@ -76,20 +76,22 @@ SETTLED: Final = 0.02
 TRACE_POINTS: Final = 1500
 
 
-def rectified_envelope(x: Any, rate_hz: float, window_s: float) -> FloatArray:
-    """The amplitude envelope of a vibration signal: ``pi/2`` x the centred moving mean of
-    ``|x|`` over ``round(window_s * rate_hz)`` samples (at least 1; the ends average the
-    samples there are). See the module docstring for its bias."""
+def rectified_envelope(x: Any, rate_hz: float, window_s: float,
+                       scale: float = math.pi / 2) -> FloatArray:
+    """The amplitude envelope of a vibration signal: ``scale`` (pi/2: a sine's amplitude)
+    x the centred moving mean of ``|x|`` over ``round(window_s * rate_hz)`` samples (at
+    least 1; the ends average the samples there are). See the module docstring for its
+    bias."""
     a = np.abs(np.asarray(x, dtype=float))
     n = a.shape[0]
     w = max(1, round(window_s * rate_hz))
     if n == 0 or w == 1:
-        return np.asarray(a * (math.pi / 2))
+        return np.asarray(a * scale)
     c = np.concatenate([[0.0], np.cumsum(a)])
     i = np.arange(n)
     lo = np.clip(i - w // 2, 0, n)
     hi = np.clip(i - w // 2 + w, 0, n)
-    return np.asarray((c[hi] - c[lo]) / (hi - lo) * (math.pi / 2))
+    return np.asarray((c[hi] - c[lo]) / (hi - lo) * scale)
 
 
 def _cross(t: FloatArray, y: FloatArray, i: int, level: float) -> float:

@@ -15,15 +15,14 @@ one place (:func:`resolve_sensor`), and the ``--sense`` help generated from it:
 - ``audio:DEVICE?channel=N``: an input channel of a sound card through PortAudio (a
   loopback cable from an audio belt's output, or a piezo disc or an analog accelerometer
   on a tactor); :class:`AudioSensor`.
-- ``board``: the belt's own IMU. Declared, not yet available: it needs firmware that
-  streams acceleration samples with device time stamps (:class:`SampledSensor` is where
-  it plugs in, see below).
+- ``board``: the IMU on the belt's own board (``belt.sense()``: firmware 1.2 whose IMU
+  started); other belts: a DeviceError saying what is needed. :class:`BoardSensor`.
 
 Sensors of raw signals subclass :class:`SampledSensor`: they deliver samples with time
 stamps on the commands' clock (:meth:`SampledSensor.samples`) and the envelope is
-estimated in one place (:func:`~tactorbelt.validation.envelope.rectified_envelope`). A
-board IMU sensor delivers the magnitude of its acceleration with gravity removed (a
-high-pass), its device time stamps mapped to host time with the belt's clock fit (as
+estimated in one place (:func:`~tactorbelt.validation.envelope.rectified_envelope`). The
+board IMU sensor delivers the magnitude of its acceleration with gravity removed, its
+device time stamps mapped to host time with the belt's clock fit (as
 ``Belt.last_onset`` maps the device's onsets), and says in ``problem`` when samples were
 lost in the interval.
 
@@ -55,6 +54,7 @@ if TYPE_CHECKING:
 __all__ = [
     "SENSORS",
     "AudioSensor",
+    "BoardSensor",
     "ModelSensor",
     "SampledSensor",
     "Sensor",
@@ -75,6 +75,8 @@ DEFAULT_WINDOW_MS: Final = 4.0
 #: The host-time mapping of an audio input is the earliest callback within this long of
 #: the interval asked for (so the sound card's clock may drift from the host's).
 MAP_SPAN_NS: Final = 2_000_000_000
+#: The board IMU's envelope window by default (ms): 8 samples at 1600 Hz.
+BOARD_WINDOW_MS: Final = 5.0
 #: How long :meth:`AudioSensor.samples` waits beyond an interval's end for its samples.
 ARRIVAL_TIMEOUT_S: Final = 2.0
 
@@ -164,6 +166,8 @@ class SampledSensor(Sensor):
 
     window_s: float = DEFAULT_WINDOW_MS / 1000.0
     rate_hz: float
+    #: the envelope's scale: pi/2 reads a sine's amplitude from its rectified mean
+    scale: float = math.pi / 2
 
     @abstractmethod
     def samples(self, tactor: int, t0_ns: int, t1_ns: int
@@ -174,7 +178,7 @@ class SampledSensor(Sensor):
     def envelope(self, tactor: int, t0_ns: int, t1_ns: int) -> Window:
         pad = round(self.window_s * 1e9)
         t, x, problem = self.samples(tactor, t0_ns - pad, t1_ns + pad)
-        env = rectified_envelope(x, self.rate_hz, self.window_s)
+        env = rectified_envelope(x, self.rate_hz, self.window_s, self.scale)
         keep = (t >= t0_ns) & (t < t1_ns)
         return Window(t[keep], env[keep], problem)
 
@@ -504,13 +508,65 @@ def open_audio_sensor(target: str, belt: Belt, **options: Any) -> AudioSensor:
                        float(options.get("window_ms", DEFAULT_WINDOW_MS)))
 
 
+class BoardSensor(SampledSensor):
+    """The accelerometer on the belt's own board (``belt.sense()``: firmware 1.2 with an
+    IMU). Its samples come with device time stamps mapped to host time by the belt's
+    clock fit (:class:`~tactorbelt.devices._firmware.SenseRecording`); lost samples are a
+    window's ``problem``. The signal is the magnitude of the acceleration less its median
+    over the interval (gravity: the board does not move), so an ERM's rotating force reads
+    as its amplitude (``scale`` 1) in g. One IMU senses every tactor."""
+
+    unit = "acceleration (g)"
+    scale = 1.0
+
+    def __init__(self, belt: Belt, url: str, rate_hz: float | None, window_ms: float) -> None:
+        if not belt.senses_vibration:
+            raise DeviceError(
+                f"sensor 'board' (the belt's own IMU) is not available for belt "
+                f"{belt.url!r}: it needs belt firmware that streams IMU acceleration "
+                "samples with device time stamps (firmware 1.2 on a board whose IMU "
+                "started); use --sense audio:DEVICE?channel=N with a piezo disc or an "
+                "analog accelerometer on the tactor")
+        self.belt = belt
+        self.url = url
+        self.window_s = window_ms / 1000.0
+        self._ask = rate_hz
+        self.rate_hz = rate_hz or 0.0
+        self._rec: Any = None
+        self.description = f"the IMU of belt {belt.url!r}"
+        self.method = (f"board IMU of {belt.url!r}: |acceleration - its median| in g, "
+                       f"centred moving mean over {window_ms:g} ms; device times mapped "
+                       "to host time by the belt's clock fit")
+
+    def start(self) -> None:
+        self._rec = self.belt.sense(None, rate_hz=self._ask)
+        self.rate_hz = float(self._rec.rate_hz)
+        self.method += f"; {self.rate_hz:g} Hz"
+
+    def samples(self, tactor: int, t0_ns: int, t1_ns: int
+                ) -> tuple[IntArray, FloatArray, str | None]:
+        rec = self._rec
+        wait = ARRIVAL_TIMEOUT_S + max(0.0, (t1_ns - time.perf_counter_ns()) / 1e9)
+        if not rec.wait_for(t1_ns, wait):
+            raise DeviceError(f"the IMU of belt {self.belt.url!r} delivered no samples for "
+                              f"the last pulse ({rec.interrupted or 'none came in time'})")
+        t, acc = rec.samples(t0_ns, t1_ns)
+        x = (np.linalg.norm(acc - np.median(acc, axis=0), axis=1) if t.size
+             else np.zeros(0))
+        return t, np.asarray(x, dtype=float), rec.problem(t0_ns, t1_ns)
+
+    def close(self) -> None:
+        if self._rec is not None:
+            with contextlib.suppress(Exception):
+                self._rec.stop()
+
+
 def open_board(target: str, belt: Belt, **options: Any) -> Sensor:
-    """``board``: the belt's own IMU. Not available yet (see the message)."""
-    raise DeviceError(
-        f"sensor 'board' (the belt's own IMU) is not available for belt {belt.url!r}: it "
-        "needs belt firmware that streams IMU acceleration samples with device time "
-        "stamps, which this firmware does not; use --sense audio:DEVICE?channel=N with a "
-        "piezo disc or an analog accelerometer on the tactor")
+    """``board``: the belt's own IMU (``rate_hz``: the rate asked for, the IMU's highest
+    by default; ``window_ms``: the envelope's window, 5 ms)."""
+    check_options(options, ("rate_hz", "window_ms"), "board")
+    return BoardSensor(belt, "board", options.get("rate_hz"),
+                       float(options.get("window_ms", BOARD_WINDOW_MS)))
 
 
 # -- the registry -------------------------------------------------------------------------------
@@ -563,7 +619,11 @@ SENSORS: dict[str, SensorBackend] = {s.scheme: s for s in (
                            SensorOption("window_ms", float, "the envelope's moving mean "
                                         "(ms; about one carrier period)", 0.05, 1000.0))),
     SensorBackend("board", "tactorbelt.validation.sensors:open_board",
-                  "the belt's own IMU (needs firmware that streams it; not yet)", ("board",)),
+                  "the IMU on the belt's own board (firmware 1.2)", ("board",),
+                  options=(SensorOption("rate_hz", float, "the sampling rate asked for",
+                                        1.0, 10_000.0),
+                           SensorOption("window_ms", float, "the envelope's moving mean (ms)",
+                                        0.05, 1000.0))),
 )}
 
 
