@@ -17,7 +17,7 @@ uint8_t SenseStream::start(uint8_t seq, const uint8_t* payload, uint8_t channels
     finish();
     drain();
   }
-  // A new session on this link; what the last one still had queued goes first.
+  // Batches still queued for another link are dropped; for this one they go first.
   if (sink_ != &sink) {
     q_head_ = q_size_ = 0;
   }
