@@ -69,6 +69,7 @@ QUICK_ARGS: dict[str, list[str]] = {
     "bench_postgresql": ["--participants", "20", "--trials", "200"],
     "bench_audio": ["--seconds", "15"],
     "bench_player": ["--seconds", "3"],
+    "bench_validate": ["--pulses", "4"],
 }
 #: A figure this much worse than in the last committed results is flagged.
 REGRESSION = 0.20
@@ -131,6 +132,13 @@ GOALS = [
     Goal("lsl_map_error_us", None, "<=", 50.0, "us",
          "the runner's clock mapped to LSL's against a direct reading: the time between "
          "the reads"),
+    Goal("validate_sim_s", "validate_sim_schedule_s", "<=", 60.0, "s",
+         "6 tactors x 20 pulses on the sim belt (wall clock): the pulses themselves take "
+         "most of it (the baseline); the rest is opening the belt, sleep overshoot, the "
+         "figure and the files", full_only=True),
+    Goal("validate_sim_overhead_s", None, "<=", 5.0, "s",
+         "validate onsets besides its pulses: the figure (about 1-2 s), opening the belt, "
+         "the sleeps' overshoot, writing the files"),
     Goal("session_s", "session_per_trial_s", "<=", 2.0, "s",
          "the store (~30 %; a third of the instructions: ~58,000 sample rows, 100 to an "
          "INSERT with the trial_id bound once and the rest in 64, 32, ..., 1 rows (8 "
