@@ -512,9 +512,10 @@ def resolution_figure(participant_cells: pd.DataFrame, cells: pd.DataFrame) -> b
     axes[1].legend(fontsize=7.5, frameon=False, loc="upper left")
     bars = ("accuracy and RT bars: 95 % t interval across participants; " if n_part > 1
             else "one participant: no accuracy or RT bars; ")
+    what = ("participants and their trials resampled" if n_part > 1
+            else "trials resampled within each target")
     fig.suptitle(f"Performance against target resolution ({n_part} participant(s))\n{bars}"
-                 "information-transfer bars: 95 % bootstrap interval (participants and "
-                 "trials resampled)", fontsize=10)
+                 f"information-transfer bars: 95 % bootstrap interval ({what})", fontsize=10)
     return _png(fig)
 
 
