@@ -115,16 +115,19 @@ def test_build_compiles_the_exported_sketch_for_the_nano_33_ble(
     (call,) = fake_cli.read_text().splitlines()
     sketch = tmp_path / "b" / "sketch" / "tactorbelt"
     assert call.split() == ["compile", "--fqbn", "arduino:mbed_nano:nano33ble", "--warnings",
-                            "all", "--output-dir", str(tmp_path / "b" / "build"), str(sketch)]
+                            "all", "--build-property",
+                            "compiler.cpp.extra_flags=-DTACTORBELT_IMU_BMI270",
+                            "--output-dir", str(tmp_path / "b" / "build"), str(sketch)]
     assert _sources(sketch) == _sources(SKETCH)
 
 
 def test_upload_builds_then_uploads_to_the_port(fake_cli: Path, tmp_path: Path) -> None:
-    result = tactorbelt("firmware", "upload", "--port", "/dev/ttyACM7",
-                                      "--build-dir", str(tmp_path / "b"))
+    result = tactorbelt("firmware", "upload", "--port", "/dev/ttyACM7", "--imu", "lsm9ds1",
+                        "--build-dir", str(tmp_path / "b"))
     assert result.returncode == 0, result.stdout + result.stderr
     compile_call, upload_call = fake_cli.read_text().splitlines()
     assert compile_call.startswith("compile --fqbn arduino:mbed_nano:nano33ble")
+    assert "compiler.cpp.extra_flags=-DTACTORBELT_IMU_LSM9DS1" in compile_call  # a Rev1 board
     assert upload_call.split()[:5] == ["upload", "--fqbn", "arduino:mbed_nano:nano33ble",
                                        "--port", "/dev/ttyACM7"]
     assert "uploaded firmware" in result.stdout
@@ -158,7 +161,8 @@ def test_without_arduino_cli_the_install_steps_are_printed(
     assert result.returncode == 2
     assert "arduino-cli is not installed" in result.stderr
     assert "arduino-cli core install arduino:mbed_nano" in result.stderr
-    assert "arduino-cli lib install ArduinoBLE" in result.stderr
+    assert ("arduino-cli lib install ArduinoBLE Arduino_BMI270_BMM150 Arduino_LSM9DS1"
+            in result.stderr)
     assert "tactorbelt firmware export DIR" in result.stderr
 
 

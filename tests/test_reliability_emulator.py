@@ -574,7 +574,15 @@ def test_calibrate_stops_the_motors_on_every_way_out(emulator: Emulator, tmp_pat
     out_file = tmp_path / "cal.toml"
     proc = spawn("calibrate", "--belt", emulator.url, "-o", str(out_file),
                  stdin=subprocess.PIPE, emu=emulator)
-    _, err = proc.communicate(keys, timeout=30)
+    assert proc.stdin is not None
+    # the first key presses, then the rest once the emulator has shown a motor on: piped
+    # all at once, the set and the stop can reach a starved emulator before one tick, and
+    # its output log would never show the motor driven
+    first, rest = keys[:5], keys[5:]
+    proc.stdin.write(first)
+    proc.stdin.flush()
+    assert wait_for(lambda: motors_on(emulator) or proc.poll() is not None, 20)
+    _, err = proc.communicate(rest, timeout=30)
     assert proc.returncode == code, err
     assert "Traceback" not in err
     assert out_file.exists() == (code == 0)

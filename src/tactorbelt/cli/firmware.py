@@ -41,13 +41,16 @@ def export(dest: Path, force: bool) -> None:
 
 
 @firmware.command("build")
+@click.option("--imu", type=click.Choice(["bmi270", "lsm9ds1"]), default="bmi270",
+              show_default=True,
+              help="The board's IMU: bmi270 (Nano 33 BLE Rev2) or lsm9ds1 (Rev1).")
 @click.option("--build-dir", type=click.Path(file_okay=False, path_type=Path), default=None,
               help="Where the sketch and the binaries go (default: a new temporary folder).")
-def build(build_dir: Path | None) -> None:
+def build(imu: str, build_dir: Path | None) -> None:
     """Compile the sketch for the Nano 33 BLE with arduino-cli."""
     from ..firmware import build as build_firmware
 
-    result = build_firmware(build_dir=build_dir)
+    result = build_firmware(build_dir=build_dir, imu=imu)
     click.echo(f"built {result.sketch} -> {result.output_dir}")
 
 
@@ -55,13 +58,16 @@ def build(build_dir: Path | None) -> None:
 @click.option("--port", required=True,
               help="The board's serial port (/dev/ttyACM0, COM3); 'tactorbelt devices' "
                    "lists them.")
+@click.option("--imu", type=click.Choice(["bmi270", "lsm9ds1"]), default="bmi270",
+              show_default=True,
+              help="The board's IMU: bmi270 (Nano 33 BLE Rev2) or lsm9ds1 (Rev1).")
 @click.option("--build-dir", type=click.Path(file_okay=False, path_type=Path), default=None,
               help="Where the sketch and the binaries go (default: a new temporary folder).")
-def upload(port: str, build_dir: Path | None) -> None:
+def upload(port: str, imu: str, build_dir: Path | None) -> None:
     """Compile the sketch and upload it to the board on PORT with arduino-cli."""
     from ..firmware import bundled_version
     from ..firmware import upload as upload_firmware
 
-    upload_firmware(port, build_dir=build_dir)
+    upload_firmware(port, build_dir=build_dir, imu=imu)
     click.echo(f"uploaded firmware {bundled_version()} to {port}; "
                f"check it with: tactorbelt devices")

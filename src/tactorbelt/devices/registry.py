@@ -256,7 +256,9 @@ BACKENDS: dict[str, Backend] = {b.scheme: b for b in (
             options=(UrlOption("tactors", int, "emulated channels", 2, 16), _HEARTBEAT,
                      _TIMEOUT, UrlOption("build", bool, "run make first"),
                      UrlOption("watchdog_ms", int, "the board's watchdog (ms; off)", 1, 10000),
-                     UrlOption("debug_frames", bool, "accept DEBUG_HANG (tests)")),
+                     UrlOption("debug_frames", bool, "accept DEBUG_HANG (tests)"),
+                     UrlOption("imu", str, "the board's simulated IMU: bmi270, lsm9ds1, "
+                               "none (firmware 1.1) or broken")),
             docs="docs/devices.md"),
     Backend("serial", "tactorbelt.devices.serial:open_serial",
             "firmware over USB serial", ("serial:/dev/ttyACM0", "serial:auto"), target="PORT",

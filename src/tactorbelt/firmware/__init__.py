@@ -32,6 +32,7 @@ from .._errors import ConfigError, DeviceError, TactorbeltError
 __all__ = [
     "ARDUINO_LIBRARIES",
     "FQBN",
+    "IMUS",
     "INSTALL_STEPS",
     "ArduinoCliMissing",
     "BuildResult",
@@ -48,8 +49,14 @@ __all__ = [
 FQBN: Final = "arduino:mbed_nano:nano33ble"
 #: The board package the sketch builds with.
 CORE: Final = "arduino:mbed_nano"
+#: The board revision's IMU -> (its compile-time define, its library): the sketch builds
+#: for one (imu_config.h; the libraries cannot be linked together).
+IMUS: Final = {
+    "bmi270": ("TACTORBELT_IMU_BMI270", "Arduino_BMI270_BMM150"),  # Nano 33 BLE Rev2
+    "lsm9ds1": ("TACTORBELT_IMU_LSM9DS1", "Arduino_LSM9DS1"),      # Nano 33 BLE Rev1
+}
 #: Libraries the sketch includes, as arduino-cli names them (``lib install``).
-ARDUINO_LIBRARIES: Final = ("ArduinoBLE",)
+ARDUINO_LIBRARIES: Final = ("ArduinoBLE", *(lib for _, lib in IMUS.values()))
 #: The sketch's folder name (Arduino requires folder name == .ino name).
 SKETCH_NAME: Final = "tactorbelt"
 
@@ -223,34 +230,45 @@ def _prepare(build_dir: str | os.PathLike[str] | None) -> tuple[Path, Path]:
     return sketch, work / "build"
 
 
+def _imu_flags(imu: str) -> tuple[str, ...]:
+    if imu not in IMUS:
+        raise ConfigError(f"imu must be one of {', '.join(IMUS)} (bmi270: Nano 33 BLE Rev2, "
+                          f"lsm9ds1: Rev1), got {imu!r}")
+    define, _ = IMUS[imu]
+    return ("--build-property", f"compiler.cpp.extra_flags=-D{define}")
+
+
 def build(*, build_dir: str | os.PathLike[str] | None = None,
-          cli: str | None = None) -> BuildResult:
+          cli: str | None = None, imu: str = "bmi270") -> BuildResult:
     """Compile the bundled sketch for the Nano 33 BLE with arduino-cli.
 
     Args:
         build_dir: where the exported sketch and the binaries go (a new temporary
             folder by default).
         cli: the arduino-cli executable (default ``$ARDUINO_CLI`` or ``arduino-cli``).
+        imu: the board revision's IMU: ``bmi270`` (Rev2, the default) or ``lsm9ds1`` (Rev1).
 
     Raises:
+        ConfigError: an unknown ``imu``.
         ArduinoCliMissing: arduino-cli is not installed (the message is the steps).
         TactorbeltError: the compile failed.
     """
+    flags = _imu_flags(imu)
     exe = _arduino_cli(cli)
     sketch, out = _prepare(build_dir)
-    cmd = (exe, "compile", "--fqbn", FQBN, "--warnings", "all", "--output-dir", str(out),
-           str(sketch))
+    cmd = (exe, "compile", "--fqbn", FQBN, "--warnings", "all", *flags, "--output-dir",
+           str(out), str(sketch))
     _run(cmd, "building the firmware", _BUILD_HINT)
     return BuildResult(sketch, out, (cmd,))
 
 
 def upload(port: str, *, build_dir: str | os.PathLike[str] | None = None,
-           cli: str | None = None) -> BuildResult:
+           cli: str | None = None, imu: str = "bmi270") -> BuildResult:
     """Compile the bundled sketch and upload it to the board on ``port``.
 
     Args:
         port: the board's serial port (``/dev/ttyACM0``, ``COM3``).
-        build_dir, cli: as for :func:`build`.
+        build_dir, cli, imu: as for :func:`build`.
 
     Raises:
         ConfigError: an empty port.
@@ -259,7 +277,7 @@ def upload(port: str, *, build_dir: str | os.PathLike[str] | None = None,
     """
     if not port or not port.strip():
         raise ConfigError("--port is empty; 'tactorbelt devices' lists the serial ports")
-    result = build(build_dir=build_dir, cli=cli)
+    result = build(build_dir=build_dir, cli=cli, imu=imu)
     exe = result.commands[0][0]
     cmd = (exe, "upload", "--fqbn", FQBN, "--port", port, "--input-dir",
            str(result.output_dir), str(result.sketch))
