@@ -1267,6 +1267,6 @@ def summarize(data: StoreData, *, seed: int = 0, n_boot: int = DEFAULT_N_BOOT,
                                              "session_key"].tolist(),
         notes=notes, trials=tr, paths=[str(p) for p in data.paths], seed=seed, n_boot=n_boot,
         rt_model=rt_json,
-        cells=cell_summary(tr), participant_cells=participant_cells(tr),
+        cells=cell_summary(tr, seed=seed), participant_cells=participant_cells(tr),
         secondary_tasks=secondary, tlx=tlx,
     )

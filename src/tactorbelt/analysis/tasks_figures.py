@@ -32,7 +32,7 @@ __all__ = ["TASK_FIGURE_CAPTIONS", "TASK_FIGURE_ORDER", "load_figure", "secondar
 TASK_FIGURE_ORDER: Final = ("load.png", "secondary.png", "tlx.png")
 TASK_FIGURE_CAPTIONS: Final = {
     "load.png": "Localisation under load: accuracy, information transfer (bits, "
-                "Miller-Madow bias-corrected, per participant) and median RT against the "
+                "Chao-Shen bias-corrected, per participant) and median RT against the "
                 "load level; one line per condition (and target count). Points are means "
                 "over participants, bars their 95 % t intervals.",
     "secondary.png": "The secondary task by phase: d' (log-linear correction, Hautus 1995), "
