@@ -823,6 +823,7 @@ PAPER_STUDY_TOML = '''\
 
 name = "between-tactor-paper"
 description = "6 tactors, 24 targets; training, then static and dynamic test blocks"
+# authors = ["A. Researcher", "B. Researcher"]  # the BIDS export's Authors
 
 [layout]
 # Either the number of evenly spaced tactors (at 180/N + k*360/N, so the two front
@@ -876,6 +877,7 @@ RESOLUTION_STUDY_TOML = '''\
 
 name = "between-tactor-resolution"
 description = "6 tactors; 12/24/36/48 targets x static/dynamic; Williams order"
+# authors = ["A. Researcher", "B. Researcher"]  # the BIDS export's Authors
 
 [layout]
 tactors = 6               # evenly spaced at 180/N + k*360/N
@@ -926,6 +928,7 @@ LOAD_STUDY_TOML = '''\
 
 name = "between-tactor-load"
 description = "6 tactors, 24 targets; static/dynamic x no load/auditory 2-back; NASA-TLX"
+# authors = ["A. Researcher", "B. Researcher"]  # the BIDS export's Authors
 
 [layout]
 tactors = 6               # evenly spaced at 180/N + k*360/N
