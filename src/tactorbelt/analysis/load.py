@@ -48,6 +48,11 @@ OPTIONAL_SESSION_COLUMNS: Final = ("input", "site")
 #: Optional trial columns (schema 2, factorial designs) read when present; trials of
 #: older stores get their session's study's target count and load ``none``.
 OPTIONAL_TRIAL_COLUMNS: Final = ("n_targets", "load", "block_index")
+#: The trial's onset at the skin (the stored onset plus the measured latency of the
+#: tactors that start the stimulus) and its spread, read when present; loaded as
+#: ``skin_offset_s`` (``(skin_onset_ns - onset_ns) / 1e9``, from the exact integer
+#: difference) and ``skin_onset_sd_s``, NaN where not known.
+SKIN_ONSET_COLUMNS: Final = ("skin_onset_ns", "skin_onset_sd_ns")
 
 def _store_ref(p: str | Path) -> Path | str:
     """A store file's path, or a server store's URL kept as text (``postgresql://...``)."""
@@ -102,10 +107,15 @@ def _read_store(path: Path | str, store_index: int, include_running: bool = Fals
             c for c in OPTIONAL_SESSION_COLUMNS if c in cols["sessions"]]
         trial_cols = list(REQUIRED_COLUMNS["trials"]) + [
             c for c in OPTIONAL_TRIAL_COLUMNS if c in cols["trials"]]
+        skin = all(c in cols["trials"] for c in SKIN_ONSET_COLUMNS)
+        read_cols = trial_cols + (list(SKIN_ONSET_COLUMNS) if skin else [])
         sessions = pd.DataFrame.from_records(store.read_table("sessions", sess_cols),
                                              columns=sess_cols, coerce_float=True)
-        trials = pd.DataFrame.from_records(store.read_table("trials", trial_cols),
+        trial_rows = store.read_table("trials", read_cols)
+        trials = pd.DataFrame.from_records([r[:len(trial_cols)] for r in trial_rows],
                                            columns=trial_cols, coerce_float=True)
+        trials["skin_offset_s"], trials["skin_onset_sd_s"] = _skin_offsets(
+            trial_rows, read_cols) if skin else ([float("nan")] * len(trial_rows),) * 2
     if shared and not include_running:  # sites may be writing: complete sessions only
         keep = sessions["status"] == "complete"
         if not keep.all() and notes is not None:
@@ -119,6 +129,22 @@ def _read_store(path: Path | str, store_index: int, include_running: bool = Fals
     sessions.insert(0, "store", store_index)
     trials.insert(0, "store", store_index)
     return sessions, trials
+
+
+def _skin_offsets(rows: Sequence[Sequence[Any]], cols: Sequence[str]
+                  ) -> tuple[list[float], list[float]]:
+    """Per trial row: ``(skin_onset_ns - onset_ns) / 1e9`` (the integer difference, exact)
+    and ``skin_onset_sd_ns / 1e9``; NaN where either onset is NULL."""
+    i_on, i_skin, i_sd = (cols.index(c) for c in ("onset_ns", *SKIN_ONSET_COLUMNS))
+    nan = float("nan")
+    offsets: list[float] = []
+    sds: list[float] = []
+    for r in rows:
+        on, skin, sd = r[i_on], r[i_skin], r[i_sd]
+        ok = on is not None and skin is not None
+        offsets.append((int(skin) - int(on)) / 1e9 if ok else nan)
+        sds.append(int(sd) / 1e9 if ok and sd is not None else nan)
+    return offsets, sds
 
 
 def store_labels(paths: Sequence[Path | str]) -> list[str]:

@@ -444,6 +444,8 @@ def render_html(summary: Summary, figures: dict[str, bytes], *,
                  f"(done + timed out); response times and errors only over answered ones. "
                  "The signed error of a response is the selected target minus the shown "
                  "target, wrapped to (-180°, 180°], clockwise positive.</p>")
+    parts.append(f"<p><strong>Response times count from {_rt_from_words(summary)}.</strong>"
+                 f" {_e(summary.rt_from_reason)}.</p>")
     inc = summary.incomplete_sessions
     if len(inc):
         parts.append(f"<h3>Incomplete sessions ({len(inc)})</h3><p>Sessions whose status is not "
@@ -598,6 +600,12 @@ details summary{cursor:pointer;color:#0072B2}
 
 # -- console ---------------------------------------------------------------------------
 
+def _rt_from_words(summary: Summary) -> str:
+    """Where the RTs count from, in words (``summary.rt_from``)."""
+    return ("the onset at the skin (rt_from: skin)" if summary.rt_from == "skin"
+            else "the stored onset, the command (rt_from: command)")
+
+
 def print_summary_table(summary: Summary, console: Console | None = None) -> None:
     """Print accuracy and median RT per condition, on- and between-tactor (rich)."""
     from rich.console import Console
@@ -620,6 +628,8 @@ def print_summary_table(summary: Summary, console: Console | None = None) -> Non
                           _pct(acc, missing="no trials"),
                           _fmt(rt, missing="no trials" if not n else "none answered"))
     con.print(table)
+    con.print(f"Response times from {_rt_from_words(summary)}: {summary.rt_from_reason}",
+              highlight=False, markup=False)
     t = summary.between_accuracy_test
     if t.computed:
         p = _p(t.p_value)
@@ -683,7 +693,8 @@ def _sites(data: StoreData, summary: Summary) -> pd.DataFrame | None:
 def analyze(paths: Sequence[str | Path], out: str | Path, *, seed: int | None = None,
             progress: ProgressFn | None = None, n_boot: int = DEFAULT_N_BOOT,
             engine: str = "tactorbelt", sites: Sequence[str] | None = None,
-            include_running: bool = False, pb_sims: int | None = None) -> Summary:
+            include_running: bool = False, pb_sims: int | None = None,
+            rt_from: str | None = None) -> Summary:
     """Analyse stores and write report.html, summary.json, per_target.csv and PNGs to ``out``.
 
     Args:
@@ -701,11 +712,15 @@ def analyze(paths: Sequence[str | Path], out: str | Path, *, seed: int | None = 
             default, :data:`~tactorbelt.analysis.lrt.DEFAULT_PB_SIMS`; 0: not computed);
             computed only for studies of up to
             :data:`~tactorbelt.analysis.stats.PB_HEADLINE_MAX_PARTICIPANTS` participants.
+        rt_from: where the RTs count from, ``skin`` or ``command`` (None: ``skin`` when
+            every analysed trial has a skin onset, else ``command``;
+            :func:`~tactorbelt.analysis.stats.rt_from_choice`).
 
     Raises:
         StoreError: a store that cannot be read (see :func:`load.load_stores`).
         ConfigError: ``out`` exists and is not a directory, or cannot be written;
-            ``engine="lme4"`` without R and lme4 (the message says how to install them).
+            ``engine="lme4"`` without R and lme4 (the message says how to install them);
+            ``rt_from="skin"`` with trials that have no skin onset.
     """
     from .figures import make_figures
     from .load import analysis_seed, load_samples, load_stores
@@ -737,7 +752,7 @@ def analyze(paths: Sequence[str | Path], out: str | Path, *, seed: int | None = 
 
     try:
         summary = summarize(data, seed=seed, n_boot=n_boot, engine=engine, pb_sims=pb_sims,
-                            progress=boot)
+                            progress=boot, rt_from=rt_from)
     except Lme4Unavailable as exc:
         raise ConfigError(str(exc)) from None
     tick("reading sample trajectories")

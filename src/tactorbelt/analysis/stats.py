@@ -55,6 +55,7 @@ __all__ = [
     "DEFAULT_N_BOOT",
     "DEFAULT_PB_SIMS",
     "PB_HEADLINE_MAX_PARTICIPANTS",
+    "RT_FROM",
     "Summary",
     "TestResult",
     "condition_tests",
@@ -63,6 +64,7 @@ __all__ = [
     "mann_whitney_rt",
     "matched_pairs_rank_biserial",
     "mixed_model",
+    "rt_from_choice",
     "summarize",
     "wilcoxon_paired",
 ]
@@ -70,6 +72,8 @@ __all__ = [
 DEFAULT_N_BOOT: Final = 2000
 Z95: Final = 1.959963984540054
 COMPLETE_STATUSES: Final = frozenset({"complete", "completed", "done", "finished"})
+#: Where a response time is counted from (``tactorbelt analyze --rt-from``).
+RT_FROM: Final = ("skin", "command")
 
 
 def _num(x: Any) -> float | None:
@@ -957,6 +961,10 @@ class Summary:
     secondary_tasks: dict[str, Any] | None = None
     #: ``summary.json["tlx"]`` (:func:`.tasks.tlx_summary`), None without ratings
     tlx: dict[str, Any] | None = None
+    #: where the response times count from (:func:`rt_from_choice`): ``skin`` or
+    #: ``command``, and why
+    rt_from: str = "command"
+    rt_from_reason: str = ""
 
     @property
     def mixed_model(self) -> dict[str, Any] | None:
@@ -1035,6 +1043,8 @@ class Summary:
             conditions[cond] = entry
         return {
             "tactorbelt_analysis": 1,
+            "rt_from": self.rt_from,
+            "rt_from_reason": self.rt_from_reason,
             "simulated_model_data": self.simulated,
             "simulated_sessions": len(self.simulated_sessions),
             "simulated_belt_sessions": len(self.simulated_belt_sessions),
@@ -1121,9 +1131,65 @@ def _design_for(sessions: pd.DataFrame, notes: list[str]) -> StudyDesign:
     return design
 
 
+def rt_from_choice(trials: pd.DataFrame, rt_from: str | None = None
+                   ) -> tuple[pd.DataFrame, str, str]:
+    """Where the response times count from: ``(trials, used, reason)``.
+
+    The analysed trials are those with a response time (done). ``skin``: each RT less
+    the trial's ``skin_offset_s`` (``(skin_onset_ns - onset_ns) / 1e9``, the measured
+    latency of the tactors that start the stimulus), so it counts from when the skin
+    felt the stimulus; ``trials`` then keeps the stored RT as ``rt_command_s``.
+    ``command``: the stored RTs, from the stored onset. ``rt_from`` None chooses
+    ``skin`` when every analysed trial has a skin onset, else ``command``.
+
+    Raises:
+        ConfigError: ``skin`` asked for while some analysed trial has no skin onset, or
+            an unknown ``rt_from``.
+    """
+    from .._errors import ConfigError
+
+    if rt_from is not None and rt_from not in RT_FROM:
+        raise ConfigError(f"--rt-from must be one of {', '.join(RT_FROM)}, got {rt_from!r}")
+    rt = pd_numeric(trials["rt_s"]).to_numpy(dtype=float)
+    status = trials["status"].astype("string").fillna("")
+    analysed = (status == "done").to_numpy(dtype=bool) & ~np.isnan(rt)
+    offset = (pd_numeric(trials["skin_offset_s"]).to_numpy(dtype=float)
+              if "skin_offset_s" in trials.columns else np.full(len(trials), np.nan))
+    n = int(analysed.sum())
+    lacking = int((analysed & np.isnan(offset)).sum())
+    how = ("the skin onset is the stored onset plus the measured latency of the tactors "
+           "that start the stimulus (the belt's calibration, 'tactorbelt validate onsets')")
+    if rt_from == "skin" and lacking:
+        raise ConfigError(
+            f"--rt-from skin: {lacking} of the {n} analysed trials have no skin onset (their "
+            "belt's calibration had no measured latency when they ran: measure it with "
+            "'tactorbelt validate onsets --calibration FILE'); use --rt-from command")
+    if rt_from == "command":
+        used, reason = "command", "asked for (--rt-from command): RTs from the stored onset"
+    elif rt_from == "skin":
+        used, reason = "skin", f"asked for (--rt-from skin); {how}"
+    elif n and not lacking:
+        used, reason = "skin", f"every analysed trial ({n}) has a skin onset; {how}"
+    elif not n:
+        used, reason = "command", "no trial has a response time"
+    elif lacking == n:
+        used, reason = "command", ("no analysed trial has a skin onset (no measured "
+                                   "latency in the belt's calibration): RTs from the "
+                                   "stored onset")
+    else:
+        used, reason = "command", (f"{lacking} of the {n} analysed trials have no skin "
+                                   "onset (no measured latency): RTs from the stored "
+                                   "onset for all")
+    if used == "skin":
+        trials = trials.copy()
+        trials["rt_command_s"] = rt
+        trials["rt_s"] = np.where(analysed, rt - offset, rt)
+    return trials, used, reason
+
+
 def summarize(data: StoreData, *, seed: int = 0, n_boot: int = DEFAULT_N_BOOT,
               engine: str = "tactorbelt", pb_sims: int | None = DEFAULT_PB_SIMS,
-              progress: Any = None) -> Summary:
+              progress: Any = None, rt_from: str | None = None) -> Summary:
     """Compute every table and test from loaded stores. Pure: no files, no clock.
 
     Args:
@@ -1137,6 +1203,8 @@ def summarize(data: StoreData, *, seed: int = 0, n_boot: int = DEFAULT_N_BOOT,
             :data:`PB_HEADLINE_MAX_PARTICIPANTS` participants; 0: never), seeded by
             ``seed``.
         progress: ``progress(done, total)`` as the bootstrap refits.
+        rt_from: ``skin``, ``command`` or None (the default: skin where every analysed
+            trial has a skin onset), see :func:`rt_from_choice`.
     """
     rng = np.random.default_rng(seed)
     notes = list(data.notes)
@@ -1144,7 +1212,8 @@ def summarize(data: StoreData, *, seed: int = 0, n_boot: int = DEFAULT_N_BOOT,
     sessions["simulated"] = _is_model(sessions).to_numpy(dtype=bool)
     sessions["simulated_belt"] = _on_simulated_belt(sessions).to_numpy(dtype=bool)
     design = _design_for(sessions, notes)
-    tr = prepare_trials(data.trials)
+    trials, rt_used, rt_reason = rt_from_choice(data.trials, rt_from)
+    tr = prepare_trials(trials)
 
     unknown_cond = tr["block"].eq("test") & ~tr["condition"].isin(CONDITIONS)
     if unknown_cond.any():
@@ -1268,5 +1337,5 @@ def summarize(data: StoreData, *, seed: int = 0, n_boot: int = DEFAULT_N_BOOT,
         notes=notes, trials=tr, paths=[str(p) for p in data.paths], seed=seed, n_boot=n_boot,
         rt_model=rt_json,
         cells=cell_summary(tr, seed=seed), participant_cells=participant_cells(tr),
-        secondary_tasks=secondary, tlx=tlx,
+        secondary_tasks=secondary, tlx=tlx, rt_from=rt_used, rt_from_reason=rt_reason,
     )

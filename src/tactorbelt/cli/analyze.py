@@ -1,6 +1,8 @@
-"""``tactorbelt analyze DB [DB ...] [-o DIRECTORY] [--seed S]``: the analysis report.
+"""``tactorbelt analyze DB [DB ...] [-o DIRECTORY] [--seed S] [--rt-from skin|command]``.
 
-Without ``--seed`` the analysis seed is derived from the stores (docs/analysis.md).
+The analysis report. Without ``--seed`` the analysis seed is derived from the stores;
+without ``--rt-from`` the RTs count from the skin onset when every analysed trial has
+one, else from the command (docs/analysis.md).
 
 Imports the analysis (pandas, SciPy, statsmodels, matplotlib) only when the command
 runs. Errors are raised as tactorbelt errors; ``tactorbelt.cli.main`` prints them.
@@ -46,11 +48,17 @@ def print_summary_table(summary: Summary) -> None:
               help="Simulations of the accuracy model's parametric bootstrap, the headline "
                    "test up to 16 participants [default: 100; 0: skip it and report the "
                    "likelihood-ratio test].")
+@click.option("--rt-from", "rt_from", type=click.Choice(["skin", "command"]), default=None,
+              help="Count response times from the onset at the skin (the stored onset plus "
+                   "the measured latency of the tactors that start the stimulus: 'tactorbelt "
+                   "validate onsets') or from the command (the stored onset) [default: skin "
+                   "when every analysed trial has a skin onset, else command].")
 @click.option("--include-running", is_flag=True,
               help="From a shared store (postgresql://), also the sessions that are not "
                    "complete yet.")
 def analyze(db: tuple[str, ...], out: Path | None, seed: int | None, engine: str,
-            sites: tuple[str, ...], include_running: bool, pb_sims: int | None) -> None:
+            sites: tuple[str, ...], include_running: bool, pb_sims: int | None,
+            rt_from: str | None) -> None:
     """Analyze one or more session stores and write the report.
 
     DB is a store written by 'tactorbelt run' or 'tactorbelt demo' (several may be
@@ -76,7 +84,8 @@ def analyze(db: tuple[str, ...], out: Path | None, seed: int | None, engine: str
 
         summary = run_analysis(list(db), out_dir, seed=seed, progress=progress,
                                engine=engine, sites=list(sites) or None,
-                               include_running=include_running, pb_sims=pb_sims)
+                               include_running=include_running, pb_sims=pb_sims,
+                               rt_from=rt_from)
     out_console = Console()
     _print(summary, out_console)
     for note in summary.notes:

@@ -40,6 +40,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import math
 import re
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
@@ -62,6 +63,7 @@ from .trial import ResponseRule, TrialMachine, TrialResult, TrialState
 
 if TYPE_CHECKING:
     from ..devices.base import Belt
+    from ..devices.calibration import Calibration
     from ..stimuli import Stimulus
 
 __all__ = [
@@ -73,6 +75,8 @@ __all__ = [
     "SessionRunner",
     "check_participant",
     "run_session",
+    "skin_latency",
+    "starting_tactors",
 ]
 
 #: Participant ids that name files without being mangled (see :func:`check_participant`).
@@ -119,7 +123,12 @@ class SessionInfo:
 
 
 class SessionObserver(Protocol):
-    """Hooks for the experiment window (every one optional through :class:`NullObserver`)."""
+    """Hooks for the experiment window (every one optional through :class:`NullObserver`).
+
+    One more hook is called only where an observer has it: ``on_skin_onset(trial,
+    skin_onset_ns, skin_onset_sd_ns)``, just before ``on_trial_done``, for a trial whose
+    onset at the skin is known (:meth:`SessionRunner.skin_onset`; the LSL streams mark it).
+    """
 
     def on_session_start(self, info: SessionInfo, schedule: list[ScheduledTrial]) -> None: ...
     def on_block_start(self, block: str, condition: str) -> None: ...
@@ -267,6 +276,43 @@ def check_participant(participant: object) -> str:
     return pid
 
 
+def starting_tactors(stimulus: Stimulus) -> dict[int, float]:
+    """The tactors that start a stimulus, each with its weight in the skin onset.
+
+    A dynamic stimulus (a moving location on a between-tactor target) starts with its
+    dwell on the nearer tactor n: ``{n: 1.0}``. Any other stimulus (static, on-tactor):
+    every tactor driven above zero at the onset (``amplitudes(0)``, with the wearer
+    profile's gains), weighted by its amplitude.
+    """
+    if stimulus.is_dynamic:
+        return {int(stimulus.near_idx): 1.0}
+    amps = stimulus.amplitudes(0.0)
+    return {k: float(a) for k, a in enumerate(amps.tolist()) if a > 0.0}
+
+
+def skin_latency(calibration: Calibration, stimulus: Stimulus) -> tuple[float, float] | None:
+    """The skin-onset offset of a stimulus on a calibrated belt: ``(ms, sd_ms)``, or None
+    when a tactor that starts it (:func:`starting_tactors`) has no measured latency
+    (``tactorbelt validate onsets --calibration FILE``, docs/validation.md).
+
+    ``ms`` is the starting tactors' ``latency_ms`` averaged with their weights (one
+    tactor: its latency); ``sd_ms`` how far one onset may be from it: the root of the
+    weighted mean of their variances (``latency_sd_ms**2``) plus the weighted variance of
+    their latencies about ``ms`` (with equal weights, :meth:`Calibration.skin_latency`).
+    """
+    weights = starting_tactors(stimulus)
+    total = sum(weights.values())
+    if not weights or total <= 0.0 or calibration.n != stimulus.layout.n:
+        return None
+    rows = [(calibration.tactors[k], w / total) for k, w in weights.items()]
+    if any(t.latency_ms is None for t, _ in rows):
+        return None
+    mean = sum(w * float(t.latency_ms or 0.0) for t, w in rows)
+    var = sum(w * (float(t.latency_sd_ms or 0.0) ** 2
+                   + (float(t.latency_ms or 0.0) - mean) ** 2) for t, w in rows)
+    return mean, math.sqrt(var)
+
+
 def _check_layout(study: Study, belt: Belt) -> None:
     want = study.layout_obj()
     if tuple(round(a, 6) for a in want.angles_deg) != tuple(
@@ -354,6 +400,10 @@ class SessionRunner:
         self.sim = bool(clock.simulated)
         self.player = Player(belt, clock)
         self._stimuli: dict[tuple[Any, ...], Stimulus] = {}
+        #: the skin-onset offset (ms, sd_ms) of each stimulus made (by id), None without a
+        #: measured latency; nothing is computed when the calibration has no timing
+        self._skin: dict[int, tuple[float, float] | None] = {}
+        self._has_latency = belt.calibration.has_timing
         self._block_stimuli: dict[str, StimulusSpec] = {}
         self.profile: Any = None  # the wearer profile ([calibration] perceptual), by open_session
         # set by open_session
@@ -785,9 +835,46 @@ class SessionRunner:
             with contextlib.suppress(Exception):
                 self.cursor.trial_ended(self.clock.now_ns())
 
+    def skin_onset(self, result: TrialResult) -> tuple[int, int] | None:
+        """When the skin felt a trial's stimulus: ``(skin_onset_ns, skin_onset_sd_ns)``, or
+        None (no onset, or no measured latency of the tactors that start it).
+
+        The stored onset (the device-true ``device_onset_ns`` where the belt reports it,
+        else the command time ``onset_ns``) plus :func:`skin_latency` of the trial's
+        stimulus on the belt's calibration; the spread combines the latency's spread
+        with the device onset's uncertainty (root of the sum of squares).
+        """
+        if not self._has_latency or result.onset_ns is None:
+            return None
+        stim = self.stimulus_for(result.trial)
+        key = id(stim)
+        if key not in self._skin:
+            self._skin[key] = skin_latency(self.belt.calibration, stim)
+        offset = self._skin[key]
+        if offset is None:
+            return None
+        ms, sd_ms = offset
+        base, unc = result.onset_ns, 0
+        if result.device_onset_ns is not None:
+            base, unc = result.device_onset_ns, int(result.onset_uncertainty_ns or 0)
+        return base + round(ms * 1e6), round(math.hypot(sd_ms * 1e6, unc))
+
+    def _write(self, result: TrialResult) -> None:
+        """Write a trial with its skin onset; tell an observer that wants it
+        (``on_skin_onset(trial, skin_onset_ns, skin_onset_sd_ns)``, the LSL streams)."""
+        skin = self.skin_onset(result)
+        if skin is None:
+            self.store.write_trial(self.session_id, result)
+            return
+        self.store.write_trial(self.session_id, result, skin_onset_ns=skin[0],
+                               skin_onset_sd_ns=skin[1])
+        hook = getattr(self.obs, "on_skin_onset", None)
+        if hook is not None:
+            hook(result.trial, skin[0], skin[1])
+
     def record(self, result: TrialResult) -> None:
         """Store a trial (one transaction) and keep it in :attr:`results`."""
-        self.store.write_trial(self.session_id, result)
+        self._write(result)
         self.results.append(result)
         if len(self.results) > RESULT_SAMPLES_KEPT:
             self.results[-RESULT_SAMPLES_KEPT - 1].release_samples()
@@ -903,7 +990,7 @@ class SessionRunner:
         result = getattr(exc, "trial_result", None)
         if isinstance(result, TrialResult):
             with contextlib.suppress(Exception):
-                self.store.write_trial(self.session_id, result)
+                self._write(result)
                 self.results.append(result)
 
 

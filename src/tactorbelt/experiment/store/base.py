@@ -295,10 +295,15 @@ class Store(abc.ABC):
 
     # -- trials ------------------------------------------------------------------------
     @abc.abstractmethod
-    def write_trial(self, session_id: int, result: TrialResult) -> int:
+    def write_trial(self, session_id: int, result: TrialResult, *,
+                    skin_onset_ns: int | None = None,
+                    skin_onset_sd_ns: int | None = None) -> int:
         """Write a trial and its samples in one transaction; return its trial_id.
 
         An earlier ``aborted`` row of the same trial is replaced (with its samples).
+        ``skin_onset_ns`` and ``skin_onset_sd_ns``: the onset at the skin and its spread
+        (the runner's, from the belt's measured latencies; None: not known), stored in the
+        trial's ``skin_onset_ns`` and ``skin_onset_sd_ns``.
 
         Raises:
             StoreError: the trial already has a final row, or the write failed (then

@@ -144,6 +144,9 @@ TABLES: tuple[Table, ...] = (
         _c("n_targets", "int", added=True),
         _c("load", "text", nn=True, default="'none'", added=True),
         *_cs("int64", "device_onset_ns", "onset_uncertainty_ns", added=True),
+        # the onset at the skin: the stored onset plus the starting tactors' measured
+        # latency (``tactorbelt validate onsets``), and its spread; NULL without one
+        *_cs("int64", "skin_onset_ns", "skin_onset_sd_ns", added=True),
     ), unique=(("session_id", "trial_index"),)),
     Table("samples", (
         _c("trial_id", "ref", nn=True, references="trials", cascade=True, req="value"),

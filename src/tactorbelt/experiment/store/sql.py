@@ -231,10 +231,14 @@ class SqlStore(Store):
         return self._meta(COMMITS_KEY.format(session_id)) or "per-trial"
 
     # -- trials ------------------------------------------------------------------------
-    def write_trial(self, session_id: int, result: TrialResult) -> int:
+    def write_trial(self, session_id: int, result: TrialResult, *,
+                    skin_onset_ns: int | None = None,
+                    skin_onset_sd_ns: int | None = None) -> int:
         """Write a trial and its samples in one transaction; return its trial_id.
 
         An earlier ``aborted`` row of the same trial is replaced (with its samples).
+        ``skin_onset_ns``, ``skin_onset_sd_ns``: the onset at the skin and its spread, or
+        None (:meth:`~.base.Store.write_trial`).
 
         Raises:
             StoreError: the trial already has a final row, or the write failed.
@@ -254,6 +258,8 @@ class SqlStore(Store):
             result.stimulus_off_ns, result.n_samples, result.status,
             result.abort_reason, None, utc_now(), t.n_targets or None, t.load or "none",
             result.device_onset_ns, result.onset_uncertainty_ns,
+            None if skin_onset_ns is None else int(skin_onset_ns),
+            None if skin_onset_sd_ns is None else int(skin_onset_sd_ns),
         ]
         with self._transaction(f"write trial {t.trial_index} to") as c:
             trial_id = self._put_trial(c, session_id, t.trial_index, values)
