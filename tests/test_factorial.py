@@ -14,6 +14,7 @@ import pytest
 
 from support.studies import make_study, study_toml, write_study
 from tactorbelt import StudyFileError
+from tactorbelt.experiment.description import describe
 from tactorbelt.experiment.schedule import (
     block_order,
     make_schedule,
@@ -22,7 +23,6 @@ from tactorbelt.experiment.schedule import (
 )
 from tactorbelt.experiment.study import (
     Study,
-    describe,
     load_study,
     paper_study,
     plural,

@@ -229,7 +229,7 @@ def test_tlx_ratings_are_checked() -> None:
 
 
 def test_study_check_shows_the_tasks_and_counts_their_time() -> None:
-    from tactorbelt.experiment.study import describe
+    from tactorbelt.experiment.description import describe
 
     design = {"targets": [8], "condition": ["static"], "load": ["none", "nb2", "rest"],
               "repetitions": 1}

@@ -63,8 +63,9 @@ def init(file: Path, template: str, force: bool) -> None:
 @seed_option("Seed for design.order = random [default: the study's session.seed].")
 def check(file: Path, participant: str, seed: int | None) -> None:
     """Validate FILE; print its cells, trials per cell, block order and duration."""
+    from ..experiment.description import describe
     from ..experiment.runner import check_participant
-    from ..experiment.study import describe, load_study
+    from ..experiment.study import load_study
 
     s = load_study(file)
     report = describe(s, check_participant(participant), seed)

@@ -6,10 +6,12 @@ counterbalancing of the test blocks across participants, breaks, the inter-trial
 interval and the response rule. ``tactorbelt study init`` writes the paper's
 protocol (:func:`paper_study`); :func:`load_study` reads and checks a file and raises
 :class:`~tactorbelt.StudyFileError` naming the file, line and field of the first
-problem, and what is allowed there.
+problem, and what is allowed there (the mapping from pydantic's errors is in
+:mod:`.study_errors`). The templates ``study init`` writes are package data
+(``experiment/templates/*.toml``); what ``study check`` prints is :mod:`.description`.
 
-Pure: imports the standard library, pydantic, tomli-w, tactorbelt.geometry and
-tactorbelt.stimuli; never an I/O layer (devices, inputs, gui, store).
+Pure: imports the standard library, pydantic, tomli-w, tactorbelt.geometry and the task
+kinds; never an I/O layer (devices, inputs, gui, store).
 """
 
 from __future__ import annotations
@@ -20,7 +22,7 @@ import itertools
 import math
 import re
 import tomllib
-from dataclasses import dataclass
+from importlib import resources
 from pathlib import Path
 from typing import Any, Literal
 
@@ -38,12 +40,12 @@ from .._errors import ConfigError, StudyFileError
 from .._lawnames import LawName
 from ..geometry import Layout, TargetSet
 from ..tasks.kinds import NO_TASK, task_kind
+from .study_errors import study_error
 
 __all__ = [
     "CONDITIONS",
     "RESERVED_RESPONSES",
     "BlockSpec",
-    "Cell",
     "DesignSpec",
     "LayoutSpec",
     "QuestionnaireSpec",
@@ -51,11 +53,9 @@ __all__ = [
     "SessionSpec",
     "StimulusSpec",
     "Study",
-    "StudyDescription",
     "TargetsSpec",
     "TaskSpec",
     "TrainingSpec",
-    "describe",
     "load_study",
     "paper_study",
     "plural",
@@ -564,7 +564,7 @@ class Study(_Model):
         try:
             return cls.model_validate(data)
         except ValidationError as exc:
-            raise _study_error(exc, text, where) from None
+            raise study_error(exc, text, where, cls) from None
 
     def to_toml(self) -> str:
         """TOML text that :meth:`from_toml` reads back to an equal study."""
@@ -612,373 +612,24 @@ def load_study(path: str | Path) -> Study:
     return Study.from_toml(text, path=p)
 
 
-# -- error mapping -----------------------------------------------------------------
+# -- templates (package data: experiment/templates/NAME.toml) ---------------------------
 
-_HEADER = re.compile(r"^\s*(\[\[?)\s*([^\]]+?)\s*\]\]?\s*(#.*)?$")
-_KEY = re.compile(r"^\s*([A-Za-z0-9_\-\.\"' ]+?)\s*=")
-
-
-def _key_lines(text: str) -> dict[tuple[str | int, ...], int]:
-    """Map each key path in a TOML text (('test', 1, 'repetitions')) to its 1-based line."""
-    lines: dict[tuple[str | int, ...], int] = {}
-    table: tuple[str | int, ...] = ()
-    array_counts: dict[tuple[str | int, ...], int] = {}
-    for lineno, raw in enumerate(text.splitlines(), start=1):
-        m = _HEADER.match(raw)
-        if m:
-            parts = tuple(p.strip().strip("\"'") for p in m.group(2).split("."))
-            if m.group(1) == "[[":
-                idx = array_counts.get(parts, -1) + 1
-                array_counts[parts] = idx
-                table = (*parts, idx)
-            else:
-                table = parts
-            lines.setdefault(table, lineno)
-            if table and isinstance(table[-1], int):
-                lines.setdefault(table[:-1], lineno)
-            continue
-        k = _KEY.match(raw)
-        if k and not raw.lstrip().startswith("#"):
-            key = tuple(p.strip().strip("\"'") for p in k.group(1).split("."))
-            lines.setdefault((*table, *key), lineno)
-    return lines
+def _template(name: str) -> str:
+    return (resources.files("tactorbelt.experiment") / "templates" / f"{name}.toml").read_text(
+        encoding="utf-8")
 
 
-def _line_for(loc: tuple[str | int, ...], lines: dict[tuple[str | int, ...], int]) -> int | None:
-    for n in range(len(loc), 0, -1):
-        if loc[:n] in lines:
-            return lines[loc[:n]]
-    return None
-
-
-def _model_at(loc: tuple[str | int, ...]) -> Any:
-    """The pydantic model that holds the last key of ``loc`` (None if not a model)."""
-    model: Any = Study
-    ann: Any = None
-    for part in loc[:-1]:
-        if ann is not None:  # the key of a dict (tasks.NAME) or an index of a list
-            ann = None
-            continue
-        if isinstance(part, int):
-            continue
-        field = model.model_fields.get(part) if model is not None else None
-        if field is None:
-            return None
-        ann = field.annotation
-        args = [a for a in getattr(ann, "__args__", ()) if a is not type(None)]
-        if isinstance(ann, type) and issubclass(ann, BaseModel):
-            model, ann = ann, None
-        elif args and isinstance(args[-1], type) and issubclass(args[-1], BaseModel):
-            model = args[-1]
-            if getattr(ann, "__origin__", None) is None:  # X | None
-                ann = None
-        else:
-            return None
-    return model
-
-
-def _allowed_keys(loc: tuple[str | int, ...]) -> list[str]:
-    model = _model_at(loc)
-    return list(model.model_fields) if model is not None else []
-
-
-def _range_text(loc: tuple[str | int, ...]) -> str | None:
-    """The allowed range of a numeric field, e.g. ``(0, 1]``, from its constraints."""
-    model = _model_at(loc)
-    if model is None or not isinstance(loc[-1], str) or loc[-1] not in model.model_fields:
-        return None
-    lo = hi = None
-    lo_open = hi_open = True
-    for m in model.model_fields[loc[-1]].metadata:
-        if getattr(m, "ge", None) is not None:
-            lo, lo_open = m.ge, False
-        if getattr(m, "gt", None) is not None:
-            lo, lo_open = m.gt, True
-        if getattr(m, "le", None) is not None:
-            hi, hi_open = m.le, False
-        if getattr(m, "lt", None) is not None:
-            hi, hi_open = m.lt, True
-    if lo is None and hi is None:
-        return None
-    left = "(" if lo_open or lo is None else "["
-    right = ")" if hi_open or hi is None else "]"
-    lo_s = "-inf" if lo is None else f"{lo:g}"
-    hi_s = "inf" if hi is None else f"{hi:g}"
-    return f"{left}{lo_s}, {hi_s}{right}"
-
-
-def _parse_loc(dotted: str) -> tuple[str | int, ...]:
-    out: list[str | int] = []
-    for part in dotted.split("."):
-        m = re.fullmatch(r"([^\[]+)((?:\[\d+\])*)", part)
-        if not m:
-            out.append(part)
-            continue
-        out.append(m.group(1))
-        out += [int(i) for i in re.findall(r"\[(\d+)\]", m.group(2))]
-    return tuple(out)
-
-
-def _dotted(loc: tuple[str | int, ...]) -> str | None:
-    text = ".".join(f"[{p}]" if isinstance(p, int) else str(p) for p in loc).replace(".[", "[")
-    return text or None
-
-
-def _clean_loc(raw: tuple[Any, ...], key_last: bool = False) -> tuple[str | int, ...]:
-    """``raw`` without pydantic's labels of validators and unions (``function-after[...]``).
-    ``key_last``: the last part is the file's own key (an unknown key's error), kept
-    whatever it holds (a key may be ``"["``)."""
-    head, last = (raw[:-1], raw[-1:]) if key_last else (raw, ())
-    return (*(p for p in head if not (isinstance(p, str) and "[" in p)), *last)
-
-
-def _study_error(exc: ValidationError, text: str, where: str) -> StudyFileError:
-    errors = exc.errors(include_url=False)
-    err = errors[0]
-    loc = _clean_loc(err["loc"], key_last=err["type"] == "extra_forbidden")
-    lines = _key_lines(text)
-    kind = err["type"]
-    msg = err["msg"]
-    got = err.get("input")
-    # a misspelt required key: report the unknown key and the missing one together
-    missing = {_clean_loc(e["loc"]) for e in errors if e["type"] == "missing"}
-    extra = [_clean_loc(e["loc"], key_last=True) for e in errors
-             if e["type"] == "extra_forbidden"]
-    pair = None
-    for x in extra:
-        for m in missing:
-            if (x[:-1] == m[:-1] and isinstance(x[-1], str) and isinstance(m[-1], str)
-                    and difflib.get_close_matches(x[-1], [m[-1]], n=1)):
-                pair = (x, m)
-                break
-        if pair:
-            break
-    if pair is not None:
-        loc, kind, got = pair[0], "extra_forbidden", None
-    m_at = re.match(r"^(?:Value error, )?@([^@]+)@ (.*)$", msg, re.S) if kind == "value_error" \
-        else None
-    if m_at:
-        loc = (*loc, *_parse_loc(m_at.group(1)))
-        msg = m_at.group(2)
-    line = _line_for(loc, lines)
-    dotted = _dotted(loc)
-    if kind == "extra_forbidden":
-        allowed = _allowed_keys(loc)
-        close = difflib.get_close_matches(str(loc[-1]), allowed, n=1)
-        msg = f"unknown key {loc[-1]!r}"
-        if pair is not None:
-            msg += (f" (did you mean {pair[1][-1]!r}?); {pair[1][-1]!r} is required but "
-                    "missing")
-        elif close:
-            msg += f" (did you mean {close[0]!r}?)"
-        if allowed:
-            msg += f"; allowed here: {', '.join(allowed)}"
-    elif kind == "missing":
-        msg = "required but missing"
-    elif kind == "value_error":
-        msg = msg.removeprefix("Value error, ")
-    elif kind in ("greater_than", "greater_than_equal", "less_than", "less_than_equal"):
-        rng = _range_text(loc)
-        msg = (f"must be in {rng}" if rng else msg) + f" (got {got!r})"
-    elif kind in ("int_type", "float_type", "string_type", "bool_type", "list_type"):
-        what = {"int_type": "an integer", "float_type": "a number", "string_type": "a string",
-                "bool_type": "true or false", "list_type": "a list"}[kind]
-        rng = _range_text(loc)
-        msg = f"must be {what}" + (f" in {rng}" if rng else "") + f" (got {got!r})"
-    else:
-        msg = msg[0].lower() + msg[1:]
-        if not isinstance(got, dict | list):
-            msg += f" (got {got!r})"
-    return StudyFileError(msg, path=where, line=line, field=dotted)
-
-
-# -- the paper's protocol ------------------------------------------------------------
-
-#: The [stimulus] and [response] tables and the start of [session] that the templates
-#: share (the paper's values, commented).
-_STIMULUS_RESPONSE_SESSION_TOML = '''\
-[stimulus]
-law = "paper"             # paper | linear | energy
-falloff_deg = 15.0        # T of the paper's Eq. 1
-period_s = 1.0            # period of the dynamic perturbation
-transit_s = 0.1           # time to move between the two tactors (2*transit < period)
-max_presentation_s = 10.0 # the stimulus stops at acquisition or after this long
-
-[response]
-home_radius = 0.15        # the cursor must be this close to the centre to start a trial
-threshold = 0.9           # acquisition: distance from the centre passes this, in (0, 1]
-dwell_s = 0.0             # ... and stays beyond it this long (0 = at once)
-timeout_s = 10.0          # no acquisition this long after onset: the trial times out
-
-[session]
-seed = 1                  # randomisation seed (with the participant id); --seed overrides
-iti_s = 1.0               # inter-trial interval
-'''
-
-PAPER_STUDY_TOML = '''\
-# tactorbelt study file: the protocol of Eguchi et al., "Between-Tactor Display
-# Using Dynamic Tactile Stimuli". Edit it, then check it with
-#   tactorbelt study check THIS_FILE
-# Angles are degrees, 0 = navel (front), growing clockwise seen from above.
-
-name = "between-tactor-paper"
-description = "6 tactors, 24 targets; training, then static and dynamic test blocks"
-# authors = ["A. Researcher", "B. Researcher"]  # the BIDS export's Authors
-
-[layout]
-# Either the number of evenly spaced tactors (at 180/N + k*360/N, so the two front
-# tactors are equally distant from the navel) ...
-tactors = 6
-# ... or their angles, one per tactor (tactor k is the k-th angle):
-# angles_deg = [30, 90, 150, 210, 270, 330]
-
-[targets]
-count = 24                # targets at k*360/count; on-tactor where one meets a tactor
-
-''' + _STIMULUS_RESPONSE_SESSION_TOML + '''\
-break_every = 48          # a break after every N trials (0 = no breaks)
-randomise = "per_repetition"  # per_repetition (each pass a new permutation) | full | none
-condition_order = "alternate" # fixed | alternate (even participants reversed) | latin
-sample_rate_hz = 100.0    # cursor sampling rate
-
-[training]
-# Each target is felt while its location is shown; the participant points at it.
-passes = 1                # 0 = no training
-conditions = ["static", "dynamic"]
-order = "sequential"      # sequential (around the belt) | random
-
-# Test blocks, in the order participant 1 gets them (see condition_order).
-[[test]]
-name = "static"
-condition = "static"      # static | dynamic (on-tactor targets are always static)
-repetitions = 5           # every target this many times
-
-[[test]]
-name = "dynamic"
-condition = "dynamic"
-repetitions = 5
-'''
+#: The commented study files ``tactorbelt study init --template NAME`` writes.
+TEMPLATES: dict[str, str] = {name: _template(name) for name in ("paper", "resolution", "load")}
+#: The paper's protocol, as ``study init`` writes it.
+PAPER_STUDY_TOML = TEMPLATES["paper"]
+RESOLUTION_STUDY_TOML = TEMPLATES["resolution"]
+LOAD_STUDY_TOML = TEMPLATES["load"]
 
 
 def paper_study() -> Study:
     """The paper's protocol: 6 tactors, 24 targets, T = 15, training, static and dynamic blocks."""
     return Study.from_toml(PAPER_STUDY_TOML, path="<paper study>")
-
-
-# -- the resolution study ------------------------------------------------------------
-
-RESOLUTION_STUDY_TOML = '''\
-# tactorbelt study file: how finely can directions be told apart between tactors?
-# A full factorial of target resolution (12, 24, 36, 48 targets) x condition (static,
-# dynamic), each cell one test block, ordered across participants by a balanced Latin
-# square (Williams). Check it with
-#   tactorbelt study check THIS_FILE
-# Angles are degrees, 0 = navel (front), growing clockwise seen from above.
-
-name = "between-tactor-resolution"
-description = "6 tactors; 12/24/36/48 targets x static/dynamic; Williams order"
-# authors = ["A. Researcher", "B. Researcher"]  # the BIDS export's Authors
-
-[layout]
-tactors = 6               # evenly spaced at 180/N + k*360/N
-
-[targets]
-count = 24                # not used by the [design] blocks (they set their own counts)
-
-''' + _STIMULUS_RESPONSE_SESSION_TOML + '''\
-break_every = 60          # a break after every N trials (0 = no breaks)
-randomise = "per_repetition"  # per_repetition (each pass a new permutation) | full | none
-sample_rate_hz = 100.0    # cursor sampling rate
-
-[training]
-# Before the first test block, each target of every count (12, then 24, 36, 48) is
-# felt while its location is shown; the participant points at it.
-passes = 1                # 0 = no training
-conditions = ["static", "dynamic"]
-order = "sequential"      # sequential (around the belt) | random
-
-[design]
-# One test block per cell: 4 target counts x 2 conditions = 8 blocks.
-targets = [12, 24, 36, 48]     # targets at k*360/count
-condition = ["static", "dynamic"]
-load = ["none"]                # "none" or the name of a [tasks.NAME] table
-repetitions = 2                # every target of a block this many times
-order = "williams"             # williams | latin | fixed | random (across participants)
-
-# A secondary task, used by naming it in design.load (e.g. load = ["none", "nback2"]):
-# [tasks.nback2]
-# kind = "nback"               # nback | arithmetic | none
-# n = 2
-# modality = "auditory"        # auditory | visual
-# interval_s = 2.5
-
-# [questionnaire]
-# tlx = true                   # raw NASA-TLX after each test block
-'''
-
-# -- the cognitive-load study --------------------------------------------------------
-
-LOAD_STUDY_TOML = '''\
-# tactorbelt study file: does a concurrent task (cognitive load) change between-tactor
-# localisation? A full factorial of condition (static, dynamic) x load (none, auditory
-# 2-back), 24 targets, each cell one test block, ordered across participants by a
-# balanced Latin square (Williams); raw NASA-TLX after every test block. Check it with
-#   tactorbelt study check THIS_FILE
-# Angles are degrees, 0 = navel (front), growing clockwise seen from above.
-
-name = "between-tactor-load"
-description = "6 tactors, 24 targets; static/dynamic x no load/auditory 2-back; NASA-TLX"
-# authors = ["A. Researcher", "B. Researcher"]  # the BIDS export's Authors
-
-[layout]
-tactors = 6               # evenly spaced at 180/N + k*360/N
-
-[targets]
-count = 24                # targets at k*360/count; on-tactor where one meets a tactor
-
-''' + _STIMULUS_RESPONSE_SESSION_TOML + '''\
-break_every = 48          # a break after every N trials (0 = no breaks)
-randomise = "per_repetition"  # per_repetition (each pass a new permutation) | full | none
-sample_rate_hz = 100.0    # cursor sampling rate
-
-[training]
-# Localisation alone, before any test block: each target is felt while its location
-# is shown; the participant points at it.
-passes = 1                # 0 = no training
-conditions = ["static", "dynamic"]
-order = "sequential"      # sequential (around the belt) | random
-
-[design]
-# One test block per cell: 2 conditions x 2 loads = 4 blocks.
-targets = [24]
-condition = ["static", "dynamic"]
-load = ["none", "nback2"]      # "none" or the name of a [tasks.NAME] table
-repetitions = 2                # every target of a block this many times
-order = "williams"             # williams | latin | fixed | random (across participants)
-
-# The secondary task of the blocks whose load is "nback2". Every task is go/no-go:
-# press the response button when the item is the same as the one n items back.
-# It runs on its own clock (one item every interval_s from the block's first trial),
-# whatever the localisation trials do.
-[tasks.nback2]
-kind = "nback"            # nback | arithmetic (odd/even of "a+b") | none (no task)
-n = 2                     # 1, 2 or 3
-modality = "auditory"     # auditory (tones) | visual (a letter off the response ellipse)
-interval_s = 2.5          # one item every interval_s (longer than stimulus_s)
-stimulus_s = 0.5          # how long a tone or a letter lasts
-response = "joystick:1"   # key:NAME | joystick:K | mouse:middle|right (not Space, Return,
-                          # joystick:0 or the left mouse button: they confirm a localisation)
-match_rate = 0.3          # share of go items (matches)
-practice = 12             # items of the task alone before its first block
-baseline = 24             # then items alone for the single-task baseline (the
-                          # dual-task cost compares it with the task during the trials)
-
-[questionnaire]
-tlx = true                # raw NASA-TLX (6 items, 0-100) after each test block
-'''
-
-TEMPLATES: dict[str, str] = {"paper": PAPER_STUDY_TOML, "resolution": RESOLUTION_STUDY_TOML,
-                             "load": LOAD_STUDY_TOML}
 
 
 def template_toml(name: str = "paper") -> str:
@@ -992,138 +643,3 @@ def template_toml(name: str = "paper") -> str:
     except KeyError:
         raise ConfigError(f"unknown study template {name!r}; use one of: "
                           f"{', '.join(TEMPLATES)}") from None
-
-
-# -- what `study check` prints -------------------------------------------------------
-
-
-def _minutes(seconds: float) -> str:
-    m, s = divmod(round(seconds), 60)
-    return f"{m} min {s:02d} s" if m else f"{s} s"
-
-
-@dataclass(frozen=True)
-class Cell:
-    """One cell of the test design (one test block)."""
-
-    block: str
-    n_targets: int
-    condition: str
-    load: str
-    repetitions: int
-
-    @property
-    def trials(self) -> int:
-        return self.n_targets * self.repetitions
-
-
-@dataclass(frozen=True)
-class StudyDescription:
-    """What ``tactorbelt study check`` reports about a study (:func:`describe`).
-
-    Attributes:
-        study: the study.
-        participant: whose block order ``order`` is.
-        cells: the test blocks in the file's (canonical) order.
-        order: the block labels in the participant's running order.
-        order_rule: ``design.order`` or ``session.condition_order``.
-        balance_participants: participants per complete balance of the order.
-        n_breaks: breaks in a session.
-        duration_s, max_duration_s: the estimate with 2 s responses, and with every
-            trial timing out.
-    """
-
-    study: Study
-    participant: str
-    cells: tuple[Cell, ...]
-    order: tuple[str, ...]
-    order_rule: str
-    balance_participants: int
-    n_breaks: int
-    duration_s: float
-    max_duration_s: float
-
-    def to_text(self) -> str:
-        """The report as lines of text (two-space indent; the CLI prints 'FILE: ok' first)."""
-        s = self.study
-        layout = s.layout_obj()
-        counts = s.target_counts()
-        out = [f"  study       {s.name}",
-               f"  layout      {plural(layout.n, 'tactor')} at "
-               f"{', '.join(f'{a:g}' for a in layout.angles_deg)} deg"]
-        for n in counts:
-            on = int(TargetSet.even(n).on_tactor(layout).sum())
-            out.append(f"  targets     {n} ({on} on-tactor, {n - on} between-tactor)")
-        st = s.stimulus
-        out.append(f"  stimulus    law {st.law}, falloff {st.falloff_deg:g} deg, period "
-                   f"{st.period_s:g} s, transit {st.transit_s:g} s, at most "
-                   f"{st.max_presentation_s:g} s")
-        r = s.response
-        out.append(f"  response    home {r.home_radius:g}, threshold {r.threshold:g}, dwell "
-                   f"{r.dwell_s:g} s, timeout {r.timeout_s:g} s")
-        if s.design is not None:
-            d = s.design
-            out.append(f"  design      {plural(len(d.targets), 'target count')} x "
-                       f"{plural(len(d.condition), 'condition')} x "
-                       f"{plural(len(d.load), 'load')} = {plural(len(self.cells), 'cell')}, "
-                       f"{plural(d.repetitions, 'repetition')} of every target")
-        out.append("  blocks")
-        tr = s.training
-        n_tr = s.n_training_trials()
-        width = max(9, *(len(c.block) for c in self.cells))
-        if n_tr:
-            tgt = (plural(counts[0], "target") if len(counts) == 1
-                   else f"({' + '.join(str(n) for n in counts)}) targets")
-            out.append(f"    {'training':<{width}s} {n_tr:4d} trials "
-                       f"({plural(tr.passes, 'pass')} x "
-                       f"{plural(len(tr.conditions), 'condition')} x {tgt}, {tr.order})")
-        for c in self.cells:
-            load = "" if c.load == "none" else f", load {c.load}"
-            out.append(f"    {c.block:<{width}s} {c.trials:4d} trials "
-                       f"({c.condition}{load}, {plural(c.repetitions, 'repetition')} x "
-                       f"{plural(c.n_targets, 'target')})")
-        for name, t in s.used_tasks().items():
-            what = task_kind(t.kind).describe(t)
-            out.append(f"  task        {name}: {t.modality} {what}, an item every "
-                       f"{t.interval_s:g} s ({t.stimulus_s:g} s long), press {t.response} "
-                       f"on {t.match_rate:.0%} go items; {plural(t.practice, 'practice item')}"
-                       f", {plural(t.baseline, 'baseline item')} before its first block")
-        if s.questionnaire.tlx:
-            out.append("  ratings     raw NASA-TLX (6 items, 0-100) after each test block")
-        out.append(f"  total       {s.n_trials()} trials ({s.n_test_trials()} test)")
-        out.append(f"  order       {self.order_rule} (balanced over "
-                   f"{plural(self.balance_participants, 'participant')}); "
-                   f"{self.participant}: {' -> '.join(self.order)}")
-        out.append(f"  breaks      {self.n_breaks} (every {s.session.break_every} trials)"
-                   if self.n_breaks else "  breaks      none")
-        extra = (" + the tasks' practice and baseline" if s.used_tasks() else "") + (
-            " + 1 min per NASA-TLX" if s.questionnaire.tlx else "")
-        out.append(f"  duration    about {_minutes(self.duration_s)} "
-                   f"(2 s per response + {s.session.iti_s:g} s ITI per trial + 1 min per "
-                   f"break{extra}); at most {_minutes(self.max_duration_s)}")
-        return "\n".join(out)
-
-
-def describe(study: Study, participant: str = "P01", seed: int | None = None) -> StudyDescription:
-    """The ``study check`` report: cells, trials per cell, block order, duration.
-
-    Also builds the participant's schedule, so a study that cannot be scheduled fails
-    here. ``seed`` (default ``session.seed``) matters for ``design.order = "random"``.
-    """
-    from .schedule import block_order, make_schedule, order_rows, order_rule
-
-    cells = tuple(Cell(b.label, study.block_n_targets(b), b.condition, b.load, b.repetitions)
-                  for b in study.test)
-    idx = block_order(study, participant, seed)
-    rule = order_rule(study)
-    n = study.n_trials()
-    every = study.session.break_every
-    make_schedule(study, participant, seed)
-    return StudyDescription(
-        study=study, participant=participant, cells=cells,
-        order=tuple(study.test[i].label for i in idx), order_rule=rule,
-        balance_participants=order_rows(rule, len(cells)),
-        n_breaks=(n - 1) // every if every else 0,
-        duration_s=study.estimate_duration_s(),
-        max_duration_s=study.estimate_duration_s(response_s=study.response.timeout_s),
-    )
