@@ -16,9 +16,11 @@ Each sample is stamped with LSL's clock at the moment of its event: the runner's
 the event (its clock's nanoseconds) mapped to :func:`pylsl.local_clock` by a bracketed
 reading of both clocks at push time. Where the belt reports device-true onsets
 (:attr:`tactorbelt.devices.base.Belt.reports_onsets`, firmware 1.1), the onset marker
-carries the device's onset instead of the host's and is sent when the trial ends. The
-streams' XML description holds the study, the participant, the session and the belt's
-tactor layout.
+carries the device's onset instead of the host's and is sent when the trial ends. Where
+the belt's calibration has measured latencies (``tactorbelt validate onsets``), a
+``skin_onset`` marker, sent when the trial ends, is stamped at the trial's onset at the
+skin. The streams' XML description holds the study, the participant, the session and
+the belt's tactor layout with each tactor's measured latency and rise.
 
 ``pylsl`` (``pip install 'tactorbelt[lsl]'``) is imported only here and only when a
 stream opens; without it or without the liblsl library, :func:`load_pylsl` raises a
@@ -75,6 +77,7 @@ MARKER_EVENTS: dict[str, tuple[str, ...]] = {
     "trial_start": ("trial_index", "block_index", "block", "condition", "n_targets", "load"),
     "stimulus_onset": ("trial_index", "target_deg", "on_tactor", "condition", "n_targets",
                        "load", "block", "onset_clock"),
+    "skin_onset": ("trial_index", "latency_ms", "sd_ms"),
     "response": ("trial_index", "response_deg", "response_target_deg", "correct", "rt_s"),
     "timeout": ("trial_index",),
     "trial_end": ("trial_index", "status", "abort_reason"),
@@ -228,6 +231,8 @@ class LslObserver:
         self._block: int | None = None
         self._trial: ScheduledTrial | None = None
         self._onset_pending = False
+        #: the skin onset of the trial ending: (trial_index, skin_onset_ns, sd_ns)
+        self._skin: tuple[int, int, int] | None = None
         self._paused = False
         self._timeout_ns = 0
         # the running secondary task: (name, phase); its items wait here until their
@@ -358,11 +363,20 @@ class LslObserver:
         b.append_child_value("url", self.belt.url)
         b.append_child_value("firmware_version", str(self.belt.firmware_version or ""))
         b.append_child_value("reports_onsets", "true" if self.belt.reports_onsets else "false")
+        cal = getattr(self.belt, "calibration", None)
+        b.append_child_value("timing_validated", str(getattr(cal, "validated", None) or ""))
+        b.append_child_value("timing_method",
+                             str(getattr(cal, "validation_method", None) or ""))
         tactors = b.append_child("tactors")
         for k, angle in enumerate(self.belt.layout.angles_deg):
             t = tactors.append_child("tactor")
             t.append_child_value("index", str(k))
             t.append_child_value("angle_deg", f"{angle:g}")
+            if cal is not None and k < cal.n:  # measured timing (ms): the skin-onset offset
+                for name in ("latency_ms", "latency_sd_ms", "rise_ms", "rise_sd_ms"):
+                    v = getattr(cal.tactors[k], name)
+                    if v is not None:
+                        t.append_child_value(name, f"{v:g}")
 
     def close(self) -> None:
         """Close both outlets (consumers see the streams end). With a consumer connected,
@@ -457,6 +471,15 @@ class LslObserver:
             self.cursor.push_sample([sample.x, sample.y], self.to_lsl(sample.t_ns, CURSOR_STREAM))
         self.inner.on_sample(sample)
 
+    def on_skin_onset(self, trial: ScheduledTrial, skin_onset_ns: int,
+                      skin_onset_sd_ns: int) -> None:
+        """The runner's skin onset of the trial ending (its calibration has measured
+        latencies): marked as ``skin_onset`` when the trial ends."""
+        self._skin = (trial.trial_index, int(skin_onset_ns), int(skin_onset_sd_ns))
+        hook = getattr(self.inner, "on_skin_onset", None)
+        if hook is not None:
+            hook(trial, skin_onset_ns, skin_onset_sd_ns)
+
     def on_trial_done(self, result: TrialResult) -> None:
         t = result.trial
         if self._onset_pending and result.onset_ns is not None:
@@ -465,6 +488,12 @@ class LslObserver:
             else:
                 self._send_onset(t, result.onset_ns, "host")
         self._onset_pending = False
+        skin, self._skin = self._skin, None
+        if skin is not None and skin[0] == t.trial_index and result.onset_ns is not None:
+            stored = (result.device_onset_ns if result.device_onset_ns is not None
+                      else result.onset_ns)
+            self.send(skin[1], "skin_onset", trial_index=t.trial_index,
+                      latency_ms=(skin[1] - stored) / 1e6, sd_ms=skin[2] / 1e6)
         if result.status == "done" and result.acquired_ns is not None:
             self.send(result.acquired_ns, "response", trial_index=t.trial_index,
                       response_deg=result.response_deg,

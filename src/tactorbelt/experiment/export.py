@@ -40,6 +40,7 @@ its interface and writes files; standard library only.
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import functools
 import json
@@ -103,6 +104,15 @@ BEH_COLUMNS: dict[str, dict[str, Any]] = {
     "correct": {"Description": "1 when response_target_deg equals target_deg, else 0."},
     "rt_s": {"Description": "Time from stimulus onset to target acquisition.", "Units": "s"},
     "onset_s": {"Description": "Stimulus onset on the session clock (monotonic).", "Units": "s"},
+    "skin_onset_s": {"Description": "Stimulus onset at the skin on the session clock: the "
+                     "stored onset (the device-true onset where the belt reports it, else "
+                     "onset_s) plus the measured latency of the tactors that start the "
+                     "stimulus (StimulusSystem.SkinOnset); n/a without a measured latency.",
+                     "Units": "s"},
+    "skin_onset_sd_s": {"Description": "How far skin_onset_s may be off, pulse to pulse: the "
+                        "tactors' latency spread combined with the device onset's "
+                        "uncertainty (root of the sum of squares); n/a without a measured "
+                        "latency.", "Units": "s"},
     "status": {"Description": "Outcome of the trial.", "Levels": {
         "done": "a response was acquired", "timeout": "no response before the timeout",
         "aborted": "interrupted (pause, device error, Ctrl-C)"}},
@@ -247,6 +257,15 @@ def _prepare(out: str | Path, fmt: str, force: bool, db: str | Path) -> Path:
     except OSError as exc:
         raise ConfigError(f"cannot create {o}: {exc.strerror}") from None
     return o
+
+
+def _beh_value(trial: dict[str, Any], column: str) -> Any:
+    """A ``_beh.tsv`` cell of a trial: the onsets in seconds (``onset_s``, ``skin_onset_s``,
+    ``skin_onset_sd_s``, from the stored ns; None where not stored), else as stored."""
+    if column in ("onset_s", "skin_onset_s", "skin_onset_sd_s"):
+        ns = trial.get(column[:-2] + "_ns")
+        return None if ns is None else ns / 1e9
+    return trial[column]
 
 
 @functools.lru_cache(maxsize=64)
@@ -567,11 +586,10 @@ def export_bids(db: str | Path, out: str | Path, *, readme: str | Path | None = 
             trials = [_with_cell(t, s) for t in store.trials(s["session_id"])]
             beh = base / "beh" / f"{stem}_beh.tsv"
             cols = list(BEH_COLUMNS)
-            _write_tsv(beh, cols, [
-                [(t["onset_ns"] / 1e9 if t["onset_ns"] is not None else None) if k == "onset_s"
-                 else t[k] for k in cols] for t in trials])
+            _write_tsv(beh, cols, [[_beh_value(t, k) for k in cols] for t in trials])
             sidecar: dict[str, Any] = dict(BEH_COLUMNS)
             sidecar["TaskName"] = TASK
+            sidecar["StimulusSystem"] = _stimulus_system(s)
             sidecar["tactorbelt"] = {
                 k: s[k] for k in ("study_name", "study_sha256", "seed", "condition_order",
                                   "belt", "firmware_version", "package_version", "git_commit",
@@ -612,6 +630,89 @@ def export_bids(db: str | Path, out: str | Path, *, readme: str | Path | None = 
             }, indent=2) + "\n")
             written += [motion, ch, mj]
     return written
+
+
+#: The actuators of each belt kind (the belt URL's scheme), for the stimulus system.
+_ACTUATORS = {
+    "sim": "ERM vibration motor, simulated (tactorbelt's ERM model: no motor vibrated)",
+    "emulator": "ERM vibration motor driven by the tactorbelt firmware, emulated on the "
+                "host (no motor vibrated)",
+    "serial": "ERM vibration motor driven by the tactorbelt firmware (PWM), over USB serial",
+    "ble": "ERM vibration motor driven by the tactorbelt firmware (PWM), over Bluetooth LE",
+    "audio": "voice-coil or LRA actuator driven by a sound card output channel (a sine "
+             "carrier modulated by the drive level)",
+}
+_SKIN_ONSET_RULE = (
+    "skin_onset_s = the stored onset (device-true where the belt reports it, else the "
+    "command time) + the measured latency (command to 10 % of the steady vibration, "
+    "'tactorbelt validate onsets') of the tactors that start the stimulus: for a dynamic "
+    "stimulus the nearer tactor, where its dwell starts; otherwise every tactor driven "
+    "above zero at the onset, their latencies averaged with the amplitudes as weights.")
+_TIMING = ("latency_ms", "latency_sd_ms", "rise_ms", "rise_sd_ms", "fall_ms", "fall_sd_ms")
+
+
+def _stimulus_system(session: dict[str, Any]) -> dict[str, Any]:
+    """The ``StimulusSystem`` object of a session's ``_beh.json``: the belt, its tactor
+    layout in body coordinates, its actuators (and carrier), the amplitude law, the
+    calibration with each tactor's measured latency and rise, and the skin-onset rule."""
+    from urllib.parse import parse_qs
+
+    belt = str(session.get("belt") or "")
+    scheme = belt.split(":", 1)[0].lower()
+    out: dict[str, Any] = {
+        "Description": "The vibrotactile belt that presented the stimuli.",
+        "Belt": belt or "n/a",
+        "ActuatorType": _ACTUATORS.get(scheme, "unknown"),
+    }
+    if session.get("firmware_version"):
+        out["FirmwareVersion"] = str(session["firmware_version"])
+    if scheme == "audio":
+        from ..devices.audio import DEFAULT_CARRIER_HZ
+
+        query = parse_qs(belt.partition("?")[2])
+        carrier = DEFAULT_CARRIER_HZ
+        with contextlib.suppress(ValueError):
+            carrier = float(query.get("carrier_hz", [carrier])[0])
+        out["CarrierFrequency"] = carrier
+        out["CarrierFrequencyUnits"] = "Hz"
+    study = _session_study(session)
+    angles: list[float] = []
+    if study is not None:
+        angles = [float(a) for a in study.layout_obj().angles_deg]
+        sp = study.stimulus
+        out["TactorLayout"] = {
+            "Description": "Tactor k's direction on the body: 0 = navel, clockwise seen "
+                           "from above (index k = tactor k).",
+            "AnglesDeg": angles, "Units": "deg"}
+        out["AmplitudeLaw"] = {
+            "Description": "The amplitude of each tactor for a felt location (the study's "
+                           "[stimulus]; blocks may override it, see the study file).",
+            "Law": sp.law, "FalloffDeg": sp.falloff_deg, "PeriodS": sp.period_s,
+            "TransitS": sp.transit_s}
+    rows: list[dict[str, Any]] = []
+    try:
+        rows = list(json.loads(session.get("calibration_json") or "[]") or [])
+    except (TypeError, ValueError):
+        rows = []
+    if rows:
+        tactors = []
+        for k, r in enumerate(rows):
+            row: dict[str, Any] = {"Index": k}
+            if k < len(angles):
+                row["AngleDeg"] = angles[k]
+            row |= {n.capitalize(): r[n] for n in ("start", "gain", "ceiling") if n in r}
+            row |= {n: r[n] for n in _TIMING if r.get(n) is not None}
+            tactors.append(row)
+        out["Calibration"] = {
+            "Description": "Drive level of tactor k for an amplitude a > 0: Start + "
+                           "(Ceiling - Start) * a * Gain, clamped to [0, Ceiling] (0 for "
+                           "a = 0). latency_ms: command to 10 % of the steady vibration; "
+                           "rise_ms: 10 to 90 %; fall_ms: 90 to 10 % after the stop; *_sd_ms: "
+                           "their spread over pulses (tactorbelt validate onsets; absent: "
+                           "not measured).",
+            "Tactors": tactors}
+    out["SkinOnset"] = _SKIN_ONSET_RULE
+    return out
 
 
 def _session_study(session: dict[str, Any]) -> Any:
