@@ -91,6 +91,14 @@ def lme4_available(rscript: str = "Rscript") -> str | None:
     return None
 
 
+def _r_env() -> dict[str, str]:
+    """R's environment with one BLAS thread: threaded sums change glmer's path in the
+    4th digit from run to run."""
+    import os
+
+    return {**os.environ, "OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1"}
+
+
 def _frame(df: pd.DataFrame, spec: ModelSpec) -> pd.DataFrame:
     """The columns the formula uses; booleans as 0/1 (lme4 then names them plainly)."""
     import pandas as pd
@@ -126,7 +134,7 @@ def fit_lme4(df: pd.DataFrame, spec: ModelSpec, *, family: str = "binomial",
         (d / "fit.R").write_text(_SCRIPT)
         try:
             r = subprocess.run([exe, str(d / "fit.R"), str(d), family], capture_output=True,
-                               text=True, timeout=timeout_s)
+                               text=True, timeout=timeout_s, env=_r_env())
         except subprocess.TimeoutExpired as exc:
             raise RuntimeError(f"lme4 took longer than {timeout_s:g} s") from exc
         if r.returncode != 0:
@@ -190,7 +198,15 @@ g <- readLines(file.path(dir, "groups.txt"))
 d <- read.csv(file.path(dir, "data.csv"), stringsAsFactors = FALSE,
               colClasses = setNames(rep("character", length(g)), g))
 quiet <- function(expr) suppressWarnings(suppressMessages(expr))
-m <- quiet(glmer(form, data = d, family = binomial))
+msgs <- character(0)
+m <- withCallingHandlers(glmer(form, data = d, family = binomial),
+  warning = function(w) { msgs <<- c(msgs, conditionMessage(w)); invokeRestart("muffleWarning") },
+  message = function(w) { msgs <<- c(msgs, conditionMessage(w)); invokeRestart("muffleMessage") })
+writeLines(unique(c(msgs, m@optinfo$conv$lme4$messages)), file.path(dir, "messages.txt"))
+cf <- fixef(m)
+write.csv(data.frame(term = names(cf), estimate = unname(cf)), file.path(dir, "fixef.csv"),
+          row.names = FALSE)
+write.csv(as.matrix(vcov(m)), file.path(dir, "vcov.csv"), row.names = FALSE)
 m0 <- quiet(glmer(form0, data = d, family = binomial))
 a <- anova(m0, m)
 out <- c(lrt = a$Chisq[2], lrt_df = a$Df[2], lrt_p = a[["Pr(>Chisq)"]][2],
@@ -205,6 +221,15 @@ if (file.exists(file.path(dir, "sims.csv")) || nsim > 0) {
       2 * (as.numeric(logLik(s1)) - as.numeric(logLik(s0)))
     }, numeric(1))
     pb <- PBmodcomp(m, m0, ref = ref)
+    resp <- all.vars(form)[1]
+    fresh <- vapply(Y, function(y) {
+      d2 <- d; d2[[resp]] <- y
+      s0 <- quiet(glmer(form0, data = d2, family = binomial))
+      s1 <- quiet(glmer(form, data = d2, family = binomial))
+      2 * (as.numeric(logLik(s1)) - as.numeric(logLik(s0)))
+    }, numeric(1))
+    out <- c(out, pb_p_fresh = PBmodcomp(m, m0, ref = fresh)$test["PBtest", "p.value"])
+    writeLines(format(unname(fresh), digits = 15), file.path(dir, "ref_fresh.txt"))
   } else {
     pb <- quiet(PBmodcomp(m, m0, nsim = nsim, seed = seed))
     ref <- pb$ref
@@ -240,12 +265,17 @@ def condition_tests_lme4(df: pd.DataFrame, spec: ModelSpec, spec0: ModelSpec, *,
     """R's tests of the condition for the accuracy GLMM ``spec`` against ``spec0``.
 
     Fits both with ``glmer`` and returns ``anova(m0, m)`` (``lrt``, ``lrt_df``,
-    ``lrt_p``), with ``n_sim`` or ``responses`` pbkrtest's ``PBmodcomp(m, m0)``
+    ``lrt_p``; ``beta``, ``vcov`` and ``messages`` of the fit of ``spec``), with
+    ``n_sim`` or ``responses`` pbkrtest's ``PBmodcomp(m, m0)``
     (``pb_p``, ``pb_nsim``, ``pb_npos``, ``ref``; ``responses``: an ``(n_sim, N)`` array
-    of 0/1 responses to refit instead of ``simulate(m0)``), and with ``contrasts`` the
+    of 0/1 responses to refit instead of ``simulate(m0)``; then also ``ref_fresh`` and
+    ``pb_p_fresh``: the same with both models fitted afresh to each response, not by
+    ``refit``, which starts from the data's estimates and sometimes stops short of the
+    optimum), and with ``contrasts`` the
     emmeans contrasts ``test(pairs(emmeans(m, ~ condition | n_targets, at =
     list(on_tactor = 0))), adjust = "holm", by = NULL)`` on the log-odds and (``regrid``)
-    probability scales (``contrasts``: a DataFrame).
+    probability scales (``contrasts``: a DataFrame with columns ``contrast, n_targets,
+    estimate, SE, z, p_value, scale``).
 
     Raises:
         Lme4Unavailable: no Rscript or lme4; RuntimeError: R failed.
@@ -270,7 +300,7 @@ def condition_tests_lme4(df: pd.DataFrame, spec: ModelSpec, spec0: ModelSpec, *,
         try:
             r = subprocess.run([exe, str(d / "tests.R"), str(d), str(int(n_sim)), str(int(seed)),
                                 "1" if contrasts else "0"], capture_output=True, text=True,
-                               timeout=timeout_s)
+                               timeout=timeout_s, env=_r_env())
         except subprocess.TimeoutExpired as exc:
             raise RuntimeError(f"R took longer than {timeout_s:g} s") from exc
         if r.returncode != 0:
@@ -280,8 +310,17 @@ def condition_tests_lme4(df: pd.DataFrame, spec: ModelSpec, spec0: ModelSpec, *,
             raise RuntimeError("R failed: " + " | ".join(err.splitlines()[-5:]))
         vals = dict(pd.read_csv(d / "tests.csv").itertuples(index=False, name=None))
         out: dict[str, Any] = {k: float(v) for k, v in vals.items()}
-        if (d / "ref.txt").exists():
-            out["ref"] = np.array([float(v) for v in (d / "ref.txt").read_text().split()])
+        fx = pd.read_csv(d / "fixef.csv")
+        out["beta"] = dict(zip(fx["term"].astype(str), fx["estimate"].astype(float),
+                               strict=True))
+        out["vcov"] = pd.read_csv(d / "vcov.csv").to_numpy(dtype=float)
+        out["messages"] = [m for m in (d / "messages.txt").read_text().splitlines()
+                           if m.strip() and m.strip() != "NULL"]
+        for name in ("ref", "ref_fresh"):
+            if (d / f"{name}.txt").exists():
+                out[name] = np.array([float(v) for v in
+                                      (d / f"{name}.txt").read_text().split()])
         if contrasts:
-            out["contrasts"] = pd.read_csv(d / "contrasts.csv")
+            out["contrasts"] = pd.read_csv(d / "contrasts.csv").rename(
+                columns={"p.value": "p_value", "z.ratio": "z"})
     return out
