@@ -77,10 +77,13 @@ def output_option(kind: str, help: str, default: Any = None, required: bool = Fa
     """``-o/--output FILE`` (``kind="file"``) or ``DIRECTORY``, into parameter ``out``;
     the ``old`` spellings still work but are not shown."""
     is_dir = kind == "directory"
+    # no default=None with required: click 8.3+ counts an explicit None as a default given
+    # and would not ask for the option
+    extra: dict[str, Any] = {} if default is None else {"default": default}
     return click.option("-o", "--output", "out", cls=AliasOption, hidden_aliases=old,
                         type=click.Path(file_okay=not is_dir, dir_okay=is_dir, path_type=Path),
-                        metavar="DIRECTORY" if is_dir else "FILE", default=default,
-                        required=required, show_default=default is not None, help=help)
+                        metavar="DIRECTORY" if is_dir else "FILE", required=required,
+                        show_default=default is not None, help=help, **extra)
 
 
 def seed_option(help: str, default: int | None = None) -> Callable[[F], F]:
