@@ -112,7 +112,7 @@ def synthesize_store(
     *,
     repetitions: int = 5,
     tactors: int = 6,
-    targets: int = 24,
+    targets: int | Sequence[int] = 24,
     seed: int = 0,
     samples: bool = True,
     sample_rate_hz: float = 100.0,
@@ -138,40 +138,72 @@ def synthesize_store(
     on the logit of those accuracies (drawn from the same generator, after the trials'
     other draws, so the default data are unchanged).
 
+    ``targets`` a list of counts (``[12, 24, 36, 48]``): a resolution study, each
+    participant one session per count, an hour apart (its study text names the count,
+    so the analysis reads each trial's ``n_targets`` from it); the first count's data
+    are those of ``targets=count``.
+
     Returns:
         Counts written: ``sessions``, ``trials``, ``samples``.
     """
 
+    count_list = [int(targets)] if isinstance(targets, int) else [int(c) for c in targets]
     rng = np.random.default_rng(seed)
     varied = participant_sd > 0 or slope_sd > 0 or target_sd > 0
     rng_re = np.random.default_rng([seed, 1])
     u_p = rng_re.normal(0.0, participant_sd, participants)
     v_p = rng_re.normal(0.0, slope_sd, participants)
-    w_t = rng_re.normal(0.0, target_sd, targets)
+    w_ts = [rng_re.normal(0.0, target_sd, c) for c in count_list]
     layout = Layout.even(tactors)
-    tset = TargetSet.even(targets)
-    tgt = tset.angles
-    on = tset.on_tactor(layout)
-    step = 360.0 / targets
     store = create_bare_store(path, samples_index=False, fast=True)
-    toml = paper_study_toml(tactors=tactors, targets=targets)
-    n_per = 2 * repetitions * targets
     counts = {"sessions": 0, "trials": 0, "samples": 0}
     trial_id = 0
+    for ci, targets in enumerate(count_list):
+        w_t = w_ts[ci]
+        first_session = ci * participants
+        hour = f"{10 + ci:02d}"
+        tset = TargetSet.even(targets)
+        tgt = tset.angles
+        on = tset.on_tactor(layout)
+        step = 360.0 / targets
+        toml = paper_study_toml(tactors=tactors, targets=targets)
+        n_per = 2 * repetitions * targets
+        trial_id = _synthesize_block(
+            store, counts, rng, trial_id, participants=participants, chunk=chunk,
+            first_session=first_session, hour=hour, toml=toml, seed=seed, belt=belt,
+            participant_prefix=participant_prefix, repetitions=repetitions,
+            targets=targets, tgt=tgt, on=on, step=step, n_per=n_per, varied=varied,
+            u_p=u_p, v_p=v_p, w_t=w_t, timeout_rate=timeout_rate, samples=samples,
+            sample_rate_hz=sample_rate_hz)
+    if samples:
+        store.index_samples()
+    store.close()
+    return counts
+
+
+
+def _synthesize_block(store: SQLiteStore, counts: dict[str, int], rng: np.random.Generator,
+                      trial_id: int, *, participants: int, chunk: int, first_session: int,
+                      hour: str, toml: str, seed: int, belt: str, participant_prefix: str,
+                      repetitions: int, targets: int, tgt: np.ndarray, on: np.ndarray,
+                      step: float, n_per: int, varied: bool, u_p: np.ndarray,
+                      v_p: np.ndarray, w_t: np.ndarray, timeout_rate: float, samples: bool,
+                      sample_rate_hz: float) -> int:
+    """Write every participant's session of one target count; returns the last trial id."""
     for start in range(0, participants, chunk):
         stop = min(participants, start + chunk)
         sess_rows = []
         for p in range(start, stop):
             order = "static,dynamic" if p % 2 == 0 else "dynamic,static"
-            sess_rows.append((p + 1, f"{participant_prefix}{p + 1:04d}", "synthetic", "0" * 64,
-                              toml, seed, order, belt, "1.0.0", "0.1.0",
-                              "2026-01-01T10:00:00+00:00", "2026-01-01T10:30:00+00:00",
-                              "complete"))
+            sess_rows.append((first_session + p + 1, f"{participant_prefix}{p + 1:04d}",
+                              "synthetic", "0" * 64, toml, seed, order, belt, "1.0.0", "0.1.0",
+                              f"2026-01-01T{hour}:00:00+00:00",
+                              f"2026-01-01T{hour}:30:00+00:00", "complete"))
         store.bulk_insert(sessions=(dict(zip(SESSION_COLUMNS, r, strict=True))
                                     for r in sess_rows))
         k = stop - start
         n = k * n_per
-        sess = np.repeat(np.arange(start, stop) + 1, n_per)
+        sess = np.repeat(first_session + np.arange(start, stop) + 1, n_per)
         cond_dyn = np.tile(np.repeat([False, True], repetitions * targets), k)
         tidx = np.tile(np.arange(targets), 2 * repetitions * k)
         target = tgt[tidx]
@@ -221,8 +253,4 @@ def synthesize_store(
             store.bulk_insert(samples=zip(tid.tolist(), t.tolist(), x.tolist(), y.tolist(),
                                           [0] * len(tid), strict=True))
             counts["samples"] += int(ns.sum())
-    if samples:
-        store.index_samples()
-    store.close()
-    return counts
-
+    return trial_id
