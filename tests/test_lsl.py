@@ -455,3 +455,55 @@ def test_the_window_shows_the_wait_and_esc_esc_ends_it() -> None:
     assert "tactorbelt-markers: no recorder yet" in lines and "20 s left" in lines
     assert window.shown[-1] == (None, [])  # the wait screen taken down
     assert said[-1].startswith("LSL: the wait was stopped in the window after ")
+
+
+def test_a_calibrated_belt_streams_its_latencies_and_marks_the_skin_onsets(
+        tmp_path: Path) -> None:
+    """The description carries each tactor's measured latency; ``skin_onset`` markers are
+    stamped at the stored skin onsets (docs/lsl.md)."""
+    pylsl = pylsl_or_skip()
+    from tactorbelt import open_belt
+    from tactorbelt.clock import SimClock
+    from tactorbelt.devices.calibration import Calibration
+    from tactorbelt.experiment.runner import run_session
+    from tactorbelt.experiment.store import Store
+    from tactorbelt.experiment.study import load_study
+    from tactorbelt.inputs.model import make_model_cursor
+
+    study = load_study(write_study(tmp_path, name="lsl-skin", targets=4, repetitions=1,
+                                   training=0, conditions=["static"], iti_s=0.1,
+                                   break_every=0))
+    cal = Calibration.identity(6).with_timing(
+        [{"latency_ms": 15.0 + k, "latency_sd_ms": 0.5, "rise_ms": 100.0 + k}
+         for k in range(6)], "2026-01-01T00:00:00+00:00", "test")
+    clock = SimClock()
+    xml = ""
+    with Store.open(tmp_path / "s.sqlite") as store, open_belt(
+            "sim:virtual", clock=clock, layout=study.layout_obj(), calibration=cal) as belt:
+        obs = LslObserver(None, clock, belt, pylsl=pylsl)
+        orig = obs.on_session_start
+
+        def start(info: Any, schedule: Any) -> None:
+            nonlocal xml
+            orig(info, schedule)
+            xml = obs.markers.get_info().as_xml()
+
+        obs.on_session_start = start  # type: ignore[method-assign]
+        with obs:
+            res = run_session(study, "P01", belt, make_model_cursor(belt, clock, seed=2),
+                              store, clock, seed=2, observer=obs)
+        trials = store.trials(res.session_id)
+    for k in range(6):
+        assert f"<latency_ms>{15 + k:g}</latency_ms>" in xml
+        assert f"<rise_ms>{100 + k:g}</rise_ms>" in xml
+    assert "<timing_validated>2026-01-01T00:00:00+00:00</timing_validated>" in xml
+    skin = {m["trial_index"]: (ts, m) for ts, text in obs.sent
+            if (m := json.loads(text))["event"] == "skin_onset"}
+    assert len(skin) == len(trials) == 4
+    offset = obs.to_lsl.fixed
+    assert offset is not None
+    for t in trials:
+        ts, m = skin[t["trial_index"]]
+        assert ts == pytest.approx(t["skin_onset_ns"] / 1e9 + offset, abs=1e-6)
+        assert m["latency_ms"] == pytest.approx((t["skin_onset_ns"] - t["onset_ns"]) / 1e6)
+        assert m["sd_ms"] == pytest.approx(t["skin_onset_sd_ns"] / 1e6)

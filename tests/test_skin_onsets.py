@@ -87,8 +87,8 @@ def test_a_calibrated_session_stores_onset_plus_the_starting_tactors_latency(
         starts = starting_tactors(stim)
         if stim.is_dynamic:
             assert list(starts) == [stim.near_idx]
-        lat = sum(cal.tactors[k].latency_ms * w for k, w in starts.items()) / sum(
-            starts.values())
+        lat = sum(float(cal.tactors[k].latency_ms or 0.0) * w
+                  for k, w in starts.items()) / sum(starts.values())
         assert r["device_onset_ns"] is None  # the sim belt reports no device onsets
         assert r["skin_onset_ns"] == r["onset_ns"] + round(lat * 1e6)
         assert r["skin_onset_sd_ns"] == 0  # sim:virtual: every pulse alike
@@ -153,7 +153,7 @@ def test_the_device_onsets_uncertainty_joins_the_latency_spread() -> None:
     with open_belt("sim:virtual", clock=clock, layout=study.layout_obj(),
                    calibration=cal) as belt:
         runner = SessionRunner(study, "P01", belt, make_model_cursor(belt, clock, seed=1),
-                               _NoStore(), clock)
+                               _NoStore(), clock)  # type: ignore[arg-type]
         t = make_schedule(study, "P01", 1)[0]
         r = TrialResult(t, onset_ns=1_000_000_000)
         assert runner.skin_onset(r) == (1_015_000_000, 300_000)

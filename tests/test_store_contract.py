@@ -300,3 +300,39 @@ def test_a_store_of_schema_2_gains_the_task_tables(backend: tuple[str, str]) -> 
         store.write_ratings(sid, 0, "nasa_tlx", {"mental": 12.5})
     with open_store(url, create=False, readonly=True) as reader:
         assert len(reader.task_events(sid)) == 3 and reader.ratings(sid)[0]["value"] == 12.5
+
+
+def test_skin_onsets_round_trip_and_older_stores_gain_the_columns(
+        backend: tuple[str, str]) -> None:
+    from support import pgserver
+
+    scheme, url = backend
+    with open_store(url) as store:
+        sid = make_session(store)
+        store.write_trial(sid, make_result(0))  # no skin onset: NULL
+        store.write_trial(sid, make_result(1), skin_onset_ns=1_015_184_001,
+                          skin_onset_sd_ns=250_000)
+        rows = store.trials(sid)
+    assert [(t["skin_onset_ns"], t["skin_onset_sd_ns"]) for t in rows] == [
+        (None, None), (1_015_184_001, 250_000)]
+    # a store written before the columns existed (same schema version): a writer adds
+    # them, the old rows NULL
+    drop = "ALTER TABLE {}trials DROP COLUMN {}"
+    if scheme == "sqlite":
+        import sqlite3
+
+        conn = sqlite3.connect(url.removeprefix("sqlite://"))
+        for col in ("skin_onset_ns", "skin_onset_sd_ns"):
+            conn.execute(drop.format("", col))
+        conn.commit()
+        conn.close()
+    else:
+        pgserver.run_sql(url, *(drop.format("tactorbelt.", c)
+                                for c in ("skin_onset_ns", "skin_onset_sd_ns")))
+    with open_store(url, create=False, readonly=True) as reader:  # readers change nothing
+        assert "skin_onset_ns" not in reader.table_columns("trials")
+    with open_store(url) as store:
+        store.write_trial(sid, make_result(2), skin_onset_ns=7, skin_onset_sd_ns=0)
+        rows = store.trials(sid)
+    assert [(t["skin_onset_ns"], t["skin_onset_sd_ns"]) for t in rows] == [
+        (None, None), (None, None), (7, 0)]
