@@ -170,18 +170,29 @@ def test_summarize_several_participants_matches_scipy_wilcoxon(several: Path) ->
     assert acc.details["mean_difference"] == pytest.approx(d.mean())
 
 
-def test_mixed_model_is_the_laplace_glmm_with_wald_statistics(several: Path) -> None:
+def test_mixed_model_is_the_laplace_glmm_headed_by_the_bootstrap(several: Path) -> None:
+    """6 participants: the headline test of the condition is the parametric bootstrap of
+    the likelihood ratio (docs/analysis.md); the coefficients keep their Wald z."""
     tr = prepare_trials(load_stores([several]).trials)
-    r = mixed_model(tr)
+    r = mixed_model(tr, pb_sims=9, seed=1)
     assert r.computed
     m = r.details["model"]
     assert m["engine"] == "tactorbelt-laplace" and m["ci_method"] == "Wald"
     assert list(m["fixed_effects"]) == ["(Intercept)", "conditionstatic", "on_tactor",
                                         "conditionstatic:on_tactor"]
     fe = m["fixed_effects"]["conditionstatic"]
-    assert r.effect == fe["estimate"] < 0  # the synthetic dynamic condition is better
-    assert r.p_value == pytest.approx(2 * stats.norm.sf(abs(fe["estimate"] / fe["se"])))
+    assert fe["p"] == pytest.approx(2 * stats.norm.sf(abs(fe["estimate"] / fe["se"])))
+    # one target count, no load: the effect is conditionstatic (static - dynamic)
+    assert r.effect == pytest.approx(fe["estimate"]) and r.effect < 0
     assert r.ci_low == pytest.approx(fe["estimate"] - 1.959964 * fe["se"])
+    tests = {t["method"]: t for t in m["tests"]}
+    assert m["headline_test"]["method"] == "parametric bootstrap"
+    assert r.p_value == tests["parametric bootstrap"]["p"] and tests["parametric bootstrap"][
+        "n_sim"] == 9
+    assert r.statistic == pytest.approx(tests["LRT"]["statistic"])
+    assert tests["LRT"]["df"] == 2  # conditionstatic and conditionstatic:on_tactor
+    assert "parametric bootstrap" in r.test and "holds its level" in r.details["why"]
+    assert [c["by"] for c in r.details["contrasts"]] == [{"n_targets": 24, "on_tactor": 0}]
 
 
 def test_mixed_model_says_why_with_one_condition(tmp_path: Path) -> None:
