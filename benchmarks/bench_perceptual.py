@@ -15,11 +15,11 @@ import time
 
 
 def main() -> None:
+    from tactorbelt.calibration.perceptual import run_perceptual_calibration
     from tactorbelt.clock import SimClock
     from tactorbelt.devices.sim import SimBelt
     from tactorbelt.geometry import Layout
     from tactorbelt.inputs.model import make_model_respondent
-    from tactorbelt.perceptual import run_perceptual_calibration
 
     best = float("inf")
     n = 0

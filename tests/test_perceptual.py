@@ -1,4 +1,4 @@
-"""Perceptual calibration (tactorbelt.perceptual): QUEST+ tracks, the maximum-likelihood
+"""Perceptual calibration (tactorbelt.calibration.perceptual): QUEST+ tracks, the maximum-likelihood
 fit, and the whole procedure with simulated observers and the model participant."""
 
 from __future__ import annotations
@@ -6,11 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tactorbelt.clock import SimClock
-from tactorbelt.devices.sim import SimBelt
-from tactorbelt.geometry import Layout
-from tactorbelt.inputs.model import make_model_respondent
-from tactorbelt.perceptual import (
+from tactorbelt.calibration.perceptual import (
     CalibrationSettings,
     Interval,
     Respondent,
@@ -19,6 +15,10 @@ from tactorbelt.perceptual import (
     psychometric,
     run_perceptual_calibration,
 )
+from tactorbelt.clock import SimClock
+from tactorbelt.devices.sim import SimBelt
+from tactorbelt.geometry import Layout
+from tactorbelt.inputs.model import make_model_respondent
 
 LAYOUT = Layout.even(6)
 #: The documented number of trials (docs/calibration-perceptual.md) after which QUEST+

@@ -11,6 +11,7 @@ import pytest
 
 from support.studies import study_toml
 from tactorbelt import ConfigError
+from tactorbelt.calibration.wearer import WearerProfile
 from tactorbelt.clock import SimClock
 from tactorbelt.devices.sim import SimBelt
 from tactorbelt.experiment.runner import run_session
@@ -18,7 +19,6 @@ from tactorbelt.experiment.store import open_store
 from tactorbelt.experiment.study import Study
 from tactorbelt.inputs.base import CursorSource
 from tactorbelt.inputs.model import make_model_cursor
-from tactorbelt.profile import WearerProfile
 from tactorbelt.stimuli import make_stimulus
 
 

@@ -15,10 +15,10 @@ os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
 
 pygame = pytest.importorskip("pygame")
 
-from tactorbelt.calibrate import CalibrationQuit  # noqa: E402
+from tactorbelt.calibration.motor import CalibrationQuit  # noqa: E402
+from tactorbelt.calibration.perceptual import CalibrationSettings, run_perceptual_calibration  # noqa: E402
 from tactorbelt.devices import open_belt  # noqa: E402
 from tactorbelt.gui.perceptual import ChoiceState, WindowRespondent  # noqa: E402
-from tactorbelt.perceptual import CalibrationSettings, run_perceptual_calibration  # noqa: E402
 
 QUICK = CalibrationSettings()  # the defaults: every question a person gets
 

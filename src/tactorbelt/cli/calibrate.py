@@ -39,7 +39,7 @@ def calibrate(ctx: click.Context, belt_url: str, out: Path | None, step: float) 
     """
     if ctx.invoked_subcommand is not None:
         return
-    from ..calibrate import KEYS_HELP, CalibrationQuit, walk_calibration
+    from ..calibration.motor import KEYS_HELP, CalibrationQuit, walk_calibration
     from ..clock import WallClock
 
     keys = Keys()

@@ -1,6 +1,6 @@
 """``tactorbelt calibrate perceptual``: measure a wearer's perceptual profile.
 
-Parses the options, calls :func:`tactorbelt.perceptual.calibrate_wearer`, prints what was
+Parses the options, calls :func:`tactorbelt.app.wearer.calibrate_wearer`, prints what was
 measured. Heavy imports are inside the command.
 """
 
@@ -42,8 +42,8 @@ def perceptual(belt_url: str, participant: str, input_kind: str, db: str | None,
     q quits without writing. --input mouse or joystick asks in a window instead (the
     marked point drawn on the belt; Esc Esc quits). See docs/calibration-perceptual.md.
     """
-    from ..calibrate import CalibrationQuit
-    from ..perceptual import calibrate_wearer
+    from ..app.wearer import calibrate_wearer
+    from ..calibration.motor import CalibrationQuit
     from ._terminal import Keys
 
     keys = Keys()

@@ -62,7 +62,7 @@ def play(angle: str, belt_url: str, calibration_file: str | None, seconds: float
     calibration = load_calibration(calibration_file)
     profile = None
     if profile_file is not None:
-        from ..profile import WearerProfile
+        from ..calibration.wearer import WearerProfile
 
         profile = WearerProfile.load(profile_file)
     belt, stimulus_on_belt = open_belt_for(belt_url, stimulus,
@@ -110,7 +110,7 @@ def belt_test(belt_url: str, calibration_file: str | None, seconds_each: float, 
     Each tactor should be felt where the message says: tactor 0 is the first
     clockwise of the navel (30 deg on the default 6-tactor belt).
     """
-    from ..calibrate import pulse_each
+    from ..calibration.motor import pulse_each
     from ..clock import WallClock
 
     calibration = load_calibration(calibration_file)

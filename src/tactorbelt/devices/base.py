@@ -184,7 +184,7 @@ class Belt(ABC):
     renders_calibrated: bool = False
 
     #: True when rendering on the device applies a stimulus's wearer profile
-    #: (:mod:`tactorbelt.profile`): the audio belt renders ``stimulus.amplitudes`` in the
+    #: (:mod:`tactorbelt.calibration.wearer`): the audio belt renders ``stimulus.amplitudes`` in the
     #: host. The firmware (PLAY_TARGET) carries no warp or gains, so a stimulus with a
     #: non-identity profile is streamed on every other belt, the sim belt included.
     renders_profiles: bool = False

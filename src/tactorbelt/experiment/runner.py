@@ -426,7 +426,9 @@ class SessionRunner:
         """Create the session (or reopen the resumed one); return the trials to run."""
         import hashlib
 
-        from ..perceptual import profile_for_session  # before training (and the session)
+        from ..calibration.perceptual import (
+            profile_for_session,  # before training (and the session)
+        )
 
         study, store = self.study, self.store
         self.profile = profile_for_session(

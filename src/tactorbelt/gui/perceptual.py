@@ -27,8 +27,8 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any, Final
 
+from ..calibration.perceptual import Interval, Respondent
 from ..geometry import Layout
-from ..perceptual import Interval, Respondent
 
 __all__ = ["ChoiceState", "WindowRespondent"]
 
@@ -96,7 +96,7 @@ class WindowRespondent(Respondent):
         os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")
         import pygame
 
-        from ..calibrate import CalibrationQuit
+        from ..calibration.motor import CalibrationQuit
 
         self._pg = pygame
         self._quit_error = CalibrationQuit

@@ -30,9 +30,9 @@ if TYPE_CHECKING:
     import numpy as np
     from numpy.typing import NDArray
 
+    from ..calibration.perceptual import Respondent
     from ..experiment.study import TaskSpec
     from ..gui.layout import EllipseGeometry
-    from ..perceptual import Respondent
     from ..tasks import WorkloadInfo
     from ..tasks.schedule import TaskItem
     from .joystick import LiveCursor
@@ -142,7 +142,7 @@ class CursorSource:
 
     def calibration_respondent(self, seed: int) -> Respondent | None:
         """Who answers the perceptual calibration's trials when a study requires a wearer
-        profile and none is kept (:mod:`tactorbelt.perceptual`): the model participant
+        profile and none is kept (:mod:`tactorbelt.calibration.perceptual`): the model participant
         answers itself; a person's device (None, the default) cannot, so the person is
         calibrated beforehand with ``tactorbelt calibrate perceptual --input keyboard``."""
         return None

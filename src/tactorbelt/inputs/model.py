@@ -27,7 +27,7 @@ The model is a simulated observer; what it does follows from its assumptions and
 no evidence about people (docs/participant-model.md).
 
 Also :class:`ModelRespondent`, the model answering the perceptual calibration's trials
-(:mod:`tactorbelt.perceptual`) from the vibration it feels, and :func:`sim_vibrator`,
+(:mod:`tactorbelt.calibration.perceptual`) from the vibration it feels, and :func:`sim_vibrator`,
 the vibration of one stimulus on a fresh ``sim`` belt, for
 the fast (runner-free) simulations of :mod:`tactorbelt.participant.simulate`.
 
@@ -46,13 +46,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .._errors import ConfigError
+from ..calibration.perceptual import Interval, Respondent
 from ..clock import Clock
 from ..geometry import TargetSet
 from ..participant.load import LoadParams, TaskResponder, load_level, loaded_params, tlx_ratings
 from ..participant.params import ModelParams
 from ..participant.perception import Percepts, perceive_vibration
 from ..participant.timing import observation_s, one_decision_s
-from ..perceptual import Interval, Respondent
 from .base import CursorSample, CursorSource, RunTaker, TrialCue
 
 if TYPE_CHECKING:
@@ -356,7 +356,8 @@ def make_model_cursor(belt: Belt, clock: Clock, seed: int, params: ModelParams |
 
 class ModelRespondent(Respondent):
     """The model participant answering perceptual-calibration trials
-    (a :class:`tactorbelt.perceptual.Respondent`) from the vibration it feels on the belt.
+    (a :class:`tactorbelt.calibration.perceptual.Respondent`) from the vibration it feels
+    on the belt.
 
     It reads only ``sense(t0_ns, t1_ns)`` of each interval (never the stimulus value):
     intensity from the whole interval, location from its static observation window.

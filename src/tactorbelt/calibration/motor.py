@@ -17,13 +17,13 @@ from typing import TYPE_CHECKING, Any, cast
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .geometry import Layout
+from ..geometry import Layout
 
 if TYPE_CHECKING:
-    from .clock import Clock
-    from .devices.base import Belt
-    from .devices.calibration import Calibration
-    from .stimuli import Stimulus
+    from ..clock import Clock
+    from ..devices.base import Belt
+    from ..devices.calibration import Calibration
+    from ..stimuli import Stimulus
 
 __all__ = ["KEYS_HELP", "CalibrationQuit", "SingleTactor", "pulse_each", "walk_calibration"]
 
@@ -69,7 +69,7 @@ def pulse_each(belt: Belt, clock: Clock, *, seconds_each: float, gap: float, lev
                say: Callable[[int, float], None]) -> None:
     """Pulse each tactor in turn for ``seconds_each`` with ``gap`` seconds between;
     ``say(k, angle_deg)`` before each. The frames are streamed (never device-rendered)."""
-    from .player import Player
+    from ..player import Player
 
     player = Player(belt, clock=clock, device_render=False)
     for k, angle in enumerate(belt.tactor_angles_deg):
@@ -105,8 +105,8 @@ def walk_calibration(belt: Belt, clock: Clock, read_key: Callable[[], str], step
     Raises:
         CalibrationQuit: the experimenter pressed ``q``.
     """
-    from .devices.calibration import Calibration, TactorCalibration
-    from .player import Player
+    from ..devices.calibration import Calibration, TactorCalibration
+    from ..player import Player
 
     player = None if clock.simulated else Player(belt, clock=clock, device_render=False)
     rows: list[TactorCalibration] = []

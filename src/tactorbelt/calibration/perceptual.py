@@ -13,7 +13,7 @@ maintained ``questplus`` package, Watson 2017; function ``norm_cdf_2``):
    and 0.75), a static point rendered at fraction x of the gap; "was it nearer tactor a
    or tactor b than the marked point?" (in the window: left or right of the mark). The
    PSE is the rendered fraction felt at the mark, so the pair's warp maps m -> PSE
-   (made strictly monotone by :func:`tactorbelt.profile.isotonic`).
+   (made strictly monotone by :func:`tactorbelt.calibration.wearer.isotonic`).
 
 Each track starts from a normal prior on its PSE centred on "no correction" (as strong
 as the reference; felt where rendered) and stops after ``max_trials`` or, after
@@ -28,8 +28,13 @@ Who answers is a :class:`Respondent`: the model participant
 (:class:`tactorbelt.inputs.model.ModelRespondent`, from the vibration it feels), a person
 at the keyboard (:class:`KeyboardRespondent`), or a simulated observer in the tests.
 
+:func:`profile_for_session` is what the runner calls before a session of a study that
+requires a profile. Choosing and opening a respondent for ``calibrate perceptual`` (a
+window, the model, the keyboard) is use-case wiring: :mod:`tactorbelt.app.wearer`.
+
 Library (I/O through the belt and the respondent): NumPy, SciPy, questplus (imported
-when a track is made), tactorbelt.
+when a track is made), the kernel, the devices and the player; never inputs, gui or the
+experiment layer.
 """
 
 from __future__ import annotations
@@ -43,17 +48,17 @@ from typing import TYPE_CHECKING, Any, Final
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ._errors import ConfigError
-from .profile import PairWarp, WearerProfile, isotonic
+from .._errors import ConfigError
+from .wearer import PairWarp, WearerProfile, isotonic
 
 if TYPE_CHECKING:
-    from .clock import Clock
-    from .devices.base import Belt
-    from .geometry import Layout
+    from ..clock import Clock
+    from ..devices.base import Belt
+    from ..geometry import Layout
 
-__all__ = ["CalibrationSettings", "Fit", "Interval", "KeyboardRespondent",
+__all__ = ["INPUTS", "CalibrationSettings", "Fit", "Interval", "KeyboardRespondent",
            "PerceptualResult", "Respondent", "Track", "fit_psychometric",
-           "run_perceptual_calibration"]
+           "profile_for_session", "run_perceptual_calibration"]
 
 #: Lapse rate assumed by QUEST+ and the fit (both ends: ``norm_cdf_2``).
 LAPSE: Final = 0.02
@@ -256,7 +261,7 @@ class KeyboardRespondent(Respondent):
         self._say(text)
 
     def _ask(self, prompt: str, keys: dict[str, int]) -> int:
-        from .calibrate import CalibrationQuit
+        from .motor import CalibrationQuit
 
         self._asked += 1
         self._say(f"  [{self._asked}] {prompt}")
@@ -384,7 +389,7 @@ class _Presenter:
     a Player on the wall clock (a hardware belt's heartbeat needs frames)."""
 
     def __init__(self, belt: Belt, clock: Clock) -> None:
-        from .player import Player
+        from ..player import Player
 
         self.belt, self.clock = belt, clock
         self.player = None if clock.simulated else Player(belt, clock=clock, device_render=False)
@@ -418,7 +423,7 @@ def run_perceptual_calibration(belt: Belt, clock: Clock, respondent: Respondent,
     Tracks of one part are interleaved (a random order in each round), so a person
     cannot follow one staircase. Motors are off at the end.
     """
-    from .stimuli import make_stimulus
+    from ..stimuli import make_stimulus
 
     s = settings if settings is not None else CalibrationSettings()
     layout = belt.layout
@@ -514,73 +519,8 @@ def run_perceptual_calibration(belt: Belt, clock: Clock, respondent: Respondent,
 
 
 #: The answer sources of ``tactorbelt calibrate perceptual``.
+#: Who can answer the calibration (``tactorbelt calibrate perceptual --input``).
 INPUTS: Final = ("keyboard", "model", "joystick", "mouse")
-
-
-def make_respondent(kind: str, belt: Belt, *, seed: int, read_key: Callable[[], str],
-                    say: Callable[[str], None]) -> Respondent:
-    """The respondent for ``--input KIND``.
-
-    Raises:
-        ConfigError: joystick or mouse without a display, or the model on a belt that
-            models no vibration; DeviceError: ``joystick`` without a joystick.
-    """
-    if kind == "model":
-        from .inputs.model import make_model_respondent
-
-        return make_model_respondent(belt, seed)
-    if kind == "keyboard":
-        return KeyboardRespondent(read_key, say)
-    if kind in ("joystick", "mouse"):
-        from .launch import has_display
-
-        if not has_display():
-            raise ConfigError(f"no display (DISPLAY and WAYLAND_DISPLAY are not set) for the "
-                              f"window --input {kind} answers in; answer in the terminal "
-                              "with --input keyboard")
-        from .gui.perceptual import WindowRespondent
-
-        return WindowRespondent(belt.layout, joystick=kind == "joystick")
-    raise ConfigError(f"unknown input {kind!r}; allowed: {', '.join(INPUTS)}")
-
-
-def calibrate_wearer(belt_url: str, participant: str, *, input_kind: str = "keyboard",
-                     db: str | None = None, out: str | None = None, seed: int = 0,
-                     settings: CalibrationSettings | None = None,
-                     read_key: Callable[[], str] = lambda: "q",
-                     say: Callable[[str], None] = lambda text: None) -> PerceptualResult:
-    """``tactorbelt calibrate perceptual``: open the belt, run the procedure, keep the
-    profile with the participant in the store ``db`` and/or write it to ``out``.
-
-    Raises:
-        ConfigError: a bad participant id or input; StoreError: the store cannot be written.
-    """
-    from .clock import SimClock, WallClock
-    from .devices import open_belt, runs_on_simulated_time
-    from .experiment.runner import check_participant
-    from .experiment.store import open_store
-    from .experiment.store.base import utc_now
-
-    who = check_participant(participant)
-    # the model on the sim belt runs on a simulated clock: nothing waits in real time
-    # (its backend declares that it can: Backend.simulated_time)
-    model_on_sim = input_kind == "model" and runs_on_simulated_time(belt_url)
-    options: dict[str, Any] = {"clock": SimClock()} if model_on_sim else {}
-    with open_belt(belt_url, **options) as belt:
-        clock = belt.clock or WallClock()
-        respondent = make_respondent(input_kind, belt, seed=seed, read_key=read_key, say=say)
-        try:
-            result = run_perceptual_calibration(belt, clock, respondent, participant=who,
-                                                settings=settings, seed=seed,
-                                                created=utc_now())
-        finally:
-            respondent.close()
-    if db is not None:
-        with open_store(db) as store:
-            store.save_wearer_profile(who, result.profile.to_toml())
-    if out is not None:
-        result.profile.save(out)
-    return result
 
 
 def profile_for_session(study: Any, store: Any, belt: Belt, clock: Clock, participant: str,
@@ -618,13 +558,14 @@ def profile_for_session(study: Any, store: Any, belt: Belt, clock: Clock, partic
             f"calibrate perceptual --participant {participant} --input keyboard --db "
             f"{store.url}")
     else:
-        from .experiment.store.base import utc_now
+        import datetime as _dt
 
         s = study.stimulus
         settings = CalibrationSettings(law=s.law, falloff_deg=float(s.falloff_deg))
         profile = run_perceptual_calibration(belt, clock, respondent, participant=participant,
                                              settings=settings, seed=seed,
-                                             created=utc_now()).profile
+                                             created=_dt.datetime.now(_dt.UTC).isoformat(
+                                                 timespec="microseconds")).profile
         store.save_wearer_profile(participant, profile.to_toml())
     profile.check_layout(belt.layout, source=f"the wearer profile of {participant!r}")
     return profile

@@ -48,8 +48,8 @@ from typing import Any, Final
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ._errors import ConfigError
-from .geometry import Layout, normalize
+from .._errors import ConfigError
+from ..geometry import Layout, normalize
 
 __all__ = ["FORMAT", "PairWarp", "WearerProfile", "isotonic"]
 
@@ -268,7 +268,7 @@ class WearerProfile:
     @classmethod
     def load(cls, path: str | Path) -> WearerProfile:
         """Read a profile file; errors name the file and the field."""
-        from ._textfile import read_user_text
+        from .._textfile import read_user_text
 
         p = Path(path)
         return cls.from_toml(read_user_text(p, "wearer profile"), source=str(p))
@@ -317,7 +317,7 @@ class WearerProfile:
         if isinstance(ref, bool) or not isinstance(ref, int) or not 0 <= ref < n:
             raise fail("reference_tactor", f"must be a tactor index in 0..{n - 1}, got {ref!r}")
         law = doc.get("law", "paper")
-        from .laws import LAWS
+        from ..laws import LAWS
 
         if law not in LAWS:
             raise fail("law", f"unknown law {law!r}; allowed: {', '.join(LAWS)}")

@@ -26,14 +26,14 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from .geometry import Layout, TargetSet, wrap
-from .participant.params import ModelParams, draw_participant
-from .participant.perception import perceive
-from .participant.simulate import Protocol, StimulusCues, stimulus_cues
+from ..geometry import Layout, TargetSet, wrap
+from ..participant.params import ModelParams, draw_participant
+from ..participant.perception import perceive
+from ..participant.simulate import Protocol, StimulusCues, stimulus_cues
 
 if TYPE_CHECKING:
-    from .profile import WearerProfile
-    from .stimuli import Stimulus
+    from ..calibration.wearer import WearerProfile
+    from ..stimuli import Stimulus
 
 __all__ = ["EffectRow", "calibration_effect", "summarise"]
 
@@ -86,11 +86,12 @@ def calibration_effect(n_participants: int = 6, seed: int = 1, repetitions: int 
                        settings: Any = None) -> list[EffectRow]:
     """Calibrate ``n_participants`` model participants and measure the paper study's
     between-tactor trials (24 targets, static and dynamic, ``repetitions`` each) with and
-    without their profiles. ``settings``: a :class:`~tactorbelt.perceptual.CalibrationSettings`."""
-    from .clock import SimClock
-    from .devices.sim import SimBelt
-    from .inputs.model import make_model_respondent, sim_vibrator
-    from .perceptual import run_perceptual_calibration
+    without their profiles. ``settings``: a
+    :class:`~tactorbelt.calibration.perceptual.CalibrationSettings`."""
+    from ..calibration.perceptual import run_perceptual_calibration
+    from ..clock import SimClock
+    from ..devices.sim import SimBelt
+    from ..inputs.model import make_model_respondent, sim_vibrator
 
     layout = Layout.even(6)
     protocol = Protocol(layout, TargetSet.even(24), "paper", 15.0, 1.0, 0.1,
