@@ -503,7 +503,7 @@ def test_overlay_panel_hides_no_target_label_or_prompt(size: tuple[int, int]) ->
 def test_run_command_exits_130_when_the_experimenter_aborts_in_the_window(
         study: Study, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
         capsys: pytest.CaptureFixture[str]) -> None:
-    from tactorbelt import launch
+    from tactorbelt.app import run as launch
     from tactorbelt.cli import main
     from tactorbelt.gui.window import session_window
 

@@ -334,7 +334,7 @@ def test_export_writes_task_events_and_ratings(tmp_path: Path) -> None:
 
 
 def test_the_run_summary_counts_the_secondary_task(tmp_path: Path) -> None:
-    from tactorbelt.launch import task_lines
+    from tactorbelt.app.run import task_lines
 
     study = load_study()
     with Store.open(tmp_path / "s.sqlite") as store:

@@ -351,7 +351,7 @@ def test_pause_resume_and_abort_are_markers_and_the_aborted_trial_ends(tmp_path:
 
 
 def test_the_resume_command_keeps_the_lsl_streams() -> None:
-    from tactorbelt.launch import RunRequest, resume_command
+    from tactorbelt.app.run import RunRequest, resume_command
 
     req = RunRequest(Path("s.toml"), "P01", lsl=True, lsl_wait_s=30.0)
     assert resume_command(req).endswith(" --lsl --lsl-wait 30 --resume")

@@ -43,7 +43,7 @@ def make_respondent(kind: str, belt: Belt, *, seed: int, read_key: Callable[[], 
     if kind == "keyboard":
         return KeyboardRespondent(read_key, say)
     if kind in ("joystick", "mouse"):
-        from ..launch import has_display
+        from .run import has_display
 
         if not has_display():
             raise ConfigError(f"no display (DISPLAY and WAYLAND_DISPLAY are not set) for the "

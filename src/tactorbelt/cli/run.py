@@ -1,8 +1,8 @@
 """``tactorbelt run`` (one participant's session); ``export`` lives in ``cli/export.py``
 (imported here for the command table).
 
-The run command parses its options into a :class:`tactorbelt.launch.RunRequest` and
-calls :func:`tactorbelt.launch.run_study`, which holds the policies (session, resume,
+The run command parses its options into a :class:`tactorbelt.app.run.RunRequest` and
+calls :func:`tactorbelt.app.run.run_study`, which holds the policies (session, resume,
 display, clock, cursor). Options not given are ``None``, so ``--resume`` reuses what the
 session stored (and says which, with the option that overrides each).
 
@@ -107,8 +107,8 @@ def run(ctx: click.Context, study_file: Path, participant: str, belt_url: str,
     experimenter (Ctrl-C, Esc Esc or Ctrl-Q in the window), 143 SIGTERM, 129 SIGHUP;
     the session can then be resumed with the command printed.
     """
+    from ..app.run import JoystickOptions, RunRequest, resolve_db, resume_command, run_study
     from ..interrupts import Terminated
-    from ..launch import JoystickOptions, RunRequest, resolve_db, resume_command, run_study
 
     if lsl_wait and not lsl:
         raise click.UsageError("--lsl-wait is for --lsl")

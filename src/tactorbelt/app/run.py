@@ -45,17 +45,17 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from ._errors import ConfigError, StoreError
-from .inputs import INPUTS
+from .._errors import ConfigError, StoreError
+from ..inputs import INPUTS
 
 if TYPE_CHECKING:
-    from .clock import Clock
-    from .experiment.runner import SessionInfo, SessionResult
-    from .experiment.schedule import ScheduledTrial
-    from .experiment.store import Store
-    from .experiment.sync import Pusher
-    from .inputs.joystick import JoystickConfig
-    from .lsl import LslObserver
+    from ..clock import Clock
+    from ..experiment.runner import SessionInfo, SessionResult
+    from ..experiment.schedule import ScheduledTrial
+    from ..experiment.store import Store
+    from ..experiment.sync import Pusher
+    from ..inputs.joystick import JoystickConfig
+    from ..lsl import LslObserver
 
 __all__ = ["CLOCKS", "RunOutcome", "RunRequest", "choose_clock", "clock_kind", "has_display",
            "resolve_db", "resume_command", "reuse_lines", "run_study"]
@@ -81,7 +81,7 @@ class JoystickOptions:
 
     def config(self) -> JoystickConfig:
         """As a JoystickConfig (defaults for what is not given)."""
-        from .inputs.joystick import JoystickConfig
+        from ..inputs.joystick import JoystickConfig
 
         axes = self.axes or "0,1"
         try:
@@ -230,7 +230,7 @@ def has_display(environ: dict[str, str] | None = None, platform: str = sys.platf
 
 def _no_sim(*, headless: bool, input_kind: str, belt_url: str) -> str | None:
     """Why this run cannot be on a simulated clock (None: it can)."""
-    from .devices import runs_on_simulated_time
+    from ..devices import runs_on_simulated_time
 
     if not headless:
         return "the experiment window runs in real time"
@@ -263,7 +263,7 @@ def choose_clock(*, headless: bool, input_kind: str, belt_url: str,
                  clock: str | None = None, realtime: bool = False) -> Clock:
     """The clock of :func:`clock_kind` (``realtime``: the old spelling of ``clock="wall"``):
     a SimClock or the wall clock."""
-    from .clock import SimClock, WallClock
+    from ..clock import SimClock, WallClock
 
     kind = clock_kind(headless=headless, input_kind=input_kind, belt_url=belt_url,
                       clock="wall" if realtime and clock is None else clock)
@@ -344,7 +344,7 @@ class _RunObserver:
 
     def __init__(self, inner: Any, store: Store, opts: dict[str, Any], slow_s: float,
                  pusher: Pusher | None = None) -> None:
-        from .experiment.runner import NullObserver
+        from ..experiment.runner import NullObserver
 
         self.inner = inner if inner is not None else NullObserver()
         self.store, self.opts, self.slow_s = store, opts, slow_s
@@ -400,7 +400,7 @@ def _check_options(r: RunRequest, given: bool = False) -> None:
     """Refuse an unknown input, a window input without a window, an unknown belt URL,
     an unknown clock; ``given`` (the request as given): ``sim`` with LSL, and (a new
     session) ``sim`` where it cannot be."""
-    from .devices import parse_url
+    from ..devices import parse_url
 
     if r.input_kind is not None and r.input_kind not in INPUTS:
         raise ConfigError(f"unknown input {r.input_kind!r}; allowed: {', '.join(INPUTS)}")
@@ -512,11 +512,11 @@ def run_study(req: RunRequest, *, progress: Callable[[int, int], None] | None = 
     """
     if not req.resume and not req.headless and not has_display():
         _no_display()  # at once: before the heavy imports, the study and the store
-    from .devices import open_belt
-    from .experiment.runner import check_participant, run_session
-    from .experiment.store import open_store
-    from .experiment.study import load_study
-    from .inputs import make_cursor
+    from ..devices import open_belt
+    from ..experiment.runner import check_participant, run_session
+    from ..experiment.store import open_store
+    from ..experiment.study import load_study
+    from ..inputs import make_cursor
 
     req.participant = check_participant(req.participant)
     if req.resume and req.new_session:
@@ -527,7 +527,7 @@ def run_study(req: RunRequest, *, progress: Callable[[int, int], None] | None = 
     _check_push(req)  # before anything is written
     _check_options(req, given=True)  # what the request gives: before a store file is created
     if req.lsl:
-        from .lsl import load_pylsl
+        from ..lsl import load_pylsl
 
         load_pylsl()  # no liblsl: an error now, before a store file is created
     with open_store(req.db) as store:
@@ -610,7 +610,7 @@ def _lsl(req: RunRequest, clock: Clock, belt: Any,
     session starts); else None."""
     if not req.lsl:
         return None
-    from .lsl import LslObserver
+    from ..lsl import LslObserver
 
     return LslObserver(None, clock, belt, wait_s=req.lsl_wait_s,
                        wait_all=req.lsl_wait_all, report=note)
@@ -621,9 +621,9 @@ def _check_push(req: RunRequest) -> None:
     reachable and takes the participant id at this site."""
     if req.push is None:
         return
-    from .experiment.provenance import default_site
-    from .experiment.store import open_store
-    from .experiment.store.postgresql import check_url
+    from ..experiment.provenance import default_site
+    from ..experiment.store import open_store
+    from ..experiment.store.postgresql import check_url
 
     check_url(req.push)
     if not req.offline:
@@ -635,8 +635,8 @@ def _start_push(req: RunRequest) -> Pusher | None:
     """The background push of ``req.push`` (None without one, or offline)."""
     if req.push is None or req.offline:
         return None
-    from .experiment.provenance import default_site
-    from .experiment.sync import Pusher
+    from ..experiment.provenance import default_site
+    from ..experiment.sync import Pusher
 
     return Pusher(req.db, req.push, site=req.site or default_site()).start()
 
@@ -670,7 +670,7 @@ def _no_display() -> None:
 def _window_factory(input_kind: str, note: Callable[[str], None] | None) -> Any:
     """``tactorbelt.gui.session_window``, or None (headless) when it is not installed."""
     try:
-        from .gui.window import session_window
+        from ..gui.window import session_window
     except ImportError:
         if input_kind in ("joystick", "mouse"):
             raise ConfigError(
