@@ -33,7 +33,7 @@ from typing import TYPE_CHECKING, Any, Final
 
 import numpy as np
 
-from .glmm import GlmmData, MixedModelFit, ModelSpec, glmm_fit
+from .glmm import GlmmData, MixedModelFit, ModelSpec, glmm_fit, one_blas_thread
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -175,6 +175,13 @@ def parametric_bootstrap(frame: pd.DataFrame, fit: MixedModelFit, fit0: MixedMod
             the very responses R refits, in the tests).
         progress: called with ``(done, n_sim)``.
     """
+    with one_blas_thread():
+        return _bootstrap(frame, fit, fit0, n_sim, seed, responses, progress)
+
+
+def _bootstrap(frame: pd.DataFrame, fit: MixedModelFit, fit0: MixedModelFit, n_sim: int,
+               seed: Any, responses: np.ndarray | None,
+               progress: Callable[[int, int], None] | None) -> PBResult:
     data = GlmmData(frame, fit.spec)
     data0 = GlmmData(frame, fit0.spec)
     if responses is None:

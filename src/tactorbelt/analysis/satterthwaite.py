@@ -30,7 +30,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from .glmm import LmmData, MixedModelFit
+from .glmm import LmmData, MixedModelFit, one_blas_thread
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -106,6 +106,12 @@ def satterthwaite(frame: pd.DataFrame, fit: MixedModelFit,
         interval on ``df``); and under the key ``"_"`` the notes (negative or zero
         eigenvalues of the Hessian, as lmerTest warns).
     """
+    with one_blas_thread():
+        return _satterthwaite(frame, fit, tol)
+
+
+def _satterthwaite(frame: pd.DataFrame, fit: MixedModelFit,
+                   tol: float) -> dict[str, dict[str, Any]]:
     from scipy.stats import t as t_dist
 
     data = LmmData(frame, fit.spec)
