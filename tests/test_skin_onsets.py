@@ -278,3 +278,26 @@ def test_an_audio_belt_names_its_carrier() -> None:
     assert system["CarrierFrequency"] == 175.0 and system["CarrierFrequencyUnits"] == "Hz"
     assert "sound card" in system["ActuatorType"]
     assert "CarrierFrequency" not in _stimulus_system({"belt": "serial:auto"})
+
+
+def test_run_with_calibration_stores_skin_onsets_and_resume_reuses_the_file(
+        lab: dict[str, Any]) -> None:
+    """As a user runs it: `tactorbelt run --calibration FILE`, killed by --limit, resumed
+    without the option: every trial of both runs has its skin onset."""
+    tmp: Path = lab["tmp"]
+    db = tmp / "cli.sqlite"
+    first = tactorbelt("run", str(lab["study"]), "-p", "P09", "--headless", "--db", str(db),
+                       "--calibration", str(lab["cal_file"]), "--limit", "3")
+    assert first.returncode == 0, first.stderr
+    again = tactorbelt("run", str(lab["study"]), "-p", "P09", "--headless", "--db", str(db),
+                       "--resume")
+    assert again.returncode == 0, again.stderr
+    assert "calibration" in again.stdout + again.stderr
+    rows = [r for r in _trials(db) if r["status"] == "done"]
+    assert len(rows) > 3
+    lat_ns = round(lab["cal"].tactors[0].latency_ms * 1e6)
+    for r in rows:  # every tactor of the sim model has the same latency
+        assert r["skin_onset_ns"] == pytest.approx(r["onset_ns"] + lat_ns, abs=1)
+    bad = tactorbelt("run", str(lab["study"]), "-p", "P10", "--headless", "--db", str(db),
+                     "--calibration", str(tmp / "missing.toml"))
+    assert bad.returncode == 2 and "missing.toml" in bad.stderr

@@ -104,6 +104,9 @@ class RunRequest:
     participant: str
     db: Path = Path("study.sqlite")
     belt_url: str | None = None
+    #: the belt's calibration file (motor levels; with ``validate onsets``' measured
+    #: latencies, each trial's skin onset is stored)
+    calibration: str | None = None
     input_kind: str | None = None
     headless: bool | None = None
     resume: bool = False
@@ -145,7 +148,7 @@ def resolve_db(db: str, push: str | None, study_file: Path) -> tuple[Path, str |
 
 
 #: What is stored with a session and reused on resume.
-_STORED = ("belt_url", "input_kind", "headless", "clock", "fullscreen")
+_STORED = ("belt_url", "calibration", "input_kind", "headless", "clock", "fullscreen")
 
 
 @dataclass
@@ -473,6 +476,9 @@ def reuse_lines(req: RunRequest, r: RunRequest, stored: dict[str, Any],
          "--headless, " + ("--no-fullscreen" if r.fullscreen else "--fullscreen")),
         ("belt", str(r.belt_url), source(req.belt_url is not None, "belt_url", r.belt_url),
          "--belt URL"),
+        ("calibration", r.calibration or "none",
+         source(req.calibration is not None, "calibration", r.calibration),
+         "--calibration FILE"),
         ("clock", f"{clock} ({'simulated time' if clock == 'sim' else 'real time'})",
          "--lsl" if req.lsl and req.clock is None else
          source(req.clock is not None or bool(req.realtime), "clock", clock), clock_how),
@@ -488,9 +494,10 @@ def reuse_lines(req: RunRequest, r: RunRequest, stored: dict[str, Any],
                  "none (the session's schedule is stored)"))
     head = (f"resuming session {session['session_id']} of {r.participant} ({n_done}/"
             f"{session['n_trials']} trials done) with these options:")
+    wn = max(len(n) for n, _, _, _ in rows)
     wv = max(len(v) for _, v, _, _ in rows)
     ws = max(len(src) for _, _, src, _ in rows)
-    return [head] + [f"  {name:<8s} {value:<{wv}s}  {src:<{ws}s}  override: {how}"
+    return [head] + [f"  {name:<{wn}s} {value:<{wv}s}  {src:<{ws}s}  override: {how}"
                      for name, value, src, how in rows]
 
 
@@ -535,6 +542,11 @@ def run_study(req: RunRequest, *, progress: Callable[[int, int], None] | None = 
         r = _resolve(req, stored)
         assert r.input_kind is not None and r.belt_url is not None
         _check_options(r)  # with the stored options of a resumed session
+        calibration = None
+        if r.calibration is not None:  # a bad file is an error before the session starts
+            from ..devices.calibration import Calibration
+
+            calibration = Calibration.load(r.calibration)
         window = None if r.headless else _window_factory(r.input_kind, note)
         if window is not None and not has_display():
             _no_display()
@@ -560,7 +572,9 @@ def run_study(req: RunRequest, *, progress: Callable[[int, int], None] | None = 
         slow_s = float(os.environ.get(SLOW_TRIAL_ENV, "0") or 0)
         pusher = _start_push(req)
         with _closing_push(pusher, req, push_lines), \
-                open_belt(r.belt_url, clock=clock, layout=study.layout_obj()) as belt:
+                open_belt(r.belt_url, clock=clock, layout=study.layout_obj(),
+                          **({} if calibration is None else {"calibration": calibration})
+                          ) as belt:
             kwargs: dict[str, Any] = dict(seed=seed, resume=req.resume, limit=req.limit,
                                           study_toml=text, input_name=r.input_kind,
                                           site=req.site)

@@ -1,7 +1,7 @@
 """``tactorbelt analyze DB [DB ...] [-o DIRECTORY] [--seed S] [--rt-from skin|command]``.
 
 The analysis report. Without ``--seed`` the analysis seed is derived from the stores;
-without ``--rt-from`` the RTs count from the skin onset when every analysed trial has
+without ``--rt-from`` the RTs count from the skin onset when every analyzed trial has
 one, else from the command (docs/analysis.md).
 
 Imports the analysis (pandas, SciPy, statsmodels, matplotlib) only when the command
@@ -52,7 +52,7 @@ def print_summary_table(summary: Summary) -> None:
               help="Count response times from the onset at the skin (the stored onset plus "
                    "the measured latency of the tactors that start the stimulus: 'tactorbelt "
                    "validate onsets') or from the command (the stored onset) [default: skin "
-                   "when every analysed trial has a skin onset, else command].")
+                   "when every analyzed trial has a skin onset, else command].")
 @click.option("--include-running", is_flag=True,
               help="From a shared store (postgresql://), also the sessions that are not "
                    "complete yet.")

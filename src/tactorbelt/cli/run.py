@@ -18,7 +18,7 @@ from typing import Any
 
 import click
 
-from ._options import belt_option, number, seed_option
+from ._options import belt_options, number, seed_option
 from .export import export
 
 __all__ = ["export", "run"]
@@ -36,7 +36,7 @@ def _given(ctx: click.Context, name: str, value: Any) -> Any:
 @click.argument("study_file", metavar="STUDY", type=click.Path(dir_okay=False, path_type=Path))
 @click.option("--participant", "-p", required=True,
               help="Participant id: letters, digits, '-' or '_' (e.g. P01).")
-@belt_option()
+@belt_options
 @click.option("--input", "input_kind", type=click.Choice(INPUTS), default=None,
               help="Cursor source [default: joystick; model with --headless].")
 @click.option("--db", default="study.sqlite", show_default=True, metavar="STORE",
@@ -95,7 +95,8 @@ def _given(ctx: click.Context, name: str, value: Any) -> Any:
               help="With --lsl-wait: wait for a consumer of every stream (the cursor too).")
 @click.pass_context
 def run(ctx: click.Context, study_file: Path, participant: str, belt_url: str,
-        input_kind: str | None, db: str, push: str | None, site: str | None, offline: bool,
+        calibration_file: str | None, input_kind: str | None, db: str, push: str | None,
+        site: str | None, offline: bool,
         resume: bool, new_session: bool, headless: bool | None, limit: int | None,
         seed: int | None, clock: str | None, realtime: bool, fullscreen: bool | None,
         screenshot_dir: Path | None, joystick_device: str | None, axes: str,
@@ -123,7 +124,8 @@ def run(ctx: click.Context, study_file: Path, participant: str, belt_url: str,
     req = RunRequest(
         study_file=study_file, participant=participant, db=local, push=push, site=site,
         offline=offline,
-        belt_url=g("belt_url", belt_url), input_kind=input_kind, headless=headless,
+        belt_url=g("belt_url", belt_url), calibration=calibration_file,
+        input_kind=input_kind, headless=headless,
         resume=resume, new_session=new_session, limit=limit, seed=seed,
         clock=clock or ("wall" if realtime else None), fullscreen=fullscreen,
         screenshot_dir=screenshot_dir,
