@@ -38,18 +38,18 @@ import time
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
-from ._errors import ConfigError
+from .._errors import ConfigError
 
 if TYPE_CHECKING:
-    from .clock import Clock
-    from .devices.base import Belt
-    from .experiment.runner import Command, SessionInfo
-    from .experiment.schedule import ScheduledTrial
-    from .experiment.study import TaskSpec
-    from .experiment.trial import TrialResult, TrialState
-    from .inputs.base import CursorSample
-    from .tasks import WorkloadInfo
-    from .tasks.schedule import TaskItem
+    from ..clock import Clock
+    from ..devices.base import Belt
+    from ..experiment.runner import Command, SessionInfo
+    from ..experiment.schedule import ScheduledTrial
+    from ..experiment.study import TaskSpec
+    from ..experiment.trial import TrialResult, TrialState
+    from ..inputs.base import CursorSample
+    from ..tasks import WorkloadInfo
+    from ..tasks.schedule import TaskItem
 
 __all__ = ["CURSOR_STREAM", "MARKER_EVENTS", "MARKER_STREAM", "LslObserver", "load_pylsl",
            "marker"]
@@ -215,7 +215,7 @@ class LslObserver:
     def __init__(self, inner: Any, clock: Clock, belt: Belt, *, wait_s: float = 0.0,
                  wait_all: bool = False, report: Callable[[str], None] | None = None,
                  pylsl: Any = None) -> None:
-        from .experiment.runner import NullObserver
+        from ..experiment.runner import NullObserver
 
         self.inner = inner if inner is not None else NullObserver()
         self.clock = clock
@@ -347,7 +347,7 @@ class LslObserver:
                 "", "Esc twice: stop the session (saved, can be resumed)."]
 
     def _describe(self, si: Any, info: SessionInfo) -> None:
-        from . import __version__
+        from .. import __version__
 
         d = si.desc()
         acq = d.append_child("acquisition")
@@ -440,7 +440,7 @@ class LslObserver:
         self.inner.on_block_start(block, condition)
 
     def on_trial_state(self, trial: ScheduledTrial, state: TrialState, now_ns: int) -> None:
-        from .experiment.trial import TrialState
+        from ..experiment.trial import TrialState
 
         if state is TrialState.WAIT_HOME:
             if self._block_ns is not None or self._block != trial.block_index:
@@ -517,7 +517,7 @@ class LslObserver:
         now = self.clock.now_ns()
         self._end_task(now)
         if name is not None and spec is not None and phase is not None:
-            from .tasks.kinds import task_kind
+            from ..tasks.kinds import task_kind
 
             fields = {"n": None, **task_kind(spec.kind).stream_fields(spec)}
             self.send(now, "task_start", task=name, kind=spec.kind, phase=phase,
@@ -551,7 +551,7 @@ class LslObserver:
         return presses
 
     def ask_workload(self, info: WorkloadInfo) -> dict[str, float] | None:
-        from .tasks import TLX_SCALE
+        from ..tasks import TLX_SCALE
 
         values: dict[str, float] | None = self.inner.ask_workload(info)
         if values is not None:
@@ -568,7 +568,7 @@ class LslObserver:
         self.inner.on_session_end(status)
 
     def poll(self, now_ns: int) -> Command | None:
-        from .experiment.runner import Command
+        from ..experiment.runner import Command
 
         self._flush_items(now_ns)
         cmd = self.inner.poll(now_ns)

@@ -63,14 +63,14 @@ from collections.abc import Callable
 from types import FrameType
 from typing import TYPE_CHECKING, Any, Final
 
-from ._errors import ConfigError, TactorbeltError
-from .clock import Clock, WallClock
-from .interrupts import SIGNALS
+from .._errors import ConfigError, TactorbeltError
+from ..clock import Clock, WallClock
+from ..interrupts import SIGNALS
 
 if TYPE_CHECKING:
-    from .devices.base import Belt
-    from .geometry import Layout
-    from .stimuli import Stimulus
+    from ..devices.base import Belt
+    from ..geometry import Layout
+    from ..stimuli import Stimulus
 
 __all__ = ["FINISHED", "NOT_STARTED", "STARTED", "TactileBelt"]
 
@@ -204,11 +204,11 @@ class TactileBelt:
                  duration_s: float | None = None, layout: Layout | None = None,
                  calibration: Any = None, name: str = "belt", clock: Clock | None = None,
                  timebase: Any = None) -> None:
-        from .devices import open_belt
-        from .devices.base import Belt
-        from .geometry import Layout
-        from .player import Player
-        from .stimuli import make_stimulus
+        from ..devices import open_belt
+        from ..devices.base import Belt
+        from ..geometry import Layout
+        from ..player import Player
+        from ..stimuli import make_stimulus
 
         # every argument is checked before the belt is opened
         if not (callable(getattr(win, "callOnFlip", None))
