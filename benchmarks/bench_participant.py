@@ -25,8 +25,8 @@ def main() -> None:
     import numpy as np
 
     from tactorbelt import open_belt
+    from tactorbelt.app.demo import analysis_paired_test
     from tactorbelt.clock import SimClock
-    from tactorbelt.demo import analysis_paired_test
     from tactorbelt.experiment.runner import run_session
     from tactorbelt.experiment.store import Store
     from tactorbelt.experiment.study import paper_study

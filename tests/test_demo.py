@@ -178,7 +178,7 @@ def test_help_mentions_models(capsys: pytest.CaptureFixture[str]) -> None:
 
 
 def test_one_seed_policy_for_the_model_participants(demo_dir: tuple[Path, str]) -> None:
-    from tactorbelt.demo import model_participants
+    from tactorbelt.app.demo import model_participants
     from tactorbelt.experiment.study import paper_study
     from tactorbelt.participant.params import ModelParams
 

@@ -186,7 +186,7 @@ def test_analyze_of_the_demo_store_gives_the_same_task_results(demo_dir: Path,
 
 
 def test_a_study_without_load_has_no_task_results(tmp_path: Path) -> None:
-    from tactorbelt.demo import run_model_study
+    from tactorbelt.app.demo import run_model_study
     from tactorbelt.experiment.study import PAPER_STUDY_TOML
 
     text = PAPER_STUDY_TOML.replace("repetitions = 5", "repetitions = 1").replace(
@@ -260,7 +260,7 @@ def test_the_model_cursor_rates_a_loaded_block_higher() -> None:
 
 
 def test_power_plans_a_load_study_with_the_loaded_model(tmp_path: Path) -> None:
-    from tactorbelt.demo import run_power_study
+    from tactorbelt.app.demo import run_power_study
 
     study = Study.from_toml(_small_load_study(), path="load.toml")
     result = run_power_study(study, [4], 3, 2, tmp_path, jobs=1)
@@ -272,7 +272,7 @@ def test_power_plans_a_load_study_with_the_loaded_model(tmp_path: Path) -> None:
 
 def test_power_finds_the_models_load_effect_and_names_its_columns(tmp_path: Path) -> None:
     from tactorbelt import ConfigError
-    from tactorbelt.demo import run_power_study
+    from tactorbelt.app.demo import run_power_study
     from tactorbelt.experiment.study import paper_study
 
     study = Study.from_toml(_small_load_study(), path="load.toml")

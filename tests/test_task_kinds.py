@@ -72,7 +72,7 @@ def test_a_new_kind_is_a_module_and_a_registry_line(tmp_path: Path,
     load study of model participants: the study file accepts it, the schedule draws its
     items, the model answers them, the store keeps its events, the analysis reports the
     load cells and the task; nothing outside the kind's module knows its name."""
-    from tactorbelt.demo import run_model_study
+    from tactorbelt.app.demo import run_model_study
     from tactorbelt.experiment.description import describe
     from tactorbelt.experiment.study import Study
     from tactorbelt.tasks.sounds import SoundBank

@@ -7,5 +7,6 @@
 - :mod:`.calibration_effect`: the model participant's errors with and without its wearer
   profile (docs/calibration-perceptual.md).
 
-(``tactorbelt.demo`` still stands beside this package.)
+- :mod:`.demo`: ``demo`` and ``power`` (a model study of N participants, the power
+  study).
 """

@@ -1,7 +1,7 @@
 """``tactorbelt demo`` and ``tactorbelt power``: the paper's study with model participants.
 
-Parse the options, call one library function (:func:`tactorbelt.demo.run_model_study`,
-:func:`tactorbelt.demo.run_power_study`), print the result.
+Parse the options, call one library function (:func:`tactorbelt.app.demo.run_model_study`,
+:func:`tactorbelt.app.demo.run_power_study`), print the result.
 
 Imports click at import time; NumPy, the runner, the analysis, matplotlib and rich only
 when a command runs.
@@ -67,7 +67,7 @@ def demo(out: Path, participants: int, seed: int, study_file: Path | None) -> No
     from rich.console import Console
 
     from ..analysis.report import print_summary_table
-    from ..demo import run_model_study
+    from ..app.demo import run_model_study
 
     err = Console(stderr=True)
     with _progress_bar(err) as bar:
@@ -181,7 +181,7 @@ def power(sizes_text: str, sims: int, out: Path, seed: int, jobs: int | None,
     from rich.console import Console
     from rich.table import Table
 
-    from ..demo import run_power_study
+    from ..app.demo import run_power_study
     from ..experiment.study import load_study, paper_study
 
     named = None

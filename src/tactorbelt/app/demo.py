@@ -32,18 +32,18 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from ._errors import ConfigError
+from .._errors import ConfigError
 
 if TYPE_CHECKING:
     import numpy as np
 
-    from .analysis.power_model import NamedEffect
-    from .analysis.stats import Summary
-    from .experiment.study import Study
-    from .participant.factorial import Effect, FactorialProtocol
-    from .participant.params import ModelParams
-    from .participant.power import PowerRow, StudyOutcome
-    from .participant.simulate import Protocol, StimulusCues
+    from ..analysis.power_model import NamedEffect
+    from ..analysis.stats import Summary
+    from ..experiment.study import Study
+    from ..participant.factorial import Effect, FactorialProtocol
+    from ..participant.params import ModelParams
+    from ..participant.power import PowerRow, StudyOutcome
+    from ..participant.simulate import Protocol, StimulusCues
 
 __all__ = [
     "MODEL_NOTE",
@@ -106,7 +106,7 @@ def model_participants(n: int, seed: int, base: ModelParams) -> list[ModelPartic
     """The study's model participants under the one seed policy (see the module doc)."""
     import numpy as np
 
-    from .participant.params import draw_participant
+    from ..participant.params import draw_participant
 
     people = []
     for i, pid in enumerate(participant_ids(n)):
@@ -155,15 +155,15 @@ def run_model_study(out: Path, n_participants: int, seed: int,
         StudyFileError: the study file is not a valid study (file, line and field).
         StoreError: another run is using the store.
     """
-    from .analysis.report import analyze
-    from .clock import SimClock
-    from .devices import open_belt
-    from .experiment.runner import run_session
-    from .experiment.store import open_store
-    from .experiment.store.sqlite import move_store_file
-    from .experiment.study import PAPER_STUDY_TOML, Study
-    from .inputs import make_cursor
-    from .participant.params import ModelParams
+    from ..analysis.report import analyze
+    from ..clock import SimClock
+    from ..devices import open_belt
+    from ..experiment.runner import run_session
+    from ..experiment.store import open_store
+    from ..experiment.store.sqlite import move_store_file
+    from ..experiment.study import PAPER_STUDY_TOML, Study
+    from ..inputs import make_cursor
+    from ..participant.params import ModelParams
 
     if study_file is not None:
         try:
@@ -213,7 +213,7 @@ def run_model_study(out: Path, n_participants: int, seed: int,
         "participants": {p.pid: {"seed": p.cursor_seed, "params": p.params.to_dict()}
                          for p in people}}
     if study.tasks or study.questionnaire.tlx:
-        from .participant.load import LoadParams
+        from ..participant.load import LoadParams
 
         doc["load_model"] = LoadParams().to_dict()  # shared; docs/participant-model.md
     (out / "participants.json").write_text(json.dumps(doc, indent=2) + "\n",
@@ -240,8 +240,8 @@ def analysis_paired_test(static: np.ndarray, dynamic: np.ndarray) -> float:
     """
     import numpy as np
 
-    from .analysis.stats import wilcoxon_paired
-    from .participant.power import exact_signed_rank_p
+    from ..analysis.stats import wilcoxon_paired
+    from ..participant.power import exact_signed_rank_p
 
     s = np.asarray(static, dtype=float)
     d = np.asarray(dynamic, dtype=float)
@@ -262,7 +262,7 @@ def analysis_paired_test(static: np.ndarray, dynamic: np.ndarray) -> float:
 def _power_chunk(args: tuple[Protocol, StimulusCues, int, list[int], int]
                  ) -> list[StudyOutcome]:
     """Worker: simulate some studies of one size (module level, so processes can run it)."""
-    from .participant.power import simulate_studies
+    from ..participant.power import simulate_studies
 
     protocol, cues, n, indices, seed = args
     return simulate_studies(protocol, cues, n, indices, seed, analysis_paired_test)
@@ -271,7 +271,7 @@ def _power_chunk(args: tuple[Protocol, StimulusCues, int, list[int], int]
 def _factorial_chunk(args: tuple[FactorialProtocol, tuple[StimulusCues, ...], Effect, int,
                                   list[int], int]) -> list[StudyOutcome]:
     """Worker: simulate some factorial studies of one size (module level, for processes)."""
-    from .participant.factorial import simulate_factorial_studies
+    from ..participant.factorial import simulate_factorial_studies
 
     protocol, cues, effect, n, indices, seed = args
     return simulate_factorial_studies(protocol, cues, effect, n, indices, seed,
@@ -282,7 +282,7 @@ def _pool(worker: Callable[[Any], list[StudyOutcome]], work: list[tuple[int, Any
           sizes: Sequence[int], jobs: int, alpha: float,
           advance: Callable[[int], None] | None) -> list[PowerRow]:
     """Run ``(size, args)`` work items (in ``jobs`` processes); one PowerRow per size."""
-    from .participant.power import power_row
+    from ..participant.power import power_row
 
     results: dict[int, list[StudyOutcome]] = {n: [] for n in sizes}
     if jobs <= 1:
@@ -410,7 +410,7 @@ def _named_power(study: Study, eff: Effect, named: NamedEffect, sizes: Sequence[
                  sims: int, seed: int, out: Path, jobs: int, alpha: float,
                  advance: Callable[[int], None] | None) -> PowerStudyResult:
     """Model-based power: trials drawn from the report's GLMM with the named effect sizes."""
-    from .analysis.power_model import TrialDesign
+    from ..analysis.power_model import TrialDesign
 
     if eff.kind != "condition":
         raise ConfigError("--odds-ratio plans for the condition effect (dynamic vs static); "
@@ -420,7 +420,7 @@ def _named_power(study: Study, eff: Effect, named: NamedEffect, sizes: Sequence[
     if min(sizes) < 3:
         raise ConfigError("the report's mixed model needs at least 3 participants: use "
                           "study sizes of 3 or more with --odds-ratio")
-    from .analysis.power_model import named_power
+    from ..analysis.power_model import named_power
 
     design = TrialDesign.from_study(study, eff.n_targets)
     rows = named_power(design, named, sizes, sims, seed, jobs, alpha, advance)
@@ -463,14 +463,14 @@ def run_power_study(study: Study, sizes: Sequence[int], sims: int, seed: int, ou
         ConfigError: the study lacks a static or a dynamic test block (a load effect:
             blocks with and without a load); an unknown effect; ``out`` unusable.
     """
-    from .inputs.model import sim_vibrator
-    from .participant.factorial import (
+    from ..inputs.model import sim_vibrator
+    from ..participant.factorial import (
         FactorialProtocol,
         factorial_cues,
         parse_effect,
     )
-    from .participant.params import ModelParams
-    from .participant.simulate import Protocol, stimulus_cues
+    from ..participant.params import ModelParams
+    from ..participant.simulate import Protocol, stimulus_cues
 
     counts = study.target_counts()
     conds = tuple(dict.fromkeys(b.condition for b in study.test))
