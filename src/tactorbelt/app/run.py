@@ -581,6 +581,10 @@ def run_study(req: RunRequest, *, progress: Callable[[int, int], None] | None = 
             cursor = None
             lsl = _lsl(req, clock, belt, note)  # None without --lsl
             if r.input_kind in ("model", "scripted"):
+                if schedule is None and r.input_kind == "scripted":  # its answers
+                    from ..experiment.schedule import make_schedule
+
+                    schedule = make_schedule(study, req.participant, seed)
                 cursor = make_cursor(r.input_kind, study=study, belt=belt, clock=clock,
                                      participant=req.participant, seed=seed,
                                      schedule=schedule)

@@ -1184,8 +1184,13 @@ def run_with_window(
                         auto_continue_s=auto_continue_s, on_frame=on_frame) as win:
         src = win.cursor
         if src is None:
+            from ..experiment.schedule import make_schedule
+
+            answers = (make_schedule(study, participant,
+                                     study.session.seed if seed is None else int(seed))
+                       if cursor_kind == "scripted" else None)
             src = make_cursor(cursor_kind, study=study, belt=belt, clock=clock,
-                              participant=participant, seed=seed)
+                              participant=participant, seed=seed, schedule=answers)
             win.window.attach_cursor(src)
         clk = clock
 

@@ -68,8 +68,8 @@ def make_cursor(
             :func:`participant_seed` of ``seed`` and ``participant``.
         params: the model observer (default: the typical observer timed for the
             study's dynamic period).
-        schedule: the session's schedule (``scripted``: its answers; default: the
-            schedule ``seed`` makes for ``participant``; pass the stored one on resume).
+        schedule: the session's schedule (``scripted``: its answers, required: the one
+            ``seed`` makes for ``participant``, or the stored one on resume).
         geometry: the window's ellipse geometry (``mouse``).
         joystick: which stick (index or name substring) or a full JoystickConfig.
 
@@ -80,10 +80,9 @@ def make_cursor(
     if kind == "scripted":
         from .scripted import ScriptedCursor
 
-        if schedule is None:
-            from ..experiment.schedule import make_schedule
-
-            schedule = make_schedule(study, participant, session_seed)
+        if schedule is None:  # the experiment layer makes it (inputs sit below it)
+            raise ConfigError("a scripted cursor needs the session's schedule (its answers): "
+                              "pass schedule=make_schedule(study, participant, seed)")
         return ScriptedCursor(answers={t.trial_index: t.target_deg for t in schedule})
     if kind == "model":
         if belt is None or clock is None:

@@ -32,10 +32,10 @@ if TYPE_CHECKING:
 
     from ..calibration.perceptual import Respondent
     from ..experiment.study import TaskSpec
-    from ..gui.layout import EllipseGeometry
     from ..tasks import WorkloadInfo
     from ..tasks.schedule import TaskItem
     from .joystick import LiveCursor
+    from .screen import EllipseGeometry
 
 __all__ = ["CursorSample", "CursorSource", "RunTaker", "TrialCue"]
 
