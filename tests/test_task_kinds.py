@@ -101,7 +101,7 @@ def test_a_new_kind_is_a_module_and_a_registry_line(tmp_path: Path,
     assert sum(r[1] for r in rows) / len(rows) > 0.8  # d' 3.2: the model does the task
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert {c["load"] for c in summary["cells"]} == {"none", "ev"}
-    sound = SoundBank(8000).get("4", 0.25, "even")
+    sound = SoundBank(8000).get("4", 0.25, task_kind("even").sound)
     assert sound.shape == (2000,) and not sound.flags.writeable
     # the study file refuses what the kind refuses
     with pytest.raises(Exception, match="n is not used by an even-digit task"):

@@ -288,7 +288,8 @@ class TaskPresenter:
                 self.audio = open_task_audio(self.clock)
             if self._bank is None:
                 self._bank = SoundBank(self.audio.rate)
-            self.audio.schedule(self._bank.get(item.stimulus, spec.stimulus_s, spec.kind),
+            self.audio.schedule(self._bank.get(item.stimulus, spec.stimulus_s,
+                                               task_kind(spec.kind).sound),
                                 onset_ns, item.stimulus)
         else:
             end = onset_ns + round(spec.stimulus_s * 1e9)

@@ -21,7 +21,8 @@ from __future__ import annotations
 
 import math
 import re
-from typing import Final
+from collections.abc import Callable
+from typing import Any, Final
 
 import numpy as np
 from numpy.typing import NDArray
@@ -149,21 +150,19 @@ class SoundBank:
 
     def __init__(self, rate: int = RATE) -> None:
         self.rate = int(rate)
-        self._cache: dict[tuple[str | None, str, float], FloatArray] = {}
+        self._cache: dict[tuple[Any, str, float], FloatArray] = {}
 
-    def get(self, stimulus: str, stimulus_s: float, kind: str | None = None) -> FloatArray:
-        """The sound of ``stimulus``, read-only: as its task ``kind`` makes it
-        (:mod:`.kinds`), or without a kind as :func:`item_sound` does."""
-        key = (kind, stimulus, float(stimulus_s))
+    def get(self, stimulus: str, stimulus_s: float,
+            make: Callable[[str, float, int], Any] | None = None) -> FloatArray:
+        """The sound of ``stimulus``, read-only: as ``make(stimulus, stimulus_s, rate)``
+        makes it (a task kind's ``sound``: :mod:`.kinds`), or as :func:`item_sound` does."""
+        key = (make, stimulus, float(stimulus_s))
         s = self._cache.get(key)
         if s is None:
-            if kind is None:
+            if make is None:
                 s = item_sound(stimulus, stimulus_s, self.rate)
             else:
-                from .kinds import task_kind
-
-                s = np.asarray(task_kind(kind).sound(stimulus, stimulus_s, self.rate),
-                               dtype=float)
+                s = np.asarray(make(stimulus, stimulus_s, self.rate), dtype=float)
             s.flags.writeable = False
             self._cache[key] = s
         return s
