@@ -139,7 +139,7 @@ def _r_vector(a: np.ndarray) -> str:
 def test_rank_intervals_and_odds_ratio_agree_with_r() -> None:
     import subprocess
 
-    from tactorbelt.analysis.stats import (
+    from tactorbelt.analysis.classical import (
         fisher_accuracy,
         hodges_lehmann_paired,
         hodges_lehmann_shift,

@@ -33,7 +33,7 @@ from typing import TYPE_CHECKING, Any, Final, cast
 
 import numpy as np
 
-from .tables import prepare_trials
+from .tables import infer_n_targets, prepare_trials, with_cell_columns
 from .transfer import ESTIMATOR, cell_interval, estimate_transfer, information_transfer
 
 if TYPE_CHECKING:
@@ -76,35 +76,6 @@ IT_CI_METHOD: Final = (
     "recomputed and recentred on that participant's; expanded percentile interval "
     f"(Hesterberg 2015) of the {IT_N_BOOT} resampled means (plain percentile with one "
     "participant)")
-
-
-def infer_n_targets(target_deg: np.ndarray) -> int:
-    """The target count of angles at k*360/n: 360 / gcd(angles, 360) (in micro-degrees)."""
-    micro = np.round(np.mod(np.asarray(target_deg, dtype=float), 360.0) * 1e6).astype(np.int64)
-    g = 360_000_000
-    for v in np.unique(micro).tolist():
-        g = math.gcd(g, int(v))
-    return max(1, round(360_000_000 / g))
-
-
-def with_cell_columns(trials: pd.DataFrame, n_targets: int | None = None) -> pd.DataFrame:
-    """``trials`` with ``n_targets`` and ``load`` filled in for old stores.
-
-    Missing (or null) ``n_targets`` become ``n_targets`` if given, else the count
-    inferred from the test trials' angles; missing ``load`` becomes ``none``.
-    """
-    tr = trials.copy()
-    if "n_targets" not in tr.columns:
-        tr["n_targets"] = np.nan
-    if tr["n_targets"].isna().any():
-        if n_targets is None:
-            n_targets = infer_n_targets(tr["target_deg"].dropna().to_numpy(dtype=float))
-        tr["n_targets"] = tr["n_targets"].fillna(n_targets)
-    tr["n_targets"] = tr["n_targets"].astype(int)
-    if "load" not in tr.columns:
-        tr["load"] = "none"
-    tr["load"] = tr["load"].fillna("none").astype(str)
-    return tr
 
 
 def _prepared(trials: pd.DataFrame, n_targets: int | None) -> pd.DataFrame:

@@ -26,18 +26,30 @@ NumPy, pandas, matplotlib and tactorbelt.laws.
 
 from __future__ import annotations
 
-import io
 from typing import TYPE_CHECKING, Any, Final
 
 import numpy as np
 
 from ..laws import amplitudes
 from .cells import is_factorial
+from .plot_style import (
+    COLORS,
+    DPI,
+    LINESTYLES,
+    MARKERS,
+    ON_SHADE,
+    TEXT_GREY,
+    _figure,
+    _mean_ci,
+    _no_data,
+    _png,
+    _style,
+    _tactor_color,
+)
 from .tables import CONDITIONS, NO_RESPONSE
 
 if TYPE_CHECKING:
     import pandas as pd
-    from matplotlib.figure import Figure
 
     from .design import StudyDesign
     from .stats import Summary
@@ -55,58 +67,12 @@ __all__ = [
     "trajectory_figure",
 ]
 
-DPI: Final = 150
-#: Okabe-Ito: static blue, dynamic vermillion, everywhere.
-COLORS: Final = {"static": "#0072B2", "dynamic": "#D55E00"}
-MARKERS: Final = {"static": "o", "dynamic": "s"}
-LINESTYLES: Final = {"static": "-", "dynamic": "--"}
-#: Paul Tol's "muted" palette for tactors (colour-blind safe).
-TACTOR_COLORS: Final = ("#332288", "#88CCEE", "#44AA99", "#117733", "#999933", "#DDCC77",
-                        "#CC6677", "#882255", "#AA4499")
-ON_SHADE: Final = "#EEEEEE"
-TEXT_GREY: Final = "#555555"
-
-
-def _figure(width: float, height: float) -> Figure:
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
-    fig = Figure(figsize=(width, height), layout="constrained")
-    FigureCanvasAgg(fig)
-    return fig
-
-
-def _png(fig: Figure) -> bytes:
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=DPI, facecolor="white")
-    return buf.getvalue()
-
-
-def _style(ax: Any) -> None:
-    ax.spines["top"].set_visible(False)
-    ax.spines["right"].set_visible(False)
-    ax.grid(True, axis="y", color="#DDDDDD", linewidth=0.6)
-    ax.set_axisbelow(True)
 
 
 def _direction_label(deg: float) -> str:
     names = {0.0: "front", 90.0: "right", 180.0: "back", 270.0: "left"}
     name = names.get(round(deg, 6))
     return f"{deg:g}°\n{name}" if name else f"{deg:g}°"
-
-
-def _tactor_color(k: int, n: int) -> str:
-    if n <= len(TACTOR_COLORS):
-        return TACTOR_COLORS[k]
-    from matplotlib import colormaps
-    from matplotlib.colors import to_hex
-
-    return str(to_hex(colormaps["viridis"](k / max(n - 1, 1))))
-
-
-def _no_data(ax: Any, text: str) -> None:
-    ax.text(0.5, 0.5, text, transform=ax.transAxes, ha="center", va="center",
-            color=TEXT_GREY, fontsize=10, wrap=True)
 
 
 def _on_grid(d: pd.DataFrame, grid: np.ndarray) -> pd.DataFrame:
@@ -423,19 +389,6 @@ def paired_figure(per_participant: pd.DataFrame) -> bytes:
 
 
 LOAD_STYLES: Final = ("-", ":", "-.", (0, (5, 1)), (0, (3, 1, 1, 1, 1, 1)))
-
-
-def _mean_ci(values: np.ndarray) -> tuple[float, float]:
-    """Mean and the half-width of its 95 % t interval (0 for fewer than 2 values)."""
-    from scipy.stats import t as t_dist
-
-    v = values[np.isfinite(values)]
-    if v.size == 0:
-        return float("nan"), 0.0
-    if v.size < 2:
-        return float(v.mean()), 0.0
-    se = float(v.std(ddof=1) / np.sqrt(v.size))
-    return float(v.mean()), float(t_dist.ppf(0.975, v.size - 1)) * se
 
 
 def resolution_figure(participant_cells: pd.DataFrame, cells: pd.DataFrame) -> bytes:

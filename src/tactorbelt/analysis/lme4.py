@@ -169,8 +169,8 @@ def fit_lme4(df: pd.DataFrame, spec: ModelSpec, *, family: str = "binomial",
             random[g]["levels"] = n
     satt = None
     if "df" in fx:
-        satt = {str(r.term): {"df": float(r.df), "t": float(r.t), "p": float(r.p)}
-                for r in fx.itertuples(index=False)}
+        satt = {str(r["term"]): {"df": float(r["df"]), "t": float(r["t"]), "p": float(r["p"])}
+                for r in fx.to_dict("records")}
     dev = float(info["deviance"])
     return MixedModelFit(
         spec=spec, family=family, fixed_effects=fixed, vcov=vcov, random_effects=random,

@@ -390,10 +390,17 @@ def _model_sections(summary: Summary) -> list[str]:
         cells = rt.get("timeouts_by_cell", [])
         k = sum(c["timeouts"] for c in cells)
         n = sum(c["n"] for c in cells)
+        def cell_name(c: dict[str, Any]) -> str:
+            name = f"{c['condition']} {'on' if c['on_tactor'] else 'between'}-tactor"
+            if c.get("n_targets") is not None and _finite(c.get("n_targets")):
+                name += f" {int(c['n_targets'])} targets"
+            if c.get("load") not in (None, "none"):
+                name += f" under {c['load']}"
+            return name
+
         tt = (f"Timeouts have no response time and are left out of this model: {k} of {n} "
               "counted trials (" + ", ".join(
-                  f"{c['condition']} {'on' if c['on_tactor'] else 'between'}-tactor "
-                  f"{c['timeouts']}/{c['n']}" for c in cells) + ").")
+                  f"{cell_name(c)} {c['timeouts']}/{c['n']}" for c in cells) + ").")
         if rt.get("timeout_note"):
             tt += " Note: " + rt["timeout_note"] + "."
         out.append(_model_paragraph(rt, "Response time", _e(tt)))

@@ -18,6 +18,7 @@ Pure: imports NumPy, pandas, SciPy and tactorbelt.geometry; never an I/O layer.
 
 from __future__ import annotations
 
+import math
 from typing import TYPE_CHECKING, Final
 
 import numpy as np
@@ -150,8 +151,6 @@ def per_target(tr: pd.DataFrame) -> pd.DataFrame:
     count inferred from their angles and ``none``.
     """
     if "n_targets" not in tr.columns or "load" not in tr.columns:
-        from .cells import with_cell_columns
-
         tr = with_cell_columns(tr)
     c = tr.loc[tr["counted"]]
     out = _agg(c, ["participant", "condition", "n_targets", "load", "target_deg",
@@ -277,3 +276,32 @@ def training_summary(tr: pd.DataFrame) -> pd.DataFrame:
     out = g.agg(n="size", accuracy="mean").reset_index()
     order = {k: i for i, k in enumerate(CONDITIONS)}
     return out.sort_values("condition", key=lambda c: c.map(order).fillna(len(order)))
+
+
+def infer_n_targets(target_deg: np.ndarray) -> int:
+    """The target count of angles at k*360/n: 360 / gcd(angles, 360) (in micro-degrees)."""
+    micro = np.round(np.mod(np.asarray(target_deg, dtype=float), 360.0) * 1e6).astype(np.int64)
+    g = 360_000_000
+    for v in np.unique(micro).tolist():
+        g = math.gcd(g, int(v))
+    return max(1, round(360_000_000 / g))
+
+
+def with_cell_columns(trials: pd.DataFrame, n_targets: int | None = None) -> pd.DataFrame:
+    """``trials`` with ``n_targets`` and ``load`` filled in for old stores.
+
+    Missing (or null) ``n_targets`` become ``n_targets`` if given, else the count
+    inferred from the test trials' angles; missing ``load`` becomes ``none``.
+    """
+    tr = trials.copy()
+    if "n_targets" not in tr.columns:
+        tr["n_targets"] = np.nan
+    if tr["n_targets"].isna().any():
+        if n_targets is None:
+            n_targets = infer_n_targets(tr["target_deg"].dropna().to_numpy(dtype=float))
+        tr["n_targets"] = tr["n_targets"].fillna(n_targets)
+    tr["n_targets"] = tr["n_targets"].astype(int)
+    if "load" not in tr.columns:
+        tr["load"] = "none"
+    tr["load"] = tr["load"].fillna("none").astype(str)
+    return tr

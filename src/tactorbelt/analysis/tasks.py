@@ -172,7 +172,7 @@ def secondary_task_summary(rows: Sequence[Mapping[str, Any]]) -> list[dict[str, 
 def _paired(diffs: Sequence[float]) -> dict[str, Any]:
     import numpy as np
 
-    from .stats import signed_rank_test
+    from .classical import signed_rank_test
 
     d = np.asarray(diffs, dtype=float)
     if d.size < 2 or not np.any(d != 0):

@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING, Any, Final
 
 import numpy as np
 
-from .figures import COLORS, LINESTYLES, MARKERS, _figure, _mean_ci, _no_data, _png, _style
+from .plot_style import COLORS, LINESTYLES, MARKERS, _figure, _mean_ci, _no_data, _png, _style
 from .tables import CONDITIONS
 from .tasks import PHASE_ORDER
 

@@ -47,7 +47,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
                "Export a store: CSV, BIDS, Parquet, a table for R and JASP, PsychoPy CSV."),
     "sync": ("tactorbelt.cli.sync:sync", "Push a local store's missing trials to PostgreSQL."),
     "demo": ("tactorbelt.cli.demo:demo", "Run the paper's study with model participants."),
-    "power": ("tactorbelt.cli.demo:power", "Plan a study's size by simulation."),
+    "power": ("tactorbelt.cli.power:power", "Plan a study's size by simulation."),
     "analyze": ("tactorbelt.cli.analyze:analyze",
                 "Analyze one or more stores and write the report."),
     "point": ("tactorbelt.cli.point:point", "Keep a bearing displayed on a belt."),
