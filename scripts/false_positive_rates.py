@@ -30,7 +30,8 @@ Usage::
     python scripts/false_positive_rates.py --sizes 4,8,16 --studies 400 \\
         --pb-studies 150 --pb-sims 39 --out fp-paper.jsonl
     python scripts/false_positive_rates.py --design resolution --out fp-res.jsonl ...
-    python scripts/false_positive_rates.py --table --out fp-paper.jsonl
+    python scripts/false_positive_rates.py --start 80 --pb-studies 0 --out fp-more.jsonl
+    python scripts/false_positive_rates.py --table --out fp-paper.jsonl fp-more.jsonl
 """
 
 from __future__ import annotations
@@ -57,12 +58,17 @@ from tactorbelt.analysis.stats import fit_model
 from tactorbelt.experiment.study import Study, paper_study, template_toml
 from tactorbelt.participant.power import binomial_ci
 
-TESTS = ("wald_z", "wald_z_one_sided", "wald_chi2", "lrt", "pb")
+TESTS = ("wald_z", "wald_z_one_sided", "wald_chi2", "lrt", "pb", "wald_z_max",
+         "wald_chi2_max", "lrt_max", "pb_max")
 LABELS = {"wald_z": "Wald z, `conditionstatic` (two-sided)",
           "wald_z_one_sided": "Wald z, one-sided (nominal alpha/2)",
           "wald_chi2": "Wald chi-square, all condition terms",
           "lrt": "likelihood ratio (chi-square)",
-          "pb": "parametric bootstrap of the LRT"}
+          "pb": "parametric bootstrap of the LRT",
+          "wald_z_max": "slope kept: Wald z, `conditionstatic`",
+          "wald_chi2_max": "slope kept: Wald chi-square",
+          "lrt_max": "slope kept: likelihood ratio (chi-square)",
+          "pb_max": "slope kept: parametric bootstrap"}
 
 
 def design_of(name: str) -> TrialDesign:
@@ -71,7 +77,8 @@ def design_of(name: str) -> TrialDesign:
     return TrialDesign.from_study(Study.from_toml(template_toml("resolution")), all_counts=True)
 
 
-def one_study(design: TrialDesign, n: int, i: int, seed: int, pb_sims: int) -> dict[str, object]:
+def one_study(design: TrialDesign, n: int, i: int, seed: int, pb_sims: int,
+              keep_slopes: bool = False) -> dict[str, object]:
     rng = np.random.default_rng([seed, n, i])
     frame = simulate_frame(design, NamedEffect.no_effect(), n, rng)
     t0 = time.process_time()
@@ -93,6 +100,24 @@ def one_study(design: TrialDesign, n: int, i: int, seed: int, pb_sims: int) -> d
             pb = parametric_bootstrap(frame, fit, fit0, n_sim=pb_sims, seed=[seed, n, i, 1])
         out.update({"pb": pb.p, "pb_sims": pb.n_sim, "pb_positive": pb.n_positive,
                     "pb_failed": pb.failed})
+    if keep_slopes:
+        # the same tests with the condition slope kept even when its variance is at 0
+        if "(1 + condition | participant)" in fit.spec.formula():
+            out.update({f"{k}_max": out.get(k) for k in ("wald_z", "z", "wald_chi2", "lrt",
+                                                          "pb")})
+        else:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                fm, _ = fit_model(frame, keep_slopes=True)
+                fm0 = fit_glmm(frame, null_spec(fm.spec), se=False)
+                fem = fm.fixed_effects["conditionstatic"]
+                out.update({"wald_z_max": fem.p, "z_max": fem.z,
+                            "wald_chi2_max": wald_condition(fm)["p"],
+                            "lrt_max": likelihood_ratio(fm, fm0)["p"]})
+                if pb_sims:
+                    pbm = parametric_bootstrap(frame, fm, fm0, n_sim=pb_sims,
+                                               seed=[seed, n, i, 1])
+                    out["pb_max"] = pbm.p
     out["cpu_s"] = time.process_time() - t0
     return out
 
@@ -109,8 +134,9 @@ def found(rec: dict[str, object], test: str, alpha: float) -> bool | None:
     return float(p) <= alpha  # type: ignore[arg-type]
 
 
-def table(path: Path, alpha: float) -> str:
-    recs = [json.loads(line) for line in path.read_text().splitlines() if line.strip()]
+def table(path: list[Path], alpha: float) -> str:
+    recs = [json.loads(line) for p in path for line in p.read_text().splitlines()
+            if line.strip()]
     sizes = sorted({int(r["n"]) for r in recs})
     head = "| test | " + " | ".join(f"{n} participants" for n in sizes) + " |"
     lines = [head, "|---|" + "---|" * len(sizes)]
@@ -140,15 +166,22 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--design", choices=("paper", "resolution"), default="paper")
     ap.add_argument("--sizes", default="4,8,16")
     ap.add_argument("--studies", type=int, default=400)
+    ap.add_argument("--start", type=int, default=0,
+                    help="first study index (to split a run across processes and files)")
     ap.add_argument("--pb-studies", type=int, default=150)
     ap.add_argument("--pb-sims", type=int, default=39)
     ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--keep-slopes", action="store_true",
+                    help="also the tests with the condition slope kept when the report's "
+                         "rule drops it (fields *_max)")
     ap.add_argument("--alpha", type=float, default=0.05)
     ap.add_argument("--out", type=Path, default=Path("false-positives.jsonl"))
     ap.add_argument("--table", action="store_true", help="print the table of --out and stop")
+    ap.add_argument("more", nargs="*", type=Path,
+                    help="with --table: more result files to pool with --out")
     a = ap.parse_args(argv)
     if a.table:
-        print(table(a.out, a.alpha))
+        print(table([a.out, *a.more], a.alpha))
         return 0
     design = design_of(a.design)
     done = set()
@@ -157,18 +190,18 @@ def main(argv: list[str] | None = None) -> int:
                 (json.loads(x) for x in a.out.read_text().splitlines() if x.strip())}
     sizes = [int(s) for s in a.sizes.split(",")]
     # interleave the sizes so that a stopped run has some of each
-    for i in range(a.studies):
+    for i in range(a.start, a.studies):
         for n in sizes:
             if (n, i) in done:
                 continue
             pb = a.pb_sims if i < a.pb_studies else 0
-            rec = one_study(design, n, i, a.seed, pb)
+            rec = one_study(design, n, i, a.seed, pb, a.keep_slopes)
             rec["design"] = a.design
             with a.out.open("a") as fh:
                 fh.write(json.dumps(rec) + "\n")
             print(f"n={n} i={i} lrt p={rec['lrt']:.3f} pb p={rec.get('pb', float('nan')):.3f} "
                   f"cpu {rec['cpu_s']:.1f} s", file=sys.stderr, flush=True)
-    print(table(a.out, a.alpha))
+    print(table([a.out], a.alpha))
     return 0
 
 

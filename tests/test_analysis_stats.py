@@ -170,9 +170,10 @@ def test_summarize_several_participants_matches_scipy_wilcoxon(several: Path) ->
     assert acc.details["mean_difference"] == pytest.approx(d.mean())
 
 
-def test_mixed_model_is_the_laplace_glmm_headed_by_the_bootstrap(several: Path) -> None:
-    """6 participants: the headline test of the condition is the parametric bootstrap of
-    the likelihood ratio (docs/analysis.md); the coefficients keep their Wald z."""
+def test_mixed_model_is_the_laplace_glmm_headed_by_the_f_referred_lrt(several: Path) -> None:
+    """The headline test of the condition is the likelihood ratio referred to
+    F(k, participants - 1) (docs/analysis.md); the coefficients keep their Wald z; with 6
+    participants the parametric bootstrap is beside it."""
     tr = prepare_trials(load_stores([several]).trials)
     r = mixed_model(tr, pb_sims=9, seed=1)
     assert r.computed
@@ -186,12 +187,14 @@ def test_mixed_model_is_the_laplace_glmm_headed_by_the_bootstrap(several: Path) 
     assert r.effect == pytest.approx(fe["estimate"]) and r.effect < 0
     assert r.ci_low == pytest.approx(fe["estimate"] - 1.959964 * fe["se"])
     tests = {t["method"]: t for t in m["tests"]}
-    assert m["headline_test"]["method"] == "parametric bootstrap"
-    assert r.p_value == tests["parametric bootstrap"]["p"] and tests["parametric bootstrap"][
-        "n_sim"] == 9
+    assert m["headline_test"]["method"] == "LRT" and m["headline_test"]["reference"] == (
+        "F(2, 5)")
+    assert r.p_value == tests["LRT"]["f_reference"]["p"]
+    assert r.p_value == pytest.approx(stats.f.sf(tests["LRT"]["statistic"] / 2, 2, 5))
+    assert tests["parametric bootstrap"]["n_sim"] == 9
     assert r.statistic == pytest.approx(tests["LRT"]["statistic"])
     assert tests["LRT"]["df"] == 2  # conditionstatic and conditionstatic:on_tactor
-    assert "parametric bootstrap" in r.test and "holds its level" in r.details["why"]
+    assert "F(k, participants - 1)" in r.test and "nominal 5 %" in r.details["why"]
     assert [c["by"] for c in r.details["contrasts"]] == [{"n_targets": 24, "on_tactor": 0}]
 
 

@@ -31,7 +31,8 @@ from tactorbelt.analysis.lrt import (
 )
 from tactorbelt.analysis.satterthwaite import richardson_hessian, richardson_jacobian
 from tactorbelt.analysis.stats import (
-    PB_HEADLINE_MAX_PARTICIPANTS,
+    HEADLINE_TEST,
+    PB_MAX_PARTICIPANTS,
     fit_model,
     headline_method,
     model_frame,
@@ -92,6 +93,9 @@ def test_tests_of_one_study(resolution_store: Path) -> None:
     assert lr["df"] == k == 6  # condition x on_tactor x factor(n_targets), 3 counts
     assert lr["statistic"] == pytest.approx(2 * (fit.loglik - fit0.loglik))
     assert lr["p"] == pytest.approx(stats.chi2.sf(lr["statistic"], k))
+    f = lr["f_reference"]  # the headline: LRT / k on F(k, participants - 1)
+    assert (f["df1"], f["df2"]) == (k, 3)
+    assert f["p"] == pytest.approx(stats.f.sf(lr["statistic"] / k, k, 3)) and f["p"] > lr["p"]
     w = wald_condition(fit)
     idx = [list(fit.fixed_effects).index(t) for t in w["terms"]]
     b = np.array([fit.fixed_effects[t].estimate for t in w["terms"]])
@@ -142,9 +146,11 @@ def test_summary_json_carries_the_contract(resolution_summary: dict) -> None:
     pb = tests["parametric bootstrap"]
     assert pb["n_sim"] == 9 and pb["computed"] and 0 < pb["p"] <= 1
     assert pb["statistic"] == tests["LRT"]["statistic"]
-    assert m["headline_test"]["method"] == "parametric bootstrap"
+    head = m["headline_test"]
+    assert head["method"] == "LRT" and head["reference"] == "F(6, 3)"
+    assert head["p"] == tests["LRT"]["f_reference"]["p"]
     assert j["tests"][-1]["key"] == "mixed_model"
-    assert j["tests"][-1]["p_value"] == pb["p"]
+    assert j["tests"][-1]["p_value"] == head["p"]
     cs = j["contrasts"]
     assert [c["by"]["n_targets"] for c in cs] == COUNTS
     for c in cs:
@@ -167,26 +173,22 @@ def test_report_says_which_test_and_adjustment_made_each_number(resolution_summa
     assert "Holm" in html[contrasts:contrasts + 4000]
     assert "probability scale" in html and "regrid" in html
     assert "Tests of the condition" in html
-    assert "parametric bootstrap of the likelihood ratio" in html
-    assert "(headline)" in html and "holds its level" in html
+    assert "parametric-bootstrap reference (pbkrtest" in html
+    assert "F reference (headline)" in html and "nominal 5 %" in html
     assert "Satterthwaite" in html
 
 
-def test_the_headline_test_follows_the_study_size() -> None:
-    assert headline_method(4) == headline_method(PB_HEADLINE_MAX_PARTICIPANTS) == (
-        "parametric bootstrap")
-    assert headline_method(PB_HEADLINE_MAX_PARTICIPANTS + 1) == "LRT"
-
-
-def test_without_the_bootstrap_the_lrt_heads_and_says_why(resolution_store: Path) -> None:
+def test_the_headline_test_is_the_f_referred_likelihood_ratio_at_every_size(
+        resolution_store: Path) -> None:
+    assert headline_method(4) == headline_method(40) == HEADLINE_TEST
     j = summarize(load_stores([resolution_store]), seed=4, pb_sims=0).to_json()
     m = j["mixed_model"]
     assert m["headline_test"]["method"] == "LRT"
-    assert "--bootstrap-sims 0" in m["headline_test"]["why"]
     pb = next(t for t in m["tests"] if t["method"] == "parametric bootstrap")
-    assert pb["computed"] is False and pb["p"] is None
+    assert pb["computed"] is False and pb["p"] is None  # --bootstrap-sims 0
     lrt = next(t for t in m["tests"] if t["method"] == "LRT")
-    assert j["tests"][-1]["p_value"] == lrt["p"]
+    assert j["tests"][-1]["p_value"] == lrt["f_reference"]["p"]
+    assert PB_MAX_PARTICIPANTS == 16
 
 
 def test_richardson_derivatives_are_exact_on_smooth_functions() -> None:

@@ -23,7 +23,6 @@ from tactorbelt.analysis.power_model import (
     headline_statistics,
     simulate_frame,
     simulate_glmm_studies,
-    simulate_null_lrt,
 )
 from tactorbelt.analysis.stats import fit_model
 from tactorbelt.experiment.study import Study, paper_study, template_toml
@@ -64,33 +63,29 @@ def test_the_report_model_recovers_the_named_odds_ratio() -> None:
 
 
 def test_large_effects_are_found_and_no_effect_rarely() -> None:
-    """Up to 16 participants the headline is the likelihood ratio referred to studies
-    simulated without an effect (the report's parametric bootstrap): a large effect is
-    found, no effect about as rarely as alpha / 2 in the named direction."""
+    """The headline is the likelihood ratio referred to F(k, participants - 1): a large
+    effect is found, no effect about as rarely as alpha / 2 in the named direction."""
     design = TrialDesign.from_study(paper_study())
-    ref = simulate_null_lrt(design, NamedEffect(4.0), 6, range(20), seed=2)
-    assert len(ref) == 20 and all(v > -1e-6 for v in ref)
-    big = simulate_glmm_studies(design, NamedEffect(4.0), 6, range(6), seed=2, null_lrt=ref)
+    big = simulate_glmm_studies(design, NamedEffect(4.0), 6, range(6), seed=2)
     assert all(o.found(0.05) for o in big)
-    assert all(o.p_value == 1 / 21 for o in big)  # above every null ratio: (1 + 0) / (1 + 20)
-    null = simulate_glmm_studies(design, NamedEffect.no_effect(), 6, range(12), seed=3,
-                                 null_lrt=ref)
-    assert sum(o.found(0.05) for o in null) <= 3
+    null = simulate_glmm_studies(design, NamedEffect.no_effect(), 6, range(12), seed=3)
+    assert sum(o.found(0.05) for o in null) <= 2
     # OR < 1 names "static better": found in that direction
-    reverse = simulate_glmm_studies(design, NamedEffect(1 / 4.0), 6, range(3), seed=2,
-                                    null_lrt=ref)
+    reverse = simulate_glmm_studies(design, NamedEffect(1 / 4.0), 6, range(3), seed=2)
     assert all(o.found(0.05) for o in reverse)
     assert all(np.mean(o.static_acc) > np.mean(o.dynamic_acc) for o in reverse)
-    with pytest.raises(ValueError, match="null_lrt"):
-        simulate_glmm_studies(design, NamedEffect(4.0), 6, range(1), seed=2)
 
 
-def test_above_16_participants_power_uses_the_chi_square_p_of_the_likelihood_ratio() -> None:
+def test_power_uses_the_likelihood_ratio_referred_to_f() -> None:
+    from scipy import stats
+
     design = TrialDesign.from_study(paper_study())
-    frame = simulate_frame(design, NamedEffect(2.0), 17, np.random.default_rng([5, 17, 0]))
+    frame = simulate_frame(design, NamedEffect(2.0), 5, np.random.default_rng([5, 5, 0]))
     res = headline_statistics(frame)
-    (out,) = simulate_glmm_studies(design, NamedEffect(2.0), 17, [0], seed=5)
-    assert out.p_value == pytest.approx(res.lrt_p) and res.lrt > 0
+    assert res.p == pytest.approx(stats.f.sf(res.lrt / 2, 2, 4))  # 2 condition terms
+    assert res.lrt_p == pytest.approx(stats.chi2.sf(res.lrt, 2)) and res.p > res.lrt_p
+    (out,) = simulate_glmm_studies(design, NamedEffect(2.0), 5, [0], seed=5)
+    assert out.p_value == pytest.approx(res.p)
     assert out.direction_ok == (res.estimate < 0)
 
 

@@ -1068,14 +1068,15 @@ class GlmmData:
 
 
 def fit_glmm(df: pd.DataFrame, spec: ModelSpec, *, skip_se_if_simplified: bool = False,
-             start: MixedModelFit | None = None, se: bool = True) -> MixedModelFit:
+             start: MixedModelFit | None = None, se: bool = True,
+             keep_slopes: bool = False) -> MixedModelFit:
     """A binomial (logit) GLMM by maximum likelihood, Laplace approximation (glmer's nAGQ=1).
 
     Args:
         df: one row per Bernoulli trial; ``spec.response`` is 0/1 (or bool).
         spec: fixed factors (fully crossed) and random terms.
         skip_se_if_simplified: leave out the Hessian (NaN SEs) when the fit is singular
-            and :func:`simplify_step` would replace it.
+            and :func:`simplify_step` (with ``keep_slopes``) would replace it.
         start: a fit of a model with these and more random effects on the same data (the
             previous step of :func:`fit_simplified`): stage 2 starts from its estimates
             instead of running stage 1 (the dropped components were at 0).
@@ -1089,12 +1090,12 @@ def fit_glmm(df: pd.DataFrame, spec: ModelSpec, *, skip_se_if_simplified: bool =
         data = GlmmData(df, spec)
         par0 = _start(start, data.theta_names, data.names)
         return glmm_fit(data, skip_se_if_simplified=skip_se_if_simplified, start_par=par0,
-                        se=se)
+                        se=se, keep_slopes=keep_slopes)
 
 
 def glmm_fit(data: GlmmData, y: np.ndarray | None = None, *,
              skip_se_if_simplified: bool = False, start_par: np.ndarray | None = None,
-             se: bool = True, ftol: float = 1e-12) -> MixedModelFit:
+             se: bool = True, ftol: float = 1e-12, keep_slopes: bool = False) -> MixedModelFit:
     """:func:`fit_glmm` on prepared data, optionally with another per-row response ``y``
     (a refit, as lme4's ``refit(m, newresp = y)``) and a starting ``(theta, beta)``."""
     spec = data.spec
@@ -1130,7 +1131,8 @@ def glmm_fit(data: GlmmData, y: np.ndarray | None = None, *,
     if not se:
         vcov = np.full((lap.p, lap.p), np.nan)
         vcov_method = "not computed (a refit: only the deviance is needed)"
-    elif singular and skip_se_if_simplified and simplify_step(spec, zero)[0] is not None:
+    elif (singular and skip_se_if_simplified
+          and simplify_step(spec, zero, keep_slopes)[0] is not None):
         vcov = np.full((lap.p, lap.p), np.nan)
         vcov_method = "not computed: a singular fit the simplification rule replaces"
     else:
@@ -1266,8 +1268,8 @@ def _fit_lmm(data: LmmData, reml: bool, start: MixedModelFit | None) -> MixedMod
 Fitter = Callable[["pd.DataFrame", ModelSpec], MixedModelFit]
 
 
-def fit_simplified(df: pd.DataFrame, spec: ModelSpec,
-                   fitter: Fitter) -> tuple[MixedModelFit, list[dict[str, Any]]]:
+def fit_simplified(df: pd.DataFrame, spec: ModelSpec, fitter: Fitter, *,
+                   keep_slopes: bool = False) -> tuple[MixedModelFit, list[dict[str, Any]]]:
     """Fit the maximal model and simplify it while the fit is singular.
 
     The rule (Barr et al. 2013: start maximal; Matuschek et al. 2017: drop variance
@@ -1289,11 +1291,12 @@ def fit_simplified(df: pd.DataFrame, spec: ModelSpec,
     """
     steps: list[dict[str, Any]] = []
     with one_blas_thread():
-        return _fit_simplified(df, spec, fitter, steps)
+        return _fit_simplified(df, spec, fitter, steps, keep_slopes)
 
 
 def _fit_simplified(df: pd.DataFrame, spec: ModelSpec, fitter: Fitter,
-                    steps: list[dict[str, Any]]) -> tuple[MixedModelFit, list[dict[str, Any]]]:
+                    steps: list[dict[str, Any]],
+                    keep_slopes: bool) -> tuple[MixedModelFit, list[dict[str, Any]]]:
     while True:
         fit = fitter(df, spec)
         zero = fit.zero_components()
@@ -1302,22 +1305,24 @@ def _fit_simplified(df: pd.DataFrame, spec: ModelSpec, fitter: Fitter,
         steps.append(step)
         if not fit.singular:
             return fit, steps
-        nxt, step["action"] = simplify_step(spec, zero)
+        nxt, step["action"] = simplify_step(spec, zero, keep_slopes)
         if nxt is None:
             return fit, steps
         spec = nxt
 
 
-def simplify_step(spec: ModelSpec, zero: Sequence[str]) -> tuple[ModelSpec | None, str]:
+def simplify_step(spec: ModelSpec, zero: Sequence[str],
+                  keep_slopes: bool = False) -> tuple[ModelSpec | None, str]:
     """One step of :func:`fit_simplified`'s rule after a singular fit (None: keep it).
 
     Args:
         spec: the model that was fitted.
         zero: its theta elements at 0 (:meth:`MixedModelFit.zero_components`).
+        keep_slopes: never drop a random slope (step 1 is skipped).
     """
     groups = {z.split(".")[0] for z in zero}
     for t in spec.random:
-        if t.slopes and t.group in groups:
+        if t.slopes and t.group in groups and not keep_slopes:
             return (spec.replace_term(t, RandomTerm(t.group)),
                     f"singular: dropped the random slope(s) of {t.group}")
     for t in reversed(spec.random[1:]):

@@ -9,7 +9,10 @@ or loads their interactions with those factors too).
   the model's ``vcov``), on ``k`` degrees of freedom (k terms).
 - **LRT**: the model against the same model without those terms (the same random
   effects), both by maximum likelihood (Laplace, as glmer; an LMM by ML), as R's
-  ``anova(m0, m)``: ``2 (log L - log L0)`` on ``k`` df, p from chi-square.
+  ``anova(m0, m)``: ``2 (log L - log L0)`` on ``k`` df, p from chi-square; and
+  ``LRT / k`` referred to ``F(k, participants - 1)`` (:func:`f_reference`: the
+  report's headline, the one of these that holds its level with 4 to 16
+  participants).
 - **Parametric bootstrap**, as pbkrtest's ``PBmodcomp(m, m0)``: ``n_sim`` responses are
   simulated from the null fit (new random effects each time, as ``simulate(m0)``),
   both models are refitted to each, and ``p = (1 + #{LRT* > LRT}) / (1 + #{LRT* > 0})``
@@ -42,6 +45,7 @@ __all__ = [
     "DEFAULT_PB_SIMS",
     "PBResult",
     "condition_terms",
+    "f_reference",
     "likelihood_ratio",
     "null_spec",
     "parametric_bootstrap",
@@ -92,16 +96,45 @@ def wald_condition(fit: MixedModelFit) -> dict[str, Any]:
 
 
 def likelihood_ratio(fit: MixedModelFit, fit0: MixedModelFit) -> dict[str, Any]:
-    """``anova(m0, m)``: ``2 (log L - log L0)``, its df and chi-square p."""
+    """``anova(m0, m)``: ``2 (log L - log L0)``, its df and chi-square p; and the same
+    ratio referred to ``F(df, participants - 1)`` (``f_reference``, see
+    :func:`f_reference`)."""
     from scipy.stats import chi2
 
     df = len(fit.fixed_effects) - len(fit0.fixed_effects)
     stat = float(fit0.deviance - fit.deviance)
     p = float(chi2.sf(max(stat, 0.0), df)) if df > 0 and math.isfinite(stat) else math.nan
-    return {"term": TERM, "method": "LRT", "statistic": stat, "df": df, "p": p,
-            "description": f"likelihood ratio of {fit.spec.formula()} against "
-                           f"{fit0.spec.formula()}, both by maximum likelihood "
-                           f"({fit.criterion}); chi-square on {df} df, as anova(m0, m)"}
+    out = {"term": TERM, "method": "LRT", "statistic": stat, "df": df, "p": p,
+           "description": f"likelihood ratio of {fit.spec.formula()} against "
+                          f"{fit0.spec.formula()}, both by maximum likelihood "
+                          f"({fit.criterion}); chi-square on {df} df, as anova(m0, m)"}
+    n_p = fit.groups.get("participant", 0)
+    if n_p >= 2 and df > 0:
+        out["f_reference"] = f_reference(stat, df, n_p)
+    return out
+
+
+def f_reference(lrt: float, df: int, n_participants: int) -> dict[str, Any]:
+    """The likelihood ratio per df referred to ``F(df, n_participants - 1)``.
+
+    The participants are the units over which the condition effect is replicated (each
+    has both conditions): ``n_participants - 1`` is the df of a paired test of
+    participant means, and of the participant x condition term the condition is
+    contained in (SAS's containment and between-within methods; Li & Redden 2015,
+    BMC Med Res Methodol 15:38, for binary GLMMs with few clusters). The chi-square
+    reference assumes the random effects are known; with a handful of participants
+    their variances are estimated poorly (the condition slope's often at 0) and the
+    chi-square p finds effects that are not there (docs/analysis.md, "Tests of the
+    condition").
+    """
+    from scipy.stats import f as f_dist
+
+    df2 = int(n_participants) - 1
+    fstat = max(float(lrt), 0.0) / df
+    return {"statistic": fstat, "df1": int(df), "df2": df2,
+            "p": float(f_dist.sf(fstat, df, df2)) if df2 > 0 else math.nan,
+            "description": f"LRT / {df} referred to F({df}, {df2}): the participants, "
+                           "minus one, are the denominator df"}
 
 
 def pb_p_value(observed: float, ref: np.ndarray) -> tuple[float, int, int]:

@@ -17,16 +17,11 @@ the study's test trials (its blocks, target counts and repetitions). Each simula
 study is then analysed by the very functions the report uses
 (:func:`tactorbelt.analysis.stats.fit_model`: the same formula, the same singular-fit
 simplification rule, the same Laplace fit; and the same model without the condition
-terms) with the report's headline test at that study size
-(:func:`tactorbelt.analysis.stats.headline_method`):
-
-- up to :data:`~tactorbelt.analysis.stats.PB_HEADLINE_MAX_PARTICIPANTS` participants,
-  the parametric bootstrap of the likelihood ratio. Refitting a bootstrap per
-  simulated study would cost hours, so the likelihood ratio is referred to the ratios
-  of studies simulated *without* an effect at the named accuracies and SDs (the
-  reference distribution the report's bootstrap draws from the study's null fit, at
-  the values that fit estimates);
-- above, the likelihood ratio's chi-square p.
+terms) with the report's headline test (:func:`tactorbelt.analysis.stats.headline_method`):
+the likelihood ratio of every condition term against none, referred to
+``F(k, participants - 1)`` (:func:`tactorbelt.analysis.lrt.f_reference`), the test of
+those the report computes that holds its level with 4 to 16 participants
+(docs/analysis.md, "Tests of the condition").
 
 A study finds the effect when that p is below alpha and the report's effect (static
 minus dynamic log-odds at between-tactor targets) has the named sign. This is
@@ -56,8 +51,7 @@ if TYPE_CHECKING:
     from ..participant.power import StudyOutcome
 
 __all__ = ["HeadlineResult", "NamedEffect", "TrialDesign", "headline_coefficient",
-           "headline_statistics", "named_power", "simulate_frame", "simulate_glmm_studies",
-           "simulate_null_lrt"]
+           "headline_statistics", "named_power", "simulate_frame", "simulate_glmm_studies"]
 
 #: the coefficient the report's headline test is about (static minus dynamic, log-odds,
 #: at between-tactor targets).
@@ -110,7 +104,7 @@ class NamedEffect:
     @classmethod
     def no_effect(cls, **sizes: float) -> NamedEffect:
         """The same model with no condition effect (odds ratio 1): the null, for
-        false-positive rates and the bootstrap's reference distribution."""
+        false-positive rates (scripts/false_positive_rates.py)."""
         eff = cls(2.0, **sizes)
         object.__setattr__(eff, "odds_ratio", 1.0)
         return eff
@@ -240,16 +234,18 @@ class HeadlineResult:
             over target counts), the report's effect; its sign is the direction.
         lrt: the likelihood ratio (every condition term against none); lrt_p its
             chi-square p.
+        p: the headline p: ``lrt / df`` referred to ``F(df, participants - 1)``.
         wald_p: the Wald z p of ``conditionstatic`` (the old headline).
     """
 
     estimate: float
     lrt: float
     lrt_p: float
+    p: float
     wald_p: float
 
 
-_NAN_RESULT = HeadlineResult(math.nan, math.nan, math.nan, math.nan)
+_NAN_RESULT = HeadlineResult(math.nan, math.nan, math.nan, math.nan, math.nan)
 
 
 def headline_statistics(frame: pd.DataFrame) -> HeadlineResult:
@@ -273,7 +269,8 @@ def headline_statistics(frame: pd.DataFrame) -> HeadlineResult:
         return _NAN_RESULT
     lr = likelihood_ratio(fit, fit0)
     fe = fit.fixed_effects.get(HEADLINE)
-    return HeadlineResult(est, float(lr["statistic"]), float(lr["p"]),
+    f_p = float(lr.get("f_reference", {}).get("p", math.nan))
+    return HeadlineResult(est, float(lr["statistic"]), float(lr["p"]), f_p,
                           fe.p if fe is not None else math.nan)
 
 
@@ -303,77 +300,38 @@ def _between(frame: pd.DataFrame, condition: str) -> np.ndarray:
     return sel.groupby("participant", sort=True)["correct"].mean().to_numpy(dtype=float)
 
 
-#: null studies are seeded ``(seed, N, NULL_OFFSET + index)``, apart from the others
-NULL_OFFSET = 1_000_000
-
-
-def simulate_null_lrt(design: TrialDesign, effect: NamedEffect, n_participants: int,
-                      indices: Sequence[int], seed: int) -> list[float]:
-    """The likelihood ratio of the studies ``indices`` simulated with ``effect``'s
-    accuracies and SDs but no condition effect (the parametric bootstrap's reference
-    distribution at the named sizes)."""
-    null = NamedEffect.no_effect(accuracy=effect.accuracy,
-                                 on_tactor_accuracy=effect.on_tactor_accuracy,
-                                 participant_sd=effect.participant_sd,
-                                 slope_sd=effect.slope_sd, target_sd=effect.target_sd)
-    out = []
-    for i in indices:
-        rng = np.random.default_rng([int(seed), int(n_participants), NULL_OFFSET + int(i)])
-        out.append(headline_statistics(simulate_frame(design, null, n_participants, rng)).lrt)
-    return out
-
-
 def simulate_glmm_studies(design: TrialDesign, effect: NamedEffect, n_participants: int,
                           indices: Sequence[int], seed: int,
-                          progress: Callable[[int], None] | None = None,
-                          null_lrt: Sequence[float] | None = None) -> list[StudyOutcome]:
+                          progress: Callable[[int], None] | None = None) -> list[StudyOutcome]:
     """Simulate and analyse the studies ``indices`` of size ``n_participants``.
 
-    The outcome's p is the report's headline test at that size
-    (:func:`~tactorbelt.analysis.stats.headline_method`): the likelihood ratio's
-    chi-square p, or, where the report uses the parametric bootstrap, the likelihood
-    ratio referred to ``null_lrt`` (likelihood ratios of studies simulated without an
-    effect, :func:`simulate_null_lrt`; pbkrtest's p). It counts as found when the
-    report's effect has the named sign (``static_acc``/``dynamic_acc`` are the simulated
-    participants' between-tactor accuracies, for the table).
+    The outcome's p is the report's headline test (:func:`headline_statistics`: the
+    likelihood ratio referred to ``F(k, participants - 1)``); it counts as found when
+    the report's effect has the named sign (``static_acc``/``dynamic_acc`` are the
+    simulated participants' between-tactor accuracies, for the table).
     """
     from ..participant.power import StudyOutcome
-    from .lrt import pb_p_value
-    from .stats import headline_method
 
     if n_participants < 3:
         raise ConfigError("the report's mixed model needs at least 3 participants; "
                           f"got a study size of {n_participants}")
-    bootstrap = headline_method(n_participants) == "parametric bootstrap"
-    if bootstrap and not null_lrt:
-        raise ValueError("the parametric bootstrap's reference needs null_lrt")
-    ref = np.asarray(null_lrt if null_lrt is not None else [], dtype=float)
     sign = math.copysign(1.0, effect.headline)
     out: list[StudyOutcome] = []
     for i in indices:
         rng = np.random.default_rng([int(seed), int(n_participants), int(i)])
         frame = simulate_frame(design, effect, n_participants, rng)
         res = headline_statistics(frame)
-        p = res.lrt_p
-        if bootstrap and math.isfinite(res.lrt):
-            p = pb_p_value(res.lrt, ref)[0]
         ok = math.isfinite(res.estimate) and math.copysign(1.0, res.estimate) == sign
         out.append(StudyOutcome(n_participants, _between(frame, "static"),
-                                _between(frame, "dynamic"), p, direction_ok=ok))
+                                _between(frame, "dynamic"), res.p, direction_ok=ok))
         if progress is not None:
             progress(1)
     return out
 
 
-def _null_chunk(args: tuple[TrialDesign, NamedEffect, int, list[int], int]) -> list[float]:
+def _chunk(args: tuple[TrialDesign, NamedEffect, int, list[int], int]) -> list[StudyOutcome]:
     design, effect, n, indices, seed = args
-    return simulate_null_lrt(design, effect, n, indices, seed)
-
-
-def _alt_chunk(args: tuple[TrialDesign, NamedEffect, int, list[int], int, list[float] | None]
-               ) -> list[StudyOutcome]:
-    design, effect, n, indices, seed, ref = args
-    return simulate_glmm_studies(design, effect, n, indices, seed, null_lrt=ref)
+    return simulate_glmm_studies(design, effect, n, indices, seed)
 
 
 def _run(worker: Callable[[Any], list[Any]], items: list[tuple[int, Any]], jobs: int,
@@ -405,33 +363,16 @@ def _chunks(sims: int, jobs: int) -> list[list[int]]:
 
 def named_power(design: TrialDesign, effect: NamedEffect, sizes: Sequence[int], sims: int,
                 seed: int, jobs: int = 1, alpha: float = 0.05,
-                advance: Callable[[int], None] | None = None,
-                null_sims: int | None = None) -> list[Any]:
+                advance: Callable[[int], None] | None = None) -> list[Any]:
     """Power of the report's headline test for the named effect, one row per size.
 
-    For the sizes where the report uses the parametric bootstrap, ``null_sims`` studies
-    without an effect (default ``max(sims, 39)``, so that p can fall below 0.05: its
-    smallest value is ``1 / (1 + null_sims)``) are
-    simulated first: their likelihood
-    ratios are the reference distribution each simulated study's ratio is referred to,
-    as the report's bootstrap refers it to simulations from the study's null fit (here
-    from the named sizes, which the null fit estimates). Results do not depend on
-    ``jobs``: each simulated study has its own seed.
+    Results do not depend on ``jobs``: each simulated study has its own seed.
 
     Returns:
         :class:`~tactorbelt.participant.power.PowerRow` per size.
     """
     from ..participant.power import power_row
-    from .stats import headline_method
 
-    n_null = max(sims, 39) if null_sims is None else int(null_sims)
-    boot = [n for n in sizes if headline_method(n) == "parametric bootstrap"]
-    refs: dict[int, list[float]] = {}
-    if boot:
-        items = [(n, (design, effect, n, idx, seed)) for n in boot
-                 for idx in _chunks(n_null, jobs)]
-        refs = _run(_null_chunk, items, jobs, None)
-    items2 = [(n, (design, effect, n, idx, seed, refs.get(n))) for n in sizes
-              for idx in _chunks(sims, jobs)]
-    results = _run(_alt_chunk, items2, jobs, advance)
+    items = [(n, (design, effect, n, idx, seed)) for n in sizes for idx in _chunks(sims, jobs)]
+    results = _run(_chunk, items, jobs, advance)
     return [power_row(results[n], alpha) for n in sizes]

@@ -289,18 +289,21 @@ def _tests_table(m: dict[str, Any]) -> str:
     if not tests:
         return ""
     head = m.get("headline_test", {})
-    words = {"Wald": "Wald chi-square over every condition term",
+    words = {"Wald": "Wald chi-square over every condition term (chi-square reference)",
              "LRT": "likelihood ratio, chi-square reference (anova(m0, m))",
              "parametric bootstrap": "likelihood ratio, parametric-bootstrap reference "
                                      "(pbkrtest's PBmodcomp)"}
     rows = []
     for t in tests:
         method = str(t.get("method"))
-        name = words.get(method, method)
-        if method == head.get("method"):
-            name = f"<strong>{_e(name)} (headline)</strong>"
-        else:
-            name = _e(name)
+        name = _e(words.get(method, method))
+        fref = t.get("f_reference")
+        if method == "LRT" and fref:
+            rows.append(["<strong>likelihood ratio, F reference (headline)</strong>",
+                         _fmt(t.get("statistic"), 2) + f" (F = {_fmt(fref.get('statistic'), 2)})",
+                         _e(f"{fref.get('df1')}, {fref.get('df2')}"), _p(fref.get("p")),
+                         _e(f"F({fref.get('df1')}, {fref.get('df2')}): participants - 1 "
+                            "denominator df")])
         if t.get("computed") is False:
             rows.append([name, "", "", f'<span class="nc">{_e(t.get("reason", ""))}</span>', ""])
             continue
@@ -718,7 +721,7 @@ def analyze(paths: Sequence[str | Path], out: str | Path, *, seed: int | None = 
         pb_sims: simulations of the accuracy model's parametric bootstrap (None: the
             default, :data:`~tactorbelt.analysis.lrt.DEFAULT_PB_SIMS`; 0: not computed);
             computed only for studies of up to
-            :data:`~tactorbelt.analysis.stats.PB_HEADLINE_MAX_PARTICIPANTS` participants.
+            :data:`~tactorbelt.analysis.stats.PB_MAX_PARTICIPANTS` participants.
         rt_from: where the RTs count from, ``skin`` or ``command`` (None: ``skin`` when
             every analysed trial has a skin onset, else ``command``;
             :func:`~tactorbelt.analysis.stats.rt_from_choice`).

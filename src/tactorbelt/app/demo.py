@@ -401,9 +401,7 @@ NAMED_TEST = ("the report's headline test: the binomial GLMM of accuracy (correc
               "condition * on_tactor + (1 + condition | participant) + (1 | target), "
               "simplified while singular by the report's rule; Laplace maximum likelihood) "
               "against the same model without the condition terms: the likelihood ratio "
-              "referred to its distribution in studies simulated without an effect (the "
-              "report's parametric bootstrap) up to 16 participants, its chi-square p "
-              "above; found = p < alpha with the named sign")
+              "referred to F(k, participants - 1); found = p < alpha with the named sign")
 
 
 def _named_power(study: Study, eff: Effect, named: NamedEffect, sizes: Sequence[int],

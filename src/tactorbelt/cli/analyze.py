@@ -45,9 +45,9 @@ def print_summary_table(summary: Summary) -> None:
 @click.option("--site", "sites", multiple=True, metavar="NAME",
               help="Only the sessions of this site (repeat for several).")
 @click.option("--bootstrap-sims", "pb_sims", type=number(int, 0, 100_000), default=None,
-              help="Simulations of the accuracy model's parametric bootstrap, the headline "
-                   "test up to 16 participants [default: 100; 0: skip it and report the "
-                   "likelihood-ratio test].")
+              help="Simulations of the accuracy model's parametric bootstrap of the "
+                   "condition, computed up to 16 participants beside the headline test "
+                   "[default: 100; 0: skip it].")
 @click.option("--rt-from", "rt_from", type=click.Choice(["skin", "command"]), default=None,
               help="Count response times from the onset at the skin (the stored onset plus "
                    "the measured latency of the tactors that start the stimulus: 'tactorbelt "

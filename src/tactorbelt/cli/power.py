@@ -100,10 +100,8 @@ def power(sizes_text: str, sims: int, out: Path, seed: int, jobs: int | None,
     With --odds-ratio, the effect sizes are yours instead: each study's trials are
     drawn from the report's accuracy GLMM with that odds ratio, accuracy and random-
     effect SDs, and analyzed with the same GLMM and headline test as the report (the
-    likelihood ratio of the condition, referred to studies simulated without an effect
-    up to 16 participants, as the report's parametric bootstrap; its chi-square p above);
-    about 0.5 s a study of the paper's size, and as many null studies again up to 16
-    participants: use fewer --sims for a first look.
+    likelihood ratio of the condition referred to F(k, participants - 1)); about 0.5 s a
+    study of the paper's size: use fewer --sims for a first look.
     """
     from rich.console import Console
     from rich.table import Table
