@@ -37,6 +37,7 @@ from .classical import (
     DEFAULT_N_BOOT,
     TestResult,
     _not_computed,
+    _num,
     fisher_accuracy,
     mann_whitney_rt,
     matched_pairs_rank_biserial,
@@ -83,17 +84,6 @@ Z95: Final = 1.959963984540054
 COMPLETE_STATUSES: Final = frozenset({"complete", "completed", "done", "finished"})
 #: Where a response time is counted from (``tactorbelt analyze --rt-from``).
 RT_FROM: Final = ("skin", "command")
-
-
-def _num(x: Any) -> float | None:
-    """A finite float, or None."""
-    if x is None:
-        return None
-    try:
-        v = float(x)
-    except (TypeError, ValueError):
-        return None
-    return v if math.isfinite(v) else None
 
 
 DESIGN_FACTORS: Final = ("condition", "on_tactor", "n_targets", "load")

@@ -1,12 +1,14 @@
-"""What the commands that drive a belt by hand share: a belt's one-line description,
-and single key presses from a terminal (or characters from piped input).
+"""What several commands share on the terminal: a belt's one-line description, single key
+presses from a terminal (or characters from piped input), a counting progress bar.
 
 Imports click only.
 """
 
 from __future__ import annotations
 
+import contextlib
 import sys
+from collections.abc import Callable, Iterator
 from typing import TYPE_CHECKING
 
 import click
@@ -14,7 +16,7 @@ import click
 if TYPE_CHECKING:
     from ..devices.base import Belt
 
-__all__ = ["Keys", "describe_belt"]
+__all__ = ["Keys", "counting_progress", "describe_belt"]
 
 
 def describe_belt(belt: Belt) -> str:
@@ -40,3 +42,22 @@ class Keys:
             if ch == "\n" and prev == "\r":  # a CR LF pair is one enter
                 continue
             return ch
+
+
+@contextlib.contextmanager
+def counting_progress(label: str) -> Iterator[Callable[[int, int], None]]:
+    """A rich progress bar counting done of total, on stderr when it is a terminal
+    (nothing shown otherwise); yields ``progress(done, total)``."""
+    from rich.console import Console
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TimeElapsedColumn
+
+    console = Console(stderr=True)
+    with Progress("[progress.description]{task.description}", BarColumn(),
+                  MofNCompleteColumn(), TimeElapsedColumn(), console=console,
+                  disable=not console.is_terminal) as bar:
+        task = bar.add_task(label, total=None)
+
+        def progress(done: int, total: int) -> None:
+            bar.update(task, completed=done, total=total)
+
+        yield progress

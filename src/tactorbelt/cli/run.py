@@ -11,14 +11,13 @@ Imports click at import time; everything else only when a command runs.
 
 from __future__ import annotations
 
-import contextlib
-from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
 import click
 
 from ._options import belt_options, number, seed_option
+from ._terminal import counting_progress
 from .export import export
 
 __all__ = ["export", "run"]
@@ -133,7 +132,7 @@ def run(ctx: click.Context, study_file: Path, participant: str, belt_url: str,
                                  invert_x, invert_y),
         lsl=lsl, lsl_wait_s=lsl_wait, lsl_wait_all=lsl_wait_all)
     try:
-        with _progress_bar(participant) as progress:
+        with counting_progress(participant) as progress:
             outcome = run_study(req, progress=progress,
                                 note=lambda line: click.echo(line, err=True))
     except (KeyboardInterrupt, Terminated) as exc:
@@ -152,19 +151,3 @@ def run(ctx: click.Context, study_file: Path, participant: str, belt_url: str,
         raise click.exceptions.Exit(130)
 
 
-@contextlib.contextmanager
-def _progress_bar(label: str) -> Iterator[Callable[[int, int], None]]:
-    """A rich progress bar on stderr when it is a terminal (headless runs)."""
-    from rich.console import Console
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TimeElapsedColumn
-
-    console = Console(stderr=True)
-    with Progress("[progress.description]{task.description}", BarColumn(),
-                  MofNCompleteColumn(), TimeElapsedColumn(), console=console,
-                  disable=not console.is_terminal) as bar:
-        task = bar.add_task(label, total=None)
-
-        def progress(done: int, total: int) -> None:
-            bar.update(task, completed=done, total=total)
-
-        yield progress

@@ -12,8 +12,6 @@ inside the command.
 
 from __future__ import annotations
 
-import contextlib
-from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -21,6 +19,7 @@ import click
 
 from ..interrupts import Terminated
 from ._options import POSITIVE, belt_option, number, output_option
+from ._terminal import counting_progress
 
 __all__ = ["validate"]
 
@@ -43,22 +42,6 @@ def _levels(ctx: click.Context, param: click.Parameter, value: str) -> tuple[flo
                                  ctx, param) from None
 
 
-@contextlib.contextmanager
-def _progress_bar(label: str) -> Iterator[Callable[[int, int], None]]:
-    """A rich progress bar over the pulses, on stderr when it is a terminal."""
-    from rich.console import Console
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TimeElapsedColumn
-
-    console = Console(stderr=True)
-    with Progress("[progress.description]{task.description}", BarColumn(),
-                  MofNCompleteColumn(), TimeElapsedColumn(), console=console,
-                  disable=not console.is_terminal) as bar:
-        task = bar.add_task(label, total=None)
-
-        def progress(done: int, total: int) -> None:
-            bar.update(task, completed=done, total=total)
-
-        yield progress
 
 
 def _ms(mean: float | None, sd: float | None) -> str:
@@ -107,7 +90,7 @@ def onsets(belt_url: str, sense_url: str | None, pulses: int, levels: tuple[floa
                    f"sensed by {sensor.description}: {n} pulses of {on_s:g} s")
 
     try:
-        with _progress_bar("pulses") as progress:
+        with counting_progress("pulses") as progress:
             result, paths = run_onsets(belt_url, out, sense_url=sense_url, settings=settings,
                                        calibration_file=calibration_file, force=force,
                                        progress=progress, on_open=opened)
