@@ -12,6 +12,8 @@ model simplified while singular). Per study:
   (dynamic better), whose nominal rate is alpha / 2;
 - ``wald_chi2``: the Wald chi-square over every condition term;
 - ``lrt``: the likelihood ratio against the model without the condition terms;
+- ``lrt_f``: the same ratio / k referred to ``F(k, participants - 1)`` (the report's
+  headline; computed from ``lrt_stat`` when the table is made);
 - ``pb``: its parametric bootstrap (pbkrtest's p) with ``--pb-sims`` simulations,
   on the first ``--pb-studies`` studies of each size.
 
@@ -48,6 +50,7 @@ import numpy as np
 
 from tactorbelt.analysis.glmm import fit_glmm
 from tactorbelt.analysis.lrt import (
+    f_reference,
     likelihood_ratio,
     null_spec,
     parametric_bootstrap,
@@ -58,12 +61,13 @@ from tactorbelt.analysis.stats import fit_model
 from tactorbelt.experiment.study import Study, paper_study, template_toml
 from tactorbelt.participant.power import binomial_ci
 
-TESTS = ("wald_z", "wald_z_one_sided", "wald_chi2", "lrt", "pb", "wald_z_max",
+TESTS = ("wald_z", "wald_z_one_sided", "wald_chi2", "lrt", "lrt_f", "pb", "wald_z_max",
          "wald_chi2_max", "lrt_max", "pb_max")
 LABELS = {"wald_z": "Wald z, `conditionstatic` (two-sided)",
           "wald_z_one_sided": "Wald z, one-sided (nominal alpha/2)",
           "wald_chi2": "Wald chi-square, all condition terms",
           "lrt": "likelihood ratio (chi-square)",
+          "lrt_f": "likelihood ratio / k, F(k, participants - 1) (the headline)",
           "pb": "parametric bootstrap of the LRT",
           "wald_z_max": "slope kept: Wald z, `conditionstatic`",
           "wald_chi2_max": "slope kept: Wald chi-square",
@@ -128,6 +132,12 @@ def found(rec: dict[str, object], test: str, alpha: float) -> bool | None:
         if p is None or z is None or not math.isfinite(float(p)):  # type: ignore[arg-type]
             return None
         return float(p) <= alpha and float(z) < 0  # type: ignore[arg-type]  # dynamic better
+    if test == "lrt_f":
+        stat, df = rec.get("lrt_stat"), rec.get("df")
+        if stat is None or df is None:
+            return None
+        p_f = f_reference(float(stat), int(df), int(rec["n"]))["p"]  # type: ignore[arg-type]
+        return bool(p_f <= alpha)
     p = rec.get(test)
     if p is None or not math.isfinite(float(p)):  # type: ignore[arg-type]
         return None
@@ -152,7 +162,8 @@ def table(path: list[Path], alpha: float) -> str:
             lo, hi = binomial_ci(k, len(hits))
             cells.append(f"{100 * k / len(hits):.1f} % [{100 * lo:.1f}, {100 * hi:.1f}] "
                          f"({k}/{len(hits)})")
-        lines.append(f"| {LABELS[test]} | " + " | ".join(cells) + " |")
+        if any(c != "-" for c in cells):
+            lines.append(f"| {LABELS[test]} | " + " | ".join(cells) + " |")
     cpu = {n: np.mean([float(r["cpu_s"]) for r in recs if int(r["n"]) == n and "pb" in r] or
                       [math.nan]) for n in sizes}
     lines.append("")
