@@ -45,6 +45,7 @@ import sys
 import time
 import warnings
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -126,22 +127,22 @@ def one_study(design: TrialDesign, n: int, i: int, seed: int, pb_sims: int,
     return out
 
 
-def found(rec: dict[str, object], test: str, alpha: float) -> bool | None:
+def found(rec: dict[str, Any], test: str, alpha: float) -> bool | None:
     if test == "wald_z_one_sided":
         p, z = rec.get("wald_z"), rec.get("z")
-        if p is None or z is None or not math.isfinite(float(p)):  # type: ignore[arg-type]
+        if p is None or z is None or not math.isfinite(float(p)):
             return None
-        return float(p) <= alpha and float(z) < 0  # type: ignore[arg-type]  # dynamic better
+        return float(p) <= alpha and float(z) < 0  # dynamic better
     if test == "lrt_f":
         stat, df = rec.get("lrt_stat"), rec.get("df")
         if stat is None or df is None:
             return None
-        p_f = f_reference(float(stat), int(df), int(rec["n"]))["p"]  # type: ignore[arg-type]
+        p_f = f_reference(float(stat), int(df), int(rec["n"]))["p"]
         return bool(p_f <= alpha)
     p = rec.get(test)
-    if p is None or not math.isfinite(float(p)):  # type: ignore[arg-type]
+    if p is None or not math.isfinite(float(p)):
         return None
-    return float(p) <= alpha  # type: ignore[arg-type]
+    return float(p) <= alpha
 
 
 def table(path: list[Path], alpha: float) -> str:
@@ -153,8 +154,8 @@ def table(path: list[Path], alpha: float) -> str:
     for test in TESTS:
         cells = []
         for n in sizes:
-            hits = [found(r, test, alpha) for r in recs if int(r["n"]) == n]
-            hits = [h for h in hits if h is not None]
+            hits = [h for h in (found(r, test, alpha) for r in recs if int(r["n"]) == n)
+                    if h is not None]
             if not hits:
                 cells.append("-")
                 continue
