@@ -189,19 +189,3 @@ def test_simulated_responses_follow_the_fit() -> None:
     assert a.shape == (200, len(df)) and np.array_equal(a, b)
     assert set(np.unique(a).tolist()) <= {0.0, 1.0}
     assert abs(a.mean() - df["correct"].mean()) < 0.03
-
-
-def test_a_separated_cell_does_not_stop_the_fit() -> None:
-    """This 4-participant resolution study (no condition effect) made the joint
-    penalised system singular in stage 1 (a direction without curvature); the step
-    then comes from least squares and the model is fitted."""
-    from tactorbelt.analysis.power_model import NamedEffect, TrialDesign, simulate_frame
-    from tactorbelt.analysis.stats import fit_model
-    from tactorbelt.experiment.study import Study, template_toml
-
-    design = TrialDesign.from_study(Study.from_toml(template_toml("resolution")),
-                                    all_counts=True)
-    frame = simulate_frame(design, NamedEffect.no_effect(), 4,
-                           np.random.default_rng([1, 4, 44]))
-    fit, js = fit_model(frame)
-    assert js["converged"] and np.isfinite(fit.fixed_effects["conditionstatic"].se)

@@ -534,10 +534,7 @@ class _System:
         if not self.r:
             return t1, r2
         rhs = r2 - np.einsum("gbr,gb->r", f["a12"], t1)
-        try:
-            x2 = np.linalg.solve(f["s"], rhs)
-        except np.linalg.LinAlgError:  # (quasi-)separation: a direction without curvature
-            x2 = np.linalg.lstsq(f["s"], rhs, rcond=None)[0]
+        x2 = np.linalg.solve(f["s"], rhs)
         x1 = t1 - np.einsum("gbr,r->gb", f["inv_a12"], x2)
         return x1, x2
 
