@@ -70,6 +70,8 @@ QUICK_ARGS: dict[str, list[str]] = {
     "bench_audio": ["--seconds", "15"],
     "bench_player": ["--seconds", "3"],
     "bench_validate": ["--pulses", "4"],
+    "bench_condition_tests": ["--participants", "30", "--pb-participants", "6", "--pb-sims",
+                              "20", "--no-r"],
 }
 #: A figure this much worse than in the last committed results is flagged.
 REGRESSION = 0.20
