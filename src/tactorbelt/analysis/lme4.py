@@ -91,6 +91,21 @@ def lme4_available(rscript: str = "Rscript") -> str | None:
     return None
 
 
+def _rscript(rscript: str) -> str:
+    """The path of ``rscript``, or Lme4Unavailable saying how to install R."""
+    exe = shutil.which(rscript)
+    if exe is None:
+        raise Lme4Unavailable(f"'{rscript}' is not on PATH. {INSTALL_HINT}")
+    return exe
+
+
+def _write_model(d: Path, df: pd.DataFrame, spec: ModelSpec) -> None:
+    """The model's data, formula and grouping factors, as the R scripts read them."""
+    _frame(df, spec).to_csv(d / "data.csv", index=False)
+    (d / "formula.txt").write_text(spec.formula() + "\n")
+    (d / "groups.txt").write_text("".join(f"{t.group}\n" for t in spec.random))
+
+
 def _r_env() -> dict[str, str]:
     """R's environment with one BLAS thread: threaded sums change glmer's path in the
     4th digit from run to run."""
@@ -123,14 +138,10 @@ def fit_lme4(df: pd.DataFrame, spec: ModelSpec, *, family: str = "binomial",
     """
     import pandas as pd
 
-    exe = shutil.which(rscript)
-    if exe is None:
-        raise Lme4Unavailable(f"'{rscript}' is not on PATH. {INSTALL_HINT}")
+    exe = _rscript(rscript)
     with tempfile.TemporaryDirectory(prefix="tactorbelt-lme4-") as tmp:
         d = Path(tmp)
-        _frame(df, spec).to_csv(d / "data.csv", index=False)
-        (d / "formula.txt").write_text(spec.formula() + "\n")
-        (d / "groups.txt").write_text("".join(f"{t.group}\n" for t in spec.random))
+        _write_model(d, df, spec)
         (d / "fit.R").write_text(_SCRIPT)
         try:
             r = subprocess.run([exe, str(d / "fit.R"), str(d), family], capture_output=True,
@@ -283,15 +294,11 @@ def condition_tests_lme4(df: pd.DataFrame, spec: ModelSpec, spec0: ModelSpec, *,
     import numpy as np
     import pandas as pd
 
-    exe = shutil.which(rscript)
-    if exe is None:
-        raise Lme4Unavailable(f"'{rscript}' is not on PATH. {INSTALL_HINT}")
+    exe = _rscript(rscript)
     with tempfile.TemporaryDirectory(prefix="tactorbelt-lme4-") as tmp:
         d = Path(tmp)
-        _frame(df, spec).to_csv(d / "data.csv", index=False)
-        (d / "formula.txt").write_text(spec.formula() + "\n")
+        _write_model(d, df, spec)
         (d / "formula0.txt").write_text(spec0.formula() + "\n")
-        (d / "groups.txt").write_text("".join(f"{t.group}\n" for t in spec.random))
         if responses is not None:
             y = np.asarray(responses, dtype=int)
             pd.DataFrame(y.T, columns=[f"s{i}" for i in range(y.shape[0])]).to_csv(
