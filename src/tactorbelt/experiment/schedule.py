@@ -31,11 +31,13 @@ from __future__ import annotations
 import hashlib
 import json
 import re
-from dataclasses import dataclass, fields
+from collections.abc import Mapping
+from dataclasses import dataclass, field, fields
 from typing import Any
 
 import numpy as np
 
+from ..factors import Factor, added_factors
 from ..geometry import TargetSet
 from .study import Study
 
@@ -68,6 +70,8 @@ class ScheduledTrial:
         on_tactor: True when the target coincides with a tactor.
         n_targets: the block's target count (its targets are at k*360/n_targets).
         load: the secondary task's name, ``none`` without one.
+        levels: the levels of the factors declared beyond condition, targets and load
+            (:mod:`tactorbelt.factors`), by column; stored as keys of their own.
     """
 
     trial_index: int
@@ -80,18 +84,27 @@ class ScheduledTrial:
     on_tactor: bool
     n_targets: int = 0
     load: str = "none"
+    levels: Mapping[str, Any] = field(default_factory=dict, hash=False)
+
+    def level(self, f: Factor) -> Any:
+        """This trial's level of factor ``f``."""
+        if f.column in _TRIAL_FIELDS:
+            return getattr(self, f.column)
+        return self.levels.get(f.column, f.default)
 
     def target_set(self) -> TargetSet:
         """The candidate targets of this trial's block (what a response snaps to)."""
         return TargetSet.even(self.n_targets)
 
     def to_dict(self) -> dict[str, Any]:
-        """The fields by name (every one a plain scalar)."""
-        return {name: getattr(self, name) for name in _TRIAL_FIELDS}
+        """The fields by name (every one a plain scalar; an added factor's level under
+        its column)."""
+        return {**{name: getattr(self, name) for name in _TRIAL_FIELDS}, **self.levels}
 
 
-#: ScheduledTrial's fields, in order (to_dict without dataclasses.asdict's deep copies).
-_TRIAL_FIELDS = tuple(f.name for f in fields(ScheduledTrial))
+#: ScheduledTrial's scalar fields, in order (to_dict without dataclasses.asdict's deep
+#: copies); ``levels`` is spread into them.
+_TRIAL_FIELDS = tuple(f.name for f in fields(ScheduledTrial) if f.name != "levels")
 
 
 def participant_number(participant: str) -> int:
@@ -216,13 +229,16 @@ def make_schedule(study: Study, participant: str, seed: int | None = None) -> li
     order_idx = block_order(study, participant, seed)
 
     def add(block: str, name: str, condition: str, n: int, load: str,
-            pairs: list[tuple[int, int]]) -> None:
+            pairs: list[tuple[int, int]], levels: Mapping[str, Any]) -> None:
         targets = TargetSet.even(n)
         angles = targets.angles_deg
         on = targets.on_tactor(layout)
         for rep, t in pairs:
             out.append(ScheduledTrial(len(out), block, block_pos, name, condition, rep,
-                                      float(angles[t]), bool(on[t]), n, load))
+                                      float(angles[t]), bool(on[t]), n, load, levels))
+
+    added = added_factors()
+    untrained = {f.column: f.default for f in added}
 
     tr = study.training
     if tr.passes > 0 and tr.conditions:
@@ -232,14 +248,16 @@ def make_schedule(study: Study, participant: str, seed: int | None = None) -> li
         conds = sorted(tr.conditions, key=lambda c: order.index(c) if c in order else 99)
         for n in study.target_counts():
             for cond in conds:
-                add("training", "training", cond, n, "none", _order(n, tr.passes, tr.order, rng))
+                add("training", "training", cond, n, "none", _order(n, tr.passes, tr.order, rng),
+                    untrained)
         block_pos += 1
     for bi in order_idx:
         spec = study.test[bi]
         n = study.block_n_targets(spec)
         rng = _rng(seed, participant, 1 + bi)
         add("test", spec.label, spec.condition, n, spec.load,
-            _order(n, spec.repetitions, study.session.randomise, rng))
+            _order(n, spec.repetitions, study.session.randomise, rng),
+            {f.column: spec.level(f) for f in added})
         block_pos += 1
     return out
 
@@ -267,5 +285,6 @@ def schedule_from_json(text: str, study: Study | None = None) -> list[ScheduledT
         if "n_targets" not in d:
             d["n_targets"] = counts.get(d.get("block_name", ""), default)
         d.setdefault("load", "none")
-        out.append(ScheduledTrial(**d))
+        levels = {k: d.pop(k) for k in list(d) if k not in _TRIAL_FIELDS}
+        out.append(ScheduledTrial(**d, levels=levels))
     return out

@@ -38,6 +38,7 @@ from pydantic import (
 
 from .._errors import ConfigError, StudyFileError
 from .._lawnames import LawName
+from ..factors import Factor, added_factors, factors
 from ..geometry import Layout, TargetSet
 from ..tasks.kinds import NO_TASK, task_kind
 from .study_errors import study_error
@@ -64,6 +65,34 @@ __all__ = [
 
 Condition = Literal["static", "dynamic"]
 CONDITIONS: tuple[Condition, ...] = ("static", "dynamic")
+#: The key holding the levels of the factors declared beyond condition, targets and load
+#: (:func:`tactorbelt.factors.register`); a study file names them as keys of their own.
+LEVELS_KEY = "levels"
+
+
+def _gather_levels(data: Any, where: str, many: bool) -> Any:
+    """Move the keys of added factors (``posture = "standing"``) into ``levels``, each
+    checked against its declaration; an error names ``where.KEY``."""
+    if not isinstance(data, dict):
+        return data
+    given = data.get(LEVELS_KEY, {})
+    added = {f.key: f for f in added_factors()}
+    if not isinstance(given, dict) or not set(given) <= set(added):
+        raise _at(f"{where}.{LEVELS_KEY}", f"unknown key {LEVELS_KEY!r}: name each "
+                  "declared factor as a key of its own")
+    levels: dict[str, Any] = {}
+    for key, f in added.items():
+        if key in data or key in given:
+            v = data[key] if key in data else given[key]
+            try:
+                levels[key] = f.check_levels(v) if many else f.check(v)
+            except ValueError as exc:
+                raise _at(f"{where}.{key}", str(exc)) from None
+    if not levels and LEVELS_KEY not in data:
+        return data
+    out = {k: v for k, v in data.items() if k not in levels}
+    out[LEVELS_KEY] = levels
+    return out
 
 
 
@@ -304,7 +333,9 @@ class BlockSpec(_Model):
 
     ``targets`` overrides ``[targets] count`` for this block, ``load`` names the
     secondary task (``none`` or a ``[tasks.NAME]`` table), and any ``[stimulus]`` key
-    given here overrides the study's stimulus for this block.
+    given here overrides the study's stimulus for this block. A factor declared beyond
+    these (:func:`tactorbelt.factors.register`) is a key of its own, one level, kept in
+    ``levels``.
     """
 
     name: str | None = Field(default=None, min_length=1, max_length=64)
@@ -317,15 +348,35 @@ class BlockSpec(_Model):
     period_s: float | None = Field(default=None, gt=0, le=60)
     transit_s: float | None = Field(default=None, gt=0, le=30)
     max_presentation_s: float | None = Field(default=None, gt=0, le=600)
+    levels: dict[str, Any] = Field(default_factory=dict)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _added_factors(cls, data: Any) -> Any:
+        return _gather_levels(data, "test", many=False)
 
     @property
     def label(self) -> str:
         return self.name or self.condition
 
+    def level(self, f: Factor) -> Any:
+        """This block's level of factor ``f`` (the target count: None when the block
+        leaves it to ``[targets] count``; see :meth:`Study.block_level`)."""
+        if f.key in type(self).model_fields and f.key != LEVELS_KEY:
+            return getattr(self, f.key)
+        return self.levels.get(f.key, f.default)
+
     def stimulus_overrides(self) -> dict[str, Any]:
         """The ``[stimulus]`` keys this block sets."""
         return {k: getattr(self, k) for k in StimulusSpec.model_fields
                 if getattr(self, k) is not None}
+
+    def toml_dict(self) -> dict[str, Any]:
+        """The block as a study file writes it (added factors as keys of their own)."""
+        d = self.model_dump(mode="python", exclude_none=True)
+        if d.get("load") == "none":
+            d.pop("load")
+        return {**{k: v for k, v in d.items() if k != LEVELS_KEY}, **d.get(LEVELS_KEY, {})}
 
 
 Order = Literal["williams", "latin", "fixed", "random"]
@@ -343,7 +394,8 @@ def _check_counts(v: Any) -> Any:
 
 
 class DesignSpec(_Model):
-    """A full factorial of the test blocks: targets x condition x load.
+    """A full factorial of the test blocks: targets x condition x load (x any factor
+    declared beyond these, a key of its own: :func:`tactorbelt.factors.register`).
 
     Each cell is one test block of ``repetitions`` passes over its targets; ``order``
     counterbalances the blocks across participants (see
@@ -355,8 +407,14 @@ class DesignSpec(_Model):
     load: list[str] = Field(default_factory=lambda: ["none"], min_length=1, max_length=26)
     repetitions: int = Field(ge=1, le=1000)
     order: Order = "williams"
+    levels: dict[str, list[Any]] = Field(default_factory=dict)
 
     _counts = field_validator("targets", mode="before")(_check_counts)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _added_factors(cls, data: Any) -> Any:
+        return _gather_levels(data, "design", many=True)
 
     @field_validator("condition", "load")
     @classmethod
@@ -365,19 +423,40 @@ class DesignSpec(_Model):
             raise ValueError(f"each value at most once (got {v!r})")
         return v
 
+    def factor_levels(self, f: Factor) -> list[Any]:
+        """The levels the design crosses of factor ``f`` (its default alone when the
+        design does not name it)."""
+        if f.key in type(self).model_fields and f.key != LEVELS_KEY:
+            return list(getattr(self, f.key))
+        return list(self.levels.get(f.key, [f.default]))
+
     def n_blocks(self) -> int:
-        return len(self.targets) * len(self.condition) * len(self.load)
+        return math.prod(len(self.factor_levels(f)) for f in factors())
+
+    def size_words(self) -> str:
+        """``2 target counts x 2 conditions x 1 loads`` (each crossed factor's count)."""
+        words = {"targets": "target counts", "condition": "conditions", "load": "loads"}
+        return " x ".join(f"{len(self.factor_levels(f))} {words.get(f.key, f.key + ' levels')}"
+                          for f in sorted(factors(), key=lambda f: f.cross_rank)
+                          if f.key in words or f.key in self.levels)
 
     def blocks(self) -> list[BlockSpec]:
-        """The cells as test blocks, targets slowest, load fastest (the canonical order).
+        """The cells as test blocks, targets slowest, load fastest (the canonical order;
+        added factors faster still).
 
-        Block names: ``static-24`` or, with a load, ``static-24-nback2``.
+        Block names: ``static-24`` or, with a load, ``static-24-nback2``; an added
+        factor's level is appended (``static-24-standing``).
         """
+        crossed = sorted(factors(), key=lambda f: f.cross_rank)
+        named = sorted(factors(), key=lambda f: f.name_rank)
         out = []
-        for n, cond, load in itertools.product(self.targets, self.condition, self.load):
-            name = f"{cond}-{n}" + ("" if load == "none" else f"-{load}")
-            out.append(BlockSpec(name=name, condition=cond, repetitions=self.repetitions,
-                                 targets=n, load=load))
+        for combo in itertools.product(*(self.factor_levels(f) for f in crossed)):
+            lv = {f.key: v for f, v in zip(crossed, combo, strict=True)}
+            name = "-".join(p for p in (f.name_part(lv[f.key]) for f in named) if p)
+            out.append(BlockSpec(
+                name=name, condition=lv["condition"], repetitions=self.repetitions,
+                targets=lv["targets"], load=lv["load"],
+                levels={k: v for k, v in lv.items() if k in self.levels}))
         return out
 
 
@@ -436,9 +515,7 @@ class Study(_Model):
         if self.design is not None:
             if self.design.n_blocks() > 26:
                 raise _at("design", f"{self.design.n_blocks()} blocks "
-                          f"({len(self.design.targets)} target counts x "
-                          f"{len(self.design.condition)} conditions x "
-                          f"{len(self.design.load)} loads); at most 26 are allowed")
+                          f"({self.design.size_words()}); at most 26 are allowed")
             if "condition_order" in self.session.model_fields_set:
                 raise _at("session.condition_order", "applies to [[test]] blocks; with "
                           "[design] set design.order (williams, latin, fixed or random)")
@@ -484,6 +561,10 @@ class Study(_Model):
     def block_n_targets(self, block: BlockSpec) -> int:
         """The target count of a test block (its ``targets``, else ``[targets] count``)."""
         return block.targets if block.targets is not None else self.targets.count
+
+    def block_level(self, block: BlockSpec, f: Factor) -> Any:
+        """A test block's level of factor ``f`` (the target count: :meth:`block_n_targets`)."""
+        return self.block_n_targets(block) if f.key == "targets" else block.level(f)
 
     def block_targets(self, block: BlockSpec) -> TargetSet:
         """The candidate targets of a test block."""
@@ -574,10 +655,10 @@ class Study(_Model):
         if self.design is not None:
             data.pop("test")
             data["session"].pop("condition_order")
+            data["design"].update(data["design"].pop(LEVELS_KEY))
         else:
             data.pop("design", None)
-            data["test"] = [{k: v for k, v in b.items() if not (k == "load" and v == "none")}
-                            for b in data["test"]]
+            data["test"] = [b.toml_dict() for b in self.test]
         if not self.tasks:
             data.pop("tasks")
         if self.questionnaire == QuestionnaireSpec():

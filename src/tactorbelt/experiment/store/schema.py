@@ -30,9 +30,10 @@ from __future__ import annotations
 import re
 import uuid
 from collections.abc import Callable, Iterator, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
+from ...factors import CONDITION, LOAD, TARGETS, Factor, added_factors
 from .base import SESSION_STATUSES, TRIAL_STATUSES
 
 __all__ = [
@@ -126,7 +127,7 @@ TABLES: tuple[Table, ...] = (
         _c("block", "text", nn=True, check=("training", "test"), req="value"),
         _c("block_index", "int", nn=True),
         _c("block_name", "text", nn=True),
-        _c("condition", "text", nn=True, req="value"),
+        _c(CONDITION.column, CONDITION.type, nn=True, req="value"),
         _c("repetition", "int", nn=True, req="column"),
         _c("target_deg", "real", nn=True, req="value"),
         _c("on_tactor", "int", nn=True, req="value"),
@@ -141,8 +142,8 @@ TABLES: tuple[Table, ...] = (
         _c("attempts", "int", nn=True, default="1"),
         _c("recorded_at", "text", nn=True),
         # schema 2: factorial designs and device-side onsets
-        _c("n_targets", "int", added=True),
-        _c("load", "text", nn=True, default="'none'", added=True),
+        _c(TARGETS.column, TARGETS.type, added=True),
+        _c(LOAD.column, LOAD.type, nn=True, default=repr(LOAD.default), added=True),
         *_cs("int64", "device_onset_ns", "onset_uncertainty_ns", added=True),
         # the onset at the skin: the stored onset plus the starting tactors' measured
         # latency (``tactorbelt validate onsets``), and its spread; NULL without one
@@ -197,8 +198,17 @@ TABLE_NAMES = tuple(t.name for t in TABLES)
 _BY_NAME = {t.name: t for t in TABLES}
 
 
+def factor_column(f: Factor) -> Column:
+    """The trials column of a factor declared beyond the built-in ones (old rows: NULL,
+    which the readers take as the factor's default)."""
+    return _c(f.column, f.type, added=True)
+
+
 def table(name: str) -> Table:
-    return _BY_NAME[name]
+    """A table as declared, the trials with a column for each added factor."""
+    t = _BY_NAME[name]
+    extra = added_factors() if name == "trials" else ()
+    return replace(t, columns=t.columns + tuple(factor_column(f) for f in extra)) if extra else t
 
 
 @dataclass(eq=False)
@@ -299,7 +309,7 @@ POSTGRESQL = Dialect(
 
 
 def tables(d: Dialect) -> Iterator[Table]:
-    return (t for t in TABLES if d.has(t.only))
+    return (table(t.name) for t in TABLES if d.has(t.only))
 
 
 def columns(d: Dialect, name: str) -> tuple[Column, ...]:

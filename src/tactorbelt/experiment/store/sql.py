@@ -28,6 +28,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, ClassVar
 
 from ..._errors import StoreError
+from ...factors import added_factors
 from ..schedule import ScheduledTrial, schedule_to_json
 from ..trial import TrialResult
 from .base import (
@@ -72,7 +73,10 @@ class SqlStore(Store):
         self.readonly = readonly
         self._closed = False
         self._tables: set[str] = set()  # tables seen (a table is never dropped)
-        self._insert_trial_sql = self.dialect.insert("trials", TRIAL_COLUMNS)
+        # the factors declared beyond the built-in ones, as the store was opened
+        self._added = added_factors()
+        self._insert_trial_sql = self.dialect.insert(
+            "trials", TRIAL_COLUMNS + tuple(f.column for f in self._added))
 
     # -- what a subclass brings ------------------------------------------------------
     def _transaction(self, what: str = "write to") -> AbstractContextManager[Any]:
@@ -260,6 +264,7 @@ class SqlStore(Store):
             result.device_onset_ns, result.onset_uncertainty_ns,
             None if skin_onset_ns is None else int(skin_onset_ns),
             None if skin_onset_sd_ns is None else int(skin_onset_sd_ns),
+            *(t.level(f) for f in self._added),
         ]
         with self._transaction(f"write trial {t.trial_index} to") as c:
             trial_id = self._put_trial(c, session_id, t.trial_index, values)

@@ -1,0 +1,107 @@
+"""The study factors, each declared once.
+
+A :class:`Factor` says what a factor is called in a study file (its ``[design]`` key and
+its ``[[test]]`` block key), the column it is stored, exported and modelled under, its
+type and levels, the level of a block (or an old store) that does not name it, its
+term in the mixed model, and what it changes in a session. Everything that handles
+factors reads these declarations: the study file's ``[design]`` and ``[[test]]``
+blocks, the schedule, both stores, the exports (CSV, Parquet, tidy, BIDS, PsychoPy),
+the LSL markers, the cells of the analysis, the mixed model's terms and the power
+analysis.
+
+The three factors of a between-tactor study are built in (:mod:`.builtin`):
+``condition`` (how a between-tactor target is rendered), ``targets`` (the target count,
+column ``n_targets``) and ``load`` (the secondary task). A study may cross further
+factors that are recorded but change nothing a session plays (a posture, a garment, a
+site's chair): :func:`register` one, and a study file may name it in ``[design]`` (a
+list of levels) or in a ``[[test]]`` block (one level). See docs/architecture.md,
+"Adding things".
+
+Pure: the standard library only.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from contextlib import contextmanager
+
+from .._errors import ConfigError
+from .builtin import BUILTIN, CONDITION, LOAD, TARGETS
+from .declaration import Changes, Factor
+
+__all__ = [
+    "BUILTIN",
+    "CONDITION",
+    "LOAD",
+    "TARGETS",
+    "Changes",
+    "Factor",
+    "added_factors",
+    "factor",
+    "factors",
+    "register",
+    "registered",
+    "unregister",
+]
+
+_REGISTRY: dict[str, Factor] = {}
+
+
+def register(f: Factor) -> Factor:
+    """Declare a study factor; it is crossed, stored, exported and analysed with the others.
+
+    Raises:
+        ConfigError: a factor with the same key or column is declared already.
+    """
+    for other in _REGISTRY.values():
+        if f.key in (other.key, other.column) or f.column in (other.key, other.column):
+            raise ConfigError(f"factor {f.key!r} (column {f.column!r}) clashes with the "
+                              f"declared factor {other.key!r} (column {other.column!r})")
+    _REGISTRY[f.key] = f
+    return f
+
+
+def unregister(key: str) -> None:
+    """Withdraw a factor declared with :func:`register` (a built-in one stays)."""
+    if key in _BUILTIN:
+        raise ConfigError(f"{key!r} is a built-in factor")
+    _REGISTRY.pop(key, None)
+
+
+@contextmanager
+def registered(f: Factor) -> Iterator[Factor]:
+    """``with registered(Factor(...)):``: the factor is declared inside the block only."""
+    register(f)
+    try:
+        yield f
+    finally:
+        unregister(f.key)
+
+
+def factors() -> tuple[Factor, ...]:
+    """Every declared factor: the built-in ones (targets, condition, load), then the
+    others in the order they were declared. A ``[design]`` crosses them in this order,
+    the first slowest."""
+    return tuple(_REGISTRY.values())
+
+
+def added_factors() -> tuple[Factor, ...]:
+    """The factors declared beyond the built-in ones."""
+    return tuple(f for k, f in _REGISTRY.items() if k not in _BUILTIN)
+
+
+def factor(key: str) -> Factor:
+    """The factor with this key (or column).
+
+    Raises:
+        ConfigError: no such factor (the message lists them).
+    """
+    for f in _REGISTRY.values():
+        if key in (f.key, f.column):
+            return f
+    raise ConfigError(f"no factor {key!r}; declared: {', '.join(_REGISTRY)}")
+
+
+for _f in BUILTIN:
+    register(_f)
+_BUILTIN = tuple(f.key for f in BUILTIN)
