@@ -33,6 +33,7 @@ from typing import TYPE_CHECKING, Any, Final, cast
 
 import numpy as np
 
+from ..factors import BUILTIN, added_factors, factors
 from .tables import infer_n_targets, prepare_trials, with_cell_columns
 from .transfer import ESTIMATOR, cell_interval, estimate_transfer, information_transfer
 
@@ -54,7 +55,9 @@ __all__ = [
     "with_cell_columns",
 ]
 
-CELL_KEYS: Final = ["condition", "n_targets", "load"]
+#: The built-in factors' columns (:mod:`tactorbelt.factors`); :func:`cell_keys` adds the
+#: factors declared beyond them.
+CELL_KEYS: Final = [f.column for f in BUILTIN]
 PARTICIPANT_CELL_COLUMNS: Final = [
     "participant", *CELL_KEYS, "n", "n_correct", "n_timeout", "accuracy", "it_bits",
     "it_bits_plain", "median_rt_s", "mean_abs_error_deg",
@@ -76,6 +79,18 @@ IT_CI_METHOD: Final = (
     "recomputed and recentred on that participant's; expanded percentile interval "
     f"(Hesterberg 2015) of the {IT_N_BOOT} resampled means (plain percentile with one "
     "participant)")
+
+
+def cell_keys() -> list[str]:
+    """What makes a cell: every declared factor's column (condition, n_targets, load,
+    then the factors declared beyond them)."""
+    return [f.column for f in factors()]
+
+
+def _added(columns: list[str]) -> list[str]:
+    """``columns`` with the added factors' columns after the built-in ones."""
+    i = columns.index(CELL_KEYS[-1]) + 1
+    return [*columns[:i], *(f.column for f in added_factors()), *columns[i:]]
 
 
 def _prepared(trials: pd.DataFrame, n_targets: int | None) -> pd.DataFrame:
@@ -122,20 +137,23 @@ def participant_cells(trials: pd.DataFrame, n_targets: int | None = None) -> pd.
     import pandas as pd
 
     c = _prepared(trials, n_targets)
+    keys = cell_keys()
     rows = []
-    for key, g in c.groupby(["participant", *CELL_KEYS], sort=True, observed=True):
-        p, cond, n_obj, load = cast("tuple[Any, ...]", key)
-        n = int(n_obj)
+    for key, g in c.groupby(["participant", *keys], sort=True, observed=True, dropna=False):
+        p, *levels = cast("tuple[Any, ...]", key)
+        cell = dict(zip(keys, levels, strict=True))
+        n = cell["n_targets"] = int(cell["n_targets"])
         m = _matrix(g, n)
-        rows.append({"participant": p, "condition": cond, "n_targets": n, "load": load,
+        rows.append({"participant": p, **cell,
                      **_stats(g), "it_bits": float(estimate_transfer(m)),
                      "it_bits_plain": float(information_transfer(m))})
-    return pd.DataFrame(rows, columns=PARTICIPANT_CELL_COLUMNS)
+    return pd.DataFrame(rows, columns=_added(PARTICIPANT_CELL_COLUMNS))
 
 
-def _cell_rng(seed: int, cond: Any, n: int, load: Any) -> np.random.Generator:
+def _cell_rng(seed: int, levels: list[Any]) -> np.random.Generator:
     """The cell's own generator: its interval does not depend on the other cells."""
-    return np.random.default_rng([seed, zlib.crc32(f"{cond}|{n}|{load}".encode())])
+    key = "|".join(str(v) for v in levels)
+    return np.random.default_rng([seed, zlib.crc32(key.encode())])
 
 
 def cell_summary(trials: pd.DataFrame, n_targets: int | None = None, *, seed: int = 0,
@@ -162,20 +180,24 @@ def cell_summary(trials: pd.DataFrame, n_targets: int | None = None, *, seed: in
 
     c = _prepared(trials, n_targets)
     per = participant_cells(c, n_targets)
+    keys = cell_keys()
     rows = []
-    for key, g in c.groupby(CELL_KEYS, sort=True, observed=True):
-        cond, n_obj, load = cast("tuple[Any, ...]", key)
-        n = int(n_obj)
-        pp = per.loc[(per["condition"] == cond) & (per["n_targets"] == n)
-                     & (per["load"] == load)]
+    for key, g in c.groupby(keys, sort=True, observed=True, dropna=False):
+        levels = list(cast("tuple[Any, ...]", key))
+        cell = dict(zip(keys, levels, strict=True))
+        n = cell["n_targets"] = int(cell["n_targets"])
+        mine = np.ones(len(per), dtype=bool)
+        for k, v in cell.items():
+            mine &= (per[k] == v).to_numpy() if v == v else per[k].isna().to_numpy()
+        pp = per.loc[mine]
         on = g.loc[g["on_tactor"].astype(bool)]
         between = g.loc[~g["on_tactor"].astype(bool)]
         mats = [_matrix(gp, n) for _, gp in g.groupby("participant", sort=True,
                                                       observed=True)]
-        lo, hi = cell_interval(mats, rng=_cell_rng(seed, cond, n, load), n_boot=n_boot,
-                               level=IT_CI_LEVEL)
+        lo, hi = cell_interval(mats, rng=_cell_rng(seed, [cell[k] for k in keys]),
+                               n_boot=n_boot, level=IT_CI_LEVEL)
         rows.append({
-            "condition": cond, "n_targets": n, "load": load,
+            **cell,
             "n_participants": int(g["participant"].nunique()), **_stats(g),
             "it_bits": float(pp["it_bits"].mean()),
             "it_bits_sd": float(pp["it_bits"].std(ddof=1)) if len(pp) > 1 else float("nan"),
@@ -188,12 +210,13 @@ def cell_summary(trials: pd.DataFrame, n_targets: int | None = None, *, seed: in
             "accuracy_between_tactor": (float(between["is_correct"].mean()) if len(between)
                                         else float("nan")),
         })
-    out = pd.DataFrame(rows, columns=CELL_COLUMNS)
+    out = pd.DataFrame(rows, columns=_added(CELL_COLUMNS))
     order = {"static": 0, "dynamic": 1}
 
     out["_c"] = out["condition"].map(order)
     out["_l"] = out["load"].where(out["load"] != "none", "")  # no load first
-    out = out.sort_values(["_c", "n_targets", "_l"]).drop(columns=["_c", "_l"])
+    out = out.sort_values(["_c", "n_targets", "_l", *keys[len(CELL_KEYS):]],
+                          kind="stable").drop(columns=["_c", "_l"])
     return out.reset_index(drop=True)
 
 
@@ -203,6 +226,13 @@ def is_factorial(cells: pd.DataFrame | None) -> bool:
     if cells is None or cells.empty:
         return False
     return bool(cells["n_targets"].nunique() > 1 or (cells["load"] != "none").any())
+
+
+def _level(v: Any) -> Any:
+    """An added factor's level as JSON (NaN, a missing level: null)."""
+    if v is None or (isinstance(v, float) and math.isnan(v)):
+        return None
+    return v.item() if isinstance(v, np.generic) else v
 
 
 def _num(v: Any) -> float | None:
@@ -224,10 +254,12 @@ def cells_to_json(cells: pd.DataFrame | None) -> list[dict[str, Any]]:
     if cells is None:
         return []
     out = []
+    added = [f.column for f in added_factors() if f.column in cells]
     for r in cells.to_dict("records"):
         out.append({
             "condition": str(r["condition"]), "n_targets": int(r["n_targets"]),
-            "load": str(r["load"]), "n_participants": int(r["n_participants"]),
+            "load": str(r["load"]), **{k: _level(r[k]) for k in added},
+            "n_participants": int(r["n_participants"]),
             "n": int(r["n"]), "n_correct": int(r["n_correct"]),
             "n_timeout": int(r["n_timeout"]), "accuracy": _num(r["accuracy"]),
             "it_bits": _num(r["it_bits"]), "it_bits_sd": _num(r["it_bits_sd"]),

@@ -23,6 +23,7 @@ from typing import TYPE_CHECKING, Final
 
 import numpy as np
 
+from ..factors import added_factors
 from ..geometry import wrap
 
 if TYPE_CHECKING:
@@ -288,7 +289,8 @@ def infer_n_targets(target_deg: np.ndarray) -> int:
 
 
 def with_cell_columns(trials: pd.DataFrame, n_targets: int | None = None) -> pd.DataFrame:
-    """``trials`` with ``n_targets`` and ``load`` filled in for old stores.
+    """``trials`` with ``n_targets``, ``load`` and the added factors' columns
+    (:mod:`tactorbelt.factors`) filled in for old stores.
 
     Missing (or null) ``n_targets`` become ``n_targets`` if given, else the count
     inferred from the test trials' angles; missing ``load`` becomes ``none``.
@@ -304,4 +306,9 @@ def with_cell_columns(trials: pd.DataFrame, n_targets: int | None = None) -> pd.
     if "load" not in tr.columns:
         tr["load"] = "none"
     tr["load"] = tr["load"].fillna("none").astype(str)
+    for f in added_factors():  # declared beyond the built-in ones: a store from before
+        if f.column not in tr.columns:  # has no column, and old rows are NULL
+            tr[f.column] = f.default
+        elif f.default is not None:
+            tr[f.column] = tr[f.column].fillna(f.default)
     return tr

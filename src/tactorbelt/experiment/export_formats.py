@@ -34,6 +34,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from .._errors import ConfigError
+from ..factors import CONDITION, LOAD, TARGETS, Factor, added_factors
 from .export import (
     RATING_CSV_COLUMNS,
     SAMPLE_COLUMNS,
@@ -48,8 +49,9 @@ from .export import (
 if TYPE_CHECKING:
     import pandas as pd
 
-__all__ = ["DTYPES", "PSYCHOPY_COLUMNS", "TIDY_COLUMNS", "export_parquet", "export_psychopy",
-           "export_tidy", "read_table", "tables"]
+__all__ = ["DTYPES", "PSYCHOPY_COLUMNS", "TIDY_COLUMNS", "dtypes", "export_parquet",
+           "export_psychopy", "export_tidy", "psychopy_columns", "read_table", "tables",
+           "tidy_columns"]
 
 _INT = "Int64"
 _FLOAT = "Float64"
@@ -68,11 +70,11 @@ DTYPES: dict[str, dict[str, str]] = {
     "trials": {
         "participant": _STR, "session_id": _INT, "session_number": _INT, "trial_id": _INT,
         "trial_index": _INT, "block": _STR, "block_index": _INT, "block_name": _STR,
-        "condition": _STR, "repetition": _INT, "target_deg": _FLOAT, "on_tactor": _BOOL,
+        CONDITION.column: _STR, "repetition": _INT, "target_deg": _FLOAT, "on_tactor": _BOOL,
         "response_deg": _FLOAT, "response_target_deg": _FLOAT, "correct": _BOOL,
         "rt_s": _FLOAT, "onset_ns": _INT, "acquired_ns": _INT, "crossed_ns": _INT,
         "stimulus_off_ns": _INT, "n_samples": _INT, "status": _STR, "abort_reason": _STR,
-        "attempts": _INT, "n_targets": _INT, "load": _STR,
+        "attempts": _INT, TARGETS.column: _INT, LOAD.column: _STR,
     },
     "samples": {
         "participant": _STR, "session_id": _INT, "trial_index": _INT, "t_s": _FLOAT,
@@ -95,6 +97,34 @@ assert list(DTYPES["trials"]) == TRIAL_COLUMNS
 assert list(DTYPES["samples"]) == SAMPLE_COLUMNS
 assert list(DTYPES["task_events"]) == TASK_EVENT_CSV_COLUMNS
 assert list(DTYPES["ratings"]) == RATING_CSV_COLUMNS
+_FACTOR_DTYPE = {"text": _STR, "int": _INT}
+
+
+def dtypes(table: str) -> dict[str, str]:
+    """The column types of an exported table: :data:`DTYPES`, the trials with a column
+    for each factor declared beyond the built-in ones (:mod:`tactorbelt.factors`)."""
+    extra = added_factors() if table == "trials" else ()
+    return {**DTYPES[table], **{f.column: _FACTOR_DTYPE[f.type] for f in extra}}
+
+
+def _level(trial: dict[str, Any], f: Factor) -> Any:
+    """A trial's level of an added factor (a row stored before it: the default)."""
+    return f.stored(trial.get(f.column))
+
+
+def _after_load(columns: list[Any], extra: list[Any], key: Any = lambda c: c) -> list[Any]:
+    """``columns`` with ``extra`` inserted after the ``load`` column."""
+    i = next(i for i, c in enumerate(columns) if key(c) == "load") + 1
+    return [*columns[:i], *extra, *columns[i:]]
+
+_TIDY_TYPES = {"text": ("text", "factor"), "int": ("integer", "integer")}
+
+
+def _codebook(f: Factor) -> tuple[str, str, str, str, str]:
+    """A factor's line of the tidy codebook, from its declaration."""
+    levels = f" Levels: {', '.join(f.levels)}." if f.levels else ""
+    return (f.column, *_TIDY_TYPES[f.type], f.measure, f.description + levels)
+
 
 #: The tidy table's columns: (name, type, R type from ``read.csv(stringsAsFactors =
 #: TRUE)``, JASP type, description).
@@ -104,9 +134,7 @@ TIDY_COLUMNS: list[tuple[str, str, str, str, str]] = [
     ("block", "text", "factor", "nominal", "training or test"),
     ("block_index", "integer", "integer", "scale", "position of the block in the session, 0-based"),
     ("block_name", "text", "factor", "nominal", "the block's name in the study file"),
-    ("condition", "text", "factor", "nominal", "static or dynamic"),
-    ("n_targets", "integer", "integer", "scale", "the block's target count"),
-    ("load", "text", "factor", "nominal", "secondary task of the block (none without one)"),
+    *(_codebook(f) for f in (CONDITION, TARGETS, LOAD)),
     ("trial", "integer", "integer", "scale", "trial_index: position in the session, 0-based"),
     ("repetition", "integer", "integer", "scale", "repetition of this target, 1-based"),
     ("target_deg", "number", "numeric", "scale", "target direction, degrees (0 = navel, "
@@ -148,10 +176,10 @@ def _frame(rows: list[list[Any]], table: str) -> pd.DataFrame:
     """Typed rows; an empty text is missing (NA), as a CSV file cannot tell them apart
     (``task_events.response`` is empty when nothing was pressed)."""
     pd = _pandas()
-    dtypes = DTYPES[table]
+    types = dtypes(table)
     df = pd.DataFrame([[None if v == "" else v for v in r] for r in rows],
-                      columns=list(dtypes), dtype=object)
-    return df.astype(dtypes)
+                      columns=list(types), dtype=object)
+    return df.astype(types)
 
 
 def tables(db: str | Path) -> dict[str, pd.DataFrame]:
@@ -163,11 +191,12 @@ def tables(db: str | Path) -> dict[str, pd.DataFrame]:
         by_id = {int(s["session_id"]): s for s in sessions}
         trials = sorted(store.trials(), key=lambda t: (t["session_id"], t["trial_id"]))
         trial_rows = []
+        added = added_factors()
         for t in trials:
             sess = by_id[int(t["session_id"])]
             t = _with_cell(t, sess)
             trial_rows.append([sess[k] if k in ("participant", "session_number") else t[k]
-                               for k in TRIAL_COLUMNS])
+                               for k in TRIAL_COLUMNS] + [_level(t, f) for f in added])
         sample_rows = [[by_id[int(sid)]["participant"], sid, index, t_s, x, y, buttons]
                        for sid, index, t_s, x, y, buttons in store.iter_samples()]
         out = {"sessions": _frame([[s[k] for k in SESSION_COLUMNS] for s in sessions],
@@ -190,14 +219,15 @@ def read_table(path: str | Path) -> pd.DataFrame:
     table = p.stem
     if table not in DTYPES:
         raise ConfigError(f"{p.name} is not a table of the export ({', '.join(DTYPES)})")
+    types = dtypes(table)
     if p.suffix == ".parquet":
         _pyarrow()
-        return pd.read_parquet(p).astype(DTYPES[table])
+        return pd.read_parquet(p).astype(types)
     # floats exactly as written (repr): pandas 3 parses them so by default
     exact = {} if int(pd.__version__.split(".")[0]) >= 3 else {"float_precision": "round_trip"}
-    df = pd.read_csv(p, dtype={k: v for k, v in DTYPES[table].items() if v != _BOOL},
+    df = pd.read_csv(p, dtype={k: v for k, v in types.items() if v != _BOOL},
                      keep_default_na=False, na_values=[""], **exact)
-    return df.astype(DTYPES[table])
+    return df.astype(types)
 
 
 def _pyarrow() -> None:
@@ -243,6 +273,13 @@ def _na(v: Any) -> Any:
     return v
 
 
+def tidy_columns() -> list[tuple[str, str, str, str, str]]:
+    """:data:`TIDY_COLUMNS` with each factor declared beyond the built-in ones after
+    ``load``."""
+    extra = [_codebook(f) for f in added_factors()]
+    return _after_load(TIDY_COLUMNS, extra, key=lambda c: c[0])
+
+
 def export_tidy(db: str | Path, out: str | Path, *, force: bool = False) -> list[Path]:
     """Write ``trials_tidy.csv`` and ``codebook.csv`` into ``out`` (module doc).
 
@@ -250,6 +287,8 @@ def export_tidy(db: str | Path, out: str | Path, *, force: bool = False) -> list
     :data:`TIDY_COLUMNS`, and ``lme4::glmer(correct ~ condition * on_tactor +
     (1 | participant), data = d, family = binomial)`` runs on it as it is.
     """
+    columns = tidy_columns()
+    added = added_factors()
     with _open(db) as store:
         sessions = {int(s["session_id"]): s for s in store.sessions()}
         trials = sorted(store.trials(), key=lambda t: (t["session_id"], t["trial_index"]))
@@ -263,7 +302,8 @@ def export_tidy(db: str | Path, out: str | Path, *, force: bool = False) -> list
             resp = t["response_deg"]
             rows.append([
                 s["participant"], s["session_number"], t["block"], t["block_index"],
-                t["block_name"], t["condition"], t["n_targets"], t["load"], t["trial_index"],
+                t["block_name"], t["condition"], t["n_targets"], t["load"],
+                *(_level(t, f) for f in added), t["trial_index"],
                 t["repetition"], float(t["target_deg"]), int(bool(t["on_tactor"])),
                 t["status"], int(bool(t["correct"])) if t["status"] == "done" else 0,
                 t["rt_s"] if t["status"] == "done" else None, resp, t["response_target_deg"],
@@ -272,12 +312,12 @@ def export_tidy(db: str | Path, out: str | Path, *, force: bool = False) -> list
     try:
         with files[0].open("w", newline="") as fh:
             w = csv.writer(fh)
-            w.writerow([c[0] for c in TIDY_COLUMNS])
+            w.writerow([c[0] for c in columns])
             w.writerows([[_na(v) for v in r] for r in rows])
         with files[1].open("w", newline="") as fh:
             w = csv.writer(fh)
             w.writerow(["column", "type", "r_type", "jasp_type", "description"])
-            w.writerows(TIDY_COLUMNS)
+            w.writerows(columns)
     except OSError as exc:
         raise ConfigError(f"cannot write to {o}: {exc.strerror}") from None
     return files
@@ -301,12 +341,20 @@ def _file_part(text: str) -> str:
     return re.sub(r"[^A-Za-z0-9._-]+", "-", text).strip("-") or "tactorbelt"
 
 
+def psychopy_columns() -> list[str]:
+    """:data:`PSYCHOPY_COLUMNS` with each factor declared beyond the built-in ones after
+    ``load`` (a condition of the ``blocks`` loop)."""
+    return _after_load(PSYCHOPY_COLUMNS, [f.column for f in added_factors()])
+
+
 def export_psychopy(db: str | Path, out: str | Path, *, force: bool = False) -> list[Path]:
     """Write one PsychoPy-style wide CSV per session into ``out`` (module doc): rows are
     the session's trials in running order (aborted attempts left out, as PsychoPy
     keeps no row for a trial that did not run to its end)."""
     from .. import __version__
 
+    columns = psychopy_columns()
+    added = added_factors()
     with _open(db) as store:
         sessions = store.sessions()
         o = _prepare(out, "psychopy", force, db)
@@ -357,14 +405,15 @@ def export_psychopy(db: str | Path, out: str | Path, *, force: bool = False) -> 
                     "response.status": t["status"], "trial_index": t["trial_index"],
                     "participant": s["participant"], "session": s["session_number"],
                     "date": date, "expName": s["study_name"], "tactorbeltVersion": __version__,
+                    **{f.column: _level(t, f) for f in added},
                 }
-                rows.append([row.get(c) for c in PSYCHOPY_COLUMNS])
+                rows.append([row.get(c) for c in columns])
             try:
                 # as PsychoPy writes them: UTF-8 with a byte-order mark, a delimiter after
                 # the last column of every line
                 with path.open("w", newline="", encoding="utf-8-sig") as fh:
                     w = csv.writer(fh, lineterminator="\n")
-                    w.writerow([*PSYCHOPY_COLUMNS, ""])
+                    w.writerow([*columns, ""])
                     w.writerows([["" if v is None else v for v in r] + [""] for r in rows])
             except OSError as exc:
                 raise ConfigError(f"cannot write to {o}: {exc.strerror}") from None

@@ -39,6 +39,7 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 from .._errors import ConfigError
+from ..factors import BUILTIN, added_factors, factors
 
 if TYPE_CHECKING:
     from ..clock import Clock
@@ -51,8 +52,15 @@ if TYPE_CHECKING:
     from ..tasks import WorkloadInfo
     from ..tasks.schedule import TaskItem
 
-__all__ = ["CURSOR_STREAM", "MARKER_EVENTS", "MARKER_STREAM", "LslObserver", "load_pylsl",
-           "marker"]
+__all__ = [
+    "CURSOR_STREAM",
+    "MARKER_EVENTS",
+    "MARKER_STREAM",
+    "LslObserver",
+    "load_pylsl",
+    "marker",
+    "marker_fields",
+]
 
 log = logging.getLogger(__name__)
 
@@ -70,13 +78,16 @@ WAIT_POLL_S = 0.05
 WAIT_REPORT_S = 5.0
 WAIT_GRACE_S = 0.5
 
+#: The built-in factors' columns (condition, n_targets, load: :mod:`tactorbelt.factors`),
+#: which the block, trial and onset markers carry; a factor declared beyond them follows.
+_FACTORS = tuple(f.column for f in BUILTIN)
 #: Every marker's ``event`` and the fields it carries besides ``event`` (docs/lsl.md).
 MARKER_EVENTS: dict[str, tuple[str, ...]] = {
     "session_start": ("session_id", "participant", "study", "n_trials", "n_done", "resumed"),
-    "block_start": ("block_index", "block", "block_name", "condition", "n_targets", "load"),
-    "trial_start": ("trial_index", "block_index", "block", "condition", "n_targets", "load"),
-    "stimulus_onset": ("trial_index", "target_deg", "on_tactor", "condition", "n_targets",
-                       "load", "block", "onset_clock"),
+    "block_start": ("block_index", "block", "block_name", *_FACTORS),
+    "trial_start": ("trial_index", "block_index", "block", *_FACTORS),
+    "stimulus_onset": ("trial_index", "target_deg", "on_tactor", *_FACTORS, "block",
+                       "onset_clock"),
     "skin_onset": ("trial_index", "latency_ms", "sd_ms"),
     "response": ("trial_index", "response_deg", "response_target_deg", "correct", "rt_s"),
     "timeout": ("trial_index",),
@@ -130,14 +141,33 @@ def marker(event: str, **fields: Any) -> str:
     Raises:
         ValueError: an unknown event or field (a programming error).
     """
-    allowed = MARKER_EVENTS.get(event)
-    if allowed is None:
-        raise ValueError(f"unknown marker event {event!r}")
+    allowed = marker_fields(event)
     extra = set(fields) - set(allowed)
     if extra:
         raise ValueError(f"marker {event!r} has no field(s) {sorted(extra)}")
     body = {"event": event} | {k: _plain(fields[k]) for k in allowed if k in fields}
     return json.dumps(body, separators=(",", ":"), allow_nan=False)
+
+
+def marker_fields(event: str) -> tuple[str, ...]:
+    """The fields of a marker, in order: :data:`MARKER_EVENTS`'s, and after the built-in
+    factors the columns of the factors declared beyond them.
+
+    Raises:
+        ValueError: an unknown event.
+    """
+    allowed = MARKER_EVENTS.get(event)
+    if allowed is None:
+        raise ValueError(f"unknown marker event {event!r}")
+    if _FACTORS[-1] not in allowed:
+        return allowed
+    i = allowed.index(_FACTORS[-1]) + 1
+    return (*allowed[:i], *(f.column for f in added_factors()), *allowed[i:])
+
+
+def _levels(t: ScheduledTrial) -> dict[str, Any]:
+    """A trial's level of every factor, by column."""
+    return {f.column: t.level(f) for f in factors()}
 
 
 def _plain(v: Any) -> Any:
@@ -413,7 +443,7 @@ class LslObserver:
     # -- markers from the runner's hooks ------------------------------------------------
     def _trial_fields(self, t: ScheduledTrial) -> dict[str, Any]:
         return {"trial_index": t.trial_index, "block_index": t.block_index, "block": t.block,
-                "condition": t.condition, "n_targets": t.n_targets, "load": t.load}
+                **_levels(t)}
 
     def _end_block(self, now_ns: int) -> None:
         if self._block is not None:
@@ -447,8 +477,7 @@ class LslObserver:
                 at = self._block_ns if self._block_ns is not None else now_ns
                 self._end_block(at)
                 self.send(at, "block_start", block_index=trial.block_index, block=trial.block,
-                          block_name=trial.block_name, condition=trial.condition,
-                          n_targets=trial.n_targets, load=trial.load)
+                          block_name=trial.block_name, **_levels(trial))
                 self._block, self._block_ns = trial.block_index, None
             self._trial = trial
             self._onset_pending = False
@@ -462,8 +491,8 @@ class LslObserver:
 
     def _send_onset(self, t: ScheduledTrial, onset_ns: int, clock: str) -> None:
         self.send(onset_ns, "stimulus_onset", trial_index=t.trial_index,
-                  target_deg=t.target_deg, on_tactor=t.on_tactor, condition=t.condition,
-                  n_targets=t.n_targets, load=t.load, block=t.block, onset_clock=clock)
+                  target_deg=t.target_deg, on_tactor=t.on_tactor, **_levels(t), block=t.block,
+                  onset_clock=clock)
 
     def on_sample(self, sample: CursorSample) -> None:
         self._flush_items(sample.t_ns)

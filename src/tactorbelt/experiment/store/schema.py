@@ -204,10 +204,11 @@ def factor_column(f: Factor) -> Column:
     return _c(f.column, f.type, added=True)
 
 
-def table(name: str) -> Table:
-    """A table as declared, the trials with a column for each added factor."""
+def table(name: str, *, added: bool = True) -> Table:
+    """A table as declared, the trials with a column for each added factor (unless
+    ``added`` is False)."""
     t = _BY_NAME[name]
-    extra = added_factors() if name == "trials" else ()
+    extra = added_factors() if name == "trials" and added else ()
     return replace(t, columns=t.columns + tuple(factor_column(f) for f in extra)) if extra else t
 
 

@@ -49,7 +49,9 @@ if TYPE_CHECKING:
 __all__ = ["TRIAL_COLUMNS", "SqlStore"]
 
 #: The columns a run writes of a trial row, in the order of :meth:`SqlStore.write_trial`.
-TRIAL_COLUMNS = tuple(c.name for c in schema_table("trials").columns if c.name != "trial_id")
+#: The added factors' columns follow them (:meth:`SqlStore.write_trial`).
+TRIAL_COLUMNS = tuple(c.name for c in schema_table("trials", added=False).columns
+                      if c.name != "trial_id")
 _ATTEMPTS = TRIAL_COLUMNS.index("attempts")
 #: The tables :meth:`SqlStore.table_columns` reads.
 _TABLES = ("sessions", "trials", "samples", "task_events", "ratings")
