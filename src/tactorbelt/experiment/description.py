@@ -7,6 +7,7 @@ Pure: the study, its schedule and the task kinds.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 from ..geometry import TargetSet
 from ..tasks.kinds import task_kind
@@ -29,6 +30,8 @@ class Cell:
     condition: str
     load: str
     repetitions: int
+    #: the levels of the factors declared beyond condition, targets and load, by key
+    levels: tuple[tuple[str, Any], ...] = ()
 
     @property
     def trials(self) -> int:
@@ -81,9 +84,11 @@ class StudyDescription:
                    f"{r.dwell_s:g} s, timeout {r.timeout_s:g} s")
         if s.design is not None:
             d = s.design
+            added = "".join(f" x {plural(len(v), k + ' level')}" for k, v in d.levels.items())
             out.append(f"  design      {plural(len(d.targets), 'target count')} x "
                        f"{plural(len(d.condition), 'condition')} x "
-                       f"{plural(len(d.load), 'load')} = {plural(len(self.cells), 'cell')}, "
+                       f"{plural(len(d.load), 'load')}{added} = "
+                       f"{plural(len(self.cells), 'cell')}, "
                        f"{plural(d.repetitions, 'repetition')} of every target")
         out.append("  blocks")
         tr = s.training
@@ -97,6 +102,7 @@ class StudyDescription:
                        f"{plural(len(tr.conditions), 'condition')} x {tgt}, {tr.order})")
         for c in self.cells:
             load = "" if c.load == "none" else f", load {c.load}"
+            load += "".join(f", {k} {v}" for k, v in c.levels)
             out.append(f"    {c.block:<{width}s} {c.trials:4d} trials "
                        f"({c.condition}{load}, {plural(c.repetitions, 'repetition')} x "
                        f"{plural(c.n_targets, 'target')})")
@@ -130,7 +136,8 @@ def describe(study: Study, participant: str = "P01", seed: int | None = None) ->
     """
     from .schedule import block_order, make_schedule, order_rows, order_rule
 
-    cells = tuple(Cell(b.label, study.block_n_targets(b), b.condition, b.load, b.repetitions)
+    cells = tuple(Cell(b.label, study.block_n_targets(b), b.condition, b.load, b.repetitions,
+                       tuple(b.levels.items()))
                   for b in study.test)
     idx = block_order(study, participant, seed)
     rule = order_rule(study)
