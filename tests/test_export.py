@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import gzip
 import itertools
 import json
 from pathlib import Path
@@ -13,7 +14,13 @@ from support.studies import study_toml
 from tactorbelt import ConfigError, StoreError
 from tactorbelt.clock import SimClock
 from tactorbelt.devices import open_belt
-from tactorbelt.experiment.export import BEH_COLUMNS, bids_label, export_bids, export_csv
+from tactorbelt.experiment.export import (
+    BEH_COLUMNS,
+    CURSOR_COLUMNS,
+    bids_label,
+    export_bids,
+    export_csv,
+)
 from tactorbelt.experiment.runner import run_session
 from tactorbelt.experiment.schedule import make_schedule
 from tactorbelt.experiment.store import Store
@@ -79,28 +86,40 @@ def test_bids_export(db: Path, tmp_path: Path) -> None:
     for col in rows[0]:
         assert sidecar[col]["Description"]
     assert sidecar["tactorbelt"]["study_name"] == "export"
-    motion_dir = out / "sub-P01" / "ses-1" / "motion"
-    stem = "sub-P01_ses-1_task-betweentactor_tracksys-cursor"
-    channels = _read(motion_dir / f"{stem}_channels.tsv", "\t")
-    assert [c["name"] for c in channels] == ["trial", "latency", "x", "y", "buttons"]
-    assert [c["type"] for c in channels][1] == "LATENCY"
-    motion = (motion_dir / f"{stem}_motion.tsv").read_text().splitlines()
-    assert all(len(line.split("\t")) == len(channels) for line in motion)
-    assert sum(int(r["trial_index"] != "") for r in rows) == 12
-    meta = json.loads((motion_dir / f"{stem}_motion.json").read_text())
+    # the cursor samples: a BIDS continuous recording of the beh data type, gzipped and
+    # headerless, its columns named by the sidecar's Columns and each described there
+    stem = "sub-P01_ses-1_task-betweentactor_recording-cursor_physio"
+    assert not (out / "sub-P01" / "ses-1" / "motion").exists()
+    meta = json.loads((beh.parent / f"{stem}.json").read_text())
+    assert meta["Columns"] == list(CURSOR_COLUMNS) == ["trial_index", "t", "t_trial", "x",
+                                                         "y", "buttons"]
+    for col in meta["Columns"]:
+        assert meta[col]["Description"]
     assert meta["SamplingFrequency"] == 100.0
-    # BIDS motion: LATENCY is seconds from recording onset (the first trial's onset), so
-    # it never restarts at a trial; trials differ in length, so the recording is
-    # discontinuous rather than epoched (no EpochLength)
-    assert meta["RecordingType"] == "discontinuous" and "EpochLength" not in meta
-    latency = [float(line.split("\t")[1]) for line in motion]
-    trial = [int(line.split("\t")[0]) for line in motion]
-    assert latency[0] == 0.0 and all(b > a for a, b in itertools.pairwise(latency))
-    assert all(len(line.split("\t")[1].split(".")[1]) == 6 for line in motion)
+    with gzip.open(beh.parent / f"{stem}.tsv.gz", "rt") as fh:
+        samples = [line.rstrip("\n").split("\t") for line in fh]
+    assert all(len(r) == len(meta["Columns"]) for r in samples)
+    with Store.open(db, readonly=True) as store:
+        sid = next(s["session_id"] for s in store.sessions() if s["participant"] == "P-01")
+        stored = list(store.iter_samples(sid))
+    # every sample, as stored: trial, time within the trial, x, y, buttons
+    assert [(int(r[0]), float(r[2]), float(r[3]), float(r[4]), int(r[5])) for r in samples] \
+        == [(i, t_s, x, y, b) for _sid, i, t_s, x, y, b in stored]
+    # t: seconds from the first trial's onset (the origin of the events' onset), never
+    # restarting at a trial; the recording pauses between trials, so each row says its time
+    t = [float(r[1]) for r in samples]
+    trial = [int(r[0]) for r in samples]
+    assert meta["StartTime"] == t[0] == 0.0 and all(b > a for a, b in itertools.pairwise(t))
+    assert all(len(r[1].split(".")[1]) == 6 for r in samples)
     onsets = {int(r["trial_index"]): float(r["onset_s"]) for r in rows}
-    first = {k: latency[trial.index(k)] for k in sorted(set(trial))}
+    first = {k: t[trial.index(k)] for k in sorted(set(trial))}
     for k in first:  # a trial's first sample sits at its onset after the first trial's
         assert first[k] == pytest.approx(onsets[k] - onsets[0], abs=1e-6)
+    assert "between trials" in meta["t"]["Description"]
+    again = tmp_path / "again"
+    export_bids(db, again)  # the gzip header holds no name or time: the same bytes
+    rel = Path("sub-P01", "ses-1", "beh", f"{stem}.tsv.gz")
+    assert (again / rel).read_bytes() == (out / rel).read_bytes()
 
 
 def test_bids_label() -> None:

@@ -1,4 +1,4 @@
-"""Export a store to tidy CSV files or to a BIDS dataset (behaviour and cursor motion).
+"""Export a store to tidy CSV files or to a BIDS dataset (behaviour and cursor samples).
 
 CSV (:func:`export_csv`): ``sessions.csv``, ``trials.csv`` (one row per trial, with
 the participant and session number) and ``samples.csv`` (one row per cursor sample,
@@ -15,20 +15,22 @@ BIDS (:func:`export_bids`), which ``bids-validator`` passes::
                                            a cognitive load: the secondary-task events)
     sub-<id>/ses-<n>/beh/sub-<id>_ses-<n>_task-nasatlx_beh.tsv (+ .json; with ratings:
                                            one row per rated block)
-    sub-<id>/ses-<n>/motion/sub-<id>_ses-<n>_task-betweentactor_tracksys-cursor_motion.tsv
-                                           ..._channels.tsv, ..._motion.json
+    sub-<id>/ses-<n>/beh/sub-<id>_ses-<n>_task-betweentactor_recording-cursor_physio.tsv.gz
+                                           (+ _physio.json; the cursor samples)
 
 Every column of every table is described in its sidecar (:data:`BEH_COLUMNS`,
-:data:`EVENT_COLUMNS`, :data:`TLX_COLUMNS`). ``Authors`` in ``dataset_description.json``
-are the ones given, else the study files' ``authors``.
+:data:`EVENT_COLUMNS`, :data:`TLX_COLUMNS`, :data:`CURSOR_COLUMNS`). ``Authors`` in
+``dataset_description.json`` are the ones given, else the study files' ``authors``.
 
 ``<id>`` is the participant id with everything but letters and digits removed (BIDS
 labels are alphanumeric); two ids that collapse to the same label are an error.
-Missing values are ``n/a``. The motion file has no header; its columns are the rows
-of ``_channels.tsv`` (trial, latency, x, y, buttons). The recording is discontinuous
-(the cursor is sampled from stimulus onset to the response of each trial); the
-LATENCY channel is seconds from recording onset, the onset of the session's first
-trial, as the BIDS motion spec defines it.
+Missing values are ``n/a``. The cursor samples are a BIDS continuous recording of the
+behavioural data type (gzipped, no header; ``Columns`` of the ``_physio.json`` names
+the columns: trial_index, t, t_trial, x, y, buttons). The cursor is sampled from the
+stimulus onset to the response of each trial, so the recording pauses between trials:
+each row carries its time ``t``, seconds from the onset of the session's first trial,
+which is also the origin of ``onset`` in the ``_events.tsv``; ``StartTime`` is the first
+row's ``t`` and ``SamplingFrequency`` the study's ``sample_rate_hz``.
 
 The output directory must be new or empty; ``force=True`` first removes what an
 earlier export of the same format wrote there, and refuses a directory holding
@@ -43,6 +45,8 @@ from __future__ import annotations
 import contextlib
 import csv
 import functools
+import gzip
+import io
 import json
 import re
 import shutil
@@ -54,8 +58,9 @@ from .._errors import ConfigError, TactorbeltError
 from .store import Store, open_store
 from .study import Study
 
-__all__ = ["BEH_COLUMNS", "EVENT_COLUMNS", "TASK", "TLX_COLUMNS", "TLX_TASK", "bids_label",
-           "export_bids", "export_csv", "study_authors"]
+__all__ = ["BEH_COLUMNS", "CURSOR_COLUMNS", "EVENT_COLUMNS", "RECORDING", "TASK",
+           "TLX_COLUMNS", "TLX_TASK", "bids_label", "export_bids", "export_csv",
+           "study_authors"]
 
 TASK = "betweentactor"
 #: The BIDS task label of the NASA-TLX ratings (a questionnaire after each test block).
@@ -123,7 +128,7 @@ BEH_COLUMNS: dict[str, dict[str, Any]] = {
 EVENT_COLUMNS: dict[str, dict[str, Any]] = {
     "onset": {"Description": "Onset of the item (its sound or glyph), or the time of a "
               "press that answered no item, from the onset of the session's first trial "
-              "(the origin of the motion recording's latency); negative before it.",
+              "(the origin of t in the cursor recording); negative before it.",
               "Units": "s"},
     "duration": {"Description": "How long the item was presented (the task's stimulus_s); "
                  "0 for a press that answered no item.", "Units": "s"},
@@ -181,13 +186,27 @@ TLX_COLUMNS: dict[str, dict[str, Any]] = {
                 "weighting)."},
 }
 
-CHANNELS = [
-    ("trial", "MISC", "n/a", "trial_index of the sample's trial"),
-    ("latency", "LATENCY", "s", "time from the onset of the session's first trial"),
-    ("x", "POS", "n/a", "cursor x, right positive, ellipse radius 1"),
-    ("y", "POS", "n/a", "cursor y, up (front) positive, ellipse radius 1"),
-    ("buttons", "MISC", "n/a", "button bit mask"),
-]
+#: The BIDS label of the cursor recording (``_recording-cursor_physio.tsv.gz``).
+RECORDING = "cursor"
+#: Every column of the cursor recording (``beh/*_recording-cursor_physio.tsv.gz``, which
+#: has no header: ``Columns`` of its ``_physio.json`` names them) and its description.
+CURSOR_COLUMNS: dict[str, dict[str, Any]] = {
+    "trial_index": {"Description": "trial_index of the sample's trial (joins trial_index "
+                    "of the _beh.tsv)."},
+    "t": {"Description": "Time of the sample from the onset of the session's first trial "
+          "(the origin of onset in the _events.tsv; StartTime is the first row's t). The "
+          "cursor is sampled only from the stimulus onset to the response of each trial, "
+          "so the recording pauses between trials: a sample's time is its t, not "
+          "StartTime + row / SamplingFrequency.", "Units": "s"},
+    "t_trial": {"Description": "Time of the sample from the stimulus onset of its trial "
+                "(onset_s in the _beh.tsv), as stored.", "Units": "s"},
+    "x": {"Description": "Cursor x, right positive; the response ellipse has radius 1 "
+          "(no unit)."},
+    "y": {"Description": "Cursor y, up (front) positive; the response ellipse has radius 1 "
+          "(no unit)."},
+    "buttons": {"Description": "Buttons held at the sample, as a bit mask (bit k set: "
+                "button k pressed; 0: none)."},
+}
 
 
 def bids_label(participant: str) -> str:
@@ -432,11 +451,12 @@ def _readme(name: str, studies: list[Any], sessions: list[dict[str, Any]],
         "session).",
         "- `sub-<label>/ses-<n>/beh/*_beh.tsv`: one row per trial; the columns are "
         "described in the `_beh.json` sidecar and below.",
-        "- `sub-<label>/ses-<n>/motion/*_tracksys-cursor_motion.tsv`: the cursor samples "
-        "(no header; the columns are the rows of `_channels.tsv`). The recording is "
-        "discontinuous: the cursor is sampled from stimulus onset to the response of "
-        "each trial, and the LATENCY column `latency` counts seconds from the onset of "
-        "the session's first trial.", "",
+        f"- `sub-<label>/ses-<n>/beh/*_recording-{RECORDING}_physio.tsv.gz`: the cursor "
+        "samples (gzipped, no header; `Columns` in the `_physio.json` sidecar names the "
+        "columns). The cursor is sampled from the stimulus onset to the response of each "
+        "trial, so the recording pauses between trials: each sample's time is its column "
+        "`t`, seconds from the onset of the session's first trial (`StartTime` is the "
+        "first sample's `t`).", "",
         "## Trial columns (`_beh.tsv`)", ""]
     lines += [f"- `{k}`: {v['Description']}" + (f" ({v['Units']})" if "Units" in v else "")
               for k, v in BEH_COLUMNS.items()]
@@ -452,21 +472,51 @@ def _readme(name: str, studies: list[Any], sessions: list[dict[str, Any]],
                   f"`beh/*_task-{TLX_TASK}_beh.tsv` has one row per test block rated with the "
                   "raw NASA-TLX after it:", ""]
         lines += [f"- `{k}`: {v['Description']}" for k, v in TLX_COLUMNS.items()]
-    lines += ["", "## Motion columns (`_motion.tsv`)", ""]
-    lines += [f"- `{n}` ({typ}): {d}" + (f" ({u})" if u != "n/a" else "")
-              for n, typ, u, d in CHANNELS]
+    lines += ["", f"## Cursor samples (`_recording-{RECORDING}_physio.tsv.gz`)", ""]
+    lines += [f"- `{k}`: {v['Description']}" + (f" ({v['Units']})" if "Units" in v else "")
+              for k, v in CURSOR_COLUMNS.items()]
     return "\n".join(lines) + "\n"
 
 
-def _motion_rows(store: Store, session_id: int, trials: list[dict[str, Any]]
+def _cursor_rows(store: Store, session_id: int, trials: list[dict[str, Any]]
                  ) -> Iterator[list[Any]]:
-    """Motion rows: trial, latency from the first trial's onset (6 decimals), x, y,
-    buttons."""
+    """Cursor-recording rows (:data:`CURSOR_COLUMNS`): trial_index, t (from the first
+    trial's onset, 6 decimals), t_trial, x, y (as stored), buttons."""
     onsets = {int(t["trial_index"]): t["onset_ns"] for t in trials if t["onset_ns"] is not None}
     start = min(onsets.values(), default=0)
     for _sid, index, t_s, x, y, buttons in store.iter_samples(session_id):
         onset = onsets.get(int(index), start)
-        yield [index, f"{(onset - start) / 1e9 + t_s:.6f}", repr(x), repr(y), buttons]
+        yield [index, f"{(onset - start) / 1e9 + t_s:.6f}", repr(float(t_s)), repr(x),
+               repr(y), buttons]
+
+
+def _write_cursor(path: Path, rows: Iterator[list[Any]]) -> float | None:
+    """Write the headerless, gzipped cursor recording (byte for byte the same on every
+    export: no name or time in the gzip header); returns the first row's t (None: no
+    samples)."""
+    first: float | None = None
+    with path.open("wb") as raw, \
+            gzip.GzipFile(filename="", mode="wb", fileobj=raw, mtime=0) as gz, \
+            io.TextIOWrapper(gz, encoding="utf-8", newline="") as fh:
+        w = csv.writer(fh, delimiter="\t", lineterminator="\n")
+        for row in rows:
+            if first is None:
+                first = float(row[1])
+            w.writerow([_na(v) for v in row])
+    return first
+
+
+def _cursor_sidecar(session: dict[str, Any], start: float | None) -> dict[str, Any]:
+    """The ``_physio.json`` of a session's cursor recording."""
+    study = _session_study(session)
+    out: dict[str, Any] = {
+        "SamplingFrequency": study.session.sample_rate_hz if study is not None else 100.0,
+        "StartTime": 0.0 if start is None else start,
+        "Columns": list(CURSOR_COLUMNS),
+    }
+    if session.get("package_version"):
+        out["SoftwareVersions"] = f"tactorbelt {session['package_version']}"
+    return out | CURSOR_COLUMNS
 
 
 def _event_rows(events: list[dict[str, Any]], origin_ns: int, study: Any
@@ -509,7 +559,8 @@ def _tlx_rows(ratings: list[dict[str, Any]], trials: list[dict[str, Any]]) -> li
 
 def export_bids(db: str | Path, out: str | Path, *, readme: str | Path | None = None,
                 authors: Sequence[str] | None = None, force: bool = False) -> list[Path]:
-    """Write a BIDS behavioural and motion dataset into directory ``out`` (module doc).
+    """Write a BIDS behavioural dataset, with the cursor samples, into directory ``out``
+    (module doc).
 
     Args:
         readme: a README file to copy; default: one generated from the study files.
@@ -582,7 +633,6 @@ def export_bids(db: str | Path, out: str | Path, *, readme: str | Path | None = 
             stem = f"sub-{lab}_ses-{s['session_number']}_task-{TASK}"
             base = o / f"sub-{lab}" / f"ses-{s['session_number']}"
             (base / "beh").mkdir(parents=True, exist_ok=True)
-            (base / "motion").mkdir(parents=True, exist_ok=True)
             trials = [_with_cell(t, s) for t in store.trials(s["session_id"])]
             beh = base / "beh" / f"{stem}_beh.tsv"
             cols = list(BEH_COLUMNS)
@@ -599,36 +649,11 @@ def export_bids(db: str | Path, out: str | Path, *, readme: str | Path | None = 
             bj.write_text(json.dumps(sidecar, indent=2) + "\n")
             written += [beh, bj]
             written += _task_files(store, s, trials, base / "beh", stem, lab)
-            mstem = f"{stem}_tracksys-cursor"
-            motion = base / "motion" / f"{mstem}_motion.tsv"
-            _write_tsv(motion, None, _motion_rows(store, s["session_id"], trials))
-            ch = base / "motion" / f"{mstem}_channels.tsv"
-            _write_tsv(ch, ["name", "component", "type", "tracked_point", "units", "description"],
-                       [(n, {"x": "x", "y": "y"}.get(n, "n/a"), typ, "cursor", u, d)
-                        for n, typ, u, d in CHANNELS])
-            mj = base / "motion" / f"{mstem}_motion.json"
-            rate = 100.0
-            try:
-                from .study import Study
-
-                rate = Study.from_toml(s["study_toml"]).session.sample_rate_hz
-            except Exception:
-                pass
-            mj.write_text(json.dumps({
-                "TaskName": TASK,
-                "TaskDescription": "Point with a cursor to the direction felt on a "
-                                   "vibrotactile belt; the cursor is sampled from stimulus "
-                                   "onset to the response of each trial.",
-                "TrackingSystemName": "cursor",
-                "SamplingFrequency": rate,
-                "SamplingFrequencyEffective": rate,
-                "RecordingType": "discontinuous",
-                "MotionChannelCount": 2,
-                "MISCChannelCount": 2,
-                "LATENCYChannelCount": 1,
-                "TrackedPointsCount": 1,
-            }, indent=2) + "\n")
-            written += [motion, ch, mj]
+            rec = base / "beh" / f"{stem}_recording-{RECORDING}_physio.tsv.gz"
+            start = _write_cursor(rec, _cursor_rows(store, s["session_id"], trials))
+            rj = rec.with_name(rec.name.removesuffix(".tsv.gz") + ".json")
+            rj.write_text(json.dumps(_cursor_sidecar(s, start), indent=2) + "\n")
+            written += [rec, rj]
     return written
 
 
