@@ -32,6 +32,7 @@ from .declaration import Changes, Factor
 __all__ = [
     "BUILTIN",
     "CONDITION",
+    "ENTRY_POINT_GROUP",
     "LOAD",
     "TARGETS",
     "Changes",
@@ -102,6 +103,33 @@ def factor(key: str) -> Factor:
     raise ConfigError(f"no factor {key!r}; declared: {', '.join(_REGISTRY)}")
 
 
+#: The entry-point group of the factors installed packages declare.
+ENTRY_POINT_GROUP = "tactorbelt.factors"
+
+
+def _load_entry_points() -> None:
+    """Register the factors of the entry points in :data:`ENTRY_POINT_GROUP`.
+
+    Raises:
+        ConfigError: an entry point that cannot be loaded, or is not a Factor (or a
+            list of them), naming it.
+    """
+    from importlib.metadata import entry_points
+
+    for ep in entry_points(group=ENTRY_POINT_GROUP):
+        where = f"entry point {ep.name} = {ep.value} (group {ENTRY_POINT_GROUP})"
+        try:
+            obj = ep.load()
+        except Exception as exc:
+            raise ConfigError(f"{where} cannot be loaded: {type(exc).__name__}: {exc}") from None
+        for f in obj if isinstance(obj, list | tuple) else [obj]:
+            if not isinstance(f, Factor):
+                raise ConfigError(f"{where} is a {type(f).__name__}, not a "
+                                  "tactorbelt.factors.Factor")
+            register(f)
+
+
 for _f in BUILTIN:
     register(_f)
 _BUILTIN = tuple(f.key for f in BUILTIN)
+_load_entry_points()
