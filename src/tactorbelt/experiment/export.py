@@ -55,12 +55,27 @@ from pathlib import Path
 from typing import Any
 
 from .._errors import ConfigError, TactorbeltError
+from ..factors import CONDITION, LOAD, TARGETS, Factor, added_factors
 from .store import Store, open_store
 from .study import Study
 
-__all__ = ["BEH_COLUMNS", "CURSOR_COLUMNS", "EVENT_COLUMNS", "RECORDING", "TASK",
-           "TLX_COLUMNS", "TLX_TASK", "bids_label", "export_bids", "export_csv",
-           "study_authors"]
+__all__ = [
+    "BEH_COLUMNS",
+    "CURSOR_COLUMNS",
+    "EVENT_COLUMNS",
+    "RECORDING",
+    "TASK",
+    "TLX_COLUMNS",
+    "TLX_TASK",
+    "beh_columns",
+    "bids_label",
+    "export_bids",
+    "export_csv",
+    "factor_sidecar",
+    "study_authors",
+    "tlx_columns",
+    "trial_columns",
+]
 
 TASK = "betweentactor"
 #: The BIDS task label of the NASA-TLX ratings (a questionnaire after each test block).
@@ -86,22 +101,54 @@ SESSION_COLUMNS = [
     "git_commit", "host", "input", "clock", "started_at", "ended_at", "status", "resumed",
 ]
 
-#: Every column of the BIDS ``_beh.tsv`` and its description (the JSON sidecar).
+def factor_sidecar(f: Factor) -> dict[str, Any]:
+    """A factor's column in a BIDS sidecar: its description and levels, as declared."""
+    return {"Description": f.description, **({"Levels": dict(f.levels)} if f.levels else {})}
+
+
+def _after_load(columns: dict[str, Any]) -> dict[str, Any]:
+    """``columns`` with a column for each factor declared beyond the built-in ones after
+    ``load`` (:mod:`tactorbelt.factors`)."""
+    extra = {f.column: factor_sidecar(f) for f in added_factors()}
+    if not extra:
+        return columns
+    keys = list(columns)
+    i = keys.index(LOAD.column) + 1
+    return {**{k: columns[k] for k in keys[:i]}, **extra,
+            **{k: columns[k] for k in keys[i:]}}
+
+
+def trial_columns() -> list[str]:
+    """The columns of ``trials.csv``: :data:`TRIAL_COLUMNS`, then a column for each
+    factor declared beyond the built-in ones."""
+    return TRIAL_COLUMNS + [f.column for f in added_factors()]
+
+
+def beh_columns() -> dict[str, dict[str, Any]]:
+    """The ``_beh.tsv`` columns and their sidecar entries (:data:`BEH_COLUMNS`, and the
+    added factors after ``load``)."""
+    return _after_load(BEH_COLUMNS)
+
+
+def tlx_columns() -> dict[str, dict[str, Any]]:
+    """The ratings file's columns (:data:`TLX_COLUMNS`, and the added factors)."""
+    return _after_load(TLX_COLUMNS)
+
+
+#: Every column of the BIDS ``_beh.tsv`` and its description (the JSON sidecar); a
+#: factor's from its declaration (:mod:`tactorbelt.factors`).
 BEH_COLUMNS: dict[str, dict[str, Any]] = {
     "trial_index": {"Description": "Position of the trial in the session's schedule (0-based)."},
     "block": {"Description": "Block type.", "Levels": {
         "training": "target shown on screen while felt", "test": "target felt only"}},
     "block_name": {"Description": "Name of the block in the study file."},
-    "condition": {"Description": "Rendering of between-tactor targets.", "Levels": {
-        "static": "constant amplitudes",
-        "dynamic": "trapezoidal perturbation between the two nearest tactors"}},
+    CONDITION.column: factor_sidecar(CONDITION),
     "repetition": {"Description": "Repetition (test) or pass (training) of this target, 1-based."},
     "target_deg": {"Description": "Target direction; 0 = navel, clockwise seen from above.",
                    "Units": "deg"},
     "on_tactor": {"Description": "1 when the target coincides with a tactor, else 0."},
-    "n_targets": {"Description": "Target count of the trial's block (targets at "
-                  "k*360/n_targets); the response snaps to these."},
-    "load": {"Description": "Secondary task during the block ('none' without one)."},
+    TARGETS.column: factor_sidecar(TARGETS),
+    LOAD.column: factor_sidecar(LOAD),
     "response_deg": {"Description": "Direction of the cursor at acquisition "
                      "(atan2(x, y), 0 = up/front, clockwise).", "Units": "deg"},
     "response_target_deg": {"Description": "Target nearest in angle to response_deg.",
@@ -297,11 +344,16 @@ def _study_count(study_toml: str) -> int | None:
 
 
 def _with_cell(trial: dict[str, Any], session: dict[str, Any]) -> dict[str, Any]:
-    """The trial row with ``n_targets`` and ``load``: as stored, else (a store written
-    before factorial designs) the session's study's ``[targets] count`` and ``none``."""
-    if trial.get("n_targets") is not None and trial.get("load") is not None:
+    """The trial row with ``n_targets``, ``load`` and the added factors: as stored, else
+    (a store written before factorial designs) the session's study's ``[targets] count``
+    and ``none``, and (a store written before a factor was declared) its default."""
+    added = added_factors()
+    if trial.get("n_targets") is not None and trial.get("load") is not None and all(
+            trial.get(f.column) is not None for f in added):
         return trial
     out = dict(trial)
+    for f in added:
+        out[f.column] = f.stored(out.get(f.column))
     if out.get("n_targets") is None:
         out["n_targets"] = _study_count(str(session.get("study_toml") or ""))
     if out.get("load") is None:
@@ -355,12 +407,13 @@ def export_csv(db: str | Path, out: str | Path, *, force: bool = False) -> list[
                     w.writerow([s[k] for k in SESSION_COLUMNS])
             with files[1].open("w", newline="") as fh:
                 w = csv.writer(fh)
-                w.writerow(TRIAL_COLUMNS)
+                columns = trial_columns()
+                w.writerow(columns)
                 for t in trials:
                     sess = by_id[int(t["session_id"])]
                     t = _with_cell(t, sess)
                     w.writerow([sess[k] if k in ("participant", "session_number") else t[k]
-                                for k in TRIAL_COLUMNS])
+                                for k in columns])
             with files[2].open("w", newline="") as fh:
                 w = csv.writer(fh)
                 w.writerow(SAMPLE_COLUMNS)
@@ -459,7 +512,7 @@ def _readme(name: str, studies: list[Any], sessions: list[dict[str, Any]],
         "first sample's `t`).", "",
         "## Trial columns (`_beh.tsv`)", ""]
     lines += [f"- `{k}`: {v['Description']}" + (f" ({v['Units']})" if "Units" in v else "")
-              for k, v in BEH_COLUMNS.items()]
+              for k, v in beh_columns().items()]
     if events:
         lines += ["", "## Secondary-task events (`_events.tsv`)", "",
                   "Under a cognitive load, `beh/*_task-betweentactor_events.tsv` has one row "
@@ -471,7 +524,7 @@ def _readme(name: str, studies: list[Any], sessions: list[dict[str, Any]],
         lines += ["", f"## Workload ratings (`_task-{TLX_TASK}_beh.tsv`)", "",
                   f"`beh/*_task-{TLX_TASK}_beh.tsv` has one row per test block rated with the "
                   "raw NASA-TLX after it:", ""]
-        lines += [f"- `{k}`: {v['Description']}" for k, v in TLX_COLUMNS.items()]
+        lines += [f"- `{k}`: {v['Description']}" for k, v in tlx_columns().items()]
     lines += ["", f"## Cursor samples (`_recording-{RECORDING}_physio.tsv.gz`)", ""]
     lines += [f"- `{k}`: {v['Description']}" + (f" ({v['Units']})" if "Units" in v else "")
               for k, v in CURSOR_COLUMNS.items()]
@@ -552,7 +605,8 @@ def _tlx_rows(ratings: list[dict[str, Any]], trials: list[dict[str, Any]]) -> li
         known = [v for v in items if v is not None]
         mean = sum(known) / len(known) if len(known) == len(items) else None
         rows.append([b, t.get("block_name"), t.get("condition"), t.get("n_targets"),
-                     t.get("load"), *[None if v is None else f"{v:g}" for v in items],
+                     t.get("load"), *(t.get(f.column) for f in added_factors()),
+                     *[None if v is None else f"{v:g}" for v in items],
                      None if mean is None else f"{mean:.6g}"])
     return rows
 
@@ -635,9 +689,10 @@ def export_bids(db: str | Path, out: str | Path, *, readme: str | Path | None = 
             (base / "beh").mkdir(parents=True, exist_ok=True)
             trials = [_with_cell(t, s) for t in store.trials(s["session_id"])]
             beh = base / "beh" / f"{stem}_beh.tsv"
-            cols = list(BEH_COLUMNS)
+            beh_cols = beh_columns()
+            cols = list(beh_cols)
             _write_tsv(beh, cols, [[_beh_value(t, k) for k in cols] for t in trials])
-            sidecar: dict[str, Any] = dict(BEH_COLUMNS)
+            sidecar: dict[str, Any] = dict(beh_cols)
             sidecar["TaskName"] = TASK
             sidecar["StimulusSystem"] = _stimulus_system(s)
             sidecar["tactorbelt"] = {
@@ -765,13 +820,14 @@ def _task_files(store: Store, s: dict[str, Any], trials: list[dict[str, Any]], b
     rows = _tlx_rows(store.ratings(s["session_id"]), trials)
     if rows:
         tp = beh / f"sub-{lab}_ses-{s['session_number']}_task-{TLX_TASK}_beh.tsv"
-        _write_tsv(tp, list(TLX_COLUMNS), rows)
+        tlx_cols = tlx_columns()
+        _write_tsv(tp, list(tlx_cols), rows)
         tj = tp.with_suffix(".json")
         tj.write_text(json.dumps({
             "TaskName": TLX_TASK,
             "TaskDescription": "Raw NASA Task Load Index (NASA-TLX): six workload items "
                                "rated on 0-100 sliders after each test block of the "
                                f"{TASK} task.",
-            **TLX_COLUMNS}, indent=2) + "\n")
+            **tlx_cols}, indent=2) + "\n")
         written += [tp, tj]
     return written
