@@ -21,11 +21,6 @@ __all__ = ["EXPORT_FORMATS", "export"]
 
 EXPORT_FORMATS = ("csv", "bids", "parquet", "tidy", "psychopy")
 
-#: What the legacy BIDS validator (1.x) says of every headerless motion file.
-MOTION_NOTE = ("note: bids-validator 1.x warns CUSTOM_COLUMN_WITHOUT_DESCRIPTION on the "
-               "_motion.tsv files: it reads their first data row as a header, but BIDS motion "
-               "files have none (their columns are the rows of _channels.tsv; "
-               "bids-standard/legacy-validator#1627); every other column is described")
 
 
 @click.command("export")
@@ -35,7 +30,8 @@ MOTION_NOTE = ("note: bids-validator 1.x warns CUSTOM_COLUMN_WITHOUT_DESCRIPTION
 @output_option("directory", "New or empty directory for the files.")
 @click.option("--format", "fmt", type=click.Choice(EXPORT_FORMATS), default="csv",
               show_default=True,
-              help="csv: the store's tables as CSV; bids: a BIDS dataset (beh + motion); "
+              help="csv: the store's tables as CSV; bids: a BIDS dataset (beh, the cursor "
+                   "as a physio recording); "
                    "parquet: the same tables as Parquet; tidy: one trial table for R (lme4) "
                    "and JASP, with its codebook; psychopy: PsychoPy's wide CSV, one file per "
                    "session.")
@@ -100,10 +96,9 @@ def _bids_notes(out: Path, files: list[Path], names: list[str] | None,
                    "[\"A\", \"B\"] in the study file", err=True)
     if readme is None:
         click.echo("  README.md: generated from the study file (--readme FILE for your own)")
-    kinds = {"events": "_events.tsv", "ratings": "_task-nasatlx_beh.tsv"}
+    kinds = {"cursor": "_recording-cursor_physio.tsv.gz", "events": "_events.tsv",
+             "ratings": "_task-nasatlx_beh.tsv"}
     for what, suffix in kinds.items():
         n = sum(1 for f in files if f.name.endswith(suffix))
         if n:
             click.echo(f"  {what}: {n} file(s) *{suffix}")
-    if any(f.name.endswith("_motion.tsv") for f in files):
-        click.echo(MOTION_NOTE, err=True)
