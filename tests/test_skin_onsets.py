@@ -301,3 +301,20 @@ def test_run_with_calibration_stores_skin_onsets_and_resume_reuses_the_file(
     bad = tactorbelt("run", str(lab["study"]), "-p", "P10", "--headless", "--db", str(db),
                      "--calibration", str(tmp / "missing.toml"))
     assert bad.returncode == 2 and "missing.toml" in bad.stderr
+
+
+def test_the_csv_and_parquet_trials_carry_the_onsets(lab: dict[str, Any]) -> None:
+    from tactorbelt.experiment.export_formats import read_table
+
+    stored = {t["trial_index"]: t for t in _trials(lab["skin"])}
+    for fmt in ("csv", "parquet"):
+        out = lab["tmp"] / f"onsets-{fmt}"
+        proc = tactorbelt("export", str(lab["skin"]), "--format", fmt, "-o", str(out))
+        assert proc.returncode == 0, proc.stderr
+        df = read_table(out / f"trials.{fmt}")
+        for col in ("skin_onset_ns", "skin_onset_sd_ns", "device_onset_ns",
+                    "onset_uncertainty_ns"):
+            assert col in df.columns
+        for r in df.to_dict("records"):
+            assert r["skin_onset_ns"] == stored[r["trial_index"]]["skin_onset_ns"]
+            assert r["skin_onset_sd_ns"] == stored[r["trial_index"]]["skin_onset_sd_ns"]

@@ -86,7 +86,8 @@ TRIAL_COLUMNS = [
     "block_index", "block_name", "condition", "repetition", "target_deg", "on_tactor",
     "response_deg", "response_target_deg", "correct", "rt_s", "onset_ns", "acquired_ns",
     "crossed_ns", "stimulus_off_ns", "n_samples", "status", "abort_reason", "attempts",
-    "n_targets", "load",
+    "n_targets", "load", "device_onset_ns", "onset_uncertainty_ns", "skin_onset_ns",
+    "skin_onset_sd_ns",
 ]
 SAMPLE_COLUMNS = ["participant", "session_id", "trial_index", "t_s", "x", "y", "buttons"]
 TASK_EVENT_CSV_COLUMNS = [

@@ -75,6 +75,8 @@ DTYPES: dict[str, dict[str, str]] = {
         "rt_s": _FLOAT, "onset_ns": _INT, "acquired_ns": _INT, "crossed_ns": _INT,
         "stimulus_off_ns": _INT, "n_samples": _INT, "status": _STR, "abort_reason": _STR,
         "attempts": _INT, TARGETS.column: _INT, LOAD.column: _STR,
+        "device_onset_ns": _INT, "onset_uncertainty_ns": _INT, "skin_onset_ns": _INT,
+        "skin_onset_sd_ns": _INT,
     },
     "samples": {
         "participant": _STR, "session_id": _INT, "trial_index": _INT, "t_s": _FLOAT,
