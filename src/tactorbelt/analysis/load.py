@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Final
 
 from .._errors import StoreError
+from ..factors import added_factors
 from .dataset import StoreData
 
 if TYPE_CHECKING:
@@ -48,6 +49,12 @@ OPTIONAL_SESSION_COLUMNS: Final = ("input", "site")
 #: Optional trial columns (schema 2, factorial designs) read when present; trials of
 #: older stores get their session's study's target count and load ``none``.
 OPTIONAL_TRIAL_COLUMNS: Final = ("n_targets", "load", "block_index")
+
+
+def optional_trial_columns() -> tuple[str, ...]:
+    """:data:`OPTIONAL_TRIAL_COLUMNS`, then the column of each factor declared beyond
+    the built-in ones (:mod:`tactorbelt.factors`; a store from before it lacks it)."""
+    return (*OPTIONAL_TRIAL_COLUMNS, *(f.column for f in added_factors()))
 #: The trial's onset at the skin (the stored onset plus the measured latency of the
 #: tactors that start the stimulus) and its spread, read when present; loaded as
 #: ``skin_offset_s`` (``(skin_onset_ns - onset_ns) / 1e9``, from the exact integer
@@ -106,7 +113,7 @@ def _read_store(path: Path | str, store_index: int, include_running: bool = Fals
         sess_cols = list(REQUIRED_COLUMNS["sessions"]) + [
             c for c in OPTIONAL_SESSION_COLUMNS if c in cols["sessions"]]
         trial_cols = list(REQUIRED_COLUMNS["trials"]) + [
-            c for c in OPTIONAL_TRIAL_COLUMNS if c in cols["trials"]]
+            c for c in optional_trial_columns() if c in cols["trials"]]
         skin = all(c in cols["trials"] for c in SKIN_ONSET_COLUMNS)
         read_cols = trial_cols + (list(SKIN_ONSET_COLUMNS) if skin else [])
         sessions = pd.DataFrame.from_records(store.read_table("sessions", sess_cols),

@@ -25,6 +25,7 @@ from typing import TYPE_CHECKING, Any, Final
 
 import numpy as np
 
+from ..factors import CONDITION, LOAD, TARGETS, added_factors, factor
 from ._json import finite_json as _finite_json
 from .classical import TestResult, _not_computed, _num
 from .lrt import DEFAULT_PB_SIMS
@@ -43,6 +44,7 @@ __all__ = [
     "PB_MAX_PARTICIPANTS",
     "TIMEOUT_NOTE_SHARE",
     "condition_tests",
+    "design_factors",
     "fit_model",
     "headline_method",
     "mixed_model",
@@ -55,8 +57,22 @@ __all__ = [
 ]
 
 Z95: Final = 1.959963984540054
-#: The trials-table columns of the fixed part, in this order (those that vary, crossed).
-DESIGN_FACTORS: Final = ("condition", "on_tactor", "n_targets", "load")
+#: The trials-table columns of the fixed part, in this order (those that vary, crossed):
+#: the built-in factors (:mod:`tactorbelt.factors`), with ``on_tactor`` (a property of
+#: the target) after the condition; :func:`design_factors` adds the declared ones.
+DESIGN_FACTORS: Final = (CONDITION.column, "on_tactor", TARGETS.column, LOAD.column)
+
+
+def design_factors() -> tuple[str, ...]:
+    """:data:`DESIGN_FACTORS`, then the column of each factor declared beyond the
+    built-in ones."""
+    return (*DESIGN_FACTORS, *(f.column for f in added_factors()))
+
+
+def _term(column: str) -> str:
+    """A design column's term in the formula (a factor's as declared: the target count
+    is ``factor(n_targets)``, no straight line in log-odds across counts)."""
+    return column if column == "on_tactor" else factor(column).model_term
 #: A cell with more timeouts than this share gets a note beside the RT model.
 TIMEOUT_NOTE_SHARE: Final = 0.05
 ENGINES: Final = ("tactorbelt", "lme4")
@@ -68,8 +84,9 @@ def model_frame(tr: pd.DataFrame) -> pd.DataFrame:
 
     ``correct`` 0/1 (timeouts 0), ``condition`` text, ``on_tactor`` 0/1 integer (so
     lme4 names its coefficient ``on_tactor``, not ``on_tactorTRUE``), ``n_targets`` and
-    ``load`` when present, ``participant`` text, ``target`` (``target_deg`` as text, a
-    factor), ``rt_s`` (NaN for timeouts) and ``status``.
+    ``load`` when present (and each declared factor's column), ``participant`` text,
+    ``target`` (``target_deg`` as text, a factor), ``rt_s`` (NaN for timeouts) and
+    ``status``.
     """
     import pandas as pd
 
@@ -87,6 +104,12 @@ def model_frame(tr: pd.DataFrame) -> pd.DataFrame:
         out["n_targets"] = pd.to_numeric(c["n_targets"], errors="coerce").to_numpy()
     if "load" in c:
         out["load"] = c["load"].astype("string").fillna("none").astype(str).to_numpy()
+    for f in added_factors():
+        if f.column in c:
+            col = c[f.column]
+            out[f.column] = (pd.to_numeric(col, errors="coerce").to_numpy() if f.type == "int"
+                             else col.astype("string").fillna(str(f.default)).astype(str)
+                             .to_numpy())
     return out
 
 
@@ -94,7 +117,7 @@ def model_spec(frame: pd.DataFrame, response: str = "correct",
                transform: str | None = None) -> tuple[Any, list[str]]:
     """The maximal model the data support, and notes on what was left out.
 
-    Fixed: every :data:`DESIGN_FACTORS` column that varies, fully crossed. Random: a
+    Fixed: every :func:`design_factors` column that varies, fully crossed. Random: a
     per-participant intercept and condition slope (from 2 participants; the slope only
     when some participant has both conditions) and a per-target intercept (from 2
     targets).
@@ -103,12 +126,11 @@ def model_spec(frame: pd.DataFrame, response: str = "correct",
 
     notes: list[str] = []
     fixed = []
-    for col in DESIGN_FACTORS:
+    for col in design_factors():
         if col not in frame:
             continue
         if frame[col].nunique(dropna=True) > 1:
-            # the target count is a factor: no straight line in log-odds across counts
-            fixed.append("factor(n_targets)" if col == "n_targets" else col)
+            fixed.append(_term(col))
         elif col == "on_tactor":
             notes.append("on_tactor left out of the model: all targets are of one kind")
     random = []
