@@ -155,6 +155,9 @@ def test_the_analysis_models_it(store: Path, tmp_path: Path) -> None:
     cells = {(c["condition"], c["posture"]): c for c in summary["cells"]}
     assert set(cells) == {(c, p) for c in ("static", "dynamic") for p in ("sitting", "standing")}
     assert all(c["n"] == len(PARTICIPANTS) * 6 * 3 for c in cells.values())
+    report = (tmp_path / "report.html").read_text()
+    assert "Results by cell (condition x targets x load x posture)" in report
+    assert (tmp_path / "resolution.png").exists()
 
 
 def test_lme4_fits_the_same_model(store: Path, tmp_path: Path) -> None:

@@ -221,11 +221,14 @@ def cell_summary(trials: pd.DataFrame, n_targets: int | None = None, *, seed: in
 
 
 def is_factorial(cells: pd.DataFrame | None) -> bool:
-    """True when the cells span more than one target count or a load other than ``none``
-    (the report then shows the per-cell section and figures)."""
+    """True when the cells span more than one target count, a load other than ``none``
+    or several levels of a declared factor (the report then shows the per-cell section
+    and figures)."""
     if cells is None or cells.empty:
         return False
-    return bool(cells["n_targets"].nunique() > 1 or (cells["load"] != "none").any())
+    added = [f.column for f in added_factors() if f.column in cells]
+    return bool(cells["n_targets"].nunique() > 1 or (cells["load"] != "none").any()
+                or any(cells[k].nunique() > 1 for k in added))
 
 
 def _level(v: Any) -> Any:

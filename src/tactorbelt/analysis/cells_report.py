@@ -16,6 +16,7 @@ import math
 import re
 from typing import TYPE_CHECKING, Any, Final
 
+from ..factors import added_factors
 from ._format import number as _fmt
 from ._format import percent as _pct
 from .cells import IT_N_BOOT, is_factorial
@@ -55,7 +56,8 @@ def cells_section(summary: Summary, figures: dict[str, bytes]) -> str:
         return ""
     assert cells is not None
     e = html.escape
-    head = ["condition", "targets", "load", "participants", "n trials", "accuracy",
+    added = [f.column for f in added_factors() if f.column in cells]
+    head = ["condition", "targets", "load", *added, "participants", "n trials", "accuracy",
             "information transfer, bits [95 % CI]", "median RT (s)", "mean |error| (°)",
             "on-tactor accuracy", "between-tactor accuracy"]
     rows = []
@@ -64,7 +66,8 @@ def cells_section(summary: Summary, figures: dict[str, bytes]) -> str:
         if math.isfinite(float(r["it_bits_ci_low"])):
             it += f" [{_fmt(r['it_bits_ci_low'])}, {_fmt(r['it_bits_ci_high'])}]"
         rows.append([e(str(r["condition"])), str(int(r["n_targets"])), e(str(r["load"])),
-                     str(int(r["n_participants"])), str(int(r["n"])), _pct(r["accuracy"]),
+                     *(e(str(r[k])) for k in added), str(int(r["n_participants"])),
+                     str(int(r["n"])), _pct(r["accuracy"]),
                      it, _fmt(r["median_rt_s"]), _fmt(r["mean_abs_error_deg"]),
                      _pct(r["accuracy_on_tactor"]) + f" ({int(r['n_on_tactor'])})",
                      _pct(r["accuracy_between_tactor"])
@@ -73,7 +76,8 @@ def cells_section(summary: Summary, figures: dict[str, bytes]) -> str:
              + "</tr></thead><tbody>"
              + "".join("<tr>" + "".join(f"<td>{c}</td>" for c in row) + "</tr>"
                        for row in rows) + "</tbody></table>")
-    parts = ["<h2>Results by cell (condition x targets x load)</h2>", table,
+    parts = [f"<h2>Results by cell ({' x '.join(['condition', 'targets', 'load', *added])})"
+             "</h2>", table,
              "<p><small>Accuracy, RT and error pool the cell's trials. Information "
              "transfer is the mean over participants of each one's estimate from their "
              "confusion matrix of the cell: the mutual information between target and "

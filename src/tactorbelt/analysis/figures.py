@@ -30,6 +30,7 @@ from typing import TYPE_CHECKING, Any, Final
 
 import numpy as np
 
+from ..factors import added_factors
 from ..laws import amplitudes
 from .cells import is_factorial
 from .plot_style import (
@@ -391,6 +392,18 @@ def paired_figure(per_participant: pd.DataFrame) -> bytes:
 LOAD_STYLES: Final = ("-", ":", "-.", (0, (5, 1)), (0, (3, 1, 1, 1, 1, 1)))
 
 
+def _with_variant(frame: pd.DataFrame) -> pd.DataFrame:
+    """``frame`` with ``_variant``: what besides the condition and the target count
+    tells its cells apart (``load nback2``, ``load none, posture standing``: the columns
+    that vary)."""
+    keys = ["load", *(f.column for f in added_factors() if f.column in frame)]
+    keys = [k for k in keys if frame[k].nunique(dropna=False) > 1] or ["load"]
+    out = frame.copy()
+    out["_variant"] = [", ".join(f"{k} {v}" for k, v in zip(keys, row, strict=True))
+                       for row in frame[keys].itertuples(index=False)] if len(frame) else []
+    return out
+
+
 def resolution_figure(participant_cells: pd.DataFrame, cells: pd.DataFrame) -> bytes:
     """Accuracy, information transfer and median RT against the number of targets.
 
@@ -407,9 +420,10 @@ def resolution_figure(participant_cells: pd.DataFrame, cells: pd.DataFrame) -> b
 
     fig = _figure(11.5, 4.2)
     axes = fig.subplots(1, 3)
-    loads = list(dict.fromkeys(cells["load"].tolist())) if len(cells) else ["none"]
+    # a line per condition and variant: the load and the levels of any declared factor
+    cells, pc = _with_variant(cells), _with_variant(participant_cells)
+    loads = list(dict.fromkeys(cells["_variant"].tolist())) if len(cells) else ["none"]
     counts = sorted({int(n) for n in cells["n_targets"].tolist()})
-    pc = participant_cells
     n_part = int(pc["participant"].nunique()) if len(pc) else 0
     specs = (("accuracy", "accuracy"),
              ("it_bits", f"information transfer (bits, {ESTIMATOR})"),
@@ -421,7 +435,7 @@ def resolution_figure(participant_cells: pd.DataFrame, cells: pd.DataFrame) -> b
         _style(ax)
         for cond in CONDITIONS:
             for li, load in enumerate(loads):
-                sel = pc.loc[(pc["condition"] == cond) & (pc["load"] == load)]
+                sel = pc.loc[(pc["condition"] == cond) & (pc["_variant"] == load)]
                 if sel.empty:
                     continue
                 xs: list[float] = []
@@ -432,7 +446,7 @@ def resolution_figure(participant_cells: pd.DataFrame, cells: pd.DataFrame) -> b
                         continue
                     m, h = _mean_ci(v)
                     down, up = h, h
-                    c = cells.loc[(cells["condition"] == cond) & (cells["load"] == load)
+                    c = cells.loc[(cells["condition"] == cond) & (cells["_variant"] == load)
                                   & (cells["n_targets"] == n)]
                     if col == "it_bits" and len(c):
                         m = float(c["it_bits"].iloc[0])
@@ -443,7 +457,7 @@ def resolution_figure(participant_cells: pd.DataFrame, cells: pd.DataFrame) -> b
                     ms.append(m)
                     lo.append(down)
                     hi.append(up)
-                name = cond if len(loads) == 1 else f"{cond}, load {load}"
+                name = cond if len(loads) == 1 else f"{cond}, {load}"
                 ax.errorbar(xs, ms, yerr=[lo, hi], color=COLORS[cond], marker=MARKERS[cond],
                             linestyle=LOAD_STYLES[li % len(LOAD_STYLES)] if len(loads) > 1
                             else LINESTYLES[cond], capsize=3, linewidth=1.5, markersize=5,
