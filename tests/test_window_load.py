@@ -553,6 +553,7 @@ def test_a_glyph_changes_at_the_poll_nearest_its_onset_and_end() -> None:
 
 
 def test_the_overlay_shows_the_running_task_and_its_last_item() -> None:
+    from tactorbelt.gui.screens import overlay_lines
     from tactorbelt.tasks.schedule import TaskItem
 
     study = load_study()
@@ -562,8 +563,8 @@ def test_the_overlay_shows_the_running_task_and_its_last_item() -> None:
         win.on_task_phase("vis", spec, "dual")
         win.on_task_item(TaskItem(0, "K", False), 100 * MS, spec)
         win.on_task_item(TaskItem(1, "K", True), 1000 * MS, spec)
-        lines = win._overlay_lines(500 * MS)
+        lines = overlay_lines(win, 500 * MS)
         assert "task vis (dual): 2 items so far, last item K, response key:j" in lines
-        assert any("last item K (go)" in line for line in win._overlay_lines(1000 * MS))
+        assert any("last item K (go)" in line for line in overlay_lines(win, 1000 * MS))
     finally:
         win.close()

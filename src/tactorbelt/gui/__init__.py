@@ -1,7 +1,8 @@
 """The experiment window (pygame-ce): what the participant sees, and the experimenter's keys.
 
 - :func:`session_window` / :func:`run_with_window` (``gui.window``): open the window for
-  one session and run it in the main thread;
+  one session and run it in the main thread; the window's state machine is
+  ``gui.controller``, what each kind of screen shows ``gui.screens``;
 - :func:`target_positions`, :class:`EllipseGeometry` (``gui.layout``, pure): where
   targets and the cursor are drawn.
 
