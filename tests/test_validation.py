@@ -352,3 +352,17 @@ def test_ctrl_c_during_the_pulses_stops_with_the_motors_off_and_writes_nothing(
     assert proc.returncode == 130, err
     assert "stopped: motors off; nothing written" in err and "error" not in err
     assert not (tmp_path / "out").exists()
+
+
+def test_the_sensor_help_imports_no_numpy() -> None:
+    """``validate onsets --help`` lists the sensors without loading NumPy."""
+    import subprocess
+    import sys
+
+    code = ("import sys\nfrom tactorbelt.cli import main\n"
+            "try:\n    main(['validate', 'onsets', '--help'])\nexcept SystemExit:\n    pass\n"
+            "print('NUMPY' if 'numpy' in sys.modules else 'none')\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True, timeout=60).stdout
+    assert "audio:default?channel=0" in out
+    assert out.strip().endswith("none")

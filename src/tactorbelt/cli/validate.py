@@ -25,7 +25,7 @@ __all__ = ["validate"]
 
 
 def _sense_help() -> str:
-    from ..validation.sensors import sense_url_help
+    from ..validation.registry import sense_url_help
 
     return ("What senses the vibration [default: the belt's own model, for the sim belt]: "
             + sense_url_help() + ". Options: URL?key=value (docs/validation.md).")

@@ -6,20 +6,33 @@ vibration), the 10-90 % rise, the 90-10 % fall and the amplitude against level:
 
 - :mod:`.envelope`: the envelope estimator, crossings, per-pulse and per-tactor
   statistics (pure NumPy);
-- :mod:`.sensors`: the sensor registry (``model``, ``audio:DEVICE?channel=N``, ``board``)
-  and the sensors;
+- :mod:`.registry`: the sensor registry (``model``, ``audio:DEVICE?channel=N``,
+  ``board``), without NumPy; :mod:`.sensors`: the sensors;
 - :mod:`.run`: the procedure (:func:`validate_onsets`) and the command as a function
   (:func:`run_onsets`);
 - :mod:`.figure`: the figure.
 
 The measured latencies go into the belt's calibration file
 (:meth:`tactorbelt.devices.calibration.Calibration.skin_latency` reads them back).
+
+The names below load their module when first used, so that the registry (and the
+command's ``--help``) does not import NumPy.
 """
 
 from __future__ import annotations
 
-from .run import NoPulseError, OnsetSettings, OnsetValidation, run_onsets, validate_onsets
-from .sensors import SENSORS, Sensor, open_sensor
+import importlib
+from typing import Any
 
 __all__ = ["SENSORS", "NoPulseError", "OnsetSettings", "OnsetValidation", "Sensor",
            "open_sensor", "run_onsets", "validate_onsets"]
+
+_WHERE = {"SENSORS": "registry", "NoPulseError": "run", "OnsetSettings": "run",
+          "OnsetValidation": "run", "Sensor": "sensors", "open_sensor": "sensors",
+          "run_onsets": "run", "validate_onsets": "run"}
+
+
+def __getattr__(name: str) -> Any:
+    if name not in _WHERE:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    return getattr(importlib.import_module(f"{__name__}.{_WHERE[name]}"), name)
