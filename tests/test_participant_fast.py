@@ -21,13 +21,15 @@ from tactorbelt.participant import (
     simulate_participant,
     stimulus_cues,
 )
-from tactorbelt.participant.power import binomial_ci, power_row, simulate_studies
 from tactorbelt.participant.simulate import between_accuracy
+from tactorbelt.power.design import PowerDesign
+from tactorbelt.power.outcomes import binomial_ci, power_row
+from tactorbelt.power.simulation import simulate_studies
 
 
 @pytest.fixture(scope="module")
 def protocol() -> Protocol:
-    return Protocol.from_study(paper_study())
+    return PowerDesign.from_study(paper_study()).protocol()
 
 
 @pytest.fixture(scope="module")
@@ -123,7 +125,7 @@ def test_the_fast_exact_signed_rank_p_is_scipys() -> None:
 
     from scipy.stats import wilcoxon
 
-    from tactorbelt.participant.power import exact_signed_rank_p
+    from tactorbelt.power.simulation import exact_signed_rank_p
 
     rng = np.random.default_rng(5)
     checked = 0

@@ -11,7 +11,7 @@ import pytest
 from tactorbelt import ConfigError
 from tactorbelt.experiment.study import paper_study
 from tactorbelt.inputs.model import sim_vibrator
-from tactorbelt.participant import ModelParams, Protocol, simulate_participant, stimulus_cues
+from tactorbelt.participant import ModelParams, simulate_participant, stimulus_cues
 from tactorbelt.participant.load import (
     TLX_ITEMS,
     LoadParams,
@@ -24,6 +24,7 @@ from tactorbelt.participant.load import (
     tlx_ratings,
 )
 from tactorbelt.participant.simulate import between_accuracy
+from tactorbelt.power.design import PowerDesign
 
 
 @dataclass(frozen=True)
@@ -58,7 +59,7 @@ def test_no_load_leaves_the_observer_unchanged() -> None:
 
 
 def test_the_model_localises_worse_and_slower_under_load() -> None:
-    protocol = Protocol.from_study(paper_study())
+    protocol = PowerDesign.from_study(paper_study()).protocol()
     base = ModelParams()
     cues = stimulus_cues(protocol, sim_vibrator(protocol.layout), base)
     alone = simulate_participant(protocol, cues, base, np.random.default_rng(1))
@@ -173,16 +174,12 @@ def test_load_params_are_checked() -> None:
 
 def test_the_fast_path_draws_loaded_blocks_with_the_loaded_observer() -> None:
     from tactorbelt.experiment.study import Study, template_toml
-    from tactorbelt.participant.factorial import (
-        FactorialProtocol,
-        factorial_cues,
-        simulate_factorial_participant,
-    )
+    from tactorbelt.participant.factorial import factorial_cues, simulate_factorial_participant
 
     study = Study.from_toml(template_toml("load").replace(
         "repetitions = 2                # every", "repetitions = 6                # every"),
         path="load.toml")
-    fp = FactorialProtocol.from_study(study)
+    fp = PowerDesign.from_study(study).factorial()
     assert fp.load_levels == ((0.0, load_level(Spec("nback", 2)), 0.0,
                                load_level(Spec("nback", 2))),)
     base = ModelParams().for_period(fp.period_s)
@@ -193,7 +190,7 @@ def test_the_fast_path_draws_loaded_blocks_with_the_loaded_observer() -> None:
     # blocks in canonical order: static-none, static-nback2, dynamic-none, dynamic-nback2
     assert blocks[1] < blocks[0] and blocks[3] < blocks[2]
     # a study without a load draws exactly as before loads existed
-    plain = FactorialProtocol.from_study(paper_study())
+    plain = PowerDesign.from_study(paper_study()).factorial()
     assert plain.load_levels == ()
 
 
@@ -215,11 +212,7 @@ def test_fast_path_agrees_with_the_full_runner_under_load(tmp_path) -> None:  # 
     from tactorbelt.experiment.store import open_store
     from tactorbelt.experiment.study import Study, template_toml
     from tactorbelt.inputs.model import make_model_cursor
-    from tactorbelt.participant.factorial import (
-        FactorialProtocol,
-        factorial_cues,
-        simulate_factorial_participant,
-    )
+    from tactorbelt.participant.factorial import factorial_cues, simulate_factorial_participant
 
     text = template_toml("load").replace(
         "repetitions = 2                # every", "repetitions = 4  # every").replace(
@@ -234,7 +227,7 @@ def test_fast_path_agrees_with_the_full_runner_under_load(tmp_path) -> None:  # 
                 run_session(study, f"model-{i + 1:02d}", belt, cursor, store, clock, seed=1,
                             study_toml=text, input_name="model")
         rows = [r for r in store.trials() if r["block"] == "test"]
-    fp = FactorialProtocol.from_study(study)
+    fp = PowerDesign.from_study(study).factorial()
     cues = factorial_cues(fp, sim_vibrator(study.layout_obj()), base)
     rng = np.random.default_rng(8)
     tables = [simulate_factorial_participant(fp, cues, base, rng)[24] for _ in range(30)]

@@ -16,16 +16,16 @@ import pytest
 
 from support.cli import tactorbelt
 from tactorbelt._errors import ConfigError
-from tactorbelt.analysis.power_model import (
+from tactorbelt.analysis.stats import fit_model
+from tactorbelt.experiment.study import Study, paper_study, template_toml
+from tactorbelt.power.design import TrialDesign
+from tactorbelt.power.glmm import (
     NamedEffect,
-    TrialDesign,
     headline_coefficient,
     headline_statistics,
     simulate_frame,
     simulate_glmm_studies,
 )
-from tactorbelt.analysis.stats import fit_model
-from tactorbelt.experiment.study import Study, paper_study, template_toml
 
 
 def test_the_paper_design_is_its_test_trials() -> None:

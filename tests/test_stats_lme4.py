@@ -185,8 +185,9 @@ def _resolution_frame(participants: int = 6, odds_ratio: float = 1.3,
     from the report's GLMM with a small condition effect (seed 7: glmer converges
     without a warning; with seed 5 it stops at max|grad| 0.004 and its estimates differ
     from the optimum, ours, by up to 1.3e-3)."""
-    from tactorbelt.analysis.power_model import NamedEffect, TrialDesign, simulate_frame
     from tactorbelt.experiment.study import Study, template_toml
+    from tactorbelt.power.design import TrialDesign
+    from tactorbelt.power.glmm import NamedEffect, simulate_frame
 
     design = TrialDesign.from_study(Study.from_toml(template_toml("resolution")),
                                     all_counts=True)
@@ -282,9 +283,10 @@ def test_parametric_bootstrap_agrees_with_pbkrtest() -> None:
 
     from tactorbelt.analysis.lme4 import condition_tests_lme4
     from tactorbelt.analysis.lrt import null_spec, parametric_bootstrap
-    from tactorbelt.analysis.power_model import NamedEffect, TrialDesign, simulate_frame
     from tactorbelt.analysis.stats import fit_model
     from tactorbelt.experiment.study import paper_study
+    from tactorbelt.power.design import TrialDesign
+    from tactorbelt.power.glmm import NamedEffect, simulate_frame
 
     frame = simulate_frame(TrialDesign.from_study(paper_study()), NamedEffect(1.4), 4,
                            np.random.default_rng([7, 4]))

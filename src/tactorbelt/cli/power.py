@@ -1,6 +1,6 @@
 """``tactorbelt power``: plan a study's size by simulating it with model participants.
 
-Parse the options, call one library function (:func:`tactorbelt.app.demo.run_power_study`),
+Parse the options, call one library function (:func:`tactorbelt.power.study.run_power_study`),
 print the result.
 
 Imports click at import time; NumPy, the simulation, matplotlib and rich only when the
@@ -106,12 +106,12 @@ def power(sizes_text: str, sims: int, out: Path, seed: int, jobs: int | None,
     from rich.console import Console
     from rich.table import Table
 
-    from ..app.demo import run_power_study
     from ..experiment.study import load_study, paper_study
+    from ..power.study import run_power_study
 
     named = None
     if odds_ratio is not None:
-        from ..analysis.power_model import NamedEffect
+        from ..power.glmm import NamedEffect
 
         named = NamedEffect(odds_ratio, accuracy, on_tactor_accuracy, participant_sd,
                             slope_sd, target_sd)

@@ -9,11 +9,13 @@ assumptions documented in :class:`ModelParams` and docs/participant-model.md.
   felt direction and answer), :func:`perceive_vibration`;
 - :mod:`.timing`: observation and decision times, the minimum-jerk profile;
 - :mod:`.simulate`: the fast path (test trials without the runner);
-- :mod:`.power`: power analysis by simulation.
+- :mod:`.factorial`: the fast path of a study with several target counts or loads;
+- :mod:`.load`: the model under a secondary task (the task, the NASA-TLX).
 
-The cursor source that runs it in a session is :func:`tactorbelt.inputs.model.make_model_cursor`.
+The cursor source that runs it in a session is :func:`tactorbelt.inputs.model.make_model_cursor`;
+the power analyses that simulate it are :mod:`tactorbelt.power`.
 
-Pure: NumPy only (SciPy inside power's confidence interval); never an I/O layer.
+Pure: NumPy only; never an I/O layer.
 """
 
 from __future__ import annotations

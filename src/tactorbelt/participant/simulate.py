@@ -57,7 +57,8 @@ CUE_FIELDS = ("gamma", "detect_amplitude", "dominance_margin", "observe_static_s
 
 @dataclass(frozen=True)
 class Protocol:
-    """What the fast path needs of a study.
+    """What the fast path needs of a study with one target count (a study's comes from
+    its power design: :meth:`tactorbelt.power.design.PowerDesign.protocol`).
 
     Attributes:
         layout, targets: the tactors and the candidate targets.
@@ -74,22 +75,6 @@ class Protocol:
     transit_s: float
     blocks: tuple[tuple[str, int], ...]
     threshold: float = 0.9
-
-    @classmethod
-    def from_study(cls, study: Any) -> Protocol:
-        """From a :class:`~tactorbelt.experiment.study.Study` (read by attribute) whose
-        test blocks share one target count (several: use
-        :class:`tactorbelt.participant.factorial.FactorialProtocol`)."""
-        counts = study.target_counts()
-        if len(counts) != 1:
-            raise ConfigError(f"the study's test blocks have {len(counts)} target counts "
-                              f"({', '.join(map(str, counts))}); simulate it with "
-                              "FactorialProtocol.from_study")
-        s = study.stimulus
-        return cls(study.layout_obj(), TargetSet.even(counts[0]), s.law, float(s.falloff_deg),
-                   float(s.period_s), float(s.transit_s),
-                   tuple((b.condition, int(b.repetitions)) for b in study.test),
-                   float(study.response.threshold))
 
     @property
     def conditions(self) -> tuple[str, ...]:

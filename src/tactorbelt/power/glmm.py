@@ -1,20 +1,20 @@
-"""Power of the report's headline test for effect sizes the user names.
+"""GLMM power for effect sizes the user names (``tactorbelt power --odds-ratio``).
 
-``tactorbelt power --odds-ratio OR`` answers "how many participants does my study need
-for the report's accuracy model to find an odds ratio of OR?". Each simulated study
-draws its trials from that model, the binomial GLMM of
-:func:`tactorbelt.analysis.stats.mixed_model`::
+It answers "how many participants does my study need for the report's accuracy model to
+find an odds ratio of OR?". Each simulated study draws its trials from that model, the
+binomial GLMM of :func:`tactorbelt.analysis.stats.mixed_model`::
 
     logit P(correct) = b0 + b_cond [dynamic, between-tactor] + b_on [on a tactor]
                        + u_participant + v_participant [dynamic] + w_target
 
-with the effect sizes the user names: the static between-tactor accuracy
-(``accuracy``), the dynamic-over-static odds ratio at between-tactor targets
+with the effect sizes the user names (:class:`NamedEffect`): the static between-tactor
+accuracy (``accuracy``), the dynamic-over-static odds ratio at between-tactor targets
 (``odds_ratio``; on-tactor targets are static in both conditions, so the condition has
 no effect there), the on-tactor accuracy, and the SDs of the participant intercept,
 the participant's condition slope and the target intercept (log-odds). The trials are
-the study's test trials (its blocks, target counts and repetitions). Each simulated
-study is then analysed by the very functions the report uses
+the study's test trials (its blocks, target counts and repetitions:
+:meth:`~tactorbelt.power.design.PowerDesign.trials`). Each simulated study is then
+analysed by the very functions the report uses
 (:func:`tactorbelt.analysis.stats.fit_model`: the same formula, the same singular-fit
 simplification rule, the same Laplace fit; and the same model without the condition
 terms) with the report's headline test (:func:`tactorbelt.analysis.stats.headline_method`):
@@ -30,7 +30,7 @@ simulation-based power for a GLMM (Green & MacLeod 2016, simr).
 Each simulated study draws from its own generator, seeded by ``(seed, N, index)``, so
 results do not depend on how the work is split across processes.
 
-Pure apart from NumPy, pandas and the analysis (no I/O).
+Pure apart from the process pool: NumPy, pandas and the analysis (inside the functions).
 """
 
 from __future__ import annotations
@@ -39,18 +39,19 @@ import math
 import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .._errors import ConfigError
+from .design import PowerDesign, TrialDesign
+from .outcomes import PowerRow, StudyOutcome
+from .pool import chunks, run_sizes
 
 if TYPE_CHECKING:
     import pandas as pd
 
-    from ..participant.power import StudyOutcome
-
-__all__ = ["HeadlineResult", "NamedEffect", "TrialDesign", "headline_coefficient",
+__all__ = ["HEADLINE", "HeadlineResult", "NamedEffect", "TrialDesign", "headline_coefficient",
            "headline_statistics", "named_power", "simulate_frame", "simulate_glmm_studies"]
 
 #: the coefficient the report's headline test is about (static minus dynamic, log-odds,
@@ -124,104 +125,35 @@ class NamedEffect:
                 "conditionstatic": self.headline}
 
 
-@dataclass(frozen=True)
-class TrialDesign:
-    """One participant's counted test trials: condition, target and kind per trial."""
-
-    condition: np.ndarray
-    target_deg: np.ndarray
-    on_tactor: np.ndarray
-    n_targets: int
-    #: the target count of each trial, when the design has several (the model then
-    #: has ``factor(n_targets)``); None: one count, ``n_targets``
-    counts: np.ndarray | None = None
-
-    @classmethod
-    def from_study(cls, study: Any, n_targets: int | None = None, *,
-                   all_counts: bool = False) -> TrialDesign:
-        """The test trials of a study (read by attribute), or of its ``n_targets`` blocks.
-
-        Args:
-            all_counts: every test block, whatever its target count (``n_targets`` is
-                then the first count; ``counts`` holds each trial's).
-
-        Raises:
-            ConfigError: several target counts and none chosen; a count it lacks; no
-                static or no dynamic block.
-        """
-        from ..geometry import TargetSet
-
-        counts = list(study.target_counts())
-        if all_counts and len(counts) > 1:
-            parts = [cls.from_study(study, c) for c in counts]
-            return cls(np.concatenate([p.condition for p in parts]),
-                       np.concatenate([p.target_deg for p in parts]),
-                       np.concatenate([p.on_tactor for p in parts]), int(counts[0]),
-                       np.concatenate([np.full(p.n, p.n_targets) for p in parts]))
-        if n_targets is None:
-            if len(counts) != 1:
-                raise ConfigError(
-                    "the study has several target counts (" + ", ".join(map(str, counts))
-                    + "): name the one to plan for with --effect 'dynamic vs static at N' "
-                    "(the report's model has a condition effect per target count, "
-                    "summary.json 'contrasts'; one odds ratio names one of them)")
-            n_targets = counts[0]
-        if n_targets not in counts:
-            raise ConfigError(f"the study has no blocks of {n_targets} targets "
-                              f"(it has {', '.join(map(str, counts))})")
-        layout = study.layout_obj()
-        targets = TargetSet.even(n_targets)
-        on = targets.on_tactor(layout)
-        cond: list[np.ndarray] = []
-        deg: list[np.ndarray] = []
-        kind: list[np.ndarray] = []
-        for b in study.test:
-            if study.block_n_targets(b) != n_targets:
-                continue
-            idx = np.tile(np.arange(targets.m), int(b.repetitions))
-            cond.append(np.full(idx.size, b.condition))
-            deg.append(targets.angles[idx])
-            kind.append(on[idx])
-        c = np.concatenate(cond)
-        if not {"static", "dynamic"} <= set(c.tolist()):
-            raise ConfigError("the model-based power analysis needs static and dynamic test "
-                              f"blocks of {n_targets} targets")
-        return cls(c, np.concatenate(deg), np.concatenate(kind), int(n_targets))
-
-    @property
-    def n(self) -> int:
-        return int(self.condition.size)
-
-
-def simulate_frame(design: TrialDesign, effect: NamedEffect, n_participants: int,
+def simulate_frame(trials: TrialDesign, effect: NamedEffect, n_participants: int,
                    rng: np.random.Generator) -> pd.DataFrame:
     """One simulated study's counted trials in :func:`~tactorbelt.analysis.stats.model_frame`'s
     columns (every trial answered; ``rt_s`` is not simulated)."""
     import pandas as pd
 
-    t_levels, t_index = np.unique(design.target_deg, return_inverse=True)
+    t_levels, t_index = np.unique(trials.target_deg, return_inverse=True)
     w = rng.normal(0.0, effect.target_sd, t_levels.size)
     u = rng.normal(0.0, effect.participant_sd, n_participants)
     v = rng.normal(0.0, effect.slope_sd, n_participants)
-    dyn = (design.condition == "dynamic").astype(float)
-    on = design.on_tactor.astype(bool)
+    dyn = (trials.condition == "dynamic").astype(float)
+    on = trials.on_tactor.astype(bool)
     fixed = np.where(on, _logit(effect.on_tactor_accuracy),
                      _logit(effect.accuracy) + dyn * math.log(effect.odds_ratio))
     eta = (fixed[None, :] + u[:, None] + v[:, None] * dyn[None, :]
            + w[t_index][None, :])
     correct = rng.random(eta.shape) < 1.0 / (1.0 + np.exp(-eta))
-    n = design.n
+    n = trials.n
     frame = pd.DataFrame({
         "correct": correct.ravel().astype(int),
-        "condition": np.tile(design.condition, n_participants),
+        "condition": np.tile(trials.condition, n_participants),
         "on_tactor": np.tile(on.astype(int), n_participants),
         "participant": np.repeat([f"p{j:03d}" for j in range(n_participants)], n),
-        "target": np.tile([f"{d:g}" for d in design.target_deg], n_participants),
+        "target": np.tile([f"{d:g}" for d in trials.target_deg], n_participants),
         "rt_s": np.nan,
         "status": "done",
     })
-    if design.counts is not None:
-        frame["n_targets"] = np.tile(design.counts, n_participants)
+    if trials.counts is not None:
+        frame["n_targets"] = np.tile(trials.counts, n_participants)
     return frame
 
 
@@ -252,9 +184,9 @@ def headline_statistics(frame: pd.DataFrame) -> HeadlineResult:
     """Fit the report's accuracy model (:func:`~tactorbelt.analysis.stats.fit_model`)
     and its null model on ``frame``: the effect and the likelihood ratio (NaN when it
     cannot be fitted)."""
-    from .glmm import fit_glmm
-    from .lrt import likelihood_ratio, null_spec
-    from .stats import _average_contrast, fit_model
+    from ..analysis.glmm import fit_glmm
+    from ..analysis.lrt import likelihood_ratio, null_spec
+    from ..analysis.models import _average_contrast, fit_model
 
     y = frame["correct"].to_numpy()
     if y.min() == y.max():
@@ -278,7 +210,7 @@ def headline_coefficient(frame: pd.DataFrame) -> tuple[float, float]:
     """``(estimate, p)`` of the report's ``conditionstatic`` coefficient on ``frame``, by
     :func:`~tactorbelt.analysis.stats.fit_model` (NaN, NaN when it cannot be fitted):
     the Wald z the report used to head with."""
-    from .stats import fit_model
+    from ..analysis.models import fit_model
 
     y = frame["correct"].to_numpy()
     if y.min() == y.max():
@@ -300,7 +232,7 @@ def _between(frame: pd.DataFrame, condition: str) -> np.ndarray:
     return sel.groupby("participant", sort=True)["correct"].mean().to_numpy(dtype=float)
 
 
-def simulate_glmm_studies(design: TrialDesign, effect: NamedEffect, n_participants: int,
+def simulate_glmm_studies(trials: TrialDesign, effect: NamedEffect, n_participants: int,
                           indices: Sequence[int], seed: int,
                           progress: Callable[[int], None] | None = None) -> list[StudyOutcome]:
     """Simulate and analyse the studies ``indices`` of size ``n_participants``.
@@ -310,8 +242,6 @@ def simulate_glmm_studies(design: TrialDesign, effect: NamedEffect, n_participan
     the report's effect has the named sign (``static_acc``/``dynamic_acc`` are the
     simulated participants' between-tactor accuracies, for the table).
     """
-    from ..participant.power import StudyOutcome
-
     if n_participants < 3:
         raise ConfigError("the report's mixed model needs at least 3 participants; "
                           f"got a study size of {n_participants}")
@@ -319,7 +249,7 @@ def simulate_glmm_studies(design: TrialDesign, effect: NamedEffect, n_participan
     out: list[StudyOutcome] = []
     for i in indices:
         rng = np.random.default_rng([int(seed), int(n_participants), int(i)])
-        frame = simulate_frame(design, effect, n_participants, rng)
+        frame = simulate_frame(trials, effect, n_participants, rng)
         res = headline_statistics(frame)
         ok = math.isfinite(res.estimate) and math.copysign(1.0, res.estimate) == sign
         out.append(StudyOutcome(n_participants, _between(frame, "static"),
@@ -329,50 +259,23 @@ def simulate_glmm_studies(design: TrialDesign, effect: NamedEffect, n_participan
     return out
 
 
-def _chunk(args: tuple[TrialDesign, NamedEffect, int, list[int], int]) -> list[StudyOutcome]:
-    design, effect, n, indices, seed = args
-    return simulate_glmm_studies(design, effect, n, indices, seed)
+def _glmm_chunk(args: tuple[TrialDesign, NamedEffect, int, list[int], int]
+                ) -> list[StudyOutcome]:
+    """Worker: simulate and fit some studies of one size (module level, for processes)."""
+    trials, effect, n, indices, seed = args
+    return simulate_glmm_studies(trials, effect, n, indices, seed)
 
 
-def _run(worker: Callable[[Any], list[Any]], items: list[tuple[int, Any]], jobs: int,
-         advance: Callable[[int], None] | None) -> dict[int, list[Any]]:
-    out: dict[int, list[Any]] = {}
-    if jobs <= 1:
-        for n, item in items:
-            done = worker(item)
-            out.setdefault(n, []).extend(done)
-            if advance is not None:
-                advance(len(done))
-        return out
-    from concurrent.futures import ProcessPoolExecutor, as_completed
-
-    with ProcessPoolExecutor(max_workers=jobs) as pool:
-        futures = {pool.submit(worker, item): n for n, item in items}
-        for fut in as_completed(futures):
-            done = fut.result()
-            out.setdefault(futures[fut], []).extend(done)
-            if advance is not None:
-                advance(len(done))
-    return out
-
-
-def _chunks(sims: int, jobs: int) -> list[list[int]]:
-    chunk = max(1, min(25, math.ceil(sims / max(jobs, 1) / 4)))
-    return [list(range(s, min(s + chunk, sims))) for s in range(0, sims, chunk)]
-
-
-def named_power(design: TrialDesign, effect: NamedEffect, sizes: Sequence[int], sims: int,
+def named_power(design: PowerDesign, effect: NamedEffect, sizes: Sequence[int], sims: int,
                 seed: int, jobs: int = 1, alpha: float = 0.05,
-                advance: Callable[[int], None] | None = None) -> list[Any]:
+                advance: Callable[[int], None] | None = None, *,
+                n_targets: int | None = None) -> list[PowerRow]:
     """Power of the report's headline test for the named effect, one row per size.
 
+    The trials are the design's test trials of ``n_targets`` targets
+    (:meth:`~tactorbelt.power.design.PowerDesign.trials`; None: its one target count).
     Results do not depend on ``jobs``: each simulated study has its own seed.
-
-    Returns:
-        :class:`~tactorbelt.participant.power.PowerRow` per size.
     """
-    from ..participant.power import power_row
-
-    items = [(n, (design, effect, n, idx, seed)) for n in sizes for idx in _chunks(sims, jobs)]
-    results = _run(_chunk, items, jobs, advance)
-    return [power_row(results[n], alpha) for n in sizes]
+    trials = design.trials(n_targets)
+    work = [(n, (trials, effect, n, idx, seed)) for n in sizes for idx in chunks(sims, jobs)]
+    return run_sizes(_glmm_chunk, work, sizes, jobs, alpha, advance)

@@ -1,0 +1,316 @@
+"""Power by simulation with model participants: how often a study of N finds the effect.
+
+For each study size N and each simulated study, N individual model observers are drawn
+(:func:`~tactorbelt.participant.params.draw_participant`), their test trials are
+simulated on the fast path (:mod:`tactorbelt.participant.simulate`; a factorial design
+block by block, :mod:`tactorbelt.participant.factorial`, under a load with the observer
+localising under that load), and the effect's test is run on their per-participant
+between-tactor accuracies (:mod:`.effects`; the paired test is the analysis' Wilcoxon,
+:func:`analysis_paired_test`). A study *finds the difference* when the test's p-value is
+below alpha and the mean accuracies go the way the model predicts (dynamic above
+static; without a load above under one); an interaction is found either way.
+
+- :func:`run_power`: a design with one target count and no load, dynamic vs static
+  over every test block (the paper's test);
+- :func:`run_factorial_power`: any design and a named :class:`~.effects.Effect`.
+
+Both take the :class:`~.design.PowerDesign`. Each simulated study draws from its own
+generator, seeded by ``(seed, N, index)``, so results do not depend on how the work is
+split across processes.
+
+The power is a property of the model's assumptions (docs/participant-model.md), not of
+people: it says how large a study would need to be *if* people behaved like it.
+
+Pure apart from the process pool: NumPy and participant (SciPy in the tests; the
+analysis' Wilcoxon, the sim belt's vibration and the pool inside the functions).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import replace
+from typing import TYPE_CHECKING
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .._errors import ConfigError
+from ..participant.factorial import FactorialProtocol, simulate_factorial_participant
+from ..participant.params import ModelParams, Spread, draw_participant
+from ..participant.simulate import (
+    Protocol,
+    StimulusCues,
+    TrialTable,
+    between_accuracy,
+    simulate_participant,
+)
+from .effects import Effect
+from .outcomes import PairedTest, PowerRow, StudyOutcome
+from .pool import chunks, run_sizes
+
+if TYPE_CHECKING:
+    from .design import PowerDesign
+
+__all__ = ["analysis_paired_test", "exact_signed_rank_p", "friedman_interaction",
+           "observer", "run_factorial_power", "run_power", "simulate_factorial_studies",
+           "simulate_studies"]
+
+FloatArray = NDArray[np.float64]
+
+
+# -- the test ------------------------------------------------------------------------------
+
+_SIGNS: dict[int, NDArray[np.float64]] = {}
+
+
+def exact_signed_rank_p(diff: NDArray[np.float64]) -> float | None:
+    """Two-sided p of ``scipy.stats.wilcoxon`` on paired differences ``diff`` where SciPy
+    runs its exact permutation test (ties or zeros among at most 13 pairs), by
+    enumerating every sign flip in one matrix product; None where SciPy does something
+    else (no ties and no zeros: its exact distribution; more than 13 pairs: the normal
+    approximation), so the caller asks SciPy.
+
+    SciPy (1.11 and later) flips the signs of all n differences (2**n arrangements,
+    zeros included, which change nothing) and counts arrangements whose signed-rank sum
+    is at most / at least the observed one, within a relative tolerance of 100 machine
+    epsilons; the same counts over the 2**m arrangements of the m non-zero differences
+    give the same proportions. ``tests/test_participant_fast.py`` checks the equality
+    on random paired accuracies.
+    """
+    from scipy.stats import rankdata
+
+    d = np.asarray(diff, dtype=float)
+    n = d.size
+    nz = d[d != 0]
+    m = nz.size
+    if n > 13 or m == 0:
+        return None
+    ranks = rankdata(np.abs(nz), method="average")
+    if m == n and np.unique(ranks).size == m:
+        return None  # no ties, no zeros: SciPy's exact null distribution
+    signs = _SIGNS.get(m)
+    if signs is None:
+        signs = ((np.arange(2**m)[:, None] >> np.arange(m)[None, :]) & 1).astype(float)
+        _SIGNS[m] = signs
+    null = signs @ ranks
+    observed = float(ranks[nz > 0].sum())
+    gamma = abs(np.finfo(float).eps * 100 * observed)
+    less = np.count_nonzero(null <= observed + gamma) / null.size
+    greater = np.count_nonzero(null >= observed - gamma) / null.size
+    return float(min(max(min(less, greater) * 2, 0.0), 1.0))
+
+
+def analysis_paired_test(static: FloatArray, dynamic: FloatArray) -> float:
+    """The analysis' static-vs-dynamic test (paired Wilcoxon) p-value; NaN if not computed.
+
+    Where SciPy would run its exact permutation test (ties or zeros, at most 13 pairs;
+    about 0.2 s a call) the same p-value comes from :func:`exact_signed_rank_p` (a
+    matrix product).
+    """
+    from ..analysis.stats import wilcoxon_paired
+
+    s = np.asarray(static, dtype=float)
+    d = np.asarray(dynamic, dtype=float)
+    ok = ~(np.isnan(s) | np.isnan(d))
+    diff = d[ok] - s[ok]
+    if diff.size >= 2 and np.any(diff != 0):
+        p = exact_signed_rank_p(diff)
+        if p is not None:
+            return p
+
+    res = wilcoxon_paired(static, dynamic, np.random.default_rng(0), n_boot=1,
+                          key="between_accuracy", what="accuracy")
+    if not res.computed or res.p_value is None:
+        return float("nan")
+    return float(res.p_value)
+
+
+def friedman_interaction(diff: FloatArray, paired: PairedTest) -> float:
+    """p-value of "the per-participant differences (rows) differ across the target
+    counts (columns)": Friedman, or the paired test with two counts; NaN if not computed."""
+    from scipy.stats import friedmanchisquare
+
+    d = diff[np.isfinite(diff).all(axis=1)]
+    if d.shape[0] < 2:
+        return float("nan")
+    if d.shape[1] == 2:
+        return float(paired(d[:, 0], d[:, 1]))
+    if np.all(d == d[:, :1]):
+        return 1.0
+    return float(friedmanchisquare(*d.T).pvalue)
+
+
+# -- simulated studies ---------------------------------------------------------------------
+
+def simulate_studies(protocol: Protocol, cues: StimulusCues, n_participants: int,
+                     indices: Sequence[int], seed: int, test: PairedTest,
+                     base: ModelParams | None = None, spread: Spread | None = None,
+                     progress: Callable[[int], None] | None = None) -> list[StudyOutcome]:
+    """Simulate the studies ``indices`` of size ``n_participants`` (one target count).
+
+    Args:
+        protocol: the study's protocol (:meth:`~.design.PowerDesign.protocol`).
+        cues: the stimuli's cues, sensed with ``base``.
+        n_participants: participants per study (at least 2).
+        indices: which simulated studies (their generators are seeded by
+            ``(seed, n_participants, index)``).
+        seed: the base seed.
+        test: the paired test.
+        base, spread: the typical observer and how individuals differ.
+        progress: called with 1 after each study.
+    """
+    if n_participants < 2:
+        raise ConfigError(f"a study needs at least 2 participants, got {n_participants}")
+    conds = protocol.conditions
+    if "static" not in conds or "dynamic" not in conds:
+        raise ConfigError("the power analysis needs a static and a dynamic test block")
+    base = base if base is not None else cues.params
+    out: list[StudyOutcome] = []
+    for i in indices:
+        rng = np.random.default_rng([int(seed), int(n_participants), int(i)])
+        st = np.empty(n_participants)
+        dy = np.empty(n_participants)
+        for j in range(n_participants):
+            params = draw_participant(rng, base, spread)
+            table = simulate_participant(protocol, cues, params, rng)
+            st[j] = between_accuracy(table, "static")
+            dy[j] = between_accuracy(table, "dynamic")
+        try:
+            p = float(test(st, dy))
+        except (ValueError, ZeroDivisionError, FloatingPointError):
+            p = float("nan")
+        out.append(StudyOutcome(n_participants, st, dy, p))
+        if progress is not None:
+            progress(1)
+    return out
+
+
+def _between(tables: dict[int, TrialTable], condition: str | None, n: int | None,
+             load: str | None = None, loaded: bool | None = None) -> float:
+    """Between-tactor accuracy in ``condition`` (None: both), the blocks of ``n``
+    targets (None: all), of the load ``load`` or, with ``loaded``, under any load
+    (True) or none (False)."""
+    sel = [tables[n]] if n is not None else list(tables.values())
+    hits = tot = 0
+    for t in sel:
+        m = ~t.on_tactor
+        if condition is not None:
+            m &= t.condition == condition
+        if load is not None or loaded is not None:
+            names = t.load if t.load is not None else np.full(t.n, "none")
+            if load is not None:
+                m &= names == load
+            else:
+                m &= (names != "none") if loaded else (names == "none")
+        hits += int(t.correct[m].sum())
+        tot += int(m.sum())
+    return hits / tot if tot else float("nan")
+
+
+def simulate_factorial_studies(protocol: FactorialProtocol, cues: Sequence[StimulusCues],
+                               effect: Effect, n_participants: int, indices: Sequence[int],
+                               seed: int, test: PairedTest, base: ModelParams | None = None,
+                               spread: Spread | None = None,
+                               progress: Callable[[int], None] | None = None
+                               ) -> list[StudyOutcome]:
+    """Simulate the studies ``indices`` of size ``n_participants`` and test ``effect``.
+
+    Each study's generator is seeded by ``(seed, n_participants, index)``. The outcome's
+    ``static_acc``/``dynamic_acc`` are the between-tactor accuracies the effect is about
+    (every block for the interaction); for the load effect they are the accuracy under
+    load and without a load (so "found" keeps meaning "p < alpha and the second higher").
+    """
+    if n_participants < 2:
+        raise ConfigError(f"a study needs at least 2 participants, got {n_participants}")
+    if effect.kind != "load" and not {"static", "dynamic"} <= set(protocol.conditions()):
+        raise ConfigError("the power analysis needs static and dynamic test blocks")
+    base = base if base is not None else cues[0].params
+    counts = protocol.counts
+    out: list[StudyOutcome] = []
+    for i in indices:
+        rng = np.random.default_rng([int(seed), int(n_participants), int(i)])
+        st = np.empty(n_participants)
+        dy = np.empty(n_participants)
+        diff = np.empty((n_participants, len(counts)))
+        for j in range(n_participants):
+            params = draw_participant(rng, base, spread)
+            tables = simulate_factorial_participant(protocol, cues, params, rng)
+            if effect.kind == "load":
+                # the outcome's pair is (under load, without): found = higher without
+                st[j] = (_between(tables, None, None, loaded=True) if effect.load is None
+                         else _between(tables, None, None, load=effect.load))
+                dy[j] = _between(tables, None, None, loaded=False)
+                continue
+            st[j] = _between(tables, "static", effect.n_targets)
+            dy[j] = _between(tables, "dynamic", effect.n_targets)
+            if effect.kind == "interaction":
+                diff[j] = [_between(tables, "dynamic", n) - _between(tables, "static", n)
+                           for n in counts]
+        try:
+            p = (friedman_interaction(diff, test) if effect.kind == "interaction"
+                 else float(test(st, dy)))
+        except (ValueError, ZeroDivisionError, FloatingPointError):
+            p = float("nan")
+        out.append(replace(StudyOutcome(n_participants, st, dy, p),
+                           directional=effect.kind != "interaction"))
+        if progress is not None:
+            progress(1)
+    return out
+
+
+# -- power at each size --------------------------------------------------------------------
+
+def observer(protocol: Protocol | FactorialProtocol) -> ModelParams:
+    """The typical observer the simulation draws around, at the protocol's stimulus
+    period (a factorial protocol: its first part's)."""
+    return ModelParams().for_period(protocol.period_s)
+
+
+def _power_chunk(args: tuple[Protocol, StimulusCues, int, list[int], int]
+                 ) -> list[StudyOutcome]:
+    """Worker: simulate some studies of one size (module level, so processes can run it)."""
+    protocol, cues, n, indices, seed = args
+    return simulate_studies(protocol, cues, n, indices, seed, analysis_paired_test)
+
+
+def _factorial_chunk(args: tuple[FactorialProtocol, tuple[StimulusCues, ...], Effect, int,
+                                  list[int], int]) -> list[StudyOutcome]:
+    """Worker: simulate some factorial studies of one size (module level, for processes)."""
+    protocol, cues, effect, n, indices, seed = args
+    return simulate_factorial_studies(protocol, cues, effect, n, indices, seed,
+                                      analysis_paired_test)
+
+
+def run_power(design: PowerDesign, sizes: Sequence[int], sims: int, seed: int, jobs: int,
+              alpha: float, advance: Callable[[int], None] | None = None) -> list[PowerRow]:
+    """Simulate ``sims`` studies at each size (in ``jobs`` processes) of a design with one
+    target count, test dynamic vs static over every test block, summarise each size.
+
+    The cues are sensed once, on the sim belt, by the typical observer (:func:`observer`).
+    Results do not depend on ``jobs``: each simulated study has its own seed.
+
+    Raises:
+        ConfigError: several target counts (use :func:`run_factorial_power`).
+    """
+    from ..inputs.model import sim_vibrator
+    from ..participant.simulate import stimulus_cues
+
+    protocol = design.protocol()
+    cues = stimulus_cues(protocol, sim_vibrator(design.layout), observer(protocol))
+    work = [(n, (protocol, cues, n, idx, seed)) for n in sizes for idx in chunks(sims, jobs)]
+    return run_sizes(_power_chunk, work, sizes, jobs, alpha, advance)
+
+
+def run_factorial_power(design: PowerDesign, effect: Effect, sizes: Sequence[int],
+                        sims: int, seed: int, jobs: int, alpha: float,
+                        advance: Callable[[int], None] | None = None) -> list[PowerRow]:
+    """:func:`run_power` for any design (target counts, loads) and a named effect: one
+    participant runs every block (:meth:`~.design.PowerDesign.factorial`)."""
+    from ..inputs.model import sim_vibrator
+    from ..participant.factorial import factorial_cues
+
+    protocol = design.factorial()
+    cues = factorial_cues(protocol, sim_vibrator(design.layout), observer(protocol))
+    work = [(n, (protocol, cues, effect, n, idx, seed))
+            for n in sizes for idx in chunks(sims, jobs)]
+    return run_sizes(_factorial_chunk, work, sizes, jobs, alpha, advance)
