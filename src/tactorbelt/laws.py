@@ -21,7 +21,11 @@ The floor is some 1000 ulp of 360 deg, four orders below ``ANGLE_TOLERANCE_DEG``
 so every amplitude it zeroes is below one 16-bit drive level (``sqrt(1e-10/s)`` < 1.5e-5
 for every gap s >= 0.5 deg).
 
-Pure: imports only NumPy and tactorbelt.geometry.
+A law is its name in :mod:`tactorbelt._lawnames` and its function in
+:data:`LAW_FUNCTIONS`; :data:`LAWS` and :func:`check_law` read the names when they are
+used, so a law registered after this module was imported is a law here too.
+
+Pure: imports only NumPy, tactorbelt.geometry and the kernel (_errors, _lawnames).
 """
 
 from __future__ import annotations
@@ -29,14 +33,17 @@ from __future__ import annotations
 import contextlib
 import math
 from collections.abc import Callable
-from typing import Final
+from typing import TYPE_CHECKING, Any, Final
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from . import _lawnames
 from ._errors import ConfigError
-from ._lawnames import LAWS
 from .geometry import Layout, wrap
+
+if TYPE_CHECKING:
+    from ._lawnames import LAWS
 
 __all__ = ["DEFAULT_FALLOFF_DEG", "LAWS", "LAW_FUNCTIONS", "ROUNDING_FLOOR_DEG", "amplitudes",
            "check_law"]
@@ -46,10 +53,17 @@ DEFAULT_FALLOFF_DEG: Final = 15.0
 ROUNDING_FLOOR_DEG: Final = 1e-10
 
 
+def __getattr__(name: str) -> Any:
+    # LAWS is _lawnames.LAWS as it is now, not a copy taken at import
+    if name == "LAWS":
+        return _lawnames.LAWS
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
 def check_law(law: str, falloff_deg: float = DEFAULT_FALLOFF_DEG) -> None:
     """Raise ConfigError for an unknown law or a falloff that is not positive and finite."""
-    if law not in LAWS:
-        raise ConfigError(f"unknown law {law!r}; allowed: {', '.join(LAWS)}")
+    if law not in _lawnames.LAWS:
+        raise ConfigError(f"unknown law {law!r}; allowed: {', '.join(_lawnames.LAWS)}")
     if not (isinstance(falloff_deg, int | float) and math.isfinite(falloff_deg)) or (
         falloff_deg <= 0
     ):
@@ -81,7 +95,7 @@ def amplitudes(
     Args:
         layout: where the tactors are.
         x: location angle(s), any shape ``S``.
-        law: ``paper``, ``linear`` or ``energy``.
+        law: a name in :data:`LAWS` (``paper``, ``linear``, ``energy``).
         falloff_deg: T of the paper law (ignored by the others).
 
     Returns:

@@ -36,8 +36,8 @@ from pydantic import (
     model_validator,
 )
 
+from .. import _lawnames
 from .._errors import ConfigError, StudyFileError
-from .._lawnames import LawName
 from ..factors import Factor, added_factors, factors
 from ..geometry import Layout, TargetSet
 from ..tasks.kinds import NO_TASK, task_kind
@@ -148,14 +148,28 @@ class TargetsSpec(_Model):
         return TargetSet.even(self.count)
 
 
+def _check_law(v: str | None) -> str | None:
+    """``v`` when it names a registered amplitude law (``_lawnames.LAWS`` as it is when the
+    file is read, so a law added there is a law here), else a ValueError naming them."""
+    names = _lawnames.LAWS
+    if v is None or v in names:
+        return v
+    close = difflib.get_close_matches(v, names, n=1)
+    raise ValueError("should be " + ", ".join(repr(n) for n in names[:-1])
+                     + f" or {names[-1]!r} (got {v!r}"
+                     + (f"; did you mean {close[0]!r}?)" if close else ")"))
+
+
 class StimulusSpec(_Model):
     """How targets are rendered (docs/conventions.md, "Amplitude laws" and "Stimuli")."""
 
-    law: LawName = "paper"
+    law: str = "paper"
     falloff_deg: float = Field(default=15.0, gt=0, le=360)
     period_s: float = Field(default=1.0, gt=0, le=60)
     transit_s: float = Field(default=0.1, gt=0, le=30)
     max_presentation_s: float = Field(default=10.0, gt=0, le=600)
+
+    _law = field_validator("law")(_check_law)
 
     @model_validator(mode="after")
     def _transit(self) -> StimulusSpec:
@@ -343,12 +357,14 @@ class BlockSpec(_Model):
     repetitions: int = Field(ge=1, le=1000)
     targets: int | None = Field(default=None, ge=1, le=360)
     load: str = Field(default="none", min_length=1, max_length=64)
-    law: Literal["paper", "linear", "energy"] | None = None
+    law: str | None = None
     falloff_deg: float | None = Field(default=None, gt=0, le=360)
     period_s: float | None = Field(default=None, gt=0, le=60)
     transit_s: float | None = Field(default=None, gt=0, le=30)
     max_presentation_s: float | None = Field(default=None, gt=0, le=600)
     levels: dict[str, Any] = Field(default_factory=dict)
+
+    _law = field_validator("law")(_check_law)
 
     @model_validator(mode="before")
     @classmethod
