@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING, Final
 
 import numpy as np
 
-from ..factors import added_factors
+from ..factors import CONDITION, added_factors
 from ..geometry import wrap
 
 if TYPE_CHECKING:
@@ -44,7 +44,7 @@ __all__ = [
     "training_summary",
 ]
 
-CONDITIONS: Final = ("static", "dynamic")
+CONDITIONS: Final = tuple(CONDITION.levels)
 #: Target kinds, by the ``on_tactor`` flag of the trial.
 KINDS: Final = ("on_tactor", "between_tactor")
 KIND_LABELS: Final = {"on_tactor": "on-tactor", "between_tactor": "between-tactor"}

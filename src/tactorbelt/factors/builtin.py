@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from ..stimuli import MODES
 from .declaration import Factor
 
 __all__ = ["BUILTIN", "CONDITION", "LOAD", "TARGETS"]
@@ -10,8 +11,9 @@ __all__ = ["BUILTIN", "CONDITION", "LOAD", "TARGETS"]
 CONDITION = Factor(
     key="condition", column="condition", type="text",
     description="Rendering of between-tactor targets.",
-    levels={"static": "constant amplitudes",
-            "dynamic": "trapezoidal perturbation between the two nearest tactors"},
+    levels={mode: {"static": "constant amplitudes",
+                   "dynamic": "trapezoidal perturbation between the two nearest tactors"}[mode]
+            for mode in MODES},
     changes="stimulus", name_rank=0, cross_rank=1, max_levels=2,
 )
 
