@@ -218,3 +218,14 @@ def test_an_installed_package_declares_a_factor_for_the_command_line(tmp_path: P
     assert proc.returncode == 2
     assert "entry point posture = toyposture:nothing" in proc.stderr
     assert "Traceback" not in proc.stderr
+
+
+def test_the_built_in_declarations_match_what_they_declare() -> None:
+    from tactorbelt.experiment.store.schema import table
+    from tactorbelt.factors import BUILTIN, CONDITION
+    from tactorbelt.stimuli import MODES
+
+    assert tuple(CONDITION.levels) == MODES
+    columns = {c.name: c for c in table("trials").columns}
+    for f in BUILTIN:
+        assert columns[f.column].type == f.type

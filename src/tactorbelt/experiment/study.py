@@ -24,7 +24,7 @@ import re
 import tomllib
 from importlib import resources
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any, Literal, cast
 
 from pydantic import (
     BaseModel,
@@ -38,7 +38,7 @@ from pydantic import (
 
 from .. import _lawnames
 from .._errors import ConfigError, StudyFileError
-from ..factors import Factor, added_factors, factors
+from ..factors import CONDITION, LOAD, TARGETS, Factor, added_factors, factors
 from ..geometry import Layout, TargetSet
 from ..tasks.kinds import NO_TASK, task_kind
 from .study_errors import study_error
@@ -64,7 +64,8 @@ __all__ = [
 ]
 
 Condition = Literal["static", "dynamic"]
-CONDITIONS: tuple[Condition, ...] = ("static", "dynamic")
+#: The levels of the condition factor (:data:`tactorbelt.factors.CONDITION`).
+CONDITIONS: tuple[Condition, ...] = cast("tuple[Condition, ...]", tuple(CONDITION.levels))
 #: The key holding the levels of the factors declared beyond condition, targets and load
 #: (:func:`tactorbelt.factors.register`); a study file names them as keys of their own.
 LEVELS_KEY = "levels"
@@ -355,8 +356,8 @@ class BlockSpec(_Model):
     name: str | None = Field(default=None, min_length=1, max_length=64)
     condition: Condition
     repetitions: int = Field(ge=1, le=1000)
-    targets: int | None = Field(default=None, ge=1, le=360)
-    load: str = Field(default="none", min_length=1, max_length=64)
+    targets: int | None = Field(default=None, ge=TARGETS.low, le=TARGETS.high)
+    load: str = Field(default=LOAD.default, min_length=1, max_length=64)
     law: str | None = None
     falloff_deg: float | None = Field(default=None, gt=0, le=360)
     period_s: float | None = Field(default=None, gt=0, le=60)
@@ -398,12 +399,15 @@ class BlockSpec(_Model):
 Order = Literal["williams", "latin", "fixed", "random"]
 
 
+_LOW, _HIGH = int(TARGETS.low or 1), int(TARGETS.high or 360)
+
+
 def _check_counts(v: Any) -> Any:
     if isinstance(v, list):
         for x in v:
-            if isinstance(x, bool) or not isinstance(x, int) or not 1 <= x <= 360:
-                raise ValueError(
-                    f"target counts must be whole numbers from 1 to 360 (got {x!r})")
+            if isinstance(x, bool) or not isinstance(x, int) or not _LOW <= x <= _HIGH:
+                raise ValueError(f"target counts must be whole numbers from {_LOW} "
+                                 f"to {_HIGH} (got {x!r})")
         if len(set(v)) != len(v):
             raise ValueError(f"each target count at most once (got {v!r})")
     return v
@@ -418,9 +422,10 @@ class DesignSpec(_Model):
     :func:`tactorbelt.experiment.schedule.block_order`).
     """
 
-    targets: list[int] = Field(min_length=1, max_length=26)
-    condition: list[Condition] = Field(min_length=1, max_length=2)
-    load: list[str] = Field(default_factory=lambda: ["none"], min_length=1, max_length=26)
+    targets: list[int] = Field(min_length=1, max_length=TARGETS.max_levels)
+    condition: list[Condition] = Field(min_length=1, max_length=CONDITION.max_levels)
+    load: list[str] = Field(default_factory=lambda: [LOAD.default], min_length=1,
+                            max_length=LOAD.max_levels)
     repetitions: int = Field(ge=1, le=1000)
     order: Order = "williams"
     levels: dict[str, list[Any]] = Field(default_factory=dict)

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from ..stimuli import MODES
 from .declaration import Factor
 
 __all__ = ["BUILTIN", "CONDITION", "LOAD", "TARGETS"]
@@ -11,9 +10,9 @@ __all__ = ["BUILTIN", "CONDITION", "LOAD", "TARGETS"]
 CONDITION = Factor(
     key="condition", column="condition", type="text",
     description="Rendering of between-tactor targets.",
-    levels={mode: {"static": "constant amplitudes",
-                   "dynamic": "trapezoidal perturbation between the two nearest tactors"}[mode]
-            for mode in MODES},
+    # the stimulus modes (tactorbelt.stimuli.MODES; a test holds them equal)
+    levels={"static": "constant amplitudes",
+            "dynamic": "trapezoidal perturbation between the two nearest tactors"},
     changes="stimulus", name_rank=0, cross_rank=1, max_levels=2,
 )
 
