@@ -31,8 +31,9 @@ def main() -> None:
     from tactorbelt.experiment.store import Store
     from tactorbelt.experiment.study import paper_study
     from tactorbelt.inputs.model import ModelCursor, make_model_cursor, sim_vibrator
-    from tactorbelt.participant import ModelParams, Protocol, simulate_participant, stimulus_cues
-    from tactorbelt.participant.power import simulate_studies
+    from tactorbelt.participant import ModelParams, simulate_participant, stimulus_cues
+    from tactorbelt.power.design import PowerDesign
+    from tactorbelt.power.simulation import simulate_studies
 
     study = paper_study()
     out: dict[str, float] = {}
@@ -55,7 +56,7 @@ def main() -> None:
             out["model_session_s"] = time.perf_counter() - t0
             out["model_decide_ms"] = 1000 * spent[0] / study.n_trials()
 
-    protocol = Protocol.from_study(study)
+    protocol = PowerDesign.from_study(study).protocol()
     cues = stimulus_cues(protocol, sim_vibrator(protocol.layout))
     rng = np.random.default_rng(0)
     t0 = time.perf_counter()

@@ -1,7 +1,7 @@
 """False-positive rates of the accuracy model's condition tests, by simulation.
 
 Studies with **no condition effect** are simulated from the report's accuracy GLMM
-(:func:`tactorbelt.analysis.power_model.simulate_frame` with the ``tactorbelt power
+(:func:`tactorbelt.power.glmm.simulate_frame` with the ``tactorbelt power
 --odds-ratio`` defaults: static = dynamic between-tactor accuracy 0.5, on-tactor 0.9,
 SDs 0.5 (participant), 0.3 (condition slope), 0.3 (target), log-odds) and analysed as
 the report analyses them (:func:`tactorbelt.analysis.stats.fit_model`: the maximal
@@ -57,10 +57,11 @@ from tactorbelt.analysis.lrt import (
     parametric_bootstrap,
     wald_condition,
 )
-from tactorbelt.analysis.power_model import NamedEffect, TrialDesign, simulate_frame
 from tactorbelt.analysis.stats import fit_model
 from tactorbelt.experiment.study import Study, paper_study, template_toml
-from tactorbelt.participant.power import binomial_ci
+from tactorbelt.power.design import TrialDesign
+from tactorbelt.power.glmm import NamedEffect, simulate_frame
+from tactorbelt.power.outcomes import binomial_ci
 
 TESTS = ("wald_z", "wald_z_one_sided", "wald_chi2", "lrt", "lrt_f", "pb", "wald_z_max",
          "wald_chi2_max", "lrt_max", "pb_max")

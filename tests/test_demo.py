@@ -213,3 +213,15 @@ def test_power_plans_a_factorial_study_for_a_named_effect(tmp_path: Path) -> Non
     code, _, stderr = run("power", "--study", str(study), "--participants", "6", "--sims",
                           "2", "--out", str(out), "--effect", "dynamic vs static at 30")
     assert code == 2 and "no blocks of 30 targets" in stderr
+
+
+def test_power_gives_the_same_numbers_whatever_the_number_of_processes(tmp_path: Path) -> None:
+    docs = []
+    for jobs in ("1", "2"):
+        out = tmp_path / f"jobs{jobs}"
+        code, _, stderr = run("power", "--participants", "4,6", "--sims", "60", "--seed", "3",
+                              "--jobs", jobs, "--out", str(out))
+        assert code == 0, stderr
+        doc = json.loads((out / "power.json").read_text())
+        docs.append(doc["rows"])
+    assert docs[0] == docs[1]  # to the last bit: summed in the work's order

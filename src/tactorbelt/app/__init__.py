@@ -7,6 +7,6 @@
 - :mod:`.calibration_effect`: the model participant's errors with and without its wearer
   profile (docs/calibration-perceptual.md).
 
-- :mod:`.demo`: ``demo`` and ``power`` (a model study of N participants, the power
-  study).
+- :mod:`.demo`: ``demo`` (a model study of N participants); ``power`` is
+  :mod:`tactorbelt.power`.
 """

@@ -3,7 +3,8 @@
 Every power analysis splits its ``sims`` studies per size into chunks of study indices
 (:func:`chunks`) and runs a module-level worker on each (:func:`run_sizes`). Each
 simulated study is seeded by ``(seed, N, index)``, so results do not depend on how the
-work is split, nor on ``jobs``.
+work is split, nor on ``jobs``: the outcomes are summarised in the order of the work
+whatever order the processes finish in.
 """
 
 from __future__ import annotations
@@ -42,11 +43,14 @@ def run_sizes(worker: Callable[[Any], list[StudyOutcome]], work: list[tuple[int,
     else:
         from concurrent.futures import ProcessPoolExecutor, as_completed
 
+        finished: dict[int, list[StudyOutcome]] = {}
         with ProcessPoolExecutor(max_workers=jobs) as pool:
-            futures = {pool.submit(worker, item): n for n, item in work}
+            futures = {pool.submit(worker, item): i for i, (_, item) in enumerate(work)}
             for fut in as_completed(futures):
-                done = fut.result()
-                results[futures[fut]].extend(done)
+                done = finished[futures[fut]] = fut.result()
                 if advance is not None:
                     advance(len(done))
+        # in the order of the work, as one process runs it: the same sums to the last bit
+        for i, (n, _) in enumerate(work):
+            results[n].extend(finished[i])
     return [power_row(results[n], alpha) for n in sizes]
