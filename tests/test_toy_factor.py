@@ -229,3 +229,17 @@ def test_the_built_in_declarations_match_what_they_declare() -> None:
     columns = {c.name: c for c in table("trials").columns}
     for f in BUILTIN:
         assert columns[f.column].type == f.type
+
+
+def test_the_power_analysis_crosses_it(study_file: Path, tmp_path: Path) -> None:
+    from tactorbelt.power.design import PowerDesign
+
+    design = PowerDesign.from_study(Study.from_toml(study_file.read_text()))
+    assert [b.levels["posture"] for b in design.blocks] == [
+        "sitting", "standing", "sitting", "standing"]
+    trials = design.trials()
+    assert sorted(set(trials.levels["posture"])) == ["sitting", "standing"]
+    _cli("power", "--study", str(study_file), "--participants", "4", "--sims", "2",
+         "--odds-ratio", "2", "--jobs", "1", "--out", str(tmp_path))
+    doc = json.loads((tmp_path / "power.json").read_text())
+    assert doc["formula"].startswith("correct ~ condition * posture + ")

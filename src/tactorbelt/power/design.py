@@ -21,12 +21,14 @@ Pure: NumPy, geometry and participant.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Mapping
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
 from .._errors import ConfigError
+from ..factors import added_factors
 from ..geometry import Layout, TargetSet
 from ..participant.factorial import FactorialProtocol
 from ..participant.load import load_level
@@ -63,6 +65,9 @@ class DesignBlock:
         load_level: that task's load level (:func:`~tactorbelt.participant.load.load_level`;
             0 without a task).
         stimulus: the study's stimulus with the block's overrides.
+        levels: its levels of the factors declared beyond condition, targets and load
+            (:mod:`tactorbelt.factors`), by column; recorded, so they change no answer,
+            but the model the report fits has their terms.
     """
 
     condition: str
@@ -71,6 +76,7 @@ class DesignBlock:
     load: str
     load_level: float
     stimulus: StimulusParams
+    levels: Mapping[str, Any] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -94,10 +100,12 @@ class PowerDesign:
     @classmethod
     def from_study(cls, study: Any) -> PowerDesign:
         """Read a :class:`~tactorbelt.experiment.study.Study` (by attribute), once."""
+        added = added_factors()
         blocks = tuple(
             DesignBlock(b.condition, int(study.block_n_targets(b)), int(b.repetitions),
                         str(b.load), load_level(study.tasks.get(b.load)),
-                        StimulusParams.of(study.block_stimulus(b)))
+                        StimulusParams.of(study.block_stimulus(b)),
+                        {f.column: study.block_level(b, f) for f in added})
             for b in study.test)
         return cls(str(study.name), study.layout_obj(), float(study.response.threshold),
                    StimulusParams.of(study.stimulus), blocks)
@@ -185,7 +193,9 @@ class PowerDesign:
             return TrialDesign(np.concatenate([p.condition for p in parts]),
                                np.concatenate([p.target_deg for p in parts]),
                                np.concatenate([p.on_tactor for p in parts]), int(counts[0]),
-                               np.concatenate([np.full(p.n, p.n_targets) for p in parts]))
+                               np.concatenate([np.full(p.n, p.n_targets) for p in parts]),
+                               {k: np.concatenate([p.levels[k] for p in parts])
+                                for k in parts[0].levels})
         if n_targets is None:
             if len(counts) != 1:
                 raise ConfigError(
@@ -202,16 +212,21 @@ class PowerDesign:
         cond: list[np.ndarray] = []
         deg: list[np.ndarray] = []
         kind: list[np.ndarray] = []
-        for b in self.blocks_of(n_targets):
+        blocks = self.blocks_of(n_targets)
+        levels: dict[str, list[np.ndarray]] = {k: [] for k in blocks[0].levels}
+        for b in blocks:
             idx = np.tile(np.arange(targets.m), b.repetitions)
             cond.append(np.full(idx.size, b.condition))
             deg.append(targets.angles[idx])
             kind.append(on[idx])
+            for k, column in levels.items():
+                column.append(np.full(idx.size, b.levels[k], dtype=object))
         c = np.concatenate(cond)
         if not {"static", "dynamic"} <= set(c.tolist()):
             raise ConfigError("the model-based power analysis needs static and dynamic test "
                               f"blocks of {n_targets} targets")
-        return TrialDesign(c, np.concatenate(deg), np.concatenate(kind), int(n_targets))
+        return TrialDesign(c, np.concatenate(deg), np.concatenate(kind), int(n_targets),
+                           levels={k: np.concatenate(v) for k, v in levels.items()})
 
 
 @dataclass(frozen=True)
@@ -226,6 +241,9 @@ class TrialDesign:
     #: the target count of each trial, when the design has several (the model then
     #: has ``factor(n_targets)``); None: one count, ``n_targets``
     counts: np.ndarray | None = None
+    #: each trial's level of every factor declared beyond condition, targets and load,
+    #: by column (the model has their terms where they vary)
+    levels: Mapping[str, np.ndarray] = field(default_factory=dict)
 
     @classmethod
     def from_study(cls, study: Any, n_targets: int | None = None, *,

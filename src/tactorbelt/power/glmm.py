@@ -154,6 +154,8 @@ def simulate_frame(trials: TrialDesign, effect: NamedEffect, n_participants: int
     })
     if trials.counts is not None:
         frame["n_targets"] = np.tile(trials.counts, n_participants)
+    for column, levels in trials.levels.items():  # recorded factors: no effect drawn
+        frame[column] = np.tile(levels, n_participants)
     return frame
 
 

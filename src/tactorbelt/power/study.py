@@ -31,7 +31,7 @@ from .._errors import ConfigError
 
 if TYPE_CHECKING:
     from ..experiment.study import Study
-    from .design import PowerDesign
+    from .design import PowerDesign, TrialDesign
     from .effects import Effect
     from .glmm import NamedEffect
     from .outcomes import PowerRow
@@ -170,6 +170,18 @@ def run_power_study(study: Study, sizes: Sequence[int], sims: int, seed: int, ou
                             what if effect is not None else eff.describe(), pair)
 
 
+def _maximal_formula(trials: TrialDesign, named: NamedEffect) -> str:
+    """The maximal model each simulated study is analysed with (its fixed part follows
+    the design: every factor that varies, the declared ones included)."""
+    import numpy as np
+
+    from ..analysis.models import model_spec
+    from .glmm import simulate_frame
+
+    frame = simulate_frame(trials, named, 3, np.random.default_rng(0))
+    return str(model_spec(frame)[0].formula())
+
+
 def _named_power(design: PowerDesign, eff: Effect, named: NamedEffect, sizes: Sequence[int],
                  sims: int, seed: int, out: Path, jobs: int, alpha: float,
                  advance: Callable[[int], None] | None) -> PowerStudyResult:
@@ -187,10 +199,11 @@ def _named_power(design: PowerDesign, eff: Effect, named: NamedEffect, sizes: Se
     trials = design.trials(eff.n_targets)
     rows = named_power(design, named, sizes, sims, seed, jobs, alpha, advance,
                        n_targets=eff.n_targets)
+    formula = _maximal_formula(trials, named)
     what = (f"odds ratio {named.odds_ratio:g} (dynamic over static, {trials.n_targets} "
             "targets)")
     _write_power(rows, out, {
-        "note": NAMED_NOTE, "study": design.name, "test": NAMED_TEST,
+        "note": NAMED_NOTE, "study": design.name, "test": NAMED_TEST, "formula": formula,
         "simulated_from": "the same GLMM, with the named effect sizes "
                           "(tactorbelt.power.glmm)",
         "effect": what, "effect_sizes": named.to_dict(), "n_targets": trials.n_targets,
