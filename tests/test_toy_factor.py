@@ -243,3 +243,28 @@ def test_the_power_analysis_crosses_it(study_file: Path, tmp_path: Path) -> None
          "--odds-ratio", "2", "--jobs", "1", "--out", str(tmp_path))
     doc = json.loads((tmp_path / "power.json").read_text())
     assert doc["formula"].startswith("correct ~ condition * posture + ")
+
+
+def test_a_factor_cannot_take_a_name_in_use_nor_change_what_is_played() -> None:
+    from tactorbelt._errors import ConfigError
+    from tactorbelt.experiment.export import BEH_COLUMNS, TLX_COLUMNS, TRIAL_COLUMNS
+    from tactorbelt.experiment.export_formats import PSYCHOPY_COLUMNS, TIDY_COLUMNS
+    from tactorbelt.experiment.store.schema import table
+    from tactorbelt.experiment.study import BlockSpec, DesignSpec
+    from tactorbelt.factors import BUILTIN, RESERVED, register
+
+    builtin = {n for f in BUILTIN for n in (f.key, f.column)}
+    used = ({c.name for t in ("trials", "samples") for c in table(t, added=False).columns}
+            | set(TRIAL_COLUMNS) | set(BEH_COLUMNS) | set(TLX_COLUMNS)
+            | {c[0] for c in TIDY_COLUMNS}
+            | {c for c in PSYCHOPY_COLUMNS if c.islower() and "." not in c}
+            | set(BlockSpec.model_fields) | set(DesignSpec.model_fields))
+    assert used - builtin <= RESERVED
+    for name in ("status", "rt_s", "name", "target", "levels"):
+        with pytest.raises(ConfigError, match="a name tactorbelt uses already"):
+            register(Factor(key=name, column=name, type="text", description="x"))
+    with pytest.raises(ConfigError, match="changes nothing a session plays"):
+        register(Factor(key="speed", column="speed", type="text", description="x",
+                        changes="stimulus"))
+    assert not {"status", "rt_s", "name", "target", "levels", "speed"} & {
+        f.key for f in factors()}

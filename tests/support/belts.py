@@ -534,8 +534,10 @@ def url_harness(url: str, **options: Any) -> Harness:
     return Harness(belt, levels)
 
 
-#: scheme -> harness factory. Every registered scheme needs one (the contract suite
-#: fails for a scheme without): a new backend adds its fake here.
+#: scheme -> harness factory with a fake device. A registered scheme needs one unless
+#: its Backend has a ``contract_url`` that opens without hardware (the contract suite
+#: then opens that URL; tests/support/toy_belt.py); the suite fails for a scheme with
+#: neither.
 FACTORIES: dict[str, Callable[..., Harness]] = {
     "sim": sim_harness,
     "emulator": emulator_harness,

@@ -34,6 +34,7 @@ __all__ = [
     "CONDITION",
     "ENTRY_POINT_GROUP",
     "LOAD",
+    "RESERVED",
     "TARGETS",
     "Changes",
     "Factor",
@@ -48,12 +49,49 @@ __all__ = [
 _REGISTRY: dict[str, Factor] = {}
 
 
+#: Names a declared factor may not take, as key or column: the keys of a ``[design]``
+#: or ``[[test]]`` block and the columns of the trials wherever they go (the store, the
+#: exports, the analysis's tables). ``tests/test_toy_factor.py`` holds it complete.
+RESERVED: frozenset[str] = frozenset({
+    # study-file keys of a block and of [design]
+    "name", "repetitions", "targets", "law", "falloff_deg", "period_s", "transit_s",
+    "max_presentation_s", "order", "levels",
+    # the trials' columns in the store, the exports and the analysis
+    "abort_reason", "acquired_ns", "attempts", "block", "block_index", "block_name",
+    "correct", "counted", "crossed_ns", "date", "device_onset_ns", "effort", "error_deg",
+    "frustration", "is_correct", "mental", "n_samples", "notes", "on_tactor", "onset_ns",
+    "onset_s", "onset_uncertainty_ns", "participant", "performance", "physical", "raw_tlx",
+    "recorded_at", "repetition", "responded", "response_deg", "response_target_deg", "rt",
+    "rt_s", "session", "session_id", "session_key", "session_number", "signed_error_deg",
+    "skin_onset_ns", "skin_onset_s", "skin_onset_sd_ns", "skin_onset_sd_s", "status",
+    "stimulus_off_ns", "target", "target_deg", "temporal", "trial", "trial_id",
+    "trial_index", "t_s", "x", "y", "buttons", "sample_index",
+})
+
+
 def register(f: Factor) -> Factor:
     """Declare a study factor; it is crossed, stored, exported and analysed with the others.
 
+    A declared factor is recorded: it changes nothing a session plays or shows
+    (``changes = "nothing"``); the built-in ones are the factors that do.
+
     Raises:
-        ConfigError: a factor with the same key or column is declared already.
+        ConfigError: a factor with the same key or column is declared already; the key
+            or column is a name tactorbelt uses already (:data:`RESERVED`); the factor
+            claims to change the stimulus, the targets or the task.
     """
+    if f.changes != "nothing":
+        raise ConfigError(f"factor {f.key!r}: a declared factor is recorded and changes "
+                          f"nothing a session plays (changes = 'nothing', not "
+                          f"{f.changes!r}); what it plays is the runner's to change")
+    for name in (f.key, f.column):
+        if name in RESERVED:
+            raise ConfigError(f"factor {f.key!r}: {name!r} is a name tactorbelt uses "
+                              "already (a study-file key or a trials column); choose another")
+    return _add(f)
+
+
+def _add(f: Factor) -> Factor:
     for other in _REGISTRY.values():
         if f.key in (other.key, other.column) or f.column in (other.key, other.column):
             raise ConfigError(f"factor {f.key!r} (column {f.column!r}) clashes with the "
@@ -130,6 +168,6 @@ def _load_entry_points() -> None:
 
 
 for _f in BUILTIN:
-    register(_f)
+    _add(_f)
 _BUILTIN = tuple(f.key for f in BUILTIN)
 _load_entry_points()
