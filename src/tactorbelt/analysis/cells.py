@@ -33,7 +33,7 @@ from typing import TYPE_CHECKING, Any, Final, cast
 
 import numpy as np
 
-from ..factors import BUILTIN, added_factors, factors
+from ..factors import BUILTIN, added_factors, after_builtin, factors
 from .tables import infer_n_targets, prepare_trials, with_cell_columns
 from .transfer import ESTIMATOR, cell_interval, estimate_transfer, information_transfer
 
@@ -89,8 +89,7 @@ def cell_keys() -> list[str]:
 
 def _added(columns: list[str]) -> list[str]:
     """``columns`` with the added factors' columns after the built-in ones."""
-    i = columns.index(CELL_KEYS[-1]) + 1
-    return [*columns[:i], *(f.column for f in added_factors()), *columns[i:]]
+    return after_builtin(columns, [f.column for f in added_factors()])
 
 
 def _prepared(trials: pd.DataFrame, n_targets: int | None) -> pd.DataFrame:

@@ -55,7 +55,7 @@ from pathlib import Path
 from typing import Any
 
 from .._errors import ConfigError, TactorbeltError
-from ..factors import CONDITION, LOAD, TARGETS, Factor, added_factors
+from ..factors import CONDITION, LOAD, TARGETS, Factor, added_factors, after_builtin
 from .store import Store, open_store
 from .study import Study
 
@@ -110,13 +110,8 @@ def factor_sidecar(f: Factor) -> dict[str, Any]:
 def _after_load(columns: dict[str, Any]) -> dict[str, Any]:
     """``columns`` with a column for each factor declared beyond the built-in ones after
     ``load`` (:mod:`tactorbelt.factors`)."""
-    extra = {f.column: factor_sidecar(f) for f in added_factors()}
-    if not extra:
-        return columns
-    keys = list(columns)
-    i = keys.index(LOAD.column) + 1
-    return {**{k: columns[k] for k in keys[:i]}, **extra,
-            **{k: columns[k] for k in keys[i:]}}
+    every = {**columns, **{f.column: factor_sidecar(f) for f in added_factors()}}
+    return {k: every[k] for k in after_builtin(list(columns), list(every)[len(columns):])}
 
 
 def trial_columns() -> list[str]:

@@ -34,7 +34,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from .._errors import ConfigError
-from ..factors import CONDITION, LOAD, TARGETS, Factor, added_factors
+from ..factors import CONDITION, LOAD, TARGETS, Factor, added_factors, after_builtin
 from .export import (
     RATING_CSV_COLUMNS,
     SAMPLE_COLUMNS,
@@ -44,6 +44,7 @@ from .export import (
     _open,
     _prepare,
     _with_cell,
+    trial_columns,
 )
 
 if TYPE_CHECKING:
@@ -109,15 +110,6 @@ def dtypes(table: str) -> dict[str, str]:
     return {**DTYPES[table], **{f.column: _FACTOR_DTYPE[f.type] for f in extra}}
 
 
-def _level(trial: dict[str, Any], f: Factor) -> Any:
-    """A trial's level of an added factor (a row stored before it: the default)."""
-    return f.stored(trial.get(f.column))
-
-
-def _after_load(columns: list[Any], extra: list[Any], key: Any = lambda c: c) -> list[Any]:
-    """``columns`` with ``extra`` inserted after the ``load`` column."""
-    i = next(i for i, c in enumerate(columns) if key(c) == "load") + 1
-    return [*columns[:i], *extra, *columns[i:]]
 
 _TIDY_TYPES = {"text": ("text", "factor"), "int": ("integer", "integer")}
 
@@ -193,12 +185,12 @@ def tables(db: str | Path) -> dict[str, pd.DataFrame]:
         by_id = {int(s["session_id"]): s for s in sessions}
         trials = sorted(store.trials(), key=lambda t: (t["session_id"], t["trial_id"]))
         trial_rows = []
-        added = added_factors()
+        columns = trial_columns()
         for t in trials:
             sess = by_id[int(t["session_id"])]
-            t = _with_cell(t, sess)
+            t = _with_cell(t, sess)  # the added factors' levels too
             trial_rows.append([sess[k] if k in ("participant", "session_number") else t[k]
-                               for k in TRIAL_COLUMNS] + [_level(t, f) for f in added])
+                               for k in columns])
         sample_rows = [[by_id[int(sid)]["participant"], sid, index, t_s, x, y, buttons]
                        for sid, index, t_s, x, y, buttons in store.iter_samples()]
         out = {"sessions": _frame([[s[k] for k in SESSION_COLUMNS] for s in sessions],
@@ -279,7 +271,7 @@ def tidy_columns() -> list[tuple[str, str, str, str, str]]:
     """:data:`TIDY_COLUMNS` with each factor declared beyond the built-in ones after
     ``load``."""
     extra = [_codebook(f) for f in added_factors()]
-    return _after_load(TIDY_COLUMNS, extra, key=lambda c: c[0])
+    return after_builtin(TIDY_COLUMNS, extra, key=lambda c: c[0])
 
 
 def export_tidy(db: str | Path, out: str | Path, *, force: bool = False) -> list[Path]:
@@ -305,7 +297,7 @@ def export_tidy(db: str | Path, out: str | Path, *, force: bool = False) -> list
             rows.append([
                 s["participant"], s["session_number"], t["block"], t["block_index"],
                 t["block_name"], t["condition"], t["n_targets"], t["load"],
-                *(_level(t, f) for f in added), t["trial_index"],
+                *(t[f.column] for f in added), t["trial_index"],
                 t["repetition"], float(t["target_deg"]), int(bool(t["on_tactor"])),
                 t["status"], int(bool(t["correct"])) if t["status"] == "done" else 0,
                 t["rt_s"] if t["status"] == "done" else None, resp, t["response_target_deg"],
@@ -346,7 +338,7 @@ def _file_part(text: str) -> str:
 def psychopy_columns() -> list[str]:
     """:data:`PSYCHOPY_COLUMNS` with each factor declared beyond the built-in ones after
     ``load`` (a condition of the ``blocks`` loop)."""
-    return _after_load(PSYCHOPY_COLUMNS, [f.column for f in added_factors()])
+    return after_builtin(PSYCHOPY_COLUMNS, [f.column for f in added_factors()])
 
 
 def export_psychopy(db: str | Path, out: str | Path, *, force: bool = False) -> list[Path]:
@@ -407,7 +399,7 @@ def export_psychopy(db: str | Path, out: str | Path, *, force: bool = False) -> 
                     "response.status": t["status"], "trial_index": t["trial_index"],
                     "participant": s["participant"], "session": s["session_number"],
                     "date": date, "expName": s["study_name"], "tactorbeltVersion": __version__,
-                    **{f.column: _level(t, f) for f in added},
+                    **{f.column: t[f.column] for f in added},
                 }
                 rows.append([row.get(c) for c in columns])
             try:

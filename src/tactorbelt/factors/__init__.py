@@ -22,8 +22,9 @@ Pure: the standard library only.
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
+from typing import Any, TypeVar
 
 from .._errors import ConfigError
 from .builtin import BUILTIN, CONDITION, LOAD, TARGETS
@@ -39,6 +40,7 @@ __all__ = [
     "Changes",
     "Factor",
     "added_factors",
+    "after_builtin",
     "factor",
     "factors",
     "register",
@@ -127,6 +129,24 @@ def factors() -> tuple[Factor, ...]:
 def added_factors() -> tuple[Factor, ...]:
     """The factors declared beyond the built-in ones."""
     return tuple(f for k, f in _REGISTRY.items() if k not in _BUILTIN)
+
+
+_T = TypeVar("_T")
+
+
+def after_builtin(columns: Sequence[_T], extra: Sequence[_T],
+                  key: Callable[[_T], Any] = lambda c: c) -> list[_T]:
+    """``columns`` with ``extra`` inserted after the last built-in factor's column
+    (``load``): where the added factors' columns go in every table, export and marker.
+
+    Raises:
+        ValueError: ``columns`` has no ``load`` (``key(c)`` names each column).
+    """
+    anchor = BUILTIN[-1].column
+    i = next((i for i, c in enumerate(columns) if key(c) == anchor), None)
+    if i is None:
+        raise ValueError(f"no {anchor!r} column to put the added factors after")
+    return [*columns[:i + 1], *extra, *columns[i + 1:]]
 
 
 def factor(key: str) -> Factor:

@@ -39,7 +39,7 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 from .._errors import ConfigError
-from ..factors import BUILTIN, added_factors, factors
+from ..factors import BUILTIN, added_factors, after_builtin, factors
 
 if TYPE_CHECKING:
     from ..clock import Clock
@@ -161,8 +161,7 @@ def marker_fields(event: str) -> tuple[str, ...]:
         raise ValueError(f"unknown marker event {event!r}")
     if _FACTORS[-1] not in allowed:
         return allowed
-    i = allowed.index(_FACTORS[-1]) + 1
-    return (*allowed[:i], *(f.column for f in added_factors()), *allowed[i:])
+    return tuple(after_builtin(allowed, [f.column for f in added_factors()]))
 
 
 def _levels(t: ScheduledTrial) -> dict[str, Any]:
