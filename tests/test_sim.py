@@ -23,8 +23,10 @@ MS = 1_000_000
 
 
 def sim(**kw: object) -> tuple[SimBelt, SimClock]:
+    """A sim belt on a simulated clock, plain unless ``drive`` is given (these tests hold
+    the motor model as driven; tests/test_drive_shaping.py the shaped drive)."""
     clock = SimClock()
-    belt = open_sim("", clock=clock, **kw)
+    belt = open_sim("", clock=clock, **{"drive": "plain", **kw})
     return belt, clock
 
 

@@ -35,7 +35,9 @@ def open_belt(url: str = "sim", **options: Any) -> Belt:
     Args:
         url: ``sim``, ``emulator``, ``serial:PORT``, ``serial:auto``, ``ble:NAME``, with
             optional ``?key=value`` options (see :mod:`tactorbelt.devices.registry`).
-        **options: passed to the backend (``clock``, ``layout``, ``calibration``, ...).
+        **options: passed to the backend (``clock``, ``layout``, ``calibration``, ...);
+            ``drive`` (``plain`` or ``shaped``, also a URL option of every backend) is set
+            on the open belt (:meth:`~tactorbelt.devices.base.Belt.set_drive`).
 
     Raises:
         ConfigError: an unknown scheme or URL option, or an option given twice.
@@ -46,7 +48,16 @@ def open_belt(url: str = "sim", **options: Any) -> Belt:
     if both:
         raise ConfigError(f"option {both[0]!r} is given both in belt URL {url!r} and as a "
                           "keyword; give it once")
+    drive = {**url_options, **options}.pop("drive", None)
+    url_options.pop("drive", None)
+    options.pop("drive", None)
     belt: Belt = backend.load_opener()(target, **url_options, **options)
+    if drive is not None:
+        try:
+            belt.set_drive(drive)
+        except BaseException:
+            belt.close()
+            raise
     return belt
 
 

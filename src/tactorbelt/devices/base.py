@@ -31,6 +31,11 @@ probe a belt with ``getattr``/``hasattr``:
   records its accelerometer (firmware 1.2 with an IMU that started), a
   :class:`~tactorbelt.devices._firmware.SenseRecording` with host-clock times; other
   belts raise DeviceError.
+- ``can_shape``, ``can_brake``, ``drive`` and ``set_drive(drive)``: drive shaping
+  (:class:`~tactorbelt.devices.erm.Shaper`, docs/belts.md "Drive shaping"): a belt that
+  can shape plays every level change as an overdrive kick or a brake pulse when its
+  ``drive`` is ``shaped``; ``can_brake``: it can reverse-drive its motors (both H-bridge
+  inputs); ``session_url``: the URL with the drive a session stores.
 
 The :class:`tactorbelt.player.Player` picks between streaming and device-side
 rendering, so runners simply use a Player.
@@ -127,6 +132,7 @@ class Belt(ABC):
         self._closed = False
         self._lock = threading.RLock()
         self._levels: NDArray[np.float64] | None = np.zeros(layout.n)
+        self._drive = "plain"
 
     # -- what backends implement ------------------------------------------------
     @abstractmethod
@@ -203,6 +209,54 @@ class Belt(ABC):
         ``stop``), or None when not known (the device is rendering a stimulus)."""
         with self._lock:
             return None if self._levels is None else self._levels.copy()
+
+    # -- drive shaping ----------------------------------------------------------
+    @property
+    def can_shape(self) -> bool:
+        """True when the belt can play shaped drive (ERM motors it may overdrive)."""
+        return False
+
+    @property
+    def can_brake(self) -> bool:
+        """True when the belt can reverse-drive or short-brake its motors (both inputs of
+        each H-bridge wired); a shaped fall then brakes, else it coasts."""
+        return False
+
+    @property
+    def drive(self) -> str:
+        """``plain`` or ``shaped`` (docs/belts.md, "Drive shaping")."""
+        return self._drive
+
+    def set_drive(self, drive: str) -> None:
+        """Play ``plain`` or ``shaped`` from now on.
+
+        Raises:
+            ConfigError: an unknown drive, or ``shaped`` on a belt that cannot shape.
+        """
+        from .erm import DRIVES
+
+        if drive not in DRIVES:
+            raise ConfigError(f"drive must be one of {', '.join(DRIVES)}, got {drive!r}")
+        if drive == "shaped" and not self.can_shape:
+            raise ConfigError(f"belt {self.url!r} cannot shape its drive (no ERM motors "
+                              "it may overdrive); use drive=plain")
+        with self._lock:
+            if drive != self._drive:
+                self._set_drive(drive)
+                self._drive = drive
+
+    def _set_drive(self, drive: str) -> None:  # noqa: B027 - optional hook
+        """Switch the device to ``drive`` (belts that can shape)."""
+
+    @property
+    def session_url(self) -> str:
+        """The URL a session stores: :attr:`url` (without a ``drive`` option), with
+        ``drive=shaped`` when shaped (a plain session's URL is as before)."""
+        head, _, query = self.url.partition("?")
+        items = [q for q in query.split("&") if q and not q.startswith("drive=")]
+        if self._drive != "plain":
+            items.append(f"drive={self._drive}")
+        return head + ("?" + "&".join(items) if items else "")
 
     @property
     def models_vibration(self) -> bool:

@@ -27,14 +27,23 @@ import itertools
 import math
 from dataclasses import dataclass
 from fractions import Fraction
-from typing import Final
+from typing import Any, Final
 
 import numpy as np
 from numpy.typing import NDArray
 
 from .._errors import ConfigError
 
-__all__ = ["RENDER_TICK_NS", "ErmParams", "erm_speed", "sample_grid"]
+__all__ = ["BRAKE", "DRIVES", "RENDER_TICK_NS", "ErmParams", "Shaper", "drive_relax",
+           "erm_speed", "sample_grid"]
+
+#: The drive modes a belt plays with: ``plain`` (each level straight to the motor) and
+#: ``shaped`` (overdrive and active braking, :class:`Shaper`).
+DRIVES: Final = ("plain", "shaped")
+#: The signed drive that short-brakes a motor: both H-bridge inputs high, no voltage
+#: across it, its back-EMF braking it. Negative zero: a drive's sign bit says the bridge
+#: drives in reverse or brakes (``np.signbit``), +0.0 is coast (both inputs low).
+BRAKE: Final = -0.0
 
 #: Played stimuli are rendered at 1 kHz, like the firmware.
 RENDER_TICK_NS: Final = 1_000_000
@@ -87,17 +96,37 @@ class ErmParams:
     fall_tau_s: float = 0.050
     start_level: float = 0.25
     amplitude_exponent: float = 2.0
+    #: time constant while the motor is driven against its motion (reverse drive, short
+    #: brake): the winding is closed, so the back-EMF current brakes it with the driven
+    #: (mechanical) time constant, the one it rises with. An assumption (0.040 s).
+    brake_tau_s: float = 0.040
+    #: the drive at level 1 (V): the VZ7AL2B1692082's rated voltage, 3.0 V DC.
+    rated_voltage_v: float = 3.0
+    #: the most the motor may be driven with (V): 3.6 V for the VZ7AL2B1692082
+    #: (docs/belts.md, "Drive shaping", for the source and what is assumed).
+    max_voltage_v: float = 3.6
 
     def __post_init__(self) -> None:
-        for name in ("rise_tau_s", "fall_tau_s", "amplitude_exponent"):
+        for name in ("rise_tau_s", "fall_tau_s", "amplitude_exponent", "brake_tau_s",
+                     "rated_voltage_v", "max_voltage_v"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int | float) or not (
                 math.isfinite(v) and v > 0
             ):
                 raise ConfigError(f"ErmParams.{name} must be a positive, finite number, got {v!r}")
+        if self.max_voltage_v < self.rated_voltage_v:
+            raise ConfigError(f"ErmParams.max_voltage_v ({self.max_voltage_v:g} V) is below "
+                              f"the rated voltage ({self.rated_voltage_v:g} V)")
         s = self.start_level
         if isinstance(s, bool) or not isinstance(s, int | float) or not (0.0 <= s < 1.0):
             raise ConfigError(f"ErmParams.start_level must be in [0, 1), got {s!r}")
+
+    def overdrive_bound(self, supply_v: float | None = None) -> float:
+        """The largest forward drive, in levels (1 = rated voltage): the motor's maximum
+        voltage, or the supply when lower, over its rated voltage (at least 1)."""
+        top = self.max_voltage_v if supply_v is None else min(self.max_voltage_v,
+                                                               float(supply_v))
+        return max(1.0, top / self.rated_voltage_v)
 
     def steady_speed(self, levels: FloatArray) -> FloatArray:
         """Steady-state speed for drive levels: 0 below the start level, else the level."""
@@ -372,3 +401,144 @@ class _Response:
         """``exp(-exponent)`` from tick ``k0`` to each tick in ``a..b-1``, along the
         response's choices (rows: ticks; columns: the moving motors)."""
         return np.asarray(np.exp(-(self.d[a:b] - self.d[k0])))
+
+
+# -- signed drive and drive shaping ------------------------------------------------------
+#: A shaper counts a tactor as at its target when its predicted speed is this close.
+_SETTLED: Final = 1e-9
+
+
+def drive_steady(drive: FloatArray, start_level: float) -> FloatArray:
+    """The signed steady speed of a signed drive: forward (``>= +0.0``) as
+    :meth:`ErmParams.steady_speed` (no spin below the start level), reverse the drive
+    itself (the motor is pushed towards spinning backwards; it is already turning, so no
+    dead zone), a short brake (:data:`BRAKE`) 0."""
+    d = np.asarray(drive, dtype=float)
+    return np.asarray(np.where(np.signbit(d), d, np.where(d >= start_level, d, 0.0)))
+
+
+def drive_relax(drive: FloatArray, w: FloatArray, dt_s: float | FloatArray,
+                params: ErmParams, *, rise: Any = None, fall: Any = None,
+                brake: Any = None) -> FloatArray:
+    """The signed speed ``dt_s`` after ``w`` under a constant signed drive.
+
+    Forward drive (coast at +0.0, above 1 overdrive) relaxes with the rise or the fall
+    time constant as in :func:`erm_speed` (the same arithmetic for drives in [0, 1]);
+    reverse drive and the short brake with the brake time constant, towards the drive
+    (a motor held in reverse past a stop spins backwards: the speed goes negative).
+    ``rise``, ``fall``, ``brake``: time constants in s (per tactor) instead of the
+    params'.
+    """
+    d = np.asarray(drive, dtype=float)
+    w = np.asarray(w, dtype=float)
+    u = drive_steady(d, params.start_level)
+    r = params.rise_tau_s if rise is None else rise
+    f = params.fall_tau_s if fall is None else fall
+    b = params.brake_tau_s if brake is None else brake
+    tau = np.where(np.signbit(d), b, np.where(u > w, r, f))
+    dt = np.asarray(dt_s, dtype=float)
+    if dt.ndim == 1 and tau.ndim == 2:  # one time per row
+        dt = dt[:, None]
+    return np.asarray(u + (w - u) * np.exp(-np.minimum(dt / tau, _MAX_DECAY)))
+
+
+@dataclass(frozen=True)
+class Shaper:
+    """Drive shaping: every change of a tactor's level played as a kick or a brake pulse.
+
+    At each decision (a render tick, a new frame) the shaper predicts each motor's speed
+    with its model (``params``, per tactor the time constants ``rise_tau_s``,
+    ``fall_tau_s``, ``brake_tau_s`` when tuned) and chooses the drive until the next
+    decision, ``h`` later:
+
+    - at the target speed (the steady speed of the level): the level itself;
+    - below it: the overdrive (bounded by ``overdrive``, the motor's maximum voltage or
+      the supply over its rated voltage), or on the last tick of the kick the drive that
+      lands the predicted speed exactly on the target (no overshoot);
+    - above it: a lower forward drive when that lands on it within ``h`` (a small fall);
+      else reverse drive (``brake``: the bridge has both inputs), as strong as landing
+      needs, at most ``overdrive``; without braking, coast. Where neither lands without
+      passing the target, the level itself (the motor coasts down to it).
+
+    So a kick lasts the time the model gives to reach the new level,
+    ``tau * ln((k - w0) / (k - s))`` (k the overdrive), a brake pulse likewise, and the
+    drive never stays beyond the target: the predicted speed cannot pass it, so no command
+    sequence holds overdrive past ``rise_tau * ln(k / (k - 1))`` plus a tick, nor reverse
+    drive past ``brake_tau * ln((k + k) / k)`` plus a tick.
+    """
+
+    params: ErmParams
+    overdrive: float
+    brake: bool = True
+    rise_tau_s: tuple[float, ...] | None = None
+    fall_tau_s: tuple[float, ...] | None = None
+    brake_tau_s: tuple[float, ...] | None = None
+
+    def __post_init__(self) -> None:
+        od = self.overdrive
+        if isinstance(od, bool) or not isinstance(od, int | float) or not (
+                math.isfinite(od) and 1.0 <= od <= 4.0):
+            raise ConfigError(f"overdrive must be a number in [1, 4] (times the rated "
+                              f"drive), got {od!r}")
+        for name in ("rise_tau_s", "fall_tau_s", "brake_tau_s"):
+            v = getattr(self, name)
+            if v is not None and not all(isinstance(x, int | float) and math.isfinite(x)
+                                         and 0.0 < x < 10.0 for x in v):
+                raise ConfigError(f"Shaper.{name} must be time constants in (0, 10) s, "
+                                  f"got {v!r}")
+
+    def taus(self, n: int) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """The rise, fall and brake time constants of ``n`` tactors (s)."""
+        p = self.params
+        out = []
+        for given, default in ((self.rise_tau_s, p.rise_tau_s), (self.fall_tau_s,
+                               p.fall_tau_s), (self.brake_tau_s, p.brake_tau_s)):
+            if given is None:
+                out.append(np.full(n, default))
+            elif len(given) != n:
+                raise ConfigError(f"the shaping has time constants for {len(given)} "
+                                  f"tactors, the belt {n}")
+            else:
+                out.append(np.asarray(given, dtype=float))
+        return out[0], out[1], out[2]
+
+    def drive(self, levels: FloatArray, w: FloatArray, h_s: float,
+              taus: tuple[FloatArray, FloatArray, FloatArray]) -> FloatArray:
+        """The signed drive of each tactor for the next ``h_s`` seconds, from the commanded
+        ``levels`` and the predicted speeds ``w`` (``taus``: :meth:`taus`)."""
+        rise, fall, brake = taus
+        start = self.params.start_level
+        lv = np.asarray(levels, dtype=float)
+        s = np.where(lv >= start, lv, 0.0)
+        gap = s - w
+        d = lv.copy()
+        up = gap > _SETTLED
+        down = gap < -_SETTLED
+        if up.any():
+            e = np.exp(-h_s / rise)
+            d = np.where(up, np.minimum((s - w * e) / (1.0 - e), self.overdrive), d)
+        if down.any():
+            e = np.exp(-h_s / fall)
+            fwd = (s - w * e) / (1.0 - e)  # the forward drive that lands, coasting
+            lands = (fwd >= start) & (s > 0.0)
+            if self.brake:
+                eb = np.exp(-h_s / brake)
+                rev = (s - w * eb) / (1.0 - eb)  # the reverse drive that lands
+                fall_d = np.where(rev <= 0.0, np.maximum(rev, -self.overdrive) - 0.0, lv)
+                # -0.0 keeps the sign bit of a zero (the short brake)
+                fall_d = np.where(rev <= 0.0, np.copysign(np.abs(fall_d), -1.0), fall_d)
+            else:
+                fall_d = np.where(fwd < 0.0, 0.0, lv)
+            d = np.where(down, np.where(lands, fwd, fall_d), d)
+        return np.asarray(d)
+
+    def settled(self, levels: FloatArray, w: FloatArray) -> bool:
+        """True when every tactor's predicted speed is at its level's steady speed (or its
+        level is off and the bridge cannot brake: it coasts as plain): the drive is the
+        level from here on while the levels stay."""
+        lv = np.asarray(levels, dtype=float)
+        s = np.where(lv >= self.params.start_level, lv, 0.0)
+        ok = np.abs(s - w) <= _SETTLED
+        if not self.brake:
+            ok |= (s == 0.0) & (w >= 0.0)
+        return bool(ok.all())

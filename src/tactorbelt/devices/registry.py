@@ -243,12 +243,21 @@ _TIMEOUT: Final = UrlOption("timeout_s", float, "seconds a request waits for its
 _HEARTBEAT: Final = UrlOption("heartbeat_ms", int, "the device's failsafe timeout (ms)",
                               50, 2000)
 
+_DRIVE: Final = UrlOption("drive", str, "plain, or shaped: overdrive kicks and brake pulses "
+                          "(ERM belts that can; docs/belts.md)")
+
 #: scheme -> backend. Adding a backend: its module, one line here, its docs page.
 BACKENDS: dict[str, Backend] = {b.scheme: b for b in (
     Backend("sim", "tactorbelt.devices.sim:open_sim",
             "simulated ERM belt (sim:8 tactors; sim:virtual runs on a simulated clock)",
             ("sim", "sim:virtual", "sim:8"),
-            options=(UrlOption("horizon_s", float, "seconds of history kept", 0.001, 1e6),),
+            options=(UrlOption("horizon_s", float, "seconds of history kept", 0.001, 1e6),
+                     _DRIVE,
+                     UrlOption("overdrive", float, "the shaper's largest drive, times the "
+                               "rated (default: 3.6 V / 3.0 V)", 1.0, 4.0),
+                     UrlOption("supply_v", float, "the motor supply (V; bounds the "
+                               "overdrive)", 0.5, 24.0),
+                     UrlOption("brake", bool, "both H-bridge inputs wired (default 1)")),
             docs="docs/belts.md", simulated_time=True),
     Backend("emulator", "tactorbelt.devices.emulator:open_emulator",
             "the firmware core built for this computer, on a pseudo-terminal",
@@ -258,14 +267,14 @@ BACKENDS: dict[str, Backend] = {b.scheme: b for b in (
                      UrlOption("watchdog_ms", int, "the board's watchdog (ms; off)", 1, 10000),
                      UrlOption("debug_frames", bool, "accept DEBUG_HANG (tests)"),
                      UrlOption("imu", str, "the board's simulated IMU: bmi270, lsm9ds1, "
-                               "none (firmware 1.1) or broken")),
+                               "none (firmware 1.1) or broken"), _DRIVE),
             docs="docs/devices.md"),
     Backend("serial", "tactorbelt.devices.serial:open_serial",
             "firmware over USB serial", ("serial:/dev/ttyACM0", "serial:auto"), target="PORT",
             options=(_TIMEOUT, _HEARTBEAT,
                      UrlOption("baudrate", int, "for real UARTs", 300, 4_000_000),
                      UrlOption("dtr", bool, "assert DTR (default 1; the board is mute "
-                               "without it)")),
+                               "without it)"), _DRIVE),
             discover="tactorbelt.devices.serial:discover", title="Serial ports",
             docs="docs/devices.md", allowed=("serial:PORT", "serial:auto")),
     Backend("ble", "tactorbelt.devices.ble:open_ble",
@@ -273,7 +282,8 @@ BACKENDS: dict[str, Backend] = {b.scheme: b for b in (
             target="NAME_OR_ADDRESS",
             options=(_TIMEOUT, _HEARTBEAT,
                      UrlOption("scan_timeout_s", float, "seconds to scan", 0.1, 120.0),
-                     UrlOption("connect_timeout_s", float, "seconds to connect", 0.1, 120.0)),
+                     UrlOption("connect_timeout_s", float, "seconds to connect", 0.1, 120.0),
+                     _DRIVE),
             discover="tactorbelt.devices.ble:discover", title="BLE",
             docs="docs/devices.md"),
     Backend("audio", "tactorbelt.devices.audio:open_audio",
@@ -288,7 +298,7 @@ BACKENDS: dict[str, Backend] = {b.scheme: b for b in (
                      UrlOption("blocksize", int, "frames per callback (0: PortAudio's)", 0,
                                16384),
                      UrlOption("ramp_ms", float, "ramp of every amplitude change", 0.1,
-                               100.0)),
+                               100.0), _DRIVE),
             discover="tactorbelt.devices.audio:discover", title="Audio outputs",
             docs="docs/audio.md", allowed=("audio:DEVICE", "audio:default")),
 )}

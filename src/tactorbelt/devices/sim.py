@@ -47,10 +47,12 @@ from .calibration import Calibration
 from .erm import (
     _RESPONSE_MAX_TICKS,
     _TIE,
+    DRIVES,
     RENDER_TICK_NS,
     ErmParams,
     FloatArray,
     IntArray,
+    Shaper,
     _decay_factors,
     _fall_factor,
     _fall_factor_to,
@@ -59,6 +61,7 @@ from .erm import (
     _relax_to,
     _Response,
     _sorted_unique,
+    drive_relax,
     erm_speed,
     sample_grid,
 )
@@ -86,7 +89,13 @@ _MAX_CHECKPOINTS: Final = 64
 #: moving motors takes ~110 KB: 220 stimuli).
 _RESPONSES_BUDGET: Final = 24 * 2**20
 
-_OPTIONS: Final = ("layout", "clock", "calibration", "params", "horizon_s", "name")
+_OPTIONS: Final = ("layout", "clock", "calibration", "params", "horizon_s", "name", "drive",
+                   "overdrive", "brake", "supply_v", "shaper")
+#: The sim belt's motor supply by default (V): the motors' maximum voltage, so the
+#: shaper may overdrive them up to it (docs/hardware.md, "Power").
+DEFAULT_SUPPLY_V: Final = 3.6
+#: Shaped checkpoints kept (decision points of the shaper with the motor state).
+_MAX_SHAPED_CHECKPOINTS: Final = 64
 
 @dataclass(frozen=True)
 class SimCommand:
@@ -313,6 +322,12 @@ class SimBelt(Belt):
             is summarised by the motor state at the cut, and queries before the cut
             raise ConfigError.
         url, name: recorded on the belt.
+        drive: ``plain`` (the default of the class: the motor model as it is driven) or
+            ``shaped`` (:class:`~tactorbelt.devices.erm.Shaper`); a belt opened by URL
+            (:func:`open_sim`) is shaped unless ``drive=plain``.
+        shaper: the shaping (default: the motor's own model, overdrive up to its
+            maximum voltage on a :data:`DEFAULT_SUPPLY_V` supply, braking).
+        brake: both H-bridge inputs are wired (reverse drive and short brake).
     """
 
     def __init__(
@@ -324,6 +339,9 @@ class SimBelt(Belt):
         horizon_s: float = DEFAULT_HORIZON_S,
         url: str = "sim",
         name: str | None = None,
+        drive: str = "plain",
+        shaper: Shaper | None = None,
+        brake: bool = True,
     ) -> None:
         layout = layout if layout is not None else Layout.even(6)
         if not isinstance(layout, Layout):
@@ -368,6 +386,20 @@ class SimBelt(Belt):
         self._ck_w: list[FloatArray] = []
         self._ck_spacing_ns = max(1, self._horizon_ns // 32)
         self._since_ck = 0
+        if shaper is not None and not isinstance(shaper, Shaper):
+            raise ConfigError(f"shaper must be a Shaper, got {type(shaper).__name__}")
+        self._brake = bool(brake)
+        self.shaper: Shaper = shaper if shaper is not None else Shaper(
+            self.params, self.params.overdrive_bound(DEFAULT_SUPPLY_V), self._brake)
+        if self.shaper.brake and not self._brake:
+            raise ConfigError("the shaper brakes but the belt cannot (brake=0)")
+        self._taus = self.shaper.taus(n)
+        #: the shaper's decision points kept: time, motor speeds, predicted speeds
+        self._sck: list[tuple[int, FloatArray, FloatArray]] = []
+        self._base_e = np.zeros(n)
+        if drive not in DRIVES:
+            raise ConfigError(f"drive must be one of {', '.join(DRIVES)}, got {drive!r}")
+        self._drive = drive
 
     # -- Belt backend -----------------------------------------------------------------
     def _device_renders(self, stimulus: Stimulus | None) -> bool:
@@ -376,6 +408,134 @@ class SimBelt(Belt):
     @property
     def models_vibration(self) -> bool:
         return True
+
+    @property
+    def can_shape(self) -> bool:
+        return True
+
+    @property
+    def can_brake(self) -> bool:
+        return self._brake
+
+    def _set_drive(self, drive: str) -> None:
+        # the history so far was played with the old drive: its state now starts the new
+        # one, and times before now are no longer asked for
+        now = int(self.clock.now_ns())
+        if now > self._base_t or self._hi > self._lo:
+            t, w, e = self._state_before(now)
+            self._lo = max(self._row_in_force(t), self._lo)
+            self._base_t, self._pruned = t, True
+            self._base_w, self._base_e = w, e
+        if drive == "plain":  # the plain solution's states are forward speeds up to 1
+            self._base_w = np.clip(self._base_w, 0.0, 1.0)
+        self._ck_t.clear()
+        self._ck_w.clear()
+        self._sck.clear()
+
+    def _state_before(self, t_ns: int) -> tuple[int, FloatArray, FloatArray]:
+        """A time at or before ``t_ns`` the drive may restart from, with the motors' and
+        the shaper's predicted speeds there: ``t_ns`` itself when plain, the shaper's last
+        decision before it when shaped (so the drive after it stays as played)."""
+        if self._drive != "shaped":
+            w = self._speed_at(np.array([t_ns], dtype=np.int64))[0]
+            return t_ns, w, w.copy()
+        t_a, w_a, e_a = self._shaped_start(t_ns)
+        ts, _, ws, es = self._shaped_solve(t_a, w_a, e_a, t_ns, t_ns)
+        return int(ts[-1]), ws[-1], es[-1]
+
+    # -- shaped drive -------------------------------------------------------------------
+    def _shaped_start(self, t_first: int) -> tuple[int, FloatArray, FloatArray]:
+        """The latest kept decision of the shaper at or before ``t_first`` (time, motor
+        and predicted speeds), else the base state."""
+        if self._pruned and t_first < self._base_t:
+            raise ConfigError(
+                f"time {t_first} ns is before the kept history (from {self._base_t} ns; "
+                f"the sim belt keeps {self._horizon_ns / 1e9:g} s, see horizon_s)")
+        if t_first < self._base_t:
+            return t_first, np.zeros(self.n_tactors), np.zeros(self.n_tactors)
+        j = bisect.bisect_right([c[0] for c in self._sck], t_first) - 1
+        if j >= 0:
+            return self._sck[j]
+        return self._base_t, self._base_w, self._base_e
+
+    def _shaped_solve(self, t_a: int, w: FloatArray, e: FloatArray, t_last: int,
+                      keep_until: int) -> tuple[IntArray, FloatArray, FloatArray, FloatArray]:
+        """The shaper's decisions from ``t_a`` (a decision point, motor speeds ``w``,
+        predicted ``e``) to ``t_last``: their times, drives, and the motor and predicted
+        speeds at each. It decides at every command, render change and 1 kHz tick of the
+        belt's clock (the firmware's renderer) until its prediction settles on the level,
+        then drives the level until the levels change. The last decision at or before
+        ``keep_until`` is kept to start later solutions from."""
+        p, sh, taus = self.params, self.shaper, self._taus
+        rise, fall, brake = taus
+        bounds = _sorted_unique(np.concatenate([np.array([t_a], dtype=np.int64),
+                                                self._breakpoints(t_a, t_last)]))
+        levels = self._levels_at(bounds)
+        tick = RENDER_TICK_NS
+        ts: list[int] = []
+        ds: list[FloatArray] = []
+        ws: list[FloatArray] = []
+        es: list[FloatArray] = []
+        m = bounds.shape[0]
+        for i in range(m):
+            t = int(bounds[i])
+            b1 = int(bounds[i + 1]) if i + 1 < m else t_last + 1
+            lv = levels[i]
+            while t < b1:
+                ts.append(t)
+                ws.append(w)
+                es.append(e)
+                if sh.settled(lv, e):
+                    ds.append(lv)
+                    h = (b1 - t) * 1e-9
+                    w = drive_relax(lv, w, h, p)
+                    e = drive_relax(lv, e, h, p, rise=rise, fall=fall, brake=brake)
+                    break
+                end = (t // tick + 1) * tick  # the decision holds a tick
+                d = sh.drive(lv, e, (end - t) * 1e-9, taus)
+                ds.append(d)
+                nxt = min(end, b1)
+                h = (nxt - t) * 1e-9
+                w = drive_relax(d, w, h, p)
+                e = drive_relax(d, e, h, p, rise=rise, fall=fall, brake=brake)
+                t = nxt
+        t_arr = np.asarray(ts, dtype=np.int64)
+        j = int(t_arr.searchsorted(keep_until, side="right")) - 1
+        if j > 0 and (not self._sck or ts[j] > self._sck[-1][0]):
+            ck = self._sck
+            if len(ck) >= 2 and ts[j] - ck[-2][0] < self._ck_spacing_ns:
+                ck[-1] = (ts[j], ws[j], es[j])
+            else:
+                ck.append((ts[j], ws[j], es[j]))
+            if len(ck) > _MAX_SHAPED_CHECKPOINTS:
+                del ck[0]
+        return t_arr, np.asarray(ds), np.asarray(ws), np.asarray(es)
+
+    def _speed_shaped(self, times: IntArray) -> FloatArray:
+        """:meth:`_speed_at` of the shaped drive: the motors' speed magnitude (a motor
+        reverse-driven past a stop spins backwards and vibrates again)."""
+        t_first, t_last = int(times[0]), int(times[-1])
+        t_a, w_a, e_a = self._shaped_start(t_first)
+        keep = max(min(int(self.clock.now_ns()), t_last), t_a)
+        ts, ds, ws, _ = self._shaped_solve(t_a, w_a, e_a, t_last, keep)
+        idx = ts.searchsorted(times, side="right") - 1
+        dt = np.asarray((times - ts[idx]) * 1e-9, dtype=np.float64)
+        w = drive_relax(ds[idx], ws[idx], dt, self.params)
+        return np.asarray(np.abs(w))
+
+    def driven(self, t0_ns: int, t1_ns: int, rate_hz: float = 1000.0
+               ) -> tuple[IntArray, FloatArray]:
+        """The signed drive the motors get over [t0, t1): the commanded levels when plain;
+        when shaped, the shaper's (above 1: overdrive; negative, or -0.0: reverse drive or
+        the short brake, :data:`~tactorbelt.devices.erm.BRAKE`)."""
+        times = sample_grid(t0_ns, t1_ns, rate_hz)
+        with self._lock:
+            if self._drive != "shaped" or times.shape[0] == 0:
+                return times, self._levels_at(times)
+            t_a, w_a, e_a = self._shaped_start(int(times[0]))
+            keep = max(min(int(self.clock.now_ns()), int(times[-1])), t_a)
+            ts, ds, _, _ = self._shaped_solve(t_a, w_a, e_a, int(times[-1]), keep)
+            return times, ds[ts.searchsorted(times, side="right") - 1]
 
     @property
     def hardware(self) -> bool:
@@ -515,6 +675,8 @@ class SimBelt(Belt):
         n = self.n_tactors
         if times.shape[0] == 0:
             return np.zeros((0, n))
+        if self._drive == "shaped":
+            return self._speed_shaped(times)
         t_first, t_last = int(times[0]), int(times[-1])
         if self._pruned and t_first < self._base_t:
             raise ConfigError(
@@ -848,15 +1010,20 @@ class SimBelt(Belt):
                 before_ns)
             # cut at a remembered state when there is one close before the cut: no work
             j = bisect.bisect_right(self._ck_t, cut) - 1
+            e_cut = None
             if j >= 0 and self._ck_t[j] > max(self._base_t, cut - self._slack_ns):
                 cut, w_cut = self._ck_t[j], self._ck_w[j]
             elif cut <= self._base_t:
                 return
             else:
-                w_cut = self._speed_at(np.array([cut], dtype=np.int64))[0]
+                cut, w_cut, e_cut = self._state_before(cut)
+                if cut <= self._base_t:
+                    return
             keep = max(self._row_in_force(cut), self._lo)
             self._lo = keep
             self._base_t, self._base_w, self._pruned = cut, w_cut, True
+            self._base_e = w_cut.copy() if e_cut is None else e_cut
+            self._sck = [c for c in self._sck if c[0] >= cut]
             j = bisect.bisect_left(self._ck_t, cut)
             del self._ck_t[:j], self._ck_w[:j]
             live = self._rid[self._lo : self._hi]
@@ -895,7 +1062,12 @@ def open_sim(target: str = "", **options: Any) -> SimBelt:
             (``sim:8,virtual``).
         **options: ``layout`` (Layout), ``clock`` (Clock), ``calibration``
             (Calibration or a path to a calibration file), ``params`` (ErmParams),
-            ``horizon_s`` (float), ``name`` (str).
+            ``horizon_s`` (float), ``name`` (str), ``drive`` (``shaped``, the default, or
+            ``plain``), ``overdrive`` (the shaper's largest drive, times the rated;
+            default the motor's maximum voltage, or ``supply_v`` when lower, over its rated
+            voltage), ``supply_v`` (V, default :data:`DEFAULT_SUPPLY_V`), ``brake``
+            (bool, default True: both bridge inputs wired), ``shaper`` (a
+            :class:`~tactorbelt.devices.erm.Shaper`).
 
     Raises:
         ConfigError: an unknown option or target, or values that do not fit together.
@@ -921,7 +1093,16 @@ def open_sim(target: str = "", **options: Any) -> SimBelt:
     if calibration is not None and not isinstance(calibration, Calibration):
         calibration = Calibration.load(calibration)
     url = f"sim:{target}" if target else "sim"
+    params = options.get("params")
+    shaper = options.get("shaper")
+    brake = bool(options.get("brake", True))
+    if shaper is None and ("overdrive" in options or "supply_v" in options or not brake):
+        p = params if isinstance(params, ErmParams) else ErmParams()
+        od = options.get("overdrive")
+        supply = options.get("supply_v", DEFAULT_SUPPLY_V)
+        shaper = Shaper(p, float(od) if od is not None else p.overdrive_bound(supply), brake)
     return SimBelt(layout=layout, clock=clock, calibration=calibration,
-                   params=options.get("params"),
+                   params=params,
                    horizon_s=options.get("horizon_s", DEFAULT_HORIZON_S),
-                   url=url, name=options.get("name"))
+                   url=url, name=options.get("name"), drive=options.get("drive", "shaped"),
+                   shaper=shaper, brake=brake)

@@ -431,6 +431,8 @@ class SessionRunner:
         )
 
         study, store = self.study, self.store
+        if study.stimulus.drive is not None:  # the study's drive, for the whole session
+            self.belt.set_drive(study.stimulus.drive)
         self.profile = profile_for_session(
             study, store, self.belt, self.clock, self.participant,
             self.cursor.calibration_respondent(int(study.session.seed if self.seed is None
@@ -468,7 +470,7 @@ class SessionRunner:
                 participant=self.participant, study_name=study.name,
                 study_toml=self.study_toml, study_sha256=sha, seed=seed,
                 condition_order=list(self.order), schedule=self.schedule,
-                belt=self.belt.url, firmware_version=self.belt.firmware_version,
+                belt=self.belt.session_url, firmware_version=self.belt.firmware_version,
                 calibration=self.belt.calibration.to_list(),
                 package_version=prov.package_version, git_commit=prov.git_commit,
                 host=prov.host, input=self.input_name,

@@ -169,6 +169,9 @@ class StimulusSpec(_Model):
     period_s: float = Field(default=1.0, gt=0, le=60)
     transit_s: float = Field(default=0.1, gt=0, le=30)
     max_presentation_s: float = Field(default=10.0, gt=0, le=600)
+    #: ``plain`` or ``shaped`` (overdrive and braking, docs/belts.md "Drive shaping"),
+    #: set on the belt for the whole session; None: the belt's own default.
+    drive: Literal["plain", "shaped"] | None = None
 
     _law = field_validator("law")(_check_law)
 
@@ -386,7 +389,7 @@ class BlockSpec(_Model):
     def stimulus_overrides(self) -> dict[str, Any]:
         """The ``[stimulus]`` keys this block sets."""
         return {k: getattr(self, k) for k in StimulusSpec.model_fields
-                if getattr(self, k) is not None}
+                if k in type(self).model_fields and getattr(self, k) is not None}
 
     def toml_dict(self) -> dict[str, Any]:
         """The block as a study file writes it (added factors as keys of their own)."""

@@ -1,0 +1,261 @@
+"""Drive shaping: overdrive kicks and brake pulses on the sim belt's motor model, the
+``drive`` option of a belt URL and of a study, and the bounds no command sequence passes."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from support.studies import study_toml
+from tactorbelt import ConfigError
+from tactorbelt.clock import SimClock
+from tactorbelt.devices import open_belt
+from tactorbelt.devices.base import Belt
+from tactorbelt.devices.erm import BRAKE, ErmParams, Shaper, drive_relax
+from tactorbelt.experiment.study import Study, paper_study
+from tactorbelt.geometry import Layout
+
+S = 1_000_000_000
+MS = 1_000_000
+
+
+def pulse(url: str, level: float, on_s: float = 0.4, off_s: float = 0.4
+          ) -> dict[str, float]:
+    """One pulse of tactor 0 on a belt opened by ``url`` (simulated clock): its 10-90 %
+    rise, 90-10 % fall, overshoot over the steady amplitude, the steady amplitude."""
+    clock = SimClock()
+    with open_belt(url, clock=clock) as b:
+        t0 = clock.now_ns() + 10 * MS
+        clock.sleep_until_ns(t0)
+        frame = np.zeros(b.n_tactors)
+        frame[0] = level
+        b.set_amplitudes(frame)
+        t_off = t0 + round(on_s * S)
+        clock.sleep_until_ns(t_off)
+        b.stop()
+        t_end = t_off + round(off_s * S)
+        clock.sleep_until_ns(t_end)
+        t, a = b.vibration(t0, t_end, 20_000)
+    a = a[:, 0]
+    steady = float(a[(t > t_off - 100 * MS) & (t < t_off)].mean())
+
+    def cross(th: float, after: int, up: bool) -> float:
+        m = (t >= after) & ((a >= th) if up else (a <= th))
+        return float(t[np.argmax(m)] - after) / MS
+
+    return {"rise": cross(0.9 * steady, t0, True) - cross(0.1 * steady, t0, True),
+            "fall": cross(0.1 * steady, t_off, False) - cross(0.9 * steady, t_off, False),
+            "overshoot": float(a.max()) / steady - 1.0, "steady": steady}
+
+
+@pytest.mark.parametrize("level", [0.5, 1.0])
+def test_plain_drive_keeps_the_models_rise_and_fall(level: float) -> None:
+    got = pulse("sim?drive=plain", level)
+    # 10-90 % amplitude (amplitude ~ speed^2) of a first-order speed: tau * ln(a/b)
+    p = ErmParams()
+    lo, hi = math.sqrt(0.1), math.sqrt(0.9)
+    rise = p.rise_tau_s * math.log((1 - lo) / (1 - hi)) * 1e3
+    fall = p.fall_tau_s * math.log(hi / lo) * 1e3
+    assert got["rise"] == pytest.approx(rise, abs=0.25)  # 0.05 ms samples
+    assert got["fall"] == pytest.approx(fall, abs=0.25)
+
+
+@pytest.mark.parametrize("level", [0.5, 1.0])
+def test_shaped_drive_rises_and_falls_faster_without_overshoot(level: float) -> None:
+    plain, shaped = pulse("sim?drive=plain", level), pulse("sim", level)
+    assert shaped["steady"] == pytest.approx(plain["steady"], rel=1e-3)
+    assert shaped["overshoot"] <= 0.05
+    assert shaped["fall"] <= 30.0  # the brake pulse
+    assert shaped["rise"] < plain["rise"] / 2
+    if level == 0.5:  # 2.4 times the level at 3.6 V: within 30 ms
+        assert shaped["rise"] <= 30.0
+
+
+def test_with_twice_the_rated_drive_a_full_level_rises_within_30_ms() -> None:
+    got = pulse("sim?overdrive=2", 1.0)
+    assert got["rise"] <= 30.0 and got["fall"] <= 30.0 and got["overshoot"] <= 0.05
+
+
+def test_the_kick_lasts_the_models_time_to_reach_the_level() -> None:
+    clock = SimClock()
+    with open_belt("sim?overdrive=2", clock=clock) as b:
+        t0 = clock.now_ns()
+        b.set_amplitudes([0.5, 0, 0, 0, 0, 0])
+        clock.advance(200 * MS)
+        _, d = b.driven(t0, t0 + 100 * MS, 10_000)
+    p = ErmParams()
+    kick_ms = (d[:, 0] > 0.5 + 1e-9).sum() / 10
+    # tau * ln(k / (k - s)): k = 2, s = 0.5, plus the landing tick
+    assert kick_ms == pytest.approx(p.rise_tau_s * math.log(2 / 1.5) * 1e3, abs=1.0)
+    assert d[:, 0].max() == 2.0
+
+
+def test_without_braking_a_fall_coasts_as_plain() -> None:
+    assert pulse("sim?brake=0", 1.0)["fall"] == pytest.approx(
+        pulse("sim?drive=plain", 1.0)["fall"], abs=0.1)
+    clock = SimClock()
+    with open_belt("sim?brake=0", clock=clock) as b:
+        t0 = clock.now_ns()
+        b.set_amplitudes([1, 0.6, 0, 0, 0, 0])
+        clock.advance(200 * MS)
+        b.set_amplitudes([0.3, 0, 0, 0, 0, 0])
+        clock.advance(200 * MS)
+        _, d = b.driven(t0, clock.now_ns(), 1000)
+    assert not np.signbit(d).any()
+    assert not b.can_brake
+
+
+def test_no_command_sequence_holds_overdrive_or_reverse_beyond_its_bound() -> None:
+    rng = np.random.default_rng(7)
+    clock = SimClock()
+    p = ErmParams()
+    with open_belt("sim", clock=clock) as b:
+        k = b.shaper.overdrive
+        t0 = clock.now_ns()
+        for _ in range(400):  # frames at random times and levels, all the extremes
+            frame = rng.choice([0.0, 0.1, 0.3, 0.5, 1.0], size=b.n_tactors)
+            b.set_amplitudes(frame)
+            clock.advance(int(rng.choice([1, 3, 17, 60, 200])) * MS
+                          + int(rng.integers(0, MS)))
+        t, d = b.driven(t0, clock.now_ns(), 10_000)
+        _, a = b.vibration(t0, clock.now_ns(), 1000)
+    assert d.max() <= k and d.min() >= -k
+    assert a.max() <= 1.0 + 1e-9  # no speed beyond the rated one (no overshoot)
+
+    def longest(mask: np.ndarray) -> float:
+        best = 0
+        for col in mask.T:
+            run = 0
+            for x in col:
+                run = run + 1 if x else 0
+                best = max(best, run)
+        return best / 10.0  # ms at 10 kHz
+
+    tick_ms = 1.0
+    assert longest(d > 1.0) <= p.rise_tau_s * math.log(k / (k - 1)) * 1e3 + tick_ms
+    assert longest(np.signbit(d) & (d != 0)) <= p.brake_tau_s * math.log(2) * 1e3 + tick_ms
+
+
+def _dynamic_error(url: str) -> float:
+    """RMS of felt minus intended amplitude (the steady amplitude of the commanded level)
+    over a dynamic stimulus played for 2 s and the 0.5 s after it."""
+    from tactorbelt.stimuli import make_stimulus
+
+    stim = make_stimulus(Layout.even(6), 75.0, "dynamic")
+    clock = SimClock()
+    with open_belt(url, clock=clock) as b:
+        t0 = clock.now_ns()
+        b.play(stim, 2.0)
+        clock.advance(2500 * MS)
+        _, felt = b.vibration(t0, t0 + 2500 * MS)
+        _, cmd = b.commanded(t0, t0 + 2500 * MS)
+    p = ErmParams()
+    return float(np.sqrt(np.mean((felt - p.amplitude(p.steady_speed(cmd))) ** 2)))
+
+
+def test_a_played_stimulus_is_shaped_on_the_belts_render_ticks() -> None:
+    plain = _dynamic_error("sim?drive=plain")
+    assert _dynamic_error("sim") * 2 <= plain  # overdrive to 3.6 V: 2.1 times smaller
+    assert _dynamic_error("sim?overdrive=2") * 3 <= plain  # to 6 V: 3.1 times
+
+
+def test_the_drive_is_a_url_option_and_a_belt_setting() -> None:
+    clock = SimClock()
+    with open_belt("sim", clock=clock) as b:
+        assert b.drive == "shaped" and b.can_shape and b.can_brake
+        assert b.session_url == "sim?drive=shaped"
+        b.set_drive("plain")
+        assert b.drive == "plain" and b.session_url == "sim"
+        with pytest.raises(ConfigError, match="drive must be one of"):
+            b.set_drive("turbo")
+    with open_belt("sim:virtual?drive=plain") as b:
+        assert b.drive == "plain" and b.session_url == "sim:virtual"
+    with pytest.raises(ConfigError, match="unknown option"):
+        open_belt("sim?overdrive_v=4")
+    with pytest.raises(ConfigError, match="overdrive"):
+        open_belt("sim?overdrive=9")
+
+
+def test_switching_the_drive_keeps_what_was_played() -> None:
+    clock = SimClock()
+    with open_belt("sim", clock=clock) as b:
+        b.set_amplitudes([1, 0, 0, 0, 0, 0])
+        clock.advance(300 * MS)
+        before = b.vibration_at([clock.now_ns()])[0, 0]
+        b.set_drive("plain")
+        assert b.vibration_at([clock.now_ns()])[0, 0] == pytest.approx(before, abs=1e-9)
+        b.stop()
+        clock.advance(55 * MS)  # a plain fall from here on: about half way in 55 ms
+        assert 0.05 < b.vibration_at([clock.now_ns()])[0, 0] < 0.5
+
+
+class _NoShaping(Belt):
+    """A belt that cannot shape (the default of the interface)."""
+
+    def __init__(self) -> None:
+        super().__init__("toy", "toy", Layout.even(2))
+
+    def _write_levels(self, levels: np.ndarray) -> None:
+        pass
+
+    def _write_stop(self) -> None:
+        pass
+
+
+def test_a_belt_that_cannot_shape_refuses_the_shaped_drive() -> None:
+    b = _NoShaping()
+    assert not b.can_shape and not b.can_brake and b.drive == "plain"
+    with pytest.raises(ConfigError, match="cannot shape"):
+        b.set_drive("shaped")
+    b.set_drive("plain")
+    b.close()
+
+
+def test_the_signed_drive_model() -> None:
+    p = ErmParams()
+    w = np.array([1.0])
+    # reverse drive brakes towards the drive with the brake time constant
+    got = drive_relax(np.array([-1.2]), w, p.brake_tau_s, p)
+    assert got[0] == pytest.approx(-1.2 + 2.2 * math.exp(-1))
+    # the short brake: towards 0 with the brake time constant; coast: the fall one
+    assert drive_relax(np.array([BRAKE]), w, 0.01, p)[0] == pytest.approx(
+        math.exp(-0.01 / p.brake_tau_s))
+    assert drive_relax(np.array([0.0]), w, 0.01, p)[0] == pytest.approx(
+        math.exp(-0.01 / p.fall_tau_s))
+    # overdrive: towards the drive with the rise time constant
+    assert drive_relax(np.array([1.2]), np.array([0.0]), 0.01, p)[0] == pytest.approx(
+        1.2 * (1 - math.exp(-0.01 / p.rise_tau_s)))
+    assert p.overdrive_bound() == pytest.approx(1.2)
+    assert p.overdrive_bound(3.3) == pytest.approx(1.1)
+    assert p.overdrive_bound(2.0) == 1.0
+    with pytest.raises(ConfigError):
+        Shaper(p, 0.5)
+    with pytest.raises(ConfigError):
+        ErmParams(max_voltage_v=2.0)
+
+
+def test_a_study_names_its_drive_and_the_session_stores_it(tmp_path: Path) -> None:
+    from tactorbelt.experiment.runner import run_session
+    from tactorbelt.experiment.store import Store
+    from tactorbelt.inputs.model import make_model_cursor
+
+    assert paper_study().stimulus.drive == "plain"  # as the paper's belt played
+    text = study_toml(minimal=True, name="shaped", tactors=4, targets=8,
+                      max_presentation_s=1.0, timeout_s=2.0, iti_s=0.5, training=0,
+                      repetitions=1)
+    text = text.replace("[stimulus]\n", '[stimulus]\ndrive = "shaped"\n')
+    study = Study.from_toml(text)
+    assert study.stimulus.drive == "shaped"
+    assert Study.from_toml(study.to_toml()) == study
+    with pytest.raises(Exception, match="drive"):
+        Study.from_toml(text.replace('drive = "shaped"', 'drive = "fast"'))
+    clock = SimClock()
+    with Store.open(tmp_path / "s.sqlite") as store, open_belt(
+            "sim?drive=plain", clock=clock, layout=study.layout_obj()) as belt:
+        res = run_session(study, "model-1", belt, make_model_cursor(belt, clock, seed=1),
+                          store, clock, seed=1, limit=2)
+        assert belt.drive == "shaped"
+        assert store.session(res.session_id)["belt"] == "sim?drive=shaped"
