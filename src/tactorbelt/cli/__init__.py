@@ -52,6 +52,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
                 "Analyze one or more stores and write the report."),
     "point": ("tactorbelt.cli.point:point", "Keep a bearing displayed on a belt."),
     "validate": ("tactorbelt.cli.validate:validate", "Check a belt's onsets against a sensor."),
+    "pattern": ("tactorbelt.cli.pattern:pattern",
+                "Import, play, export or draw haptic patterns (AHAP, .haptic, .tact)."),
 }
 
 
