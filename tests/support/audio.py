@@ -93,9 +93,16 @@ def ensure_jack(timeout_s: float = 15.0, realtime: bool = False) -> None:
                 _skip("jackd -d dummy did not start")
             time.sleep(0.1)
         if "sounddevice" in sys.modules:  # PortAudio looked for JACK before it ran
-            sd = sys.modules["sounddevice"]
-            sd._terminate()
-            sd._initialize()
+            rescan()
+
+
+def rescan() -> None:
+    """Make PortAudio list the JACK clients as they are now (it lists each client with
+    ports as a device, once, when it starts). No stream may be open."""
+    if "sounddevice" in sys.modules:
+        sd = sys.modules["sounddevice"]
+        sd._terminate()
+        sd._initialize()
 
 
 def stop_jack() -> None:

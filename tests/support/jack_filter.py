@@ -22,7 +22,7 @@ import time
 
 import numpy as np
 
-__all__ = ["EnvelopeFilter", "Wiring", "chain_crossings"]
+__all__ = ["EnvelopeFilter", "Wire", "Wiring", "chain_crossings"]
 
 
 class EnvelopeFilter:
@@ -49,6 +49,31 @@ class EnvelopeFilter:
         x = np.abs(self.inport.get_array().astype(float))
         y, self._zi = self._lfilter(self._b, self._den, x, zi=self._zi)
         self.outport.get_array()[:] = y
+
+    def close(self) -> None:
+        self.client.deactivate()
+        self.client.close()
+
+
+class Wire:
+    """A JACK client whose ``n`` outputs copy its ``n`` inputs in the same cycle: a wire
+    as a sound device. Its ports declare no latency (as a plain JACK client's do), which
+    PortAudio 19.6 reports, for a stream opened on it (device ``name``, listed once
+    :func:`support.audio.rescan` ran), as 2^32 frames: 89,478 s (docs/audio.md)."""
+
+    def __init__(self, n: int = 2, name: str = "tactorbelt-wire") -> None:
+        import jack
+
+        self.name = name
+        self.client = jack.Client(name)
+        self.inports = [self.client.inports.register(f"in_{k}") for k in range(n)]
+        self.outports = [self.client.outports.register(f"out_{k}") for k in range(n)]
+        self.client.set_process_callback(self._process)
+        self.client.activate()
+
+    def _process(self, frames: int) -> None:
+        for src, dst in zip(self.inports, self.outports, strict=True):
+            dst.get_array()[:] = src.get_array()
 
     def close(self) -> None:
         self.client.deactivate()

@@ -53,10 +53,14 @@ if TYPE_CHECKING:
 __all__ = [
     "DEFAULT_CARRIER_HZ",
     "DEFAULT_RAMP_MS",
+    "MAX_LATENCY_S",
+    "MAX_REPORTED_LATENCY_S",
     "TACTOR_BAND_HZ",
     "AudioBelt",
+    "checked_latency",
     "discover",
     "open_audio",
+    "parse_latency",
 ]
 
 log = logging.getLogger("tactorbelt.devices")
@@ -73,6 +77,14 @@ _COMMON_RATES: Final = (8000, 16000, 22050, 32000, 44100, 48000, 88200, 96000, 1
 _CHUNK: Final = 1024
 #: Seconds ``close`` and ``settle`` wait at most beyond the ramp and the latency.
 _SETTLE_SLACK_S: Final = 1.0
+#: The longest latency (seconds) the ``latency=`` option of a belt or sensor may ask for.
+MAX_LATENCY_S: Final = 2.0
+#: A stream latency PortAudio reports above this (seconds) is not a latency but an error
+#: of the host API, and is ignored (:func:`checked_latency`): twice the longest one may
+#: ask for (PortAudio rounds a request up to whole buffers). PortAudio 19.6 reports a
+#: JACK port that declares 0 latency as (0 - period) in unsigned 32-bit frames,
+#: 89,478 s at 48 kHz; the least such value, at 192 kHz, is still 22,369 s.
+MAX_REPORTED_LATENCY_S: Final = 2 * MAX_LATENCY_S
 
 OPTIONS: Final = ("channels", "carrier_hz", "map", "samplerate", "latency", "blocksize",
                   "ramp_ms", "layout", "calibration", "clock", "name")
@@ -91,6 +103,49 @@ def _sounddevice() -> Any:
         raise DeviceError(f"audio belts need the PortAudio library ({exc}); on Debian or "
                           "Ubuntu: apt install libportaudio2") from None
     return sounddevice
+
+
+# -- latency ---------------------------------------------------------------------------------
+def checked_latency(reported_s: float, direction: str, device: str) -> float:
+    """PortAudio's reported ``direction`` ("input" or "output") latency of a stream on
+    ``device`` (its label), in seconds, where it is one; else 0.0 with a warning naming
+    the value and the device. The one place the audio belt and the audio sensor read
+    their streams' latency through (``float(stream.latency)`` is passed in).
+
+    A value above :data:`MAX_REPORTED_LATENCY_S`, negative or not finite is no latency:
+    PortAudio 19.6's JACK host API reports a port that declares 0 latency as 2^32
+    frames (89,478 s at 48 kHz). Subtracted from a sensor's time stamps it would put
+    every sample a day before the commands; 0 is what such a port declares.
+    """
+    value = float(reported_s)
+    if math.isfinite(value) and 0.0 <= value <= MAX_REPORTED_LATENCY_S:
+        return value
+    log.warning("audio device %s: PortAudio reports its %s latency as %.6g s, which is not "
+                "a latency (above %g s: a JACK port that declares none?); taken as 0",
+                device, direction, value, MAX_REPORTED_LATENCY_S)
+    return 0.0
+
+
+def parse_latency(text: Any, url: str, kind: str = "belt") -> float | str:
+    """The ``latency=`` option of a ``kind`` ("belt" or "sensor") URL: ``low``, ``high``
+    or seconds in (0, :data:`MAX_LATENCY_S`].
+
+    Raises:
+        ConfigError: anything else.
+    """
+    if isinstance(text, int | float):
+        value = float(text)
+    elif str(text).strip().lower() in ("low", "high"):
+        return str(text).strip().lower()
+    else:
+        try:
+            value = float(text)
+        except ValueError:
+            value = math.nan
+    if not (math.isfinite(value) and 0.0 < value <= MAX_LATENCY_S):
+        raise ConfigError(f"option 'latency' of {kind} URL {url!r} must be low, high or "
+                          f"seconds in (0, {MAX_LATENCY_S:g}], got {text!r}")
+    return value
 
 
 # -- devices ---------------------------------------------------------------------------------
@@ -252,7 +307,8 @@ class AudioBelt(Belt):
         device: the PortAudio output.
         channels: output channels opened; ``mapping[k]`` is tactor k's channel.
         carrier_hz, samplerate, blocksize: as opened (``blocksize`` 0: PortAudio's choice).
-        latency_s: PortAudio's reported output latency of the open stream.
+        latency_s: PortAudio's reported output latency of the open stream (0 where it
+            reports no latency: :func:`checked_latency`).
         output_gain: per tactor, the frequency-response correction at the carrier.
         underruns: output underflows PortAudio reported since the belt was opened.
     """
@@ -315,7 +371,7 @@ class AudioBelt(Belt):
                 self._stream.close()
             self._closed = True
             raise DeviceError(f"cannot open audio device {device.label()}: {exc}") from None
-        self.latency_s = float(self._stream.latency)
+        self.latency_s = checked_latency(self._stream.latency, "output", device.label())
 
     # -- the audio callback (PortAudio's thread) ---------------------------------------------
     def _callback(self, outdata: Any, frames: int, time_info: Any, status: Any) -> None:
@@ -462,22 +518,6 @@ def _parse_map(text: str, url: str) -> tuple[int, ...]:
     return chans
 
 
-def _parse_latency(text: Any, url: str) -> float | str:
-    if isinstance(text, int | float):
-        value = float(text)
-    elif str(text).strip().lower() in ("low", "high"):
-        return str(text).strip().lower()
-    else:
-        try:
-            value = float(text)
-        except ValueError:
-            value = math.nan
-    if not (math.isfinite(value) and 0.0 < value <= 2.0):
-        raise ConfigError(f"option 'latency' of belt URL {url!r} must be low, high or "
-                          f"seconds in (0, 2], got {text!r}")
-    return value
-
-
 def _rates_offered(sd: Any, device: AudioOutput, channels: int) -> list[int]:
     offered = []
     for rate in _COMMON_RATES:
@@ -538,7 +578,7 @@ def open_audio(target: str, **options: Any) -> AudioBelt:
     carrier = float(options.get("carrier_hz", DEFAULT_CARRIER_HZ))
     if not (math.isfinite(carrier) and carrier > 0):
         raise ConfigError(f"carrier_hz must be a positive number of Hz, got {carrier!r}")
-    latency = _parse_latency(options.get("latency", "low"), url)
+    latency = parse_latency(options.get("latency", "low"), url)
     blocksize = int(options.get("blocksize", 0))
     ramp_ms = float(options.get("ramp_ms", DEFAULT_RAMP_MS))
     if not (math.isfinite(ramp_ms) and 0.1 <= ramp_ms <= 100.0):

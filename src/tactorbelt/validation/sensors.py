@@ -45,6 +45,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .._errors import ConfigError, DeviceError
+from ..devices.audio import checked_latency, parse_latency
 from ..devices.registry import check_options
 from .envelope import rectified_envelope
 from .registry import SENSORS, SensorBackend, resolve_sensor, sense_url_help
@@ -273,7 +274,8 @@ class AudioSensor(SampledSensor):
 
     Attributes:
         device: the input; ``channels``: the input channel of each tactor.
-        samplerate; latency_s: PortAudio's reported input latency of the stream.
+        samplerate; latency_s: PortAudio's reported input latency of the stream (0 where
+            it reports no latency: :func:`~tactorbelt.devices.audio.checked_latency`).
         overflows: callbacks that reported lost input.
     """
 
@@ -313,14 +315,18 @@ class AudioSensor(SampledSensor):
                 self._stream.close()
             raise DeviceError(f"cannot open audio input {device.label()} ({n_open} channels "
                               f"at {self.samplerate:g} Hz): {exc}") from None
-        self.latency_s = float(self._stream.latency)
+        reported = float(self._stream.latency)
+        self.latency_s = checked_latency(reported, "input", device.label())
+        lat = f"{self.latency_s * 1e3:.2f} ms"
+        if self.latency_s != reported:
+            lat += f"; it reported {reported:.6g} s, which is no latency"
         chans = (f"channel {self.channels[0]}" if len(set(self.channels)) == 1
                  else f"channels {','.join(map(str, self.channels))}")
         self.method = (f"input {device.name!r} ({device.hostapi}) {chans} at "
                        f"{self.samplerate:g} Hz; envelope: full-wave rectified, centred "
                        f"moving mean over {window_ms:g} ms, x pi/2; time: the earliest "
                        f"callback's host time minus the frame position, minus PortAudio's "
-                       f"input latency ({self.latency_s * 1e3:.2f} ms)")
+                       f"input latency ({lat})")
 
     def _callback(self, indata: Any, frames: int, time_info: Any, status: Any) -> None:
         t = time.perf_counter_ns()
@@ -489,15 +495,7 @@ def open_audio_sensor(target: str, belt: Belt, **options: Any) -> AudioSensor:
     channels: tuple[int, ...] | int = int(options.get("channel", 0))
     if "map" in options:
         channels = _parse_channels(str(options["map"]), url, belt.n_tactors)
-    latency: float | str = str(options.get("latency", "low")).strip().lower()
-    if latency not in ("low", "high"):
-        try:
-            latency = float(latency)
-        except ValueError:
-            latency = math.nan
-        if not (math.isfinite(latency) and 0.0 < latency <= 2.0):
-            raise ConfigError(f"option 'latency' of sensor URL {url!r} must be low, high or "
-                              f"seconds in (0, 2], got {options['latency']!r}")
+    latency = parse_latency(options.get("latency", "low"), url, "sensor")
     device = find_input(target)
     need = (channels if isinstance(channels, int) else max(channels)) + 1
     if device.channels < need:
