@@ -60,7 +60,8 @@ def test_sim_virtual_measures_the_models_analytic_latency_rise_and_fall(
         params: ErmParams) -> None:
     latency, rise, fall = analytic(params)
     t0 = time.perf_counter()
-    with open_belt("sim:virtual", params=params) as belt, open_sensor(None, belt) as sensor:
+    with open_belt("sim:virtual?drive=plain", params=params) as belt, \
+            open_sensor(None, belt) as sensor:
         result = validate_onsets(belt, sensor, OnsetSettings(pulses=3, levels=(0.5, 1.0)))
     assert time.perf_counter() - t0 < 10.0  # 36 pulses on a simulated clock: no waiting
     assert [t.tactor for t in result.tactors] == list(range(6))
@@ -83,7 +84,7 @@ def test_sim_virtual_measures_the_models_analytic_latency_rise_and_fall(
 
 def test_sim_on_the_wall_clock_measures_the_same() -> None:
     latency, rise, fall = analytic(ErmParams())
-    with open_belt("sim") as belt, open_sensor(None, belt) as sensor:
+    with open_belt("sim?drive=plain") as belt, open_sensor(None, belt) as sensor:
         result = validate_onsets(belt, sensor, OnsetSettings(pulses=3, lead_s=0.05),
                                  tactors=[2])
     (t,) = result.tactors
@@ -166,7 +167,7 @@ class _Lossy(ModelSensor):
 
 def test_a_pulse_whose_samples_were_lost_is_pulsed_again() -> None:
     latency, _, _ = analytic(ErmParams())
-    with open_belt("sim:virtual") as belt, _Lossy(belt, lose=2) as sensor:
+    with open_belt("sim:virtual?drive=plain") as belt, _Lossy(belt, lose=2) as sensor:
         result = validate_onsets(belt, sensor, OnsetSettings(pulses=2), tactors=[0, 1])
     assert [r["reason"] for r in result.repeats] == ["the sensor lost input (a test)"] * 2
     assert [t.to_dict()["pulses"] for t in result.tactors] == [2, 2]
@@ -306,7 +307,7 @@ def test_run_onsets_writes_results_figure_and_calibration(tmp_path: Path) -> Non
 # -- the command --------------------------------------------------------------------------
 def test_the_command_on_sim_virtual_creates_the_calibration(tmp_path: Path) -> None:
     proc = tactorbelt("validate", "onsets", "--belt", "sim:virtual", "--pulses", "2",
-                      "--levels", "0.5,1.0", "--calibration", str(tmp_path / "new.toml"),
+                      "--levels", "0.5,1.0", "--drive", "plain", "--calibration", str(tmp_path / "new.toml"),
                       "-o", str(tmp_path / "out"))
     assert proc.returncode == 0, proc.stderr
     assert "done: motors off" in proc.stdout

@@ -3,9 +3,13 @@
 - ``validate onsets``: pulse each tactor, sense it, and report per tactor the latency
   (command to 10 % of the steady vibration), the 10-90 % rise, the 90-10 % fall and the
   amplitude against level; ``validation.json`` and ``onsets.png`` in the output
-  directory, the timings into ``--calibration FILE`` (docs/validation.md).
+  directory, the timings into ``--calibration FILE`` (docs/validation.md); ``--drive``
+  plain or shaped, ``--tune`` fits the shaping;
+- ``validate stimulus``: play a study's stimuli, sense every tactor, compare felt with
+  intended; ``stimulus.json`` and ``stimulus.png``.
 
-Parses, calls :func:`tactorbelt.validation.run.run_onsets`, prints. Ctrl-C and SIGTERM
+Parses, calls :func:`tactorbelt.validation.run.run_onsets` or
+:func:`tactorbelt.validation.stimulus.run_stimulus`, prints. Ctrl-C and SIGTERM
 stop with the motors off (the belt's ``with`` block) and write nothing. Heavy imports are
 inside the command.
 """
@@ -48,6 +52,11 @@ def _ms(mean: float | None, sd: float | None) -> str:
     return "n/a" if mean is None else f"{mean:7.1f} ± {sd or 0.0:4.1f}"
 
 
+_DRIVE = click.option("--drive", type=click.Choice(["plain", "shaped"]), default=None,
+                      help="Play plain, or shaped (overdrive kicks and brake pulses; "
+                      "docs/belts.md) [default: the belt's].")
+
+
 @click.group("validate")
 def validate() -> None:
     """Check a belt's timing against a sensor before a study (docs/validation.md)."""
@@ -68,11 +77,14 @@ def validate() -> None:
 @click.option("--calibration", "calibration_file", default=None, metavar="FILE",
               help="Drive the belt through this calibration file and write the measured "
                    "timings into it (in place; created when missing).")
+@_DRIVE
+@click.option("--tune", is_flag=True, help="Validate plain, fit each tactor's time constants, "
+              "write them into --calibration FILE, and validate again shaped.")
 @output_option("directory", "Directory for validation.json and onsets.png.", required=True)
 @click.option("--force", is_flag=True, help="Replace an earlier validation.json there.")
 def onsets(belt_url: str, sense_url: str | None, pulses: int, levels: tuple[float, ...],
-           on_s: float, off_s: float, calibration_file: str | None, out: Path,
-           force: bool) -> None:
+           on_s: float, off_s: float, calibration_file: str | None, drive: str | None,
+           tune: bool, out: Path, force: bool) -> None:
     """Pulse each tactor, sense it, and measure its latency, rise and fall.
 
     The latency runs from the command (the onset a study stores) to 10 % of the steady
@@ -86,17 +98,40 @@ def onsets(belt_url: str, sense_url: str | None, pulses: int, levels: tuple[floa
 
     def opened(belt: Any, sensor: Any) -> None:
         n = len(levels) * pulses * belt.n_tactors
-        click.echo(f"validating onsets of {belt.name} ({belt.url}, {belt.n_tactors} tactors) "
-                   f"sensed by {sensor.description}: {n} pulses of {on_s:g} s")
+        click.echo(f"validating onsets of {belt.name} ({belt.url}, {belt.n_tactors} tactors, "
+                   f"drive {belt.drive}) sensed by {sensor.description}: {n} pulses of "
+                   f"{on_s:g} s")
 
     try:
         with counting_progress("pulses") as progress:
             result, paths = run_onsets(belt_url, out, sense_url=sense_url, settings=settings,
                                        calibration_file=calibration_file, force=force,
-                                       progress=progress, on_open=opened)
+                                       progress=progress, on_open=opened, drive=drive,
+                                       tune=tune)
     except (KeyboardInterrupt, Terminated):
         click.echo("stopped: motors off; nothing written", err=True)
         raise
+    if result.plain is not None:
+        click.echo("plain:")
+        _table(result.plain)
+        click.echo("fitted time constants (ms): " + "; ".join(
+            f"tactor {f['tactor']}: rise {f['rise_tau_ms']:.1f}, fall {f['fall_tau_ms']:.1f}"
+            for f in result.shaping or []))
+        click.echo("shaped, with them:")
+    _table(result)
+    if result.repeats:
+        click.echo(f"{len(result.repeats)} pulse(s) repeated: samples lost "
+                   f"({result.repeats[0]['reason']})")
+    for warning in result.warnings:
+        click.echo(f"warning: {warning}", err=True)
+    click.echo(f"onsets from {result.onset_reference}; method: {result.method}; "
+               f"drive: {result.drive}")
+    for what, path in paths.items():
+        click.echo(f"wrote {what}: {path}")
+    click.echo("done: motors off")
+
+
+def _table(result: Any) -> None:
     click.echo(f"{'tactor':>6}  {'latency ms':>14}  {'rise 10-90 ms':>14}  "
                f"{'fall 90-10 ms':>14}  amplitude by level")
     for t in result.tactors:
@@ -110,12 +145,73 @@ def onsets(belt_url: str, sense_url: str | None, pulses: int, levels: tuple[floa
         if fit is not None:
             click.echo(f"{'':>6}  amplitude = {fit['slope']:.3g} x level "
                        f"{fit['intercept']:+.3g} (r^2 {fit['r2']:.4f})")
-    if result.repeats:
-        click.echo(f"{len(result.repeats)} pulse(s) repeated: samples lost "
-                   f"({result.repeats[0]['reason']})")
-    for warning in result.warnings:
-        click.echo(f"warning: {warning}", err=True)
-    click.echo(f"onsets from {result.onset_reference}; method: {result.method}")
+
+
+@validate.command("stimulus")
+@belt_option("The belt to validate")
+@click.option("--sense", "sense_url", default=None, metavar="URL", help=_sense_help())
+@click.option("--target", "target", type=number(int, 0, 359), default=None, metavar="N",
+              help="The target to play, numbered as the study numbers them (0: at 0 deg).")
+@click.option("--all", "all_targets", is_flag=True, help="Every target of the study.")
+@click.option("--condition", type=click.Choice(["static", "dynamic"]), required=True,
+              help="The stimulus condition.")
+@_DRIVE
+@click.option("--study", "study_file", default=None, metavar="FILE",
+              help="The study whose layout, targets and [stimulus] are played [default: "
+                   "the paper's].")
+@click.option("--duration", "duration_s", type=POSITIVE, default=2.0, show_default=True,
+              help="Seconds each stimulus plays.")
+@click.option("--calibration", "calibration_file", default=None, metavar="FILE",
+              help="Drive the belt through this calibration file.")
+@output_option("directory", "Directory for stimulus.json and stimulus.png.", required=True)
+@click.option("--force", is_flag=True, help="Replace an earlier stimulus.json there.")
+def stimulus(belt_url: str, sense_url: str | None, target: int | None, all_targets: bool,
+             condition: str, drive: str | None, study_file: str | None, duration_s: float,
+             calibration_file: str | None, out: Path, force: bool) -> None:
+    """Play a study's stimulus, sense every tactor, and compare felt with intended.
+
+    Writes per tactor the RMS error of the felt envelope against the intended one (the
+    law's amplitudes through the tactor's static response, both over its steady amplitude
+    at full level) and its onset and offset errors (docs/validation.md). Example:
+    `tactorbelt validate stimulus --belt sim:virtual --all --condition dynamic -o out`.
+    """
+    from ..validation.stimulus import run_stimulus
+
+    if (target is None) == (not all_targets):
+        raise click.UsageError("give --target N or --all")
+    study = None
+    if study_file is not None:
+        from ..experiment.study import load_study
+
+        study = load_study(study_file)
+
+    def opened(belt: Any, sensor: Any) -> None:
+        click.echo(f"validating the {condition} stimulus on {belt.name} ({belt.url}, drive "
+                   f"{belt.drive}) sensed by {sensor.description}")
+
+    try:
+        with counting_progress("targets") as progress:
+            result, paths = run_stimulus(
+                belt_url, out, targets=None if all_targets else [int(target or 0)],
+                condition=condition, sense_url=sense_url, drive=drive, study=study,
+                duration_s=duration_s, force=force, calibration_file=calibration_file,
+                progress=progress, on_open=opened)
+    except (KeyboardInterrupt, Terminated):
+        click.echo("stopped: motors off; nothing written", err=True)
+        raise
+    click.echo(f"{'target':>6} {'deg':>6}  {'RMS':>6}  tactor: RMS, onset/offset error ms")
+    for row in result.targets:
+        parts = [f"{t['tactor']}: {t['rms_error']:.3f}, {_err(t['onset_error_ms'])}/"
+                 f"{_err(t['offset_error_ms'])}" for t in row["tactors"] if t["driven"]]
+        click.echo(f"{row['target']:>6} {row['target_deg']:>6g}  {row['rms_error']:.3f}  "
+                   + "; ".join(parts))
+    between = ("" if result.between_tactor_rms_error is None else
+               f" (between tactors {result.between_tactor_rms_error:.4f})")
+    click.echo(f"RMS error {result.rms_error:.4f}{between}; drive {result.drive}")
     for what, path in paths.items():
         click.echo(f"wrote {what}: {path}")
     click.echo("done: motors off")
+
+
+def _err(v: float | None) -> str:
+    return "n/a" if v is None else f"{v:+.1f}"

@@ -73,8 +73,8 @@ from numpy.typing import ArrayLike, NDArray
 
 from .._errors import ConfigError
 
-__all__ = ["FORMAT", "TIMING_KEYS", "Calibration", "TactorCalibration", "response_gain",
-           "update_timing"]
+__all__ = ["FORMAT", "SHAPING_KEYS", "TIMING_KEYS", "Calibration", "TactorCalibration",
+           "response_gain", "update_timing"]
 
 #: The ``format`` key of a calibration file.
 FORMAT: Final = "tactorbelt-calibration"
@@ -87,10 +87,14 @@ TIMING_KEYS: Final = ("latency_ms", "latency_sd_ms", "rise_ms", "rise_sd_ms", "f
 #: The largest timing a file may hold (ms): a minute is no motor's response.
 _MAX_TIMING_MS: Final = 60_000.0
 
+#: The per-tactor shaping keys (milliseconds) ``tactorbelt validate onsets --tune`` fits:
+#: the time constants of the motor's speed rising, coasting down and braking
+#: (:class:`~tactorbelt.devices.erm.Shaper`).
+SHAPING_KEYS: Final = ("rise_tau_ms", "fall_tau_ms", "brake_tau_ms")
 _TOP_KEYS: Final = frozenset({"format", "version", "belt", "created", "tactor", "validated",
                               "validation_method"})
 _TACTOR_KEYS: Final = frozenset({"index", "angle_deg", "start", "gain", "ceiling", "channel",
-                                 "response", *TIMING_KEYS})
+                                 "response", *TIMING_KEYS, *SHAPING_KEYS})
 #: The highest output channel a calibration may name (``channel``).
 MAX_CHANNEL: Final = 255
 
@@ -120,6 +124,8 @@ def _check_timing(name: str, value: object) -> str | None:
     if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
         return f"must be a finite number of milliseconds, got {value!r}"
     low = -_MAX_TIMING_MS if name == "latency_ms" else 0.0
+    if name in SHAPING_KEYS and not float(value) > 0.0:
+        return f"must be a positive number of milliseconds, got {value!r}"
     if not low <= float(value) <= _MAX_TIMING_MS:
         return f"must be in [{low:g}, {_MAX_TIMING_MS:g}] ms, got {value!r}"
     return None
@@ -165,9 +171,12 @@ class TactorCalibration:
     rise_sd_ms: float | None = None
     fall_ms: float | None = None
     fall_sd_ms: float | None = None
+    rise_tau_ms: float | None = None
+    fall_tau_ms: float | None = None
+    brake_tau_ms: float | None = None
 
     def __post_init__(self) -> None:
-        for name in TIMING_KEYS:
+        for name in (*TIMING_KEYS, *SHAPING_KEYS):
             problem = _check_timing(name, getattr(self, name))
             if problem:
                 raise ConfigError(f"calibration {name} {problem}")
@@ -270,6 +279,32 @@ class Calibration:
         return replace(self, tactors=tuple(rows), validated=str(validated),
                        validation_method=str(method))
 
+    def shaping_taus(self) -> tuple[tuple[float, ...], tuple[float, ...],
+                                    tuple[float, ...]] | None:
+        """The fitted time constants of every tactor (s): rise, fall, brake (a brake
+        not fitted: the rise's), or None unless every tactor has its rise and fall."""
+        ts = self.tactors
+        if any(t.rise_tau_ms is None or t.fall_tau_ms is None for t in ts):
+            return None
+        rise = tuple(float(t.rise_tau_ms or 0.0) / 1e3 for t in ts)
+        fall = tuple(float(t.fall_tau_ms or 0.0) / 1e3 for t in ts)
+        brake = tuple(float(t.brake_tau_ms if t.brake_tau_ms is not None else
+                            t.rise_tau_ms or 0.0) / 1e3 for t in ts)
+        return rise, fall, brake
+
+    def with_shaping(self, taus: Sequence[Mapping[str, float] | None]) -> Calibration:
+        """This calibration with each tactor's :data:`SHAPING_KEYS` from ``taus[k]``
+        (None: leave the tactor as it is). :meth:`apply` is unchanged."""
+        if len(taus) != self.n:
+            raise ConfigError(f"expected the time constants of {self.n} tactors, got "
+                              f"{len(taus)}")
+        rows = [t if tau is None else replace(
+                    t, rise_tau_ms=_ms(tau.get("rise_tau_ms")),
+                    fall_tau_ms=_ms(tau.get("fall_tau_ms")),
+                    brake_tau_ms=_ms(tau.get("brake_tau_ms")))
+                for t, tau in zip(self.tactors, taus, strict=True)]
+        return replace(self, tactors=tuple(rows))
+
     def skin_latency(self, tactors: Iterable[int]) -> tuple[float, float]:
         """The skin-onset offset of a stimulus on ``tactors``: ``(ms, sd_ms)``.
 
@@ -343,7 +378,7 @@ class Calibration:
                 row["channel"] = t.channel
             if t.response:
                 row["response"] = [list(p) for p in t.response]
-            for name in TIMING_KEYS:
+            for name in (*TIMING_KEYS, *SHAPING_KEYS):
                 if getattr(t, name) is not None:
                     row[name] = getattr(t, name)
             rows.append(row)
@@ -394,7 +429,7 @@ class Calibration:
             if t.response:
                 points = ", ".join(f"[{float(h)!r}, {float(g)!r}]" for h, g in t.response)
                 lines.append(f"response = [{points}]")
-            for name in TIMING_KEYS:
+            for name in (*TIMING_KEYS, *SHAPING_KEYS):
                 value = getattr(t, name)
                 if value is not None:
                     lines.append(f"{name} = {float(value)!r}")
@@ -535,13 +570,16 @@ class Calibration:
                 _check_response(response)
             except ConfigError as exc:
                 raise fail(f"{where}.response", str(exc)) from None
-            for name in TIMING_KEYS:
+            for name in (*TIMING_KEYS, *SHAPING_KEYS):
                 problem = _check_timing(name, row.get(name))
                 if problem:
                     raise fail(f"{where}.{name}", problem)
             tactor = TactorCalibration(
                 **values, channel=channel,
-                response=tuple((float(h), float(g)) for h, g in response))
+                response=tuple((float(h), float(g)) for h, g in response),
+                rise_tau_ms=_ms(row.get("rise_tau_ms")),
+                fall_tau_ms=_ms(row.get("fall_tau_ms")),
+                brake_tau_ms=_ms(row.get("brake_tau_ms")))
             tactors.append(_with_timing(tactor, row))
         return cls(tuple(tactors), **top)
 
@@ -549,12 +587,14 @@ class Calibration:
 def update_timing(path: str | Path, n: int,
                   timings: Sequence[Mapping[str, float | None] | None], validated: str,
                   method: str, belt: str | None = None,
-                  angles_deg: Sequence[float] | None = None) -> Calibration:
+                  angles_deg: Sequence[float] | None = None,
+                  shaping: Sequence[Mapping[str, float] | None] | None = None) -> Calibration:
     """Write measured timings into the calibration file ``path``, in place, atomically.
 
     An existing file keeps everything else (start, gain, ceiling, channel, response, and
     its ``belt``, ``created`` and ``angle_deg`` notes); a missing file is created with an
     identity calibration of ``n`` tactors (``belt`` and ``angles_deg`` noted).
+    ``shaping``: each tactor's fitted time constants (:data:`SHAPING_KEYS`), written too.
 
     Returns:
         The calibration written.
@@ -586,5 +626,7 @@ def update_timing(path: str | Path, n: int,
     if angles_deg is not None and len(angles_deg) != n:
         angles_deg = None
     new = cal.with_timing(timings, validated, method)
+    if shaping is not None:
+        new = new.with_shaping(shaping)
     new.save(p, belt=belt, angles_deg=angles_deg, created=created)
     return new

@@ -325,9 +325,13 @@ class SimBelt(Belt):
         drive: ``plain`` (the default of the class: the motor model as it is driven) or
             ``shaped`` (:class:`~tactorbelt.devices.erm.Shaper`); a belt opened by URL
             (:func:`open_sim`) is shaped unless ``drive=plain``.
-        shaper: the shaping (default: the motor's own model, overdrive up to its
-            maximum voltage on a :data:`DEFAULT_SUPPLY_V` supply, braking).
+        shaper: the shaping (default: the motor's own model, or the time constants the
+            calibration holds (``validate onsets --tune``), overdrive up to ``overdrive``,
+            braking when ``brake``).
         brake: both H-bridge inputs are wired (reverse drive and short brake).
+        overdrive: the shaper's largest drive, times the rated (default: the motor's
+            maximum voltage, or ``supply_v`` when lower, over its rated voltage).
+        supply_v: the motor supply (V).
     """
 
     def __init__(
@@ -342,6 +346,8 @@ class SimBelt(Belt):
         drive: str = "plain",
         shaper: Shaper | None = None,
         brake: bool = True,
+        overdrive: float | None = None,
+        supply_v: float = DEFAULT_SUPPLY_V,
     ) -> None:
         layout = layout if layout is not None else Layout.even(6)
         if not isinstance(layout, Layout):
@@ -389,8 +395,11 @@ class SimBelt(Belt):
         if shaper is not None and not isinstance(shaper, Shaper):
             raise ConfigError(f"shaper must be a Shaper, got {type(shaper).__name__}")
         self._brake = bool(brake)
-        self.shaper: Shaper = shaper if shaper is not None else Shaper(
-            self.params, self.params.overdrive_bound(DEFAULT_SUPPLY_V), self._brake)
+        if shaper is None:
+            taus = self.calibration.shaping_taus()  # fitted by validate onsets --tune
+            od = self.params.overdrive_bound(supply_v) if overdrive is None else overdrive
+            shaper = Shaper(self.params, od, self._brake, *(taus or ()))
+        self.shaper: Shaper = shaper
         if self.shaper.brake and not self._brake:
             raise ConfigError("the shaper brakes but the belt cannot (brake=0)")
         self._taus = self.shaper.taus(n)
@@ -421,7 +430,7 @@ class SimBelt(Belt):
         # the history so far was played with the old drive: its state now starts the new
         # one, and times before now are no longer asked for
         now = int(self.clock.now_ns())
-        if now > self._base_t or self._hi > self._lo:
+        if self._hi > self._lo:  # never commanded: at rest either way, nothing to keep
             t, w, e = self._state_before(now)
             self._lo = max(self._row_in_force(t), self._lo)
             self._base_t, self._pruned = t, True
@@ -1093,16 +1102,10 @@ def open_sim(target: str = "", **options: Any) -> SimBelt:
     if calibration is not None and not isinstance(calibration, Calibration):
         calibration = Calibration.load(calibration)
     url = f"sim:{target}" if target else "sim"
-    params = options.get("params")
-    shaper = options.get("shaper")
-    brake = bool(options.get("brake", True))
-    if shaper is None and ("overdrive" in options or "supply_v" in options or not brake):
-        p = params if isinstance(params, ErmParams) else ErmParams()
-        od = options.get("overdrive")
-        supply = options.get("supply_v", DEFAULT_SUPPLY_V)
-        shaper = Shaper(p, float(od) if od is not None else p.overdrive_bound(supply), brake)
     return SimBelt(layout=layout, clock=clock, calibration=calibration,
-                   params=params,
+                   params=options.get("params"),
                    horizon_s=options.get("horizon_s", DEFAULT_HORIZON_S),
                    url=url, name=options.get("name"), drive=options.get("drive", "shaped"),
-                   shaper=shaper, brake=brake)
+                   shaper=options.get("shaper"), brake=bool(options.get("brake", True)),
+                   overdrive=options.get("overdrive"),
+                   supply_v=options.get("supply_v", DEFAULT_SUPPLY_V))

@@ -46,8 +46,8 @@ from .sensors import Sensor
 if TYPE_CHECKING:
     from ..devices.base import Belt
 
-__all__ = ["NoPulseError", "OnsetSettings", "OnsetValidation", "parse_levels", "run_onsets",
-           "validate_onsets"]
+__all__ = ["NoPulseError", "OnsetSettings", "OnsetValidation", "fit_shaping", "parse_levels",
+           "run_onsets", "validate_onsets"]
 
 #: The results file and the figure ``run_onsets`` writes.
 RESULTS: Final = "validation.json"
@@ -152,6 +152,12 @@ class OnsetValidation:
     repeats: list[dict[str, Any]] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
     onset_uncertainty_ms: float | None = None
+    #: the belt's drive during the pulses (``plain`` or ``shaped``)
+    drive: str = "plain"
+    #: with ``--tune``: each tactor's fitted time constants (:func:`fit_shaping`) and the
+    #: plain validation they were fitted from
+    shaping: list[dict[str, Any]] | None = None
+    plain: OnsetValidation | None = None
 
     def to_dict(self) -> dict[str, Any]:
         from importlib.metadata import PackageNotFoundError, version
@@ -175,6 +181,12 @@ class OnsetValidation:
             "seconds": round(self.seconds, 3),
             "repeats": self.repeats, "warnings": self.warnings,
             "pulses": [p.to_dict() for t in self.tactors for p in t.pulses],
+            "drive": self.drive,
+            **({} if self.shaping is None else {"shaping": self.shaping}),
+            **({} if self.plain is None else {"plain": {
+                "drive": self.plain.drive,
+                "tactors": [t.to_dict() for t in self.plain.tactors],
+                "pulses": [p.to_dict() for t in self.plain.tactors for p in t.pulses]}}),
         }
 
     def timings(self) -> list[dict[str, float | None] | None]:
@@ -182,6 +194,37 @@ class OnsetValidation:
         validated)."""
         by = {t.tactor: t.timing() for t in self.tactors}
         return [by.get(k) for k in range(len(self.angles_deg))]
+
+
+#: 10-90 % of an amplitude that grows with the square of a first-order speed: the rise
+#: from rest lasts tau * ln((1 - sqrt(0.1)) / (1 - sqrt(0.9))), the coasting fall
+#: tau * ln(sqrt(0.9) / sqrt(0.1)) (docs/validation.md, "Tuning the drive").
+_RISE_PER_TAU: Final = math.log((1 - math.sqrt(LOW)) / (1 - math.sqrt(HIGH)))
+_FALL_PER_TAU: Final = math.log(math.sqrt(HIGH) / math.sqrt(LOW))
+
+
+def fit_shaping(result: OnsetValidation) -> list[dict[str, Any]]:
+    """Each tactor's time constants from a plain validation: its rise and fall (the
+    median over levels and pulses) through the motor model (amplitude ~ speed squared, a
+    first-order speed), the brake's taken as the rise's (a plain pulse never brakes).
+
+    Raises:
+        ConfigError: the validation was not plain, or a tactor has no rise or fall.
+    """
+    if result.drive != "plain":
+        raise ConfigError("the time constants are fitted from a plain validation")
+    out = []
+    for t in result.tactors:
+        d = t.to_dict()
+        rise, fall = d["rise_ms"], d["fall_ms"]
+        if rise is None or fall is None or not (rise > 0 and fall > 0):
+            raise ConfigError(f"tactor {t.tactor}: no rise or fall measured to fit its time "
+                              "constants (raise --on and --off)")
+        r = float(rise) / _RISE_PER_TAU
+        out.append({"tactor": t.tactor, "rise_tau_ms": round(r, 3),
+                    "fall_tau_ms": round(float(fall) / _FALL_PER_TAU, 3),
+                    "brake_tau_ms": round(r, 3)})
+    return out
 
 
 def _now_iso() -> str:
@@ -353,19 +396,26 @@ def validate_onsets(belt: Belt, sensor: Sensor, settings: OnsetSettings | None =
         angles_deg=tuple(belt.tactor_angles_deg), seconds=time.perf_counter() - wall0,
         repeats=repeats, warnings=list(warned.values()),
         onset_uncertainty_ms=(float(np.median(uncertainties)) / 1e6 if uncertainties
-                              else None))
+                              else None), drive=belt.drive)
 
 
 def run_onsets(belt_url: str, out_dir: str | Path, *, sense_url: str | None = None,
                settings: OnsetSettings | None = None, calibration_file: str | Path | None = None,
                force: bool = False, progress: Callable[[int, int], None] | None = None,
                on_open: Callable[[Belt, Sensor], None] | None = None,
+               drive: str | None = None, tune: bool = False,
                ) -> tuple[OnsetValidation, dict[str, Path]]:
     """The whole ``tactorbelt validate onsets``: open the belt (through the calibration
     file when it exists) and the sensor, validate, write ``validation.json`` and
     ``onsets.png`` into ``out_dir``, and with ``calibration_file`` write the timings into
     it (in place, atomically; created when missing). ``on_open(belt, sensor)`` is called
-    once both are open.
+    once both are open. ``drive``: play ``plain`` or ``shaped`` (None: the belt's
+    default).
+
+    ``tune``: validate plain, fit each tactor's time constants (:func:`fit_shaping`),
+    write them into ``calibration_file`` (required), open the belt again through it and
+    validate shaped; the result is the shaped validation, with the fitted constants and
+    the plain validation (``shaping``, ``plain``).
 
     Returns:
         The results and the paths written (``results``, ``figure``, ``calibration``).
@@ -389,6 +439,11 @@ def run_onsets(belt_url: str, out_dir: str | Path, *, sense_url: str | None = No
                           "replace it")
     if sense_url is not None:
         resolve_sensor(sense_url)  # a bad URL fails before the belt is opened
+    if tune and calibration_file is None:
+        raise ConfigError("--tune writes the fitted drive shaping into the calibration file: "
+                          "give --calibration FILE")
+    if tune and drive == "plain":
+        raise ConfigError("--tune validates the shaped drive: leave out --drive plain")
     calibration = None
     if calibration_file is not None and Path(calibration_file).exists():
         calibration = Calibration.load(calibration_file)
@@ -398,12 +453,26 @@ def run_onsets(belt_url: str, out_dir: str | Path, *, sense_url: str | None = No
     except OSError as exc:
         raise ConfigError(f"cannot create output directory {str(out)!r}: {exc.strerror}"
                           ) from None
-    try:
-        belt = open_belt(belt_url, **({"calibration": calibration} if calibration else {}))
+    def once(cal: Any, how: str | None) -> OnsetValidation:
+        belt = open_belt(belt_url, **({"calibration": cal} if cal else {}))
         with belt, open_sensor(sense_url, belt) as sensor:
+            if how is not None:
+                belt.set_drive(how)
             if on_open is not None:
                 on_open(belt, sensor)
-            result = validate_onsets(belt, sensor, settings, progress)
+            return validate_onsets(belt, sensor, settings, progress)
+
+    try:
+        if tune:
+            plain = once(calibration, "plain")
+            shaping = fit_shaping(plain)
+            by = {f["tactor"]: f for f in shaping}
+            base = calibration or Calibration.identity(len(plain.angles_deg))
+            tuned = base.with_shaping([by.get(k) for k in range(base.n)])
+            result = once(tuned, "shaped")
+            result.shaping, result.plain = shaping, plain
+        else:
+            result = once(calibration, drive)
     except BaseException:  # an error, Ctrl-C, SIGTERM: leave no empty directory behind
         if made:
             with contextlib.suppress(OSError):
@@ -416,8 +485,11 @@ def run_onsets(belt_url: str, out_dir: str | Path, *, sense_url: str | None = No
     tmp.replace(results)
     paths["figure"] = onset_figure(result, out / FIGURE)
     if calibration_file is not None:
+        by = {f["tactor"]: f for f in result.shaping or []}
         update_timing(calibration_file, len(result.angles_deg), result.timings(),
                       result.date, f"{result.sensor}: {result.method}", belt=result.belt,
-                      angles_deg=result.angles_deg)
+                      angles_deg=result.angles_deg,
+                      shaping=[by.get(k) for k in range(len(result.angles_deg))]
+                      if result.shaping is not None else None)
         paths["calibration"] = Path(calibration_file)
     return result, paths

@@ -1,0 +1,307 @@
+"""``tactorbelt validate stimulus``: the felt stimulus against the intended one.
+
+:func:`validate_stimulus` plays a study's stimuli on an open belt as a session does (a
+:class:`~tactorbelt.player.Player`, the study's law, falloff, period and transit on the
+belt's layout), senses every tactor over each playback, and compares what was felt with
+what was meant:
+
+- **felt**: each tactor's sensed envelope minus its baseline (the median of the 0.1 s
+  before the onset), over the tactor's steady amplitude at full level;
+- **intended**: the law's amplitude of the tactor over time (the perturbation with it;
+  zero after the stop) through the tactor's measured static response: before the
+  stimuli, every tactor is held at amplitudes 0.05, 0.10, ... 1.0 until it settles and
+  its steady amplitude at each, over the one at full level, is the response
+  (interpolated linearly). So a belt without dynamics (an instant motor) has no error:
+  what remains is the motor's lag, which drive shaping addresses; the static response is
+  the calibration's business (``tactorbelt calibrate``);
+- per tactor, the RMS of felt minus intended from the onset to ``off_s`` after the stop;
+  its **onset error**, when the felt envelope first reaches 10 % of the intended
+  maximum minus when the intended one does (the onset validator's threshold), and its
+  **offset error**, when it last is at or above it, minus the intended (ms);
+- per target, the RMS over its driven tactors (those the law drives); overall, over
+  every target's.
+
+The sensor must sense each tactor apart (``separates_tactors``: the sim belt's model, a
+sound card with one input channel per tactor): several tactors vibrate at once.
+
+:func:`run_stimulus` is the whole command: open, validate, write ``stimulus.json`` and
+``stimulus.png``. Imports NumPy and tactorbelt's devices; matplotlib only for the figure.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Final
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .._errors import ConfigError, DeviceError
+from ..clock import WallClock
+from .envelope import LOW
+from .sensors import Sensor
+
+if TYPE_CHECKING:
+    from ..devices.base import Belt
+    from ..experiment.study import Study
+
+__all__ = ["RESPONSE_LEVELS", "StimulusValidation", "run_stimulus", "validate_stimulus"]
+
+RESULTS: Final = "stimulus.json"
+FIGURE: Final = "stimulus.png"
+FORMAT: Final = "tactorbelt-stimulus-validation"
+#: The amplitudes the static response is measured at.
+RESPONSE_LEVELS: Final = tuple(round(0.05 * i, 2) for i in range(1, 21))
+#: Each response level is held this long (s); its steady amplitude is the median of the
+#: last fifth.
+HOLD_S: Final = 0.4
+#: The baseline before each onset (s).
+BASELINE_S: Final = 0.1
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass
+class _Trace:
+    """One tactor's playback: sample times (ms from the onset), felt and intended."""
+
+    t_ms: FloatArray
+    felt: FloatArray
+    intended: FloatArray
+
+
+@dataclass
+class StimulusValidation:
+    """The results of :func:`validate_stimulus` (``to_dict`` is stimulus.json)."""
+
+    belt: str
+    sensor: str
+    drive: str
+    condition: str
+    duration_s: float
+    targets: list[dict[str, Any]]
+    response: list[list[float]]
+    traces: dict[int, dict[int, _Trace]]
+    rms_error: float
+    between_tactor_rms_error: float | None
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"format": FORMAT, "version": 1, "belt": self.belt, "sensor": self.sensor,
+                "drive": self.drive, "condition": self.condition,
+                "duration_s": self.duration_s, "rms_error": self.rms_error,
+                "between_tactor_rms_error": self.between_tactor_rms_error,
+                "threshold": LOW, "response_levels": list(RESPONSE_LEVELS),
+                "response": self.response, "targets": self.targets}
+
+
+def _steady(t: NDArray[np.int64], env: FloatArray, t0: int, t1: int) -> float:
+    """The median of ``env`` over the last fifth of [t0, t1)."""
+    sel = (t >= t1 - (t1 - t0) // 5) & (t < t1)
+    return float(np.median(env[sel])) if sel.any() else float("nan")
+
+
+def _response(belt: Belt, sensor: Sensor, clock: Any) -> FloatArray:
+    """Every tactor's steady amplitude at each of :data:`RESPONSE_LEVELS` minus its
+    baseline (rows: levels; columns: tactors), all tactors held together."""
+    n = belt.n_tactors
+    hold = round(HOLD_S * 1e9)
+    t0 = int(clock.now_ns())
+    clock.sleep_until_ns(t0 + round(BASELINE_S * 1e9))
+    marks = []
+    for level in RESPONSE_LEVELS:
+        t_on = int(clock.now_ns())
+        belt.set_amplitudes(np.full(n, level))
+        clock.sleep_until_ns(t_on + hold)
+        marks.append((t_on, int(clock.now_ns())))
+    belt.stop()
+    out = np.zeros((len(RESPONSE_LEVELS), n))
+    for k in range(n):
+        w = sensor.envelope(k, t0, int(clock.now_ns()))
+        if w.problem is not None:
+            raise DeviceError(f"tactor {k}: {w.problem} while its response was measured")
+        base = float(np.median(w.env[w.t_ns < marks[0][0]]))
+        out[:, k] = [_steady(w.t_ns, w.env, a, b) - base for a, b in marks]
+    full = out[-1]
+    bad = [k for k in range(n) if not (math.isfinite(full[k]) and full[k] > 0)]
+    if bad:
+        raise DeviceError(f"the sensor saw no vibration of tactor {bad[0]} at full level")
+    return out
+
+
+def _crossing(t_ms: FloatArray, y: FloatArray, th: float, last: bool) -> float | None:
+    hit = np.flatnonzero(y >= th)
+    if hit.size == 0:
+        return None
+    return float(t_ms[hit[-1] if last else hit[0]])
+
+
+def validate_stimulus(belt: Belt, sensor: Sensor, study: Study, targets: Sequence[int],
+                      condition: str, *, duration_s: float = 2.0, off_s: float = 0.3,
+                      progress: Callable[[int, int], None] | None = None,
+                      ) -> StimulusValidation:
+    """Play the stimulus of each of ``targets`` (numbered as the study numbers them) in
+    ``condition`` for ``duration_s``, sensed by ``sensor``; see the module docstring.
+
+    Raises:
+        ConfigError: a target or condition the study does not have, a sensor that does
+            not sense the tactors apart.
+        DeviceError: the sensor saw nothing, or lost samples.
+    """
+    from ..geometry import TargetSet
+    from ..player import Player
+    from ..stimuli import make_stimulus
+
+    if condition not in ("static", "dynamic"):
+        raise ConfigError(f"condition must be static or dynamic, got {condition!r}")
+    if not sensor.separates_tactors:
+        raise ConfigError(f"the sensor {sensor.url!r} senses the tactors together; "
+                          "validate stimulus needs one that senses each tactor apart (the "
+                          "sim belt's model, a sound card with a channel per tactor)")
+    count = study.targets.count
+    bad = [k for k in targets if not 0 <= int(k) < count]
+    if bad:
+        raise ConfigError(f"target {bad[0]} is not one of the study's {count} targets "
+                          f"(0..{count - 1})")
+    if not (math.isfinite(duration_s) and 0 < duration_s <= 60):
+        raise ConfigError(f"duration must be in (0, 60] s, got {duration_s!r}")
+    sp = study.stimulus
+    angles = TargetSet.even(count).angles
+    on_tactor = belt.layout.is_on_tactor(angles)
+    clock = belt.clock or WallClock()
+    player = Player(belt, clock)
+    sensor.start()
+    response = _response(belt, sensor, clock)
+    curve = np.vstack([np.zeros((1, belt.n_tactors)), response / response[-1]])
+    grid = np.array((0.0, *RESPONSE_LEVELS))
+    rows: list[dict[str, Any]] = []
+    traces: dict[int, dict[int, _Trace]] = {}
+    all_sq: list[FloatArray] = []
+    between_sq: list[FloatArray] = []
+    base_ns, off_ns = round(BASELINE_S * 1e9), round(off_s * 1e9)
+    try:
+        for i, target in enumerate(int(k) for k in targets):
+            stim = make_stimulus(belt.layout, float(angles[target]), condition, sp.law,
+                                 sp.falloff_deg, sp.period_s, sp.transit_s)
+            clock.sleep_until_ns(int(clock.now_ns()) + base_ns)
+            stats = player.play(stim, duration_s)
+            onset = int(stats.onset_ns if stats.onset_ns is not None else clock.now_ns())
+            end = onset + round(duration_s * 1e9)
+            clock.sleep_until_ns(end + off_ns)
+            tactors, sq = [], []
+            traces[target] = {}
+            for k in range(belt.n_tactors):
+                w = sensor.envelope(k, onset - base_ns, end + off_ns)
+                if w.problem is not None:
+                    raise DeviceError(f"target {target}, tactor {k}: {w.problem}")
+                base = float(np.median(w.env[w.t_ns < onset])) if (w.t_ns < onset).any() \
+                    else 0.0
+                keep = w.t_ns >= onset
+                t_ns = w.t_ns[keep]
+                felt = (w.env[keep] - base) / response[-1, k]
+                ticks = (t_ns - onset) // 1_000_000
+                amp = stim.amplitudes(ticks / 1000.0)[:, k]
+                amp = np.where(t_ns < end, amp, 0.0)
+                intended = np.interp(amp, grid, curve[:, k])
+                err = felt - intended
+                peak = float(intended.max()) if intended.size else 0.0
+                t_ms = (t_ns - onset) / 1e6
+                row: dict[str, Any] = {"tactor": k,
+                                       "rms_error": float(np.sqrt(np.mean(err ** 2))),
+                                       "onset_error_ms": None, "offset_error_ms": None,
+                                       "driven": peak > 0.0}
+                if peak > 0.0:
+                    th = LOW * peak
+                    pairs = [(_crossing(t_ms, felt, th, last), _crossing(t_ms, intended, th,
+                                                                          last))
+                             for last in (False, True)]
+                    for key, (a, b) in zip(("onset_error_ms", "offset_error_ms"), pairs,
+                                           strict=True):
+                        row[key] = None if a is None or b is None else round(a - b, 3)
+                    sq.append(err ** 2)
+                tactors.append(row)
+                traces[target][k] = _Trace(t_ms, felt, intended)
+            cat = np.concatenate(sq) if sq else np.zeros(1)
+            rows.append({"target": target, "target_deg": float(angles[target]),
+                         "on_tactor": bool(on_tactor[target]),
+                         "rms_error": float(np.sqrt(np.mean(cat))), "tactors": tactors})
+            all_sq.append(cat)
+            if not on_tactor[target]:
+                between_sq.append(cat)
+            sensor.forget_before(end + off_ns - base_ns)
+            if progress is not None:
+                progress(i + 1, len(targets))
+    finally:
+        with contextlib.suppress(Exception):
+            belt.stop()
+    return StimulusValidation(
+        belt=belt.url, sensor=sensor.url, drive=belt.drive, condition=condition,
+        duration_s=duration_s, targets=rows, response=response.T.tolist(), traces=traces,
+        rms_error=float(np.sqrt(np.mean(np.concatenate(all_sq)))),
+        between_tactor_rms_error=(float(np.sqrt(np.mean(np.concatenate(between_sq))))
+                                  if between_sq else None))
+
+
+def run_stimulus(belt_url: str, out_dir: str | Path, *, targets: Sequence[int] | None,
+                 condition: str, sense_url: str | None = None, drive: str | None = None,
+                 study: Study | None = None, duration_s: float = 2.0, force: bool = False,
+                 calibration_file: str | Path | None = None,
+                 progress: Callable[[int, int], None] | None = None,
+                 on_open: Callable[[Belt, Sensor], None] | None = None,
+                 ) -> tuple[StimulusValidation, dict[str, Path]]:
+    """The whole ``tactorbelt validate stimulus``: open the belt (``drive``; through the
+    calibration file) and the sensor, play ``targets`` (None: every target of the study)
+    of ``study`` (default: the paper's), write ``stimulus.json`` and ``stimulus.png``.
+
+    Raises:
+        ConfigError: a bad URL, target or setting; an existing stimulus.json without
+            ``force``.
+        DeviceError: the belt or the sensor cannot be used.
+    """
+    from ..devices import open_belt
+    from ..devices.calibration import Calibration
+    from ..experiment.study import paper_study
+    from .figure import stimulus_figure
+    from .sensors import open_sensor, resolve_sensor
+
+    st = study if study is not None else paper_study()
+    out = Path(out_dir)
+    results = out / RESULTS
+    if out.exists() and not out.is_dir():
+        raise ConfigError(f"output {str(out)!r} is a file, not a directory")
+    if results.exists() and not force:
+        raise ConfigError(f"{str(results)!r} exists: give another directory, or --force to "
+                          "replace it")
+    if sense_url is not None:
+        resolve_sensor(sense_url)
+    calibration = (Calibration.load(calibration_file) if calibration_file is not None
+                   else None)
+    ks = list(range(st.targets.count)) if targets is None else [int(k) for k in targets]
+    made = not out.exists()
+    out.mkdir(parents=True, exist_ok=True)
+    try:
+        options: dict[str, Any] = {"calibration": calibration} if calibration else {}
+        if belt_url.split(":", 1)[0].split("?", 1)[0] == "sim":
+            options["layout"] = st.layout_obj()
+        belt = open_belt(belt_url, **options)
+        with belt, open_sensor(sense_url, belt) as sensor:
+            if drive is not None:
+                belt.set_drive(drive)
+            if on_open is not None:
+                on_open(belt, sensor)
+            result = validate_stimulus(belt, sensor, st, ks, condition,
+                                       duration_s=duration_s, progress=progress)
+    except BaseException:
+        if made:
+            with contextlib.suppress(OSError):
+                out.rmdir()
+        raise
+    tmp = results.with_name(f".{RESULTS}.tmp")
+    tmp.write_text(json.dumps(result.to_dict(), indent=2, allow_nan=False) + "\n",
+                   encoding="utf-8")
+    tmp.replace(results)
+    return result, {"results": results, "figure": stimulus_figure(result, out / FIGURE)}
