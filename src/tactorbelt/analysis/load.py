@@ -339,9 +339,27 @@ def load_stores(paths: Sequence[str | Path], *, sites: Sequence[str] | None = No
         )
     labels = store_labels(unique)
     sessions, trials = _tidy(sessions, trials, labels, notes)
+    _check_sites(unique, sessions)
     events, ratings = _task_rows(sessions, trials, labels, extra)
     return StoreData(paths=unique, sessions=sessions, trials=trials, notes=notes,
                      task_events=events, ratings=ratings)
+
+
+def _check_sites(paths: Sequence[Path | str], sessions: pd.DataFrame) -> None:
+    """With a shared store (several sites write it) among ``paths``: refuse (StoreError)
+    participant ids that span sites among the loaded sessions instead of merging them.
+    Local stores alone are not checked: their site is the machine's name unless set, and
+    one person's sessions on two machines of a lab are one person's."""
+    from ..experiment.store import backend_for
+    from ..experiment.store.sites import check_one_site_per_participant
+
+    if all(backend_for(p).capabilities.exclusive_writer for p in paths):
+        return
+    check_one_site_per_participant(
+        [{str(k): v for k, v in r.items()} for r in sessions.to_dict("records")],
+        ", ".join(str(p) for p in paths), "analysed",
+        "analyse one site at a time (--site NAME), or have the store's owner give one "
+        "site's sessions other ids", name=lambda r: str(r["session_key"]))
 
 
 def analysis_seed(data: StoreData) -> int:

@@ -636,17 +636,17 @@ def _lsl(req: RunRequest, clock: Clock, belt: Any,
 
 def _check_push(req: RunRequest) -> None:
     """With ``req.push``: no password in the URL; unless offline, the shared store is
-    reachable and takes the participant id at this site."""
+    reachable, this login writes the site, and the participant id is free there
+    (:func:`~tactorbelt.experiment.sync.check_push`)."""
     if req.push is None:
         return
     from ..experiment.provenance import default_site
-    from ..experiment.store import open_store
     from ..experiment.store.postgresql import check_url
+    from ..experiment.sync import check_push
 
     check_url(req.push)
     if not req.offline:
-        with open_store(req.push) as remote:
-            remote.claim_participant(req.participant, req.site or default_site())
+        check_push(req.push, req.participant, req.site or default_site())
 
 
 def _start_push(req: RunRequest) -> Pusher | None:

@@ -265,7 +265,21 @@ def _na(v: Any) -> Any:
 
 
 def _open(db: str | Path) -> Store:
-    return open_store(db, create=False, readonly=True)
+    """The store, read-only; a shared one whose participant ids span sites is refused
+    (:func:`~tactorbelt.experiment.store.sites.check_one_site_per_participant`)."""
+    from .store.sites import check_one_site_per_participant
+
+    store = open_store(db, create=False, readonly=True)
+    if not store.capabilities.exclusive_writer:
+        try:
+            check_one_site_per_participant(
+                store.sessions(), str(db), "exported",
+                "export each site's own store, or have the store's owner give one site's "
+                "sessions other ids")
+        except BaseException:
+            store.close()
+            raise
+    return store
 
 
 #: What an export of each format writes at the top of its directory (``--force``

@@ -31,7 +31,8 @@ from typing import Any
 from .._errors import StoreError
 from .store import Store, open_store
 
-__all__ = ["Pusher", "SyncReport", "sync_session", "sync_store", "sync_stores"]
+__all__ = ["Pusher", "SyncReport", "check_push", "check_sites", "sync_session", "sync_store",
+           "sync_stores"]
 
 FINAL = ("done", "timeout")
 
@@ -125,20 +126,57 @@ def sync_session(local: Store, remote: Store, row: Mapping[str, Any],
     return rep
 
 
+def check_push(url: str, participant: str, site: str) -> None:
+    """A run's check before its first trial (``tactorbelt run --push URL``): the shared
+    store is reachable, this login may write sessions of ``site``
+    (:meth:`~tactorbelt.experiment.store.Store.check_site`), and the participant id is
+    free for ``site`` (claimed for it: the one thing written).
+
+    Raises:
+        StoreError: the server cannot be reached or refuses the login; the role writes
+            another site, or none; the id is taken at another site.
+    """
+    with open_store(url) as remote:
+        remote.check_site(site)
+        remote.claim_participant(participant, site)
+
+
+def check_sites(local: Store, remote: Store, rows: list[dict[str, Any]],
+                site: str | None = None) -> None:
+    """Refuse (StoreError, before anything is copied) sessions of a site that
+    ``remote``'s login may not write, naming them."""
+    from .provenance import default_site
+
+    by_site: dict[str, list[str]] = {}
+    for row in rows:
+        name = f"session {row['session_id']} ({row['participant']})"
+        by_site.setdefault(str(row.get("site") or site or default_site()), []).append(name)
+    for s, names in sorted(by_site.items()):
+        try:
+            remote.check_site(s)
+        except StoreError as exc:
+            shown = ", ".join(names[:5]) + (", ..." if len(names) > 5 else "")
+            raise StoreError(f"{exc}. Nothing was pushed from {local.url}: its {shown} "
+                             f"{'is' if len(names) == 1 else 'are'} of site {s!r}") from None
+
+
 def sync_store(local: Store, remote: Store, *, site: str | None = None,
                session_ids: set[int] | None = None) -> SyncReport:
     """Copy every session of ``local`` (or those in ``session_ids``) into ``remote``.
 
-    A session refused by the remote (a participant id taken at another site) is
-    reported in :attr:`SyncReport.errors` and the others are copied.
+    First, every one of them must be of a site that ``remote``'s login may write
+    (:func:`check_sites`: else StoreError and nothing is copied). A session refused by
+    the remote (a participant id taken at another site) is reported in
+    :attr:`SyncReport.errors` and the others are copied.
     """
     if not remote.capabilities.sync_target:
         raise StoreError(f"{remote.url}: a {remote.capabilities.backend} store does not take "
                          "copied sessions; push to a postgresql:// store")
     rep = SyncReport()
-    for row in local.sessions():
-        if session_ids is not None and int(row["session_id"]) not in session_ids:
-            continue
+    rows = [row for row in local.sessions()
+            if session_ids is None or int(row["session_id"]) in session_ids]
+    check_sites(local, remote, rows, site)
+    for row in rows:
         try:
             rep.add(sync_session(local, remote, row, site))
         except StoreError as exc:

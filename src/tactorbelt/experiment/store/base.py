@@ -382,6 +382,11 @@ class Store(abc.ABC):
         of one site (SQLite) takes any id."""
         return None
 
+    def check_site(self, site: str) -> None:
+        """Refuse (StoreError) unless this login may write sessions of ``site``; writes
+        nothing. A store of one site (SQLite) takes any site."""
+        return None
+
     # -- batched commits (only when capabilities.batch_commits) -------------------------
     def begin_batch(self, session_id: int, every: int) -> None:
         """From now on commit writes every ``every`` trials (and at :meth:`end_batch`)

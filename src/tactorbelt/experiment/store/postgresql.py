@@ -12,7 +12,16 @@ and ``ratings.rating_order`` keep the order rows were written in (no rowid here)
 the multi-site tables: ``run_options(session_id, options)`` (a site's writer may not
 write ``meta``), ``participants(participant, site)`` (who may run a participant id: one
 site per id) and ``site_writers(role_name, site)`` (row-level security: a writer role's
-site). ``meta`` holds ``application`` = ``tactorbelt`` and ``schema_version``.
+site). ``meta`` holds ``application`` = ``tactorbelt`` and ``schema_version``
+(:data:`PG_SCHEMA_VERSION`).
+
+The database itself holds the site rules (:func:`_site_rules`, schema 4): a session's
+``(participant, site)`` must be registered in ``participants`` (a foreign key, checked on
+every INSERT and on every UPDATE of either column, for every role); the
+``claim_participant`` function registers an id for the calling role's own site only and
+answers only whether the id is free for it; a writer role inserts no identity column
+and updates only a session's status, end and resume count. :meth:`check_site` says
+before a run whether the login may write a site.
 
 The schema is created (or migrated: tables and columns added, :func:`~.schema.migrate`)
 on first use by a role that may create it, in one transaction under an advisory lock; a
@@ -23,8 +32,9 @@ Guarantees as the SQLite store (the same code: :class:`~.sql.SqlStore`): each tr
 (row and samples) is one transaction; an ``aborted`` row is replaced when the trial is
 run again (found under a row lock: several writers); a final row is never written
 twice. Several writers may use the store at once (``exclusive_writer`` is False);
-a participant id belongs to the site that first used it (:meth:`create_session` and
-:meth:`import_session` refuse it at another site).
+a participant id belongs to the site that first used it (:meth:`create_session`,
+:meth:`import_session` and :meth:`bulk_insert` refuse it at another site, and so does
+the database).
 
 :meth:`import_session` / :meth:`import_trial` / :meth:`sync_state` take sessions copied
 from another store (``tactorbelt sync``, the runner's background push), keyed by the
@@ -59,19 +69,58 @@ PG_SCHEMA = POSTGRESQL.namespace
 #: Seconds to wait for a server when connecting.
 CONNECT_TIMEOUT_S = 5
 
-#: After the tables: the function through which a writer claims a participant id.
-_FUNCTIONS = (
-    """CREATE OR REPLACE FUNCTION tactorbelt.claim_participant(p TEXT, s TEXT) RETURNS TEXT
-    LANGUAGE plpgsql SECURITY DEFINER SET search_path = tactorbelt, pg_temp AS $$
-DECLARE owner TEXT;
+#: The schema version of a PostgreSQL store: the tables of :data:`SCHEMA_VERSION`, and
+#: one more: the site rules the database itself holds (:data:`_SITE_RULES`: a session's
+#: participant id is registered to the session's site, ``claim_participant`` claims for
+#: the caller's own site and answers only whether an id is free for it, a writer's
+#: INSERT and UPDATE by column). A tactorbelt from before them refuses to write here.
+PG_SCHEMA_VERSION = SCHEMA_VERSION + 1
+
+#: After the tables: the function through which a writer claims a participant id. It
+#: runs as the store's owner (a writer may not read ``participants``); the caller is
+#: ``session_user`` (``current_user`` is the owner inside it). A role of
+#: ``site_writers`` claims for its own site only; a role that is not one claims for any
+#: site only when it is (a member of) the table's owner. Returns whether the id is now
+#: the site's (true: claimed now or before; false: another site has it), nothing more.
+_CLAIM = """CREATE OR REPLACE FUNCTION tactorbelt.claim_participant(p TEXT, s TEXT)
+    RETURNS BOOLEAN LANGUAGE plpgsql SECURITY DEFINER
+    SET search_path = tactorbelt, pg_catalog, pg_temp AS $$
+DECLARE mine TEXT; holder TEXT;
 BEGIN
+    SELECT site_writers.site INTO mine FROM tactorbelt.site_writers
+        WHERE role_name = session_user;
+    IF FOUND THEN
+        IF s IS DISTINCT FROM mine THEN
+            RAISE EXCEPTION
+                'role % writes site %, not %: it claims participant ids for its own site only',
+                session_user, quote_literal(mine), coalesce(quote_literal(s), 'NULL')
+                USING ERRCODE = 'insufficient_privilege';
+        END IF;
+    ELSIF NOT pg_has_role(session_user, (SELECT relowner FROM pg_catalog.pg_class
+            WHERE oid = 'tactorbelt.participants'::regclass), 'USAGE') THEN
+        RAISE EXCEPTION 'role % writes no site of this store (it is not in site_writers)',
+            session_user USING ERRCODE = 'insufficient_privilege';
+    END IF;
+    IF p IS NULL OR s IS NULL THEN
+        RAISE EXCEPTION 'a participant id and a site are needed'
+            USING ERRCODE = 'null_value_not_allowed';
+    END IF;
     INSERT INTO tactorbelt.participants(participant, site) VALUES (p, s)
         ON CONFLICT (participant) DO NOTHING;
-    SELECT participants.site INTO owner FROM tactorbelt.participants
-        WHERE participant = p;
-    RETURN owner;
-END $$""",
-)
+    SELECT participants.site INTO holder FROM tactorbelt.participants WHERE participant = p;
+    RETURN holder = s;
+END $$"""
+#: The foreign key that binds a session to its participant id's site (MATCH FULL: a
+#: session without a site is refused too). Added NOT VALID, so that an old store whose
+#: sessions break the rule is still opened; every INSERT, and every UPDATE of
+#: ``participant`` or ``site``, is checked from then on, and the rows already there are
+#: validated when they allow it (:func:`_site_rules`).
+_SESSION_SITE_FK = "sessions_participant_site"
+#: Identity columns a writer never gives (it could take ids ahead of another site's
+#: next rows), and the columns it may UPDATE (all others are written once).
+_WRITER_NO_INSERT = {"sessions": ("session_id",), "trials": ("trial_id",),
+                     "task_events": ("event_id",)}
+_WRITER_UPDATE = {"sessions": ("status", "ended_at", "resumed"), "task_events": ()}
 #: Session columns copied by :meth:`PostgreSQLStore.import_session` (session_id is the
 #: target store's own).
 _SESSION_COPY = tuple(c.name for c in columns(POSTGRESQL, "sessions")
@@ -200,26 +249,25 @@ class PostgreSQLStore(SqlStore):
                                      f"{PG_SCHEMA!r} schema; a run or sync creates it)")
                 return
             version = int(meta.get("schema_version", "0"))
-            if version > SCHEMA_VERSION:
+            if version > PG_SCHEMA_VERSION:
                 raise StoreError(
                     f"{url} was written by a newer tactorbelt (schema {version}, this one "
-                    f"writes {SCHEMA_VERSION}); upgrade tactorbelt to write to it")
-            if version == SCHEMA_VERSION and cls._complete(conn):
+                    f"writes {PG_SCHEMA_VERSION}); upgrade tactorbelt to write to it")
+            if version == PG_SCHEMA_VERSION and cls._complete(conn):
                 return
             if not tables and not create:
                 raise StoreError(f"{url}: no such store (no {PG_SCHEMA!r} schema)")
             with conn.transaction():
                 conn.execute("SELECT pg_advisory_xact_lock(hashtext('tactorbelt schema'))")
                 migrate(conn, POSTGRESQL)
-                for stmt in _FUNCTIONS:
-                    conn.execute(stmt)
+                _site_rules(conn)
                 conn.execute("INSERT INTO tactorbelt.meta(key, value) VALUES "
                              "('application', 'tactorbelt') ON CONFLICT (key) DO NOTHING")
                 conn.execute(
                     "INSERT INTO tactorbelt.meta(key, value) VALUES ('schema_version', %s) "
                     "ON CONFLICT (key) DO UPDATE SET value = EXCLUDED.value "
                     "WHERE tactorbelt.meta.value::int < EXCLUDED.value::int",
-                    (str(SCHEMA_VERSION),))
+                    (str(PG_SCHEMA_VERSION),))
         except psycopg.errors.InsufficientPrivilege as exc:
             raise StoreError(f"{url}: the store's schema must be created or upgraded by its "
                              f"owner (this role may not: {str(exc).strip()})") from None
@@ -287,18 +335,51 @@ class PostgreSQLStore(SqlStore):
             raise StoreError(f"cannot read {self.url}: {str(exc).strip()}") from None
 
     def _claim(self, cur: Any, participant: str, site: str) -> None:
-        owner = cur.execute("SELECT tactorbelt.claim_participant(%s, %s)",
-                            (participant, site)).fetchone()[0]
-        if owner != site:
+        if not cur.execute("SELECT tactorbelt.claim_participant(%s, %s)",
+                           (participant, site)).fetchone()[0]:
+            where = "another site"
+            if cur.execute("SELECT has_table_privilege('tactorbelt.participants', 'SELECT')"
+                           " AND NOT row_security_active('tactorbelt.participants')"
+                           ).fetchone()[0]:  # the owner may know which
+                row = cur.execute("SELECT site FROM tactorbelt.participants"
+                                  " WHERE participant=%s", (participant,)).fetchone()
+                where = f"site {row[0]!r}" if row else where
             raise StoreError(
-                f"participant id {participant!r} is already taken at site {owner!r}; "
+                f"participant id {participant!r} is already taken at {where}; "
                 f"give this participant another id at site {site!r}")
 
     def claim_participant(self, participant: str, site: str) -> None:
         """Register the participant id at ``site`` (first come); StoreError when another
-        site already has it."""
+        site already has it, or when this login may not write ``site``."""
         with self._transaction() as c:
             self._claim(c, participant, site)
+
+    def check_site(self, site: str) -> None:
+        """Refuse (StoreError) unless this login may write sessions of ``site``: a writer
+        role (``site_writers``) writes its own site only; a role that reads only (an
+        analyst) or that row-level security gives no site writes none; the owner, or
+        anyone in a store without row-level security, writes any. Writes nothing."""
+        role, may_insert, rls, listed = self._query(
+            "SELECT current_user::text, has_table_privilege('tactorbelt.sessions', 'INSERT'),"
+            " row_security_active('tactorbelt.sessions'),"
+            " has_table_privilege('tactorbelt.site_writers', 'SELECT')")[0]
+        mine = None
+        if listed:
+            rows = self._query("SELECT site FROM tactorbelt.site_writers WHERE role_name ="
+                               " current_user")
+            mine = str(rows[0][0]) if rows else None
+        if mine is not None and mine != site:
+            raise StoreError(
+                f"{self.url}: the role {role!r} writes the sessions of site {mine!r}, not "
+                f"{site!r}; if this is the {mine} lab, give --site {mine} (or set "
+                f"TACTORBELT_SITE={mine}), else log in as the writer role of site {site!r}")
+        if mine is None and (rls or not may_insert):
+            why = ("it may only read (an analyst role)" if not may_insert
+                   else "it is no site's writer (not in site_writers)")
+            raise StoreError(
+                f"{self.url}: the role {role!r} may not write sessions of site {site!r}: "
+                f"{why}; log in as the writer role of site {site!r} (the store's owner "
+                "makes one with setup_access, docs/multisite.md)")
 
     # -- samples: COPY, or INSERTs under row-level security -----------------------------
     def _write_samples(self, c: Any, trial_id: int, result: TrialResult) -> None:
@@ -320,8 +401,11 @@ class PostgreSQLStore(SqlStore):
 
     # -- bulk writes -------------------------------------------------------------------
     def _bulk_session(self, row: Mapping[str, Any]) -> Mapping[str, Any]:
-        """Sessions without a ``session_uuid`` get one."""
-        return {"session_uuid": str(uuid.uuid4())} | dict(row)
+        """Sessions without a ``session_uuid`` get one, without a site the default one
+        (:func:`~tactorbelt.experiment.provenance.default_site`); the caller claims the
+        participant id for that site."""
+        return {"session_uuid": str(uuid.uuid4())} | dict(row) | {
+            "site": row.get("site") or default_site()}
 
     def _bulk_ids(self, c: Any) -> None:
         for table, col in (("sessions", "session_id"), ("trials", "trial_id")):
@@ -453,6 +537,89 @@ def _event_value(column: str, value: Any) -> Any:
     return bool(value) if column in ("target", "correct") else value
 
 
+def _site_rules(conn: Any) -> None:
+    """The site rules of :data:`PG_SCHEMA_VERSION`, made or brought up to date inside the
+    migration's transaction (idempotent).
+
+    The claim function (an older one returned the site that holds an id: replaced, and
+    granted again to the writers); ``participants(participant, site)`` unique, so that
+    sessions can refer to it; the participant ids of old sessions registered to their site
+    where they have one site; the foreign key :data:`_SESSION_SITE_FK`, validated when
+    the old rows allow it (else it stays NOT VALID: it holds for every new row and
+    change, and the analysis refuses to merge the old rows, docs/multisite.md); the
+    writers' INSERT and UPDATE by column (:func:`_grant_writer`).
+    """
+    old = conn.execute("SELECT format_type(prorettype, NULL) FROM pg_catalog.pg_proc WHERE"
+                       " oid = to_regprocedure('tactorbelt.claim_participant(text, text)')"
+                       ).fetchone()
+    if old is not None and old[0] != "boolean":
+        conn.execute("DROP FUNCTION tactorbelt.claim_participant(TEXT, TEXT)")
+    conn.execute(_CLAIM)
+    conn.execute("REVOKE EXECUTE ON FUNCTION tactorbelt.claim_participant(TEXT, TEXT)"
+                 " FROM PUBLIC")
+    have = {str(r[0]) for r in conn.execute(
+        "SELECT conname FROM pg_catalog.pg_constraint WHERE connamespace ="
+        " 'tactorbelt'::regnamespace").fetchall()}
+    if "participants_participant_site" not in have:
+        conn.execute("ALTER TABLE tactorbelt.participants ADD CONSTRAINT"
+                     " participants_participant_site UNIQUE (participant, site)")
+    conn.execute("INSERT INTO tactorbelt.participants(participant, site)"
+                 " SELECT participant, MIN(site) FROM tactorbelt.sessions"
+                 " WHERE site IS NOT NULL GROUP BY participant"
+                 " HAVING COUNT(DISTINCT site) = 1 ON CONFLICT (participant) DO NOTHING")
+    if _SESSION_SITE_FK not in have:
+        conn.execute(f"ALTER TABLE tactorbelt.sessions ADD CONSTRAINT {_SESSION_SITE_FK}"
+                     " FOREIGN KEY (participant, site) REFERENCES"
+                     " tactorbelt.participants(participant, site) MATCH FULL NOT VALID")
+    valid = conn.execute("SELECT convalidated FROM pg_catalog.pg_constraint WHERE conname=%s"
+                         " AND connamespace = 'tactorbelt'::regnamespace",
+                         (_SESSION_SITE_FK,)).fetchone()[0]
+    if not valid:
+        import psycopg
+
+        with contextlib.suppress(psycopg.errors.ForeignKeyViolation), conn.transaction():
+            conn.execute(f"ALTER TABLE tactorbelt.sessions VALIDATE CONSTRAINT"
+                         f" {_SESSION_SITE_FK}")
+    for (role,) in conn.execute(
+            "SELECT w.role_name FROM tactorbelt.site_writers w"
+            " JOIN pg_catalog.pg_roles r ON r.rolname = w.role_name").fetchall():
+        _grant_writer(conn, str(role))
+
+
+def _grant_writer(c: Any, role: str) -> None:
+    """A site writer's privileges: read what row-level security shows it, write its own
+    site's rows, claim participant ids; INSERT without the identity columns and UPDATE of
+    the columns a run changes (:data:`_WRITER_NO_INSERT`, :data:`_WRITER_UPDATE`; a
+    trial's columns but its ids), given by column (from the catalog: run
+    :func:`setup_access` again after an upgrade that adds columns)."""
+    from psycopg import sql
+
+    r = sql.Identifier(role)
+    c.execute(sql.SQL("GRANT USAGE ON SCHEMA tactorbelt TO {}").format(r))
+    c.execute(sql.SQL("GRANT SELECT ON tactorbelt.meta, tactorbelt.site_writers TO {}")
+              .format(r))
+    c.execute(sql.SQL("GRANT SELECT, INSERT, UPDATE, DELETE ON tactorbelt.samples,"
+                      " tactorbelt.run_options, tactorbelt.ratings TO {}").format(r))
+    for table, no_insert in _WRITER_NO_INSERT.items():
+        t = sql.Identifier("tactorbelt", table)
+        cols = [str(x[0]) for x in c.execute(
+            "SELECT attname FROM pg_catalog.pg_attribute WHERE attrelid = %s::regclass"
+            " AND attnum > 0 AND NOT attisdropped ORDER BY attnum",
+            (f"tactorbelt.{table}",)).fetchall()]
+        update = _WRITER_UPDATE.get(table, ())
+        if table == "trials":  # (a row lock needs UPDATE on a column)
+            update = tuple(x for x in cols if x not in (*no_insert, "session_id"))
+        c.execute(sql.SQL("REVOKE INSERT, UPDATE ON {} FROM {}").format(t, r))
+        c.execute(sql.SQL("GRANT SELECT, DELETE ON {} TO {}").format(t, r))
+        c.execute(sql.SQL("GRANT INSERT ({}) ON {} TO {}").format(
+            sql.SQL(", ").join(sql.Identifier(x) for x in cols if x not in no_insert), t, r))
+        if update:
+            c.execute(sql.SQL("GRANT UPDATE ({}) ON {} TO {}").format(
+                sql.SQL(", ").join(sql.Identifier(x) for x in update), t, r))
+    c.execute(sql.SQL("GRANT EXECUTE ON FUNCTION tactorbelt.claim_participant(TEXT, TEXT)"
+                      " TO {}").format(r))
+
+
 def setup_access(store: PostgreSQLStore, *, writers: Mapping[str, str] | None = None,
                  analysts: Sequence[str] = ()) -> None:
     """Row-level security: each role of ``writers`` (role -> site) may insert and read
@@ -485,17 +652,7 @@ def setup_access(store: PostgreSQLStore, *, writers: Mapping[str, str] | None = 
         if c.fetchone() is None:
             c.execute("CREATE ROLE tactorbelt_analyst NOLOGIN")
         for role in writers:
-            r = sql.Identifier(role)
-            c.execute(sql.SQL("GRANT USAGE ON SCHEMA tactorbelt TO {}").format(r))
-            c.execute(sql.SQL("GRANT SELECT ON tactorbelt.meta, tactorbelt.site_writers"
-                              " TO {}").format(r))
-            c.execute(sql.SQL("GRANT SELECT, INSERT, UPDATE, DELETE ON tactorbelt.sessions,"
-                              " tactorbelt.trials, tactorbelt.samples, tactorbelt.run_options,"
-                              " tactorbelt.task_events, tactorbelt.ratings TO {}").format(r))
-            c.execute("REVOKE EXECUTE ON FUNCTION tactorbelt.claim_participant(TEXT, TEXT)"
-                      " FROM PUBLIC")
-            c.execute(sql.SQL("GRANT EXECUTE ON FUNCTION tactorbelt.claim_participant(TEXT,"
-                              " TEXT) TO {}").format(r))
+            _grant_writer(c, role)
         for role in analysts:
             r = sql.Identifier(role)
             c.execute(sql.SQL("GRANT tactorbelt_analyst TO {}").format(r))

@@ -416,8 +416,11 @@ class SqlStore(Store):
         """
         ids: list[int] = []
         with self._transaction() as c:
-            for row in sessions:
-                ids.append(self._insert(c, "sessions", self._bulk_session(row), "session_id"))
+            for given in sessions:
+                row = self._bulk_session(given)
+                if row.get("site"):
+                    self._claim(c, str(row["participant"]), str(row["site"]))
+                ids.append(self._insert(c, "sessions", row, "session_id"))
             trial_rows = list(trials)
             if trial_rows:
                 cols = sorted({k for r in trial_rows for k in r})
