@@ -23,7 +23,8 @@ def sync(local: Path, url: str, site: str | None) -> None:
     """Push every session and trial of the store LOCAL that URL (postgresql://...) lacks.
 
     Idempotent: what is there already is left alone. A session whose participant id is
-    taken at another site is refused (exit 2) and the others are pushed.
+    taken at another site is refused (exit 2) and the others are pushed; a session of a
+    site that URL's role does not write refuses the whole sync (exit 2, nothing pushed).
     """
     from ..experiment.sync import sync_stores
 
