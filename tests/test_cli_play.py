@@ -227,3 +227,27 @@ def test_signals_end_a_real_process_promptly(command: list[str], sig: int, code:
     assert proc.returncode == code, err
     assert took < 1.5
     assert "error" not in err and "Traceback" not in err
+
+
+@pytest.mark.parametrize("drive", ["plain", "shaped"])
+def test_play_drive_sets_the_belts_drive_and_the_felt_onset(drive: str,
+                                                            belts: list[Any]) -> None:
+    code, out, _ = run("play", "30", "--belt", "sim:virtual", "--seconds", "0.3",
+                       "--drive", drive)
+    assert code == 0 and f"drive {drive}" in out
+    belt = belts[0]
+    assert belt.drive == drive
+    onset = belt.commands()[0].t_ns
+    _, vib = belt.vibration(onset, onset + 300_000_000)
+    # tactor 0 (30 deg, at 0.98) reaches a tenth of its amplitude after 15 ms plain, 12
+    # ms shaped (the overdrive, 1.2 times the rated drive, is 1.22 times its level)
+    t10 = int(np.argmax(vib[:, 0] >= 0.1 * vib[-1, 0]))
+    assert (t10 >= 15) if drive == "plain" else (t10 <= 13)
+
+
+def test_play_and_point_refuse_an_unknown_drive() -> None:
+    code, _, err = run("play", "30", "--belt", "sim:virtual", "--drive", "fast")
+    assert code == 2 and "fast" in err
+    code, _, err = run("point", "--belt", "sim:virtual?drive=fast", "--bearing", "0",
+                       "--seconds", "0.1")
+    assert code == 2 and "drive must be one of plain, shaped" in err

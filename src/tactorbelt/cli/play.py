@@ -49,8 +49,12 @@ __all__ = ["belt_test", "play"]
 @click.option("--profile", "profile_file", default=None, metavar="FILE",
               help="Render for this wearer's profile (TOML, from `tactorbelt calibrate "
                    "perceptual -o`).")
+@click.option("--drive", type=click.Choice(["plain", "shaped"]), default=None,
+              help="Play plain, or shaped: overdrive kicks and brake pulses (docs/belts.md) "
+                   "[default: the belt's].")
 def play(angle: str, belt_url: str, calibration_file: str | None, seconds: float,
-         rate: float | None, stats: bool, profile_file: str | None, **stim: Any) -> None:
+         rate: float | None, stats: bool, profile_file: str | None, drive: str | None,
+         **stim: Any) -> None:
     """Play the stimulus for direction ANGLE (degrees, 0 = navel, clockwise) on a belt.
 
     Examples: `tactorbelt play 15 --mode dynamic`, `tactorbelt play -30 --belt
@@ -71,6 +75,8 @@ def play(angle: str, belt_url: str, calibration_file: str | None, seconds: float
                                            calibration_file=calibration_file)
     assert stimulus_on_belt is not None
     with belt:
+        if drive is not None:
+            belt.set_drive(drive)
         if profile is not None:  # refused here when measured on another layout
             profile.check_layout(belt.layout, source=str(profile_file))
             stimulus_on_belt = stimulus_on_belt.with_profile(profile)
@@ -80,6 +86,7 @@ def play(angle: str, belt_url: str, calibration_file: str | None, seconds: float
         kind = "on-tactor" if stimulus_on_belt.on_tactor else "between-tactor"
         click.echo(f"playing {stimulus_on_belt.mode} {kind} {stimulus_on_belt.target_deg:g} deg "
                    f"({stimulus_on_belt.law} law) on {describe_belt(belt)} for {seconds:g} s, {how}"
+                   + (f", drive {belt.drive}" if belt.can_shape else "")
                    + (f", for wearer {profile.participant or '(unnamed)'}" if profile else ""))
         try:
             result = player.play(stimulus_on_belt, seconds)

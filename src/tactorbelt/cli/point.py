@@ -59,11 +59,15 @@ __all__ = ["HeadingReader", "HeadingSample", "point"]
 @click.option("--profile", "profile_file", default=None, metavar="FILE",
               help="Render for this wearer's profile (TOML, from `tactorbelt calibrate "
                    "perceptual -o`); streamed.")
+@click.option("--drive", type=click.Choice(["plain", "shaped"]), default=None,
+              help="Play plain, or shaped: overdrive kicks and brake pulses (docs/belts.md) "
+                   "[default: the belt's].")
 @click.option("-q", "--quiet", is_flag=True, help="Print nothing but errors.")
 def point(belt_url: str, bearing: float | None, heading_from: str | None,
           heading_rate: float, sweep: bool, sweep_period: float, seconds: float | None,
           mode: str, law: str, falloff: float, period: float, transit: float, slew: float,
-          hysteresis: float, stream: bool, profile_file: str | None, quiet: bool) -> None:
+          hysteresis: float, stream: bool, profile_file: str | None, drive: str | None,
+          quiet: bool) -> None:
     """Keep a bearing displayed on a belt while the wearer's heading changes.
 
     The belt shows BEARING - HEADING (0 = navel, clockwise). Examples:
@@ -113,6 +117,8 @@ def point(belt_url: str, bearing: float | None, heading_from: str | None,
 
     say = (lambda msg: None) if quiet else (lambda msg: click.echo(msg, err=True))
     with open_belt(belt_url) as belt:
+        if drive is not None:
+            belt.set_drive(drive)
         if stream:
             display_opts["device_render"] = False
         if profile_file is not None:
@@ -126,7 +132,7 @@ def point(belt_url: str, bearing: float | None, heading_from: str | None,
             f"streaming at {display.rate_hz:g} Hz"
         what = "a sweep" if sweep else f"bearing {bearing_deg:g} deg"
         say(f"showing {what} on {belt.url} ({belt.n_tactors} tactors, {mode}, {law} law, "
-            f"{how}); Ctrl-C stops")
+            f"{how}{', drive ' + belt.drive if belt.can_shape else ''}); Ctrl-C stops")
         report = run_point(display, bearing_deg=bearing_deg,
                            sweep_s=sweep_s if sweep else None, samples=samples, timed=timed,
                            rate_hz=rate, from_stdin=heading_from == "-", limit_s=limit_s,
