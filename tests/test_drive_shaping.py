@@ -259,3 +259,19 @@ def test_a_study_names_its_drive_and_the_session_stores_it(tmp_path: Path) -> No
                           store, clock, seed=1, limit=2)
         assert belt.drive == "shaped"
         assert store.session(res.session_id)["belt"] == "sim?drive=shaped"
+
+
+def test_a_long_shaped_session_of_played_stimuli_keeps_its_history() -> None:
+    from tactorbelt.stimuli import make_stimulus
+
+    clock = SimClock()
+    stims = [make_stimulus(Layout.even(6), a, m) for a in (15.0, 45.0) for m in
+             ("static", "dynamic")]
+    with open_belt("sim?horizon_s=5", clock=clock) as b:
+        for i in range(600):  # past the checkpoint every 256 commands and the horizon
+            b.play(stims[i % 4], 0.02)
+            clock.advance(30 * MS)
+            b.stop()
+        t = clock.now_ns()
+        _, v = b.vibration(t - 1 * S, t)
+    assert np.isfinite(v).all() and v.max() > 0.1

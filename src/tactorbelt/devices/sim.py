@@ -527,6 +527,7 @@ class SimBelt(Belt):
         t_a, w_a, e_a = self._shaped_start(t_first)
         keep = max(min(int(self.clock.now_ns()), t_last), t_a)
         ts, ds, ws, _ = self._shaped_solve(t_a, w_a, e_a, t_last, keep)
+        self._since_ck = 0  # a decision up to now is kept
         idx = ts.searchsorted(times, side="right") - 1
         dt = np.asarray((times - ts[idx]) * 1e-9, dtype=np.float64)
         w = drive_relax(ds[idx], ws[idx], dt, self.params)
@@ -599,7 +600,8 @@ class SimBelt(Belt):
         self._rid[i] = rid
         self._hi += 1
         self._since_ck += 1
-        if self._since_ck >= _CHECKPOINT_EVERY:
+        # (shaped: not while a played stimulus's render is not registered yet)
+        if self._since_ck >= _CHECKPOINT_EVERY and (register or self._drive != "shaped"):
             # keep a recent state, so later queries and pruning never replay much
             self._speed_at(np.array([now], dtype=np.int64))
         if (self._hi - self._lo >= 2

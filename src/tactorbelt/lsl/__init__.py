@@ -390,6 +390,7 @@ class LslObserver:
         d.append_child_value("session_id", str(info.session_id))
         b = d.append_child("belt")
         b.append_child_value("url", self.belt.url)
+        b.append_child_value("drive", self.belt.drive)
         b.append_child_value("firmware_version", str(self.belt.firmware_version or ""))
         b.append_child_value("reports_onsets", "true" if self.belt.reports_onsets else "false")
         cal = getattr(self.belt, "calibration", None)
