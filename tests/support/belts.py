@@ -513,6 +513,30 @@ def audio_harness(**options: Any) -> Harness:
     return Harness(belt, belt.output_levels)
 
 
+def navibelt_harness(**options: Any) -> Harness:
+    """A 6-motor naviBelt on the emulation, through pybelt (skipped without pybelt); the
+    device side is the emulated motors (after the link closes: as they were when it did,
+    before the belt stopped them itself)."""
+    import importlib.util
+
+    from tactorbelt.devices import open_belt
+
+    if importlib.util.find_spec("pybelt") is None:
+        _skip("pybelt is not installed (pip install 'tactorbelt[navibelt]')")
+    belt = open_belt("navibelt:emulator?motors=1,4,7,9,12,15", **options)
+    em = belt.emulation
+
+    def device_levels() -> list[float]:
+        if not belt.closed:
+            belt.ping()
+            levels = em.motor_levels()
+        else:
+            levels = em.levels_at_link_loss or em.motor_levels()
+        return [levels[m] for m in belt.motors]
+
+    return Harness(belt, device_levels)
+
+
 def loop_harness(**options: Any) -> Harness:
     """Not a registered scheme: FirmwareBelt over the in-memory loop transport."""
     options.setdefault("keepalive", False)
@@ -544,6 +568,7 @@ FACTORIES: dict[str, Callable[..., Harness]] = {
     "serial": serial_harness,
     "ble": ble_harness,
     "audio": audio_harness,
+    "navibelt": navibelt_harness,
 }
 #: Further cases of the contract that are not URL schemes.
 EXTRA_FACTORIES: dict[str, Callable[..., Harness]] = {

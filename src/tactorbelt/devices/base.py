@@ -27,6 +27,10 @@ probe a belt with ``getattr``/``hasattr``:
 - ``reports_onsets`` and ``last_onset()``: the device-true onset of the last stimulus
   start, mapped to host time with its uncertainty, ``(host_ns, uncertainty_ns)``
   (firmware 1.1 with ONSET events); None for belts that cannot tell.
+- ``vibration_channels`` and ``reserved_channels``: a device that keeps a few vibrations at
+  once, each one intensity on a set of tactors (the naviBelt's channels, less the one it
+  keeps for its own signals), rather than a level per tactor; None (every other belt):
+  every tactor on its own. A frame needing more distinct intensities is refused.
 - ``senses_vibration`` and ``sense(duration_s, rate_hz=, tactor=)``: the belt's own board
   records its accelerometer (firmware 1.2 with an IMU that started), a
   :class:`~tactorbelt.devices._firmware.SenseRecording` with host-clock times; other
@@ -111,6 +115,12 @@ class Belt(ABC):
 
     clock: Clock | None = None
     stream_rate_hz: float = DEFAULT_STREAM_RATE_HZ
+    #: how many vibrations the device keeps at once, each one intensity on any set of
+    #: tactors (a naviBelt: 5), or None when every tactor is driven on its own
+    vibration_channels: int | None = None
+    #: the device's channels kept for its own signals, never used for stimuli (a
+    #: naviBelt's channel 0, its inaccurate-orientation signal)
+    reserved_channels: tuple[int, ...] = ()
 
     def __init__(
         self,

@@ -301,4 +301,13 @@ BACKENDS: dict[str, Backend] = {b.scheme: b for b in (
                                100.0), _DRIVE),
             discover="tactorbelt.devices.audio:discover", title="Audio outputs",
             docs="docs/audio.md", allowed=("audio:DEVICE", "audio:default")),
+    Backend("navibelt", "tactorbelt.devices.navibelt:open_navibelt",
+            "feelSpace naviBelt through pybelt (16 motors; pip install 'tactorbelt[navibelt]')",
+            ("navibelt:auto", "navibelt:serial:/dev/ttyACM0", "navibelt:ble:NAME",
+             "navibelt:emulator"), target="TARGET",
+            options=(UrlOption("motors", str, "the motors used, e.g. 0,2,4,6 (default all 16)"),
+                     UrlOption("rate_hz", float, "command rate (Hz)", 1.0, 200.0)),
+            discover="tactorbelt.devices.navibelt:discover", title="naviBelts",
+            docs="docs/belts.md", allowed=("navibelt:auto", "navibelt:serial:PORT",
+                                           "navibelt:ble:NAME", "navibelt:emulator")),
 )}
