@@ -12,6 +12,9 @@ prints one JSON object:
 - ``sleep_loop_interval_p99_ms``: the naive loop's p99 of (interval - period), a
   fairer view of its jitter that ignores the drift;
 - ``player_missed``, ``player_frames``, ``player_p50_ms``, ``player_max_ms``;
+- ``pattern_player_p99_ms``, ``pattern_player_missed``: the same player streaming a
+  haptic pattern (a between-tactor path, one turn a second: docs/patterns.md) for as long
+  on a fresh sim belt, so pattern playback's timing stands beside the stimulus's;
 - ``sim_vibration_session_s``: total time of ``SimBelt.vibration`` over 2 s of stimulus
   for each of 264 trials (a paper session) on a SimClock, as the model participant
   calls it; ``sim_vibration_call_ms`` per call.
@@ -91,6 +94,13 @@ def main() -> None:
     with open_sim("", clock=clock) as belt:
         player = Player(belt, rate_hz=args.rate, device_render=False)
         stats = player.play(stimulus, args.seconds)
+    from tactorbelt.patterns.model import Event, Pattern
+    from tactorbelt.patterns.render import PatternPlayback
+
+    turn = Pattern((Event(0.0, args.seconds * 1000.0, path=(0.0, 360.0 * args.seconds)),))
+    with open_sim("", clock=clock) as belt:
+        player = Player(belt, rate_hz=args.rate, device_render=False)
+        pattern_stats = player.play(PatternPlayback(turn, belt.layout), args.seconds)
     with open_sim("", clock=clock) as belt:
         naive_p99, naive_interval_p99 = naive_loop(belt, stimulus, args.seconds, args.rate)
     sim_s = sim_vibration_session()
@@ -104,6 +114,8 @@ def main() -> None:
         "player_max_ms": round(stats.deadline_error_max_ms, 4),
         "player_frames": stats.frames,
         "player_missed": stats.missed,
+        "pattern_player_p99_ms": round(pattern_stats.deadline_error_p99_ms, 4),
+        "pattern_player_missed": pattern_stats.missed,
         "sim_vibration_session_s": round(sim_s, 4),
         "sim_vibration_call_ms": round(sim_s / 264 * 1e3, 4),
     }

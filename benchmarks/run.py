@@ -99,6 +99,9 @@ GOALS = [
          "OS wake-up latency and other processes on 2 cores; the player sleeps, then spins"),
     Goal("player_p99_vs_sleep_loop", None, "<=", 0.2, "x",
          "same run: a naive time.sleep(1/rate) loop, which also drifts"),
+    Goal("pattern_player_p99_ms", "player_p99_ms", "<=", 0.2, "ms",
+         "the same player and deadlines as player_p99_ms, streaming a haptic pattern (a "
+         "between-tactor path) instead of a stimulus"),
     Goal("display_frame_ms", "frame_budget_ms", "<=", 0.05, "ms",
          "DirectionDisplay.update, dynamic, angle moving: the trapezoid state machine on "
          "floats (~0.003 ms), the paper law on 6 tactors (NumPy on one row, ~0.012 ms), "
