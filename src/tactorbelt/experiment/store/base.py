@@ -52,6 +52,7 @@ __all__ = [
 ]
 
 #: Version of the store schema this tactorbelt writes; a store with a newer one is refused.
+#: (A PostgreSQL store is one more: its site rules, ``postgresql.PG_SCHEMA_VERSION``.)
 SCHEMA_VERSION = 3
 #: What each schema version added (a writer opening an older store migrates it).
 SCHEMA_HISTORY = {
