@@ -92,6 +92,19 @@ def test_a_frame_needing_more_channels_than_the_belt_has_is_refused(belt: NaviBe
     assert belt.emulation is not None and belt.emulation.motor_levels()[5] == 0.5
 
 
+def test_a_pattern_needing_more_channels_is_refused_before_it_plays(tmp_path: Path) -> None:
+    events = [{"at_ms": 100, "duration_ms": 200, "intensity": 0.1 * (k + 1),
+               "angle_deg": 22.5 * 2 * k} for k in range(6)]  # six motors, six intensities
+    path = tmp_path / "six.json"
+    path.write_text(json.dumps({"format": "tactorbelt.pattern/1", "events": events}))
+    proc = tactorbelt("pattern", "play", str(path), "--belt", "navibelt:emulator")
+    assert proc.returncode == 2, proc.stderr
+    assert proc.stderr.startswith(f"error: {path}: events: at 100 ms the pattern needs 6 "
+                                  "different intensities at once")
+    assert "shows at most 5 (its vibration channels; reserved: 0)" in proc.stderr
+    assert "playing" not in proc.stdout  # refused before anything played
+
+
 def test_the_belts_own_channel_is_left_to_it(belt: NaviBelt) -> None:
     em = belt.emulation
     assert em is not None

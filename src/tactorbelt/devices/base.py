@@ -213,6 +213,12 @@ class Belt(ABC):
         return self.can_render(stimulus) and (self.calibration.is_identity
                                               or self.renders_calibrated)
 
+    def channels_needed(self, levels: NDArray[np.float64]) -> NDArray[np.int64]:
+        """How many of the device's :attr:`vibration_channels` each frame of drive levels
+        (shape ``(n, N)``, calibrated) would take; zeros where every tactor is driven on its
+        own (``vibration_channels`` None, the default)."""
+        return np.zeros(np.shape(levels)[0], dtype=np.int64)
+
     @property
     def levels(self) -> NDArray[np.float64] | None:
         """The drive levels last written (calibrated, one per tactor; zeros after

@@ -237,6 +237,12 @@ class NaviBelt(Belt):
                 f"{i} % on motors {self._mask_motors(m)}" for i, m in self._channels.values()))
             raise DeviceError(f"naviBelt on {self.port}: {why} while {doing}; {state}{last}")
 
+    def channels_needed(self, levels: NDArray[np.float64]) -> NDArray[np.int64]:
+        """One channel per distinct intensity (whole percent) above 0, per frame."""
+        steps = np.sort(np.rint(np.atleast_2d(levels) * 100.0).astype(np.int64), axis=1)
+        new = np.diff(steps, axis=1, prepend=0) != 0
+        return np.asarray((new & (steps > 0)).sum(axis=1), dtype=np.int64)
+
     @staticmethod
     def _mask_motors(mask: int) -> list[int]:
         return [m for m in range(MOTORS) if mask >> m & 1]
@@ -244,7 +250,7 @@ class NaviBelt(Belt):
     def _write_levels(self, levels: NDArray[np.float64]) -> None:
         self._check_link("playing")
         steps = np.rint(np.asarray(levels) * 100.0).astype(int)
-        groups: dict[int, int] = {}
+        groups: dict[int, int] = {}  # what channels_needed counts
         for k, s in enumerate(steps):
             if s > 0:
                 groups[int(s)] = groups.get(int(s), 0) | 1 << self.motors[k]

@@ -9,17 +9,19 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
+import numpy as np
+
 from ..devices import open_belt_for
 from ..player import Player, PlayerStats
 from .io import require_events
-from .model import Pattern
-from .render import PatternPlayback
+from .model import Pattern, PatternFileError
+from .render import PatternPlayback, render_pattern
 
 if TYPE_CHECKING:
     from ..devices.base import Belt
     from ..devices.calibration import Calibration
 
-__all__ = ["PatternPlay", "play_pattern"]
+__all__ = ["PatternPlay", "check_channels", "play_pattern"]
 
 
 @dataclass(frozen=True)
@@ -30,6 +32,30 @@ class PatternPlay:
     law: str
     rate_hz: float
     stats: PlayerStats
+
+
+def check_channels(belt: Belt, playback: PatternPlayback, rate_hz: float,
+                   source: str | None = None) -> None:
+    """Refuse, before anything plays, a pattern with an instant that needs more distinct
+    intensities than the belt keeps at once (its declared ``vibration_channels``).
+
+    Raises:
+        PatternFileError: naming the file, the first such instant and the belt's limit.
+    """
+    limit = belt.vibration_channels
+    if limit is None:
+        return
+    t, amps = render_pattern(playback, rate_hz)
+    levels = np.array([belt.calibration.apply(a) for a in amps]) if len(amps) else amps
+    need = belt.channels_needed(levels)
+    over = np.flatnonzero(need > limit)
+    if over.size:
+        i = int(over[0])
+        raise PatternFileError(
+            f"at {t[i] * 1000:g} ms the pattern needs {int(need[i])} different intensities at "
+            f"once on {belt.name}, which shows at most {limit} (its vibration channels; "
+            f"reserved: {', '.join(map(str, belt.reserved_channels)) or 'none'})",
+            path=source, field="events")
 
 
 def play_pattern(pattern: Pattern, belt_url: str, *, law: str | None = None,
@@ -53,6 +79,7 @@ def play_pattern(pattern: Pattern, belt_url: str, *, law: str | None = None,
     with belt:
         playback = PatternPlayback(pattern, belt.layout, law, falloff_deg, source=source)
         player = Player(belt, rate_hz=rate_hz, device_render=False)
+        check_channels(belt, playback, player.rate_hz, source)
         if started is not None:
             started(belt, playback, player)
         with player:
