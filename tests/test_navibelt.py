@@ -215,6 +215,18 @@ def test_play_point_and_pattern_play_on_the_command_line() -> None:
     assert stats["frames"] + stats["missed"] == 130  # 2.6 s at 50 Hz
 
 
+def test_validate_onsets_measures_the_emulated_motors(tmp_path: Path) -> None:
+    proc = tactorbelt("validate", "onsets", "--belt", "navibelt:emulator?motors=0,4,8,12",
+                      "--sense", "model", "--pulses", "1", "--on", "0.2", "--off", "0.2",
+                      "-o", str(tmp_path))
+    assert proc.returncode == 0, proc.stderr
+    result = json.loads((tmp_path / "validation.json").read_text())
+    assert result["belt"] == "navibelt:emulator"
+    assert [t["tactor"] for t in result["tactors"]] == [0, 1, 2, 3]
+    # command to motor through pybelt and the serial line: well under a frame at 50 Hz
+    assert all(0 <= t["latency_ms"] < 20 for t in result["tactors"])
+
+
 @pytest.mark.slow
 def test_a_model_session_on_the_emulated_navibelt_stores_every_trial(tmp_path: Path) -> None:
     study = write_study(tmp_path, name="navibelt", targets=6, repetitions=1, training=1,
