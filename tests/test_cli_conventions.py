@@ -19,11 +19,12 @@ from tactorbelt.cli import COMMANDS
 DOCS = Path(__file__).resolve().parents[1] / "docs" / "cli.md"
 GROUPS = {"figure": ["amplitudes"], "study": ["init", "check"],
           "calibrate": [None, "perceptual"], "firmware": ["export", "build", "upload"],
-          "validate": ["onsets"]}
+          "validate": ["onsets"], "pattern": ["import", "play", "export", "show"]}
 COMMAND_PATHS = [[c, *([s] if s else [])] for c in COMMANDS for s in GROUPS.get(c, [None])]
 #: commands that write files, and so have -o/--output
 WRITERS = {"render", "figure amplitudes", "calibrate", "calibrate perceptual", "export", "demo",
-           "power", "analyze", "validate onsets"}
+           "power", "analyze", "validate onsets", "pattern import", "pattern export",
+           "pattern show"}
 #: options whose value is text that is not a number
 TEXT_OPTIONS = {"--tactor-angles", "--participant", "--joystick", "--axes", "--participants",
                 "--port"}
