@@ -13,6 +13,8 @@ import click
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from tactorbelt.cli import main
 from tactorbelt.geometry import Layout
@@ -331,3 +333,49 @@ def test_a_pattern_dict_is_checked_when_built_from_code() -> None:
         pattern_from_dict({"format": FORMAT, "events": [
             {"at_ms": 0, "duration_ms": 100, "angle_deg": 0,
              "envelope": [[50, 1], [10, 0.5]]}]})
+
+
+# -- properties ------------------------------------------------------------------------------
+
+@st.composite
+def _patterns(draw: st.DrawFn) -> Pattern:
+    """Continuous events one after another (each with its own envelope: AHAP has one
+    intensity control), transients in the gaps between them."""
+    events = []
+    t = draw(st.floats(0, 500))
+    for _ in range(draw(st.integers(1, 4))):
+        dur = draw(st.floats(20, 800))
+        n = draw(st.integers(0, 40))
+        cuts = sorted(set(draw(st.lists(st.integers(0, int(dur)), min_size=n, max_size=n))))
+        env = tuple((float(c), draw(st.floats(0, 1))) for c in cuts)
+        events.append(Event(round(t, 3), round(dur, 3), draw(st.floats(0, 1)), angle_deg=0.0,
+                            envelope=env))
+        gap = draw(st.floats(40, 300))
+        if draw(st.booleans()):
+            events.append(Event(round(t + dur + 5.0, 3), 30.0, draw(st.floats(0, 1)),
+                                angle_deg=0.0, transient=True))
+        t += dur + gap
+    return Pattern(tuple(events))
+
+
+@settings(max_examples=60)
+@given(_patterns())
+def test_any_pattern_of_one_place_survives_ahap(p: Pattern) -> None:
+    doc, notes = pattern_to_ahap(p)
+    assert notes == []
+    again = pattern_from_ahap(json.loads(json.dumps(doc)))
+    assert len(again.events) == len(p.events)
+    for x, y in zip(p.events, again.events, strict=True):
+        assert abs(x.at_ms - y.at_ms) <= 1.0 and abs(x.duration_ms - y.duration_ms) <= 1.0
+        assert abs(x.intensity - y.intensity) <= 1 / 255 and x.transient == y.transient
+    layout = Layout.even(6)
+    _, a1 = render_pattern(PatternPlayback(p, layout))
+    _, a2 = render_pattern(PatternPlayback(again, layout))
+    assert a1.shape == a2.shape and np.max(np.abs(a1 - a2), initial=0.0) <= 1 / 255
+
+
+@settings(max_examples=60)
+@given(_patterns())
+def test_any_pattern_reads_back_from_its_json(p: Pattern) -> None:
+    back = pattern_from_dict(json.loads(json.dumps(pattern_to_dict(p))))
+    _same_events(p, back)

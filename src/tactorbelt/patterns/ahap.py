@@ -199,7 +199,7 @@ def pattern_to_ahap(pattern: Pattern) -> tuple[dict[str, Any], list[str]]:
     shaped_end = -math.inf
     # Core Haptics scales every event by the intensity control in force, transients too: a
     # transient under an envelope is written louder by as much, where it can be
-    curves = [(e.at_ms / 1000.0, [((e.at_ms + t) / 1000.0, g) for t, g in e.envelope])
+    curves = [(e.at_ms / 1000.0, [((e.at_ms + t) / 1000.0, g) for t, g in _held(e)])
               for e in pattern.events if e.envelope and not e.transient]
     control = _Control(curves)
     weaker = 0
@@ -224,7 +224,7 @@ def pattern_to_ahap(pattern: Pattern) -> tuple[dict[str, Any], list[str]]:
             if e.at_ms / 1000.0 < shaped_end:
                 notes.append("overlapping envelopes (one intensity control: the later wins)")
             shaped_end = e.end_ms / 1000.0
-            pts = list(e.envelope)
+            pts = _held(e)
             for k in range(0, max(len(pts) - 1, 1), CURVE_POINTS - 1):
                 chunk = pts[k:k + CURVE_POINTS]
                 t0 = chunk[0][0]
@@ -241,6 +241,17 @@ def pattern_to_ahap(pattern: Pattern) -> tuple[dict[str, Any], list[str]]:
            "Metadata": {"Project": "tactorbelt", "Description": pattern.name or "pattern"},
            "Pattern": items}
     return doc, sorted(set(notes))
+
+
+def _held(e: Event) -> list[tuple[float, float]]:
+    """An event's envelope over its whole span: the first and last gains held to its start
+    and end (a curve controls only its own span)."""
+    pts = list(e.envelope)
+    if pts[0][0] > 0.0:
+        pts.insert(0, (0.0, pts[0][1]))
+    if pts[-1][0] < e.duration_ms:
+        pts.append((e.duration_ms, pts[-1][1]))
+    return pts
 
 
 def write_ahap(pattern: Pattern, path: str | Path) -> list[str]:
