@@ -159,6 +159,24 @@ def test_a_belt_lost_mid_stimulus_is_a_device_error_with_the_motors_state() -> N
     assert em.motor_levels() == [0.0] * 16  # ...and the belt stopped its motors itself
 
 
+def test_an_emulated_belt_whose_host_stops_answering_stops_its_motors() -> None:
+    import os
+
+    from tactorbelt.devices._navibelt_emulation import NaviBeltEmulation
+
+    em = NaviBeltEmulation(keepalive_s=0.1, keepalive_timeout_s=0.5, battery_s=None)
+    host = os.open(em.path, os.O_RDWR | os.O_NOCTTY)
+    try:  # a host speaking the protocol by hand: notifications on, app mode, one motor
+        os.write(host, bytes([34, 2, 1, 0, 41, 3, 0x01, 0x81, 3])
+                 + bytes([36, 18, 1, 1, 50, 0, 0, 0, 1, 2, 0] + [0] * 9))
+        assert _wait_for(lambda: em.motor_levels()[2] == 0.5)
+        assert _wait_for(lambda: em.mode == 1, timeout_s=30.0)  # no answers: wait mode
+        assert em.motor_levels() == [0.0] * 16 and em.keepalives_sent >= 5
+    finally:
+        os.close(host)
+        em.close()
+
+
 def test_a_subset_of_motors_and_a_layout_on_the_motors() -> None:
     with open_belt("navibelt:emulator?motors=0,4,8,12") as b:
         assert b.layout.angles_deg == (0.0, 90.0, 180.0, 270.0)

@@ -28,9 +28,11 @@ and what it accepts back, not what the belt does with it; docs/belts.md):
   strongest (inferred). Pulse commands (``0x40``) are accepted and treated as
   continuous (inferred, simplified);
 - a keep-alive request every ``keepalive_s`` (``[0x01, mode]`` on the keep-alive
-  characteristic; pybelt answers ``01``); a belt whose host stops answering for three
-  periods, or whose link drops, leaves app mode for wait mode and stops vibrating
-  (inferred: the docs say an unexpected disconnection in app mode goes to wait mode);
+  characteristic; pybelt answers ``01``); a belt whose host has answered none for
+  ``keepalive_timeout_s`` (10 s), or whose link drops, leaves app mode for wait mode and
+  stops vibrating (inferred, the timeout too: the docs say an unexpected disconnection in
+  app mode goes to wait mode; pybelt's answers come from its listener thread, which a
+  loaded machine can hold back for seconds);
 - battery notifications every ``battery_s`` (9 bytes: status, charge x 256, time to
   empty / 5.625, mA, mV, as pybelt parses them); a button press on demand
   (:meth:`press_button`: ``[button, 0, 0, previous mode, new mode]``); the
@@ -94,16 +96,21 @@ class NaviBeltEmulation:
         firmware_version: what the firmware-info characteristic reports.
         default_intensity: the belt's default intensity (0-100).
         keepalive_s: seconds between keep-alive requests (None: none).
+        keepalive_timeout_s: seconds without an answer after which the belt drops the
+            host (leaves app mode).
         battery_s: seconds between battery notifications (None: none).
         battery_percent: the charge reported.
     """
 
     def __init__(self, firmware_version: int = 52, default_intensity: int = 50,
-                 keepalive_s: float | None = 1.0, battery_s: float | None = 2.0,
+                 keepalive_s: float | None = 1.0, keepalive_timeout_s: float = 10.0,
+                 battery_s: float | None = 2.0,
                  battery_percent: float = 80.0) -> None:
         self.firmware_version = firmware_version
         self.default_intensity = default_intensity
         self.keepalive_s = keepalive_s
+        self.keepalive_timeout_s = keepalive_timeout_s
+        self._answered_at = time.monotonic()
         self.battery_s = battery_s
         self.battery_percent = battery_percent
         self.mode = WAIT
@@ -238,7 +245,8 @@ class NaviBeltEmulation:
         with self._lock:
             if KEEP_ALIVE not in self.notify:
                 return
-            if self.keepalives_sent - self.keepalives_answered >= 3:
+            waiting = self.keepalives_sent > self.keepalives_answered
+            if waiting and time.monotonic() - self._answered_at > self.keepalive_timeout_s:
                 self._link_lost()  # the host stopped answering
             self.keepalives_sent += 1
             mode = self.mode
@@ -272,6 +280,7 @@ class NaviBeltEmulation:
         elif handle == KEEP_ALIVE and data[:1] == b"\x01":
             with self._lock:
                 self.keepalives_answered = self.keepalives_sent
+                self._answered_at = time.monotonic()
         elif handle == PARAM_REQUEST:
             self._parameter(data)
         elif handle == VIBRATION:
