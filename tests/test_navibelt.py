@@ -191,6 +191,14 @@ def test_a_subset_of_motors_and_a_layout_on_the_motors() -> None:
         open_belt("navibelt:usb:/dev/ttyACM0")
 
 
+def test_a_port_that_cannot_be_opened_is_a_device_error_naming_it(tmp_path: Path) -> None:
+    port = tmp_path / "ttyNONE"
+    proc = tactorbelt("play", "10", "--belt", f"navibelt:serial:{port}", "--seconds", "0.2")
+    assert proc.returncode == 3
+    assert proc.stderr.startswith(f"error: cannot open serial port {port} for a naviBelt: ")
+    assert "Traceback" not in proc.stderr
+
+
 def test_without_pybelt_the_error_says_how_to_install_it(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setitem(sys.modules, "pybelt", None)
     with pytest.raises(DeviceError, match=r"pip install 'tactorbelt\[navibelt\]'"):

@@ -346,6 +346,13 @@ class NaviBelt(Belt):
 
 
 def _connect(controller_module: Any, belt: Any, what: str, delegate: Any = None) -> Any:
+    if isinstance(belt, str):  # a port that cannot be opened says so (pybelt only logs it)
+        import serial
+
+        try:
+            serial.Serial(belt, 115200, timeout=0).close()
+        except (serial.SerialException, OSError, ValueError) as exc:
+            raise DeviceError(f"cannot open serial port {belt} for a naviBelt: {exc}") from None
     controller = controller_module.BeltController(delegate)
     controller.connect(belt)
     if controller.get_connection_state() != controller_module.BeltConnectionState.CONNECTED:
@@ -361,7 +368,8 @@ def _ble_device(name: str, url: str) -> Any:
         with belt_scanner.create() as scanner:
             found = scanner.scan()
     except Exception as exc:  # no adapter, no BlueZ
-        raise DeviceError(f"cannot scan for naviBelts over BLE: {exc}") from None
+        raise DeviceError(f"cannot scan for naviBelts over BLE (no adapter, or no BlueZ / "
+                          f"D-Bus): {exc}") from None
     for d in found:
         if name in ("auto", "") or name.lower() in ((d.name or "").lower(),
                                                     str(d.address).lower()):
