@@ -275,3 +275,25 @@ def test_a_long_shaped_session_of_played_stimuli_keeps_its_history() -> None:
         t = clock.now_ns()
         _, v = b.vibration(t - 1 * S, t)
     assert np.isfinite(v).all() and v.max() > 0.1
+
+
+def test_the_shaped_solution_is_the_same_tick_by_tick_and_run_by_run() -> None:
+    """Runs of landed changes are solved at once where the shaper predicts with the
+    motor's own model; walking every decision one by one gives the same vibration."""
+    from tactorbelt.stimuli import make_stimulus
+
+    out = []
+    for exact in (True, False):
+        rng = np.random.default_rng(3)
+        clock = SimClock()
+        with open_belt("sim", clock=clock) as b:
+            b._exact = exact
+            t0 = clock.now_ns()
+            for a in (15.0, 60.0, 200.0):
+                b.play(make_stimulus(Layout.even(6), a, "dynamic"), 1.3)
+                clock.advance(1400 * MS)
+                b.set_amplitudes(rng.uniform(0, 1, 6))
+                clock.advance(int(rng.integers(1, 80)) * MS + 300_000)
+            _, v = b.vibration(t0, clock.now_ns(), 2000)
+            out.append(v)
+    assert np.abs(out[0] - out[1]).max() < 1e-9

@@ -542,3 +542,63 @@ class Shaper:
         if not self.brake:
             ok |= (s == 0.0) & (w >= 0.0)
         return bool(ok.all())
+
+    def landing(self, levels: FloatArray, prev: FloatArray, h_s: float,
+                taus: tuple[FloatArray, FloatArray, FloatArray]
+                ) -> tuple[FloatArray, NDArray[np.bool_]]:
+        """:meth:`drive` for many decisions at once, each from a predicted speed at the
+        previous target (``prev``: rows are decisions): the drive of each and whether
+        every tactor lands on its target within ``h_s`` (the decision then ends on the
+        target; where one does not, the decision is taken one by one)."""
+        rise, fall, brake = taus
+        start = self.params.start_level
+        lv = np.asarray(levels, dtype=float)
+        s = np.where(lv >= start, lv, 0.0)
+        gap = s - prev
+        er, ef = np.exp(-h_s / rise), np.exp(-h_s / fall)
+        up = (s - prev * er) / (1.0 - er)
+        fwd = (s - prev * ef) / (1.0 - ef)
+        ok_up = up <= self.overdrive
+        ok_fwd = (fwd >= start) & (s > 0.0)
+        d = np.where(gap > _SETTLED, up, np.where(gap < -_SETTLED, fwd, lv))
+        ok = np.where(gap > _SETTLED, ok_up, np.where(gap < -_SETTLED, ok_fwd, True))
+        if self.brake:
+            eb = np.exp(-h_s / brake)
+            rev = (s - prev * eb) / (1.0 - eb)
+            use_rev = (gap < -_SETTLED) & ~ok_fwd
+            ok_rev = (rev <= 0.0) & (rev >= -self.overdrive)
+            d = np.where(use_rev, np.copysign(np.abs(rev), -1.0), d)
+            ok = np.where(use_rev, ok_rev, ok)
+        return np.asarray(d), np.asarray(ok.all(axis=-1))
+
+
+def shape_tick(level: float, e: float, h_s: float, start: float, overdrive: float,
+               brake: bool, rise: float, fall: float, brake_tau: float,
+               tick_s: float = RENDER_TICK_NS * 1e-9) -> tuple[float, float]:
+    """:meth:`Shaper.drive` of one tactor, in plain floats (the sim belt's walk through
+    the decisions), and its predicted speed ``h_s`` later (at most a tick): ``(drive,
+    speed)``. The decision is for a whole tick (``tick_s``)."""
+    s = level if level >= start else 0.0
+    gap = s - e
+    if gap > _SETTLED:
+        x = math.exp(-tick_s / rise)
+        d = min((s - e * x) / (1.0 - x), overdrive)
+    elif gap < -_SETTLED:
+        x = math.exp(-tick_s / fall)
+        fwd = (s - e * x) / (1.0 - x)
+        if fwd >= start and s > 0.0:
+            d = fwd
+        elif brake:
+            x = math.exp(-tick_s / brake_tau)
+            rev = (s - e * x) / (1.0 - x)
+            d = math.copysign(min(-rev, overdrive), -1.0) if rev <= 0.0 else level
+        else:
+            d = 0.0 if fwd < 0.0 else level
+    else:
+        d = level
+    if math.copysign(1.0, d) < 0.0:
+        u, tau = d, brake_tau
+    else:
+        u = d if d >= start else 0.0
+        tau = rise if u > e else fall
+    return d, u + (e - u) * math.exp(-min(h_s / tau, _MAX_DECAY))

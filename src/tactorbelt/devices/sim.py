@@ -46,6 +46,7 @@ from .base import Belt
 from .calibration import Calibration
 from .erm import (
     _RESPONSE_MAX_TICKS,
+    _SETTLED,
     _TIE,
     DRIVES,
     RENDER_TICK_NS,
@@ -64,6 +65,7 @@ from .erm import (
     drive_relax,
     erm_speed,
     sample_grid,
+    shape_tick,
 )
 
 if TYPE_CHECKING:
@@ -95,7 +97,7 @@ _OPTIONS: Final = ("layout", "clock", "calibration", "params", "horizon_s", "nam
 #: shaper may overdrive them up to it (docs/hardware.md, "Power").
 DEFAULT_SUPPLY_V: Final = 3.6
 #: Shaped checkpoints kept (decision points of the shaper with the motor state).
-_MAX_SHAPED_CHECKPOINTS: Final = 64
+_MAX_SHAPED_CHECKPOINTS: Final = 512
 
 @dataclass(frozen=True)
 class SimCommand:
@@ -403,6 +405,10 @@ class SimBelt(Belt):
         if self.shaper.brake and not self._brake:
             raise ConfigError("the shaper brakes but the belt cannot (brake=0)")
         self._taus = self.shaper.taus(n)
+        sp = self.shaper.params
+        #: the shaper predicts with the motors' own model: the motors are its prediction
+        self._exact = (shaper_taus_are(self._taus, self.params)
+                       and sp.start_level == self.params.start_level)
         #: the shaper's decision points kept: time, motor speeds, predicted speeds
         self._sck: list[tuple[int, FloatArray, FloatArray]] = []
         self._base_e = np.zeros(n)
@@ -468,57 +474,148 @@ class SimBelt(Belt):
         return self._base_t, self._base_w, self._base_e
 
     def _shaped_solve(self, t_a: int, w: FloatArray, e: FloatArray, t_last: int,
-                      keep_until: int) -> tuple[IntArray, FloatArray, FloatArray, FloatArray]:
+                      keep_until: int, also_keep: int | None = None,
+                      ) -> tuple[IntArray, FloatArray, FloatArray, FloatArray]:
         """The shaper's decisions from ``t_a`` (a decision point, motor speeds ``w``,
         predicted ``e``) to ``t_last``: their times, drives, and the motor and predicted
-        speeds at each. It decides at every command, render change and 1 kHz tick of the
-        belt's clock (the firmware's renderer) until its prediction settles on the level,
-        then drives the level until the levels change. The last decision at or before
-        ``keep_until`` is kept to start later solutions from."""
+        speeds at each. It decides at every command and render change, and a tick (1 ms,
+        the firmware's renderer) after each decision while its prediction has not
+        settled on the level; settled, it drives the level until the levels change. The
+        last decision at or before ``keep_until`` is kept to start later solutions from,
+        and the last at or before ``also_keep`` (the first time a query asked for: the
+        next query of the same window starts there).
+
+        Where the shaper predicts with the motor's own model (``self._exact``), the motors
+        are its prediction, and a run of changes each landed within its tick from the
+        last target (a dynamic stimulus's transit) is solved at once
+        (:meth:`~tactorbelt.devices.erm.Shaper.landing`)."""
         p, sh, taus = self.params, self.shaper, self._taus
         rise, fall, brake = taus
+        rl, fl, bl = rise.tolist(), fall.tolist(), brake.tolist()
+        start, od, can_brake = sh.params.start_level, sh.overdrive, sh.brake
+        n = self.n_tactors
         bounds = _sorted_unique(np.concatenate([np.array([t_a], dtype=np.int64),
                                                 self._breakpoints(t_a, t_last)]))
         levels = self._levels_at(bounds)
         tick = RENDER_TICK_NS
-        ts: list[int] = []
-        ds: list[FloatArray] = []
-        ws: list[FloatArray] = []
-        es: list[FloatArray] = []
         m = bounds.shape[0]
-        for i in range(m):
-            t = int(bounds[i])
-            b1 = int(bounds[i + 1]) if i + 1 < m else t_last + 1
-            lv = levels[i]
+        ends = np.empty(m, dtype=np.int64)
+        ends[:-1] = bounds[1:]
+        ends[-1] = t_last + 1
+        s_all = np.where(levels >= p.start_level, levels, 0.0)
+        bad: IntArray = np.zeros(0, dtype=np.int64)
+        lands: list[bool] = []
+        d_on: FloatArray | None = None
+        if self._exact and m > 2:
+            d_on, ok = sh.landing(levels[1:], s_all[:-1], tick * 1e-9, taus)
+            ok &= (ends[1:] - bounds[1:]) >= tick  # a landing needs its whole tick
+            bad = np.flatnonzero(~ok) + 1  # the bounds where landing fails
+            lands = [False, *ok.tolist()]
+        blocks_t: list[IntArray] = []
+        blocks_d: list[FloatArray] = []
+        blocks_w: list[FloatArray] = []
+        blocks_e: list[FloatArray] = []
+        ts: list[int] = []
+        ds: list[Any] = []
+        ws: list[Any] = []
+        es: list[Any] = []
+
+        def flush() -> None:
+            if ts:
+                blocks_t.append(np.asarray(ts, dtype=np.int64))
+                blocks_d.append(np.asarray(ds, dtype=float).reshape(-1, n))
+                blocks_w.append(np.asarray(ws, dtype=float).reshape(-1, n))
+                blocks_e.append(np.asarray(es, dtype=float).reshape(-1, n))
+                ts.clear()
+                ds.clear()
+                ws.clear()
+                es.clear()
+
+        exact = self._exact
+        pr, pf, pb = p.rise_tau_s, p.fall_tau_s, p.brake_tau_s
+        lv_all = levels.tolist()
+        s_list = s_all.tolist()
+        bounds_l = bounds.tolist()
+        ends_l = ends.tolist()
+        el: list[float] = e.tolist()
+        wl: list[float] = el if exact else w.tolist()
+        i = 0
+        while i < m:
+            if d_on is not None and i > 0 and lands[i] and max(
+                    abs(x - y) for x, y in zip(el, s_list[i - 1], strict=True)) <= _SETTLED:
+                k = int(bad[bad.searchsorted(i)]) if bad.size and bad[-1] >= i else m
+                if k > i:  # bounds i..k-1 each land on their target within a tick
+                    flush()
+                    prev = s_all[i - 1 : k - 1]
+                    longer = (ends[i:k] - bounds[i:k]) > tick  # then settled after a tick
+                    n_more = int(longer.sum())
+                    tt = np.concatenate([bounds[i:k], bounds[i:k][longer] + tick])
+                    dd = np.concatenate([d_on[i - 1 : k - 1], levels[i:k][longer]])
+                    ww = np.concatenate([prev, s_all[i:k][longer]])
+                    order = np.argsort(tt, kind="stable") if n_more else None
+                    if order is not None:
+                        tt, dd, ww = tt[order], dd[order], ww[order]
+                    blocks_t.append(tt)
+                    blocks_d.append(dd)
+                    blocks_w.append(ww)
+                    blocks_e.append(ww)
+                    el = wl = list(s_list[k - 1])
+                    i = k
+                    continue
+            t = bounds_l[i]
+            b1 = ends_l[i]
+            lvl = lv_all[i]
+            sl = s_list[i]
             while t < b1:
                 ts.append(t)
-                ws.append(w)
-                es.append(e)
-                if sh.settled(lv, e):
-                    ds.append(lv)
+                ws.append(wl)
+                es.append(el)
+                moving = [k for k in range(n) if abs(sl[k] - el[k]) > _SETTLED]
+                if all(not can_brake and sl[k] == 0.0 and el[k] >= 0.0 for k in moving):
+                    # settled (or coasting to off, unbraked): the level to the stretch's end
+                    ds.append(lvl)
                     h = (b1 - t) * 1e-9
-                    w = drive_relax(lv, w, h, p)
-                    e = drive_relax(lv, e, h, p, rise=rise, fall=fall, brake=brake)
+                    el = [_relax_f(lvl[k], el[k], h, start, rl[k], fl[k], bl[k])
+                          if k in moving else el[k] for k in range(n)]
+                    wl = el if exact else [_relax_f(lvl[k], wl[k], h, start, pr, pf, pb)
+                                           for k in range(n)]
                     break
-                end = (t // tick + 1) * tick  # the decision holds a tick
-                d = sh.drive(lv, e, (end - t) * 1e-9, taus)
-                ds.append(d)
-                nxt = min(end, b1)
+                # the decision holds a tick; each moving tactor in plain floats
+                nxt = min(t + tick, b1)
                 h = (nxt - t) * 1e-9
-                w = drive_relax(d, w, h, p)
-                e = drive_relax(d, e, h, p, rise=rise, fall=fall, brake=brake)
+                d = list(lvl)
+                el = list(el)
+                for k in moving:
+                    d[k], el[k] = shape_tick(lvl[k], el[k], h, start, od, can_brake, rl[k],
+                                             fl[k], bl[k])
+                ds.append(d)
+                wl = el if exact else [_relax_f(d[k], wl[k], h, start, pr, pf, pb)
+                                       for k in range(n)]
                 t = nxt
-        t_arr = np.asarray(ts, dtype=np.int64)
-        j = int(t_arr.searchsorted(keep_until, side="right")) - 1
-        if j > 0 and (not self._sck or ts[j] > self._sck[-1][0]):
-            ck = self._sck
-            if len(ck) >= 2 and ts[j] - ck[-2][0] < self._ck_spacing_ns:
-                ck[-1] = (ts[j], ws[j], es[j])
-            else:
-                ck.append((ts[j], ws[j], es[j]))
-            if len(ck) > _MAX_SHAPED_CHECKPOINTS:
-                del ck[0]
-        return t_arr, np.asarray(ds), np.asarray(ws), np.asarray(es)
+            i += 1
+        flush()
+        t_arr = np.concatenate(blocks_t)
+        d_arr, w_arr, e_arr = (np.concatenate(blocks_d), np.concatenate(blocks_w),
+                               np.concatenate(blocks_e))
+        for t_keep in {keep_until, min(also_keep, keep_until)} if also_keep is not None \
+                else {keep_until}:
+            j = int(t_arr.searchsorted(t_keep, side="right")) - 1
+            if j > 0:
+                self._keep_decision(int(t_arr[j]), w_arr[j], e_arr[j])
+        return t_arr, d_arr, w_arr, e_arr
+
+    def _keep_decision(self, t: int, w: FloatArray, e: FloatArray) -> None:
+        """Keep a decision of the shaper (in time order; the oldest go beyond
+        :data:`_MAX_SHAPED_CHECKPOINTS`): a later query starts from the latest one at or
+        before its first time."""
+        ck = self._sck
+        times = [c[0] for c in ck]
+        i = bisect.bisect_left(times, t)
+        if i < len(ck) and times[i] == t:
+            return
+        ck.insert(i, (t, w, e))
+        if len(ck) > _MAX_SHAPED_CHECKPOINTS:
+            del ck[0]
 
     def _speed_shaped(self, times: IntArray) -> FloatArray:
         """:meth:`_speed_at` of the shaped drive: the motors' speed magnitude (a motor
@@ -526,7 +623,7 @@ class SimBelt(Belt):
         t_first, t_last = int(times[0]), int(times[-1])
         t_a, w_a, e_a = self._shaped_start(t_first)
         keep = max(min(int(self.clock.now_ns()), t_last), t_a)
-        ts, ds, ws, _ = self._shaped_solve(t_a, w_a, e_a, t_last, keep)
+        ts, ds, ws, _ = self._shaped_solve(t_a, w_a, e_a, t_last, keep, t_first)
         self._since_ck = 0  # a decision up to now is kept
         idx = ts.searchsorted(times, side="right") - 1
         dt = np.asarray((times - ts[idx]) * 1e-9, dtype=np.float64)
@@ -1044,6 +1141,23 @@ class SimBelt(Belt):
                 render = self._renders.pop(rid)
                 if self._played.get(id(render.stimulus)) is render:
                     del self._played[id(render.stimulus)]
+
+
+def _relax_f(d: float, w: float, h: float, start: float, rise: float, fall: float,
+             brake: float) -> float:
+    """:func:`~tactorbelt.devices.erm.drive_relax` of one motor, in plain floats."""
+    if math.copysign(1.0, d) < 0.0:
+        u, tau = d, brake
+    else:
+        u = d if d >= start else 0.0
+        tau = rise if u > w else fall
+    return u + (w - u) * math.exp(-min(h / tau, 300.0))
+
+
+def shaper_taus_are(taus: tuple[FloatArray, FloatArray, FloatArray], p: ErmParams) -> bool:
+    """True when a shaper's time constants are the motor model's, every tactor."""
+    return bool((taus[0] == p.rise_tau_s).all() and (taus[1] == p.fall_tau_s).all()
+                and (taus[2] == p.brake_tau_s).all())
 
 
 def _parse_target(target: str) -> tuple[int | None, bool]:
