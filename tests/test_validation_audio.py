@@ -33,13 +33,18 @@ from support.jack_filter import EnvelopeFilter, Wiring, chain_crossings
 from tactorbelt import DeviceError
 from tactorbelt.validation import OnsetSettings, run_onsets
 from tactorbelt.validation.run import OnsetValidation
+from tactorbelt.validation.sensors import AudioSensor
 
 BELT = f"audio:{DEVICE}?channels=2"
 SENSE = f"audio:{DEVICE}?channel=0"
 P_MS = PERIOD / RATE * 1e3
 #: How far a callback may run late after its cycle began (the command's main thread holds
-#: the GIL while it spins the last millisecond before a deadline).
+#: the GIL while it spins the last millisecond before a deadline), beyond what the sensor
+#: measured (``AudioSensor.callback_late_ms``), for the upper end of the range.
 JITTER_MS = 1.5
+#: The 10 % point of a ramp read through the estimator moves with the carrier's phase at
+#: the ramp by a few tenths of a millisecond.
+PHASE_MS = 0.6
 #: Pulses that lost cycles are pulsed again: up to this often, each reported by the
 #: belt (an underrun) or the sensor (an overflow that moved its mapping).
 REPEATS = 10
@@ -70,10 +75,15 @@ def realtime(jack_server: None) -> None:
 
 
 def _validate(tmp_path: Path, through: EnvelopeFilter | None,
-              settings: OnsetSettings) -> OnsetValidation:
+              settings: OnsetSettings) -> tuple[OnsetValidation, float]:
+    """The validation, and how late the sensor's callbacks ran (ms): the belt's, in the
+    same cycle before them, ran no later, so an onset may measure early by as much."""
     wiring = Wiring()
+    sensors: list[AudioSensor] = []
 
     def connect(belt: object, sensor: object) -> None:
+        assert isinstance(sensor, AudioSensor)
+        sensors.append(sensor)
         wiring.find()
         wiring.loop(through)
 
@@ -86,33 +96,37 @@ def _validate(tmp_path: Path, through: EnvelopeFilter | None,
         pytest.skip(f"every attempt at a pulse lost JACK cycles (a loaded machine): {exc}")
     finally:
         wiring.close()
-    return result
+    return result, sensors[0].callback_late_ms
 
 
 def _latencies(result: OnsetValidation) -> np.ndarray:
     return np.array([p.latency_ms for t in result.tactors for p in t.pulses])
 
 
-def _within(lat: np.ndarray, low: float, high: float) -> None:
+def _within(lat: np.ndarray, low: float, high: float, late_ms: float) -> None:
     """The measured latencies against the expected range of one JACK period (the wait
-    for the next cycle): none earlier than a late callback allows; most inside it (a
-    command whose thread the OS preempted between its stamp and its write measures
-    longer, as it would in a study); the mean within one period of its middle."""
-    assert (lat >= low - JITTER_MS).all(), lat
+    for the next cycle): none earlier than the callbacks' measured lateness allows
+    (``late_ms``: a loaded machine runs them milliseconds late, and a command that came
+    in between is output from the cycle's start); most inside it (a command whose
+    thread the OS preempted between its stamp and its write measures longer, as it
+    would in a study); the median within one period of its middle."""
+    print(f"latencies {np.round(lat, 2).tolist()} ms, expected {low:.2f}..{high:.2f} ms; "
+          f"callbacks up to {late_ms:.2f} ms late")
+    assert (lat >= low - late_ms - PHASE_MS).all(), (lat, late_ms)
     inside = (lat <= high + JITTER_MS).mean()
     assert inside >= 0.75, lat
-    assert abs(lat.mean() - (low + high) / 2) <= P_MS, lat
+    assert abs(np.median(lat) - (low + high) / 2) <= P_MS, lat
 
 
 def test_a_direct_loopback_measures_the_wait_for_the_next_cycle(realtime: None,
                                                                tmp_path: Path) -> None:
     settings = OnsetSettings(pulses=4, on_s=0.1, off_s=0.1, max_repeats=REPEATS)
     t10, rise = chain_crossings(None, 5.0, 4.0, 250.0, RATE, settings.on_s)
-    result = _validate(tmp_path, None, settings)
+    result, late_ms = _validate(tmp_path, None, settings)
     lat = _latencies(result)
     assert lat.size == 8 and np.isfinite(lat).all()
     # the chain's own 10 % point plus a wait of 0..P (no cycle of delay)
-    _within(lat, t10, t10 + P_MS)
+    _within(lat, t10, t10 + P_MS, late_ms)
     # a 5 ms ramp read through a 4 ms moving mean: the estimate moves with the carrier's
     # phase at the ramp by a few tenths of a millisecond
     rises = [p.rise_ms for t in result.tactors for p in t.pulses]
@@ -126,7 +140,7 @@ def test_through_a_first_order_filter_the_rise_and_fall_are_the_filters(
     t10, rise = chain_crossings(tau, 5.0, 4.0, 250.0, RATE, settings.on_s)
     filt = EnvelopeFilter(tau)
     try:
-        result = _validate(tmp_path, filt, settings)
+        result, late_ms = _validate(tmp_path, filt, settings)
     finally:
         filt.close()
     want = tau * math.log(9) * 1e3  # 43.9 ms
@@ -137,7 +151,7 @@ def test_through_a_first_order_filter_the_rise_and_fall_are_the_filters(
         assert d["fall_ms"] == pytest.approx(want, rel=0.05)
         assert d["settled"]
     # the filter's own 10 % point, one cycle around the loop, and the wait
-    _within(_latencies(result), t10 + P_MS, t10 + 2 * P_MS)
+    _within(_latencies(result), t10 + P_MS, t10 + 2 * P_MS, late_ms)
 
 
 def _command(*args: str) -> list[str]:

@@ -7,8 +7,8 @@ the wall clock, schedules a marker sound with an onset long past (it lands on th
 stream's first frame, which finds the stream in the file: SDL writes silence before the
 device is started), then 8 tones at onsets 150 ms + k * 230 ms from now, each announced
 100 ms ahead as the runner does, then a 1 s tone that it stops 0.4 s in (a pause),
-closes the device and writes the placements, the callback blocks, the onsets asked for
-and the frame count when it stopped to OUT.json.
+closes the device and writes the placements, the callback blocks, the onsets asked for,
+when each was handed over and the frame count when it stopped to OUT.json.
 """
 
 from __future__ import annotations
@@ -31,9 +31,11 @@ def main(out: str) -> None:
         audio.schedule(item_sound("tone7", 0.05), 0, "marker")
         t0 = clock.now_ns()
         onsets = [t0 + 150_000_000 + k * 230_000_000 for k in range(8)]
+        handed = []  # when each tone was handed over (late where the machine is loaded)
         for k, onset in enumerate(onsets):
             clock.sleep_until_ns(onset - LEAD_NS)
             audio.schedule(item_sound(f"tone{k}", 0.1), onset, f"tone{k}")
+            handed.append(clock.now_ns())
         # a long tone stopped half-way (a pause): silent within a block and the fade
         long_onset = onsets[-1] + 300_000_000
         clock.sleep_until_ns(long_onset - LEAD_NS)
@@ -48,7 +50,7 @@ def main(out: str) -> None:
     with open(out, "w", encoding="utf-8") as f:
         json.dump({"rate": audio.rate, "frames": audio.frames, "driver": audio.driver,
                    "stop_frame": stop_frame,
-                   "onsets": onsets,
+                   "onsets": onsets, "handed": handed,
                    "played": [[p.label, p.onset_ns, p.frame, p.start_ns, p.late_ns]
                               for p in audio.played],
                    "blocks": list(audio.blocks), "error": repr(audio.error)}, f)

@@ -277,6 +277,11 @@ class AudioSensor(SampledSensor):
         samplerate; latency_s: PortAudio's reported input latency of the stream (0 where
             it reports no latency: :func:`~tactorbelt.devices.audio.checked_latency`).
         overflows: callbacks that reported lost input.
+        callback_late_ms: the most a callback that delivered frames of a measured interval
+            ran after the mapping (the most punctual callback near it). An audio belt in
+            the same process (the same PortAudio client: its callback runs in the same
+            cycle, before the sensor's) started a change at most this long after its
+            cycle began, so an onset measured through it may be early by as much.
     """
 
     unit = "input amplitude (1 = full scale)"
@@ -302,6 +307,7 @@ class AudioSensor(SampledSensor):
         self._recording = False
         self._error: BaseException | None = None
         self.overflows = 0
+        self.callback_late_ms = 0.0
         n_open = max(opened) + 1
         self._pick = np.asarray(opened, dtype=np.intp)
         try:
@@ -401,13 +407,17 @@ class AudioSensor(SampledSensor):
         lengths = np.array([d.shape[0] for d in data], dtype=np.int64)
         stretch = self._merge(stretch, offset, near, float(np.median(lengths)) * period)
         times = np.empty(t_cb.size, dtype=np.int64)  # host time of each block's first frame
+        late = np.empty(t_cb.size, dtype=np.int64)  # each callback after its mapping
         for s in np.unique(stretch):  # each stretch's mapping, from its blocks near
             mine = stretch == s
             pick = mine & near
             off = int(offset[pick].min() if pick.any() else offset[mine].min())
             times[mine] = off + np.round(k[mine] * period).astype(np.int64) - lat
+            late[mine] = offset[mine] - off
         ends = times + np.round(lengths * period).astype(np.int64)
         inside = np.flatnonzero((ends > t0_ns) & (times < t1_ns))
+        if inside.size:
+            self.callback_late_ms = max(self.callback_late_ms, float(late[inside].max()) / 1e6)
         complete = bool(ends[-1] >= t1_ns)
         problem = None
         if inside.size == 0 or times[inside[0]] > t0_ns:
