@@ -22,6 +22,7 @@ Pure: NumPy, pandas, SciPy, statsmodels.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any, Final
 
 import numpy as np
@@ -100,19 +101,22 @@ def _expit(v: np.ndarray) -> np.ndarray:
     return np.asarray(expit(v))
 
 
-def condition_contrasts(fit: MixedModelFit, frame: pd.DataFrame) -> list[dict[str, Any]]:
+def condition_contrasts(fit: MixedModelFit, frame: pd.DataFrame,
+                        not_estimable: Sequence[str] = ()) -> list[dict[str, Any]]:
     """Dynamic minus static at between-tactor targets, per target count (see the module).
 
     Args:
         fit: the accuracy GLMM (a ``condition`` factor with levels dynamic and static).
         frame: the data it was fitted to (for the factor levels).
+        not_estimable: fixed effects whose estimates are infinite (separation); a
+            contrast that weighs any of them gets ``"estimable": false``.
 
     Returns:
         One object per target count, in count order: ``contrast``, ``by``
         (``n_targets``, ``on_tactor``), ``scale`` ``"log-odds"``, ``estimate``, ``se``,
         ``z``, ``p``, ``p_adjusted``, ``adjust`` ``"holm"``, ``n_family``, and
         ``probability`` (the same on the probability scale, with each condition's
-        estimated accuracy). Empty when the model has no condition or no finite vcov.
+        estimated accuracy), ``estimable``. Empty when the model has no condition or no finite vcov.
     """
     from scipy.stats import norm
     from statsmodels.stats.multitest import multipletests
@@ -136,6 +140,9 @@ def condition_contrasts(fit: MixedModelFit, frame: pd.DataFrame) -> list[dict[st
     pse = np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", gmat, vcov, gmat), 0.0))
     pz = pest / pse
     pp = 2.0 * norm.sf(np.abs(pz))
+    names = list(fit.fixed_effects)
+    bad = [names.index(t) for t in not_estimable if t in names]
+    estimable = ~np.any(np.abs(lmat[:, bad]) > 1e-12, axis=1) if bad else np.ones(len(est), bool)
     padj = multipletests(p, method=ADJUST)[1]
     ppadj = multipletests(pp, method=ADJUST)[1]
     out = []
@@ -154,6 +161,7 @@ def condition_contrasts(fit: MixedModelFit, frame: pd.DataFrame) -> list[dict[st
                 "adjust": ADJUST, "dynamic": _f(pd_[i]), "static": _f(ps_[i]),
                 "method": "delta method on the back-transformed estimates (emmeans' regrid)",
             },
+            "estimable": bool(estimable[i]),
         })
     return out
 

@@ -65,6 +65,7 @@ if TYPE_CHECKING:
 __all__ = [
     "SINGULAR_TOL",
     "FixedEffect",
+    "FixefPrior",
     "GlmmData",
     "LmmData",
     "MixedModelFit",
@@ -85,6 +86,13 @@ __all__ = [
 SINGULAR_TOL: Final = 1e-4
 #: lme4's ``deriv12`` step for the Hessian behind glmer's standard errors.
 HESSIAN_STEP: Final = 1e-4
+#: The smallest IRLS weight per trial, as R's ``binomial()`` bounds ``mu.eta`` and the
+#: variance (``DBL_EPSILON``): a cell whose fitted probability rounds to 0 or 1 keeps a
+#: positive weight instead of making the system singular (only ``|eta| > 36`` reaches it).
+WEIGHT_FLOOR: Final = float(np.finfo(float).eps)
+#: The smallest diagonal element of theta the optimiser tries under a covariance prior
+#: (which is infinite at 0).
+PRIOR_THETA_FLOOR: Final = 1e-6
 Z95: Final = 1.959963984540054
 
 
@@ -152,6 +160,78 @@ class FixedEffect:
         return {k: (v if math.isfinite(v) else None) for k, v in self.__dict__.items()}
 
 
+@dataclass(frozen=True)
+class FixefPrior:
+    """A normal prior on the fixed effects, as ``blme::bglmer(fixef.prior = normal(sd =
+    c(sd0, sd)))`` (with bglmer's default covariance prior, ``wishart(df = level.dim +
+    2.5, scale = Inf)``, on every random-effects term).
+
+    The fit maximises the Laplace log-likelihood plus the log prior: the deviance gains
+    ``sum(beta_j^2 / sd_j^2)`` (plus the prior's constant ``p log(2 pi) + 2 sum log
+    sd_j``) and, per random-effects term, ``-2 (df - q - 1) sum log diag(T)`` = ``-3 sum
+    log diag(T)`` (blme's ``getPolynomialTerm`` of that Wishart; it keeps variances off
+    0). The standard errors are glmer's, from the Hessian of that penalised deviance.
+
+    Attributes:
+        sd0: the intercept's prior SD.
+        sd: the prior SD of every other fixed effect.
+    """
+
+    sd0: float = 10.0
+    sd: float = 2.5
+    #: ``"normal:SD"`` was given (one SD for every fixed effect)
+    single: bool = False
+
+    #: the Wishart's ``df - level.dim``: bglmer's default covariance prior
+    COV_DF_EXTRA = 2.5
+
+    @classmethod
+    def parse(cls, text: str) -> FixefPrior:
+        """``normal:SD`` (every fixed effect) or ``normal:SD0,SD`` (intercept, the rest).
+
+        Raises:
+            ValueError: anything else, or an SD that is not a positive finite number.
+        """
+        kind, sep, rest = text.strip().partition(":")
+        if kind.strip().lower() != "normal" or not sep:
+            raise ValueError(f"--fixef-prior {text!r}: expected normal:SD or normal:SD0,SD "
+                             "(for example normal:2.5 or normal:10,2.5)")
+        parts = [x.strip() for x in rest.split(",")]
+        try:
+            vals = [float(x) for x in parts]
+        except ValueError:
+            raise ValueError(f"--fixef-prior {text!r}: the SDs must be numbers") from None
+        if len(vals) not in (1, 2) or not all(math.isfinite(v) and v > 0 for v in vals):
+            raise ValueError(f"--fixef-prior {text!r}: one or two positive finite SDs "
+                             "(normal:SD or normal:SD0,SD)")
+        if len(vals) == 1:
+            return cls(vals[0], vals[0], single=True)
+        return cls(vals[0], vals[1])
+
+    def sds(self, p: int) -> np.ndarray:
+        """The prior SD of each of ``p`` fixed effects, as blme spreads ``sd``."""
+        if self.single:
+            return np.full(p, self.sd0)
+        return np.r_[self.sd0, np.full(max(p - 1, 0), self.sd)][:p]
+
+    def blme(self) -> str:
+        """The prior as blme writes it in the call."""
+        sd = (_r_number(self.sd0) if self.single
+              else f"c({_r_number(self.sd0)}, {_r_number(self.sd)})")
+        return f"normal(sd = {sd})"
+
+    def call(self) -> str:
+        """The bglmer call this fit equals."""
+        return (f"blme::bglmer(..., family = binomial, fixef.prior = {self.blme()}, "
+                "cov.prior = wishart(df = level.dim + 2.5, scale = Inf))")
+
+    def to_json(self) -> dict[str, Any]:
+        return {"prior": self.blme(), "sd_intercept": self.sd0,
+                "sd": self.sd0 if self.single else self.sd,
+                "cov_prior": "wishart(df = level.dim + 2.5, scale = Inf) (bglmer's default)",
+                "call": self.call()}
+
+
 @dataclass
 class MixedModelFit:
     """A fitted mixed model, in the terms lme4 prints.
@@ -192,6 +272,8 @@ class MixedModelFit:
     #: per fixed effect, lmerTest's Satterthwaite ``df``, ``t``, ``p`` (an LMM fitted by
     #: R with lmerTest; None otherwise)
     satterthwaite: dict[str, dict[str, float]] | None = None
+    #: the prior of a penalised fit (blme's bglmer), None for maximum likelihood
+    fixef_prior: FixefPrior | None = None
 
     def zero_components(self) -> list[str]:
         """Names of theta elements bounded by 0 and estimated below :data:`SINGULAR_TOL`
@@ -534,7 +616,7 @@ class _System:
         if not self.r:
             return t1, r2
         rhs = r2 - np.einsum("gbr,gb->r", f["a12"], t1)
-        x2 = np.linalg.solve(f["s"], rhs)
+        x2 = _solve_or_lstsq(f["s"], rhs)
         x1 = t1 - np.einsum("gbr,r->gb", f["inv_a12"], x2)
         return x1, x2
 
@@ -544,7 +626,36 @@ class _System:
         return _bsum(idx, v1 * resid[:, None], self.m1 * b1).reshape(self.m1, b1)
 
 
+def _solve_or_lstsq(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``a^-1 b``; where ``a`` is singular (a direction the data do not identify: the
+    coefficient of a cell at 0 or 100 % once its weights reach the floor), the
+    minimum-norm least-squares solution, which leaves that direction where it is."""
+    try:
+        out: np.ndarray = np.linalg.solve(a, b)
+        if np.all(np.isfinite(out)):
+            return out
+    except np.linalg.LinAlgError:
+        pass
+    return np.asarray(np.linalg.lstsq(a, b, rcond=None)[0])
+
+
+def _inv_or_pinv(a: np.ndarray) -> np.ndarray:
+    """``a^-1``, or the pseudo-inverse where ``a`` is singular."""
+    try:
+        out: np.ndarray = np.linalg.inv(a)
+        if np.all(np.isfinite(out)):
+            return out
+    except np.linalg.LinAlgError:
+        pass
+    return np.asarray(np.linalg.pinv(a))
+
+
 # -- the binomial GLMM -------------------------------------------------------------------
+
+def _weights(mu: np.ndarray, m: np.ndarray) -> np.ndarray:
+    """The IRLS weights ``m mu (1 - mu)``, at least :data:`WEIGHT_FLOOR` per trial."""
+    return np.maximum(m * mu * (1.0 - mu), m * WEIGHT_FLOOR)
+
 
 def _expit(eta: np.ndarray) -> np.ndarray:
     """The logistic function, without overflow warnings at large ``|eta|``."""
@@ -571,6 +682,52 @@ class _Laplace:
         self.u1 = np.zeros((self.sys_u.m1, self.sys_u.b1))
         self.u2 = np.zeros(self.sys_u.r_u)
         self.beta_joint = np.zeros(self.p)
+        #: 1 / prior variance per fixed effect, None without a prior (FixefPrior)
+        self.prior_prec: np.ndarray | None = None
+        self.prior_const = 0.0
+        #: per theta element: the covariance prior's weight on -log(theta) (diagonals)
+        self.cov_weight = np.zeros(self.n_theta)
+
+    def set_prior(self, prior: FixefPrior | None) -> None:
+        """Penalise the deviance as bglmer does (None: maximum likelihood)."""
+        if prior is None:
+            self.prior_prec, self.prior_const = None, 0.0
+            self.cov_weight = np.zeros(self.n_theta)
+            return
+        sds = prior.sds(self.p)
+        self.prior_prec = 1.0 / sds**2
+        self.prior_const = self.p * math.log(2.0 * math.pi) + 2.0 * float(np.log(sds).sum())
+        lower = self.lower()
+        w = 2.0 * (prior.COV_DF_EXTRA - 1.0)
+        self.cov_weight = np.array([w if lb == 0.0 else 0.0 for lb in lower])
+
+    def _cov_penalty(self, theta: np.ndarray) -> float:
+        if not self.cov_weight.any():
+            return 0.0
+        on = self.cov_weight > 0
+        th = theta[on]
+        if np.any(th <= 0.0):
+            return math.inf
+        return -float((self.cov_weight[on] * np.log(th)).sum())
+
+    def penalty(self, par: np.ndarray) -> float:
+        """The prior's part of the penalised deviance at ``(theta, beta)`` (0 without)."""
+        if self.prior_prec is None:
+            return 0.0
+        beta = par[self.n_theta:]
+        return (float((self.prior_prec * beta**2).sum()) + self._cov_penalty(par[: self.n_theta])
+                + self.prior_const)
+
+    def penalty_grad(self, par: np.ndarray) -> np.ndarray:
+        g = np.zeros(par.size)
+        if self.prior_prec is None:
+            return g
+        th = par[: self.n_theta]
+        on = self.cov_weight > 0
+        with np.errstate(divide="ignore"):
+            g[: self.n_theta][on] = -self.cov_weight[on] / th[on]
+        g[self.n_theta:] = 2.0 * self.prior_prec * par[self.n_theta:]
+        return g
 
     def split(self, theta: np.ndarray) -> list[np.ndarray]:
         out, k = [], 0
@@ -620,7 +777,7 @@ class _Laplace:
         pen, eta = objective(u1, ud)
         for _ in range(200):
             mu = _expit(eta)
-            w = m * mu * (1.0 - mu)
+            w = _weights(mu, m)
             f = sysm.factor(v1, d, w)
             resid = y - m * mu
             g1 = sysm.scatter1(v1, resid) - u1
@@ -641,7 +798,7 @@ class _Laplace:
                     float(np.abs(step * x2).max(initial=0.0))) < 1e-7:
                 break
         mu = _expit(eta)
-        w = m * mu * (1.0 - mu)
+        w = _weights(mu, m)
         f = sysm.factor(v1, d, w)
         ld = sysm.logdet_u(f)
         self.u1, self.u2 = u1, ud[:r_u]
@@ -687,7 +844,7 @@ class _Laplace:
             pg = f["inv_a12"][g1]  # (N, b1, r): P_g = A11^-1 A12
             q = np.matmul(v1[:, None, :], pg)[:, 0, :]
             np.subtract.at(q, (np.arange(g1.size)[:, None], d.cols), d.vals)
-            qs = q @ np.linalg.inv(f["s"])  # (N, r): S^-1 q_i
+            qs = q @ _inv_or_pinv(f["s"])  # (N, r): S^-1 q_i
             h = h + (q * qs).sum(axis=1)
         st["leverage"] = {"h": h, "inv11": inv11, "pg": pg, "qs": qs}
         return dict(st["leverage"])
@@ -758,24 +915,38 @@ class _Laplace:
         (:meth:`theta_gradient`, :meth:`beta_gradient`)."""
         th, beta = par[: self.n_theta], par[self.n_theta:]
         dev, st = self._pirls(th, beta)
-        return dev, np.r_[self.theta_gradient(st), self.beta_gradient(st)]
+        grad = np.r_[self.theta_gradient(st), self.beta_gradient(st)]
+        if self.prior_prec is not None:
+            return dev + self.penalty(par), grad + self.penalty_grad(par)
+        return dev, grad
 
     def dev_theta(self, theta: np.ndarray) -> float:
-        return self._pirls(theta, None)[0]
+        """Stage 1's criterion (beta at the joint mode); with a prior, bglmer's stage 1
+        adds the covariance prior and the fixed-effect prior at beta = 0 (a constant)."""
+        out = self._pirls(theta, None)[0]
+        if self.prior_prec is not None:
+            out += self._cov_penalty(theta) + self.prior_const
+        return out
 
     def dev(self, par: np.ndarray) -> float:
+        """The Laplace deviance at ``(theta, beta)``, penalised by the prior if any."""
+        out = self._pirls(par[: self.n_theta], par[self.n_theta:])[0]
+        return out + self.penalty(par) if self.prior_prec is not None else out
+
+    def likelihood_dev(self, par: np.ndarray) -> float:
+        """``-2 log L`` (Laplace) at ``(theta, beta)``, without the prior."""
         return self._pirls(par[: self.n_theta], par[self.n_theta:])[0]
 
     def rx_vcov(self, par: np.ndarray) -> np.ndarray:
         """``(R_X' R_X)^{-1}``: the conditional covariance of beta given theta."""
-        return np.asarray(np.linalg.inv(self.rx(par)))
+        return np.asarray(_inv_or_pinv(self.rx(par)))
 
     def rx(self, par: np.ndarray) -> np.ndarray:
         """``R_X' R_X`` at ``(theta, beta)``: half the Hessian of the deviance over beta
         when the modes are held (the conditional information)."""
         _, st = self._pirls(par[: self.n_theta], par[self.n_theta:])
         mu = _expit(st["eta"])
-        w = self.m * mu * (1.0 - mu)
+        w = _weights(mu, self.m)
         v1, d = self.sys_j.rows(self.split(par[: self.n_theta]))
         f = self.sys_j.factor(v1, d, w)
         s = f["s"]
@@ -783,6 +954,8 @@ class _Laplace:
         sbb = s[r_u:, r_u:]
         if r_u:
             sbb = sbb - s[r_u:, :r_u] @ np.linalg.solve(s[:r_u, :r_u], s[:r_u, r_u:])
+        if self.prior_prec is not None:
+            sbb = sbb + np.diag(self.prior_prec)
         return np.asarray(sbb)
 
 
@@ -1044,6 +1217,7 @@ class GlmmData:
         lap.u1 = np.zeros_like(lap.u1)
         lap.u2 = np.zeros_like(lap.u2)
         lap.beta_joint = np.zeros(lap.p)
+        lap.set_prior(None)
         return lap
 
     def linear_predictor(self, fit: MixedModelFit, rng: np.random.Generator,
@@ -1069,7 +1243,7 @@ class GlmmData:
 
 def fit_glmm(df: pd.DataFrame, spec: ModelSpec, *, skip_se_if_simplified: bool = False,
              start: MixedModelFit | None = None, se: bool = True,
-             keep_slopes: bool = False) -> MixedModelFit:
+             keep_slopes: bool = False, fixef_prior: FixefPrior | None = None) -> MixedModelFit:
     """A binomial (logit) GLMM by maximum likelihood, Laplace approximation (glmer's nAGQ=1).
 
     Args:
@@ -1082,6 +1256,7 @@ def fit_glmm(df: pd.DataFrame, spec: ModelSpec, *, skip_se_if_simplified: bool =
             instead of running stage 1 (the dropped components were at 0).
         se: compute the standard errors (False: NaN, for refits that need the deviance
             only).
+        fixef_prior: fit with this prior, as ``blme::bglmer`` (:class:`FixefPrior`).
 
     Raises:
         ValueError: a missing column, fewer than 2 levels of a grouping factor.
@@ -1090,35 +1265,41 @@ def fit_glmm(df: pd.DataFrame, spec: ModelSpec, *, skip_se_if_simplified: bool =
         data = GlmmData(df, spec)
         par0 = _start(start, data.theta_names, data.names)
         return glmm_fit(data, skip_se_if_simplified=skip_se_if_simplified, start_par=par0,
-                        se=se, keep_slopes=keep_slopes)
+                        se=se, keep_slopes=keep_slopes, fixef_prior=fixef_prior)
 
 
 def glmm_fit(data: GlmmData, y: np.ndarray | None = None, *,
              skip_se_if_simplified: bool = False, start_par: np.ndarray | None = None,
-             se: bool = True, ftol: float = 1e-12, keep_slopes: bool = False) -> MixedModelFit:
+             se: bool = True, ftol: float = 1e-12, keep_slopes: bool = False,
+             fixef_prior: FixefPrior | None = None) -> MixedModelFit:
     """:func:`fit_glmm` on prepared data, optionally with another per-row response ``y``
     (a refit, as lme4's ``refit(m, newresp = y)``) and a starting ``(theta, beta)``."""
     spec = data.spec
     lap = data.laplace(None if y is None else data.pooled(np.asarray(y, dtype=float)))
+    lap.set_prior(fixef_prior)
     names, pterms = data.names, data.pterms
     messages: list[str] = []
     if data.dropped:
         messages.append("fixed-effect model matrix is rank deficient so dropping "
                         f"{len(data.dropped)} column(s): " + ", ".join(data.dropped))
     lower = lap.lower()
+    # the covariance prior is infinite at a variance of 0: its optimiser stays inside
+    opt_lower = (lower if fixef_prior is None
+                 else [PRIOR_THETA_FLOOR if b == 0.0 else b for b in lower])
     par0 = start_par
     ok1 = True
     if par0 is None:
         theta0 = np.array([1.0 if b == 0.0 else 0.0 for b in lower])
         # stage 1 (nAGQ = 0): theta only, beta at the joint penalised mode
-        theta1, ok1, _ = _minimize(lap.dev_theta, theta0, lower, ftol=1e-8, gtol=1e-2,
+        theta1, ok1, _ = _minimize(lap.dev_theta, theta0, opt_lower, ftol=1e-8, gtol=1e-2,
                                    central=False)
         lap.dev_theta(theta1)
         par0 = np.r_[theta1, lap.beta_joint]
     # stage 2 (nAGQ = 1): the Laplace deviance over (theta, beta)
-    par, ok2, msg2 = _stage2(lap, par0, lower, ftol=ftol)
+    par, ok2, msg2 = _stage2(lap, par0, opt_lower, ftol=ftol)
     dev = lap.dev(par)
-    par, dev, ok2, msg2 = _escape_boundary(lap, par, dev, lower, ftol, ok2, msg2)
+    if fixef_prior is None:
+        par, dev, ok2, msg2 = _escape_boundary(lap, par, dev, lower, ftol, ok2, msg2)
     theta, beta = par[: lap.n_theta], par[lap.n_theta:]
     theta_names = data.theta_names
     singular = bool(any(th < SINGULAR_TOL for th, lb in zip(theta, lower, strict=True)
@@ -1127,6 +1308,9 @@ def glmm_fit(data: GlmmData, y: np.ndarray | None = None, *,
             if lb == 0.0 and th < SINGULAR_TOL]
     vcov_method = ("2 x inverse of the finite-difference Hessian of the Laplace deviance over "
                    "(theta, beta), as glmer's default vcov")
+    if fixef_prior is not None:
+        vcov_method = ("2 x inverse of the finite-difference Hessian of the penalised "
+                       "deviance over (theta, beta), as bglmer's vcov")
     vcov: np.ndarray | None
     if not se:
         vcov = np.full((lap.p, lap.p), np.nan)
@@ -1150,10 +1334,14 @@ def glmm_fit(data: GlmmData, y: np.ndarray | None = None, *,
     return MixedModelFit(
         spec=spec, family="binomial", fixed_effects=_fixed_table(names, beta, vcov),
         vcov=vcov, random_effects=_random_table(pterms, lap.split(theta)), theta=theta,
-        singular=singular, deviance=dev, loglik=-dev / 2.0, vcov_method=vcov_method,
+        singular=singular, deviance=dev,
+        loglik=-(dev if fixef_prior is None else lap.likelihood_dev(par)) / 2.0,
+        vcov_method=vcov_method,
         converged=ok1 and ok2, messages=messages, n_obs=data.n_obs, n_cells=int(lap.y.size),
         theta_names=theta_names,
         groups={t.name: t.n_levels for t in data.terms},
+        criterion="ML (Laplace)" if fixef_prior is None else "penalised ML (Laplace), bglmer",
+        fixef_prior=fixef_prior,
     )
 
 

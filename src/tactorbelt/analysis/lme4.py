@@ -20,7 +20,7 @@ import tempfile
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Final
 
-from .glmm import FixedEffect, MixedModelFit, ModelSpec, _fixed_table, term_column
+from .glmm import FixedEffect, FixefPrior, MixedModelFit, ModelSpec, _fixed_table, term_column
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -32,16 +32,32 @@ INSTALL_HINT: Final = ("R with lme4 is needed for --engine lme4: install it with
                        "'apt install r-base-core r-cran-lme4' (Debian/Ubuntu), or "
                        "install.packages('lme4') in R, so that 'Rscript' is on PATH")
 
-_SCRIPT: Final = r"""
+#: R: every message as one character vector, whatever shape lme4 keeps it in (a
+#: character vector, or a list when glmer has several convergence messages)
+_FLATTEN: Final = r"""
+flat_msgs <- function(x) {
+  if (is.null(x) || length(x) == 0) return(character(0))
+  out <- unlist(lapply(x, function(e) if (inherits(e, "condition")) conditionMessage(e)
+                                      else as.character(e)), use.names = FALSE)
+  out <- trimws(gsub("[\r\n]+", " ", out))
+  out[nzchar(trimws(out))]
+}
+"""
+
+_SCRIPT: Final = _FLATTEN + r"""
 suppressPackageStartupMessages(library(lme4))
 args <- commandArgs(trailingOnly = TRUE)
 dir <- args[1]; family <- args[2]; form <- as.formula(readLines(file.path(dir, "formula.txt")))
+prior <- if (length(args) >= 3 && nzchar(args[3])) args[3] else ""
+if (nzchar(prior)) suppressPackageStartupMessages(library(blme))
 g <- readLines(file.path(dir, "groups.txt"))
 d <- read.csv(file.path(dir, "data.csv"), stringsAsFactors = FALSE,
               colClasses = setNames(rep("character", length(g)), g))
 msgs <- character(0)
 lt <- family != "binomial" && requireNamespace("lmerTest", quietly = TRUE)
 m <- withCallingHandlers(
+  if (nzchar(prior)) eval(parse(text = sprintf(
+    "bglmer(form, data = d, family = binomial, fixef.prior = %s)", prior))) else
   if (family == "binomial") glmer(form, data = d, family = binomial) else
     if (lt) lmerTest::lmer(form, data = d) else lmer(form, data = d),
   warning = function(w) { msgs <<- c(msgs, conditionMessage(w)); invokeRestart("muffleWarning") },
@@ -59,15 +75,15 @@ write.csv(data.frame(name = names(th), theta = unname(th), lower = getME(m, "low
           file.path(dir, "theta.csv"), row.names = FALSE)
 vc <- as.data.frame(VarCorr(m))
 write.csv(vc, file.path(dir, "varcorr.csv"), row.names = FALSE)
-conv <- m@optinfo$conv$lme4$messages
-msgs <- unique(c(msgs, conv))
+msgs <- unique(c(flat_msgs(msgs), flat_msgs(m@optinfo$conv$lme4$messages),
+                 flat_msgs(m@optinfo$warnings), flat_msgs(m@optinfo$conv$lme4$warnings)))
 info <- data.frame(
   key = c("singular", "deviance", "loglik", "lme4_version", "R_version", "nobs"),
   value = c(as.character(isSingular(m)), format(-2 * as.numeric(logLik(m)), digits = 15),
             format(as.numeric(logLik(m)), digits = 15), as.character(packageVersion("lme4")),
             paste(R.version$major, R.version$minor, sep = "."), as.character(nobs(m))))
 write.csv(info, file.path(dir, "info.csv"), row.names = FALSE)
-writeLines(if (length(msgs)) msgs else character(0), file.path(dir, "messages.txt"))
+writeLines(msgs, file.path(dir, "messages.txt"))
 """
 
 
@@ -129,8 +145,12 @@ def _frame(df: pd.DataFrame, spec: ModelSpec) -> pd.DataFrame:
 
 
 def fit_lme4(df: pd.DataFrame, spec: ModelSpec, *, family: str = "binomial",
-             rscript: str = "Rscript", timeout_s: float = 600.0) -> MixedModelFit:
+             rscript: str = "Rscript", timeout_s: float = 600.0,
+             fixef_prior: FixefPrior | None = None) -> MixedModelFit:
     """Fit ``spec`` with ``lme4::glmer(family = binomial)`` (or ``lmer`` for ``gaussian``).
+
+    With ``fixef_prior``: ``blme::bglmer(family = binomial, fixef.prior = ...)`` (bglmer's
+    default covariance prior), from R's blme package.
 
     Raises:
         Lme4Unavailable: no ``Rscript`` or no lme4 (the message says how to install).
@@ -144,12 +164,17 @@ def fit_lme4(df: pd.DataFrame, spec: ModelSpec, *, family: str = "binomial",
         _write_model(d, df, spec)
         (d / "fit.R").write_text(_SCRIPT)
         try:
-            r = subprocess.run([exe, str(d / "fit.R"), str(d), family], capture_output=True,
-                               text=True, timeout=timeout_s, env=_r_env())
+            r = subprocess.run([exe, str(d / "fit.R"), str(d), family,
+                                fixef_prior.blme() if fixef_prior is not None else ""],
+                               capture_output=True, text=True, timeout=timeout_s, env=_r_env())
         except subprocess.TimeoutExpired as exc:
             raise RuntimeError(f"lme4 took longer than {timeout_s:g} s") from exc
         if r.returncode != 0:
             err = r.stderr.strip()
+            if "there is no package called" in err and "blme" in err:
+                raise Lme4Unavailable("the R package blme is not installed (the penalised fit's "
+                                      "reference): 'apt install r-cran-blme' or "
+                                      "install.packages('blme') in R")
             if "there is no package called" in err and "lme4" in err:
                 raise Lme4Unavailable(f"the R package lme4 is not installed. {INSTALL_HINT}")
             raise RuntimeError("lme4 failed: " + " | ".join(err.splitlines()[-5:]))
@@ -188,17 +213,19 @@ def fit_lme4(df: pd.DataFrame, spec: ModelSpec, *, family: str = "binomial",
         theta=th["theta"].to_numpy(dtype=float), singular=info["singular"] == "TRUE",
         theta_names=th["name"].astype(str).tolist(),
         deviance=dev, loglik=float(info["loglik"]),
-        vcov_method=("lme4's vcov(): finite-difference Hessian over (theta, beta)"
+        vcov_method=(("blme's " if fixef_prior is not None else "lme4's ")
+                     + "vcov(): finite-difference Hessian over (theta, beta)"
                      if family == "binomial" else "lme4's vcov(): sigma^2 (R_X' R_X)^-1"),
         converged=not any("converge" in m.lower() for m in msgs),
         messages=[*msgs, f"lme4 {info['lme4_version']}, R {info['R_version']}"],
         n_obs=int(info["nobs"]), n_cells=int(info["nobs"]), groups=groups,
-        criterion="ML (Laplace)" if family == "binomial" else "REML",
-        satterthwaite=satt,
+        criterion=("REML" if family != "binomial" else "ML (Laplace)" if fixef_prior is None
+                   else "penalised ML (Laplace), bglmer"),
+        satterthwaite=satt, fixef_prior=fixef_prior,
     )
 
 
-_TESTS_SCRIPT: Final = r"""
+_TESTS_SCRIPT: Final = _FLATTEN + r"""
 suppressPackageStartupMessages(library(lme4))
 args <- commandArgs(trailingOnly = TRUE)
 dir <- args[1]; nsim <- as.integer(args[2]); seed <- as.integer(args[3])
@@ -213,7 +240,8 @@ msgs <- character(0)
 m <- withCallingHandlers(glmer(form, data = d, family = binomial),
   warning = function(w) { msgs <<- c(msgs, conditionMessage(w)); invokeRestart("muffleWarning") },
   message = function(w) { msgs <<- c(msgs, conditionMessage(w)); invokeRestart("muffleMessage") })
-writeLines(unique(c(msgs, m@optinfo$conv$lme4$messages)), file.path(dir, "messages.txt"))
+writeLines(unique(c(flat_msgs(msgs), flat_msgs(m@optinfo$conv$lme4$messages))),
+           file.path(dir, "messages.txt"))
 cf <- fixef(m)
 write.csv(data.frame(term = names(cf), estimate = unname(cf)), file.path(dir, "fixef.csv"),
           row.names = FALSE)

@@ -102,7 +102,8 @@ def likelihood_ratio(fit: MixedModelFit, fit0: MixedModelFit) -> dict[str, Any]:
     from scipy.stats import chi2
 
     df = len(fit.fixed_effects) - len(fit0.fixed_effects)
-    stat = float(fit0.deviance - fit.deviance)
+    # -2 log L of each (a penalised fit's deviance also holds its prior)
+    stat = float(2.0 * (fit.loglik - fit0.loglik))
     p = float(chi2.sf(max(stat, 0.0), df)) if df > 0 and math.isfinite(stat) else math.nan
     out = {"term": TERM, "method": "LRT", "statistic": stat, "df": df, "p": p,
            "description": f"likelihood ratio of {fit.spec.formula()} against "

@@ -142,11 +142,12 @@ def model_spec(frame: pd.DataFrame, response: str = "correct",
     return ModelSpec(response, tuple(fixed), tuple(random), transform), notes
 
 
-def _fitter(engine: str, family: str, keep_slopes: bool = False) -> Any:
+def _fitter(engine: str, family: str, keep_slopes: bool = False,
+            fixef_prior: Any = None) -> Any:
     if engine == "lme4":
         from .lme4 import fit_lme4
 
-        return lambda df, spec: fit_lme4(df, spec, family=family)
+        return lambda df, spec: fit_lme4(df, spec, family=family, fixef_prior=fixef_prior)
     from .glmm import fit_glmm, fit_lmm
 
     last: list[Any] = [None]  # each simplification step starts from the previous fit
@@ -154,7 +155,7 @@ def _fitter(engine: str, family: str, keep_slopes: bool = False) -> Any:
     def fit(df: pd.DataFrame, spec: Any) -> Any:
         if family == "binomial":  # no Hessian for a fit the simplification replaces
             last[0] = fit_glmm(df, spec, skip_se_if_simplified=True, start=last[0],
-                               keep_slopes=keep_slopes)
+                               keep_slopes=keep_slopes, fixef_prior=fixef_prior)
         else:
             last[0] = fit_lmm(df, spec, start=last[0])
         return last[0]
@@ -171,6 +172,7 @@ def model_json(fit: Any, steps: list[dict[str, Any]], engine: str,
     effect of an LMM; they replace the Wald p and interval.
     """
     binomial = fit.family == "binomial"
+    prior = fit.fixef_prior
     fixed = {k: v.to_dict() for k, v in fit.fixed_effects.items()}
     p_method, ci_method = "Wald z, two-sided, normal reference", "Wald"
     if satt is not None:
@@ -186,11 +188,16 @@ def model_json(fit: Any, steps: list[dict[str, Any]], engine: str,
         p_method = ("t = estimate / SE on Satterthwaite's degrees of freedom, two-sided, as "
                     "lmerTest's summary (z: the same ratio)")
         ci_method = "t on the Satterthwaite df"
-    return {
-        "engine": ENGINE_NAMES[engine],
+    criterion = ("maximum likelihood, Laplace approximation (glmer's nAGQ = 1)"
+                 if binomial else "REML (lmer's default)")
+    if prior is not None:
+        criterion = (f"penalised maximum likelihood (posterior mode), Laplace approximation, "
+                     f"as {prior.call()}")
+    out = {
+        "engine": (ENGINE_NAMES[engine] if prior is None
+                   else "blme" if engine == "lme4" else "tactorbelt-laplace (penalised)"),
         "family": "binomial (logit link)" if binomial else "gaussian (identity link)",
-        "criterion": ("maximum likelihood, Laplace approximation (glmer's nAGQ = 1)"
-                      if binomial else "REML (lmer's default)"),
+        "criterion": criterion,
         "formula": fit.spec.formula(),
         "scale": "log-odds" if binomial else "log(seconds)",
         "fixed_effects": fixed,
@@ -210,11 +217,18 @@ def model_json(fit: Any, steps: list[dict[str, Any]], engine: str,
                   "reference",
         "notes": notes,
     }
+    if prior is not None:
+        out["fixef_prior"] = prior.to_json()
+    return out
 
 
 def fit_model(frame: pd.DataFrame, *, engine: str = "tactorbelt", rt: bool = False,
-              keep_slopes: bool = False) -> tuple[Any, dict[str, Any]]:
+              keep_slopes: bool = False, fixef_prior: Any = None
+              ) -> tuple[Any, dict[str, Any]]:
     """Fit the accuracy GLMM (or, ``rt=True``, the log-RT LMM) with the simplification rule.
+
+    ``fixef_prior``: a :class:`~tactorbelt.analysis.glmm.FixefPrior` for the accuracy
+    model (blme's bglmer); ignored for the RT model.
 
     Returns:
         ``(fit, json)``; see :func:`model_json`.
@@ -226,7 +240,8 @@ def fit_model(frame: pd.DataFrame, *, engine: str = "tactorbelt", rt: bool = Fal
     data = frame.loc[frame["status"] == "done"] if rt else frame
     spec, notes = model_spec(data, "rt_s" if rt else "correct", "log" if rt else None)
     fit, steps = fit_simplified(data, spec, _fitter(engine, "gaussian" if rt else "binomial",
-                                                    keep_slopes), keep_slopes=keep_slopes)
+                                                    keep_slopes, None if rt else fixef_prior),
+                                keep_slopes=keep_slopes)
     satt = None
     if rt:
         satt = rt_satterthwaite(data, fit)
@@ -317,7 +332,8 @@ def _average_contrast(fit: Any, frame: pd.DataFrame) -> tuple[float, float]:
 
 def condition_tests(frame: pd.DataFrame, fit: Any, *, engine: str = "tactorbelt",
                     pb_sims: int | None = DEFAULT_PB_SIMS, seed: int = 0,
-                    progress: Any = None) -> tuple[list[dict[str, Any]], Any]:
+                    progress: Any = None, not_estimable: Any = ()
+                    ) -> tuple[list[dict[str, Any]], Any]:
     """The Wald, likelihood-ratio (chi-square and F references) and (for a study of up
     to :data:`PB_MAX_PARTICIPANTS` participants) parametric-bootstrap tests of the
     condition (:mod:`.lrt`), as ``summary.json`` objects, and the null fit.
@@ -326,23 +342,45 @@ def condition_tests(frame: pd.DataFrame, fit: Any, *, engine: str = "tactorbelt"
         pb_sims: the bootstrap's simulations (0: not computed; None: the default).
         seed: seeds the bootstrap.
         progress: ``progress(done, total)`` as the bootstrap refits.
+        not_estimable: fixed effects made infinite by separation
+            (:func:`.separation.detect_separation`): a Wald test over any of them is
+            marked not valid (its SE means nothing), the likelihood ratio stays valid.
     """
-    from .lrt import likelihood_ratio, null_spec, parametric_bootstrap, wald_condition
+    from .lrt import (
+        condition_terms,
+        likelihood_ratio,
+        null_spec,
+        parametric_bootstrap,
+        wald_condition,
+    )
 
     n_sim = DEFAULT_PB_SIMS if pb_sims is None else int(pb_sims)
     n_p = int(frame["participant"].nunique())
     spec0 = null_spec(fit.spec)
-    tests: list[dict[str, Any]] = [wald_condition(fit)]
+    prior = fit.fixef_prior
+    wald = wald_condition(fit)
+    bad = [t for t in condition_terms(list(fit.fixed_effects)) if t in set(not_estimable)]
+    if bad:
+        wald.update(valid=False, why=(
+            "not valid: separation makes " + ", ".join(bad) + " infinite, so their estimates "
+            "and SEs (and this statistic) are where the optimiser stopped; the likelihood "
+            "ratio stays finite and valid"))
+    tests: list[dict[str, Any]] = [wald]
     fit0 = None
     if engine == "lme4":
         from .lme4 import fit_lme4
 
-        fit0 = fit_lme4(frame, spec0)
+        fit0 = fit_lme4(frame, spec0, fixef_prior=prior)
     else:
         from .glmm import fit_glmm
 
-        fit0 = fit_glmm(frame, spec0, se=False)
+        fit0 = fit_glmm(frame, spec0, se=False, fixef_prior=prior)
     lr = likelihood_ratio(fit, fit0)
+    if bad:
+        lr["valid"] = True
+    if prior is not None:
+        lr["description"] += ("; both fits penalised by the prior, the ratio of their "
+                              "likelihoods at the posterior modes")
     tests.append(lr)
     pb: dict[str, Any] = {"term": "condition", "method": "parametric bootstrap",
                           "n_sim": n_sim, "p": None}
@@ -352,6 +390,8 @@ def condition_tests(frame: pd.DataFrame, fit: Any, *, engine: str = "tactorbelt"
                   "ratio's chi-square p is near its level there)")
     elif n_sim <= 0:
         pb.update(computed=False, reason="not computed: --bootstrap-sims 0")
+    elif prior is not None:
+        pb.update(computed=False, reason="not computed for a penalised fit (--fixef-prior)")
     elif engine == "lme4":
         from .lme4 import condition_tests_lme4
 
@@ -369,9 +409,55 @@ def condition_tests(frame: pd.DataFrame, fit: Any, *, engine: str = "tactorbelt"
     return [_finite_json(t) for t in tests], fit0
 
 
+def _separation(frame: pd.DataFrame, fit: Any, js: dict[str, Any]) -> Any:
+    """Detect separation on the fitted model's design (:mod:`.separation`), put it in
+    ``js["separation"]`` and mark each infinite fixed effect ``"estimable": false``
+    with the cells that make it so (not for a penalised fit, whose estimates are
+    finite by its prior)."""
+    from .separation import detect_separation, not_estimable_text
+
+    sep = detect_separation(frame, fit.spec, list(fit.fixed_effects))
+    js["separation"] = sep.to_json()
+    if fit.fixef_prior is None:
+        for term in sep.terms:
+            fe = js["fixed_effects"].get(term)
+            if fe is not None:
+                fe["estimable"] = False
+                fe["note"] = not_estimable_text(sep, term)
+    return sep
+
+
+def _sensitivity(frame: pd.DataFrame, engine: str) -> dict[str, Any]:
+    """The penalised fit (bglmer's default prior, normal(sd = c(10, 2.5))) beside a
+    maximum-likelihood fit with separation: its fixed effects and condition effect."""
+    from .glmm import FixefPrior
+
+    prior = FixefPrior()
+    out: dict[str, Any] = {"fixef_prior": prior.to_json(),
+                           "why": "separation: a weakly informative prior on the fixed "
+                                  "effects keeps every estimate finite (Gelman et al. "
+                                  "2008); compare its condition effect with the ML fit's"}
+    try:
+        fit, js = fit_model(frame, engine=engine, fixef_prior=prior)
+        est, se = _average_contrast(fit, frame)
+    except Exception as exc:  # reported beside the ML fit, never fatal
+        from .lme4 import Lme4Unavailable
+
+        if isinstance(exc, Lme4Unavailable) and engine != "lme4":
+            raise
+        return {**out, "computed": False, "reason": f"{type(exc).__name__}: {exc}"}
+    return {**out, "computed": True, "engine": js["engine"], "formula": js["formula"],
+            "fixed_effects": js["fixed_effects"], "converged": js["converged"],
+            "convergence": js["convergence"],
+            "condition_effect": _finite_json({
+                "contrast": "static - dynamic", "scale": "log-odds",
+                "at": "between-tactor targets", "estimate": est, "se": se,
+                "ci_low": est - Z95 * se, "ci_high": est + Z95 * se})}
+
+
 def mixed_model(tr: pd.DataFrame, *, engine: str = "tactorbelt",
                 pb_sims: int | None = DEFAULT_PB_SIMS, seed: int = 0,
-                progress: Any = None) -> TestResult:
+                progress: Any = None, fixef_prior: Any = None) -> TestResult:
     """Binomial GLMM of accuracy: ``correct ~ condition * on_tactor [* factor(n_targets) *
     load] + (1 + condition | participant) + (1 | target)``, simplified while singular,
     with its tests of the condition and the contrasts per target count.
@@ -393,6 +479,13 @@ def mixed_model(tr: pd.DataFrame, *, engine: str = "tactorbelt",
         pb_sims: the parametric bootstrap's simulations (0: not computed).
         seed: seeds the bootstrap.
         progress: ``progress(done, total)`` as the bootstrap refits.
+        fixef_prior: fit with this prior (:class:`~tactorbelt.analysis.glmm.FixefPrior`,
+            ``analyze --fixef-prior``), as ``blme::bglmer``; the model object names it.
+
+    Where a design cell is at 0 or 100 %, ``model["separation"]`` names the cells and
+    the fixed effects they make infinite (marked not estimable, the Wald test not
+    valid), and (without a prior) ``model["sensitivity"]`` holds the penalised fit
+    with bglmer's default prior.
     """
     from .contrasts import condition_contrasts
 
@@ -400,6 +493,9 @@ def mixed_model(tr: pd.DataFrame, *, engine: str = "tactorbelt",
     frame = model_frame(tr)
     n_p = int(frame["participant"].nunique())
     test = f"binomial GLMM, Laplace ML ({ENGINE_NAMES.get(engine, engine)})"
+    if fixef_prior is not None:
+        test = (f"binomial GLMM, penalised ML, fixef.prior = {fixef_prior.blme()} "
+                f"({'blme' if engine == 'lme4' else ENGINE_NAMES.get(engine, engine)})")
     if n_p < 3:
         return _not_computed(key, test, question,
                              f"needs at least 3 participants, found {n_p}", participants=n_p)
@@ -419,14 +515,18 @@ def mixed_model(tr: pd.DataFrame, *, engine: str = "tactorbelt",
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            fit, js = fit_model(frame, engine=engine)
+            fit, js = fit_model(frame, engine=engine, fixef_prior=fixef_prior)
+            sep = _separation(frame, fit, js)
+            inf_terms = [] if fit.fixef_prior is not None else sep.terms
             fe = fit.fixed_effects.get("conditionstatic")
             if fe is None or not (math.isfinite(fe.estimate) and math.isfinite(fe.se)):
                 return _not_computed(key, test, question, "the fit gave no finite condition "
                                      "coefficient (separation?)", **n)
             tests, _ = condition_tests(frame, fit, engine=engine, pb_sims=pb_sims, seed=seed,
-                                       progress=progress)
-            contrasts = condition_contrasts(fit, frame)
+                                       progress=progress, not_estimable=inf_terms)
+            contrasts = condition_contrasts(fit, frame, inf_terms)
+            if sep.found and fixef_prior is None:
+                js["sensitivity"] = _sensitivity(frame, engine)
     except Exception as exc:  # an engine may raise many kinds (LinAlgError, R errors, ...)
         from .lme4 import Lme4Unavailable
 
@@ -461,6 +561,17 @@ def mixed_model(tr: pd.DataFrame, *, engine: str = "tactorbelt",
         details["notes"] = list(js["notes"])
     if fit.singular or not fit.converged:
         details["warnings"] = list(fit.messages)
+    if inf_terms:
+        from .contrasts import contrast_matrix
+
+        _, xd, xs = contrast_matrix(fit, frame)
+        lvec = (xs - xd).mean(axis=0)
+        names = list(fit.fixed_effects)
+        if any(abs(lvec[names.index(t)]) > 1e-12 for t in inf_terms if t in names):
+            details["effect_estimable"] = False
+            details["effect_note"] = ("not estimable: the effect weighs fixed effects that "
+                                      "separation makes infinite (see the model's "
+                                      "separation and its penalised sensitivity fit)")
     return TestResult(
         key=key, test=f"{test}: {METHOD_WORDS[method]}", question=question,
         statistic=lrt.get("statistic"),

@@ -226,6 +226,8 @@ def _test_rows(tests: Sequence[TestResult]) -> list[list[str]]:
                        f"({_e(t.details.get('hodges_lehmann_method', ''))})")
         if t.key == "mixed_model":
             effect += f"; odds ratio = {_fmt(t.details.get('odds_ratio'))}"
+            if t.details.get("effect_note"):
+                effect = f'<span class="nc">{_e(t.details["effect_note"])}</span>'
         stat = f"{_e(t.statistic_name)} = {_fmt(t.statistic)}"
         ci = f"[{_fmt(t.ci_low)}, {_fmt(t.ci_high)}] ({_e(t.ci_name)})"
         extra = []
@@ -267,7 +269,12 @@ def _model_paragraph(m: dict[str, Any], what: str, timeouts: str) -> str:
 def _fixed_rows(m: dict[str, Any]) -> list[list[str]]:
     satt = any("df" in v for v in m["fixed_effects"].values())
     rows = []
+    width = 6 if satt else 5
     for k, v in m["fixed_effects"].items():
+        if v.get("estimable") is False:  # separation: the numbers mean nothing
+            rows.append([f"<code>{_e(k)}</code>"] + [""] * (width - 2)
+                        + [f'<span class="nc">{_e(v.get("note", "not estimable"))}</span>'])
+            continue
         row = [f"<code>{_e(k)}</code>", _fmt(v["estimate"]), _fmt(v["se"])]
         row += ([_fmt(v.get("df"), 1), _fmt(v.get("t"), 2)] if satt else [_fmt(v["z"], 2)])
         row += [_p(v["p"]), f"[{_fmt(v['ci_low'])}, {_fmt(v['ci_high'])}]"]
@@ -314,7 +321,11 @@ def _tests_table(m: dict[str, Any]) -> str:
             ci = t.get("p_mc_ci95")
             if ci:
                 extra += f"; Monte Carlo 95 % interval of p [{_fmt(ci[0])}, {_fmt(ci[1])}]"
-        rows.append([name, _fmt(t.get("statistic"), 2), _e(t.get("df", "")), _p(t.get("p")),
+        p_cell = _p(t.get("p"))
+        if t.get("valid") is False:
+            extra = (extra + "; " if extra else "") + str(t.get("why", "not valid"))
+            p_cell = f'<span class="nc">not valid ({p_cell})</span>'
+        rows.append([name, _fmt(t.get("statistic"), 2), _e(t.get("df", "")), p_cell,
                      _e(extra)])
     text = ("<p><strong>Tests of the condition.</strong> Each tests whether the condition "
             "has any effect in the accuracy model: every fixed-effect term containing "
@@ -338,6 +349,11 @@ def contrasts_section(summary: Summary) -> str:
     for c in cs:
         pr = c["probability"]
         n = c["by"].get("n_targets")
+        if c.get("estimable") is False:
+            rows.append([_e(n if n is not None else "all"),
+                         '<span class="nc">not estimable (separation: see the accuracy '
+                         'model)</span>'] + [""] * 6)
+            continue
         rows.append([_e(n if n is not None else "all"),
                      f"{_fmt(c['estimate'])} ({_fmt(c['se'])})", _fmt(c["z"], 2), _p(c["p"]),
                      _p(c["p_adjusted"]),
@@ -375,6 +391,48 @@ def _random_text(m: dict[str, Any]) -> str:
     return "<p>Random effects: " + "; ".join(bits) + ".</p>" if bits else ""
 
 
+def _separation_text(m: dict[str, Any]) -> str:
+    """Cells at 0 or 100 %, the fixed effects they make infinite, and the penalised fit
+    beside the maximum-likelihood one (docs/analysis.md, 'Separation')."""
+    sep = m.get("separation") or {}
+    cells = sep.get("cells") or []
+    if not cells:
+        return ""
+    terms = sep.get("terms") or []
+    text = (f"<p><strong>Separation.</strong> {len(cells)} design cell(s) at 0 or 100 %: "
+            + _e("; ".join(c["label"] for c in cells)) + ". ")
+    if m.get("fixef_prior"):
+        text += ("The prior on the fixed effects keeps every estimate of this fit finite "
+                 "(<code>" + _e(m["fixef_prior"]["call"]) + "</code>).")
+    elif terms:
+        text += ("Maximum likelihood has no finite estimate of " + ", ".join(
+            f"<code>{_e(t)}</code>" for t in terms) + ": the likelihood keeps rising as they "
+            "go to infinity, so the numbers any optimiser stops at, their SEs and Wald tests "
+            "mean nothing; they are shown as not estimable. The likelihood-ratio tests stay "
+            "valid.")
+    else:
+        text += "No fixed effect is infinite because of them."
+    text += "</p>"
+    sens = m.get("sensitivity")
+    if sens:
+        prior = sens["fixef_prior"]
+        if sens.get("computed"):
+            ce = sens.get("condition_effect") or {}
+            text += ("<p><strong>Sensitivity: the penalised fit.</strong> <code>"
+                     + _e(prior["call"]) + "</code> (weakly informative normal priors on the "
+                     "fixed effects, bglmer's default): static - dynamic at between-tactor "
+                     f"targets {_fmt(ce.get('estimate'))} log-odds (SE {_fmt(ce.get('se'))}, "
+                     f"95 % Wald [{_fmt(ce.get('ci_low'))}, {_fmt(ce.get('ci_high'))}]). "
+                     "Its fixed effects:</p>")
+            rows = [[f"<code>{_e(k)}</code>", _fmt(v.get("estimate")), _fmt(v.get("se"))]
+                    for k, v in (sens.get("fixed_effects") or {}).items()]
+            text += _table(["term", "estimate (penalised)", "SE"], rows, "num")
+        else:
+            text += ("<p>Sensitivity: the penalised fit (<code>" + _e(prior["call"])
+                     + "</code>) failed: " + _e(sens.get("reason", "")) + "</p>")
+    return text
+
+
 def _model_sections(summary: Summary) -> list[str]:
     """One paragraph and one coefficient table per mixed model."""
     out: list[str] = []
@@ -388,6 +446,7 @@ def _model_sections(summary: Summary) -> list[str]:
             acc, "Accuracy", "Timeouts count as incorrect answers (the counting rules)."))
         out.append(_tests_table(acc))
         out.append(_table(_fixed_headers(acc), _fixed_rows(acc), "num"))
+        out.append(_separation_text(acc))
         out.append(_random_text(acc))
     if rt and rt.get("computed"):
         cells = rt.get("timeouts_by_cell", [])
@@ -704,7 +763,7 @@ def analyze(paths: Sequence[str | Path], out: str | Path, *, seed: int | None = 
             progress: ProgressFn | None = None, n_boot: int = DEFAULT_N_BOOT,
             engine: str = "tactorbelt", sites: Sequence[str] | None = None,
             include_running: bool = False, pb_sims: int | None = None,
-            rt_from: str | None = None) -> Summary:
+            rt_from: str | None = None, fixef_prior: str | None = None) -> Summary:
     """Analyse stores and write report.html, summary.json, per_target.csv and PNGs to ``out``.
 
     Args:
@@ -749,6 +808,14 @@ def analyze(paths: Sequence[str | Path], out: str | Path, *, seed: int | None = 
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise ConfigError(f"--out {out} is a file; give a directory for the report")
+    prior = None
+    if fixef_prior is not None:
+        from .glmm import FixefPrior
+
+        try:
+            prior = FixefPrior.parse(fixef_prior)
+        except ValueError as exc:
+            raise ConfigError(str(exc)) from None
     tick("loading stores")
     data = load_stores(list(paths), sites=sites, include_running=include_running)
     if seed is None:
@@ -762,7 +829,7 @@ def analyze(paths: Sequence[str | Path], out: str | Path, *, seed: int | None = 
 
     try:
         summary = summarize(data, seed=seed, n_boot=n_boot, engine=engine, pb_sims=pb_sims,
-                            progress=boot, rt_from=rt_from)
+                            progress=boot, rt_from=rt_from, fixef_prior=prior)
     except Lme4Unavailable as exc:
         raise ConfigError(str(exc)) from None
     tick("reading sample trajectories")

@@ -401,7 +401,8 @@ def rt_from_choice(trials: pd.DataFrame, rt_from: str | None = None
 
 def summarize(data: StoreData, *, seed: int = 0, n_boot: int = DEFAULT_N_BOOT,
               engine: str = "tactorbelt", pb_sims: int | None = DEFAULT_PB_SIMS,
-              progress: Any = None, rt_from: str | None = None) -> Summary:
+              progress: Any = None, rt_from: str | None = None,
+              fixef_prior: Any = None) -> Summary:
     """Compute every table and test from loaded stores. Pure: no files, no clock.
 
     Args:
@@ -417,6 +418,8 @@ def summarize(data: StoreData, *, seed: int = 0, n_boot: int = DEFAULT_N_BOOT,
         progress: ``progress(done, total)`` as the bootstrap refits.
         rt_from: ``skin``, ``command`` or None (the default: skin where every analysed
             trial has a skin onset), see :func:`rt_from_choice`.
+        fixef_prior: fit the accuracy model with this prior on its fixed effects
+            (:class:`~tactorbelt.analysis.glmm.FixefPrior`, as ``blme::bglmer``).
     """
     rng = np.random.default_rng(seed)
     notes = list(data.notes)
@@ -519,7 +522,7 @@ def summarize(data: StoreData, *, seed: int = 0, n_boot: int = DEFAULT_N_BOOT,
     rt_json: dict[str, Any] | None = None
     if len(counted):
         tests.append(mixed_model(tr, engine=engine, pb_sims=pb_sims, seed=seed,
-                                 progress=progress))
+                                 progress=progress, fixef_prior=fixef_prior))
         rt_json = rt_model(tr, engine=engine)
         if rt_json.get("timeout_note"):
             notes.append("RT model: " + rt_json["timeout_note"])

@@ -1,4 +1,5 @@
-"""``tactorbelt analyze DB [DB ...] [-o DIRECTORY] [--seed S] [--rt-from skin|command]``.
+"""``tactorbelt analyze DB [DB ...] [-o DIRECTORY] [--seed S] [--rt-from skin|command]
+[--fixef-prior normal:SD[,SD]]``.
 
 The analysis report. Without ``--seed`` the analysis seed is derived from the stores;
 without ``--rt-from`` the RTs count from the skin onset when every analyzed trial has
@@ -53,12 +54,19 @@ def print_summary_table(summary: Summary) -> None:
                    "the measured latency of the tactors that start the stimulus: 'tactorbelt "
                    "validate onsets') or from the command (the stored onset) [default: skin "
                    "when every analyzed trial has a skin onset, else command].")
+@click.option("--fixef-prior", "fixef_prior", metavar="normal:SD[,SD]", default=None,
+              help="Fit the accuracy model with a normal prior on its fixed effects, as "
+                   "blme::bglmer(fixef.prior = normal(sd = ...)) with bglmer's default "
+                   "covariance prior: normal:SD (every fixed effect) or normal:SD0,SD "
+                   "(intercept, the rest; bglmer's default is normal:10,2.5). For cells at "
+                   "0 or 100 %, where maximum likelihood has no finite estimates "
+                   "(docs/analysis.md, 'Separation').")
 @click.option("--include-running", is_flag=True,
               help="From a shared store (postgresql://), also the sessions that are not "
                    "complete yet.")
 def analyze(db: tuple[str, ...], out: Path | None, seed: int | None, engine: str,
             sites: tuple[str, ...], include_running: bool, pb_sims: int | None,
-            rt_from: str | None) -> None:
+            rt_from: str | None, fixef_prior: str | None) -> None:
     """Analyze one or more session stores and write the report.
 
     DB is a store written by 'tactorbelt run' or 'tactorbelt demo' (several may be
@@ -85,7 +93,7 @@ def analyze(db: tuple[str, ...], out: Path | None, seed: int | None, engine: str
         summary = run_analysis(list(db), out_dir, seed=seed, progress=progress,
                                engine=engine, sites=list(sites) or None,
                                include_running=include_running, pb_sims=pb_sims,
-                               rt_from=rt_from)
+                               rt_from=rt_from, fixef_prior=fixef_prior)
     out_console = Console()
     _print(summary, out_console)
     for note in summary.notes:
