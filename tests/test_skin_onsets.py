@@ -57,7 +57,8 @@ def lab(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
     tmp = tmp_path_factory.mktemp("skin")
     cal_file = tmp / "belt.toml"
     proc = tactorbelt("validate", "onsets", "--belt", "sim:virtual", "--pulses", "3",
-                      "--calibration", str(cal_file), "-o", str(tmp / "val"))
+                      "--drive", "plain", "--calibration", str(cal_file), "-o",
+                      str(tmp / "val"))
     assert proc.returncode == 0, proc.stderr
     cal = Calibration.load(cal_file)
     assert cal.has_timing

@@ -86,8 +86,8 @@ def play(angle: str, belt_url: str, calibration_file: str | None, seconds: float
         kind = "on-tactor" if stimulus_on_belt.on_tactor else "between-tactor"
         click.echo(f"playing {stimulus_on_belt.mode} {kind} {stimulus_on_belt.target_deg:g} deg "
                    f"({stimulus_on_belt.law} law) on {describe_belt(belt)} for {seconds:g} s, {how}"
-                   + (f", drive {belt.drive}" if belt.can_shape else "")
-                   + (f", for wearer {profile.participant or '(unnamed)'}" if profile else ""))
+                   + (f", for wearer {profile.participant or '(unnamed)'}" if profile else "")
+                   + (f", drive {belt.drive}" if belt.can_shape else ""))
         try:
             result = player.play(stimulus_on_belt, seconds)
         except KeyboardInterrupt:
