@@ -456,6 +456,9 @@ def run_onsets(belt_url: str, out_dir: str | Path, *, sense_url: str | None = No
     def once(cal: Any, how: str | None) -> OnsetValidation:
         belt = open_belt(belt_url, **({"calibration": cal} if cal else {}))
         with belt, open_sensor(sense_url, belt) as sensor:
+            if tune and not belt.can_shape:
+                raise ConfigError(f"belt {belt.url!r} cannot shape its drive: nothing to "
+                                  "tune (docs/belts.md, 'Drive shaping')")
             if how is not None:
                 belt.set_drive(how)
             if on_open is not None:
