@@ -95,7 +95,11 @@ def test_shaping_brings_the_felt_stimulus_to_the_intended_one(tmp_path: Path) ->
     assert errors["sim:virtual", "shaped"] * 2 <= plain  # overdrive to 3.6 V
     assert errors["sim:virtual?overdrive=2", "shaped"] * 3 <= plain  # to 6 V
     static, _ = run_stimulus("sim:virtual?overdrive=2", tmp_path / "static", targets=between,
-                             condition="static")
+                             condition="static", drive="shaped")
+    assert static.drive == "shaped"
+    plain, _ = run_stimulus("sim:virtual", tmp_path / "paper", targets=[1],
+                            condition="static")
+    assert plain.drive == "plain"  # the paper study's drive, as its sessions play
     onsets = [t["onset_error_ms"] for r in static.targets for t in r["tactors"]
               if t["driven"]]
     assert max(onsets) <= 10.0

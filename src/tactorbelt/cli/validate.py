@@ -157,8 +157,8 @@ def _table(result: Any) -> None:
               help="The stimulus condition.")
 @_DRIVE
 @click.option("--study", "study_file", default=None, metavar="FILE",
-              help="The study whose layout, targets and [stimulus] are played [default: "
-                   "the paper's].")
+              help="The study whose layout, targets and [stimulus] (its drive too, unless "
+                   "--drive) are played [default: the paper's, plain].")
 @click.option("--duration", "duration_s", type=POSITIVE, default=2.0, show_default=True,
               help="Seconds each stimulus plays.")
 @click.option("--calibration", "calibration_file", default=None, metavar="FILE",

@@ -253,7 +253,8 @@ def run_stimulus(belt_url: str, out_dir: str | Path, *, targets: Sequence[int] |
                  progress: Callable[[int, int], None] | None = None,
                  on_open: Callable[[Belt, Sensor], None] | None = None,
                  ) -> tuple[StimulusValidation, dict[str, Path]]:
-    """The whole ``tactorbelt validate stimulus``: open the belt (``drive``; through the
+    """The whole ``tactorbelt validate stimulus``: open the belt (``drive``, else the
+    study's ``[stimulus] drive`` as a session sets it, else the belt's; through the
     calibration file) and the sensor, play ``targets`` (None: every target of the study)
     of ``study`` (default: the paper's), write ``stimulus.json`` and ``stimulus.png``.
 
@@ -289,8 +290,9 @@ def run_stimulus(belt_url: str, out_dir: str | Path, *, targets: Sequence[int] |
             options["layout"] = st.layout_obj()
         belt = open_belt(belt_url, **options)
         with belt, open_sensor(sense_url, belt) as sensor:
-            if drive is not None:
-                belt.set_drive(drive)
+            how = drive if drive is not None else st.stimulus.drive  # as a session plays
+            if how is not None:
+                belt.set_drive(how)
             if on_open is not None:
                 on_open(belt, sensor)
             result = validate_stimulus(belt, sensor, st, ks, condition,
