@@ -258,7 +258,13 @@ def test_a_study_names_its_drive_and_the_session_stores_it(tmp_path: Path) -> No
         res = run_session(study, "model-1", belt, make_model_cursor(belt, clock, seed=1),
                           store, clock, seed=1, limit=2)
         assert belt.drive == "shaped"
-        assert store.session(res.session_id)["belt"] == "sim?drive=shaped"
+        session = store.session(res.session_id)
+        assert session["belt"] == "sim?drive=shaped"
+    # the BIDS sidecar names the drive and still knows the belt
+    from tactorbelt.experiment.export import _stimulus_system
+
+    system = _stimulus_system(session)
+    assert system["Drive"] == "shaped" and "simulated" in system["ActuatorType"]
 
 
 def test_a_long_shaped_session_of_played_stimuli_keeps_its_history() -> None:

@@ -748,11 +748,13 @@ def _stimulus_system(session: dict[str, Any]) -> dict[str, Any]:
     from urllib.parse import parse_qs
 
     belt = str(session.get("belt") or "")
-    scheme = belt.split(":", 1)[0].lower()
+    scheme = belt.split(":", 1)[0].split("?", 1)[0].lower()
     out: dict[str, Any] = {
         "Description": "The vibrotactile belt that presented the stimuli.",
         "Belt": belt or "n/a",
         "ActuatorType": _ACTUATORS.get(scheme, "unknown"),
+        # the session's belt URL names a shaped drive (docs/belts.md, "Drive shaping")
+        "Drive": parse_qs(belt.partition("?")[2]).get("drive", ["plain"])[0],
     }
     if session.get("firmware_version"):
         out["FirmwareVersion"] = str(session["firmware_version"])
