@@ -307,8 +307,8 @@ def test_run_onsets_writes_results_figure_and_calibration(tmp_path: Path) -> Non
 # -- the command --------------------------------------------------------------------------
 def test_the_command_on_sim_virtual_creates_the_calibration(tmp_path: Path) -> None:
     proc = tactorbelt("validate", "onsets", "--belt", "sim:virtual", "--pulses", "2",
-                      "--levels", "0.5,1.0", "--drive", "plain", "--calibration", str(tmp_path / "new.toml"),
-                      "-o", str(tmp_path / "out"))
+                      "--levels", "0.5,1.0", "--drive", "plain", "--calibration",
+                      str(tmp_path / "new.toml"), "-o", str(tmp_path / "out"))
     assert proc.returncode == 0, proc.stderr
     assert "done: motors off" in proc.stdout
     latency, rise, _ = analytic(ErmParams())
