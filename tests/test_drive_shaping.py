@@ -303,3 +303,11 @@ def test_the_shaped_solution_is_the_same_tick_by_tick_and_run_by_run() -> None:
             _, v = b.vibration(t0, clock.now_ns(), 2000)
             out.append(v)
     assert np.abs(out[0] - out[1]).max() < 1e-9
+
+
+def test_every_backend_takes_the_drive_option() -> None:
+    from tactorbelt.devices.registry import BACKENDS, resolve
+
+    for b in BACKENDS.values():
+        url = (b.examples[0].split("?")[0] + "?drive=plain")
+        assert resolve(url)[2]["drive"] == "plain", b.scheme

@@ -306,7 +306,7 @@ BACKENDS: dict[str, Backend] = {b.scheme: b for b in (
             ("navibelt:auto", "navibelt:serial:/dev/ttyACM0", "navibelt:ble:NAME",
              "navibelt:emulator"), target="TARGET",
             options=(UrlOption("motors", str, "the motors used, e.g. 0,2,4,6 (default all 16)"),
-                     UrlOption("rate_hz", float, "command rate (Hz)", 1.0, 200.0)),
+                     UrlOption("rate_hz", float, "command rate (Hz)", 1.0, 200.0), _DRIVE),
             discover="tactorbelt.devices.navibelt:discover", title="naviBelts",
             docs="docs/belts.md", allowed=("navibelt:auto", "navibelt:serial:PORT",
                                            "navibelt:ble:NAME", "navibelt:emulator")),
