@@ -610,13 +610,15 @@ class _System:
             ld += 2.0 * float(np.log(np.diag(np.linalg.cholesky(suu))).sum())
         return float(ld)
 
-    def solve(self, f: dict[str, Any], r1: np.ndarray, r2: np.ndarray) -> tuple[np.ndarray,
-                                                                                  np.ndarray]:
+    def solve(self, f: dict[str, Any], r1: np.ndarray, r2: np.ndarray,
+              strict: bool = False) -> tuple[np.ndarray, np.ndarray]:
+        """``A^-1 [r1, r2]``; a singular dense part: least squares, or (``strict``)
+        LinAlgError."""
         t1 = np.einsum("gij,gj->gi", f["inv11"], r1)
         if not self.r:
             return t1, r2
         rhs = r2 - np.einsum("gbr,gb->r", f["a12"], t1)
-        x2 = _solve_or_lstsq(f["s"], rhs)
+        x2 = np.linalg.solve(f["s"], rhs) if strict else _solve_or_lstsq(f["s"], rhs)
         x1 = t1 - np.einsum("gbr,r->gb", f["inv_a12"], x2)
         return x1, x2
 
@@ -632,29 +634,27 @@ def _solve_or_lstsq(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     minimum-norm least-squares solution, which leaves that direction where it is."""
     try:
         out: np.ndarray = np.linalg.solve(a, b)
-        if np.all(np.isfinite(out)):
-            return out
+        return out
     except np.linalg.LinAlgError:
-        pass
-    return np.asarray(np.linalg.lstsq(a, b, rcond=None)[0])
+        return np.asarray(np.linalg.lstsq(a, b, rcond=None)[0])
 
 
 def _inv_or_pinv(a: np.ndarray) -> np.ndarray:
     """``a^-1``, or the pseudo-inverse where ``a`` is singular."""
     try:
         out: np.ndarray = np.linalg.inv(a)
-        if np.all(np.isfinite(out)):
-            return out
+        return out
     except np.linalg.LinAlgError:
-        pass
-    return np.asarray(np.linalg.pinv(a))
+        return np.asarray(np.linalg.pinv(a))
 
 
 # -- the binomial GLMM -------------------------------------------------------------------
 
-def _weights(mu: np.ndarray, m: np.ndarray) -> np.ndarray:
-    """The IRLS weights ``m mu (1 - mu)``, at least :data:`WEIGHT_FLOOR` per trial."""
-    return np.maximum(m * mu * (1.0 - mu), m * WEIGHT_FLOOR)
+def _weights(mu: np.ndarray, m: np.ndarray, floor: bool = False) -> np.ndarray:
+    """The IRLS weights ``m mu (1 - mu)`` (``floor``: at least :data:`WEIGHT_FLOOR` per
+    trial)."""
+    w = m * mu * (1.0 - mu)
+    return np.maximum(w, m * WEIGHT_FLOOR) if floor else w
 
 
 def _expit(eta: np.ndarray) -> np.ndarray:
@@ -682,6 +682,9 @@ class _Laplace:
         self.u1 = np.zeros((self.sys_u.m1, self.sys_u.b1))
         self.u2 = np.zeros(self.sys_u.r_u)
         self.beta_joint = np.zeros(self.p)
+        #: set once a fit's PIRLS met a singular system from u = 0 (separation): weights
+        #: with a floor and least-squares steps from then on
+        self.robust = False
         #: 1 / prior variance per fixed effect, None without a prior (FixefPrior)
         self.prior_prec: np.ndarray | None = None
         self.prior_const = 0.0
@@ -747,16 +750,28 @@ class _Laplace:
         system, a non-finite deviance: the optimiser's previous trial point was far
         off), starts again from u = 0 (and beta = 0), as glmer does for a fresh fit.
         """
+        if self.robust:
+            out = self._pirls_from(theta, beta, tol, warm=True, robust=True)
+            if math.isfinite(out[0]):
+                return out
+            return self._pirls_from(theta, beta, tol, warm=False, robust=True)
         try:
             out = self._pirls_from(theta, beta, tol, warm=True)
             if math.isfinite(out[0]):
                 return out
         except np.linalg.LinAlgError:
             pass
-        return self._pirls_from(theta, beta, tol, warm=False)
+        try:
+            return self._pirls_from(theta, beta, tol, warm=False)
+        except np.linalg.LinAlgError:
+            # a cell at 0 or 100 %: its weights reach 0 and the system is singular even
+            # from u = 0; from here on (this fit) weights keep a floor and a singular
+            # step is solved by least squares (docs/analysis.md, "Separation")
+            self.robust = True
+            return self._pirls_from(theta, beta, tol, warm=False, robust=True)
 
     def _pirls_from(self, theta: np.ndarray, beta: np.ndarray | None, tol: float,
-                    warm: bool) -> tuple[float, dict[str, Any]]:
+                    warm: bool, robust: bool = False) -> tuple[float, dict[str, Any]]:
         joint = beta is None
         sysm = self.sys_j if joint else self.sys_u
         v1, d = sysm.rows(self.split(theta))
@@ -777,13 +792,13 @@ class _Laplace:
         pen, eta = objective(u1, ud)
         for _ in range(200):
             mu = _expit(eta)
-            w = _weights(mu, m)
+            w = _weights(mu, m, robust)
             f = sysm.factor(v1, d, w)
             resid = y - m * mu
             g1 = sysm.scatter1(v1, resid) - u1
             g2 = d.tdot(resid)
             g2[:r_u] -= ud[:r_u]
-            x1, x2 = sysm.solve(f, g1, g2)
+            x1, x2 = sysm.solve(f, g1, g2, strict=not robust)
             step = 1.0
             for _ in range(30):
                 new_pen, new_eta = objective(u1 + step * x1, ud + step * x2)
@@ -798,7 +813,7 @@ class _Laplace:
                     float(np.abs(step * x2).max(initial=0.0))) < 1e-7:
                 break
         mu = _expit(eta)
-        w = _weights(mu, m)
+        w = _weights(mu, m, robust)
         f = sysm.factor(v1, d, w)
         ld = sysm.logdet_u(f)
         self.u1, self.u2 = u1, ud[:r_u]
@@ -946,7 +961,7 @@ class _Laplace:
         when the modes are held (the conditional information)."""
         _, st = self._pirls(par[: self.n_theta], par[self.n_theta:])
         mu = _expit(st["eta"])
-        w = _weights(mu, self.m)
+        w = _weights(mu, self.m, self.robust)
         v1, d = self.sys_j.rows(self.split(par[: self.n_theta]))
         f = self.sys_j.factor(v1, d, w)
         s = f["s"]
@@ -1217,6 +1232,7 @@ class GlmmData:
         lap.u1 = np.zeros_like(lap.u1)
         lap.u2 = np.zeros_like(lap.u2)
         lap.beta_joint = np.zeros(lap.p)
+        lap.robust = False
         lap.set_prior(None)
         return lap
 
