@@ -83,7 +83,7 @@ def main(argv: list[str] | None = None) -> int:
             bad = _equal(fit, ref, set(sep.terms), _clean(ref))
             tot["glmer_compared"] += 1
             tot["glmer_equal"] += not bad
-            line += f"; glmer {'equal' if not bad else bad}" + ("" if _clean(ref) else
+            line += f"; glmer {bad if bad else 'equal'}" + ("" if _clean(ref) else
                                                                   " (glmer not clean)")
             ours_p = fit_glmm(frame, fit.spec, fixef_prior=prior)
             ref_p = fit_lme4(frame, fit.spec, fixef_prior=prior)
@@ -96,7 +96,7 @@ def main(argv: list[str] | None = None) -> int:
                 tot["bglmer_converged"] += 1
                 bad_p = _equal(ours_p, ref_p, set(), True)
                 tot["bglmer_equal"] += not bad_p
-                line += f"; bglmer {'equal' if not bad_p else bad_p}"
+                line += f"; bglmer {bad_p if bad_p else 'equal'}"
             else:
                 line += (f"; bglmer did not converge (objective ours {d_o:.3f}, "
                          f"bglmer {d_r:.3f})")
