@@ -65,12 +65,25 @@ def _running() -> bool:
     return True
 
 
+def _realtime() -> bool:
+    """Whether the running server schedules its clients' threads in realtime."""
+    import jack
+
+    client = jack.Client("tactorbelt-probe", no_start_server=True)
+    try:
+        return bool(client.realtime)
+    finally:
+        client.close()
+
+
 def ensure_jack(timeout_s: float = 15.0, realtime: bool = False) -> None:
     """Skip unless a JACK server runs (started here if need be, within ``timeout_s``).
 
     ``realtime``: start it with realtime scheduling (``-R``, jackd's own default and what
     an audio lab runs; jackd falls back to normal scheduling where the system refuses).
-    The tests run it without, so they never depend on the machine's limits.
+    The tests run it without, so they never depend on the machine's limits; a test that
+    asks for it gets it even where an earlier module started the server without it (that
+    server is started again with it: as CI's, so the timing tests run in ``make test``).
     """
     global _server
     reason = missing()
@@ -78,7 +91,9 @@ def ensure_jack(timeout_s: float = 15.0, realtime: bool = False) -> None:
         _skip(reason)
     with _lock:
         if _running():
-            return
+            if not realtime or _server is None or _realtime():
+                return
+            stop_jack()  # ours, without realtime
         env = dict(os.environ, JACK_NO_AUDIO_RESERVATION="1")
         _server = subprocess.Popen(
             ["jackd", "-R" if realtime else "--no-realtime", "-d", "dummy", "-r", str(RATE),
@@ -101,7 +116,8 @@ def rescan() -> None:
     ports as a device, once, when it starts). No stream may be open."""
     if "sounddevice" in sys.modules:
         sd = sys.modules["sounddevice"]
-        sd._terminate()
+        if sd._initialized:  # not after stop_jack
+            sd._terminate()
         sd._initialize()
 
 
