@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import random
 import sys
 from pathlib import Path
@@ -36,7 +37,7 @@ from typing import Any
 import numpy as np
 
 from tactorbelt.devices import wire
-from tactorbelt.devices.erm import ErmParams, erm_speed
+from tactorbelt.devices.erm import ErmParams, erm_speed, shape_tick
 from tactorbelt.devices.wire import (
     Ack,
     ConfigFlag,
@@ -68,7 +69,7 @@ LAWS = ("paper", "linear", "energy")
 
 # What the firmware reports for itself (firmware/tactorbelt/src/core/protocol.h) and
 # what the exchange below runs against (6 tactors, default layout, 800 PWM steps).
-FW_VERSION = (1, 2, 0)
+FW_VERSION = (1, 3, 0)
 EXCHANGE_PWM_STEPS = 800
 
 
@@ -656,6 +657,43 @@ def erm_vectors() -> dict[str, Any]:
     }
 
 
+def shape_vectors() -> dict[str, Any]:
+    """Drive shaping (firmware 1.3): erm.shape_tick's decision at every 1 ms tick for a
+    history of levels, with and without braking, in the firmware's units (drive 1 = full
+    duty, so the overdrive bound is 1); the firmware's shape_tick and drive_relax must give
+    the same drives and predicted speeds (test/test_drive.cpp)."""
+    params = ErmParams()
+    levels: list[float] = [0.0] * 3
+    for a, n in ((0.5, 80), (1.0, 150), (0.3, 80), (0.0, 100), (0.6, 60), (0.1, 60),
+                 (0.8, 40), (0.0, 60)):
+        levels += [a] * n
+    levels += [i / 100.0 for i in range(100)] + [1.0 - i / 50.0 for i in range(51)]
+    levels += [0.0] * 60
+    cases = []
+    for brake in (True, False):
+        w = 0.0
+        drives: list[float] = []
+        reverse: list[bool] = []
+        speeds: list[float] = []
+        for a in levels:
+            d, w = shape_tick(a, w, 1e-3, params.start_level, 1.0, brake, params.rise_tau_s,
+                              params.fall_tau_s, params.brake_tau_s)
+            drives.append(_num(abs(d)))
+            reverse.append(math.copysign(1.0, d) < 0.0)
+            speeds.append(_num(w))
+        cases.append({"brake": brake, "drive": drives, "reverse": reverse, "speed": speeds})
+    return {
+        "params": {"rise_tau_s": params.rise_tau_s, "fall_tau_s": params.fall_tau_s,
+                   "brake_tau_s": params.brake_tau_s, "start_level": params.start_level,
+                   "overdrive": 1.0, "tick_s": 1e-3},
+        "note": "levels[i] is commanded over tick i; drive[i] (reverse[i]: its sign) is the "
+                "shaper's decision at its start and speed[i] the predicted speed at its end, "
+                "from rest",
+        "levels": [_num(a) for a in levels],
+        "cases": cases,
+    }
+
+
 def build_ext_vectors() -> dict[str, Any]:
     """The extensions' vectors (firmware/test/vectors_ext.json)."""
     return {
@@ -663,14 +701,15 @@ def build_ext_vectors() -> dict[str, Any]:
         "generated_by": "scripts/gen_firmware_vectors.py (do not edit by hand)",
         "about": "Protocol v1 extensions (docs/protocol.md, 'Extensions'): GET_DIAG/DIAG, "
                  "ONSET, the SET_CONFIG flags byte, NAK 5 and BLE chunking; SENSE_START, "
-                 "SENSE_STOP, SENSE_DATA and NAK 6 (firmware 1.2), and the ERM model of the "
-                 "emulator's IMU; checked by the firmware host tests "
+                 "SENSE_STOP, SENSE_DATA and NAK 6 (firmware 1.2), the ERM model of the "
+                 "emulator's IMU, and drive shaping (firmware 1.3); checked by the firmware host tests "
                  "(test/test_extensions.cpp, test/test_sense.cpp).",
         "packets": ext_packet_vectors(),
         "exchange": ext_exchange_vectors(),
         "ble": ext_ble_vectors(),
         "sense": sense_exchange_vectors(),
         "erm": erm_vectors(),
+        "shape": shape_vectors(),
     }
 
 

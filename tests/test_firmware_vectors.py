@@ -91,7 +91,7 @@ def test_committed_vectors_match_the_package(
 
 def test_committed_extension_vectors_match_the_package(gen: ModuleType) -> None:
     """vectors_ext.json (GET_DIAG, ONSET, flags, NAK 5, BLE pieces, SENSE, the ERM model)
-    comes from the script too, with the firmware version of INFO (1.2.0) that protocol.h
+    comes from the script too, with the firmware version of INFO (1.3.0) that protocol.h
     reports."""
     committed = json.loads((VECTORS.parent / "vectors_ext.json").read_text())
     _assert_same(committed, json.loads(json.dumps(gen.build_ext_vectors())))
@@ -99,7 +99,7 @@ def test_committed_extension_vectors_match_the_package(gen: ModuleType) -> None:
     version = tuple(
         int(header.split(f"kFirmware{part} = ")[1].split(";")[0])
         for part in ("Major", "Minor", "Patch"))
-    assert version == gen.FW_VERSION == (1, 2, 0)
+    assert version == gen.FW_VERSION == (1, 3, 0)
 
 
 def test_extension_vectors_cover_sensing_and_the_erm_model(gen: ModuleType) -> None:
@@ -117,7 +117,7 @@ def test_extension_vectors_cover_sensing_and_the_erm_model(gen: ModuleType) -> N
     naks = {r.code for r in replies if isinstance(r, wire.Nak)}
     assert naks == {wire.NakCode.OUT_OF_RANGE, wire.NakCode.BAD_LENGTH}
     info = next(r for r in replies if isinstance(r, wire.Info))
-    assert info.can_sense and info.firmware_version == "1.2.0"
+    assert info.can_sense and info.firmware_version == "1.3.0"
     speed = np.array([s["speed"] for s in ext["erm"]["steps"]])
     assert speed.max() > 0.99 and speed[-1, 0] < 0.05  # up to full speed, and down again
     # 0.24 from 420 ms is in the dead zone: the motor falls from its 0.26
@@ -306,3 +306,15 @@ def test_emulator_rejects_bad_arguments(emulator_exe: Path, args: list[str]) -> 
     assert proc.returncode == 2
     assert proc.stdout == b""
     assert b"emulator: error:" in proc.stderr
+
+
+def test_shape_vectors_kick_brake_and_stay_within_the_full_duty() -> None:
+    """The drive-shaping trace the firmware's shaper must reproduce (test/test_drive.cpp):
+    with braking it reverse-drives some ticks, without it never; no drive passes the full
+    duty (the firmware's overdrive bound) and the predicted speed never passes 1."""
+    ext = json.loads((VECTORS.parent / "vectors_ext.json").read_text())
+    cases = {c["brake"]: c for c in ext["shape"]["cases"]}
+    assert sum(cases[True]["reverse"]) > 10 and not any(cases[False]["reverse"])
+    for c in cases.values():
+        assert max(c["drive"]) == 1.0 and min(c["drive"]) >= 0.0
+        assert max(c["speed"]) <= 1.0 + 1e-9 and min(c["speed"]) >= -1e-9

@@ -3,7 +3,7 @@
 //
 //   emulator [--tactors N | --tactor-angles A,B,...] [--heartbeat-ms MS]
 //            [--max-on-ms MS] [--levels-log FILE] [--watchdog-ms MS] [--debug-frames]
-//            [--imu bmi270|lsm9ds1|none|broken]
+//            [--imu bmi270|lsm9ds1|none|broken] [--wiring bridge|in1]
 //
 // Contract (docs/protocol.md, "The emulator"):
 // - The first stdout line is the pseudo-terminal's slave path (then stdout is
@@ -27,6 +27,10 @@
 //   Rev2, 1600 Hz), lsm9ds1 (Rev1, 952 Hz); none: no accelerometer at all (SENSE_START
 //   NAKed as unknown, like firmware 1.1); broken: an IMU that did not start (NAK 6).
 //   The motors' model runs whatever --imu says (the levels drive it in device time).
+// - --wiring: how the board's DRV8833 inputs are wired (docs/hardware.md): bridge (the
+//   default: IN1 and IN2 per motor, so shaping brakes; INFO reports kCapShape and
+//   kCapBrake) or in1 (IN2 to ground, the older wiring: shaping overdrives but coasts;
+//   INFO reports kCapShape alone). The motors' model takes the signed drive.
 #include <errno.h>
 #include <fcntl.h>
 #include <poll.h>
@@ -76,7 +80,7 @@ timespec to_timespec(int64_t ns) {
 constexpr const char kUsage[] =
     "usage: emulator [--tactors N | --tactor-angles A,B,...] [--heartbeat-ms MS]"
     " [--max-on-ms MS] [--levels-log FILE] [--watchdog-ms MS] [--debug-frames]"
-    " [--imu bmi270|lsm9ds1|none|broken]\n";
+    " [--imu bmi270|lsm9ds1|none|broken] [--wiring bridge|in1]\n";
 
 [[noreturn]] void usage_error(const char* message) {
   fprintf(stderr, "emulator: error: %s\n%s", message, kUsage);
@@ -162,6 +166,7 @@ class SimMotors : public tb::MotorDriver {
  public:
   explicit SimMotors(emu::ErmBank& bank) : bank_(bank) {}
   void write(const uint16_t* levels, uint8_t n) override { bank_.set_levels(g_call_us, levels, n); }
+  void write_in2(uint32_t mask, uint8_t) override { bank_.set_in2(g_call_us, mask); }
 
  private:
   emu::ErmBank& bank_;
@@ -220,6 +225,7 @@ int main(int argc, char** argv) {
   long watchdog_ms = 0;
   bool debug_frames = false;
   const char* imu = "bmi270";
+  bool wiring_bridge = true;
   for (int i = 1; i < argc; ++i) {
     const char* a = argv[i];
     const bool has_value = i + 1 < argc;
@@ -269,6 +275,12 @@ int main(int argc, char** argv) {
         usage_error(msg);
       }
       imu = v;
+    } else if (strcmp(a, "--wiring") == 0) {
+      if (strcmp(v, "bridge") != 0 && strcmp(v, "in1") != 0) {
+        snprintf(msg, sizeof msg, "--wiring takes bridge or in1, got '%s'", v);
+        usage_error(msg);
+      }
+      wiring_bridge = strcmp(v, "bridge") == 0;
     } else {
       snprintf(msg, sizeof msg, "unknown option '%s'", a);
       usage_error(msg);
@@ -293,6 +305,7 @@ int main(int argc, char** argv) {
     dev = std::make_unique<Device>(layout, bank);
     tb::Controller& c = dev->controller;
     if (has_imu) c.set_accelerometer(&sim_imu);
+    c.set_drive_shaping(wiring_bridge);
     if (heartbeat_ms >= 0) c.set_heartbeat_ms(static_cast<uint16_t>(heartbeat_ms));
     if (max_on_ms >= 0) c.set_max_on_ms(static_cast<uint32_t>(max_on_ms));
     c.set_reset_flags(reset_flags);
@@ -388,6 +401,7 @@ int main(int argc, char** argv) {
       const uint64_t t_fire = g_wdt_fired_us;
       const uint16_t off[tb::kMaxChannels] = {};
       bank.set_levels(t_fire, off, layout.size());
+      bank.set_in2(t_fire, 0);  // both inputs low
       levels_log.record_off(t_fire, layout.size());
       levels_log.flush();
       fprintf(stderr, "emulator: watchdog reset (not fed for %ld ms)\n", watchdog_ms);

@@ -12,6 +12,14 @@
 // with the square of the speed). firmware/test checks this against erm.py's erm_speed
 // (the "erm" vectors of vectors_ext.json).
 //
+// Signed drive (firmware 1.3, drive shaping; erm.py drive_steady/drive_relax): each motor's
+// bridge has two inputs. IN2 low: IN1's level is the forward drive above. IN2 high: the
+// bridge alternates reverse and short brake (slow decay), a reverse drive of
+// r = 1 - IN1/65535 (IN1 full: the short brake, r = 0); the speed relaxes towards -r with
+// the brake time constant (the winding is closed all the time), and past 0 the motor would
+// spin backwards: the amplitude is that of |w|. Overdrive is a forward level above the
+// rated one: the model's speed is in units of the full duty, so it is just a higher level.
+//
 // The simulated IMU: the eccentric mass spinning at w * kRatedHz pushes the board with a
 // force that rotates in the board's x-y plane, so the board's acceleration from tactor k
 // is A_k (cos phi_k, sin phi_k, 0), A_k = kRatedAccelG * amplitude_k and phi_k the rotor's
@@ -36,6 +44,7 @@ struct ErmParams {
   double fall_tau_s = 0.050;
   double start_level = 0.25;
   double amplitude_exponent = 2.0;
+  double brake_tau_s = 0.040;  // reverse drive and short brake (erm.ErmParams.brake_tau_s)
 };
 
 // Every motor of the belt, advanced in device time (microseconds).
@@ -54,6 +63,11 @@ class ErmBank {
     advance(t_us);
     for (uint8_t k = 0; k < n && k < n_; ++k) level_[k] = levels[k];
   }
+  // The bridges' second inputs from t_us on (bit k: channel k's IN2 high).
+  void set_in2(uint64_t t_us, uint32_t mask) {
+    advance(t_us);
+    in2_ = mask;
+  }
 
   // Runs every motor up to t_us (a time before the last one changes nothing).
   void advance(uint64_t t_us) {
@@ -65,9 +79,10 @@ class ErmBank {
     if (t_us <= t_us_) return;
     const double h = static_cast<double>(t_us - t_us_) * 1e-6;
     for (uint8_t k = 0; k < n_; ++k) {
-      const double s = steady(level_[k]);
+      const bool reverse = ((in2_ >> k) & 1u) != 0;
+      const double s = reverse ? -(65535.0 - level_[k]) / 65535.0 : steady(level_[k]);
       const double w = w_[k];
-      const double tau = s > w ? p_.rise_tau_s : p_.fall_tau_s;
+      const double tau = reverse ? p_.brake_tau_s : (s > w ? p_.rise_tau_s : p_.fall_tau_s);
       const double decay = exp(-h / tau);
       // the rotor angle: the integral of w * 2 pi * kRatedHz over the stretch
       phase_[k] += kTwoPi * kRatedHz * (s * h + (w - s) * tau * (1.0 - decay));
@@ -84,7 +99,8 @@ class ErmBank {
   double speed(uint8_t k) const { return w_[k]; }
   double phase(uint8_t k) const { return phase_[k]; }
   double amplitude(uint8_t k) const {
-    const double w = w_[k] < 0.0 ? 0.0 : (w_[k] > 1.0 ? 1.0 : w_[k]);
+    const double a = fabs(w_[k]);
+    const double w = a > 1.0 ? 1.0 : a;
     return p_.amplitude_exponent == 2.0 ? w * w : pow(w, p_.amplitude_exponent);
   }
 
@@ -94,6 +110,7 @@ class ErmBank {
   bool started_ = false;
   uint64_t t_us_ = 0;
   uint16_t level_[tb::kMaxChannels] = {};
+  uint32_t in2_ = 0;
   double w_[tb::kMaxChannels] = {};
   double phase_[tb::kMaxChannels] = {};
 };

@@ -36,10 +36,26 @@ void gpio_output_low(uint32_t pin_name) {
   port->OUTCLR = bit;
 }
 
+// A GPIO output, by register: high or low.
+void gpio_write(uint32_t pin_name, bool high) {
+  NRF_GPIO_Type* port = (pin_name >= 32) ? NRF_P1 : NRF_P0;
+  const uint32_t bit = 1ul << (pin_name & 31u);
+  if (high) {
+    port->OUTSET = bit;
+  } else {
+    port->OUTCLR = bit;
+  }
+}
+
 }  // namespace
 
-void NrfPwmMotors::begin(const PinName* pins, uint8_t n) {
+void NrfPwmMotors::begin(const PinName* pins, uint8_t n, const PinName* in2_pins) {
   n_ = n > kMaxOutputs ? kMaxOutputs : n;
+  has_in2_ = in2_pins != nullptr;
+  for (uint8_t k = 0; k < n_ && has_in2_; ++k) {
+    in2_pin_[k] = static_cast<uint32_t>(in2_pins[k]);
+    gpio_output_low(in2_pin_[k]);  // IN2 low first: the bridge can only coast or drive
+  }
   for (uint8_t k = 0; k < n_; ++k) {
     gpio_output_low(static_cast<uint32_t>(pins[k]));
   }
@@ -85,7 +101,13 @@ void NrfPwmMotors::write(const uint16_t* levels, uint8_t n) {
   }
 }
 
+void NrfPwmMotors::write_in2(uint32_t mask, uint8_t n) {
+  if (!has_in2_) return;
+  for (uint8_t k = 0; k < n_ && k < n; ++k) gpio_write(in2_pin_[k], ((mask >> k) & 1u) != 0);
+}
+
 void NrfPwmMotors::all_off() {
+  for (uint8_t k = 0; k < n_ && has_in2_; ++k) gpio_write(in2_pin_[k], false);
   for (int i = 0; i < 2; ++i) {
     for (int c = 0; c < 4; ++c) g_sequence[i][c] = kFallingEdge;
     g_pwm[i].stop();

@@ -21,6 +21,7 @@
 
 #include "board_imu.h"
 #include "nrf_pwm_motors.h"
+#include "wiring_config.h"
 #include "src/core/controller.h"
 #include "src/core/links.h"
 
@@ -35,6 +36,15 @@ namespace {
 // BLE header they are D7, D8, D9, D12, A0, A1.
 constexpr uint8_t kChannels = 6;
 const PinName kMotorPins[kChannels] = {P0_23, P0_21, P0_27, P1_8, P0_4, P0_5};
+// The bridges' second inputs (IN2), with TACTORBELT_WIRING_BRAKE (wiring_config.h): plain
+// GPIOs, switched only where a brake pulse starts or ends, so the "low frequency I/O only"
+// pins serve (D2, D3, D4, D5, D6, D10). Without the define they stay inputs.
+const PinName kBrakePins[kChannels] = {P1_11, P1_12, P1_15, P1_13, P1_14, P1_2};
+#ifdef TACTORBELT_WIRING_BRAKE
+constexpr bool kWiredBrake = true;
+#else
+constexpr bool kWiredBrake = false;
+#endif
 const pin_size_t kStateLed = LED_BUILTIN;  // on while the outputs may be driven
 
 // The GATT service: the host writes request packets (unframed, one per write,
@@ -253,11 +263,12 @@ void tick_if_due() {
 
 void setup() {
   // Outputs off before anything else: pins GPIO outputs low, PWM disabled.
-  g_motors.begin(kMotorPins, kChannels);
+  g_motors.begin(kMotorPins, kChannels, kWiredBrake ? kBrakePins : nullptr);
   pinMode(kStateLed, OUTPUT);
   digitalWrite(kStateLed, LOW);
   g_layout.set_even(kChannels);
   g_controller.set_reset_flags(read_and_clear_reset_reason());
+  g_controller.set_drive_shaping(kWiredBrake);  // shapes on every board; brakes if wired
   g_controller.begin(micros64());
   // The IMU (SENSE_START): installed either way; one that does not start is reported as
   // unavailable (no INFO capability bit, NAK 6), not as a firmware without it.

@@ -49,8 +49,15 @@ class FakeMotors : public tb::MotorDriver {
     last.assign(levels, levels + n);
     ++writes;
   }
+  void write_in2(uint32_t mask, uint8_t n) override {
+    (void)n;
+    in2 = mask;
+    ++in2_writes;
+  }
   std::vector<uint16_t> last;
   int writes = 0;
+  uint32_t in2 = 0;
+  int in2_writes = 0;
 };
 
 // Collects COBS-framed replies, like the serial link does.

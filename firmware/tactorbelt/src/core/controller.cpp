@@ -2,14 +2,44 @@
 
 namespace tb {
 
+namespace {
+constexpr float kTickS = 0.001f;  // the shaper decides for one 1 kHz tick
+
+// A bound's budget after dt us: used grows while the drive is what it bounds, else shrinks.
+uint32_t budget(uint32_t used, uint32_t dt, bool driving) {
+  if (driving) return used > 0xFFFFFFFFu - dt ? 0xFFFFFFFFu : used + dt;
+  return used > dt ? used - dt : 0u;
+}
+}  // namespace
+
 Controller::Controller(const Layout& layout, MotorDriver& motors, uint16_t pwm_steps)
-    : layout_(layout), motors_(motors), pwm_steps_(pwm_steps) {}
+    : layout_(layout), motors_(motors), pwm_steps_(pwm_steps) {
+  reset_drive();
+}
+
+void Controller::reset_drive() {
+  drive_mode_ = 0;
+  for (uint8_t k = 0; k < kMaxChannels; ++k) {
+    drive_[k] = DriveParams();
+    drive_[k].prepare(kTickS);
+  }
+}
 
 void Controller::begin(uint64_t now_us) {
   state_ = State::kIdle;
   sense_.abort();
-  for (uint8_t k = 0; k < kMaxChannels; ++k) out_[k] = 0;
-  motors_.write(out_, channels());  // off, whatever the driver did before
+  reset_drive();
+  for (uint8_t k = 0; k < kMaxChannels; ++k) {
+    out_[k] = 0;
+    in1_[k] = 0;
+    over_used_us_[k] = 0;
+    reverse_used_us_[k] = 0;
+    w_[k] = 0.0f;  // a reset lets the motors coast to rest (more than a watchdog period)
+  }
+  in2_mask_ = 0;
+  model_started_ = false;
+  motors_.write_in2(0, channels());  // both inputs low, whatever the driver did before
+  motors_.write(out_, channels());
   update_outputs(now_us);
 }
 
@@ -63,6 +93,7 @@ void Controller::link_closed(uint64_t now_us) {
   decoder_.reset();
   have_seq_ = false;
   flags_ = 0;  // extensions are per connection: the next host starts with plain v1
+  reset_drive();  // and with the plain drive: the outputs go off with both inputs low
   sense_.abort();  // and so is sensing: nothing more is sent to the closed link
   state_ = State::kIdle;
   update_outputs(now_us);
@@ -124,6 +155,8 @@ void Controller::handle(const Packet& p, uint64_t now_us, ReplySink& sink) {
       put_u16(payload + 7, heartbeat_ms_);
       payload[9] = kCapPlayTarget;
       if (sense_.ready()) payload[9] |= kCapSense;
+      if (shaping_installed_) payload[9] |= kCapShape;
+      if (shaping_installed_ && can_brake_) payload[9] |= kCapBrake;
       if (reset_flags_ & reset::kWatchdog) payload[9] |= kCapWatchdogReset;
       for (uint8_t k = 0; k < n; ++k) {
         uint32_t cdeg = static_cast<uint32_t>(layout_.angle(k) * 100.0f + 0.5f);
@@ -217,6 +250,13 @@ void Controller::handle(const Packet& p, uint64_t now_us, ReplySink& sink) {
       sense_.stop();  // the last batch (flag kLast) is queued, sent before or after the ACK
       return ack(sink, p.seq);
     }
+    case msg::kSetDrive: {
+      if (!shaping_installed_) return nak(sink, p.seq, nak::kUnknownType);
+      const uint8_t code = set_drive(p);
+      if (code != 0) return nak(sink, p.seq, code);
+      update_outputs(now_us);  // the new drive from now on
+      return ack(sink, p.seq);
+    }
     default:
       if (debug_ != nullptr && p.type >= msg::kDebugFirst && p.type <= msg::kDebugLast &&
           debug_->handle(p)) {
@@ -224,6 +264,39 @@ void Controller::handle(const Packet& p, uint64_t now_us, ReplySink& sink) {
       }
       return nak(sink, p.seq, nak::kUnknownType);
   }
+}
+
+// SET_DRIVE: mode [, tactor, start, rated, rise, fall, brake]; every value is checked
+// before any applies. Returns 0 or a NAK code.
+uint8_t Controller::set_drive(const Packet& p) {
+  if (p.len != kSetDrivePayloadShort && p.len != kSetDrivePayload) return nak::kBadLength;
+  const uint8_t mode = p.payload[0];
+  if ((mode & ~kKnownDriveBits) != 0) return nak::kOutOfRange;
+  if (p.len == kSetDrivePayload) {
+    const uint8_t tactor = p.payload[1];
+    const uint16_t start = get_u16(p.payload + 2);
+    const uint16_t rated = get_u16(p.payload + 4);
+    uint16_t tau[3];
+    for (int i = 0; i < 3; ++i) {
+      tau[i] = get_u16(p.payload + 6 + 2 * i);
+      if (tau[i] < kMinDriveTau || tau[i] > kMaxDriveTau) return nak::kOutOfRange;
+    }
+    if ((tactor != kDriveAllTactors && tactor >= channels()) || rated == 0 || start >= rated) {
+      return nak::kOutOfRange;
+    }
+    DriveParams q;
+    q.start = static_cast<float>(start) / 65535.0f;
+    q.rated = static_cast<float>(rated) / 65535.0f;
+    q.rise_tau_s = static_cast<float>(tau[0]) * 1e-4f;
+    q.fall_tau_s = static_cast<float>(tau[1]) * 1e-4f;
+    q.brake_tau_s = static_cast<float>(tau[2]) * 1e-4f;
+    q.prepare(kTickS);
+    for (uint8_t k = 0; k < channels(); ++k) {
+      if (tactor == kDriveAllTactors || tactor == k) drive_[k] = q;
+    }
+  }
+  drive_mode_ = mode;
+  return 0;
 }
 
 void Controller::tick(uint64_t now_us) {
@@ -242,6 +315,23 @@ void Controller::tick(uint64_t now_us) {
 
 void Controller::update_outputs(uint64_t now_us) {
   const uint8_t n = channels();
+  // The shaper's model of each motor runs, in every mode, on the drive the bridges had
+  // since the last update (so a switch to shaped starts from the motors' real state).
+  if (model_started_ && now_us > model_us_) {
+    const uint64_t dt_us = now_us - model_us_;
+    const float h = static_cast<float>(dt_us) * 1e-6f;
+    const uint32_t dt = dt_us > 0xFFFFFFFFu ? 0xFFFFFFFFu : static_cast<uint32_t>(dt_us);
+    for (uint8_t k = 0; k < n; ++k) {
+      const bool in2 = ((in2_mask_ >> k) & 1u) != 0;
+      const Drive d = bridge_to_drive(in1_[k], in2);
+      w_[k] = drive_relax(d, w_[k], h, drive_[k]);
+      const bool over = !in2 && d.mag > drive_[k].rated;
+      over_used_us_[k] = budget(over_used_us_[k], dt, over);
+      reverse_used_us_[k] = budget(reverse_used_us_[k], dt, in2);
+    }
+  }
+  if (!model_started_ || now_us > model_us_) model_us_ = now_us;
+  model_started_ = true;
   float amps[kMaxChannels] = {};
   if (state_ == State::kPlaying) stimulus_.amplitudes(now_us - play_start_us_, amps);
   const uint64_t max_on_us = static_cast<uint64_t>(max_on_ms_) * 1000u;
@@ -260,12 +350,46 @@ void Controller::update_outputs(uint64_t now_us) {
     } else if (now_us - on_since_us_[k] >= max_on_us) {
       level = 0;
     }
-    if (level != out_[k]) {
-      out_[k] = level;
-      changed = true;
-    }
+    out_[k] = level;
   }
-  if (changed) motors_.write(out_, n);
+  // The drive: the levels themselves (plain, and always in the failsafe: IN2 low, so the
+  // motors coast), or each shaped (a kick, a brake pulse, then the level). A shaped level
+  // is held at most at the rated drive; only a kick goes above it.
+  const bool shaped = (drive_mode_ & kDriveShaped) != 0 && state_ != State::kFailsafe;
+  const bool brake = can_brake_ && (drive_mode_ & kDriveNoBrake) == 0;
+  uint16_t in1[kMaxChannels] = {};
+  uint32_t in2 = 0;
+  for (uint8_t k = 0; k < n; ++k) {
+    if (!shaped) {
+      in1[k] = out_[k];
+      continue;
+    }
+    float level = static_cast<float>(out_[k]) / 65535.0f;
+    if (level > drive_[k].rated) level = drive_[k].rated;
+    Drive d = shape_tick(level, w_[k], drive_[k], brake);
+    // the bounds: a drive that would pass one is the level itself for this tick
+    const uint32_t tick_us = 1000u;
+    if (d.reverse && reverse_used_us_[k] + tick_us > drive_[k].reverse_bound_us) {
+      d = Drive{level, false};
+    } else if (!d.reverse && d.mag > level && d.mag > drive_[k].rated &&
+               over_used_us_[k] + tick_us > drive_[k].over_bound_us) {
+      d.mag = level;
+    }
+    bool high = false;
+    drive_to_bridge(d, &in1[k], &high);
+    if (high) in2 |= 1u << k;
+  }
+  for (uint8_t k = 0; k < n; ++k) {
+    if (in1[k] != in1_[k]) changed = true;
+    in1_[k] = in1[k];
+  }
+  // IN2 falls before IN1 changes and rises after: a bridge leaving a brake pulse coasts
+  // for the moment between the writes, one entering it brakes.
+  const uint32_t falling = in2_mask_ & ~in2;
+  if (falling != 0) motors_.write_in2(in2_mask_ & in2, n);
+  if (changed) motors_.write(in1_, n);
+  if (in2 != in2_mask_) motors_.write_in2(in2, n);
+  in2_mask_ = in2;
 }
 
 }  // namespace tb

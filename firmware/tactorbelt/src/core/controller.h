@@ -7,6 +7,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "drive.h"
 #include "protocol.h"
 #include "renderer.h"
 #include "sense.h"
@@ -20,6 +21,13 @@ namespace tb {
 class MotorDriver {
  public:
   virtual void write(const uint16_t* levels, uint8_t n) = 0;
+  // The bridges' second inputs (IN2), bit k for channel k (firmware 1.3, drive shaping):
+  // written only by a controller told the board can brake (set_drive_shaping), whenever a
+  // bit changes; write() then carries IN1. A driver without them ignores this.
+  virtual void write_in2(uint32_t mask, uint8_t n) {
+    (void)mask;
+    (void)n;
+  }
 
  protected:
   ~MotorDriver() = default;
@@ -101,6 +109,14 @@ class Controller {
   // The accelerometer SENSE_START streams (firmware 1.2). Without one (null), SENSE_START
   // and SENSE_STOP are NAKed as unknown (code 2), as by firmware 1.1.
   void set_accelerometer(Accelerometer* a) { sense_.set_accelerometer(a); }
+  // Drive shaping (firmware 1.3): SET_DRIVE becomes known and INFO reports kCapShape, and
+  // kCapBrake when can_brake (the board has both bridge inputs wired: MotorDriver::
+  // write_in2 drives IN2). Without this call SET_DRIVE is NAKed as unknown (code 2), as by
+  // firmware 1.2, and the outputs are exactly the levels.
+  void set_drive_shaping(bool can_brake) {
+    shaping_installed_ = true;
+    can_brake_ = can_brake;
+  }
   // Why the device last reset (reset::* bits, from RESETREAS at boot): GET_DIAG
   // reports them, INFO sets kCapWatchdogReset when the watchdog did it.
   void set_reset_flags(uint8_t flags) { reset_flags_ = flags; }
@@ -115,6 +131,13 @@ class Controller {
   uint16_t heartbeat_ms() const { return heartbeat_ms_; }
   uint32_t max_on_ms() const { return max_on_ms_; }
   const SenseStream& sense() const { return sense_; }
+  // The drive on the bridges: IN1 levels (the levels themselves when plain) and IN2 bits.
+  const uint16_t* in1() const { return in1_; }
+  uint32_t in2_mask() const { return in2_mask_; }
+  uint8_t drive_mode() const { return drive_mode_; }
+  // The shaper's predicted speed of channel k (units of full duty).
+  float predicted_speed(uint8_t k) const { return w_[k]; }
+  const DriveParams& drive_params(uint8_t k) const { return drive_[k]; }
 
  private:
   void handle(const Packet& p, uint64_t now_us, ReplySink& reply);
@@ -123,6 +146,8 @@ class Controller {
   void nak(ReplySink& sink, uint8_t seq, uint8_t code);
   void onset(ReplySink& sink, uint8_t seq, uint8_t type, uint64_t now_us);
   void update_outputs(uint64_t now_us);
+  void reset_drive();
+  uint8_t set_drive(const Packet& p);
 
   const Layout& layout_;
   MotorDriver& motors_;
@@ -148,6 +173,21 @@ class Controller {
   uint32_t play_duration_ms_ = 0;
 
   uint16_t out_[kMaxChannels] = {};
+  // drive shaping: the bridges' inputs, the shaper's model of each motor
+  bool shaping_installed_ = false;
+  bool can_brake_ = false;
+  uint8_t drive_mode_ = 0;  // kDriveShaped, kDriveNoBrake; per connection
+  DriveParams drive_[kMaxChannels];
+  float w_[kMaxChannels] = {};
+  uint64_t model_us_ = 0;
+  bool model_started_ = false;
+  uint16_t in1_[kMaxChannels] = {};
+  uint32_t in2_mask_ = 0;
+  // Time (us) each tactor has spent driven above its rated drive, and with IN2 high: it
+  // grows while so driven and shrinks as fast while not. Neither may pass its bound
+  // (DriveParams), so no command sequence holds overdrive or reverse drive longer.
+  uint32_t over_used_us_[kMaxChannels] = {};
+  uint32_t reverse_used_us_[kMaxChannels] = {};
   bool on_[kMaxChannels] = {};
   uint64_t on_since_us_[kMaxChannels] = {};
 };

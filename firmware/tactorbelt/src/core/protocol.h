@@ -9,7 +9,7 @@ namespace tb {
 
 constexpr uint8_t kProtocolVersion = 1;
 constexpr uint8_t kFirmwareMajor = 1;
-constexpr uint8_t kFirmwareMinor = 2;
+constexpr uint8_t kFirmwareMinor = 3;
 constexpr uint8_t kFirmwarePatch = 0;
 
 // A packet is type u8, seq u8, payload, crc u16 LE: at most 64 bytes before framing.
@@ -31,6 +31,12 @@ constexpr uint8_t kMaxChannels = 16;
 // (firmware 1.2): the board's accelerometer started and SENSE_START streams it.
 constexpr uint8_t kCapPlayTarget = 0x01;
 constexpr uint8_t kCapSense = 0x02;
+// Firmware 1.3, set only by a build that shapes (Controller::set_drive_shaping): SET_DRIVE is
+// known (kCapShape), and the board has both bridge inputs wired, so it can reverse-drive and
+// short-brake its motors (kCapBrake). A board wired the old way (IN2 to ground, MOSFETs)
+// reports kCapShape alone: it overdrives but coasts.
+constexpr uint8_t kCapShape = 0x04;
+constexpr uint8_t kCapBrake = 0x08;
 constexpr uint8_t kCapWatchdogReset = 0x80;
 
 // SET_CONFIG flags (the optional 7th payload byte). Cleared when the link closes.
@@ -59,6 +65,7 @@ constexpr uint8_t kGetStatus = 0x16;
 constexpr uint8_t kGetDiag = 0x17;
 constexpr uint8_t kSenseStart = 0x18;  // firmware 1.2: stream the accelerometer
 constexpr uint8_t kSenseStop = 0x19;
+constexpr uint8_t kSetDrive = 0x1A;  // firmware 1.3: plain or shaped drive, motor constants
 constexpr uint8_t kAck = 0x80;
 constexpr uint8_t kPong = 0x81;
 constexpr uint8_t kInfo = 0x82;
@@ -93,6 +100,17 @@ constexpr size_t kSetConfigPayloadFlags = 7;
 constexpr size_t kDiagPayload = 13;
 constexpr size_t kOnsetPayload = 10;
 constexpr size_t kSenseStartPayload = 7;
+constexpr size_t kSetDrivePayloadShort = 1;  // mode
+constexpr size_t kSetDrivePayload = 12;      // mode, tactor, start, rated, rise, fall, brake
+
+// SET_DRIVE mode bits. Plain (0) is the power-up drive, and every link close returns to it.
+constexpr uint8_t kDriveShaped = 0x01;   // shape every level change (kick, brake pulse)
+constexpr uint8_t kDriveNoBrake = 0x02;  // shaped, but coast where a fall would brake
+constexpr uint8_t kKnownDriveBits = kDriveShaped | kDriveNoBrake;
+constexpr uint8_t kDriveAllTactors = 0xFF;
+// Time constants in units of 100 us: 1 ms to 6 s.
+constexpr uint16_t kMinDriveTau = 10;
+constexpr uint16_t kMaxDriveTau = 60000;
 
 // Configuration limits.
 constexpr uint16_t kDefaultHeartbeatMs = 250;
