@@ -702,8 +702,8 @@ def build_ext_vectors() -> dict[str, Any]:
         "about": "Protocol v1 extensions (docs/protocol.md, 'Extensions'): GET_DIAG/DIAG, "
                  "ONSET, the SET_CONFIG flags byte, NAK 5 and BLE chunking; SENSE_START, "
                  "SENSE_STOP, SENSE_DATA and NAK 6 (firmware 1.2), the ERM model of the "
-                 "emulator's IMU, and drive shaping (firmware 1.3); checked by the firmware host tests "
-                 "(test/test_extensions.cpp, test/test_sense.cpp).",
+                 "emulator's IMU, and drive shaping (firmware 1.3); checked by the firmware "
+                 "host tests (test/test_extensions.cpp, test/test_sense.cpp).",
         "packets": ext_packet_vectors(),
         "exchange": ext_exchange_vectors(),
         "ble": ext_ble_vectors(),
