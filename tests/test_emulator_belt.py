@@ -54,11 +54,13 @@ def test_get_info_gives_the_layout_and_version(emu: EmulatorBelt) -> None:
 
 
 def test_the_emulator_has_the_extensions_and_reports_onsets(emu: EmulatorBelt) -> None:
-    """Firmware 1.2.0: GET_DIAG answered, ONSET events on, no watchdog reset reported, and
+    """Firmware 1.3.0: GET_DIAG answered, ONSET events on, no watchdog reset reported, and
     a board IMU that streams (tests/test_board_sense.py)."""
-    assert emu.firmware_version == "1.2.0"
+    assert emu.firmware_version == "1.3.0"
     assert emu.extensions and emu.reports_onsets and not emu.watchdog_reset
     assert emu.senses_vibration and emu.info.can_sense
+    # firmware 1.3: the device shapes, and the emulated board has both bridge inputs wired
+    assert emu.can_shape and emu.can_brake and emu.drive == "plain"
     assert emu.diagnostics is not None and emu.diagnostics.reset_flags == 0
     t0 = time.perf_counter_ns()
     emu.play(make_stimulus(emu.layout, 45.0, mode="dynamic"))

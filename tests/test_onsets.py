@@ -185,7 +185,7 @@ def test_a_hang_resets_the_emulator_by_its_watchdog_and_the_belt_reports_it(
         time.sleep(0.6)
         diag = belt.diag()
         assert diag.watchdog_reset and belt.watchdog_reset
-        assert belt.info.firmware_version == "1.2.0"
+        assert belt.info.firmware_version == "1.3.0"
         assert belt.status().state == wire.State.IDLE  # a fresh core: outputs off
         assert belt.lost is None
         belt.play(make_stimulus(belt.layout, 45.0, mode="dynamic"))

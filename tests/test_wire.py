@@ -509,7 +509,8 @@ def test_message_codes_are_the_contract() -> None:
     assert {m.name: m.value for m in MsgType} == {
         "PING": 0x01, "GET_INFO": 0x02, "SET_AMPLITUDES": 0x10, "STOP_ALL": 0x11,
         "PLAY_TARGET": 0x12, "HEARTBEAT": 0x14, "SET_CONFIG": 0x15, "GET_STATUS": 0x16,
-        "GET_DIAG": 0x17, "SENSE_START": 0x18, "SENSE_STOP": 0x19, "ACK": 0x80, "PONG": 0x81,
+        "GET_DIAG": 0x17, "SENSE_START": 0x18, "SENSE_STOP": 0x19, "SET_DRIVE": 0x1A,
+        "ACK": 0x80, "PONG": 0x81,
         "INFO": 0x82, "STATUS": 0x83, "DIAG": 0x84, "ONSET": 0x85, "SENSE_DATA": 0x86,
         "NAK": 0x8F,
     }
@@ -517,6 +518,9 @@ def test_message_codes_are_the_contract() -> None:
     assert (wire.Capability.WATCHDOG_RESET, wire.ResetFlag.WATCHDOG) == (0x80, 0x02)
     assert (wire.Capability.SENSE, wire.SenseFlag.LAST, wire.SenseFlag.DROPPED) == (2, 1, 2)
     assert (wire.ConfigFlag.ONSET_EVENTS, wire.ConfigFlag.BLE_FRAMED) == (0x01, 0x02)
+    assert (wire.Capability.SHAPE, wire.Capability.BRAKE) == (0x04, 0x08)
+    assert (wire.DriveMode.SHAPED, wire.DriveMode.NO_BRAKE) == (0x01, 0x02)
+    assert wire.encode_packet(wire.set_drive(7, wire.DriveMode.SHAPED))[:3] == b"\x1a\x07\x01"
     assert [s.value for s in State] == [0, 1, 2, 3]
     assert (wire.PROTOCOL_VERSION, wire.MAX_PACKET) == (1, 64)
 

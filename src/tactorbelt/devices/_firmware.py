@@ -979,6 +979,26 @@ class FirmwareBelt(Belt, PacketSink):
             return None
         return self.clock_sync.to_host(got.device_time_us)
 
+    # -- drive shaping (firmware 1.3) -----------------------------------------------------
+    @property
+    def can_shape(self) -> bool:
+        """True when the firmware shapes the drive in its renderer (INFO capability bit 2,
+        SET_DRIVE): every board with firmware 1.3 or later."""
+        return self.extensions and self.info.can_shape
+
+    @property
+    def can_brake(self) -> bool:
+        """True when the board reports both H-bridge inputs wired (INFO capability bit 3):
+        a shaped fall reverse-drives and short-brakes; else it coasts."""
+        return self.can_shape and self.info.can_brake
+
+    def _set_drive(self, drive: str) -> None:
+        """SET_DRIVE: the device shapes every level change from now on (frames and
+        PLAY_TARGET alike), with its motor constants (docs/protocol.md, "SET_DRIVE")."""
+        mode = wire.DriveMode.SHAPED if drive == "shaped" else 0
+        reply = self._request(lambda seq: wire.set_drive(seq, int(mode)), "SET_DRIVE")
+        self._expect(reply, wire.Ack, "SET_DRIVE")
+
     # -- the board's accelerometer (firmware 1.2) -----------------------------------------
     @property
     def senses_vibration(self) -> bool:

@@ -48,6 +48,7 @@ __all__ = [
     "Capability",
     "ConfigFlag",
     "Diag",
+    "DriveMode",
     "FrameDecoder",
     "GetDiag",
     "GetInfo",
@@ -100,6 +101,7 @@ __all__ = [
     "sense_stop",
     "set_amplitudes",
     "set_config",
+    "set_drive",
     "stop_all",
 ]
 
@@ -135,6 +137,7 @@ class MsgType(enum.IntEnum):
     GET_DIAG = 0x17
     SENSE_START = 0x18
     SENSE_STOP = 0x19
+    SET_DRIVE = 0x1A
     ACK = 0x80
     PONG = 0x81
     INFO = 0x82
@@ -189,6 +192,10 @@ class Capability(enum.IntFlag):
 
     PLAY_TARGET = 0x01
     SENSE = 0x02
+    #: firmware 1.3: SET_DRIVE shapes the drive on the device (overdrive kicks).
+    SHAPE = 0x04
+    #: firmware 1.3: both H-bridge inputs are wired, so a shaped fall brakes.
+    BRAKE = 0x08
     WATCHDOG_RESET = 0x80
 
 
@@ -197,6 +204,15 @@ class ConfigFlag(enum.IntFlag):
 
     ONSET_EVENTS = 0x01
     BLE_FRAMED = 0x02
+
+
+class DriveMode(enum.IntFlag):
+    """SET_DRIVE mode bits (firmware 1.3); 0 is the plain drive, the device's default
+    after power-up and after every link close."""
+
+    SHAPED = 0x01
+    #: shaped, but a fall coasts instead of braking
+    NO_BRAKE = 0x02
 
 
 class SenseFlag(enum.IntFlag):
@@ -710,6 +726,13 @@ def sense_start(seq: int, rate_hz: int, duration_ms: int,
     return Packet(MsgType.SENSE_START, seq, payload)
 
 
+def set_drive(seq: int, mode: int) -> Packet:
+    """SET_DRIVE (firmware 1.3) with the mode byte alone (:class:`DriveMode`): the device
+    keeps its motor constants (docs/protocol.md, "SET_DRIVE"). ACK; NAK 2 from a firmware
+    without shaping (INFO without :attr:`Capability.SHAPE`)."""
+    return Packet(MsgType.SET_DRIVE, seq, bytes([_uint("mode", mode, 8)]))
+
+
 def sense_stop(seq: int) -> Packet:
     """SENSE_STOP (firmware 1.2): the session ends now (its last batch comes with
     :attr:`SenseFlag.LAST`); ACK, also when none runs."""
@@ -809,6 +832,16 @@ class Info:
         """True when SENSE_START streams the board's accelerometer (firmware 1.2, its IMU
         started)."""
         return bool(self.capabilities & Capability.SENSE)
+
+    @property
+    def can_shape(self) -> bool:
+        """True when SET_DRIVE shapes the drive on the device (firmware 1.3)."""
+        return bool(self.capabilities & Capability.SHAPE)
+
+    @property
+    def can_brake(self) -> bool:
+        """True when the board has both H-bridge inputs wired (a shaped fall brakes)."""
+        return bool(self.capabilities & Capability.BRAKE)
 
 
 @dataclass(frozen=True)
