@@ -312,12 +312,20 @@ def validate_onsets(belt: Belt, sensor: Sensor, settings: OnsetSettings | None =
         problem = window.problem
         if problem is None and dropouts.within(p.t_on, p.t_off):  # while it was on
             problem = "the belt reported an output underrun"
-        m = measure_pulse(window.t_ns, window.env, p.t_on, p.t_off, tactor=p.tactor,
-                          level=p.level)
         if problem is not None and p.attempt < s.max_repeats:
             repeats.append({"tactor": p.tactor, "level": p.level, "reason": problem})
             queue.insert(0, _Pulse(p.tactor, p.level, p.attempt + 1))
             return
+        try:
+            m = measure_pulse(window.t_ns, window.env, p.t_on, p.t_off, tactor=p.tactor,
+                              level=p.level)
+        except ValueError:  # the sensor lost the window's start (a loaded machine)
+            if problem is None:
+                raise
+            raise DeviceError(
+                f"tactor {p.tactor} at level {p.level:g}: {problem} in each of "
+                f"{p.attempt + 1} attempts (an overloaded machine? raise the sound "
+                "card's latency, or JACK's period)") from None
         if not m.seen:
             raise NoPulseError(
                 f"the sensor ({sensor.url}) saw no pulse on tactor {p.tactor} at level "
