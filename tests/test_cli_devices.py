@@ -38,7 +38,7 @@ def test_lists_the_serial_belt_and_leaves_other_ports_alone(
     result = CliRunner().invoke(cli, ["devices", "--no-ble"])
     assert result.exit_code == 0, result.output
     lines = result.output.splitlines()
-    (belt_line,) = [ln for ln in lines if pty_belt.path in ln]
+    (belt_line,) = [ln for ln in lines if ln.lstrip().startswith(pty_belt.path)]
     assert "firmware 1.2.3, 8 tactors" in belt_line
     assert f"--belt serial:{pty_belt.path}" in belt_line
     (other,) = [ln for ln in lines if "/dev/ttyS0" in ln]
@@ -61,6 +61,29 @@ def test_says_clearly_when_there_is_nothing_and_ble_is_unavailable(
     assert "note: BLE is not available on this machine: no adapter" in result.output
     assert "No belts found." in result.output
     assert "Traceback" not in result.output
+
+
+@pytest.mark.parametrize(("capabilities", "says"), [
+    (0x01, "plain drive only"),
+    (0x05, "shapes its drive, cannot brake (IN2 to ground)"),
+    (0x0D, "shapes its drive and brakes"),
+])
+def test_says_what_the_belts_drive_can_do(monkeypatch: pytest.MonkeyPatch, capabilities: int,
+                                          says: str) -> None:
+    """Firmware 1.3's INFO bits SHAPE (0x04) and BRAKE (0x08): a board wired the old way
+    (IN2 to ground) shapes but cannot brake (docs/hardware.md)."""
+    from serial.tools import list_ports
+
+    dev = PtyDevice(FakeFirmware(tactors=6, extensions=True, fw_version=(1, 3, 0),
+                                 capabilities=capabilities))
+    try:
+        monkeypatch.setattr(list_ports, "comports", comports(
+            port_info(dev.path, "Nano 33 BLE", 0x2341)))
+        result = CliRunner().invoke(cli, ["devices", "--no-ble"])
+    finally:
+        dev.close()
+    assert result.exit_code == 0, result.output
+    assert f"drive: {says}" in result.output
 
 
 def test_lists_ble_belts_that_answer(monkeypatch: pytest.MonkeyPatch) -> None:

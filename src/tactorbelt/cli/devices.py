@@ -39,6 +39,8 @@ def _discover(scheme: str, timeout_s: float, probe_all: bool) -> Discovery:
 def _line(row: Found) -> str:
     if row.is_belt:
         what = f"belt: firmware {row.firmware_version}, {row.tactors} tactors -> --belt {row.url}"
+        if row.drive:
+            what += f"\n    drive: {row.drive}"
         if row.note:  # e.g. older firmware than this tactorbelt carries, and the update
             what += f"\n    note: {row.note}"
     else:

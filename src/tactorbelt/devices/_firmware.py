@@ -992,6 +992,16 @@ class FirmwareBelt(Belt, PacketSink):
         a shaped fall reverse-drives and short-brakes; else it coasts."""
         return self.can_shape and self.info.can_brake
 
+    @property
+    def drive_summary(self) -> str:
+        """What ``tactorbelt devices`` says of the drive: shaped with braking, shaped
+        without (IN2 to ground), or plain only (firmware before 1.3)."""
+        if not self.can_shape:
+            return "plain drive only (firmware before 1.3)"
+        if self.can_brake:
+            return "shapes its drive and brakes (both bridge inputs wired)"
+        return "shapes its drive, cannot brake (IN2 to ground)"
+
     def _set_drive(self, drive: str) -> None:
         """SET_DRIVE: the device shapes every level change from now on (frames and
         PLAY_TARGET alike), with its motor constants (docs/protocol.md, "SET_DRIVE")."""

@@ -435,5 +435,6 @@ def discover(timeout_s: float = 5.0, probe_all: bool = False) -> Discovery:
 
                 row.firmware_version, row.tactors = belt.firmware_version, belt.n_tactors
                 row.note = version_note(belt.firmware_version, None)
+                row.drive = belt.drive_summary
         rows.append(row)
     return Discovery(rows, None, empty)

@@ -143,6 +143,8 @@ class Found:
     firmware_version: str | None = None
     tactors: int | None = None
     note: str = ""
+    #: what the belt's drive can do (firmware belts: ``Belt.drive_summary``), or None
+    drive: str | None = None
 
     @property
     def is_belt(self) -> bool:

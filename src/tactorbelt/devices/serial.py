@@ -347,19 +347,22 @@ def open_serial(target: str, **options: Any) -> FirmwareBelt:
     )
 
 
-def _probe(open_: Callable[[], FirmwareBelt]) -> tuple[str | None, int | None, str]:
-    """Open a belt, read version and tactor count, close it. Never raises."""
+def _probe(open_: Callable[[], FirmwareBelt]
+           ) -> tuple[str | None, int | None, str, str | None]:
+    """Open a belt, read version, tactor count and what its drive can do, close it. Never
+    raises."""
     from .._errors import TactorbeltError
 
     try:
         belt = open_()
     except TactorbeltError as exc:
-        return None, None, str(exc)
+        return None, None, str(exc), None
     with belt:
         from ..firmware import version_note
 
         version = belt.firmware_version
-        return version, belt.n_tactors, version_note(version, belt.port)
+        return (version, belt.n_tactors, version_note(version, belt.port),
+                belt.drive_summary)
 
 
 #: Longest wait for one device's answer while ``tactorbelt devices`` probes.
@@ -374,7 +377,7 @@ def discover(timeout_s: float = 5.0, probe_all: bool = False) -> Discovery:
         ids = f" [{p.vid:04X}:{p.pid or 0:04X}]" if p.vid is not None else ""
         row = Found("serial", p.device, p.description + ids, f"serial:{p.device}")
         if p.looks_like_belt or probe_all:
-            row.firmware_version, row.tactors, row.note = _probe(functools.partial(
+            row.firmware_version, row.tactors, row.note, row.drive = _probe(functools.partial(
                 open_serial_port, p.device, timeout_s=min(timeout_s, PROBE_TIMEOUT_S),
                 keepalive=False))
         else:
