@@ -329,3 +329,12 @@ def test_the_board_senses_the_shaped_drive_rise_and_fall_faster_than_plain(
     (plain_rise, plain_fall), (shaped_rise, shaped_fall) = times["plain"], times["shaped"]
     assert plain_rise > 80.0 and plain_fall > 40.0, times
     assert shaped_rise < 30.0 and shaped_fall < 30.0, times
+
+
+@pytest.mark.emulator
+def test_an_emulated_board_wired_the_old_way_shapes_but_cannot_brake(
+        emulator_built: Path) -> None:
+    """``emulator?brake=0`` (the emulator's --wiring in1): INFO bit SHAPE without BRAKE."""
+    with open_belt("emulator?brake=0&drive=shaped", build=False) as belt:
+        assert belt.can_shape and not belt.can_brake and belt.drive == "shaped"
+        assert belt.info.capabilities & 0x0C == wire.Capability.SHAPE

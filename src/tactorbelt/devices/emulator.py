@@ -51,6 +51,7 @@ BUILD_TIMEOUT_S: Final = 300.0
 OPTIONS: Final = frozenset({
     "tactors", "layout", "heartbeat_ms", "levels_log", "build", "timeout_s", "calibration",
     "keepalive", "clock", "firmware_dir", "extra_args", "watchdog_ms", "debug_frames", "imu",
+    "brake",
 })
 #: What the emulator's ``--imu`` takes.
 IMU_KINDS: Final = ("bmi270", "lsm9ds1", "none", "broken")
@@ -227,6 +228,10 @@ def open_emulator(target: str = "", **options: Any) -> EmulatorBelt:
             imu (str, "bmi270"): the board's simulated IMU: "bmi270" (1600 Hz, a Rev2
                 board), "lsm9ds1" (952 Hz, Rev1), "none" (no IMU streaming: firmware
                 1.1's behaviour), "broken" (an IMU that did not start).
+            brake (bool, True): the emulated board has both inputs of each motor's
+                H-bridge wired (INFO bits SHAPE and BRAKE: a shaped fall brakes); False
+                emulates the older wiring, IN2 to ground (SHAPE only: a shaped fall
+                coasts). The emulator's ``--wiring bridge|in1``.
             extra_args (list[str]): more emulator arguments.
             timeout_s, calibration, keepalive, clock: as for every firmware belt.
 
@@ -285,6 +290,8 @@ def open_emulator(target: str = "", **options: Any) -> EmulatorBelt:
         args += ["--debug-frames"]
     if imu is not None:
         args += ["--imu", str(imu)]
+    if not options.pop("brake", True):
+        args += ["--wiring", "in1"]
     args += [str(a) for a in options.pop("extra_args", ())]
 
     with tempfile.TemporaryFile() as stderr:

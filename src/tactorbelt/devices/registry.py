@@ -269,7 +269,9 @@ BACKENDS: dict[str, Backend] = {b.scheme: b for b in (
                      UrlOption("watchdog_ms", int, "the board's watchdog (ms; off)", 1, 10000),
                      UrlOption("debug_frames", bool, "accept DEBUG_HANG (tests)"),
                      UrlOption("imu", str, "the board's simulated IMU: bmi270, lsm9ds1, "
-                               "none (firmware 1.1) or broken"), _DRIVE),
+                               "none (firmware 1.1) or broken"),
+                     UrlOption("brake", bool, "both H-bridge inputs wired (default 1; 0: IN2 "
+                               "to ground, a shaped fall coasts)"), _DRIVE),
             docs="docs/devices.md"),
     Backend("serial", "tactorbelt.devices.serial:open_serial",
             "firmware over USB serial", ("serial:/dev/ttyACM0", "serial:auto"), target="PORT",
