@@ -99,8 +99,18 @@ def _validate(tmp_path: Path, through: EnvelopeFilter | None,
     return result, sensors[0].callback_late_ms
 
 
-def _latencies(result: OnsetValidation) -> np.ndarray:
-    return np.array([p.latency_ms for t in result.tactors for p in t.pulses])
+def _latencies(result: OnsetValidation, n: int) -> np.ndarray:
+    """The ``n`` pulses' latencies that could be measured. A pulse whose vibration had
+    not stopped before it (the stop before it came late: a loaded machine) has none, and
+    the result warns of it by tactor; three quarters of them are measured."""
+    lat = np.array([p.latency_ms for t in result.tactors for p in t.pulses])
+    assert lat.size == n
+    for t in result.tactors:
+        if any(math.isnan(p.latency_ms) for p in t.pulses):
+            assert any(w.startswith(f"tactor {t.tactor} ") and "had not stopped" in w
+                       for w in result.warnings), result.warnings
+    assert np.isfinite(lat).mean() >= 0.75, lat
+    return lat[np.isfinite(lat)]
 
 
 def _within(lat: np.ndarray, low: float, high: float, late_ms: float) -> None:
@@ -123,14 +133,14 @@ def test_a_direct_loopback_measures_the_wait_for_the_next_cycle(realtime: None,
     settings = OnsetSettings(pulses=4, on_s=0.1, off_s=0.1, max_repeats=REPEATS)
     t10, rise = chain_crossings(None, 5.0, 4.0, 250.0, RATE, settings.on_s)
     result, late_ms = _validate(tmp_path, None, settings)
-    lat = _latencies(result)
-    assert lat.size == 8 and np.isfinite(lat).all()
+    lat = _latencies(result, 8)
     # the chain's own 10 % point plus a wait of 0..P (no cycle of delay)
     _within(lat, t10, t10 + P_MS, late_ms)
     # a 5 ms ramp read through a 4 ms moving mean: the estimate moves with the carrier's
     # phase at the ramp by a few tenths of a millisecond
-    rises = [p.rise_ms for t in result.tactors for p in t.pulses]
-    assert rises == pytest.approx([rise] * 8, abs=0.6)
+    rises = [p.rise_ms for t in result.tactors for p in t.pulses
+             if not math.isnan(p.latency_ms)]
+    assert rises == pytest.approx([rise] * lat.size, abs=0.6)
 
 
 def test_through_a_first_order_filter_the_rise_and_fall_are_the_filters(
@@ -151,7 +161,7 @@ def test_through_a_first_order_filter_the_rise_and_fall_are_the_filters(
         assert d["fall_ms"] == pytest.approx(want, rel=0.05)
         assert d["settled"]
     # the filter's own 10 % point, one cycle around the loop, and the wait
-    _within(_latencies(result), t10 + P_MS, t10 + 2 * P_MS, late_ms)
+    _within(_latencies(result, 6), t10 + P_MS, t10 + 2 * P_MS, late_ms)
 
 
 def _command(*args: str) -> list[str]:
