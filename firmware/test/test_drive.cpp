@@ -255,18 +255,22 @@ TEST(a_shaped_level_is_held_at_most_at_the_rated_drive) {
 TEST(every_failsafe_leaves_both_inputs_low) {
   for (int which = 0; which < 3; ++which) {
     Rig rig;
-    rig.controller.set_heartbeat_ms(100);
-    rig.drive(tb::kDriveShaped);
+    rig.controller.set_heartbeat_ms(50);
+    // a 1 ms rise and a 2 s brake time constant: a brake pulse lasts over a second, so
+    // each failsafe comes in the middle of one
+    rig.drive(tb::kDriveShaped, tb::kDriveAllTactors, 16384, 65535, 10, 500, 20000);
     rig.levels(65535);
-    rig.tick_ms(300 % 100 + 50);  // heartbeat at 100 ms: keep it fed
-    rig.send(tb::msg::kHeartbeat);
-    rig.tick_ms(60);
-    rig.send(tb::msg::kHeartbeat);
-    rig.tick_ms(60);
+    for (int i = 0; i < 4; ++i) {
+      rig.tick_ms(10);
+      rig.send(tb::msg::kHeartbeat);
+    }
+    CHECK_NEAR(rig.controller.predicted_speed(0), 1.0f, 1e-3f);
     rig.levels(0);  // a brake pulse starts
-    CHECK_EQ(rig.controller.in2_mask(), 1u);
+    rig.tick_ms(45);
+    CHECK_EQ(rig.controller.in2_mask(), 1u);  // still braking
+    CHECK_EQ(rig.motors.in2, 1u);
     if (which == 0) {
-      rig.tick_ms(100);  // no heartbeat: the failsafe, mid-pulse
+      rig.tick_ms(10);  // no heartbeat for 55 ms: the failsafe, mid-pulse
       CHECK(rig.controller.state() == tb::State::kFailsafe);
     } else if (which == 1) {
       rig.controller.link_closed(rig.now_us);  // the port closes, BLE disconnects
