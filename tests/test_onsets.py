@@ -219,3 +219,14 @@ def test_trials_keep_device_onsets_and_older_stores_gain_the_columns(tmp_path: P
         rows = store.trials(sid)
     assert [(t["device_onset_ns"], t["onset_uncertainty_ns"]) for t in rows] == [
         (None, None), (1_000_123_456, 42_000)]
+
+
+def test_the_offset_bracket_is_where_most_round_trips_agree() -> None:
+    """A round trip stamped by a read loop that began before its PING arrived (a loaded
+    machine) lies past the others: it is outvoted, not a contradiction; consistent
+    round trips give their intersection."""
+    from tactorbelt.devices.emulator import _most_agreed
+
+    assert _most_agreed([(0, 10), (2, 8), (3, 12)]) == (3, 3, 8)
+    assert _most_agreed([(0, 10), (2, 8), (3, 12), (20, 30)]) == (3, 3, 8)
+    assert _most_agreed([(5, 5), (5, 9)]) == (2, 5, 5)
