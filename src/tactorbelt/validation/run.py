@@ -73,6 +73,29 @@ class NoPulseError(DeviceError):
         self.level = level
 
 
+def check_output(out_dir: str | Path, name: str, force: bool,
+                 sense_url: str | None) -> tuple[Path, Path]:
+    """``(directory, results file)`` of a validation run, checked before any device is
+    opened: the directory is not a file, the results file is new unless ``force``, and
+    a sensor URL names a sensor.
+
+    Raises:
+        ConfigError: any of these does not hold (a bad sensor URL: its own message).
+    """
+    from .sensors import resolve_sensor
+
+    out = Path(out_dir)
+    results = out / name
+    if out.exists() and not out.is_dir():
+        raise ConfigError(f"output {str(out)!r} is a file, not a directory")
+    if results.exists() and not force:
+        raise ConfigError(f"{str(results)!r} exists: give another directory, or --force to "
+                          "replace it")
+    if sense_url is not None:
+        resolve_sensor(sense_url)  # a bad URL fails before the belt is opened
+    return out, results
+
+
 def parse_levels(text: str | Sequence[float]) -> tuple[float, ...]:
     """Levels from ``"0.5,1.0"`` (or numbers): each in (0, 1], no repeats, sorted.
 
@@ -436,17 +459,9 @@ def run_onsets(belt_url: str, out_dir: str | Path, *, sense_url: str | None = No
     from ..devices import open_belt
     from ..devices.calibration import Calibration, update_timing
     from .figure import onset_figure
-    from .sensors import open_sensor, resolve_sensor
+    from .sensors import open_sensor
 
-    out = Path(out_dir)
-    results = out / RESULTS
-    if out.exists() and not out.is_dir():
-        raise ConfigError(f"output {str(out)!r} is a file, not a directory")
-    if results.exists() and not force:
-        raise ConfigError(f"{str(results)!r} exists: give another directory, or --force to "
-                          "replace it")
-    if sense_url is not None:
-        resolve_sensor(sense_url)  # a bad URL fails before the belt is opened
+    out, results = check_output(out_dir, RESULTS, force, sense_url)
     if tune and calibration_file is None:
         raise ConfigError("--tune writes the fitted drive shaping into the calibration file: "
                           "give --calibration FILE")

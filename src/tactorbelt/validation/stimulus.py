@@ -267,18 +267,11 @@ def run_stimulus(belt_url: str, out_dir: str | Path, *, targets: Sequence[int] |
     from ..devices.calibration import Calibration
     from ..experiment.study import paper_study
     from .figure import stimulus_figure
-    from .sensors import open_sensor, resolve_sensor
+    from .run import check_output
+    from .sensors import open_sensor
 
     st = study if study is not None else paper_study()
-    out = Path(out_dir)
-    results = out / RESULTS
-    if out.exists() and not out.is_dir():
-        raise ConfigError(f"output {str(out)!r} is a file, not a directory")
-    if results.exists() and not force:
-        raise ConfigError(f"{str(results)!r} exists: give another directory, or --force to "
-                          "replace it")
-    if sense_url is not None:
-        resolve_sensor(sense_url)
+    out, results = check_output(out_dir, RESULTS, force, sense_url)
     calibration = (Calibration.load(calibration_file) if calibration_file is not None
                    else None)
     ks = list(range(st.targets.count)) if targets is None else [int(k) for k in targets]
