@@ -54,6 +54,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "validate": ("tactorbelt.cli.validate:validate", "Check a belt's onsets against a sensor."),
     "pattern": ("tactorbelt.cli.pattern:pattern",
                 "Import, play, export or draw haptic patterns (AHAP, .haptic, .tact)."),
+    "serve": ("tactorbelt.cli.serve:serve",
+              "Serve a browser study (jsPsych) through a local WebSocket bridge to a belt."),
 }
 
 
