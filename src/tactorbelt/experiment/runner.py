@@ -39,7 +39,6 @@ I/O edge: imports the pure experiment modules, the store, tactorbelt.stimuli and
 from __future__ import annotations
 
 import contextlib
-import json
 import math
 import re
 from collections.abc import Callable
@@ -47,7 +46,7 @@ from dataclasses import dataclass, field, replace
 from enum import StrEnum
 from typing import TYPE_CHECKING, Any, Protocol
 
-from .._errors import ConfigError, DeviceError, StoreError, TactorbeltError
+from .._errors import ConfigError, DeviceError, TactorbeltError
 from ..clock import Clock, Deadlines, SimClock
 from ..geometry import TargetSet
 from ..inputs.base import CursorSample, CursorSource, TrialCue
@@ -56,7 +55,8 @@ from ..tasks import TASK_LEAD_NS, TLX_SCALE, WorkloadInfo, check_tlx
 from ..tasks.schedule import TaskItem, derive_seed
 from ..tasks.session import TaskSession
 from . import provenance
-from .schedule import ScheduledTrial, block_order, make_schedule, schedule_from_json
+from .recorder import SessionRecorder
+from .schedule import ScheduledTrial
 from .store import Store
 from .study import StimulusSpec, Study, TaskSpec
 from .trial import ResponseRule, TrialMachine, TrialResult, TrialState
@@ -406,6 +406,8 @@ class SessionRunner:
         self._has_latency = belt.calibration.has_timing
         self._block_stimuli: dict[str, StimulusSpec] = {}
         self.profile: Any = None  # the wearer profile ([calibration] perceptual), by open_session
+        #: the session in the store (the store seam), by open_session
+        self.recorder: SessionRecorder = None  # type: ignore[assignment]
         # set by open_session
         self.session_id = 0
         self.schedule: list[ScheduledTrial] = []
@@ -423,9 +425,8 @@ class SessionRunner:
 
     # -- setup -----------------------------------------------------------------------------
     def open_session(self) -> list[ScheduledTrial]:
-        """Create the session (or reopen the resumed one); return the trials to run."""
-        import hashlib
-
+        """Create the session (or reopen the resumed one) through its
+        :class:`~tactorbelt.experiment.recorder.SessionRecorder`; return the trials to run."""
         from ..calibration.perceptual import (
             profile_for_session,  # before training (and the session)
         )
@@ -437,55 +438,24 @@ class SessionRunner:
             study, store, self.belt, self.clock, self.participant,
             self.cursor.calibration_respondent(int(study.session.seed if self.seed is None
                                                    else self.seed)), resume=self.resume)
-        sha = hashlib.sha256(self.study_toml.encode("utf-8")).hexdigest()
-        if self.resume:
-            row = store.find_resumable(self.participant)
-            if row is None:
-                raise StoreError(
-                    f"participant {self.participant!r} has no unfinished session in "
-                    f"{store.url}; run without --resume to start one"
-                )
-            if row["study_sha256"] != sha:
-                stored = Study.from_toml(row["study_toml"], path=f"{store.url} (session "
-                                         f"{row['session_id']})")
-                if stored != study:
-                    raise StoreError(
-                        f"the study changed since session {row['session_id']} of "
-                        f"{self.participant!r} started ({row['study_name']}, sha256 "
-                        f"{row['study_sha256'][:12]}); resume with the same study file"
-                    )
-            self.session_id = int(row["session_id"])
-            self.seed_used = int(row["seed"])
-            self.schedule = schedule_from_json(row["schedule_json"], study)
-            self.order = tuple(json.loads(row["condition_order"]))
-            store.mark_resumed(self.session_id)
-        else:
-            seed = study.session.seed if self.seed is None else int(self.seed)
-            self.seed_used = seed
-            self.schedule = make_schedule(study, self.participant, seed)
-            self.order = tuple(study.test[i].condition
-                               for i in block_order(study, self.participant))
-            prov = provenance.collect()
-            self.session_id = store.create_session(
-                participant=self.participant, study_name=study.name,
-                study_toml=self.study_toml, study_sha256=sha, seed=seed,
-                condition_order=list(self.order), schedule=self.schedule,
-                belt=self.belt.session_url, firmware_version=self.belt.firmware_version,
-                calibration=self.belt.calibration.to_list(),
-                package_version=prov.package_version, git_commit=prov.git_commit,
-                host=prov.host, input=self.input_name,
-                clock="sim" if self.sim else "wall", site=self.site,
-            )
+        rec = self.recorder = SessionRecorder.open(
+            store, study, self.participant, input_kind=self.input_name, seed=self.seed,
+            resume=self.resume, study_toml=self.study_toml, belt_url=self.belt.session_url,
+            firmware_version=self.belt.firmware_version,
+            calibration=self.belt.calibration.to_list(), clock="sim" if self.sim else "wall",
+            site=self.site)
+        self.session_id, self.seed_used = rec.session_id, rec.seed
+        self.schedule, self.order = rec.schedule, rec.order
         if self.profile is not None:  # the wearer profile is part of the session's provenance
-            store.set_session_profile(self.session_id, self.profile.to_toml())
-        finished = store.finished_indices(self.session_id)
+            rec.set_profile(self.profile.to_toml())
+        finished = rec.finished()
         self.n_done = len(finished)
         for t in self.schedule:
             self._block_last[t.block_index] = t.trial_index
         if self.resume and (study.tasks or study.questionnaire.tlx):
-            self._phases_done = {(e["task"], e["phase"]) for e in store.task_events(
-                self.session_id) if e["phase"] != "dual"}
-            self._rated = {int(r["block_index"]) for r in store.ratings(self.session_id)
+            self._phases_done = {(e["task"], e["phase"]) for e in rec.task_events()
+                                 if e["phase"] != "dual"}
+            self._rated = {int(r["block_index"]) for r in rec.ratings()
                            if r["scale"] == TLX_SCALE}
         return [t for t in self.schedule if t.trial_index not in finished]
 
@@ -593,7 +563,7 @@ class SessionRunner:
             run.remaining -= shown
         run.session = None
         try:
-            self.store.write_task_events(self.session_id, events)
+            self.recorder.write_task_events(events)
         finally:
             with contextlib.suppress(Exception):
                 self.cursor.task_phase(None, None)
@@ -637,7 +607,7 @@ class SessionRunner:
         if task is None:
             return
         name, spec = task
-        stored = [e["item_index"] for e in self.store.task_events(self.session_id)
+        stored = [e["item_index"] for e in self.recorder.task_events()
                   if e["phase"] == "dual" and e["block_index"] == t.block_index
                   and e["task"] == name] if self.resume else []
         self._start_task(_TaskRun(name, spec, "dual", t.block_index, None,
@@ -657,8 +627,7 @@ class SessionRunner:
         if values is None:
             values = self.obs.ask_workload(info)
         if values is not None:
-            self.store.write_ratings(self.session_id, t.block_index, TLX_SCALE,
-                                     check_tlx(values))
+            self.recorder.write_ratings(t.block_index, TLX_SCALE, check_tlx(values))
             self._rated.add(t.block_index)
 
     def _rate_unrated_before(self, todo: list[ScheduledTrial]) -> None:
@@ -867,11 +836,9 @@ class SessionRunner:
         """Write a trial with its skin onset; tell an observer that wants it
         (``on_skin_onset(trial, skin_onset_ns, skin_onset_sd_ns)``, the LSL streams)."""
         skin = self.skin_onset(result)
+        self.recorder.record(result, skin)
         if skin is None:
-            self.store.write_trial(self.session_id, result)
             return
-        self.store.write_trial(self.session_id, result, skin_onset_ns=skin[0],
-                               skin_onset_sd_ns=skin[1])
         hook = getattr(self.obs, "on_skin_onset", None)
         if hook is not None:
             hook(result.trial, skin[0], skin[1])
@@ -888,15 +855,9 @@ class SessionRunner:
     def run(self) -> SessionResult:
         """Run the session; see :func:`run_session`."""
         todo = self.open_session()
-        batched = (self.commits == provenance.COMMITS_BATCHED
-                   and self.store.capabilities.batch_commits)
-        if not batched:
+        with self.recorder.batched(provenance.BATCH_TRIALS
+                                   if self.commits == provenance.COMMITS_BATCHED else None):
             return self._run(todo)
-        self.store.begin_batch(self.session_id, provenance.BATCH_TRIALS)
-        try:
-            return self._run(todo)
-        finally:
-            self.store.end_batch()
 
     def _run(self, todo: list[ScheduledTrial]) -> SessionResult:
         n_total = len(self.schedule)
@@ -916,7 +877,7 @@ class SessionRunner:
             raise
         finally:
             _stop_quietly(self.player, self.belt)
-        self.store.set_status(self.session_id, status)
+        self.recorder.end(status)
         self.obs.on_session_end(status)
         return SessionResult(self.session_id, status, n_total, self.n_done, self.n_run,
                              self.results)
@@ -978,7 +939,7 @@ class SessionRunner:
         self._stop_task_quietly()
         self._record_failed(exc)
         with contextlib.suppress(Exception):
-            self.store.set_status(self.session_id, "interrupted")
+            self.recorder.end("interrupted")
         with contextlib.suppress(Exception):
             self.obs.on_session_end("interrupted")
         if isinstance(exc, DeviceError):
