@@ -13,18 +13,19 @@ Each backend registers, in :data:`BACKENDS` (one line each, at the end of this m
 - optionally a ``discover`` function (``"module:function"``), which ``tactorbelt
   devices`` calls as ``discover(timeout_s=..., probe_all=...)`` to list what answers.
 
-Imports only the standard library and tactorbelt._errors.
+Imports only the standard library and tactorbelt._registry (the URL parsing shared with
+the sensors).
 """
 
 from __future__ import annotations
 
-import importlib
-import math
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from typing import Any, Final
 
-from .._errors import ConfigError
+from .._registry import UrlOption, check_option
+from .._registry import parse_url as _parse_url
+from .._registry import resolve as _load
 
 __all__ = [
     "BACKENDS",
@@ -38,48 +39,6 @@ __all__ = [
     "resolve",
     "runs_on_simulated_time",
 ]
-
-
-@dataclass(frozen=True)
-class UrlOption:
-    """One ``?key=value`` option of a belt URL.
-
-    Attributes:
-        name: the key, also the keyword passed to the opener (``timeout_s``).
-        kind: ``int``, ``float``, ``bool`` or ``str``.
-        help: one line for the help text.
-        low, high: the allowed range of a number (inclusive), or None.
-    """
-
-    name: str
-    kind: type
-    help: str
-    low: float | None = None
-    high: float | None = None
-
-    def parse(self, text: str, url: str) -> Any:
-        """The value of ``key=text``, checked. Raises ConfigError naming the URL."""
-        what = f"option {self.name!r} of belt URL {url!r}"
-        if self.kind is bool:
-            t = text.strip().lower()
-            if t in ("1", "true", "yes", "on"):
-                return True
-            if t in ("0", "false", "no", "off"):
-                return False
-            raise ConfigError(f"{what} must be true or false, got {text!r}")
-        if self.kind is str:
-            return text
-        try:
-            value: float = int(text) if self.kind is int else float(text)
-        except ValueError:
-            kind = "an integer" if self.kind is int else "a number"
-            raise ConfigError(f"{what} must be {kind}, got {text!r}") from None
-        if not math.isfinite(value) or (self.low is not None and value < self.low) or (
-                self.high is not None and value > self.high):
-            raise ConfigError(f"{what} must be in {self.low:g}..{self.high:g}, got {text!r}"
-                              if self.low is not None and self.high is not None
-                              else f"{what} is out of range: {text!r}")
-        return value
 
 
 @dataclass(frozen=True)
@@ -162,21 +121,10 @@ class Discovery:
 
 
 def check_options(options: dict[str, Any], allowed: Iterable[str], url: str) -> None:
-    """Raise ConfigError naming the keyword options a backend does not know."""
-    allowed = frozenset(allowed)
-    unknown = sorted(set(options) - allowed)
-    if unknown:
-        raise ConfigError(
-            f"unknown option(s) {', '.join(unknown)} for belt {url!r}; "
-            f"allowed: {', '.join(sorted(allowed))}"
-        )
-
-
-def _load(spec: str) -> Callable[..., Any]:
-    module_name, _, func_name = spec.partition(":")
-    module = importlib.import_module(module_name)
-    func: Callable[..., Any] = vars(module)[func_name]
-    return func
+    """Raise ConfigError naming a keyword option a backend does not know."""
+    allowed = sorted(allowed)
+    for name in sorted(options):
+        check_option(f"option for belt {url!r}:", name, allowed)
 
 
 def resolve(url: str) -> tuple[Backend, str, dict[str, Any]]:
@@ -186,30 +134,9 @@ def resolve(url: str) -> tuple[Backend, str, dict[str, Any]]:
         ConfigError: not a string, an unknown scheme, a missing target, an unknown or
             malformed URL option (every message names the URL).
     """
-    if not isinstance(url, str) or not url.strip():
-        raise ConfigError(f"belt URL must be a non-empty string, got {url!r}")
-    text = url.strip()
-    head, _, query = text.partition("?")
-    scheme, _, target = head.partition(":")
-    backend = BACKENDS.get(scheme.lower())
-    if backend is None:
-        allowed = ", ".join(form for b in BACKENDS.values() for form in b.forms)
-        raise ConfigError(f"unknown belt URL {url!r}; allowed: {allowed}")
-    if backend.needs_target and not target:
-        raise ConfigError(f"belt URL {url!r} needs a target, e.g. {backend.scheme}:auto")
-    options: dict[str, Any] = {}
-    known = {o.name: o for o in backend.options}
-    for item in filter(None, query.split("&")):
-        key, eq, value = item.partition("=")
-        if not eq:
-            raise ConfigError(f"belt URL {url!r}: expected key=value after '?', got {item!r}")
-        opt = known.get(key.strip())
-        if opt is None:
-            names = ", ".join(known) or "none"
-            raise ConfigError(f"unknown option {key.strip()!r} in belt URL {url!r}; "
-                              f"allowed: {names}")
-        options[opt.name] = opt.parse(value.strip(), url)
-    return backend, target, options
+    return _parse_url(url, BACKENDS, "belt URL",
+                      allowed=[form for b in BACKENDS.values() for form in b.forms],
+                      example=lambda b: f"{b.scheme}:auto")
 
 
 def runs_on_simulated_time(url: str) -> bool:
@@ -248,6 +175,12 @@ _HEARTBEAT: Final = UrlOption("heartbeat_ms", int, "the device's failsafe timeou
 _DRIVE: Final = UrlOption("drive", str, "plain, or shaped: overdrive kicks and brake pulses "
                           "(ERM belts that can; docs/belts.md)")
 
+_SUPPLY: Final = UrlOption("supply_v", float, "the motor supply (V; bounds the overdrive)",
+                           0.5, 24.0)
+_KICK: Final = UrlOption("kick_ms", float, "a kick may apply the whole supply, above the "
+                         "motor's maximum voltage, for at most this long (ms; default 0: "
+                         "never)", 0.0, 1000.0)
+
 #: scheme -> backend. Adding a backend: its module, one line here, its docs page.
 BACKENDS: dict[str, Backend] = {b.scheme: b for b in (
     Backend("sim", "tactorbelt.devices.sim:open_sim",
@@ -257,8 +190,7 @@ BACKENDS: dict[str, Backend] = {b.scheme: b for b in (
                      _DRIVE,
                      UrlOption("overdrive", float, "the shaper's largest drive, times the "
                                "rated (default: 3.6 V / 3.0 V)", 1.0, 4.0),
-                     UrlOption("supply_v", float, "the motor supply (V; bounds the "
-                               "overdrive)", 0.5, 24.0),
+                     _SUPPLY, _KICK,
                      UrlOption("brake", bool, "both H-bridge inputs wired (default 1)")),
             docs="docs/belts.md", simulated_time=True),
     Backend("emulator", "tactorbelt.devices.emulator:open_emulator",
@@ -271,7 +203,7 @@ BACKENDS: dict[str, Backend] = {b.scheme: b for b in (
                      UrlOption("imu", str, "the board's simulated IMU: bmi270, lsm9ds1, "
                                "none (firmware 1.1) or broken"),
                      UrlOption("brake", bool, "both H-bridge inputs wired (default 1; 0: IN2 "
-                               "to ground, a shaped fall coasts)"), _DRIVE),
+                               "to ground, a shaped fall coasts)"), _DRIVE, _SUPPLY, _KICK),
             docs="docs/devices.md"),
     Backend("serial", "tactorbelt.devices.serial:open_serial",
             "firmware over USB serial", ("serial:/dev/ttyACM0", "serial:auto"), target="PORT",
