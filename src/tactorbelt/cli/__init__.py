@@ -13,7 +13,6 @@ user's own stop prints no ``error:`` line. Never a traceback (set
 
 from __future__ import annotations
 
-import importlib
 import logging
 import os
 import sys
@@ -22,6 +21,7 @@ from typing import Any
 import click
 
 from .._errors import DeviceError, TactorbeltError
+from .._registry import resolve
 from ..interrupts import Terminated, terminate_on_signals
 
 __all__ = ["COMMANDS", "EXIT_CODES", "main"]
@@ -69,14 +69,12 @@ class LazyGroup(click.Group):
         if cmd_name not in COMMANDS:
             return None
         target, _ = COMMANDS[cmd_name]
-        module_name, _, attr = target.partition(":")
         try:
-            module = importlib.import_module(module_name)
+            command: click.Command = resolve(target)
         except ModuleNotFoundError as exc:
-            if exc.name == module_name:
+            if exc.name == target.partition(":")[0]:
                 raise click.UsageError(f"command {cmd_name!r} is not available yet") from None
             raise
-        command: click.Command = getattr(module, attr)
         return command
 
     def format_commands(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:

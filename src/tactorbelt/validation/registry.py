@@ -9,20 +9,13 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from .._errors import ConfigError
-from ..devices.registry import UrlOption
+from .._registry import UrlOption, parse_url
 
 __all__ = ["SENSORS", "SensorBackend", "SensorOption", "resolve_sensor", "sense_url_help"]
 
 
-class SensorOption(UrlOption):
-    """A ``?key=value`` option of a sensor URL (errors say "sensor URL")."""
-
-    def parse(self, text: str, url: str) -> Any:
-        try:
-            return super().parse(text, url)
-        except ConfigError as exc:
-            raise ConfigError(str(exc).replace("of belt URL", "of sensor URL")) from None
+#: An option of a sensor URL: the belt URL's option (its errors say "sensor URL").
+SensorOption = UrlOption
 
 
 @dataclass(frozen=True)
@@ -79,33 +72,8 @@ def resolve_sensor(url: str) -> tuple[SensorBackend, str, dict[str, Any]]:
         ConfigError: not a string, an unknown scheme, a missing target, an unknown or
             malformed option (every message names the URL).
     """
-    if not isinstance(url, str) or not url.strip():
-        raise ConfigError(f"sensor URL must be a non-empty string, got {url!r}")
-    head, _, query = url.strip().partition("?")
-    scheme, _, target = head.partition(":")
-    backend = SENSORS.get(scheme.lower())
-    if backend is None:
-        allowed = ", ".join(s.usage for s in SENSORS.values())
-        raise ConfigError(f"unknown sensor URL {url!r}; allowed: {allowed}")
-    if backend.target and not target:
-        raise ConfigError(f"sensor URL {url!r} needs a device, e.g. {backend.examples[0]}")
-    if not backend.target and target:
-        raise ConfigError(f"sensor URL {url!r} takes no target; use {backend.usage!r}")
-    known = {o.name: o for o in backend.options}
-    options: dict[str, Any] = {}
-    for item in filter(None, query.split("&")):
-        key, eq, value = item.partition("=")
-        if not eq:
-            raise ConfigError(f"sensor URL {url!r}: expected key=value after '?', got "
-                              f"{item!r}")
-        opt = known.get(key.strip())
-        if opt is None:
-            raise ConfigError(f"unknown option {key.strip()!r} in sensor URL {url!r}; "
-                              f"allowed: {', '.join(known) or 'none'}")
-        options[opt.name] = opt.parse(value.strip(), url)
-    return backend, target, options
-
-
+    return parse_url(url, SENSORS, "sensor URL", allowed=[s.usage for s in SENSORS.values()],
+                     target_word="device", no_target=True)
 
 
 def sense_url_help() -> str:

@@ -32,7 +32,6 @@ Imports the standard library and NumPy; sounddevice only when an audio sensor op
 from __future__ import annotations
 
 import contextlib
-import importlib
 import math
 import threading
 import time
@@ -45,6 +44,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .._errors import ConfigError, DeviceError
+from .._registry import resolve
 from ..devices.audio import checked_latency, parse_latency
 from ..devices.registry import check_options
 from .envelope import rectified_envelope
@@ -593,8 +593,6 @@ def open_sensor(url: str | None, belt: Belt) -> Sensor:
                               "the tactor, or a loopback cable from an audio belt)")
         return ModelSensor(belt)
     backend, target, options = resolve_sensor(url)
-    module_name, _, func = backend.opener.partition(":")
-    opener = vars(importlib.import_module(module_name))[func]
-    sensor: Sensor = opener(target, belt, **options)
+    sensor: Sensor = resolve(backend.opener)(target, belt, **options)
     sensor.url = url.strip()  # as given, options and all (validation.json records it)
     return sensor

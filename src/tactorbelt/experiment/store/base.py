@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import abc
 import datetime as _dt
-import importlib
 from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -28,6 +27,7 @@ from types import TracebackType
 from typing import TYPE_CHECKING, Any
 
 from ..._errors import StoreError
+from ..._registry import resolve
 from ..schedule import ScheduledTrial, schedule_from_json
 from ..trial import TrialResult
 
@@ -73,8 +73,8 @@ RATING_COLUMNS = ("session_id", "block_index", "scale", "item", "value")
 #: URL scheme -> "module:Class" (relative to this package) of each store implementation.
 #: ``None`` means "planned, not available yet". A path with no scheme is ``sqlite``.
 BACKENDS: dict[str, str | None] = {
-    "sqlite": ".sqlite:SQLiteStore",
-    "postgresql": ".postgresql:PostgreSQLStore",
+    "sqlite": "tactorbelt.experiment.store.sqlite:SQLiteStore",
+    "postgresql": "tactorbelt.experiment.store.postgresql:PostgreSQLStore",
 }
 
 
@@ -143,9 +143,7 @@ def backend_for(url: str | Path) -> type[Store]:
         name = {"postgresql": "PostgreSQL"}.get(scheme, scheme)
         raise StoreError(f"{name} stores are not available yet ({url}); give a file path "
                          "such as study.sqlite")
-    module, cls = target.split(":")
-    mod = importlib.import_module(module, __package__)
-    store_cls: type[Store] = getattr(mod, cls)
+    store_cls: type[Store] = resolve(target)
     return store_cls
 
 

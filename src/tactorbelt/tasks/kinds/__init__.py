@@ -13,18 +13,19 @@ says of it. Nothing outside ``tasks/kinds/`` branches on a kind's name.
 Adding a kind (docs/architecture.md, "Adding things"): a module beside these with a
 ``KIND`` object, and one line in :data:`TASK_KINDS`.
 
-Pure: the standard library only; a kind's module is imported when first asked for.
+Pure: the standard library and the registry helper; a kind's module is imported when
+first asked for.
 """
 
 from __future__ import annotations
 
-import importlib
 import random
 from abc import ABC, abstractmethod
 from collections import deque
 from collections.abc import Iterator
 from typing import Any, Final, Protocol
 
+from ..._registry import resolve
 from ..items import TaskItem
 
 __all__ = ["KIND_NAMES", "NO_TASK", "TASK_KINDS", "TaskFields", "TaskKind", "TaskLike",
@@ -155,8 +156,7 @@ def task_kind(name: str) -> TaskKind:
         names = (*TASK_KINDS, NO_TASK)
         raise ValueError("should be " + ", ".join(repr(k) for k in names[:-1])
                          + f" or {names[-1]!r} (got {name!r})")
-    module, _, attr = spec.partition(":")
-    kind = getattr(importlib.import_module(module), attr)
+    kind = resolve(spec)
     assert isinstance(kind, TaskKind) and kind.name == name, spec
     _LOADED[name] = kind
     return kind
