@@ -9,7 +9,7 @@ STAMP := $(VENV)/.installed
 HYPOTHESIS_PROFILE ?= dev
 export HYPOTHESIS_PROFILE
 
-.PHONY: demo test test-py test-firmware lint bench bench-full clean
+.PHONY: demo test test-py test-firmware lint bench bench-full clean web
 
 $(STAMP): pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -40,6 +40,11 @@ bench: $(STAMP)
 
 bench-full: $(STAMP)
 	$(PY) benchmarks/run.py --full
+
+# web: rebuild the jsPsych plugins and the example page into the package
+# (src/tactorbelt/bridge/static, committed; web/'s npm test checks they equal a fresh build)
+web:
+	cd web && npm ci --no-audit --no-fund && npm run build
 
 clean:
 	rm -rf $(VENV) build dist demo-output firmware/build
