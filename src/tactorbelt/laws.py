@@ -25,7 +25,7 @@ A law is its name in :mod:`tactorbelt._lawnames` and its function in
 :data:`LAW_FUNCTIONS`; :data:`LAWS` and :func:`check_law` read the names when they are
 used, so a law registered after this module was imported is a law here too.
 
-Pure: imports only NumPy, tactorbelt.geometry and the kernel (_errors, _lawnames).
+Pure: imports only NumPy, tactorbelt.geometry and the kernel (_errors, _lawnames, _registry).
 """
 
 from __future__ import annotations
@@ -40,6 +40,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from . import _lawnames
 from ._errors import ConfigError
+from ._registry import check_option
 from .geometry import Layout, wrap
 
 if TYPE_CHECKING:
@@ -62,8 +63,7 @@ def __getattr__(name: str) -> Any:
 
 def check_law(law: str, falloff_deg: float = DEFAULT_FALLOFF_DEG) -> None:
     """Raise ConfigError for an unknown law or a falloff that is not positive and finite."""
-    if law not in _lawnames.LAWS:
-        raise ConfigError(f"unknown law {law!r}; allowed: {', '.join(_lawnames.LAWS)}")
+    check_option("law", law, _lawnames.LAWS)
     if not (isinstance(falloff_deg, int | float) and math.isfinite(falloff_deg)) or (
         falloff_deg <= 0
     ):

@@ -37,6 +37,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ._errors import ConfigError
+from ._registry import check_option
 from .geometry import Layout, normalize, wrap
 from .laws import DEFAULT_FALLOFF_DEG, amplitudes, check_law
 
@@ -228,8 +229,7 @@ def make_stimulus(
     """
     if profile is not None:
         profile.check_layout(layout)
-    if mode not in MODES:
-        raise ConfigError(f"unknown mode {mode!r}; allowed: {', '.join(MODES)}")
+    check_option("mode", mode, MODES)
     check_law(law, falloff_deg)
     try:
         x = float(target_deg)

@@ -72,6 +72,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .._errors import ConfigError
+from .._registry import check_option
 
 __all__ = ["FORMAT", "SHAPING_KEYS", "TIMING_KEYS", "Calibration", "TactorCalibration",
            "response_gain", "update_timing"]
@@ -271,10 +272,8 @@ class Calibration:
             if timing is None:
                 rows.append(t)
                 continue
-            unknown = sorted(set(timing) - set(TIMING_KEYS))
-            if unknown:
-                raise ConfigError(f"tactor {k}: unknown timing key {unknown[0]!r}; allowed: "
-                                  f"{', '.join(TIMING_KEYS)}")
+            for key in sorted(timing):
+                check_option(f"timing key of tactor {k}:", key, TIMING_KEYS)
             rows.append(_with_timing(t, timing))
         return replace(self, tactors=tuple(rows), validated=str(validated),
                        validation_method=str(method))

@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 from typing import Any, Literal
 
 from .._errors import ConfigError
+from .._registry import check_option
 
 __all__ = ["Changes", "Factor"]
 
@@ -85,9 +86,8 @@ class Factor:
                                  f"(got {level!r})")
         elif not isinstance(level, str) or not level:
             raise ValueError(f"a {self.key} level is a non-empty string (got {level!r})")
-        if self.levels and str(level) not in self.levels:
-            allowed = ", ".join(repr(v) for v in self.levels)
-            raise ValueError(f"unknown {self.key} {level!r}: use {allowed}")
+        if self.levels:
+            check_option(self.key, str(level), self.levels, ValueError)
         return level
 
     def check_levels(self, levels: Sequence[Any]) -> list[Any]:

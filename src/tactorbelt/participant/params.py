@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 
 from .._errors import ConfigError
+from .._registry import check_option
 
 __all__ = ["ModelParams", "Spread", "draw_participant"]
 
@@ -148,9 +149,8 @@ class ModelParams:
 
     def replace(self, **changes: Any) -> ModelParams:
         """A copy with some fields changed (validated)."""
-        unknown = sorted(set(changes) - {f.name for f in fields(self)})
-        if unknown:
-            raise ConfigError(f"unknown model parameter {unknown[0]!r}")
+        for name in sorted(changes):
+            check_option("model parameter", name, [f.name for f in fields(self)])
         return replace(self, **changes)
 
     def for_period(self, period_s: float) -> ModelParams:

@@ -28,6 +28,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, ClassVar
 
 from ..._errors import StoreError
+from ..._registry import check_option
 from ...factors import added_factors
 from ..schedule import ScheduledTrial, schedule_to_json
 from ..trial import TrialResult
@@ -168,8 +169,7 @@ class SqlStore(Store):
 
     def set_status(self, session_id: int, status: str) -> None:
         """Set a session's status; any status but ``running`` also sets ``ended_at``."""
-        if status not in SESSION_STATUSES:
-            raise StoreError(f"unknown session status {status!r}; allowed: {SESSION_STATUSES}")
+        check_option("session status", status, SESSION_STATUSES, StoreError)
         with self._transaction() as c:
             c.execute(self._sql("UPDATE sessions SET status=?, ended_at=? WHERE session_id=?"),
                       (status, None if status == "running" else utc_now(), session_id))
@@ -364,8 +364,7 @@ class SqlStore(Store):
 
     # -- bulk reads --------------------------------------------------------------------
     def table_columns(self, table: str) -> list[str]:
-        if table not in _TABLES:
-            raise StoreError(f"unknown table {table!r}; a store has {', '.join(_TABLES)}")
+        check_option("table", table, _TABLES, StoreError)
         return [str(r[0]) for r in self._query(self._sql(self.dialect.columns_query),
                                                (table,))]
 
