@@ -39,13 +39,13 @@ test("the screen has one element per target with data-target, on the ellipse", a
   jsPsych.abortExperiment();
 });
 
-test("a click on a target stops the motors, sends the trial and records the answer", async () => {
+test("a click on a target sends the trial (the bridge stops the stimulus) and records the answer", async () => {
   const { state } = await session();
   const { display, jsPsych, finished } = await screen({});
   display.querySelector('[data-target="6"]').dispatchEvent(new window.MouseEvent("click", { bubbles: true }));
   await finished;
   const [data] = jsPsych.data.get().values();
-  assert.equal(state.stops, 1);
+  assert.equal(state.stops, 0); // the trial message ends the stimulus, and stores when
   assert.equal(state.trials.length, 1);
   const sent = state.trials[0];
   assert.equal(sent.index, 1);
@@ -59,6 +59,16 @@ test("a click on a target stops the motors, sends the trial and records the answ
   assert.equal(typeof data.rt, "number");
   assert.equal(data.rt_ms, data.response_ms - 50); // from the onset on the page clock
   assert.equal(sent.response.rt_ms, data.rt_ms);
+});
+
+test("without an index nothing is stored; the answer stops the motors", async () => {
+  const { state } = await session();
+  const { display, jsPsych, finished } = await screen({ index: null });
+  display.querySelector('[data-target="3"]').dispatchEvent(new window.MouseEvent("click", { bubbles: true }));
+  await finished;
+  assert.equal(state.stops, 1);
+  assert.equal(state.trials.length, 0);
+  assert.equal(jsPsych.data.get().values()[0].response, 3);
 });
 
 test("a touch answers with device touch", async () => {

@@ -106,7 +106,8 @@ var jsPsychBeltResponse = (() => {
       gamepad_threshold: { type: import_jspsych.ParameterType.FLOAT, default: 0.9 },
       /** No answer this long after the screen appears: the trial ends unanswered (null: waits). */
       trial_duration: { type: import_jspsych.ParameterType.INT, default: null },
-      /** Turn the motors off at the answer (the paper's stimulus stops at acquisition). */
+      /** Turn the motors off at the answer (the paper's stimulus stops at acquisition); with
+       *  an index the trial message does it (the bridge stores the moment the stimulus ended). */
       stop_stimulus: { type: import_jspsych.ParameterType.BOOL, default: true },
       /** A BridgeClient; default: the page's shared connection. */
       bridge: { type: import_jspsych.ParameterType.OBJECT, default: null }
@@ -266,8 +267,10 @@ var jsPsychBeltResponse = (() => {
     }
     async _send(bridge, trial, data) {
       if (!bridge) return;
-      if (trial.stop_stimulus) await bridge.stop();
-      if (trial.index == null) return;
+      if (trial.index == null) {
+        if (trial.stop_stimulus) await bridge.stop();
+        return;
+      }
       const response = {
         target: data.response,
         angle_deg: data.response_angle_deg,

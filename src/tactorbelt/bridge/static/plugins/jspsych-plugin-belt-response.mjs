@@ -58,7 +58,8 @@ var info = {
     gamepad_threshold: { type: ParameterType.FLOAT, default: 0.9 },
     /** No answer this long after the screen appears: the trial ends unanswered (null: waits). */
     trial_duration: { type: ParameterType.INT, default: null },
-    /** Turn the motors off at the answer (the paper's stimulus stops at acquisition). */
+    /** Turn the motors off at the answer (the paper's stimulus stops at acquisition); with
+     *  an index the trial message does it (the bridge stores the moment the stimulus ended). */
     stop_stimulus: { type: ParameterType.BOOL, default: true },
     /** A BridgeClient; default: the page's shared connection. */
     bridge: { type: ParameterType.OBJECT, default: null }
@@ -218,8 +219,10 @@ var BeltResponsePlugin = class {
   }
   async _send(bridge, trial, data) {
     if (!bridge) return;
-    if (trial.stop_stimulus) await bridge.stop();
-    if (trial.index == null) return;
+    if (trial.index == null) {
+      if (trial.stop_stimulus) await bridge.stop();
+      return;
+    }
     const response = {
       target: data.response,
       angle_deg: data.response_angle_deg,
