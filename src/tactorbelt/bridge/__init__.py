@@ -1,0 +1,30 @@
+"""The browser bridge: ``tactorbelt serve`` (docs/browser.md).
+
+A local WebSocket server that lets a browser page (the jsPsych plugins in ``web/``,
+served from ``static/``) play stimuli on a belt, with onsets on the page's clock, and
+store each trial in the same store ``tactorbelt run`` writes. :func:`serve` runs it;
+:class:`BridgeConfig` says what it serves.
+
+The modules: :mod:`.server` (HTTP, the WebSocket door, the pages and their sessions),
+:mod:`.messages` (parsing a page's messages, the clock handshake; pure), :mod:`.belt`
+(the belt on one thread), :mod:`.record` (the store, through one adapter).
+
+Imports nothing at import time beyond this docstring's names (lazily).
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from .server import DEFAULT_PORT, BridgeConfig, serve
+
+__all__ = ["DEFAULT_PORT", "BridgeConfig", "serve"]
+
+
+def __getattr__(name: str) -> Any:
+    if name in __all__:
+        from . import server
+
+        return getattr(server, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
