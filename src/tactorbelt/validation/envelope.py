@@ -139,7 +139,8 @@ class PulseMeasure:
     are in the sensor's units. ``seen`` False: the sensor showed no pulse (the other
     figures are NaN). ``settled``: the steady stretch changed by less than
     :data:`SETTLED` of the amplitude; ``stopped``: so did the baseline (no motor still
-    running down from before). ``trace_ms``/``trace`` (from ``t_on``) and ``off_ms`` (``t_off``
+    running down from before). ``overshoot``: how far the envelope went above its steady
+    amplitude while on, as a fraction of it (0 when it never did; sensor noise counts). ``trace_ms``/``trace`` (from ``t_on``) and ``off_ms`` (``t_off``
     from ``t_on``) draw it normalised.
     """
 
@@ -156,6 +157,7 @@ class PulseMeasure:
     settled: bool = True
     stopped: bool = True
     off_ms: float = math.nan
+    overshoot: float = math.nan
     trace_ms: FloatArray = field(default_factory=lambda: np.zeros(0), repr=False)
     trace: FloatArray = field(default_factory=lambda: np.zeros(0), repr=False)
 
@@ -165,7 +167,7 @@ class PulseMeasure:
                 "stop_latency_ms": _num(self.stop_latency_ms), "fall_ms": _num(self.fall_ms),
                 "amplitude": _num(self.amplitude), "baseline": _num(self.baseline),
                 "noise": _num(self.noise), "settled": self.settled,
-                "stopped": self.stopped}
+                "stopped": self.stopped, "overshoot": _num(self.overshoot)}
 
 
 def _num(v: float) -> float | None:
@@ -211,6 +213,8 @@ def measure_pulse(t_ns: IntArray, env: FloatArray, t_on_ns: int, t_off_ns: int, 
     if rise is not None:
         out.latency_ms, t90 = rise
         out.rise_ms = t90 - out.latency_ms
+    on = (t >= t_on_ns) & (t < t_off_ns)
+    out.overshoot = max(0.0, float(np.max(norm[on])) - 1.0) if on.any() else math.nan
     i_steady = int(np.searchsorted(t, t_off_ns - round(on_ns * STEADY_FRACTION)))
     off_ms = (t_off_ns - t_on_ns) / 1e6
     out.off_ms = off_ms
