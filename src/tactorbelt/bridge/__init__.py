@@ -7,7 +7,8 @@ store each trial in the same store ``tactorbelt run`` writes. :func:`serve` runs
 
 The modules: :mod:`.server` (HTTP, the WebSocket door, the pages and their sessions),
 :mod:`.messages` (parsing a page's messages, the clock handshake; pure), :mod:`.belt`
-(the belt on one thread), :mod:`.record` (the store, through one adapter).
+(the belt on one thread). Sessions and trials are stored through the runner's session
+seam (:class:`tactorbelt.experiment.recorder.SessionRecorder`).
 
 Imports nothing at import time beyond this docstring's names (lazily).
 """

@@ -17,7 +17,7 @@ from the least round trip) and sends ``welcome`` with the schedule ``tactorbelt 
 makes for the participant. ``play`` starts a stimulus (a scheduled trial, a target
 and condition, an angle, or raw amplitudes) and answers, once the belt has started
 it, with the onset on the page's ``performance.now()`` clock; ``trial`` stores a
-trial (one transaction, through :mod:`.record`); ``stop``, ``status`` and ``end`` do
+trial (one transaction, through the runner's session seam); ``stop``, ``status`` and ``end`` do
 what they say. After the handshake the bridge pings every ``heartbeat_ms``; a page
 that has not answered for twice that, that closes or that reloads has its motors
 turned off and its session left ``interrupted`` (a new ``hello`` resumes it).
@@ -29,8 +29,9 @@ The belt is used from one thread (:class:`.belt.BeltPort`), the store from anoth
 the event loop never waits on either. Malformed or unknown messages get an ``error``
 reply; nothing a page sends ends the bridge.
 
-I/O edge: imports the devices (through :mod:`.belt`), the store (through
-:mod:`.record`), the experiment's study and runner helpers, and ``websockets``.
+I/O edge: imports the devices (through :mod:`.belt`), the store (through the session
+seam, :class:`~tactorbelt.experiment.recorder.SessionRecorder`), the experiment's study
+and runner helpers, and ``websockets``.
 """
 
 from __future__ import annotations
@@ -53,7 +54,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypeVar
 from urllib.parse import parse_qs
 
-from .._errors import ConfigError, TactorbeltError
+from .._errors import ConfigError, StoreError, TactorbeltError
 from ..interrupts import Terminated
 from .belt import BeltPort, Onset
 from .messages import (
@@ -75,11 +76,11 @@ if TYPE_CHECKING:
     from websockets.asyncio.server import Server, ServerConnection
     from websockets.http11 import Request, Response
 
+    from ..experiment.recorder import SessionRecorder
     from ..experiment.schedule import ScheduledTrial
     from ..experiment.store import Store
     from ..experiment.study import Study
     from ..stimuli import Stimulus
-    from .record import Recording
 
 __all__ = ["DEFAULT_PORT", "BridgeConfig", "serve"]
 
@@ -171,7 +172,7 @@ class _Page:
         self.bridge = bridge
         self.ws = ws
         self.clock: ClockEstimate | None = None
-        self.recording: Recording | None = None
+        self.recording: SessionRecorder | None = None
         self.ended = False
         self.profile: Any = None
         self.plays: dict[int, _Play] = {}
@@ -447,7 +448,7 @@ class _Page:
                 "uncertainty_ms": unc_ms, "duration_ms": duration_s * 1000.0,
                 "stimulus": info}
 
-    def _session(self, what: str) -> Recording:
+    def _session(self, what: str) -> SessionRecorder:
         if self.recording is None or self.ended:
             raise MessageError(f"{what}: no session on this page; send 'hello' first")
         return self.recording
@@ -569,7 +570,7 @@ class _Bridge:
         return min(onset.end_ns, time.perf_counter_ns())
 
     # -- sessions ---------------------------------------------------------------------------
-    async def open_session(self, page: _Page, participant: str) -> Recording:
+    async def open_session(self, page: _Page, participant: str) -> SessionRecorder:
         other = self.sessions.get(participant)
         if other is not None and other is not page:
             # the same participant from a new page: a reload (or a second tab); the
@@ -590,27 +591,40 @@ class _Bridge:
         self.sessions[participant] = page
         return rec
 
-    def _open(self, participant: str) -> tuple[Recording, Any]:
+    def _open(self, participant: str) -> tuple[SessionRecorder, Any]:
+        """Open (or resume) the participant's session as ``tactorbelt run`` would (a
+        participant with a complete session is refused, as ``run`` does without
+        ``--new-session``); with its wearer profile where the study asks for one."""
         from ..calibration.perceptual import profile_for_session
-        from .record import Recording
+        from ..experiment.recorder import SessionRecorder
 
-        assert self.store is not None
+        store = self.store
+        assert store is not None
         study = self.config.study
         belt = self.belt.belt
-        resume = self.store.find_resumable(participant) is not None
-        profile = profile_for_session(study, self.store, belt, self.belt.clock, participant,
+        resume = store.find_resumable(participant) is not None
+        if not resume:
+            complete = [s for s in store.sessions(participant) if s["status"] == "complete"]
+            if complete:
+                raise StoreError(
+                    f"participant {participant!r} has completed session "
+                    f"{complete[-1]['session_number']} in {store.url}; check the "
+                    "participant id")
+        profile = profile_for_session(study, store, belt, self.belt.clock, participant,
                                       None, resume=resume)
-        rec = Recording.open_or_resume(
-            self.store, study, participant, input_kind=INPUT_KIND,
+        rec = SessionRecorder.open(
+            store, study, participant, input_kind=INPUT_KIND, resume=resume,
             study_toml=self.config.study_toml, belt_url=belt.session_url,
-            firmware_version=belt.firmware_version, calibration=belt.calibration.to_list())
+            firmware_version=belt.firmware_version, calibration=belt.calibration.to_list(),
+            clock="wall")
         if profile is not None:
-            self.store.set_session_profile(rec.session_id, profile.to_toml())
+            rec.set_profile(profile.to_toml())
         return rec, profile
 
-    def keep_page(self, rec: Recording, info: dict[str, Any]) -> None:
-        """Keep a page's user agent and clock with its session's run options."""
-        opts = rec.run_options()
+    def keep_page(self, rec: SessionRecorder, info: dict[str, Any]) -> None:
+        """Keep a page's user agent and clock with its session's run options (every page
+        that ran the session, the latest last)."""
+        opts = rec.store.run_options(rec.session_id) or {}
         pages = list(opts.get("pages") or [])
         pages.append(info)
         rec.set_run_options({"input_kind": INPUT_KIND, "belt_url": self.config.belt_url,
