@@ -13,7 +13,7 @@ Heavy parts (devices, analysis, the window) are imported only when used.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from ._errors import (
     ConfigError,
@@ -23,6 +23,7 @@ from ._errors import (
     StudyFileError,
     TactorbeltError,
 )
+from ._registry import lazy_attributes
 
 if TYPE_CHECKING:
     from .devices import Belt, open_belt
@@ -64,12 +65,7 @@ _LAZY = {
 }
 
 
-def __getattr__(name: str) -> Any:
-    if name in _LAZY:
-        import importlib
-
-        return getattr(importlib.import_module(_LAZY[name]), name)
-    raise AttributeError(f"module 'tactorbelt' has no attribute {name!r}")
+__getattr__ = lazy_attributes(__name__, _LAZY)
 
 
 def __dir__() -> list[str]:

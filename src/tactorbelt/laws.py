@@ -33,14 +33,14 @@ from __future__ import annotations
 import contextlib
 import math
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any, Final
+from typing import TYPE_CHECKING, Final
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from . import _lawnames
 from ._errors import ConfigError
-from ._registry import check_option
+from ._registry import check_option, lazy_attributes
 from .geometry import Layout, wrap
 
 if TYPE_CHECKING:
@@ -54,11 +54,8 @@ DEFAULT_FALLOFF_DEG: Final = 15.0
 ROUNDING_FLOOR_DEG: Final = 1e-10
 
 
-def __getattr__(name: str) -> Any:
-    # LAWS is _lawnames.LAWS as it is now, not a copy taken at import
-    if name == "LAWS":
-        return _lawnames.LAWS
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+# LAWS is _lawnames.LAWS as it is now, not a copy taken at import
+__getattr__ = lazy_attributes(__name__, {"LAWS": "tactorbelt._lawnames"})
 
 
 def check_law(law: str, falloff_deg: float = DEFAULT_FALLOFF_DEG) -> None:

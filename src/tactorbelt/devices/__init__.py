@@ -14,10 +14,10 @@ A URL may carry options as a query: ``serial:auto?timeout_s=2&heartbeat_ms=500``
 
 from __future__ import annotations
 
-import importlib
 from typing import TYPE_CHECKING, Any
 
 from .._errors import ConfigError
+from .._registry import lazy_attributes
 from .registry import BACKENDS, parse_url, resolve, runs_on_simulated_time
 
 if TYPE_CHECKING:
@@ -61,11 +61,8 @@ def open_belt(url: str = "sim", **options: Any) -> Belt:
     return belt
 
 
-def __getattr__(name: str) -> Any:
-    # Belt imports NumPy: loaded on first use, so the registry (the --belt help) is cheap
-    if name == "Belt":
-        return importlib.import_module(f"{__name__}.base").Belt
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+# Belt imports NumPy: loaded on first use, so the registry (the --belt help) is cheap
+__getattr__ = lazy_attributes(__name__, {"Belt": ".base"})
 
 
 def open_belt_for(url: str, stimulus: Stimulus | None = None, *, explicit_layout: bool = False,

@@ -13,8 +13,7 @@ Names are imported lazily, so ``import tactorbelt.experiment`` costs nothing.
 
 from __future__ import annotations
 
-import importlib
-from typing import Any
+from .._registry import lazy_attributes
 
 __all__ = [
     "Command",
@@ -47,10 +46,7 @@ _LAZY = {
 }
 
 
-def __getattr__(name: str) -> Any:
-    if name in _LAZY:
-        return getattr(importlib.import_module(f"{__name__}.{_LAZY[name]}"), name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+__getattr__ = lazy_attributes(__name__, {k: f".{v}" for k, v in _LAZY.items()})
 
 
 def __dir__() -> list[str]:

@@ -12,8 +12,7 @@ on first use (``tactorbelt --help`` stays fast).
 
 from __future__ import annotations
 
-import importlib
-from typing import Any
+from .._registry import lazy_attributes
 
 __all__ = [
     "EllipseGeometry",
@@ -34,10 +33,7 @@ _LAZY = {
 }
 
 
-def __getattr__(name: str) -> Any:
-    if name in _LAZY:
-        return getattr(importlib.import_module(_LAZY[name]), name)
-    raise AttributeError(f"module 'tactorbelt.gui' has no attribute {name!r}")
+__getattr__ = lazy_attributes(__name__, _LAZY)
 
 
 def __dir__() -> list[str]:

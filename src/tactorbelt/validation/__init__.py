@@ -21,8 +21,7 @@ command's ``--help``) does not import NumPy.
 
 from __future__ import annotations
 
-import importlib
-from typing import Any
+from .._registry import lazy_attributes
 
 __all__ = ["SENSORS", "NoPulseError", "OnsetSettings", "OnsetValidation", "Sensor",
            "open_sensor", "run_onsets", "validate_onsets"]
@@ -32,7 +31,5 @@ _WHERE = {"SENSORS": "registry", "NoPulseError": "run", "OnsetSettings": "run",
           "run_onsets": "run", "validate_onsets": "run"}
 
 
-def __getattr__(name: str) -> Any:
-    if name not in _WHERE:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    return getattr(importlib.import_module(f"{__name__}.{_WHERE[name]}"), name)
+__getattr__ = lazy_attributes(__name__, {k: f".{v}" for k, v in _WHERE.items()})
+
