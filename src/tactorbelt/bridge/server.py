@@ -777,6 +777,7 @@ class _Bridge:
         self.closing = True
         try:
             await self.belt.call(self.belt.stop)
+            self.note("stopping: motors off")
         except Exception as exc:
             log.warning("bridge: turning the motors off failed: %s", exc)
         for page in list(self.sessions.values()):
