@@ -14,7 +14,7 @@ from tactorbelt import ConfigError
 from tactorbelt.clock import SimClock
 from tactorbelt.devices import open_belt
 from tactorbelt.devices.base import Belt
-from tactorbelt.devices.erm import BRAKE, ErmParams, Shaper, drive_relax
+from tactorbelt.devices.erm import BRAKE, ErmParams, Shaper, drive_relax, kick_duration_s
 from tactorbelt.experiment.study import Study, paper_study
 from tactorbelt.geometry import Layout
 
@@ -108,11 +108,12 @@ def test_without_braking_a_fall_coasts_as_plain() -> None:
     assert not b.can_brake
 
 
-def test_no_command_sequence_holds_overdrive_or_reverse_beyond_its_bound() -> None:
+@pytest.mark.parametrize("url", ["sim", "sim?supply_v=5&kick_ms=40"])
+def test_no_command_sequence_holds_overdrive_or_reverse_beyond_its_bound(url: str) -> None:
     rng = np.random.default_rng(7)
     clock = SimClock()
     p = ErmParams()
-    with open_belt("sim", clock=clock) as b:
+    with open_belt(url, clock=clock) as b:
         k = b.shaper.overdrive
         t0 = clock.now_ns()
         for _ in range(400):  # frames at random times and levels, all the extremes
@@ -137,6 +138,95 @@ def test_no_command_sequence_holds_overdrive_or_reverse_beyond_its_bound() -> No
     tick_ms = 1.0
     assert longest(d > 1.0) <= p.rise_tau_s * math.log(k / (k - 1)) * 1e3 + tick_ms
     assert longest(np.signbit(d) & (d != 0)) <= p.brake_tau_s * math.log(2) * 1e3 + tick_ms
+    # above the motor's maximum voltage only within the kick limit (kick_ms=40)
+    above = d > p.max_voltage_v / p.rated_voltage_v + 1e-12
+    assert longest(above) <= (40.0 if k > 1.2 + 1e-9 else 0.0)
+    assert longest(above) <= kick_duration_s(k, p.rise_tau_s) * 1e3
+
+
+def test_a_kick_above_the_motors_maximum_voltage_needs_a_time_limit_that_covers_it() -> None:
+    p = ErmParams()
+    with open_belt("sim?supply_v=5", clock=SimClock()) as b:
+        assert b.shaper.overdrive == pytest.approx(1.2)  # no kick_ms: the 3.6 V maximum
+    with open_belt("sim?supply_v=5&kick_ms=40", clock=SimClock()) as b:
+        assert b.shaper.overdrive == pytest.approx(5 / 3)
+    # a kick from rest to full level at 5/3 lasts 40 ms * ln(2.5) + 1 ms = 37.7 ms
+    assert kick_duration_s(5 / 3, 0.040) * 1e3 == pytest.approx(37.65, abs=0.01)
+    with pytest.raises(ConfigError, match=r"lasts up to 37\.7 ms.*kick_ms=30"):
+        open_belt("sim?supply_v=5&kick_ms=30", clock=SimClock())
+    # tuned time constants: the longest rise decides
+    with pytest.raises(ConfigError, match=r"rise time constant of 80\.0 ms"):
+        p.kick_overdrive(5.0, 40.0, (0.04, 0.08))
+    assert p.kick_overdrive(3.3, 40.0) == pytest.approx(1.1)  # below the maximum: the supply
+    with pytest.raises(ConfigError, match="kick_ms must be"):
+        p.kick_overdrive(5.0, -1.0)
+
+
+@pytest.mark.parametrize("level", [0.5, 1.0])
+def test_a_5v_kick_meets_the_rise_and_fall_goals_without_overshoot(level: float) -> None:
+    got = pulse("sim?supply_v=5&kick_ms=40", level)
+    assert got["rise"] <= 30.0 and got["fall"] <= 30.0, got
+    assert got["overshoot"] <= 0.05, got
+    assert got["steady"] == pytest.approx(level**2, rel=1e-6)
+
+
+def test_the_host_sends_its_motor_constants_to_a_board_that_shapes() -> None:
+    from tactorbelt.devices import wire
+    from tactorbelt.devices._firmware import drive_constants
+
+    assert drive_constants(6, None, None) is None  # the device's defaults: mode alone
+    (v,) = drive_constants(6, None, 5.0, 40.0) or []
+    assert (v.tactor, v.start, v.rated) == (0xFF, round(0.25 * 0.6 * 65535), round(0.6 * 65535))
+    assert (v.rise_tau, v.fall_tau, v.brake_tau) == (400, 500, 400)
+    taus = ((0.03, 0.04), (0.05, 0.06), (0.02, 0.03))  # tuned, per tactor
+    vs = drive_constants(2, taus, None) or []
+    assert [(x.tactor, x.rated, x.rise_tau, x.fall_tau, x.brake_tau) for x in vs] == [
+        (0, 65535, 300, 500, 200), (1, 65535, 400, 600, 300)]
+    with pytest.raises(ConfigError, match="kicks at its full duty"):
+        drive_constants(6, None, 5.0)  # 5 V above the 3.6 V maximum, no kick limit
+    pkt = wire.encode_packet(wire.set_drive(3, wire.DriveMode.SHAPED, v))
+    assert pkt[:3] == b"\x1a\x03\x01" and len(pkt) == 3 + 11 + 2
+    assert pkt[3:14] == bytes([0xFF]) + (9830).to_bytes(2, "little") + (
+        39321).to_bytes(2, "little") + bytes.fromhex("9001f4019001")
+    with pytest.raises(ConfigError, match="rise_tau must be"):
+        wire.DriveConstants(0, 0, 100, 5, 500, 400).pack()
+
+
+@pytest.mark.emulator
+def test_the_emulated_board_on_a_5v_supply_kicks_a_full_level_within_30_ms(
+        tmp_path: Path) -> None:
+    """``emulator?supply_v=5&kick_ms=40``: SET_DRIVE sends the rated level (3 V / 5 V of
+    the duty) and the board kicks at full duty; with the calibration's ceiling at the rated
+    level, its IMU senses a full-level 10-90 % rise within 30 ms (about 100 plain)."""
+    import shutil
+    import time
+
+    from tactorbelt.devices.calibration import Calibration
+
+    if shutil.which("g++") is None or shutil.which("make") is None:
+        pytest.skip("the firmware emulator needs g++ and make to build")
+    cal = tmp_path / "cal.toml"
+    cal.write_text("[[tactor]]\nstart = 0.0\nceiling = 0.6\n" * 6)
+    rises = {}
+    for drive in ("plain", "shaped"):
+        with open_belt(f"emulator?supply_v=5&kick_ms=40&drive={drive}",
+                       calibration=Calibration.load(cal)) as emu:
+            with emu.sense(0.9, tactor=1) as rec:
+                time.sleep(0.15)
+                on_ns = time.perf_counter_ns()
+                emu.set_amplitudes([0, 1.0, 0, 0, 0, 0])
+                assert rec.wait_for(on_ns + 600_000_000, 5.0)
+                rec.stop()
+            t, acc = rec.samples()
+        mag = np.linalg.norm(acc - acc[t < on_ns - 20_000_000].mean(axis=0), axis=1)
+        env = np.convolve(mag, np.ones(8) / 8, mode="same")
+        steady = float(np.median(env[(t > on_ns + 450_000_000) & (t < on_ns + 550_000_000)]))
+
+        def up(th: float, env: np.ndarray = env, t: np.ndarray = t, t0: int = on_ns) -> float:
+            return float(t[int(np.flatnonzero((env >= th) & (t > t0 - 5_000_000))[0])])
+
+        rises[drive] = (up(0.9 * steady) - up(0.1 * steady)) / 1e6
+    assert rises["plain"] > 80.0 and rises["shaped"] < 30.0, rises
 
 
 def _dynamic_error(url: str) -> float:

@@ -76,6 +76,7 @@ from . import wire
 from ._clocksync import ClockFit, ClockSync
 from .base import Belt
 from .calibration import Calibration
+from .erm import ErmParams
 
 if TYPE_CHECKING:
     from ..stimuli import Stimulus
@@ -546,8 +547,14 @@ class FirmwareBelt(Belt, PacketSink):
         layout: Layout | None = None,
         keepalive: bool = True,
         clock: object | None = None,
+        supply_v: float | None = None,
+        kick_ms: float = 0.0,
     ) -> None:
         del clock
+        #: the motor supply (V) and how long a kick may apply it above the motor's maximum
+        #: voltage (ms): the constants SET_DRIVE sends (None: the device's defaults)
+        self._supply_v = supply_v
+        self._kick_ms = kick_ms
         if not (isinstance(timeout_s, int | float) and math.isfinite(timeout_s) and timeout_s > 0):
             raise ConfigError(f"timeout_s must be a positive number of seconds, got {timeout_s!r}")
         self._transport = transport
@@ -1005,9 +1012,17 @@ class FirmwareBelt(Belt, PacketSink):
     def _set_drive(self, drive: str) -> None:
         """SET_DRIVE: the device shapes every level change from now on (frames and
         PLAY_TARGET alike), with its motor constants (docs/protocol.md, "SET_DRIVE")."""
-        mode = wire.DriveMode.SHAPED if drive == "shaped" else 0
-        reply = self._request(lambda seq: wire.set_drive(seq, int(mode)), "SET_DRIVE")
-        self._expect(reply, wire.Ack, "SET_DRIVE")
+        mode = int(wire.DriveMode.SHAPED if drive == "shaped" else 0)
+        vectors: list[wire.DriveConstants | None] = [None]
+        if drive == "shaped":
+            sent = drive_constants(self.n_tactors, self.calibration.shaping_taus(),
+                                   self._supply_v, self._kick_ms)
+            if sent:
+                vectors = list(sent)
+        for v in vectors:
+            reply = self._request(functools.partial(_set_drive_packet, mode=mode, vector=v),
+                                  "SET_DRIVE")
+            self._expect(reply, wire.Ack, "SET_DRIVE")
 
     # -- the board's accelerometer (firmware 1.2) -----------------------------------------
     @property
@@ -1357,3 +1372,54 @@ class FirmwareBelt(Belt, PacketSink):
     def host_framing_errors(self) -> int:
         """Frames from the device dropped for bad framing or length."""
         return self._transport.framing_errors
+
+
+def _set_drive_packet(seq: int, *, mode: int, vector: wire.DriveConstants | None
+                      ) -> wire.Packet:
+    return wire.set_drive(seq, mode, vector)
+
+
+def drive_constants(n: int, taus: tuple[tuple[float, ...], tuple[float, ...],
+                                        tuple[float, ...]] | None,
+                    supply_v: float | None, kick_ms: float = 0.0,
+                    params: ErmParams | None = None) -> list[wire.DriveConstants] | None:
+    """The SET_DRIVE vectors that give a board's shaper the host's motor constants: the
+    time constants ``validate onsets --tune`` fitted (``taus``: the calibration's
+    :meth:`~tactorbelt.devices.calibration.Calibration.shaping_taus`) and the rated level
+    of a motor supply ``supply_v`` (the rated voltage over it; its kick, at the full duty,
+    bounded by :meth:`~tactorbelt.devices.erm.ErmParams.kick_overdrive`). One vector for
+    every tactor (0xFF) when they share their constants, else one per tactor; None when
+    nothing differs from the device's defaults (neither given).
+
+    Raises:
+        ConfigError: a supply above the motor's maximum voltage without a ``kick_ms`` that
+            covers a kick at it (the board kicks at its full duty: the supply).
+    """
+    if taus is None and supply_v is None:
+        return None
+    p = params if params is not None else ErmParams()
+    rise, fall, brake = taus if taus is not None else (
+        (p.rise_tau_s,) * n, (p.fall_tau_s,) * n, (p.brake_tau_s,) * n)
+    rated = 1.0
+    if supply_v is not None:
+        k = p.kick_overdrive(float(supply_v), kick_ms, rise)
+        if float(supply_v) > k * p.rated_voltage_v * (1 + 1e-9):
+            raise ConfigError(
+                f"a board kicks at its full duty, the {supply_v:g} V supply, above the motor's "
+                f"maximum {p.max_voltage_v:g} V: give kick_ms (how long a kick may apply it) "
+                "or a supply at most the maximum")
+        rated = min(1.0, p.rated_voltage_v / float(supply_v))
+    lo, hi = wire.DRIVE_TAU_RANGE
+
+    def tau(x: float) -> int:
+        return min(hi, max(lo, round(x * 1e4)))
+
+    rated_lv = max(1, min(65535, round(rated * 65535)))
+    start_lv = min(rated_lv - 1, round(p.start_level * rated * 65535))
+    rows = [(tau(r), tau(f), tau(b)) for r, f, b in zip(rise, fall, brake, strict=True)]
+    if len(rows) != n:
+        raise ConfigError(f"the shaping has time constants for {len(rows)} tactors, the "
+                          f"belt {n}")
+    targets = [(wire.DRIVE_ALL_TACTORS, rows[0])] if len(set(rows)) == 1 else list(
+        enumerate(rows))
+    return [wire.DriveConstants(t, start_lv, rated_lv, *row) for t, row in targets]

@@ -51,7 +51,7 @@ BUILD_TIMEOUT_S: Final = 300.0
 OPTIONS: Final = frozenset({
     "tactors", "layout", "heartbeat_ms", "levels_log", "build", "timeout_s", "calibration",
     "keepalive", "clock", "firmware_dir", "extra_args", "watchdog_ms", "debug_frames", "imu",
-    "brake",
+    "brake", "supply_v", "kick_ms",
 })
 #: What the emulator's ``--imu`` takes.
 IMU_KINDS: Final = ("bmi270", "lsm9ds1", "none", "broken")
@@ -232,6 +232,11 @@ def open_emulator(target: str = "", **options: Any) -> EmulatorBelt:
                 H-bridge wired (INFO bits SHAPE and BRAKE: a shaped fall brakes); False
                 emulates the older wiring, IN2 to ground (SHAPE only: a shaped fall
                 coasts). The emulator's ``--wiring bridge|in1``.
+            supply_v (float), kick_ms (float): the emulated motors' supply (V) and how long
+                a kick may apply it above their maximum voltage; shaped, SET_DRIVE sends
+                the rated level and the kick bound (docs/belts.md, "The kick bound"). The
+                emulated motor's speed is in units of the full duty: give the belt a
+                calibration whose ceiling is the rated level (rated voltage over supply).
             extra_args (list[str]): more emulator arguments.
             timeout_s, calibration, keepalive, clock: as for every firmware belt.
 

@@ -35,7 +35,7 @@ from numpy.typing import NDArray
 from .._errors import ConfigError
 
 __all__ = ["BRAKE", "DRIVES", "RENDER_TICK_NS", "ErmParams", "Shaper", "drive_relax",
-           "erm_speed", "sample_grid"]
+           "erm_speed", "kick_duration_s", "sample_grid"]
 
 #: The drive modes a belt plays with: ``plain`` (each level straight to the motor) and
 #: ``shaped`` (overdrive and active braking, :class:`Shaper`).
@@ -128,6 +128,41 @@ class ErmParams:
                                                                float(supply_v))
         return max(1.0, top / self.rated_voltage_v)
 
+    def kick_overdrive(self, supply_v: float, kick_ms: float,
+                       rise_tau_s: Any = None) -> float:
+        """The shaper's largest drive (levels, 1 = rated) on a motor supply of ``supply_v``
+        when a kick may apply the whole supply, above the motor's maximum voltage, for at
+        most ``kick_ms`` (0: never; the bound is then :meth:`overdrive_bound`).
+
+        A kick above the maximum is short and bounded: the shaper drives the overdrive ``k``
+        only while its model of the motor is below the level, so a kick lasts at most
+        ``rise_tau * ln(k / (k - 1))`` plus a render tick (from rest to full level), and the
+        winding heat of a start to full speed is ``(k - 1/2) J w**2`` against ``J w**2 / 2``
+        plain (docs/belts.md, "The kick bound"). ``rise_tau_s``: the shaper's rise time
+        constants (one per tactor, or one); the supply is refused when a kick to full level
+        at it would outlast ``kick_ms``.
+
+        Raises:
+            ConfigError: a supply or limit out of range, or a kick that would last longer.
+        """
+        for name, v, lo in (("supply_v", supply_v, 0.5), ("kick_ms", kick_ms, 0.0)):
+            if isinstance(v, bool) or not isinstance(v, int | float) or not (
+                    math.isfinite(v) and v >= lo):
+                raise ConfigError(f"{name} must be a number >= {lo:g}, got {v!r}")
+        if kick_ms == 0 or supply_v <= self.max_voltage_v:
+            return self.overdrive_bound(supply_v)
+        k = float(supply_v) / self.rated_voltage_v
+        taus = np.atleast_1d(np.asarray(self.rise_tau_s if rise_tau_s is None else rise_tau_s,
+                                        dtype=float))
+        longest = float(kick_duration_s(k, float(taus.max())))
+        if longest * 1e3 > kick_ms:
+            raise ConfigError(
+                f"a kick at the {supply_v:g} V supply ({k:.3g} x the rated "
+                f"{self.rated_voltage_v:g} V) lasts up to {longest * 1e3:.1f} ms with a rise "
+                f"time constant of {taus.max() * 1e3:.1f} ms, longer than kick_ms="
+                f"{kick_ms:g}: raise kick_ms, or lower the supply")
+        return k
+
     def steady_speed(self, levels: FloatArray) -> FloatArray:
         """Steady-state speed for drive levels: 0 below the start level, else the level."""
         lv = np.asarray(levels, dtype=float)
@@ -142,6 +177,17 @@ class ErmParams:
         if self.amplitude_exponent == 2.0:
             return np.asarray(w * w)
         return np.asarray(w**self.amplitude_exponent)
+
+
+def kick_duration_s(overdrive: float, rise_tau_s: float, level: float = 1.0,
+                    tick_s: float = RENDER_TICK_NS * 1e-9) -> float:
+    """The longest kick the shaper holds at ``overdrive`` (levels) to reach ``level`` from
+    rest: ``rise_tau * ln(k / (k - level))`` plus the render tick that lands it (s). No
+    command sequence holds a kick longer (tests/test_drive_shaping.py)."""
+    k = float(overdrive)
+    if k <= level:
+        return math.inf
+    return rise_tau_s * math.log(k / (k - level)) + tick_s
 
 
 _INT64_MAX: Final = 2**63 - 1

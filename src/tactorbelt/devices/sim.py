@@ -92,7 +92,7 @@ _MAX_CHECKPOINTS: Final = 64
 _RESPONSES_BUDGET: Final = 24 * 2**20
 
 _OPTIONS: Final = ("layout", "clock", "calibration", "params", "horizon_s", "name", "drive",
-                   "overdrive", "brake", "supply_v", "shaper")
+                   "overdrive", "brake", "supply_v", "kick_ms", "shaper")
 #: The sim belt's motor supply by default (V): the motors' maximum voltage, so the
 #: shaper may overdrive them up to it (docs/hardware.md, "Power").
 DEFAULT_SUPPLY_V: Final = 3.6
@@ -332,8 +332,12 @@ class SimBelt(Belt):
             braking when ``brake``).
         brake: both H-bridge inputs are wired (reverse drive and short brake).
         overdrive: the shaper's largest drive, times the rated (default: the motor's
-            maximum voltage, or ``supply_v`` when lower, over its rated voltage).
+            maximum voltage, or ``supply_v`` when lower, over its rated voltage; with
+            ``kick_ms``, the supply over the rated voltage).
         supply_v: the motor supply (V).
+        kick_ms: a kick may apply the whole supply, above the motor's maximum voltage, if
+            it lasts at most this long (ms; 0, the default: never;
+            :meth:`~tactorbelt.devices.erm.ErmParams.kick_overdrive`).
     """
 
     def __init__(
@@ -350,6 +354,7 @@ class SimBelt(Belt):
         brake: bool = True,
         overdrive: float | None = None,
         supply_v: float = DEFAULT_SUPPLY_V,
+        kick_ms: float = 0.0,
     ) -> None:
         layout = layout if layout is not None else Layout.even(6)
         if not isinstance(layout, Layout):
@@ -399,7 +404,8 @@ class SimBelt(Belt):
         self._brake = bool(brake)
         if shaper is None:
             taus = self.calibration.shaping_taus()  # fitted by validate onsets --tune
-            od = self.params.overdrive_bound(supply_v) if overdrive is None else overdrive
+            od = (self.params.kick_overdrive(supply_v, kick_ms, taus[0] if taus else None)
+                  if overdrive is None else overdrive)
             shaper = Shaper(self.params, od, self._brake, *(taus or ()))
         self.shaper: Shaper = shaper
         if self.shaper.brake and not self._brake:
@@ -1190,7 +1196,9 @@ def open_sim(target: str = "", **options: Any) -> SimBelt:
             ``horizon_s`` (float), ``name`` (str), ``drive`` (``shaped``, the default, or
             ``plain``), ``overdrive`` (the shaper's largest drive, times the rated;
             default the motor's maximum voltage, or ``supply_v`` when lower, over its rated
-            voltage), ``supply_v`` (V, default :data:`DEFAULT_SUPPLY_V`), ``brake``
+            voltage), ``supply_v`` (V, default :data:`DEFAULT_SUPPLY_V`), ``kick_ms``
+            (ms a kick may apply the whole supply above the motor's maximum voltage;
+            default 0: never), ``brake``
             (bool, default True: both bridge inputs wired), ``shaper`` (a
             :class:`~tactorbelt.devices.erm.Shaper`).
 
@@ -1224,4 +1232,5 @@ def open_sim(target: str = "", **options: Any) -> SimBelt:
                    url=url, name=options.get("name"), drive=options.get("drive", "shaped"),
                    shaper=options.get("shaper"), brake=bool(options.get("brake", True)),
                    overdrive=options.get("overdrive"),
-                   supply_v=options.get("supply_v", DEFAULT_SUPPLY_V))
+                   supply_v=options.get("supply_v", DEFAULT_SUPPLY_V),
+                   kick_ms=options.get("kick_ms", 0.0))

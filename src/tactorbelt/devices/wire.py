@@ -48,6 +48,7 @@ __all__ = [
     "Capability",
     "ConfigFlag",
     "Diag",
+    "DriveConstants",
     "DriveMode",
     "FrameDecoder",
     "GetDiag",
@@ -726,11 +727,54 @@ def sense_start(seq: int, rate_hz: int, duration_ms: int,
     return Packet(MsgType.SENSE_START, seq, payload)
 
 
-def set_drive(seq: int, mode: int) -> Packet:
-    """SET_DRIVE (firmware 1.3) with the mode byte alone (:class:`DriveMode`): the device
-    keeps its motor constants (docs/protocol.md, "SET_DRIVE"). ACK; NAK 2 from a firmware
-    without shaping (INFO without :attr:`Capability.SHAPE`)."""
-    return Packet(MsgType.SET_DRIVE, seq, bytes([_uint("mode", mode, 8)]))
+#: SET_DRIVE's motor constants: tactor, start and rated levels, rise, fall and brake
+#: time constants (units of 100 us).
+_SET_DRIVE_CONSTANTS = struct.Struct("<BHHHHH")
+#: SET_DRIVE's tactor that names every tactor at once.
+DRIVE_ALL_TACTORS = 0xFF
+#: The time constants SET_DRIVE carries (units of 100 us): 1 ms .. 6 s.
+DRIVE_TAU_RANGE = (10, 60_000)
+
+
+@dataclass(frozen=True)
+class DriveConstants:
+    """One SET_DRIVE vector: a tactor's motor constants for the device's shaper.
+
+    ``start`` and ``rated`` are levels (65535 = full duty): the dead zone and the duty of
+    the motor's rated voltage (a shaped level is held at most there; only a kick, at most
+    ``rise_tau * ln(1 / (1 - rated))`` plus a tick, goes above it). The time constants are
+    in units of 100 us. ``tactor`` 0xFF (:data:`DRIVE_ALL_TACTORS`): every tactor."""
+
+    tactor: int
+    start: int
+    rated: int
+    rise_tau: int
+    fall_tau: int
+    brake_tau: int
+
+    def pack(self) -> bytes:
+        lo, hi = DRIVE_TAU_RANGE
+        for name in ("rise_tau", "fall_tau", "brake_tau"):
+            v = getattr(self, name)
+            if not (isinstance(v, int) and lo <= v <= hi):
+                raise ConfigError(f"SET_DRIVE {name} must be {lo}..{hi} (100 us), got {v!r}")
+        if not 0 <= self.start < self.rated:
+            raise ConfigError(f"SET_DRIVE start ({self.start}) must be below rated "
+                              f"({self.rated})")
+        return _SET_DRIVE_CONSTANTS.pack(
+            _uint("tactor", self.tactor, 8), _uint("start", self.start, 16),
+            _uint("rated", self.rated, 16), self.rise_tau, self.fall_tau, self.brake_tau)
+
+
+def set_drive(seq: int, mode: int, constants: DriveConstants | None = None) -> Packet:
+    """SET_DRIVE (firmware 1.3): the mode byte (:class:`DriveMode`) alone (the device keeps
+    its motor constants), or with one tactor's constants (or every tactor's: tactor 0xFF;
+    docs/protocol.md, "SET_DRIVE"). ACK; NAK 2 from a firmware without shaping (INFO
+    without :attr:`Capability.SHAPE`), NAK 4 for a tactor the belt lacks."""
+    payload = bytes([_uint("mode", mode, 8)])
+    if constants is not None:
+        payload += constants.pack()
+    return Packet(MsgType.SET_DRIVE, seq, payload)
 
 
 def sense_stop(seq: int) -> Packet:

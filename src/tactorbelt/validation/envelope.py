@@ -140,8 +140,9 @@ class PulseMeasure:
     figures are NaN). ``settled``: the steady stretch changed by less than
     :data:`SETTLED` of the amplitude; ``stopped``: so did the baseline (no motor still
     running down from before). ``overshoot``: how far the envelope went above its steady
-    amplitude while on, as a fraction of it (0 when it never did; sensor noise counts). ``trace_ms``/``trace`` (from ``t_on``) and ``off_ms`` (``t_off``
-    from ``t_on``) draw it normalised.
+    amplitude while on, as a fraction of it (0 when it never did; sensor noise counts).
+    ``trace_ms``/``trace`` (from ``t_on``) and ``off_ms`` (``t_off`` from ``t_on``) draw it
+    normalised.
     """
 
     tactor: int

@@ -1,0 +1,142 @@
+"""The drive-shaping goals, measured: plain against shaped, on the sim belt and the emulator.
+
+For each belt and drive: ``tactorbelt validate onsets`` at levels 0.5 and 1.0 (latency,
+10-90 % rise, 90-10 % fall, overshoot; the median over tactors and pulses) and
+``tactorbelt validate stimulus --all`` for the paper's static and dynamic stimuli (the
+RMS felt-against-intended error over the between-tactor targets, the static onset errors).
+Prints one markdown table of each (docs/belts.md, "The goals, measured").
+
+    python benchmarks/bench_drive.py [--emulator] [--stimulus] [-o DIR]
+
+The belts: ``plain``; ``shaped 3.6 V``: kicks up to the motor's maximum voltage (the
+default, 1.2 x rated); ``shaped 5 V kick``: a 5 V supply, kicks at it for at most 40 ms
+(``supply_v=5&kick_ms=40``, 1.67 x rated). The emulator's motors are in units of the full
+duty, so its belts get a calibration whose ceiling is the rated level (3 V over the supply).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+from typing import Any
+
+TACTORBELT = str(Path(sys.executable).with_name("tactorbelt"))
+
+#: (name, belt URL query, drive, supply V for the emulator's calibration ceiling)
+CONFIGS = (
+    ("plain", "", "plain", 3.0),
+    ("shaped 3.6 V", "", "shaped", 3.0),
+    ("shaped 5 V kick", "supply_v=5&kick_ms=40", "shaped", 5.0),
+)
+
+
+def _calibration(path: Path, n: int, ceiling: float) -> Path:
+    path.write_text("".join(f"[[tactor]]\nstart = 0.0\nceiling = {ceiling:.6f}\n"
+                            for _ in range(n)))
+    return path
+
+
+def _run(args: list[str]) -> None:
+    subprocess.run([TACTORBELT, *args], check=True, stdout=subprocess.DEVNULL,
+                   stderr=subprocess.PIPE, timeout=1800)
+
+
+def _belt(kind: str, query: str, supply: float, emu_supply: float | None) -> str:
+    if kind == "sim":
+        return "sim:virtual" + (f"?{query}" if query else "")
+    q = query or (f"supply_v={emu_supply:g}" if emu_supply else "")
+    return "emulator" + (f"?{q}" if q else "")
+
+
+def onsets(out: Path, kind: str) -> list[dict[str, Any]]:
+    rows = []
+    for name, query, drive, supply in CONFIGS:
+        d = out / f"onsets-{kind}-{name.replace(' ', '_')}"
+        emu_supply = 3.6 if (kind == "emulator" and name == "shaped 3.6 V") else None
+        sup = emu_supply or supply
+        args = ["validate", "onsets", "--belt", _belt(kind, query, supply, emu_supply),
+                "--levels", "0.5,1.0", "--pulses", "3", "--drive", drive, "-o", str(d),
+                "--force"]
+        if kind == "emulator":
+            args += ["--sense", "board", "--calibration",
+                     str(_calibration(out / f"cal-{sup:g}.toml", 6, 3.0 / sup))]
+        _run(args)
+        pulses = json.loads((d / "validation.json").read_text())["pulses"]
+        for level in (0.5, 1.0):
+            ps = [p for p in pulses if p["level"] == level]
+
+            def med(key: str, ps: list[dict[str, Any]] = ps) -> float:
+                return statistics.median(p[key] for p in ps if p[key] is not None)
+
+            rows.append({"belt": kind, "drive": name, "level": level,
+                         "latency_ms": med("latency_ms"), "rise_ms": med("rise_ms"),
+                         "fall_ms": med("fall_ms"),
+                         "overshoot": max(p["overshoot"] or 0.0 for p in ps)})
+    return rows
+
+
+def stimulus(out: Path, kind: str) -> list[dict[str, Any]]:
+    rows = []
+    for name, query, drive, supply in CONFIGS:
+        emu_supply = 3.6 if (kind == "emulator" and name == "shaped 3.6 V") else None
+        sup = emu_supply or supply
+        row: dict[str, Any] = {"belt": kind, "drive": name}
+        for cond in ("static", "dynamic"):
+            d = out / f"stimulus-{kind}-{cond}-{name.replace(' ', '_')}"
+            args = ["validate", "stimulus", "--belt", _belt(kind, query, supply, emu_supply),
+                    "--all", "--condition", cond, "--drive", drive, "-o", str(d), "--force"]
+            if kind == "emulator":
+                args += ["--sense", "board", "--calibration",
+                         str(_calibration(out / f"cal-{sup:g}.toml", 6, 3.0 / sup))]
+            _run(args)
+            res = json.loads((d / "stimulus.json").read_text())
+            row[f"{cond}_rms"] = res["between_tactor_rms_error"]
+            if cond == "static":
+                errs = [abs(t["onset_error_ms"]) for tg in res["targets"]
+                        for t in tg["tactors"] if t.get("onset_error_ms") is not None]
+                row["static_onset_mean_ms"] = statistics.mean(errs)
+                row["static_onset_max_ms"] = max(errs)
+        rows.append(row)
+    return rows
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--emulator", action="store_true", help="the emulator (IMU) too")
+    ap.add_argument("--stimulus", action="store_true", help="validate stimulus --all too")
+    ap.add_argument("-o", "--output", type=Path, default=None)
+    a = ap.parse_args()
+    out = a.output or Path(tempfile.mkdtemp(prefix="bench-drive-"))
+    out.mkdir(parents=True, exist_ok=True)
+    kinds = ["sim", "emulator"] if a.emulator else ["sim"]
+    print("| belt | drive | level | latency (10 %) ms | rise 10-90 % ms | fall 90-10 % ms "
+          "| overshoot |")
+    print("|---|---|---|---|---|---|---|")
+    results: dict[str, Any] = {"onsets": [], "stimulus": []}
+    for kind in kinds:
+        for r in onsets(out, kind):
+            results["onsets"].append(r)
+            print(f"| {r['belt']} | {r['drive']} | {r['level']:g} | {r['latency_ms']:.1f} | "
+                  f"{r['rise_ms']:.1f} | {r['fall_ms']:.1f} | {r['overshoot'] * 100:.1f} % |",
+                  flush=True)
+    if a.stimulus:
+        print("\n| belt | drive | dynamic RMS (18 between-tactor targets) | static RMS "
+              "| static onset error, mean / max ms |")
+        print("|---|---|---|---|---|")
+        for kind in kinds:
+            for r in stimulus(out, kind):
+                results["stimulus"].append(r)
+                print(f"| {r['belt']} | {r['drive']} | {r['dynamic_rms']:.4f} | "
+                      f"{r['static_rms']:.4f} | {r['static_onset_mean_ms']:.1f} / "
+                      f"{r['static_onset_max_ms']:.1f} |", flush=True)
+    (out / "bench_drive.json").write_text(json.dumps(results, indent=1))
+    print(f"\nresults: {out / 'bench_drive.json'}")
+
+
+if __name__ == "__main__":
+    main()
