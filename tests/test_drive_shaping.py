@@ -401,3 +401,37 @@ def test_every_backend_takes_the_drive_option() -> None:
     for b in BACKENDS.values():
         url = (b.examples[0].split("?")[0] + "?drive=plain")
         assert resolve(url)[2]["drive"] == "plain", b.scheme
+
+
+@pytest.mark.emulator
+def test_the_tuned_time_constants_reach_the_emulated_board(tmp_path: Path) -> None:
+    """A calibration's fitted constants (``validate onsets --tune``) go to the board with
+    SET_DRIVE: told the motors rise with 80 ms (they rise with 40), the board's shaper kicks
+    twice as long as it should, and its IMU senses the overshoot (the speed 0.75 for 0.5: the
+    amplitude 2.25 times the steady); with the true constants it senses none."""
+    import shutil
+    import time
+
+    from tactorbelt.devices.calibration import Calibration
+
+    if shutil.which("g++") is None or shutil.which("make") is None:
+        pytest.skip("the firmware emulator needs g++ and make to build")
+    peaks = {}
+    for rise_ms in (40.0, 80.0):
+        cal = tmp_path / f"cal{rise_ms:g}.toml"
+        cal.write_text(("[[tactor]]\nstart = 0.0\nceiling = 1.0\n"
+                        f"rise_tau_ms = {rise_ms}\nfall_tau_ms = 50.0\n") * 6)
+        with open_belt("emulator?drive=shaped", calibration=Calibration.load(cal)) as emu:
+            with emu.sense(0.7, tactor=1) as rec:
+                time.sleep(0.15)
+                on_ns = time.perf_counter_ns()
+                emu.set_amplitudes([0, 0.5, 0, 0, 0, 0])
+                assert rec.wait_for(on_ns + 500_000_000, 5.0)
+                rec.stop()
+            t, acc = rec.samples()
+        mag = np.linalg.norm(acc - acc[t < on_ns - 20_000_000].mean(axis=0), axis=1)
+        env = np.convolve(mag, np.ones(8) / 8, mode="same")
+        steady = float(np.median(env[(t > on_ns + 350_000_000) & (t < on_ns + 480_000_000)]))
+        peaks[rise_ms] = float(env[(t > on_ns) & (t < on_ns + 300_000_000)].max()) / steady
+    # the true constants: the peak is the steady vibration and the sensor's noise (~1.3)
+    assert peaks[80.0] > 1.4 * peaks[40.0], peaks
