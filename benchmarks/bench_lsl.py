@@ -6,7 +6,7 @@ Prints one JSON object:
   timestamp (LSL's clock when it is sent) to its arrival at an inlet in another thread,
   over loopback TCP, for 400 markers sent at 200 Hz: how late a live consumer (an online
   analysis, a BCI) sees an event;
-- ``lsl_on_sample_us``: what :meth:`LslObserver.on_sample` costs the runner per cursor
+- ``lsl_on_sample_us``: what :meth:`LslListener.on_sample` costs the runner per cursor
   sample (the clock bracket and the push), and ``lsl_push_sample_us``, the bare
   ``push_sample`` of the same sample (baseline);
 - ``lsl_map_error_us``: the largest difference between the observer's mapping of the
@@ -69,12 +69,11 @@ def marker_latency(pylsl: Any, n: int = 400, rate_hz: float = 200.0) -> list[flo
 
 def on_sample_cost(pylsl: Any, n: int = 20000) -> tuple[float, float, float]:
     from tactorbelt.clock import WallClock
-    from tactorbelt.experiment.runner import NullObserver
     from tactorbelt.inputs.base import CursorSample
-    from tactorbelt.lsl import LslObserver
+    from tactorbelt.lsl import LslListener
 
     clock = WallClock()
-    obs = LslObserver(NullObserver(), clock, belt=None, pylsl=pylsl)  # type: ignore[arg-type]
+    obs = LslListener(clock, belt=None, pylsl=pylsl)  # type: ignore[arg-type]
     info = pylsl.StreamInfo("bench-cursor", "Position", 2, 100.0, "float32",
                             f"bench-{uuid.uuid4().hex}")
     obs.cursor = pylsl.StreamOutlet(info)

@@ -35,7 +35,8 @@ import numpy as np
 
 from tactorbelt.clock import WallClock
 from tactorbelt.devices import open_belt
-from tactorbelt.experiment.runner import NullObserver, run_session
+from tactorbelt.experiment.listeners import NullListener, NullOperator
+from tactorbelt.experiment.runner import run_session
 from tactorbelt.experiment.store import Store
 from tactorbelt.experiment.study import Study
 from tactorbelt.gui.window import session_window
@@ -62,60 +63,22 @@ repetitions = 1
 PERIOD_NS = 10_000_000
 
 
-class Recorder(NullObserver):
-    """Forwards every hook to ``inner`` and records sample times and poll costs."""
+class Recorder(NullListener):
+    """A listener beside the window: records the sample times of each stimulus."""
 
-    def __init__(self, inner: Any = None) -> None:
-        self.inner = inner
+    def __init__(self) -> None:
         self.trials: list[list[int]] = []
         self.in_stimulus = False
         self.poll_ns: list[int] = []
-
-    def __getattr__(self, name: str) -> Any:  # anything not overridden goes to inner
-        return getattr(self.inner, name)
-
-    def on_session_start(self, info: Any, schedule: Any) -> None:
-        if self.inner is not None:
-            self.inner.on_session_start(info, schedule)
-
-    def on_block_start(self, block: str, condition: str) -> None:
-        if self.inner is not None:
-            self.inner.on_block_start(block, condition)
 
     def on_trial_state(self, trial: Any, state: Any, now_ns: int) -> None:
         self.in_stimulus = str(getattr(state, "value", state)) == "stimulus"
         if self.in_stimulus:
             self.trials.append([])
-        if self.inner is not None:
-            self.inner.on_trial_state(trial, state, now_ns)
 
     def on_sample(self, sample: Any) -> None:
         if self.in_stimulus:  # the runner also reports samples while waiting for home
             self.trials[-1].append(sample.t_ns)
-        if self.inner is not None:
-            self.inner.on_sample(sample)
-
-    def on_trial_done(self, result: Any) -> None:
-        if self.inner is not None:
-            self.inner.on_trial_done(result)
-
-    def on_break(self, n_done: int, n_total: int) -> None:
-        if self.inner is not None:
-            self.inner.on_break(n_done, n_total)
-
-    def on_session_end(self, status: str) -> None:
-        if self.inner is not None:
-            self.inner.on_session_end(status)
-
-    def poll(self, now_ns: int) -> Any:
-        if self.inner is None:
-            return None
-        t0 = time.perf_counter_ns()
-        frames = self.inner.frames
-        cmd = self.inner.poll(now_ns)
-        if self.inner.frames != frames:
-            self.poll_ns.append(time.perf_counter_ns() - t0)
-        return cmd
 
     def errors_ms(self) -> np.ndarray:
         errs = [np.abs(np.diff(np.asarray(t, dtype=np.int64)) - PERIOD_NS)
@@ -129,22 +92,42 @@ def _cursor() -> ScriptedCursor:
                                            movement_s=0.5))
 
 
+class _TimedWindow:
+    """The window as the operator, its polls that drew a frame timed (the rest of the
+    operator's queries go to the window as they are)."""
+
+    def __init__(self, window: Any, rec: Recorder) -> None:
+        self.window, self.rec = window, rec
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self.window, name)
+
+    def poll(self, now_ns: int) -> Any:
+        t0 = time.perf_counter_ns()
+        frames = self.window.frames
+        cmd = self.window.poll(now_ns)
+        if self.window.frames != frames:
+            self.rec.poll_ns.append(time.perf_counter_ns() - t0)
+        return cmd
+
+
 def _session(study: Study, window: bool, db: str) -> tuple[Recorder, float, int]:
     clock = WallClock()
+    rec = Recorder()
     with Store.open(db) as store, open_belt("sim", clock=clock,
                                             layout=study.layout_obj()) as belt:
         if not window:
-            rec = Recorder(None)
             t0 = time.perf_counter()
-            run_session(study, "B01", belt, _cursor(), store, clock, observer=rec)
+            run_session(study, "B01", belt, _cursor(), store, clock, listeners=[rec],
+                        operator=NullOperator())
             return rec, time.perf_counter() - t0, 0
         with session_window(study, input="scripted", participant="B01", clock=clock,
                             belt=belt, auto_continue_s=0.0, fps=60.0) as win:
             win.window.overlay = True  # the heaviest frame: text panel and bars too
-            rec = Recorder(win.observer)
             t0 = time.perf_counter()
             win.run(lambda: run_session(study, "B01", belt, _cursor(), store, clock,
-                                        observer=rec))
+                                        listeners=[rec, win.observer],
+                                        operator=_TimedWindow(win.observer, rec)))
             return rec, time.perf_counter() - t0, win.window.frames
 
 

@@ -23,8 +23,8 @@ import pytest
 
 from support.lsl import inlet_result, loopback_env, pylsl_or_skip, start_inlet
 from support.studies import write_study
-from tactorbelt.experiment.runner import NullObserver
-from tactorbelt.lsl import MARKER_EVENTS, LslObserver, load_pylsl, marker
+from tactorbelt.experiment.listeners import NullListener, NullObserver, NullOperator
+from tactorbelt.lsl import MARKER_EVENTS, LslListener, load_pylsl, marker
 
 
 @pytest.fixture(autouse=True, scope="module")
@@ -182,10 +182,11 @@ def test_lsl_wait_needs_lsl(tmp_path: Path) -> None:
     assert proc.returncode == 2 and "--lsl-wait is for --lsl" in proc.stderr
 
 
-def test_the_lsl_observer_forwards_every_hook_of_the_runner() -> None:
-    # a hook the runner gains must be forwarded, or the window behind it stops seeing it
-    hooks = {n for n in vars(NullObserver) if not n.startswith("_")}
-    assert hooks <= set(vars(LslObserver)), hooks - set(vars(LslObserver))
+def test_the_lsl_listener_wraps_nothing_and_answers_no_query() -> None:
+    # it is one listener beside the window: the window gets the events and answers the
+    # queries itself, whatever the LSL listener does
+    assert issubclass(LslListener, NullListener) and not issubclass(LslListener, NullOperator)
+    assert "inner" not in LslListener.__init__.__code__.co_varnames
 
 
 def test_markers_are_compact_json_in_the_documented_shape() -> None:
@@ -255,8 +256,9 @@ def test_secondary_task_items_presses_and_ratings_are_markers_at_their_times(
     clock = SimClock()
     with open_belt("sim", clock=clock, layout=study.layout_obj()) as belt, \
             Store.open(tmp_path / "s.sqlite") as store, \
-            LslObserver(_Window(tlx), clock, belt, pylsl=pylsl) as lsl:
-        res = run_session(study, "P01", belt, cursor, store, clock, observer=lsl)
+            LslListener(clock, belt, pylsl=pylsl) as lsl:
+        res = run_session(study, "P01", belt, cursor, store, clock, listeners=[lsl],
+                          observer=_Window(tlx))
         events = store.task_events(res.session_id)
     assert res.status == "complete"
     offset = lsl.to_lsl.fixed
@@ -332,8 +334,9 @@ def test_pause_resume_and_abort_are_markers_and_the_aborted_trial_ends(tmp_path:
     clock = SimClock()
     with open_belt("sim", clock=clock, layout=study.layout_obj()) as belt, \
             Store.open(tmp_path / "s.sqlite") as store, \
-            LslObserver(_Experimenter(), clock, belt, pylsl=pylsl) as lsl:
-        res = run_session(study, "P01", belt, cursor, store, clock, observer=lsl)
+            LslListener(clock, belt, pylsl=pylsl) as lsl:
+        res = run_session(study, "P01", belt, cursor, store, clock, listeners=[lsl],
+                          observer=_Experimenter())
     assert res.status == "aborted"
     got = [json.loads(text) for _, text in lsl.sent]
     seq = [(m["event"], m.get("trial_index"), m.get("status")) for m in got
@@ -441,7 +444,8 @@ def test_the_window_shows_the_wait_and_esc_esc_ends_it() -> None:
     window = _WaitWindow()
     clock = WallClock()
     with open_belt("sim", clock=clock) as belt:
-        lsl = LslObserver(window, clock, belt, wait_s=20, report=said.append, pylsl=pylsl)
+        lsl = LslListener(clock, belt, wait_s=20, report=said.append, operator=window,
+                          pylsl=pylsl)
         for name, kind in (("tactorbelt-markers", "Markers"), ("tactorbelt-cursor", "Position")):
             outlet = pylsl.StreamOutlet(pylsl.StreamInfo(name, kind, 1))
             setattr(lsl, "markers" if kind == "Markers" else "cursor", outlet)
@@ -480,7 +484,7 @@ def test_a_calibrated_belt_streams_its_latencies_and_marks_the_skin_onsets(
     xml = ""
     with Store.open(tmp_path / "s.sqlite") as store, open_belt(
             "sim:virtual", clock=clock, layout=study.layout_obj(), calibration=cal) as belt:
-        obs = LslObserver(None, clock, belt, pylsl=pylsl)
+        obs = LslListener(clock, belt, pylsl=pylsl)
         orig = obs.on_session_start
 
         def start(info: Any, schedule: Any) -> None:
@@ -491,7 +495,7 @@ def test_a_calibrated_belt_streams_its_latencies_and_marks_the_skin_onsets(
         obs.on_session_start = start  # type: ignore[method-assign]
         with obs:
             res = run_session(study, "P01", belt, make_model_cursor(belt, clock, seed=2),
-                              store, clock, seed=2, observer=obs)
+                              store, clock, seed=2, listeners=[obs])
         trials = store.trials(res.session_id)
     for k in range(6):
         assert f"<latency_ms>{15 + k:g}</latency_ms>" in xml

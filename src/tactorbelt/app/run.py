@@ -46,16 +46,19 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from .._errors import ConfigError, StoreError
+from ..experiment.listeners import NullListener
 from ..inputs import INPUTS
 
 if TYPE_CHECKING:
     from ..clock import Clock
-    from ..experiment.runner import SessionInfo, SessionResult
+    from ..experiment.listeners import SessionInfo, SessionListener
+    from ..experiment.runner import SessionResult
     from ..experiment.schedule import ScheduledTrial
     from ..experiment.store import Store
     from ..experiment.sync import Pusher
+    from ..experiment.trial import TrialResult
     from ..inputs.joystick import JoystickConfig
-    from ..lsl import LslObserver
+    from ..lsl import LslListener
 
 __all__ = ["CLOCKS", "RunOutcome", "RunRequest", "choose_clock", "clock_kind", "has_display",
            "resolve_db", "resume_command", "reuse_lines", "run_study"]
@@ -342,14 +345,12 @@ def _check_session(store: Store, req: RunRequest) -> dict[str, Any]:
     return {}
 
 
-class _RunObserver:
-    """Stores the run's options when the session starts, then forwards to ``inner``."""
+class _RunListener(NullListener):
+    """The run's own listener: stores the run's options when the session starts, and
+    tells the background push of each trial stored."""
 
-    def __init__(self, inner: Any, store: Store, opts: dict[str, Any], slow_s: float,
+    def __init__(self, store: Store, opts: dict[str, Any], slow_s: float,
                  pusher: Pusher | None = None) -> None:
-        from ..experiment.runner import NullObserver
-
-        self.inner = inner if inner is not None else NullObserver()
         self.store, self.opts, self.slow_s = store, opts, slow_s
         self.pusher = pusher
 
@@ -357,46 +358,12 @@ class _RunObserver:
         self.store.set_run_options(info.session_id, self.opts)
         if self.pusher is not None:
             self.pusher.watch(info.session_id)
-        self.inner.on_session_start(info, schedule)
 
-    def on_trial_done(self, result: Any) -> None:
+    def on_trial_done(self, result: TrialResult) -> None:
         if self.pusher is not None:
             self.pusher.notify()
-        self.inner.on_trial_done(result)
         if self.slow_s > 0:
             time.sleep(self.slow_s)
-
-    def on_block_start(self, block: str, condition: str) -> None:
-        self.inner.on_block_start(block, condition)
-
-    def on_trial_state(self, trial: Any, state: Any, now_ns: int) -> None:
-        self.inner.on_trial_state(trial, state, now_ns)
-
-    def on_sample(self, sample: Any) -> None:
-        self.inner.on_sample(sample)
-
-    def on_break(self, n_done: int, n_total: int) -> None:
-        self.inner.on_break(n_done, n_total)
-
-    def on_session_end(self, status: str) -> None:
-        self.inner.on_session_end(status)
-
-    def poll(self, now_ns: int) -> Any:
-        return self.inner.poll(now_ns)
-
-    def on_task_phase(self, name: str | None, spec: Any, phase: str | None) -> None:
-        self.inner.on_task_phase(name, spec, phase)
-
-    def on_task_item(self, item: Any, onset_ns: int, spec: Any) -> None:
-        self.inner.on_task_item(item, onset_ns, spec)
-
-    def task_presses(self, now_ns: int) -> list[int]:
-        presses: list[int] = self.inner.task_presses(now_ns)
-        return presses
-
-    def ask_workload(self, info: Any) -> dict[str, float] | None:
-        answer: dict[str, float] | None = self.inner.ask_workload(info)
-        return answer
 
 
 def _check_options(r: RunRequest, given: bool = False) -> None:
@@ -588,14 +555,14 @@ def run_study(req: RunRequest, *, progress: Callable[[int, int], None] | None = 
                 cursor = make_cursor(r.input_kind, study=study, belt=belt, clock=clock,
                                      participant=req.participant, seed=seed,
                                      schedule=schedule)
+            listeners: list[SessionListener] = [_RunListener(store, opts, slow_s, pusher)]
             try:
                 if window is None:
                     assert cursor is not None
+                    if lsl is not None:
+                        listeners.append(lsl)
                     result = run_session(study, req.participant, belt, cursor, store, clock,
-                                         progress=progress,
-                                         observer=_RunObserver(lsl, store, opts, slow_s,
-                                                               pusher),
-                                         **kwargs)
+                                         progress=progress, listeners=listeners, **kwargs)
                 else:
                     with window(study, input=r.input_kind, participant=req.participant,
                                 clock=clock, belt=belt, fullscreen=r.fullscreen,
@@ -605,13 +572,12 @@ def run_study(req: RunRequest, *, progress: Callable[[int, int], None] | None = 
                         if src is None:
                             raise ConfigError(f"the window gave no cursor for --input "
                                               f"{r.input_kind}")
-                        inner = win.observer
                         if lsl is not None:
-                            lsl.inner, inner = inner, lsl
-                        obs = _RunObserver(inner, store, opts, slow_s, pusher)
+                            lsl.operator = win.observer
+                            listeners.append(lsl)
                         result = win.run(lambda: run_session(
-                            study, req.participant, belt, src, store, clock, observer=obs,
-                            **kwargs))
+                            study, req.participant, belt, src, store, clock,
+                            listeners=listeners, observer=win.observer, **kwargs))
             finally:
                 if cursor is not None:
                     cursor.close()
@@ -623,14 +589,14 @@ def run_study(req: RunRequest, *, progress: Callable[[int, int], None] | None = 
 
 
 def _lsl(req: RunRequest, clock: Clock, belt: Any,
-         note: Callable[[str], None] | None) -> LslObserver | None:
+         note: Callable[[str], None] | None) -> LslListener | None:
     """With ``req.lsl``: the LSL observer (tactorbelt.lsl; its streams open when the
     session starts); else None."""
     if not req.lsl:
         return None
-    from ..lsl import LslObserver
+    from ..lsl import LslListener
 
-    return LslObserver(None, clock, belt, wait_s=req.lsl_wait_s,
+    return LslListener(clock, belt, wait_s=req.lsl_wait_s,
                        wait_all=req.lsl_wait_all, report=note)
 
 

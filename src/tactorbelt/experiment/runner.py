@@ -8,12 +8,12 @@ trial (with its samples) in one transaction, and keeps the inter-trial interval 
 the breaks. On a :class:`~tactorbelt.clock.SimClock` nothing sleeps, so a whole paper
 session runs in well under a second of CPU; on the wall clock it paces a real
 participant. When nothing but the samples depends on the ticks (an exact simulated
-clock, no observer, no task running, a device-rendered stimulus) a cursor source that
+clock, nobody watching, no task running, a device-rendered stimulus) a cursor source that
 reads in runs (the model participant) is sampled a run of ticks at a time
 (:meth:`SessionRunner._present_runs`), with the same stored results.
 
 Every exit path turns the motors off: normal end, a pause or abort from the
-observer, Ctrl-C (KeyboardInterrupt), SIGTERM / SIGHUP
+operator, Ctrl-C (KeyboardInterrupt), SIGTERM / SIGHUP
 (:class:`~tactorbelt.interrupts.Terminated`), a belt that fails (DeviceError) and any
 other exception. An interrupted trial is stored as ``aborted`` and the session is left
 ``interrupted`` (resumable with ``resume=True``).
@@ -28,7 +28,9 @@ a pause, a break, an abort or an error (nothing lost). With ``[questionnaire] tl
 the raw NASA-TLX follows every test block (the cursor source answers first: the model
 participant; else the window asks a person).
 
-The experiment window plugs in as a :class:`SessionObserver`; cursor sources
+Events go to a list of listeners and queries to one operator
+(:mod:`~tactorbelt.experiment.listeners`; the experiment window is both, a
+:class:`SessionObserver`); cursor sources
 (joystick, mouse, scripted, model participant) as a
 :class:`~tactorbelt.inputs.base.CursorSource`.
 
@@ -41,10 +43,9 @@ from __future__ import annotations
 import contextlib
 import math
 import re
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
-from enum import StrEnum
-from typing import TYPE_CHECKING, Any, Protocol
+from typing import TYPE_CHECKING, Any
 
 from .._errors import ConfigError, DeviceError, TactorbeltError
 from ..clock import Clock, Deadlines, SimClock
@@ -52,9 +53,21 @@ from ..geometry import TargetSet
 from ..inputs.base import CursorSample, CursorSource, TrialCue
 from ..interrupts import Terminated
 from ..tasks import TASK_LEAD_NS, TLX_SCALE, WorkloadInfo, check_tlx
-from ..tasks.schedule import TaskItem, derive_seed
+from ..tasks.schedule import derive_seed
 from ..tasks.session import TaskSession
 from . import provenance
+from .listeners import (
+    Command,
+    Listeners,
+    NullListener,
+    NullObserver,
+    NullOperator,
+    Operator,
+    Progress,
+    SessionInfo,
+    SessionListener,
+    SessionObserver,
+)
 from .recorder import SessionRecorder
 from .schedule import ScheduledTrial
 from .store import Store
@@ -68,8 +81,12 @@ if TYPE_CHECKING:
 
 __all__ = [
     "Command",
+    "NullListener",
     "NullObserver",
+    "NullOperator",
+    "Operator",
     "SessionInfo",
+    "SessionListener",
     "SessionObserver",
     "SessionResult",
     "SessionRunner",
@@ -89,116 +106,6 @@ RESULT_SAMPLES_KEPT = 1000
 #: A simulated session nobody watches reads the model participant's cursor in runs of
 #: up to this many sampling ticks (:meth:`SessionRunner._present_runs`).
 RUN_TICKS = 256
-
-
-class Command(StrEnum):
-    """What the window (observer) can ask of the runner."""
-
-    PAUSE = "pause"
-    RESUME = "resume"
-    ABORT = "abort"
-
-
-@dataclass(frozen=True)
-class SessionInfo:
-    """What an observer learns when a session starts.
-
-    Attributes:
-        session_id: the store's id of the session.
-        participant: the participant id.
-        study: the study.
-        n_total: trials in the schedule.
-        n_done: trials already done (non-zero when resuming).
-        resumed: True when this continues an interrupted session.
-        condition_order: the test blocks' conditions in running order.
-    """
-
-    session_id: int
-    participant: str
-    study: Study
-    n_total: int
-    n_done: int
-    resumed: bool
-    condition_order: tuple[str, ...]
-
-
-class SessionObserver(Protocol):
-    """Hooks for the experiment window (every one optional through :class:`NullObserver`).
-
-    One more hook is called only where an observer has it: ``on_skin_onset(trial,
-    skin_onset_ns, skin_onset_sd_ns)``, just before ``on_trial_done``, for a trial whose
-    onset at the skin is known (:meth:`SessionRunner.skin_onset`; the LSL streams mark it).
-    """
-
-    def on_session_start(self, info: SessionInfo, schedule: list[ScheduledTrial]) -> None: ...
-    def on_block_start(self, block: str, condition: str) -> None: ...
-    def on_trial_state(self, trial: ScheduledTrial, state: TrialState, now_ns: int) -> None: ...
-    def on_sample(self, sample: CursorSample) -> None: ...
-    def on_trial_done(self, result: TrialResult) -> None: ...
-    def on_break(self, n_done: int, n_total: int) -> None:
-        """A break: return when the participant is ready to go on."""
-        ...
-    def on_session_end(self, status: str) -> None: ...
-    def poll(self, now_ns: int) -> Command | None:
-        """Called at every sampling step: PAUSE (motors off at once), RESUME or ABORT."""
-        ...
-    def on_task_phase(self, name: str | None, spec: TaskSpec | None, phase: str | None
-                      ) -> None:
-        """A secondary task starts (``practice`` or ``baseline`` alone, before the first
-        block with its load; ``dual`` with a test block) or ends (None, None, None).
-        May wait for the participant to go on (as at a block start)."""
-        ...
-    def on_task_item(self, item: TaskItem, onset_ns: int, spec: TaskSpec) -> None:
-        """An item will be presented at ``onset_ns`` (at least
-        :data:`~tactorbelt.tasks.TASK_LEAD_NS` ahead): schedule its sound or glyph."""
-        ...
-    def task_presses(self, now_ns: int) -> list[int]:
-        """Response presses (ns, runner clock) of the task's button since the last call."""
-        ...
-    def ask_workload(self, info: WorkloadInfo) -> dict[str, float] | None:
-        """Ask the NASA-TLX after a test block: item -> 0..100, or None (not asked)."""
-        ...
-
-
-class NullObserver:
-    """An observer that does nothing; subclass it and override what you need."""
-
-    def on_session_start(self, info: SessionInfo, schedule: list[ScheduledTrial]) -> None:
-        pass
-
-    def on_block_start(self, block: str, condition: str) -> None:
-        pass
-
-    def on_trial_state(self, trial: ScheduledTrial, state: TrialState, now_ns: int) -> None:
-        pass
-
-    def on_sample(self, sample: CursorSample) -> None:
-        pass
-
-    def on_trial_done(self, result: TrialResult) -> None:
-        pass
-
-    def on_break(self, n_done: int, n_total: int) -> None:
-        pass
-
-    def on_session_end(self, status: str) -> None:
-        pass
-
-    def poll(self, now_ns: int) -> Command | None:
-        return None
-
-    def on_task_phase(self, name: str | None, spec: TaskSpec | None, phase: str | None
-                      ) -> None:
-        pass
-
-    def on_task_item(self, item: TaskItem, onset_ns: int, spec: TaskSpec) -> None:
-        pass
-
-    def task_presses(self, now_ns: int) -> list[int]:
-        return []
-
-    def ask_workload(self, info: WorkloadInfo) -> dict[str, float] | None:
-        return None
 
 
 @dataclass
@@ -362,6 +269,7 @@ class SessionRunner:
     def __init__(self, study: Study, participant: str, belt: Belt, cursor: CursorSource,
                  store: Store, clock: Clock, *, seed: int | None = None,
                  resume: bool = False, limit: int | None = None,
+                 listeners: Sequence[SessionListener] = (), operator: Operator | None = None,
                  observer: SessionObserver | None = None,
                  progress: Callable[[int, int], None] | None = None,
                  study_toml: str | None = None, input_name: str | None = None,
@@ -380,16 +288,21 @@ class SessionRunner:
         self.seed = seed
         self.resume = resume
         self.limit = limit
-        self.obs: Any = observer if observer is not None else NullObserver()
-        #: No observer: nobody sees the samples or sends commands (the runner skips
-        #: those calls in its loops).
-        self._headless = observer is None
+        every = [*listeners, *([observer] if observer is not None else []),
+                 *([Progress(progress)] if progress is not None else [])]
+        if operator is None:
+            operator = observer
+        #: the session's events go to every listener, in order; its queries to the operator
+        self.listeners = Listeners(every)
+        self.operator: Operator = operator if operator is not None else NullOperator()
+        #: Nobody watches and nobody operates: nobody sees the samples or sends commands
+        #: (the runner skips those calls in its loops).
+        self._headless = not self.listeners.watching and operator is None
         #: How the session's writes are committed (provenance.commit_mode): in batches
         #: only with nothing real involved; recorded in the store (Store.commit_mode).
         self.commits = provenance.commit_mode(
             simulated_clock=bool(clock.simulated), hardware_belt=belt.hardware,
-            person=cursor.person, observer=observer is not None)
-        self.progress = progress
+            person=cursor.person, observer=not self._headless)
         self.study_toml = study_toml if study_toml is not None else study.to_toml()
         self.input_name = input_name
         self.site = site
@@ -520,9 +433,9 @@ class SessionRunner:
         assert run is not None and run.session is not None
         ts = run.session
         for item, onset in ts.announce(now, TASK_LEAD_NS):
-            self.obs.on_task_item(item, onset, run.spec)
+            self.listeners.on_task_item(item, onset, run.spec)
             self.cursor.task_item(item, onset)
-        for p in self.obs.task_presses(now):
+        for p in self._operator_presses(now):
             ts.press(p)
         for p in self.cursor.task_presses(now):
             ts.press(p)
@@ -534,10 +447,10 @@ class SessionRunner:
         if run.remaining is not None and run.remaining <= 0:
             self._task = None
             return
-        self.obs.on_task_phase(run.name, run.spec, run.phase)
+        self._task_phase(run.name, run.spec, run.phase)
         self.cursor.task_phase(run.spec, run.phase)
         now = self.clock.now_ns()
-        self.obs.task_presses(now)  # pressed while no task ran: not part of this run
+        self._operator_presses(now)  # pressed while no task ran: not part of this run
         self.cursor.task_presses(now)
         seed = derive_seed(self.seed_used, self.participant, run.name, run.phase,
                            run.block_index, run.next_index)
@@ -567,7 +480,7 @@ class SessionRunner:
         finally:
             with contextlib.suppress(Exception):
                 self.cursor.task_phase(None, None)
-            self.obs.on_task_phase(None, None, None)
+            self._task_phase(None, None, None)
         return run
 
     def _stop_task_quietly(self) -> None:
@@ -596,7 +509,7 @@ class SessionRunner:
             run = self._task
             if run is None or run.session is None or run.session.done(now):
                 break
-            self.handle(self.obs.poll(now), None)
+            self.handle(self._poll(now), None)
         self._stop_task()
         self._phases_done.add((name, phase))
 
@@ -625,7 +538,9 @@ class SessionRunner:
                             None if task is None else task[1])
         values = self.cursor.rate_workload(info)
         if values is None:
-            values = self.obs.ask_workload(info)
+            values = self.operator.ask_workload(info)
+            if values is not None:
+                self.listeners.on_workload(info, values)
         if values is not None:
             self.recorder.write_ratings(t.block_index, TLX_SCALE, check_tlx(values))
             self._rated.add(t.block_index)
@@ -658,7 +573,28 @@ class SessionRunner:
                 now = self.clock.now_ns()
                 if self.sim:
                     self.player.pump(now)
-            self.handle(self.obs.poll(now), None)
+            self.handle(self._poll(now), None)
+
+    def _poll(self, now: int) -> Command | None:
+        """A tick for the listeners, then the operator's command (told to the listeners)."""
+        self.listeners.on_tick(now)
+        cmd = self.operator.poll(now)
+        if cmd is not None:
+            self.listeners.on_command(cmd, now)
+        return cmd
+
+    def _operator_presses(self, now: int) -> list[int]:
+        """The operator's task presses since the last call (told to the listeners)."""
+        presses = self.operator.task_presses(now)
+        if presses:
+            self.listeners.on_task_presses(presses)
+        return presses
+
+    def _task_phase(self, name: str | None, spec: TaskSpec | None, phase: str | None
+                    ) -> None:
+        """A task run starts or ends: the listeners, then the operator's wait."""
+        self.listeners.on_task_phase(name, spec, phase)
+        self.operator.wait_task_phase(name, spec, phase)
 
     def handle(self, cmd: Command | None, machine: TrialMachine | None) -> None:
         """Act on a command from the observer. A pause aborts the trial in flight."""
@@ -680,7 +616,7 @@ class SessionRunner:
         ticks = self._ticks()
         while True:
             ticks.wait()
-            cmd = self.obs.poll(self.clock.now_ns())
+            cmd = self._poll(self.clock.now_ns())
             if cmd is Command.RESUME:
                 if run is not None:
                     self._start_task(run)
@@ -694,12 +630,12 @@ class SessionRunner:
         s = self.cursor.read(now)
         sample = CursorSample(now, s.x, s.y, s.buttons)
         if not self._headless:
-            self.obs.on_sample(sample)
+            self.listeners.on_sample(sample)
         return now, sample
 
     def wait_home(self, t: ScheduledTrial, machine: TrialMachine) -> None:
         """Sample the cursor until it is in the home zone."""
-        self.obs.on_trial_state(t, TrialState.WAIT_HOME, self.clock.now_ns())
+        self.listeners.on_trial_state(t, TrialState.WAIT_HOME, self.clock.now_ns())
         ticks = self._ticks()
         while True:
             now, s = self._sample()
@@ -711,7 +647,7 @@ class SessionRunner:
                     f"(within {self.rule.home_radius:g} of the centre)"
                 )
             if not self._headless:
-                self.handle(self.obs.poll(now), machine)
+                self.handle(self._poll(now), machine)
             self._tick(ticks)
 
     def present(self, t: ScheduledTrial, machine: TrialMachine) -> TrialState:
@@ -724,7 +660,7 @@ class SessionRunner:
             duration_s=self.trial_stimulus(t).max_presentation_s))
         machine.start(onset)
         self.cursor.trial_started(cue, onset)
-        self.obs.on_trial_state(t, TrialState.STIMULUS, onset)
+        self.listeners.on_trial_state(t, TrialState.STIMULUS, onset)
         ticks = self._ticks(onset, first=0)
         if (self._headless and self._task is None and self.cursor.reads_runs
                 and isinstance(self.clock, SimClock) and self.clock.exact
@@ -738,7 +674,7 @@ class SessionRunner:
             s = read(now)
             state = feed(now, s.x, s.y, s.buttons)
             if not headless:
-                self.obs.on_sample(CursorSample(now, s.x, s.y, s.buttons))
+                self.listeners.on_sample(CursorSample(now, s.x, s.y, s.buttons))
             finished = machine.finished
             if playing and (finished or machine.stimulus_due_off(now)):
                 self.player.stop()
@@ -747,7 +683,7 @@ class SessionRunner:
             if finished:
                 return state
             if not headless:
-                self.handle(self.obs.poll(now), machine)
+                self.handle(self._poll(now), machine)
 
     def _present_runs(self, machine: TrialMachine, ticks: Deadlines) -> TrialState:
         """:meth:`present`'s loop when nothing but the samples depends on the ticks: a
@@ -793,7 +729,7 @@ class SessionRunner:
             device_onset = self.belt.last_onset()  # (host_ns, uncertainty_ns) or None
             if device_onset is not None:
                 machine.result.device_onset_ns, machine.result.onset_uncertainty_ns = device_onset
-            self.obs.on_trial_state(t, state, self.clock.now_ns())
+            self.listeners.on_trial_state(t, state, self.clock.now_ns())
             return machine.result
         except _Paused:
             machine.stimulus_stopped(self.clock.now_ns())
@@ -833,15 +769,11 @@ class SessionRunner:
         return base + round(ms * 1e6), round(math.hypot(sd_ms * 1e6, unc))
 
     def _write(self, result: TrialResult) -> None:
-        """Write a trial with its skin onset; tell an observer that wants it
-        (``on_skin_onset(trial, skin_onset_ns, skin_onset_sd_ns)``, the LSL streams)."""
+        """Write a trial with its skin onset; tell the listeners the skin onset."""
         skin = self.skin_onset(result)
         self.recorder.record(result, skin)
-        if skin is None:
-            return
-        hook = getattr(self.obs, "on_skin_onset", None)
-        if hook is not None:
-            hook(result.trial, skin[0], skin[1])
+        if skin is not None:
+            self.listeners.on_skin_onset(result.trial, skin[0], skin[1])
 
     def record(self, result: TrialResult) -> None:
         """Store a trial (one transaction) and keep it in :attr:`results`."""
@@ -849,7 +781,7 @@ class SessionRunner:
         self.results.append(result)
         if len(self.results) > RESULT_SAMPLES_KEPT:
             self.results[-RESULT_SAMPLES_KEPT - 1].release_samples()
-        self.obs.on_trial_done(result)
+        self.listeners.on_trial_done(result)
 
     # -- the session -----------------------------------------------------------------------
     def run(self) -> SessionResult:
@@ -866,7 +798,7 @@ class SessionRunner:
         try:
             # inside the try: Ctrl-C or a window error on the instructions screen leaves
             # the session "interrupted", not "running"
-            self.obs.on_session_start(info, self.schedule)
+            self.listeners.on_session_start(info, self.schedule)
             status = self._trials(todo)
         except _Aborted as exc:
             self._stop_task_quietly()
@@ -878,7 +810,7 @@ class SessionRunner:
         finally:
             _stop_quietly(self.player, self.belt)
         self.recorder.end(status)
-        self.obs.on_session_end(status)
+        self.listeners.on_session_end(status)
         return SessionResult(self.session_id, status, n_total, self.n_done, self.n_run,
                              self.results)
 
@@ -901,31 +833,31 @@ class SessionRunner:
                 if task is not None:
                     self.run_alone(*task, "practice", t.block_index)
                     self.run_alone(*task, "baseline", t.block_index)
-                self.obs.on_block_start(t.block, t.condition)
+                self.listeners.on_block_start(t.block, t.condition)
                 self._start_block_task(t)
                 prev_block = t.block_index
             result = self.run_trial(t)
             self.record(result)
             if result.status == "aborted":  # paused: wait, then run the same trial again
-                self.obs.on_trial_state(t, TrialState.ABORTED, self.clock.now_ns())
+                self.listeners.on_trial_state(t, TrialState.ABORTED, self.clock.now_ns())
                 self.pause()
                 continue
             self.n_run += 1
             self.n_done += 1
             if t.block == "test":
                 self.n_test_run += 1
-            if self.progress is not None:
-                self.progress(self.n_done, n_total)
             i += 1
             if t.trial_index == self._block_last.get(t.block_index):
                 self._stop_task()
                 self.rate_block(t)
             if i < len(todo):
-                self.obs.on_trial_state(t, TrialState.ITI, self.clock.now_ns())
+                self.listeners.on_trial_state(t, TrialState.ITI, self.clock.now_ns())
                 self.wait_for(iti_ns)
                 if break_every and (t.trial_index + 1) % break_every == 0:
                     run = self._stop_task()
-                    self.obs.on_break(self.n_done, n_total)
+                    self.listeners.on_break(self.n_done, n_total)
+                    self.operator.wait_break(self.n_done, n_total)
+                    self.listeners.on_break_end()
                     if run is not None:
                         self._start_task(run)
         self._stop_task()
@@ -941,7 +873,7 @@ class SessionRunner:
         with contextlib.suppress(Exception):
             self.recorder.end("interrupted")
         with contextlib.suppress(Exception):
-            self.obs.on_session_end("interrupted")
+            self.listeners.on_session_end("interrupted")
         if isinstance(exc, DeviceError):
             raise DeviceError(
                 f"belt {self.belt.url} failed during the session ({exc}); motors off (a belt "
@@ -970,6 +902,8 @@ def run_session(
     seed: int | None = None,
     resume: bool = False,
     limit: int | None = None,
+    listeners: Sequence[SessionListener] = (),
+    operator: Operator | None = None,
     observer: SessionObserver | None = None,
     progress: Callable[[int, int], None] | None = None,
     study_toml: str | None = None,
@@ -989,8 +923,13 @@ def run_session(
         resume: continue the participant's latest unfinished session with the trials
             of its stored schedule that have no final outcome, in order.
         limit: stop after this many test trials (the session stays resumable).
-        observer: the experiment window, or None.
-        progress: called as ``progress(n_done, n_total)`` after each trial.
+        listeners: where the session's events go, in order
+            (:class:`~tactorbelt.experiment.listeners.SessionListener`).
+        operator: who answers the session's queries (pause, task presses, NASA-TLX,
+            the waits; :class:`~tactorbelt.experiment.listeners.Operator`), or None.
+        observer: a listener that is also the operator (the experiment window), or None.
+        progress: called as ``progress(n_done, n_total)`` after each trial (a listener,
+            :class:`~tactorbelt.experiment.listeners.Progress`, that watches nothing).
         study_toml: the study file's text, stored verbatim (default: ``study.to_toml()``).
         input_name: the cursor source's name, stored with the session.
         site: the lab running the session, stored with it (default
@@ -1008,5 +947,6 @@ def run_session(
             :class:`~tactorbelt.interrupts.Terminated` (SIGTERM, SIGHUP) likewise.
     """
     return SessionRunner(study, participant, belt, cursor, store, clock, seed=seed,
-                         resume=resume, limit=limit, observer=observer, progress=progress,
+                         resume=resume, limit=limit, listeners=listeners, operator=operator,
+                         observer=observer, progress=progress,
                          study_toml=study_toml, input_name=input_name, site=site).run()

@@ -2,8 +2,9 @@
 
 :class:`WindowController` is the state machine of
 :class:`~tactorbelt.gui.window.ExperimentWindow`, with no drawing in it: it takes the
-runner's observer hooks into its state, turns pygame's events into the runner's commands
-(pause, resume, abort: :meth:`~WindowController.poll`), and runs the waiting screens
+runner's events into its state (a listener), answers its queries (the operator): turns
+pygame's events into the runner's commands (pause, resume, abort:
+:meth:`~WindowController.poll`), and runs the waiting screens
 (``instructions``, ``block``, ``break``, ``task``, ``end``, the NASA-TLX's ``tlx``,
 ``show_wait``'s ``wait``) until the participant goes on, an abort, or
 ``auto_continue_s``. The keys are listed in :mod:`tactorbelt.gui.window`; a joystick
@@ -29,12 +30,13 @@ from typing import TYPE_CHECKING, Any
 
 from .._errors import ConfigError
 from ..clock import Deadlines
+from ..experiment.listeners import NullObserver
 from ..inputs.joystick import LiveCursor, prepare_sdl
 
 if TYPE_CHECKING:
     from ..clock import Clock
     from ..devices.base import Belt
-    from ..experiment.runner import Command, SessionInfo
+    from ..experiment.listeners import Command, SessionInfo
     from ..experiment.schedule import ScheduledTrial
     from ..experiment.study import Study, TaskSpec
     from ..experiment.trial import TrialResult, TrialState
@@ -63,7 +65,7 @@ class _Trial:
     onset_ns: int | None = None
 
 
-class WindowController(abc.ABC):
+class WindowController(NullObserver, abc.ABC):
     """The state of the experiment window and its event loop (see the module doc).
 
     Args:
@@ -98,7 +100,7 @@ class WindowController(abc.ABC):
         prepare_sdl()
         import pygame
 
-        from ..experiment.runner import Command
+        from ..experiment.listeners import Command
         from .taskview import TaskPresenter
 
         self._pg = pygame
@@ -200,7 +202,7 @@ class WindowController(abc.ABC):
         return self.cursor.live_input() if self.cursor is not None else None
 
     # ------------------------------------------------------------------------------------
-    # SessionObserver hooks (called by the runner, in this thread)
+    # listener and operator hooks (called by the runner, in this thread)
     def _show_targets(self, n: int) -> None:
         """Show the candidate targets of a block of ``n`` targets (at k*360/n)."""
         if n <= 0 or n == self._n_targets:
@@ -275,6 +277,8 @@ class WindowController(abc.ABC):
     def on_break(self, n_done: int, n_total: int) -> None:
         self.n_done = n_done
         self.n_total = n_total
+
+    def wait_break(self, n_done: int, n_total: int) -> None:
         self._wait_screen("break")
 
     def on_session_end(self, status: str) -> None:
@@ -289,14 +293,19 @@ class WindowController(abc.ABC):
     # -- secondary tasks and workload ------------------------------------------------------
     def on_task_phase(self, name: str | None, spec: TaskSpec | None, phase: str | None
                       ) -> None:
-        """A task run starts (practice and baseline: its instructions first, once) or
-        ends (silence, no glyph)."""
+        """A task run starts or ends (silence, no glyph)."""
         if name is None or spec is None or phase is None:
             self.tasks.end()
             self.task_alone = False
             return
         self.tasks.start(name, spec, phase)
         self.task_alone = phase in ("practice", "baseline")
+
+    def wait_task_phase(self, name: str | None, spec: TaskSpec | None,
+                        phase: str | None) -> None:
+        """A practice or baseline run: its instructions first, once."""
+        if name is None or spec is None or phase is None:
+            return
         if phase in ("practice", "baseline") and (name, phase) not in self._intros_shown:
             self._intros_shown.add((name, phase))
             self.task_intro = (name, spec, phase, self._practice_note())

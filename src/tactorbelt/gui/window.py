@@ -1,6 +1,7 @@
 """The experiment window: a view of a running session and the participant's input.
 
-:class:`ExperimentWindow` is a :class:`~tactorbelt.experiment.runner.SessionObserver`.
+:class:`ExperimentWindow` is a listener and the operator of a session (a
+:class:`~tactorbelt.experiment.listeners.SessionObserver`).
 The runner owns the trial logic and the timing; the window only shows the state it is
 told about, turns keys into commands, and feeds the joystick or mouse cursor.
 

@@ -1,10 +1,9 @@
 """Lab Streaming Layer (LSL) streams of a session: event markers and the cursor.
 
 Labs record EEG, pupil size, heart rate or motion alongside a task and synchronise
-everything with LSL (docs/lsl.md). :class:`LslObserver` is a session observer
-(:class:`~tactorbelt.experiment.runner.SessionObserver`) that forwards every hook to the
-observer it wraps (the experiment window, or nothing) and, when the session starts,
-opens two LSL outlets:
+everything with LSL (docs/lsl.md). :class:`LslListener` is one of a session's listeners
+(:class:`~tactorbelt.experiment.listeners.SessionListener`, beside the experiment
+window, wrapping none) and, when the session starts, opens two LSL outlets:
 
 - ``tactorbelt-markers`` (type ``Markers``, irregular rate, one string channel): one
   JSON object per event (:data:`MARKER_EVENTS`, docs/lsl.md "Markers"), for example
@@ -39,12 +38,13 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 from .._errors import ConfigError
+from ..experiment.listeners import Command, NullListener, NullOperator
 from ..factors import BUILTIN, added_factors, after_builtin, factors
 
 if TYPE_CHECKING:
     from ..clock import Clock
     from ..devices.base import Belt
-    from ..experiment.runner import Command, SessionInfo
+    from ..experiment.listeners import Operator, SessionInfo
     from ..experiment.schedule import ScheduledTrial
     from ..experiment.study import TaskSpec
     from ..experiment.trial import TrialResult, TrialState
@@ -56,7 +56,7 @@ __all__ = [
     "CURSOR_STREAM",
     "MARKER_EVENTS",
     "MARKER_STREAM",
-    "LslObserver",
+    "LslListener",
     "load_pylsl",
     "marker",
     "marker_fields",
@@ -217,12 +217,10 @@ class _ToLsl:
         return ts
 
 
-class LslObserver:
-    """A session observer that sends LSL markers and cursor samples (module doc), and
-    forwards every hook to ``inner``.
+class LslListener(NullListener):
+    """A session listener that sends LSL markers and cursor samples (module doc).
 
     Args:
-        inner: the observer to forward to (the experiment window's), or None.
         clock: the runner's clock (event times are on it).
         belt: the session's belt (its URL, firmware, layout and whether it reports
             device-true onsets).
@@ -233,20 +231,20 @@ class LslObserver:
             lost.
         wait_all: wait for a consumer of every stream, not only the markers.
         report: called with a line for the experimenter while waiting: which streams
-            have a consumer and how long is left (default: the log, at INFO). ``inner``
-            with a ``show_wait(title, lines)`` method (the experiment window) also shows
-            it, and keeps handling its events (Esc Esc ends the wait).
+            have a consumer and how long is left (default: the log, at INFO). The
+            ``operator`` (the experiment window) also shows it
+            (:meth:`~tactorbelt.experiment.listeners.Operator.show_wait`), and keeps
+            handling its events (Esc Esc ends the wait).
+        operator: the session's operator, or None.
         pylsl: the pylsl module (default: :func:`load_pylsl`).
 
     Use as a context manager (or call :meth:`close`) to close the outlets.
     """
 
-    def __init__(self, inner: Any, clock: Clock, belt: Belt, *, wait_s: float = 0.0,
+    def __init__(self, clock: Clock, belt: Belt, *, wait_s: float = 0.0,
                  wait_all: bool = False, report: Callable[[str], None] | None = None,
-                 pylsl: Any = None) -> None:
-        from ..experiment.runner import NullObserver
-
-        self.inner = inner if inner is not None else NullObserver()
+                 operator: Operator | None = None, pylsl: Any = None) -> None:
+        self.operator: Operator = operator if operator is not None else NullOperator()
         self.clock = clock
         self.belt = belt
         self.wait_s = float(wait_s)
@@ -309,7 +307,7 @@ class LslObserver:
         lsl = self.lsl
         outlets = {MARKER_STREAM: self.markers, CURSOR_STREAM: self.cursor}
         need = list(outlets) if self.wait_all else [MARKER_STREAM]
-        show = getattr(self.inner, "show_wait", None)
+        show = self.operator.show_wait
         start = lsl.local_clock()
         end = start + self.wait_s
         have = dict.fromkeys(outlets, False)
@@ -340,14 +338,12 @@ class LslObserver:
                     self.report(f"LSL: {self._consumers(have)}; {max(end - now, 0):.0f} s "
                                 "left")
                     next_report = now + WAIT_REPORT_S
-                if show is not None and show("Waiting for the recorder", self._wait_lines(
-                        have, end - now)):
+                if show("Waiting for the recorder", self._wait_lines(have, end - now)):
                     stopped = True  # the experimenter stopped the session
                     break
                 time.sleep(WAIT_POLL_S)
         finally:
-            if show is not None:
-                show(None, [])
+            show(None, [])
         took = lsl.local_clock() - start
         if stopped:
             self.report(f"LSL: the wait was stopped in the window after {took:.1f} s")
@@ -393,16 +389,15 @@ class LslObserver:
         b.append_child_value("drive", self.belt.drive)
         b.append_child_value("firmware_version", str(self.belt.firmware_version or ""))
         b.append_child_value("reports_onsets", "true" if self.belt.reports_onsets else "false")
-        cal = getattr(self.belt, "calibration", None)
-        b.append_child_value("timing_validated", str(getattr(cal, "validated", None) or ""))
-        b.append_child_value("timing_method",
-                             str(getattr(cal, "validation_method", None) or ""))
+        cal = self.belt.calibration
+        b.append_child_value("timing_validated", str(cal.validated or ""))
+        b.append_child_value("timing_method", str(cal.validation_method or ""))
         tactors = b.append_child("tactors")
         for k, angle in enumerate(self.belt.layout.angles_deg):
             t = tactors.append_child("tactor")
             t.append_child_value("index", str(k))
             t.append_child_value("angle_deg", f"{angle:g}")
-            if cal is not None and k < cal.n:  # measured timing (ms): the skin-onset offset
+            if k < cal.n:  # measured timing (ms): the skin-onset offset
                 for name in ("latency_ms", "latency_sd_ms", "rise_ms", "rise_sd_ms"):
                     v = getattr(cal.tactors[k], name)
                     if v is not None:
@@ -418,7 +413,7 @@ class LslObserver:
             time.sleep(LINGER_S)
         outlets.clear()
 
-    def __enter__(self) -> LslObserver:
+    def __enter__(self) -> LslListener:
         return self
 
     def __exit__(self, *exc: object) -> None:
@@ -440,7 +435,7 @@ class LslObserver:
             onset, fields = self._items.pop(0)
             self.send(onset, "task_item", **fields)
 
-    # -- markers from the runner's hooks ------------------------------------------------
+    # -- markers from the session's events ----------------------------------------------
     def _trial_fields(self, t: ScheduledTrial) -> dict[str, Any]:
         return {"trial_index": t.trial_index, "block_index": t.block_index, "block": t.block,
                 **_levels(t)}
@@ -462,12 +457,10 @@ class LslObserver:
         self.send(self.clock.now_ns(), "session_start", session_id=info.session_id,
                   participant=info.participant, study=info.study.name,
                   n_trials=info.n_total, n_done=info.n_done, resumed=info.resumed)
-        self.inner.on_session_start(info, schedule)
 
     def on_block_start(self, block: str, condition: str) -> None:
         # sent with the block's first trial, which names it fully
         self._block_ns = self.clock.now_ns()
-        self.inner.on_block_start(block, condition)
 
     def on_trial_state(self, trial: ScheduledTrial, state: TrialState, now_ns: int) -> None:
         from ..experiment.trial import TrialState
@@ -487,7 +480,6 @@ class LslObserver:
                 self._onset_pending = True  # the device's onset comes with the result
             else:
                 self._send_onset(trial, now_ns, "host")
-        self.inner.on_trial_state(trial, state, now_ns)
 
     def _send_onset(self, t: ScheduledTrial, onset_ns: int, clock: str) -> None:
         self.send(onset_ns, "stimulus_onset", trial_index=t.trial_index,
@@ -498,16 +490,12 @@ class LslObserver:
         self._flush_items(sample.t_ns)
         if self.cursor is not None:
             self.cursor.push_sample([sample.x, sample.y], self.to_lsl(sample.t_ns, CURSOR_STREAM))
-        self.inner.on_sample(sample)
 
     def on_skin_onset(self, trial: ScheduledTrial, skin_onset_ns: int,
                       skin_onset_sd_ns: int) -> None:
         """The runner's skin onset of the trial ending (its calibration has measured
         latencies): marked as ``skin_onset`` when the trial ends."""
         self._skin = (trial.trial_index, int(skin_onset_ns), int(skin_onset_sd_ns))
-        hook = getattr(self.inner, "on_skin_onset", None)
-        if hook is not None:
-            hook(trial, skin_onset_ns, skin_onset_sd_ns)
 
     def on_trial_done(self, result: TrialResult) -> None:
         t = result.trial
@@ -534,11 +522,11 @@ class LslObserver:
             self.send(at, "timeout", trial_index=t.trial_index)
         self._trial = t
         self._end_trial(self.clock.now_ns(), result.status, result.abort_reason)
-        self.inner.on_trial_done(result)
 
     def on_break(self, n_done: int, n_total: int) -> None:
         self.send(self.clock.now_ns(), "break_start", n_done=n_done, n_total=n_total)
-        self.inner.on_break(n_done, n_total)
+
+    def on_break_end(self) -> None:
         self.send(self.clock.now_ns(), "break_end")
 
     def on_task_phase(self, name: str | None, spec: TaskSpec | None, phase: str | None
@@ -553,7 +541,6 @@ class LslObserver:
                       **fields, modality=spec.modality,
                       block_index=self._block if phase == "dual" else None)
             self._task = (name, phase)
-        self.inner.on_task_phase(name, spec, phase)
 
     def _end_task(self, now_ns: int) -> None:
         """The running task ends: its items shown by now are sent, the rest never were."""
@@ -570,23 +557,17 @@ class LslObserver:
                                        "item_index": item.index, "stimulus": item.stimulus,
                                        "go": item.target}))
         self._items.sort(key=lambda x: x[0])
-        self.inner.on_task_item(item, onset_ns, spec)
 
-    def task_presses(self, now_ns: int) -> list[int]:
-        presses: list[int] = self.inner.task_presses(now_ns)
+    def on_task_presses(self, presses: list[int]) -> None:
         if self._task is not None:
             for p in sorted(presses):
                 self.send(p, "task_press", task=self._task[0], phase=self._task[1])
-        return presses
 
-    def ask_workload(self, info: WorkloadInfo) -> dict[str, float] | None:
+    def on_workload(self, info: WorkloadInfo, values: dict[str, float]) -> None:
         from ..tasks import TLX_SCALE
 
-        values: dict[str, float] | None = self.inner.ask_workload(info)
-        if values is not None:
-            self.send(self.clock.now_ns(), "workload", block_index=info.block_index,
-                      scale=TLX_SCALE, ratings=values)
-        return values
+        self.send(self.clock.now_ns(), "workload", block_index=info.block_index,
+                  scale=TLX_SCALE, ratings=values)
 
     def on_session_end(self, status: str) -> None:
         now = self.clock.now_ns()
@@ -594,19 +575,16 @@ class LslObserver:
         self._end_trial(now, "aborted", None)
         self._end_block(now)
         self.send(now, "session_end", status=status)
-        self.inner.on_session_end(status)
 
-    def poll(self, now_ns: int) -> Command | None:
-        from ..experiment.runner import Command
-
+    def on_tick(self, now_ns: int) -> None:
         self._flush_items(now_ns)
-        cmd = self.inner.poll(now_ns)
-        if cmd is Command.PAUSE and not self._paused:
+
+    def on_command(self, command: Command, now_ns: int) -> None:
+        if command is Command.PAUSE and not self._paused:
             self._paused = True
             self.send(now_ns, "pause")
-        elif cmd is Command.RESUME and self._paused:
+        elif command is Command.RESUME and self._paused:
             self._paused = False
             self.send(now_ns, "resume")
-        elif cmd is Command.ABORT:
+        elif command is Command.ABORT:
             self.send(now_ns, "abort")
-        return cmd
