@@ -524,3 +524,25 @@ def test_host_other_than_loopback_warns(tmp_path: Path) -> None:
     assert rc == 143
     assert "warning: listening on 0.0.0.0" in err
     assert os.path.exists(b.store)
+
+
+def test_sim_belt_plays_after_any_number_of_stops() -> None:
+    """The bridge stops the belt whenever a page asks (stop, a response, a lost page),
+    so a play may follow any number of stops: the sim belt's checkpoint must never look
+    up the render of a play it is still registering (it raised KeyError once in 256)."""
+    from tactorbelt.clock import WallClock
+    from tactorbelt.devices import open_belt
+    from tactorbelt.player import Player
+    from tactorbelt.stimuli import make_stimulus
+
+    clock = WallClock()
+    with open_belt("sim", clock=clock) as belt:
+        belt.set_drive("plain")
+        player = Player(belt, clock)
+        stim = make_stimulus(belt.layout, 45.0, "dynamic")
+        for i in range(600):
+            player.start(stim, duration_s=10.0)
+            player.stop()
+            for _ in range(i % 3):
+                belt.stop()
+        assert not belt.levels.any()

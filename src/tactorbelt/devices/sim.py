@@ -703,8 +703,9 @@ class SimBelt(Belt):
         self._rid[i] = rid
         self._hi += 1
         self._since_ck += 1
-        # (shaped: not while a played stimulus's render is not registered yet)
-        if self._since_ck >= _CHECKPOINT_EVERY and (register or self._drive != "shaped"):
+        # (not while a played stimulus's render is not registered yet: the checkpoint
+        # would look it up; the next command checkpoints instead)
+        if self._since_ck >= _CHECKPOINT_EVERY and register:
             # keep a recent state, so later queries and pruning never replay much
             self._speed_at(np.array([now], dtype=np.int64))
         if (self._hi - self._lo >= 2
