@@ -79,6 +79,15 @@ class StudyDescription:
         out.append(f"  stimulus    law {st.law}, falloff {st.falloff_deg:g} deg, period "
                    f"{st.period_s:g} s, transit {st.transit_s:g} s, at most "
                    f"{st.max_presentation_s:g} s")
+        named = [(st.pattern, "[stimulus]")] + [(b.pattern, b.label) for b in s.test]
+        for name in dict.fromkeys(n for n, _ in named if n is not None):
+            where = ", ".join(w for n, w in named if n == name)
+            if name in s.patterns:
+                pat = s.pattern(name)
+                size = f"{len(pat.events)} events, {pat.duration_s:g} s"
+            else:
+                size = "not read: the study was not loaded from its file"
+            out.append(f"  pattern     {name} ({size}; at each target) in {where}")
         r = s.response
         out.append(f"  response    home {r.home_radius:g}, threshold {r.threshold:g}, dwell "
                    f"{r.dwell_s:g} s, timeout {r.timeout_s:g} s")

@@ -56,14 +56,18 @@ class PatternPlayback:
     """
 
     def __init__(self, pattern: Pattern, layout: Layout, law: str | None = None,
-                 falloff_deg: float = DEFAULT_FALLOFF_DEG, source: str | None = None) -> None:
+                 falloff_deg: float = DEFAULT_FALLOFF_DEG, source: str | None = None,
+                 rotate_deg: float = 0.0) -> None:
         self.pattern = pattern
+        #: every place of the pattern is turned by this much (clockwise): a study plays a
+        #: pattern with its 0 degrees on the trial's target
+        self.rotate_deg = float(rotate_deg)
         self.layout = layout
         self.law = law or pattern.law or "paper"
         check_law(self.law, falloff_deg)
         self.falloff_deg = float(falloff_deg)
         self.duration_s = pattern.duration_s
-        places = [layout.tactor_at(a) for a in pattern.layout_deg]
+        places = [layout.tactor_at(a + self.rotate_deg) for a in pattern.layout_deg]
         self._events = tuple(self._place(e, places, i, source) for i, e in
                              enumerate(pattern.events))
         self._starts = np.array([p.start_s for p in self._events])
@@ -85,10 +89,13 @@ class PatternPlayback:
                 vector = np.zeros(self.layout.n)
                 vector[k] = 1.0
             else:
-                vector = self._law(self.pattern.layout_deg[e.tactor])
+                vector = self._law(self.pattern.layout_deg[e.tactor] + self.rotate_deg)
         elif e.angle_deg is not None:
-            vector = self._law(e.angle_deg)
-        return _Placed(e.at_ms / 1000.0, e.end_ms / 1000.0, env_t, env_g, vector, e.path)
+            vector = self._law(e.angle_deg + self.rotate_deg)
+        path = e.path
+        if path is not None and self.rotate_deg:
+            path = (path[0] + self.rotate_deg, path[1] + self.rotate_deg)
+        return _Placed(e.at_ms / 1000.0, e.end_ms / 1000.0, env_t, env_g, vector, path)
 
     def _law(self, x: ArrayLike) -> NDArray[np.float64]:
         return amplitudes(self.layout, x, self.law, self.falloff_deg)
