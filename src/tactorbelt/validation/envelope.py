@@ -69,6 +69,8 @@ STEADY_FRACTION: Final = 0.2
 MIN_SNR: Final = 10.0
 #: ... and this much (sensor units: an exactly silent input is never a pulse).
 MIN_AMPLITUDE: Final = 1e-6
+#: The overshoot is the peak of the envelope's running mean over this many ms.
+OVERSHOOT_WINDOW_MS: Final = 5.0
 #: A pulse has settled when the two halves of its steady stretch differ by less than this
 #: fraction of its amplitude.
 SETTLED: Final = 0.02
@@ -140,7 +142,8 @@ class PulseMeasure:
     figures are NaN). ``settled``: the steady stretch changed by less than
     :data:`SETTLED` of the amplitude; ``stopped``: so did the baseline (no motor still
     running down from before). ``overshoot``: how far the envelope went above its steady
-    amplitude while on, as a fraction of it (0 when it never did; sensor noise counts).
+    amplitude while on (its running mean over :data:`OVERSHOOT_WINDOW_MS`), as a fraction
+    of it (0 when it never did; sensor noise counts).
     ``trace_ms``/``trace`` (from ``t_on``) and ``off_ms`` (``t_off`` from ``t_on``) draw it
     normalised.
     """
@@ -214,8 +217,12 @@ def measure_pulse(t_ns: IntArray, env: FloatArray, t_on_ns: int, t_off_ns: int, 
     if rise is not None:
         out.latency_ms, t90 = rise
         out.rise_ms = t90 - out.latency_ms
-    on = (t >= t_on_ns) & (t < t_off_ns)
-    out.overshoot = max(0.0, float(np.max(norm[on])) - 1.0) if on.any() else math.nan
+    on = np.flatnonzero((t >= t_on_ns) & (t < t_off_ns))
+    if on.size:  # over a 5 ms running mean: a lone sample (a sensor's glitch) is no overshoot
+        dt_ms = float(np.median(np.diff(rel))) if rel.size > 1 else 1.0
+        w = max(1, min(on.size, round(OVERSHOOT_WINDOW_MS / max(dt_ms, 1e-6))))
+        mean = np.convolve(norm[on], np.ones(w) / w, mode="valid")
+        out.overshoot = max(0.0, float(mean.max()) - 1.0)
     i_steady = int(np.searchsorted(t, t_off_ns - round(on_ns * STEADY_FRACTION)))
     off_ms = (t_off_ns - t_on_ns) / 1e6
     out.off_ms = off_ms
