@@ -31,7 +31,7 @@ if TYPE_CHECKING:
     from numpy.typing import NDArray
 
     from ..calibration.perceptual import Respondent
-    from ..experiment.study import TaskSpec
+    from ..tasks.spec import TaskSpec
     from ..tasks import WorkloadInfo
     from ..tasks.schedule import TaskItem
     from .joystick import LiveCursor

@@ -57,7 +57,7 @@ from .base import CursorSample, CursorSource, RunTaker, TrialCue
 
 if TYPE_CHECKING:
     from ..devices.base import Belt
-    from ..experiment.study import TaskSpec
+    from ..tasks.spec import TaskSpec
     from ..geometry import Layout
     from ..stimuli import Stimulus
     from ..tasks import WorkloadInfo
@@ -338,13 +338,10 @@ def make_model_cursor(belt: Belt, clock: Clock, seed: int, params: ModelParams |
     if isinstance(seed, bool) or not isinstance(seed, int | np.integer):
         raise ConfigError(f"the model participant's seed must be an integer, got {seed!r}")
     if sense is None:
-        from ..devices.base import Belt as _Belt
-
-        if not (isinstance(belt, _Belt) and belt.models_vibration):
-            where = belt.url if isinstance(belt, _Belt) else belt
+        if not belt.models_vibration:
             raise ConfigError(
                 f"the model participant feels the vibration a simulated belt models; belt "
-                f"{where!r} models none. Use --belt sim with --input model"
+                f"{belt.url!r} models none. Use --belt sim with --input model"
             )
         sense = belt.vibration
     if params is not None and not isinstance(params, ModelParams):
@@ -435,3 +432,28 @@ def sim_vibrator(layout: Layout, **sim_options: Any
         return (np.asarray(t_ns) - t0) / 1e9, np.asarray(vib)
 
     return vibrate
+
+
+def cursor(ctx: InputContext) -> CursorSource:
+    """The ``model`` input kind's cursor (:mod:`tactorbelt.inputs.kinds`): its own seed
+    ``ctx.cursor_seed``, else :func:`~tactorbelt.inputs.participant_seed` of the
+    session's seed and the participant; the typical observer timed for the study's
+    dynamic period unless ``ctx.params``."""
+    if ctx.belt is None or ctx.clock is None or ctx.study is None:
+        raise ConfigError("the model participant (--input model) needs the belt and the "
+                          "clock")
+    from . import participant_seed
+
+    session_seed = ctx.study.session.seed if ctx.seed is None else int(ctx.seed)
+    own = participant_seed(session_seed, ctx.participant) if ctx.cursor_seed is None \
+        else int(ctx.cursor_seed)
+    params = ctx.params if ctx.params is not None else \
+        ModelParams().for_period(ctx.study.stimulus.period_s)
+    return make_model_cursor(ctx.belt, ctx.clock, own, params=params)
+
+
+def respondent(ctx: InputContext) -> Respondent:
+    """The ``model`` input kind's respondent for the perceptual calibration."""
+    if ctx.belt is None:
+        raise ConfigError("the model participant (--input model) needs the belt")
+    return make_model_respondent(ctx.belt, int(ctx.seed or 0), ctx.params)

@@ -1,7 +1,7 @@
 """Secondary tasks (cognitive load) and workload ratings.
 
 A study loads its participants with a concurrent go/no-go task declared in
-``[tasks.NAME]`` (:class:`~tactorbelt.experiment.study.TaskSpec`): auditory or visual
+``[tasks.NAME]`` (:class:`~tactorbelt.tasks.spec.TaskSpec`): auditory or visual
 n-back, or mental arithmetic. The pure core is here:
 
 - :mod:`.schedule`: the items of a task (:class:`~.schedule.TaskItem`,
@@ -28,7 +28,7 @@ from typing import TYPE_CHECKING
 from .._errors import ConfigError
 
 if TYPE_CHECKING:
-    from ..experiment.study import TaskSpec
+    from .spec import TaskSpec
 
 __all__ = [
     "PHASES",

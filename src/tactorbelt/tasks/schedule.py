@@ -27,7 +27,7 @@ from .kinds import NO_TASK, task_kind
 from .kinds.nback import NBACK_LETTERS, NBACK_TONES
 
 if TYPE_CHECKING:
-    from ..experiment.study import TaskSpec
+    from .spec import TaskSpec
 
 __all__ = [
     "NBACK_LETTERS",

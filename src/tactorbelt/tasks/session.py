@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING
 from .schedule import TaskEvent, TaskItem, classify, item_sequence
 
 if TYPE_CHECKING:
-    from ..experiment.study import TaskSpec
+    from .spec import TaskSpec
 
 __all__ = ["TaskSession"]
 
