@@ -31,6 +31,7 @@ from pydantic import (
     ConfigDict,
     Field,
     ValidationError,
+    ValidationInfo,
     field_validator,
     model_validator,
 )
@@ -39,7 +40,7 @@ from .. import _lawnames
 from .._errors import ConfigError, StudyFileError
 from ..factors import CONDITION, LOAD, TARGETS, Factor, added_factors, factors
 from ..geometry import Layout, TargetSet
-from ..tasks.spec import RESERVED_RESPONSES, TaskSpec
+from ..tasks.kinds import NO_TASK, task_kind
 from .study_errors import study_error
 
 __all__ = [
@@ -171,6 +172,10 @@ class StimulusSpec(_Model):
     #: ``plain`` or ``shaped`` (overdrive and braking, docs/belts.md "Drive shaping"),
     #: set on the belt for the whole session; None: the belt's own default.
     drive: Literal["plain", "shaped"] | None = None
+    #: A haptic pattern played instead of the law's rendering, turned so its 0 degrees
+    #: is on the trial's target: a ``[patterns]`` name of the study, else a file
+    #: (any kind ``pattern import`` reads) relative to the study file (docs/study.md).
+    pattern: str | None = Field(default=None, min_length=1, max_length=500)
 
     _law = field_validator("law")(_check_law)
 
@@ -247,6 +252,91 @@ def plural(n: int, word: str, many: str | None = None) -> str:
 _NAME = r"^[A-Za-z][A-Za-z0-9_\-]*$"
 
 
+#: Responses that go on or confirm a localisation in the window: a task may not use them.
+RESERVED_RESPONSES: dict[str, str] = {
+    "key:space": "Space goes on from the window's screens",
+    "key:return": "Return goes on from the window's screens",
+    "key:enter": "Enter (keypad) goes on from the window's screens",
+    "joystick:0": "joystick button 0 confirms a localisation and goes on",
+    "mouse:left": "the left mouse button confirms a localisation and goes on",
+}
+_RESPONSE = re.compile(r"^(key:[a-z0-9][a-z0-9 _\[\]\-]*|joystick:\d{1,2}|"
+                       r"mouse:(left|middle|right))$")
+
+
+class TaskSpec(_Model):
+    """A secondary task (``[tasks.NAME]``), run during the test blocks whose load is NAME.
+
+    Every task is go/no-go: the participant presses ``response`` on a go item (n-back:
+    the item equals the one ``n`` back; arithmetic ``a+b``: the sum is odd). One item
+    every ``interval_s`` from the task's start, independent of the trials' timing; each
+    lasts ``stimulus_s``. ``practice`` items of the task alone come before the first
+    block with this load, then ``baseline`` items alone (the single-task baseline of
+    the dual-task cost). ``kind = "none"`` is a load with no task.
+    """
+
+    kind: str
+    n: int = Field(default=2, validate_default=True)
+    modality: Literal["auditory", "visual"] = "auditory"
+    interval_s: float = Field(default=2.5, gt=0, le=60)
+    stimulus_s: float = Field(default=0.5, gt=0, le=60)
+    response: str = "joystick:1"
+    match_rate: float = Field(default=0.3, gt=0, lt=1)
+    practice: int = Field(default=12, ge=0, le=200)
+    baseline: int = Field(default=0, ge=0, le=500)
+
+    @field_validator("kind")
+    @classmethod
+    def _kind(cls, v: str) -> str:
+        if v != NO_TASK:
+            task_kind(v)  # ValueError naming the registered kinds
+        return v
+
+    @field_validator("n")
+    @classmethod
+    def _n(cls, v: int, info: ValidationInfo) -> int:
+        kind = info.data.get("kind")
+        if kind is not None and kind != NO_TASK:
+            task_kind(kind).check_fields(v)
+        return v
+
+    @field_validator("response")
+    @classmethod
+    def _response(cls, v: str) -> str:
+        text = v.strip().lower()
+        if text in RESERVED_RESPONSES:
+            raise ValueError(
+                f"{v!r} is taken: {RESERVED_RESPONSES[text]}; give the task another button, "
+                "e.g. \"joystick:1\", \"key:j\" or \"mouse:right\"")
+        if not _RESPONSE.match(text):
+            raise ValueError(
+                f"unknown response {v!r}: use \"key:NAME\" (a pygame key name, e.g. key:j), "
+                "\"joystick:K\" (button K, e.g. joystick:1) or \"mouse:left|middle|right\"")
+        return text
+
+    @model_validator(mode="after")
+    def _interval(self) -> TaskSpec:
+        if self.interval_s <= self.stimulus_s:
+            raise _at("interval_s", f"interval_s ({self.interval_s:g} s) must be longer than "
+                      f"stimulus_s ({self.stimulus_s:g} s): one item ends before the next")
+        return self
+
+    @property
+    def response_device(self) -> str:
+        """``key``, ``joystick`` or ``mouse``."""
+        return self.response.split(":", 1)[0]
+
+    @property
+    def response_button(self) -> str:
+        """The key name, the joystick button number or the mouse button (as text)."""
+        return self.response.split(":", 1)[1]
+
+    @property
+    def active(self) -> bool:
+        """A task runs (``kind`` is not ``none``)."""
+        return self.kind != NO_TASK
+
+
 class QuestionnaireSpec(_Model):
     """Questionnaires: ``tlx = true`` asks the raw NASA-TLX after each test block."""
 
@@ -280,6 +370,7 @@ class BlockSpec(_Model):
     period_s: float | None = Field(default=None, gt=0, le=60)
     transit_s: float | None = Field(default=None, gt=0, le=30)
     max_presentation_s: float | None = Field(default=None, gt=0, le=600)
+    pattern: str | None = Field(default=None, min_length=1, max_length=500)
     levels: dict[str, Any] = Field(default_factory=dict)
 
     _law = field_validator("law")(_check_law)
@@ -428,6 +519,10 @@ class Study(_Model):
     tasks: dict[str, TaskSpec] = Field(default_factory=dict)
     questionnaire: QuestionnaireSpec = Field(default_factory=QuestionnaireSpec)
     calibration: CalibrationSpec = Field(default_factory=CalibrationSpec)
+    #: The patterns the stimuli name, by name: each a ``tactorbelt.pattern/1`` table
+    #: (written in the file, or read from the file a stimulus names when the study file
+    #: is loaded: :meth:`session_toml` keeps them with a session).
+    patterns: dict[str, dict[str, Any]] = Field(default_factory=dict)
 
     @field_validator("authors")
     @classmethod
@@ -480,6 +575,53 @@ class Study(_Model):
             )
         return self
 
+    @model_validator(mode="after")
+    def _patterns(self, info: ValidationInfo) -> Study:
+        """Check every pattern a stimulus names and keep it in :attr:`patterns`: a
+        ``[patterns]`` table, else the file beside the study file (``base_dir`` in the
+        validation context; without one, a pattern neither written nor found stays a
+        name, refused when a trial plays it)."""
+        for name in self.patterns:
+            self._pattern(name, f"patterns.{name}")
+        uses = [(self.stimulus.pattern, "stimulus.pattern")] + [
+            (b.pattern, f"test[{i}].pattern") for i, b in enumerate(self.test)]
+        used = [(n, loc) for n, loc in uses if n is not None]
+        if used and self.calibration.perceptual:
+            raise _at("calibration.perceptual", "a wearer profile is not applied to a "
+                      f"pattern stimulus ({used[0][1]} = {used[0][0]!r}): measure and "
+                      "run pattern studies without [calibration] perceptual")
+        base = (info.context or {}).get("base_dir") if info.context else None
+        found: dict[str, dict[str, Any]] = {}
+        for name, loc in used:
+            if name in self.patterns or name in found:
+                continue
+            if base is None:
+                continue
+            found[name] = _read_pattern_file(Path(base), name, loc)
+        if found:
+            object.__setattr__(self, "patterns", {**self.patterns, **found})
+        for name, loc in used:
+            if name in self.patterns:
+                self._pattern(name, loc)
+        return self
+
+    def _pattern(self, name: str, loc: str) -> Any:
+        """The :class:`~tactorbelt.patterns.model.Pattern` kept under ``name``, checked on
+        the study's layout (a ValueError at ``loc`` naming the reason)."""
+        from ..patterns.model import PatternFileError, pattern_from_dict
+        from ..patterns.render import PatternPlayback
+
+        try:
+            pattern = pattern_from_dict(self.patterns[name], name)
+            if not pattern.events:
+                raise PatternFileError("the pattern has no events: nothing to play",
+                                       path=name, field="events")
+            PatternPlayback(pattern, self.layout_obj(), pattern.law or self.stimulus.law,
+                            self.stimulus.falloff_deg, source=name)
+        except ConfigError as exc:
+            raise _at(loc, str(exc)) from None
+        return pattern
+
     def _check_load(self, load: str, loc: str) -> None:
         if load != "none" and load not in self.tasks:
             known = ", ".join(repr(k) for k in ["none", *self.tasks])
@@ -511,6 +653,93 @@ class Study(_Model):
     def block_stimulus(self, block: BlockSpec) -> StimulusSpec:
         """The stimulus of a test block: ``[stimulus]`` with the block's overrides."""
         return self.stimulus.model_copy(update=block.stimulus_overrides())
+
+    def pattern(self, name: str) -> Any:
+        """The pattern a stimulus names (:class:`~tactorbelt.patterns.model.Pattern`).
+
+        Raises:
+            StudyFileError: the study neither holds it nor was read from a file beside it
+                (a stored session's study text from before patterns were kept with it).
+        """
+        if name not in self.patterns:
+            raise StudyFileError(
+                f"the pattern {name!r} is not in the study's [patterns] and the study was not "
+                "read from its file (load it with load_study, or write the pattern into "
+                "[patterns])", field="stimulus.pattern")
+        try:
+            return self._pattern(name, "stimulus.pattern")
+        except ValueError as exc:
+            raise StudyFileError(str(exc).split("@ ", 1)[-1], field="stimulus.pattern") from None
+
+    def make_stimulus(self, spec: StimulusSpec, layout: Layout, target_deg: float,
+                      condition: str, profile: Any = None, belt: Any = None) -> Any:
+        """The stimulus of a trial with ``spec`` (its block's :meth:`trial_stimulus`) on
+        ``layout``: :func:`tactorbelt.stimuli.make_stimulus` with the spec's law, falloff,
+        period and transit; or, when the spec names a pattern, a
+        :class:`~tactorbelt.patterns.stimulus.PatternStimulus` turned to ``target_deg``
+        (checked against ``belt``'s vibration channels when a belt is given).
+
+        Raises:
+            ConfigError: from make_stimulus; PatternFileError: a pattern ``belt`` cannot
+                show; StudyFileError: a pattern the study does not hold.
+        """
+        if spec.pattern is None:
+            from ..stimuli import make_stimulus
+
+            return make_stimulus(layout, target_deg, condition, spec.law, spec.falloff_deg,
+                                 spec.period_s, spec.transit_s, profile=profile)
+        from ..patterns.stimulus import PatternStimulus, check_on_belt
+
+        if profile is not None:
+            raise ConfigError("a wearer profile is not applied to a pattern stimulus "
+                              f"({spec.pattern!r})")
+        pattern = self.pattern(spec.pattern)
+        stim = PatternStimulus(pattern, layout, target_deg, condition,
+                               pattern.law or spec.law, spec.falloff_deg, name=spec.pattern)
+        if belt is not None:
+            check_on_belt(belt, stim)
+        return stim
+
+    def check_belt(self, belt: Any) -> None:
+        """Refuse, before a session starts, a pattern stimulus ``belt`` cannot show at any
+        of its block's targets (more distinct intensities at once than the belt's
+        vibration channels); nothing to check for a study without patterns.
+
+        Raises:
+            PatternFileError: naming the pattern, the instant and the belt's limit.
+        """
+        specs = [(self.stimulus, self.target_counts())] + [
+            (self.block_stimulus(b), [self.block_n_targets(b)]) for b in self.test]
+        seen: set[tuple[Any, ...]] = set()
+        for spec, counts in specs:
+            if spec.pattern is None:
+                continue
+            for n in counts:
+                for angle in TargetSet.even(n).angles_deg:
+                    key = (spec.pattern, spec.law, spec.falloff_deg, float(angle))
+                    if key not in seen:
+                        seen.add(key)
+                        self.make_stimulus(spec, belt.layout, float(angle), "static",
+                                           belt=belt)
+
+    def session_toml(self, text: str) -> str:
+        """The study text a session stores: ``text`` itself, and, when a stimulus names a
+        pattern file, that pattern as a ``[patterns]`` table appended to it, so the
+        session holds what it played (export, analysis and resume read it from the
+        store, wherever the file went). A study without pattern files: ``text``."""
+        try:
+            written = tomllib.loads(text).get("patterns", {})
+        except tomllib.TOMLDecodeError:
+            return text
+        extra = {k: v for k, v in self.patterns.items()
+                 if not isinstance(written, dict) or k not in written}
+        if not extra:
+            return text
+        import tomli_w
+
+        return (text.rstrip("\n") + "\n\n# written by tactorbelt: the pattern files the "
+                "stimuli name, as this session played them\n"
+                + tomli_w.dumps({"patterns": extra}))
 
     def test_block(self, name: str) -> BlockSpec | None:
         """The test block labelled ``name`` (a scheduled trial's ``block_name``), or None."""
@@ -559,8 +788,13 @@ class Study(_Model):
 
     # -- TOML --------------------------------------------------------------------
     @classmethod
-    def from_toml(cls, text: str, path: str | Path | None = None) -> Study:
+    def from_toml(cls, text: str, path: str | Path | None = None,
+                  base_dir: str | Path | None = None) -> Study:
         """Parse and validate a study from TOML text.
+
+        Pattern files the stimuli name are read relative to ``base_dir`` (default: the
+        directory of ``path`` when that is a file; else only ``[patterns]`` tables are
+        read).
 
         Raises:
             StudyFileError: malformed TOML, an unknown key, a wrong type or an
@@ -580,8 +814,11 @@ class Study(_Model):
             raise StudyFileError(
                 f"not valid TOML: {msg}", path=where, line=line
             ) from None
+        if base_dir is None and path is not None and Path(path).is_file():
+            base_dir = Path(path).parent
+        context = {"base_dir": Path(base_dir)} if base_dir is not None else None
         try:
-            return cls.model_validate(data)
+            return cls.model_validate(data, context=context)
         except ValidationError as exc:
             raise study_error(exc, text, where, cls) from None
 
@@ -603,6 +840,8 @@ class Study(_Model):
             data.pop("questionnaire")
         if self.calibration == CalibrationSpec():
             data.pop("calibration")
+        if not self.patterns:
+            data.pop("patterns")
         return tomli_w.dumps(data)
 
     def sha256(self) -> str:
@@ -610,8 +849,25 @@ class Study(_Model):
         return hashlib.sha256(self.to_toml().encode()).hexdigest()
 
 
+def _read_pattern_file(base: Path, name: str, loc: str) -> dict[str, Any]:
+    """The pattern file ``name`` (relative to ``base``) as a ``tactorbelt.pattern/1`` dict;
+    a ValueError at ``loc`` for a missing or bad file (its path, field and reason)."""
+    from ..patterns.io import read_any
+    from ..patterns.model import PatternFileError, pattern_to_dict
+
+    p = Path(name) if Path(name).is_absolute() else base / name
+    if not p.is_file():
+        raise _at(loc, f"no such pattern file: {p} (a pattern is a [patterns] name or a file "
+                  "relative to the study file)")
+    try:
+        return pattern_to_dict(read_any(p))
+    except PatternFileError as exc:
+        raise _at(loc, str(exc)) from None
+
+
 def load_study(path: str | Path) -> Study:
-    """Read and validate a study file.
+    """Read and validate a study file (pattern files its stimuli name are read relative to
+    its directory).
 
     Raises:
         StudyFileError: the file cannot be read, or is not a valid study.
@@ -628,7 +884,7 @@ def load_study(path: str | Path) -> Study:
         raise StudyFileError("not a text file (TOML must be UTF-8)", path=str(p)) from None
     except OSError as exc:
         raise StudyFileError(f"cannot read: {exc.strerror}", path=str(p)) from None
-    return Study.from_toml(text, path=p)
+    return Study.from_toml(text, path=p, base_dir=p.parent)
 
 
 # -- templates (package data: experiment/templates/NAME.toml) ---------------------------
