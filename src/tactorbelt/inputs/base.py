@@ -31,9 +31,9 @@ if TYPE_CHECKING:
     from numpy.typing import NDArray
 
     from ..calibration.perceptual import Respondent
-    from ..tasks.spec import TaskSpec
     from ..tasks import WorkloadInfo
     from ..tasks.schedule import TaskItem
+    from ..tasks.spec import TaskSpec
     from .joystick import LiveCursor
     from .screen import EllipseGeometry
 

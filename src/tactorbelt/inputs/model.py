@@ -57,11 +57,11 @@ from .base import CursorSample, CursorSource, RunTaker, TrialCue
 
 if TYPE_CHECKING:
     from ..devices.base import Belt
-    from ..tasks.spec import TaskSpec
     from ..geometry import Layout
     from ..stimuli import Stimulus
     from ..tasks import WorkloadInfo
     from ..tasks.schedule import TaskItem
+    from ..tasks.spec import TaskSpec
 
 __all__ = ["ModelCursor", "ModelDecision", "ModelRespondent", "Sense", "make_model_cursor",
            "make_model_respondent", "sim_vibrator"]
