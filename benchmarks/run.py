@@ -144,6 +144,12 @@ GOALS = [
     Goal("validate_sim_overhead_s", None, "<=", 5.0, "s",
          "validate onsets besides its pulses: the figure (about 1-2 s), opening the belt, "
          "the sleeps' overshoot, writing the files"),
+    Goal("bridge_handshake_uncertainty_ms", None, "<=", 1.0, "ms",
+         "tactorbelt serve's clock handshake from a Python page on loopback: half the "
+         "least of 16 WebSocket round trips (median of 20 hellos)"),
+    Goal("bridge_play_to_onset_p99_ms", None, "<=", 5.0, "ms",
+         "a Python page's play request to the sim belt's onset on the page clock: the "
+         "loopback WebSocket and the bridge's event loop on 2 shared cores"),
     Goal("session_s", "session_per_trial_s", "<=", 2.0, "s",
          "the store (~30 %; a third of the instructions: ~58,000 sample rows, 100 to an "
          "INSERT with the trial_id bound once and the rest in 64, 32, ..., 1 rows (8 "

@@ -2,7 +2,9 @@
 
 :class:`BeltPort` owns the belt and a :class:`~tactorbelt.player.Player` on the wall
 clock, and runs every call on one worker thread (the event loop never blocks on the
-belt, and the belt never sees two threads). A play returns its :class:`Onset`: the
+belt, and the belt never sees two threads); a belt that drives nothing real (the sim
+belt, ``hardware`` False) is used from the event loop's thread instead, where its calls
+cost less than the hand-over to a thread and back. A play returns its :class:`Onset`: the
 command time on the wall clock (``time.perf_counter_ns``, the clock the belts map
 their device onsets to) and, where the belt reports it (``Belt.reports_onsets``), the
 device-true onset with its uncertainty. Raw amplitudes are set at once and stopped
@@ -85,10 +87,15 @@ class BeltPort:
         self._player: Player | None = None
         self._play = 0
         self._stop_handle: asyncio.TimerHandle | None = None
+        self._inline = False  # set by open: calls on the event loop's thread
 
     # -- on the worker thread ---------------------------------------------------------------
     async def call(self, fn: Callable[..., T], *args: Any) -> T:
-        """Run ``fn(*args)`` on the belt's thread."""
+        """Run ``fn(*args)`` on the belt's thread (the event loop's own for a belt that
+        drives nothing real: the sim belt's calls are computations that never wait, and
+        two thread hand-overs fewer take the scheduler's delays out of every onset)."""
+        if self._inline:
+            return fn(*args)
         return await asyncio.get_running_loop().run_in_executor(self._exec, fn, *args)
 
     @property
@@ -116,6 +123,13 @@ class BeltPort:
             belt.close()
             raise
         self._belt = belt
+        return belt
+
+    async def aopen(self) -> Belt:
+        """:meth:`open` on the worker thread; a belt that drives nothing real (the sim
+        belt, ``hardware`` False) is then used from the event loop's thread."""
+        belt = await self.call(self.open)
+        self._inline = not belt.hardware
         return belt
 
     def _device_onset(self, onset_ns: int, duration_s: float) -> Onset:
@@ -146,9 +160,12 @@ class BeltPort:
         """Motors off now; the time they were turned off (wall clock, ns)."""
         try:
             if self._player is not None and self._player.playing:
-                self._player.stop()
-        finally:
+                self._player.stop()  # the motors off too
+                return int(self.clock.now_ns())
+        except BaseException:
             self.belt.stop()
+            raise
+        self.belt.stop()
         return int(self.clock.now_ns())
 
     def stop_play(self, play: int) -> None:
@@ -207,8 +224,7 @@ class BeltPort:
         if self._stop_handle is not None:
             self._stop_handle.cancel()
         self._stop_handle = loop.call_later(
-            onset.duration_s,
-            lambda: loop.run_in_executor(self._exec, self.stop_play, onset.play))
+            onset.duration_s, lambda: loop.create_task(self.call(self.stop_play, onset.play)))
 
     async def aclose(self) -> None:
         """:meth:`close` on the worker thread, then end the thread."""

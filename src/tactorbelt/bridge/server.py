@@ -750,7 +750,7 @@ class _Bridge:
                     loop.add_signal_handler(s, on_signal, int(s))
         self.store = await self.store_call(open_store, self.config.store_url)
         try:
-            await self.belt.call(self.belt.open)
+            await self.belt.aopen()
             self.has_latency = bool(self.belt.belt.calibration.has_timing)
             async with ws_serve(self.door, self.config.host, self.config.port,
                                 process_request=self.http, ping_interval=None,
