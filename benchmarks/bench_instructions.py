@@ -15,7 +15,7 @@ the reason, and ``run.py`` reports the figure as not measured. Ctrl-C or SIGTERM
 143) stops both counted processes first.
 
 Prints one JSON object as its last line.
-Usage: python benchmarks/bench_instructions.py [--sessions 2]
+Usage: python benchmarks/bench_instructions.py [--sessions 2] [--drive plain|shaped]
 """
 
 from __future__ import annotations
@@ -34,18 +34,28 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 
 #: What the counted process runs: ``n`` sessions (participants 1..n) into a new store.
+#: With ``--drive shaped`` the paper study's ``[stimulus] drive`` is ``shaped``.
 _CHILD = """
+import dataclasses
 import sys
 from pathlib import Path
 sys.path.insert(0, {here!r})
 from bench_sessions import _sessions
+from tactorbelt.experiment import study as _study
+if {drive!r} == "shaped":
+    _paper = _study.paper_study
+    def _shaped():
+        st = _paper()
+        return dataclasses.replace(st, stimulus=dataclasses.replace(st.stimulus,
+                                                                    drive="shaped"))
+    _study.paper_study = _shaped
 _sessions((Path({db!r}), list(range(1, {n} + 1)), False))
 """
 
 
-def _count(valgrind: str, n: int, tmp: Path) -> subprocess.Popen[str]:
+def _count(valgrind: str, n: int, tmp: Path, drive: str = "plain") -> subprocess.Popen[str]:
     """Start counting the instructions of a process that runs ``n`` sessions."""
-    code = _CHILD.format(here=str(HERE), db=str(tmp / f"s{n}.sqlite"), n=n)
+    code = _CHILD.format(here=str(HERE), db=str(tmp / f"s{n}.sqlite"), n=n, drive=drive)
     env = dict(os.environ, PYTHONHASHSEED="0")
     return subprocess.Popen(
         [valgrind, "--tool=cachegrind", "--cache-sim=no", "--cachegrind-out-file=/dev/null",
@@ -71,6 +81,8 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sessions", type=int, default=2,
                     help="sessions counted beyond the first (default 2)")
+    ap.add_argument("--drive", choices=("plain", "shaped"), default="plain",
+                    help="the sessions' drive (default plain, the paper's)")
     args = ap.parse_args()
     if args.sessions < 1:
         ap.error("--sessions must be at least 1")
@@ -81,7 +93,7 @@ def main() -> None:
     signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))
     with tempfile.TemporaryDirectory() as tmp:
         # both at once: each is one thread, and the counts do not depend on the timing
-        procs = [_count(valgrind, n, Path(tmp)) for n in (1, 1 + args.sessions)]
+        procs = [_count(valgrind, n, Path(tmp), args.drive) for n in (1, 1 + args.sessions)]
         try:
             one, more = (_instructions(p, timeout=900) for p in procs)
         finally:
