@@ -11,7 +11,6 @@ import pytest
 
 from support.studies import study_toml
 from tactorbelt import ConfigError
-from tactorbelt.calibration.wearer import WearerProfile
 from tactorbelt.clock import SimClock
 from tactorbelt.devices.sim import SimBelt
 from tactorbelt.experiment.runner import run_session
@@ -20,6 +19,7 @@ from tactorbelt.experiment.study import Study
 from tactorbelt.inputs.base import CursorSource
 from tactorbelt.inputs.model import make_model_cursor
 from tactorbelt.stimuli import make_stimulus
+from tactorbelt.wearer import WearerProfile
 
 
 def _study(perceptual: bool = True) -> tuple[Study, str]:

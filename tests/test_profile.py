@@ -1,4 +1,4 @@
-"""Wearer profiles (tactorbelt.calibration.wearer): TOML round trip, validation, and the stimulus
+"""Wearer profiles (tactorbelt.wearer): TOML round trip, validation, and the stimulus
 engine rendering a stimulus for a wearer (docs/calibration-perceptual.md)."""
 
 from __future__ import annotations
@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 
 from tactorbelt import ConfigError
-from tactorbelt.calibration.wearer import PairWarp, WearerProfile, isotonic
 from tactorbelt.devices.sim import SimBelt
 from tactorbelt.geometry import Layout
 from tactorbelt.player import Player
 from tactorbelt.stimuli import make_stimulus, render_batch
+from tactorbelt.wearer import PairWarp, WearerProfile, isotonic
 
 LAYOUT = Layout((30.0, 90.0, 150.0, 210.0, 270.0, 330.0))
 

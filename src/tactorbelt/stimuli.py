@@ -14,7 +14,7 @@ amplitudes it produces, ``amplitudes(t) = law(location(t))``.
   The transit goes through the target (across the gap that holds it); for every gap
   under 180 degrees that is the short way round.
 
-A stimulus may carry a wearer profile (:mod:`tactorbelt.calibration.wearer`, from the perceptual
+A stimulus may carry a wearer profile (:mod:`tactorbelt.wearer`, from the perceptual
 calibration): its amplitudes are then ``gains * law(warp(location(t)))``, so a static
 point is rendered where this wearer feels the intended point. The firmware knows no
 profile: a belt renders such a stimulus itself only when it declares
@@ -42,7 +42,7 @@ from .geometry import Layout, normalize, wrap
 from .laws import DEFAULT_FALLOFF_DEG, amplitudes, check_law
 
 if TYPE_CHECKING:
-    from .calibration.wearer import WearerProfile
+    from .wearer import WearerProfile
 
 __all__ = [
     "DEFAULT_PERIOD_S",

@@ -32,8 +32,8 @@ from ..participant.perception import perceive
 from ..participant.simulate import Protocol, StimulusCues, stimulus_cues
 
 if TYPE_CHECKING:
-    from ..calibration.wearer import WearerProfile
     from ..stimuli import Stimulus
+    from ..wearer import WearerProfile
 
 __all__ = ["EffectRow", "calibration_effect", "summarise"]
 

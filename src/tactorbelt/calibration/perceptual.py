@@ -13,7 +13,7 @@ maintained ``questplus`` package, Watson 2017; function ``norm_cdf_2``):
    and 0.75), a static point rendered at fraction x of the gap; "was it nearer tactor a
    or tactor b than the marked point?" (in the window: left or right of the mark). The
    PSE is the rendered fraction felt at the mark, so the pair's warp maps m -> PSE
-   (made strictly monotone by :func:`tactorbelt.calibration.wearer.isotonic`).
+   (made strictly monotone by :func:`tactorbelt.wearer.isotonic`).
 
 Each track starts from a normal prior on its PSE centred on "no correction" (as strong
 as the reference; felt where rendered) and stops after ``max_trials`` or, after
@@ -49,7 +49,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .._errors import ConfigError
-from .wearer import PairWarp, WearerProfile, isotonic
+from ..wearer import PairWarp, WearerProfile, isotonic
 
 if TYPE_CHECKING:
     from ..clock import Clock

@@ -66,7 +66,7 @@ def play(angle: str, belt_url: str, calibration_file: str | None, seconds: float
     calibration = load_calibration(calibration_file)
     profile = None
     if profile_file is not None:
-        from ..calibration.wearer import WearerProfile
+        from ..wearer import WearerProfile
 
         profile = WearerProfile.load(profile_file)
     belt, stimulus_on_belt = open_belt_for(belt_url, stimulus,

@@ -102,7 +102,7 @@ def point(belt_url: str, bearing: float | None, heading_from: str | None,
     make_stimulus(Layout.even(6), 0.0, mode, law, display_opts["falloff_deg"],
                   display_opts["period_s"], display_opts["transit_s"])
     if profile_file is not None:
-        from ..calibration.wearer import WearerProfile
+        from ..wearer import WearerProfile
 
         profile = WearerProfile.load(profile_file)
         display_opts["profile"] = profile

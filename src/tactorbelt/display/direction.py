@@ -88,8 +88,8 @@ from .filters import (
 )
 
 if TYPE_CHECKING:
-    from ..calibration.wearer import WearerProfile
     from ..devices.base import Belt
+    from ..wearer import WearerProfile
 
 __all__ = [
     "DEFAULT_DEVICE_RATE_HZ",
@@ -178,7 +178,7 @@ class DirectionDisplay:
         device_rate_hz: tick rate of the device-render loop (default 20 Hz).
         min_cutoff_hz, beta, d_cutoff_hz: the heading filter's parameters (see
             :mod:`tactorbelt.filters`).
-        profile: render for this wearer's perceptual profile (:mod:`tactorbelt.calibration.wearer`);
+        profile: render for this wearer's perceptual profile (:mod:`tactorbelt.wearer`);
             one that is not the identity is streamed (the firmware cannot apply it).
 
     Raises:

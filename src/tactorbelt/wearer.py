@@ -33,6 +33,9 @@ A profile is stored as TOML (:meth:`WearerProfile.to_toml`, :meth:`WearerProfile
 Validation refuses a wrong number of gains or pairs for the tactor angles, gains outside
 (0, 10], and warps that are not strictly increasing (``error: FILE: pair[2].rendered: ...``).
 
+It sits below the stimulus engine that applies it (:mod:`tactorbelt.stimuli`) and the
+perceptual calibration that measures it.
+
 Pure: NumPy, the standard library (tomllib) and tactorbelt.geometry; tomli-w only to save.
 """
 
@@ -48,8 +51,8 @@ from typing import Any, Final
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .._errors import ConfigError
-from ..geometry import Layout, normalize
+from ._errors import ConfigError
+from .geometry import Layout, normalize
 
 __all__ = ["FORMAT", "PairWarp", "WearerProfile", "isotonic"]
 
@@ -268,7 +271,7 @@ class WearerProfile:
     @classmethod
     def load(cls, path: str | Path) -> WearerProfile:
         """Read a profile file; errors name the file and the field."""
-        from .._textfile import read_user_text
+        from ._textfile import read_user_text
 
         p = Path(path)
         return cls.from_toml(read_user_text(p, "wearer profile"), source=str(p))
@@ -317,7 +320,7 @@ class WearerProfile:
         if isinstance(ref, bool) or not isinstance(ref, int) or not 0 <= ref < n:
             raise fail("reference_tactor", f"must be a tactor index in 0..{n - 1}, got {ref!r}")
         law = doc.get("law", "paper")
-        from ..laws import LAWS
+        from ._lawnames import LAWS
 
         if law not in LAWS:
             raise fail("law", f"unknown law {law!r}; allowed: {', '.join(LAWS)}")
