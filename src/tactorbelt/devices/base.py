@@ -33,8 +33,8 @@ probe a belt with ``getattr``/``hasattr``:
   every tactor on its own. A frame needing more distinct intensities is refused.
 - ``senses_vibration`` and ``sense(duration_s, rate_hz=, tactor=)``: the belt's own board
   records its accelerometer (firmware 1.2 with an IMU that started), a
-  :class:`~tactorbelt.devices._firmware.SenseRecording` with host-clock times; other
-  belts raise DeviceError.
+  :class:`Recording` with host-clock times (the firmware's
+  :class:`~tactorbelt.devices._firmware.SenseRecording`); other belts raise DeviceError.
 - ``can_shape``, ``can_brake``, ``drive`` and ``set_drive(drive)``: drive shaping
   (:class:`~tactorbelt.devices.erm.Shaper`, docs/belts.md "Drive shaping"): a belt that
   can shape plays every level change as an overdrive kick or a brake pulse when its
@@ -52,7 +52,7 @@ import threading
 from abc import ABC, abstractmethod
 from collections.abc import Sequence
 from types import TracebackType
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -64,9 +64,8 @@ from .calibration import Calibration
 
 if TYPE_CHECKING:
     from ..stimuli import Stimulus
-    from ._firmware import SenseRecording
 
-__all__ = ["DEFAULT_STREAM_RATE_HZ", "Belt", "check_amplitudes"]
+__all__ = ["DEFAULT_STREAM_RATE_HZ", "Belt", "Recording", "check_amplitudes"]
 
 #: The streaming rate of a belt that does not declare another.
 DEFAULT_STREAM_RATE_HZ = 1000.0
@@ -98,6 +97,24 @@ def check_amplitudes(values: ArrayLike, n: int) -> NDArray[np.float64]:
         bad = a[(a < 0.0) | (a > 1.0)][0]
         raise ConfigError(f"amplitudes must be in [0, 1], got {bad:g}")
     return a
+
+
+class Recording(Protocol):
+    """What :meth:`Belt.sense` returns: the samples of the belt's own accelerometer, with
+    host-clock times, as they come in (a context manager that stops it)."""
+
+    @property
+    def rate_hz(self) -> float: ...
+    @property
+    def interrupted(self) -> str | None: ...
+    def samples(self, t0_ns: int | None = None, t1_ns: int | None = None
+                ) -> tuple[NDArray[np.int64], NDArray[np.float64]]: ...
+    def problem(self, t0_ns: int | None = None, t1_ns: int | None = None) -> str | None: ...
+    def wait_for(self, t_ns: int, timeout_s: float = 2.0) -> bool: ...
+    def stop(self) -> None: ...
+    def __enter__(self) -> Recording: ...
+    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
+                 tb: TracebackType | None) -> None: ...
 
 
 class Belt(ABC):
@@ -200,7 +217,7 @@ class Belt(ABC):
     renders_calibrated: bool = False
 
     #: True when rendering on the device applies a stimulus's wearer profile
-    #: (:mod:`tactorbelt.calibration.wearer`): the audio belt renders ``stimulus.amplitudes`` in the
+    #: (:mod:`tactorbelt.wearer`): the audio belt renders ``stimulus.amplitudes`` in the
     #: host. The firmware (PLAY_TARGET) carries no warp or gains, so a stimulus with a
     #: non-identity profile is streamed on every other belt, the sim belt included.
     renders_profiles: bool = False
@@ -320,7 +337,7 @@ class Belt(ABC):
         return False
 
     def sense(self, duration_s: float | None = None, *, rate_hz: float | None = None,
-              tactor: int | None = None) -> SenseRecording:
+              tactor: int | None = None) -> Recording:
         """Start recording the belt's own accelerometer: samples (host ns, g) until
         ``duration_s`` passes or the recording's ``stop()``; see
         :meth:`tactorbelt.devices._firmware.FirmwareBelt.sense`.
