@@ -38,8 +38,7 @@ def main() -> None:
     from tactorbelt.devices import open_belt
     from tactorbelt.devices.erm import ErmParams
     from tactorbelt.validation import OnsetSettings, open_sensor, run_onsets, validate_onsets
-    from tactorbelt.validation.figure import onset_figure
-    from tactorbelt.validation.run import GAP_S
+    from tactorbelt.validation.run import GAP_S, onset_figure
 
     settings = OnsetSettings(pulses=args.pulses)
     with tempfile.TemporaryDirectory(prefix="tactorbelt-bench-validate-") as tmp:

@@ -10,7 +10,7 @@ vibration), the 10-90 % rise, the 90-10 % fall and the amplitude against level:
   ``board``), without NumPy; :mod:`.sensors`: the sensors;
 - :mod:`.run`: the procedure (:func:`validate_onsets`) and the command as a function
   (:func:`run_onsets`);
-- :mod:`.figure`: the figure.
+- the figures: :func:`.run.onset_figure`, :func:`.stimulus.stimulus_figure`.
 
 The measured latencies go into the belt's calibration file
 (:meth:`tactorbelt.devices.calibration.Calibration.skin_latency` reads them back).

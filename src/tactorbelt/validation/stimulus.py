@@ -266,7 +266,6 @@ def run_stimulus(belt_url: str, out_dir: str | Path, *, targets: Sequence[int] |
     from ..devices import open_belt
     from ..devices.calibration import Calibration
     from ..experiment.study import paper_study
-    from .figure import stimulus_figure
     from .run import check_output
     from .sensors import open_sensor
 
@@ -300,3 +299,49 @@ def run_stimulus(belt_url: str, out_dir: str | Path, *, targets: Sequence[int] |
                    encoding="utf-8")
     tmp.replace(results)
     return result, {"results": results, "figure": stimulus_figure(result, out / FIGURE)}
+
+
+def stimulus_figure(result: StimulusValidation, path: str | Path) -> Path:
+    """One panel per target: each driven tactor's felt envelope (solid) over its intended
+    one (dashed), normalised to the tactor's steady amplitude at full level, against the
+    time from the onset; the title gives the target's RMS error."""
+    from ..figures import _pyplot, save_figure, tactor_colors
+
+    plt = _pyplot()
+    rows = result.targets
+    n = max(1, len(rows))
+    cols = 1 if n == 1 else (2 if n <= 4 else 4)
+    nrows = math.ceil(n / cols)
+    fig, axes = plt.subplots(nrows, cols, figsize=(4.2 * cols + (4 if n == 1 else 0),
+                                                   2.3 * nrows + 1.0),
+                             sharex=True, sharey=True, squeeze=False)
+    first = next(iter(result.traces.values()), {})
+    colors = tactor_colors(max(1, len(first)))
+    for ax, row in zip(axes.ravel(), rows, strict=False):
+        traces = result.traces[row["target"]]
+        for t in row["tactors"]:
+            if not t["driven"]:
+                continue
+            tr = traces[t["tactor"]]
+            c = colors[t["tactor"]]
+            ax.plot(tr.t_ms, tr.intended, color=c, lw=1.0, ls="--")
+            ax.plot(tr.t_ms, tr.felt, color=c, lw=1.2, label=f"tactor {t['tactor']}")
+        ax.axvline(result.duration_s * 1e3, color="grey", lw=0.8)
+        ax.grid(alpha=0.25)
+        where = "on a tactor" if row["on_tactor"] else "between tactors"
+        ax.set_title(f"target {row['target']} ({row['target_deg']:g} deg, {where}): "
+                     f"RMS {row['rms_error']:.3f}", fontsize=8, loc="left")
+        ax.legend(fontsize=6, loc="upper right", frameon=False)
+    for ax in axes.ravel()[len(rows):]:
+        ax.set_visible(False)
+    for ax in axes[-1]:
+        ax.set_xlabel("ms from the onset (grey: the stop)")
+    for ax in axes[:, 0]:
+        ax.set_ylabel("of full-level steady")
+    between = ("" if result.between_tactor_rms_error is None else
+               f", between tactors {result.between_tactor_rms_error:.3f}")
+    fig.suptitle(f"Felt (solid) and intended (dashed) {result.condition} stimulus on "
+                 f"{result.belt}, drive {result.drive}, sensed by {result.sensor}: RMS "
+                 f"error {result.rms_error:.3f}{between}", fontsize=10)
+    fig.tight_layout()
+    return save_figure(fig, path)
