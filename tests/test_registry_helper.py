@@ -129,3 +129,22 @@ def test_registry_module_imports_only_stdlib_and_errors() -> None:
     tree = ast.parse(Path(mod.__file__).read_text())
     local = [n.module for n in ast.walk(tree) if isinstance(n, ast.ImportFrom) and n.level]
     assert local == ["_errors"]
+
+
+def test_the_export_reads_actuators_and_carrier_from_the_belts_registry_entry(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """No branch on a scheme's name: a backend that declares a carrier gets one in the
+    BIDS stimulus system (the audio belt's default, or its URL's carrier_hz)."""
+    from dataclasses import replace
+
+    from tactorbelt.devices.audio import DEFAULT_CARRIER_HZ
+    from tactorbelt.devices.registry import BACKENDS
+    from tactorbelt.experiment.export import _stimulus_system
+
+    assert _stimulus_system({"belt": "audio:default"})["CarrierFrequency"] == DEFAULT_CARRIER_HZ
+    toy = replace(BACKENDS["sim"], scheme="toy", actuator="a toy LRA", carrier_hz=170.0)
+    monkeypatch.setitem(BACKENDS, "toy", toy)
+    system = _stimulus_system({"belt": "toy?carrier_hz=200"})
+    assert system["ActuatorType"] == "a toy LRA" and system["CarrierFrequency"] == 200.0
+    assert "CarrierFrequency" not in _stimulus_system({"belt": "sim"})
+    assert _stimulus_system({"belt": "nope:1"})["ActuatorType"] == "unknown"

@@ -45,7 +45,7 @@ from .._errors import ConfigError, DeviceError
 from ..geometry import Layout
 from .base import Belt
 from .calibration import Calibration, response_gain
-from .registry import Discovery, Found, check_options
+from .registry import BACKENDS, Discovery, Found, check_options
 
 if TYPE_CHECKING:
     from ..stimuli import Stimulus
@@ -66,7 +66,7 @@ __all__ = [
 log = logging.getLogger("tactorbelt.devices")
 
 #: The carrier frequency by default: the skin's most sensitive band (Pacinian receptors).
-DEFAULT_CARRIER_HZ: Final = 250.0
+DEFAULT_CARRIER_HZ: Final = BACKENDS["audio"].carrier_hz or 250.0
 #: Every amplitude change is ramped over this long by default.
 DEFAULT_RAMP_MS: Final = 5.0
 #: Carriers outside this band are felt poorly by most voice-coil tactors and LRAs (a warning).

@@ -65,6 +65,11 @@ class Backend:
     #: its own; None when the suite needs a harness with a fake device
     #: (tests/support/belts.py).
     contract_url: str | None = None
+    #: what its tactors are, for a session's record (BIDS ``StimulusSystem.ActuatorType``)
+    actuator: str = ""
+    #: the carrier its tactors vibrate at by default (Hz), when it drives a carrier (the
+    #: ``carrier_hz`` URL option sets another); None: the motor's own frequency
+    carrier_hz: float | None = None
     #: the belt can run on a simulated clock (``clock=SimClock()``): a model participant
     #: on it needs no real time (``run``, ``calibrate perceptual``, the demo)
     simulated_time: bool = False
@@ -192,7 +197,9 @@ BACKENDS: dict[str, Backend] = {b.scheme: b for b in (
                                "rated (default: 3.6 V / 3.0 V)", 1.0, 4.0),
                      _SUPPLY, _KICK,
                      UrlOption("brake", bool, "both H-bridge inputs wired (default 1)")),
-            docs="docs/belts.md", simulated_time=True),
+            docs="docs/belts.md", simulated_time=True,
+            actuator="ERM vibration motor, simulated (tactorbelt's ERM model: no motor "
+                     "vibrated)"),
     Backend("emulator", "tactorbelt.devices.emulator:open_emulator",
             "the firmware core built for this computer, on a pseudo-terminal",
             ("emulator",),
@@ -204,7 +211,9 @@ BACKENDS: dict[str, Backend] = {b.scheme: b for b in (
                                "none (firmware 1.1) or broken"),
                      UrlOption("brake", bool, "both H-bridge inputs wired (default 1; 0: IN2 "
                                "to ground, a shaped fall coasts)"), _DRIVE, _SUPPLY, _KICK),
-            docs="docs/devices.md"),
+            docs="docs/devices.md",
+            actuator="ERM vibration motor driven by the tactorbelt firmware, emulated on "
+                     "the host (no motor vibrated)"),
     Backend("serial", "tactorbelt.devices.serial:open_serial",
             "firmware over USB serial", ("serial:/dev/ttyACM0", "serial:auto"), target="PORT",
             options=(_TIMEOUT, _HEARTBEAT,
@@ -212,7 +221,9 @@ BACKENDS: dict[str, Backend] = {b.scheme: b for b in (
                      UrlOption("dtr", bool, "assert DTR (default 1; the board is mute "
                                "without it)"), _DRIVE),
             discover="tactorbelt.devices.serial:discover", title="Serial ports",
-            docs="docs/devices.md", allowed=("serial:PORT", "serial:auto")),
+            docs="docs/devices.md", allowed=("serial:PORT", "serial:auto"),
+            actuator="ERM vibration motor driven by the tactorbelt firmware (PWM), over USB "
+                     "serial"),
     Backend("ble", "tactorbelt.devices.ble:open_ble",
             "firmware over Bluetooth LE (40 Hz streaming)", ("ble:NAME", "ble:auto"),
             target="NAME_OR_ADDRESS",
@@ -221,7 +232,9 @@ BACKENDS: dict[str, Backend] = {b.scheme: b for b in (
                      UrlOption("connect_timeout_s", float, "seconds to connect", 0.1, 120.0),
                      _DRIVE),
             discover="tactorbelt.devices.ble:discover", title="BLE",
-            docs="docs/devices.md"),
+            docs="docs/devices.md",
+            actuator="ERM vibration motor driven by the tactorbelt firmware (PWM), over "
+                     "Bluetooth LE"),
     Backend("audio", "tactorbelt.devices.audio:open_audio",
             "voice-coil/LRA tactors on a multichannel sound card (PortAudio; a sine carrier)",
             ("audio:default?channels=6", "audio:3?carrier_hz=250&map=0,1,2,3,4,5"),
@@ -236,7 +249,10 @@ BACKENDS: dict[str, Backend] = {b.scheme: b for b in (
                      UrlOption("ramp_ms", float, "ramp of every amplitude change", 0.1,
                                100.0), _DRIVE),
             discover="tactorbelt.devices.audio:discover", title="Audio outputs",
-            docs="docs/audio.md", allowed=("audio:DEVICE", "audio:default")),
+            docs="docs/audio.md", allowed=("audio:DEVICE", "audio:default"),
+            actuator="voice-coil or LRA actuator driven by a sound card output channel (a "
+                     "sine carrier modulated by the drive level)",
+            carrier_hz=250.0),  # the skin's most sensitive band (Pacinian receptors)
     Backend("navibelt", "tactorbelt.devices.navibelt:open_navibelt",
             "feelSpace naviBelt through pybelt (16 motors; pip install 'tactorbelt[navibelt]')",
             ("navibelt:auto", "navibelt:serial:/dev/ttyACM0", "navibelt:ble:NAME",

@@ -722,16 +722,6 @@ def export_bids(db: str | Path, out: str | Path, *, readme: str | Path | None = 
     return written
 
 
-#: The actuators of each belt kind (the belt URL's scheme), for the stimulus system.
-_ACTUATORS = {
-    "sim": "ERM vibration motor, simulated (tactorbelt's ERM model: no motor vibrated)",
-    "emulator": "ERM vibration motor driven by the tactorbelt firmware, emulated on the "
-                "host (no motor vibrated)",
-    "serial": "ERM vibration motor driven by the tactorbelt firmware (PWM), over USB serial",
-    "ble": "ERM vibration motor driven by the tactorbelt firmware (PWM), over Bluetooth LE",
-    "audio": "voice-coil or LRA actuator driven by a sound card output channel (a sine "
-             "carrier modulated by the drive level)",
-}
 _SKIN_ONSET_RULE = (
     "skin_onset_s = the stored onset (device-true where the belt reports it, else the "
     "command time) + the measured latency (command to 10 % of the steady vibration, "
@@ -747,22 +737,23 @@ def _stimulus_system(session: dict[str, Any]) -> dict[str, Any]:
     calibration with each tactor's measured latency and rise, and the skin-onset rule."""
     from urllib.parse import parse_qs
 
+    from ..devices.registry import BACKENDS
+
     belt = str(session.get("belt") or "")
-    scheme = belt.split(":", 1)[0].split("?", 1)[0].lower()
+    # the actuators and carrier the belt's registry entry declares
+    backend = BACKENDS.get(belt.split(":", 1)[0].split("?", 1)[0].lower())
     out: dict[str, Any] = {
         "Description": "The vibrotactile belt that presented the stimuli.",
         "Belt": belt or "n/a",
-        "ActuatorType": _ACTUATORS.get(scheme, "unknown"),
+        "ActuatorType": backend.actuator if backend and backend.actuator else "unknown",
         # the session's belt URL names a shaped drive (docs/belts.md, "Drive shaping")
         "Drive": parse_qs(belt.partition("?")[2]).get("drive", ["plain"])[0],
     }
     if session.get("firmware_version"):
         out["FirmwareVersion"] = str(session["firmware_version"])
-    if scheme == "audio":
-        from ..devices.audio import DEFAULT_CARRIER_HZ
-
+    if backend is not None and backend.carrier_hz is not None:
         query = parse_qs(belt.partition("?")[2])
-        carrier = DEFAULT_CARRIER_HZ
+        carrier = backend.carrier_hz
         with contextlib.suppress(ValueError):
             carrier = float(query.get("carrier_hz", [carrier])[0])
         out["CarrierFrequency"] = carrier
