@@ -6,7 +6,7 @@ through the runner on the sim belt and a simulated clock, once as it is and once
 ``[calibration] perceptual = true`` (the runner calibrates the same model observer
 before training and renders the study for its profile), into one store, then print the
 analysis' with/without table (``profile_effect.csv`` of ``tactorbelt analyze``) and the
-fast-path measurement of :mod:`tactorbelt.app.calibration_effect` (individual observers, the
+fast-path measurement of ``scripts/calibration_effect.py`` (individual observers, the
 felt bias of quarter points).
 
 docs/calibration-perceptual.md shows the output of
@@ -30,8 +30,9 @@ def main() -> None:
     ap.add_argument("--fast-participants", type=int, default=12)
     args = ap.parse_args()
 
+    from calibration_effect import calibration_effect, summarise  # beside this script
+
     from tactorbelt.analysis.profiles import profile_table
-    from tactorbelt.app.calibration_effect import calibration_effect, summarise
     from tactorbelt.clock import SimClock
     from tactorbelt.devices.sim import SimBelt
     from tactorbelt.experiment.runner import run_session

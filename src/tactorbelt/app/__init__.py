@@ -4,9 +4,6 @@
   summary), :func:`~.run.run_study`;
 - :mod:`.wearer`: ``calibrate perceptual`` (who answers, the belt on the right clock, the
   profile kept);
-- :mod:`.calibration_effect`: the model participant's errors with and without its wearer
-  profile (docs/calibration-perceptual.md).
-
 - :mod:`.demo`: ``demo`` (a model study of N participants); ``power`` is
   :mod:`tactorbelt.power`.
 """

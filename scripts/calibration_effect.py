@@ -1,3 +1,4 @@
+#!/usr/bin/env python3
 """How much a wearer profile helps: the model participant's between-tactor errors in the
 paper study with and without its own profile (the closed loop of the perceptual
 calibration; docs/calibration-perceptual.md).
@@ -15,7 +16,8 @@ profile, from the same random draws, and compare:
   targets, 15 deg apart);
 - ``mean_abs_error_deg`` and ``accuracy`` of the between-tactor trials.
 
-Library: NumPy, tactorbelt.
+Run ``python scripts/calibration_effect.py [N]``; scripts/perceptual_loop.py prints it
+too. NumPy, tactorbelt.
 """
 
 from __future__ import annotations
@@ -26,14 +28,14 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ..geometry import Layout, TargetSet, wrap
-from ..participant.params import ModelParams, draw_participant
-from ..participant.perception import perceive
-from ..participant.simulate import Protocol, StimulusCues, stimulus_cues
+from tactorbelt.geometry import Layout, TargetSet, wrap
+from tactorbelt.participant.params import ModelParams, draw_participant
+from tactorbelt.participant.perception import perceive
+from tactorbelt.participant.simulate import Protocol, StimulusCues, stimulus_cues
 
 if TYPE_CHECKING:
-    from ..stimuli import Stimulus
-    from ..wearer import WearerProfile
+    from tactorbelt.stimuli import Stimulus
+    from tactorbelt.wearer import WearerProfile
 
 __all__ = ["EffectRow", "calibration_effect", "summarise"]
 
@@ -88,10 +90,10 @@ def calibration_effect(n_participants: int = 6, seed: int = 1, repetitions: int 
     between-tactor trials (24 targets, static and dynamic, ``repetitions`` each) with and
     without their profiles. ``settings``: a
     :class:`~tactorbelt.calibration.perceptual.CalibrationSettings`."""
-    from ..calibration.perceptual import run_perceptual_calibration
-    from ..clock import SimClock
-    from ..devices.sim import SimBelt
-    from ..inputs.model import make_model_respondent, sim_vibrator
+    from tactorbelt.calibration.perceptual import run_perceptual_calibration
+    from tactorbelt.clock import SimClock
+    from tactorbelt.devices.sim import SimBelt
+    from tactorbelt.inputs.model import make_model_respondent, sim_vibrator
 
     layout = Layout.even(6)
     protocol = Protocol(layout, TargetSet.even(24), "paper", 15.0, 1.0, 0.1,
@@ -128,7 +130,7 @@ def summarise(rows: list[EffectRow]) -> list[dict[str, Any]]:
     return out
 
 
-if __name__ == "__main__":  # pragma: no cover - a measurement, not an API
+if __name__ == "__main__":
     import sys
     import time
 
