@@ -517,13 +517,17 @@ def test_a_browser_session_analyses_and_exports_like_a_lab_one(tmp_path: Path) -
 
 
 @pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals")
-def test_host_other_than_loopback_warns(tmp_path: Path) -> None:
-    """--host with another address works but says that other machines can reach it."""
-    b = start_bridge(tmp_path, "--host", "0.0.0.0")
+def test_host_other_than_loopback_warns_and_a_token_can_be_fixed(tmp_path: Path) -> None:
+    """--host with another address works but says that other machines can reach it;
+    --token keeps a hosted page's link working across restarts; a short one is refused."""
+    b = start_bridge(tmp_path, "--host", "0.0.0.0", "--token", "lab-token-0123456789")
+    assert b.token == "lab-token-0123456789"
     rc, err = b.stop()
     assert rc == 143
     assert "warning: listening on 0.0.0.0" in err
     assert os.path.exists(b.store)
+    proc = tactorbelt("serve", "--store", str(tmp_path / "x.sqlite"), "--token", "short")
+    assert proc.returncode == 2 and "--token" in proc.stderr
 
 
 def test_sim_belt_plays_after_any_number_of_stops() -> None:

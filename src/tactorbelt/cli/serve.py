@@ -9,6 +9,7 @@ Imports click at import time; the bridge, the study and the belt only when it ru
 
 from __future__ import annotations
 
+import re
 import sys
 from pathlib import Path
 
@@ -38,12 +39,16 @@ LOOPBACK = ("127.0.0.1", "localhost", "::1")
 @click.option("--allow-origin", "allow_origins", multiple=True, metavar="ORIGIN",
               help="Also accept pages from this origin (e.g. https://lab.example.org); "
                    "repeat for more. The bridge's own pages are always accepted.")
+@click.option("--token", default=None, metavar="TEXT",
+              help="The token pages must present (16 to 128 letters, digits, '-' or '_') "
+                   "[default: a new random one each start]; give one to keep a hosted "
+                   "page's link working across restarts, and keep it secret.")
 @click.option("--heartbeat-ms", type=number(int, 50, 60_000), default=1000,
               show_default=True,
               help="Ping period; a page silent for twice this has its motors turned off.")
 def serve(belt_url: str, calibration_file: str | None, store_url: str,
           study_file: Path | None, port: int | None, host: str,
-          allow_origins: tuple[str, ...], heartbeat_ms: int) -> None:
+          allow_origins: tuple[str, ...], token: str | None, heartbeat_ms: int) -> None:
     """Serve a browser study: the example pages and a WebSocket bridge to the belt.
 
     Prints one line `open: http://127.0.0.1:PORT/examples/paper.html?token=TOKEN`;
@@ -54,6 +59,9 @@ def serve(belt_url: str, calibration_file: str | None, store_url: str,
     from ..bridge import serve as run_bridge
     from ..experiment.study import Study, load_study, template_toml
 
+    if token is not None and not re.fullmatch(r"[A-Za-z0-9_-]{16,128}", token):
+        raise click.BadParameter("use 16 to 128 letters, digits, '-' or '_'",
+                                 param_hint="--token")
     for origin in allow_origins:
         if origin != "null" and "://" not in origin:
             raise click.BadParameter(f"{origin!r} is not an origin (scheme://host[:port], "
@@ -73,6 +81,8 @@ def serve(belt_url: str, calibration_file: str | None, store_url: str,
         study_path=None if study_file is None else str(study_file), host=host,
         port=DEFAULT_PORT if port is None else port, allow_origins=tuple(allow_origins),
         heartbeat_ms=heartbeat_ms, calibration=load_calibration(calibration_file))
+    if token is not None:
+        config.token = token
 
     def ready(url: str) -> None:
         click.echo(f"open: {url}")
