@@ -27,8 +27,11 @@ from __future__ import annotations
 import json
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))  # support.wire_reference
 
 
 def _frames() -> list[list[int]]:
@@ -94,6 +97,7 @@ class _RoundOneDecoder:
     def _end_frame(self) -> object | None:
         import struct
 
+        from support import wire_reference as ref
         from tactorbelt import ProtocolError
         from tactorbelt.devices import wire
 
@@ -105,7 +109,7 @@ class _RoundOneDecoder:
         if not frame:
             return None
         try:
-            raw = wire.cobs_decode_reference(frame)
+            raw = ref.cobs_decode_reference(frame)
         except ProtocolError:
             self.framing_errors += 1
             return None
@@ -114,7 +118,7 @@ class _RoundOneDecoder:
             return None
         raw = bytes(raw)
         (crc,) = struct.unpack_from("<H", raw, len(raw) - 2)
-        if crc != wire.crc16_ccitt_false_reference(raw[:-2]):
+        if crc != ref.crc16_ccitt_false_reference(raw[:-2]):
             self.crc_errors += 1
             return None
         return wire.Packet(raw[0], raw[1], raw[2:-2])
@@ -125,6 +129,7 @@ def bench_wire_reference(seconds: float = 1.0) -> float:
     SET_AMPLITUDES builder and its FrameDecoder), the same round trip."""
     import struct
 
+    from support import wire_reference as ref
     from tactorbelt.devices import wire
 
     frames = _frames()
@@ -138,8 +143,8 @@ def bench_wire_reference(seconds: float = 1.0) -> float:
             p = wire.Packet(wire.MsgType.SET_AMPLITUDES, seq,
                             struct.pack(f"<{len(values)}H", *values))
             body = bytes((p.type, p.seq)) + p.payload
-            raw = body + struct.pack("<H", wire.crc16_ccitt_false_reference(body))
-            data = wire.cobs_encode_reference(raw) + b"\x00"
+            raw = body + struct.pack("<H", ref.crc16_ccitt_false_reference(body))
+            data = ref.cobs_encode_reference(raw) + b"\x00"
             (packet,) = decoder.feed(data)
             assert packet.seq == seq  # type: ignore[attr-defined]
         n += len(frames)

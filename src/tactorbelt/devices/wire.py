@@ -81,11 +81,8 @@ __all__ = [
     "amplitude_to_level",
     "angle_to_cdeg",
     "cobs_decode",
-    "cobs_decode_reference",
     "cobs_encode",
-    "cobs_encode_reference",
     "crc16_ccitt_false",
-    "crc16_ccitt_false_reference",
     "decode_packet",
     "encode_frame",
     "encode_packet",
@@ -267,48 +264,14 @@ class Packet:
 # --- CRC and COBS -------------------------------------------------------------------
 #
 # The functions the host uses run per packet in C (binascii.crc_hqx, bytes.split,
-# bytes.join); the ``*_reference`` ones are the per-byte definitions, kept as the
-# reference that tests compare the fast ones with (tests/test_wire.py).
-
-
-def crc16_ccitt_false_reference(data: bytes) -> int:
-    """CRC-16/CCITT-FALSE bit by bit: the definition :func:`crc16_ccitt_false` must match."""
-    crc = 0xFFFF
-    for byte in data:
-        crc ^= byte << 8
-        for _ in range(8):
-            crc = ((crc << 1) ^ 0x1021) if crc & 0x8000 else (crc << 1)
-            crc &= 0xFFFF
-    return crc
+# bytes.join); tests/support/wire_reference.py holds the per-byte definitions the tests
+# compare them with (tests/test_wire.py).
 
 
 def crc16_ccitt_false(data: bytes) -> int:
     """CRC-16/CCITT-FALSE: poly 0x1021, init 0xFFFF, no reflection, no final xor
     (computed in C by :func:`binascii.crc_hqx`)."""
     return _crc_hqx(data, 0xFFFF)
-
-
-def cobs_encode_reference(data: bytes) -> bytes:
-    """COBS byte by byte: the definition :func:`cobs_encode` must match."""
-    out = bytearray([0])
-    code_at = 0
-    code = 1
-    for i, byte in enumerate(data):
-        if byte == 0:
-            out[code_at] = code
-            code_at = len(out)
-            out.append(0)
-            code = 1
-        else:
-            out.append(byte)
-            code += 1
-            if code == 0xFF and i + 1 < len(data):
-                out[code_at] = code
-                code_at = len(out)
-                out.append(0)
-                code = 1
-    out[code_at] = code
-    return bytes(out)
 
 
 #: ``_CODE[n]`` is the COBS code byte of a block of ``n`` data bytes.
@@ -339,28 +302,6 @@ def cobs_encode(data: bytes) -> bytes:
     return b"".join(out)
 
 
-def cobs_decode_reference(data: bytes) -> bytes:
-    """COBS decoding byte by byte: the definition :func:`cobs_decode` must match."""
-    out = bytearray()
-    i, n = 0, len(data)
-    while i < n:
-        code = data[i]
-        i += 1
-        if code == 0:
-            raise ProtocolError(f"COBS: unexpected 0x00 at byte {i - 1}")
-        end = i + code - 1
-        if end > n:
-            raise ProtocolError(f"COBS: block at byte {i - 1} runs past the end ({n} bytes)")
-        block = data[i:end]
-        if 0 in block:
-            raise ProtocolError(f"COBS: unexpected 0x00 at byte {i + block.index(0)}")
-        out += block
-        i = end
-        if code != 0xFF and i < n:
-            out.append(0)
-    return bytes(out)
-
-
 def cobs_decode(data: bytes) -> bytes:
     """Decode one COBS block sequence (without the 0x00 delimiter).
 
@@ -371,16 +312,20 @@ def cobs_decode(data: bytes) -> bytes:
     n = len(data)
     if n and data[0] == n and 0 not in data:  # one block, no 0x00 in the packet
         return data[1:]
-    if 0 in data:
-        return cobs_decode_reference(data)  # the reference words the error
+    zeros = 0 in data
     parts: list[bytes] = []
     i = 0
     while i < n:
         code = data[i]
+        if code == 0:
+            raise ProtocolError(f"COBS: unexpected 0x00 at byte {i}")
         end = i + code
         if end > n:
-            return cobs_decode_reference(data)  # the reference words the error
-        parts.append(data[i + 1:end])
+            raise ProtocolError(f"COBS: block at byte {i} runs past the end ({n} bytes)")
+        block = data[i + 1:end]
+        if zeros and 0 in block:
+            raise ProtocolError(f"COBS: unexpected 0x00 at byte {i + 1 + block.index(0)}")
+        parts.append(block)
         i = end
         if code != 0xFF and i < n:
             parts.append(b"\x00")
