@@ -59,11 +59,16 @@ class Bridge:
         token = self.token if token == "" else token
         return f"ws://{self.hostport}/ws" + ("" if token is None else f"?token={token}")
 
-    def http(self, path: str) -> tuple[int, bytes, str]:
+    def http(self, path: str, origin: str | None = None) -> tuple[int, bytes, str]:
+        """GET ``path``: status, body, content type (and :attr:`last_headers`)."""
+        req = urllib.request.Request(f"http://{self.hostport}{path}",
+                                     headers={"Origin": origin} if origin else {})
         try:
-            with urllib.request.urlopen(f"http://{self.hostport}{path}", timeout=10) as r:
+            with urllib.request.urlopen(req, timeout=10) as r:
+                self.last_headers = r.headers
                 return r.status, r.read(), r.headers.get("Content-Type", "")
         except urllib.error.HTTPError as exc:
+            self.last_headers = exc.headers
             return exc.code, exc.read(), exc.headers.get("Content-Type", "")
 
     def stop(self, sig: int = signal.SIGTERM) -> tuple[int, str]:
@@ -364,6 +369,11 @@ def test_wrong_origin_and_missing_token_are_closed_1008(tmp_path: Path) -> None:
         assert code == 1008 and "http://evil.example" in reason
         assert run(accepted("https://lab.example.org"))["type"] == "status"
         assert run(accepted(b.url.split("/examples")[0]))["type"] == "status"
+        # a page hosted at an allowed origin may read the study (CORS); others may not
+        assert b.http(f"/study.json?token={b.token}", "https://lab.example.org")[0] == 200
+        assert b.last_headers["Access-Control-Allow-Origin"] == "https://lab.example.org"
+        assert b.http(f"/study.json?token={b.token}", "http://evil.example")[0] == 200
+        assert b.last_headers.get("Access-Control-Allow-Origin") is None
     finally:
         _, err = b.stop()
     assert err.count("refused a WebSocket connection") == 3

@@ -4,7 +4,8 @@ One asyncio server (the ``websockets`` library) on one port:
 
 - **HTTP GET** (``process_request``): the bridge's pages and plugins from the
   package's ``static/`` folder, and ``/study.json`` (the study, for the page; needs the
-  token). Anything else is 404.
+  token). Anything else is 404. A request from an allowed origin (``--allow-origin``)
+  gets CORS headers, so a page hosted there can read them.
 - **WebSocket** at ``/ws?token=TOKEN``: accepted, then closed with code 1008 and a
   reason (logged) when the token is missing or wrong or the ``Origin`` header is not
   an allowed origin (default: the bridge's own ``http://127.0.0.1:PORT`` and
@@ -691,6 +692,9 @@ class _Bridge:
         path, _, query = request.path.partition("?")
         if path == "/ws":
             return None  # the WebSocket: token and origin are checked once accepted
+        origin = request.headers.get("Origin")
+        # a page hosted at an allowed origin may read the study and the plugins (CORS)
+        cors = origin if origin is not None and origin in self.origins else None
         if path == "/study.json":
             token = parse_qs(query).get("token", [""])[0]
             if not secrets.compare_digest(token, self.config.token):
@@ -698,13 +702,13 @@ class _Bridge:
                             connection.remote_address)
                 return connection.respond(403, "the token is missing or wrong\n")
             return _response(200, json.dumps(self.study_json(), indent=1).encode(),
-                             "application/json")
+                             "application/json", cors)
         if path in ("", "/"):
             path = "/index.html"
         file = _static_file(self.config.static_dir, path)
         if file is None:
             return connection.respond(404, f"not found: {path}\n")
-        return _response(200, file.read_bytes(), _content_type(file))
+        return _response(200, file.read_bytes(), _content_type(file), cors)
 
     async def door(self, ws: ServerConnection) -> None:
         request = ws.request
@@ -801,12 +805,16 @@ def _bound_port(server: Server, port: int) -> int:
     return port
 
 
-def _response(status: int, body: bytes, content_type: str) -> Response:
+def _response(status: int, body: bytes, content_type: str, cors: str | None = None
+              ) -> Response:
     from websockets.datastructures import Headers
     from websockets.http11 import Response
 
     headers = Headers([("Content-Type", content_type), ("Content-Length", str(len(body))),
                        ("Cache-Control", "no-store"), ("Connection", "close")])
+    if cors is not None:
+        headers["Access-Control-Allow-Origin"] = cors
+        headers["Vary"] = "Origin"
     return Response(status, "OK" if status == 200 else "", headers, body)
 
 
