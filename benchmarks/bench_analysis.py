@@ -1,6 +1,6 @@
 """Benchmark: analysis of 1,000 participants x 240 trials with their 100 Hz samples.
 
-Writes a synthetic store (tactorbelt.analysis.synthetic, executemany; ~36 M sample
+Writes a synthetic store (tests/support/synthetic.py, executemany; ~36 M sample
 rows, ~1.7 GB; participants and targets differ as in a real study: SDs 0.5, 0.3 and
 0.3 log-odds for the participant intercept, condition slope and target intercept, so
 the mixed model is fitted as on real data, not refitted after singular fits of
@@ -22,6 +22,8 @@ import tempfile
 import time
 from pathlib import Path
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))  # support.synthetic
+
 
 def main() -> int:
     os.environ.setdefault("MPLBACKEND", "Agg")
@@ -32,8 +34,8 @@ def main() -> int:
     ap.add_argument("--keep", action="store_true", help="keep the store for the next run")
     args = ap.parse_args()
 
-    from tactorbelt.analysis.report import analyze
-    from tactorbelt.analysis.synthetic import synthesize_store
+    from support.synthetic import synthesize_store
+    from tactorbelt.analysis.report.analyze import analyze
 
     args.cache.mkdir(parents=True, exist_ok=True)
     db = args.cache / f"store_{args.participants}_varied.sqlite"

@@ -4,14 +4,15 @@ tactorbelt against R (lme4, emmeans, pbkrtest) on the same data.
 1. A resolution study (12, 24, 36, 48 targets x static/dynamic, 2 repetitions: 480
    test trials a participant) of ``--participants`` synthetic participants who differ
    (SDs 0.5, 0.3, 0.3 log-odds: participant intercept, condition slope, target
-   intercept; :func:`tactorbelt.analysis.synthetic.synthesize_store`, cached): the
+   intercept; :func:`support.synthetic.synthesize_store`, cached): the
    report's accuracy model with its simplification rule, the contrasts per target
    count and the likelihood ratio (the null model fitted too). R on the same frame:
    ``glmer`` of the final model and of the null model, ``anova`` and emmeans'
    contrasts (``condition_tests_lme4``; its time includes starting R and reading the
    CSV, ``r_*_fit_s`` is R's own clock for the fits and tests after that).
 2. The parametric bootstrap with ``--pb-sims`` simulations on ``--pb-participants``
-   participants of the same design: ours (:func:`tactorbelt.analysis.lrt.parametric_bootstrap`)
+   participants of the same design: ours
+   (:func:`tactorbelt.analysis.models.lrt.parametric_bootstrap`)
    and pbkrtest's ``PBmodcomp`` in R (R's own simulations), timed on ``--r-pb-sims``
    simulations and scaled to ``--pb-sims`` (``r_pb_<sims>_<n>_est_s``): glmer's
    ``refit`` of this model takes about a minute a simulation on 2 busy cores, so 500
@@ -30,17 +31,20 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import sys
 import tempfile
 import time
 import warnings
 from pathlib import Path
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))  # support.synthetic
+
 
 def _frame(path: Path, participants: int, seed: int) -> object:
-    from tactorbelt.analysis.load import load_stores
-    from tactorbelt.analysis.stats import model_frame
-    from tactorbelt.analysis.synthetic import synthesize_store
-    from tactorbelt.analysis.tables import prepare_trials
+    from support.synthetic import synthesize_store
+    from tactorbelt.analysis.models.fit import model_frame
+    from tactorbelt.analysis.tables.load import load_stores
+    from tactorbelt.analysis.tables.tables import prepare_trials
 
     if not path.exists():
         tmp = path.with_suffix(".partial")
@@ -67,11 +71,11 @@ def main() -> int:
     ap.add_argument("--keep", action="store_true", help="keep the stores for the next run")
     args = ap.parse_args()
 
-    from tactorbelt.analysis.contrasts import condition_contrasts
-    from tactorbelt.analysis.glmm import fit_glmm
-    from tactorbelt.analysis.lme4 import condition_tests_lme4, lme4_available
-    from tactorbelt.analysis.lrt import likelihood_ratio, null_spec, parametric_bootstrap
-    from tactorbelt.analysis.stats import fit_model
+    from tactorbelt.analysis.models.contrasts import condition_contrasts
+    from tactorbelt.analysis.models.fit import fit_model
+    from tactorbelt.analysis.models.glmm import fit_glmm
+    from tactorbelt.analysis.models.lme4 import condition_tests_lme4, lme4_available
+    from tactorbelt.analysis.models.lrt import likelihood_ratio, null_spec, parametric_bootstrap
 
     warnings.simplefilter("ignore")
     use_r = not args.no_r and lme4_available() is None

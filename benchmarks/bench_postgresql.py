@@ -5,7 +5,7 @@
   each trial one transaction; and ``write_trials_per_s``: the same trials written
   straight to PostgreSQL with ``write_trial``.
 - ``analyze_<N>_pg_s`` / ``analyze_<N>_sqlite_s``: ``analyze()`` end to end of N
-  synthetic participants (tactorbelt.analysis.synthetic, 240 trials each with their
+  synthetic participants (tests/support/synthetic.py, 240 trials each with their
   100 Hz samples) read from PostgreSQL and from SQLite; ``pg_over_sqlite`` is the ratio
   (target: at most 2).
 
@@ -28,6 +28,7 @@ import time
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE.parent / "tests"))  # support.synthetic
 
 
 def _server_url() -> str:
@@ -108,8 +109,8 @@ def main() -> int:
     ap.add_argument("--trials", type=int, default=500)
     args = ap.parse_args()
 
-    from tactorbelt.analysis.report import analyze
-    from tactorbelt.analysis.synthetic import synthesize_store
+    from support.synthetic import synthesize_store
+    from tactorbelt.analysis.report.analyze import analyze
     from tactorbelt.experiment.store import open_store
     from tactorbelt.experiment.sync import sync_stores
 

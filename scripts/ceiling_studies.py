@@ -22,10 +22,10 @@ import numpy as np
 
 
 def _frame(store: str):  # type: ignore[no-untyped-def]
-    from tactorbelt.analysis.load import load_stores
-    from tactorbelt.analysis.models import model_frame
-    from tactorbelt.analysis.stats import rt_from_choice
-    from tactorbelt.analysis.tables import prepare_trials
+    from tactorbelt.analysis.models.fit import model_frame
+    from tactorbelt.analysis.summary import rt_from_choice
+    from tactorbelt.analysis.tables.load import load_stores
+    from tactorbelt.analysis.tables.tables import prepare_trials
 
     data = load_stores([store])
     trials, _, _ = rt_from_choice(data.trials, None)
@@ -55,10 +55,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--no-r", action="store_true", help="tactorbelt's engine only")
     args = ap.parse_args(argv)
     warnings.simplefilter("ignore")
-    from tactorbelt.analysis.glmm import FixefPrior, GlmmData, fit_glmm
-    from tactorbelt.analysis.lme4 import fit_lme4, lme4_available
-    from tactorbelt.analysis.models import fit_model
-    from tactorbelt.analysis.separation import detect_separation
+    from tactorbelt.analysis.models.fit import fit_model
+    from tactorbelt.analysis.models.glmm import FixefPrior, GlmmData, fit_glmm
+    from tactorbelt.analysis.models.lme4 import fit_lme4, lme4_available
+    from tactorbelt.analysis.models.separation import detect_separation
 
     use_r = not args.no_r and lme4_available() is None
     prior = FixefPrior()

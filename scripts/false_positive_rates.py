@@ -4,7 +4,7 @@ Studies with **no condition effect** are simulated from the report's accuracy GL
 (:func:`tactorbelt.power.glmm.simulate_frame` with the ``tactorbelt power
 --odds-ratio`` defaults: static = dynamic between-tactor accuracy 0.5, on-tactor 0.9,
 SDs 0.5 (participant), 0.3 (condition slope), 0.3 (target), log-odds) and analysed as
-the report analyses them (:func:`tactorbelt.analysis.stats.fit_model`: the maximal
+the report analyses them (:func:`tactorbelt.analysis.models.fit.fit_model`: the maximal
 model simplified while singular). Per study:
 
 - ``wald_z``: Wald z of ``conditionstatic`` (the old headline), two-sided;
@@ -49,15 +49,15 @@ from typing import Any
 
 import numpy as np
 
-from tactorbelt.analysis.glmm import fit_glmm
-from tactorbelt.analysis.lrt import (
+from tactorbelt.analysis.models.fit import fit_model
+from tactorbelt.analysis.models.glmm import fit_glmm
+from tactorbelt.analysis.models.lrt import (
     f_reference,
     likelihood_ratio,
     null_spec,
     parametric_bootstrap,
     wald_condition,
 )
-from tactorbelt.analysis.stats import fit_model
 from tactorbelt.experiment.study import Study, paper_study, template_toml
 from tactorbelt.power.design import TrialDesign
 from tactorbelt.power.glmm import NamedEffect, simulate_frame

@@ -6,7 +6,7 @@ a target count M and a number of repetitions r (trials per target of one partici
 in one cell). The true transfer is the channel's mutual information with every target
 equally likely, computed exactly. ``--sims`` confusion matrices are drawn from the
 channel (each row: r trials, multinomial), and every estimator of
-:mod:`tactorbelt.analysis.transfer` is applied to each, clamped to ``[0, H(S)]`` as the
+:mod:`tactorbelt.analysis.tables.transfer` is applied to each, clamped to ``[0, H(S)]`` as the
 analysis reports it (and unclamped, for the raw bias). Channels:
 
 - ``perfect``: always right; ``chance``: a uniform answer whatever the target;
@@ -16,7 +16,7 @@ analysis reports it (and unclamped, for the raw bias). Channels:
   to the nearest target (as a belt wearer's pointing error; the same error in degrees
   spans more targets at higher resolution).
 
-Then a coverage check of the cell interval (:func:`tactorbelt.analysis.transfer.
+Then a coverage check of the cell interval (:func:`tactorbelt.analysis.tables.transfer.
 cell_interval`): ``--coverage-sims`` studies of n participants whose angular errors
 differ (s drawn log-normally around 20 degrees), against the population mean of the
 true transfer.
@@ -39,7 +39,7 @@ from pathlib import Path
 import numpy as np
 from scipy.stats import norm
 
-from tactorbelt.analysis.transfer import (
+from tactorbelt.analysis.tables.transfer import (
     ESTIMATOR,
     ESTIMATORS,
     estimate_transfer,

@@ -26,7 +26,7 @@ import argparse
 
 import numpy as np
 
-from tactorbelt.analysis.transfer import information_transfer, miller_madow_transfer
+from tactorbelt.analysis.tables.transfer import information_transfer, miller_madow_transfer
 from tactorbelt.geometry import Layout, TargetSet, wrap
 from tactorbelt.inputs.model import sim_vibrator
 from tactorbelt.participant import ModelParams, Protocol, draw_participant, stimulus_cues

@@ -32,7 +32,7 @@ def main() -> None:
 
     from calibration_effect import calibration_effect, summarise  # beside this script
 
-    from tactorbelt.analysis.profiles import profile_table
+    from tactorbelt.analysis.tables.profiles import profile_table
     from tactorbelt.clock import SimClock
     from tactorbelt.devices.sim import SimBelt
     from tactorbelt.experiment.runner import run_session

@@ -15,15 +15,15 @@ from pathlib import Path
 import pytest
 
 from support.analysis import HAND_TRIALS, _rows, hand_store
-from tactorbelt.analysis.report import analyze
-from tactorbelt.analysis.synthetic import (
+from support.synthetic import (
     create_store,
     insert_samples,
     insert_session,
     insert_trials,
     synthesize_store,
 )
-from tactorbelt.analysis.tables import PER_TARGET_COLUMNS
+from tactorbelt.analysis.report.analyze import analyze
+from tactorbelt.analysis.tables.tables import PER_TARGET_COLUMNS
 
 PNG = b"\x89PNG\r\n\x1a\n"
 

@@ -11,22 +11,22 @@ import pytest
 from scipy import stats
 
 from support.analysis import HAND_TRIALS, _rows, hand_store
-from tactorbelt.analysis.load import load_stores
-from tactorbelt.analysis.stats import (
-    fisher_accuracy,
-    mann_whitney_rt,
-    matched_pairs_rank_biserial,
-    mixed_model,
-    summarize,
-    wilcoxon_paired,
-)
-from tactorbelt.analysis.synthetic import (
+from support.synthetic import (
     create_store,
     insert_session,
     insert_trials,
     synthesize_store,
 )
-from tactorbelt.analysis.tables import prepare_trials
+from tactorbelt.analysis.models.fit import mixed_model
+from tactorbelt.analysis.summary import summarize
+from tactorbelt.analysis.tables.classical import (
+    fisher_accuracy,
+    mann_whitney_rt,
+    matched_pairs_rank_biserial,
+    wilcoxon_paired,
+)
+from tactorbelt.analysis.tables.load import load_stores
+from tactorbelt.analysis.tables.tables import prepare_trials
 
 
 @pytest.fixture

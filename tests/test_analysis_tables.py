@@ -13,17 +13,17 @@ import pytest
 from scipy.stats import circmean, circstd
 
 from support.analysis import HAND_TRIALS, _rows, hand_store
-from tactorbelt import StoreError
-from tactorbelt.analysis.design import parse_design
-from tactorbelt.analysis.load import load_samples, load_stores
-from tactorbelt.analysis.synthetic import (
+from support.synthetic import (
     create_store,
     insert_samples,
     insert_session,
     insert_trials,
     paper_study_toml,
 )
-from tactorbelt.analysis.tables import (
+from tactorbelt import StoreError
+from tactorbelt.analysis.tables.design import parse_design
+from tactorbelt.analysis.tables.load import load_samples, load_stores
+from tactorbelt.analysis.tables.tables import (
     PER_TARGET_COLUMNS,
     condition_summary,
     confusion_matrices,

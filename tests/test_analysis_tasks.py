@@ -6,7 +6,7 @@ from typing import Any
 
 import pytest
 
-from tactorbelt.analysis.tasks import (
+from tactorbelt.analysis.tables.tasks import (
     TLX_ITEMS,
     d_prime,
     dual_task_cost,

@@ -18,10 +18,17 @@ import pandas as pd
 import pytest
 from scipy import stats
 
-from tactorbelt.analysis.contrasts import condition_contrasts
-from tactorbelt.analysis.glmm import ModelSpec, RandomTerm, fit_glmm
-from tactorbelt.analysis.load import load_stores
-from tactorbelt.analysis.lrt import (
+from support.synthetic import synthesize_store
+from tactorbelt.analysis.models.contrasts import condition_contrasts
+from tactorbelt.analysis.models.fit import (
+    HEADLINE_TEST,
+    PB_MAX_PARTICIPANTS,
+    fit_model,
+    headline_method,
+    model_frame,
+)
+from tactorbelt.analysis.models.glmm import ModelSpec, RandomTerm, fit_glmm
+from tactorbelt.analysis.models.lrt import (
     condition_terms,
     likelihood_ratio,
     null_spec,
@@ -29,17 +36,10 @@ from tactorbelt.analysis.lrt import (
     pb_p_value,
     wald_condition,
 )
-from tactorbelt.analysis.satterthwaite import richardson_hessian, richardson_jacobian
-from tactorbelt.analysis.stats import (
-    HEADLINE_TEST,
-    PB_MAX_PARTICIPANTS,
-    fit_model,
-    headline_method,
-    model_frame,
-    summarize,
-)
-from tactorbelt.analysis.synthetic import synthesize_store
-from tactorbelt.analysis.tables import prepare_trials
+from tactorbelt.analysis.models.satterthwaite import richardson_hessian, richardson_jacobian
+from tactorbelt.analysis.summary import summarize
+from tactorbelt.analysis.tables.load import load_stores
+from tactorbelt.analysis.tables.tables import prepare_trials
 
 COUNTS = [12, 24, 36]
 
@@ -165,7 +165,7 @@ def test_summary_json_carries_the_contract(resolution_summary: dict) -> None:
 
 def test_report_says_which_test_and_adjustment_made_each_number(resolution_summary: dict
                                                                 ) -> None:
-    from tactorbelt.analysis.report import render_html
+    from tactorbelt.analysis.report.analyze import render_html
 
     html = render_html(resolution_summary["summary"], {})
     contrasts = html.index("Dynamic against static at each target count")

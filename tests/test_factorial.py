@@ -291,7 +291,7 @@ def _trials(study: Study, participants: list[str], noise: dict[str, int]) -> Any
 
 
 def test_cell_summary_per_condition_count_and_load() -> None:
-    from tactorbelt.analysis.cells import CELL_COLUMNS, cell_summary
+    from tactorbelt.analysis.tables.cells import CELL_COLUMNS, cell_summary
 
     s = factorial(repetitions=2)
     tr = _trials(s, ["P01", "P02"], {"P01": 0, "P02": 0})
@@ -310,7 +310,7 @@ def test_cell_summary_per_condition_count_and_load() -> None:
 
 
 def test_cell_information_transfer_is_per_participant_then_averaged() -> None:
-    from tactorbelt.analysis.cells import cell_summary, participant_cells
+    from tactorbelt.analysis.tables.cells import cell_summary, participant_cells
 
     s = make_study(design={**DESIGN, "targets": [12], "load": ["none"], "repetitions": 2},
                    training=0)
@@ -329,7 +329,7 @@ def test_cell_information_transfer_is_per_participant_then_averaged() -> None:
 
 
 def test_old_trials_get_the_single_count_and_no_load() -> None:
-    from tactorbelt.analysis.cells import cell_summary, infer_n_targets
+    from tactorbelt.analysis.tables.cells import cell_summary, infer_n_targets
 
     tr = _trials(paper_study(), ["P01"], {"P01": 0}).drop(columns=["n_targets", "load"])
     out = cell_summary(tr)

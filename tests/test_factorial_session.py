@@ -19,10 +19,10 @@ import numpy as np
 import pytest
 
 from support.studies import make_study
-from tactorbelt.analysis.load import load_stores
-from tactorbelt.analysis.report import analyze
-from tactorbelt.analysis.stats import summarize
-from tactorbelt.analysis.transfer import estimate_transfer
+from tactorbelt.analysis.report.analyze import analyze
+from tactorbelt.analysis.summary import summarize
+from tactorbelt.analysis.tables.load import load_stores
+from tactorbelt.analysis.tables.transfer import estimate_transfer
 from tactorbelt.clock import SimClock
 from tactorbelt.devices import open_belt
 from tactorbelt.experiment.export import export_csv

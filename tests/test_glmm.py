@@ -8,8 +8,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from tactorbelt.analysis import lme4 as lme4_mod
-from tactorbelt.analysis.glmm import (
+from tactorbelt.analysis.models import lme4 as lme4_mod
+from tactorbelt.analysis.models.glmm import (
     ModelSpec,
     RandomTerm,
     fit_glmm,
@@ -83,7 +83,7 @@ def test_lme4_engine_without_r_says_how_to_install(monkeypatch: pytest.MonkeyPat
 def test_analyze_engine_lme4_without_r_exits_2_with_the_install_command(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
         capsys: pytest.CaptureFixture[str]) -> None:
-    from tactorbelt.analysis.synthetic import synthesize_store
+    from support.synthetic import synthesize_store
     from tactorbelt.cli import main
 
     store = tmp_path / "s.sqlite"
@@ -99,10 +99,10 @@ def test_synthetic_participants_can_differ_as_people_do(tmp_path: Path) -> None:
     """The benchmark's synthetic store gives participants their own accuracy: the
     accuracy model estimates the SD it was made with; the default store (everyone
     alike) fits the participant SD at about 0."""
-    from tactorbelt.analysis.load import load_stores
-    from tactorbelt.analysis.stats import fit_model, model_frame
-    from tactorbelt.analysis.synthetic import synthesize_store
-    from tactorbelt.analysis.tables import prepare_trials
+    from support.synthetic import synthesize_store
+    from tactorbelt.analysis.models.fit import fit_model, model_frame
+    from tactorbelt.analysis.tables.load import load_stores
+    from tactorbelt.analysis.tables.tables import prepare_trials
 
     sds = {}
     for name, sd in (("alike", 0.0), ("varied", 0.8)):
@@ -119,8 +119,8 @@ def test_synthetic_participants_can_differ_as_people_do(tmp_path: Path) -> None:
 def test_target_count_is_a_factor_in_numeric_order_named_as_r() -> None:
     """factor(n_targets) is coded as R codes it: the smallest count the reference (6 before
     12, though "12" < "6" as text), columns named factor(n_targets)<count>."""
-    from tactorbelt.analysis.glmm import term_column, term_levels
-    from tactorbelt.analysis.stats import model_spec
+    from tactorbelt.analysis.models.fit import model_spec
+    from tactorbelt.analysis.models.glmm import term_column, term_levels
 
     df = pd.DataFrame({"condition": ["static", "dynamic"] * 3,
                        "n_targets": [6, 6, 12, 12, 24, 24]})
@@ -143,7 +143,7 @@ def test_target_count_is_a_factor_in_numeric_order_named_as_r() -> None:
 def test_laplace_gradient_is_the_derivative_of_the_deviance(slopes: tuple[str, ...]) -> None:
     """The analytic gradient over (theta, beta) (the modes move with both) equals central
     differences of the Laplace deviance."""
-    from tactorbelt.analysis.glmm import GlmmData, _central_grad
+    from tactorbelt.analysis.models.glmm import GlmmData, _central_grad
 
     df = _frame(participants=8, sd=0.8)
     spec = ModelSpec("correct", ("condition", "on_tactor"),
@@ -162,7 +162,7 @@ def test_a_variance_at_zero_is_left_when_it_is_no_minimum() -> None:
     simplified model started from a singular fit's 0 used to stay at that saddle (the
     participant SD of this study: 0 instead of glmer's 0.358, deviance 1761.3 instead of
     1735.5)."""
-    from tactorbelt.analysis.stats import fit_model
+    from tactorbelt.analysis.models.fit import fit_model
     from tactorbelt.experiment.study import paper_study
     from tactorbelt.power.design import TrialDesign
     from tactorbelt.power.glmm import NamedEffect, simulate_frame
@@ -179,7 +179,7 @@ def test_a_variance_at_zero_is_left_when_it_is_no_minimum() -> None:
 def test_simulated_responses_follow_the_fit() -> None:
     """GlmmData.simulate draws new random effects from the fit (lme4's simulate): the
     simulated accuracy matches the model's, and a seed gives the same draws."""
-    from tactorbelt.analysis.glmm import GlmmData
+    from tactorbelt.analysis.models.glmm import GlmmData
 
     df = _frame(participants=10)
     spec = ModelSpec("correct", ("condition", "on_tactor"), (RandomTerm("participant"),))

@@ -77,7 +77,7 @@ def test_studies_without_the_key_are_unchanged() -> None:
 
 
 def test_the_analysis_reports_results_with_and_without_profiles(tmp_path: Path) -> None:
-    from tactorbelt.analysis.profiles import COLUMNS, profile_table
+    from tactorbelt.analysis.tables.profiles import COLUMNS, profile_table
 
     db = tmp_path / "s.sqlite"
     with open_store(db) as store:

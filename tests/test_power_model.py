@@ -16,7 +16,7 @@ import pytest
 
 from support.cli import tactorbelt
 from tactorbelt._errors import ConfigError
-from tactorbelt.analysis.stats import fit_model
+from tactorbelt.analysis.models.fit import fit_model
 from tactorbelt.experiment.study import Study, paper_study, template_toml
 from tactorbelt.power.design import TrialDesign
 from tactorbelt.power.glmm import (

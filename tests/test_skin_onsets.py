@@ -215,8 +215,8 @@ def test_rt_from_skin_needs_a_skin_onset_in_every_analysed_trial(
 
 
 def test_the_rt_shift_is_exact_per_trial(lab: dict[str, Any]) -> None:
-    from tactorbelt.analysis.load import load_stores
-    from tactorbelt.analysis.stats import rt_from_choice
+    from tactorbelt.analysis.summary import rt_from_choice
+    from tactorbelt.analysis.tables.load import load_stores
 
     data = load_stores([lab["skin"]])
     tr, used, _ = rt_from_choice(data.trials)

@@ -22,10 +22,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from tactorbelt.analysis.glmm import FixefPrior, GlmmData, fit_glmm
-from tactorbelt.analysis.lme4 import _FLATTEN, fit_lme4, lme4_available
-from tactorbelt.analysis.models import fit_model, mixed_model, model_spec
-from tactorbelt.analysis.separation import detect_separation
+from tactorbelt.analysis.models.fit import fit_model, mixed_model, model_spec
+from tactorbelt.analysis.models.glmm import FixefPrior, GlmmData, fit_glmm
+from tactorbelt.analysis.models.lme4 import _FLATTEN, fit_lme4, lme4_available
+from tactorbelt.analysis.models.separation import detect_separation
 
 EST_REL, EST_FLOOR_SE, SE_REL = 0.02, 0.02, 0.05
 
@@ -119,7 +119,11 @@ def test_no_cell_at_the_bounds_no_separation() -> None:
 
 
 def test_report_shows_not_estimable_and_the_wald_test_not_valid() -> None:
-    from tactorbelt.analysis.report import _fixed_rows, _separation_text, _tests_table
+    from tactorbelt.analysis.report.analyze import (
+        _fixed_rows,
+        _separation_text,
+        _tests_table,
+    )
 
     frame = ceiling_frame(seed=3, participants=4)
     tr = frame.assign(is_correct=frame["correct"].astype(bool), counted=True,
@@ -159,7 +163,7 @@ def test_fixef_prior_parses_as_blme_spreads_it() -> None:
 
 def test_analyze_fixef_prior_names_the_fit_and_refuses_bad_input(
         tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    from tactorbelt.analysis.synthetic import synthesize_store
+    from support.synthetic import synthesize_store
     from tactorbelt.cli import main
 
     store = tmp_path / "s.sqlite"

@@ -22,12 +22,13 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from tactorbelt.analysis.glmm import MixedModelFit, fit_glmm, fit_lmm, fit_simplified
-from tactorbelt.analysis.lme4 import fit_lme4, lme4_available
-from tactorbelt.analysis.load import load_stores
-from tactorbelt.analysis.stats import model_frame, model_spec, summarize
-from tactorbelt.analysis.synthetic import synthesize_store
-from tactorbelt.analysis.tables import prepare_trials
+from support.synthetic import synthesize_store
+from tactorbelt.analysis.models.fit import model_frame, model_spec
+from tactorbelt.analysis.models.glmm import MixedModelFit, fit_glmm, fit_lmm, fit_simplified
+from tactorbelt.analysis.models.lme4 import fit_lme4, lme4_available
+from tactorbelt.analysis.summary import summarize
+from tactorbelt.analysis.tables.load import load_stores
+from tactorbelt.analysis.tables.tables import prepare_trials
 
 WHY = lme4_available()
 pytestmark = pytest.mark.skipif(WHY is not None, reason=f"R with lme4 unavailable: {WHY}")
@@ -143,7 +144,7 @@ def _r_vector(a: np.ndarray) -> str:
 def test_rank_intervals_and_odds_ratio_agree_with_r() -> None:
     import subprocess
 
-    from tactorbelt.analysis.classical import (
+    from tactorbelt.analysis.tables.classical import (
         fisher_accuracy,
         hodges_lehmann_paired,
         hodges_lehmann_shift,
@@ -205,9 +206,9 @@ def condition_fits() -> dict[str, tuple[pd.DataFrame, MixedModelFit, MixedModelF
     a study with a load factor (contrasts averaged over the loads)."""
     import warnings
 
-    from tactorbelt.analysis.lme4 import condition_tests_lme4
-    from tactorbelt.analysis.lrt import null_spec
-    from tactorbelt.analysis.stats import fit_model
+    from tactorbelt.analysis.models.fit import fit_model
+    from tactorbelt.analysis.models.lme4 import condition_tests_lme4
+    from tactorbelt.analysis.models.lrt import null_spec
 
     out = {}
     for what, frame in (("resolution, 6 participants", _resolution_frame()),
@@ -226,7 +227,7 @@ def test_contrasts_per_target_count_agree_with_emmeans(condition_fits: dict) -> 
     at = list(on_tactor = 0))), Holm over every count (by = NULL), and on the
     probability scale pairs(regrid(em)): estimates within 1e-3, SEs within 2 %, Holm p
     within 5 % or 0.002."""
-    from tactorbelt.analysis.contrasts import condition_contrasts
+    from tactorbelt.analysis.models.contrasts import condition_contrasts
 
     for what, (frame, fit, _, ref) in condition_fits.items():
         ours = condition_contrasts(fit, frame)
@@ -266,7 +267,7 @@ def test_contrasts_per_target_count_agree_with_emmeans(condition_fits: dict) -> 
 def test_likelihood_ratio_and_wald_agree_with_r(condition_fits: dict) -> None:
     """The LRT equals anova(m0, m) within 1 % (statistic and p), df the number of
     condition terms; the Wald chi-square equals b' V^-1 b of glmer's estimates."""
-    from tactorbelt.analysis.lrt import condition_terms, likelihood_ratio, wald_condition
+    from tactorbelt.analysis.models.lrt import condition_terms, likelihood_ratio, wald_condition
 
     for what, (frame, fit, fit0, ref) in condition_fits.items():
         lr = likelihood_ratio(fit, fit0)
@@ -285,9 +286,9 @@ def test_parametric_bootstrap_agrees_with_pbkrtest() -> None:
     ref = those ratios): every LRT* within 1 % (or 0.01), and pbkrtest's p."""
     import warnings
 
-    from tactorbelt.analysis.lme4 import condition_tests_lme4
-    from tactorbelt.analysis.lrt import null_spec, parametric_bootstrap
-    from tactorbelt.analysis.stats import fit_model
+    from tactorbelt.analysis.models.fit import fit_model
+    from tactorbelt.analysis.models.lme4 import condition_tests_lme4
+    from tactorbelt.analysis.models.lrt import null_spec, parametric_bootstrap
     from tactorbelt.experiment.study import paper_study
     from tactorbelt.power.design import TrialDesign
     from tactorbelt.power.glmm import NamedEffect, simulate_frame
@@ -299,7 +300,7 @@ def test_parametric_bootstrap_agrees_with_pbkrtest() -> None:
         fit, _ = fit_model(frame)
         fit0 = fit_glmm(frame, null_spec(fit.spec), se=False)
         pb = parametric_bootstrap(frame, fit, fit0, n_sim=20, seed=3)
-    from tactorbelt.analysis.glmm import GlmmData
+    from tactorbelt.analysis.models.glmm import GlmmData
 
     ys = GlmmData(frame, fit0.spec).simulate(fit0, np.random.default_rng(3), 20)
     ref = condition_tests_lme4(frame, fit.spec, null_spec(fit.spec), responses=ys)
@@ -319,7 +320,7 @@ def test_parametric_bootstrap_agrees_with_pbkrtest() -> None:
 def test_rt_model_satterthwaite_agrees_with_lmertest(datasets: dict[str, pd.DataFrame]) -> None:
     """rt_mixed_model's df, t and p equal lmerTest's summary: df within 2 %, t within 1 %,
     p within 5 % (or 1e-6 for p near 0)."""
-    from tactorbelt.analysis.stats import fit_model
+    from tactorbelt.analysis.models.fit import fit_model
 
     for what, frame in datasets.items():
         fit, js = fit_model(frame, rt=True)

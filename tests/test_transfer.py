@@ -11,7 +11,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from tactorbelt.analysis.transfer import (
+from tactorbelt.analysis.tables.transfer import (
     ESTIMATOR,
     ESTIMATORS,
     bootstrap_corrected_transfer,
@@ -25,7 +25,7 @@ from tactorbelt.analysis.transfer import (
     panzeri_treves_transfer,
     stimulus_entropy,
 )
-from tactorbelt.analysis.transfer import _pt_bins as pt_bins
+from tactorbelt.analysis.tables.transfer import _pt_bins as pt_bins
 
 LN2 = math.log(2)
 

@@ -11,13 +11,13 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from tactorbelt.analysis.cells import (
+from tactorbelt.analysis.tables.cells import (
     IT_CI_METHOD,
     cell_summary,
     cells_to_json,
     participant_cells,
 )
-from tactorbelt.analysis.transfer import (
+from tactorbelt.analysis.tables.transfer import (
     ESTIMATOR,
     bootstrap_draws,
     cell_interval,
@@ -149,7 +149,7 @@ def test_interval_contains_the_mean_estimate_and_respects_the_bounds(
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_fast_resamples_give_the_estimator_of_the_full_matrices(seed: int) -> None:
-    from tactorbelt.analysis.transfer import _Plan
+    from tactorbelt.analysis.tables.transfer import _Plan
 
     rng = np.random.default_rng(seed)
     m = rng.multinomial(3, np.full(9, 1 / 9), size=12) * (rng.random((12, 9)) < 0.4)

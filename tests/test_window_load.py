@@ -310,7 +310,7 @@ def test_a_task_on_an_experimenter_key_is_refused_when_the_window_opens() -> Non
 def test_the_analysis_reads_the_windowed_sessions_task_events_and_ratings(
         tmp_path: Path) -> None:
     tasks_analysis = pytest.importorskip(
-        "tactorbelt.analysis.tasks", reason="the analysis of secondary tasks (load-model)")
+        "tactorbelt.analysis.tables.tasks", reason="the analysis of secondary tasks (load-model)")
     study = load_study()
     with Store.open(tmp_path / "s.sqlite") as store:
         sid = _run(study, store, Person()).session_id

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from tactorbelt.analysis.synthetic import create_store, insert_session, insert_trials
+from support.synthetic import create_store, insert_session, insert_trials
 
 __all__ = ["HAND_TRIALS", "_rows", "hand_store"]
 

@@ -42,7 +42,7 @@ from ..power.study import (
 if TYPE_CHECKING:
     import numpy as np
 
-    from ..analysis.stats import Summary
+    from ..analysis.summary import Summary
     from ..experiment.study import Study
     from ..participant.params import ModelParams
 
@@ -137,7 +137,7 @@ def run_model_study(out: Path, n_participants: int, seed: int,
         StudyFileError: the study file is not a valid study (file, line and field).
         StoreError: another run is using the store.
     """
-    from ..analysis.report import analyze
+    from ..analysis.report.analyze import analyze
     from ..clock import SimClock
     from ..devices import open_belt
     from ..experiment.runner import run_session

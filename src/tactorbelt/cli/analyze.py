@@ -20,14 +20,14 @@ import click
 from ._options import number, output_option, seed_option
 
 if TYPE_CHECKING:
-    from ..analysis.stats import Summary
+    from ..analysis.summary import Summary
 
 __all__ = ["analyze", "print_summary_table"]
 
 
 def print_summary_table(summary: Summary) -> None:
     """Accuracy and median RT per condition (on- and between-tactor), as a rich table."""
-    from ..analysis.report import print_summary_table as _print
+    from ..analysis.report.analyze import print_summary_table as _print
 
     _print(summary)
 
@@ -77,8 +77,8 @@ def analyze(db: tuple[str, ...], out: Path | None, seed: int | None, engine: str
     from rich.console import Console
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
-    from ..analysis.report import analyze as run_analysis
-    from ..analysis.report import print_summary_table as _print
+    from ..analysis.report.analyze import analyze as run_analysis
+    from ..analysis.report.analyze import print_summary_table as _print
 
     first = Path(db[0]) if "://" not in db[0] else Path(".")
     out_dir = out if out is not None else (first.parent if str(first.parent) else Path("."))

@@ -66,7 +66,7 @@ def demo(out: Path, participants: int, seed: int, study_file: Path | None) -> No
     os.environ.setdefault("MPLBACKEND", "Agg")
     from rich.console import Console
 
-    from ..analysis.report import print_summary_table
+    from ..analysis.report.analyze import print_summary_table
     from ..app.demo import run_model_study
 
     err = Console(stderr=True)

@@ -2,7 +2,7 @@
 
 It answers "how many participants does my study need for the report's accuracy model to
 find an odds ratio of OR?". Each simulated study draws its trials from that model, the
-binomial GLMM of :func:`tactorbelt.analysis.stats.mixed_model`::
+binomial GLMM of :func:`tactorbelt.analysis.models.fit.mixed_model`::
 
     logit P(correct) = b0 + b_cond [dynamic, between-tactor] + b_on [on a tactor]
                        + u_participant + v_participant [dynamic] + w_target
@@ -15,11 +15,11 @@ the participant's condition slope and the target intercept (log-odds). The trial
 the study's test trials (its blocks, target counts and repetitions:
 :meth:`~tactorbelt.power.design.PowerDesign.trials`). Each simulated study is then
 analysed by the very functions the report uses
-(:func:`tactorbelt.analysis.stats.fit_model`: the same formula, the same singular-fit
+(:func:`tactorbelt.analysis.models.fit.fit_model`: the same formula, the same singular-fit
 simplification rule, the same Laplace fit; and the same model without the condition
-terms) with the report's headline test (:func:`tactorbelt.analysis.stats.headline_method`):
+terms) with the report's headline test (:func:`tactorbelt.analysis.models.fit.headline_method`):
 the likelihood ratio of every condition term against none, referred to
-``F(k, participants - 1)`` (:func:`tactorbelt.analysis.lrt.f_reference`), the test of
+``F(k, participants - 1)`` (:func:`tactorbelt.analysis.models.lrt.f_reference`), the test of
 those the report computes that holds its level with 4 to 16 participants
 (docs/analysis.md, "Tests of the condition").
 
@@ -127,7 +127,7 @@ class NamedEffect:
 
 def simulate_frame(trials: TrialDesign, effect: NamedEffect, n_participants: int,
                    rng: np.random.Generator) -> pd.DataFrame:
-    """One simulated study's counted trials in :func:`~tactorbelt.analysis.stats.model_frame`'s
+    """One simulated study's counted trials in :func:`~tactorbelt.analysis.models.fit.model_frame`'s
     columns (every trial answered; ``rt_s`` is not simulated)."""
     import pandas as pd
 
@@ -183,12 +183,12 @@ _NAN_RESULT = HeadlineResult(math.nan, math.nan, math.nan, math.nan, math.nan)
 
 
 def headline_statistics(frame: pd.DataFrame) -> HeadlineResult:
-    """Fit the report's accuracy model (:func:`~tactorbelt.analysis.stats.fit_model`)
+    """Fit the report's accuracy model (:func:`~tactorbelt.analysis.models.fit.fit_model`)
     and its null model on ``frame``: the effect and the likelihood ratio (NaN when it
     cannot be fitted)."""
-    from ..analysis.glmm import fit_glmm
-    from ..analysis.lrt import likelihood_ratio, null_spec
-    from ..analysis.models import _average_contrast, fit_model
+    from ..analysis.models.fit import _average_contrast, fit_model
+    from ..analysis.models.glmm import fit_glmm
+    from ..analysis.models.lrt import likelihood_ratio, null_spec
 
     y = frame["correct"].to_numpy()
     if y.min() == y.max():
@@ -210,9 +210,9 @@ def headline_statistics(frame: pd.DataFrame) -> HeadlineResult:
 
 def headline_coefficient(frame: pd.DataFrame) -> tuple[float, float]:
     """``(estimate, p)`` of the report's ``conditionstatic`` coefficient on ``frame``, by
-    :func:`~tactorbelt.analysis.stats.fit_model` (NaN, NaN when it cannot be fitted):
+    :func:`~tactorbelt.analysis.models.fit.fit_model` (NaN, NaN when it cannot be fitted):
     the Wald z the report used to head with."""
-    from ..analysis.models import fit_model
+    from ..analysis.models.fit import fit_model
 
     y = frame["correct"].to_numpy()
     if y.min() == y.max():

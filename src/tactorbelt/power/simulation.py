@@ -107,7 +107,7 @@ def analysis_paired_test(static: FloatArray, dynamic: FloatArray) -> float:
     about 0.2 s a call) the same p-value comes from :func:`exact_signed_rank_p` (a
     matrix product).
     """
-    from ..analysis.stats import wilcoxon_paired
+    from ..analysis.tables.classical import wilcoxon_paired
 
     s = np.asarray(static, dtype=float)
     d = np.asarray(dynamic, dtype=float)

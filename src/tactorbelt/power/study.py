@@ -144,7 +144,8 @@ def run_power_study(study: Study, sizes: Sequence[int], sims: int, seed: int, ou
         "note": MODEL_NOTE,
         "study": design.name,
         "test": "Wilcoxon signed-rank (two-sided) on per-participant between-tactor "
-                "accuracy, dynamic vs static (tactorbelt.analysis.stats.wilcoxon_paired); "
+                "accuracy, dynamic vs static "
+                "(tactorbelt.analysis.tables.classical.wilcoxon_paired); "
                 "found = p < alpha and mean dynamic > mean static",
         **({} if plain else
            {"effect": eff.text, "test": eff.describe(), "target_counts": list(counts),
@@ -175,7 +176,7 @@ def _maximal_formula(trials: TrialDesign, named: NamedEffect) -> str:
     the design: every factor that varies, the declared ones included)."""
     import numpy as np
 
-    from ..analysis.models import model_spec
+    from ..analysis.models.fit import model_spec
     from .glmm import simulate_frame
 
     frame = simulate_frame(trials, named, 3, np.random.default_rng(0))

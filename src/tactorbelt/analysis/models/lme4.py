@@ -1,10 +1,10 @@
 """Fit a mixed model with R's lme4 (``glmer`` / ``lmer``) through ``Rscript``.
 
 The ``--engine lme4`` of ``tactorbelt analyze`` and the cross-check of
-:mod:`tactorbelt.analysis.glmm`: the model frame is written to a CSV file in a
+:mod:`tactorbelt.analysis.models.glmm`: the model frame is written to a CSV file in a
 temporary directory, a short R script fits the model with lme4's defaults (``glmer``:
 Laplace, ``nAGQ = 1``, default optimisers and ``vcov``; ``lmer``: REML) and writes
-plain CSV tables back, which become a :class:`~tactorbelt.analysis.glmm.MixedModelFit`.
+plain CSV tables back, which become a :class:`~tactorbelt.analysis.models.glmm.MixedModelFit`.
 No rpy2: only the ``Rscript`` executable and the lme4 package are needed
 (Debian/Ubuntu: ``apt install r-base-core r-cran-lme4``).
 

@@ -1,6 +1,7 @@
 """The Summary of static versus dynamic between-tactor rendering: every table and test.
 
-:func:`summarize` computes, from loaded stores, the tables (:mod:`.tables`, :mod:`.cells`),
+:func:`summarize` computes, from loaded stores, the tables (the ``tables`` room:
+:mod:`.tables.tables`, :mod:`.tables.cells`),
 the classical tests (docs/analysis.md), each with an effect size and a 95 % bootstrap CI
 (BCa by ``scipy.stats.bootstrap``, seeded :class:`numpy.random.Generator`, vectorised):
 
@@ -11,15 +12,18 @@ the classical tests (docs/analysis.md), each with an effect size and a 95 % boot
 - Several participants: Wilcoxon signed-rank tests (two-sided) on per-participant
   between-tactor accuracy and median RT, effect size matched-pairs rank-biserial
   correlation, CI of the mean paired difference.
-- From 3 participants: the accuracy GLMM and the log-RT mixed model of :mod:`.models`
-  (whose names this module re-exports), timeouts counted per cell.
+- From 3 participants: the accuracy GLMM and the log-RT mixed model of the ``models``
+  room (:mod:`.models.fit`), timeouts counted per cell.
 
 It also holds the counting rules, where response times count from
 (:func:`rt_from_choice`) and the study design the sessions ran. A test that cannot be
 computed carries ``computed=False`` and a ``reason`` in words.
 
+The analysis layer between the ``report`` room (above) and the ``models`` and ``tables``
+rooms (below); it re-exports nothing: import a name from the room that owns it.
+
 Pure: imports NumPy, pandas, SciPy and the pure analysis modules; never an I/O layer,
-except that ``engine="lme4"`` runs R through :mod:`.lme4` (temporary files and a
+except that ``engine="lme4"`` runs R through :mod:`.models.lme4` (temporary files and a
 subprocess). Randomness comes from the ``seed`` argument only.
 """
 
@@ -30,44 +34,21 @@ from typing import TYPE_CHECKING, Any, Final
 
 import numpy as np
 
-from ._json import finite_json as _finite_json
-from .cells import cell_summary, cells_to_json, participant_cells
-from .classical import (
+from .models.fit import mixed_model, rt_model
+from .models.lrt import DEFAULT_PB_SIMS
+from .tables._json import finite_json as _finite_json
+from .tables.cells import cell_summary, cells_to_json, participant_cells
+from .tables.classical import (
     DEFAULT_N_BOOT,
     TestResult,
     _not_computed,
     _num,
     fisher_accuracy,
     mann_whitney_rt,
-    matched_pairs_rank_biserial,
     wilcoxon_paired,
 )
-from .design import StudyDesign, parse_design
-from .lrt import DEFAULT_PB_SIMS
-from .models import (
-    DESIGN_FACTORS,
-    ENGINE_NAMES,
-    ENGINES,
-    HEADLINE_TEST,
-    HEADLINE_WHY,
-    METHOD_WORDS,
-    PB_MAX_PARTICIPANTS,
-    TIMEOUT_NOTE_SHARE,
-    condition_tests,
-    fit_model,
-    headline_method,
-    mixed_model,
-    model_frame,
-    model_json,
-    model_spec,
-    rt_model,
-    rt_satterthwaite,
-    timeout_cells,
-)
-from .models import Z95 as Z95
-from .models import _average_contrast as _average_contrast
-from .models import _fitter as _fitter
-from .tables import (
+from .tables.design import StudyDesign, parse_design
+from .tables.tables import (
     CONDITIONS,
     condition_summary,
     confusion_matrices,
@@ -81,39 +62,9 @@ from .tables import (
 if TYPE_CHECKING:
     import pandas as pd
 
-    from .dataset import StoreData
+    from .tables.dataset import StoreData
 
-__all__ = [
-    "DEFAULT_N_BOOT",
-    "DEFAULT_PB_SIMS",
-    "DESIGN_FACTORS",
-    "ENGINES",
-    "ENGINE_NAMES",
-    "HEADLINE_TEST",
-    "HEADLINE_WHY",
-    "METHOD_WORDS",
-    "PB_MAX_PARTICIPANTS",
-    "RT_FROM",
-    "TIMEOUT_NOTE_SHARE",
-    "Summary",
-    "TestResult",
-    "condition_tests",
-    "fisher_accuracy",
-    "fit_model",
-    "headline_method",
-    "mann_whitney_rt",
-    "matched_pairs_rank_biserial",
-    "mixed_model",
-    "model_frame",
-    "model_json",
-    "model_spec",
-    "rt_from_choice",
-    "rt_model",
-    "rt_satterthwaite",
-    "summarize",
-    "timeout_cells",
-    "wilcoxon_paired",
-]
+__all__ = ["COUNTING_RULES", "RT_FROM", "Summary", "rt_from_choice", "summarize"]
 
 COMPLETE_STATUSES: Final = frozenset({"complete", "completed", "done", "finished"})
 #: Where a response time is counted from (``tactorbelt analyze --rt-from``).
@@ -128,7 +79,7 @@ class Summary:
 
     Attributes:
         counts: participants, sessions, trials, and how many were counted/left out.
-        conditions: :func:`~tactorbelt.analysis.tables.condition_summary`.
+        conditions: :func:`~tactorbelt.analysis.tables.tables.condition_summary`.
         per_target: the ``per_target.csv`` table.
         per_participant: per participant, condition and kind.
         directions: per condition and target, pooled (for the figures).
@@ -172,7 +123,7 @@ class Summary:
     n_boot: int = DEFAULT_N_BOOT
     #: the ``rt_mixed_model`` object of summary.json (None without counted trials).
     rt_model: dict[str, Any] | None = None
-    #: per (condition, n_targets, load): :func:`~tactorbelt.analysis.cells.cell_summary`
+    #: per (condition, n_targets, load): :func:`~tactorbelt.analysis.tables.cells.cell_summary`
     cells: pd.DataFrame | None = None
     #: per (participant, condition, n_targets, load): ``participant_cells``
     participant_cells: pd.DataFrame | None = None
@@ -406,11 +357,11 @@ def summarize(data: StoreData, *, seed: int = 0, n_boot: int = DEFAULT_N_BOOT,
     """Compute every table and test from loaded stores. Pure: no files, no clock.
 
     Args:
-        data: what :func:`tactorbelt.analysis.load.load_stores` returned.
+        data: what :func:`tactorbelt.analysis.tables.load.load_stores` returned.
         seed: seeds the bootstrap (a :class:`numpy.random.Generator`).
         n_boot: bootstrap resamples per interval.
         engine: who fits the mixed models: ``tactorbelt`` (:mod:`.glmm`) or ``lme4``
-            (R through Rscript; raises :class:`~tactorbelt.analysis.lme4.Lme4Unavailable`
+            (R through Rscript; raises :class:`~tactorbelt.analysis.models.lme4.Lme4Unavailable`
             without it).
         pb_sims: simulations of the accuracy model's parametric bootstrap (computed up to
             :data:`PB_MAX_PARTICIPANTS` participants; 0: never), seeded by
@@ -419,7 +370,7 @@ def summarize(data: StoreData, *, seed: int = 0, n_boot: int = DEFAULT_N_BOOT,
         rt_from: ``skin``, ``command`` or None (the default: skin where every analysed
             trial has a skin onset), see :func:`rt_from_choice`.
         fixef_prior: fit the accuracy model with this prior on its fixed effects
-            (:class:`~tactorbelt.analysis.glmm.FixefPrior`, as ``blme::bglmer``).
+            (:class:`~tactorbelt.analysis.models.glmm.FixefPrior`, as ``blme::bglmer``).
     """
     rng = np.random.default_rng(seed)
     notes = list(data.notes)
@@ -534,7 +485,7 @@ def summarize(data: StoreData, *, seed: int = 0, n_boot: int = DEFAULT_N_BOOT,
         if not (counted["condition"] == cond).any() and len(counted):
             notes.append(f"no {cond} test trials: its accuracy and RT are not reported")
 
-    from .tasks import secondary_tasks_json, tlx_rows, tlx_summary
+    from .tables.tasks import secondary_tasks_json, tlx_rows, tlx_summary
 
     secondary = secondary_tasks_json(data.task_events)
     tlx = tlx_summary(tlx_rows(data.ratings)) if data.ratings else None

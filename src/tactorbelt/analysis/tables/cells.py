@@ -1,7 +1,7 @@
 """Per-cell tables of a factorial study: accuracy, information transfer, RT, error.
 
 A cell is one (condition, n_targets, load) combination. Counting follows
-:func:`tactorbelt.analysis.tables.prepare_trials` (test blocks; ``done`` and
+:func:`tactorbelt.analysis.tables.tables.prepare_trials` (test blocks; ``done`` and
 ``timeout`` trials count, timeouts as incorrect; ``aborted`` left out).
 
 Information transfer is estimated from each participant's confusion matrix of the
@@ -33,7 +33,7 @@ from typing import TYPE_CHECKING, Any, Final, cast
 
 import numpy as np
 
-from ..factors import BUILTIN, added_factors, after_builtin, factors
+from ...factors import BUILTIN, added_factors, after_builtin, factors
 from .tables import infer_n_targets, prepare_trials, with_cell_columns
 from .transfer import ESTIMATOR, cell_interval, estimate_transfer, information_transfer
 
@@ -160,8 +160,8 @@ def cell_summary(trials: pd.DataFrame, n_targets: int | None = None, *, seed: in
     """One row per (condition, n_targets, load): :data:`CELL_COLUMNS`.
 
     Args:
-        trials: the trials (as :func:`tactorbelt.analysis.load.load_stores` gives them,
-            with or without :func:`~tactorbelt.analysis.tables.prepare_trials`).
+        trials: the trials (as :func:`tactorbelt.analysis.tables.load.load_stores` gives them,
+            with or without :func:`~tactorbelt.analysis.tables.tables.prepare_trials`).
         n_targets: the target count of trials without an ``n_targets`` value (old
             stores); None infers it from the angles.
         seed, n_boot: the bootstrap of the ``it_bits`` interval (each cell draws from

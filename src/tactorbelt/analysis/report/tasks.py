@@ -14,13 +14,13 @@ import html
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
-from ._format import number as _f
-from ._format import p_value as _p
-from ._format import percent as _pct
+from .formatting import number as _f
+from .formatting import p_value as _p
+from .formatting import percent as _pct
 from .tasks_figures import TASK_FIGURE_CAPTIONS, TASK_FIGURE_ORDER
 
 if TYPE_CHECKING:
-    from .stats import Summary
+    from ..summary import Summary
 
 __all__ = ["has_load", "load_section"]
 

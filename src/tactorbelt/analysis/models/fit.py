@@ -25,11 +25,11 @@ from typing import TYPE_CHECKING, Any, Final
 
 import numpy as np
 
-from ..factors import CONDITION, LOAD, TARGETS, added_factors, factor
-from ._json import finite_json as _finite_json
-from .classical import TestResult, _not_computed, _num
+from ...factors import CONDITION, LOAD, TARGETS, added_factors, factor
+from ..tables._json import finite_json as _finite_json
+from ..tables.classical import TestResult, _not_computed, _num
+from ..tables.tables import CONDITIONS
 from .lrt import DEFAULT_PB_SIMS
-from .tables import CONDITIONS
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -227,7 +227,7 @@ def fit_model(frame: pd.DataFrame, *, engine: str = "tactorbelt", rt: bool = Fal
               ) -> tuple[Any, dict[str, Any]]:
     """Fit the accuracy GLMM (or, ``rt=True``, the log-RT LMM) with the simplification rule.
 
-    ``fixef_prior``: a :class:`~tactorbelt.analysis.glmm.FixefPrior` for the accuracy
+    ``fixef_prior``: a :class:`~tactorbelt.analysis.models.glmm.FixefPrior` for the accuracy
     model (blme's bglmer); ignored for the RT model.
 
     Returns:
@@ -469,13 +469,13 @@ def mixed_model(tr: pd.DataFrame, *, engine: str = "tactorbelt",
     contrasts (:func:`.contrasts.condition_contrasts`).
 
     Args:
-        tr: prepared trials (:func:`~tactorbelt.analysis.tables.prepare_trials`),
+        tr: prepared trials (:func:`~tactorbelt.analysis.tables.tables.prepare_trials`),
             only the counted ones are used.
         engine: ``tactorbelt`` (this package) or ``lme4`` (R, through Rscript).
         pb_sims: the parametric bootstrap's simulations (0: not computed).
         seed: seeds the bootstrap.
         progress: ``progress(done, total)`` as the bootstrap refits.
-        fixef_prior: fit with this prior (:class:`~tactorbelt.analysis.glmm.FixefPrior`,
+        fixef_prior: fit with this prior (:class:`~tactorbelt.analysis.models.glmm.FixefPrior`,
             ``analyze --fixef-prior``), as ``blme::bglmer``; the model object names it.
 
     Where a design cell is at 0 or 100 %, ``model["separation"]`` names the cells and

@@ -16,9 +16,9 @@ import tomllib
 from dataclasses import dataclass, field
 from typing import Any
 
-from .._errors import ConfigError
-from ..geometry import Layout, TargetSet
-from ..laws import DEFAULT_FALLOFF_DEG, LAWS
+from ..._errors import ConfigError
+from ...geometry import Layout, TargetSet
+from ...laws import DEFAULT_FALLOFF_DEG, LAWS
 
 __all__ = ["StudyDesign", "parse_design"]
 

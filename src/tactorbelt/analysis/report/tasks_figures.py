@@ -19,9 +19,9 @@ from typing import TYPE_CHECKING, Any, Final
 
 import numpy as np
 
+from ..tables.tables import CONDITIONS
+from ..tables.tasks import PHASE_ORDER
 from .plot_style import COLORS, LINESTYLES, MARKERS, _figure, _mean_ci, _no_data, _png, _style
-from .tables import CONDITIONS
-from .tasks import PHASE_ORDER
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -100,7 +100,7 @@ def load_figure(participant_cells: pd.DataFrame) -> bytes:
 
 def secondary_figure(rows: Sequence[Mapping[str, Any]]) -> bytes:
     """d', hit rate and false-alarm rate of each task by phase (rows of
-    :func:`~tactorbelt.analysis.tasks.secondary_task_rows`)."""
+    :func:`~tactorbelt.analysis.tables.tasks.secondary_task_rows`)."""
     tasks = sorted({str(r["task"]) for r in rows})
     fig = _figure(11.5, 3.6 * max(len(tasks), 1))
     axes = np.atleast_2d(fig.subplots(max(len(tasks), 1), 3))

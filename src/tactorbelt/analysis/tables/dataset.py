@@ -1,6 +1,6 @@
 """The loaded tables of one or more stores, as plain pandas data.
 
-:func:`tactorbelt.analysis.load.load_stores` fills a :class:`StoreData`; the pure
+:func:`tactorbelt.analysis.tables.load.load_stores` fills a :class:`StoreData`; the pure
 layers (tables, stats, figures) take it without knowing about files.
 
 Pure: imports only the standard library (pandas for type checking).

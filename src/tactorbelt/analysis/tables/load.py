@@ -18,14 +18,14 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Final
 
-from .._errors import StoreError
-from ..factors import added_factors
+from ..._errors import StoreError
+from ...factors import added_factors
 from .dataset import StoreData
 
 if TYPE_CHECKING:
     import pandas as pd
 
-    from ..experiment.store import Store
+    from ...experiment.store import Store
 
 __all__ = ["REQUIRED_COLUMNS", "StoreData", "analysis_seed", "load_samples", "load_stores",
            "store_labels"]
@@ -72,7 +72,7 @@ def _store_ref(p: str | Path) -> Path | str:
 def _open(path: Path | str) -> Store:
     """Open read-only through the store interface (no integrity scan: stores can be
     large, and a damaged page still fails the read that reaches it)."""
-    from ..experiment.store import open_store
+    from ...experiment.store import open_store
 
     return open_store(path, create=False, readonly=True, verify=False)
 
@@ -350,8 +350,8 @@ def _check_sites(paths: Sequence[Path | str], sessions: pd.DataFrame) -> None:
     participant ids that span sites among the loaded sessions instead of merging them.
     Local stores alone are not checked: their site is the machine's name unless set, and
     one person's sessions on two machines of a lab are one person's."""
-    from ..experiment.store import backend_for
-    from ..experiment.store.sites import check_one_site_per_participant
+    from ...experiment.store import backend_for
+    from ...experiment.store.sites import check_one_site_per_participant
 
     if all(backend_for(p).capabilities.exclusive_writer for p in paths):
         return

@@ -1,4 +1,5 @@
-"""Synthetic session stores with only the required columns, for tests and benchmarks.
+"""Synthetic session stores with only the required columns, for tests and benchmarks
+(the benchmarks put tests/ on sys.path and import ``support.synthetic``).
 
 The analysis must not depend on the study runner to be tested, so this module writes
 bare stores (:func:`~tactorbelt.experiment.store.sqlite.create_bare_store`: exactly
@@ -24,8 +25,8 @@ from typing import Any
 
 import numpy as np
 
-from ..experiment.store.sqlite import SQLiteStore, create_bare_store
-from ..geometry import Layout, TargetSet, normalize
+from tactorbelt.experiment.store.sqlite import SQLiteStore, create_bare_store
+from tactorbelt.geometry import Layout, TargetSet, normalize
 
 __all__ = [
     "create_store",

@@ -16,7 +16,7 @@ Works on plain rows (dicts) with the columns of the store's ``task_events`` and
   rated block, per participant x load, and the within-participant test across load
   levels (Wilcoxon signed-rank with two levels, Friedman with more).
 
-Pure: the standard library, NumPy and SciPy (statistics), analysis.stats and the
+Pure: the standard library, NumPy and SciPy (statistics), analysis.tables.classical and the
 constants of tactorbelt.tasks.
 """
 
@@ -28,7 +28,7 @@ from collections import defaultdict
 from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
 
-from ..tasks import PHASES, TLX_ITEMS
+from ...tasks import PHASES, TLX_ITEMS
 
 __all__ = [
     "TLX_ITEMS",

@@ -1,6 +1,6 @@
 """The analysis report: ``analyze()`` writes report.html, summary.json, per_target.csv, PNGs.
 
-:func:`analyze` loads the stores, calls :func:`~tactorbelt.analysis.stats.summarize`,
+:func:`analyze` loads the stores, calls :func:`~tactorbelt.analysis.summary.summarize`,
 fetches the cursor samples of a few trials for the trajectory figure (by SQL), draws
 the figures and writes the files. :func:`render_html` is pure (a string from a
 Summary and the PNG bytes); the HTML is one self-contained file (inline CSS, figures
@@ -21,17 +21,18 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Final
 
-from .._errors import ConfigError
-from .cells_report import cells_section
-from .stats import COUNTING_RULES, DEFAULT_N_BOOT, Summary, TestResult
-from .tables import CONDITIONS, KIND_LABELS, KINDS
-from .tasks_report import load_section
+from ..._errors import ConfigError
+from ..summary import COUNTING_RULES, Summary
+from ..tables.classical import DEFAULT_N_BOOT, TestResult
+from ..tables.tables import CONDITIONS, KIND_LABELS, KINDS
+from .cells import cells_section
+from .tasks import load_section
 
 if TYPE_CHECKING:
     import pandas as pd
     from rich.console import Console
 
-    from .dataset import StoreData
+    from ..tables.dataset import StoreData
 
 __all__ = [
     "FIGURE_CAPTIONS",
@@ -751,7 +752,7 @@ def _package_version() -> str:
 
 def _sites(data: StoreData, summary: Summary) -> pd.DataFrame | None:
     """The per-site table when the sessions come from two sites or more."""
-    from .tables import per_site
+    from ..tables.tables import per_site
 
     s = data.sessions.dropna(subset=["site"])
     if s["site"].nunique() < 2:
@@ -778,12 +779,12 @@ def analyze(paths: Sequence[str | Path], out: str | Path, *, seed: int | None = 
         sites: only these sites' sessions; include_running: a shared store's sessions
             that are not complete too (see :func:`load.load_stores`).
         pb_sims: simulations of the accuracy model's parametric bootstrap (None: the
-            default, :data:`~tactorbelt.analysis.lrt.DEFAULT_PB_SIMS`; 0: not computed);
+            default, :data:`~tactorbelt.analysis.models.lrt.DEFAULT_PB_SIMS`; 0: not computed);
             computed only for studies of up to
-            :data:`~tactorbelt.analysis.stats.PB_MAX_PARTICIPANTS` participants.
+            :data:`~tactorbelt.analysis.models.fit.PB_MAX_PARTICIPANTS` participants.
         rt_from: where the RTs count from, ``skin`` or ``command`` (None: ``skin`` when
             every analysed trial has a skin onset, else ``command``;
-            :func:`~tactorbelt.analysis.stats.rt_from_choice`).
+            :func:`~tactorbelt.analysis.summary.rt_from_choice`).
 
     Raises:
         StoreError: a store that cannot be read (see :func:`load.load_stores`).
@@ -791,9 +792,9 @@ def analyze(paths: Sequence[str | Path], out: str | Path, *, seed: int | None = 
             ``engine="lme4"`` without R and lme4 (the message says how to install them);
             ``rt_from="skin"`` with trials that have no skin onset.
     """
+    from ..summary import summarize
+    from ..tables.load import analysis_seed, load_samples, load_stores
     from .figures import make_figures
-    from .load import analysis_seed, load_samples, load_stores
-    from .stats import summarize
     from .tasks_figures import TASK_FIGURE_ORDER
 
     total = 6
@@ -810,7 +811,7 @@ def analyze(paths: Sequence[str | Path], out: str | Path, *, seed: int | None = 
         raise ConfigError(f"--out {out} is a file; give a directory for the report")
     prior = None
     if fixef_prior is not None:
-        from .glmm import FixefPrior
+        from ..models.glmm import FixefPrior
 
         try:
             prior = FixefPrior.parse(fixef_prior)
@@ -821,7 +822,7 @@ def analyze(paths: Sequence[str | Path], out: str | Path, *, seed: int | None = 
     if seed is None:
         seed = analysis_seed(data)
     tick("computing tables and tests")
-    from .lme4 import Lme4Unavailable
+    from ..models.lme4 import Lme4Unavailable
 
     def boot(done: int, n_sim: int) -> None:
         if progress is not None:
@@ -856,7 +857,7 @@ def analyze(paths: Sequence[str | Path], out: str | Path, *, seed: int | None = 
         pt = summary.per_target.copy()
         pt["on_tactor"] = pt["on_tactor"].astype(int)
         pt.to_csv(out / "per_target.csv", index=False)
-        from .profiles import profile_table  # sessions with and without a wearer profile
+        from ..tables.profiles import profile_table  # sessions with and without a wearer profile
 
         if (prof := profile_table(list(paths))) is not None:
             prof.to_csv(out / "profile_effect.csv", index=False)

@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..geometry import Layout, wrap
+from ...geometry import Layout, wrap
 
 __all__ = ["COLUMNS", "profile_table"]
 
@@ -31,8 +31,8 @@ COLUMNS = ("profile", "condition", "n_participants", "n", "accuracy", "mean_abs_
 
 def _layout(study_toml: str) -> Layout:
     """The session's layout; a study text that no longer parses gives the default one."""
-    from .._errors import TactorbeltError
-    from ..experiment.study import Study
+    from ..._errors import TactorbeltError
+    from ...experiment.study import Study
 
     try:
         return Study.from_toml(study_toml).layout_obj()
@@ -41,7 +41,7 @@ def _layout(study_toml: str) -> Layout:
 
 
 def _has_profiles(path: str | Path) -> bool:
-    from ..experiment.store import open_store
+    from ...experiment.store import open_store
 
     with open_store(path, create=False, readonly=True) as store:
         return any(store.session_profile(int(s["session_id"])) is not None
@@ -49,7 +49,7 @@ def _has_profiles(path: str | Path) -> bool:
 
 
 def _rows(paths: Sequence[str | Path]) -> pd.DataFrame:
-    from ..experiment.store import open_store
+    from ...experiment.store import open_store
 
     if not any(_has_profiles(p) for p in paths):
         return pd.DataFrame()  # no session ran with a profile: nothing to compare

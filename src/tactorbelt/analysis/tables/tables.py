@@ -23,8 +23,8 @@ from typing import TYPE_CHECKING, Final
 
 import numpy as np
 
-from ..factors import CONDITION, added_factors
-from ..geometry import wrap
+from ...factors import CONDITION, added_factors
+from ...geometry import wrap
 
 if TYPE_CHECKING:
     import pandas as pd

@@ -30,9 +30,10 @@ from typing import TYPE_CHECKING, Any, Final
 
 import numpy as np
 
-from ..factors import added_factors
-from ..laws import amplitudes
-from .cells import is_factorial
+from ...factors import added_factors
+from ...laws import amplitudes
+from ..tables.cells import is_factorial
+from ..tables.tables import CONDITIONS, NO_RESPONSE
 from .plot_style import (
     COLORS,
     DPI,
@@ -47,13 +48,12 @@ from .plot_style import (
     _style,
     _tactor_color,
 )
-from .tables import CONDITIONS, NO_RESPONSE
 
 if TYPE_CHECKING:
     import pandas as pd
 
-    from .design import StudyDesign
-    from .stats import Summary
+    from ..summary import Summary
+    from ..tables.design import StudyDesign
 
 __all__ = [
     "COLORS",
@@ -411,12 +411,12 @@ def resolution_figure(participant_cells: pd.DataFrame, cells: pd.DataFrame) -> b
     participants of their per-cell value. Accuracy and RT bars: the 95 % t interval of
     that mean (no bar with one participant). Information transfer: each participant's
     estimate from their confusion matrix of the cell
-    (:func:`tactorbelt.analysis.transfer.estimate_transfer`), averaged; its bars are
+    (:func:`tactorbelt.analysis.tables.transfer.estimate_transfer`), averaged; its bars are
     the cell's bootstrap interval (``it_bits_ci_low``/``it_bits_ci_high`` of ``cells``,
-    :func:`tactorbelt.analysis.transfer.cell_interval`), drawn with one participant
+    :func:`tactorbelt.analysis.tables.transfer.cell_interval`), drawn with one participant
     too. The dotted grey line is the most a cell can carry, log2(targets).
     """
-    from .transfer import ESTIMATOR
+    from ..tables.transfer import ESTIMATOR
 
     fig = _figure(11.5, 4.2)
     axes = fig.subplots(1, 3)
@@ -494,8 +494,8 @@ def fig1b_per_resolution(design: StudyDesign, trials: pd.DataFrame) -> dict[str,
     """
     from dataclasses import replace
 
-    from ..geometry import TargetSet
-    from .tables import direction_summary
+    from ...geometry import TargetSet
+    from ..tables.tables import direction_summary
 
     out: dict[str, bytes] = {}
     counted = trials.loc[trials["counted"]]
@@ -512,7 +512,7 @@ def make_figures(summary: Summary, samples: pd.DataFrame | None = None,
     """Every figure of the report: file name -> PNG bytes.
 
     Args:
-        summary: what :func:`~tactorbelt.analysis.stats.summarize` returned.
+        summary: what :func:`~tactorbelt.analysis.summary.summarize` returned.
         samples, sample_trials: cursor samples and the trials they belong to (the
             trajectory figure is left out when None).
     """
@@ -541,8 +541,8 @@ def make_figures(summary: Summary, samples: pd.DataFrame | None = None,
 def _task_figures(summary: Summary) -> dict[str, bytes]:
     """``load.png``, ``secondary.png`` and ``tlx.png`` of a study with a load
     (:mod:`.tasks_figures`)."""
+    from .tasks import has_load
     from .tasks_figures import load_figure, secondary_figure, tlx_figure
-    from .tasks_report import has_load
 
     figs: dict[str, bytes] = {}
     if not has_load(summary):

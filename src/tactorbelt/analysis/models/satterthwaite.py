@@ -19,7 +19,7 @@ this module (central differences at 4 step sizes, halved each time, extrapolated
 steps ``0.1 |x| + 1e-4`` for the Hessian as numDeriv's ``hessian``, ``1e-4 |x| + 1e-4``
 for the Jacobian as its ``jacobian``).
 
-Pure: NumPy, SciPy and :class:`~tactorbelt.analysis.glmm.LmmData`.
+Pure: NumPy, SciPy and :class:`~tactorbelt.analysis.models.glmm.LmmData`.
 """
 
 from __future__ import annotations
@@ -99,7 +99,7 @@ def satterthwaite(frame: pd.DataFrame, fit: MixedModelFit,
 
     Args:
         frame: the data ``fit`` was fitted to (answered trials).
-        fit: an LMM by REML or ML (:func:`~tactorbelt.analysis.glmm.fit_lmm`).
+        fit: an LMM by REML or ML (:func:`~tactorbelt.analysis.models.glmm.fit_lmm`).
 
     Returns:
         Per fixed effect: ``df``, ``t``, ``p``, and ``ci_low``/``ci_high`` (the 95 % t

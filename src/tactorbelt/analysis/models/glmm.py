@@ -1425,7 +1425,7 @@ def fit_lmm(df: pd.DataFrame, spec: ModelSpec, *, reml: bool = True,
 
     The profiled criterion of Bates et al. (2015, eq. 34/41) is minimised over theta
     (L-BFGS-B, diagonal of theta >= 0); ``vcov = sigma^2 (R_X' R_X)^{-1}`` as lmer's.
-    z and p are Wald (normal) values; :func:`tactorbelt.analysis.satterthwaite.satterthwaite`
+    z and p are Wald (normal) values; :func:`tactorbelt.analysis.models.satterthwaite.satterthwaite`
     gives lmerTest's t tests.
     """
     with one_blas_thread():

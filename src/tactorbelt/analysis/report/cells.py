@@ -1,9 +1,9 @@
 """The report's section on a factorial study: results per cell and their figures.
 
 Shown only when the study has more than one target count or a load
-(:func:`~tactorbelt.analysis.cells.is_factorial`); a paper-protocol report does not
+(:func:`~tactorbelt.analysis.tables.cells.is_factorial`); a paper-protocol report does not
 change. :func:`cells_section` returns the HTML; the figures are drawn by
-:func:`tactorbelt.analysis.figures.make_figures` (``resolution.png``, ``fig1b-N.png``).
+:func:`tactorbelt.analysis.report.figures.make_figures` (``resolution.png``, ``fig1b-N.png``).
 
 Pure: builds a string from a Summary and PNG bytes.
 """
@@ -16,14 +16,14 @@ import math
 import re
 from typing import TYPE_CHECKING, Any, Final
 
-from ..factors import added_factors
-from ._format import number as _fmt
-from ._format import percent as _pct
-from .cells import IT_N_BOOT, is_factorial
-from .transfer import ESTIMATOR
+from ...factors import added_factors
+from ..tables.cells import IT_N_BOOT, is_factorial
+from ..tables.transfer import ESTIMATOR
+from .formatting import number as _fmt
+from .formatting import percent as _pct
 
 if TYPE_CHECKING:
-    from .stats import Summary
+    from ..summary import Summary
 
 __all__ = ["CELL_FIGURE_CAPTIONS", "cell_figure_names", "cells_section"]
 
