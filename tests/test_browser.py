@@ -93,6 +93,9 @@ def test_the_page_runs_the_schedule_and_shows_done(bridge: Bridge, driver: Any,
 
     assert paper_run.state == "done", (paper_run.error, bridge.output())
     assert driver.find_element(By.ID, "tactorbelt-done").is_displayed()
+    # the page runs the study file's timing: its ITI and response timeout
+    settings = driver.execute_script("return window.tactorbelt.settings")
+    assert settings == {"iti_ms": 50, "message_ms": 50, "timeout_ms": 10000}
     schedule = paper_run.welcome["schedule"]
     assert len(schedule) == 12
     # training first, then the test blocks in the study's order for P01

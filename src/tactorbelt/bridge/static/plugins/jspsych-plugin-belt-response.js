@@ -169,7 +169,7 @@ var jsPsychBeltResponse = (() => {
       const parts = [
         `<div class="tactorbelt-response" style="position:relative;width:${width}px;height:${height}px;margin:${dot * 2}px auto;touch-action:none;user-select:none">`,
         `<div class="tactorbelt-ellipse" style="position:absolute;inset:0;border-radius:50%;background:${COLORS.fill};border:3px solid ${COLORS.line};box-sizing:border-box"></div>`,
-        `<div class="tactorbelt-front" style="position:absolute;left:50%;top:-${dot * 1.6}px;transform:translateX(-50%);font-size:14px;color:${COLORS.line}">front</div>`
+        `<div class="tactorbelt-front" style="position:absolute;left:50%;top:-${dot * 2.4}px;transform:translateX(-50%);font-size:14px;color:${COLORS.line}">front</div>`
       ];
       for (const t of targets) {
         const p = ellipsePoint(t.angle_deg);
