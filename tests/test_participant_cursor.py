@@ -106,8 +106,9 @@ def test_training_moves_to_the_shown_target_without_sensing() -> None:
 
 
 def test_make_model_cursor_needs_a_belt_that_models_vibration() -> None:
-    class Silent:
+    class Silent:  # a belt that declares it models no vibration (a hardware belt)
         url = "serial:/dev/ttyACM0"
+        models_vibration = False
 
     with pytest.raises(ConfigError, match="--belt sim"):
         make_model_cursor(Silent(), SimClock(), seed=1)  # type: ignore[arg-type]

@@ -43,22 +43,25 @@ import time
 from collections.abc import Callable, Iterator
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from .._errors import ConfigError, StoreError
-from ..experiment.listeners import NullListener
-from ..inputs import INPUTS
-
-if TYPE_CHECKING:
-    from ..clock import Clock
-    from ..experiment.listeners import SessionInfo, SessionListener
-    from ..experiment.runner import SessionResult
-    from ..experiment.schedule import ScheduledTrial
-    from ..experiment.store import Store
-    from ..experiment.sync import Pusher
-    from ..experiment.trial import TrialResult
-    from ..inputs.joystick import JoystickConfig
-    from ..lsl import LslListener
+from ..clock import Clock, SimClock, WallClock
+from ..devices import open_belt, parse_url, runs_on_simulated_time
+from ..devices.calibration import Calibration
+from ..experiment.listeners import NullListener, SessionInfo, SessionListener
+from ..experiment.provenance import default_site
+from ..experiment.recorder import SessionRecorder
+from ..experiment.runner import SessionResult, check_participant, run_session
+from ..experiment.schedule import ScheduledTrial
+from ..experiment.store import Store, open_store
+from ..experiment.store.postgresql import check_url
+from ..experiment.study import load_study
+from ..experiment.sync import Pusher, check_push
+from ..experiment.trial import TrialResult
+from ..inputs import kinds, make_cursor
+from ..inputs.joystick import JoystickConfig
+from ..lsl import LslListener, load_pylsl
 
 __all__ = ["CLOCKS", "RunOutcome", "RunRequest", "choose_clock", "clock_kind", "has_display",
            "resolve_db", "resume_command", "reuse_lines", "run_study"]
@@ -84,8 +87,6 @@ class JoystickOptions:
 
     def config(self) -> JoystickConfig:
         """As a JoystickConfig (defaults for what is not given)."""
-        from ..inputs.joystick import JoystickConfig
-
         axes = self.axes or "0,1"
         try:
             ax, ay = (int(a) for a in axes.split(","))
@@ -152,6 +153,23 @@ def resolve_db(db: str, push: str | None, study_file: Path) -> tuple[Path, str |
 
 #: What is stored with a session and reused on resume.
 _STORED = ("belt_url", "calibration", "input_kind", "headless", "clock", "fullscreen")
+#: The input of a run with the window, and of one without, when none is given.
+DEFAULT_INPUTS = {"window": "joystick", "headless": "model"}
+
+
+def _default_input(headless: bool | None) -> str:
+    return DEFAULT_INPUTS["headless" if headless else "window"]
+
+
+def _window_input(name: str) -> bool:
+    """Whether the input kind ``name`` needs the experiment window (it declares it)."""
+    return kinds.input_kind(name).display
+
+
+def _headless_inputs() -> str:
+    """``--input model or --input scripted``: the kinds that run without a window."""
+    return " or ".join(f"--input {k}" for k in kinds.session_inputs()
+                       if not kinds.input_kind(k).display)
 
 
 @dataclass
@@ -236,11 +254,9 @@ def has_display(environ: dict[str, str] | None = None, platform: str = sys.platf
 
 def _no_sim(*, headless: bool, input_kind: str, belt_url: str) -> str | None:
     """Why this run cannot be on a simulated clock (None: it can)."""
-    from ..devices import runs_on_simulated_time
-
     if not headless:
         return "the experiment window runs in real time"
-    if input_kind not in ("model", "scripted"):
+    if not kinds.input_kind(input_kind).simulated_time:
         return f"--input {input_kind} is a person, in real time"
     if not runs_on_simulated_time(belt_url):
         return f"the belt {belt_url} runs in real time"
@@ -269,8 +285,6 @@ def choose_clock(*, headless: bool, input_kind: str, belt_url: str,
                  clock: str | None = None, realtime: bool = False) -> Clock:
     """The clock of :func:`clock_kind` (``realtime``: the old spelling of ``clock="wall"``):
     a SimClock or the wall clock."""
-    from ..clock import SimClock, WallClock
-
     kind = clock_kind(headless=headless, input_kind=input_kind, belt_url=belt_url,
                       clock="wall" if realtime and clock is None else clock)
     return SimClock() if kind == "sim" else WallClock()
@@ -303,7 +317,7 @@ def _resolve(req: RunRequest, stored: dict[str, Any]) -> RunRequest:
     got = asdict(req)
     if got["clock"] is None and req.realtime:
         got["clock"] = "wall"
-    if req.headless is None and req.input_kind in ("joystick", "mouse"):
+    if req.headless is None and req.input_kind is not None and _window_input(req.input_kind):
         got["headless"] = False  # a live input given again brings the window back
     for name in _STORED:
         if got[name] is None:
@@ -317,7 +331,7 @@ def _resolve(req: RunRequest, stored: dict[str, Any]) -> RunRequest:
     res.realtime = res.clock == "wall"
     res.fullscreen = bool(res.fullscreen)
     if res.input_kind is None:
-        res.input_kind = "model" if res.headless else "joystick"
+        res.input_kind = _default_input(res.headless)
     return res
 
 
@@ -370,13 +384,11 @@ def _check_options(r: RunRequest, given: bool = False) -> None:
     """Refuse an unknown input, a window input without a window, an unknown belt URL,
     an unknown clock; ``given`` (the request as given): ``sim`` with LSL, and (a new
     session) ``sim`` where it cannot be."""
-    from ..devices import parse_url
-
-    if r.input_kind is not None and r.input_kind not in INPUTS:
-        raise ConfigError(f"unknown input {r.input_kind!r}; allowed: {', '.join(INPUTS)}")
-    if r.headless and r.input_kind in ("joystick", "mouse"):
+    if r.input_kind is not None:
+        kinds.input_kind(r.input_kind)
+    if r.headless and r.input_kind is not None and _window_input(r.input_kind):
         raise ConfigError(f"--input {r.input_kind} needs the experiment window; drop "
-                          "--headless, or use --input model or --input scripted")
+                          f"--headless, or use {_headless_inputs()}")
     if r.belt_url is not None:
         parse_url(r.belt_url)
     if r.clock is not None and r.clock not in CLOCKS:
@@ -386,7 +398,7 @@ def _check_options(r: RunRequest, given: bool = False) -> None:
                           "drop --clock sim")
     if given and r.clock == "sim" and not r.resume:
         clock_kind(headless=bool(r.headless), belt_url=r.belt_url or "sim", clock="sim",
-                   input_kind=r.input_kind or ("model" if r.headless else "joystick"))
+                   input_kind=r.input_kind or _default_input(bool(r.headless)))
 
 
 def _pick_clock(req: RunRequest, r: RunRequest, headless: bool) -> tuple[str | None, str]:
@@ -436,7 +448,7 @@ def reuse_lines(req: RunRequest, r: RunRequest, stored: dict[str, Any],
     rows: list[tuple[str, str, str, str]] = [
         ("input", str(r.input_kind),
          source(req.input_kind is not None, "input_kind", r.input_kind),
-         "--input " + "|".join(k for k in INPUTS if k != r.input_kind)),
+         "--input " + "|".join(k for k in kinds.session_inputs() if k != r.input_kind)),
         ("window", "none (headless)" if headless else "full screen" if r.fullscreen
          else "yes", source(window_given, "headless", "none" if headless else "yes"),
          "--window" if headless else
@@ -450,7 +462,7 @@ def reuse_lines(req: RunRequest, r: RunRequest, stored: dict[str, Any],
          "--lsl" if req.lsl and req.clock is None else
          source(req.clock is not None or bool(req.realtime), "clock", clock), clock_how),
     ]
-    if r.input_kind == "joystick":
+    if kinds.input_kind(str(r.input_kind)).stick:
         inv = [a for a, on in (("x", joy.invert_x), ("y", joy.invert_y)) if on]
         rows.append(("joystick", f"{joy.device or 'the first stick'}, axes {joy.axes or '0,1'}"
                      f", dead zone {0.05 if joy.dead_zone is None else joy.dead_zone:g}"
@@ -486,12 +498,6 @@ def run_study(req: RunRequest, *, progress: Callable[[int, int], None] | None = 
     """
     if not req.resume and not req.headless and not has_display():
         _no_display()  # at once: before the heavy imports, the study and the store
-    from ..devices import open_belt
-    from ..experiment.runner import check_participant, run_session
-    from ..experiment.store import open_store
-    from ..experiment.study import load_study
-    from ..inputs import make_cursor
-
     req.participant = check_participant(req.participant)
     if req.resume and req.new_session:
         raise ConfigError("--resume and --new-session exclude each other")
@@ -501,8 +507,6 @@ def run_study(req: RunRequest, *, progress: Callable[[int, int], None] | None = 
     _check_push(req)  # before anything is written
     _check_options(req, given=True)  # what the request gives: before a store file is created
     if req.lsl:
-        from ..lsl import load_pylsl
-
         load_pylsl()  # no liblsl: an error now, before a store file is created
     with open_store(req.db) as store:
         stored = _check_session(store, req)
@@ -511,8 +515,6 @@ def run_study(req: RunRequest, *, progress: Callable[[int, int], None] | None = 
         _check_options(r)  # with the stored options of a resumed session
         calibration = None
         if r.calibration is not None:  # a bad file is an error before the session starts
-            from ..devices.calibration import Calibration
-
             calibration = Calibration.load(r.calibration)
         window = None if r.headless else _window_factory(r.input_kind, note)
         if window is not None and not has_display():
@@ -547,11 +549,9 @@ def run_study(req: RunRequest, *, progress: Callable[[int, int], None] | None = 
                                           site=req.site)
             cursor = None
             lsl = _lsl(req, clock, belt, note)  # None without --lsl
-            if r.input_kind in ("model", "scripted"):
-                if schedule is None and r.input_kind == "scripted":  # its answers
-                    from ..experiment.schedule import make_schedule
-
-                    schedule = make_schedule(study, req.participant, seed)
+            if not _window_input(r.input_kind):  # the window makes its own kinds' cursors
+                if schedule is None:  # the schedule the session will have (its answers)
+                    schedule = SessionRecorder.schedule_for(study, req.participant, seed)[0]
                 cursor = make_cursor(r.input_kind, study=study, belt=belt, clock=clock,
                                      participant=req.participant, seed=seed,
                                      schedule=schedule)
@@ -594,8 +594,6 @@ def _lsl(req: RunRequest, clock: Clock, belt: Any,
     session starts); else None."""
     if not req.lsl:
         return None
-    from ..lsl import LslListener
-
     return LslListener(clock, belt, wait_s=req.lsl_wait_s,
                        wait_all=req.lsl_wait_all, report=note)
 
@@ -606,10 +604,6 @@ def _check_push(req: RunRequest) -> None:
     (:func:`~tactorbelt.experiment.sync.check_push`)."""
     if req.push is None:
         return
-    from ..experiment.provenance import default_site
-    from ..experiment.store.postgresql import check_url
-    from ..experiment.sync import check_push
-
     check_url(req.push)
     if not req.offline:
         check_push(req.push, req.participant, req.site or default_site())
@@ -619,9 +613,6 @@ def _start_push(req: RunRequest) -> Pusher | None:
     """The background push of ``req.push`` (None without one, or offline)."""
     if req.push is None or req.offline:
         return None
-    from ..experiment.provenance import default_site
-    from ..experiment.sync import Pusher
-
     return Pusher(req.db, req.push, site=req.site or default_site()).start()
 
 
@@ -656,11 +647,11 @@ def _window_factory(input_kind: str, note: Callable[[str], None] | None) -> Any:
     try:
         from ..gui.window import session_window
     except ImportError:
-        if input_kind in ("joystick", "mouse"):
+        if _window_input(input_kind):
             raise ConfigError(
                 f"--input {input_kind} needs the experiment window (tactorbelt.gui), which "
-                "is not available in this installation; use --headless with --input model "
-                "or --input scripted") from None
+                f"is not available in this installation; use --headless with "
+                f"{_headless_inputs()}") from None
         if note is not None:
             note("note: the experiment window is not available; running headless")
         return None

@@ -14,13 +14,19 @@ from typing import TYPE_CHECKING, Any
 
 from .._errors import ConfigError
 from ..calibration.perceptual import (
-    INPUTS,
     CalibrationSettings,
-    KeyboardRespondent,
     PerceptualResult,
     Respondent,
     run_perceptual_calibration,
 )
+from ..clock import SimClock, WallClock
+from ..devices import open_belt, runs_on_simulated_time
+from ..experiment.runner import check_participant
+from ..experiment.store import open_store
+from ..experiment.store.base import utc_now
+from ..gui.perceptual import WindowRespondent
+from ..inputs import kinds
+from .run import has_display
 
 if TYPE_CHECKING:
     from ..devices.base import Belt
@@ -30,29 +36,22 @@ __all__ = ["calibrate_wearer", "make_respondent"]
 
 def make_respondent(kind: str, belt: Belt, *, seed: int, read_key: Callable[[], str],
                     say: Callable[[str], None]) -> Respondent:
-    """The respondent for ``--input KIND``.
+    """The respondent for ``--input KIND``: a kind that needs the window answers in the
+    experiment window's respondent; any other kind's module makes its own
+    (:mod:`tactorbelt.inputs.kinds`).
 
     Raises:
-        ConfigError: joystick or mouse without a display, or the model on a belt that
-            models no vibration; DeviceError: ``joystick`` without a joystick.
+        ConfigError: an unknown kind, a window kind without a display, or the model on a
+            belt that models no vibration; DeviceError: ``joystick`` without a joystick.
     """
-    if kind == "model":
-        from ..inputs.model import make_model_respondent
-
-        return make_model_respondent(belt, seed)
-    if kind == "keyboard":
-        return KeyboardRespondent(read_key, say)
-    if kind in ("joystick", "mouse"):
-        from .run import has_display
-
-        if not has_display():
-            raise ConfigError(f"no display (DISPLAY and WAYLAND_DISPLAY are not set) for the "
-                              f"window --input {kind} answers in; answer in the terminal "
-                              "with --input keyboard")
-        from ..gui.perceptual import WindowRespondent
-
-        return WindowRespondent(belt.layout, joystick=kind == "joystick")
-    raise ConfigError(f"unknown input {kind!r}; allowed: {', '.join(INPUTS)}")
+    k = kinds.input_kind(kind, calibration=True)
+    if not k.display:
+        return k.respondent(kinds.InputContext(belt=belt, seed=seed, read_key=read_key, say=say))
+    if not has_display():
+        raise ConfigError(f"no display (DISPLAY and WAYLAND_DISPLAY are not set) for the "
+                          f"window --input {kind} answers in; answer in the terminal "
+                          "with --input keyboard")
+    return WindowRespondent(belt.layout, joystick=k.stick)
 
 
 def calibrate_wearer(belt_url: str, participant: str, *, input_kind: str = "keyboard",
@@ -66,17 +65,13 @@ def calibrate_wearer(belt_url: str, participant: str, *, input_kind: str = "keyb
     Raises:
         ConfigError: a bad participant id or input; StoreError: the store cannot be written.
     """
-    from ..clock import SimClock, WallClock
-    from ..devices import open_belt, runs_on_simulated_time
-    from ..experiment.runner import check_participant
-    from ..experiment.store import open_store
-    from ..experiment.store.base import utc_now
-
     who = check_participant(participant)
-    # the model on the sim belt runs on a simulated clock: nothing waits in real time
-    # (its backend declares that it can: Backend.simulated_time)
-    model_on_sim = input_kind == "model" and runs_on_simulated_time(belt_url)
-    options: dict[str, Any] = {"clock": SimClock()} if model_on_sim else {}
+    # an input that runs on simulated time (the model) on the sim belt runs on a simulated
+    # clock: nothing waits in real time (its backend declares that it can:
+    # Backend.simulated_time)
+    sim = kinds.input_kind(input_kind, calibration=True).simulated_time and runs_on_simulated_time(
+        belt_url)
+    options: dict[str, Any] = {"clock": SimClock()} if sim else {}
     with open_belt(belt_url, **options) as belt:
         clock = belt.clock or WallClock()
         respondent = make_respondent(input_kind, belt, seed=seed, read_key=read_key, say=say)

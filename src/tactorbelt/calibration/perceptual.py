@@ -56,7 +56,7 @@ if TYPE_CHECKING:
     from ..devices.base import Belt
     from ..geometry import Layout
 
-__all__ = ["INPUTS", "CalibrationSettings", "Fit", "Interval", "KeyboardRespondent",
+__all__ = ["CalibrationSettings", "Fit", "Interval", "KeyboardRespondent",
            "PerceptualResult", "Respondent", "Track", "fit_psychometric",
            "profile_for_session", "run_perceptual_calibration"]
 
@@ -516,11 +516,6 @@ def run_perceptual_calibration(belt: Belt, clock: Clock, respondent: Respondent,
                             reference_tactor=ref, belt=belt.url, created=created,
                             fit=tuple(fits))
     return PerceptualResult(profile, fits, n_trials, (clock.now_ns() - start_ns) / 1e9)
-
-
-#: The answer sources of ``tactorbelt calibrate perceptual``.
-#: Who can answer the calibration (``tactorbelt calibrate perceptual --input``).
-INPUTS: Final = ("keyboard", "model", "joystick", "mouse")
 
 
 def profile_for_session(study: Any, store: Any, belt: Belt, clock: Clock, participant: str,

@@ -10,18 +10,17 @@ from pathlib import Path
 
 import click
 
+from ..inputs.kinds import calibration_inputs
 from ._options import belt_option, output_option, seed_option
 
 __all__ = ["perceptual"]
-
-_INPUTS = ("keyboard", "model", "joystick", "mouse")
 
 
 @click.command()
 @belt_option("The belt the wearer wears")
 @click.option("--participant", "-p", required=True,
               help="Participant id: letters, digits, '-' or '_' (e.g. P01).")
-@click.option("--input", "input_kind", type=click.Choice(_INPUTS), default="keyboard",
+@click.option("--input", "input_kind", type=click.Choice(calibration_inputs()), default="keyboard",
               show_default=True,
               help="Who answers: keyboard (a person, keys in the terminal), mouse (a "
                    "person in a window: mouse or keys), joystick (a person in a window: "

@@ -16,13 +16,12 @@ from typing import Any
 
 import click
 
+from ..inputs.kinds import session_inputs
 from ._options import belt_options, number, seed_option
 from ._terminal import counting_progress
 from .export import export
 
 __all__ = ["export", "run"]
-
-INPUTS = ("joystick", "mouse", "model", "scripted")
 
 
 def _given(ctx: click.Context, name: str, value: Any) -> Any:
@@ -36,7 +35,7 @@ def _given(ctx: click.Context, name: str, value: Any) -> Any:
 @click.option("--participant", "-p", required=True,
               help="Participant id: letters, digits, '-' or '_' (e.g. P01).")
 @belt_options
-@click.option("--input", "input_kind", type=click.Choice(INPUTS), default=None,
+@click.option("--input", "input_kind", type=click.Choice(session_inputs()), default=None,
               help="Cursor source [default: joystick; model with --headless].")
 @click.option("--db", default="study.sqlite", show_default=True, metavar="STORE",
               help="The session store (SQLite), written first; postgresql://user@host/db: "

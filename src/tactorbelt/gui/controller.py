@@ -32,6 +32,7 @@ from .._errors import ConfigError
 from ..clock import Deadlines
 from ..experiment.listeners import NullObserver
 from ..inputs.joystick import LiveCursor, prepare_sdl
+from ..inputs.kinds import input_kind as input_kind_of
 
 if TYPE_CHECKING:
     from ..clock import Clock
@@ -109,6 +110,8 @@ class WindowController(NullObserver, abc.ABC):
         self.belt = belt
         self.clock = clock
         self.input_kind = input_kind
+        #: what the input kind declares (the window's words, a stick, a clicking mouse)
+        self.input = input_kind_of(input_kind)
         self.participant = participant
         self.fps = float(fps)
         self.auto_continue_s = auto_continue_s
@@ -341,7 +344,7 @@ class WindowController(NullObserver, abc.ABC):
         sub = (f"Test block {k} of {n} is over. Rate it: mark each scale where it fits "
                "best.")
         self._tlx = TlxScreen(form, "How was that block?", sub,
-                              stick=self.input_kind == "joystick")
+                              stick=self.input.stick)
         pg = self._pg
         visible = bool(pg.mouse.get_visible())
         pg.mouse.set_visible(True)
@@ -427,7 +430,7 @@ class WindowController(NullObserver, abc.ABC):
                 own = live.instance_id if live is not None else None
                 if own is None or getattr(ev, "instance_id", own) == own:
                     self._continue = True
-            elif t == pg.MOUSEBUTTONDOWN and self.input_kind == "mouse":
+            elif t == pg.MOUSEBUTTONDOWN and self.input.clicks:
                 self._continue = True
             elif t in (pg.VIDEORESIZE, pg.WINDOWSIZECHANGED):
                 self._relayout()

@@ -25,6 +25,8 @@ import math
 from collections.abc import Callable, Container, Sequence
 from typing import TYPE_CHECKING, Any, Protocol
 
+from ..inputs.kinds import input_kind as input_kind_of
+
 if TYPE_CHECKING:
     from ..devices.base import Belt
     from ..experiment.runner import SessionInfo
@@ -148,12 +150,10 @@ class ScreenState(Protocol):
 
 
 def input_words(input_kind: str) -> tuple[str, str]:
-    """(how to go on, how to answer) in the participant's words."""
-    if input_kind == "mouse":
-        return "click or press Space", "Move the mouse"
-    if input_kind == "joystick":
-        return "press the trigger or Space", "Push the joystick"
-    return "press Space (or wait a moment)", "Move the cursor"
+    """(how to go on, how to answer) in the participant's words, as the input kind
+    declares them (:mod:`tactorbelt.inputs.kinds`)."""
+    kind = input_kind_of(input_kind)
+    return kind.go_on, kind.move
 
 
 def cursor_position(s: ScreenState) -> tuple[float, float] | None:

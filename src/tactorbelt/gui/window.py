@@ -47,6 +47,7 @@ from .._errors import ConfigError, TactorbeltError
 from ..inputs import make_cursor
 from ..inputs.base import CursorSource
 from ..inputs.joystick import JoystickConfig
+from ..inputs.kinds import input_kind
 from . import screens
 from .controller import WindowController
 from .screens import SCREEN_KINDS, TASK_SCREEN_KINDS
@@ -145,7 +146,7 @@ class ExperimentWindow(WindowController):
                 "check DISPLAY / WAYLAND_DISPLAY"
             ) from None
         pygame.display.set_caption(f"tactorbelt: {study.name}")
-        if input_kind == "joystick":
+        if self.input.stick:
             pygame.mouse.set_visible(False)  # the participant looks at the cursor only
         self.renderer = Renderer(self.surface.get_size())
         self.frames = 0
@@ -339,16 +340,15 @@ def session_window(
         from ..clock import WallClock
 
         clock = WallClock()
-    if input not in ("joystick", "mouse", "model", "scripted"):
-        raise ConfigError(f"unknown input {input!r}; allowed: joystick, mouse, model, scripted")
-    if auto_continue_s is None and input in ("model", "scripted"):
+    kind = input_kind(input)
+    if auto_continue_s is None and not kind.live:  # nobody presses a key
         auto_continue_s = 2.0
     window = ExperimentWindow(study, clock, belt=belt, input_kind=input,
                               participant=participant, fullscreen=fullscreen, size=size,
                               fps=fps, screenshot_dir=screenshot_dir,
                               auto_continue_s=auto_continue_s, on_frame=on_frame)
     try:
-        if cursor is None and input in ("joystick", "mouse"):
+        if cursor is None and kind.display:  # the window makes and feeds it
             cursor = make_cursor(input, study=study, participant=participant, seed=seed,
                                  geometry=window.renderer.geometry, joystick=joystick)
         if cursor is not None:
@@ -428,7 +428,7 @@ def run_with_window(
 
             clock = SimClock()
     assert clock is not None
-    if auto_continue_s is None and (cursor is not None or cursor_kind == "model"):
+    if auto_continue_s is None and (cursor is not None or not input_kind(cursor_kind).live):
         auto_continue_s = 2.0
     with session_window(study, input=cursor_kind, participant=participant, clock=clock,
                         belt=belt, fullscreen=fullscreen, screenshot_dir=screenshot_dir,
@@ -436,11 +436,9 @@ def run_with_window(
                         auto_continue_s=auto_continue_s, on_frame=on_frame) as win:
         src = win.cursor
         if src is None:
-            from ..experiment.schedule import make_schedule
+            from ..experiment.recorder import SessionRecorder
 
-            answers = (make_schedule(study, participant,
-                                     study.session.seed if seed is None else int(seed))
-                       if cursor_kind == "scripted" else None)
+            answers = SessionRecorder.schedule_for(study, participant, seed)[0]  # scripted's
             src = make_cursor(cursor_kind, study=study, belt=belt, clock=clock,
                               participant=participant, seed=seed, schedule=answers)
             win.window.attach_cursor(src)

@@ -1,8 +1,10 @@
 """Cursor sources, and :func:`make_cursor`, the one way to make one by name.
 
-Sources: ``joystick`` (:mod:`.joystick`), ``mouse`` (:mod:`.mouse`), ``scripted``
-(:mod:`.scripted`, the right answer of every trial) and ``model`` (:mod:`.model`, the
-model participant). Every module is imported only when its source is made.
+The input kinds are registered in :mod:`.kinds` (one module per kind, one line there):
+``joystick`` (:mod:`.joystick`), ``mouse`` (:mod:`.mouse`), ``scripted``
+(:mod:`.scripted`, the right answer of every trial), ``model`` (:mod:`.model`, the
+model participant) and ``keyboard`` (:mod:`.keyboard`, the perceptual calibration only).
+Every module is imported only when its source is made.
 
 Seed policy (the model participant; the other sources use no randomness): the model's
 own seed is ``cursor_seed`` when given (``tactorbelt demo`` draws one per participant),
@@ -17,8 +19,6 @@ from __future__ import annotations
 import hashlib
 from typing import TYPE_CHECKING, Any
 
-from .._errors import ConfigError
-
 if TYPE_CHECKING:
     from ..clock import Clock
     from ..devices.base import Belt
@@ -28,10 +28,7 @@ if TYPE_CHECKING:
     from .base import CursorSource
     from .joystick import JoystickConfig
 
-__all__ = ["INPUTS", "make_cursor", "participant_seed"]
-
-#: The names ``--input`` takes.
-INPUTS = ("joystick", "mouse", "model", "scripted")
+__all__ = ["make_cursor", "participant_seed"]
 
 
 def participant_seed(seed: int, participant: str) -> int:
@@ -55,10 +52,11 @@ def make_cursor(
     geometry: Any = None,
     joystick: JoystickConfig | int | str | None = None,
 ) -> CursorSource:
-    """The cursor source for ``--input KIND``.
+    """The cursor source for ``--input KIND``: the kind's module makes it
+    (:mod:`.kinds`) from these values.
 
     Args:
-        kind: ``joystick``, ``mouse``, ``scripted`` or ``model``.
+        kind: a session input kind (:func:`~.kinds.session_inputs`).
         study: the study.
         belt: the belt (``model``: the participant feels its vibration).
         clock: the runner's clock (``model``).
@@ -74,39 +72,12 @@ def make_cursor(
         joystick: which stick (index or name substring) or a full JoystickConfig.
 
     Raises:
-        ConfigError: an unknown kind, or a model participant without belt or clock.
+        ConfigError: an unknown kind, or what the kind needs is missing (the model
+            participant without belt or clock, a scripted cursor without schedule).
     """
-    session_seed = study.session.seed if seed is None else int(seed)
-    if kind == "scripted":
-        from .scripted import ScriptedCursor
+    from .kinds import InputContext, input_kind
 
-        if schedule is None:  # the experiment layer makes it (inputs sit below it)
-            raise ConfigError("a scripted cursor needs the session's schedule (its answers): "
-                              "pass schedule=make_schedule(study, participant, seed)")
-        return ScriptedCursor(answers={t.trial_index: t.target_deg for t in schedule})
-    if kind == "model":
-        if belt is None or clock is None:
-            raise ConfigError("the model participant (--input model) needs the belt and the "
-                              "clock")
-        from ..participant.params import ModelParams
-        from .model import make_model_cursor
-
-        own = participant_seed(session_seed, participant) if cursor_seed is None \
-            else int(cursor_seed)
-        if params is None:
-            params = ModelParams().for_period(study.stimulus.period_s)
-        return make_model_cursor(belt, clock, own, params=params)
-    if kind == "mouse":
-        from .mouse import MouseCursor
-
-        return MouseCursor(geometry)
-    if kind == "joystick":
-        from .joystick import JoystickConfig, JoystickCursor
-
-        if isinstance(joystick, JoystickConfig):
-            cfg = joystick
-        else:
-            cfg = JoystickConfig(device=JoystickConfig.parse_device(joystick)
-                                 if isinstance(joystick, str) else joystick)
-        return JoystickCursor(cfg)
-    raise ConfigError(f"unknown input {kind!r}; allowed: {', '.join(INPUTS)}")
+    return input_kind(kind).cursor(InputContext(
+        study=study, belt=belt, clock=clock, participant=participant, seed=seed,
+        cursor_seed=cursor_seed, params=params, schedule=schedule, geometry=geometry,
+        joystick=joystick))

@@ -26,10 +26,13 @@ import os
 import threading
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from .._errors import ConfigError, DeviceError
 from .base import CursorSample, CursorSource
+
+if TYPE_CHECKING:
+    from .kinds import InputContext
 
 __all__ = [
     "JoystickConfig",
@@ -341,3 +344,13 @@ class JoystickCursor(LiveCursor):
 
     def close(self) -> None:
         self._js = None
+
+
+def cursor(ctx: InputContext) -> JoystickCursor:
+    """The ``joystick`` input kind's cursor (:mod:`tactorbelt.inputs.kinds`): the stick
+    ``ctx.joystick`` names (index, name substring, or a full JoystickConfig)."""
+    stick = ctx.joystick
+    if isinstance(stick, JoystickConfig):
+        return JoystickCursor(stick)
+    return JoystickCursor(JoystickConfig(
+        device=JoystickConfig.parse_device(stick) if isinstance(stick, str) else stick))

@@ -62,6 +62,7 @@ if TYPE_CHECKING:
     from ..tasks import WorkloadInfo
     from ..tasks.schedule import TaskItem
     from ..tasks.spec import TaskSpec
+    from .kinds import InputContext
 
 __all__ = ["ModelCursor", "ModelDecision", "ModelRespondent", "Sense", "make_model_cursor",
            "make_model_respondent", "sim_vibrator"]

@@ -14,10 +14,13 @@ pygame only inside methods.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from .joystick import LiveCursor
 from .screen import EllipseGeometry
+
+if TYPE_CHECKING:
+    from .kinds import InputContext
 
 __all__ = ["MouseCursor"]
 
@@ -55,3 +58,9 @@ class MouseCursor(LiveCursor):
         pressed = pygame.mouse.get_pressed(3)
         buttons = sum(1 << i for i, p in enumerate(pressed) if p)
         self.place(px, py, buttons)
+
+
+def cursor(ctx: InputContext) -> MouseCursor:
+    """The ``mouse`` input kind's cursor (:mod:`tactorbelt.inputs.kinds`), on the
+    window's ellipse ``ctx.geometry``."""
+    return MouseCursor(ctx.geometry)

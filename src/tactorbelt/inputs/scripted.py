@@ -18,9 +18,13 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 from .._errors import ConfigError
 from .base import CursorSample, CursorSource, TrialCue
+
+if TYPE_CHECKING:
+    from .kinds import InputContext
 
 __all__ = ["ScriptedCursor", "ScriptedResponse", "min_jerk"]
 
@@ -148,3 +152,12 @@ class ScriptedCursor(CursorSource):
         frac = min_jerk(s) if resp.profile == "min_jerk" else min(max(s, 0.0), 1.0)
         r = resp.radius * frac
         return CursorSample(int(now_ns), r * self._dir[0], r * self._dir[1], 0)
+
+
+def cursor(ctx: InputContext) -> ScriptedCursor:
+    """The ``scripted`` input kind's cursor (:mod:`tactorbelt.inputs.kinds`): the right
+    answer of every trial of ``ctx.schedule``."""
+    if ctx.schedule is None:  # the experiment layer makes it (inputs sit below it)
+        raise ConfigError("a scripted cursor needs the session's schedule (its answers): "
+                          "pass schedule=make_schedule(study, participant, seed)")
+    return ScriptedCursor(answers={t.trial_index: t.target_deg for t in ctx.schedule})
