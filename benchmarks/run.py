@@ -251,6 +251,15 @@ GOALS = [
          "the clock fit's offset error: asymmetry of the fastest round trips"),
     Goal("onset_host_vs_device", None, ">=", 4.0, "x",
          "baseline: the host-only stamp (Player.start), late by link latency and frame work"),
+    Goal("browser_clock_uncertainty_ms", None, "<=", 1.0, "ms",
+         "half the least round trip of 16 WebSocket pings, Chromium <-> bridge on loopback"),
+    Goal("browser_play_to_onset_p99_ms", None, "<=", 5.0, "ms",
+         "Chromium's WebSocket send, the bridge's event loop and belt thread, the sim "
+         "belt's start; on 2 shared cores beside the browser and Selenium"),
+    Goal("browser_trials_stored", None, ">=", 120.0, "",
+         "a 120-trial browser session: every trial in the store once"),
+    Goal("browser_analysis_equal", None, ">=", 1.0, "",
+         "the browser session's analysis equals the runner's on the same answers"),
 ]
 
 
