@@ -66,6 +66,7 @@ from .erm import (
     erm_speed,
     sample_grid,
     shape_tick,
+    shape_whole_tick,
 )
 
 if TYPE_CHECKING:
@@ -498,6 +499,9 @@ class SimBelt(Belt):
         p, sh, taus = self.params, self.shaper, self._taus
         rise, fall, brake = taus
         rl, fl, bl = rise.tolist(), fall.tolist(), brake.tolist()
+        tick_s = RENDER_TICK_NS * 1e-9
+        xr, xf, xb = ([math.exp(-min(tick_s / x, 300.0)) for x in taus_k]
+                      for taus_k in (rl, fl, bl))
         start, od, can_brake = sh.params.start_level, sh.overdrive, sh.brake
         n = self.n_tactors
         bounds = _sorted_unique(np.concatenate([np.array([t_a], dtype=np.int64),
@@ -591,9 +595,14 @@ class SimBelt(Belt):
                 h = (nxt - t) * 1e-9
                 d = list(lvl)
                 el = list(el)
-                for k in moving:
-                    d[k], el[k] = shape_tick(lvl[k], el[k], h, start, od, can_brake, rl[k],
-                                             fl[k], bl[k])
+                if nxt - t == tick:  # a whole tick: the decay factors computed once
+                    for k in moving:
+                        d[k], el[k] = shape_whole_tick(lvl[k], el[k], start, od, can_brake,
+                                                       xr[k], xf[k], xb[k])
+                else:
+                    for k in moving:
+                        d[k], el[k] = shape_tick(lvl[k], el[k], h, start, od, can_brake,
+                                                 rl[k], fl[k], bl[k])
                 ds.append(d)
                 wl = el if exact else [_relax_f(d[k], wl[k], h, start, pr, pf, pb)
                                        for k in range(n)]
