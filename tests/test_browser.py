@@ -12,6 +12,7 @@ ChromeDriver or selenium are missing.
 
 from __future__ import annotations
 
+import functools
 import http.server
 import math
 import os
@@ -200,6 +201,37 @@ def test_a_page_from_another_origin_is_closed_1008_even_with_the_token(
     finally:
         server.shutdown()
         server.server_close()
+
+
+@needs_browser
+def test_a_page_hosted_elsewhere_reaches_the_bridge_it_names(tmp_path: Path) -> None:
+    """The static files on another web server (another origin); the page names the bridge
+    (?bridge=HOST:PORT), which allows that origin: the trial is played and stored."""
+    from selenium.webdriver.common.by import By
+
+    handler = functools.partial(_Quiet, directory=str(STATIC))
+    server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), handler)
+    thread = threading.Thread(target=server.serve_forever, daemon=True)
+    thread.start()
+    origin = f"http://127.0.0.1:{server.server_address[1]}"
+    db = tmp_path / "hosted.sqlite"
+    try:
+        with serve(short_study(tmp_path), db, "--allow-origin", origin) as b, \
+                chromium() as driver:
+            driver.get(f"{origin}/examples/paper.html?bridge=127.0.0.1:{b.port}"
+                       f"&token={b.token}&participant=P05&message_ms=50")
+            assert _wait(lambda: driver.find_elements(By.CSS_SELECTOR, "[data-target]"), 30), \
+                (page_state(driver), b.output())
+            driver.find_elements(By.CSS_SELECTOR, "[data-target]")[0].click()
+            assert _wait(lambda: len(store_rows(db, "P05")[1]) == 1, 20), b.output()
+    finally:
+        server.shutdown()
+        server.server_close()
+
+
+class _Quiet(http.server.SimpleHTTPRequestHandler):
+    def log_message(self, *args: Any) -> None:
+        pass
 
 
 # -- a page that goes away mid-stimulus ----------------------------------------------------

@@ -17,7 +17,6 @@ import json
 import os
 import shutil
 import signal
-import socket
 import sqlite3
 import subprocess
 import sys
@@ -52,12 +51,6 @@ def browser_missing() -> str | None:
     if _which([CHROMEDRIVER]) is None:
         return "ChromeDriver is not installed (apt-get install chromium-driver)"
     return None
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
 
 
 @dataclass
@@ -118,11 +111,10 @@ class Bridge:
 @contextlib.contextmanager
 def serve(study: Path, store: Path, *args: str, python: str | None = None,
           command: Sequence[str] | None = None, timeout: float = 60.0) -> Iterator[Bridge]:
-    """``tactorbelt serve --belt sim`` on a free port until the block ends (SIGTERM)."""
-    port = free_port()
+    """``tactorbelt serve --belt sim`` on a free port (``--port 0``: the `open:` line says
+    which) until the block ends (SIGTERM)."""
     cmd = [*(command or [python or sys.executable, "-m", "tactorbelt"]), "serve",
-           "--belt", "sim", "--store", str(store), "--study", str(study),
-           "--port", str(port), *args]
+           "--belt", "sim", "--store", str(store), "--study", str(study), "--port", "0", *args]
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                             env=env, cwd=store.parent)
