@@ -36,7 +36,6 @@ HERE = Path(__file__).resolve().parent
 #: What the counted process runs: ``n`` sessions (participants 1..n) into a new store.
 #: With ``--drive shaped`` the paper study's ``[stimulus] drive`` is ``shaped``.
 _CHILD = """
-import dataclasses
 import sys
 from pathlib import Path
 sys.path.insert(0, {here!r})
@@ -46,8 +45,8 @@ if {drive!r} == "shaped":
     _paper = _study.paper_study
     def _shaped():
         st = _paper()
-        return dataclasses.replace(st, stimulus=dataclasses.replace(st.stimulus,
-                                                                    drive="shaped"))
+        return st.model_copy(update={{"stimulus": st.stimulus.model_copy(
+            update={{"drive": "shaped"}})}})
     _study.paper_study = _shaped
 _sessions((Path({db!r}), list(range(1, {n} + 1)), False))
 """
