@@ -33,13 +33,13 @@ LOOPBACK = ("127.0.0.1", "localhost", "::1")
                    "init` writes it].")
 @click.option("--port", type=number(int, 0, 65535), default=None,
               help="TCP port for HTTP and the WebSocket (0: any free port) [default: 8735].")
-@click.option("--host", default="127.0.0.1", show_default=True,
+@click.option("--host", default="127.0.0.1", show_default=True, metavar="ADDRESS",
               help="Address to listen on. Anything but the loopback lets other machines "
                    "reach the bridge (they still need the token): a warning is printed.")
 @click.option("--allow-origin", "allow_origins", multiple=True, metavar="ORIGIN",
               help="Also accept pages from this origin (e.g. https://lab.example.org); "
                    "repeat for more. The bridge's own pages are always accepted.")
-@click.option("--token", default=None, metavar="TEXT",
+@click.option("--token", default=None, metavar="TOKEN",
               help="The token pages must present (16 to 128 letters, digits, '-' or '_') "
                    "[default: a new random one each start]; give one to keep a hosted "
                    "page's link working across restarts, and keep it secret.")
