@@ -560,3 +560,41 @@ def test_sim_belt_plays_after_any_number_of_stops() -> None:
             for _ in range(i % 3):
                 belt.stop()
         assert not belt.levels.any()
+
+
+def test_a_shared_postgresql_store(tmp_path: Path, pg_url: str) -> None:
+    """--store postgresql://...: the session and its trial land in the shared store,
+    claimed for this site as run claims them."""
+    store = pg_url
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "tactorbelt", "serve", "--belt", "sim", "--store", store,
+         "--port", "0"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        env={**os.environ, "TACTORBELT_SITE": "lab-a"})
+    assert proc.stdout is not None
+    line = proc.stdout.readline()
+    assert line.startswith("open: "), proc.communicate()[1]
+    b = Bridge(proc, line.removeprefix("open: ").strip(), tmp_path / "unused")
+
+    async def go() -> dict[str, Any]:
+        page = await Page.open(b.ws_url())
+        w = await page.request({"type": "hello", "participant": "P09"})
+        played = await page.request({"type": "play", "index": 0})
+        stored = await page.request({"type": "trial", "index": 0, "play_id": played["id"],
+                                     "response": {"target": w["schedule"][0]["target"],
+                                                  "rt_ms": 700.0}})
+        await page.close()
+        return stored
+
+    try:
+        assert run(go())["status"] == "done"
+    finally:
+        rc, err = b.stop()
+    assert rc == 143, err
+    from tactorbelt.experiment.store import open_store
+
+    with open_store(store, readonly=True) as s:
+        sessions = s.sessions("P09")
+        assert [x["site"] for x in sessions] == ["lab-a"]
+        assert [x["input"] for x in sessions] == ["browser"]
+        trials = s.trials(sessions[0]["session_id"])
+        assert [(t["trial_index"], t["status"]) for t in trials] == [(0, "done")]

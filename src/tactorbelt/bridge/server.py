@@ -597,6 +597,7 @@ class _Bridge:
         participant with a complete session is refused, as ``run`` does without
         ``--new-session``); with its wearer profile where the study asks for one."""
         from ..calibration.perceptual import profile_for_session
+        from ..experiment.provenance import default_site
         from ..experiment.recorder import SessionRecorder
 
         store = self.store
@@ -604,6 +605,7 @@ class _Bridge:
         study = self.config.study
         belt = self.belt.belt
         resume = store.find_resumable(participant) is not None
+        site = default_site()
         if not resume:
             complete = [s for s in store.sessions(participant) if s["status"] == "complete"]
             if complete:
@@ -611,13 +613,17 @@ class _Bridge:
                     f"participant {participant!r} has completed session "
                     f"{complete[-1]['session_number']} in {store.url}; check the "
                     "participant id")
+            # a shared (PostgreSQL) store: this login writes this site, and the id is
+            # this site's (as run does); a SQLite store takes any
+            store.check_site(site)
+            store.claim_participant(participant, site)
         profile = profile_for_session(study, store, belt, self.belt.clock, participant,
                                       None, resume=resume)
         rec = SessionRecorder.open(
             store, study, participant, input_kind=INPUT_KIND, resume=resume,
             study_toml=self.config.study_toml, belt_url=belt.session_url,
             firmware_version=belt.firmware_version, calibration=belt.calibration.to_list(),
-            clock="wall")
+            clock="wall", site=site)
         if profile is not None:
             rec.set_profile(profile.to_toml())
         return rec, profile
