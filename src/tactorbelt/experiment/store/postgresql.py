@@ -28,7 +28,7 @@ on first use by a role that may create it, in one transaction under an advisory 
 newer schema is refused for writing, a ``tactorbelt`` schema that is not a tactorbelt
 store is refused.
 
-Guarantees as the SQLite store (the same code: :class:`~.sql.SqlStore`): each trial
+Guarantees as the SQLite store (the same code: :class:`~.sql.Store`): each trial
 (row and samples) is one transaction; an ``aborted`` row is replaced when the trial is
 run again (found under a row lock: several writers); a final row is never written
 twice. Several writers may use the store at once (``exclusive_writer`` is False);
@@ -60,7 +60,7 @@ from ..provenance import default_site
 from ..trial import TrialResult
 from .base import SCHEMA_VERSION, TASK_EVENT_COLUMNS, StoreCapabilities
 from .schema import POSTGRESQL, columns, migrate, missing_columns
-from .sql import SqlStore
+from .sql import Store
 
 __all__ = ["PG_SCHEMA", "PostgreSQLStore", "check_url", "setup_access"]
 
@@ -176,7 +176,7 @@ def _connect_error(url: str, exc: Exception, create: bool, readonly: bool) -> St
         "alone and push it later with 'tactorbelt sync'")
 
 
-class PostgreSQLStore(SqlStore):
+class PostgreSQLStore(Store):
     """A store in a PostgreSQL database (see the module doc). Open with :func:`open_store`."""
 
     capabilities = StoreCapabilities(backend="postgresql", file=False, bulk_insert=True,

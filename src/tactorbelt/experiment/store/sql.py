@@ -1,10 +1,10 @@
-"""What the SQL stores share: every query and method whose logic is the same, written once.
+"""The store: what the runner, export, analysis and the model study use, written once.
 
-:class:`SqlStore` implements :class:`~.base.Store` over a :class:`~.schema.Dialect`
-(its class attribute ``dialect``); the queries are written in SQLite's spelling and
-:meth:`~.schema.Dialect.sql` gives the dialect's. A subclass (:class:`~.sqlite.SQLiteStore`,
-:class:`~.postgresql.PostgreSQLStore`) brings the connection and what only its database
-does:
+Every store is an SQL store: :class:`Store` is the interface and its one implementation
+over a :class:`~.schema.Dialect` (its class attribute ``dialect``); the queries are
+written in SQLite's spelling and :meth:`~.schema.Dialect.sql` gives the dialect's. A
+subclass (:class:`~.sqlite.SQLiteStore`, :class:`~.postgresql.PostgreSQLStore`) brings
+the connection and what only its database does:
 
 - ``_transaction(what)``: a context manager giving an object with ``execute`` and
   ``executemany`` (the connection, a cursor), committing at its end, rolling back and
@@ -16,28 +16,35 @@ does:
   COPY);
 - hooks with a default here: ``_put_trial`` (how an earlier row of the trial is found:
   a row lock first, or an INSERT that fails on the UNIQUE key), ``_claim`` (participant
-  ids owned by a site), ``_bulk_session`` and ``_bulk_ids`` (bulk inserts' ids).
+  ids owned by a site), ``_bulk_session`` and ``_bulk_ids`` (bulk inserts' ids);
+- what only some stores can (multi-site claims, batched commits, copied sessions: see
+  :class:`~.base.StoreCapabilities`), the rest refusing with StoreError.
+
+:func:`open_store` picks the implementation by URL (:data:`~.base.BACKENDS`).
 """
 
 from __future__ import annotations
 
+import abc
 import json
 from collections.abc import Iterable, Iterator, Mapping, Sequence
 from contextlib import AbstractContextManager
 from pathlib import Path
+from types import TracebackType
 from typing import TYPE_CHECKING, Any, ClassVar
 
 from ..._errors import StoreError
-from ..._registry import check_option
+from ..._registry import check_option, resolve
 from ...factors import added_factors
-from ..schedule import ScheduledTrial, schedule_to_json
+from ..schedule import ScheduledTrial, schedule_from_json, schedule_to_json
 from ..trial import TrialResult
 from .base import (
+    BACKENDS,
     RATING_COLUMNS,
     SESSION_STATUSES,
     TASK_EVENT_COLUMNS,
     TRIAL_STATUSES,
-    Store,
+    StoreCapabilities,
     rating_value,
     utc_now,
 )
@@ -46,15 +53,16 @@ from .schema import table as schema_table
 
 if TYPE_CHECKING:
     from ...tasks.schedule import TaskEvent
+    from ..study import Study
 
-__all__ = ["TRIAL_COLUMNS", "SqlStore"]
+__all__ = ["TRIAL_COLUMNS", "Store", "backend_for", "open_store"]
 
-#: The columns a run writes of a trial row, in the order of :meth:`SqlStore.write_trial`.
-#: The added factors' columns follow them (:meth:`SqlStore.write_trial`).
+#: The columns a run writes of a trial row, in the order of :meth:`Store.write_trial`.
+#: The added factors' columns follow them (:meth:`Store.write_trial`).
 TRIAL_COLUMNS = tuple(c.name for c in schema_table("trials", added=False).columns
                       if c.name != "trial_id")
 _ATTEMPTS = TRIAL_COLUMNS.index("attempts")
-#: The tables :meth:`SqlStore.table_columns` reads.
+#: The tables :meth:`Store.table_columns` reads.
 _TABLES = ("sessions", "trials", "samples", "task_events", "ratings")
 #: meta key of the run options kept with a session, where they have no table of their own
 _RUN_OPTIONS_KEY = "run_options:{}"
@@ -62,8 +70,20 @@ _RUN_OPTIONS_KEY = "run_options:{}"
 COMMITS_KEY = "commits:{}"
 
 
-class SqlStore(Store):
-    """A store in an SQL database (see the module doc)."""
+class Store(abc.ABC):
+    """An open session store (see the module doc). Close it (or use ``with``) when done.
+
+    ``Store.open(url, create=True, readonly=False)`` is :func:`open_store`.
+    """
+
+    #: What this implementation offers (a class attribute of each implementation).
+    capabilities: StoreCapabilities
+    #: Where the store is, as given when it was opened (a path for SQLite).
+    url: str
+    #: The store's file when :attr:`StoreCapabilities.file` (else None).
+    path: Path | None
+    #: Opened read-only: every write raises StoreError.
+    readonly: bool
 
     #: How this store's database spells the schema and the queries.
     dialect: ClassVar[Dialect]
@@ -80,6 +100,32 @@ class SqlStore(Store):
         self._added = added_factors()
         self._insert_trial_sql = self.dialect.insert(
             "trials", TRIAL_COLUMNS + tuple(f.column for f in self._added))
+
+    # -- opening -----------------------------------------------------------------------
+    @classmethod
+    def open(cls, url: str | Path, create: bool = True, readonly: bool = False,
+             verify: bool = True) -> Store:
+        """Open a store; on :class:`Store` itself the URL picks the implementation."""
+        if cls is Store:
+            return open_store(url, create=create, readonly=readonly, verify=verify)
+        return cls.open_url(url, create=create, readonly=readonly, verify=verify)
+
+    @classmethod
+    @abc.abstractmethod
+    def open_url(cls, url: str | Path, *, create: bool, readonly: bool,
+                 verify: bool) -> Store:
+        """Open this implementation's store at ``url`` (see :func:`open_store`)."""
+
+    @abc.abstractmethod
+    def close(self) -> None:
+        """Release the store (and, for a file store, leave only its file). Idempotent."""
+
+    def __enter__(self) -> Store:
+        return self
+
+    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
+                 tb: TracebackType | None) -> None:
+        self.close()
 
     # -- what a subclass brings ------------------------------------------------------
     def _transaction(self, what: str = "write to") -> AbstractContextManager[Any]:
@@ -100,7 +146,7 @@ class SqlStore(Store):
     def _bulk_samples(self, c: Any, rows: Iterable[Sequence[Any]]) -> None:
         raise NotImplementedError
 
-    def _claim(self, c: Any, participant: str, site: str) -> None:
+    def _claim(self, c: Any, participant: str, site: str) -> None:  # noqa: B027
         """Claim a participant id for ``site`` (a store of one site takes any id)."""
 
     # -- helpers ---------------------------------------------------------------------
@@ -203,6 +249,8 @@ class SqlStore(Store):
         return {int(r[0]) for r in rows}
 
     def set_run_options(self, session_id: int, options: Mapping[str, Any]) -> None:
+        """Keep how a session was run (input, belt, window options; JSON values), so a
+        resume can reuse them. Replaces what was kept before."""
         text = json.dumps(dict(options))
         if not self.dialect.has("multisite"):
             self._set_meta(_RUN_OPTIONS_KEY.format(session_id), text)
@@ -212,6 +260,7 @@ class SqlStore(Store):
                                           ("session_id",)), (session_id, text))
 
     def run_options(self, session_id: int) -> dict[str, Any] | None:
+        """The options kept by :meth:`set_run_options`, or None (older sessions)."""
         if self.dialect.has("multisite"):
             rows = self._query(self._sql("SELECT options FROM run_options"
                                          " WHERE session_id=?"), (session_id,))
@@ -234,7 +283,31 @@ class SqlStore(Store):
         return str(rows[0][0]) if rows else None
 
     def commit_mode(self, session_id: int) -> str:
+        """``per-trial`` or ``batched`` (see ``provenance.commit_mode``): how the
+        session's trials were committed (``batched`` when any run of it batched)."""
         return self._meta(COMMITS_KEY.format(session_id)) or "per-trial"
+
+    # -- wearer profiles (the perceptual calibration) ------------------------------------
+    def save_wearer_profile(self, participant: str, toml_text: str) -> None:
+        """Keep a participant's wearer profile (TOML text), replacing an older one."""
+        self._set_meta(f"wearer_profile:{participant}", toml_text)
+
+    def wearer_profile(self, participant: str) -> str | None:
+        """The participant's wearer profile (TOML text), or None."""
+        return self._meta(f"wearer_profile:{participant}")
+
+    def set_session_profile(self, session_id: int, toml_text: str) -> None:
+        """Record the wearer profile a session was run with (its provenance)."""
+        self._set_meta(f"session_profile:{session_id}", toml_text)
+
+    def session_profile(self, session_id: int) -> str | None:
+        """The wearer profile a session was run with (TOML text), or None."""
+        return self._meta(f"session_profile:{session_id}")
+
+    def schedule(self, session_id: int, study: Study | None = None) -> list[ScheduledTrial]:
+        """The stored schedule of a session (``study`` fills in the target count and
+        load of a schedule stored before factorial designs)."""
+        return schedule_from_json(self.session(session_id)["schedule_json"], study)
 
     # -- trials ------------------------------------------------------------------------
     def write_trial(self, session_id: int, result: TrialResult, *,
@@ -244,7 +317,7 @@ class SqlStore(Store):
 
         An earlier ``aborted`` row of the same trial is replaced (with its samples).
         ``skin_onset_ns``, ``skin_onset_sd_ns``: the onset at the skin and its spread, or
-        None (:meth:`~.base.Store.write_trial`).
+        None .
 
         Raises:
             StoreError: the trial already has a final row, or the write failed.
@@ -364,11 +437,18 @@ class SqlStore(Store):
 
     # -- bulk reads --------------------------------------------------------------------
     def table_columns(self, table: str) -> list[str]:
+        """Column names of ``sessions``, ``trials``, ``samples``, ``task_events`` or
+        ``ratings`` ([] when absent)."""
         check_option("table", table, _TABLES, StoreError)
         return [str(r[0]) for r in self._query(self._sql(self.dialect.columns_query),
                                                (table,))]
 
     def read_table(self, table: str, columns: Sequence[str]) -> list[tuple[Any, ...]]:
+        """Rows of ``sessions`` (by session_id) or ``trials`` (by session_id, trial_id).
+
+        Only the given columns, in that order; for the analysis, which reads stores
+        that may hold only the columns the schema requires.
+        """
         order = {"sessions": "session_id", "trials": "session_id, trial_id"}.get(table)
         if order is None:
             raise StoreError(f"read_table reads sessions or trials, not {table!r}")
@@ -381,6 +461,7 @@ class SqlStore(Store):
         return [tuple(r) for r in rows]
 
     def samples_of(self, trial_ids: Sequence[int]) -> list[tuple[int, float, float, float, int]]:
+        """``(trial_id, t_s, x, y, buttons)`` of some trials, by trial_id and time."""
         ids = sorted({int(t) for t in trial_ids})
         step = self.dialect.max_in or max(1, len(ids))
         order = f"trial_id, t_s, {self.dialect.order('samples')}"
@@ -394,6 +475,8 @@ class SqlStore(Store):
 
     def iter_samples(self, session_id: int | None = None
                      ) -> Iterator[tuple[int, int, float, float, float, int]]:
+        """``(session_id, trial_index, t_s, x, y, buttons)`` of every sample (of one
+        session), by session, trial_id and time; streamed, never all in memory."""
         sql = ("SELECT t.session_id, t.trial_index, p.t_s, p.x, p.y, p.buttons"
                " FROM samples p JOIN trials t USING (trial_id)")
         args: tuple[Any, ...] = ()
@@ -433,6 +516,104 @@ class SqlStore(Store):
         """A session row of :meth:`bulk_insert` as inserted."""
         return row
 
-    def _bulk_ids(self, c: Any) -> None:
+    def _bulk_ids(self, c: Any) -> None:  # noqa: B027
         """After rows with explicit ids: the next generated ids follow them."""
 
+    # -- multi-site stores, batched commits, copied sessions (defaults: none) ---------
+    def claim_participant(self, participant: str, site: str) -> None:
+        """Refuse (StoreError) a participant id that another site already uses. A store
+        of one site (SQLite) takes any id."""
+        return None
+
+    def check_site(self, site: str) -> None:
+        """Refuse (StoreError) unless this login may write sessions of ``site``; writes
+        nothing. A store of one site (SQLite) takes any site."""
+        return None
+
+    def begin_batch(self, session_id: int, every: int) -> None:
+        """From now on commit writes every ``every`` trials (and at :meth:`end_batch`)
+        instead of each trial; record that session ``session_id`` batched its commits
+        (:meth:`commit_mode`). Only for sessions with nothing real involved."""
+        raise StoreError(f"the {self.capabilities.backend} store commits every trial")
+
+    def end_batch(self) -> None:  # noqa: B027 - a store without batches has none to end
+        """Commit what the batch holds and go back to a commit per write. Safe to call
+        when no batch is open."""
+
+    def sync_state(self, session_uuid: str
+                   ) -> tuple[int, dict[str, Any], dict[int, tuple[str, int]]] | None:
+        """``(session_id, {ended_at, status, resumed}, {trial_index: (status, attempts)})``
+        of the session with this uuid here, or None."""
+        raise StoreError(f"{self.url}: this store does not take copied sessions")
+
+    def import_session(self, row: Mapping[str, Any]) -> int:
+        """Insert a session row of another store (keyed by ``session_uuid``) or update
+        its status, ended_at and resumed; return its id here."""
+        raise StoreError(f"{self.url}: this store does not take copied sessions")
+
+    def import_trial(self, session_id: int, row: Mapping[str, Any],
+                     samples: Sequence[Sequence[Any]]) -> bool:
+        """Copy a trial row of another store and its ``(t_s, x, y, buttons)`` samples in
+        one transaction; False when it is here already (nothing written)."""
+        raise StoreError(f"{self.url}: this store does not take copied sessions")
+
+    def import_task_events(self, session_id: int, rows: Sequence[Mapping[str, Any]]) -> int:
+        """Make session ``session_id``'s task events those of another store's copy of it
+        (``task_events`` rows, in the order written; they are only ever appended, so a
+        copy with as many is up to date). One transaction; the rows written (0: none)."""
+        raise StoreError(f"{self.url}: this store does not take copied sessions")
+
+    def import_ratings(self, session_id: int, rows: Sequence[Mapping[str, Any]]) -> int:
+        """Make session ``session_id``'s ratings those of another store's copy of it
+        (``ratings`` rows). One transaction; the rows written (0: the same already)."""
+        raise StoreError(f"{self.url}: this store does not take copied sessions")
+
+
+def _scheme(url: str | Path) -> tuple[str, str]:
+    """``(scheme, rest)``: a bare path (or a Windows drive letter) is ``sqlite``."""
+    text = str(url)
+    if isinstance(url, Path) or "://" not in text:
+        return "sqlite", text
+    scheme, rest = text.split("://", 1)
+    return scheme.lower().split("+", 1)[0], rest
+
+
+def backend_for(url: str | Path) -> type[Store]:
+    """The :class:`Store` class for a URL.
+
+    Raises:
+        StoreError: the scheme is unknown or its implementation is not available yet.
+    """
+    scheme, _ = _scheme(url)
+    if scheme == "postgres":
+        scheme = "postgresql"
+    if scheme not in BACKENDS:
+        raise StoreError(f"unknown store URL scheme {scheme!r} in {url}; give a file path, "
+                         f"sqlite:///path or one of: {', '.join(sorted(BACKENDS))}")
+    target = BACKENDS[scheme]
+    if target is None:
+        name = {"postgresql": "PostgreSQL"}.get(scheme, scheme)
+        raise StoreError(f"{name} stores are not available yet ({url}); give a file path "
+                         "such as study.sqlite")
+    store_cls: type[Store] = resolve(target)
+    return store_cls
+
+
+def open_store(url: str | Path, create: bool = True, readonly: bool = False,
+               verify: bool = True) -> Store:
+    """Open (and with ``create`` make) the store at ``url`` for writing, or read-only.
+
+    Args:
+        url: a path (``study.sqlite``), ``sqlite:///abs/path`` or
+            ``sqlite:relative/path``, or ``postgresql://user@host/dbname``.
+        create: make the store (its schema) when it does not exist.
+        readonly: open for reading only; nothing is written, no lock is taken.
+        verify: check the store's integrity when opening (a full scan of an SQLite
+            file; readers of very large stores may skip it).
+
+    Raises:
+        StoreError: unknown or unavailable scheme, or the store cannot be opened (see
+            the implementation's ``open``). Raised before anything is written.
+    """
+    cls = backend_for(url)
+    return cls.open_url(url, create=create, readonly=readonly, verify=verify)

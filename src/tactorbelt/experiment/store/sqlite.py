@@ -1,7 +1,7 @@
 """The SQLite store: one file holding sessions, trials and cursor samples.
 
 The schema (docs/study.md, "The store") is declared once in :mod:`.schema` and the
-queries and the methods that are the same for every SQL store are :class:`~.sql.SqlStore`'s;
+queries and the methods that are the same for every SQL store are :class:`~.sql.Store`'s;
 this module holds what is SQLite's own: the file, its lock and WAL files, the opening
 checks and migration in one transaction, the samples' multi-row INSERTs and the batched
 commits.
@@ -48,7 +48,7 @@ from ..._errors import StoreError
 from ..trial import TrialResult
 from .base import SCHEMA_VERSION, StoreCapabilities
 from .schema import SQLITE, bare_statements, create_index, migrate
-from .sql import COMMITS_KEY, SqlStore
+from .sql import COMMITS_KEY, Store
 
 __all__ = ["APPLICATION_ID", "SQLiteStore", "create_bare_store", "move_store_file"]
 
@@ -137,7 +137,7 @@ def _insert_samples(c: sqlite3.Connection, trial_id: int, result: TrialResult) -
         a = b
 
 
-class SQLiteStore(SqlStore):
+class SQLiteStore(Store):
     """A store in one SQLite file (see the module doc). Open with :func:`open_store`."""
 
     capabilities = StoreCapabilities(backend="sqlite", file=True, bulk_insert=True,
