@@ -12,6 +12,7 @@ ChromeDriver or selenium are missing.
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import http.server
 import math
@@ -85,6 +86,22 @@ def _wait(cond: Any, timeout: float, step: float = 0.05) -> bool:
     return bool(cond())
 
 
+def _click_until_stored(driver: Any, db: Path, participant: str, n: int) -> bool:
+    """True once the store holds n trials of the participant; until then clicks the first
+    target on the screen, if one is there."""
+    from selenium.common.exceptions import WebDriverException
+    from selenium.webdriver.common.by import By
+
+    try:
+        if len(store_rows(db, participant)[1]) >= n:
+            return True
+    except AssertionError:  # no session yet: the page is still saying hello
+        pass
+    with contextlib.suppress(WebDriverException, IndexError):
+        driver.find_elements(By.CSS_SELECTOR, "[data-target]")[0].click()
+    return False
+
+
 # -- the paper's protocol, answered by clicks -------------------------------------------
 
 @needs_browser
@@ -151,6 +168,32 @@ def test_onsets_are_on_the_page_clock_within_the_handshake(bridge: Bridge,
         # page and its reply arriving (the belt started the stimulus in between)
         assert s["request_ms"] - tol <= s["onset_ms"] <= s["reply_ms"] + tol, s
         assert math.isfinite(s["onset_uncertainty_ms"])
+
+
+@needs_browser
+def test_a_reload_resumes_and_every_trial_is_still_stored_once(bridge: Bridge, driver: Any,
+                                                                paper_run: Any) -> None:
+    from selenium.webdriver.common.by import By
+
+    url = bridge.page_url("P06", message_ms=50)
+    driver.get(url)
+    db = Path(bridge.proc.args[bridge.proc.args.index("--store") + 1])
+    for n in (1, 2):  # two trials answered and stored (a click only while fewer are:
+        # the next trial's screen comes only after the bridge stored this one)
+        assert _wait(lambda n=n: _click_until_stored(driver, db, "P06", n), 30), \
+            bridge.output()
+    # the third trial's stimulus plays, its response screen is up: reload the page
+    assert _wait(lambda: driver.execute_script(
+        "const p = window.tactorbelt.bridge.lastPlay; return p && p.request.index === 2"), 30)
+    assert _wait(lambda: driver.find_elements(By.CSS_SELECTOR, "[data-target]"), 30)
+    run = answer_page(driver, url, timeout=120)  # the reload
+    assert run.state == "done", (run.error, bridge.output())
+    assert run.welcome["resumed"] is True
+    assert sorted(run.welcome["done"]) == [0, 1]
+    assert [r["index"] for r in run.of_type("response")] == list(range(2, 12))
+    session, trials = store_rows(db, "P06")
+    assert session["status"] == "complete"
+    assert [t["trial_index"] for t in trials] == list(range(12))
 
 
 # -- refusals ------------------------------------------------------------------------------
