@@ -45,9 +45,10 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
+from .. import devices
 from .._errors import ConfigError, StoreError
 from ..clock import Clock, SimClock, WallClock
-from ..devices import open_belt, parse_url, runs_on_simulated_time
+from ..devices import parse_url, runs_on_simulated_time
 from ..devices.calibration import Calibration
 from ..experiment.listeners import NullListener, SessionInfo, SessionListener
 from ..experiment.provenance import default_site
@@ -100,6 +101,27 @@ class JoystickOptions:
 
 
 @dataclass
+class PushOptions:
+    """``--push URL`` (``--offline``): the shared store each trial is copied to."""
+
+    #: ``postgresql://user@host/dbname``
+    url: str
+    #: run on the local store alone (push later with ``tactorbelt sync``)
+    offline: bool = False
+
+
+@dataclass
+class LslOptions:
+    """``--lsl``: LSL marker and cursor streams (tactorbelt.lsl; the run is then on the
+    wall clock)."""
+
+    #: seconds to wait for a consumer of each stream before the first trial
+    wait_s: float = 0.0
+    #: with ``wait_s``: wait for a consumer of every stream, not only the markers
+    wait_all: bool = False
+
+
+@dataclass
 class RunRequest:
     """What ``tactorbelt run`` was asked. ``None``: not given (a default, or on resume the
     session's stored value)."""
@@ -124,15 +146,12 @@ class RunRequest:
     fullscreen: bool | None = None
     screenshot_dir: Path | None = None
     joystick: JoystickOptions = field(default_factory=JoystickOptions)
-    push: str | None = None
+    #: the lab running the session (default: provenance.default_site)
     site: str | None = None
-    offline: bool = False
-    #: LSL marker and cursor streams (tactorbelt.lsl; the run is then on the wall clock)
-    lsl: bool = False
-    #: with ``lsl``: seconds to wait for a consumer of each stream before the first trial
-    lsl_wait_s: float = 0.0
-    #: with ``lsl_wait_s``: wait for a consumer of every stream, not only the markers
-    lsl_wait_all: bool = False
+    #: copy each trial to a shared store in the background (None: no push)
+    push: PushOptions | None = None
+    #: LSL marker and cursor streams (None: none)
+    lsl: LslOptions | None = None
 
 
 def resolve_db(db: str, push: str | None, study_file: Path) -> tuple[Path, str | None]:
@@ -292,10 +311,10 @@ def choose_clock(*, headless: bool, input_kind: str, belt_url: str,
 
 def resume_command(req: RunRequest) -> str:
     """The command that continues the participant's session (as a shell line)."""
-    push = ["--push", shlex.quote(req.push)] if req.push else []
+    push = ["--push", shlex.quote(req.push.url)] if req.push else []
     site = ["--site", shlex.quote(req.site)] if req.site else []
-    lsl = (["--lsl"] + (["--lsl-wait", f"{req.lsl_wait_s:g}"] if req.lsl_wait_s else [])
-           + (["--lsl-wait-all"] if req.lsl_wait_s and req.lsl_wait_all else [])
+    lsl = (["--lsl"] + (["--lsl-wait", f"{req.lsl.wait_s:g}"] if req.lsl.wait_s else [])
+           + (["--lsl-wait-all"] if req.lsl.wait_s and req.lsl.wait_all else [])
            if req.lsl else [])
     return " ".join(["tactorbelt", "run", shlex.quote(str(req.study_file)), "--participant",
                      shlex.quote(req.participant.strip()), "--db", shlex.quote(str(req.db)),
@@ -325,6 +344,7 @@ def _resolve(req: RunRequest, stored: dict[str, Any]) -> RunRequest:
     joy = dict(stored.get("joystick") or {})
     joy.update({k: v for k, v in got["joystick"].items() if v is not None})
     got["joystick"] = JoystickOptions(**joy)
+    got["push"], got["lsl"] = req.push, req.lsl
     res = RunRequest(**got)
     res.belt_url = res.belt_url or "sim"
     res.headless = bool(res.headless)
@@ -393,7 +413,7 @@ def _check_options(r: RunRequest, given: bool = False) -> None:
         parse_url(r.belt_url)
     if r.clock is not None and r.clock not in CLOCKS:
         raise ConfigError(f"unknown clock {r.clock!r}; allowed: {', '.join(CLOCKS)}")
-    if given and r.clock == "sim" and r.lsl:
+    if given and r.clock == "sim" and r.lsl is not None:
         raise ConfigError("--lsl runs on the wall clock (LSL timestamps are real times); "
                           "drop --clock sim")
     if given and r.clock == "sim" and not r.resume:
@@ -407,10 +427,10 @@ def _pick_clock(req: RunRequest, r: RunRequest, headless: bool) -> tuple[str | N
     back, nor with ``lsl``), else the default; ``lsl`` runs on the wall clock."""
     given = req.clock or ("wall" if req.realtime else None)
     keep = given if given is not None else r.clock
-    if given is None and keep == "sim" and (req.lsl or _no_sim(
+    if given is None and keep == "sim" and (req.lsl is not None or _no_sim(
             headless=headless, input_kind=str(r.input_kind), belt_url=str(r.belt_url))):
         keep = None
-    want = "wall" if req.lsl else keep
+    want = "wall" if req.lsl is not None else keep
     return keep, clock_kind(headless=headless, input_kind=str(r.input_kind),
                             belt_url=str(r.belt_url), clock=want)
 
@@ -442,8 +462,8 @@ def reuse_lines(req: RunRequest, r: RunRequest, stored: dict[str, Any],
     joy = r.joystick
     no_sim = _no_sim(headless=headless, input_kind=str(r.input_kind),
                      belt_url=str(r.belt_url))
-    clock_how = ("--lsl runs in real time" if req.lsl else "--clock wall" if clock == "sim"
-                 else "--clock sim" if no_sim is None else f"none ({no_sim})")
+    clock_how = ("--lsl runs in real time" if req.lsl is not None else "--clock wall"
+                 if clock == "sim" else "--clock sim" if no_sim is None else f"none ({no_sim})")
     window_given = req.headless is not None or (req.fullscreen is not None and not headless)
     rows: list[tuple[str, str, str, str]] = [
         ("input", str(r.input_kind),
@@ -459,7 +479,7 @@ def reuse_lines(req: RunRequest, r: RunRequest, stored: dict[str, Any],
          source(req.calibration is not None, "calibration", r.calibration),
          "--calibration FILE"),
         ("clock", f"{clock} ({'simulated time' if clock == 'sim' else 'real time'})",
-         "--lsl" if req.lsl and req.clock is None else
+         "--lsl" if req.lsl is not None and req.clock is None else
          source(req.clock is not None or bool(req.realtime), "clock", clock), clock_how),
     ]
     if kinds.input_kind(str(r.input_kind)).stick:
@@ -506,7 +526,7 @@ def run_study(req: RunRequest, *, progress: Callable[[int, int], None] | None = 
     push_lines: list[str] = []
     _check_push(req)  # before anything is written
     _check_options(req, given=True)  # what the request gives: before a store file is created
-    if req.lsl:
+    if req.lsl is not None:
         load_pylsl()  # no liblsl: an error now, before a store file is created
     with open_store(req.db) as store:
         stored = _check_session(store, req)
@@ -541,7 +561,7 @@ def run_study(req: RunRequest, *, progress: Callable[[int, int], None] | None = 
         slow_s = float(os.environ.get(SLOW_TRIAL_ENV, "0") or 0)
         pusher = _start_push(req)
         with _closing_push(pusher, req, push_lines), \
-                open_belt(r.belt_url, clock=clock, layout=study.layout_obj(),
+                devices.open_belt(r.belt_url, clock=clock, layout=study.layout_obj(),
                           **({} if calibration is None else {"calibration": calibration})
                           ) as belt:
             kwargs: dict[str, Any] = dict(seed=seed, resume=req.resume, limit=req.limit,
@@ -592,10 +612,10 @@ def _lsl(req: RunRequest, clock: Clock, belt: Any,
          note: Callable[[str], None] | None) -> LslListener | None:
     """With ``req.lsl``: the LSL observer (tactorbelt.lsl; its streams open when the
     session starts); else None."""
-    if not req.lsl:
+    if req.lsl is None:
         return None
-    return LslListener(clock, belt, wait_s=req.lsl_wait_s,
-                       wait_all=req.lsl_wait_all, report=note)
+    return LslListener(clock, belt, wait_s=req.lsl.wait_s, wait_all=req.lsl.wait_all,
+                       report=note)
 
 
 def _check_push(req: RunRequest) -> None:
@@ -604,16 +624,16 @@ def _check_push(req: RunRequest) -> None:
     (:func:`~tactorbelt.experiment.sync.check_push`)."""
     if req.push is None:
         return
-    check_url(req.push)
-    if not req.offline:
-        check_push(req.push, req.participant, req.site or default_site())
+    check_url(req.push.url)
+    if not req.push.offline:
+        check_push(req.push.url, req.participant, req.site or default_site())
 
 
 def _start_push(req: RunRequest) -> Pusher | None:
     """The background push of ``req.push`` (None without one, or offline)."""
-    if req.push is None or req.offline:
+    if req.push is None or req.push.offline:
         return None
-    return Pusher(req.db, req.push, site=req.site or default_site()).start()
+    return Pusher(req.db, req.push.url, site=req.site or default_site()).start()
 
 
 @contextlib.contextmanager
@@ -624,16 +644,17 @@ def _closing_push(pusher: Pusher | None, req: RunRequest, lines: list[str]) -> I
         yield
     finally:
         if req.push is not None:
-            sync = f"tactorbelt sync {shlex.quote(str(req.db))} {shlex.quote(req.push)}"
+            url = req.push.url
+            sync = f"tactorbelt sync {shlex.quote(str(req.db))} {shlex.quote(url)}"
             pending = None if pusher is None else pusher.close(PUSH_WAIT_S)
             if pusher is None:
                 lines.append(f"  offline: the trials are in {req.db} only; push them with "
                              f"'{sync}'")
             elif pending == 0 and pusher.error is None:
-                lines.append(f"  pushed to {req.push}")
+                lines.append(f"  pushed to {url}")
             else:
                 left = "some trials" if pending is None else f"{pending} trial(s)"
-                lines.append(f"  {left} not pushed to {req.push} yet ({pusher.error}); they "
+                lines.append(f"  {left} not pushed to {url} yet ({pusher.error}); they "
                              f"are safe in {req.db}: push them with '{sync}'")
 
 

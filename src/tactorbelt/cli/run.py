@@ -106,7 +106,15 @@ def run(ctx: click.Context, study_file: Path, participant: str, belt_url: str,
     experimenter (Ctrl-C, Esc Esc or Ctrl-Q in the window), 143 SIGTERM, 129 SIGHUP;
     the session can then be resumed with the command printed.
     """
-    from ..app.run import JoystickOptions, RunRequest, resolve_db, resume_command, run_study
+    from ..app.run import (
+        JoystickOptions,
+        LslOptions,
+        PushOptions,
+        RunRequest,
+        resolve_db,
+        resume_command,
+        run_study,
+    )
     from ..interrupts import Terminated
 
     if lsl_wait and not lsl:
@@ -120,8 +128,8 @@ def run(ctx: click.Context, study_file: Path, participant: str, belt_url: str,
     g = lambda name, value: _given(ctx, name, value)  # noqa: E731
     local, push = resolve_db(db, push, study_file)
     req = RunRequest(
-        study_file=study_file, participant=participant, db=local, push=push, site=site,
-        offline=offline,
+        study_file=study_file, participant=participant, db=local, site=site,
+        push=None if push is None else PushOptions(push, offline),
         belt_url=g("belt_url", belt_url), calibration=calibration_file,
         input_kind=input_kind, headless=headless,
         resume=resume, new_session=new_session, limit=limit, seed=seed,
@@ -129,7 +137,7 @@ def run(ctx: click.Context, study_file: Path, participant: str, belt_url: str,
         screenshot_dir=screenshot_dir,
         joystick=JoystickOptions(joystick_device, g("axes", axes), g("dead_zone", dead_zone),
                                  invert_x, invert_y),
-        lsl=lsl, lsl_wait_s=lsl_wait, lsl_wait_all=lsl_wait_all)
+        lsl=LslOptions(lsl_wait, lsl_wait_all) if lsl else None)
     try:
         with counting_progress(participant) as progress:
             outcome = run_study(req, progress=progress,
