@@ -51,7 +51,8 @@ without them load as before::
     fall_ms = 54.9
     fall_sd_ms = 0.8
 
-Pure: NumPy and the standard library (tomllib); tomli-w is imported only to save.
+Pure: NumPy and the standard library; pydantic when a file is read (its model:
+:func:`_file_model`), tomli-w when one is saved.
 """
 
 from __future__ import annotations
@@ -64,7 +65,7 @@ import tempfile
 import tomllib
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, replace
-from functools import cached_property
+from functools import cache, cached_property
 from pathlib import Path
 from typing import Any, Final
 
@@ -92,10 +93,6 @@ _MAX_TIMING_MS: Final = 60_000.0
 #: the time constants of the motor's speed rising, coasting down and braking
 #: (:class:`~tactorbelt.devices.erm.Shaper`).
 SHAPING_KEYS: Final = ("rise_tau_ms", "fall_tau_ms", "brake_tau_ms")
-_TOP_KEYS: Final = frozenset({"format", "version", "belt", "created", "tactor", "validated",
-                              "validation_method"})
-_TACTOR_KEYS: Final = frozenset({"index", "angle_deg", "start", "gain", "ceiling", "channel",
-                                 "response", *TIMING_KEYS, *SHAPING_KEYS})
 #: The highest output channel a calibration may name (``channel``).
 MAX_CHANNEL: Final = 255
 
@@ -493,94 +490,118 @@ class Calibration:
     @classmethod
     def from_toml(cls, text: str, source: str = "<calibration>") -> Calibration:
         """Parse calibration TOML text; errors name ``source`` and the field."""
-        try:
-            doc = tomllib.loads(text)
-        except tomllib.TOMLDecodeError as exc:
-            raise ConfigError(f"{source}: not valid TOML: {exc}") from None
-        return cls.from_mapping(doc, source)
+        from .._tomlmodel import read_toml
+
+        return cls.from_mapping(read_toml(text, source), source)
 
     @classmethod
     def from_mapping(cls, doc: Mapping[str, Any], source: str = "<calibration>") -> Calibration:
-        """Build a calibration from a parsed document (the TOML structure)."""
+        """Build a calibration from a parsed document (the TOML structure), validated by
+        its file model (:func:`_file_model`)."""
+        from .._tomlmodel import parse
 
-        def fail(field: str, message: str) -> ConfigError:
-            return ConfigError(f"{source}: {field}: {message}")
+        f = parse(_file_model(), doc, source, missing={
+            "tactor": "missing: add one [[tactor]] table per tactor",
+            "start": "missing (a number in [0, 1])", "ceiling": "missing (a number in [0, 1])"})
+        keys = ("start", "gain", "ceiling", "channel", *TIMING_KEYS, *SHAPING_KEYS)
+        return cls(tuple(TactorCalibration(
+            **{k: getattr(row, k) for k in keys},
+            response=tuple((float(h), float(g)) for h, g in row.response)) for row in f.tactor),
+                   validated=f.validated, validation_method=f.validation_method)
 
-        unknown = sorted(set(doc) - _TOP_KEYS)
-        if unknown:
-            raise fail(unknown[0], f"unknown key; allowed: {', '.join(sorted(_TOP_KEYS))}")
-        if "format" in doc and doc["format"] != FORMAT:
-            raise fail("format", f"must be {FORMAT!r}, got {doc['format']!r}")
-        if "version" in doc and doc["version"] != VERSION:
-            raise fail("version", f"unsupported version {doc['version']!r}; allowed: {VERSION}")
-        top: dict[str, str | None] = {}
-        for name in ("validated", "validation_method"):
-            v = doc.get(name)
-            if isinstance(v, _dt.date | _dt.time):  # a TOML date or date-time
-                v = v.isoformat()
-            if v is not None and not isinstance(v, str):
-                raise fail(name, f"must be text (or a TOML date), got {v!r}")
-            top[name] = v
-        rows = doc.get("tactor")
-        if rows is None:
-            raise fail("tactor", "missing: add one [[tactor]] table per tactor")
-        if not isinstance(rows, list) or not rows:
-            raise fail("tactor", "must be a non-empty array of tables ([[tactor]])")
-        tactors: list[TactorCalibration] = []
-        for k, row in enumerate(rows):
-            where = f"tactor[{k}]"
+
+@cache
+def _file_model() -> Any:
+    """The pydantic model of a calibration file (built when a file is first read)."""
+    from typing import Annotated
+
+    from pydantic import Field, model_validator
+
+    from .._tomlmodel import FileModel, checked, number
+
+    def fixed(want: object, message: str) -> Any:
+        def check(v: Any) -> Any:
+            if v is not None and v != want:
+                raise ValueError(message.format(v=v))
+            return v
+        return Annotated[Any, checked(check)]
+
+    def a_text(v: Any) -> str | None:
+        if isinstance(v, _dt.date | _dt.time):  # a TOML date or date-time
+            v = v.isoformat()
+        if v is not None and not isinstance(v, str):
+            raise ValueError(f"must be text (or a TOML date), got {v!r}")
+        return v
+
+    def a_channel(v: Any) -> int | None:
+        if v is not None and (isinstance(v, bool) or not isinstance(v, int)
+                              or not 0 <= v <= MAX_CHANNEL):
+            raise ValueError(f"must be an integer in 0..{MAX_CHANNEL}, got {v!r}")
+        return v
+
+    def a_response(v: Any) -> list[Any]:
+        if not isinstance(v, list):
+            raise ValueError(f"must be a list of [hz, gain] points, got {v!r}")
+        _check_response(v)
+        return v
+
+    def timing(name: str) -> Any:
+        def check(v: Any) -> float | None:
+            problem = _check_timing(name, v)
+            if problem:
+                raise ValueError(problem)
+            return _ms(v)
+        return Annotated[float | None, checked(check)]
+
+    def a_rows(v: Any) -> Any:
+        if not isinstance(v, list) or not v:
+            raise ValueError("must be a non-empty array of tables ([[tactor]])")
+        for k, row in enumerate(v):
             if not isinstance(row, Mapping):
-                raise fail(where, "must be a table with start, gain and ceiling")
-            extra = sorted(set(row) - _TACTOR_KEYS)
-            if extra:
-                raise fail(f"{where}.{extra[0]}",
-                           f"unknown key; allowed: {', '.join(sorted(_TACTOR_KEYS))}")
+                raise ValueError(f"@[{k}]@ must be a table with start, gain and ceiling")
             if "index" in row and (isinstance(row["index"], bool) or row["index"] != k):
-                raise fail(f"{where}.index",
-                           f"must be {k} (tables in tactor order), got {row['index']!r}")
-            values: dict[str, float] = {}
-            for name, lo, hi, default in (("start", 0.0, 1.0, None), ("gain", 0.0, 10.0, 1.0),
-                                          ("ceiling", 0.0, 1.0, None)):
-                if name not in row:
-                    if default is None:
-                        raise fail(f"{where}.{name}", "missing (a number in [0, 1])")
-                    values[name] = default
-                    continue
-                v = row[name]
-                if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
-                    raise fail(f"{where}.{name}", f"must be a finite number, got {v!r}")
-                ok = (lo < v <= hi) if name == "gain" else (lo <= v <= hi)
-                if not ok:
-                    allowed = "(0, 10]" if name == "gain" else "[0, 1]"
-                    raise fail(f"{where}.{name}", f"must be in {allowed}, got {v!r}")
-                values[name] = float(v)
-            if values["start"] > values["ceiling"]:
-                raise fail(f"{where}.start", f"start ({values['start']:g}) must not exceed "
-                           f"ceiling ({values['ceiling']:g})")
-            channel = row.get("channel")
-            if channel is not None and (isinstance(channel, bool) or not isinstance(channel, int)
-                                        or not 0 <= channel <= MAX_CHANNEL):
-                raise fail(f"{where}.channel",
-                           f"must be an integer in 0..{MAX_CHANNEL}, got {channel!r}")
-            response = row.get("response", [])
-            try:
-                if not isinstance(response, list):
-                    raise ConfigError(f"must be a list of [hz, gain] points, got {response!r}")
-                _check_response(response)
-            except ConfigError as exc:
-                raise fail(f"{where}.response", str(exc)) from None
-            for name in (*TIMING_KEYS, *SHAPING_KEYS):
-                problem = _check_timing(name, row.get(name))
-                if problem:
-                    raise fail(f"{where}.{name}", problem)
-            tactor = TactorCalibration(
-                **values, channel=channel,
-                response=tuple((float(h), float(g)) for h, g in response),
-                rise_tau_ms=_ms(row.get("rise_tau_ms")),
-                fall_tau_ms=_ms(row.get("fall_tau_ms")),
-                brake_tau_ms=_ms(row.get("brake_tau_ms")))
-            tactors.append(_with_timing(tactor, row))
-        return cls(tuple(tactors), **top)
+                raise ValueError(f"@[{k}].index@ must be {k} (tables in tactor order), got "
+                                 f"{row['index']!r}")
+        return v
+
+    Unit = Annotated[float, number(0.0, 1.0)]
+    Txt = Annotated[str | None, checked(a_text)]
+
+    class Row(FileModel):
+        index: Any = None
+        angle_deg: Any = None
+        start: Unit
+        gain: Annotated[float, number(0.0, 10.0, low_open=True)] = 1.0
+        ceiling: Unit
+        channel: Annotated[int | None, checked(a_channel)] = None
+        response: Annotated[list[Any], checked(a_response)] = Field(default_factory=list)
+        latency_ms: timing("latency_ms") = None  # type: ignore[valid-type]
+        latency_sd_ms: timing("latency_sd_ms") = None  # type: ignore[valid-type]
+        rise_ms: timing("rise_ms") = None  # type: ignore[valid-type]
+        rise_sd_ms: timing("rise_sd_ms") = None  # type: ignore[valid-type]
+        fall_ms: timing("fall_ms") = None  # type: ignore[valid-type]
+        fall_sd_ms: timing("fall_sd_ms") = None  # type: ignore[valid-type]
+        rise_tau_ms: timing("rise_tau_ms") = None  # type: ignore[valid-type]
+        fall_tau_ms: timing("fall_tau_ms") = None  # type: ignore[valid-type]
+        brake_tau_ms: timing("brake_tau_ms") = None  # type: ignore[valid-type]
+
+        @model_validator(mode="after")
+        def _order(self) -> Row:
+            if self.start > self.ceiling:
+                raise ValueError(f"@start@ start ({self.start:g}) must not exceed ceiling "
+                                 f"({self.ceiling:g})")
+            return self
+
+    class File(FileModel):
+        format: fixed(FORMAT, f"must be {FORMAT!r}, got {{v!r}}") = None  # type: ignore[valid-type]
+        version: fixed(VERSION, f"unsupported version {{v!r}}; allowed: {VERSION}") = None  # type: ignore[valid-type]
+        belt: Any = None
+        created: Any = None
+        validated: Txt = None
+        validation_method: Txt = None
+        tactor: Annotated[list[Row], checked(a_rows)]
+
+    return File
 
 
 def update_timing(path: str | Path, n: int,
