@@ -81,7 +81,7 @@ DEFAULT_CONNECT_TIMEOUT_S: Final = 20.0
 
 OPTIONS: Final = frozenset({
     "timeout_s", "heartbeat_ms", "calibration", "layout", "keepalive", "clock",
-    "client_factory", "scan_timeout_s", "connect_timeout_s",
+    "client_factory", "scan_timeout_s", "connect_timeout_s", "supply_v", "kick_ms",
 })
 
 #: A Bluetooth address, or the UUID macOS uses instead.

@@ -219,7 +219,7 @@ BACKENDS: dict[str, Backend] = {b.scheme: b for b in (
             options=(_TIMEOUT, _HEARTBEAT,
                      UrlOption("baudrate", int, "for real UARTs", 300, 4_000_000),
                      UrlOption("dtr", bool, "assert DTR (default 1; the board is mute "
-                               "without it)"), _DRIVE),
+                               "without it)"), _DRIVE, _SUPPLY, _KICK),
             discover="tactorbelt.devices.serial:discover", title="Serial ports",
             docs="docs/devices.md", allowed=("serial:PORT", "serial:auto"),
             actuator="ERM vibration motor driven by the tactorbelt firmware (PWM), over USB "
@@ -230,7 +230,7 @@ BACKENDS: dict[str, Backend] = {b.scheme: b for b in (
             options=(_TIMEOUT, _HEARTBEAT,
                      UrlOption("scan_timeout_s", float, "seconds to scan", 0.1, 120.0),
                      UrlOption("connect_timeout_s", float, "seconds to connect", 0.1, 120.0),
-                     _DRIVE),
+                     _DRIVE, _SUPPLY, _KICK),
             discover="tactorbelt.devices.ble:discover", title="BLE",
             docs="docs/devices.md",
             actuator="ERM vibration motor driven by the tactorbelt firmware (PWM), over "

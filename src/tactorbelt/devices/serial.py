@@ -52,7 +52,7 @@ AUTO_PROBE_TIMEOUT_S: Final = 0.3
 #: Options open_serial accepts (passed on to FirmwareBelt but ``baudrate``).
 OPTIONS: Final = frozenset(
     {"baudrate", "dtr", "timeout_s", "heartbeat_ms", "calibration", "layout", "keepalive",
-     "clock"}
+     "clock", "supply_v", "kick_ms"}
 )
 
 
