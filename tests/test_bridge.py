@@ -474,51 +474,81 @@ def test_sigterm_ends_with_143_and_the_motors_off(tmp_path: Path) -> None:
 
 
 # -- the store is the same store --------------------------------------------------------------
-def test_a_browser_session_analyses_and_exports_like_a_lab_one(tmp_path: Path) -> None:
-    """Every trial of a small study answered through the bridge: the session is
-    complete, its trials are the ones `tactorbelt run` stores for the participant, and
-    `analyze` and `export` read the store."""
+def _same(a: Any, b: Any, where: str = "") -> None:
+    """Equal JSON values, floats to 1e-9 (a response time that went through milliseconds
+    may differ from the lab's in its last bit)."""
+    if isinstance(a, dict) and isinstance(b, dict):
+        assert a.keys() == b.keys(), where
+        for k in a:
+            _same(a[k], b[k], f"{where}.{k}")
+    elif isinstance(a, list) and isinstance(b, list):
+        assert len(a) == len(b), where
+        for i, (x, y) in enumerate(zip(a, b, strict=True)):
+            _same(x, y, f"{where}[{i}]")
+    elif isinstance(a, float) and isinstance(b, float):
+        assert a == pytest.approx(b, rel=1e-9, abs=1e-12, nan_ok=True), where
+    else:
+        assert a == b, where
+
+
+def test_browser_sessions_analyse_and_export_like_lab_ones(tmp_path: Path) -> None:
+    """Two participants run through `tactorbelt run` (the model participant), then the
+    same participants through the bridge, each trial answered as the lab answered it:
+    the browser sessions are complete, store the same trials, and `analyze` gives the
+    same statistics from both stores; `export` reads the browser store."""
     study = write_study(tmp_path, name="browser", targets=6, repetitions=1, training=1,
                         training_conditions=["static"], break_every=0)
+    participants = ("P01", "P02")
+    lab = tmp_path / "lab.sqlite"
+    for pid in participants:
+        proc = tactorbelt("run", str(study), "-p", pid, "--headless", "--input", "model",
+                          "--db", str(lab))
+        assert proc.returncode == 0, proc.stderr
+    lab_rows = trials_of(lab)
+    lab_session = {s["session_id"]: s["participant"] for s in sessions_of(lab)}
+    answers = {(lab_session[r["session_id"]], r["trial_index"]): r for r in lab_rows}
     b = start_bridge(tmp_path, "--study", str(study))
 
-    async def go() -> tuple[dict[str, Any], dict[str, Any]]:
+    async def session(pid: str) -> dict[str, Any]:
         page = await Page.open(b.ws_url())
-        w = await page.request({"type": "hello", "participant": "P01"})
-        for i, t in enumerate(w["schedule"]):
+        w = await page.request({"type": "hello", "participant": pid})
+        for t in w["schedule"]:
+            lab_trial = answers[(pid, t["index"])]
             played = await page.request({"type": "play", "index": t["index"]})
-            answer = t["target"] if i % 3 else (t["target"] + 1) % t["n_targets"]
+            response = ({"target": None, "rt_ms": None} if lab_trial["status"] == "timeout"
+                        else {"angle_deg": lab_trial["response_deg"],
+                              "rt_ms": lab_trial["rt_s"] * 1000.0, "device": "mouse"})
             stored = await page.request({"type": "trial", "index": t["index"],
-                                         "play_id": played["id"],
-                                         "response": {"target": answer, "rt_ms": 600 + i,
-                                                      "device": "mouse"}})
-            assert stored["type"] == "stored", stored
+                                         "play_id": played["id"], "response": response})
+            assert stored["type"] == "stored" and stored["status"] == lab_trial["status"]
         ended = await page.request({"type": "end", "status": "completed"})
         await page.close()
-        return w, ended
+        return ended
 
     try:
-        w, ended = run(go())
+        ended = [run(session(pid)) for pid in participants]
     finally:
         rc, err = b.stop()
     assert rc == 143, err
-    assert ended["status"] == "complete"
-    lab = tmp_path / "lab.sqlite"
-    proc = tactorbelt("run", str(study), "-p", "P01", "--headless", "--input", "model",
-                      "--db", str(lab))
-    assert proc.returncode == 0, proc.stderr
+    assert [e["status"] for e in ended] == ["complete"] * 2
     keys = ("trial_index", "block", "block_index", "block_name", "condition", "repetition",
-            "target_deg", "on_tactor", "n_targets", "load")
-    browser_rows, lab_rows = trials_of(b.store), trials_of(lab)
-    assert len(browser_rows) == len(w["schedule"]) == len(lab_rows)
-    assert [tuple(r[k] for k in keys) for r in browser_rows] == [
-        tuple(r[k] for k in keys) for r in lab_rows]
-    assert sessions_of(b.store)[0]["status"] == "complete"
-    out = tmp_path / "report"
-    proc = tactorbelt("analyze", str(b.store), "-o", str(out), "--bootstrap-sims", "0")
-    assert proc.returncode == 0, proc.stderr
-    summary = json.loads((out / "summary.json").read_text())
-    assert summary  # the report was written from the browser store
+            "target_deg", "on_tactor", "n_targets", "load", "status", "response_deg",
+            "response_target_deg", "correct")
+    browser_rows = trials_of(b.store)
+    assert len(browser_rows) == len(lab_rows)
+    assert sorted(tuple(r[k] for k in keys) for r in browser_rows) == sorted(
+        tuple(r[k] for k in keys) for r in lab_rows)
+    assert [s["status"] for s in sessions_of(b.store)] == ["complete"] * 2
+    summaries = []
+    for name, db in (("browser", b.store), ("lab", lab)):
+        out = tmp_path / f"report-{name}"
+        proc = tactorbelt("analyze", str(db), "-o", str(out), "--bootstrap-sims", "0")
+        assert proc.returncode == 0, proc.stderr
+        summaries.append(json.loads((out / "summary.json").read_text()))
+    browser, lab_summary = summaries
+    for section in ("counts", "conditions", "cells", "between_accuracy_test", "tests",
+                    "contrasts", "mixed_model", "rt_mixed_model", "rt_from", "study"):
+        _same(browser[section], lab_summary[section], section)
     exported = tmp_path / "csv"
     proc = tactorbelt("export", str(b.store), "-o", str(exported))
     assert proc.returncode == 0, proc.stderr
