@@ -36,15 +36,16 @@ Validation refuses a wrong number of gains or pairs for the tactor angles, gains
 It sits below the stimulus engine that applies it (:mod:`tactorbelt.stimuli`) and the
 perceptual calibration that measures it.
 
-Pure: NumPy, the standard library (tomllib) and tactorbelt.geometry; tomli-w only to save.
+Pure: NumPy, the standard library and tactorbelt.geometry; pydantic when a file is read
+(its model: :func:`_file_model`), tomli-w when one is saved.
 """
 
 from __future__ import annotations
 
 import math
-import tomllib
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from functools import cache
 from pathlib import Path
 from typing import Any, Final
 
@@ -58,10 +59,6 @@ __all__ = ["FORMAT", "PairWarp", "WearerProfile", "isotonic"]
 
 FORMAT: Final = "tactorbelt-wearer-profile"
 VERSION: Final = 1
-_TOP_KEYS: Final = frozenset({"format", "version", "participant", "belt", "created", "law",
-                              "falloff_deg", "tactor_angles_deg", "gains", "reference_tactor",
-                              "pair", "fit"})
-_PAIR_KEYS: Final = frozenset({"index", "tactors", "intended", "rendered"})
 #: Knots of a warp closer than this (as a fraction of the gap) count as equal.
 _EPS: Final = 1e-9
 
@@ -278,87 +275,125 @@ class WearerProfile:
 
     @classmethod
     def from_toml(cls, text: str, source: str = "<wearer profile>") -> WearerProfile:
-        try:
-            doc = tomllib.loads(text)
-        except tomllib.TOMLDecodeError as exc:
-            raise ConfigError(f"{source}: not valid TOML: {exc}") from None
-        return cls.from_mapping(doc, source)
+        from ._tomlmodel import read_toml
+
+        return cls.from_mapping(read_toml(text, source), source)
 
     @classmethod
     def from_mapping(cls, doc: Mapping[str, Any], source: str = "<wearer profile>"
                      ) -> WearerProfile:
-        """Build and validate a profile from its TOML structure."""
+        """Build and validate a profile from its TOML structure (its file model:
+        :func:`_file_model`)."""
+        from ._tomlmodel import parse
 
-        def fail(where: str, message: str) -> ConfigError:
-            return ConfigError(f"{source}: {where}: {message}")
+        f = parse(_file_model(), doc, source)
+        return cls(tuple(map(float, f.tactor_angles_deg)), tuple(map(float, f.gains)),
+                   tuple(PairWarp(tuple(map(float, r.intended)), tuple(map(float, r.rendered)))
+                         for r in f.pair),
+                   participant=str(f.participant), law=f.law, falloff_deg=float(f.falloff_deg),
+                   reference_tactor=f.reference_tactor, belt=str(f.belt),
+                   created=str(f.created), fit=tuple(f.fit) if isinstance(f.fit, list) else ())
 
-        def number(v: Any) -> bool:
-            return isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
 
-        unknown = sorted(set(doc) - _TOP_KEYS)
-        if unknown:
-            raise fail(unknown[0], f"unknown key; allowed: {', '.join(sorted(_TOP_KEYS))}")
-        if doc.get("format") != FORMAT:
-            raise fail("format", f"must be {FORMAT!r}, got {doc.get('format')!r}")
-        if doc.get("version") != VERSION:
-            raise fail("version", f"unsupported version {doc.get('version')!r}; "
-                       f"allowed: {VERSION}")
-        angles = doc.get("tactor_angles_deg")
-        if not isinstance(angles, list) or len(angles) < 2 or not all(map(number, angles)):
-            raise fail("tactor_angles_deg", "must be a list of at least 2 angles (degrees)")
-        n = len(angles)
-        gains = doc.get("gains")
-        if not isinstance(gains, list) or not all(map(number, gains)):
-            raise fail("gains", "must be a list of numbers, one per tactor")
-        if len(gains) != n:
-            raise fail("gains", f"has {len(gains)} values for {n} tactors; give one gain "
-                       "per tactor")
-        for k, g in enumerate(gains):
-            if not 0.0 < g <= 10.0:
-                raise fail(f"gains[{k}]", f"must be in (0, 10], got {g!r}")
-        ref = doc.get("reference_tactor", 0)
-        if isinstance(ref, bool) or not isinstance(ref, int) or not 0 <= ref < n:
-            raise fail("reference_tactor", f"must be a tactor index in 0..{n - 1}, got {ref!r}")
-        law = doc.get("law", "paper")
-        from ._lawnames import LAWS
+@cache
+def _file_model() -> Any:
+    """The pydantic model of a wearer profile file (built when a file is first read)."""
+    from typing import Annotated
 
-        if law not in LAWS:
-            raise fail("law", f"unknown law {law!r}; allowed: {', '.join(LAWS)}")
-        falloff = doc.get("falloff_deg", 15.0)
-        if not number(falloff) or falloff <= 0:
-            raise fail("falloff_deg", f"must be a positive number of degrees, got {falloff!r}")
-        pairs = doc.get("pair")
-        if not isinstance(pairs, list):
-            raise fail("pair", "missing: add one [[pair]] table per adjacent pair")
-        if len(pairs) != n:
-            raise fail("pair", f"has {len(pairs)} tables for {n} tactors; give one [[pair]] "
-                       "per adjacent pair (pair k = tactors k and k + 1)")
-        warps: list[PairWarp] = []
-        for k, row in enumerate(pairs):
-            where = f"pair[{k}]"
+    from pydantic import Field, model_validator
+
+    from ._lawnames import LAWS
+    from ._registry import check_option
+    from ._tomlmodel import FileModel, checked, is_number
+
+    def rule(ok: Any, message: str) -> Any:
+        """A check of a key by ``ok(value)``, else ``message``."""
+        def check(v: Any) -> Any:
+            if not ok(v):
+                raise ValueError(message.format(v=v))
+            return v
+        return checked(check)
+
+    absent = Field(default=None, validate_default=True)  # checked also when absent (None)
+
+    def a_pairs(v: Any) -> Any:
+        if not isinstance(v, list):
+            raise ValueError("missing: add one [[pair]] table per adjacent pair")
+        for k, row in enumerate(v):
             if not isinstance(row, Mapping):
-                raise fail(where, "must be a table with intended and rendered")
-            extra = sorted(set(row) - _PAIR_KEYS)
-            if extra:
-                raise fail(f"{where}.{extra[0]}",
-                           f"unknown key; allowed: {', '.join(sorted(_PAIR_KEYS))}")
+                raise ValueError(f"@[{k}]@ must be a table with intended and rendered")
             if "index" in row and row["index"] != k:
-                raise fail(f"{where}.index", f"must be {k} (pairs in order), got {row['index']!r}")
-            if "tactors" in row and list(row["tactors"]) != [k, (k + 1) % n]:
-                raise fail(f"{where}.tactors", f"must be [{k}, {(k + 1) % n}], got "
-                           f"{row['tactors']!r}")
-            intended, rendered = row.get("intended", []), row.get("rendered", [])
-            if not isinstance(intended, list) or not isinstance(rendered, list):
-                raise fail(where, "intended and rendered must be lists of fractions in (0, 1)")
-            problem = _warp_problem(intended, rendered)
+                raise ValueError(f"@[{k}].index@ must be {k} (pairs in order), got "
+                                 f"{row['index']!r}")
+        return v
+
+    class Pair(FileModel):
+        index: Any = None
+        tactors: Any = None
+        intended: Any = []  # noqa: RUF012 - validated, never changed
+        rendered: Any = []  # noqa: RUF012
+
+        @model_validator(mode="after")
+        def _warp(self) -> Pair:
+            if not isinstance(self.intended, list) or not isinstance(self.rendered, list):
+                raise ValueError("intended and rendered must be lists of fractions in (0, 1)")
+            problem = _warp_problem(self.intended, self.rendered)
             if problem:
-                raise fail(f"{where}.{problem[0]}", problem[1])
-            warps.append(PairWarp(tuple(map(float, intended)), tuple(map(float, rendered))))
-        fit = doc.get("fit", [])
-        return cls(tuple(map(float, angles)), tuple(map(float, gains)), tuple(warps),
-                   participant=str(doc.get("participant", "")), law=law,
-                   falloff_deg=float(falloff), reference_tactor=ref,
-                   belt=str(doc.get("belt", "")), created=str(doc.get("created", "")),
-                   fit=tuple(fit) if isinstance(fit, list) else ())
+                raise ValueError(f"@{problem[0]}@ {problem[1]}")
+            return self
+
+    Format = Annotated[Any, rule(lambda v: v == FORMAT, f"must be {FORMAT!r}, got {{v!r}}"),
+                       absent]
+    Version = Annotated[Any, rule(lambda v: v == VERSION,
+                                  f"unsupported version {{v!r}}; allowed: {VERSION}"), absent]
+    Angles = Annotated[list[float], rule(
+        lambda v: isinstance(v, list) and len(v) >= 2 and all(map(is_number, v)),
+        "must be a list of at least 2 angles (degrees)"), absent]
+    Gains = Annotated[list[float], rule(lambda v: isinstance(v, list) and all(map(is_number, v)),
+                                        "must be a list of numbers, one per tactor"), absent]
+    Law = Annotated[str, checked(lambda v: check_option("law", v, LAWS) or v)]
+    Falloff = Annotated[Any, checked(lambda v: v if is_number(v) and v > 0 else _fail(
+        f"must be a positive number of degrees, got {v!r}"))]
+    Pairs = Annotated[list[Pair], checked(a_pairs), absent]
+
+    class File(FileModel):
+        format: Format
+        version: Version
+        tactor_angles_deg: Angles
+        gains: Gains
+        reference_tactor: Any = 0
+        law: Law = "paper"
+        falloff_deg: Falloff = 15.0
+        pair: Pairs
+        participant: Any = ""
+        belt: Any = ""
+        created: Any = ""
+        fit: Any = []  # noqa: RUF012
+
+        @model_validator(mode="after")
+        def _counts(self) -> File:
+            n = len(self.tactor_angles_deg)
+            if len(self.gains) != n:
+                raise ValueError(f"@gains@ has {len(self.gains)} values for {n} tactors; give "
+                                 "one gain per tactor")
+            for k, g in enumerate(self.gains):
+                if not 0.0 < g <= 10.0:
+                    raise ValueError(f"@gains[{k}]@ must be in (0, 10], got {g!r}")
+            ref = self.reference_tactor
+            if isinstance(ref, bool) or not isinstance(ref, int) or not 0 <= ref < n:
+                raise ValueError(f"@reference_tactor@ must be a tactor index in 0..{n - 1}, "
+                                 f"got {ref!r}")
+            if len(self.pair) != n:
+                raise ValueError(f"@pair@ has {len(self.pair)} tables for {n} tactors; give "
+                                 "one [[pair]] per adjacent pair (pair k = tactors k and k + 1)")
+            for k, row in enumerate(self.pair):
+                if row.tactors is not None and list(row.tactors) != [k, (k + 1) % n]:
+                    raise ValueError(f"@pair[{k}].tactors@ must be [{k}, {(k + 1) % n}], got "
+                                     f"{row.tactors!r}")
+            return self
+
+    return File
 
 
+def _fail(message: str) -> Any:
+    raise ValueError(message)
