@@ -6,8 +6,9 @@ push, the LSL streams, the window, a progress bar); the queries that need an ans
 (:meth:`Operator.poll` for a pause or an abort, the secondary task's presses, the
 NASA-TLX, the waits at a break and before a secondary task) go to one
 :class:`Operator` (the window; :class:`NullOperator` when nobody operates the session).
-:class:`NullListener` and :class:`NullOperator` implement every hook as nothing;
-subclass them and override what you need. :class:`NullObserver` is both (the window is).
+:class:`SessionListener` and :class:`Operator` implement every hook as nothing;
+subclass them and override what you need. :class:`SessionObserver` is both (the window
+is); ``NullListener``, ``NullOperator`` and ``NullObserver`` are their other names.
 
 Pure: imports the experiment's types only.
 """
@@ -17,7 +18,7 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from enum import StrEnum
-from typing import TYPE_CHECKING, Protocol
+from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
     from ..inputs.base import CursorSample
@@ -62,91 +63,15 @@ class SessionInfo:
     condition_order: tuple[str, ...]
 
 
-class SessionListener(Protocol):
-    """The events of a session, in the order they happen (every one optional through
-    :class:`NullListener`).
+class SessionListener:
+    """The events of a session, in the order they happen; every hook does nothing here
+    (subclass and override what you need).
 
     ``watching`` declares that the listener follows the session as it happens (a window,
     a stream, a push): the runner then sends it every cursor sample and tick, and
     commits each trial at once. A listener that only counts (:class:`Progress`) says
     False and leaves a simulated session its fast paths.
     """
-
-    watching: bool
-
-    def on_session_start(self, info: SessionInfo, schedule: list[ScheduledTrial]) -> None: ...
-    def on_block_start(self, block: str, condition: str) -> None: ...
-    def on_trial_state(self, trial: ScheduledTrial, state: TrialState, now_ns: int) -> None: ...
-    def on_tick(self, now_ns: int) -> None:
-        """A sampling step (or a wait's step) at ``now_ns`` (watching listeners only)."""
-        ...
-    def on_sample(self, sample: CursorSample) -> None:
-        """A cursor sample (watching listeners only)."""
-        ...
-    def on_command(self, command: Command, now_ns: int) -> None:
-        """The operator paused, resumed or aborted the session."""
-        ...
-    def on_skin_onset(self, trial: ScheduledTrial, skin_onset_ns: int,
-                      skin_onset_sd_ns: int) -> None:
-        """A trial's onset at the skin is known (its belt's calibration has measured
-        latencies): sent just before :meth:`on_trial_done`."""
-        ...
-    def on_trial_done(self, result: TrialResult) -> None: ...
-    def on_break(self, n_done: int, n_total: int) -> None:
-        """A break starts (the operator's :meth:`Operator.wait_break` follows)."""
-        ...
-    def on_break_end(self) -> None: ...
-    def on_task_phase(self, name: str | None, spec: TaskSpec | None, phase: str | None
-                      ) -> None:
-        """A secondary task starts (``practice`` or ``baseline`` alone, before the first
-        block with its load; ``dual`` with a test block) or ends (None, None, None)."""
-        ...
-    def on_task_item(self, item: TaskItem, onset_ns: int, spec: TaskSpec) -> None:
-        """An item will be presented at ``onset_ns`` (at least
-        :data:`~tactorbelt.tasks.TASK_LEAD_NS` ahead): schedule its sound or glyph."""
-        ...
-    def on_task_presses(self, presses: list[int]) -> None:
-        """The operator's presses of the task's button (ns, runner clock)."""
-        ...
-    def on_workload(self, info: WorkloadInfo, values: dict[str, float]) -> None:
-        """The operator's NASA-TLX answers after a test block."""
-        ...
-    def on_session_end(self, status: str) -> None: ...
-
-
-class Operator(Protocol):
-    """The queries of a session that need an answer (the window; every one answered
-    "nothing" by :class:`NullOperator`)."""
-
-    def poll(self, now_ns: int) -> Command | None:
-        """Called at every sampling step: PAUSE (motors off at once), RESUME or ABORT."""
-        ...
-    def task_presses(self, now_ns: int) -> list[int]:
-        """Response presses (ns, runner clock) of the task's button since the last call."""
-        ...
-    def ask_workload(self, info: WorkloadInfo) -> dict[str, float] | None:
-        """Ask the NASA-TLX after a test block: item -> 0..100, or None (not asked)."""
-        ...
-    def wait_break(self, n_done: int, n_total: int) -> None:
-        """A break: return when the participant is ready to go on."""
-        ...
-    def wait_task_phase(self, name: str | None, spec: TaskSpec | None,
-                        phase: str | None) -> None:
-        """After :meth:`SessionListener.on_task_phase`: return when the participant is
-        ready (the task's instructions, once per task and phase)."""
-        ...
-    def show_wait(self, title: str | None, lines: list[str]) -> bool:
-        """Show why the session waits (None: stop showing it), keep handling the
-        operator's keys; True when the operator stopped the session."""
-        ...
-
-
-class SessionObserver(SessionListener, Operator, Protocol):
-    """A listener that is also the operator (the experiment window)."""
-
-
-class NullListener:
-    """A listener that does nothing; subclass it and override what you need."""
 
     watching = True
 
@@ -160,69 +85,85 @@ class NullListener:
         pass
 
     def on_tick(self, now_ns: int) -> None:
-        pass
+        """A sampling step (or a wait's step) at ``now_ns`` (watching listeners only)."""
 
     def on_sample(self, sample: CursorSample) -> None:
-        pass
+        """A cursor sample (watching listeners only)."""
 
     def on_command(self, command: Command, now_ns: int) -> None:
-        pass
+        """The operator paused, resumed or aborted the session."""
 
     def on_skin_onset(self, trial: ScheduledTrial, skin_onset_ns: int,
                       skin_onset_sd_ns: int) -> None:
-        pass
+        """A trial's onset at the skin is known (its belt's calibration has measured
+        latencies): sent just before :meth:`on_trial_done`."""
 
     def on_trial_done(self, result: TrialResult) -> None:
         pass
 
     def on_break(self, n_done: int, n_total: int) -> None:
-        pass
+        """A break starts (the operator's :meth:`Operator.wait_break` follows)."""
 
     def on_break_end(self) -> None:
         pass
 
     def on_task_phase(self, name: str | None, spec: TaskSpec | None, phase: str | None
                       ) -> None:
-        pass
+        """A secondary task starts (``practice`` or ``baseline`` alone, before the first
+        block with its load; ``dual`` with a test block) or ends (None, None, None)."""
 
     def on_task_item(self, item: TaskItem, onset_ns: int, spec: TaskSpec) -> None:
-        pass
+        """An item will be presented at ``onset_ns`` (at least
+        :data:`~tactorbelt.tasks.TASK_LEAD_NS` ahead): schedule its sound or glyph."""
 
     def on_task_presses(self, presses: list[int]) -> None:
-        pass
+        """The operator's presses of the task's button (ns, runner clock)."""
 
     def on_workload(self, info: WorkloadInfo, values: dict[str, float]) -> None:
-        pass
+        """The operator's NASA-TLX answers after a test block."""
 
     def on_session_end(self, status: str) -> None:
         pass
 
 
-class NullOperator:
-    """An operator that never asks for anything."""
+class Operator:
+    """The queries of a session that need an answer (the window); each answers
+    "nothing" here (subclass and override what you need)."""
 
     def poll(self, now_ns: int) -> Command | None:
+        """Called at every sampling step: PAUSE (motors off at once), RESUME or ABORT."""
         return None
 
     def task_presses(self, now_ns: int) -> list[int]:
+        """Response presses (ns, runner clock) of the task's button since the last call."""
         return []
 
     def ask_workload(self, info: WorkloadInfo) -> dict[str, float] | None:
+        """Ask the NASA-TLX after a test block: item -> 0..100, or None (not asked)."""
         return None
 
     def wait_break(self, n_done: int, n_total: int) -> None:
-        pass
+        """A break: return when the participant is ready to go on."""
 
     def wait_task_phase(self, name: str | None, spec: TaskSpec | None,
                         phase: str | None) -> None:
-        pass
+        """After :meth:`SessionListener.on_task_phase`: return when the participant is
+        ready (the task's instructions, once per task and phase)."""
 
     def show_wait(self, title: str | None, lines: list[str]) -> bool:
+        """Show why the session waits (None: stop showing it), keep handling the
+        operator's keys; True when the operator stopped the session."""
         return False
 
 
-class NullObserver(NullListener, NullOperator):
-    """A listener and operator that does nothing (a base for a window)."""
+class SessionObserver(SessionListener, Operator):
+    """A listener that is also the operator (the experiment window)."""
+
+
+#: A listener, an operator and an observer that do nothing (subclass them).
+NullListener = SessionListener
+NullOperator = Operator
+NullObserver = SessionObserver
 
 
 class Progress(NullListener):
