@@ -165,7 +165,7 @@ def test_summary_json_carries_the_contract(resolution_summary: dict) -> None:
 
 def test_report_says_which_test_and_adjustment_made_each_number(resolution_summary: dict
                                                                 ) -> None:
-    from tactorbelt.analysis.report.analyze import render_html
+    from tactorbelt.analysis.report.html import render_html
 
     html = render_html(resolution_summary["summary"], {})
     contrasts = html.index("Dynamic against static at each target count")

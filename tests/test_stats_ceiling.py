@@ -119,11 +119,7 @@ def test_no_cell_at_the_bounds_no_separation() -> None:
 
 
 def test_report_shows_not_estimable_and_the_wald_test_not_valid() -> None:
-    from tactorbelt.analysis.report.analyze import (
-        _fixed_rows,
-        _separation_text,
-        _tests_table,
-    )
+    from tactorbelt.analysis.report.html import model_view
 
     frame = ceiling_frame(seed=3, participants=4)
     tr = frame.assign(is_correct=frame["correct"].astype(bool), counted=True,
@@ -136,17 +132,20 @@ def test_report_shows_not_estimable_and_the_wald_test_not_valid() -> None:
     wald = next(t for t in m["tests"] if t["method"] == "Wald")
     lrt = next(t for t in m["tests"] if t["method"] == "LRT")
     assert wald["valid"] is False and lrt["valid"] is True and np.isfinite(lrt["statistic"])
-    rows = {r[0]: r for r in _fixed_rows(m)}
-    assert "not estimable (cell condition = dynamic, on_tactor = 1" in rows[
-        "<code>on_tactor</code>"][-1]
-    assert rows["<code>conditionstatic</code>"][1] not in ("", None)
-    assert "not valid: separation" in _tests_table(m)
+    view = model_view(m)  # what the report's template shows of the model
+    rows = {r["term"]: r for r in view["fixed"]}
+    assert "not estimable (cell condition = dynamic, on_tactor = 1" in rows["on_tactor"]["note"]
+    assert rows["conditionstatic"]["note"] is None
+    assert np.isfinite(rows["conditionstatic"]["estimate"])
+    wald_row = next(t for t in view["tests"] if t["name"].startswith("Wald"))
+    assert wald_row["invalid"] and "not valid: separation" in wald_row["extra"]
     # the penalised fit is beside it, finite, named as blme names it
     sens = m["sensitivity"]
     assert sens["computed"] and "normal(sd = c(10, 2.5))" in sens["fixef_prior"]["call"]
     assert all(np.isfinite(v["estimate"]) and v["se"] < 10
                for v in sens["fixed_effects"].values())
-    assert "Sensitivity: the penalised fit" in _separation_text(m)
+    shown = view["separation"]["sensitivity"]
+    assert shown["computed"] and shown["call"] == sens["fixef_prior"]["call"]
     # the between-tactor effect does not involve the infinite terms: still estimable
     assert res.details.get("effect_estimable", True)
 
