@@ -628,3 +628,67 @@ def test_a_shared_postgresql_store(tmp_path: Path, pg_url: str) -> None:
         assert [x["input"] for x in sessions] == ["browser"]
         trials = s.trials(sessions[0]["session_id"])
         assert [(t["trial_index"], t["status"]) for t in trials] == [(0, "done")]
+
+
+def test_skin_onsets_where_the_calibration_has_latencies(tmp_path: Path) -> None:
+    """With measured latencies in the motor calibration, a play's reply carries the onset
+    at the skin on the page's clock, and the trial stores it."""
+    from tactorbelt.devices.calibration import Calibration, TactorCalibration
+
+    cal = tmp_path / "belt.toml"
+    Calibration(tuple(TactorCalibration(0.0, 1.0, 1.0, latency_ms=20.0, latency_sd_ms=0.5)
+                      for _ in range(6)), validated="2026-11-27",
+                validation_method="test").save(cal)
+    b = start_bridge(tmp_path, "--calibration", str(cal))
+
+    async def go() -> tuple[dict[str, Any], dict[str, Any]]:
+        page = await Page.open(b.ws_url())
+        w = await page.request({"type": "hello", "participant": "P01"})
+        played = await page.request({"type": "play", "index": 0})
+        await page.request({"type": "trial", "index": 0, "play_id": played["id"],
+                            "response": {"target": w["schedule"][0]["target"],
+                                         "rt_ms": 650.0}})
+        await page.close()
+        return w, played
+
+    try:
+        w, played = run(go())
+    finally:
+        b.stop()
+    assert played["skin_onset_ms"] == pytest.approx(played["onset_ms"] + 20.0, abs=1e-6)
+    assert played["skin_onset_sd_ms"] == pytest.approx(0.5)
+    row = trials_of(b.store)[0]
+    assert row["skin_onset_ns"] - row["onset_ns"] == 20_000_000
+    assert row["skin_onset_sd_ns"] == 500_000
+
+
+@pytest.mark.emulator
+def test_device_onsets_on_a_firmware_belt(tmp_path: Path, emulator_exe: Path) -> None:
+    """On a belt that reports its onsets (the firmware emulator), a play's onset is the
+    device's own, on the page's clock, and the trial stores it beside the command time."""
+    b = start_bridge(tmp_path, "--belt", "emulator")
+
+    async def go() -> tuple[dict[str, Any], dict[str, Any]]:
+        page = await Page.open(b.ws_url())
+        w = await page.request({"type": "hello", "participant": "P01"})
+        played = await page.request({"type": "play", "index": 0})
+        await page.request({"type": "trial", "index": 0, "play_id": played["id"],
+                            "response": {"target": w["schedule"][0]["target"],
+                                         "rt_ms": 650.0}})
+        await page.close()
+        return w, played
+
+    try:
+        w, played = run(go())
+    finally:
+        rc, err = b.stop()
+    assert rc == 143, err
+    assert played["onset_source"] == "device"
+    assert played["uncertainty_ms"] > w["clock"]["uncertainty_ms"]
+    row = trials_of(b.store)[0]
+    assert row["device_onset_ns"] is not None and row["onset_uncertainty_ns"] is not None
+    device_page_ms = row["device_onset_ns"] / 1e6 + w["clock"]["offset_ms"]
+    assert device_page_ms == pytest.approx(played["onset_ms"], abs=1e-3)
+    assert played["command_ms"] == pytest.approx(row["onset_ns"] / 1e6
+                                                 + w["clock"]["offset_ms"], abs=1e-3)
+    assert row["acquired_ns"] - row["device_onset_ns"] == 650_000_000
