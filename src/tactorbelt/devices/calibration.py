@@ -481,7 +481,7 @@ class Calibration:
                 field is missing or out of range; the message names the file and the
                 field (``cal.toml: tactor[2].start: ...``).
         """
-        from .._textfile import read_user_text
+        from .._files import read_user_text
 
         p = Path(path)
         text = read_user_text(p, "calibration file")
@@ -490,7 +490,7 @@ class Calibration:
     @classmethod
     def from_toml(cls, text: str, source: str = "<calibration>") -> Calibration:
         """Parse calibration TOML text; errors name ``source`` and the field."""
-        from .._tomlmodel import read_toml
+        from .._files import read_toml
 
         return cls.from_mapping(read_toml(text, source), source)
 
@@ -498,7 +498,7 @@ class Calibration:
     def from_mapping(cls, doc: Mapping[str, Any], source: str = "<calibration>") -> Calibration:
         """Build a calibration from a parsed document (the TOML structure), validated by
         its file model (:func:`_file_model`)."""
-        from .._tomlmodel import parse
+        from .._files.model import parse
 
         f = parse(_file_model(), doc, source, missing={
             "tactor": "missing: add one [[tactor]] table per tactor",
@@ -517,7 +517,7 @@ def _file_model() -> Any:
 
     from pydantic import Field, model_validator
 
-    from .._tomlmodel import FileModel, checked, number
+    from .._files.model import FileModel, checked, number
 
     def fixed(want: object, message: str) -> Any:
         def check(v: Any) -> Any:
@@ -623,7 +623,7 @@ def update_timing(path: str | Path, n: int,
         ConfigError: the file is not a calibration, has another number of tactors than
             ``n``, or cannot be written.
     """
-    from .._textfile import read_user_text
+    from .._files import read_user_text
 
     p = Path(path)
     created: str | None = None

@@ -37,7 +37,7 @@ It sits below the stimulus engine that applies it (:mod:`tactorbelt.stimuli`) an
 perceptual calibration that measures it.
 
 Pure: NumPy, the standard library and tactorbelt.geometry; pydantic when a file is read
-(its model: :func:`_file_model`), tomli-w when one is saved.
+(its model: :mod:`.file`), tomli-w when one is saved.
 """
 
 from __future__ import annotations
@@ -45,15 +45,14 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from functools import cache
 from pathlib import Path
 from typing import Any, Final
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ._errors import ConfigError
-from .geometry import Layout, normalize
+from .._errors import ConfigError
+from ..geometry import Layout, normalize
 
 __all__ = ["FORMAT", "PairWarp", "WearerProfile", "isotonic"]
 
@@ -268,14 +267,14 @@ class WearerProfile:
     @classmethod
     def load(cls, path: str | Path) -> WearerProfile:
         """Read a profile file; errors name the file and the field."""
-        from ._textfile import read_user_text
+        from .._files import read_user_text
 
         p = Path(path)
         return cls.from_toml(read_user_text(p, "wearer profile"), source=str(p))
 
     @classmethod
     def from_toml(cls, text: str, source: str = "<wearer profile>") -> WearerProfile:
-        from ._tomlmodel import read_toml
+        from .._files import read_toml
 
         return cls.from_mapping(read_toml(text, source), source)
 
@@ -283,117 +282,14 @@ class WearerProfile:
     def from_mapping(cls, doc: Mapping[str, Any], source: str = "<wearer profile>"
                      ) -> WearerProfile:
         """Build and validate a profile from its TOML structure (its file model:
-        :func:`_file_model`)."""
-        from ._tomlmodel import parse
+        :class:`.file.File`)."""
+        from .._files.model import parse
+        from .file import File
 
-        f = parse(_file_model(), doc, source)
+        f = parse(File, doc, source)
         return cls(tuple(map(float, f.tactor_angles_deg)), tuple(map(float, f.gains)),
                    tuple(PairWarp(tuple(map(float, r.intended)), tuple(map(float, r.rendered)))
                          for r in f.pair),
                    participant=str(f.participant), law=f.law, falloff_deg=float(f.falloff_deg),
                    reference_tactor=f.reference_tactor, belt=str(f.belt),
                    created=str(f.created), fit=tuple(f.fit) if isinstance(f.fit, list) else ())
-
-
-@cache
-def _file_model() -> Any:
-    """The pydantic model of a wearer profile file (built when a file is first read)."""
-    from typing import Annotated
-
-    from pydantic import Field, model_validator
-
-    from ._lawnames import LAWS
-    from ._registry import check_option
-    from ._tomlmodel import FileModel, checked, is_number
-
-    def rule(ok: Any, message: str) -> Any:
-        """A check of a key by ``ok(value)``, else ``message``."""
-        def check(v: Any) -> Any:
-            if not ok(v):
-                raise ValueError(message.format(v=v))
-            return v
-        return checked(check)
-
-    absent = Field(default=None, validate_default=True)  # checked also when absent (None)
-
-    def a_pairs(v: Any) -> Any:
-        if not isinstance(v, list):
-            raise ValueError("missing: add one [[pair]] table per adjacent pair")
-        for k, row in enumerate(v):
-            if not isinstance(row, Mapping):
-                raise ValueError(f"@[{k}]@ must be a table with intended and rendered")
-            if "index" in row and row["index"] != k:
-                raise ValueError(f"@[{k}].index@ must be {k} (pairs in order), got "
-                                 f"{row['index']!r}")
-        return v
-
-    class Pair(FileModel):
-        index: Any = None
-        tactors: Any = None
-        intended: Any = []  # noqa: RUF012 - validated, never changed
-        rendered: Any = []  # noqa: RUF012
-
-        @model_validator(mode="after")
-        def _warp(self) -> Pair:
-            if not isinstance(self.intended, list) or not isinstance(self.rendered, list):
-                raise ValueError("intended and rendered must be lists of fractions in (0, 1)")
-            problem = _warp_problem(self.intended, self.rendered)
-            if problem:
-                raise ValueError(f"@{problem[0]}@ {problem[1]}")
-            return self
-
-    Format = Annotated[Any, rule(lambda v: v == FORMAT, f"must be {FORMAT!r}, got {{v!r}}"),
-                       absent]
-    Version = Annotated[Any, rule(lambda v: v == VERSION,
-                                  f"unsupported version {{v!r}}; allowed: {VERSION}"), absent]
-    Angles = Annotated[list[float], rule(
-        lambda v: isinstance(v, list) and len(v) >= 2 and all(map(is_number, v)),
-        "must be a list of at least 2 angles (degrees)"), absent]
-    Gains = Annotated[list[float], rule(lambda v: isinstance(v, list) and all(map(is_number, v)),
-                                        "must be a list of numbers, one per tactor"), absent]
-    Law = Annotated[str, checked(lambda v: check_option("law", v, LAWS) or v)]
-    Falloff = Annotated[Any, checked(lambda v: v if is_number(v) and v > 0 else _fail(
-        f"must be a positive number of degrees, got {v!r}"))]
-    Pairs = Annotated[list[Pair], checked(a_pairs), absent]
-
-    class File(FileModel):
-        format: Format
-        version: Version
-        tactor_angles_deg: Angles
-        gains: Gains
-        reference_tactor: Any = 0
-        law: Law = "paper"
-        falloff_deg: Falloff = 15.0
-        pair: Pairs
-        participant: Any = ""
-        belt: Any = ""
-        created: Any = ""
-        fit: Any = []  # noqa: RUF012
-
-        @model_validator(mode="after")
-        def _counts(self) -> File:
-            n = len(self.tactor_angles_deg)
-            if len(self.gains) != n:
-                raise ValueError(f"@gains@ has {len(self.gains)} values for {n} tactors; give "
-                                 "one gain per tactor")
-            for k, g in enumerate(self.gains):
-                if not 0.0 < g <= 10.0:
-                    raise ValueError(f"@gains[{k}]@ must be in (0, 10], got {g!r}")
-            ref = self.reference_tactor
-            if isinstance(ref, bool) or not isinstance(ref, int) or not 0 <= ref < n:
-                raise ValueError(f"@reference_tactor@ must be a tactor index in 0..{n - 1}, "
-                                 f"got {ref!r}")
-            if len(self.pair) != n:
-                raise ValueError(f"@pair@ has {len(self.pair)} tables for {n} tactors; give "
-                                 "one [[pair]] per adjacent pair (pair k = tactors k and k + 1)")
-            for k, row in enumerate(self.pair):
-                if row.tactors is not None and list(row.tactors) != [k, (k + 1) % n]:
-                    raise ValueError(f"@pair[{k}].tactors@ must be [{k}, {(k + 1) % n}], got "
-                                     f"{row.tactors!r}")
-            return self
-
-    return File
-
-
-def _fail(message: str) -> Any:
-    raise ValueError(message)

@@ -1,4 +1,4 @@
-"""TOML files read through pydantic models; an error names the file and the field.
+"""A user's TOML file read through a pydantic model; an error names the file and the field.
 
 A file's model (:class:`FileModel`: no unknown keys) declares its keys; a check with a
 wording of its own raises ValueError in a validator, and ``"@sub@ message"`` puts the
@@ -9,23 +9,22 @@ document and turns the first error into ``ConfigError("FILE: field: message")``
 ``unknown key; allowed: ...``, a missing one what ``missing`` says of it.
 
 Used by the motor calibration (:mod:`tactorbelt.devices.calibration`) and the wearer
-profile (:mod:`tactorbelt.wearer`), which import it when they read a file (pydantic is
-not imported with them). Imports pydantic, the standard library and tactorbelt._errors.
+profile (:mod:`tactorbelt.wearer.file`) when they read a file (pydantic is not imported
+with them). Imports pydantic, the standard library and tactorbelt._errors.
 """
 
 from __future__ import annotations
 
 import math
-import tomllib
 import typing
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any, TypeVar
 
 from pydantic import BaseModel, BeforeValidator, ConfigDict, ValidationError
 
-from ._errors import ConfigError
+from .._errors import ConfigError
 
-__all__ = ["FileModel", "checked", "number", "parse", "read_toml"]
+__all__ = ["FileModel", "checked", "is_number", "number", "parse"]
 
 M = TypeVar("M", bound=BaseModel)
 
@@ -34,14 +33,6 @@ class FileModel(BaseModel):
     """A table of a file: no unknown keys; types are checked by the validators."""
 
     model_config = ConfigDict(extra="forbid", frozen=True)
-
-
-def read_toml(text: str, source: str) -> dict[str, Any]:
-    """The TOML document ``text``; ConfigError ``{source}: not valid TOML: ...``."""
-    try:
-        return tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"{source}: not valid TOML: {exc}") from None
 
 
 def is_number(v: Any) -> bool:
