@@ -209,9 +209,9 @@ def main() -> None:
             info, answers = browser_session(driver, bridge.page_url("P01", message_ms=50),
                                             timeout=900)
             session_s = time.perf_counter() - t0
-        uncertainties = [float(info["welcome"]["clock"]["uncertainty_ms"])]
-        # more handshakes: page loads of other participants, on a store of their own
-        with serve(study, tmp / "handshakes.sqlite") as bridge, chromium() as driver:
+            uncertainties = [float(info["welcome"]["clock"]["uncertainty_ms"])]
+            # more handshakes: page loads of other participants (sessions with no trial,
+            # which the compared parts of the analysis do not count)
             for k in range(args.loads):
                 uncertainties.append(handshake(driver, bridge.page_url(f"H{k + 1:02d}")))
         if args.keep:
