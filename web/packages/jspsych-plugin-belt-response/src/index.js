@@ -12,7 +12,8 @@ const info = {
   parameters: {
     /** The targets: [{target: K, angle_deg: A}], as the study's layout numbers them. */
     targets: { type: ParameterType.COMPLEX, array: true, default: undefined },
-    /** The schedule's trial this answers (sent in the trial message); null: not stored. */
+    /** The schedule's trial this answers (sent in the trial message with the last play's id;
+     *  the bridge checks that play was this trial's stimulus); null: nothing is stored. */
     index: { type: ParameterType.INT, default: null },
     /** A target drawn highlighted (training: its location is shown). */
     highlight_target: { type: ParameterType.INT, default: null },
@@ -126,8 +127,13 @@ class BeltResponsePlugin {
     const box = display_element.querySelector(".tactorbelt-response");
     const shownMs = now();
     const lastPlay = bridge?.lastPlay ?? null;
+    // the play this screen answers: the last one, unless it was another schedule trial's
+    // (a play by target or angle may answer a schedule trial: the bridge checks they agree)
+    const playedIndex = lastPlay?.request?.index;
     const play =
-      lastPlay && (trial.index == null || lastPlay.request?.index === trial.index) ? lastPlay : null;
+      lastPlay && (trial.index == null || playedIndex == null || playedIndex === trial.index)
+        ? lastPlay
+        : null;
 
     let done = false;
     let rafId = null;

@@ -71,6 +71,22 @@ test("without an index nothing is stored; the answer stops the motors", async ()
   assert.equal(jsPsych.data.get().values()[0].response, 3);
 });
 
+test("a play by target answers a schedule trial with its play id; another trial's play does not", async () => {
+  const { state, client } = await session();
+  await client.play({ target: 5, condition: "static" });
+  let run = await screen({ index: 1 });
+  run.display.querySelector('[data-target="5"]').dispatchEvent(new window.MouseEvent("click", { bubbles: true }));
+  await run.finished;
+  assert.equal(state.trials[0].play_id, client.lastPlay.id);
+  assert.equal(typeof state.trials[0].response.rt_ms, "number");
+  await client.play({ index: 0 });
+  run = await screen({ index: 1 });
+  run.display.querySelector('[data-target="5"]').dispatchEvent(new window.MouseEvent("click", { bubbles: true }));
+  await run.finished;
+  assert.equal(state.trials[1].play_id, null); // the bridge then refuses it: not played
+  assert.equal(state.trials[1].response.rt_ms, null);
+});
+
 test("a touch answers with device touch", async () => {
   const { state } = await session();
   const { display, finished } = await screen({});

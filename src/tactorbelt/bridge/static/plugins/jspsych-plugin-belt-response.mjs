@@ -43,7 +43,8 @@ var info = {
   parameters: {
     /** The targets: [{target: K, angle_deg: A}], as the study's layout numbers them. */
     targets: { type: ParameterType.COMPLEX, array: true, default: void 0 },
-    /** The schedule's trial this answers (sent in the trial message); null: not stored. */
+    /** The schedule's trial this answers (sent in the trial message with the last play's id;
+     *  the bridge checks that play was this trial's stimulus); null: nothing is stored. */
     index: { type: ParameterType.INT, default: null },
     /** A target drawn highlighted (training: its location is shown). */
     highlight_target: { type: ParameterType.INT, default: null },
@@ -136,7 +137,8 @@ var BeltResponsePlugin = class {
     const box = display_element.querySelector(".tactorbelt-response");
     const shownMs = now();
     const lastPlay = bridge?.lastPlay ?? null;
-    const play = lastPlay && (trial.index == null || lastPlay.request?.index === trial.index) ? lastPlay : null;
+    const playedIndex = lastPlay?.request?.index;
+    const play = lastPlay && (trial.index == null || playedIndex == null || playedIndex === trial.index) ? lastPlay : null;
     let done = false;
     let rafId = null;
     let timer = null;
