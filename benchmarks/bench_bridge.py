@@ -17,7 +17,11 @@ not only its claimed bound. What a real browser adds (its event loop, its
   a ``play`` to the onset the bridge reports on the page's clock (the belt's command
   time on the sim belt), over ``--plays`` plays of the paper schedule's stimuli, each
   answered (``trial``) so the store writes between plays as in a session;
-  ``bridge_play_reply_p99_ms``: send to the reply's arrival (what the page waits).
+  ``bridge_play_reply_p99_ms``: send to the reply's arrival (what the page waits);
+  ``bridge_play_to_receipt_p99_ms`` the part before the bridge read the request (the
+  loopback and the bridge's wake-up) and ``bridge_receipt_to_onset_p99_ms`` the bridge's
+  own part (its reply's ``received_ms`` to the onset). ``--gap-ms`` waits between trials
+  as a study's response and interval do (plays far apart wake an idle process).
 
 Prints one JSON object as its last line. Run alone:
 ``.venv/bin/python benchmarks/bench_bridge.py`` (about 15 s).
@@ -80,7 +84,8 @@ class _Page:
         return reply, sent, got
 
 
-async def _measure(ws_url: str, handshakes: int, plays: int) -> dict[str, float]:
+async def _measure(ws_url: str, handshakes: int, plays: int, gap_ms: float
+                   ) -> dict[str, float]:
     from websockets.asyncio.client import connect
 
     unc: list[float] = []
@@ -94,6 +99,8 @@ async def _measure(ws_url: str, handshakes: int, plays: int) -> dict[str, float]
             await page.request({"type": "end", "status": "aborted"})
     to_onset: list[float] = []
     reply: list[float] = []
+    transport: list[float] = []
+    own: list[float] = []
     async with connect(ws_url) as ws:
         page = _Page(ws)
         w, _, _ = await page.request({"type": "hello", "participant": "P01"})
@@ -105,10 +112,14 @@ async def _measure(ws_url: str, handshakes: int, plays: int) -> dict[str, float]
                 raise SystemExit(f"play {i}: {played}")
             to_onset.append(played["onset_ms"] - sent)
             reply.append(got - sent)
+            transport.append(played["received_ms"] - sent)
+            own.append(played["onset_ms"] - played["received_ms"])
             await page.request({"type": "trial", "index": t["index"],
                                 "play_id": played["id"],
                                 "response": {"target": t["target"], "rt_ms": 700.0,
                                              "device": "mouse"}})
+            if gap_ms:
+                await asyncio.sleep(gap_ms / 1000)
     u, e = np.array(unc), np.array(err)
     return {
         "bridge_handshake_uncertainty_ms": float(np.median(u)),
@@ -118,6 +129,8 @@ async def _measure(ws_url: str, handshakes: int, plays: int) -> dict[str, float]
         "bridge_play_to_onset_p50_ms": float(np.percentile(to_onset, 50)),
         "bridge_play_to_onset_p99_ms": float(np.percentile(to_onset, 99)),
         "bridge_play_reply_p99_ms": float(np.percentile(reply, 99)),
+        "bridge_play_to_receipt_p99_ms": float(np.percentile(transport, 99)),
+        "bridge_receipt_to_onset_p99_ms": float(np.percentile(own, 99)),
         "bridge_plays": float(len(to_onset)),
     }
 
@@ -126,6 +139,9 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--handshakes", type=int, default=20)
     ap.add_argument("--plays", type=int, default=288)
+    ap.add_argument("--gap-ms", type=float, default=0.0,
+                    help="Wait this long after each trial before the next play (a study's "
+                         "response and ITI; 0: back to back).")
     args = ap.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         proc = subprocess.Popen(
@@ -141,7 +157,7 @@ def main() -> None:
             hostport = url.split("//", 1)[1].split("/", 1)[0]
             token = url.rsplit("token=", 1)[1]
             figures = asyncio.run(_measure(f"ws://{hostport}/ws?token={token}",
-                                           args.handshakes, args.plays))
+                                           args.handshakes, args.plays, args.gap_ms))
         finally:
             proc.terminate()
             try:

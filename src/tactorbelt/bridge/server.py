@@ -184,7 +184,7 @@ class _Page:
         self._seq = 0
         self.last_pong_ns = time.perf_counter_ns()
         self._heartbeat: asyncio.Task[None] | None = None
-        self._queue: asyncio.Queue[dict[str, Any]] = asyncio.Queue()
+        self._queue: asyncio.Queue[tuple[dict[str, Any], int]] = asyncio.Queue()
         self.closed_reason: str | None = None
         self.remote = str(ws.remote_address[0]) if ws.remote_address else "?"
 
@@ -207,7 +207,7 @@ class _Page:
                 if msg["type"] == "pong":
                     self._pong(msg, t_recv)
                 else:
-                    self._queue.put_nowait(msg)
+                    self._queue.put_nowait((msg, t_recv))
         finally:
             worker.cancel()
             with contextlib.suppress(BaseException):
@@ -217,10 +217,10 @@ class _Page:
 
     async def _work(self) -> None:
         while True:
-            msg = await self._queue.get()
+            msg, t_recv = await self._queue.get()
             rid = request_id(msg)
             try:
-                reply = await self.handle(msg)
+                reply = await self.handle(msg, t_recv)
             except TactorbeltError as exc:
                 reply = error_reply(rid, str(exc))
             except Exception as exc:  # never a crash: the page hears what went wrong
@@ -304,14 +304,14 @@ class _Page:
             await asyncio.sleep(step)
 
     # -- requests ---------------------------------------------------------------------------
-    async def handle(self, msg: dict[str, Any]) -> dict[str, Any] | None:
+    async def handle(self, msg: dict[str, Any], t_recv: int) -> dict[str, Any] | None:
         kind = msg["type"]
         if kind in ("play", "stop", "trial", "end") and request_id(msg) is None:
             raise MessageError(f"{kind}: needs an integer 'id'")
         if kind == "hello":
             return await self.hello(msg)
         if kind == "play":
-            return await self.play(msg)
+            return await self.play(msg, t_recv)
         if kind == "stop":
             await self.bridge.stop_motors(self)
             return {"type": "stopped", "id": request_id(msg)}
@@ -376,7 +376,7 @@ class _Page:
                 sp.period_s, sp.transit_s, profile=self.profile)
         return stim, float(sp.max_presentation_s)
 
-    async def play(self, msg: dict[str, Any]) -> dict[str, Any]:
+    async def play(self, msg: dict[str, Any], t_recv: int) -> dict[str, Any]:
         from ..experiment.runner import skin_latency
 
         rid = request_id(msg)
@@ -444,6 +444,7 @@ class _Page:
         return {"type": "played", "id": rid, "onset_ms": clock.to_page_ms(onset.best_ns),
                 "onset_source": "device" if onset.device_ns is not None else "host",
                 "command_ms": clock.to_page_ms(onset.onset_ns),
+                "received_ms": clock.to_page_ms(t_recv),
                 "skin_onset_ms": None if skin is None else clock.to_page_ms(skin[0]),
                 "skin_onset_sd_ms": None if skin is None else skin[1] / 1e6,
                 "uncertainty_ms": unc_ms, "duration_ms": duration_s * 1000.0,
