@@ -196,6 +196,30 @@ def test_a_reload_resumes_and_every_trial_is_still_stored_once(bridge: Bridge, d
     assert [t["trial_index"] for t in trials] == list(range(12))
 
 
+@needs_browser
+def test_a_touch_screen_tap_answers_with_device_touch(bridge: Bridge, driver: Any,
+                                                     paper_run: Any) -> None:
+    from selenium.webdriver.common.actions import interaction
+    from selenium.webdriver.common.actions.action_builder import ActionBuilder
+    from selenium.webdriver.common.actions.pointer_input import PointerInput
+    from selenium.webdriver.common.by import By
+
+    driver.get(bridge.page_url("P07", message_ms=50))
+    assert _wait(lambda: driver.find_elements(By.CSS_SELECTOR, "[data-target]"), 30)
+    target = driver.find_elements(By.CSS_SELECTOR, "[data-target]")[1]
+    k = int(target.get_attribute("data-target"))
+    finger = PointerInput(interaction.POINTER_TOUCH, "finger")
+    actions = ActionBuilder(driver, mouse=finger)
+    actions.pointer_action.move_to(target).pointer_down().pointer_up()
+    actions.perform()
+    values = "return window.tactorbelt.jsPsych.data.get().filter({tactorbelt: 'response'}).values()"
+    assert _wait(lambda: driver.execute_script(values), 20)
+    (answer,) = driver.execute_script(values)
+    assert answer["device"] == "touch" and answer["stored"] is True
+    assert answer["response"] == k
+    driver.get("about:blank")
+
+
 # -- refusals ------------------------------------------------------------------------------
 
 _OPEN_SOCKET = """
