@@ -692,3 +692,33 @@ def test_device_onsets_on_a_firmware_belt(tmp_path: Path, emulator_exe: Path) ->
     assert played["command_ms"] == pytest.approx(row["onset_ns"] / 1e6
                                                  + w["clock"]["offset_ms"], abs=1e-3)
     assert row["acquired_ns"] - row["device_onset_ns"] == 650_000_000
+
+
+def test_a_killed_bridge_loses_no_answered_trial(tmp_path: Path) -> None:
+    """Every answered trial is committed when its reply comes: a bridge killed outright
+    (SIGKILL: no cleanup at all) keeps them, and the participant's page resumes the
+    session on a new bridge with those trials done."""
+    b = start_bridge(tmp_path)
+
+    async def answer(bridge: Bridge, n: int) -> dict[str, Any]:
+        page = await Page.open(bridge.ws_url())
+        w = await page.request({"type": "hello", "participant": "P04"})
+        for t in [t for t in w["schedule"] if t["index"] not in w["done"]][:n]:
+            played = await page.request({"type": "play", "index": t["index"]})
+            stored = await page.request({"type": "trial", "index": t["index"],
+                                         "play_id": played["id"],
+                                         "response": {"target": t["target"], "rt_ms": 500}})
+            assert stored["type"] == "stored"
+        return w
+
+    first = run(answer(b, 3))
+    b.proc.kill()
+    b.proc.communicate(timeout=DEADLINE_S)
+    b2 = start_bridge(tmp_path)
+    try:
+        second = run(answer(b2, 0))
+    finally:
+        b2.stop()
+    assert second["resumed"] is True and second["session_id"] == first["session_id"]
+    assert second["done"] == [0, 1, 2]
+    assert [r["trial_index"] for r in trials_of(b2.store)] == [0, 1, 2]
