@@ -149,7 +149,7 @@ class Page:
         return await asyncio.wait_for(fut, DEADLINE_S)
 
     async def raw(self, text: str) -> dict[str, Any]:
-        """Send text that has no usable id; the error reply (id null)."""
+        """Send text the bridge cannot parse; its error reply."""
         await self.ws.send(text)
         return await asyncio.wait_for(self._errors.get(), DEADLINE_S)
 
@@ -408,6 +408,7 @@ def test_malformed_and_unknown_messages_get_an_error_reply(bridge: Bridge) -> No
     assert all(r["type"] == "error" and r["id"] is None for r in raw[:3]), raw
     assert "malformed JSON" in raw[0]["error"]
     assert "unknown message type 'explode'" in raw[3]["error"]
+    assert raw[3]["id"] == 4  # an unknown type's error still names the request
     assert all(r["type"] == "error" and isinstance(r["error"], str) for r in bad), bad
     assert [r["id"] for r in bad] == list(range(1, len(bad) + 1))
     assert "'target' must be in 0..23" in bad[1]["error"]

@@ -44,7 +44,12 @@ MAX_MESSAGE_BYTES = 64 * 1024
 
 class MessageError(ConfigError):
     """A message the bridge cannot act on: malformed JSON, a missing or wrong field, an
-    unknown type. The text is sent back to the page (``{"type": "error", ...}``)."""
+    unknown type. The text is sent back to the page (``{"type": "error", ...}``), with
+    the request's ``id`` when it had a usable one (:attr:`rid`)."""
+
+    def __init__(self, message: str, rid: int | None = None) -> None:
+        super().__init__(message)
+        self.rid = rid
 
 
 def parse(text: str | bytes) -> dict[str, Any]:
@@ -66,9 +71,10 @@ def parse(text: str | bytes) -> dict[str, Any]:
         raise MessageError(f"a message must be a JSON object, got {type(msg).__name__}")
     kind = msg.get("type")
     if not isinstance(kind, str):
-        raise MessageError("a message needs a string \"type\"")
+        raise MessageError("a message needs a string \"type\"", request_id(msg))
     if kind not in PAGE_TYPES:
-        raise MessageError(f"unknown message type {kind!r}; allowed: {', '.join(PAGE_TYPES)}")
+        raise MessageError(f"unknown message type {kind!r}; allowed: {', '.join(PAGE_TYPES)}",
+                           request_id(msg))
     return msg
 
 

@@ -202,7 +202,7 @@ class _Page:
                 try:
                     msg = parse(raw)
                 except MessageError as exc:
-                    await self.send(error_reply(None, str(exc)))
+                    await self.send(error_reply(exc.rid, str(exc)))
                     continue
                 if msg["type"] == "pong":
                     self._pong(msg, t_recv)
