@@ -47,7 +47,7 @@ MISSING = browser_missing()
 needs_browser = pytest.mark.skipif(MISSING is not None, reason=MISSING or "")
 
 # Chromium gives pages performance.now() in steps of 100 us (5 us when cross-origin
-# isolated): an onset on the page clock is within the clock's uncertainty plus one step
+# isolated): the handshake's pong stamps and the page's own stamps may each be a step off
 PAGE_CLOCK_STEP_MS = 0.1
 
 
@@ -155,7 +155,7 @@ def test_onsets_are_on_the_page_clock_within_the_handshake(bridge: Bridge,
     stored = {t["trial_index"]: t for t in trials}
     stimuli = paper_run.of_type("stimulus")
     assert len(stimuli) == 12
-    tol = clock["uncertainty_ms"] + PAGE_CLOCK_STEP_MS
+    tol = clock["uncertainty_ms"] + 2 * PAGE_CLOCK_STEP_MS
     for s in stimuli:
         t = stored[s["index"]]
         assert s["clock_offset_ms"] == clock["offset_ms"]
