@@ -5,10 +5,11 @@ served from ``static/``) play stimuli on a belt, with onsets on the page's clock
 store each trial in the same store ``tactorbelt run`` writes. :func:`serve` runs it;
 :class:`BridgeConfig` says what it serves.
 
-The modules: :mod:`.server` (HTTP, the WebSocket door, the pages and their sessions),
-:mod:`.messages` (parsing a page's messages, the clock handshake; pure), :mod:`.belt`
-(the belt on one thread). Sessions and trials are stored through the runner's session
-seam (:class:`tactorbelt.experiment.recorder.SessionRecorder`).
+The modules: :mod:`.server` (the WebSocket door, the pages and their sessions,
+heartbeats, signals), :mod:`.messages` (parsing a page's messages, the clock handshake;
+pure), :mod:`.http` (the static files and ``/study.json``), :mod:`.belt` (the belt on one
+thread). Sessions and trials are stored through the runner's session seam
+(:class:`tactorbelt.experiment.recorder.SessionRecorder`).
 
 Imports nothing at import time beyond this docstring's names (lazily).
 """

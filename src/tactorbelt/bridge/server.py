@@ -43,7 +43,6 @@ import errno
 import json
 import logging
 import math
-import mimetypes
 import re
 import secrets
 import signal
@@ -58,6 +57,7 @@ from urllib.parse import parse_qs
 from .._errors import ConfigError, StoreError, TactorbeltError
 from ..interrupts import Terminated
 from .belt import BeltPort, Onset
+from .http import content_type, response, static_file, study_json
 from .messages import (
     MAX_MESSAGE_BYTES,
     ClockEstimate,
@@ -669,31 +669,6 @@ class _Bridge:
                 "angle_deg": t.target_deg, "on_tactor": t.on_tactor,
                 "repetition": t.repetition, "load": t.load, "training": t.block == "training"}
 
-    def study_json(self) -> dict[str, Any]:
-        """What the page needs of the study to draw and run it."""
-        from ..geometry import TargetSet
-
-        study = self.config.study
-        layout = self.layout
-        counts = sorted({study.targets.count, *study.target_counts()})
-        targets = {}
-        for n in counts:
-            on = TargetSet.even(n).on_tactor(layout)
-            targets[str(n)] = [{"target": k, "angle_deg": k * 360.0 / n,
-                                "on_tactor": bool(on[k])} for k in range(n)]
-        return {
-            "name": study.name, "description": study.description,
-            "file": self.config.study_path,
-            "layout": {"tactors": layout.n, "angles_deg": list(layout.angles_deg)},
-            "targets": targets[str(study.targets.count)],
-            "target_sets": targets,
-            "conditions": sorted({b.condition for b in study.test}
-                                 | set(study.training.conditions)),
-            "blocks": [{"name": b.name, "condition": b.condition,
-                        "n_targets": study.block_n_targets(b)} for b in study.test],
-            "study": study.model_dump(mode="json"),
-        }
-
     # -- HTTP and the WebSocket door --------------------------------------------------------
     def http(self, connection: ServerConnection, request: Request) -> Response | None:
         path, _, query = request.path.partition("?")
@@ -708,14 +683,15 @@ class _Bridge:
                 log.warning("bridge: refused /study.json without the token from %s",
                             connection.remote_address)
                 return connection.respond(403, "the token is missing or wrong\n")
-            return _response(200, json.dumps(self.study_json(), indent=1).encode(),
-                             "application/json", cors)
+            body = study_json(self.config.study, self.config.study_path)
+            return response(200, json.dumps(body, indent=1).encode(), "application/json",
+                            cors)
         if path in ("", "/"):
             path = "/index.html"
-        file = _static_file(self.config.static_dir, path)
+        file = static_file(self.config.static_dir, path)
         if file is None:
             return connection.respond(404, f"not found: {path}\n")
-        return _response(200, file.read_bytes(), _content_type(file), cors)
+        return response(200, file.read_bytes(), content_type(file), cors)
 
     async def door(self, ws: ServerConnection) -> None:
         request = ws.request
@@ -810,44 +786,6 @@ def _bound_port(server: Server, port: int) -> int:
     for sock in server.sockets:
         return int(sock.getsockname()[1])
     return port
-
-
-def _response(status: int, body: bytes, content_type: str, cors: str | None = None
-              ) -> Response:
-    from websockets.datastructures import Headers
-    from websockets.http11 import Response
-
-    headers = Headers([("Content-Type", content_type), ("Content-Length", str(len(body))),
-                       ("Cache-Control", "no-store"), ("Connection", "close")])
-    if cors is not None:
-        headers["Access-Control-Allow-Origin"] = cors
-        headers["Vary"] = "Origin"
-    return Response(status, "OK" if status == 200 else "", headers, body)
-
-
-def _static_file(root: Path, path: str) -> Path | None:
-    """The file under ``root`` that a URL path names, or None (outside it, missing)."""
-    from urllib.parse import unquote
-
-    rel = unquote(path).lstrip("/")
-    if not rel or "\x00" in rel:
-        return None
-    base = root.resolve()
-    try:
-        file = (base / rel).resolve()
-        file.relative_to(base)
-    except (ValueError, OSError):
-        return None
-    return file if file.is_file() else None
-
-
-def _content_type(file: Path) -> str:
-    if file.suffix in (".js", ".mjs"):
-        return "text/javascript; charset=utf-8"
-    if file.suffix == ".json":
-        return "application/json"
-    guessed = mimetypes.guess_type(file.name)[0] or "application/octet-stream"
-    return guessed + ("; charset=utf-8" if guessed.startswith("text/") else "")
 
 
 def serve(config: BridgeConfig, *, ready: Callable[[str], None],
