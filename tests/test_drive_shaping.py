@@ -435,3 +435,57 @@ def test_the_tuned_time_constants_reach_the_emulated_board(tmp_path: Path) -> No
         peaks[rise_ms] = float(env[(t > on_ns) & (t < on_ns + 300_000_000)].max()) / steady
     # the true constants: the peak is the steady vibration and the sensor's noise (~1.3)
     assert peaks[80.0] > 1.4 * peaks[40.0], peaks
+
+
+@pytest.mark.parametrize("url", ["sim", "sim?supply_v=5&kick_ms=40", "sim?brake=0"])
+def test_a_shaped_render_from_rest_is_taken_from_its_memo_to_the_bit(
+        url: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The shaper's decisions on a render started at rest are kept per stimulus in the
+    process (sim._SHAPED_MEMOS) and spliced into later walks: random plays, stops, frames
+    and queries give the same vibration, to the bit, with and without them."""
+    from tactorbelt.devices import sim
+    from tactorbelt.stimuli import make_stimulus
+
+    def scenario(seed: int) -> list[np.ndarray]:
+        rng = np.random.default_rng(seed)
+        clock = SimClock()
+        out = []
+        with open_belt(url, clock=clock) as b:
+            t0 = clock.now_ns()
+            for _ in range(20):
+                act = int(rng.integers(0, 4))
+                if act == 0:
+                    stim = make_stimulus(Layout.even(6), float(rng.choice([0, 15, 75, 200])),
+                                         str(rng.choice(["static", "dynamic"])))
+                    b.play(stim, None if rng.random() < 0.5 else float(rng.choice([0.3, 2.0])))
+                elif act == 1:
+                    b.stop()
+                elif act == 2:
+                    b.set_amplitudes(rng.choice([0.0, 0.3, 1.0], size=6))
+                clock.advance(int(rng.choice([1, 5, 40, 300, 1500])) * MS
+                              + int(rng.integers(0, MS)))
+                if rng.random() < 0.5:  # a recent window, as the model participant reads
+                    a = max(t0, clock.now_ns() - int(rng.integers(1, 2000)) * MS)
+                    out.append(b.vibration(a, clock.now_ns(), 1000)[1])
+            out.append(b.vibration(t0, clock.now_ns(), 1000)[1])
+        return out
+
+    hits = 0
+    real = sim.SimBelt._memo_at
+
+    def counted(self: sim.SimBelt, *args: object) -> object:
+        nonlocal hits
+        got = real(self, *args)  # type: ignore[arg-type]
+        hits += got is not None
+        return got
+
+    for seed in range(6):
+        sim._SHAPED_MEMOS.clear()
+        monkeypatch.setattr(sim.SimBelt, "_memo_at", counted)
+        with_memo = scenario(seed)
+        monkeypatch.setattr(sim.SimBelt, "_memo_at", lambda self, *a: None)
+        without = scenario(seed)
+        assert len(with_memo) == len(without)
+        for x, y in zip(with_memo, without, strict=True):
+            assert np.array_equal(x, y)
+    assert hits > 0

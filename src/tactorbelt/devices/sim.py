@@ -249,6 +249,30 @@ class _Render:
 
 _RESPONSES: dict[tuple[Stimulus, Calibration, ErmParams], _Response] = {}
 
+#: A shaped render's decisions from rest are kept for its first this many ticks (3 s).
+_MEMO_TICKS: Final = 3_072
+#: The shaped renders' decisions kept in the process (:class:`_ShapedMemo`; the oldest
+#: go first): a dynamic stimulus's take ~0.3 MB.
+_SHAPED_MEMOS_BUDGET: Final = 24 * 2**20
+
+
+@dataclass(frozen=True)
+class _ShapedMemo:
+    """The shaper's decisions on a render started from rest (times from its onset, ns),
+    the render's change ticks (ns from the onset), the drives and the predicted speeds."""
+
+    t: IntArray
+    bounds: IntArray
+    d: FloatArray
+    e: FloatArray
+
+    @property
+    def nbytes(self) -> int:
+        return int(self.t.nbytes + self.bounds.nbytes + self.d.nbytes + self.e.nbytes)
+
+
+_SHAPED_MEMOS: dict[tuple[Any, ...], _ShapedMemo] = {}
+
 
 def _response(stimulus: Stimulus, calibration: Calibration, params: ErmParams,
               period: FloatArray) -> _Response:
@@ -496,6 +520,93 @@ class SimBelt(Belt):
         are its prediction, and a run of changes each landed within its tick from the
         last target (a dynamic stimulus's transit) is solved at once
         (:meth:`~tactorbelt.devices.erm.Shaper.landing`)."""
+        bounds = _sorted_unique(np.concatenate([np.array([t_a], dtype=np.int64),
+                                                self._breakpoints(t_a, t_last)]))
+        levels = self._levels_at(bounds)
+        t_arr, d_arr, w_arr, e_arr = self._walk(bounds, levels, t_last, w, e,
+                                                self._onsets(t_a, t_last))
+        for t_keep in {keep_until, min(also_keep, keep_until)} if also_keep is not None \
+                else {keep_until}:
+            j = int(t_arr.searchsorted(t_keep, side="right")) - 1
+            if j > 0:
+                self._keep_decision(int(t_arr[j]), w_arr[j], e_arr[j])
+        return t_arr, d_arr, w_arr, e_arr
+
+    def _onsets(self, t_a: int, t_last: int) -> dict[int, tuple[_Render, int]]:
+        """The renders that start in (t_a, t_last]: onset -> (render, the first time after
+        it at which something else commands the drive: the next command, the render's
+        end, or past ``t_last``). Only where the shaper predicts with the motors' model."""
+        out: dict[int, tuple[_Render, int]] = {}
+        if not self._exact or self._hi == self._lo:
+            return out
+        first = max(self._row_in_force(t_a), self._lo)
+        last = self._row_in_force(t_last)
+        for row in range(first, last + 1):
+            rid = int(self._rid[row])
+            t_row = int(self._t[row])
+            if rid < 0 or t_row > t_last:
+                continue
+            render = self._renders[rid]
+            if render.onset_ns != t_row:
+                continue
+            cut = int(self._t[row + 1]) if row + 1 < self._hi else t_last + 1
+            if render.end_ns is not None:
+                cut = min(cut, render.end_ns)
+            if t_row >= t_a:
+                out[t_row] = (render, min(cut, t_last + 1))
+            elif t_a < cut:  # the walk starts inside the render
+                out[t_a] = (render, min(cut, t_last + 1))
+        return out
+
+    def _memo_at(self, render: _Render, t: int, e: list[float]) -> _ShapedMemo | None:
+        """The render's :meth:`_render_memo` when the walk at ``t`` is on it: a decision of
+        the memo at ``t`` with the predicted speeds ``e`` (at the onset: every motor at
+        rest, the memo made if need be; later: only a memo already made)."""
+        key = (render.stimulus, render.calibration, self.params, self.shaper, self.n_tactors)
+        memo = _SHAPED_MEMOS.get(key)
+        if memo is None:
+            if t != render.onset_ns or any(e):
+                return None
+            memo = self._render_memo(render)
+        r = int(memo.t.searchsorted(t - render.onset_ns))
+        if r >= memo.t.shape[0] or int(memo.t[r]) != t - render.onset_ns:
+            return None
+        return memo if memo.e[r].tolist() == e else None
+
+    def _render_memo(self, render: _Render) -> _ShapedMemo:
+        """The shaper's decisions on a render started with every motor at rest, for its
+        first :data:`_MEMO_TICKS` ticks: the same walk (:meth:`_walk`) on the render's own
+        change ticks, shared by the sim belts of the process with the same stimulus,
+        calibration, motor model and shaping (read-only)."""
+        key = (render.stimulus, render.calibration, self.params, self.shaper, self.n_tactors)
+        memo = _SHAPED_MEMOS.get(key)
+        if memo is None:
+            span = _MEMO_TICKS * RENDER_TICK_NS
+            onset = render.onset_ns
+            bounds = _sorted_unique(np.concatenate([
+                np.array([onset], dtype=np.int64),
+                onset + render.change_ticks(1, _MEMO_TICKS) * RENDER_TICK_NS]))
+            end, render.end_ns = render.end_ns, None
+            try:
+                levels = render.levels(bounds)
+            finally:
+                render.end_ns = end
+            zeros = np.zeros(self.n_tactors)
+            t, d, _, e = self._walk(bounds, levels, onset + span - 1, zeros, zeros, {})
+            memo = _ShapedMemo(t - onset, bounds - onset, d, e)
+            for arr in (memo.t, memo.bounds, memo.d, memo.e):
+                arr.setflags(write=False)
+            _remember(_SHAPED_MEMOS, key, memo, _SHAPED_MEMOS_BUDGET)
+        return memo
+
+    def _walk(self, bounds: IntArray, levels: FloatArray, t_last: int, w: FloatArray,
+              e: FloatArray, onsets: dict[int, tuple[_Render, int]],
+              ) -> tuple[IntArray, FloatArray, FloatArray, FloatArray]:
+        """The walk of :meth:`_shaped_solve` over ``bounds`` (the first is a decision point
+        with motor speeds ``w`` and predicted ``e``; ``levels`` the commanded levels from
+        each) to ``t_last``. A render in ``onsets`` that starts with every motor at rest
+        takes the decisions of :meth:`_render_memo` up to its last change before anything
+        else commands the drive: the same walk on the same changes, so the same floats."""
         p, sh, taus = self.params, self.shaper, self._taus
         rise, fall, brake = taus
         rl, fl, bl = rise.tolist(), fall.tolist(), brake.tolist()
@@ -504,9 +615,6 @@ class SimBelt(Belt):
                       for taus_k in (rl, fl, bl))
         start, od, can_brake = sh.params.start_level, sh.overdrive, sh.brake
         n = self.n_tactors
-        bounds = _sorted_unique(np.concatenate([np.array([t_a], dtype=np.int64),
-                                                self._breakpoints(t_a, t_last)]))
-        levels = self._levels_at(bounds)
         tick = RENDER_TICK_NS
         m = bounds.shape[0]
         ends = np.empty(m, dtype=np.int64)
@@ -550,8 +658,30 @@ class SimBelt(Belt):
         el: list[float] = e.tolist()
         wl: list[float] = el if exact else w.tolist()
         i = 0
+        t_resume: int | None = None  # a decision inside stretch i to go on from
         while i < m:
-            if d_on is not None and i > 0 and lands[i] and max(
+            got = onsets.get(bounds_l[i]) if onsets and t_resume is None else None
+            if got is not None:
+                memo = self._memo_at(got[0], bounds_l[i], el)
+                if memo is not None:
+                    render, cut = got
+                    onset = render.onset_ns
+                    r0 = int(memo.t.searchsorted(bounds_l[i] - onset))
+                    # the memo's decisions before the cut (and within the memo) are the
+                    # walk's; the walk goes on from the last of them
+                    lim = min(cut, onset + _MEMO_TICKS * RENDER_TICK_NS)
+                    r = int(memo.t.searchsorted(lim - onset, side="left")) - 1
+                    if r > r0:
+                        flush()
+                        blocks_t.append(memo.t[r0:r] + onset)
+                        blocks_d.append(memo.d[r0:r])
+                        blocks_w.append(memo.e[r0:r])
+                        blocks_e.append(memo.e[r0:r])
+                        el = wl = memo.e[r].tolist()
+                        t_resume = onset + int(memo.t[r])
+                        i = int(bounds.searchsorted(t_resume, side="right")) - 1
+                        continue
+            if t_resume is None and d_on is not None and i > 0 and lands[i] and max(
                     abs(x - y) for x, y in zip(el, s_list[i - 1], strict=True)) <= _SETTLED:
                 k = int(bad[bad.searchsorted(i)]) if bad.size and bad[-1] >= i else m
                 if k > i:  # bounds i..k-1 each land on their target within a tick
@@ -572,7 +702,8 @@ class SimBelt(Belt):
                     el = wl = list(s_list[k - 1])
                     i = k
                     continue
-            t = bounds_l[i]
+            t = bounds_l[i] if t_resume is None else t_resume
+            t_resume = None
             b1 = ends_l[i]
             lvl = lv_all[i]
             sl = s_list[i]
@@ -609,15 +740,8 @@ class SimBelt(Belt):
                 t = nxt
             i += 1
         flush()
-        t_arr = np.concatenate(blocks_t)
-        d_arr, w_arr, e_arr = (np.concatenate(blocks_d), np.concatenate(blocks_w),
-                               np.concatenate(blocks_e))
-        for t_keep in {keep_until, min(also_keep, keep_until)} if also_keep is not None \
-                else {keep_until}:
-            j = int(t_arr.searchsorted(t_keep, side="right")) - 1
-            if j > 0:
-                self._keep_decision(int(t_arr[j]), w_arr[j], e_arr[j])
-        return t_arr, d_arr, w_arr, e_arr
+        return (np.concatenate(blocks_t), np.concatenate(blocks_d), np.concatenate(blocks_w),
+                np.concatenate(blocks_e))
 
     def _keep_decision(self, t: int, w: FloatArray, e: FloatArray) -> None:
         """Keep a decision of the shaper (in time order; the oldest go beyond
