@@ -38,7 +38,6 @@ import contextlib
 import os
 import shlex
 import statistics
-import sys
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import asdict, dataclass, field
@@ -63,6 +62,7 @@ from ..experiment.trial import TrialResult
 from ..inputs import kinds, make_cursor
 from ..inputs.joystick import JoystickConfig
 from ..lsl import LslListener, load_pylsl
+from .display import check_display, has_display
 
 __all__ = ["CLOCKS", "RunOutcome", "RunRequest", "choose_clock", "clock_kind", "has_display",
            "resolve_db", "resume_command", "reuse_lines", "run_study"]
@@ -258,17 +258,6 @@ def task_lines(events: list[dict[str, Any]], prefix: str = "  ") -> list[str]:
                      + (f", {extra} extra presses" if extra else "")
                      + f", median RT {med}")
     return lines
-
-
-def has_display(environ: dict[str, str] | None = None, platform: str = sys.platform) -> bool:
-    """Whether a window can be shown: an explicit ``SDL_VIDEODRIVER`` (tests use
-    ``dummy``), or on Linux and the BSDs ``DISPLAY`` or ``WAYLAND_DISPLAY``."""
-    env = os.environ if environ is None else environ
-    if env.get("SDL_VIDEODRIVER"):
-        return True
-    if platform.startswith(("linux", "freebsd", "openbsd", "netbsd")):
-        return bool(env.get("DISPLAY") or env.get("WAYLAND_DISPLAY"))
-    return True
 
 
 def _no_sim(*, headless: bool, input_kind: str, belt_url: str) -> str | None:
@@ -516,8 +505,7 @@ def run_study(req: RunRequest, *, progress: Callable[[int, int], None] | None = 
         KeyboardInterrupt, Terminated: the run was stopped; the trial in flight is stored
             ``aborted`` and the session can be resumed (:func:`resume_command`).
     """
-    if not req.resume and not req.headless and not has_display():
-        _no_display()  # at once: before the heavy imports, the study and the store
+    check_display(not req.resume and not req.headless)  # before the study and the store
     req.participant = check_participant(req.participant)
     if req.resume and req.new_session:
         raise ConfigError("--resume and --new-session exclude each other")
@@ -537,8 +525,7 @@ def run_study(req: RunRequest, *, progress: Callable[[int, int], None] | None = 
         if r.calibration is not None:  # a bad file is an error before the session starts
             calibration = Calibration.load(r.calibration)
         window = None if r.headless else _window_factory(r.input_kind, note)
-        if window is not None and not has_display():
-            _no_display()
+        check_display(window is not None)
         headless = window is None
         r.clock, kind = _pick_clock(req, r, headless)
         clock = choose_clock(headless=headless, input_kind=r.input_kind,
@@ -656,11 +643,6 @@ def _closing_push(pusher: Pusher | None, req: RunRequest, lines: list[str]) -> I
                 left = "some trials" if pending is None else f"{pending} trial(s)"
                 lines.append(f"  {left} not pushed to {url} yet ({pusher.error}); they "
                              f"are safe in {req.db}: push them with '{sync}'")
-
-
-def _no_display() -> None:
-    raise ConfigError("no display (DISPLAY and WAYLAND_DISPLAY are not set) for the "
-                      "experiment window; use --headless with --input model or scripted")
 
 
 def _window_factory(input_kind: str, note: Callable[[str], None] | None) -> Any:

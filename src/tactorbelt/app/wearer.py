@@ -26,7 +26,7 @@ from ..experiment.store import open_store
 from ..experiment.store.base import utc_now
 from ..gui.perceptual import WindowRespondent
 from ..inputs import kinds
-from .run import has_display
+from .display import has_display
 
 if TYPE_CHECKING:
     from ..devices.base import Belt

@@ -106,15 +106,7 @@ def run(ctx: click.Context, study_file: Path, participant: str, belt_url: str,
     experimenter (Ctrl-C, Esc Esc or Ctrl-Q in the window), 143 SIGTERM, 129 SIGHUP;
     the session can then be resumed with the command printed.
     """
-    from ..app.run import (
-        JoystickOptions,
-        LslOptions,
-        PushOptions,
-        RunRequest,
-        resolve_db,
-        resume_command,
-        run_study,
-    )
+    from ..app.display import check_display
     from ..interrupts import Terminated
 
     if lsl_wait and not lsl:
@@ -125,6 +117,16 @@ def run(ctx: click.Context, study_file: Path, participant: str, belt_url: str,
         raise click.UsageError("--realtime is --clock wall; give --clock once")
     if not participant.strip():
         raise click.BadParameter("must not be empty", param_hint="--participant")
+    check_display(not resume and not headless)  # at once: before the heavy imports
+    from ..app.run import (
+        JoystickOptions,
+        LslOptions,
+        PushOptions,
+        RunRequest,
+        resolve_db,
+        resume_command,
+        run_study,
+    )
     g = lambda name, value: _given(ctx, name, value)  # noqa: E731
     local, push = resolve_db(db, push, study_file)
     req = RunRequest(
