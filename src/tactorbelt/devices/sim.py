@@ -651,8 +651,7 @@ class SimBelt(Belt):
 
         exact = self._exact
         pr, pf, pb = p.rise_tau_s, p.fall_tau_s, p.brake_tau_s
-        lv_all = levels.tolist()
-        s_list = s_all.tolist()
+        # rows as lists only where the walk visits them (a memo skips most of a render)
         bounds_l = bounds.tolist()
         ends_l = ends.tolist()
         el: list[float] = e.tolist()
@@ -682,7 +681,7 @@ class SimBelt(Belt):
                         i = int(bounds.searchsorted(t_resume, side="right")) - 1
                         continue
             if t_resume is None and d_on is not None and i > 0 and lands[i] and max(
-                    abs(x - y) for x, y in zip(el, s_list[i - 1], strict=True)) <= _SETTLED:
+                    abs(x - y) for x, y in zip(el, s_all[i - 1].tolist(), strict=True)) <= _SETTLED:
                 k = int(bad[bad.searchsorted(i)]) if bad.size and bad[-1] >= i else m
                 if k > i:  # bounds i..k-1 each land on their target within a tick
                     flush()
@@ -699,14 +698,14 @@ class SimBelt(Belt):
                     blocks_d.append(dd)
                     blocks_w.append(ww)
                     blocks_e.append(ww)
-                    el = wl = list(s_list[k - 1])
+                    el = wl = s_all[k - 1].tolist()
                     i = k
                     continue
             t = bounds_l[i] if t_resume is None else t_resume
             t_resume = None
             b1 = ends_l[i]
-            lvl = lv_all[i]
-            sl = s_list[i]
+            lvl = levels[i].tolist()
+            sl = s_all[i].tolist()
             while t < b1:
                 ts.append(t)
                 ws.append(wl)
