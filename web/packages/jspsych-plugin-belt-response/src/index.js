@@ -98,13 +98,13 @@ class BeltResponsePlugin {
     const win = display_element.ownerDocument.defaultView;
     const width =
       trial.width_px ??
-      Math.round(Math.min(700, 0.8 * (win.innerWidth || 800), 0.7 * (win.innerHeight || 600) * trial.aspect));
+      Math.round(Math.min(700, 0.8 * (win.innerWidth || 800), 0.6 * (win.innerHeight || 600) * trial.aspect));
     const height = Math.round(width / trial.aspect);
     const dot = Math.max(14, Math.round(width / 22));
 
     const parts = [
       `<div class="tactorbelt-response" style="position:relative;width:${width}px;height:${height}px;` +
-        `margin:${dot * 2}px auto;touch-action:none;user-select:none">`,
+        `margin:${dot * 3.5}px auto ${dot * 2}px;touch-action:none;user-select:none">`,
       `<div class="tactorbelt-ellipse" style="position:absolute;inset:0;border-radius:50%;` +
         `background:${COLORS.fill};border:3px solid ${COLORS.line};box-sizing:border-box"></div>`,
       `<div class="tactorbelt-front" style="position:absolute;left:50%;top:-${dot * 2.4}px;` +
