@@ -332,6 +332,8 @@ def test_closing_the_tab_mid_stimulus_turns_the_motors_off(bridge: Bridge, drive
 @needs_browser
 def test_a_page_that_stops_answering_turns_the_motors_off_within_the_heartbeat(
         bridge: Bridge, driver: Any, paper_run: Any) -> None:
+    from selenium.webdriver.common.by import By
+
     _start_and_wait_for_stimulus(driver, bridge.page_url("P03", message_ms=50))
     assert bridge.belt_status()["playing"] is True
     heartbeat_s = driver.execute_script("return window.tactorbelt.welcome.heartbeat_ms") / 1000
@@ -341,6 +343,9 @@ def test_a_page_that_stops_answering_turns_the_motors_off_within_the_heartbeat(
                           f" while (performance.now() - t < {spin_ms}); }}, 0);")
     assert _wait(lambda: not bridge.belt_status()["playing"], 3 * heartbeat_s + 10), \
         bridge.output()
+    # when the page runs again it learns why (the bridge closed it: 4000) and says so
+    assert _wait(lambda: page_state(driver) == "error", 30)
+    assert "4000" in driver.find_element(By.ID, "tactorbelt-error").text
     driver.get("about:blank")
 
 
