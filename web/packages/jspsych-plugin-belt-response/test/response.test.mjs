@@ -1,5 +1,6 @@
 import { test, before } from "node:test";
 import assert from "node:assert/strict";
+import { readFileSync } from "node:fs";
 import { installDom, startJsPsych, until } from "../../../test-support/dom.mjs";
 import { fakeBridge } from "../../../test-support/fake-bridge.mjs";
 import { connect } from "@tactorbelt/bridge-client";
@@ -141,6 +142,17 @@ test("a trial the bridge refuses is recorded with the error, not stored", async 
   const [data] = jsPsych.data.get().values();
   assert.equal(data.stored, false);
   assert.match(data.error, /refused trial/);
+});
+
+test("info follows jsPsych's plugin conventions", async () => {
+  const { ParameterType } = await import("jspsych");
+  const meta = JSON.parse(readFileSync(new URL("../package.json", import.meta.url), "utf8"));
+  assert.equal(Plugin.info.name, "tactorbelt-belt-response");
+  assert.equal(Plugin.info.version, meta.version);
+  assert.equal(Plugin.info.parameters.targets.type, ParameterType.COMPLEX);
+  for (const field of ["response", "response_angle_deg", "rt", "rt_ms", "device"]) {
+    assert.ok(Plugin.info.data[field], field);
+  }
 });
 
 test("geometry: angles and screen points agree (0 at the top, clockwise)", () => {

@@ -1,5 +1,6 @@
 import { test, before } from "node:test";
 import assert from "node:assert/strict";
+import { readFileSync } from "node:fs";
 import { installDom, startJsPsych } from "../../../test-support/dom.mjs";
 import { fakeBridge } from "../../../test-support/fake-bridge.mjs";
 import { connect } from "@tactorbelt/bridge-client";
@@ -14,7 +15,8 @@ test("info follows jsPsych's plugin conventions", async () => {
   const { ParameterType } = await import("jspsych");
   const { info } = TactilePlugin;
   assert.equal(info.name, "tactorbelt-tactile");
-  assert.match(info.version, /^\d+\.\d+\.\d+$/);
+  const meta = JSON.parse(readFileSync(new URL("../package.json", import.meta.url), "utf8"));
+  assert.equal(info.version, meta.version); // the data's plugin_version is the package's
   assert.equal(info.parameters.index.type, ParameterType.INT);
   assert.equal(info.parameters.amplitudes.array, true);
   for (const field of ["onset_ms", "skin_onset_ms", "onset_source", "clock_offset_ms", "clock_uncertainty_ms"]) {
