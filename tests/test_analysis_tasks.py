@@ -1,4 +1,4 @@
-"""Secondary-task and NASA-TLX analysis (analysis/tasks.py) on hand-made rows."""
+"""Secondary-task and NASA-TLX analysis (analysis/tables/tasks.py) on hand-made rows."""
 
 from __future__ import annotations
 
