@@ -215,6 +215,10 @@ def test_open_line_and_http(bridge: Bridge) -> None:
     assert bridge.http("/no/such/file.js")[0] == 404
     assert bridge.http("/%2e%2e/server.py")[0] == 404
     assert bridge.http("/../server.py")[0] == 404
+    req = urllib.request.Request(f"http://{bridge.hostport}/", method="DELETE")
+    with pytest.raises(urllib.error.HTTPError) as info:
+        urllib.request.urlopen(req, timeout=10)
+    assert info.value.code == 405
 
 
 # -- the handshake and the schedule --------------------------------------------------------

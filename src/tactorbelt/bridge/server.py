@@ -672,6 +672,8 @@ class _Bridge:
     # -- HTTP and the WebSocket door --------------------------------------------------------
     def http(self, connection: ServerConnection, request: Request) -> Response | None:
         path, _, query = request.path.partition("?")
+        if request.method != "GET":
+            return connection.respond(405, "only GET\n")
         if path == "/ws":
             return None  # the WebSocket: token and origin are checked once accepted
         origin = request.headers.get("Origin")
