@@ -314,3 +314,16 @@ def test_report_tables_speak_words_not_columns_or_json(tmp_path: Path) -> None:
     assert "<th></th>" not in page
     assert "session_key" not in page and "condition_order" not in page
     assert "static, dynamic" in page and '["static", "dynamic"]' not in page
+
+
+def test_stored_text_is_shown_as_text_never_as_markup(tmp_path: Path) -> None:
+    """The report's template escapes every stored value: a participant id or study name
+    holding markup is shown as those characters, not run as HTML."""
+    db = hand_store(tmp_path / "hand.sqlite", participant="<b>P&1</b>",
+                    study_name="<script>alert(1)</script>")
+    out = tmp_path / "o"
+    analyze([db], out, n_boot=200)
+    page = (out / "report.html").read_text()
+    assert "&lt;b&gt;P&amp;1&lt;/b&gt;" in page and "<b>P&1</b>" not in page
+    assert "&lt;script&gt;alert(1)&lt;/script&gt;" in page and "<script>" not in page
+    _check_self_contained(out)
