@@ -361,15 +361,38 @@ def _connect(controller_module: Any, belt: Any, what: str, delegate: Any = None)
     return controller
 
 
+def ble_unavailable(exc: BaseException) -> str:
+    """Why a BLE scan could not run, in a person's words (bleak's errors on Linux: no
+    D-Bus system bus, BlueZ not running, no adapter, an adapter powered off)."""
+    reason = getattr(exc, "reason", None)  # bleak's BleakBluetoothNotAvailableError
+    name = getattr(reason, "name", None)
+    if name == "NO_BLUETOOTH":
+        return "no Bluetooth adapter (BlueZ lists none)"
+    if name == "POWERED_OFF":
+        return "the Bluetooth adapter is powered off (bluetoothctl power on)"
+    if name == "DENIED_BY_SYSTEM":
+        return "the system denied access to Bluetooth (D-Bus policy or permissions)"
+    if name is not None:
+        return f"Bluetooth is not available ({exc.args[0] if exc.args else name})"
+    text = str(exc)
+    if "org.bluez" in text and ("ServiceUnknown" in text or "not provided" in text):
+        return "BlueZ is not running (no org.bluez on the D-Bus system bus; start bluetoothd)"
+    if isinstance(exc, FileNotFoundError | ConnectionRefusedError):
+        return ("no D-Bus system bus to reach BlueZ (/run/dbus/system_bus_socket or "
+                "DBUS_SYSTEM_BUS_ADDRESS)")
+    return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
+
+
 def _ble_device(name: str, url: str) -> Any:
     from pybelt import belt_scanner
 
     try:
         with belt_scanner.create() as scanner:
             found = scanner.scan()
-    except Exception as exc:  # no adapter, no BlueZ
-        raise DeviceError(f"cannot scan for naviBelts over BLE (no adapter, or no BlueZ / "
-                          f"D-Bus): {exc}") from None
+    except Exception as exc:  # no adapter, no BlueZ, no D-Bus
+        raise DeviceError(f"cannot scan for naviBelts over BLE for {url!r}: "
+                          f"{ble_unavailable(exc)}; a naviBelt on USB: "
+                          "navibelt:serial:PORT") from None
     for d in found:
         if name in ("auto", "") or name.lower() in ((d.name or "").lower(),
                                                     str(d.address).lower()):
@@ -489,6 +512,5 @@ def discover(timeout_s: float = 5.0, probe_all: bool = False) -> Discovery:
                                   f"navibelt:ble:{d.address}", note="a naviBelt advertising",
                                   tactors=MOTORS))
     except Exception as exc:  # no adapter, no BlueZ: a note, not an error
-        notes.append(f"no BLE scan for naviBelts (no adapter, or no BlueZ / D-Bus): "
-                     f"{exc or type(exc).__name__}")
+        notes.append(f"no BLE scan for naviBelts: {ble_unavailable(exc)}")
     return Discovery(rows, "; ".join(notes) or None, empty)
