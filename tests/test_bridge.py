@@ -727,3 +727,27 @@ def test_a_killed_bridge_loses_no_answered_trial(tmp_path: Path) -> None:
     assert second["resumed"] is True and second["session_id"] == first["session_id"]
     assert second["done"] == [0, 1, 2]
     assert [r["trial_index"] for r in trials_of(b2.store)] == [0, 1, 2]
+
+
+def test_one_session_per_page_and_a_reload_takes_over(bridge: Bridge) -> None:
+    """A second page for the same participant (a reload, a second tab) takes the session
+    over and the first page is closed (4001); a page for another participant is refused
+    while a session runs."""
+
+    async def go() -> tuple[Any, ...]:
+        first = await Page.open(bridge.ws_url())
+        w1 = await first.request({"type": "hello", "participant": "P11"})
+        other = await Page.open(bridge.ws_url())
+        busy = await other.request({"type": "hello", "participant": "P12"})
+        second = await Page.open(bridge.ws_url())
+        w2 = await second.request({"type": "hello", "participant": "P11"})
+        code = await first.closed_code()
+        await second.close()
+        await other.close()
+        return w1, busy, w2, code
+
+    w1, busy, w2, code = run(go())
+    assert busy["type"] == "error" and "another participant" in busy["error"]
+    assert w2["session_id"] == w1["session_id"] and w2["resumed"] is True
+    assert code == 4001
+    assert [s["participant"] for s in sessions_of(bridge.store)] == ["P11"]
