@@ -12,7 +12,8 @@ intensities at once is refused (ConfigError, naming them). Amplitudes reach the 
 through the motor calibration, as drive levels in whole percent.
 
 Declared on the Belt interface: ``stream_rate_hz`` (the command rate: 50 Hz over USB,
-20 Hz over BLE: inferred, ``?rate_hz=`` to change), ``vibration_channels`` (5),
+20 Hz over BLE; pybelt sets no limit: derived from its transport, docs/belts.md "The
+command rate"; ``?rate_hz=`` to change), ``vibration_channels`` (5),
 ``reserved_channels`` ((0,)), no device rendering, no device onsets.
 
 Events: pybelt answers the belt's keep-alive requests itself (counted in :attr:`events`);
