@@ -27,7 +27,7 @@ from typing import Any, Final
 
 import numpy as np
 
-from .model import Event, Pattern, _Reader, read_json
+from .model import Event, Pattern, _Reader, imported, read_json
 
 __all__ = ["CURVE_POINTS", "TRANSIENT_MS", "pattern_from_ahap", "pattern_to_ahap",
            "read_ahap", "write_ahap"]
@@ -139,13 +139,8 @@ def pattern_from_ahap(doc: Any, path: str | None = None, angle_deg: float = 0.0)
                        lo_open=True)
         events.append(Event(t * 1000.0, dur * 1000.0, intensity, angle_deg=angle_deg,
                             envelope=control.envelope(t, t + dur), sharpness=sharp))
-    meta = top.get("Metadata")
-    meta = meta if isinstance(meta, dict) else {}
-    name = str(meta.get("Description") or meta.get("Project") or
-               (Path(path).stem if path else ""))
-    return Pattern(tuple(events), name, (), None, 0.0,
-                   {"format": "ahap", "file": Path(path).name if path else "",
-                    "angle_deg": angle_deg, "dropped": sorted(dropped)})
+    return imported(events, path, "ahap", sorted(dropped), meta=top.get("Metadata"),
+                    name_keys=("Description", "Project"), angle_deg=angle_deg)
 
 
 class _Control:

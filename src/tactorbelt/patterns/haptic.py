@@ -20,7 +20,7 @@ from pathlib import Path
 from typing import Any
 
 from .ahap import TRANSIENT_MS
-from .model import Event, Pattern, _Reader, read_json
+from .model import Event, Pattern, _Reader, imported, read_json
 
 __all__ = ["pattern_from_haptic", "read_haptic"]
 
@@ -79,10 +79,5 @@ def pattern_from_haptic(doc: Any, path: str | None = None, angle_deg: float = 0.
                             envelope=env))
     else:
         dropped.append("an amplitude envelope of a single instant")
-    meta = top.get("metadata")
-    meta = meta if isinstance(meta, dict) else {}
-    name = str(meta.get("description") or meta.get("project") or
-               (Path(path).stem if path else ""))
-    return Pattern(tuple(events), name, (), None, 0.0,
-                   {"format": "haptic", "file": Path(path).name if path else "",
-                    "angle_deg": angle_deg, "dropped": dropped})
+    return imported(events, path, "haptic", dropped, meta=top.get("metadata"),
+                    name_keys=("description", "project"), angle_deg=angle_deg)

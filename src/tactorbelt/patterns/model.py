@@ -26,6 +26,7 @@ __all__ = [
     "Event",
     "Pattern",
     "PatternFileError",
+    "imported",
     "load_pattern",
     "pattern_from_dict",
     "pattern_to_dict",
@@ -129,6 +130,21 @@ class Pattern:
     def dropped(self) -> list[str]:
         """What the import could not carry over (said on the terminal)."""
         return list(self.source.get("dropped", ()))
+
+
+def imported(events: list[Event], path: str | None, fmt: str, dropped: list[str], *,
+             meta: Any = None, name_keys: tuple[str, ...] = (), layout_deg: tuple[float, ...] = (),
+             duration_ms: float = 0.0, angle_deg: float | None = None) -> Pattern:
+    """The pattern an import made: named by the first of ``name_keys`` its ``meta`` dict
+    holds (else the file's stem), its ``source`` saying the format, the file, the angle it
+    was placed at (AHAP, ``.haptic``) and what was ``dropped`` (in that order)."""
+    meta = meta if isinstance(meta, dict) else {}
+    name = next((str(meta[k]) for k in name_keys if meta.get(k)), Path(path).stem if path else "")
+    source: dict[str, Any] = {"format": fmt, "file": Path(path).name if path else ""}
+    if angle_deg is not None:
+        source["angle_deg"] = angle_deg
+    source["dropped"] = list(dropped)
+    return Pattern(tuple(events), name, layout_deg, None, duration_ms, source)
 
 
 # -- reading ---------------------------------------------------------------------------------

@@ -27,7 +27,7 @@ import itertools
 from pathlib import Path
 from typing import Any, Final
 
-from .model import Event, Pattern, _Reader, read_json
+from .model import Event, Pattern, _Reader, imported, read_json
 
 __all__ = ["TORSO_PANELS", "VEST_COLUMNS", "pattern_from_tact", "read_tact"]
 
@@ -92,13 +92,11 @@ def pattern_from_tact(doc: Any, path: str | None = None) -> Pattern:
                 else:
                     raise r.fail(f"{mw}.mode", f"expected DOT_MODE or PATH_MODE, got {which!r}")
     events = [Event(at, dur, i, tactor=k) for (at, dur, k), i in dots.items()] + paths
-    name = str(project.get("name") or (Path(path).stem if path else ""))
     duration = r.number(top.get("durationMillis", 0), "durationMillis", 0.0)
     if events or dropped:
         dropped.add("the height on the vest (y): a belt has one row")
-    return Pattern(tuple(events), name, layout, None, duration,
-                   {"format": "tact", "file": Path(path).name if path else "",
-                    "dropped": sorted(dropped)})
+    return imported(events, path, "tact", sorted(dropped), meta=project, name_keys=("name",),
+                    layout_deg=layout, duration_ms=duration)
 
 
 def _columns(r: _Reader, project: dict[str, Any]) -> dict[str, dict[int, float]]:
