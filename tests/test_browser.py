@@ -360,32 +360,35 @@ def test_the_wheel_serves_the_example_page_and_bundles(tmp_path: Path) -> None:
     """Build the wheel, install it (not editable) into a fresh venv, run `tactorbelt serve`
     from there: the pages and bundles it serves are the package's, and (with Chromium)
     the example runs its first trial."""
+    # no PYTHONPATH a caller may have set: src/ must not shadow the installed wheel
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
     wheels = tmp_path / "wheels"
     build = subprocess.run(
         [sys.executable, "-m", "pip", "wheel", "--no-deps", "-q", "-w", str(wheels), str(ROOT)],
-        capture_output=True, text=True, timeout=600)
+        capture_output=True, text=True, timeout=600, env=env)
     assert build.returncode == 0, build.stderr[-2000:]
     (wheel,) = wheels.glob("tactorbelt-*.whl")
     env_dir = tmp_path / "venv"
     venv.create(env_dir, with_pip=True)
     py = env_dir / ("Scripts" if os.name == "nt" else "bin") / "python"
     install = subprocess.run([str(py), "-m", "pip", "install", "-q", "--no-deps", str(wheel)],
-                             capture_output=True, text=True, timeout=600)
+                             capture_output=True, text=True, timeout=600, env=env)
     assert install.returncode == 0, install.stderr[-2000:]
     # the dependencies come from this interpreter's site-packages, after the venv's own
     # (a path line: the editable install's .pth hooks there are not run), so the tactorbelt
     # imported is the wheel's
     purelib = "import sysconfig; print(sysconfig.get_paths()['purelib'])"
     site = subprocess.run([str(py), "-c", purelib], capture_output=True, text=True,
-                          timeout=60).stdout.strip()
+                          timeout=60, env=env).stdout.strip()
     deps = subprocess.run([sys.executable, "-c", purelib], capture_output=True, text=True,
-                          timeout=60).stdout.strip()
+                          timeout=60, env=env).stdout.strip()
     (Path(site) / "dev-deps.pth").write_text(deps + "\n")
     where = subprocess.run([str(py), "-c", "import tactorbelt; print(tactorbelt.__file__)"],
-                           capture_output=True, text=True, timeout=60, cwd=tmp_path)
+                           capture_output=True, text=True, timeout=60, cwd=tmp_path, env=env)
     assert where.stdout.startswith(site), where.stdout + where.stderr
     study = short_study(tmp_path)
-    with serve(study, tmp_path / "study.sqlite", command=[str(py), "-m", "tactorbelt"]) as b:
+    with serve(study, tmp_path / "study.sqlite", command=[str(py), "-m", "tactorbelt"],
+               env=env) as b:
         for path in _static_files():
             rel = path.relative_to(STATIC).as_posix()
             with urllib.request.urlopen(f"{b.origin}/{rel}", timeout=30) as response:

@@ -110,14 +110,15 @@ class Bridge:
 
 @contextlib.contextmanager
 def serve(study: Path, store: Path, *args: str, python: str | None = None,
-          command: Sequence[str] | None = None, timeout: float = 60.0) -> Iterator[Bridge]:
+          command: Sequence[str] | None = None, timeout: float = 60.0,
+          env: dict[str, str] | None = None) -> Iterator[Bridge]:
     """``tactorbelt serve --belt sim`` on a free port (``--port 0``: the `open:` line says
     which) until the block ends (SIGTERM)."""
     cmd = [*(command or [python or sys.executable, "-m", "tactorbelt"]), "serve",
            "--belt", "sim", "--store", str(store), "--study", str(study), "--port", "0", *args]
-    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-                            env=env, cwd=store.parent)
+                            env={**(os.environ if env is None else env),
+                                 "PYTHONUNBUFFERED": "1"}, cwd=store.parent)
     lines: list[str] = []
     opened = threading.Event()
 
