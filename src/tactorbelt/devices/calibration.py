@@ -515,7 +515,7 @@ def _file_model() -> Any:
     """The pydantic model of a calibration file (built when a file is first read)."""
     from typing import Annotated
 
-    from pydantic import Field, model_validator
+    from pydantic import Field, create_model, model_validator
 
     from .._files.model import FileModel, checked, number
 
@@ -567,7 +567,7 @@ def _file_model() -> Any:
     Unit = Annotated[float, number(0.0, 1.0)]
     Txt = Annotated[str | None, checked(a_text)]
 
-    class Row(FileModel):
+    class Levels(FileModel):
         index: Any = None
         angle_deg: Any = None
         start: Unit
@@ -575,22 +575,17 @@ def _file_model() -> Any:
         ceiling: Unit
         channel: Annotated[int | None, checked(a_channel)] = None
         response: Annotated[list[Any], checked(a_response)] = Field(default_factory=list)
-        latency_ms: timing("latency_ms") = None  # type: ignore[valid-type]
-        latency_sd_ms: timing("latency_sd_ms") = None  # type: ignore[valid-type]
-        rise_ms: timing("rise_ms") = None  # type: ignore[valid-type]
-        rise_sd_ms: timing("rise_sd_ms") = None  # type: ignore[valid-type]
-        fall_ms: timing("fall_ms") = None  # type: ignore[valid-type]
-        fall_sd_ms: timing("fall_sd_ms") = None  # type: ignore[valid-type]
-        rise_tau_ms: timing("rise_tau_ms") = None  # type: ignore[valid-type]
-        fall_tau_ms: timing("fall_tau_ms") = None  # type: ignore[valid-type]
-        brake_tau_ms: timing("brake_tau_ms") = None  # type: ignore[valid-type]
 
         @model_validator(mode="after")
-        def _order(self) -> Row:
+        def _order(self) -> Levels:
             if self.start > self.ceiling:
                 raise ValueError(f"@start@ start ({self.start:g}) must not exceed ceiling "
                                  f"({self.ceiling:g})")
             return self
+
+    # a [[tactor]] table: the levels, then the timing keys
+    timings: dict[str, Any] = {k: (timing(k), None) for k in (*TIMING_KEYS, *SHAPING_KEYS)}
+    Row = create_model("Row", __base__=Levels, **timings)
 
     class File(FileModel):
         format: fixed(FORMAT, f"must be {FORMAT!r}, got {{v!r}}") = None  # type: ignore[valid-type]
@@ -599,7 +594,7 @@ def _file_model() -> Any:
         created: Any = None
         validated: Txt = None
         validation_method: Txt = None
-        tactor: Annotated[list[Row], checked(a_rows)]
+        tactor: Annotated[list[Row], checked(a_rows)]  # type: ignore[valid-type]
 
     return File
 
