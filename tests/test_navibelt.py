@@ -272,3 +272,36 @@ def test_a_model_session_on_the_emulated_navibelt_stores_every_trial(tmp_path: P
         counts = con.execute("SELECT count(*), sum(status = 'done') FROM trials").fetchone()
     assert (status, belt) == ("complete", "navibelt:emulator")
     assert counts == (18, 18)
+
+
+_LEFT_OPEN = """\
+import atexit, threading
+state = {}
+def report():  # registered first, so it runs after tactorbelt's hook (last in, first out)
+    b = state["belt"]
+    print("closed", b.closed, "levels", b.emulation.motor_levels()[:2],
+          "threads", sorted(t.name for t in threading.enumerate()), flush=True)
+atexit.register(report)
+from tactorbelt.devices import open_belt
+from tactorbelt.player import Player
+from tactorbelt.stimuli import make_stimulus
+b = state["belt"] = open_belt("navibelt:emulator")
+MODE
+"""
+
+
+@pytest.mark.parametrize("mode", [
+    "b.set_amplitudes([0.5] + [0.0] * 15); b.ping()",
+    "Player(b).start(make_stimulus(b.layout, 10.0, 'dynamic'), duration_s=5.0)",
+])
+def test_a_navibelt_left_open_is_closed_at_exit_motors_off(mode: str) -> None:
+    # pybelt's listener is an ordinary thread: the interpreter used to wait for it for ever
+    import subprocess
+
+    proc = subprocess.run([sys.executable, "-c", _LEFT_OPEN.replace("MODE", mode)],
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert "closed True levels [0.0, 0.0] threads [" in proc.stdout, proc.stdout
+    # pybelt's listener and the emulation are joined (a player's daemon thread may still be
+    # ending: its next frame meets the closed belt)
+    assert "SerialPortListener" not in proc.stdout and "navibelt-emulation" not in proc.stdout

@@ -28,9 +28,12 @@ Imports pybelt (and through it pyserial and bleak) only when a naviBelt is opene
 
 from __future__ import annotations
 
+import atexit
+import contextlib
 import logging
 import threading
 import time
+import weakref
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any, Final
 
@@ -201,6 +204,7 @@ class NaviBelt(Belt):
         self._in_app_mode = False
         self._warned_battery = False
         self._events_lock = threading.Lock()
+        _OPEN_BELTS.add(self)
 
     # -- events (pybelt's listener thread) ---------------------------------------------------
     def _event(self, kind: str, detail: str) -> None:
@@ -339,11 +343,44 @@ class NaviBelt(Belt):
         super().close()
 
     def _close(self) -> None:
+        _OPEN_BELTS.discard(self)
         try:
             self._controller.disconnect_belt(wait=True)
         finally:
             if self.emulation is not None:
                 self.emulation.close()
+
+
+#: naviBelts still open, closed (motors stopped, pybelt's threads joined) at interpreter exit.
+_OPEN_BELTS: weakref.WeakSet[NaviBelt] = weakref.WeakSet()
+
+
+@atexit.register
+def _close_open_belts() -> None:
+    for belt in list(_OPEN_BELTS):
+        with contextlib.suppress(Exception):
+            belt.close()
+
+
+def _as_daemon(what: str, fn: Any) -> Any:
+    """``fn()`` run in a daemon thread, waited for. The threads pybelt starts inside it (its
+    serial listener, its BLE event loop) inherit ``daemon``: pybelt makes them ordinary
+    threads, so a naviBelt left open held the interpreter at exit for ever (the exit
+    joins ordinary threads before the ``atexit`` hook that closes open belts can run)."""
+    out: dict[str, Any] = {}
+
+    def run() -> None:
+        try:
+            out["value"] = fn()
+        except BaseException as exc:  # handed to the caller
+            out["error"] = exc
+
+    t = threading.Thread(target=run, name=f"navibelt-{what}", daemon=True)
+    t.start()
+    t.join()
+    if "error" in out:
+        raise out["error"]
+    return out.get("value")
 
 
 def _connect(controller_module: Any, belt: Any, what: str, delegate: Any = None) -> Any:
@@ -355,7 +392,7 @@ def _connect(controller_module: Any, belt: Any, what: str, delegate: Any = None)
         except (serial.SerialException, OSError, ValueError) as exc:
             raise DeviceError(f"cannot open serial port {belt} for a naviBelt: {exc}") from None
     controller = controller_module.BeltController(delegate)
-    controller.connect(belt)
+    _as_daemon("connect", lambda: controller.connect(belt))
     if controller.get_connection_state() != controller_module.BeltConnectionState.CONNECTED:
         controller.disconnect_belt(wait=False)
         raise DeviceError(f"no naviBelt answered on {what} (pybelt's handshake failed)")
