@@ -79,6 +79,10 @@ def test_a_pattern_file_beside_the_study_is_read_and_kept_with_it(tmp_path: Path
     # the study's own TOML holds the pattern: it reads back equal, with no file beside it
     again = Study.from_toml(study.to_toml())
     assert again == study and again.pattern(name) == pattern
+    from tactorbelt.experiment.description import describe
+
+    assert (f"  pattern     {name} (3 events, 1.3 s; at each target) in [stimulus]"
+            in describe(study).to_text().splitlines())
 
 
 def test_a_study_without_patterns_is_as_before() -> None:
