@@ -57,7 +57,7 @@ _REGISTRY: dict[str, Factor] = {}
 RESERVED: frozenset[str] = frozenset({
     # study-file keys of a block and of [design]
     "name", "repetitions", "targets", "law", "falloff_deg", "period_s", "transit_s",
-    "max_presentation_s", "order", "levels",
+    "max_presentation_s", "pattern", "order", "levels",
     # the trials' columns in the store, the exports and the analysis
     "abort_reason", "acquired_ns", "attempts", "block", "block_index", "block_name",
     "correct", "counted", "crossed_ns", "date", "device_onset_ns", "effort", "error_deg",
