@@ -19,9 +19,9 @@ makes for the participant. ``play`` starts a stimulus (a scheduled trial, a targ
 and condition, an angle, or raw amplitudes) and answers, once the belt has started
 it, with the onset on the page's ``performance.now()`` clock; ``trial`` stores a
 trial (one transaction, through the runner's session seam); ``stop``, ``status`` and ``end`` do
-what they say. After the handshake the bridge pings every ``heartbeat_ms``; a page
-that has not answered for twice that, that closes or that reloads has its motors
-turned off and its session left ``interrupted`` (a new ``hello`` resumes it).
+what they say. After the handshake the bridge pings four times every ``heartbeat_ms``;
+a page that has not answered for ``heartbeat_ms``, that closes or that reloads has its
+motors turned off and its session left ``interrupted`` (a new ``hello`` resumes it).
 SIGINT and SIGTERM (and SIGHUP) turn the motors off, leave every open session
 ``interrupted``, close the pages (code 1001) and end :func:`serve` with
 KeyboardInterrupt or :class:`~tactorbelt.interrupts.Terminated`.
@@ -93,6 +93,9 @@ DEFAULT_PORT = 8735
 EXAMPLE_PAGE = "examples/paper.html"
 #: Pings of the clock handshake, and how long one may wait for its pong.
 HANDSHAKE_PINGS = 16
+#: Heartbeat pings sent per heartbeat period (the motors go off one period after the
+#: page's last answer).
+PINGS_PER_HEARTBEAT = 4
 PING_TIMEOUT_S = 1.0
 #: The close code of a refused connection (policy violation), and of a lost page.
 CLOSE_REFUSED = 1008
@@ -282,12 +285,15 @@ class _Page:
             self._heartbeat = asyncio.create_task(self._beat())
 
     async def _beat(self) -> None:
+        # the motors go off within one heartbeat of the page's last answer; four pings a
+        # period, so one late answer (a busy page, a loaded machine) is not a lost page
         period_ns = self.bridge.config.heartbeat_ms * 1_000_000
-        step = self.bridge.config.heartbeat_ms / 4000
+        ping_ns = period_ns // PINGS_PER_HEARTBEAT
+        step = self.bridge.config.heartbeat_ms / 8000
         next_ping = time.perf_counter_ns()
         while True:
             now = time.perf_counter_ns()
-            if now - self.last_pong_ns > 2 * period_ns:
+            if now - self.last_pong_ns > period_ns:
                 why = (f"no answer to the heartbeat for "
                        f"{(now - self.last_pong_ns) / 1e6:.0f} ms")
                 log.warning("bridge: page %s: %s; motors off", self.remote, why)
@@ -300,7 +306,7 @@ class _Page:
             if now >= next_ping:
                 self._seq += 1
                 await self.send({"type": "ping", "seq": self._seq})
-                next_ping = now + period_ns
+                next_ping = now + ping_ns
             await asyncio.sleep(step)
 
     # -- requests ---------------------------------------------------------------------------
