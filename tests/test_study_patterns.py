@@ -4,7 +4,6 @@ kept with the session in the store, exported."""
 
 from __future__ import annotations
 
-import inspect
 import json
 import shutil
 import sqlite3
@@ -158,38 +157,18 @@ def test_the_pattern_is_played_turned_to_the_trials_target() -> None:
 
 
 def _session(study: Study, text: str, store_path: Path, belt_url: str = "sim") -> list[Any]:
-    """A model-participant session through the runner, with the stimulus side of the
-    runner's pattern seam (/work/notes/pattern-runner.md) where the runner lacks it."""
+    """A model-participant session through the session runner; the stimuli it made."""
     from tactorbelt.experiment.runner import SessionRunner
     from tactorbelt.experiment.store import Store
     from tactorbelt.inputs.model import make_model_cursor
 
-    made: list[Any] = []
-
-    class Runner(SessionRunner):
-        def __init__(self, *a: Any, **k: Any) -> None:
-            super().__init__(*a, **k)
-            self.study_toml = study.session_toml(self.study_toml)
-
-        def open_session(self) -> Any:
-            study.check_belt(self.belt)
-            return super().open_session()
-
-        def stimulus_for(self, t: Any) -> Any:
-            sp = self.trial_stimulus(t)
-            key = (t.target_deg, sp.pattern)
-            if key not in self._stimuli:
-                self._stimuli[key] = study.make_stimulus(sp, self.belt.layout, t.target_deg,
-                                                         t.condition, belt=self.belt)
-                made.append(self._stimuli[key])
-            return self._stimuli[key]
-
     clock = SimClock()
     with Store.open(store_path) as store, open_belt(belt_url, clock=clock,
                                                     layout=study.layout_obj()) as belt:
-        Runner(study, "P01", belt, make_model_cursor(belt, clock, seed=3), store, clock,
-               seed=1, study_toml=text).run()
-    return made
+        runner = SessionRunner(study, "P01", belt, make_model_cursor(belt, clock, seed=3),
+                               store, clock, seed=1, study_toml=text)
+        runner.run()
+    return list(runner._stimuli.values())
 
 
 def test_a_model_session_with_a_pattern_stimulus_stores_it(tmp_path: Path) -> None:
@@ -244,15 +223,6 @@ def test_a_pattern_the_navibelt_cannot_show_is_refused_before_the_session(
         study.check_belt(belt)
 
 
-def _runner_plays_patterns() -> bool:
-    from tactorbelt.experiment.runner import SessionRunner
-
-    return "make_stimulus(" in inspect.getsource(SessionRunner.stimulus_for) and \
-        "study.make_stimulus" in inspect.getsource(SessionRunner.stimulus_for)
-
-
-@pytest.mark.skipif(not _runner_plays_patterns(), reason="the runner does not make its "
-                    "stimuli with Study.make_stimulus yet (/work/notes/pattern-runner.md)")
 def test_run_command_plays_a_pattern_study(tmp_path: Path) -> None:
     path = _write(tmp_path)
     db = tmp_path / "s.sqlite"

@@ -91,7 +91,8 @@ class SessionRecorder:
         Args:
             store: an open, writable store.
             study: the study; ``study_toml`` its file's text, stored verbatim
-                (default ``study.to_toml()``).
+                (default ``study.to_toml()``), with the pattern files its stimuli name
+                appended as ``[patterns]`` tables.
             participant: the participant id (checked by the caller:
                 :func:`~tactorbelt.experiment.runner.check_participant`).
             input_kind: the input's registry name, stored with the session.
@@ -107,7 +108,9 @@ class SessionRecorder:
             StoreError: ``resume`` with nothing to resume, or a study that changed since
                 the session started.
         """
-        toml = study_toml if study_toml is not None else study.to_toml()
+        # with the pattern files its stimuli name appended (Study.session_toml), so the
+        # store holds what the session played
+        toml = study.session_toml(study_toml if study_toml is not None else study.to_toml())
         sha = hashlib.sha256(toml.encode("utf-8")).hexdigest()
         if resume:
             row = store.find_resumable(participant)

@@ -345,6 +345,7 @@ class SessionRunner:
         )
 
         study, store = self.study, self.store
+        study.check_belt(self.belt)  # a pattern the belt cannot show, before anything starts
         if study.stimulus.drive is not None:  # the study's drive, for the whole session
             self.belt.set_drive(study.stimulus.drive)
         self.profile = profile_for_session(
@@ -384,13 +385,12 @@ class SessionRunner:
         """The stimulus of a trial (one per target, condition and block stimulus, made
         once): its block's ``[stimulus]`` with the block's overrides."""
         sp = self.trial_stimulus(t)
-        key = (t.target_deg, t.condition, sp.law, sp.falloff_deg, sp.period_s, sp.transit_s)
+        key = (t.target_deg, t.condition, sp.law, sp.falloff_deg, sp.period_s, sp.transit_s,
+               sp.pattern)
         if key not in self._stimuli:
-            from ..stimuli import make_stimulus
-
-            self._stimuli[key] = make_stimulus(self.belt.layout, t.target_deg, t.condition,
-                                               sp.law, sp.falloff_deg, sp.period_s,
-                                               sp.transit_s, profile=self.profile)
+            self._stimuli[key] = self.study.make_stimulus(
+                sp, self.belt.layout, t.target_deg, t.condition, profile=self.profile,
+                belt=self.belt)
         return self._stimuli[key]
 
     def targets_for(self, t: ScheduledTrial) -> TargetSet:
