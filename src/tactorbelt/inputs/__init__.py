@@ -17,16 +17,15 @@ participants of one study differ.
 from __future__ import annotations
 
 import hashlib
+from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
     from ..clock import Clock
     from ..devices.base import Belt
-    from ..experiment.schedule import ScheduledTrial
-    from ..experiment.study import Study
     from ..participant.params import ModelParams
     from .base import CursorSource
-    from .joystick import JoystickConfig
+    from .kinds import JoystickConfig, ScheduledAnswer, StudyFacts
 
 __all__ = ["make_cursor", "participant_seed"]
 
@@ -41,14 +40,14 @@ def participant_seed(seed: int, participant: str) -> int:
 def make_cursor(
     kind: str,
     *,
-    study: Study,
+    study: StudyFacts,
     belt: Belt | None = None,
     clock: Clock | None = None,
     participant: str = "",
     seed: int | None = None,
     cursor_seed: int | None = None,
     params: ModelParams | None = None,
-    schedule: list[ScheduledTrial] | None = None,
+    schedule: Sequence[ScheduledAnswer] | None = None,
     geometry: Any = None,
     joystick: JoystickConfig | int | str | None = None,
 ) -> CursorSource:

@@ -14,12 +14,16 @@ runs and which items it presents, and asks it for response presses and workload
 ratings: no-ops here, so a person's device answers nothing (the window collects a
 person's presses and ratings); the model participant answers them itself.
 
-Imports only the standard library and tactorbelt.geometry (numpy and the task and study
-types for annotations).
+:class:`LiveCursor` is the base of the sources a window's event loop feeds (the joystick,
+the mouse).
+
+Imports only the standard library and tactorbelt.geometry (numpy, the respondent and the
+task types for annotations).
 """
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
@@ -34,10 +38,9 @@ if TYPE_CHECKING:
     from ..tasks import WorkloadInfo
     from ..tasks.schedule import TaskItem
     from ..tasks.spec import TaskSpec
-    from .joystick import LiveCursor
     from .screen import EllipseGeometry
 
-__all__ = ["CursorSample", "CursorSource", "RunTaker", "TrialCue"]
+__all__ = ["CursorSample", "CursorSource", "LiveCursor", "RunTaker", "TrialCue"]
 
 #: ``take(t_ns, x, y) -> m``: what :meth:`CursorSource.read_run` hands a run of samples
 #: to (the trial machine's :meth:`~tactorbelt.experiment.trial.TrialMachine.feed_run`).
@@ -165,3 +168,57 @@ class CursorSource:
         """The source's NASA-TLX ratings after a block (item -> 0..100), or None when a
         person answers (the window asks)."""
         return None
+
+
+class LiveCursor(CursorSource):
+    """A cursor whose state is set by the window's main loop and read by anyone.
+
+    :meth:`set_state` (main thread) replaces one tuple; :meth:`read` (any thread)
+    reads it. Assigning and reading one attribute is atomic in CPython, so no lock.
+
+    When the runner's loop runs in the thread that owns the window (the usual case:
+    everything in the main thread), the window registers a refresh function with
+    :meth:`attach_refresh`; :meth:`read` then pumps SDL's events and re-reads the
+    device first, so each 100 Hz sample holds the stick's state at that moment, not
+    at the last frame. From any other thread :meth:`read` never touches SDL.
+    """
+
+    def __init__(self) -> None:
+        self._state: tuple[float, float, int] = (0.0, 0.0, 0)
+        self._refresh: Callable[[], None] | None = None
+        self._owner: int | None = None
+
+    def live_input(self) -> LiveCursor:
+        return self
+
+    def attach_refresh(self, refresh: Callable[[], None] | None) -> None:
+        """Call ``refresh`` (pump and update) in :meth:`read` when read from this thread."""
+        self._refresh = refresh
+        self._owner = threading.get_ident() if refresh is not None else None
+
+    def set_state(self, x: float, y: float, buttons: int = 0) -> None:
+        """Store the latest position (cursor units) and button mask."""
+        self._state = (float(x), float(y), int(buttons))
+
+    @property
+    def state(self) -> tuple[float, float, int]:
+        """The latest ``(x, y, buttons)``."""
+        return self._state
+
+    @property
+    def connected(self) -> bool:
+        """False while the device is gone (the window pauses the session)."""
+        return True
+
+    def read(self, now_ns: int) -> CursorSample:
+        refresh = self._refresh
+        if refresh is not None and threading.get_ident() == self._owner:
+            refresh()
+        x, y, b = self._state
+        return CursorSample(int(now_ns), x, y, b)
+
+    def handle_event(self, event: Any) -> None:
+        """Look at one pygame event (main thread). Default: ignore it."""
+
+    def update(self) -> None:
+        """Refresh the state from the device after an event pump (main thread)."""

@@ -15,7 +15,7 @@ Hot-plug: the source follows ``JOYDEVICEADDED`` / ``JOYDEVICEREMOVED``. While th
 chosen stick is unplugged, :attr:`connected` is False and :meth:`read` returns the
 centre with no buttons (so nothing is acquired); the window pauses the session.
 
-Imports the standard library and tactorbelt.inputs.base; pygame only inside methods
+Imports the standard library, tactorbelt.inputs.base and .kinds; pygame only inside methods
 (call :func:`prepare_sdl` before pygame is first imported).
 """
 
@@ -23,16 +23,11 @@ from __future__ import annotations
 
 import math
 import os
-import threading
-from collections.abc import Callable
-from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from .._errors import ConfigError, DeviceError
-from .base import CursorSample, CursorSource
-
-if TYPE_CHECKING:
-    from .kinds import InputContext
+from .base import LiveCursor
+from .kinds import InputContext, JoystickConfig
 
 __all__ = [
     "JoystickConfig",
@@ -97,100 +92,6 @@ def stick_to_cursor(
     r_new = min((r - dead_zone) / (1.0 - dead_zone), 1.0)
     k = r_new / r
     return u * k, v * k
-
-
-class LiveCursor(CursorSource):
-    """A cursor whose state is set by the window's main loop and read by anyone.
-
-    :meth:`set_state` (main thread) replaces one tuple; :meth:`read` (any thread)
-    reads it. Assigning and reading one attribute is atomic in CPython, so no lock.
-
-    When the runner's loop runs in the thread that owns the window (the usual case:
-    everything in the main thread), the window registers a refresh function with
-    :meth:`attach_refresh`; :meth:`read` then pumps SDL's events and re-reads the
-    device first, so each 100 Hz sample holds the stick's state at that moment, not
-    at the last frame. From any other thread :meth:`read` never touches SDL.
-    """
-
-    def __init__(self) -> None:
-        self._state: tuple[float, float, int] = (0.0, 0.0, 0)
-        self._refresh: Callable[[], None] | None = None
-        self._owner: int | None = None
-
-    def live_input(self) -> LiveCursor:
-        return self
-
-    def attach_refresh(self, refresh: Callable[[], None] | None) -> None:
-        """Call ``refresh`` (pump and update) in :meth:`read` when read from this thread."""
-        self._refresh = refresh
-        self._owner = threading.get_ident() if refresh is not None else None
-
-    def set_state(self, x: float, y: float, buttons: int = 0) -> None:
-        """Store the latest position (cursor units) and button mask."""
-        self._state = (float(x), float(y), int(buttons))
-
-    @property
-    def state(self) -> tuple[float, float, int]:
-        """The latest ``(x, y, buttons)``."""
-        return self._state
-
-    @property
-    def connected(self) -> bool:
-        """False while the device is gone (the window pauses the session)."""
-        return True
-
-    def read(self, now_ns: int) -> CursorSample:
-        refresh = self._refresh
-        if refresh is not None and threading.get_ident() == self._owner:
-            refresh()
-        x, y, b = self._state
-        return CursorSample(int(now_ns), x, y, b)
-
-    def handle_event(self, event: Any) -> None:
-        """Look at one pygame event (main thread). Default: ignore it."""
-
-    def update(self) -> None:
-        """Refresh the state from the device after an event pump (main thread)."""
-
-
-@dataclass(frozen=True)
-class JoystickConfig:
-    """Which stick and how its axes map to the cursor.
-
-    Attributes:
-        device: a device index (``0``) or a case-insensitive substring of its name
-            (``"warthog joystick"``); None picks the first device whose name does not
-            contain ``throttle`` (the Warthog's throttle is a separate USB device).
-        axis_x: index of the left/right axis (Warthog stick: 0).
-        axis_y: index of the front/back axis (Warthog stick: 1).
-        dead_zone: radial dead zone in [0, 1).
-        invert_x, invert_y: mirror an axis.
-    """
-
-    device: int | str | None = None
-    axis_x: int = 0
-    axis_y: int = 1
-    dead_zone: float = 0.05
-    invert_x: bool = False
-    invert_y: bool = False
-
-    def __post_init__(self) -> None:
-        if not 0.0 <= self.dead_zone < 1.0:
-            raise ConfigError(f"joystick dead zone must be in [0, 1), got {self.dead_zone!r}")
-        for name in ("axis_x", "axis_y"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, int) or v < 0:
-                raise ConfigError(f"joystick {name} must be an axis index >= 0, got {v!r}")
-        if self.axis_x == self.axis_y:
-            raise ConfigError(f"joystick axis_x and axis_y are both {self.axis_x}")
-
-    @classmethod
-    def parse_device(cls, text: str | None) -> int | str | None:
-        """``"0"`` -> 0, ``"warthog"`` -> ``"warthog"``, ``None``/``""`` -> None."""
-        if text is None or not str(text).strip():
-            return None
-        t = str(text).strip()
-        return int(t) if t.isdigit() else t
 
 
 def list_joysticks() -> list[dict[str, Any]]:

@@ -10,30 +10,102 @@ respondent (``respondent(ctx)``, for the perceptual calibration), each from one
 Adding a kind (docs/architecture.md, "Adding things"): a module with ``cursor`` and/or
 ``respondent``, and one line in :data:`INPUT_KINDS`.
 
-Pure: the standard library and the registry helper; a kind's module is imported when
+Pure: the standard library, the error tree and the registry helper; a kind's module is imported when
 its cursor or respondent is made.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol
 
+from .._errors import ConfigError
 from .._registry import Registry, check_option, resolve
 
 if TYPE_CHECKING:
     from ..calibration.perceptual import Respondent
     from ..clock import Clock
     from ..devices.base import Belt
-    from ..experiment.schedule import ScheduledTrial
-    from ..experiment.study import Study
     from ..participant.params import ModelParams
     from .base import CursorSource
-    from .joystick import JoystickConfig
 
-__all__ = ["INPUT_KINDS", "InputContext", "InputKind", "calibration_inputs", "input_kind",
-           "session_inputs"]
+__all__ = ["INPUT_KINDS", "InputContext", "InputKind", "JoystickConfig", "ScheduledAnswer",
+           "StudyFacts", "calibration_inputs", "input_kind", "session_inputs"]
+
+
+class _SessionFacts(Protocol):
+    @property
+    def seed(self) -> int: ...
+
+
+class _StimulusFacts(Protocol):
+    @property
+    def period_s(self) -> float: ...
+
+
+class StudyFacts(Protocol):
+    """What an input kind reads of a study (a :class:`~tactorbelt.experiment.study.Study`
+    is one): the session's seed and the stimulus period (the model participant's)."""
+
+    @property
+    def session(self) -> _SessionFacts: ...
+
+    @property
+    def stimulus(self) -> _StimulusFacts: ...
+
+
+class ScheduledAnswer(Protocol):
+    """What an input kind reads of a scheduled trial (a
+    :class:`~tactorbelt.experiment.schedule.ScheduledTrial` is one): its position and
+    its target (the scripted cursor's answer)."""
+
+    @property
+    def trial_index(self) -> int: ...
+
+    @property
+    def target_deg(self) -> float: ...
+
+
+@dataclass(frozen=True)
+class JoystickConfig:
+    """Which stick and how its axes map to the cursor.
+
+    Attributes:
+        device: a device index (``0``) or a case-insensitive substring of its name
+            (``"warthog joystick"``); None picks the first device whose name does not
+            contain ``throttle`` (the Warthog's throttle is a separate USB device).
+        axis_x: index of the left/right axis (Warthog stick: 0).
+        axis_y: index of the front/back axis (Warthog stick: 1).
+        dead_zone: radial dead zone in [0, 1).
+        invert_x, invert_y: mirror an axis.
+    """
+
+    device: int | str | None = None
+    axis_x: int = 0
+    axis_y: int = 1
+    dead_zone: float = 0.05
+    invert_x: bool = False
+    invert_y: bool = False
+
+    def __post_init__(self) -> None:
+        if not 0.0 <= self.dead_zone < 1.0:
+            raise ConfigError(f"joystick dead zone must be in [0, 1), got {self.dead_zone!r}")
+        for name in ("axis_x", "axis_y"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int) or v < 0:
+                raise ConfigError(f"joystick {name} must be an axis index >= 0, got {v!r}")
+        if self.axis_x == self.axis_y:
+            raise ConfigError(f"joystick axis_x and axis_y are both {self.axis_x}")
+
+    @classmethod
+    def parse_device(cls, text: str | None) -> int | str | None:
+        """``"0"`` -> 0, ``"warthog"`` -> ``"warthog"``, ``None``/``""`` -> None."""
+        if text is None or not str(text).strip():
+            return None
+        t = str(text).strip()
+        return int(t) if t.isdigit() else t
+
 
 
 @dataclass(frozen=True)
@@ -55,14 +127,14 @@ class InputContext:
         read_key, say: the terminal (the keyboard respondent).
     """
 
-    study: Study | None = None
+    study: StudyFacts | None = None
     belt: Belt | None = None
     clock: Clock | None = None
     participant: str = ""
     seed: int | None = None
     cursor_seed: int | None = None
     params: ModelParams | None = None
-    schedule: list[ScheduledTrial] | None = None
+    schedule: Sequence[ScheduledAnswer] | None = None
     geometry: Any = None
     joystick: JoystickConfig | int | str | None = None
     read_key: Callable[[], str] | None = None

@@ -8,7 +8,7 @@ units (radius 1 on the ellipse, y up = front) and clamps it to the ellipse.
 
 Buttons: bit 0 left, bit 1 middle, bit 2 right.
 
-Imports the standard library, tactorbelt.inputs and tactorbelt.inputs.screen (pure);
+Imports the standard library, tactorbelt.inputs.base and tactorbelt.inputs.screen (pure);
 pygame only inside methods.
 """
 
@@ -16,7 +16,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
-from .joystick import LiveCursor
+from .base import LiveCursor
 from .screen import EllipseGeometry
 
 if TYPE_CHECKING:
