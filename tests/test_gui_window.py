@@ -30,7 +30,8 @@ from tactorbelt.gui.layout import target_positions
 from tactorbelt.gui.render import COLORS
 from tactorbelt.gui.window import SCREEN_KINDS, ExperimentWindow, run_with_window
 from tactorbelt.inputs.base import TrialCue
-from tactorbelt.inputs.joystick import JoystickConfig, JoystickCursor
+from tactorbelt.inputs.joystick import JoystickCursor
+from tactorbelt.inputs.kinds import JoystickConfig
 from tactorbelt.inputs.mouse import MouseCursor
 from tactorbelt.inputs.scripted import ScriptedCursor, ScriptedResponse
 

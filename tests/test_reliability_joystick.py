@@ -22,7 +22,8 @@ from tactorbelt.devices.sim import SimBelt
 from tactorbelt.experiment.store import Store
 from tactorbelt.experiment.study import Study
 from tactorbelt.gui.window import ExperimentWindow, run_with_window
-from tactorbelt.inputs.joystick import JoystickConfig, JoystickCursor
+from tactorbelt.inputs.joystick import JoystickCursor
+from tactorbelt.inputs.kinds import JoystickConfig
 
 STUDY = study_toml(minimal=True, name="joystick", tactors=4, targets=8,
                    max_presentation_s=2.0, timeout_s=3.0, iti_s=0.3, break_every=0,

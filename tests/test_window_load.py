@@ -29,7 +29,8 @@ from tactorbelt.experiment.store import Store
 from tactorbelt.experiment.study import Study, TaskSpec
 from tactorbelt.gui.tlx import TLX_SCALES, TlxForm
 from tactorbelt.gui.window import ExperimentWindow, run_with_window
-from tactorbelt.inputs.joystick import JoystickConfig, JoystickCursor
+from tactorbelt.inputs.joystick import JoystickCursor
+from tactorbelt.inputs.kinds import JoystickConfig
 from tactorbelt.inputs.scripted import ScriptedCursor
 from tactorbelt.tasks import TLX_ITEMS, TLX_SCALE, WorkloadInfo
 from tactorbelt.tasks.audio import SilentTaskAudio

@@ -60,7 +60,7 @@ from ..experiment.study import load_study
 from ..experiment.sync import Pusher, check_push
 from ..experiment.trial import TrialResult
 from ..inputs import kinds, make_cursor
-from ..inputs.joystick import JoystickConfig
+from ..inputs.kinds import JoystickConfig
 from ..lsl import LslListener, load_pylsl
 from .display import check_display, has_display
 

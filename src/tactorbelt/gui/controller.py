@@ -31,7 +31,8 @@ from typing import TYPE_CHECKING, Any
 from .._errors import ConfigError
 from ..clock import Deadlines
 from ..experiment.listeners import NullObserver
-from ..inputs.joystick import LiveCursor, prepare_sdl
+from ..inputs.base import LiveCursor
+from ..inputs.joystick import prepare_sdl
 from ..inputs.kinds import input_kind as input_kind_of
 
 if TYPE_CHECKING:

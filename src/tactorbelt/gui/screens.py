@@ -34,8 +34,7 @@ if TYPE_CHECKING:
     from ..experiment.study import Study, TaskSpec
     from ..experiment.trial import TrialResult
     from ..geometry import Layout
-    from ..inputs.base import CursorSample
-    from ..inputs.joystick import LiveCursor
+    from ..inputs.base import CursorSample, LiveCursor
     from .render import Renderer, View
     from .taskview import TaskPresenter
     from .tlx import TlxScreen

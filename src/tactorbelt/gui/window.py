@@ -46,8 +46,7 @@ from typing import TYPE_CHECKING, Any
 from .._errors import ConfigError, TactorbeltError
 from ..inputs import make_cursor
 from ..inputs.base import CursorSource
-from ..inputs.joystick import JoystickConfig
-from ..inputs.kinds import input_kind
+from ..inputs.kinds import JoystickConfig, input_kind
 from . import screens
 from .controller import WindowController
 from .screens import SCREEN_KINDS, TASK_SCREEN_KINDS

@@ -30,9 +30,7 @@ from .base import LiveCursor
 from .kinds import InputContext, JoystickConfig
 
 __all__ = [
-    "JoystickConfig",
     "JoystickCursor",
-    "LiveCursor",
     "list_joysticks",
     "prepare_sdl",
     "stick_to_cursor",
