@@ -46,20 +46,17 @@ import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Final
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .._errors import ConfigError
 from ..geometry import Layout, normalize
+from .rules import EPS, FORMAT, VERSION, warp_problem
 
 __all__ = ["FORMAT", "PairWarp", "WearerProfile", "isotonic"]
 
-FORMAT: Final = "tactorbelt-wearer-profile"
-VERSION: Final = 1
-#: Knots of a warp closer than this (as a fraction of the gap) count as equal.
-_EPS: Final = 1e-9
 
 
 def isotonic(values: Sequence[float], lo: float = 0.0, hi: float = 1.0,
@@ -94,38 +91,20 @@ class PairWarp:
     rendered: tuple[float, ...] = ()
 
     def __post_init__(self) -> None:
-        problem = _warp_problem(self.intended, self.rendered)
+        problem = warp_problem(self.intended, self.rendered)
         if problem:
             field_, message = problem
             raise ConfigError(f"warp {field_}: {message}")
 
     @property
     def is_identity(self) -> bool:
-        return all(abs(i - r) < _EPS for i, r in zip(self.intended, self.rendered, strict=True))
+        return all(abs(i - r) < EPS for i, r in zip(self.intended, self.rendered, strict=True))
 
     def apply(self, fraction: NDArray[np.float64]) -> NDArray[np.float64]:
         """Rendered fractions for intended ones (vectorised)."""
         xs = np.concatenate([[0.0], self.intended, [1.0]])
         ys = np.concatenate([[0.0], self.rendered, [1.0]])
         return np.asarray(np.interp(fraction, xs, ys))
-
-
-def _warp_problem(intended: Sequence[Any], rendered: Sequence[Any]) -> tuple[str, str] | None:
-    """(field, message) of what is wrong with a warp's knots, or None."""
-    for name, values in (("intended", intended), ("rendered", rendered)):
-        if not all(isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
-                   for v in values):
-            return name, f"must be finite numbers, got {list(values)!r}"
-    if len(intended) != len(rendered):
-        return "rendered", (f"has {len(rendered)} values for {len(intended)} intended "
-                            "positions; give one rendered position per intended one")
-    for name, values in (("intended", intended), ("rendered", rendered)):
-        pts = [0.0, *map(float, values), 1.0]
-        for k in range(1, len(pts)):
-            if pts[k] <= pts[k - 1] + _EPS:
-                return name, (f"must increase strictly from 0 to 1 (a monotone warp), got "
-                              f"{list(values)!r}")
-    return None
 
 
 @dataclass(frozen=True)

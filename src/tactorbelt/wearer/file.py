@@ -2,7 +2,7 @@
 model: :class:`File` (its pairs :class:`Pair`), with the messages of every check; read by
 :meth:`tactorbelt.wearer.WearerProfile.from_mapping`.
 
-Imports pydantic, tactorbelt._files.model and the law names.
+Imports pydantic, tactorbelt._files.model, the law names and :mod:`.rules`.
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ from pydantic import Field, model_validator
 from .._files.model import FileModel, checked, is_number
 from .._lawnames import LAWS
 from .._registry import check_option
-from . import FORMAT, VERSION, _warp_problem
+from .rules import FORMAT, VERSION, warp_problem
 
 __all__ = ["File", "Pair"]
 
@@ -54,7 +54,7 @@ class Pair(FileModel):
     def _warp(self) -> Pair:
         if not isinstance(self.intended, list) or not isinstance(self.rendered, list):
             raise ValueError("intended and rendered must be lists of fractions in (0, 1)")
-        problem = _warp_problem(self.intended, self.rendered)
+        problem = warp_problem(self.intended, self.rendered)
         if problem:
             raise ValueError(f"@{problem[0]}@ {problem[1]}")
         return self
