@@ -31,7 +31,7 @@ test-firmware:
 lint: $(STAMP)
 	$(VENV)/bin/ruff check src tests benchmarks examples scripts
 	$(VENV)/bin/mypy
-	$(VENV)/bin/lint-imports
+	$(VENV)/bin/lint-imports --no-cache
 
 # bench: the quick suite (under 5 minutes; rates on smaller stores), compared with the
 # last committed benchmarks/results.json; bench-full: 1,000-participant figures too.
