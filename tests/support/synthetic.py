@@ -2,7 +2,7 @@
 (the benchmarks put tests/ on sys.path and import ``support.synthetic``).
 
 The analysis must not depend on the study runner to be tested, so this module writes
-bare stores (:func:`~tactorbelt.experiment.store.sqlite.create_bare_store`: exactly
+bare stores (:func:`create_bare_store`: exactly
 the columns the analysis requires, docs/study.md "The store") through the store's bulk
 insert. Two entry points:
 
@@ -19,13 +19,16 @@ tactorbelt.geometry and the store.
 
 from __future__ import annotations
 
+import sqlite3
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from tactorbelt.experiment.store.sqlite import SQLiteStore, create_bare_store
+from tactorbelt._errors import StoreError
+from tactorbelt.experiment.store.schema import SQLITE, create_index, table
+from tactorbelt.experiment.store.sqlite import SQLiteStore
 from tactorbelt.geometry import Layout, TargetSet, normalize
 
 __all__ = [
@@ -60,6 +63,64 @@ def paper_study_toml(name: str = "between-tactor-paper", tactors: int | Sequence
         f'name = "{name}"\n\n[layout]\n{layout}\n\n[targets]\ncount = {targets}\n\n'
         f'[stimulus]\nlaw = "{law}"\nfalloff_deg = {falloff_deg}\n'
     )
+
+
+def bare_statements(extra_columns: bool = False) -> list[str]:
+    """SQLite statements of a bare store: the required columns alone, as a store written
+    by another tool may have them (no meta, no constraints but the required values)."""
+    out = []
+    for name in ("sessions", "trials", "samples"):
+        cols = [c for c in table(name).columns if c.required]
+        defs = [f"{c.name} " + ("INTEGER PRIMARY KEY" if c.type == "id" else SQLITE.types[c.type]
+                                + (" NOT NULL" if c.required == "value" else ""))
+                for c in cols]
+        out.append(f"CREATE TABLE {name}(\n    " + ",\n    ".join(defs) + "\n)")
+    if extra_columns:  # columns the analysis must tolerate
+        out += ["ALTER TABLE sessions ADD COLUMN input TEXT",
+                "ALTER TABLE trials ADD COLUMN notes TEXT"]
+    return out
+
+
+def create_bare_store(path: str | Path, *, samples_index: bool = True,
+                      extra_columns: bool = False, fast: bool = False) -> SQLiteStore:
+    """Create a bare store (only the required columns) for synthetic data; open for writing.
+
+    The analysis reads any store that has the required tables and columns; this one has
+    no more (no meta table, no provenance), so tests can check that. Fill it with
+    :meth:`SQLiteStore.bulk_insert`.
+
+    Args:
+        path: the new file (must not exist).
+        samples_index: create the index on ``samples(trial_id)`` now (else call
+            :func:`index_samples` after loading).
+        extra_columns: add columns the analysis must tolerate (``sessions.input``,
+            ``trials.notes``).
+        fast: no journal and no fsync (a benchmark's scratch file; not crash safe).
+    """
+    p = Path(path)
+    if p.exists():
+        raise StoreError(f"{p} exists; a synthetic store is written into a new file")
+    try:
+        conn = sqlite3.connect(str(p), isolation_level=None, check_same_thread=False)
+        conn.row_factory = sqlite3.Row
+        if fast:
+            conn.execute("PRAGMA journal_mode = OFF")
+            conn.execute("PRAGMA synchronous = OFF")
+        conn.execute("BEGIN")
+        for stmt in bare_statements(extra_columns):
+            conn.execute(stmt)
+        if samples_index:
+            conn.execute(create_index(SQLITE, "samples_trial"))
+        conn.execute("COMMIT")
+    except sqlite3.Error as exc:
+        raise StoreError(f"cannot create {p}: {exc}") from None
+    return SQLiteStore(p, conn, None, readonly=False)
+
+
+def index_samples(store: SQLiteStore) -> None:
+    """Create the index on ``samples(trial_id)`` (after a bulk load without it)."""
+    with store._transaction() as c:
+        c.execute(create_index(SQLITE, "samples_trial"))
 
 
 def create_store(path: str | Path, *, samples_index: bool = True,
@@ -177,7 +238,7 @@ def synthesize_store(
             u_p=u_p, v_p=v_p, w_t=w_t, timeout_rate=timeout_rate, samples=samples,
             sample_rate_hz=sample_rate_hz)
     if samples:
-        store.index_samples()
+        index_samples(store)
     store.close()
     return counts
 

@@ -813,8 +813,6 @@ def _template(name: str) -> str:
 TEMPLATES: dict[str, str] = {name: _template(name) for name in ("paper", "resolution", "load")}
 #: The paper's protocol, as ``study init`` writes it.
 PAPER_STUDY_TOML = TEMPLATES["paper"]
-RESOLUTION_STUDY_TOML = TEMPLATES["resolution"]
-LOAD_STUDY_TOML = TEMPLATES["load"]
 
 
 def paper_study() -> Study:

@@ -174,11 +174,6 @@ class WearerProfile:
                               f"{list(self.tactor_angles_deg)}, the belt has "
                               f"{list(layout.angles_deg)}")
 
-    def with_warps(self, warps: Sequence[PairWarp]) -> WearerProfile:
-        from dataclasses import replace
-
-        return replace(self, warps=tuple(warps))
-
     # -- rendering ------------------------------------------------------------------------
     def warp_deg(self, layout: Layout, x: ArrayLike) -> NDArray[np.float64]:
         """Rendered locations for intended ones (degrees, any shape; vectorised).

@@ -22,12 +22,9 @@ from __future__ import annotations
 
 import datetime as _dt
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from ..._errors import StoreError
-
-if TYPE_CHECKING:
-    pass
 
 __all__ = [
     "BACKENDS",

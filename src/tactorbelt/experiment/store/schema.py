@@ -1,7 +1,7 @@
 """The store's schema, declared once, and the SQL dialects it is written in.
 
 :data:`TABLES` and :data:`INDEXES` declare every table, column and index of a store;
-:func:`create_statements`, :func:`migrate` and :func:`bare_statements` write them in a
+:func:`create_statements` and :func:`migrate` write them in a
 :class:`Dialect` (:data:`SQLITE`, :data:`POSTGRESQL`), as SQLAlchemy Core compiles one
 table definition per dialect, without SQLAlchemy. The queries are written once too
 (in :mod:`.sql`): in SQLite's spelling (``?`` placeholders, bare table names), which
@@ -38,7 +38,7 @@ from .base import SESSION_STATUSES, TRIAL_STATUSES
 
 __all__ = [
     "INDEXES", "POSTGRESQL", "SQLITE", "TABLES", "TABLE_NAMES", "Column", "Dialect", "Index",
-    "Table", "bare_statements", "columns", "create_index", "create_statements", "migrate",
+    "Table", "columns", "create_index", "create_statements", "migrate",
     "missing_columns", "table",
 ]
 
@@ -390,20 +390,3 @@ def migrate(conn: Any, d: Dialect) -> None:
             d.sql("SELECT session_id FROM sessions WHERE session_uuid IS NULL")).fetchall():
         conn.execute(d.sql("UPDATE sessions SET session_uuid=? WHERE session_id=?"),
                      (str(uuid.uuid4()), sid))
-
-
-def bare_statements(extra_columns: bool = False) -> list[str]:
-    """SQLite statements of a bare store: the required columns alone, as a store written
-    by another tool may have them (no meta, no constraints but the required values)."""
-    out = []
-    for name in ("sessions", "trials", "samples"):
-        cols = [c for c in table(name).columns if c.required]
-        defs = [f"{c.name} " + ("INTEGER PRIMARY KEY" if c.type == "id" else SQLITE.types[c.type]
-                                + (" NOT NULL" if c.required == "value" else ""))
-                for c in cols]
-        out.append(f"CREATE TABLE {name}(\n    " + ",\n    ".join(defs) + "\n)")
-    if extra_columns:  # columns the analysis must tolerate
-        out += ["ALTER TABLE sessions ADD COLUMN input TEXT",
-                "ALTER TABLE trials ADD COLUMN notes TEXT"]
-    return out
-

@@ -24,9 +24,7 @@ and removes the lock file: what stays on disk is the store file alone. After a c
 the ``-wal`` (with the last committed trials) and the lock file stay; the next open
 recovers them.
 
-:func:`create_bare_store` writes a bare store with only the columns the analysis
-requires (synthetic data for tests and benchmarks); :func:`move_store_file` moves a
-closed store (with any WAL files) aside.
+:func:`move_store_file` moves a closed store (with any WAL files) aside.
 
 I/O edge of the experiment package: imports sqlite3, fcntl and the pure experiment
 modules; never devices, inputs or the window.
@@ -47,10 +45,10 @@ from typing import Any
 from ..._errors import StoreError
 from ..trial import TrialResult
 from .base import SCHEMA_VERSION, StoreCapabilities
-from .schema import SQLITE, bare_statements, create_index, migrate
+from .schema import SQLITE, migrate
 from .sql import COMMITS_KEY, Store
 
-__all__ = ["APPLICATION_ID", "SQLiteStore", "create_bare_store", "move_store_file"]
+__all__ = ["APPLICATION_ID", "SQLiteStore", "move_store_file"]
 
 #: PRAGMA application_id of a tactorbelt store ("TBLT").
 APPLICATION_ID = 0x54424C54
@@ -487,47 +485,6 @@ class SQLiteStore(Store):
     def _bulk_samples(self, c: Any, rows: Iterable[Sequence[Any]]) -> None:
         c.executemany("INSERT INTO samples(trial_id, t_s, x, y, buttons) VALUES (?,?,?,?,?)",
                       rows)
-
-    def index_samples(self) -> None:
-        """Create the index on ``samples(trial_id)`` (after a bulk load without it)."""
-        with self._transaction() as c:
-            c.execute(create_index(SQLITE, "samples_trial"))
-
-
-def create_bare_store(path: str | Path, *, samples_index: bool = True,
-                        extra_columns: bool = False, fast: bool = False) -> SQLiteStore:
-    """Create a bare store (only the required columns) for synthetic data; open for writing.
-
-    The analysis reads any store that has the required tables and columns; this one has
-    no more (no meta table, no provenance), so tests can check that. Fill it with
-    :meth:`SQLiteStore.bulk_insert`.
-
-    Args:
-        path: the new file (must not exist).
-        samples_index: create the index on ``samples(trial_id)`` now (else call
-            :meth:`SQLiteStore.index_samples` after loading).
-        extra_columns: add columns the analysis must tolerate (``sessions.input``,
-            ``trials.notes``).
-        fast: no journal and no fsync (a benchmark's scratch file; not crash safe).
-    """
-    p = _path_of(path)
-    if p.exists():
-        raise StoreError(f"{p} exists; a synthetic store is written into a new file")
-    try:
-        conn = sqlite3.connect(str(p), isolation_level=None, check_same_thread=False)
-        conn.row_factory = sqlite3.Row
-        if fast:
-            conn.execute("PRAGMA journal_mode = OFF")
-            conn.execute("PRAGMA synchronous = OFF")
-        conn.execute("BEGIN")
-        for stmt in bare_statements(extra_columns):
-            conn.execute(stmt)
-        if samples_index:
-            conn.execute(create_index(SQLITE, "samples_trial"))
-        conn.execute("COMMIT")
-    except sqlite3.Error as exc:
-        raise StoreError(f"cannot create {p}: {exc}") from None
-    return SQLiteStore(p, conn, None, readonly=False)
 
 
 def move_store_file(src: str | Path, dst: str | Path) -> bool:
