@@ -31,7 +31,8 @@ import math
 import struct
 from binascii import crc_hqx as _crc_hqx
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
+from typing import Any
 
 from .._errors import ConfigError, ProtocolError
 
@@ -734,6 +735,22 @@ def _expect_len(p: Packet, name: str, *sizes: int) -> None:
         raise ProtocolError(f"{name}: payload of {len(p.payload)} bytes, expected {want}")
 
 
+def _unpack_fixed(p: Packet, kind: type[Any], layout: struct.Struct) -> Any:
+    """A packet whose payload is one struct, as ``kind`` of its fields."""
+    _expect_len(p, MsgType(p.type).name, layout.size)
+    return kind(*layout.unpack(p.payload))
+
+
+_NO_PAYLOAD = struct.Struct("")
+#: The requests whose payload is one struct: type -> (class, struct).
+_FIXED_REQUESTS: dict[int, tuple[type[Any], struct.Struct]] = {
+    MsgType.PING: (Ping, struct.Struct("<I")), MsgType.GET_INFO: (GetInfo, _NO_PAYLOAD),
+    MsgType.STOP_ALL: (StopAll, _NO_PAYLOAD), MsgType.PLAY_TARGET: (PlayTarget, _PLAY_TARGET),
+    MsgType.HEARTBEAT: (Heartbeat, _NO_PAYLOAD), MsgType.GET_STATUS: (GetStatus, _NO_PAYLOAD),
+    MsgType.GET_DIAG: (GetDiag, _NO_PAYLOAD), MsgType.SENSE_START: (SenseStart, _SENSE_START),
+    MsgType.SENSE_STOP: (SenseStop, _NO_PAYLOAD)}
+
+
 def parse_request(p: Packet) -> Request:
     """A host-to-device packet as a dataclass (for tests that play the device).
 
@@ -741,45 +758,18 @@ def parse_request(p: Packet) -> Request:
         ProtocolError: an unknown type or a payload of the wrong length.
     """
     t = p.type
-    if t == MsgType.PING:
-        _expect_len(p, "PING", 4)
-        return Ping(*struct.unpack("<I", p.payload))
-    if t == MsgType.GET_INFO:
-        _expect_len(p, "GET_INFO", 0)
-        return GetInfo()
+    fixed = _FIXED_REQUESTS.get(t)
+    if fixed is not None:
+        return _unpack_fixed(p, *fixed)
     if t == MsgType.SET_AMPLITUDES:
         if len(p.payload) % 2:
             raise ProtocolError(f"SET_AMPLITUDES: odd payload of {len(p.payload)} bytes")
         n = len(p.payload) // 2
         return SetAmplitudes(struct.unpack(f"<{n}H", p.payload))
-    if t == MsgType.STOP_ALL:
-        _expect_len(p, "STOP_ALL", 0)
-        return StopAll()
-    if t == MsgType.PLAY_TARGET:
-        _expect_len(p, "PLAY_TARGET", _PLAY_TARGET.size)
-        return PlayTarget(*_PLAY_TARGET.unpack(p.payload))
-    if t == MsgType.HEARTBEAT:
-        _expect_len(p, "HEARTBEAT", 0)
-        return Heartbeat()
     if t == MsgType.SET_CONFIG:
         _expect_len(p, "SET_CONFIG", 2, 6, 7)
-        if len(p.payload) == 2:
-            return SetConfig(*struct.unpack("<H", p.payload))
-        if len(p.payload) == 6:
-            return SetConfig(*struct.unpack("<HI", p.payload))
-        return SetConfig(*struct.unpack("<HIB", p.payload))
-    if t == MsgType.GET_STATUS:
-        _expect_len(p, "GET_STATUS", 0)
-        return GetStatus()
-    if t == MsgType.GET_DIAG:
-        _expect_len(p, "GET_DIAG", 0)
-        return GetDiag()
-    if t == MsgType.SENSE_START:
-        _expect_len(p, "SENSE_START", _SENSE_START.size)
-        return SenseStart(*_SENSE_START.unpack(p.payload))
-    if t == MsgType.SENSE_STOP:
-        _expect_len(p, "SENSE_STOP", 0)
-        return SenseStop()
+        fmt = {2: "<H", 6: "<HI", 7: "<HIB"}[len(p.payload)]
+        return SetConfig(*struct.unpack(fmt, p.payload))
     raise ProtocolError(f"unknown request type 0x{t:02X}")
 
 
@@ -928,6 +918,12 @@ _ONSET = struct.Struct("<BBQ")
 _SENSE_HEAD = struct.Struct("<BBIQHH")
 #: ``_SENSE_SAMPLES[n]`` unpacks n samples (3n int16).
 _SENSE_SAMPLES = tuple(struct.Struct(f"<{3 * n}h") for n in range(SENSE_MAX_SAMPLES + 1))
+#: The replies whose payload is one struct: type -> (class, struct, each field's bits).
+_FIXED_REPLIES: dict[int, tuple[type[Any], struct.Struct, tuple[int, ...]]] = {
+    MsgType.PONG: (Pong, struct.Struct("<II"), (32, 32)),
+    MsgType.DIAG: (Diag, _DIAG, (64, 8, 16, 16)),
+    MsgType.ONSET: (Onset, _ONSET, (8, 8, 64)),
+    MsgType.ACK: (Ack, struct.Struct("<BB"), (8, 8))}
 
 
 def parse_reply(p: Packet) -> Reply:
@@ -937,9 +933,9 @@ def parse_reply(p: Packet) -> Reply:
         ProtocolError: an unknown type, a payload of the wrong length, an unknown state.
     """
     t, payload = p.type, p.payload
-    if t == MsgType.PONG:
-        _expect_len(p, "PONG", 8)
-        return Pong(*struct.unpack("<II", payload))
+    if t in _FIXED_REPLIES:
+        kind, layout, _ = _FIXED_REPLIES[t]
+        return _unpack_fixed(p, kind, layout)
     if t == MsgType.INFO:
         head = _INFO_HEAD.size
         if len(payload) < head or (len(payload) - head) % 2:
@@ -970,12 +966,6 @@ def parse_reply(p: Packet) -> Reply:
         n = (len(payload) - head) // 2
         levels = struct.unpack_from(f"<{n}H", payload, head)
         return Status(st, failsafe, crc_errors, framing_errors, gaps, levels)
-    if t == MsgType.DIAG:
-        _expect_len(p, "DIAG", _DIAG.size)
-        return Diag(*_DIAG.unpack(payload))
-    if t == MsgType.ONSET:
-        _expect_len(p, "ONSET", _ONSET.size)
-        return Onset(*_ONSET.unpack(payload))
     if t == MsgType.SENSE_DATA:
         head = _SENSE_HEAD.size
         n, odd = divmod(len(payload) - head, 6)
@@ -987,9 +977,6 @@ def parse_reply(p: Packet) -> Reply:
             raise ProtocolError("SENSE_DATA: a sampling period of 0 us")
         return SenseData(seq, flags, index, t0, period, fs,
                          _SENSE_SAMPLES[n].unpack_from(payload, head))
-    if t == MsgType.ACK:
-        _expect_len(p, "ACK", 2)
-        return Ack(*payload)
     if t == MsgType.NAK:
         _expect_len(p, "NAK", 2)
         seq, code = payload
@@ -1000,55 +987,29 @@ def parse_reply(p: Packet) -> Reply:
     raise ProtocolError(f"unknown reply type 0x{t:02X}")
 
 
+def _fields(reply: Any, *bits: int) -> list[int]:
+    """The first fields of dataclass ``reply``, each checked to fit its ``bits``."""
+    return [_uint(f.name, getattr(reply, f.name), b)
+            for f, b in zip(fields(reply)[:len(bits)], bits, strict=True)]
+
+
 def encode_reply(seq: int, reply: Reply) -> Packet:
     """Build a device reply (the inverse of :func:`parse_reply`; for tests and tools)."""
-    if isinstance(reply, Pong):
-        payload = struct.pack(
-            "<II",
-            _uint("nonce", reply.nonce, 32),
-            _uint("device_time_us", reply.device_time_us, 32),
-        )
-        return Packet(MsgType.PONG, seq, payload)
+    for t, (kind, layout, bits) in _FIXED_REPLIES.items():
+        if isinstance(reply, kind):
+            return Packet(t, seq, layout.pack(*_fields(reply, *bits)))
     if isinstance(reply, Info):
         if reply.channels != len(reply.tactor_angles_deg):
             raise ConfigError(
                 f"INFO: {reply.channels} channels but {len(reply.tactor_angles_deg)} angles"
             )
-        payload = _INFO_HEAD.pack(
-            _uint("protocol_version", reply.protocol_version, 8),
-            _uint("fw_major", reply.fw_major, 8),
-            _uint("fw_minor", reply.fw_minor, 8),
-            _uint("fw_patch", reply.fw_patch, 8),
-            _uint("channels", reply.channels, 8),
-            _uint("pwm_steps", reply.pwm_steps, 16),
-            _uint("heartbeat_ms", reply.heartbeat_ms, 16),
-            _uint("capabilities", reply.capabilities, 8),
-        ) + b"".join(struct.pack("<H", angle_to_cdeg(a)) for a in reply.tactor_angles_deg)
+        payload = _INFO_HEAD.pack(*_fields(reply, 8, 8, 8, 8, 8, 16, 16, 8)) + b"".join(
+            struct.pack("<H", angle_to_cdeg(a)) for a in reply.tactor_angles_deg)
         return Packet(MsgType.INFO, seq, payload)
     if isinstance(reply, Status):
-        payload = _STATUS_HEAD.pack(
-            _uint("state", int(reply.state), 8),
-            _uint("failsafe_count", reply.failsafe_count, 16),
-            _uint("crc_errors", reply.crc_errors, 16),
-            _uint("framing_errors", reply.framing_errors, 16),
-            _uint("seq_gaps", reply.seq_gaps, 16),
-        ) + b"".join(struct.pack("<H", _uint("level", v, 16)) for v in reply.levels)
+        payload = _STATUS_HEAD.pack(*_fields(reply, 8, 16, 16, 16, 16)) + b"".join(
+            struct.pack("<H", _uint("level", v, 16)) for v in reply.levels)
         return Packet(MsgType.STATUS, seq, payload)
-    if isinstance(reply, Diag):
-        payload = _DIAG.pack(
-            _uint("device_time_us", reply.device_time_us, 64),
-            _uint("reset_flags", int(reply.reset_flags), 8),
-            _uint("tx_dropped", reply.tx_dropped, 16),
-            _uint("ble_refused", reply.ble_refused, 16),
-        )
-        return Packet(MsgType.DIAG, seq, payload)
-    if isinstance(reply, Onset):
-        payload = _ONSET.pack(
-            _uint("seq", reply.seq, 8),
-            _uint("request_type", int(reply.request_type), 8),
-            _uint("device_time_us", reply.device_time_us, 64),
-        )
-        return Packet(MsgType.ONSET, seq, payload)
     if isinstance(reply, SenseData):
         if len(reply.samples) % 3 or len(reply.samples) > 3 * SENSE_MAX_SAMPLES:
             raise ConfigError(f"SENSE_DATA: {len(reply.samples)} values; 3 per sample, at most "
@@ -1056,16 +1017,9 @@ def encode_reply(seq: int, reply: Reply) -> Packet:
         for v in reply.samples:
             if isinstance(v, bool) or not isinstance(v, int) or not -32768 <= v <= 32767:
                 raise ConfigError(f"SENSE_DATA: sample value {v!r} is not an int16")
-        payload = _SENSE_HEAD.pack(
-            _uint("session_seq", reply.session_seq, 8),
-            _uint("flags", int(reply.flags), 8),
-            _uint("first_index", reply.first_index, 32),
-            _uint("t0_us", reply.t0_us, 64),
-            _uint("period_us", reply.period_us, 16),
-            _uint("full_scale_mg", reply.full_scale_mg, 16),
-        ) + _SENSE_SAMPLES[len(reply.samples) // 3].pack(*reply.samples)
+        payload = _SENSE_HEAD.pack(*_fields(reply, 8, 8, 32, 64, 16, 16)) + _SENSE_SAMPLES[
+            len(reply.samples) // 3].pack(*reply.samples)
         return Packet(MsgType.SENSE_DATA, seq, payload)
-    if isinstance(reply, Ack | Nak):
-        kind = MsgType.ACK if isinstance(reply, Ack) else MsgType.NAK
-        return Packet(kind, seq, bytes((_uint("seq", reply.seq, 8), _uint("code", reply.code, 8))))
+    if isinstance(reply, Nak):
+        return Packet(MsgType.NAK, seq, bytes(_fields(reply, 8, 8)))
     raise ConfigError(f"not a reply: {reply!r}")
