@@ -183,10 +183,6 @@ class ClockEstimate:
         """A bridge time (ns) on the page's clock (ms)."""
         return bridge_ns / 1e6 + self.offset_ms
 
-    def to_bridge_ns(self, page_ms: float) -> int:
-        """A page time (ms) on the bridge's clock (ns)."""
-        return round((page_ms - self.offset_ms) * 1e6)
-
     def to_dict(self) -> dict[str, float | int]:
         return {"offset_ms": self.offset_ms, "uncertainty_ms": self.uncertainty_ms,
                 "rtt_ms": self.rtt_ms, "pings": self.pings}

@@ -58,12 +58,6 @@ class FactorialProtocol:
     def conditions(self) -> tuple[str, ...]:
         return tuple(dict.fromkeys(c for p in self.parts for c in p.conditions))
 
-    def load_names(self) -> tuple[str, ...]:
-        """The loads of the blocks (``("none",)`` without a load)."""
-        if not self.loads:
-            return ("none",)
-        return tuple(dict.fromkeys(lv for names in self.loads for lv in names))
-
 
 def factorial_cues(protocol: FactorialProtocol, vibrate: Callable[..., Any],
                    params: ModelParams | None = None) -> tuple[StimulusCues, ...]:

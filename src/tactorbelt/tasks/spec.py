@@ -96,16 +96,6 @@ class TaskSpec(BaseModel):
         return self
 
     @property
-    def response_device(self) -> str:
-        """``key``, ``joystick`` or ``mouse``."""
-        return self.response.split(":", 1)[0]
-
-    @property
-    def response_button(self) -> str:
-        """The key name, the joystick button number or the mouse button (as text)."""
-        return self.response.split(":", 1)[1]
-
-    @property
     def active(self) -> bool:
         """A task runs (``kind`` is not ``none``)."""
         return self.kind != NO_TASK
