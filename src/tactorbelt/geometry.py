@@ -10,7 +10,7 @@ Pure: imports only NumPy and tactorbelt._errors.
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Iterator, Sequence
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -264,17 +264,6 @@ class TargetSet:
         d = np.abs(wrap(np.subtract.outer(np.atleast_1d(normalize(angle)), self.angles)))
         best = self.angles[d.argmin(axis=1)]
         return float(best[0]) if np.ndim(angle) == 0 else best
-
-
-def as_layout(layout: Layout | int | Sequence[float] | None) -> Layout:
-    """Accept a Layout, a tactor count, or a list of angles (None: the default 6)."""
-    if layout is None:
-        return Layout.even(6)
-    if isinstance(layout, Layout):
-        return layout
-    if isinstance(layout, int | np.integer):
-        return Layout.even(int(layout))
-    return Layout.from_angles(layout)
 
 
 _REGIONS = ("front", "right-front", "right", "right-back", "back", "left-back", "left",

@@ -100,9 +100,6 @@ class BleClient(Protocol):
     """The part of ``bleak.BleakClient`` the BLE belt uses (a fake implements it in tests)."""
 
     @property
-    def is_connected(self) -> bool: ...
-
-    @property
     def mtu_size(self) -> int: ...
 
     async def connect(self) -> None: ...

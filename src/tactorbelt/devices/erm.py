@@ -624,24 +624,8 @@ def shape_tick(level: float, e: float, h_s: float, start: float, overdrive: floa
     """:meth:`Shaper.drive` of one tactor, in plain floats (the sim belt's walk through
     the decisions), and its predicted speed ``h_s`` later (at most a tick): ``(drive,
     speed)``. The decision is for a whole tick (``tick_s``)."""
-    s = level if level >= start else 0.0
-    gap = s - e
-    if gap > _SETTLED:
-        x = math.exp(-tick_s / rise)
-        d = min((s - e * x) / (1.0 - x), overdrive)
-    elif gap < -_SETTLED:
-        x = math.exp(-tick_s / fall)
-        fwd = (s - e * x) / (1.0 - x)
-        if fwd >= start and s > 0.0:
-            d = fwd
-        elif brake:
-            x = math.exp(-tick_s / brake_tau)
-            rev = (s - e * x) / (1.0 - x)
-            d = math.copysign(min(-rev, overdrive), -1.0) if rev <= 0.0 else level
-        else:
-            d = 0.0 if fwd < 0.0 else level
-    else:
-        d = level
+    d = _shape_decision(level, e, start, overdrive, brake, math.exp(-tick_s / rise),
+                        math.exp(-tick_s / fall), math.exp(-tick_s / brake_tau))
     if math.copysign(1.0, d) < 0.0:
         u, tau = d, brake_tau
     else:
@@ -655,6 +639,17 @@ def shape_whole_tick(level: float, e: float, start: float, overdrive: float, bra
     """:func:`shape_tick` for a whole render tick, with the tick's decay factors of the rise,
     fall and brake time constants given (``exp(-tick / tau)``, computed once per tactor):
     the same arithmetic, so the same floats, without the three ``exp`` of every call."""
+    d = _shape_decision(level, e, start, overdrive, brake, xr, xf, xb)
+    if math.copysign(1.0, d) < 0.0:
+        return d, d + (e - d) * xb
+    u = d if d >= start else 0.0
+    return d, u + (e - u) * (xr if u > e else xf)
+
+
+def _shape_decision(level: float, e: float, start: float, overdrive: float, brake: bool,
+                    xr: float, xf: float, xb: float) -> float:
+    """The drive of one tactor's decision for a render tick, from its speed ``e`` and the
+    tick's decay factors of the rise, fall and brake time constants."""
     s = level if level >= start else 0.0
     gap = s - e
     if gap > _SETTLED:
@@ -670,7 +665,4 @@ def shape_whole_tick(level: float, e: float, start: float, overdrive: float, bra
             d = 0.0 if fwd < 0.0 else level
     else:
         d = level
-    if math.copysign(1.0, d) < 0.0:
-        return d, d + (e - d) * xb
-    u = d if d >= start else 0.0
-    return d, u + (e - u) * (xr if u > e else xf)
+    return d

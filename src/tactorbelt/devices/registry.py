@@ -75,10 +75,6 @@ class Backend:
     simulated_time: bool = False
 
     @property
-    def needs_target(self) -> bool:
-        return bool(self.target)
-
-    @property
     def usage(self) -> str:
         """``serial:PORT`` or ``sim``."""
         return f"{self.scheme}:{self.target}" if self.target else self.scheme
