@@ -242,6 +242,12 @@ def _uint(name: str, value: int, bits: int) -> int:
     return value
 
 
+def _fields(message: Any, *bits: int) -> list[int]:
+    """The first fields of dataclass ``message``, each checked to fit its ``bits``."""
+    return [_uint(f.name, getattr(message, f.name), b)
+            for f, b in zip(fields(message)[:len(bits)], bits, strict=True)]
+
+
 @dataclass(frozen=True)
 class Packet:
     """One protocol packet: type, sequence number and payload (the CRC is implicit)."""
@@ -618,16 +624,9 @@ def play_target(
     duration_ms: int,
 ) -> Packet:
     """PLAY_TARGET: the device renders the stimulus itself at 1 kHz; answers ACK."""
-    payload = _PLAY_TARGET.pack(
-        _uint("angle_cdeg", angle_cdeg, 16),
-        _uint("mode", mode, 8),
-        _uint("law", law, 8),
-        _uint("falloff_cdeg", falloff_cdeg, 16),
-        _uint("period_ms", period_ms, 16),
-        _uint("transit_ms", transit_ms, 16),
-        _uint("duration_ms", duration_ms, 32),
-    )
-    return Packet(MsgType.PLAY_TARGET, seq, payload)
+    request = PlayTarget(angle_cdeg, mode, law, falloff_cdeg, period_ms, transit_ms, duration_ms)
+    return Packet(MsgType.PLAY_TARGET, seq,
+                  _PLAY_TARGET.pack(*_fields(request, 16, 8, 8, 16, 16, 16, 32)))
 
 
 def heartbeat(seq: int) -> Packet:
@@ -665,12 +664,8 @@ def sense_start(seq: int, rate_hz: int, duration_ms: int,
     """SENSE_START (firmware 1.2): ACK, then SENSE_DATA batches until ``duration_ms`` has
     passed or SENSE_STOP; NAK 2 from a firmware without it, NAK 6 when the board's IMU did
     not start, NAK 4 for a duration of 0 or above an hour or a tactor the belt lacks."""
-    payload = _SENSE_START.pack(
-        _uint("rate_hz", rate_hz, 16),
-        _uint("duration_ms", duration_ms, 32),
-        _uint("tactor", tactor, 8),
-    )
-    return Packet(MsgType.SENSE_START, seq, payload)
+    request = SenseStart(rate_hz, duration_ms, tactor)
+    return Packet(MsgType.SENSE_START, seq, _SENSE_START.pack(*_fields(request, 16, 32, 8)))
 
 
 #: SET_DRIVE's motor constants: tactor, start and rated levels, rise, fall and brake
@@ -707,9 +702,7 @@ class DriveConstants:
         if not 0 <= self.start < self.rated:
             raise ConfigError(f"SET_DRIVE start ({self.start}) must be below rated "
                               f"({self.rated})")
-        return _SET_DRIVE_CONSTANTS.pack(
-            _uint("tactor", self.tactor, 8), _uint("start", self.start, 16),
-            _uint("rated", self.rated, 16), self.rise_tau, self.fall_tau, self.brake_tau)
+        return _SET_DRIVE_CONSTANTS.pack(*_fields(self, 8, 16, 16, 16, 16, 16))
 
 
 def set_drive(seq: int, mode: int, constants: DriveConstants | None = None) -> Packet:
@@ -985,12 +978,6 @@ def parse_reply(p: Packet) -> Reply:
         except ValueError:
             return Nak(seq, code)
     raise ProtocolError(f"unknown reply type 0x{t:02X}")
-
-
-def _fields(reply: Any, *bits: int) -> list[int]:
-    """The first fields of dataclass ``reply``, each checked to fit its ``bits``."""
-    return [_uint(f.name, getattr(reply, f.name), b)
-            for f, b in zip(fields(reply)[:len(bits)], bits, strict=True)]
 
 
 def encode_reply(seq: int, reply: Reply) -> Packet:
