@@ -728,6 +728,15 @@ def _expect_len(p: Packet, name: str, *sizes: int) -> None:
         raise ProtocolError(f"{name}: payload of {len(p.payload)} bytes, expected {want}")
 
 
+def _counted(p: Packet, name: str, head: int, size: int) -> int:
+    """How many items of ``size`` bytes follow the ``head`` bytes of a packet's payload."""
+    n, odd = divmod(len(p.payload) - head, size)
+    if len(p.payload) < head or odd:
+        raise ProtocolError(f"{name}: payload of {len(p.payload)} bytes, expected {head} + "
+                            f"{size}*N")
+    return n
+
+
 def _unpack_fixed(p: Packet, kind: type[Any], layout: struct.Struct) -> Any:
     """A packet whose payload is one struct, as ``kind`` of its fields."""
     _expect_len(p, MsgType(p.type).name, layout.size)
@@ -930,46 +939,31 @@ def parse_reply(p: Packet) -> Reply:
         kind, layout, _ = _FIXED_REPLIES[t]
         return _unpack_fixed(p, kind, layout)
     if t == MsgType.INFO:
-        head = _INFO_HEAD.size
-        if len(payload) < head or (len(payload) - head) % 2:
-            raise ProtocolError(f"INFO: payload of {len(payload)} bytes, expected {head} + 2*N")
+        _counted(p, "INFO", _INFO_HEAD.size, 2)
         version, major, minor, patch, channels, steps, hb_ms, caps = _INFO_HEAD.unpack_from(
-            payload
-        )
-        if len(payload) != head + 2 * channels:
-            raise ProtocolError(
-                f"INFO: {channels} channels need {head + 2 * channels} bytes, got {len(payload)}"
-            )
-        cdeg = struct.unpack_from(f"<{channels}H", payload, head)
-        return Info(
-            version, major, minor, patch, channels, steps, hb_ms, caps,
-            tuple(c / 100.0 for c in cdeg),
-        )
+            payload)
+        if len(payload) != _INFO_HEAD.size + 2 * channels:
+            raise ProtocolError(f"INFO: {channels} channels need {_INFO_HEAD.size + 2 * channels}"
+                                f" bytes, got {len(payload)}")
+        cdeg = struct.unpack_from(f"<{channels}H", payload, _INFO_HEAD.size)
+        return Info(version, major, minor, patch, channels, steps, hb_ms, caps,
+                    tuple(c / 100.0 for c in cdeg))
     if t == MsgType.STATUS:
-        head = _STATUS_HEAD.size
-        if len(payload) < head or (len(payload) - head) % 2:
-            raise ProtocolError(
-                f"STATUS: payload of {len(payload)} bytes, expected {head} + 2*N"
-            )
+        n = _counted(p, "STATUS", _STATUS_HEAD.size, 2)
         state, failsafe, crc_errors, framing_errors, gaps = _STATUS_HEAD.unpack_from(payload)
         try:
             st = State(state)
         except ValueError:
             raise ProtocolError(f"STATUS: unknown state {state}") from None
-        n = (len(payload) - head) // 2
-        levels = struct.unpack_from(f"<{n}H", payload, head)
-        return Status(st, failsafe, crc_errors, framing_errors, gaps, levels)
+        return Status(st, failsafe, crc_errors, framing_errors, gaps,
+                      struct.unpack_from(f"<{n}H", payload, _STATUS_HEAD.size))
     if t == MsgType.SENSE_DATA:
-        head = _SENSE_HEAD.size
-        n, odd = divmod(len(payload) - head, 6)
-        if len(payload) < head or odd:
-            raise ProtocolError(f"SENSE_DATA: payload of {len(payload)} bytes, expected "
-                                f"{head} + 6*N")
+        n = _counted(p, "SENSE_DATA", _SENSE_HEAD.size, 6)
         seq, flags, index, t0, period, fs = _SENSE_HEAD.unpack_from(payload)
         if period == 0:
             raise ProtocolError("SENSE_DATA: a sampling period of 0 us")
         return SenseData(seq, flags, index, t0, period, fs,
-                         _SENSE_SAMPLES[n].unpack_from(payload, head))
+                         _SENSE_SAMPLES[n].unpack_from(payload, _SENSE_HEAD.size))
     if t == MsgType.NAK:
         _expect_len(p, "NAK", 2)
         seq, code = payload
