@@ -18,7 +18,7 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from enum import StrEnum
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
     from ..inputs.base import CursorSample
@@ -186,9 +186,9 @@ class Progress(NullListener):
             self.callback(self.n_done, self.n_total)
 
 
-class Listeners:
+class Listeners(SessionListener):
     """Sends each event to every listener, in order (samples and ticks only to those
-    :attr:`~SessionListener.watching`)."""
+    :attr:`~SessionListener.watching`); its hooks are :class:`SessionListener`'s."""
 
     def __init__(self, listeners: Sequence[SessionListener]) -> None:
         self.all = list(listeners)
@@ -196,64 +196,18 @@ class Listeners:
         #: someone follows the session as it happens
         self.watching = bool(self.watchers)
 
-    def on_session_start(self, info: SessionInfo, schedule: list[ScheduledTrial]) -> None:
-        for x in self.all:
-            x.on_session_start(info, schedule)
 
-    def on_block_start(self, block: str, condition: str) -> None:
-        for x in self.all:
-            x.on_block_start(block, condition)
+def _send_to_all(hook: str) -> Callable[..., None]:
+    """The hook of :class:`Listeners` that calls ``hook`` of each listener in turn."""
+    watched = hook in ("on_tick", "on_sample")
 
-    def on_trial_state(self, trial: ScheduledTrial, state: TrialState, now_ns: int) -> None:
-        for x in self.all:
-            x.on_trial_state(trial, state, now_ns)
+    def send(self: Listeners, *args: Any) -> None:
+        for x in self.watchers if watched else self.all:
+            getattr(x, hook)(*args)
 
-    def on_tick(self, now_ns: int) -> None:
-        for x in self.watchers:
-            x.on_tick(now_ns)
+    send.__name__ = send.__qualname__ = hook
+    return send
 
-    def on_sample(self, sample: CursorSample) -> None:
-        for x in self.watchers:
-            x.on_sample(sample)
 
-    def on_command(self, command: Command, now_ns: int) -> None:
-        for x in self.all:
-            x.on_command(command, now_ns)
-
-    def on_skin_onset(self, trial: ScheduledTrial, skin_onset_ns: int,
-                      skin_onset_sd_ns: int) -> None:
-        for x in self.all:
-            x.on_skin_onset(trial, skin_onset_ns, skin_onset_sd_ns)
-
-    def on_trial_done(self, result: TrialResult) -> None:
-        for x in self.all:
-            x.on_trial_done(result)
-
-    def on_break(self, n_done: int, n_total: int) -> None:
-        for x in self.all:
-            x.on_break(n_done, n_total)
-
-    def on_break_end(self) -> None:
-        for x in self.all:
-            x.on_break_end()
-
-    def on_task_phase(self, name: str | None, spec: TaskSpec | None, phase: str | None
-                      ) -> None:
-        for x in self.all:
-            x.on_task_phase(name, spec, phase)
-
-    def on_task_item(self, item: TaskItem, onset_ns: int, spec: TaskSpec) -> None:
-        for x in self.all:
-            x.on_task_item(item, onset_ns, spec)
-
-    def on_task_presses(self, presses: list[int]) -> None:
-        for x in self.all:
-            x.on_task_presses(presses)
-
-    def on_workload(self, info: WorkloadInfo, values: dict[str, float]) -> None:
-        for x in self.all:
-            x.on_workload(info, values)
-
-    def on_session_end(self, status: str) -> None:
-        for x in self.all:
-            x.on_session_end(status)
+for _hook in [name for name in vars(SessionListener) if name.startswith("on_")]:
+    setattr(Listeners, _hook, _send_to_all(_hook))
