@@ -2,7 +2,7 @@
 static, dynamic, 3 repetitions), 4 study sizes (4, 8, 12, 16) x 500 simulated studies,
 the effect "dynamic vs static at 36", on 2 worker processes (goal: under 60 s).
 
-Runs :func:`tactorbelt.app.demo.run_power_study` as the command does (writing power.csv,
+Runs :func:`tactorbelt.power.study.run_power_study` as the command does (writing power.csv,
 power.json, power.png to a temporary directory). Baseline, in the same run: the paper
 protocol's power (4 x 500 studies of its 240-trial sessions) with the same sizes and
 jobs, what ``tactorbelt power`` does by default.
@@ -18,8 +18,8 @@ import tempfile
 import time
 from pathlib import Path
 
-from tactorbelt.app.demo import run_power_study
 from tactorbelt.experiment.study import Study, paper_study, template_toml
+from tactorbelt.power.study import run_power_study
 
 SIZES = (4, 8, 12, 16)
 SIMS = 500

@@ -25,7 +25,6 @@ def main() -> None:
     import numpy as np
 
     from tactorbelt import open_belt
-    from tactorbelt.app.demo import analysis_paired_test
     from tactorbelt.clock import SimClock
     from tactorbelt.experiment.runner import run_session
     from tactorbelt.experiment.store import Store
@@ -33,7 +32,7 @@ def main() -> None:
     from tactorbelt.inputs.model import ModelCursor, make_model_cursor, sim_vibrator
     from tactorbelt.participant import ModelParams, simulate_participant, stimulus_cues
     from tactorbelt.power.design import PowerDesign
-    from tactorbelt.power.simulation import simulate_studies
+    from tactorbelt.power.simulation import analysis_paired_test, simulate_studies
 
     study = paper_study()
     out: dict[str, float] = {}

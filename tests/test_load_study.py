@@ -260,7 +260,7 @@ def test_the_model_cursor_rates_a_loaded_block_higher() -> None:
 
 
 def test_power_plans_a_load_study_with_the_loaded_model(tmp_path: Path) -> None:
-    from tactorbelt.app.demo import run_power_study
+    from tactorbelt.power.study import run_power_study
 
     study = Study.from_toml(_small_load_study(), path="load.toml")
     result = run_power_study(study, [4], 3, 2, tmp_path, jobs=1)
@@ -272,8 +272,8 @@ def test_power_plans_a_load_study_with_the_loaded_model(tmp_path: Path) -> None:
 
 def test_power_finds_the_models_load_effect_and_names_its_columns(tmp_path: Path) -> None:
     from tactorbelt import ConfigError
-    from tactorbelt.app.demo import run_power_study
     from tactorbelt.experiment.study import paper_study
+    from tactorbelt.power.study import run_power_study
 
     study = Study.from_toml(_small_load_study(), path="load.toml")
     result = run_power_study(study, [8], 20, 3, tmp_path, jobs=1, effect="load nback2")

@@ -6,8 +6,7 @@ demo``.
   everything in ``DIR/study.sqlite`` and writes the analysis report.
 
 The power analysis behind ``tactorbelt power`` is :mod:`tactorbelt.power`
-(:func:`~tactorbelt.power.study.run_power_study`; the names it had here are kept:
-``run_power_study``, ``PowerStudyResult``, ``analysis_paired_test``, ``NAMED_NOTE``).
+(:func:`~tactorbelt.power.study.run_power_study`).
 
 Seed policy (one for every model participant): participant ``i`` (1-based) of a study
 with seed ``s`` draws its parameters and its cursor's seed from
@@ -31,35 +30,23 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from .._errors import ConfigError
-from ..power.study import (
-    MODEL_NOTE,
-    NAMED_NOTE,
-    PowerStudyResult,
-    prepare_out,
-    run_power_study,
-)
+from ..power.study import MODEL_NOTE, prepare_out
 
 if TYPE_CHECKING:
-    import numpy as np
-
     from ..analysis.summary import Summary
     from ..experiment.study import Study
     from ..participant.params import ModelParams
 
 __all__ = [
     "MODEL_NOTE",
-    "NAMED_NOTE",
     "PREVIOUS_STORE_NAME",
     "STORE_NAME",
     "ModelParticipant",
     "ModelStudyResult",
-    "PowerStudyResult",
-    "analysis_paired_test",
     "model_participants",
     "participant_ids",
     "prepare_out",
     "run_model_study",
-    "run_power_study",
 ]
 
 STORE_NAME = "study.sqlite"
@@ -210,9 +197,3 @@ def run_model_study(out: Path, n_participants: int, seed: int,
     summary = analyze([db], out, progress=analysis_progress)
     return ModelStudyResult(summary, db, out / "report.html", moved)
 
-
-def analysis_paired_test(static: np.ndarray, dynamic: np.ndarray) -> float:
-    """:func:`tactorbelt.power.simulation.analysis_paired_test` (kept under its old name)."""
-    from ..power.simulation import analysis_paired_test as paired_test
-
-    return paired_test(static, dynamic)
