@@ -92,15 +92,16 @@ OPTIONS: Final = ("channels", "carrier_hz", "map", "samplerate", "latency", "blo
 FloatArray = NDArray[np.float64]
 
 
-def _sounddevice() -> Any:
-    """Import sounddevice (PortAudio), or raise a DeviceError saying what to install."""
+def portaudio(users: str = "audio belts") -> Any:
+    """Import sounddevice (PortAudio), or raise a DeviceError saying what ``users`` (audio
+    belts, audio sensors) need installed."""
     try:
         import sounddevice
     except ImportError:
-        raise DeviceError("audio belts need the sounddevice package: "
+        raise DeviceError(f"{users} need the sounddevice package: "
                           "pip install 'tactorbelt[audio]'") from None
     except OSError as exc:  # sounddevice is there, the PortAudio library is not
-        raise DeviceError(f"audio belts need the PortAudio library ({exc}); on Debian or "
+        raise DeviceError(f"{users} need the PortAudio library ({exc}); on Debian or "
                           "Ubuntu: apt install libportaudio2") from None
     return sounddevice
 
@@ -150,67 +151,72 @@ def parse_latency(text: Any, url: str, kind: str = "belt") -> float | str:
 
 # -- devices ---------------------------------------------------------------------------------
 @dataclass(frozen=True)
-class AudioOutput:
-    """One PortAudio device with output channels."""
+class AudioDevice:
+    """One PortAudio device with channels in one ``direction``: ``output`` (an audio
+    belt's) or ``input`` (an audio sensor's)."""
 
     index: int
     name: str
     hostapi: str
     channels: int
     samplerate: float
-    low_latency_s: float
-    high_latency_s: float
+    direction: str = "output"
 
     def label(self) -> str:
-        return (f"{self.index} {self.name!r} ({self.hostapi}, {self.channels} output channels, "
-                f"{self.samplerate:g} Hz)")
+        return (f"{self.index} {self.name!r} ({self.hostapi}, {self.channels} {self.direction} "
+                f"channels, {self.samplerate:g} Hz)")
 
 
-def list_outputs() -> list[AudioOutput]:
-    """Every PortAudio device with at least one output channel."""
-    sd = _sounddevice()
+#: Who needs sounddevice, by direction (for the message when it is missing).
+_USERS: Final = {"output": "audio belts", "input": "audio sensors"}
+
+
+def list_devices(direction: str = "output") -> list[AudioDevice]:
+    """Every PortAudio device with at least one channel in ``direction``."""
+    sd = portaudio(_USERS[direction])
     apis = sd.query_hostapis()
-    return [AudioOutput(int(d["index"]), str(d["name"]), str(apis[d["hostapi"]]["name"]),
-                        int(d["max_output_channels"]), float(d["default_samplerate"]),
-                        float(d["default_low_output_latency"]),
-                        float(d["default_high_output_latency"]))
-            for d in sd.query_devices() if d["max_output_channels"] > 0]
+    key = f"max_{direction}_channels"
+    return [AudioDevice(int(d["index"]), str(d["name"]), str(apis[d["hostapi"]]["name"]),
+                        int(d[key]), float(d["default_samplerate"]), direction)
+            for d in sd.query_devices() if d[key] > 0]
 
 
-def _offers(outputs: list[AudioOutput]) -> str:
-    return "; ".join(o.label() for o in outputs) or "none (is the sound server running?)"
+def _offers(devices: list[AudioDevice]) -> str:
+    return "; ".join(o.label() for o in devices) or "none (is the sound server running?)"
 
 
-def find_output(target: str) -> AudioOutput:
-    """The output device named by ``target``: an index, ``default``, or words that all
-    appear (case-insensitive) in exactly one device's ``name, host API``.
+def find_device(target: str, direction: str = "output") -> AudioDevice:
+    """The device named by ``target``: an index, ``default``, or words that all appear
+    (case-insensitive) in exactly one ``direction`` device's ``name, host API``.
 
     Raises:
-        DeviceError: no such device, or several match (the message lists the outputs).
+        DeviceError: no such device, or several match (the message lists the devices).
     """
-    sd = _sounddevice()
-    outputs = list_outputs()
+    sd = portaudio(_USERS[direction])
+    devices = list_devices(direction)
     text = target.strip()
-    where = f"audio device {text!r}"
+    where = f"audio device {text!r}" if direction == "output" else f"audio input {text!r}"
     if text.lower() in ("", "default"):
-        index = int(sd.default.device[1]) if sd.default.device[1] is not None else -1
+        slot = sd.default.device[0 if direction == "input" else 1]
+        index = -1 if slot is None else int(slot)
         if index < 0:
-            index = int(sd.query_hostapis(sd.default.hostapi)["default_output_device"])
-        match = [o for o in outputs if o.index == index]
+            index = int(sd.query_hostapis(sd.default.hostapi)[f"default_{direction}_device"])
+        match = [o for o in devices if o.index == index]
         if not match:
-            raise DeviceError(f"there is no default audio output; outputs: {_offers(outputs)}")
+            raise DeviceError(f"there is no default audio {direction}; {direction}s: "
+                              f"{_offers(devices)}")
         return match[0]
     if text.isdigit():
-        match = [o for o in outputs if o.index == int(text)]
+        match = [o for o in devices if o.index == int(text)]
     else:
         words = text.lower().split()
-        match = [o for o in outputs if all(w in f"{o.name}, {o.hostapi}".lower() for w in words)]
+        match = [o for o in devices if all(w in f"{o.name}, {o.hostapi}".lower() for w in words)]
         exact = [o for o in match if o.name.lower() == text.lower()]
         match = exact if len(exact) == 1 else match
     if not match:
-        raise DeviceError(f"{where} not found; outputs: {_offers(outputs)}")
+        raise DeviceError(f"{where} not found; {direction}s: {_offers(devices)}")
     if len(match) > 1:
-        raise DeviceError(f"{where} matches several outputs: {_offers(match)}; "
+        raise DeviceError(f"{where} matches several {direction}s: {_offers(match)}; "
                           "give its index (audio:N)")
     return match[0]
 
@@ -219,7 +225,7 @@ def discover(timeout_s: float = 5.0, probe_all: bool = False) -> Discovery:
     """Audio outputs and their channel counts (for ``tactorbelt devices``)."""
     del timeout_s, probe_all
     try:
-        outputs = list_outputs()
+        outputs = list_devices()
     except DeviceError as exc:
         return Discovery([], str(exc))
     except Exception as exc:  # PortAudio failing to start is a note, not an error
@@ -321,7 +327,7 @@ class AudioBelt(Belt):
     def uses_sound_output(self) -> bool:
         return True
 
-    def __init__(self, url: str, device: AudioOutput, layout: Layout,
+    def __init__(self, url: str, device: AudioDevice, layout: Layout,
                  calibration: Calibration | None, channels: int, mapping: tuple[int, ...],
                  carrier_hz: float, samplerate: float, latency: float | str, blocksize: int,
                  ramp_ms: float, name: str | None = None) -> None:
@@ -359,7 +365,7 @@ class AudioBelt(Belt):
         self._ar = np.arange(8192, dtype=np.int64)
         self._busy_ns = 0
         self._calls = 0
-        sd = _sounddevice()
+        sd = portaudio()
         try:
             self._stream = sd.OutputStream(
                 device=device.index, channels=channels, samplerate=samplerate,
@@ -383,7 +389,7 @@ class AudioBelt(Belt):
         except BaseException as exc:  # silence, stop the stream, tell the next caller
             outdata.fill(0)
             self._callback_error = exc
-            raise _sounddevice().CallbackAbort from None
+            raise portaudio().CallbackAbort from None
         self._busy_ns += time.thread_time_ns() - t0
         self._calls += 1
 
@@ -518,7 +524,7 @@ def _parse_map(text: str, url: str) -> tuple[int, ...]:
     return chans
 
 
-def _rates_offered(sd: Any, device: AudioOutput, channels: int) -> list[int]:
+def _rates_offered(sd: Any, device: AudioDevice, channels: int) -> list[int]:
     offered = []
     for rate in _COMMON_RATES:
         try:
@@ -584,8 +590,8 @@ def open_audio(target: str, **options: Any) -> AudioBelt:
     if not (math.isfinite(ramp_ms) and 0.1 <= ramp_ms <= 100.0):
         raise ConfigError(f"ramp_ms must be in 0.1..100, got {ramp_ms!r}")
 
-    sd = _sounddevice()
-    device = find_output(target)
+    sd = portaudio()
+    device = find_device(target)
     if device.channels < channels:
         raise DeviceError(f"audio device {device.label()} has {device.channels} output "
                           f"channels; belt {url!r} needs {channels} ({n} tactors on channels "

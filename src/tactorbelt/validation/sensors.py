@@ -45,7 +45,7 @@ from numpy.typing import NDArray
 
 from .._errors import ConfigError, DeviceError
 from .._registry import resolve
-from ..devices.audio import checked_latency, parse_latency
+from ..devices.audio import AudioDevice, checked_latency, find_device, parse_latency, portaudio
 from ..devices.registry import check_options
 from .envelope import rectified_envelope
 from .registry import SENSORS, SensorBackend, resolve_sensor, sense_url_help
@@ -186,77 +186,6 @@ class SampledSensor(Sensor):
 
 
 # -- the audio input sensor -----------------------------------------------------------------
-def _sounddevice() -> Any:
-    try:
-        import sounddevice
-    except ImportError:
-        raise DeviceError("audio sensors need the sounddevice package: "
-                          "pip install 'tactorbelt[audio]'") from None
-    except OSError as exc:
-        raise DeviceError(f"audio sensors need the PortAudio library ({exc}); on Debian or "
-                          "Ubuntu: apt install libportaudio2") from None
-    return sounddevice
-
-
-@dataclass(frozen=True)
-class AudioInput:
-    """One PortAudio device with input channels."""
-
-    index: int
-    name: str
-    hostapi: str
-    channels: int
-    samplerate: float
-
-    def label(self) -> str:
-        return (f"{self.index} {self.name!r} ({self.hostapi}, {self.channels} input channels, "
-                f"{self.samplerate:g} Hz)")
-
-
-def list_inputs() -> list[AudioInput]:
-    """Every PortAudio device with at least one input channel."""
-    sd = _sounddevice()
-    apis = sd.query_hostapis()
-    return [AudioInput(int(d["index"]), str(d["name"]), str(apis[d["hostapi"]]["name"]),
-                       int(d["max_input_channels"]), float(d["default_samplerate"]))
-            for d in sd.query_devices() if d["max_input_channels"] > 0]
-
-
-def find_input(target: str) -> AudioInput:
-    """The input device named by ``target``: an index, ``default``, or words that all
-    appear (case-insensitive) in exactly one input's ``name, host API``.
-
-    Raises:
-        DeviceError: no such input, or several match (the message lists the inputs).
-    """
-    sd = _sounddevice()
-    inputs = list_inputs()
-    offers = "; ".join(i.label() for i in inputs) or "none (is the sound server running?)"
-    text = target.strip()
-    if text.lower() in ("", "default"):
-        index = sd.default.device[0]
-        index = -1 if index is None else int(index)
-        if index < 0:
-            index = int(sd.query_hostapis(sd.default.hostapi)["default_input_device"])
-        match = [i for i in inputs if i.index == index]
-        if not match:
-            raise DeviceError(f"there is no default audio input; inputs: {offers}")
-        return match[0]
-    if text.isdigit():
-        match = [i for i in inputs if i.index == int(text)]
-    else:
-        words = text.lower().split()
-        match = [i for i in inputs if all(w in f"{i.name}, {i.hostapi}".lower() for w in words)]
-        exact = [i for i in match if i.name.lower() == text.lower()]
-        match = exact if len(exact) == 1 else match
-    if not match:
-        raise DeviceError(f"audio input {text!r} not found; inputs: {offers}")
-    if len(match) > 1:
-        raise DeviceError(f"audio input {text!r} matches several inputs: "
-                          f"{'; '.join(i.label() for i in match)}; give its index (audio:N)")
-    return match[0]
-
-
 class AudioSensor(SampledSensor):
     """An input channel of a sound card (see docs/validation.md).
 
@@ -286,10 +215,10 @@ class AudioSensor(SampledSensor):
 
     unit = "input amplitude (1 = full scale)"
 
-    def __init__(self, url: str, device: AudioInput, channels: tuple[int, ...] | int,
+    def __init__(self, url: str, device: AudioDevice, channels: tuple[int, ...] | int,
                  n_tactors: int, samplerate: float, latency: float | str, blocksize: int,
                  window_ms: float) -> None:
-        sd = _sounddevice()
+        sd = portaudio("audio sensors")
         self.url = url
         self.device = device
         self.channels = ((channels,) * n_tactors if isinstance(channels, int)
@@ -348,7 +277,7 @@ class AudioSensor(SampledSensor):
                 self._frames += frames
         except BaseException as exc:  # tell the next caller
             self._error = exc
-            raise _sounddevice().CallbackAbort from None
+            raise portaudio("audio sensors").CallbackAbort from None
 
     def start(self) -> None:
         self._recording = True
@@ -506,7 +435,7 @@ def open_audio_sensor(target: str, belt: Belt, **options: Any) -> AudioSensor:
     if "map" in options:
         channels = _parse_channels(str(options["map"]), url, belt.n_tactors)
     latency = parse_latency(options.get("latency", "low"), url, "sensor")
-    device = find_input(target)
+    device = find_device(target, "input")
     need = (channels if isinstance(channels, int) else max(channels)) + 1
     if device.channels < need:
         raise DeviceError(f"audio input {device.label()} has {device.channels} input "
