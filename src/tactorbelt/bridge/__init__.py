@@ -16,17 +16,13 @@ Imports nothing at import time beyond this docstring's names (lazily).
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from .._registry import lazy_attributes
 
 if TYPE_CHECKING:
     from .server import DEFAULT_PORT, BridgeConfig, serve
 
 __all__ = ["DEFAULT_PORT", "BridgeConfig", "serve"]
 
-
-def __getattr__(name: str) -> Any:
-    if name in __all__:
-        from . import server
-
-        return getattr(server, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+__getattr__ = lazy_attributes(__name__, dict.fromkeys(__all__, ".server"))

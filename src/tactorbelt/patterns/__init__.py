@@ -17,18 +17,19 @@ heavy; the names below are loaded on first use.
 
 from __future__ import annotations
 
-import importlib
 import json
 from pathlib import Path
 from typing import Any
 
+from .._registry import lazy_attributes
+
 __all__ = ["FORMAT", "Event", "Pattern", "PatternFileError", "PatternPlayback", "export_pattern",
            "load_pattern", "play_pattern", "read_any", "save_pattern", "schema", "show_pattern"]
 
-_WHERE = {"FORMAT": "model", "Event": "model", "Pattern": "model", "PatternFileError": "model",
-          "load_pattern": "model", "save_pattern": "model", "PatternPlayback": "render",
-          "export_pattern": "io", "read_any": "io", "show_pattern": "show",
-          "play_pattern": "play"}
+_WHERE = {"FORMAT": ".model", "Event": ".model", "Pattern": ".model",
+          "PatternFileError": ".model", "load_pattern": ".model", "save_pattern": ".model",
+          "PatternPlayback": ".render", "export_pattern": ".io", "read_any": ".io",
+          "show_pattern": ".show", "play_pattern": ".play"}
 
 
 def schema() -> dict[str, Any]:
@@ -37,8 +38,4 @@ def schema() -> dict[str, Any]:
     return doc
 
 
-def __getattr__(name: str) -> Any:
-    module = _WHERE.get(name)
-    if module is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    return getattr(importlib.import_module(f"{__name__}.{module}"), name)
+__getattr__ = lazy_attributes(__name__, _WHERE)
