@@ -96,17 +96,10 @@ def _gather_levels(data: Any, where: str, many: bool) -> Any:
     return out
 
 
-
 class _Model(BaseModel):
     """Strict, frozen, no unknown keys."""
 
     model_config = ConfigDict(extra="forbid", strict=True, frozen=True)
-
-
-def _finite(v: float, what: str) -> float:
-    if not math.isfinite(v):
-        raise ValueError(f"{what} must be a finite number")
-    return v
 
 
 class LayoutSpec(_Model):

@@ -21,7 +21,7 @@ _HEADER = re.compile(r"^\s*(\[\[?)\s*([^\]]+?)\s*\]\]?\s*(#.*)?$")
 _KEY = re.compile(r"^\s*([A-Za-z0-9_\-\.\"' ]+?)\s*=")
 
 
-def _key_lines(text: str) -> dict[tuple[str | int, ...], int]:
+def key_lines(text: str) -> dict[tuple[str | int, ...], int]:
     """Map each key path in a TOML text (('test', 1, 'repetitions')) to its 1-based line."""
     lines: dict[tuple[str | int, ...], int] = {}
     table: tuple[str | int, ...] = ()
@@ -142,7 +142,7 @@ def study_error(exc: ValidationError, text: str, where: str, root: Any) -> Study
     errors = exc.errors(include_url=False)
     err = errors[0]
     loc = _clean_loc(err["loc"], key_last=err["type"] == "extra_forbidden")
-    lines = _key_lines(text)
+    lines = key_lines(text)
     kind = err["type"]
     msg = err["msg"]
     got = err.get("input")
@@ -197,5 +197,3 @@ def study_error(exc: ValidationError, text: str, where: str, root: Any) -> Study
             msg += f" (got {got!r})"
     return StudyFileError(msg, path=where, line=line, field=dotted)
 
-
-key_lines = _key_lines
