@@ -83,15 +83,6 @@ class LazyGroup(click.Group):
             formatter.write_dl(rows)
 
 
-def _version() -> str:
-    from importlib.metadata import PackageNotFoundError, version
-
-    try:
-        return version("tactorbelt")
-    except PackageNotFoundError:  # pragma: no cover - running from a source tree
-        return "unknown"
-
-
 @click.group(cls=LazyGroup, context_settings={"help_option_names": ["-h", "--help"]},
              epilog=EXIT_CODES)
 @click.version_option(package_name="tactorbelt", message="tactorbelt %(version)s")
@@ -100,11 +91,6 @@ def cli() -> None:
 
     Everything runs on the simulated belt (`--belt sim`) unless told otherwise.
     """
-
-
-def fail(message: str) -> None:
-    """Raise a user error from inside a command (printed as ``error: ...``, exit 2)."""
-    raise click.UsageError(message)
 
 
 class _OncePerMessage(logging.Filter):
