@@ -31,7 +31,7 @@ import datetime as _dt
 import json
 import math
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Final
@@ -94,6 +94,32 @@ def check_output(out_dir: str | Path, name: str, force: bool,
     if sense_url is not None:
         resolve_sensor(sense_url)  # a bad URL fails before the belt is opened
     return out, results
+
+
+@contextlib.contextmanager
+def making(out: Path) -> Iterator[None]:
+    """Create the output directory ``out`` before the pulses (fail early); an error,
+    Ctrl-C or SIGTERM in the block leaves no empty directory behind."""
+    made = not out.exists()
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ConfigError(f"cannot create output directory {str(out)!r}: {exc.strerror}"
+                          ) from None
+    try:
+        yield
+    except BaseException:
+        if made:
+            with contextlib.suppress(OSError):
+                out.rmdir()
+        raise
+
+
+def write_json(path: Path, data: dict[str, Any]) -> None:
+    """Write ``data`` as JSON at ``path`` through a temporary file beside it."""
+    tmp = path.with_name(f".{path.name}.tmp")
+    tmp.write_text(json.dumps(data, indent=2, allow_nan=False) + "\n", encoding="utf-8")
+    tmp.replace(path)
 
 
 def parse_levels(text: str | Sequence[float]) -> tuple[float, ...]:
@@ -469,12 +495,7 @@ def run_onsets(belt_url: str, out_dir: str | Path, *, sense_url: str | None = No
     calibration = None
     if calibration_file is not None and Path(calibration_file).exists():
         calibration = Calibration.load(calibration_file)
-    made = not out.exists()
-    try:
-        out.mkdir(parents=True, exist_ok=True)  # before the pulses: fail early
-    except OSError as exc:
-        raise ConfigError(f"cannot create output directory {str(out)!r}: {exc.strerror}"
-                          ) from None
+
     def once(cal: Any, how: str | None) -> OnsetValidation:
         belt = open_belt(belt_url, **({"calibration": cal} if cal else {}))
         with belt, open_sensor(sense_url, belt) as sensor:
@@ -487,7 +508,7 @@ def run_onsets(belt_url: str, out_dir: str | Path, *, sense_url: str | None = No
                 on_open(belt, sensor)
             return validate_onsets(belt, sensor, settings, progress)
 
-    try:
+    with making(out):
         if tune:
             plain = once(calibration, "plain")
             shaping = fit_shaping(plain)
@@ -498,16 +519,8 @@ def run_onsets(belt_url: str, out_dir: str | Path, *, sense_url: str | None = No
             result.shaping, result.plain = shaping, plain
         else:
             result = once(calibration, drive)
-    except BaseException:  # an error, Ctrl-C, SIGTERM: leave no empty directory behind
-        if made:
-            with contextlib.suppress(OSError):
-                out.rmdir()
-        raise
     paths = {"results": results}
-    text = json.dumps(result.to_dict(), indent=2, allow_nan=False) + "\n"
-    tmp = results.with_name(f".{RESULTS}.tmp")
-    tmp.write_text(text, encoding="utf-8")
-    tmp.replace(results)
+    write_json(results, result.to_dict())
     paths["figure"] = onset_figure(result, out / FIGURE)
     if calibration_file is not None:
         by = {f["tactor"]: f for f in result.shaping or []}

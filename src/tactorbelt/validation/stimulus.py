@@ -31,7 +31,6 @@ sound card with one input channel per tactor): several tactors vibrate at once.
 from __future__ import annotations
 
 import contextlib
-import json
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -266,7 +265,7 @@ def run_stimulus(belt_url: str, out_dir: str | Path, *, targets: Sequence[int] |
     from ..devices import open_belt
     from ..devices.calibration import Calibration
     from ..experiment.study import paper_study
-    from .run import check_output
+    from .run import check_output, making, write_json
     from .sensors import open_sensor
 
     st = study if study is not None else paper_study()
@@ -274,9 +273,7 @@ def run_stimulus(belt_url: str, out_dir: str | Path, *, targets: Sequence[int] |
     calibration = (Calibration.load(calibration_file) if calibration_file is not None
                    else None)
     ks = list(range(st.targets.count)) if targets is None else [int(k) for k in targets]
-    made = not out.exists()
-    out.mkdir(parents=True, exist_ok=True)
-    try:
+    with making(out):
         options: dict[str, Any] = {"calibration": calibration} if calibration else {}
         if belt_url.split(":", 1)[0].split("?", 1)[0] == "sim":
             options["layout"] = st.layout_obj()
@@ -289,15 +286,7 @@ def run_stimulus(belt_url: str, out_dir: str | Path, *, targets: Sequence[int] |
                 on_open(belt, sensor)
             result = validate_stimulus(belt, sensor, st, ks, condition,
                                        duration_s=duration_s, progress=progress)
-    except BaseException:
-        if made:
-            with contextlib.suppress(OSError):
-                out.rmdir()
-        raise
-    tmp = results.with_name(f".{RESULTS}.tmp")
-    tmp.write_text(json.dumps(result.to_dict(), indent=2, allow_nan=False) + "\n",
-                   encoding="utf-8")
-    tmp.replace(results)
+    write_json(results, result.to_dict())
     return result, {"results": results, "figure": stimulus_figure(result, out / FIGURE)}
 
 
