@@ -455,10 +455,10 @@ def test_firmware_clamps_play_target_fields(emulator_exe: Path, tmp_path: Path,
 
 def test_amplitudes_are_checked_and_clamped_at_every_host_layer(emulator_exe: Path) -> None:
     from tactorbelt import ConfigError
-    from tactorbelt.devices.calibration import Calibration
+    from tactorbelt.devices.calibration import Calibration, TactorCalibration
 
     # Belt base: refuses what is not N finite values in [0, 1]
-    cal = Calibration.from_list([{"start": 0.2, "gain": 5.0, "ceiling": 0.6}] * 6)
+    cal = Calibration((TactorCalibration(start=0.2, gain=5.0, ceiling=0.6),) * 6)
     with open_belt("emulator", build=False, calibration=cal) as belt:
         for bad in ([1.01] * 6, [-0.01] * 6, [float("nan")] * 6, [float("inf")] * 6,
                     [0.5] * 5, [0.5] * 7, "loud"):

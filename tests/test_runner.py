@@ -14,7 +14,7 @@ from support.studies import study_toml
 from tactorbelt import ConfigError, DeviceError, TactorbeltError
 from tactorbelt.clock import SimClock
 from tactorbelt.devices import open_belt
-from tactorbelt.devices.calibration import Calibration
+from tactorbelt.devices.calibration import Calibration, TactorCalibration
 from tactorbelt.experiment.runner import Command, NullObserver, run_session
 from tactorbelt.experiment.schedule import make_schedule
 from tactorbelt.experiment.store import Store
@@ -131,7 +131,7 @@ def test_limit_counts_test_trials(tmp_path: Path) -> None:
 def test_streaming_belt_gives_the_same_exact_timing(tmp_path: Path) -> None:
     study = small_study()
     clock = SimClock()
-    cal = Calibration.from_list([{"start": 0.2, "gain": 1.0, "ceiling": 1.0}] * 4)
+    cal = Calibration((TactorCalibration(start=0.2, gain=1.0, ceiling=1.0),) * 4)
     with Store.open(tmp_path / "s.sqlite") as store, _belt(study, clock,
                                                            calibration=cal) as belt:
         res = run_session(study, "P01", belt, _cursor(study), store, clock, limit=2)

@@ -133,12 +133,11 @@ def _ms(value: Any) -> float | None:
     return None if value is None else float(value)
 
 
-def _with_timing(t: TactorCalibration, timing: Mapping[str, Any]) -> TactorCalibration:
-    """``t`` with the :data:`TIMING_KEYS` of ``timing`` (a missing key: None)."""
-    return replace(t, latency_ms=_ms(timing.get("latency_ms")),
-                   latency_sd_ms=_ms(timing.get("latency_sd_ms")),
-                   rise_ms=_ms(timing.get("rise_ms")), rise_sd_ms=_ms(timing.get("rise_sd_ms")),
-                   fall_ms=_ms(timing.get("fall_ms")), fall_sd_ms=_ms(timing.get("fall_sd_ms")))
+def _with_keys(t: TactorCalibration, values: Mapping[str, Any],
+               keys: Sequence[str]) -> TactorCalibration:
+    """``t`` with the ``keys`` (timing or shaping) of ``values`` (a missing key: None)."""
+    changed: dict[str, Any] = {k: _ms(values.get(k)) for k in keys}
+    return replace(t, **changed)
 
 
 def response_gain(points: Sequence[tuple[float, float]], hz: float) -> float:
@@ -271,7 +270,7 @@ class Calibration:
                 continue
             for key in sorted(timing):
                 check_option(f"timing key of tactor {k}:", key, TIMING_KEYS)
-            rows.append(_with_timing(t, timing))
+            rows.append(_with_keys(t, timing, TIMING_KEYS))
         return replace(self, tactors=tuple(rows), validated=str(validated),
                        validation_method=str(method))
 
@@ -294,10 +293,7 @@ class Calibration:
         if len(taus) != self.n:
             raise ConfigError(f"expected the time constants of {self.n} tactors, got "
                               f"{len(taus)}")
-        rows = [t if tau is None else replace(
-                    t, rise_tau_ms=_ms(tau.get("rise_tau_ms")),
-                    fall_tau_ms=_ms(tau.get("fall_tau_ms")),
-                    brake_tau_ms=_ms(tau.get("brake_tau_ms")))
+        rows = [t if tau is None else _with_keys(t, tau, SHAPING_KEYS)
                 for t, tau in zip(self.tactors, taus, strict=True)]
         return replace(self, tactors=tuple(rows))
 
@@ -379,14 +375,6 @@ class Calibration:
                     row[name] = getattr(t, name)
             rows.append(row)
         return rows
-
-    @classmethod
-    def from_list(cls, rows: Sequence[dict[str, Any]]) -> Calibration:
-        """The calibration of :meth:`to_list`'s rows (the top-level ``validated`` and
-        ``validation_method`` are not in them)."""
-        return cls(tuple(TactorCalibration(**{
-            **r, **({"response": tuple(tuple(p) for p in r["response"])} if "response" in r
-                    else {})}) for r in rows))
 
     # -- files ----------------------------------------------------------------------
     def to_toml(self, belt: str | None = None,
