@@ -27,26 +27,16 @@ from typing import Any, Final
 
 import numpy as np
 
-from .model import Event, Pattern, _Reader, imported, read_json
+from .model import Event, Pattern, _Reader, imported
 
 __all__ = ["CURVE_POINTS", "TRANSIENT_MS", "pattern_from_ahap", "pattern_to_ahap",
-           "read_ahap", "write_ahap"]
+           "write_ahap"]
 
 #: How long a transient (a tap) vibrates on a belt, ms: an ERM needs about this to spin up.
 TRANSIENT_MS: Final = 30.0
 #: Core Haptics takes at most 16 control points per parameter curve.
 CURVE_POINTS: Final = 16
 _DROPPED_PARAMS: Final = {"AttackTime", "DecayTime", "ReleaseTime", "Sustained"}
-
-
-def read_ahap(path: str | Path, angle_deg: float = 0.0) -> Pattern:
-    """Read an AHAP file into a pattern at ``angle_deg`` (see the module docstring).
-
-    Raises:
-        PatternFileError: not JSON, a version other than 1, a missing key, a value out of
-            range (file, field, reason).
-    """
-    return pattern_from_ahap(read_json(path), str(path), angle_deg)
 
 
 def pattern_from_ahap(doc: Any, path: str | None = None, angle_deg: float = 0.0) -> Pattern:

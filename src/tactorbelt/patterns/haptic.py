@@ -16,23 +16,12 @@ Imports the standard library and the pattern model.
 
 from __future__ import annotations
 
-from pathlib import Path
 from typing import Any
 
 from .ahap import TRANSIENT_MS
-from .model import Event, Pattern, _Reader, imported, read_json
+from .model import Event, Pattern, _Reader, imported
 
-__all__ = ["pattern_from_haptic", "read_haptic"]
-
-
-def read_haptic(path: str | Path, angle_deg: float = 0.0) -> Pattern:
-    """Read a ``.haptic`` file into a pattern at ``angle_deg``.
-
-    Raises:
-        PatternFileError: not JSON, a major version other than 1, a missing key, an empty
-            amplitude envelope, decreasing times, a value out of range (file, field, reason).
-    """
-    return pattern_from_haptic(read_json(path), str(path), angle_deg)
+__all__ = ["pattern_from_haptic"]
 
 
 def pattern_from_haptic(doc: Any, path: str | None = None, angle_deg: float = 0.0) -> Pattern:

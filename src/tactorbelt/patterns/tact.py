@@ -24,12 +24,11 @@ Imports the standard library and the pattern model.
 from __future__ import annotations
 
 import itertools
-from pathlib import Path
 from typing import Any, Final
 
-from .model import Event, Pattern, _Reader, imported, read_json
+from .model import Event, Pattern, _Reader, imported
 
-__all__ = ["TORSO_PANELS", "VEST_COLUMNS", "pattern_from_tact", "read_tact"]
+__all__ = ["TORSO_PANELS", "VEST_COLUMNS", "pattern_from_tact"]
 
 #: The vest panels a belt can show, with the angle of x = 0 and of x = 1.
 TORSO_PANELS: Final = {"VestFront": (60.0, -60.0), "VestBack": (240.0, 120.0)}
@@ -40,16 +39,6 @@ VEST_COLUMNS: Final = 4
 def _angle(panel: str, x: float) -> float:
     a, b = TORSO_PANELS[panel]
     return (a + (b - a) * x) % 360.0
-
-
-def read_tact(path: str | Path) -> Pattern:
-    """Read a ``.tact`` file into a pattern on its vest columns.
-
-    Raises:
-        PatternFileError: not JSON, a missing key, a value out of range, or content for a
-            device a belt cannot show (file, field, reason).
-    """
-    return pattern_from_tact(read_json(path), str(path))
 
 
 def pattern_from_tact(doc: Any, path: str | None = None) -> Pattern:

@@ -51,8 +51,8 @@ from .pool import chunks, run_sizes
 if TYPE_CHECKING:
     import pandas as pd
 
-__all__ = ["HEADLINE", "HeadlineResult", "NamedEffect", "TrialDesign", "headline_coefficient",
-           "headline_statistics", "named_power", "simulate_frame", "simulate_glmm_studies"]
+__all__ = ["HEADLINE", "HeadlineResult", "NamedEffect", "TrialDesign", "headline_statistics",
+           "named_power", "simulate_frame", "simulate_glmm_studies"]
 
 #: the coefficient the report's headline test is about (static minus dynamic, log-odds,
 #: at between-tactor targets).
@@ -206,27 +206,6 @@ def headline_statistics(frame: pd.DataFrame) -> HeadlineResult:
     f_p = float(lr.get("f_reference", {}).get("p", math.nan))
     return HeadlineResult(est, float(lr["statistic"]), float(lr["p"]), f_p,
                           fe.p if fe is not None else math.nan)
-
-
-def headline_coefficient(frame: pd.DataFrame) -> tuple[float, float]:
-    """``(estimate, p)`` of the report's ``conditionstatic`` coefficient on ``frame``, by
-    :func:`~tactorbelt.analysis.models.fit.fit_model` (NaN, NaN when it cannot be fitted):
-    the Wald z the report used to head with."""
-    from ..analysis.models.fit import fit_model
-
-    y = frame["correct"].to_numpy()
-    if y.min() == y.max():
-        return math.nan, math.nan
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            fit, _ = fit_model(frame)
-    except (ValueError, np.linalg.LinAlgError, FloatingPointError):
-        return math.nan, math.nan
-    fe = fit.fixed_effects.get(HEADLINE)
-    if fe is None:
-        return math.nan, math.nan
-    return fe.estimate, fe.p
 
 
 def _between(frame: pd.DataFrame, condition: str) -> np.ndarray:
