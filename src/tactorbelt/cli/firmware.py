@@ -11,22 +11,11 @@ library is :mod:`tactorbelt.firmware`; this module parses, calls it and prints.
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from pathlib import Path
 
 import click
 
 __all__ = ["firmware"]
-
-
-def _build_options(f: Callable[..., None]) -> Callable[..., None]:
-    """``--imu`` and ``--build-dir`` of ``build`` and ``upload``."""
-    return click.option(
-        "--imu", type=click.Choice(["bmi270", "lsm9ds1"]), default="bmi270",
-        show_default=True, help="The board's IMU: bmi270 (Nano 33 BLE Rev2) or lsm9ds1 (Rev1).",
-    )(click.option(
-        "--build-dir", type=click.Path(file_okay=False, path_type=Path), default=None,
-        help="Where the sketch and the binaries go (default: a new temporary folder).")(f))
 
 
 @click.group("firmware")
@@ -52,7 +41,11 @@ def export(dest: Path, force: bool) -> None:
 
 
 @firmware.command("build")
-@_build_options
+@click.option("--imu", type=click.Choice(["bmi270", "lsm9ds1"]), default="bmi270",
+              show_default=True,
+              help="The board's IMU: bmi270 (Nano 33 BLE Rev2) or lsm9ds1 (Rev1).")
+@click.option("--build-dir", type=click.Path(file_okay=False, path_type=Path), default=None,
+              help="Where the sketch and the binaries go (default: a new temporary folder).")
 def build(imu: str, build_dir: Path | None) -> None:
     """Compile the sketch for the Nano 33 BLE with arduino-cli."""
     from ..firmware import build as build_firmware
@@ -65,7 +58,11 @@ def build(imu: str, build_dir: Path | None) -> None:
 @click.option("--port", required=True,
               help="The board's serial port (/dev/ttyACM0, COM3); 'tactorbelt devices' "
                    "lists them.")
-@_build_options
+@click.option("--imu", type=click.Choice(["bmi270", "lsm9ds1"]), default="bmi270",
+              show_default=True,
+              help="The board's IMU: bmi270 (Nano 33 BLE Rev2) or lsm9ds1 (Rev1).")
+@click.option("--build-dir", type=click.Path(file_okay=False, path_type=Path), default=None,
+              help="Where the sketch and the binaries go (default: a new temporary folder).")
 def upload(port: str, imu: str, build_dir: Path | None) -> None:
     """Compile the sketch and upload it to the board on PORT with arduino-cli."""
     from ..firmware import bundled_version
