@@ -70,12 +70,9 @@ Modal = tuple[str | None, list[str]]
 class ShownTrial(Protocol):
     """The trial in progress, as the window knows it."""
 
-    @property
-    def trial(self) -> ScheduledTrial: ...
-    @property
-    def phase(self) -> str: ...  # home, stimulus, response, timeout, iti, aborted
-    @property
-    def onset_ns(self) -> int | None: ...
+    trial: ScheduledTrial
+    phase: str  # home, stimulus, response, timeout, iti, aborted
+    onset_ns: int | None
 
 
 class ScreenState(Protocol):
