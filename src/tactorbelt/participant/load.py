@@ -38,13 +38,14 @@ from __future__ import annotations
 import math
 from collections import deque
 from dataclasses import dataclass, fields
-from typing import Any, Protocol
+from typing import Any
 
 import numpy as np
 
 from .._errors import ConfigError
 from ..tasks import PHASES, TLX_ITEMS
 from ..tasks.kinds import NO_TASK, TaskKind, task_kind
+from ..tasks.kinds import TaskFields as TaskLike
 from .params import ModelParams
 
 __all__ = [
@@ -60,17 +61,6 @@ __all__ = [
     "task_rt_median_s",
     "tlx_ratings",
 ]
-
-
-
-class TaskLike(Protocol):
-    """What the model reads of a secondary task (a ``TaskSpec``)."""
-
-    @property
-    def kind(self) -> str: ...
-
-    @property
-    def n(self) -> int: ...
 
 
 def _kind(spec: TaskLike) -> TaskKind:
