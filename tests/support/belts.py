@@ -510,7 +510,15 @@ def audio_harness(**options: Any) -> Harness:
 
     ensure_jack()
     belt = open_belt(f"audio:{DEVICE}?channels=6", **options)
-    return Harness(belt, belt.output_levels)
+    return Harness(belt, lambda: audio_output_levels(belt))
+
+
+def audio_output_levels(belt: Any) -> list[float]:
+    """The envelope an audio belt's callback last wrote to the device, per tactor
+    (calibrated levels, before the frequency-response correction), after any ramp is over."""
+    if not belt.closed:
+        belt.settle()
+    return [float(v) for v in belt._last_env]
 
 
 def navibelt_harness(**options: Any) -> Harness:

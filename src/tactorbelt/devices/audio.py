@@ -483,13 +483,6 @@ class AudioBelt(Belt):
             time.sleep(0.001)
         return True
 
-    def output_levels(self) -> list[float]:
-        """The envelope the callback last wrote to the device, per tactor (calibrated
-        levels, before the frequency-response correction), after any ramp is over."""
-        if not self.closed:
-            self.settle()
-        return [float(v) for v in self._last_env]
-
     def dropouts(self) -> int:
         """Output underflows PortAudio reported since the belt was opened."""
         return self.underruns
