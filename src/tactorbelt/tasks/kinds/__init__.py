@@ -28,8 +28,7 @@ from typing import Any, Final, Protocol
 from ..._registry import resolve
 from ..items import TaskItem
 
-__all__ = ["KIND_NAMES", "NO_TASK", "TASK_KINDS", "TaskFields", "TaskKind", "TaskLike",
-           "task_kind"]
+__all__ = ["NO_TASK", "TASK_KINDS", "TaskFields", "TaskKind", "TaskLike", "task_kind"]
 
 #: ``kind`` of a load without a task.
 NO_TASK: Final = "none"
@@ -39,9 +38,6 @@ TASK_KINDS: dict[str, str] = {
     "nback": "tactorbelt.tasks.kinds.nback:KIND",
     "arithmetic": "tactorbelt.tasks.kinds.arithmetic:KIND",
 }
-
-#: Every value ``kind`` may take in a study file (the built-in kinds), as the docs list them.
-KIND_NAMES: tuple[str, ...] = (*TASK_KINDS, NO_TASK)
 
 
 class TaskFields(Protocol):
