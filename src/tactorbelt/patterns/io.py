@@ -105,10 +105,10 @@ def export_pattern(pattern: Pattern, fmt: str, out: str | Path, *, layout: Layou
         PatternFileError: an empty pattern. ConfigError: a bad format, rate or carrier.
     """
     from .._errors import ConfigError
+    from .._registry import check_option
 
     require_events(pattern, source)
-    if fmt not in EXPORT_FORMATS:
-        raise ConfigError(f"unknown export format {fmt!r}; allowed: {', '.join(EXPORT_FORMATS)}")
+    check_option("export format", fmt, EXPORT_FORMATS)
     if fmt == "ahap":
         return write_ahap(pattern, out)
     playback = PatternPlayback(pattern, pattern_layout(pattern, layout), law, source=source)
