@@ -30,6 +30,22 @@ from tactorbelt.analysis.models.separation import detect_separation
 EST_REL, EST_FLOOR_SE, SE_REL = 0.02, 0.02, 0.05
 
 
+def test_a_condition_at_100_percent_gives_no_wald_z_and_valid_json() -> None:
+    """Every static trial correct on a 6-target belt (every target on a tactor, so the
+    condition is the only term): the condition's coefficient is infinite, its Wald z is
+    null and marked not valid, and the details are JSON without NaN (summary.json is
+    written with allow_nan=False; a NaN z once made analyze exit 1 here)."""
+    frame = ceiling_frame(seed=5, participants=3, counts=(6,), ceiling=("static",))
+    tr = frame.assign(is_correct=frame["correct"].astype(bool), counted=True,
+                      target_deg=frame["target"].astype(float), rt=frame["rt_s"], block="test")
+    res = mixed_model(tr, pb_sims=0)
+    m = res.details["model"]
+    assert m["separation"]["terms"] == ["conditionstatic"]
+    wz = res.details["wald_z_conditionstatic"]
+    assert wz["valid"] is False and wz["z"] is None and wz["p"] is None
+    json.dumps(res.details, allow_nan=False)
+
+
 def ceiling_frame(seed: int, participants: int = 4, repetitions: int = 1,
                   counts: tuple[int, ...] = (24,), ceiling: tuple[str, ...] = ("dynamic",),
                   floor: tuple[str, ...] = ()) -> pd.DataFrame:

@@ -188,7 +188,8 @@ class Summary:
         }
 
     def to_json(self) -> dict[str, Any]:
-        """The ``summary.json`` content (every number finite or null)."""
+        """The ``summary.json`` content (every number finite or null: a non-finite one
+        becomes null here, whichever table it came from)."""
         conditions: dict[str, Any] = {}
         for cond in CONDITIONS:
             entry: dict[str, Any] = {}
@@ -212,7 +213,7 @@ class Summary:
                     entry[kind]["note"] = ("every counted trial timed out: no response time "
                                            "and no error")
             conditions[cond] = entry
-        return {
+        return _finite_json({
             "tactorbelt_analysis": 1,
             "rt_from": self.rt_from,
             "rt_from_reason": self.rt_from_reason,
@@ -238,7 +239,7 @@ class Summary:
             },
             "provenance": self.provenance(),
             "notes": list(self.notes),
-        }
+        })
 
 
 

@@ -549,7 +549,11 @@ def mixed_model(tr: pd.DataFrame, *, engine: str = "tactorbelt",
         "tests": tests, "lrt_chi_square_p": lrt.get("p"),
         "odds_ratio": math.exp(est),
         "odds_ratio_interval": [math.exp(lo), math.exp(hi)],
-        "wald_z_conditionstatic": {"z": fe.z, "p": fe.p},
+        "wald_z_conditionstatic": (
+            {"z": None, "p": None, "valid": False,
+             "why": "separation makes the coefficient infinite (its standard error is 0 "
+                    "at the boundary): no Wald test"}
+            if "conditionstatic" in inf_terms else {"z": fe.z, "p": fe.p}),
         "p_method": (f"likelihood ratio / {lrt['df']} referred to F({lrt['df']}, "
                      f"{fref.get('df2')}) (participants - 1 denominator df)"),
     }
