@@ -45,12 +45,14 @@ from pathlib import Path
 
 import numpy as np
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))  # support.emulator_clock
+
 N_ONSETS = 1000
 PINGS = 300
 
 
 def _offset_bracket(pty: str, pings: int = PINGS) -> tuple[int, int]:
-    from tactorbelt.devices.emulator import clock_offset_bracket
+    from support.emulator_clock import clock_offset_bracket
 
     return clock_offset_bracket(pty, pings)
 

@@ -26,12 +26,13 @@ from pathlib import Path
 
 import pytest
 
+from support.emulator_clock import clock_offset_bracket
 from support.studies import study_toml
 from tactorbelt.clock import WallClock
 from tactorbelt.devices import open_belt, wire
 from tactorbelt.devices._clocksync import ClockSync
 from tactorbelt.devices._firmware import FirmwareBelt
-from tactorbelt.devices.emulator import EmulatorBelt, clock_offset_bracket
+from tactorbelt.devices.emulator import EmulatorBelt
 from tactorbelt.experiment.runner import run_session
 from tactorbelt.experiment.schedule import make_schedule
 from tactorbelt.experiment.store import Store
@@ -225,8 +226,8 @@ def test_the_offset_bracket_is_where_most_round_trips_agree() -> None:
     """A round trip stamped by a read loop that began before its PING arrived (a loaded
     machine) lies past the others: it is outvoted, not a contradiction; consistent
     round trips give their intersection."""
-    from tactorbelt.devices.emulator import _most_agreed
+    from support.emulator_clock import most_agreed
 
-    assert _most_agreed([(0, 10), (2, 8), (3, 12)]) == (3, 3, 8)
-    assert _most_agreed([(0, 10), (2, 8), (3, 12), (20, 30)]) == (3, 3, 8)
-    assert _most_agreed([(5, 5), (5, 9)]) == (2, 5, 5)
+    assert most_agreed([(0, 10), (2, 8), (3, 12)]) == (3, 3, 8)
+    assert most_agreed([(0, 10), (2, 8), (3, 12), (20, 30)]) == (3, 3, 8)
+    assert most_agreed([(5, 5), (5, 9)]) == (2, 5, 5)
