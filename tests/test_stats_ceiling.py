@@ -152,6 +152,8 @@ def test_report_shows_not_estimable_and_the_wald_test_not_valid() -> None:
     rows = {r["term"]: r for r in view["fixed"]}
     assert "not estimable (cell condition = dynamic, on_tactor = 1" in rows["on_tactor"]["note"]
     assert rows["conditionstatic"]["note"] is None
+    # the not-estimable row has as many cells as the table's header
+    assert view["fixed_blank"] + 2 == len(view["fixed_headers"])
     assert np.isfinite(rows["conditionstatic"]["estimate"])
     wald_row = next(t for t in view["tests"] if t["name"].startswith("Wald"))
     assert wald_row["invalid"] and "not valid: separation" in wald_row["extra"]

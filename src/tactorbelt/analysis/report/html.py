@@ -191,10 +191,9 @@ def fixed_effects_view(m: dict[str, Any]) -> dict[str, Any]:
     rows = [{**v, "term": k,
              "note": v.get("note", "not estimable") if v.get("estimable") is False else None}
             for k, v in m["fixed_effects"].items()]
-    # a not-estimable row has one cell fewer than the header with Satterthwaite df (as
-    # the report always had)
+    # a not-estimable row: its term, blank cells, and its note in the last column
     return {"satterthwaite": satt, "fixed_headers": headers, "fixed": rows,
-            "fixed_blank": (6 if satt else 5) - 2}
+            "fixed_blank": len(headers) - 2}
 
 
 def _condition_tests_view(m: dict[str, Any]) -> list[dict[str, Any]]:
