@@ -24,7 +24,7 @@ import contextlib
 import threading
 import time
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
@@ -52,14 +52,9 @@ class SyncReport:
     ratings: int = 0
 
     def add(self, other: SyncReport) -> None:
-        self.sessions_new += other.sessions_new
-        self.sessions_updated += other.sessions_updated
-        self.trials += other.trials
-        self.samples += other.samples
-        self.already += other.already
-        self.errors += other.errors
-        self.task_events += other.task_events
-        self.ratings += other.ratings
+        """Count ``other``'s copies (and errors) in this report too."""
+        for f in fields(self):
+            setattr(self, f.name, getattr(self, f.name) + getattr(other, f.name))
 
     def summary(self, target: str) -> str:
         if not (self.sessions_new or self.sessions_updated or self.trials
