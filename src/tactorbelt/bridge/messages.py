@@ -16,7 +16,7 @@ from __future__ import annotations
 import json
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from typing import Any
 
 from .._errors import ConfigError
@@ -184,8 +184,7 @@ class ClockEstimate:
         return bridge_ns / 1e6 + self.offset_ms
 
     def to_dict(self) -> dict[str, float | int]:
-        return {"offset_ms": self.offset_ms, "uncertainty_ms": self.uncertainty_ms,
-                "rtt_ms": self.rtt_ms, "pings": self.pings}
+        return asdict(self)
 
 
 def clock_estimate(samples: Sequence[tuple[int, int, float]]) -> ClockEstimate:
