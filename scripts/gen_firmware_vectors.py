@@ -58,6 +58,9 @@ from tactorbelt.devices.wire import (
 from tactorbelt.geometry import Layout
 from tactorbelt.stimuli import make_stimulus
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+from support import wire_device  # the device's side of the protocol
+
 ROOT = Path(__file__).resolve().parents[1]
 VECTORS = ROOT / "firmware" / "test" / "vectors.json"
 EXT_NAME = "vectors_ext.json"
@@ -143,16 +146,17 @@ def frame_vectors() -> list[dict[str, Any]]:
         ("set_config", wire.set_config(7, 250)),
         ("set_config", wire.set_config(8, 2000, 30000)),
         ("get_status", wire.get_status(0)),
-        ("ack", wire.encode_reply(4, Ack(4))),
-        ("nak", wire.encode_reply(9, Nak(9, NakCode.OUT_OF_RANGE))),
-        ("pong", wire.encode_reply(0, Pong(0xDEADBEEF, 123456789))),
-        ("info", wire.encode_reply(1, default_info())),
-        ("status", wire.encode_reply(2, Status(State.FAILSAFE, 1, 2, 3, 4, (0, 1, 2, 3, 4, 5)))),
+        ("ack", wire_device.encode_reply(4, Ack(4))),
+        ("nak", wire_device.encode_reply(9, Nak(9, NakCode.OUT_OF_RANGE))),
+        ("pong", wire_device.encode_reply(0, Pong(0xDEADBEEF, 123456789))),
+        ("info", wire_device.encode_reply(1, default_info())),
+        ("status", wire_device.encode_reply(2, Status(State.FAILSAFE, 1, 2, 3, 4,
+                                                      (0, 1, 2, 3, 4, 5)))),
         ("get_diag", wire.get_diag(5)),
         ("set_config", wire.set_config(9, 250, 30000, ConfigFlag.ONSET_EVENTS)),
-        ("diag", wire.encode_reply(5, Diag(0x123456789, ResetFlag.WATCHDOG, 3, 1))),
-        ("onset", wire.encode_reply(7, Onset(7, MsgType.PLAY_TARGET, 4_000_000))),
-        ("nak", wire.encode_reply(9, Nak(9, NakCode.REPLY_TOO_LONG))),
+        ("diag", wire_device.encode_reply(5, Diag(0x123456789, ResetFlag.WATCHDOG, 3, 1))),
+        ("onset", wire_device.encode_reply(7, Onset(7, MsgType.PLAY_TARGET, 4_000_000))),
+        ("nak", wire_device.encode_reply(9, Nak(9, NakCode.REPLY_TOO_LONG))),
         ("unknown", Packet(0x7F, 0x00, b"\x00\x00\x00")),
         ("max_payload", Packet(0x10, 0x00, bytes(range(60)))),
     ]
@@ -232,46 +236,47 @@ def exchange_vectors() -> dict[str, Any]:
         return wire.encode_frame(p)
 
     levels = (0, 1000, 65535, 0, 7, 0)
-    step(1_000, frame(wire.get_info(0)), [wire.encode_reply(0, default_info())])
-    step(2_000, frame(wire.ping(1, 0xCAFEF00D)), [wire.encode_reply(1, Pong(0xCAFEF00D, 2_000))])
+    step(1_000, frame(wire.get_info(0)), [wire_device.encode_reply(0, default_info())])
+    step(2_000, frame(wire.ping(1, 0xCAFEF00D)),
+         [wire_device.encode_reply(1, Pong(0xCAFEF00D, 2_000))])
     step(3_000, frame(wire.set_amplitudes(2, levels)), [])
     step(
         4_000,
         frame(wire.get_status(3)),
-        [wire.encode_reply(3, Status(State.STREAMING, 0, 0, 0, 0, levels))],
+        [wire_device.encode_reply(3, Status(State.STREAMING, 0, 0, 0, 0, levels))],
     )
     bad = bytearray(wire.encode_packet(wire.stop_all(4)))
     bad[2] ^= 0xFF
     step(5_000, wire.cobs_encode(bytes(bad)) + b"\x00" + b"\x07\x00", [])
     step(6_000, frame(Packet(wire.MsgType.HEARTBEAT, 4, b"\x00")),
-         [wire.encode_reply(4, Nak(4, NakCode.BAD_LENGTH))])
-    step(7_000, frame(Packet(0x7F, 5)), [wire.encode_reply(5, Nak(5, NakCode.UNKNOWN_TYPE))])
+         [wire_device.encode_reply(4, Nak(4, NakCode.BAD_LENGTH))])
+    step(7_000, frame(Packet(0x7F, 5)), [wire_device.encode_reply(5, Nak(5, NakCode.UNKNOWN_TYPE))])
     step(8_000, frame(wire.play_target(6, 4500, 2, 0, 1500, 1000, 100, 0)),
-         [wire.encode_reply(6, Nak(6, NakCode.OUT_OF_RANGE))])
+         [wire_device.encode_reply(6, Nak(6, NakCode.OUT_OF_RANGE))])
     step(9_000, frame(wire.play_target(7, 4500, 1, 3, 1500, 1000, 100, 0)),
-         [wire.encode_reply(7, Nak(7, NakCode.OUT_OF_RANGE))])
+         [wire_device.encode_reply(7, Nak(7, NakCode.OUT_OF_RANGE))])
     step(10_000, frame(wire.set_config(8, 49)),
-         [wire.encode_reply(8, Nak(8, NakCode.OUT_OF_RANGE))])
+         [wire_device.encode_reply(8, Nak(8, NakCode.OUT_OF_RANGE))])
     step(11_000, frame(wire.set_config(9, 2001)),
-         [wire.encode_reply(9, Nak(9, NakCode.OUT_OF_RANGE))])
+         [wire_device.encode_reply(9, Nak(9, NakCode.OUT_OF_RANGE))])
     step(12_000, frame(wire.set_config(10, 250, 99)),
-         [wire.encode_reply(10, Nak(10, NakCode.OUT_OF_RANGE))])
-    step(13_000, frame(wire.set_config(11, 300, 20000)), [wire.encode_reply(11, Ack(11))])
+         [wire_device.encode_reply(10, Nak(10, NakCode.OUT_OF_RANGE))])
+    step(13_000, frame(wire.set_config(11, 300, 20000)), [wire_device.encode_reply(11, Ack(11))])
     step(14_000, frame(wire.set_amplitudes(12, (1, 2, 3))),
-         [wire.encode_reply(12, Nak(12, NakCode.BAD_LENGTH))])
+         [wire_device.encode_reply(12, Nak(12, NakCode.BAD_LENGTH))])
     # seq 13 skipped on purpose: one sequence gap
     step(
         15_000,
         frame(wire.get_status(14)),
-        [wire.encode_reply(14, Status(State.STREAMING, 0, 1, 1, 1, levels))],
+        [wire_device.encode_reply(14, Status(State.STREAMING, 0, 1, 1, 1, levels))],
     )
-    step(16_000, frame(wire.stop_all(15)), [wire.encode_reply(15, Ack(15))])
+    step(16_000, frame(wire.stop_all(15)), [wire_device.encode_reply(15, Ack(15))])
     step(
         17_000,
         frame(wire.get_status(16)) + frame(wire.get_info(17)),
         [
-            wire.encode_reply(16, Status(State.IDLE, 0, 1, 1, 1, (0,) * 6)),
-            wire.encode_reply(17, default_info(heartbeat_ms=300)),
+            wire_device.encode_reply(16, Status(State.IDLE, 0, 1, 1, 1, (0,) * 6)),
+            wire_device.encode_reply(17, default_info(heartbeat_ms=300)),
         ],
     )
     # the heartbeat is now 300 ms: silence for longer trips the failsafe
@@ -279,7 +284,7 @@ def exchange_vectors() -> dict[str, Any]:
     step(
         318_000,
         frame(wire.get_status(19)),
-        [wire.encode_reply(19, Status(State.FAILSAFE, 1, 1, 1, 1, (0,) * 6))],
+        [wire_device.encode_reply(19, Status(State.FAILSAFE, 1, 1, 1, 1, (0,) * 6))],
     )
     return {"tactors": 6, "pwm_steps": EXCHANGE_PWM_STEPS, "steps": steps}
 
@@ -376,28 +381,28 @@ def ext_packet_vectors() -> list[dict[str, Any]]:
     entries = [
         ("GET_DIAG seq 5", wire.get_diag(5)),
         ("DIAG seq 5: device time 0x0000000123456789 us, reset watchdog, 3 TX dropped, "
-         "1 BLE refused", wire.encode_reply(5, Diag(0x123456789, ResetFlag.WATCHDOG, 3, 1))),
+         "1 BLE refused", wire_device.encode_reply(5, Diag(0x123456789, ResetFlag.WATCHDOG, 3, 1))),
         ("ONSET seq 7 of PLAY_TARGET at 4000000 us",
-         wire.encode_reply(7, Onset(7, MsgType.PLAY_TARGET, 4_000_000))),
+         wire_device.encode_reply(7, Onset(7, MsgType.PLAY_TARGET, 4_000_000))),
         ("SET_CONFIG seq 8: 250 ms, 30000 ms, flags 0x03 (onset events, BLE framed)",
          wire.set_config(8, 250, 30000, flags)),
         ("NAK seq 9 code 5 (reply too long for the BLE MTU)",
-         wire.encode_reply(9, Nak(9, NakCode.REPLY_TOO_LONG))),
+         wire_device.encode_reply(9, Nak(9, NakCode.REPLY_TOO_LONG))),
         ("SENSE_START seq 10: highest rate, 2000 ms, any tactor",
          wire.sense_start(10, 0, 2000)),
         ("SENSE_START seq 11: 400 Hz, 3600000 ms, tactor 5",
          wire.sense_start(11, 400, 3_600_000, 5)),
         ("SENSE_STOP seq 12", wire.sense_stop(12)),
         ("SENSE_DATA of seq 10: 7 samples from index 0x01020304 at 0x123456789 us, 625 us "
-         "apart, +-8 g, the last", wire.encode_reply(10, SenseData(
+         "apart, +-8 g, the last", wire_device.encode_reply(10, SenseData(
              10, SenseFlag.LAST, 0x01020304, 0x123456789, 625, 8000,
              (0, 1, -1, 32767, -32768, 256, 4096, -4096, 8192, 1, 2, 3, -3, -2, -1,
               0x1234, -0x1234, 0, 100, 200, 300)))),
         ("SENSE_DATA of seq 10: no sample, the last, samples dropped before it",
-         wire.encode_reply(10, SenseData(10, SenseFlag.LAST | SenseFlag.DROPPED, 9, 5000,
+         wire_device.encode_reply(10, SenseData(10, SenseFlag.LAST | SenseFlag.DROPPED, 9, 5000,
                                          1051, 8000, ()))),
         ("NAK seq 13 code 6 (the IMU did not start)",
-         wire.encode_reply(13, Nak(13, NakCode.UNAVAILABLE))),
+         wire_device.encode_reply(13, Nak(13, NakCode.UNAVAILABLE))),
     ]
     return [_frame_entry(name, p) for name, p in entries]
 
@@ -415,13 +420,13 @@ def ext_exchange_vectors() -> dict[str, Any]:
         })
 
     def ack(seq: int) -> Packet:
-        return wire.encode_reply(seq, Ack(seq))
+        return wire_device.encode_reply(seq, Ack(seq))
 
     def nak(seq: int, code: NakCode) -> Packet:
-        return wire.encode_reply(seq, Nak(seq, code))
+        return wire_device.encode_reply(seq, Nak(seq, code))
 
     def onset(seq: int, kind: MsgType, t_us: int) -> Packet:
-        return wire.encode_reply(seq, Onset(seq, kind, t_us))
+        return wire_device.encode_reply(seq, Onset(seq, kind, t_us))
 
     levels = (1000, 0, 0, 0, 0, 2000)
     play = (4500, 1, 0, 1500, 1000, 100, 0)
@@ -434,7 +439,7 @@ def ext_exchange_vectors() -> dict[str, Any]:
     step(4_000, "PLAY_TARGET: ACK, then ONSET", wire.play_target(3, *play),
          [ack(3), onset(3, MsgType.PLAY_TARGET, 4_000)])
     step(5_000, "GET_DIAG", wire.get_diag(4),
-         [wire.encode_reply(4, Diag(5_000, 0, 0, 0))])
+         [wire_device.encode_reply(4, Diag(5_000, 0, 0, 0))])
     step(6_000, "an unknown flag: NAK 4, nothing changes", wire.set_config(5, 250, 30000, 0x04),
          [nak(5, NakCode.OUT_OF_RANGE)])
     step(7_000, "GET_DIAG with a payload: NAK 3", Packet(MsgType.GET_DIAG, 6, b"\x00"),
@@ -457,7 +462,7 @@ def ext_exchange_vectors() -> dict[str, Any]:
 
 def ext_ble_vectors() -> dict[str, Any]:
     """GET_INFO on BLE: refused (NAK 5) at MTU 23, whole at MTU 33, framed in pieces."""
-    info = wire.encode_reply(1, default_info())
+    info = wire_device.encode_reply(1, default_info())
     framed = wire.encode_frame(info)
     chunk = 23 - 3
     return {
@@ -466,7 +471,7 @@ def ext_ble_vectors() -> dict[str, Any]:
         "request": _hex(wire.encode_packet(wire.get_info(1))),
         "info_packet": _hex(wire.encode_packet(info)),
         "mtu_23_unframed": [_hex(wire.encode_packet(
-            wire.encode_reply(1, Nak(1, NakCode.REPLY_TOO_LONG))))],
+            wire_device.encode_reply(1, Nak(1, NakCode.REPLY_TOO_LONG))))],
         "mtu_33_unframed": [_hex(wire.encode_packet(info))],
         "mtu_23_framed": [_hex(framed[i:i + chunk]) for i in range(0, len(framed), chunk)],
     }
@@ -539,7 +544,7 @@ class _SenseModel:
         if not self.batch:
             self.first, self.t0 = self.index, min(self.next, self.end)
         values = tuple(v for sample in self.batch for v in sample)
-        self.out.append(wire.encode_reply(self.session, SenseData(
+        self.out.append(wire_device.encode_reply(self.session, SenseData(
             self.session, int(flags), self.first, self.t0, self.period, self.full_scale,
             values)))
         self.batch = []
@@ -582,24 +587,24 @@ def sense_exchange_vectors() -> dict[str, Any]:
         seq = p.seq
         if p.type == MsgType.SENSE_START:
             if len(p.payload) != 7:
-                return [wire.encode_reply(seq, Nak(seq, NakCode.BAD_LENGTH))]
-            req = wire.parse_request(p)
-            assert isinstance(req, wire.SenseStart)
+                return [wire_device.encode_reply(seq, Nak(seq, NakCode.BAD_LENGTH))]
+            req = wire_device.parse_request(p)
+            assert isinstance(req, wire_device.SenseStart)
             if not 1 <= req.duration_ms <= wire.SENSE_MAX_DURATION_MS or (
                     req.tactor != wire.SENSE_ANY_TACTOR and req.tactor >= 6):
-                return [wire.encode_reply(seq, Nak(seq, NakCode.OUT_OF_RANGE))]
+                return [wire_device.encode_reply(seq, Nak(seq, NakCode.OUT_OF_RANGE))]
             model.start(seq, req.rate_hz, req.duration_ms, t_us)
-            return [*take(), wire.encode_reply(seq, Ack(seq))]
+            return [*take(), wire_device.encode_reply(seq, Ack(seq))]
         if p.type == MsgType.SENSE_STOP:
             model.stop()
-            return [*take(), wire.encode_reply(seq, Ack(seq))]
+            return [*take(), wire_device.encode_reply(seq, Ack(seq))]
         if p.type == MsgType.GET_INFO:
             caps = int(wire.Capability.PLAY_TARGET | wire.Capability.SENSE)
-            return [wire.encode_reply(seq, default_info(capabilities=caps))]
+            return [wire_device.encode_reply(seq, default_info(capabilities=caps))]
         if p.type == MsgType.GET_STATUS:
-            return [wire.encode_reply(seq, Status(State.IDLE, 0, 0, 0, 0, (0,) * 6))]
+            return [wire_device.encode_reply(seq, Status(State.IDLE, 0, 0, 0, 0, (0,) * 6))]
         if p.type == MsgType.GET_DIAG:
-            return [wire.encode_reply(seq, Diag(t_us, 0, 0, 0))]
+            return [wire_device.encode_reply(seq, Diag(t_us, 0, 0, 0))]
         raise AssertionError(f"no answer for {p}")
 
     step(1_000, "GET_INFO: capability bit 1, the accelerometer", [wire.get_info(0)])

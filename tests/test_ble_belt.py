@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import pytest
 
+from support import wire_device
 from support.belts import FakeBle, FakeFirmware, wait_for
 from tactorbelt import DeviceError, Layout, ProtocolError
 from tactorbelt.devices import ble, open_belt, wire
@@ -27,12 +28,12 @@ def test_ble_belt_streams_plays_and_stops_through_gatt() -> None:
         belt.set_amplitudes([1.0, 0.5, 0.0, 0.0, 0.0, 0.0])
         assert belt.status().levels == (65535, 32768, 0, 0, 0, 0)
         belt.play(make_stimulus(belt.layout, 45.0, mode="dynamic"), 1.0)
-        assert fake.firmware.of_type(wire.PlayTarget)[-1] == wire.PlayTarget(
+        assert fake.firmware.of_type(wire_device.PlayTarget)[-1] == wire_device.PlayTarget(
             4500, 1, 0, 1500, 1000, 100, 1000)
         assert belt.ping() > 0
     client = fake.client
     assert client is not None
-    assert isinstance(fake.firmware.requests[-1], wire.StopAll)
+    assert isinstance(fake.firmware.requests[-1], wire_device.StopAll)
     assert client.disconnects == 1
     # every packet went unframed, in one write without response, to RX
     for char, data, response in client.writes:
@@ -117,7 +118,7 @@ def test_ble_belt_works_at_any_mtu_with_firmware_1_1(mtu: int) -> None:
     assert all(len(n) <= mtu - 3 for n in client.notifications)
     if mtu < 67:  # framing asked for before GET_INFO, with the flags byte
         kinds = [type(r) for r in fake.firmware.requests]
-        assert kinds[:3] == [wire.GetDiag, wire.SetConfig, wire.GetInfo]
+        assert kinds[:3] == [wire_device.GetDiag, wire_device.SetConfig, wire_device.GetInfo]
         assert any(len(n) == mtu - 3 and 0 not in n for n in client.notifications)
     else:  # one unframed packet per notification
         assert all(wire.decode_packet(n) for n in client.notifications)

@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from support import wire_device
 from support.belts import FakeFirmware, LoopTransport
 from tactorbelt import ConfigError, DeviceError
 from tactorbelt.devices import open_belt, wire
@@ -58,7 +59,7 @@ def test_firmware_1_1_cannot_stream_its_imu_and_names_the_upload() -> None:
         with pytest.raises(DeviceError, match=r"this board's firmware .*cannot stream its IMU: "
                                               r".*tactorbelt firmware upload --port"):
             belt.sense(1.0)
-        assert device.of_type(wire.SenseStart) == []  # declared, not probed
+        assert device.of_type(wire_device.SenseStart) == []  # declared, not probed
 
 
 def test_a_device_that_refuses_sense_start_as_unknown_gets_the_same_advice() -> None:
@@ -78,7 +79,7 @@ def test_an_imu_that_did_not_start_is_reported_as_such() -> None:
         assert not belt.senses_vibration
         with pytest.raises(DeviceError, match=r"did not start.*TACTORBELT_IMU_LSM9DS1"):
             belt.sense(1.0)
-        assert len(device.of_type(wire.SenseStart)) == 1
+        assert len(device.of_type(wire_device.SenseStart)) == 1
     # and NAK 6 from a device that claimed it
     device = FakeFirmware(extensions=True, fw_version=(1, 2, 0), capabilities=SENSE_CAPS,
                           sense_unavailable=True)
@@ -100,12 +101,12 @@ def test_sense_checks_its_arguments(kwargs: dict[str, object]) -> None:
                           sense=lambda req, seq, t: [])
     with _fake_belt(device) as belt, pytest.raises(ConfigError):
         belt.sense(**kwargs)  # type: ignore[arg-type]
-    assert device.of_type(wire.SenseStart) == []
+    assert device.of_type(wire_device.SenseStart) == []
 
 
 # --- samples, host times and losses (fake firmware) ---------------------------------------
 
-def _batches(req: wire.SenseStart, seq: int, t_us: int) -> list[wire.SenseData]:
+def _batches(req: wire_device.SenseStart, seq: int, t_us: int) -> list[wire.SenseData]:
     """A whole session at once: 3 batches of 7 samples, 625 us apart, the second lost
     (indices 7..13), values k, -k, 4096 + k for sample k."""
     out = []
@@ -126,7 +127,7 @@ def test_samples_come_in_g_on_the_host_clock_and_losses_are_counted() -> None:
         rec = belt.sense(0.5, rate_hz=1600, tactor=3)
         after = time.perf_counter_ns()
         assert isinstance(rec, SenseRecording)
-        assert device.of_type(wire.SenseStart) == [wire.SenseStart(1600, 500, 3)]
+        assert device.of_type(wire_device.SenseStart) == [wire_device.SenseStart(1600, 500, 3)]
         assert rec.rate_hz == 1600.0 and rec.period_us == 625 and rec.full_scale_g == 8.0
         assert rec.finished and not rec.active and rec.interrupted is None
         t, acc = rec.samples()
@@ -155,7 +156,7 @@ def test_samples_come_in_g_on_the_host_clock_and_losses_are_counted() -> None:
         rec.forget_before(int(t[7]))
         assert len(rec) == 14 and rec.samples()[0][0] == t[7]
         rec.stop()  # already over on the device: nothing sent
-        assert device.of_type(wire.SenseStop) == []
+        assert device.of_type(wire_device.SenseStop) == []
         assert belt.unmatched_replies == 0 and belt.stray_sense_batches == 0
 
 

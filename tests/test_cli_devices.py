@@ -9,9 +9,10 @@ from typing import Any
 import pytest
 from click.testing import CliRunner
 
+from support import wire_device
 from support.belts import FakeBle, FakeFirmware, PtyDevice, comports, port_info
 from tactorbelt.cli import cli
-from tactorbelt.devices import ble, wire
+from tactorbelt.devices import ble
 
 
 @pytest.fixture
@@ -45,7 +46,7 @@ def test_lists_the_serial_belt_and_leaves_other_ports_alone(
     assert "not probed" in other
     assert "1 belt(s) found." in result.output
     # the probe closed the belt: it stopped the motors and released the port
-    assert isinstance(pty_belt.firmware.requests[-1], wire.StopAll)
+    assert isinstance(pty_belt.firmware.requests[-1], wire_device.StopAll)
 
 
 def test_says_clearly_when_there_is_nothing_and_ble_is_unavailable(

@@ -10,6 +10,7 @@ import logging
 import numpy as np
 import pytest
 
+from support import wire_device
 from support.belts import FakeFirmware, LoopTransport, open_fake, wait_for
 from tactorbelt import ConfigError, DeviceError, Layout, ProtocolError, TactorbeltError
 from tactorbelt.devices import wire
@@ -87,8 +88,8 @@ def test_set_amplitudes_sends_calibrated_levels() -> None:
     belt, device, _ = open_fake(calibration=cal)
     with belt:
         belt.set_amplitudes([0.5, 1.0, 0.0, 0.25, 0.0, 1e-9])
-        (req,) = device.of_type(wire.SetAmplitudes)
-        assert isinstance(req, wire.SetAmplitudes)
+        (req,) = device.of_type(wire_device.SetAmplitudes)
+        assert isinstance(req, wire_device.SetAmplitudes)
         expected = [wire.amplitude_to_level(v) for v in (0.6, 1.0, 0.0, 0.25, 0.0, 1e-9)]
         assert list(req.levels) == expected
         assert device.state == wire.State.STREAMING
@@ -113,9 +114,9 @@ def test_play_sends_play_target_with_the_stimulus_parameters() -> None:
                              falloff_deg=12.5, period_s=0.8, transit_s=0.05)
         belt.play(stim, 2.5)
         belt.play(make_stimulus(belt.layout, 359.995), None)
-    first, second = device.of_type(wire.PlayTarget)
-    assert first == wire.PlayTarget(4500, 1, 2, 1250, 800, 50, 2500)
-    assert second == wire.PlayTarget(0, 0, 0, 1500, 1000, 100, 0)  # 0 = until stopped
+    first, second = device.of_type(wire_device.PlayTarget)
+    assert first == wire_device.PlayTarget(4500, 1, 2, 1250, 800, 50, 2500)
+    assert second == wire_device.PlayTarget(0, 0, 0, 1500, 1000, 100, 0)  # 0 = until stopped
 
 
 def test_play_rejects_values_the_wire_cannot_carry() -> None:
@@ -134,7 +135,7 @@ def test_stop_waits_for_the_ack_and_close_stops_the_motors() -> None:
         assert device.levels == [0] * 6
         belt.set_amplitudes([1.0] * 6)
     assert device.levels == [0] * 6
-    assert isinstance(device.requests[-1], wire.StopAll)
+    assert isinstance(device.requests[-1], wire_device.StopAll)
     assert transport.closed
     with pytest.raises(TactorbeltError, match="closed"):
         belt.set_amplitudes([0.0] * 6)
@@ -180,7 +181,7 @@ def test_bad_and_stale_replies_are_counted_and_skipped() -> None:
         return [
             wire.Packet(0x99, packet.seq, b"\x01"),  # unknown type
             wire.Packet(wire.MsgType.PONG, packet.seq, b"\x00"),  # wrong length
-            wire.encode_reply((packet.seq + 17) % 256, wire.Ack(0)),  # nobody waits for it
+            wire_device.encode_reply((packet.seq + 17) % 256, wire.Ack(0)),  # nobody waits for it
         ]
 
     with belt:
@@ -233,7 +234,7 @@ def test_keepalive_writes_while_open_and_detects_a_silent_device() -> None:
         # nothing else is sent, yet the device keeps hearing from the host
         assert wait_for(lambda: len(device.seqs) >= 4)
         kinds = {type(r) for r in device.requests[1:4]}
-        assert kinds <= {wire.Ping, wire.Heartbeat}
+        assert kinds <= {wire_device.Ping, wire_device.Heartbeat}
         device.silent = True
         assert wait_for(lambda: belt.lost is not None)
         with pytest.raises(DeviceError, match=r"loop0 stopped answering: no reply"):
@@ -287,7 +288,7 @@ def test_firmware_1_0_devices_work_without_extensions() -> None:
         assert belt.status().levels == (32768,) * 6
         with pytest.raises(TactorbeltError, match=r"1\.1"):
             belt.diag()
-    assert not any(isinstance(r, wire.SetConfig) and r.flags is not None
+    assert not any(isinstance(r, wire_device.SetConfig) and r.flags is not None
                    for r in device.requests)
     assert belt.unsolicited_naks == 0 and belt.unmatched_replies == 0
 
@@ -347,8 +348,8 @@ def test_a_watchdog_reset_while_open_is_reported_and_the_flags_set_again(
 
 def test_a_reply_too_long_for_the_mtu_is_a_clear_error() -> None:
     class SmallMtu(FakeFirmware):
-        def _answer(self, seq: int, req: wire.Request) -> wire.Reply | None:
-            if isinstance(req, wire.GetStatus):
+        def _answer(self, seq: int, req: wire_device.Request) -> wire.Reply | None:
+            if isinstance(req, wire_device.GetStatus):
                 return wire.Nak(seq, wire.NakCode.REPLY_TOO_LONG)
             return super()._answer(seq, req)
 

@@ -26,6 +26,7 @@ import tomli_w
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
+from support import wire_device
 from tactorbelt import ProtocolError, StudyFileError
 from tactorbelt.devices import wire
 from tactorbelt.experiment.study import Study, load_study, paper_study
@@ -194,13 +195,13 @@ def _valid_replies() -> st.SearchStrategy[wire.Packet]:
     reply = st.one_of(st.builds(wire.Pong, st.integers(0, 2**32 - 1),
                                 st.integers(0, 2**32 - 1)),
                       info, status, st.builds(wire.Ack, u8), st.builds(wire.Nak, u8, u8))
-    return st.builds(wire.encode_reply, u8, reply)
+    return st.builds(wire_device.encode_reply, u8, reply)
 
 
 @settings(max_examples=500)
 @given(any_packet)
 def test_parse_reply_and_request_raise_only_protocol_error(p: wire.Packet) -> None:
-    for parse in (wire.parse_reply, wire.parse_request):
+    for parse in (wire.parse_reply, wire_device.parse_request):
         with contextlib.suppress(ProtocolError):
             parse(p)
 

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import pytest
 
+from support import wire_device
 from support.belts import FakeFirmware, PtyDevice, comports, port_info, wait_for
 from tactorbelt import DeviceError, Layout, ProtocolError
 from tactorbelt.devices import open_belt, wire
@@ -37,7 +38,7 @@ def test_open_belt_serial_talks_to_the_device(pty_device: PtyDevice) -> None:
         assert belt.status().levels == (0, 16384, 32768, 49151, 65535, 0)
         assert belt.ping() > 0
     assert pty_device.firmware.levels == [0] * 6
-    assert isinstance(pty_device.firmware.requests[-1], wire.StopAll)
+    assert isinstance(pty_device.firmware.requests[-1], wire_device.StopAll)
 
 
 def test_garbage_and_corrupted_frames_from_the_device_are_counted_and_skipped(
@@ -148,7 +149,7 @@ def test_a_program_that_forgets_to_close_stops_the_motors_at_exit(
         "belt.set_amplitudes([1.0] * 6)\n"
     )
     subprocess.run([sys.executable, "-c", script], check=True, timeout=30)
-    assert isinstance(pty_device.firmware.requests[-1], wire.StopAll)
+    assert isinstance(pty_device.firmware.requests[-1], wire_device.StopAll)
     assert pty_device.firmware.levels == [0] * 6
 
 

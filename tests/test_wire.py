@@ -13,6 +13,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from support import wire_device
 from support import wire_reference as ref
 from tactorbelt import ConfigError, ProtocolError
 from tactorbelt.devices import wire
@@ -180,7 +181,7 @@ def test_set_amplitudes_takes_only_u16_levels(seq: int, levels: list[object]) ->
     if valid:
         p = wire.set_amplitudes(seq, levels)  # type: ignore[arg-type]
         assert p == Packet(MsgType.SET_AMPLITUDES, seq, struct.pack(f"<{len(levels)}H", *levels))
-        assert wire.parse_request(p) == wire.SetAmplitudes(tuple(levels))  # type: ignore[arg-type]
+        assert wire_device.parse_request(p) == wire_device.SetAmplitudes(tuple(levels))  # type: ignore[arg-type]
     else:
         with pytest.raises(ConfigError):
             wire.set_amplitudes(seq, levels)  # type: ignore[arg-type]
@@ -309,14 +310,14 @@ def test_reset_drops_a_partial_frame() -> None:
 def test_ping_round_trip(seq: int, nonce: int) -> None:
     p = wire.ping(seq, nonce)
     assert (p.type, p.seq, p.payload) == (0x01, seq, struct.pack("<I", nonce))
-    assert wire.parse_request(p) == wire.Ping(nonce)
+    assert wire_device.parse_request(p) == wire_device.Ping(nonce)
 
 
 @given(u8, st.lists(u16, min_size=1, max_size=30))
 def test_set_amplitudes_round_trip(seq: int, levels: list[int]) -> None:
     p = wire.set_amplitudes(seq, levels)
     assert p.type == 0x10 and p.payload == struct.pack(f"<{len(levels)}H", *levels)
-    assert wire.parse_request(p) == wire.SetAmplitudes(tuple(levels))
+    assert wire_device.parse_request(p) == wire_device.SetAmplitudes(tuple(levels))
 
 
 @given(u8, u16, u8, u8, u16, u16, u16, u32)
@@ -326,8 +327,8 @@ def test_play_target_round_trip(seq: int, angle: int, mode: int, law: int, fallo
     assert p.type == 0x12 and len(p.payload) == 14
     assert p.payload == struct.pack("<HBBHHHI", angle, mode, law, falloff, period, transit,
                                     duration)
-    assert wire.parse_request(p) == wire.PlayTarget(angle, mode, law, falloff, period, transit,
-                                                    duration)
+    assert wire_device.parse_request(p) == wire_device.PlayTarget(
+        angle, mode, law, falloff, period, transit, duration)
 
 
 @given(u8, u16, st.one_of(st.none(), u32))
@@ -335,22 +336,22 @@ def test_set_config_round_trip(seq: int, heartbeat_ms: int, max_on_ms: int | Non
     p = wire.set_config(seq, heartbeat_ms, max_on_ms)
     assert p.type == 0x15
     assert len(p.payload) == (2 if max_on_ms is None else 6)
-    assert wire.parse_request(p) == wire.SetConfig(heartbeat_ms, max_on_ms)
+    assert wire_device.parse_request(p) == wire_device.SetConfig(heartbeat_ms, max_on_ms)
 
 
 @pytest.mark.parametrize(
     ("build", "type_", "parsed"),
     [
-        (wire.get_info, 0x02, wire.GetInfo()),
-        (wire.stop_all, 0x11, wire.StopAll()),
-        (wire.heartbeat, 0x14, wire.Heartbeat()),
-        (wire.get_status, 0x16, wire.GetStatus()),
+        (wire.get_info, 0x02, wire_device.GetInfo()),
+        (wire.stop_all, 0x11, wire_device.StopAll()),
+        (wire.heartbeat, 0x14, wire_device.Heartbeat()),
+        (wire.get_status, 0x16, wire_device.GetStatus()),
     ],
 )
 def test_empty_requests(build: Callable[[int], Packet], type_: int, parsed: object) -> None:
     p = build(9)
     assert (p.type, p.seq, p.payload) == (type_, 9, b"")
-    assert wire.parse_request(p) == parsed
+    assert wire_device.parse_request(p) == parsed
 
 
 def test_builders_check_field_widths() -> None:
@@ -383,14 +384,14 @@ def test_builders_check_field_widths() -> None:
 )
 def test_parse_request_rejects_bad_lengths(p: Packet) -> None:
     with pytest.raises(ProtocolError, match="payload"):
-        wire.parse_request(p)
+        wire_device.parse_request(p)
 
 
 def test_parse_request_rejects_unknown_types() -> None:
     with pytest.raises(ProtocolError, match="0x7F"):
-        wire.parse_request(Packet(0x7F, 0))
+        wire_device.parse_request(Packet(0x7F, 0))
     with pytest.raises(ProtocolError, match="0x81"):
-        wire.parse_request(Packet(0x81, 0, bytes(8)))
+        wire_device.parse_request(Packet(0x81, 0, bytes(8)))
 
 
 # --- replies -------------------------------------------------------------------------------------
@@ -425,7 +426,7 @@ replies = st.one_of(
 
 @given(u8, replies)
 def test_reply_round_trip(seq: int, reply: wire.Reply) -> None:
-    p = wire.encode_reply(seq, reply)
+    p = wire_device.encode_reply(seq, reply)
     assert p.seq == seq
     assert len(wire.encode_packet(p)) <= wire.MAX_PACKET
     assert wire.parse_reply(p) == reply
@@ -564,14 +565,14 @@ def test_extension_messages_match_the_firmware_vectors() -> None:
 def test_set_config_flags_round_trip() -> None:
     p = wire.set_config(3, 300, 20000, wire.ConfigFlag.ONSET_EVENTS)
     assert p.payload == struct.pack("<HIB", 300, 20000, 1)
-    assert wire.parse_request(p) == wire.SetConfig(300, 20000, 1)
+    assert wire_device.parse_request(p) == wire_device.SetConfig(300, 20000, 1)
     with pytest.raises(ConfigError, match="max_on_ms"):
         wire.set_config(3, 300, None, 1)
     with pytest.raises(ConfigError, match="flags"):
         wire.set_config(3, 300, 20000, 256)
-    assert wire.parse_request(wire.get_diag(4)) == wire.GetDiag()
+    assert wire_device.parse_request(wire.get_diag(4)) == wire_device.GetDiag()
     with pytest.raises(ProtocolError, match="GET_DIAG"):
-        wire.parse_request(Packet(0x17, 0, b"\x00"))
+        wire_device.parse_request(Packet(0x17, 0, b"\x00"))
     with pytest.raises(ProtocolError, match="DIAG"):
         wire.parse_reply(Packet(0x84, 0, bytes(12)))
     with pytest.raises(ProtocolError, match="ONSET"):
@@ -584,19 +585,19 @@ def test_set_config_flags_round_trip() -> None:
 def test_sense_requests_layout_and_round_trip() -> None:
     p = wire.sense_start(4, 0, 2000)
     assert (p.type, p.payload) == (0x18, struct.pack("<HIB", 0, 2000, 0xFF))
-    assert wire.parse_request(p) == wire.SenseStart(0, 2000, wire.SENSE_ANY_TACTOR)
+    assert wire_device.parse_request(p) == wire_device.SenseStart(0, 2000, wire.SENSE_ANY_TACTOR)
     p = wire.sense_start(5, 400, wire.SENSE_MAX_DURATION_MS, 3)
-    assert wire.parse_request(p) == wire.SenseStart(400, 3_600_000, 3)
-    assert wire.parse_request(wire.sense_stop(6)) == wire.SenseStop()
+    assert wire_device.parse_request(p) == wire_device.SenseStart(400, 3_600_000, 3)
+    assert wire_device.parse_request(wire.sense_stop(6)) == wire_device.SenseStop()
     assert wire.sense_stop(6) == Packet(0x19, 6)
     with pytest.raises(ConfigError, match="rate_hz"):
         wire.sense_start(0, 70000, 1000)
     with pytest.raises(ConfigError, match="tactor"):
         wire.sense_start(0, 0, 1000, 256)
     with pytest.raises(ProtocolError, match="SENSE_START"):
-        wire.parse_request(Packet(0x18, 0, bytes(6)))
+        wire_device.parse_request(Packet(0x18, 0, bytes(6)))
     with pytest.raises(ProtocolError, match="SENSE_STOP"):
-        wire.parse_request(Packet(0x19, 0, b"\x00"))
+        wire_device.parse_request(Packet(0x19, 0, b"\x00"))
 
 
 def test_sense_data_layout_fills_one_packet() -> None:
@@ -606,7 +607,7 @@ def test_sense_data_layout_fills_one_packet() -> None:
     values = tuple(range(-10, 11))
     data = wire.SenseData(9, wire.SenseFlag.LAST, 0x01020304, 0x0102030405060708, 625, 8000,
                           values)
-    p = wire.encode_reply(9, data)
+    p = wire_device.encode_reply(9, data)
     assert len(p.payload) == wire.MAX_PAYLOAD and len(wire.encode_packet(p)) == wire.MAX_PACKET
     assert p.payload[:18] == struct.pack("<BBIQHH", 9, 1, 0x01020304, 0x0102030405060708,
                                          625, 8000)
@@ -614,7 +615,7 @@ def test_sense_data_layout_fills_one_packet() -> None:
     back = wire.parse_reply(p)
     assert back == data and isinstance(back, wire.SenseData)
     assert back.n_samples == 7 and back.last
-    empty = wire.parse_reply(wire.encode_reply(9, wire.SenseData(9, 0, 0, 0, 625, 8000)))
+    empty = wire.parse_reply(wire_device.encode_reply(9, wire.SenseData(9, 0, 0, 0, 625, 8000)))
     assert isinstance(empty, wire.SenseData) and empty.n_samples == 0 and not empty.last
 
 
@@ -630,11 +631,11 @@ def test_parse_sense_data_rejects_malformed(p: Packet) -> None:
 
 def test_sense_data_builder_checks_its_samples() -> None:
     with pytest.raises(ConfigError, match="at most 7"):
-        wire.encode_reply(0, wire.SenseData(0, 0, 0, 0, 625, 8000, (0,) * 24))
+        wire_device.encode_reply(0, wire.SenseData(0, 0, 0, 0, 625, 8000, (0,) * 24))
     with pytest.raises(ConfigError, match="3 per sample"):
-        wire.encode_reply(0, wire.SenseData(0, 0, 0, 0, 625, 8000, (0, 0)))
+        wire_device.encode_reply(0, wire.SenseData(0, 0, 0, 0, 625, 8000, (0, 0)))
     with pytest.raises(ConfigError, match="int16"):
-        wire.encode_reply(0, wire.SenseData(0, 0, 0, 0, 625, 8000, (32768, 0, 0)))
+        wire_device.encode_reply(0, wire.SenseData(0, 0, 0, 0, 625, 8000, (32768, 0, 0)))
 
 
 def test_info_reports_the_sense_capability() -> None:

@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from support import wire_device
 from tactorbelt import Layout, ProtocolError
 from tactorbelt.devices import ble, wire
 from tactorbelt.devices._firmware import FirmwareBelt, PacketSink, Transport
@@ -52,7 +53,7 @@ class FakeFirmware:
     heartbeat_ms: int = 250
     angles_deg: tuple[float, ...] | None = None
     silent: bool = False
-    requests: list[wire.Request] = field(default_factory=list)
+    requests: list[wire_device.Request] = field(default_factory=list)
     seqs: list[int] = field(default_factory=list)
     levels: list[int] = field(default_factory=list)
     state: wire.State = wire.State.IDLE
@@ -63,7 +64,7 @@ class FakeFirmware:
     flags: int = 0
     max_on_ms: int = 30000
     onset_times_us: dict[int, int] = field(default_factory=dict)
-    sense: Callable[[wire.SenseStart, int, int], list[wire.SenseData]] | None = None
+    sense: Callable[[wire_device.SenseStart, int, int], list[wire.SenseData]] | None = None
     sense_unavailable: bool = False
 
     #: what INFO reports as the firmware version
@@ -79,7 +80,7 @@ class FakeFirmware:
         self.levels = [0] * self.tactors
         self._lock = threading.Lock()
 
-    def of_type(self, kind: type) -> list[wire.Request]:
+    def of_type(self, kind: type) -> list[wire_device.Request]:
         with self._lock:
             return [r for r in self.requests if isinstance(r, kind)]
 
@@ -90,23 +91,24 @@ class FakeFirmware:
         if packet.type == wire.MsgType.GET_DIAG and not self.extensions:
             with self._lock:
                 self.seqs.append(packet.seq)  # NAKed, but a valid packet for seq tracking
-            return [wire.encode_reply(packet.seq, wire.Nak(packet.seq,
+            return [wire_device.encode_reply(packet.seq, wire.Nak(packet.seq,
                                                            wire.NakCode.UNKNOWN_TYPE))]
         if (packet.type == wire.MsgType.SET_CONFIG and len(packet.payload) == 7
                 and not self.extensions):
-            return [wire.encode_reply(packet.seq, wire.Nak(packet.seq, wire.NakCode.BAD_LENGTH))]
+            return [wire_device.encode_reply(packet.seq,
+                                             wire.Nak(packet.seq, wire.NakCode.BAD_LENGTH))]
         if (packet.type in (wire.MsgType.SENSE_START, wire.MsgType.SENSE_STOP)
                 and self.sense is None and not self.sense_unavailable):
             with self._lock:
                 self.seqs.append(packet.seq)
-            return [wire.encode_reply(packet.seq, wire.Nak(packet.seq,
+            return [wire_device.encode_reply(packet.seq, wire.Nak(packet.seq,
                                                            wire.NakCode.UNKNOWN_TYPE))]
         try:
-            req = wire.parse_request(packet)
+            req = wire_device.parse_request(packet)
         except ProtocolError:
             code = (wire.NakCode.UNKNOWN_TYPE if packet.type not in set(wire.MsgType)
                     else wire.NakCode.BAD_LENGTH)
-            return [wire.encode_reply(packet.seq, wire.Nak(packet.seq, code))]
+            return [wire_device.encode_reply(packet.seq, wire.Nak(packet.seq, code))]
         with self._lock:
             self.requests.append(req)
             self.seqs.append(packet.seq)
@@ -116,15 +118,17 @@ class FakeFirmware:
         t_us = self.now_us()
         reply = self._answer(packet.seq, req)
         if reply is not None:
-            out.append(wire.encode_reply(packet.seq, reply))
-        if isinstance(req, wire.SenseStart) and isinstance(reply, wire.Ack):
+            out.append(wire_device.encode_reply(packet.seq, reply))
+        if isinstance(req, wire_device.SenseStart) and isinstance(reply, wire.Ack):
             assert self.sense is not None
-            out += [wire.encode_reply(packet.seq, b) for b in self.sense(req, packet.seq, t_us)]
-        starts = isinstance(req, wire.PlayTarget) or (
-            isinstance(req, wire.SetAmplitudes) and before != wire.State.STREAMING)
+            out += [wire_device.encode_reply(packet.seq, b)
+                    for b in self.sense(req, packet.seq, t_us)]
+        starts = isinstance(req, wire_device.PlayTarget) or (
+            isinstance(req, wire_device.SetAmplitudes) and before != wire.State.STREAMING)
         if starts and self.flags & wire.ConfigFlag.ONSET_EVENTS:
             self.onset_times_us[packet.seq] = t_us
-            out.append(wire.encode_reply(packet.seq, wire.Onset(packet.seq, packet.type, t_us)))
+            out.append(wire_device.encode_reply(packet.seq,
+                                                wire.Onset(packet.seq, packet.type, t_us)))
         return out
 
     def link_closed(self) -> None:
@@ -133,31 +137,31 @@ class FakeFirmware:
         self.levels = [0] * self.tactors
         self.state = wire.State.IDLE
 
-    def _answer(self, seq: int, req: wire.Request) -> wire.Reply | None:
+    def _answer(self, seq: int, req: wire_device.Request) -> wire.Reply | None:
         ack = wire.Ack(seq, 0)
-        if isinstance(req, wire.Ping):
+        if isinstance(req, wire_device.Ping):
             return wire.Pong(req.nonce, self.now_us() & 0xFFFFFFFF)
-        if isinstance(req, wire.GetDiag):
+        if isinstance(req, wire_device.GetDiag):
             return wire.Diag(self.now_us(), self.reset_flags, 0, 0)
-        if isinstance(req, wire.GetInfo):
+        if isinstance(req, wire_device.GetInfo):
             assert self.angles_deg is not None
             caps = self.capabilities
             if self.extensions and self.reset_flags & wire.ResetFlag.WATCHDOG:
                 caps |= wire.Capability.WATCHDOG_RESET
             return wire.Info(self.protocol_version, *self.fw_version, len(self.angles_deg),
                              65535, self.heartbeat_ms, caps, tuple(self.angles_deg))
-        if isinstance(req, wire.SetAmplitudes):
+        if isinstance(req, wire_device.SetAmplitudes):
             self.levels = list(req.levels)
             self.state = wire.State.STREAMING
             return None
-        if isinstance(req, wire.StopAll):
+        if isinstance(req, wire_device.StopAll):
             self.levels = [0] * self.tactors
             self.state = wire.State.IDLE
             return ack
-        if isinstance(req, wire.PlayTarget):
+        if isinstance(req, wire_device.PlayTarget):
             self.state = wire.State.PLAYING
             return ack
-        if isinstance(req, wire.SetConfig):
+        if isinstance(req, wire_device.SetConfig):
             if not 50 <= req.heartbeat_ms <= 2000 or (
                     req.flags is not None and req.flags & ~0x03):
                 return wire.Nak(seq, wire.NakCode.OUT_OF_RANGE)
@@ -167,16 +171,16 @@ class FakeFirmware:
             if req.flags is not None:
                 self.flags = req.flags
             return ack
-        if isinstance(req, wire.GetStatus):
+        if isinstance(req, wire_device.GetStatus):
             return wire.Status(self.state, 0, 0, 0, 0, tuple(self.levels))
-        if isinstance(req, wire.SenseStart):
+        if isinstance(req, wire_device.SenseStart):
             if self.sense_unavailable:
                 return wire.Nak(seq, wire.NakCode.UNAVAILABLE)
             if not 1 <= req.duration_ms <= wire.SENSE_MAX_DURATION_MS or (
                     req.tactor != wire.SENSE_ANY_TACTOR and req.tactor >= self.tactors):
                 return wire.Nak(seq, wire.NakCode.OUT_OF_RANGE)
             return ack
-        if isinstance(req, wire.SenseStop):
+        if isinstance(req, wire_device.SenseStop):
             return ack
         return None  # HEARTBEAT
 
@@ -296,7 +300,7 @@ class FakeBleClient:
                 if not self.firmware.extensions:
                     self._notify(loop, raw[:limit])  # plain v1: cut short by the stack
                     continue
-                raw = wire.encode_packet(wire.encode_reply(
+                raw = wire.encode_packet(wire_device.encode_reply(
                     reply.seq, wire.Nak(reply.seq, wire.NakCode.REPLY_TOO_LONG)))
             if self.corrupt:
                 bad = bytearray(raw)

@@ -12,9 +12,9 @@ test vectors in ``firmware/test/vectors.json``.
   (:func:`encode_frame`, :class:`FrameDecoder`). BLE: the packet goes unframed
   (:func:`encode_packet`, :func:`decode_packet`).
 - Builders (:func:`ping`, :func:`set_amplitudes`, ...) return a :class:`Packet`;
-  :func:`parse_reply` and :func:`parse_request` turn a Packet into a frozen
-  dataclass, and :func:`encode_reply` builds device replies, so that tests can play
-  either side.
+  :func:`parse_reply` turns a Packet into a frozen dataclass. The device's side (parse a
+  request, encode a reply), with which tests play the device, is
+  ``tests/support/wire_device.py``.
 
 Builders check that each value fits its field (u8, u16, u32) and raise
 :class:`~tactorbelt.ConfigError` otherwise; they do not check the ranges the device
@@ -52,10 +52,6 @@ __all__ = [
     "DriveConstants",
     "DriveMode",
     "FrameDecoder",
-    "GetDiag",
-    "GetInfo",
-    "GetStatus",
-    "Heartbeat",
     "Info",
     "Law",
     "Mode",
@@ -64,21 +60,13 @@ __all__ = [
     "NakCode",
     "Onset",
     "Packet",
-    "Ping",
-    "PlayTarget",
     "Pong",
     "Reply",
-    "Request",
     "ResetFlag",
     "SenseData",
     "SenseFlag",
-    "SenseStart",
-    "SenseStop",
-    "SetAmplitudes",
-    "SetConfig",
     "State",
     "Status",
-    "StopAll",
     "amplitude_to_level",
     "angle_to_cdeg",
     "cobs_decode",
@@ -87,13 +75,11 @@ __all__ = [
     "decode_packet",
     "encode_frame",
     "encode_packet",
-    "encode_reply",
     "get_diag",
     "get_info",
     "get_status",
     "heartbeat",
     "parse_reply",
-    "parse_request",
     "ping",
     "play_target",
     "sense_start",
@@ -493,86 +479,6 @@ def angle_to_cdeg(angle_deg: float) -> int:
 
 # --- requests (host to device) --------------------------------------------------------
 
-
-@dataclass(frozen=True)
-class Ping:
-    nonce: int
-
-
-@dataclass(frozen=True)
-class GetInfo:
-    pass
-
-
-@dataclass(frozen=True)
-class SetAmplitudes:
-    levels: tuple[int, ...]
-
-
-@dataclass(frozen=True)
-class StopAll:
-    pass
-
-
-@dataclass(frozen=True)
-class PlayTarget:
-    angle_cdeg: int
-    mode: int
-    law: int
-    falloff_cdeg: int
-    period_ms: int
-    transit_ms: int
-    duration_ms: int
-
-
-@dataclass(frozen=True)
-class Heartbeat:
-    pass
-
-
-@dataclass(frozen=True)
-class SetConfig:
-    heartbeat_ms: int
-    max_on_ms: int | None = None
-    flags: int | None = None
-
-
-@dataclass(frozen=True)
-class GetStatus:
-    pass
-
-
-@dataclass(frozen=True)
-class GetDiag:
-    pass
-
-
-@dataclass(frozen=True)
-class SenseStart:
-    """SENSE_START: stream the board's accelerometer (firmware 1.2).
-
-    Attributes:
-        rate_hz: the rate asked for; 0 = the sensor's highest. The device samples at the
-            highest rate it can at or below it (period ``ceil(1e6 / rate_hz)`` us, at
-            least the sensor's shortest, at most 65535 us).
-        duration_ms: how long (1..3600000); SENSE_STOP ends it sooner.
-        tactor: the tactor the board is on (the emulator simulates that one), or
-            :data:`SENSE_ANY_TACTOR`.
-    """
-
-    rate_hz: int
-    duration_ms: int
-    tactor: int = SENSE_ANY_TACTOR
-
-
-@dataclass(frozen=True)
-class SenseStop:
-    pass
-
-
-Request = (Ping | GetInfo | SetAmplitudes | StopAll | PlayTarget | Heartbeat | SetConfig
-           | GetStatus | GetDiag | SenseStart | SenseStop)
-
 _PLAY_TARGET = struct.Struct("<HBBHHHI")
 _SENSE_START = struct.Struct("<HIB")
 #: ``_LEVELS[n]`` packs the payload of SET_AMPLITUDES with ``n`` levels.
@@ -624,9 +530,16 @@ def play_target(
     duration_ms: int,
 ) -> Packet:
     """PLAY_TARGET: the device renders the stimulus itself at 1 kHz; answers ACK."""
-    request = PlayTarget(angle_cdeg, mode, law, falloff_cdeg, period_ms, transit_ms, duration_ms)
-    return Packet(MsgType.PLAY_TARGET, seq,
-                  _PLAY_TARGET.pack(*_fields(request, 16, 8, 8, 16, 16, 16, 32)))
+    payload = _PLAY_TARGET.pack(
+        _uint("angle_cdeg", angle_cdeg, 16),
+        _uint("mode", mode, 8),
+        _uint("law", law, 8),
+        _uint("falloff_cdeg", falloff_cdeg, 16),
+        _uint("period_ms", period_ms, 16),
+        _uint("transit_ms", transit_ms, 16),
+        _uint("duration_ms", duration_ms, 32),
+    )
+    return Packet(MsgType.PLAY_TARGET, seq, payload)
 
 
 def heartbeat(seq: int) -> Packet:
@@ -664,8 +577,12 @@ def sense_start(seq: int, rate_hz: int, duration_ms: int,
     """SENSE_START (firmware 1.2): ACK, then SENSE_DATA batches until ``duration_ms`` has
     passed or SENSE_STOP; NAK 2 from a firmware without it, NAK 6 when the board's IMU did
     not start, NAK 4 for a duration of 0 or above an hour or a tactor the belt lacks."""
-    request = SenseStart(rate_hz, duration_ms, tactor)
-    return Packet(MsgType.SENSE_START, seq, _SENSE_START.pack(*_fields(request, 16, 32, 8)))
+    payload = _SENSE_START.pack(
+        _uint("rate_hz", rate_hz, 16),
+        _uint("duration_ms", duration_ms, 32),
+        _uint("tactor", tactor, 8),
+    )
+    return Packet(MsgType.SENSE_START, seq, payload)
 
 
 #: SET_DRIVE's motor constants: tactor, start and rated levels, rise, fall and brake
@@ -741,38 +658,6 @@ def _unpack_fixed(p: Packet, kind: type[Any], layout: struct.Struct) -> Any:
     """A packet whose payload is one struct, as ``kind`` of its fields."""
     _expect_len(p, MsgType(p.type).name, layout.size)
     return kind(*layout.unpack(p.payload))
-
-
-_NO_PAYLOAD = struct.Struct("")
-#: The requests whose payload is one struct: type -> (class, struct).
-_FIXED_REQUESTS: dict[int, tuple[type[Any], struct.Struct]] = {
-    MsgType.PING: (Ping, struct.Struct("<I")), MsgType.GET_INFO: (GetInfo, _NO_PAYLOAD),
-    MsgType.STOP_ALL: (StopAll, _NO_PAYLOAD), MsgType.PLAY_TARGET: (PlayTarget, _PLAY_TARGET),
-    MsgType.HEARTBEAT: (Heartbeat, _NO_PAYLOAD), MsgType.GET_STATUS: (GetStatus, _NO_PAYLOAD),
-    MsgType.GET_DIAG: (GetDiag, _NO_PAYLOAD), MsgType.SENSE_START: (SenseStart, _SENSE_START),
-    MsgType.SENSE_STOP: (SenseStop, _NO_PAYLOAD)}
-
-
-def parse_request(p: Packet) -> Request:
-    """A host-to-device packet as a dataclass (for tests that play the device).
-
-    Raises:
-        ProtocolError: an unknown type or a payload of the wrong length.
-    """
-    t = p.type
-    fixed = _FIXED_REQUESTS.get(t)
-    if fixed is not None:
-        return _unpack_fixed(p, *fixed)
-    if t == MsgType.SET_AMPLITUDES:
-        if len(p.payload) % 2:
-            raise ProtocolError(f"SET_AMPLITUDES: odd payload of {len(p.payload)} bytes")
-        n = len(p.payload) // 2
-        return SetAmplitudes(struct.unpack(f"<{n}H", p.payload))
-    if t == MsgType.SET_CONFIG:
-        _expect_len(p, "SET_CONFIG", 2, 6, 7)
-        fmt = {2: "<H", 6: "<HI", 7: "<HIB"}[len(p.payload)]
-        return SetConfig(*struct.unpack(fmt, p.payload))
-    raise ProtocolError(f"unknown request type 0x{t:02X}")
 
 
 # --- replies (device to host) ---------------------------------------------------------
@@ -920,12 +805,10 @@ _ONSET = struct.Struct("<BBQ")
 _SENSE_HEAD = struct.Struct("<BBIQHH")
 #: ``_SENSE_SAMPLES[n]`` unpacks n samples (3n int16).
 _SENSE_SAMPLES = tuple(struct.Struct(f"<{3 * n}h") for n in range(SENSE_MAX_SAMPLES + 1))
-#: The replies whose payload is one struct: type -> (class, struct, each field's bits).
-_FIXED_REPLIES: dict[int, tuple[type[Any], struct.Struct, tuple[int, ...]]] = {
-    MsgType.PONG: (Pong, struct.Struct("<II"), (32, 32)),
-    MsgType.DIAG: (Diag, _DIAG, (64, 8, 16, 16)),
-    MsgType.ONSET: (Onset, _ONSET, (8, 8, 64)),
-    MsgType.ACK: (Ack, struct.Struct("<BB"), (8, 8))}
+#: The replies whose payload is one struct: type -> (class, struct).
+_FIXED_REPLIES: dict[int, tuple[type[Any], struct.Struct]] = {
+    MsgType.PONG: (Pong, struct.Struct("<II")), MsgType.DIAG: (Diag, _DIAG),
+    MsgType.ONSET: (Onset, _ONSET), MsgType.ACK: (Ack, struct.Struct("<BB"))}
 
 
 def parse_reply(p: Packet) -> Reply:
@@ -936,8 +819,7 @@ def parse_reply(p: Packet) -> Reply:
     """
     t, payload = p.type, p.payload
     if t in _FIXED_REPLIES:
-        kind, layout, _ = _FIXED_REPLIES[t]
-        return _unpack_fixed(p, kind, layout)
+        return _unpack_fixed(p, *_FIXED_REPLIES[t])
     if t == MsgType.INFO:
         _counted(p, "INFO", _INFO_HEAD.size, 2)
         version, major, minor, patch, channels, steps, hb_ms, caps = _INFO_HEAD.unpack_from(
@@ -972,35 +854,3 @@ def parse_reply(p: Packet) -> Reply:
         except ValueError:
             return Nak(seq, code)
     raise ProtocolError(f"unknown reply type 0x{t:02X}")
-
-
-def encode_reply(seq: int, reply: Reply) -> Packet:
-    """Build a device reply (the inverse of :func:`parse_reply`; for tests and tools)."""
-    for t, (kind, layout, bits) in _FIXED_REPLIES.items():
-        if isinstance(reply, kind):
-            return Packet(t, seq, layout.pack(*_fields(reply, *bits)))
-    if isinstance(reply, Info):
-        if reply.channels != len(reply.tactor_angles_deg):
-            raise ConfigError(
-                f"INFO: {reply.channels} channels but {len(reply.tactor_angles_deg)} angles"
-            )
-        payload = _INFO_HEAD.pack(*_fields(reply, 8, 8, 8, 8, 8, 16, 16, 8)) + b"".join(
-            struct.pack("<H", angle_to_cdeg(a)) for a in reply.tactor_angles_deg)
-        return Packet(MsgType.INFO, seq, payload)
-    if isinstance(reply, Status):
-        payload = _STATUS_HEAD.pack(*_fields(reply, 8, 16, 16, 16, 16)) + b"".join(
-            struct.pack("<H", _uint("level", v, 16)) for v in reply.levels)
-        return Packet(MsgType.STATUS, seq, payload)
-    if isinstance(reply, SenseData):
-        if len(reply.samples) % 3 or len(reply.samples) > 3 * SENSE_MAX_SAMPLES:
-            raise ConfigError(f"SENSE_DATA: {len(reply.samples)} values; 3 per sample, at most "
-                              f"{SENSE_MAX_SAMPLES} samples")
-        for v in reply.samples:
-            if isinstance(v, bool) or not isinstance(v, int) or not -32768 <= v <= 32767:
-                raise ConfigError(f"SENSE_DATA: sample value {v!r} is not an int16")
-        payload = _SENSE_HEAD.pack(*_fields(reply, 8, 8, 32, 64, 16, 16)) + _SENSE_SAMPLES[
-            len(reply.samples) // 3].pack(*reply.samples)
-        return Packet(MsgType.SENSE_DATA, seq, payload)
-    if isinstance(reply, Nak):
-        return Packet(MsgType.NAK, seq, bytes(_fields(reply, 8, 8)))
-    raise ConfigError(f"not a reply: {reply!r}")
