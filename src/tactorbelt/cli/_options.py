@@ -103,27 +103,35 @@ def parse_number(text: object, what: str) -> float:
     return value
 
 
-def stimulus_options(func: F) -> F:
-    """Add --mode --law --falloff --tactors --tactor-angles --period --transit."""
-    options = [
-        click.option("--mode", type=click.Choice(["static", "dynamic"]), default="static",
-                     show_default=True, help="Static amplitudes or the dynamic perturbation."),
-        click.option("--law", type=click.Choice(LAWS),
-                     default="paper", show_default=True, help="Amplitude law."),
-        click.option("--falloff", type=POSITIVE, default=15.0, show_default=True,
-                     help="T of the paper law, degrees."),
-        click.option("--tactors", type=Number(int, 2), default=None,
-                     help="Number of evenly spaced tactors [default: 6]."),
-        click.option("--tactor-angles", default=None,
-                     help="Explicit tactor angles in degrees, e.g. 30,90,150,210,270,330."),
-        click.option("--period", type=POSITIVE, default=1.0, show_default=True,
-                     help="Period of the dynamic perturbation, seconds."),
-        click.option("--transit", type=POSITIVE, default=0.1, show_default=True,
-                     help="Time to move between the two tactors, seconds."),
-    ]
-    for option in reversed(options):
-        func = option(func)
-    return func
+#: The stimulus options by parameter name, in the order ``--help`` lists them.
+_STIMULUS_OPTIONS = {
+    "mode": click.option("--mode", type=click.Choice(["static", "dynamic"]), default="static",
+                         show_default=True, help="Static amplitudes or the dynamic perturbation."),
+    "law": click.option("--law", type=click.Choice(LAWS),
+                        default="paper", show_default=True, help="Amplitude law."),
+    "falloff": click.option("--falloff", type=POSITIVE, default=15.0, show_default=True,
+                            help="T of the paper law, degrees."),
+    "tactors": click.option("--tactors", type=Number(int, 2), default=None,
+                            help="Number of evenly spaced tactors [default: 6]."),
+    "tactor_angles": click.option(
+        "--tactor-angles", default=None,
+        help="Explicit tactor angles in degrees, e.g. 30,90,150,210,270,330."),
+    "period": click.option("--period", type=POSITIVE, default=1.0, show_default=True,
+                           help="Period of the dynamic perturbation, seconds."),
+    "transit": click.option("--transit", type=POSITIVE, default=0.1, show_default=True,
+                            help="Time to move between the two tactors, seconds."),
+}
+
+
+def stimulus_options(*names: str) -> Callable[[F], F]:
+    """Add the stimulus options ``names`` (parameter names: ``"law"``, ``"falloff"``), or
+    all of --mode --law --falloff --tactors --tactor-angles --period --transit."""
+    def add(func: F) -> F:
+        for name in reversed(names or tuple(_STIMULUS_OPTIONS)):
+            func = _STIMULUS_OPTIONS[name](func)
+        return func
+
+    return add
 
 
 def build_layout(tactors: object | None, tactor_angles: str | None) -> Layout:

@@ -26,6 +26,7 @@ from ._options import (
     load_calibration,
     number,
     output_option,
+    stimulus_options,
 )
 
 __all__ = ["pattern"]
@@ -105,8 +106,7 @@ def import_(file: str, out: Path, angle: float) -> None:
 @belt_options
 @click.option("--angle", type=FLOAT, default=0.0, show_default=True, help=_ANGLE_HELP)
 @_law_option
-@click.option("--falloff", type=POSITIVE, default=15.0, show_default=True,
-              help="T of the paper law, degrees.")
+@stimulus_options("falloff")
 @click.option("--rate", type=POSITIVE, default=None,
               help="Stream at this rate (Hz) [default: the belt's].")
 @click.option("--stats", is_flag=True, help="Print the player's deadline statistics as one "

@@ -36,7 +36,7 @@ __all__ = ["belt_test", "play"]
 
 @click.command(cls=AngleCommand)
 @click.argument("angle", metavar="ANGLE")
-@stimulus_options
+@stimulus_options()
 @belt_options
 @click.option("--seconds", type=POSITIVE, default=3.0, show_default=True,
               help="How long to play.")

@@ -18,9 +18,8 @@ from typing import Any
 import click
 
 from .._errors import ConfigError
-from .._lawnames import LAWS
 from ..display.heading import HeadingReader, HeadingSample, read_headings
-from ._options import FLOAT, POSITIVE, belt_option, number
+from ._options import FLOAT, POSITIVE, belt_option, number, stimulus_options
 
 __all__ = ["HeadingReader", "HeadingSample", "point"]
 
@@ -40,16 +39,7 @@ __all__ = ["HeadingReader", "HeadingSample", "point"]
 @click.option("--sweep-period", type=POSITIVE, default=20.0, show_default=True,
               help="Seconds per turn of --sweep.")
 @click.option("--seconds", type=POSITIVE, default=None, help="Stop after this many seconds.")
-@click.option("--mode", type=click.Choice(["static", "dynamic"]), default="static",
-              show_default=True, help="Static amplitudes or the dynamic perturbation.")
-@click.option("--law", type=click.Choice(LAWS), default="paper",
-              show_default=True, help="Amplitude law.")
-@click.option("--falloff", type=POSITIVE, default=15.0, show_default=True,
-              help="T of the paper law, degrees.")
-@click.option("--period", type=POSITIVE, default=1.0, show_default=True,
-              help="Period of the dynamic perturbation, seconds.")
-@click.option("--transit", type=POSITIVE, default=0.1, show_default=True,
-              help="Time to move between the two tactors, seconds.")
+@stimulus_options("mode", "law", "falloff", "period", "transit")
 @click.option("--slew", type=POSITIVE, default=180.0, show_default=True,
               help="Top speed of the displayed direction, deg/s.")
 @click.option("--hysteresis", type=number(float, 0), default=4.0, show_default=True,

@@ -9,7 +9,6 @@ from typing import Any
 
 import click
 
-from .._lawnames import LAWS
 from ._options import (
     POSITIVE,
     AngleCommand,
@@ -31,7 +30,7 @@ def _write_text(text: str, out: Path | None) -> None:
 
 @click.command(cls=AngleCommand)
 @click.argument("angle", metavar="ANGLE")
-@stimulus_options
+@stimulus_options()
 @click.option("--rate", type=POSITIVE, default=1000.0, show_default=True,
               help="Samples per second.")
 @click.option("--duration", type=POSITIVE, default=None,
@@ -87,10 +86,7 @@ def figure() -> None:
 
 
 @figure.command("amplitudes")
-@click.option("--law", type=click.Choice(LAWS), default="paper",
-              show_default=True, help="Amplitude law.")
-@click.option("--falloff", default=15.0, show_default=True, type=POSITIVE,
-              help="T of the paper law, degrees.")
+@stimulus_options("law", "falloff")
 @click.option("--tactors", type=number(int, 2), default=None,
               help="Evenly spaced tactors [default: 6].")
 @click.option("--tactor-angles", default=None, help="Explicit tactor angles, e.g. 30,90,150.")
