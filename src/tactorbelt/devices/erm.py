@@ -626,12 +626,18 @@ def shape_tick(level: float, e: float, h_s: float, start: float, overdrive: floa
     speed)``. The decision is for a whole tick (``tick_s``)."""
     d = _shape_decision(level, e, start, overdrive, brake, math.exp(-tick_s / rise),
                         math.exp(-tick_s / fall), math.exp(-tick_s / brake_tau))
+    return d, relax_f(d, e, h_s, start, rise, fall, brake_tau)
+
+
+def relax_f(d: float, w: float, h: float, start: float, rise: float, fall: float,
+            brake: float) -> float:
+    """:func:`drive_relax` of one motor, in plain floats."""
     if math.copysign(1.0, d) < 0.0:
-        u, tau = d, brake_tau
+        u, tau = d, brake
     else:
         u = d if d >= start else 0.0
-        tau = rise if u > e else fall
-    return d, u + (e - u) * math.exp(-min(h_s / tau, _MAX_DECAY))
+        tau = rise if u > w else fall
+    return u + (w - u) * math.exp(-min(h / tau, _MAX_DECAY))
 
 
 def shape_whole_tick(level: float, e: float, start: float, overdrive: float, brake: bool,

@@ -64,6 +64,7 @@ from .erm import (
     _sorted_unique,
     drive_relax,
     erm_speed,
+    relax_f,
     sample_grid,
     shape_tick,
     shape_whole_tick,
@@ -715,9 +716,9 @@ class SimBelt(Belt):
                     # settled (or coasting to off, unbraked): the level to the stretch's end
                     ds.append(lvl)
                     h = (b1 - t) * 1e-9
-                    el = [_relax_f(lvl[k], el[k], h, start, rl[k], fl[k], bl[k])
+                    el = [relax_f(lvl[k], el[k], h, start, rl[k], fl[k], bl[k])
                           if k in moving else el[k] for k in range(n)]
-                    wl = el if exact else [_relax_f(lvl[k], wl[k], h, start, pr, pf, pb)
+                    wl = el if exact else [relax_f(lvl[k], wl[k], h, start, pr, pf, pb)
                                            for k in range(n)]
                     break
                 # the decision holds a tick; each moving tactor in plain floats
@@ -734,7 +735,7 @@ class SimBelt(Belt):
                         d[k], el[k] = shape_tick(lvl[k], el[k], h, start, od, can_brake,
                                                  rl[k], fl[k], bl[k])
                 ds.append(d)
-                wl = el if exact else [_relax_f(d[k], wl[k], h, start, pr, pf, pb)
+                wl = el if exact else [relax_f(d[k], wl[k], h, start, pr, pf, pb)
                                        for k in range(n)]
                 t = nxt
             i += 1
@@ -1280,17 +1281,6 @@ class SimBelt(Belt):
                 render = self._renders.pop(rid)
                 if self._played.get(id(render.stimulus)) is render:
                     del self._played[id(render.stimulus)]
-
-
-def _relax_f(d: float, w: float, h: float, start: float, rise: float, fall: float,
-             brake: float) -> float:
-    """:func:`~tactorbelt.devices.erm.drive_relax` of one motor, in plain floats."""
-    if math.copysign(1.0, d) < 0.0:
-        u, tau = d, brake
-    else:
-        u = d if d >= start else 0.0
-        tau = rise if u > w else fall
-    return u + (w - u) * math.exp(-min(h / tau, 300.0))
 
 
 def shaper_taus_are(taus: tuple[FloatArray, FloatArray, FloatArray], p: ErmParams) -> bool:
