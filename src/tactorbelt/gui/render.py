@@ -309,7 +309,7 @@ class Renderer:
         u = self.unit
         px = int(19 * u)
         width = self.panel_width - int(20 * u)
-        lines = self._wrap(view.overlay_lines, px, width - int(20 * u))
+        lines = self.wrap(view.overlay_lines, px, width - int(20 * u))
         n_levels = 0 if view.levels is None else len(np.asarray(view.levels).reshape(-1))
         bar_w, gap, max_h = int(16 * u), int(7 * u), int(60 * u)
         bar_w = max(min(bar_w, (width - int(20 * u)) // max(n_levels, 1) - gap), 2)
@@ -338,10 +338,6 @@ class Renderer:
 
     def wrap(self, lines: list[str], px: int, width: int) -> list[str]:
         """Lines broken at spaces to fit ``width`` pixels (text of ``px`` pixels)."""
-        return self._wrap(lines, px, width)
-
-    def _wrap(self, lines: list[str], px: int, width: int) -> list[str]:
-        """Lines broken at spaces to fit ``width`` pixels."""
         out: list[str] = []
         for line in lines:
             words = line.split(" ")
