@@ -111,30 +111,6 @@ def _samples_sql(n_rows: int, buttons: bool) -> str:
     return "INSERT INTO samples(trial_id, t_s, x, y, buttons) VALUES " + ",".join(rows)
 
 
-def _insert_samples(c: sqlite3.Connection, trial_id: int, result: TrialResult) -> None:
-    """A trial's samples, in order, ``_SAMPLE_ROWS_PER_INSERT`` rows to a statement (the
-    trial_id bound once a statement, and the buttons only when one is pressed: a model's
-    samples bind 3 values a row instead of 5, a sixth of the time its samples take)."""
-    t_s = result.sample_times_s()
-    n = len(t_s)
-    xs, ys, bs = result.sample_x, result.sample_y, result.sample_buttons
-    if not (len(xs) == len(ys) == len(bs) == n):
-        raise StoreError(f"trial {result.trial.trial_index}: sample columns of unequal length")
-    buttons = any(bs)
-    per = 4 if buttons else 3
-    a = 0
-    for rows in _sample_chunks(n):
-        b = a + rows
-        values: list[Any] = [trial_id] * (1 + per * rows)  # ?1, then the rows' values
-        values[1::per] = t_s[a:b]
-        values[2::per] = xs[a:b]
-        values[3::per] = ys[a:b]
-        if buttons:
-            values[4::per] = bs[a:b]
-        c.execute(_samples_sql(rows, buttons), values)
-        a = b
-
-
 class SQLiteStore(Store):
     """A store in one SQLite file (see the module doc). Open with :func:`open_store`."""
 
@@ -480,7 +456,27 @@ class SQLiteStore(Store):
             return self._insert_trial_row(c, values, attempts)
 
     def _write_samples(self, c: Any, trial_id: int, result: TrialResult) -> None:
-        _insert_samples(c, trial_id, result)
+        """A trial's samples, in order, ``_SAMPLE_ROWS_PER_INSERT`` rows to a statement (the
+        trial_id bound once a statement, and the buttons only when one is pressed: a model's
+        samples bind 3 values a row instead of 5, a sixth of the time its samples take)."""
+        t_s = result.sample_times_s()
+        n = len(t_s)
+        xs, ys, bs = result.sample_x, result.sample_y, result.sample_buttons
+        if not (len(xs) == len(ys) == len(bs) == n):
+            raise StoreError(f"trial {result.trial.trial_index}: sample columns of unequal length")
+        buttons = any(bs)
+        per = 4 if buttons else 3
+        a = 0
+        for rows in _sample_chunks(n):
+            b = a + rows
+            values: list[Any] = [trial_id] * (1 + per * rows)  # ?1, then the rows' values
+            values[1::per] = t_s[a:b]
+            values[2::per] = xs[a:b]
+            values[3::per] = ys[a:b]
+            if buttons:
+                values[4::per] = bs[a:b]
+            c.execute(_samples_sql(rows, buttons), values)
+            a = b
 
     def _bulk_samples(self, c: Any, rows: Iterable[Sequence[Any]]) -> None:
         c.executemany("INSERT INTO samples(trial_id, t_s, x, y, buttons) VALUES (?,?,?,?,?)",
