@@ -46,7 +46,6 @@ from numpy.typing import NDArray
 from .._errors import ConfigError, DeviceError
 from .._registry import resolve
 from ..devices.audio import AudioDevice, checked_latency, find_device, parse_latency, portaudio
-from ..devices.registry import check_options
 from .envelope import rectified_envelope
 from .registry import SENSORS, SensorBackend, resolve_sensor, sense_url_help
 
@@ -392,9 +391,7 @@ class AudioSensor(SampledSensor):
 # -- openers ----------------------------------------------------------------------------------
 def open_model(target: str, belt: Belt, **options: Any) -> ModelSensor:
     """``model``: the belt's own vibration model (``rate_hz``: its sampling rate)."""
-    check_options(options, ("rate_hz",), "model")
-    return ModelSensor(belt, float(options.get("rate_hz", MODEL_RATE_HZ)),
-                       url="model" + (f"?rate_hz={options['rate_hz']:g}" if options else ""))
+    return ModelSensor(belt, float(options.get("rate_hz", MODEL_RATE_HZ)))
 
 
 def _parse_channels(text: str, url: str, n: int) -> tuple[int, ...]:
@@ -424,8 +421,6 @@ def open_audio_sensor(target: str, belt: Belt, **options: Any) -> AudioSensor:
         DeviceError: no such input, too few channels, no PortAudio.
     """
     url = f"audio:{target}"
-    check_options(options, ("channel", "map", "samplerate", "latency", "blocksize",
-                            "window_ms"), url)
     if belt.clock is not None and belt.clock.simulated:
         raise ConfigError(f"belt {belt.url!r} runs on a simulated clock: a sound card cannot "
                           "sense it (use the sim belt on wall time, --belt sim)")
@@ -502,7 +497,6 @@ class BoardSensor(SampledSensor):
 def open_board(target: str, belt: Belt, **options: Any) -> Sensor:
     """``board``: the belt's own IMU (``rate_hz``: the rate asked for, the IMU's highest
     by default; ``window_ms``: the envelope's window, 5 ms)."""
-    check_options(options, ("rate_hz", "window_ms"), "board")
     return BoardSensor(belt, "board", options.get("rate_hz"),
                        float(options.get("window_ms", BOARD_WINDOW_MS)))
 
