@@ -267,22 +267,19 @@ class Player:
                 self._n_frames = max(1, round(float(duration_s) * self.rate_hz))
                 self._end = (onset + round(float(duration_s) * 1e9) if device
                              else self._dl.deadline(self._n_frames))
-        if device:
-            try:
+        threaded = not device and not self.clock.simulated
+        try:
+            if device:
                 self.belt.play(stimulus, duration_s)
-            except BaseException:
-                self._active = False
-                self._stop_motors()
-                raise
-        elif not self.clock.simulated:
-            # frame 0 is due now: write it here, so the motors are on when start returns
-            # (a caller that stops at once still played its first frame)
-            try:
+            elif threaded:
+                # frame 0 is due now: write it here, so the motors are on when start
+                # returns (a caller that stops at once still played its first frame)
                 self._step(None)
-            except BaseException:
-                self._active = False
-                self._stop_motors()
-                raise
+        except BaseException:
+            self._active = False
+            self._stop_motors()
+            raise
+        if threaded:
             self._thread = threading.Thread(target=self._run, name="tactorbelt-player",
                                             daemon=True)
             self._thread.start()
