@@ -22,7 +22,6 @@ from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, TypeVar
 
-from .._errors import ConfigError
 from ..clock import WallClock
 
 if TYPE_CHECKING:
@@ -110,6 +109,7 @@ class BeltPort:
     def open(self) -> Belt:
         """Open the belt (on the worker thread: ``await port.call(port.open)``)."""
         from ..devices import open_belt
+        from ..experiment.runner import check_layout
         from ..player import Player
 
         kwargs: dict[str, Any] = {"clock": self.clock, "layout": self.layout}
@@ -117,12 +117,7 @@ class BeltPort:
             kwargs["calibration"] = self.calibration_file
         belt = open_belt(self.url, **kwargs)
         try:
-            want, got = self.layout.angles_deg, belt.layout.angles_deg
-            if tuple(round(a, 6) for a in want) != tuple(round(a, 6) for a in got):
-                raise ConfigError(
-                    f"the study's layout ({', '.join(f'{a:g}' for a in want)} deg) is not "
-                    f"the belt's ({', '.join(f'{a:g}' for a in got)} deg); serve a study "
-                    "file for this belt")
+            check_layout(self.layout, belt, "serve a study file for this belt")
             if self.drive is not None:
                 belt.set_drive(self.drive)
             self._player = Player(belt, self.clock)

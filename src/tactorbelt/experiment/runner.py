@@ -49,7 +49,7 @@ from typing import TYPE_CHECKING, Any
 
 from .._errors import ConfigError, DeviceError, TactorbeltError
 from ..clock import Clock, Deadlines, SimClock
-from ..geometry import TargetSet
+from ..geometry import Layout, TargetSet
 from ..inputs.base import CursorSample, CursorSource, TrialCue
 from ..interrupts import Terminated
 from ..tasks import TASK_LEAD_NS, TLX_SCALE, WorkloadInfo, check_tlx
@@ -220,16 +220,13 @@ def skin_latency(calibration: Calibration, stimulus: Stimulus) -> tuple[float, f
     return mean, math.sqrt(var)
 
 
-def _check_layout(study: Study, belt: Belt) -> None:
-    want = study.layout_obj()
-    if tuple(round(a, 6) for a in want.angles_deg) != tuple(
-        round(a, 6) for a in belt.layout.angles_deg
-    ):
-        raise ConfigError(
-            f"the study's layout ({', '.join(f'{a:g}' for a in want.angles_deg)} deg) is not "
-            f"the belt's ({', '.join(f'{a:g}' for a in belt.layout.angles_deg)} deg); "
-            "use a study file for this belt or open the belt with the study's layout"
-        )
+def check_layout(want: Layout, belt: Belt, hint: str) -> None:
+    """ConfigError unless ``belt`` has the study's layout ``want`` (to 1e-6 degree);
+    ``hint`` ends the message: what to do."""
+    w, got = want.angles_deg, belt.layout.angles_deg
+    if tuple(round(a, 6) for a in w) != tuple(round(a, 6) for a in got):
+        raise ConfigError(f"the study's layout ({', '.join(f'{a:g}' for a in w)} deg) is not "
+                          f"the belt's ({', '.join(f'{a:g}' for a in got)} deg); {hint}")
 
 
 def _stop_quietly(player: Any, belt: Belt) -> None:
@@ -279,7 +276,8 @@ class SessionRunner:
         self.participant = check_participant(participant)
         if limit is not None and limit < 0:
             raise ConfigError(f"limit must be a number of test trials >= 0, got {limit}")
-        _check_layout(study, belt)
+        check_layout(study.layout_obj(), belt, "use a study file for this belt or open the "
+                     "belt with the study's layout")
         self.study = study
         self.belt = belt
         self.cursor = cursor
