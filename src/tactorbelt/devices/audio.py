@@ -364,7 +364,6 @@ class AudioBelt(Belt):
         self._gain = None if np.all(self.output_gain == 1.0) else self.output_gain
         self._ar = np.arange(8192, dtype=np.int64)
         self._busy_ns = 0
-        self._calls = 0
         sd = portaudio()
         try:
             self._stream = sd.OutputStream(
@@ -391,7 +390,6 @@ class AudioBelt(Belt):
             self._callback_error = exc
             raise portaudio().CallbackAbort from None
         self._busy_ns += time.thread_time_ns() - t0
-        self._calls += 1
 
     def _render(self, outdata: Any, frames: int) -> None:
         gen, program = self._next

@@ -260,11 +260,6 @@ class BleTransport(Transport):
         """The longest notification the link carries: ATT MTU - 3."""
         return self.mtu - 3
 
-    @property
-    def framed(self) -> bool:
-        """True once replies arrive as a COBS byte stream (framed replies)."""
-        return self._decoder is not None
-
     def use_framed_replies(self) -> None:
         self._decoder = wire.FrameDecoder()
 
