@@ -755,9 +755,11 @@ class FirmwareBelt(Belt, PacketSink):
         return waiter
 
     def _request(self, build: Callable[[int], wire.Packet], name: str,
-                 timeout_s: float | None = None) -> wire.Reply:
-        """Send a request and wait for the reply with its sequence number."""
-        return self._wait(self._send(build, name), name, timeout_s)
+                 timeout_s: float | None = None, expect: type | None = None) -> Any:
+        """Send a request and wait for the reply with its sequence number (``expect``: a
+        reply of that kind, else an error, :meth:`_expect`)."""
+        reply = self._wait(self._send(build, name), name, timeout_s)
+        return reply if expect is None else self._expect(reply, expect, name)
 
     def _wait(self, waiter: _Waiter | None, name: str, timeout_s: float | None = None
               ) -> wire.Reply:
@@ -848,10 +850,9 @@ class FirmwareBelt(Belt, PacketSink):
         hb = DEFAULT_HEARTBEAT_MS if heartbeat_ms is None else heartbeat_ms
         self._transport.use_framed_replies()
         self.framed_replies = True
-        reply = self._request(
+        self._request(
             lambda seq: wire.set_config(seq, hb, self.max_on_ms, wire.ConfigFlag.BLE_FRAMED),
-            "the switch to framed replies")
-        self._expect(reply, wire.Ack, "the switch to framed replies")
+            "the switch to framed replies", expect=wire.Ack)
         log.info("%s: %s below %d: replies come framed", self.port, self._mtu_text(),
                  BLE_MIN_MTU)
 
@@ -891,9 +892,8 @@ class FirmwareBelt(Belt, PacketSink):
     def _enable_flags(self) -> None:
         """SET_CONFIG with the flags byte: ONSET events (and framed BLE replies)."""
         hb, max_on, flags = self.heartbeat_ms, self.max_on_ms, self._flags()
-        reply = self._request(lambda seq: wire.set_config(seq, hb, max_on, flags),
-                              "the onset-report setting")
-        self._expect(reply, wire.Ack, "the onset-report setting")
+        self._request(lambda seq: wire.set_config(seq, hb, max_on, flags),
+                      "the onset-report setting", expect=wire.Ack)
         self.onset_events = True
 
     def _sync_burst(self, n: int = SYNC_BURST) -> None:
@@ -949,8 +949,8 @@ class FirmwareBelt(Belt, PacketSink):
 
             raise TactorbeltError(f"the firmware on {self.port} ({self.firmware_version}) "
                                   "cannot report diagnostics (needs firmware 1.1)")
-        what = "the diagnostics request"
-        diag: wire.Diag = self._expect(self._request(wire.get_diag, what), wire.Diag, what)
+        diag: wire.Diag = self._request(wire.get_diag, "the diagnostics request",
+                                        expect=wire.Diag)
         if self._reset_seen:
             self._restore_after_reset()
         return diag
@@ -1020,9 +1020,8 @@ class FirmwareBelt(Belt, PacketSink):
             if sent:
                 vectors = list(sent)
         for v in vectors:
-            reply = self._request(functools.partial(_set_drive_packet, mode=mode, vector=v),
-                                  "SET_DRIVE")
-            self._expect(reply, wire.Ack, "SET_DRIVE")
+            self._request(functools.partial(_set_drive_packet, mode=mode, vector=v),
+                          "SET_DRIVE", expect=wire.Ack)
 
     # -- the board's accelerometer (firmware 1.2) -----------------------------------------
     @property
@@ -1131,8 +1130,7 @@ class FirmwareBelt(Belt, PacketSink):
             current = self._sensing is rec
         if not current or self._closed or self._lost is not None:
             return
-        what = "the end of sensing"
-        self._expect(self._request(wire.sense_stop, what), wire.Ack, what)
+        self._request(wire.sense_stop, "the end of sensing", expect=wire.Ack)
         with self._sense_lock:
             if self._sensing is rec:
                 self._sensing = None
@@ -1220,8 +1218,8 @@ class FirmwareBelt(Belt, PacketSink):
     def _write_stop(self) -> None:
         try:
             self._streaming = False
-            reply = self._request(wire.stop_all, "the stop", max(STOP_TIMEOUT_S, self.timeout_s))
-            self._expect(reply, wire.Ack, "the stop")
+            self._request(wire.stop_all, "the stop", max(STOP_TIMEOUT_S, self.timeout_s),
+                          wire.Ack)
         except DeviceError as exc:
             if not self._closing:
                 raise
@@ -1310,8 +1308,8 @@ class FirmwareBelt(Belt, PacketSink):
     def status(self) -> wire.Status:
         """The device's state, error counters and output levels (GET_STATUS)."""
         self._check_open()
-        status: wire.Status = self._expect(
-            self._request(wire.get_status, "the status request"), wire.Status, "the status request")
+        status: wire.Status = self._request(wire.get_status, "the status request",
+                                            expect=wire.Status)
         return status
 
     def set_config(self, heartbeat_ms: int, max_on_ms: int | None = None) -> None:
@@ -1335,9 +1333,8 @@ class FirmwareBelt(Belt, PacketSink):
         ):
             raise ConfigError(f"max_on_ms must be an integer in 100..600000, got {max_on_ms!r}")
         self._check_open()
-        reply = self._request(lambda seq: wire.set_config(seq, heartbeat_ms, max_on_ms),
-                              "the new settings (heartbeat, longest on-time)")
-        self._expect(reply, wire.Ack, "the new settings (heartbeat, longest on-time)")
+        self._request(lambda seq: wire.set_config(seq, heartbeat_ms, max_on_ms),
+                      "the new settings (heartbeat, longest on-time)", expect=wire.Ack)
         self.heartbeat_ms = heartbeat_ms
         if max_on_ms is not None:
             self.max_on_ms = max_on_ms

@@ -176,8 +176,7 @@ class EmulatorBelt(FirmwareBelt):
         if not self.debug_frames:
             raise ConfigError("hang() needs an emulator opened with debug_frames=True")
         self._check_open()
-        reply = self._request(lambda seq: wire.Packet(DEBUG_HANG, seq), "DEBUG_HANG")
-        self._expect(reply, wire.Ack, "DEBUG_HANG")
+        self._request(lambda seq: wire.Packet(DEBUG_HANG, seq), "DEBUG_HANG", expect=wire.Ack)
 
     def _close(self) -> None:
         try:
