@@ -106,7 +106,6 @@ def test_uneven_unsorted_layout_neighbours():
     layout = Layout.from_angles([90, 10, 200])
     assert layout.neighbours(50.0) == (1, 0)
     assert layout.neighbours(300.0) == (2, 1)
-    assert not layout.is_even
     assert list(layout.gaps_deg()) == [110.0, 80.0, 170.0]
 
 

@@ -161,12 +161,6 @@ class Layout:
         """Tactor angles as a read-only NumPy array."""
         return self._cache["angles"]
 
-    @property
-    def is_even(self) -> bool:
-        """True when the tactors are evenly spaced."""
-        gaps = self.gaps_deg()
-        return bool(np.allclose(gaps, 360.0 / self.n, atol=1e-9))
-
     def gaps_deg(self) -> FloatArray:
         """Clockwise gap from each tactor to its clockwise neighbour (read-only), by index."""
         return self._cache["gaps"]
