@@ -56,6 +56,7 @@ from typing import Any
 
 from .._errors import ConfigError, TactorbeltError
 from ..factors import CONDITION, LOAD, TARGETS, Factor, added_factors, after_builtin
+from ..tasks import TLX_ITEMS, TLX_SCALES
 from .store import Store, open_store
 from .study import Study
 
@@ -199,22 +200,6 @@ EVENT_COLUMNS: dict[str, dict[str, Any]] = {
                 "item, else 0 (0 for an extra press)."},
 }
 
-#: The NASA-TLX items in the BIDS ratings file (``task-nasatlx_beh.tsv``): the question
-#: of NASA's form and the anchors of 0 and 100 (as the window's sliders, gui/tlx.py).
-_TLX_ITEMS = {
-    "mental": ("Mental demand: how mentally demanding was the task?", "very low",
-               "very high"),
-    "physical": ("Physical demand: how physically demanding was the task?", "very low",
-                 "very high"),
-    "temporal": ("Temporal demand: how hurried or rushed was the pace of the task?",
-                 "very low", "very high"),
-    "performance": ("Performance: how successful were you in accomplishing what you were "
-                    "asked to do?", "perfect", "failure"),
-    "effort": ("Effort: how hard did you have to work to accomplish your level of "
-               "performance?", "very low", "very high"),
-    "frustration": ("Frustration: how insecure, discouraged, irritated, stressed and "
-                    "annoyed were you?", "very low", "very high"),
-}
 #: Every column of the BIDS ratings file and its description (the JSON sidecar).
 TLX_COLUMNS: dict[str, dict[str, Any]] = {
     "block_index": {"Description": "The test block rated (position in the session's "
@@ -223,8 +208,10 @@ TLX_COLUMNS: dict[str, dict[str, Any]] = {
     "condition": BEH_COLUMNS["condition"],
     "n_targets": BEH_COLUMNS["n_targets"],
     "load": BEH_COLUMNS["load"],
-    **{k: {"Description": f"{q} Rated after the block on a slider from 0 ({lo}) to 100 "
-           f"({hi})."} for k, (q, lo, hi) in _TLX_ITEMS.items()},
+    # each item: the question of NASA's form and its anchors (tactorbelt.tasks.TLX_SCALES)
+    **{s.item: {"Description": f"{s.title.capitalize()}: {s.question[0].lower()}"
+                f"{s.question[1:]} Rated after the block on a slider from 0 ({s.low.lower()}) "
+                f"to 100 ({s.high.lower()})."} for s in TLX_SCALES},
     "raw_tlx": {"Description": "Raw TLX: the mean of the six items, 0-100 (no pairwise "
                 "weighting)."},
 }
@@ -611,7 +598,7 @@ def _tlx_rows(ratings: list[dict[str, Any]], trials: list[dict[str, Any]]) -> li
     rows = []
     for b, values in sorted(blocks.items()):
         t = cells.get(b, {})
-        items = [values.get(k) for k in _TLX_ITEMS]
+        items = [values.get(k) for k in TLX_ITEMS]
         known = [v for v in items if v is not None]
         mean = sum(known) / len(known) if len(known) == len(items) else None
         rows.append([b, t.get("block_name"), t.get("condition"), t.get("n_targets"),

@@ -28,7 +28,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any, Final
 
-from ..tasks import TLX_ITEMS
+from ..tasks import TLX_SCALES, TlxScale
 
 __all__ = ["STEP", "TLX_SCALES", "TlxForm", "TlxScale", "TlxScreen"]
 
@@ -39,55 +39,6 @@ STICK_PUSH: Final = 0.6
 #: A held push repeats after this long, then every :data:`REPEAT_NS`.
 REPEAT_DELAY_NS: Final = 400_000_000
 REPEAT_NS: Final = 120_000_000
-
-
-@dataclass(frozen=True)
-class TlxScale:
-    """One NASA-TLX scale: its item key (``ratings.item``), title, question, anchors
-    (0 and 100) and NASA's definition."""
-
-    item: str
-    title: str
-    question: str
-    low: str
-    high: str
-    definition: str
-
-
-#: The six scales in the standard order (the keys are :data:`tactorbelt.tasks.TLX_ITEMS`).
-TLX_SCALES: Final = (
-    TlxScale("mental", "Mental Demand", "How mentally demanding was the task?",
-             "Very low", "Very high",
-             "How much mental and perceptual activity was required (e.g. thinking, "
-             "deciding, calculating, remembering, looking, searching)? Was the task easy "
-             "or demanding, simple or complex, exacting or forgiving?"),
-    TlxScale("physical", "Physical Demand", "How physically demanding was the task?",
-             "Very low", "Very high",
-             "How much physical activity was required (e.g. pushing, pulling, turning, "
-             "controlling, activating)? Was the task easy or demanding, slow or brisk, "
-             "slack or strenuous, restful or laborious?"),
-    TlxScale("temporal", "Temporal Demand", "How hurried or rushed was the pace of the task?",
-             "Very low", "Very high",
-             "How much time pressure did you feel due to the rate or pace at which the "
-             "tasks or task elements occurred? Was the pace slow and leisurely or rapid "
-             "and frantic?"),
-    TlxScale("performance", "Performance",
-             "How successful were you in accomplishing what you were asked to do?",
-             "Perfect", "Failure",
-             "How successful do you think you were in accomplishing the goals of the task? "
-             "How satisfied were you with your performance in accomplishing these goals?"),
-    TlxScale("effort", "Effort",
-             "How hard did you have to work to accomplish your level of performance?",
-             "Very low", "Very high",
-             "How hard did you have to work (mentally and physically) to accomplish your "
-             "level of performance?"),
-    TlxScale("frustration", "Frustration",
-             "How insecure, discouraged, irritated, stressed and annoyed were you?",
-             "Very low", "Very high",
-             "How insecure, discouraged, irritated, stressed and annoyed versus secure, "
-             "gratified, content, relaxed and complacent did you feel during the task?"),
-)
-assert tuple(s.item for s in TLX_SCALES) == TLX_ITEMS
 
 
 @dataclass

@@ -23,7 +23,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Final
 
 from .._errors import ConfigError
 
@@ -35,6 +35,8 @@ __all__ = [
     "TASK_LEAD_NS",
     "TLX_ITEMS",
     "TLX_SCALE",
+    "TLX_SCALES",
+    "TlxScale",
     "WorkloadInfo",
     "check_tlx",
 ]
@@ -47,8 +49,56 @@ TASK_LEAD_NS = 100_000_000
 PHASES = ("practice", "baseline", "dual")
 #: ``ratings.scale`` of the raw NASA-TLX (Hart & Staveland 1988).
 TLX_SCALE = "nasa_tlx"
+@dataclass(frozen=True)
+class TlxScale:
+    """One NASA-TLX scale: its item key (``ratings.item``), title, question, anchors
+    (0 and 100) and NASA's definition."""
+
+    item: str
+    title: str
+    question: str
+    low: str
+    high: str
+    definition: str
+
+
+#: The six scales of NASA's form (NASA Ames Research Center, *NASA Task Load Index (TLX)
+#: v1.0, paper and pencil package*, 1986), in the standard order; the window's sliders
+#: (:mod:`tactorbelt.gui.tlx`) and the exports' descriptions.
+TLX_SCALES: Final = (
+    TlxScale("mental", "Mental Demand", "How mentally demanding was the task?",
+             "Very low", "Very high",
+             "How much mental and perceptual activity was required (e.g. thinking, "
+             "deciding, calculating, remembering, looking, searching)? Was the task easy "
+             "or demanding, simple or complex, exacting or forgiving?"),
+    TlxScale("physical", "Physical Demand", "How physically demanding was the task?",
+             "Very low", "Very high",
+             "How much physical activity was required (e.g. pushing, pulling, turning, "
+             "controlling, activating)? Was the task easy or demanding, slow or brisk, "
+             "slack or strenuous, restful or laborious?"),
+    TlxScale("temporal", "Temporal Demand", "How hurried or rushed was the pace of the task?",
+             "Very low", "Very high",
+             "How much time pressure did you feel due to the rate or pace at which the "
+             "tasks or task elements occurred? Was the pace slow and leisurely or rapid "
+             "and frantic?"),
+    TlxScale("performance", "Performance",
+             "How successful were you in accomplishing what you were asked to do?",
+             "Perfect", "Failure",
+             "How successful do you think you were in accomplishing the goals of the task? "
+             "How satisfied were you with your performance in accomplishing these goals?"),
+    TlxScale("effort", "Effort",
+             "How hard did you have to work to accomplish your level of performance?",
+             "Very low", "Very high",
+             "How hard did you have to work (mentally and physically) to accomplish your "
+             "level of performance?"),
+    TlxScale("frustration", "Frustration",
+             "How insecure, discouraged, irritated, stressed and annoyed were you?",
+             "Very low", "Very high",
+             "How insecure, discouraged, irritated, stressed and annoyed versus secure, "
+             "gratified, content, relaxed and complacent did you feel during the task?"),
+)
 #: The six NASA-TLX items, in the standard order; each rated 0..100.
-TLX_ITEMS = ("mental", "physical", "temporal", "performance", "effort", "frustration")
+TLX_ITEMS = tuple(s.item for s in TLX_SCALES)
 
 
 @dataclass(frozen=True)
