@@ -12,6 +12,7 @@ import pytest
 
 from support import wire_device
 from support.belts import FakeFirmware, LoopTransport, open_fake, wait_for
+from support.laws import rotated
 from tactorbelt import ConfigError, DeviceError, Layout, ProtocolError, TactorbeltError
 from tactorbelt.devices import wire
 from tactorbelt.devices._firmware import FirmwareBelt
@@ -66,7 +67,7 @@ def test_no_capability_bit_means_no_device_rendering() -> None:
 
 
 def test_a_layout_override_with_other_angles_disables_device_rendering() -> None:
-    other = Layout.even(6).rotated(10.0)
+    other = rotated(Layout.even(6), 10.0)
     belt, _, _ = open_fake(layout=other)
     with belt:
         assert belt.layout == other

@@ -206,10 +206,6 @@ class Layout:
         idx = self.tactor_at(angle)
         return bool(idx >= 0) if np.ndim(idx) == 0 else idx >= 0
 
-    def rotated(self, by_deg: float) -> Layout:
-        """The same layout turned clockwise by ``by_deg``."""
-        return Layout(tuple(float(normalize(a + by_deg)) for a in self.angles_deg))
-
     def to_list(self) -> list[float]:
         """Tactor angles as a plain list (for JSON and TOML)."""
         return list(self.angles_deg)
