@@ -50,7 +50,7 @@ import io
 import json
 import re
 import shutil
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -367,15 +367,33 @@ def _csv_value(v: Any) -> Any:
     return v
 
 
-def _write_rows(path: Path, columns: list[str], rows: list[dict[str, Any]],
-                by_id: dict[int, dict[str, Any]]) -> None:
-    with path.open("w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(columns)
-        for r in rows:
-            sess = by_id.get(int(r["session_id"]), {})
-            w.writerow([_csv_value(sess.get(k) if k in ("participant", "session_number")
-                                   else r[k]) for k in columns])
+def _table_rows(store: Store) -> dict[str, tuple[list[str], Iterable[list[Any]]]]:
+    """The columns and rows of each table of the CSV (and Parquet) export, the store's
+    values: ``sessions``, ``trials`` (with their cells), ``samples`` (read as they are
+    written), and ``task_events`` and ``ratings`` when the store has any; a row's
+    ``participant`` and ``session_number`` are its session's."""
+    sessions = store.sessions()
+    by_id = {int(s["session_id"]): s for s in sessions}
+    own = ("participant", "session_number")
+    columns = trial_columns()
+    trials = []
+    for t in sorted(store.trials(), key=lambda t: (t["session_id"], t["trial_id"])):
+        sess = by_id[int(t["session_id"])]
+        t = _with_cell(t, sess)  # the added factors' levels too
+        trials.append([sess[k] if k in own else t[k] for k in columns])
+    out: dict[str, tuple[list[str], Iterable[list[Any]]]] = {
+        "sessions": (SESSION_COLUMNS, [[s[k] for k in SESSION_COLUMNS] for s in sessions]),
+        "trials": (columns, trials),
+        "samples": (SAMPLE_COLUMNS, ([by_id[int(sid)]["participant"], sid, index, t_s, x, y,
+                                      buttons]
+                                     for sid, index, t_s, x, y, buttons in store.iter_samples())),
+    }
+    for name, cols, rows in (("task_events", TASK_EVENT_CSV_COLUMNS, store.task_events()),
+                             ("ratings", RATING_CSV_COLUMNS, store.ratings())):
+        if rows:
+            out[name] = (cols, [[by_id.get(int(r["session_id"]), {}).get(k) if k in own
+                                 else r[k] for k in cols] for r in rows])
+    return out
 
 
 def export_csv(db: str | Path, out: str | Path, *, force: bool = False) -> list[Path]:
@@ -392,39 +410,14 @@ def export_csv(db: str | Path, out: str | Path, *, force: bool = False) -> list[
     """
     with _open(db) as store:
         o = _prepare(out, "csv", force, db)
-        sessions = store.sessions()
-        by_id = {int(s["session_id"]): s for s in sessions}
-        trials = sorted(store.trials(), key=lambda t: (t["session_id"], t["trial_id"]))
+        files = []
         try:
-            files = [o / "sessions.csv", o / "trials.csv", o / "samples.csv"]
-            with files[0].open("w", newline="") as fh:
-                w = csv.writer(fh)
-                w.writerow(SESSION_COLUMNS)
-                for s in sessions:
-                    w.writerow([s[k] for k in SESSION_COLUMNS])
-            with files[1].open("w", newline="") as fh:
-                w = csv.writer(fh)
-                columns = trial_columns()
-                w.writerow(columns)
-                for t in trials:
-                    sess = by_id[int(t["session_id"])]
-                    t = _with_cell(t, sess)
-                    w.writerow([sess[k] if k in ("participant", "session_number") else t[k]
-                                for k in columns])
-            with files[2].open("w", newline="") as fh:
-                w = csv.writer(fh)
-                w.writerow(SAMPLE_COLUMNS)
-                for sid, index, t_s, x, y, buttons in store.iter_samples():
-                    w.writerow([by_id[int(sid)]["participant"], sid, index, repr(t_s),
-                                repr(x), repr(y), buttons])
-            events = store.task_events()
-            if events:
-                files.append(o / "task_events.csv")
-                _write_rows(files[-1], TASK_EVENT_CSV_COLUMNS, events, by_id)
-            ratings = store.ratings()
-            if ratings:
-                files.append(o / "ratings.csv")
-                _write_rows(files[-1], RATING_CSV_COLUMNS, ratings, by_id)
+            for name, (columns, rows) in _table_rows(store).items():
+                files.append(o / f"{name}.csv")
+                with files[-1].open("w", newline="") as fh:
+                    w = csv.writer(fh)
+                    w.writerow(columns)
+                    w.writerows([_csv_value(v) for v in r] for r in rows)
         except OSError as exc:
             raise ConfigError(f"cannot write to {o}: {exc.strerror}") from None
     return files

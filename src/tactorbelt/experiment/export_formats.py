@@ -30,6 +30,7 @@ import csv
 import datetime as dt
 import math
 import re
+from collections.abc import Iterable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -43,8 +44,8 @@ from .export import (
     TRIAL_COLUMNS,
     _open,
     _prepare,
+    _table_rows,
     _with_cell,
-    trial_columns,
 )
 
 if TYPE_CHECKING:
@@ -166,7 +167,7 @@ def _pandas() -> Any:
     return pd
 
 
-def _frame(rows: list[list[Any]], table: str) -> pd.DataFrame:
+def _frame(rows: Iterable[list[Any]], table: str) -> pd.DataFrame:
     """Typed rows; an empty text is missing (NA), as a CSV file cannot tell them apart
     (``task_events.response`` is empty when nothing was pressed)."""
     pd = _pandas()
@@ -181,28 +182,7 @@ def tables(db: str | Path) -> dict[str, pd.DataFrame]:
     ``ratings`` when it has any) as typed DataFrames: the rows and columns of the CSV
     export, the types of :data:`DTYPES`."""
     with _open(db) as store:
-        sessions = store.sessions()
-        by_id = {int(s["session_id"]): s for s in sessions}
-        trials = sorted(store.trials(), key=lambda t: (t["session_id"], t["trial_id"]))
-        trial_rows = []
-        columns = trial_columns()
-        for t in trials:
-            sess = by_id[int(t["session_id"])]
-            t = _with_cell(t, sess)  # the added factors' levels too
-            trial_rows.append([sess[k] if k in ("participant", "session_number") else t[k]
-                               for k in columns])
-        sample_rows = [[by_id[int(sid)]["participant"], sid, index, t_s, x, y, buttons]
-                       for sid, index, t_s, x, y, buttons in store.iter_samples()]
-        out = {"sessions": _frame([[s[k] for k in SESSION_COLUMNS] for s in sessions],
-                                  "sessions"),
-               "trials": _frame(trial_rows, "trials"),
-               "samples": _frame(sample_rows, "samples")}
-        for name, rows in (("task_events", store.task_events()), ("ratings", store.ratings())):
-            if rows:
-                out[name] = _frame([[by_id.get(int(r["session_id"]), {}).get(k)
-                                     if k in ("participant", "session_number") else r[k]
-                                     for k in DTYPES[name]] for r in rows], name)
-        return out
+        return {name: _frame(rows, name) for name, (_, rows) in _table_rows(store).items()}
 
 
 def read_table(path: str | Path) -> pd.DataFrame:
