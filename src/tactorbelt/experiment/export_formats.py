@@ -42,6 +42,7 @@ from .export import (
     SESSION_COLUMNS,
     TASK_EVENT_CSV_COLUMNS,
     TRIAL_COLUMNS,
+    _csv_value,
     _open,
     _prepare,
     _table_rows,
@@ -238,13 +239,8 @@ def _wrap180(d: float) -> float:
 
 
 def _na(v: Any) -> Any:
-    if v is None or (isinstance(v, float) and math.isnan(v)):
-        return "NA"
-    if isinstance(v, bool):
-        return int(v)
-    if isinstance(v, float):
-        return repr(v)
-    return v
+    """A cell of the tidy table: R's ``NA`` for a missing value, else as the CSV's."""
+    return "NA" if v is None or (isinstance(v, float) and math.isnan(v)) else _csv_value(v)
 
 
 def tidy_columns() -> list[tuple[str, str, str, str, str]]:
