@@ -423,6 +423,11 @@ def export_csv(db: str | Path, out: str | Path, *, force: bool = False) -> list[
     return files
 
 
+def _write_json(path: Path, doc: Any) -> Path:
+    path.write_text(json.dumps(doc, indent=2) + "\n")
+    return path
+
+
 def _write_tsv(path: Path, header: list[str] | None, rows: Any) -> None:
     with path.open("w", newline="") as fh:
         w = csv.writer(fh, delimiter="\t", lineterminator="\n")
@@ -653,9 +658,7 @@ def export_bids(db: str | Path, out: str | Path, *, readme: str | Path | None = 
         if authors:
             desc["Authors"] = list(authors)
         desc["GeneratedBy"] = [{"Name": "tactorbelt", "Version": __version__}]
-        p = o / "dataset_description.json"
-        p.write_text(json.dumps(desc, indent=2) + "\n")
-        written.append(p)
+        written.append(_write_json(o / "dataset_description.json", desc))
         p = o / readme_name
         p.write_text(readme_text if readme_text is not None
                      else _readme(name, studies, sessions, labels,
@@ -666,12 +669,10 @@ def export_bids(db: str | Path, out: str | Path, *, readme: str | Path | None = 
         _write_tsv(p, ["participant_id", "source_id"],
                    [(f"sub-{lab}", pid) for lab, pid in sorted(labels.items())])
         written.append(p)
-        p = o / "participants.json"
-        p.write_text(json.dumps({
+        written.append(_write_json(o / "participants.json", {
             "participant_id": {"Description": "BIDS label of the participant"},
             "source_id": {"Description": "participant id as entered at the session"},
-        }, indent=2) + "\n")
-        written.append(p)
+        }))
         for s in sessions:
             lab = bids_label(s["participant"])
             stem = f"sub-{lab}_ses-{s['session_number']}_task-{TASK}"
@@ -690,15 +691,12 @@ def export_bids(db: str | Path, out: str | Path, *, readme: str | Path | None = 
                                   "belt", "firmware_version", "package_version", "git_commit",
                                   "host", "input", "clock", "started_at", "ended_at", "status")
             }
-            bj = beh.with_suffix(".json")
-            bj.write_text(json.dumps(sidecar, indent=2) + "\n")
-            written += [beh, bj]
+            written += [beh, _write_json(beh.with_suffix(".json"), sidecar)]
             written += _task_files(store, s, trials, base / "beh", stem, lab)
             rec = base / "beh" / f"{stem}_recording-{RECORDING}_physio.tsv.gz"
             start = _write_cursor(rec, _cursor_rows(store, s["session_id"], trials))
-            rj = rec.with_name(rec.name.removesuffix(".tsv.gz") + ".json")
-            rj.write_text(json.dumps(_cursor_sidecar(s, start), indent=2) + "\n")
-            written += [rec, rj]
+            written += [rec, _write_json(rec.with_name(rec.name.removesuffix(".tsv.gz")
+                                                       + ".json"), _cursor_sidecar(s, start))]
     return written
 
 
@@ -797,20 +795,16 @@ def _task_files(store: Store, s: dict[str, Any], trials: list[dict[str, Any]], b
         origin = min(onsets) if onsets else min(e["t_ns"] for e in events)
         ev = beh / f"{stem}_events.tsv"
         _write_tsv(ev, list(EVENT_COLUMNS), _event_rows(events, origin, _session_study(s)))
-        ej = ev.with_suffix(".json")
-        ej.write_text(json.dumps(EVENT_COLUMNS, indent=2) + "\n")
-        written += [ev, ej]
+        written += [ev, _write_json(ev.with_suffix(".json"), EVENT_COLUMNS)]
     rows = _tlx_rows(store.ratings(s["session_id"]), trials)
     if rows:
         tp = beh / f"sub-{lab}_ses-{s['session_number']}_task-{TLX_TASK}_beh.tsv"
         tlx_cols = tlx_columns()
         _write_tsv(tp, list(tlx_cols), rows)
-        tj = tp.with_suffix(".json")
-        tj.write_text(json.dumps({
+        written += [tp, _write_json(tp.with_suffix(".json"), {
             "TaskName": TLX_TASK,
             "TaskDescription": "Raw NASA Task Load Index (NASA-TLX): six workload items "
                                "rated on 0-100 sliders after each test block of the "
                                f"{TASK} task.",
-            **tlx_cols}, indent=2) + "\n")
-        written += [tp, tj]
+            **tlx_cols})]
     return written
