@@ -17,7 +17,6 @@ import queue
 import sys
 import threading
 import time
-from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, TYPE_CHECKING
@@ -160,10 +159,6 @@ def read_headings(path: Path) -> tuple[list[HeadingSample], bool]:
     return samples, reader.has_time
 
 
-def stdin_lines(stream: IO[str]) -> Iterator[tuple[int, str]]:
-    yield from enumerate(stream, start=1)
-
-
 class PointRun:
     """The loop of one ``point`` run: feeds the display, waits on its clock, prints status."""
 
@@ -266,7 +261,7 @@ class PointRun:
         """Apply headings from stdin as lines arrive (on a simulated clock: as a file)."""
         reader = HeadingReader("stdin")
         if self.clock.simulated:
-            samples = [s for i, line in stdin_lines(stream)
+            samples = [s for i, line in enumerate(stream, start=1)
                        if (s := reader.feed(i, line)) is not None]
             if not samples:
                 raise ConfigError("stdin: no headings")
@@ -276,7 +271,7 @@ class PointRun:
 
         def pump_lines() -> None:
             try:
-                for item in stdin_lines(stream):
+                for item in enumerate(stream, start=1):
                     lines.put(item)
             finally:
                 lines.put(None)
