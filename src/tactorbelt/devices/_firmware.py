@@ -80,6 +80,7 @@ from .erm import ErmParams
 
 if TYPE_CHECKING:
     from ..stimuli import Stimulus
+    from .registry import Found
 
 __all__ = [
     "DEFAULT_TIMEOUT_S",
@@ -1420,3 +1421,21 @@ def drive_constants(n: int, taus: tuple[tuple[float, ...], tuple[float, ...],
     targets = [(wire.DRIVE_ALL_TACTORS, rows[0])] if len(set(rows)) == 1 else list(
         enumerate(rows))
     return [wire.DriveConstants(t, start_lv, rated_lv, *row) for t, row in targets]
+
+
+def probe(row: Found, open_: Callable[[], FirmwareBelt]) -> None:
+    """Open a belt, note its version, tactor count, version note and what its drive can
+    do in ``row`` (``tactorbelt devices``), close it; the error in ``row.note`` when it
+    does not open. Never raises."""
+    from .._errors import TactorbeltError
+    from ..firmware import version_note
+
+    try:
+        belt = open_()
+    except TactorbeltError as exc:
+        row.note = str(exc)
+        return
+    with belt:
+        row.firmware_version, row.tactors = belt.firmware_version, belt.n_tactors
+        row.note = version_note(belt.firmware_version, belt._transport.usb_port)
+        row.drive = belt.drive_summary

@@ -32,6 +32,7 @@ from __future__ import annotations
 import asyncio
 import concurrent.futures
 import contextlib
+import functools
 import logging
 import re
 import threading
@@ -39,9 +40,9 @@ from collections.abc import Awaitable, Callable, Coroutine
 from dataclasses import dataclass
 from typing import Any, Final, Protocol, TypeVar
 
-from .._errors import DeviceError, ProtocolError, TactorbeltError
+from .._errors import DeviceError, ProtocolError
 from . import wire
-from ._firmware import FirmwareBelt, PacketSink, Transport
+from ._firmware import FirmwareBelt, PacketSink, Transport, probe
 from .registry import Discovery, Found, check_options
 
 __all__ = [
@@ -417,16 +418,7 @@ def discover(timeout_s: float = 5.0, probe_all: bool = False) -> Discovery:
     for d in found:
         rssi = f", {d.rssi} dBm" if d.rssi is not None else ""
         row = Found("ble", d.address, f"{d.name or '(no name)'}{rssi}", f"ble:{d.address}")
-        try:
-            belt = open_ble(d.address, scan_timeout_s=timeout_s, keepalive=False)
-        except TactorbeltError as exc:
-            row.note = str(exc)
-        else:
-            with belt:
-                from ..firmware import version_note
-
-                row.firmware_version, row.tactors = belt.firmware_version, belt.n_tactors
-                row.note = version_note(belt.firmware_version, None)
-                row.drive = belt.drive_summary
+        probe(row, functools.partial(open_ble, d.address, scan_timeout_s=timeout_s,
+                                     keepalive=False))
         rows.append(row)
     return Discovery(rows, None, empty)

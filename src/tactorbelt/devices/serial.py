@@ -21,13 +21,12 @@ import functools
 import logging
 import os
 import threading
-from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, Final
 
 from .._errors import ConfigError, DeviceError, ProtocolError
 from . import wire
-from ._firmware import DEFAULT_TIMEOUT_S, FirmwareBelt, PacketSink, Transport
+from ._firmware import DEFAULT_TIMEOUT_S, FirmwareBelt, PacketSink, Transport, probe
 from .registry import Discovery, Found, check_options
 
 __all__ = [
@@ -332,10 +331,7 @@ def open_serial(target: str, **options: Any) -> FirmwareBelt:
     for p in candidates:
         try:
             belt = open_serial_port(p.device, **probe)
-        except ProtocolError as exc:
-            failures.append(f"{p.label()}: {exc}")
-            continue
-        except DeviceError as exc:
+        except (ProtocolError, DeviceError) as exc:
             failures.append(f"{p.label()}: {exc}")
             continue
         if "timeout_s" not in options:
@@ -345,24 +341,6 @@ def open_serial(target: str, **options: Any) -> FirmwareBelt:
     raise DeviceError(
         "serial:auto: no candidate port answered as a tactorbelt: " + "; ".join(failures)
     )
-
-
-def _probe(open_: Callable[[], FirmwareBelt]
-           ) -> tuple[str | None, int | None, str, str | None]:
-    """Open a belt, read version, tactor count and what its drive can do, close it. Never
-    raises."""
-    from .._errors import TactorbeltError
-
-    try:
-        belt = open_()
-    except TactorbeltError as exc:
-        return None, None, str(exc), None
-    with belt:
-        from ..firmware import version_note
-
-        version = belt.firmware_version
-        return (version, belt.n_tactors, version_note(version, belt.port),
-                belt.drive_summary)
 
 
 #: Longest wait for one device's answer while ``tactorbelt devices`` probes.
@@ -377,9 +355,9 @@ def discover(timeout_s: float = 5.0, probe_all: bool = False) -> Discovery:
         ids = f" [{p.vid:04X}:{p.pid or 0:04X}]" if p.vid is not None else ""
         row = Found("serial", p.device, p.description + ids, f"serial:{p.device}")
         if p.looks_like_belt or probe_all:
-            row.firmware_version, row.tactors, row.note, row.drive = _probe(functools.partial(
-                open_serial_port, p.device, timeout_s=min(timeout_s, PROBE_TIMEOUT_S),
-                keepalive=False))
+            probe(row, functools.partial(open_serial_port, p.device,
+                                         timeout_s=min(timeout_s, PROBE_TIMEOUT_S),
+                                         keepalive=False))
         else:
             row.note = "not probed (not an Arduino; --probe-all asks it anyway)"
         rows.append(row)
