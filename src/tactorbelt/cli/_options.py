@@ -1,7 +1,5 @@
 """Shared command-line options, one definition per concept for every command
-(docs/cli.md): the stimulus (mode, law, falloff, layout, period, transit), the belt
-(``--belt URL``, ``--calibration FILE``), ``-o/--output``, ``--seed``, numbers, a
-negative ANGLE.
+(docs/cli.md): the stimulus, the belt, ``-o/--output``, ``--seed``, numbers, an ANGLE.
 
 - ``output_option(kind, help)``: ``-o/--output FILE|DIRECTORY`` (the old ``--out`` still
   works, not shown); ``seed_option(help)``: ``--seed INTEGER``; ``FLOAT``, ``POSITIVE``,
@@ -12,14 +10,10 @@ negative ANGLE.
   (its ``layout`` is the layout asked for); ``layout_given(**opts)`` says whether the
   user chose a layout.
 - ``@belt_option()`` adds --belt (help from the backend registry), ``@belt_options``
-  --belt and --calibration (``tactorbelt.devices.open_belt_for`` opens the belt for a
-  stimulus).
-- ``AngleCommand`` (from ``_types``): a command whose ANGLE argument may be negative
-  (``tactorbelt play -30``) without ``--``.
+  --belt and --calibration; ``AngleCommand`` (``_types``): a negative ANGLE without ``--``.
 
-Every bad value becomes a ConfigError (or click.BadParameter), which the CLI prints
-as ``error: ...`` with exit code 2. Imports click at module level; NumPy and the
-devices only inside functions.
+Every bad value becomes a ConfigError (or click.BadParameter), printed as ``error: ...``
+with exit code 2. Imports click at module level; NumPy and the devices in functions.
 """
 
 from __future__ import annotations
