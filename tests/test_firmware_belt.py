@@ -245,6 +245,34 @@ def test_keepalive_writes_while_open_and_detects_a_silent_device() -> None:
     assert not belt.keepalive_running
 
 
+class _StarvedReader(LoopTransport):
+    """A link whose device is silent to the reader while ``unread`` bytes wait in the
+    port: the host's reading thread starved of CPU, not a belt that stopped."""
+
+    unread = 0
+
+    def unread_bytes(self) -> int:
+        return self.unread
+
+
+def test_keepalive_does_not_give_up_while_the_device_s_bytes_wait_unread() -> None:
+    import time
+
+    device = FakeFirmware(heartbeat_ms=60)
+    transport = _StarvedReader(device)
+    belt = FirmwareBelt(transport, "loop:loop0", keepalive=True)
+    try:
+        assert wait_for(lambda: len(device.seqs) >= 2)
+        transport.unread = 24  # replies are in the port; the reader has not taken them
+        device.silent = True
+        time.sleep(0.5)  # eight heartbeat timeouts of the device's silence
+        assert belt.lost is None
+        transport.unread = 0  # nothing waiting: the belt really is silent
+        assert wait_for(lambda: belt.lost is not None)
+    finally:
+        belt.close()
+
+
 def test_stop_keepalive_lets_the_host_go_quiet() -> None:
     device = FakeFirmware(heartbeat_ms=60)
     belt, _, _ = open_fake(device, keepalive=True)

@@ -167,6 +167,11 @@ class Transport(ABC):
         DTR line low), or "" when it cannot tell."""
         return ""
 
+    def unread_bytes(self) -> int:
+        """Bytes the device sent that the reading thread has not taken yet (serial: the
+        port's input buffer), 0 where the link cannot tell (BLE pushes notifications)."""
+        return 0
+
     def use_framed_replies(self) -> None:  # noqa: B027 - only BLE needs it
         """From now on, replies arrive as COBS frames split across notifications (BLE)."""
 
@@ -1171,6 +1176,12 @@ class FirmwareBelt(Belt, PacketSink):
             t.join()
         self._keepalive_thread = None
 
+    def _transport_has_unread(self) -> bool:
+        try:
+            return self._transport.unread_bytes() > 0
+        except Exception:  # a link that cannot say (a closed port): it decides nothing
+            return False
+
     def _keepalive_loop(self, stop: threading.Event, kick: threading.Event) -> None:
         while True:
             hb_s = self.heartbeat_ms / 1000.0
@@ -1184,7 +1195,10 @@ class FirmwareBelt(Belt, PacketSink):
             # 1 kHz stream for the write lock, or a host that was itself starved of CPU)
             # have gone unanswered for a whole heartbeat timeout.
             pinged_s = (now_ns - self._first_ping_ns) / 1e9 if self._unanswered_pings else 0.0
-            if silent_s >= hb_s and self._unanswered_pings >= 2 and pinged_s >= hb_s:
+            # Nor while the device's bytes wait unread: the host's reader was starved,
+            # the belt answered.
+            if silent_s >= hb_s and self._unanswered_pings >= 2 and pinged_s >= hb_s \
+                    and not self._transport_has_unread():
                 self._mark_lost(
                     f"belt on {self.port} stopped answering: no reply for "
                     f"{silent_s * 1000:.0f} ms (heartbeat timeout {self.heartbeat_ms} ms)"

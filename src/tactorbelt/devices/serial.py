@@ -169,6 +169,9 @@ class SerialTransport(Transport):
         except (self._serial_exception, OSError) as exc:
             raise DeviceError(f"write to serial port {self.port} failed: {exc}") from None
 
+    def unread_bytes(self) -> int:
+        return int(self._ser.in_waiting)
+
     def start(self, sink: PacketSink) -> None:
         self._sink = sink
         self._thread = threading.Thread(
