@@ -52,7 +52,6 @@ pyserial or bleak (those live in the transports).
 
 from __future__ import annotations
 
-import atexit
 import contextlib
 import functools
 import itertools
@@ -74,7 +73,7 @@ from .._errors import ConfigError, DeviceError, ProtocolError
 from ..geometry import Layout
 from . import wire
 from ._clocksync import ClockFit, ClockSync
-from .base import Belt
+from .base import Belt, close_at_exit, closed_before_exit
 from .calibration import Calibration
 from .erm import ErmParams
 
@@ -490,15 +489,6 @@ class SenseRecording:
                 f"{self.rate_hz:g} Hz, {state}>")
 
 
-#: Belts still open, closed (motors stopped) at interpreter exit.
-_OPEN_BELTS: weakref.WeakSet[FirmwareBelt] = weakref.WeakSet()
-
-
-@atexit.register
-def _close_open_belts() -> None:
-    for belt in list(_OPEN_BELTS):
-        with contextlib.suppress(Exception):
-            belt.close()
 
 
 class FirmwareBelt(Belt, PacketSink):
@@ -649,7 +639,7 @@ class FirmwareBelt(Belt, PacketSink):
             self._closed = True
             transport.close()
             raise
-        _OPEN_BELTS.add(self)
+        close_at_exit(self)
         if keepalive:
             self.start_keepalive()
 
@@ -1297,7 +1287,7 @@ class FirmwareBelt(Belt, PacketSink):
             self._closing = False
 
     def _close(self) -> None:
-        _OPEN_BELTS.discard(self)
+        closed_before_exit(self)
         self._end_recordings("the belt was closed", self.clock_sync.fit())
         self.stop_keepalive()
         self._transport.close()

@@ -47,8 +47,11 @@ rendering, so runners simply use a Player.
 
 from __future__ import annotations
 
+import atexit
+import contextlib
 import math
 import threading
+import weakref
 from abc import ABC, abstractmethod
 from collections.abc import Sequence
 from types import TracebackType
@@ -65,7 +68,8 @@ from .calibration import Calibration
 if TYPE_CHECKING:
     from ..stimuli import Stimulus
 
-__all__ = ["DEFAULT_STREAM_RATE_HZ", "Belt", "Recording", "check_amplitudes"]
+__all__ = ["DEFAULT_STREAM_RATE_HZ", "Belt", "Recording", "check_amplitudes", "close_at_exit",
+           "closed_before_exit"]
 
 #: The streaming rate of a belt that does not declare another.
 DEFAULT_STREAM_RATE_HZ = 1000.0
@@ -97,6 +101,28 @@ def check_amplitudes(values: ArrayLike, n: int) -> NDArray[np.float64]:
         bad = a[(a < 0.0) | (a > 1.0)][0]
         raise ConfigError(f"amplitudes must be in [0, 1], got {bad:g}")
     return a
+
+
+#: Belts that hold a link open (firmware belts, naviBelts), closed at interpreter exit
+#: (motors stopped) if their owner has not closed them by then.
+_OPEN_AT_EXIT: weakref.WeakSet[Belt] = weakref.WeakSet()
+
+
+def close_at_exit(belt: Belt) -> None:
+    """Close ``belt`` (motors stopped) at interpreter exit if it is still open then."""
+    _OPEN_AT_EXIT.add(belt)
+
+
+def closed_before_exit(belt: Belt) -> None:
+    """``belt`` was closed: nothing is left for the exit hook to do."""
+    _OPEN_AT_EXIT.discard(belt)
+
+
+@atexit.register
+def _close_open_belts() -> None:
+    for belt in list(_OPEN_AT_EXIT):
+        with contextlib.suppress(Exception):
+            belt.close()
 
 
 class Recording(Protocol):

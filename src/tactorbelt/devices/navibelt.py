@@ -28,12 +28,9 @@ Imports pybelt (and through it pyserial and bleak) only when a naviBelt is opene
 
 from __future__ import annotations
 
-import atexit
-import contextlib
 import logging
 import threading
 import time
-import weakref
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any, Final
 
@@ -42,7 +39,7 @@ from numpy.typing import NDArray
 
 from .._errors import ConfigError, DeviceError
 from ..geometry import Layout
-from .base import Belt
+from .base import Belt, close_at_exit, closed_before_exit
 from .calibration import Calibration
 from .registry import Discovery, Found, check_options
 
@@ -204,7 +201,7 @@ class NaviBelt(Belt):
         self._in_app_mode = False
         self._warned_battery = False
         self._events_lock = threading.Lock()
-        _OPEN_BELTS.add(self)
+        close_at_exit(self)
 
     # -- events (pybelt's listener thread) ---------------------------------------------------
     def _event(self, kind: str, detail: str) -> None:
@@ -343,7 +340,7 @@ class NaviBelt(Belt):
         super().close()
 
     def _close(self) -> None:
-        _OPEN_BELTS.discard(self)
+        closed_before_exit(self)
         try:
             self._controller.disconnect_belt(wait=True)
         finally:
@@ -351,15 +348,6 @@ class NaviBelt(Belt):
                 self.emulation.close()
 
 
-#: naviBelts still open, closed (motors stopped, pybelt's threads joined) at interpreter exit.
-_OPEN_BELTS: weakref.WeakSet[NaviBelt] = weakref.WeakSet()
-
-
-@atexit.register
-def _close_open_belts() -> None:
-    for belt in list(_OPEN_BELTS):
-        with contextlib.suppress(Exception):
-            belt.close()
 
 
 def _as_daemon(what: str, fn: Any) -> Any:
