@@ -646,18 +646,8 @@ def test_skin_onsets_where_the_calibration_has_latencies(tmp_path: Path) -> None
                 validation_method="test").save(cal)
     b = start_bridge(tmp_path, "--calibration", str(cal))
 
-    async def go() -> tuple[dict[str, Any], dict[str, Any]]:
-        page = await Page.open(b.ws_url())
-        w = await page.request({"type": "hello", "participant": "P01"})
-        played = await page.request({"type": "play", "index": 0})
-        await page.request({"type": "trial", "index": 0, "play_id": played["id"],
-                            "response": {"target": w["schedule"][0]["target"],
-                                         "rt_ms": 650.0}})
-        await page.close()
-        return w, played
-
     try:
-        w, played = run(go())
+        w, played = run(_first_trial_answered(b.ws_url()))
     finally:
         b.stop()
     assert played["skin_onset_ms"] == pytest.approx(played["onset_ms"] + 20.0, abs=1e-6)
@@ -667,24 +657,26 @@ def test_skin_onsets_where_the_calibration_has_latencies(tmp_path: Path) -> None
     assert row["skin_onset_sd_ns"] == 500_000
 
 
+async def _first_trial_answered(url: str) -> tuple[dict[str, Any], dict[str, Any]]:
+    """A page says hello as P01, plays the schedule's first trial and answers it right;
+    the welcome and the play's reply."""
+    page = await Page.open(url)
+    w = await page.request({"type": "hello", "participant": "P01"})
+    played = await page.request({"type": "play", "index": 0})
+    await page.request({"type": "trial", "index": 0, "play_id": played["id"],
+                        "response": {"target": w["schedule"][0]["target"], "rt_ms": 650.0}})
+    await page.close()
+    return w, played
+
+
 @pytest.mark.emulator
 def test_device_onsets_on_a_firmware_belt(tmp_path: Path, emulator_exe: Path) -> None:
     """On a belt that reports its onsets (the firmware emulator), a play's onset is the
     device's own, on the page's clock, and the trial stores it beside the command time."""
     b = start_bridge(tmp_path, "--belt", "emulator")
 
-    async def go() -> tuple[dict[str, Any], dict[str, Any]]:
-        page = await Page.open(b.ws_url())
-        w = await page.request({"type": "hello", "participant": "P01"})
-        played = await page.request({"type": "play", "index": 0})
-        await page.request({"type": "trial", "index": 0, "play_id": played["id"],
-                            "response": {"target": w["schedule"][0]["target"],
-                                         "rt_ms": 650.0}})
-        await page.close()
-        return w, played
-
     try:
-        w, played = run(go())
+        w, played = run(_first_trial_answered(b.ws_url()))
     finally:
         rc, err = b.stop()
     assert rc == 143, err
