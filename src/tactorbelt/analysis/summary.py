@@ -226,10 +226,10 @@ class Summary:
             "between_accuracy_test": self.between_accuracy_test.to_dict(),
             "tests": [t.to_dict() for t in self.tests],
             "mixed_model": self.mixed_model,
-            "contrasts": _finite_json(self.contrasts),
+            "contrasts": self.contrasts,
             "rt_mixed_model": self.rt_model,
-            "secondary_tasks": _finite_json(self.secondary_tasks),
-            "tlx": _finite_json(self.tlx),
+            "secondary_tasks": self.secondary_tasks,
+            "tlx": self.tlx,
             "counting": COUNTING_RULES,
             "study": {
                 "layout_deg": self.design.layout.to_list(),
