@@ -386,9 +386,9 @@ class SessionRunner:
         key = (t.target_deg, t.condition, sp.law, sp.falloff_deg, sp.period_s, sp.transit_s,
                sp.pattern)
         if key not in self._stimuli:
+            # (a pattern was checked against the belt once, when the session opened)
             self._stimuli[key] = self.study.make_stimulus(
-                sp, self.belt.layout, t.target_deg, t.condition, profile=self.profile,
-                belt=self.belt)
+                sp, self.belt.layout, t.target_deg, t.condition, profile=self.profile)
         return self._stimuli[key]
 
     def targets_for(self, t: ScheduledTrial) -> TargetSet:
