@@ -174,13 +174,26 @@ class Transport(ABC):
     def use_framed_replies(self) -> None:  # noqa: B027 - only BLE needs it
         """From now on, replies arrive as COBS frames split across notifications (BLE)."""
 
+    #: the decoder of framed replies (serial; BLE with framed replies), and the frames the
+    #: transport itself dropped (BLE's unframed packets)
+    _decoder: wire.FrameDecoder | None = None
+    _crc_errors = _framing_errors = 0
+
     @property
     def crc_errors(self) -> int:
-        return 0
+        return self._crc_errors + (self._decoder.crc_errors if self._decoder else 0)
 
     @property
     def framing_errors(self) -> int:
-        return 0
+        return self._framing_errors + (self._decoder.framing_errors if self._decoder else 0)
+
+    def deliver(self, sink: PacketSink, packets: list[wire.Packet]) -> None:
+        """Hand packets to ``sink``; a handler's error is logged, never kills the reader."""
+        for packet in packets:
+            try:
+                sink.packet_received(packet)
+            except Exception:
+                log.exception("%s: error handling a packet", self.port)
 
     @abstractmethod
     def encode(self, packet: wire.Packet) -> bytes:
@@ -551,11 +564,8 @@ class FirmwareBelt(Belt, PacketSink):
         #: voltage (ms): the constants SET_DRIVE sends (None: the device's defaults)
         self._supply_v = supply_v
         self._kick_ms = kick_ms
-        if not (isinstance(timeout_s, int | float) and math.isfinite(timeout_s) and timeout_s > 0):
-            raise ConfigError(f"timeout_s must be a positive number of seconds, got {timeout_s!r}")
         self._transport = transport
         self.port = transport.port
-        self.timeout_s = float(timeout_s)
         self.stream_rate_hz = float(stream_rate_hz)
         self._seq = itertools.count()
         self._tx_lock = threading.Lock()
@@ -596,8 +606,13 @@ class FirmwareBelt(Belt, PacketSink):
         self.stray_sense_batches = 0
         # Belt.__init__ sets _closed; until it runs, __del__ must see a closed belt.
         self._closed = True
-        transport.start(self)
-        try:
+        try:  # the transport is closed whatever fails here: the openers need not
+            if not (isinstance(timeout_s, int | float) and math.isfinite(timeout_s)
+                    and timeout_s > 0):
+                raise ConfigError(
+                    f"timeout_s must be a positive number of seconds, got {timeout_s!r}")
+            self.timeout_s = float(timeout_s)
+            transport.start(self)
             limit = transport.reply_limit
             if limit is not None and limit < wire.MAX_PACKET:
                 self._start_framing(limit, heartbeat_ms)

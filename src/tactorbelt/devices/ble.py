@@ -227,10 +227,7 @@ class BleTransport(Transport):
         self.port = f"BLE {target}"
         self._sink: PacketSink | None = None
         self._closing = False
-        self._crc_errors = 0
-        self._framing_errors = 0
         self._write_timeout_s = write_timeout_s
-        self._decoder: wire.FrameDecoder | None = None
         self.mtu = DEFAULT_ATT_MTU
         factory = client_factory or _bleak_client
         self._client = run_on_loop(
@@ -263,14 +260,6 @@ class BleTransport(Transport):
 
     def use_framed_replies(self) -> None:
         self._decoder = wire.FrameDecoder()
-
-    @property
-    def crc_errors(self) -> int:
-        return self._crc_errors + (self._decoder.crc_errors if self._decoder else 0)
-
-    @property
-    def framing_errors(self) -> int:
-        return self._framing_errors + (self._decoder.framing_errors if self._decoder else 0)
 
     def encode(self, packet: wire.Packet) -> bytes:
         return wire.encode_packet(packet)
@@ -308,12 +297,8 @@ class BleTransport(Transport):
                 else:
                     self._framing_errors += 1
                 return
-        for packet in packets:
-            if self._sink is not None:
-                try:
-                    self._sink.packet_received(packet)
-                except Exception:
-                    log.exception("%s: error handling a packet", self.port)
+        if self._sink is not None:
+            self.deliver(self._sink, packets)
 
     def _on_disconnect(self, _client: Any) -> None:
         if not self._closing and self._sink is not None:
@@ -353,11 +338,7 @@ def open_ble(target: str, **options: Any) -> FirmwareBelt:
     connect_timeout_s = float(options.pop("connect_timeout_s", DEFAULT_CONNECT_TIMEOUT_S))
     options.setdefault("timeout_s", DEFAULT_BLE_TIMEOUT_S)
     transport = BleTransport(target, factory, scan_timeout_s, connect_timeout_s)
-    try:
-        return FirmwareBelt(transport, url, stream_rate_hz=BLE_STREAM_RATE_HZ, **options)
-    except BaseException:
-        transport.close()
-        raise
+    return FirmwareBelt(transport, url, stream_rate_hz=BLE_STREAM_RATE_HZ, **options)
 
 
 @dataclass(frozen=True)

@@ -323,10 +323,8 @@ def open_emulator(target: str = "", **options: Any) -> EmulatorBelt:
     except BaseException:
         stop_process(proc)
         raise
-    try:
-        belt = EmulatorBelt(transport, proc, path, debug_frames=debug_frames, **options)
+    try:  # a FirmwareBelt that fails to open closes its transport
+        return EmulatorBelt(transport, proc, path, debug_frames=debug_frames, **options)
     except BaseException:
-        transport.close()
         stop_process(proc)
         raise
-    return belt

@@ -115,7 +115,7 @@ class SerialTransport(Transport):
                 if not os.get_blocking(fd):
                     self._fd = fd
         self.dtr_line = _read_dtr(self._ser) if dtr else False
-        self._decoder = wire.FrameDecoder()
+        self._decoder: wire.FrameDecoder = wire.FrameDecoder()
         self._stopping = False
         self._thread: threading.Thread | None = None
         self._sink: PacketSink | None = None
@@ -139,14 +139,6 @@ class SerialTransport(Transport):
                     "sends nothing until the host asserts DTR: close other programs using "
                     "the port and plug the board in again")
         return ""
-
-    @property
-    def crc_errors(self) -> int:
-        return self._decoder.crc_errors
-
-    @property
-    def framing_errors(self) -> int:
-        return self._decoder.framing_errors
 
     def encode(self, packet: wire.Packet) -> bytes:
         return wire.encode_frame(packet)
@@ -191,11 +183,7 @@ class SerialTransport(Transport):
                 return
             if not data:
                 continue  # cancelled read or timeout
-            for packet in self._decoder.feed(data):
-                try:
-                    sink.packet_received(packet)
-                except Exception:  # never let a handler bug kill the reader
-                    log.exception("%s: error handling a packet", self.port)
+            self.deliver(sink, self._decoder.feed(data))
 
     def close(self) -> None:
         if self._closed:
@@ -249,11 +237,7 @@ def open_serial_port(port: str, url: str | None = None, **options: Any) -> Firmw
             f"baudrate=1200 on {port} would reset a Nano 33 BLE into its bootloader when "
             "the port closes (the upload trigger); use any other rate (USB ignores it)")
     transport = SerialTransport(port, baudrate=baudrate, dtr=bool(options.pop("dtr", True)))
-    try:
-        return FirmwareBelt(transport, url, stream_rate_hz=SERIAL_STREAM_RATE_HZ, **options)
-    except BaseException:
-        transport.close()
-        raise
+    return FirmwareBelt(transport, url, stream_rate_hz=SERIAL_STREAM_RATE_HZ, **options)
 
 
 @dataclass(frozen=True)
