@@ -5,14 +5,15 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from numpy.typing import ArrayLike, NDArray
 
 from tactorbelt.calibration.perceptual import (
+    LAPSE,
     CalibrationSettings,
     Interval,
     Respondent,
     fit_psychometric,
     location_track,
-    psychometric,
     run_perceptual_calibration,
 )
 from tactorbelt.clock import SimClock
@@ -21,6 +22,16 @@ from tactorbelt.geometry import Layout
 from tactorbelt.inputs.model import make_model_respondent
 
 LAYOUT = Layout.even(6)
+
+
+def psychometric(x: ArrayLike, pse: float, sd: float, lapse: float = LAPSE
+                 ) -> NDArray[np.float64]:
+    """``lapse + (1 - 2 lapse) * Phi((x - pse) / sd)``: the simulated observer's answers."""
+    from scipy.special import ndtr
+
+    return np.asarray(lapse + (1.0 - 2.0 * lapse) * ndtr((np.asarray(x, float) - pse) / sd))
+
+
 #: The documented number of trials (docs/calibration-perceptual.md) after which QUEST+
 #: finds the PSE of an observer with sd 2.4 deg within 2 deg in at least 90 % of runs.
 TRIALS = 24

@@ -66,13 +66,6 @@ LAPSE: Final = 0.02
 
 # -- the psychometric function and its fit ---------------------------------------------------
 
-def psychometric(x: ArrayLike, pse: float, sd: float, lapse: float = LAPSE) -> NDArray[np.float64]:
-    """``lapse + (1 - 2 lapse) * Phi((x - pse) / sd)``."""
-    from scipy.special import ndtr
-
-    return np.asarray(lapse + (1.0 - 2.0 * lapse) * ndtr((np.asarray(x, float) - pse) / sd))
-
-
 @dataclass(frozen=True)
 class Fit:
     """A maximum-likelihood psychometric fit.
@@ -94,7 +87,7 @@ class Fit:
 def fit_psychometric(x: ArrayLike, r: ArrayLike, lo: float, hi: float,
                      start: tuple[float, float] | None = None, lapse: float = LAPSE,
                      prior: tuple[float, float] | None = None) -> Fit:
-    """Maximum-likelihood fit of :func:`psychometric` to 0/1 answers ``r`` at stimuli ``x``.
+    """Maximum-likelihood fit of the psychometric function (module doc) to answers ``r``.
 
     Args:
         x, r: stimuli and answers (1 = "second" / "b side").
