@@ -70,6 +70,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .._errors import ConfigError, DeviceError, ProtocolError
+from .._registry import check_option
 from ..geometry import Layout
 from . import wire
 from ._clocksync import ClockFit, ClockSync
@@ -247,10 +248,6 @@ def layout_from_info(info: wire.Info) -> Layout:
         raise ProtocolError(f"INFO tactor angles {list(angles)} are not a layout: {exc}") from None
 
 
-def _ping_nonce(seq: int, nonce: int) -> wire.Packet:
-    return wire.ping(seq, nonce)
-
-
 def _ms(value_s: float, what: str, lo: int, hi: int) -> int:
     ms = round(value_s * 1000.0)
     if not lo <= ms <= hi:
@@ -259,6 +256,37 @@ def _ms(value_s: float, what: str, lo: int, hi: int) -> int:
             f"allowed {lo / 1000:g} to {hi / 1000:g} s"
         )
     return ms
+
+
+def checked_int(name: str, value: Any, lo: int, hi: int) -> int:
+    """``value`` when it is an integer (not a bool) in ``lo..hi``, else a ConfigError."""
+    if isinstance(value, bool) or not isinstance(value, int) or not lo <= value <= hi:
+        raise ConfigError(f"{name} must be an integer in {lo}..{hi}, got {value!r}")
+    return value
+
+
+def _play_args(stimulus: Stimulus, duration_s: float | None) -> tuple[int, ...]:
+    """PLAY_TARGET's fields for ``stimulus`` (after the seq).
+
+    Raises:
+        ConfigError: a law or mode the firmware lacks, or a value that does not fit.
+    """
+    if stimulus.law not in _LAW_CODES:
+        raise ConfigError(
+            f"the firmware cannot render law {stimulus.law!r}; allowed: {', '.join(_LAW_CODES)}"
+        )
+    check_option("stimulus mode for the firmware", stimulus.mode, _MODE_CODES)
+    falloff_cdeg = round(stimulus.falloff_deg * 100.0)
+    if not 1 <= falloff_cdeg <= 0xFFFF:
+        raise ConfigError(
+            f"falloff {stimulus.falloff_deg:g} deg does not fit the device: "
+            "allowed 0.01 to 655.35 deg"
+        )
+    return (wire.angle_to_cdeg(stimulus.target_deg), int(_MODE_CODES[stimulus.mode]),
+            int(_LAW_CODES[stimulus.law]), falloff_cdeg,
+            _ms(stimulus.period_s, "period", 1, 0xFFFF),
+            _ms(stimulus.transit_s, "transit", 1, 0xFFFF),
+            0 if duration_s is None else _ms(duration_s, "duration", 1, 0xFFFFFFFF))
 
 
 class SenseRecording:
@@ -757,13 +785,17 @@ class FirmwareBelt(Belt, PacketSink):
             data = self._transport.encode(packet)
             if packet.type in _SYNC_TYPES:
                 self._sync_sent[seq] = time.perf_counter_ns()
-            try:
-                self._transport.write(data)
-            except (OSError, DeviceError) as exc:
-                self._mark_lost(f"belt on {self.port} stopped answering: write failed: {exc}")
-                raise DeviceError(self._lost) from None
+            self._write(data)
             self.frames_sent += 1
         return waiter
+
+    def _write(self, data: bytes) -> None:
+        """Write to the link (holding the write lock); a failed write loses the belt."""
+        try:
+            self._transport.write(data)
+        except (OSError, DeviceError) as exc:
+            self._mark_lost(f"belt on {self.port} stopped answering: write failed: {exc}")
+            raise DeviceError(self._lost) from None
 
     def _request(self, build: Callable[[int], wire.Packet], name: str,
                  timeout_s: float | None = None, expect: type | None = None) -> Any:
@@ -1031,7 +1063,7 @@ class FirmwareBelt(Belt, PacketSink):
             if sent:
                 vectors = list(sent)
         for v in vectors:
-            self._request(functools.partial(_set_drive_packet, mode=mode, vector=v),
+            self._request(functools.partial(wire.set_drive, mode=mode, constants=v),
                           "SET_DRIVE", expect=wire.Ack)
 
     # -- the board's accelerometer (firmware 1.2) -----------------------------------------
@@ -1214,7 +1246,7 @@ class FirmwareBelt(Belt, PacketSink):
                     self._restore_after_reset()
                     continue
                 if silent_s >= hb_s / 3.0:
-                    self._send(functools.partial(_ping_nonce, nonce=self._unanswered_pings + 1))
+                    self._send(functools.partial(wire.ping, nonce=self._unanswered_pings + 1))
                     if self._unanswered_pings == 0:
                         self._first_ping_ns = time.monotonic_ns()
                     self._unanswered_pings += 1
@@ -1254,44 +1286,19 @@ class FirmwareBelt(Belt, PacketSink):
     def _device_renders(self, stimulus: Stimulus | None) -> bool:
         if not self._can_play_target:
             return False
-        if stimulus is None:
-            return True
-        try:  # what PLAY_TARGET can carry: a known law and mode, timings that fit
-            _ms(stimulus.period_s, "period", 1, 0xFFFF)
-            _ms(stimulus.transit_s, "transit", 1, 0xFFFF)
-        except ConfigError:
-            return False
-        return (stimulus.law in _LAW_CODES and stimulus.mode in _MODE_CODES
-                and 1 <= round(stimulus.falloff_deg * 100.0) <= 0xFFFF)
+        if stimulus is not None:
+            try:  # what PLAY_TARGET can carry: a known law and mode, timings that fit
+                _play_args(stimulus, None)
+            except ConfigError:
+                return False
+        return True
 
     def _write_play(self, stimulus: Stimulus, duration_s: float | None) -> None:
-        if stimulus.law not in _LAW_CODES:
-            raise ConfigError(
-                f"the firmware cannot render law {stimulus.law!r}; allowed: {', '.join(_LAW_CODES)}"
-            )
-        falloff_cdeg = round(stimulus.falloff_deg * 100.0)
-        if not 1 <= falloff_cdeg <= 0xFFFF:
-            raise ConfigError(
-                f"falloff {stimulus.falloff_deg:g} deg does not fit the device: "
-                "allowed 0.01 to 655.35 deg"
-            )
-        period_ms = _ms(stimulus.period_s, "period", 1, 0xFFFF)
-        transit_ms = _ms(stimulus.transit_s, "transit", 1, 0xFFFF)
-        duration_ms = 0 if duration_s is None else _ms(duration_s, "duration", 1, 0xFFFFFFFF)
-        args = (
-            wire.angle_to_cdeg(stimulus.target_deg),
-            int(_MODE_CODES[stimulus.mode]),
-            int(_LAW_CODES[stimulus.law]),
-            falloff_cdeg,
-            period_ms,
-            transit_ms,
-            duration_ms,
-        )
+        args = _play_args(stimulus, duration_s)
         self._streaming = False
         waiter = self._send(lambda seq: wire.play_target(seq, *args), "the play command",
                             onset=True)
-        reply = self._wait(waiter, "the play command")
-        self._expect(reply, wire.Ack, "the play command")
+        self._expect(self._wait(waiter, "the play command"), wire.Ack, "the play command")
 
     def close(self) -> None:
         """Stop the motors (best effort: a dead device is logged, not raised) and release."""
@@ -1343,15 +1350,9 @@ class FirmwareBelt(Belt, PacketSink):
         Raises:
             ConfigError: a value out of range (checked here and by the device).
         """
-        if isinstance(heartbeat_ms, bool) or not isinstance(heartbeat_ms, int) or not (
-            50 <= heartbeat_ms <= 2000
-        ):
-            raise ConfigError(f"heartbeat_ms must be an integer in 50..2000, got {heartbeat_ms!r}")
-        if max_on_ms is not None and (
-            isinstance(max_on_ms, bool) or not isinstance(max_on_ms, int)
-            or not 100 <= max_on_ms <= 600_000
-        ):
-            raise ConfigError(f"max_on_ms must be an integer in 100..600000, got {max_on_ms!r}")
+        checked_int("heartbeat_ms", heartbeat_ms, 50, 2000)
+        if max_on_ms is not None:
+            checked_int("max_on_ms", max_on_ms, 100, 600_000)
         self._check_open()
         self._request(lambda seq: wire.set_config(seq, heartbeat_ms, max_on_ms),
                       "the new settings (heartbeat, longest on-time)", expect=wire.Ack)
@@ -1369,11 +1370,7 @@ class FirmwareBelt(Belt, PacketSink):
         self._check_open()
         self._check_alive()
         with self._tx_lock:
-            try:
-                self._transport.write(bytes(data))
-            except (OSError, DeviceError) as exc:
-                self._mark_lost(f"belt on {self.port} stopped answering: write failed: {exc}")
-                raise DeviceError(self._lost) from None
+            self._write(bytes(data))
 
     @property
     def lost(self) -> str | None:
@@ -1389,11 +1386,6 @@ class FirmwareBelt(Belt, PacketSink):
     def host_framing_errors(self) -> int:
         """Frames from the device dropped for bad framing or length."""
         return self._transport.framing_errors
-
-
-def _set_drive_packet(seq: int, *, mode: int, vector: wire.DriveConstants | None
-                      ) -> wire.Packet:
-    return wire.set_drive(seq, mode, vector)
 
 
 def drive_constants(n: int, taus: tuple[tuple[float, ...], tuple[float, ...],

@@ -33,7 +33,7 @@ from typing import IO, Any, Final
 from .._errors import ConfigError, DeviceError
 from ..geometry import Layout
 from . import wire
-from ._firmware import FirmwareBelt
+from ._firmware import FirmwareBelt, checked_int
 from .registry import check_options
 from .serial import SERIAL_STREAM_RATE_HZ, SerialTransport
 
@@ -247,21 +247,19 @@ def open_emulator(target: str = "", **options: Any) -> EmulatorBelt:
         raise ConfigError(f"the emulator belt takes no target, got 'emulator:{target}'")
     tactors = options.pop("tactors", None)
     layout = options.pop("layout", None)
-    if tactors is not None and (
-        isinstance(tactors, bool) or not isinstance(tactors, int) or not 2 <= tactors <= 16
-    ):
-        raise ConfigError(f"tactors must be an integer in 2..16, got {tactors!r}")
+    if tactors is not None:
+        checked_int("tactors", tactors, 2, 16)
     if layout is not None:
         if not isinstance(layout, Layout) or not 2 <= layout.n <= 16:
             raise ConfigError(f"layout must be a Layout of 2..16 tactors, got {layout!r}")
         if tactors is not None and tactors != layout.n:
             raise ConfigError(f"tactors={tactors} but the layout has {layout.n} tactors")
     heartbeat_ms = options.pop("heartbeat_ms", None)
-    if heartbeat_ms is not None and (
-        isinstance(heartbeat_ms, bool) or not isinstance(heartbeat_ms, int)
-        or not 50 <= heartbeat_ms <= 2000
-    ):
-        raise ConfigError(f"heartbeat_ms must be an integer in 50..2000, got {heartbeat_ms!r}")
+    if heartbeat_ms is not None:
+        checked_int("heartbeat_ms", heartbeat_ms, 50, 2000)
+    watchdog_ms = options.pop("watchdog_ms", None)
+    if watchdog_ms is not None:
+        checked_int("watchdog_ms", watchdog_ms, 1, 10000)
     imu = options.pop("imu", None)
     if imu is not None and imu not in IMU_KINDS:
         raise ConfigError(f"imu must be one of {', '.join(IMU_KINDS)}, got {imu!r}")
@@ -276,22 +274,12 @@ def open_emulator(target: str = "", **options: Any) -> EmulatorBelt:
         args = [str(exe), "--tactor-angles", ",".join(f"{a:.2f}" for a in layout.angles_deg)]
     else:
         args = [str(exe), "--tactors", str(6 if tactors is None else tactors)]
-    if heartbeat_ms is not None:
-        args += ["--heartbeat-ms", str(heartbeat_ms)]
-    levels_log = options.pop("levels_log", None)
-    if levels_log is not None:
-        args += ["--levels-log", os.fspath(levels_log)]
-    watchdog_ms = options.pop("watchdog_ms", None)
-    if watchdog_ms is not None:
-        if isinstance(watchdog_ms, bool) or not isinstance(watchdog_ms, int) or not (
-                1 <= watchdog_ms <= 10000):
-            raise ConfigError(f"watchdog_ms must be an integer in 1..10000, got {watchdog_ms!r}")
-        args += ["--watchdog-ms", str(watchdog_ms)]
+    given = {"--heartbeat-ms": heartbeat_ms, "--levels-log": options.pop("levels_log", None),
+             "--watchdog-ms": watchdog_ms, "--imu": imu}
+    args += [a for flag, v in given.items() if v is not None for a in (flag, str(v))]
     debug_frames = bool(options.pop("debug_frames", False))
     if debug_frames:
         args += ["--debug-frames"]
-    if imu is not None:
-        args += ["--imu", str(imu)]
     if not options.pop("brake", True):
         args += ["--wiring", "in1"]
     args += [str(a) for a in options.pop("extra_args", ())]
