@@ -59,7 +59,7 @@ TLX_FPS = 30.0
 
 
 @dataclass
-class _Trial:
+class ShownTrial:
     """What the window knows about the trial in progress."""
 
     trial: ScheduledTrial
@@ -136,7 +136,7 @@ class WindowController(NullObserver, abc.ABC):
         self.block: str | None = None
         self.condition: str | None = None
         self.test_blocks_seen = 0
-        self.current: _Trial | None = None
+        self.current: ShownTrial | None = None
         self.last_sample: CursorSample | None = None
         self.last_result: TrialResult | None = None
         self.end_status: str | None = None
@@ -251,7 +251,7 @@ class WindowController(NullObserver, abc.ABC):
     def on_trial_state(self, trial: ScheduledTrial, state: TrialState, now_ns: int) -> None:
         phase = str(getattr(state, "value", state))
         if phase == "wait_home" or self.current is None or self.current.trial is not trial:
-            self.current = _Trial(trial)
+            self.current = ShownTrial(trial)
             self._show_targets(trial.n_targets)
             self.block = trial.block
             self.condition = trial.condition

@@ -1,17 +1,17 @@
 """The screens of the experiment window: what each kind of screen shows.
 
 One function per kind of screen fills a :class:`~tactorbelt.gui.render.View` from the
-window's state, read through :class:`ScreenState` (read-only): the trial (training with
-its highlight and feedback, the test), the task alone, the waiting screens
-(instructions, block start, a task's instructions, break, end, ``show_wait``'s text),
-pause, and the experimenter overlay. :func:`compose` puts one frame's view together,
+window's state (read only, a :class:`~tactorbelt.gui.controller.WindowController`): the
+trial (training with its highlight and feedback, the test), the task alone, the waiting
+screens (instructions, block start, a task's instructions, break, end, ``show_wait``'s
+text), pause, and the experimenter overlay. :func:`compose` puts one frame's view together,
 :func:`draw` draws it (:class:`~tactorbelt.gui.render.Renderer`, or the NASA-TLX's
 :class:`~tactorbelt.gui.tlx.TlxScreen`), and :func:`screen_kind` names it
 (:data:`SCREEN_KINDS`, :data:`TASK_SCREEN_KINDS`) for screenshots and ``on_frame``.
 
 Nothing here changes the window's state; the task presenter advances its glyphs and its
-practice feedback to the time of the frame, as it did before the split. Participant's
-words for each input: :func:`input_words`.
+practice feedback to the time of the frame, as it did before the split. The
+participant's words for each input are the input kind's (:mod:`tactorbelt.inputs.kinds`).
 
 Pure text and layout; :func:`compose` and :func:`draw` import tactorbelt.gui.render
 (pygame) on use.
@@ -22,32 +22,21 @@ from __future__ import annotations
 import copy
 import itertools
 import math
-from collections.abc import Callable, Container, Sequence
-from typing import TYPE_CHECKING, Any, Protocol
-
-from ..inputs.kinds import input_kind as input_kind_of
+from collections.abc import Callable, Container
+from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
-    from ..devices.base import Belt
-    from ..experiment.runner import SessionInfo
-    from ..experiment.schedule import ScheduledTrial
-    from ..experiment.study import Study, TaskSpec
-    from ..experiment.trial import TrialResult
-    from ..geometry import Layout
-    from ..inputs.base import CursorSample, LiveCursor
+    from .controller import ShownTrial, WindowController
     from .render import Renderer, View
-    from .taskview import TaskPresenter
     from .tlx import TlxScreen
 
 __all__ = [
     "SCREEN_KINDS",
     "TASK_SCREEN_KINDS",
     "WAIT_KINDS",
-    "ScreenState",
     "TactorLevels",
     "compose",
     "draw",
-    "input_words",
     "overlay_lines",
     "screen_kind",
     "screenshot_kind",
@@ -67,63 +56,7 @@ WAIT_KINDS = ("instructions", "block", "break", "end", "task")
 Modal = tuple[str | None, list[str]]
 
 
-class ShownTrial(Protocol):
-    """The trial in progress, as the window knows it."""
-
-    trial: ScheduledTrial
-    phase: str  # home, stimulus, response, timeout, iti, aborted
-    onset_ns: int | None
-
-
-class ScreenState(Protocol):
-    """What the screens read of the window (:class:`~tactorbelt.gui.controller.
-    WindowController` has it all)."""
-
-    study: Study
-    belt: Belt | None
-    input_kind: str
-    participant: str
-    layout: Layout
-    targets_deg: tuple[float, ...]
-    on_tactor: tuple[bool, ...]
-    tactors_deg: tuple[float, ...]
-    home_radius: float
-    info: SessionInfo | None
-    n_total: int
-    n_done: int
-    block: str | None
-    test_blocks_seen: int
-    last_sample: CursorSample | None
-    last_result: TrialResult | None
-    end_status: str | None
-    screen: str
-    wait_text: tuple[str, list[str]] | None
-    overlay: bool
-    banner: str | None
-    banner_until_ns: int
-    user_paused: bool
-    device_paused: bool
-    tasks: TaskPresenter
-    task_alone: bool
-    task_intro: tuple[str, TaskSpec, str, str | None] | None
-    block_task: tuple[str, TaskSpec] | None
-    block_note: str | None
-    @property
-    def live(self) -> LiveCursor | None: ...
-    @property
-    def current(self) -> ShownTrial | None: ...
-    @property
-    def sample_times(self) -> Sequence[int]: ...
-
-
-def input_words(input_kind: str) -> tuple[str, str]:
-    """(how to go on, how to answer) in the participant's words, as the input kind
-    declares them (:mod:`tactorbelt.inputs.kinds`)."""
-    kind = input_kind_of(input_kind)
-    return kind.go_on, kind.move
-
-
-def cursor_position(s: ScreenState) -> tuple[float, float] | None:
+def cursor_position(s: WindowController) -> tuple[float, float] | None:
     """Where the cursor is drawn: the live input's state, else the last sample."""
     live = s.live
     if live is not None:
@@ -138,14 +71,14 @@ def cursor_position(s: ScreenState) -> tuple[float, float] | None:
 
 # ----------------------------------------------------------------------------------------
 # one frame
-def compose(s: ScreenState, now_ns: int, levels: TactorLevels) -> View:
+def compose(s: WindowController, now_ns: int, levels: TactorLevels) -> View:
     """What to draw at ``now_ns``."""
     from .render import View
 
     v = View(targets_deg=s.targets_deg, on_tactor=s.on_tactor,
              tactors_deg=s.tactors_deg, home_radius=s.home_radius)
     v.cursor = cursor_position(s)
-    go_on, move = input_words(s.input_kind)
+    go_on, move = s.input.go_on, s.input.move
     cur = None if s.task_alone else s.current
     _status(v, s, cur)
     if cur is not None and s.screen == "trial":
@@ -157,10 +90,8 @@ def compose(s: ScreenState, now_ns: int, levels: TactorLevels) -> View:
     v.modal_title, v.modal_lines = modal(s, go_on, move) if modal is not None else (None, [])
     if s.user_paused or s.device_paused:
         v.modal_title, v.modal_lines = pause(s)
-    v.overlay = s.overlay
     if s.overlay:
-        v.overlay_lines = overlay_lines(s, now_ns)
-        v.levels = levels(s, now_ns)
+        v = with_overlay(v, s, now_ns, levels)
     if s.banner is not None and now_ns <= s.banner_until_ns:
         v.banner = s.banner
     elif s.device_paused:
@@ -180,7 +111,7 @@ def draw(surface: Any, renderer: Renderer, view: View, tlx: TlxScreen | None) ->
         renderer.draw(surface, view)
 
 
-def screen_kind(s: ScreenState, view: View) -> str:
+def screen_kind(s: WindowController, view: View) -> str:
     """The kind of screen a view shows (for screenshots and ``on_frame``)."""
     if (s.user_paused or s.device_paused) and s.screen not in WAIT_KINDS:
         return "pause"
@@ -194,7 +125,7 @@ def screen_kind(s: ScreenState, view: View) -> str:
     return "test"
 
 
-def _status(v: View, s: ScreenState, cur: ShownTrial | None) -> None:
+def _status(v: View, s: WindowController, cur: ShownTrial | None) -> None:
     """The participant's status line: the block, the trial."""
     block = cur.trial.block if cur is not None else s.block
     if block == "training":
@@ -209,7 +140,7 @@ def _status(v: View, s: ScreenState, cur: ShownTrial | None) -> None:
 
 # ----------------------------------------------------------------------------------------
 # the trial screens: training, feedback, test; the task alone
-def trial(v: View, s: ScreenState, cur: ShownTrial) -> None:
+def trial(v: View, s: WindowController, cur: ShownTrial) -> None:
     """The trial: home zone, the stimulus (training: its target highlighted), and in
     training the feedback on the answer."""
     phase = cur.phase
@@ -239,7 +170,7 @@ def trial(v: View, s: ScreenState, cur: ShownTrial) -> None:
         v.home_state = "idle" if at_home else "wait"
 
 
-def task_alone(v: View, s: ScreenState, now_ns: int) -> None:
+def task_alone(v: View, s: WindowController, now_ns: int) -> None:
     """A practice or baseline run of the task: its rule, then the practice feedback."""
     tasks = s.tasks
     v.status_left = "Practice" if tasks.phase == "practice" else "The task alone"
@@ -256,7 +187,7 @@ def task_alone(v: View, s: ScreenState, now_ns: int) -> None:
 
 # ----------------------------------------------------------------------------------------
 # the waiting screens (a box over the dimmed scene)
-def instructions(s: ScreenState, go_on: str, move: str) -> Modal:
+def instructions(s: WindowController, go_on: str, move: str) -> Modal:
     lines = [
         "You will feel a vibration around your waist. Show where it is.",
         "The ellipse is your torso seen from above; the top is your front.",
@@ -275,7 +206,7 @@ def instructions(s: ScreenState, go_on: str, move: str) -> Modal:
     return "Instructions", lines
 
 
-def _training_left(s: ScreenState) -> bool:
+def _training_left(s: WindowController) -> bool:
     """Whether training trials remain (a resumed session may be past them)."""
     if s.study.training.passes <= 0:
         return False
@@ -284,7 +215,7 @@ def _training_left(s: ScreenState) -> bool:
     return s.study.n_training_trials() > s.info.n_done
 
 
-def block(s: ScreenState, go_on: str, move: str) -> Modal:
+def block(s: WindowController, go_on: str, move: str) -> Modal:
     k = s.test_blocks_seen
     n = len(s.info.condition_order) if s.info is not None else k
     extra: list[str] = []
@@ -300,7 +231,7 @@ def block(s: ScreenState, go_on: str, move: str) -> Modal:
         f"When you are ready, {go_on}."]
 
 
-def task(s: ScreenState, go_on: str, move: str) -> Modal:
+def task(s: WindowController, go_on: str, move: str) -> Modal:
     """A task's instructions before its practice or baseline run."""
     if s.task_intro is None:
         return None, []
@@ -314,19 +245,19 @@ def task(s: ScreenState, go_on: str, move: str) -> Modal:
     return title, [note, "", *lines] if note else lines
 
 
-def wait(s: ScreenState, go_on: str, move: str) -> Modal:
+def wait(s: WindowController, go_on: str, move: str) -> Modal:
     """``show_wait``'s title and lines."""
     if s.wait_text is None:
         return None, []
     return s.wait_text
 
 
-def break_(s: ScreenState, go_on: str, move: str) -> Modal:
+def break_(s: WindowController, go_on: str, move: str) -> Modal:
     return "Break", [f"{s.n_done} of {s.n_total} trials done.",
                      "Take a rest.", "", f"When you are ready, {go_on}."]
 
 
-def end(s: ScreenState, go_on: str, move: str) -> Modal:
+def end(s: WindowController, go_on: str, move: str) -> Modal:
     status = s.end_status or "complete"
     if status == "complete":
         return "Thank you!", ["The session is complete.", "",
@@ -338,7 +269,7 @@ def end(s: ScreenState, go_on: str, move: str) -> Modal:
 
 
 #: The box of each waiting screen: ``modal(state, go_on, move)``.
-MODALS: dict[str, Callable[[ScreenState, str, str], Modal]] = {
+MODALS: dict[str, Callable[[WindowController, str, str], Modal]] = {
     "instructions": instructions, "block": block, "task": task, "wait": wait,
     "break": break_, "end": end,
 }
@@ -350,7 +281,7 @@ def paused() -> tuple[str, list[str]]:
                       "P or R: resume    Esc twice or Ctrl-Q: stop (saved, resumable)"]
 
 
-def pause(s: ScreenState) -> tuple[str, list[str]]:
+def pause(s: WindowController) -> tuple[str, list[str]]:
     """The pause box: the experimenter's, or the joystick's gone."""
     if s.device_paused:
         live = s.live
@@ -367,7 +298,7 @@ def pause(s: ScreenState) -> tuple[str, list[str]]:
 
 # ----------------------------------------------------------------------------------------
 # the experimenter overlay
-def overlay_lines(s: ScreenState, now_ns: int) -> list[str]:
+def overlay_lines(s: WindowController, now_ns: int) -> list[str]:
     """The overlay panel's text: participant, session, trial, last answer, task, input,
     sampling."""
     lines = []
@@ -430,7 +361,7 @@ class TactorLevels:
     def __init__(self) -> None:
         self._stimuli: dict[tuple[Any, ...], Any] = {}
 
-    def __call__(self, s: ScreenState, now_ns: int) -> Any:
+    def __call__(self, s: WindowController, now_ns: int) -> Any:
         lv = s.belt.levels if s.belt is not None else None
         if lv is not None:
             return lv
@@ -452,7 +383,7 @@ class TactorLevels:
 
 # ----------------------------------------------------------------------------------------
 # screenshots: which frames show a kind of screen well
-def screenshot_kind(s: ScreenState, view: View, kind: str, saved: Container[str]
+def screenshot_kind(s: WindowController, view: View, kind: str, saved: Container[str]
                     ) -> str | None:
     """The kind to save this frame as, or None: each kind once; a trial once the cursor
     moves; the test on a between-tactor trial (two tactors at work in the overlay), as
@@ -474,7 +405,7 @@ def screenshot_kind(s: ScreenState, view: View, kind: str, saved: Container[str]
     return kind
 
 
-def with_overlay(view: View, s: ScreenState, now_ns: int, levels: TactorLevels) -> View:
+def with_overlay(view: View, s: WindowController, now_ns: int, levels: TactorLevels) -> View:
     """A copy of ``view`` with the experimenter overlay."""
     v = copy.copy(view)
     v.overlay = True
