@@ -44,7 +44,9 @@ def stimulus(belt_url: str, sense_url: str | None, target: int | None, all_targe
 
     Writes per tactor the RMS error of the felt envelope against the intended one (the
     law's amplitudes through the tactor's static response, both over its steady amplitude
-    at full level) and its onset and offset errors (docs/validation.md). Example:
+    at full level) and its onset and offset errors (docs/validation.md). A sensor that
+    senses the tactors together (--sense board, one input channel) gets each tactor's
+    envelope from a play of the stimulus with every other tactor off. Example:
     `tactorbelt validate stimulus --belt sim:virtual --all --condition dynamic -o out`.
     """
     from ..validation.stimulus import run_stimulus
@@ -62,7 +64,7 @@ def stimulus(belt_url: str, sense_url: str | None, target: int | None, all_targe
                    f"{belt.drive}) sensed by {sensor.description}")
 
     try:
-        with counting_progress("targets") as progress:
+        with counting_progress("plays") as progress:
             result, paths = run_stimulus(
                 belt_url, out, targets=None if all_targets else [int(target or 0)],
                 condition=condition, sense_url=sense_url, drive=drive, study=study,
@@ -75,11 +77,15 @@ def stimulus(belt_url: str, sense_url: str | None, target: int | None, all_targe
     for row in result.targets:
         parts = [f"{t['tactor']}: {t['rms_error']:.3f}, {_err(t['onset_error_ms'])}/"
                  f"{_err(t['offset_error_ms'])}" for t in row["tactors"] if t["driven"]]
+        silent = [str(t["tactor"]) for t in row["tactors"] if t["felt"] == "silent"]
+        if silent:
+            parts.append(f"silent (not played): {','.join(silent)}")
         click.echo(f"{row['target']:>6} {row['target_deg']:>6g}  {row['rms_error']:.3f}  "
                    + "; ".join(parts))
     between = ("" if result.between_tactor_rms_error is None else
                f" (between tactors {result.between_tactor_rms_error:.4f})")
-    click.echo(f"RMS error {result.rms_error:.4f}{between}; drive {result.drive}")
+    click.echo(f"RMS error {result.rms_error:.4f}{between}; drive {result.drive}; "
+               f"tactors told apart: {result.isolation} ({result.plays} plays)")
     for what, path in paths.items():
         click.echo(f"wrote {what}: {path}")
     click.echo("done: motors off")

@@ -12,8 +12,8 @@ what was meant:
   stimuli, every tactor is held at amplitudes 0.05, 0.10, ... 1.0 until it settles and
   its steady amplitude at each, over the one at full level, is the response
   (interpolated linearly). So a belt without dynamics (an instant motor) has no error:
-  what remains is the motor's lag, which drive shaping addresses; the static response is
-  the calibration's business (``tactorbelt calibrate``);
+  what remains is the motor's lag, which drive shaping addresses; the static shape of
+  the response is the calibration's business (``tactorbelt calibrate``);
 - per tactor, the RMS of felt minus intended from the onset to ``off_s`` after the stop;
   its **onset error**, when the felt envelope first reaches 10 % of the intended
   maximum minus when the intended one does (the onset validator's threshold), and its
@@ -21,8 +21,22 @@ what was meant:
 - per target, the RMS over its driven tactors (those the law drives); overall, over
   every target's.
 
-The sensor must sense each tactor apart (``separates_tactors``: the sim belt's model, a
-sound card with one input channel per tactor): several tactors vibrate at once.
+The onset of a playback is the device-true one where the belt reports it
+(``Belt.last_onset``, as a session stores it), else the player's.
+
+How each tactor is sensed depends on what the sensor declares
+(:attr:`~tactorbelt.validation.sensors.Sensor.separates_tactors`):
+
+- **directly**: a sensor with a signal per tactor (the sim belt's model, a sound card with
+  one input channel per tactor) senses every tactor over one playback of the stimulus;
+- **per-tactor replay**: a sensor that mixes the tactors (the board's IMU, one input
+  channel) cannot tell them apart while two vibrate. Each tactor's drive is independent
+  of the others' (its own motor, its own shaper), so its felt envelope is the same
+  whether the others play or not: the stimulus is played once per tactor it drives,
+  every other tactor held off (streamed: :class:`_Only`), and the one signal of each
+  play is that tactor's envelope. Its static response is measured alone too. A tactor
+  the stimulus never drives is not played: it is reported ``silent`` (felt nothing,
+  error 0), not as whatever the sensor picked up from the others.
 
 :func:`run_stimulus` is the whole command: open, validate, write ``stimulus.json`` and
 ``stimulus.png``. Imports NumPy and tactorbelt's devices; matplotlib only for the figure.
@@ -46,8 +60,12 @@ from .envelope import LOW
 from .sensors import Sensor
 
 if TYPE_CHECKING:
+    from ..clock import Clock
     from ..devices.base import Belt
     from ..experiment.study import Study
+    from ..geometry import Layout
+    from ..player import Player
+    from ..stimuli import Stimulus
 
 __all__ = ["RESPONSE_LEVELS", "StimulusValidation", "run_stimulus", "validate_stimulus"]
 
@@ -61,6 +79,11 @@ RESPONSE_LEVELS: Final = tuple(round(0.05 * i, 2) for i in range(1, 21))
 HOLD_S: Final = 0.4
 #: The baseline before each onset (s).
 BASELINE_S: Final = 0.1
+#: ``Belt.last_onset`` waits this long for the device's report (s).
+ONSET_TIMEOUT_S: Final = 0.5
+#: How the tactors were told apart (stimulus.json's ``isolation``).
+DIRECT: Final = "none: the sensor senses each tactor apart"
+REPLAY: Final = "per-tactor replay"
 
 FloatArray = NDArray[np.float64]
 
@@ -84,18 +107,39 @@ class StimulusValidation:
     condition: str
     duration_s: float
     targets: list[dict[str, Any]]
-    response: list[list[float]]
+    response: list[list[float | None]]
     traces: dict[int, dict[int, _Trace]]
     rms_error: float
     between_tactor_rms_error: float | None
+    isolation: str = DIRECT
+    plays: int = 0
+    onset_reference: str = "host"
 
     def to_dict(self) -> dict[str, Any]:
         return {"format": FORMAT, "version": 1, "belt": self.belt, "sensor": self.sensor,
                 "drive": self.drive, "condition": self.condition,
                 "duration_s": self.duration_s, "rms_error": self.rms_error,
                 "between_tactor_rms_error": self.between_tactor_rms_error,
+                "isolation": self.isolation, "plays": self.plays,
+                "onset_reference": self.onset_reference,
                 "threshold": LOW, "response_levels": list(RESPONSE_LEVELS),
                 "response": self.response, "targets": self.targets}
+
+
+class _Only:
+    """A stimulus with every tactor but ``tactor`` held off: a Playable the player streams
+    (the device renders whole stimuli only), frame by frame as the stimulus's own."""
+
+    def __init__(self, stimulus: Stimulus, tactor: int) -> None:
+        self.layout: Layout = stimulus.layout
+        self._stimulus = stimulus
+        self._tactor = tactor
+
+    def amplitudes(self, t: NDArray[np.float64]) -> NDArray[np.float64]:
+        a = np.asarray(self._stimulus.amplitudes(t), dtype=float)
+        out = np.zeros_like(a)
+        out[..., self._tactor] = a[..., self._tactor]
+        return out
 
 
 def _steady(t: NDArray[np.int64], env: FloatArray, t0: int, t1: int) -> float:
@@ -104,31 +148,50 @@ def _steady(t: NDArray[np.int64], env: FloatArray, t0: int, t1: int) -> float:
     return float(np.median(env[sel])) if sel.any() else float("nan")
 
 
-def _response(belt: Belt, sensor: Sensor, clock: Any) -> FloatArray:
-    """Every tactor's steady amplitude at each of :data:`RESPONSE_LEVELS` minus its
-    baseline (rows: levels; columns: tactors), all tactors held together."""
+def _staircase(belt: Belt, sensor: Sensor, clock: Clock, tactors: Sequence[int]
+               ) -> dict[int, FloatArray]:
+    """``tactors`` held together (every other one off) at each of
+    :data:`RESPONSE_LEVELS`: each one's steady amplitude at each, minus its baseline."""
     n = belt.n_tactors
     hold = round(HOLD_S * 1e9)
     t0 = int(clock.now_ns())
     clock.sleep_until_ns(t0 + round(BASELINE_S * 1e9))
     marks = []
+    frame = np.zeros(n)
     for level in RESPONSE_LEVELS:
         t_on = int(clock.now_ns())
-        belt.set_amplitudes(np.full(n, level))
+        frame[list(tactors)] = level
+        belt.set_amplitudes(frame)
         clock.sleep_until_ns(t_on + hold)
         marks.append((t_on, int(clock.now_ns())))
     belt.stop()
-    out = np.zeros((len(RESPONSE_LEVELS), n))
-    for k in range(n):
+    out = {}
+    for k in tactors:
         w = sensor.envelope(k, t0, int(clock.now_ns()))
         if w.problem is not None:
             raise DeviceError(f"tactor {k}: {w.problem} while its response was measured")
         base = float(np.median(w.env[w.t_ns < marks[0][0]]))
-        out[:, k] = [_steady(w.t_ns, w.env, a, b) - base for a, b in marks]
-    full = out[-1]
-    bad = [k for k in range(n) if not (math.isfinite(full[k]) and full[k] > 0)]
-    if bad:
-        raise DeviceError(f"the sensor saw no vibration of tactor {bad[0]} at full level")
+        steady = np.array([_steady(w.t_ns, w.env, a, b) - base for a, b in marks])
+        if not (math.isfinite(steady[-1]) and steady[-1] > 0):
+            raise DeviceError(f"the sensor saw no vibration of tactor {k} at full level")
+        out[k] = steady
+    sensor.forget_before(int(clock.now_ns()))
+    return out
+
+
+def _response(belt: Belt, sensor: Sensor, clock: Clock, tactors: Sequence[int],
+              rest_ns: int) -> FloatArray:
+    """The steady amplitude of each of ``tactors`` at each of :data:`RESPONSE_LEVELS`
+    minus its baseline (rows: levels; columns: every tactor, NaN where not measured): all
+    held together when the sensor senses them apart, else one after the other, each
+    alone. Each staircase is followed by ``rest_ns`` off, so the motors have stopped
+    before the next baseline."""
+    out = np.full((len(RESPONSE_LEVELS), belt.n_tactors), np.nan)
+    groups = [list(tactors)] if sensor.separates_tactors else [[k] for k in tactors]
+    for group in groups:
+        for k, steady in _staircase(belt, sensor, clock, group).items():
+            out[:, k] = steady
+        clock.sleep_until_ns(int(clock.now_ns()) + rest_ns)
     return out
 
 
@@ -139,16 +202,79 @@ def _crossing(t_ms: FloatArray, y: FloatArray, th: float, last: bool) -> float |
     return float(t_ms[hit[-1] if last else hit[0]])
 
 
+def _driven(stimulus: Stimulus, duration_s: float) -> list[int]:
+    """The tactors ``stimulus`` drives at any frame of a 1 kHz playback of ``duration_s``."""
+    t = np.arange(max(1, round(duration_s * 1000.0))) / 1000.0
+    return [int(k) for k in np.flatnonzero(stimulus.amplitudes(t).max(axis=0) > 0.0)]
+
+
+@dataclass
+class _Played:
+    """One playback: its onset and end on the commands' clock."""
+
+    onset: int
+    end: int
+
+
+def _play(player: Player, belt: Belt, clock: Clock, what: Any, duration_s: float,
+          base_ns: int, off_ns: int) -> _Played:
+    """Wait a baseline, play ``what`` for ``duration_s`` (motors off after), wait
+    ``off_ns`` for the fall; the onset is the device's where the belt reports it."""
+    clock.sleep_until_ns(int(clock.now_ns()) + base_ns)
+    stats = player.play(what, duration_s)
+    onset = int(stats.onset_ns if stats.onset_ns is not None else clock.now_ns())
+    if belt.reports_onsets:
+        got = belt.last_onset(timeout_s=ONSET_TIMEOUT_S)
+        if got is not None:
+            onset = int(got[0])
+    end = onset + round(duration_s * 1e9)
+    clock.sleep_until_ns(end + off_ns)
+    return _Played(onset, end)
+
+
+def _compare(sensor: Sensor, k: int, played: _Played, stim: Stimulus, base_ns: int,
+             off_ns: int, full: float, grid: FloatArray, curve: FloatArray
+             ) -> tuple[dict[str, Any], _Trace, FloatArray]:
+    """Tactor ``k``'s felt envelope over ``played`` against its intended one: its row
+    of stimulus.json, its trace and its squared errors."""
+    onset, end = played.onset, played.end
+    w = sensor.envelope(k, onset - base_ns, end + off_ns)
+    if w.problem is not None:
+        raise DeviceError(f"tactor {k}: {w.problem}")
+    before = w.t_ns < onset
+    base = float(np.median(w.env[before])) if before.any() else 0.0
+    keep = w.t_ns >= onset
+    t_ns = w.t_ns[keep]
+    felt = (w.env[keep] - base) / full
+    ticks = (t_ns - onset) // 1_000_000
+    amp = stim.amplitudes(ticks / 1000.0)[:, k]
+    amp = np.where(t_ns < end, amp, 0.0)
+    intended = np.interp(amp, grid, curve)
+    err = felt - intended
+    peak = float(intended.max()) if intended.size else 0.0
+    t_ms = (t_ns - onset) / 1e6
+    row: dict[str, Any] = {"tactor": k, "rms_error": float(np.sqrt(np.mean(err ** 2))),
+                           "onset_error_ms": None, "offset_error_ms": None,
+                           "driven": peak > 0.0, "felt": "sensed"}
+    if peak > 0.0:
+        th = LOW * peak
+        for key, last in (("onset_error_ms", False), ("offset_error_ms", True)):
+            a, b = _crossing(t_ms, felt, th, last), _crossing(t_ms, intended, th, last)
+            row[key] = None if a is None or b is None else round(a - b, 3)
+    return row, _Trace(t_ms, felt, intended), err ** 2
+
+
 def validate_stimulus(belt: Belt, sensor: Sensor, study: Study, targets: Sequence[int],
                       condition: str, *, duration_s: float = 2.0, off_s: float = 0.3,
                       progress: Callable[[int, int], None] | None = None,
                       ) -> StimulusValidation:
     """Play the stimulus of each of ``targets`` (numbered as the study numbers them) in
-    ``condition`` for ``duration_s``, sensed by ``sensor``; see the module docstring.
+    ``condition`` for ``duration_s``, sensed by ``sensor``: directly, or once per driven
+    tactor when the sensor mixes the tactors; see the module docstring. The motors are
+    off when it returns or raises (Ctrl-C too). ``progress(done, total)`` counts plays.
 
     Raises:
-        ConfigError: a target or condition the study does not have, a sensor that does
-            not sense the tactors apart.
+        ConfigError: a target or condition the study does not have.
         DeviceError: the sensor saw nothing, or lost samples.
     """
     from ..geometry import TargetSet
@@ -157,10 +283,6 @@ def validate_stimulus(belt: Belt, sensor: Sensor, study: Study, targets: Sequenc
 
     if condition not in ("static", "dynamic"):
         raise ConfigError(f"condition must be static or dynamic, got {condition!r}")
-    if not sensor.separates_tactors:
-        raise ConfigError(f"the sensor {sensor.url!r} senses the tactors together; "
-                          "validate stimulus needs one that senses each tactor apart (the "
-                          "sim belt's model, a sound card with a channel per tactor)")
     count = study.targets.count
     bad = [k for k in targets if not 0 <= int(k) < count]
     if bad:
@@ -171,78 +293,75 @@ def validate_stimulus(belt: Belt, sensor: Sensor, study: Study, targets: Sequenc
     sp = study.stimulus
     angles = TargetSet.even(count).angles
     on_tactor = belt.layout.is_on_tactor(angles)
+    stimuli = {int(k): make_stimulus(belt.layout, float(angles[int(k)]), condition, sp.law,
+                                     sp.falloff_deg, sp.period_s, sp.transit_s)
+               for k in targets}
+    direct = sensor.separates_tactors
+    driven = {k: _driven(s, duration_s) for k, s in stimuli.items()}
+    needed = sorted({k for ks in driven.values() for k in ks})
+    total = len(stimuli) if direct else sum(len(ks) for ks in driven.values())
     clock = belt.clock or WallClock()
-    player = Player(belt, clock)
-    sensor.start()
-    response = _response(belt, sensor, clock)
-    curve = np.vstack([np.zeros((1, belt.n_tactors)), response / response[-1]])
-    grid = np.array((0.0, *RESPONSE_LEVELS))
+    base_ns, off_ns = round(BASELINE_S * 1e9), round(off_s * 1e9)
     rows: list[dict[str, Any]] = []
     traces: dict[int, dict[int, _Trace]] = {}
     all_sq: list[FloatArray] = []
     between_sq: list[FloatArray] = []
-    base_ns, off_ns = round(BASELINE_S * 1e9), round(off_s * 1e9)
+    done = 0
     try:
-        for i, target in enumerate(int(k) for k in targets):
-            stim = make_stimulus(belt.layout, float(angles[target]), condition, sp.law,
-                                 sp.falloff_deg, sp.period_s, sp.transit_s)
-            clock.sleep_until_ns(int(clock.now_ns()) + base_ns)
-            stats = player.play(stim, duration_s)
-            onset = int(stats.onset_ns if stats.onset_ns is not None else clock.now_ns())
-            end = onset + round(duration_s * 1e9)
-            clock.sleep_until_ns(end + off_ns)
-            tactors, sq = [], []
-            traces[target] = {}
-            for k in range(belt.n_tactors):
-                w = sensor.envelope(k, onset - base_ns, end + off_ns)
-                if w.problem is not None:
-                    raise DeviceError(f"target {target}, tactor {k}: {w.problem}")
-                base = float(np.median(w.env[w.t_ns < onset])) if (w.t_ns < onset).any() \
-                    else 0.0
-                keep = w.t_ns >= onset
-                t_ns = w.t_ns[keep]
-                felt = (w.env[keep] - base) / response[-1, k]
-                ticks = (t_ns - onset) // 1_000_000
-                amp = stim.amplitudes(ticks / 1000.0)[:, k]
-                amp = np.where(t_ns < end, amp, 0.0)
-                intended = np.interp(amp, grid, curve[:, k])
-                err = felt - intended
-                peak = float(intended.max()) if intended.size else 0.0
-                t_ms = (t_ns - onset) / 1e6
-                row: dict[str, Any] = {"tactor": k,
-                                       "rms_error": float(np.sqrt(np.mean(err ** 2))),
-                                       "onset_error_ms": None, "offset_error_ms": None,
-                                       "driven": peak > 0.0}
-                if peak > 0.0:
-                    th = LOW * peak
-                    pairs = [(_crossing(t_ms, felt, th, last), _crossing(t_ms, intended, th,
-                                                                          last))
-                             for last in (False, True)]
-                    for key, (a, b) in zip(("onset_error_ms", "offset_error_ms"), pairs,
-                                           strict=True):
-                        row[key] = None if a is None or b is None else round(a - b, 3)
-                    sq.append(err ** 2)
-                tactors.append(row)
-                traces[target][k] = _Trace(t_ms, felt, intended)
-            cat = np.concatenate(sq) if sq else np.zeros(1)
-            rows.append({"target": target, "target_deg": float(angles[target]),
-                         "on_tactor": bool(on_tactor[target]),
-                         "rms_error": float(np.sqrt(np.mean(cat))), "tactors": tactors})
-            all_sq.append(cat)
-            if not on_tactor[target]:
-                between_sq.append(cat)
-            sensor.forget_before(end + off_ns - base_ns)
-            if progress is not None:
-                progress(i + 1, len(targets))
+        with Player(belt, clock) as player:
+            sensor.start()
+            response = _response(belt, sensor, clock,
+                                 range(belt.n_tactors) if direct else needed, off_ns)
+            full = response[-1]
+            curve = np.vstack([np.zeros((1, belt.n_tactors)), response / full])
+            grid = np.array((0.0, *RESPONSE_LEVELS))
+            for target, stim in stimuli.items():
+                tactors: dict[int, dict[str, Any]] = {}
+                sq = []
+                traces[target] = {}
+                plays = ([(None, range(belt.n_tactors))] if direct else
+                         [(_Only(stim, k), (k,)) for k in driven[target]])
+                for what, which in plays:
+                    played = _play(player, belt, clock, stim if what is None else what,
+                                   duration_s, base_ns, off_ns)
+                    for k in which:
+                        row, trace, err2 = _compare(sensor, k, played, stim, base_ns,
+                                                    off_ns, float(full[k]), grid,
+                                                    curve[:, k])
+                        row["plays"] = 1
+                        tactors[k], traces[target][k] = row, trace
+                        if row["driven"]:
+                            sq.append(err2)
+                    sensor.forget_before(played.end + off_ns - base_ns)
+                    done += 1
+                    if progress is not None:
+                        progress(done, total)
+                for k in range(belt.n_tactors):  # never played: silent
+                    tactors.setdefault(k, {"tactor": k, "rms_error": 0.0,
+                                           "onset_error_ms": None, "offset_error_ms": None,
+                                           "driven": False, "felt": "silent", "plays": 0})
+                cat = np.concatenate(sq) if sq else np.zeros(1)
+                rows.append({"target": target, "target_deg": float(angles[target]),
+                             "on_tactor": bool(on_tactor[target]),
+                             "rms_error": float(np.sqrt(np.mean(cat))),
+                             "tactors": [tactors[k] for k in range(belt.n_tactors)]})
+                all_sq.append(cat)
+                if not on_tactor[target]:
+                    between_sq.append(cat)
     finally:
         with contextlib.suppress(Exception):
             belt.stop()
     return StimulusValidation(
         belt=belt.url, sensor=sensor.url, drive=belt.drive, condition=condition,
-        duration_s=duration_s, targets=rows, response=response.T.tolist(), traces=traces,
-        rms_error=float(np.sqrt(np.mean(np.concatenate(all_sq)))),
+        duration_s=duration_s, targets=rows,
+        response=[[None if not math.isfinite(v) else float(v) for v in col]
+                  for col in response.T],
+        traces=traces, rms_error=float(np.sqrt(np.mean(np.concatenate(all_sq)))),
         between_tactor_rms_error=(float(np.sqrt(np.mean(np.concatenate(between_sq))))
-                                  if between_sq else None))
+                                  if between_sq else None),
+        isolation=DIRECT if direct else REPLAY, plays=total,
+        onset_reference=("device: belt.last_onset(), as a session stores it"
+                         if belt.reports_onsets else "host: the player's onset"))
 
 
 def run_stimulus(belt_url: str, out_dir: str | Path, *, targets: Sequence[int] | None,
@@ -329,8 +448,11 @@ def stimulus_figure(result: StimulusValidation, path: str | Path) -> Path:
         ax.set_ylabel("of full-level steady")
     between = ("" if result.between_tactor_rms_error is None else
                f", between tactors {result.between_tactor_rms_error:.3f}")
-    fig.suptitle(f"Felt (solid) and intended (dashed) {result.condition} stimulus on "
-                 f"{result.belt}, drive {result.drive}, sensed by {result.sensor}: RMS "
-                 f"error {result.rms_error:.3f}{between}", fontsize=10)
+    how = ("each tactor sensed directly" if result.isolation == DIRECT else
+           f"the sensor mixes the tactors: each played alone ({result.isolation}, "
+           f"{result.plays} plays)")
+    fig.suptitle(f"Felt (solid) and intended (dashed) {result.condition} stimulus, drive "
+                 f"{result.drive}: RMS error {result.rms_error:.3f}{between}\n"
+                 f"belt {result.belt}, sensor {result.sensor}\n{how}", fontsize=10)
     fig.tight_layout()
     return save_figure(fig, path)
