@@ -220,10 +220,9 @@ def block(s: WindowController, go_on: str, move: str) -> Modal:
     n = len(s.info.condition_order) if s.info is not None else k
     extra: list[str] = []
     if s.block_task is not None:
-        from .taskview import block_lines, parse_response
+        from .taskview import block_lines
 
-        name, spec = s.block_task
-        extra = [*block_lines(name, spec, parse_response(spec.response).words()), ""]
+        extra = [*block_lines(s.block_task[1]), ""]
         if s.block_note:
             extra = [s.block_note, "", *extra]
     return f"Test block {k} of {max(n, k)}", [
@@ -236,12 +235,9 @@ def task(s: WindowController, go_on: str, move: str) -> Modal:
     if s.task_intro is None:
         return None, []
     from .taskview import instructions as task_instructions
-    from .taskview import parse_response
 
-    name, spec, phase, note = s.task_intro
-    n = spec.practice if phase == "practice" else spec.baseline
-    title, lines = task_instructions(name, spec, phase, n,
-                                     parse_response(spec.response).words(), go_on)
+    _, spec, phase, note = s.task_intro
+    title, lines = task_instructions(spec, phase, go_on)
     return title, [note, "", *lines] if note else lines
 
 

@@ -45,7 +45,7 @@ if TYPE_CHECKING:
     from ..tasks.schedule import TaskItem
 
 __all__ = ["EXPERIMENTER_KEYS", "PracticeCoach", "Response", "TaskPresenter", "block_lines",
-           "check_responses", "instructions", "parse_response", "task_title"]
+           "check_responses", "instructions", "parse_response"]
 
 #: How long a practice feedback line stays (ns).
 FEEDBACK_NS: Final = 900_000_000
@@ -105,37 +105,31 @@ def parse_response(text: str) -> Response:
                       "mouse:left|middle|right")
 
 
-def task_title(name: str, spec: TaskSpec) -> str:
-    """``2-back (tones)``, ``Odd sums (beeps)`` ... in the participant's words."""
-    return task_kind(spec.kind).title(spec)
-
-
-def _rule(spec: TaskSpec, button: str) -> list[str]:
-    return task_kind(spec.kind).rule(spec, button)
-
-
-def instructions(name: str, spec: TaskSpec, phase: str, n_items: int, button: str,
-                 go_on: str) -> tuple[str, list[str]]:
+def instructions(spec: TaskSpec, phase: str, go_on: str) -> tuple[str, list[str]]:
     """The title and lines of the screen before a practice or baseline run."""
+    kind = task_kind(spec.kind)
+    n_items = spec.practice if phase == "practice" else spec.baseline
+    rule = kind.rule(spec, parse_response(spec.response).words())
     minutes = n_items * spec.interval_s
     length = f"{n_items} items, about {minutes:.0f} s" if minutes < 90 else \
         f"{n_items} items, about {minutes / 60:.0f} min"
     if phase == "practice":
-        title = f"Practice: {task_title(name, spec)}"
-        lines = [*_rule(spec, button), "",
+        title = f"Practice: {kind.title(spec)}"
+        lines = [*rule, "",
                  "During some blocks you will do this task while you locate the",
                  f"vibrations. First practise it alone ({length}); no vibrations now.", ""]
     else:
-        title = f"The task alone: {task_title(name, spec)}"
-        lines = [*_rule(spec, button), "",
+        title = f"The task alone: {kind.title(spec)}"
+        lines = [*rule, "",
                  f"Now the task alone once more ({length}): do it as well as you can.", ""]
     return title, [*lines, f"When you are ready, {go_on}."]
 
 
-def block_lines(name: str, spec: TaskSpec, button: str) -> list[str]:
+def block_lines(spec: TaskSpec) -> list[str]:
     """Lines for the start screen of a block with the task."""
-    return [f"During this block, also do the task: {task_title(name, spec)}.",
-            *_rule(spec, button)]
+    kind = task_kind(spec.kind)
+    return [f"During this block, also do the task: {kind.title(spec)}.",
+            *kind.rule(spec, parse_response(spec.response).words())]
 
 
 def check_responses(study: Study) -> None:
@@ -257,10 +251,16 @@ class TaskPresenter:
                 self._coach_of = name
         else:
             self.coach = None
-        if spec.modality == "auditory" and self.audio is None:
+        if spec.modality == "auditory":
+            self._sounds()
+
+    def _sounds(self) -> tuple[TaskAudio, SoundBank]:
+        """The sound output (opened now when there is none) and its sounds."""
+        if self.audio is None:
             self.audio = open_task_audio(self.clock)
-        if self.audio is not None and self._bank is None:
+        if self._bank is None:
             self._bank = SoundBank(self.audio.rate)
+        return self.audio, self._bank
 
     def end(self) -> None:
         """The task run ended (or paused): silence, no glyph, no button."""
@@ -284,13 +284,9 @@ class TaskPresenter:
         if self.coach is not None:
             self.coach.item(onset_ns, item.target)
         if spec.modality == "auditory":
-            if self.audio is None:
-                self.audio = open_task_audio(self.clock)
-            if self._bank is None:
-                self._bank = SoundBank(self.audio.rate)
-            self.audio.schedule(self._bank.get(item.stimulus, spec.stimulus_s,
-                                               task_kind(spec.kind).sound),
-                                onset_ns, item.stimulus)
+            audio, bank = self._sounds()
+            audio.schedule(bank.get(item.stimulus, spec.stimulus_s, task_kind(spec.kind).sound),
+                           onset_ns, item.stimulus)
         else:
             end = onset_ns + round(spec.stimulus_s * 1e9)
             self._glyphs.append((onset_ns, end, item.stimulus))
