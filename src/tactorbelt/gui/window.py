@@ -309,7 +309,6 @@ def session_window(
     screenshot_dir: str | Path | None = None,
     joystick: JoystickConfig | int | str | None = None,
     cursor: CursorSource | None = None,
-    seed: int | None = None,
     size: tuple[int, int] = (1280, 800),
     fps: float = 60.0,
     auto_continue_s: float | None = None,
@@ -332,8 +331,6 @@ def session_window(
         joystick: which stick (index, name substring) or a full JoystickConfig.
         cursor: a ready source to show and feed (e.g. a JoystickCursor on a test
             backend) instead of the one ``input`` makes.
-        seed: unused (the model participant is made by the caller with
-            :func:`tactorbelt.inputs.make_cursor`).
     """
     if clock is None:
         from ..clock import WallClock
@@ -348,7 +345,7 @@ def session_window(
                               auto_continue_s=auto_continue_s, on_frame=on_frame)
     try:
         if cursor is None and kind.display:  # the window makes and feeds it
-            cursor = make_cursor(input, study=study, participant=participant, seed=seed,
+            cursor = make_cursor(input, study=study, participant=participant,
                                  geometry=window.renderer.geometry, joystick=joystick)
         if cursor is not None:
             window.attach_cursor(cursor)
