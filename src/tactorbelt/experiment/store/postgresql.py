@@ -58,7 +58,7 @@ from typing import Any
 from ..._errors import StoreError
 from ..provenance import default_site
 from ..trial import TrialResult
-from .base import SCHEMA_VERSION, TASK_EVENT_COLUMNS, StoreCapabilities
+from .base import RATING_COLUMNS, SCHEMA_VERSION, TASK_EVENT_COLUMNS, StoreCapabilities
 from .schema import POSTGRESQL, columns, migrate, missing_columns
 from .sql import Store
 
@@ -151,11 +151,6 @@ def check_url(url: str) -> dict[str, str]:
     return params
 
 
-def _redact(url: str) -> str:
-    """The URL for messages (never holds a password: :func:`check_url` refuses one)."""
-    return url
-
-
 def _connect_error(url: str, exc: Exception, create: bool, readonly: bool) -> StoreError:
     msg = str(exc).strip()
     first = " ".join(line.strip() for line in msg.splitlines()[:1]) or type(exc).__name__
@@ -163,15 +158,15 @@ def _connect_error(url: str, exc: Exception, create: bool, readonly: bool) -> St
     if "password authentication failed" in low or "no password supplied" in low \
             or ("role" in low and "does not exist" in low) or "authentication failed" in low:
         return StoreError(
-            f"cannot log in to {_redact(url)}: {first}; check the user name in the URL and "
+            f"cannot log in to {url}: {first}; check the user name in the URL and "
             "the password in ~/.pgpass or PGPASSWORD")
     if "database" in low and "does not exist" in low:
         if not create or readonly:
-            return StoreError(f"{_redact(url)}: no such store ({first})")
-        return StoreError(f"{_redact(url)}: {first}; create the database first "
+            return StoreError(f"{url}: no such store ({first})")
+        return StoreError(f"{url}: {first}; create the database first "
                           "(createdb NAME, by its owner)")
     return StoreError(
-        f"cannot reach the PostgreSQL server of {_redact(url)}: {first}; check that it runs "
+        f"cannot reach the PostgreSQL server of {url}: {first}; check that it runs "
         "and the URL (host, port, database), or run with --offline to write the local store "
         "alone and push it later with 'tactorbelt sync'")
 
@@ -307,32 +302,18 @@ class PostgreSQLStore(Store):
         except psycopg.Error as exc:
             raise StoreError(f"cannot {what} {self.url}: {str(exc).strip()}") from None
 
-    def _query(self, sql: str, args: Sequence[Any] = (), dicts: bool = False) -> list[Any]:
+    def _read_error(self) -> type[Exception]:
         import psycopg
-        from psycopg.rows import dict_row, tuple_row
 
-        try:
-            with self.conn.cursor(row_factory=dict_row if dicts else tuple_row) as cur:
-                cur.execute(sql, tuple(args))
-                return cur.fetchall()
-        except psycopg.Error as exc:
-            raise StoreError(f"cannot read {self.url}: {str(exc).strip()}") from None
-
-    def _dicts(self, sql: str, args: Sequence[Any] = ()) -> list[dict[str, Any]]:
-        return self._query(sql, args, dicts=True)
+        return psycopg.Error
 
     def _stream(self, sql: str, args: Sequence[Any]) -> Iterator[Sequence[Any]]:
         """Rows through a server-side cursor, 10,000 at a time."""
-        import psycopg
-
-        try:
-            with self.conn.transaction(), \
-                    self.conn.cursor(name=f"tb_samples_{uuid.uuid4().hex}") as cur:
-                cur.itersize = 10_000
-                cur.execute(sql, tuple(args))
-                yield from cur
-        except psycopg.Error as exc:
-            raise StoreError(f"cannot read {self.url}: {str(exc).strip()}") from None
+        with self._reading(), self.conn.transaction(), \
+                self.conn.cursor(name=f"tb_samples_{uuid.uuid4().hex}") as cur:
+            cur.itersize = 10_000
+            cur.execute(sql, tuple(args))
+            yield from cur
 
     def _claim(self, cur: Any, participant: str, site: str) -> None:
         if not cur.execute("SELECT tactorbelt.claim_participant(%s, %s)",
@@ -507,10 +488,10 @@ class PostgreSQLStore(Store):
             if n == len(rows):
                 return 0
             c.execute("DELETE FROM tactorbelt.task_events WHERE session_id=%s", (session_id,))
-            c.executemany(
-                f"INSERT INTO tactorbelt.task_events(session_id, {', '.join(cols)}) "
-                f"VALUES (%s, {', '.join(['%s'] * len(cols))})",
-                [(session_id, *(_event_value(k, r[k]) for k in cols)) for r in rows])
+            b = {"target", "correct"}  # bound as booleans
+            c.executemany(self.dialect.insert("task_events", TASK_EVENT_COLUMNS),
+                          [(session_id, *(bool(r[k]) if k in b else r[k] for k in cols))
+                           for r in rows])
         return len(rows)
 
     def import_ratings(self, session_id: int, rows: Sequence[Mapping[str, Any]]) -> int:
@@ -525,16 +506,9 @@ class PostgreSQLStore(Store):
             if sorted(tuple(h) for h in have) == sorted(want):
                 return 0
             c.execute("DELETE FROM tactorbelt.ratings WHERE session_id=%s", (session_id,))
-            c.executemany(
-                "INSERT INTO tactorbelt.ratings(session_id, block_index, scale, item, value,"
-                " rating_order) VALUES (%s, %s, %s, %s, %s, %s)",
-                [(session_id, *w, i) for i, w in enumerate(want)])
+            c.executemany(self.dialect.insert("ratings", (*RATING_COLUMNS, "rating_order")),
+                          [(session_id, *w, i) for i, w in enumerate(want)])
         return len(want)
-
-
-def _event_value(column: str, value: Any) -> Any:
-    """A task_events value for PostgreSQL (SQLite keeps the booleans as 0/1)."""
-    return bool(value) if column in ("target", "correct") else value
 
 
 def _site_rules(conn: Any) -> None:

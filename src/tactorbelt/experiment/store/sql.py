@@ -9,8 +9,8 @@ the connection and what only its database does:
 - ``_transaction(what)``: a context manager giving an object with ``execute`` and
   ``executemany`` (the connection, a cursor), committing at its end, rolling back and
   raising StoreError (``cannot {what} {url}: ...``) on a database error;
-- ``_query(sql, args)`` (rows that index like tuples), ``_dicts(sql, args)`` (dicts) and
-  ``_stream(sql, args)`` (rows without holding them all), StoreError on a failed read;
+- ``_read_error()`` (the driver's error class: a failed read is StoreError) and
+  ``_stream(sql, args)`` (rows without holding them all);
 - ``_write_samples(c, trial_id, result)`` and ``_bulk_samples(c, rows)``: the sample
   rows of a trial and of :meth:`bulk_insert` (SQLite's multi-row INSERTs, PostgreSQL's
   COPY);
@@ -26,6 +26,7 @@ the connection and what only its database does:
 from __future__ import annotations
 
 import abc
+import contextlib
 import json
 from collections.abc import Iterable, Iterator, Mapping, Sequence
 from contextlib import AbstractContextManager
@@ -131,10 +132,8 @@ class Store(abc.ABC):
     def _transaction(self, what: str = "write to") -> AbstractContextManager[Any]:
         raise NotImplementedError
 
-    def _query(self, sql: str, args: Sequence[Any] = ()) -> list[Any]:
-        raise NotImplementedError
-
-    def _dicts(self, sql: str, args: Sequence[Any] = ()) -> list[dict[str, Any]]:
+    def _read_error(self) -> type[Exception]:
+        """The driver's error class of a failed read."""
         raise NotImplementedError
 
     def _stream(self, sql: str, args: Sequence[Any]) -> Iterator[Sequence[Any]]:
@@ -150,6 +149,26 @@ class Store(abc.ABC):
         """Claim a participant id for ``site`` (a store of one site takes any id)."""
 
     # -- helpers ---------------------------------------------------------------------
+    @contextlib.contextmanager
+    def _reading(self) -> Iterator[None]:
+        """A database error in it is raised as StoreError ``cannot read {url}: ...``."""
+        try:
+            yield
+        except self._read_error() as exc:
+            raise StoreError(f"cannot read {self.url}: {str(exc).strip()}") from None
+
+    def _query(self, sql: str, args: Sequence[Any] = ()) -> list[Any]:
+        """The rows of a query (they index like tuples)."""
+        with self._reading():
+            return list(self.conn.execute(sql, tuple(args)).fetchall())
+
+    def _dicts(self, sql: str, args: Sequence[Any] = ()) -> list[dict[str, Any]]:
+        """The rows of a query as dicts."""
+        with self._reading():
+            cur = self.conn.execute(sql, tuple(args))
+            names = [d[0] for d in cur.description]
+            return [dict(zip(names, r, strict=True)) for r in cur]
+
     def _sql(self, text: str) -> str:
         return self.dialect.sql(text)
 

@@ -427,20 +427,12 @@ class SQLiteStore(Store):
         except sqlite3.Error as exc:
             raise StoreError(f"cannot set {setting} on {self.path}: {exc}") from None
 
-    def _query(self, sql: str, args: Sequence[Any] = ()) -> list[sqlite3.Row]:
-        try:
-            return self.conn.execute(sql, tuple(args)).fetchall()
-        except sqlite3.DatabaseError as exc:
-            raise StoreError(f"cannot read {self.path}: {exc}") from None
-
-    def _dicts(self, sql: str, args: Sequence[Any] = ()) -> list[dict[str, Any]]:
-        return [dict(r) for r in self._query(sql, args)]
+    def _read_error(self) -> type[Exception]:
+        return sqlite3.DatabaseError
 
     def _stream(self, sql: str, args: Sequence[Any]) -> Iterator[Sequence[Any]]:
-        try:
+        with self._reading():
             yield from self.conn.execute(sql, tuple(args))
-        except sqlite3.DatabaseError as exc:
-            raise StoreError(f"cannot read {self.path}: {exc}") from None
 
     # -- trials ------------------------------------------------------------------------
     def _put_trial(self, c: Any, session_id: int, trial_index: int,
