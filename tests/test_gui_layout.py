@@ -11,9 +11,9 @@ from hypothesis import strategies as st
 
 from tactorbelt import ConfigError
 from tactorbelt.experiment.trial import cursor_angle_deg
-from tactorbelt.gui.layout import EllipseGeometry, fit_ellipse, ray_radius, target_positions
 from tactorbelt.inputs.joystick import stick_to_cursor
 from tactorbelt.inputs.kinds import JoystickConfig
+from tactorbelt.inputs.screen import EllipseGeometry, fit_ellipse, ray_radius, target_positions
 
 CENTER = (400.0, 300.0)
 RX, RY = 250.0, 200.0

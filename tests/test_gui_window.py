@@ -26,13 +26,13 @@ from tactorbelt.experiment.runner import run_session
 from tactorbelt.experiment.schedule import make_schedule
 from tactorbelt.experiment.store import Store
 from tactorbelt.experiment.study import Study
-from tactorbelt.gui.layout import target_positions
 from tactorbelt.gui.render import COLORS
 from tactorbelt.gui.window import SCREEN_KINDS, ExperimentWindow, run_with_window
 from tactorbelt.inputs.base import TrialCue
 from tactorbelt.inputs.joystick import JoystickCursor
 from tactorbelt.inputs.kinds import JoystickConfig
 from tactorbelt.inputs.mouse import MouseCursor
+from tactorbelt.inputs.screen import target_positions
 from tactorbelt.inputs.scripted import ScriptedCursor, ScriptedResponse
 
 SMALL = study_toml(minimal=True, name="small", tactors=4, targets=8,

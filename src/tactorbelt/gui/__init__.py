@@ -3,7 +3,7 @@
 - :func:`session_window` / :func:`run_with_window` (``gui.window``): open the window for
   one session and run it in the main thread; the window's state machine is
   ``gui.controller``, what each kind of screen shows ``gui.screens``;
-- :func:`target_positions`, :class:`EllipseGeometry` (``gui.layout``, pure): where
+- :func:`target_positions`, :class:`EllipseGeometry` (``inputs.screen``, pure): where
   targets and the cursor are drawn.
 
 Importing this package imports neither pygame nor NumPy; the names below are loaded
@@ -24,8 +24,8 @@ __all__ = [
 ]
 
 _LAZY = {
-    "EllipseGeometry": "tactorbelt.gui.layout",
-    "target_positions": "tactorbelt.gui.layout",
+    "EllipseGeometry": "tactorbelt.inputs.screen",
+    "target_positions": "tactorbelt.inputs.screen",
     "ExperimentWindow": "tactorbelt.gui.window",
     "SessionWindow": "tactorbelt.gui.window",
     "run_with_window": "tactorbelt.gui.window",

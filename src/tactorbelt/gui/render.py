@@ -12,7 +12,8 @@ paper's Fig. 1(A)), the home zone at the centre and the cursor. Tactor positions
 hidden; the experimenter overlay (:attr:`View.overlay`) shows them, with the live
 amplitude of each tactor as a ring and as bars, and the session's state in text.
 
-I/O (pygame); imports tactorbelt.gui.layout. Import it only when a window is opened.
+I/O (pygame); imports tactorbelt.inputs.screen (the geometry). Import it only when a
+window is opened.
 """
 
 from __future__ import annotations
@@ -23,7 +24,7 @@ from typing import Any
 import numpy as np
 import pygame
 
-from .layout import EllipseGeometry, bar_rects, fit_ellipse
+from ..inputs.screen import EllipseGeometry, bar_rects, fit_ellipse
 
 __all__ = ["COLORS", "Renderer", "View"]
 
