@@ -8,7 +8,25 @@ import numpy as np
 import pytest
 
 from tactorbelt import ConfigError, Layout
-from tactorbelt.display.filters import STEP_LAG_S, Hysteresis, OneEuroFilter, step_lag_s
+from tactorbelt.display.filters import Hysteresis, OneEuroFilter
+from tactorbelt.geometry import wrap
+
+#: The documented step lag of the default filter (the filters module, docs/direction-display.md).
+STEP_LAG_S = 0.20
+
+
+def step_lag_s(step_deg: float, rate: float) -> float:
+    """The lag of the default filter on a noiseless heading step: at rest at 0 for one
+    second, then at ``step_deg``; the time from the step to the first sample whose output
+    is within 10 % of the step (a multiple of ``1/rate``)."""
+    f = OneEuroFilter()
+    n_rest = round(rate)
+    for i in range(n_rest):
+        f(0.0, i / rate)
+    for j in range(round(60 * rate)):
+        if abs(float(wrap(f(step_deg, (n_rest + j) / rate) - step_deg))) <= abs(step_deg) * 0.1:
+            return j / rate
+    raise AssertionError(f"a {step_deg} deg step never settled")
 
 
 def _signed(a: np.ndarray) -> np.ndarray:

@@ -21,14 +21,14 @@ of noise, a walking wearer who turns at up to about 90 deg/s):
   Noise alone (derivative about 20 deg/s after its own filter) raises it by only ~0.4 Hz.
 - ``d_cutoff_hz = 1.0``: the cutoff of the speed estimate, the value of the paper.
 
-Measured step response (:func:`step_lag_s`: a noiseless heading step, sampled at 20 Hz,
+Measured step response (``tests/test_filters.py``: a noiseless heading step, sampled at 20 Hz,
 default parameters; lag = time until the output is within 10% of the step). Because the
 cutoff rises with speed, big steps pass faster than small ones:
 
     step     5 deg   10 deg   30 deg   90 deg
     lag     0.60 s   0.45 s   0.20 s   0.05 s
 
-``STEP_LAG_S`` = 0.20 s is the figure for a 30-degree step (a typical turn). A heading
+0.20 s is the figure for a 30-degree step (a typical turn). A heading
 that jitters by +-3 deg (uniform) at 20 Hz comes out with a standard deviation about
 3.2 times smaller; during a steady 90 deg/s turn the output trails by about 6 deg.
 
@@ -49,10 +49,8 @@ __all__ = [
     "DEFAULT_D_CUTOFF_HZ",
     "DEFAULT_HYSTERESIS_DEG",
     "DEFAULT_MIN_CUTOFF_HZ",
-    "STEP_LAG_S",
     "Hysteresis",
     "OneEuroFilter",
-    "step_lag_s",
 ]
 
 DEFAULT_MIN_CUTOFF_HZ: Final = 0.5
@@ -60,8 +58,6 @@ DEFAULT_BETA: Final = 0.02
 DEFAULT_D_CUTOFF_HZ: Final = 1.0
 #: Hysteresis margin past a sector boundary before the dominant tactor changes.
 DEFAULT_HYSTERESIS_DEG: Final = 4.0
-#: The documented step lag of the default filter (see :func:`step_lag_s`).
-STEP_LAG_S: Final = 0.20
 
 #: A held angle stays this far inside the dominant tactor's sector (never on its edge).
 _HOLD_INSIDE_DEG: Final = 0.01
@@ -173,36 +169,6 @@ class OneEuroFilter:
         self._raw_prev = xv
         self._x_unwrapped = xu
         return self.value  # type: ignore[return-value]
-
-
-def step_lag_s(
-    step_deg: float = 30.0,
-    rate_hz: float = 20.0,
-    within: float = 0.1,
-    min_cutoff_hz: float = DEFAULT_MIN_CUTOFF_HZ,
-    beta: float = DEFAULT_BETA,
-    d_cutoff_hz: float = DEFAULT_D_CUTOFF_HZ,
-) -> float:
-    """Measure the lag of the filter on a noiseless heading step.
-
-    The heading rests at 0 for one second, then steps to ``step_deg``. The lag is the
-    time from the step to the first sample whose output is within ``within`` (a
-    fraction) of the step.
-
-    Returns:
-        The lag in seconds (a multiple of ``1/rate_hz``).
-    """
-    f = OneEuroFilter(min_cutoff_hz, beta, d_cutoff_hz, angular=True)
-    rate = _positive(rate_hz, "rate_hz")
-    n_rest = round(rate)
-    for i in range(n_rest):
-        f(0.0, i / rate)
-    limit = abs(step_deg) * within
-    for j in range(round(60 * rate)):
-        y = f(step_deg, (n_rest + j) / rate)
-        if abs(float(wrap(y - step_deg))) <= limit:
-            return j / rate
-    return math.inf
 
 
 @dataclass
