@@ -69,7 +69,7 @@ from typing import TYPE_CHECKING, Any, Final
 import numpy as np
 from numpy.typing import NDArray
 
-from .._errors import ConfigError, DeviceError, ProtocolError
+from .._errors import ConfigError, DeviceError, ProtocolError, TactorbeltError
 from .._registry import check_option
 from ..geometry import Layout
 from . import wire
@@ -468,8 +468,7 @@ class SenseRecording:
             broken = self._broken
             last = self._last_t_us
         if broken is not None and t1_ns is not None and (
-                last is None or self._to_host(self._current_fit(),
-                                              np.array([last], dtype=np.int64))[0] < t1_ns):
+                last is None or self._current_fit().to_host(last)[0] < t1_ns):
             return f"the recording ended early: {broken}"
         return None
 
@@ -481,8 +480,7 @@ class SenseRecording:
             with self._cond:
                 last = self._last_t_us
                 ended = self.finished or self._broken is not None
-            if last is not None and self._to_host(
-                    self._current_fit(), np.array([last], dtype=np.int64))[0] >= t_ns:
+            if last is not None and self._current_fit().to_host(last)[0] >= t_ns:
                 return True
             left = deadline - time.monotonic()
             if ended or left <= 0:
@@ -528,8 +526,6 @@ class SenseRecording:
         state = "active" if self.active else "ended"
         return (f"<SenseRecording of {self._belt.port}: {len(self)} samples at "
                 f"{self.rate_hz:g} Hz, {state}>")
-
-
 
 
 class FirmwareBelt(Belt, PacketSink):
@@ -988,8 +984,6 @@ class FirmwareBelt(Belt, PacketSink):
         """
         self._check_open()
         if not self.extensions:
-            from .._errors import TactorbeltError
-
             raise TactorbeltError(f"the firmware on {self.port} ({self.firmware_version}) "
                                   "cannot report diagnostics (needs firmware 1.1)")
         diag: wire.Diag = self._request(wire.get_diag, "the diagnostics request",
@@ -1438,7 +1432,6 @@ def probe(row: Found, open_: Callable[[], FirmwareBelt]) -> None:
     """Open a belt, note its version, tactor count, version note and what its drive can
     do in ``row`` (``tactorbelt devices``), close it; the error in ``row.note`` when it
     does not open. Never raises."""
-    from .._errors import TactorbeltError
     from ..firmware import version_note
 
     try:

@@ -273,22 +273,20 @@ class NaviBelt(Belt):
             new[ch] = (intensity, mask)
         for ch in self._channels:
             if ch not in new:
-                self._stop_channel(ch)
+                self._sent(self._controller.stop_vibration(ch), "stopping")
         self._channels = new
 
     def _send(self, channel: int, intensity: int, mask: int) -> None:
-        ok = self._controller.send_vibration_command(
+        self._sent(self._controller.send_vibration_command(
             channel_index=channel, pattern=1, intensity=min(100, intensity), orientation_type=0,
             orientation=mask, pattern_iterations=None, pattern_period=500, pattern_start_time=0,
-            exclusive_channel=False, clear_other_channels=False)
+            exclusive_channel=False, clear_other_channels=False), "playing")
+
+    def _sent(self, ok: bool, doing: str) -> None:
+        """pybelt could not send a command (it returned False): the link is lost."""
         if not ok:
             self._lost = self._lost or "pybelt could not send (not connected)"
-            self._check_link("playing")
-
-    def _stop_channel(self, channel: int) -> None:
-        if not self._controller.stop_vibration(channel):
-            self._lost = self._lost or "pybelt could not send (not connected)"
-            self._check_link("stopping")
+            self._check_link(doing)
 
     def _write_stop(self) -> None:
         if self._lost is not None:
@@ -298,9 +296,8 @@ class NaviBelt(Belt):
             self._check_link("stopping")
         ok = self._controller.stop_vibration()
         self._channels = {}
-        if not ok and not self._closing:
-            self._lost = "pybelt could not send (not connected)"
-            self._check_link("stopping")
+        if not self._closing:
+            self._sent(ok, "stopping")
         if ok and self._closing:  # the stop has reached the belt before the link closes
             try:
                 self.ping()
@@ -346,8 +343,6 @@ class NaviBelt(Belt):
         finally:
             if self.emulation is not None:
                 self.emulation.close()
-
-
 
 
 def _as_daemon(what: str, fn: Any) -> Any:
