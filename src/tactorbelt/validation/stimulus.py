@@ -36,7 +36,11 @@ How each tactor is sensed depends on what the sensor declares
   every other tactor held off (streamed: :class:`_Only`), and the one signal of each
   play is that tactor's envelope. Its static response is measured alone too. A tactor
   the stimulus never drives is not played: it is reported ``silent`` (felt nothing,
-  error 0), not as whatever the sensor picked up from the others.
+  error 0), not as whatever the sensor picked up from the others. The replays are
+  streamed (a device renders whole stimuli only): where a session would have the
+  device render the stimulus (``session_plays``), the device's shaper previews a
+  rendered stimulus a few ticks ahead (``erm.LEAD_TICKS``) and a streamed one not, so
+  shaped edges may come that much later in the replays than in a session.
 
 :func:`run_stimulus` is the whole command: open, validate, write ``stimulus.json`` and
 ``stimulus.png``. Imports NumPy and tactorbelt's devices; matplotlib only for the figure.
@@ -84,6 +88,8 @@ ONSET_TIMEOUT_S: Final = 0.5
 #: How the tactors were told apart (stimulus.json's ``isolation``).
 DIRECT: Final = "none: the sensor senses each tactor apart"
 REPLAY: Final = "per-tactor replay"
+STREAMED: Final = "streamed"
+RENDERED: Final = "rendered on the device"
 
 FloatArray = NDArray[np.float64]
 
@@ -107,13 +113,18 @@ class StimulusValidation:
     condition: str
     duration_s: float
     targets: list[dict[str, Any]]
-    response: list[list[float | None]]
+    #: per tactor its steady amplitude at each response level (None: not played)
+    response: list[list[float] | None]
     traces: dict[int, dict[int, _Trace]]
     rms_error: float
     between_tactor_rms_error: float | None
     isolation: str = DIRECT
     plays: int = 0
     onset_reference: str = "host"
+    #: how the measured plays went, and how a session plays the stimulus on this belt
+    #: (``streamed`` or ``rendered on the device``)
+    played: str = STREAMED
+    session_plays: str = STREAMED
 
     def to_dict(self) -> dict[str, Any]:
         return {"format": FORMAT, "version": 1, "belt": self.belt, "sensor": self.sensor,
@@ -121,6 +132,7 @@ class StimulusValidation:
                 "duration_s": self.duration_s, "rms_error": self.rms_error,
                 "between_tactor_rms_error": self.between_tactor_rms_error,
                 "isolation": self.isolation, "plays": self.plays,
+                "played": self.played, "session_plays": self.session_plays,
                 "onset_reference": self.onset_reference,
                 "threshold": LOW, "response_levels": list(RESPONSE_LEVELS),
                 "response": self.response, "targets": self.targets}
@@ -307,8 +319,11 @@ def validate_stimulus(belt: Belt, sensor: Sensor, study: Study, targets: Sequenc
     all_sq: list[FloatArray] = []
     between_sq: list[FloatArray] = []
     done = 0
+    session = STREAMED
     try:
         with Player(belt, clock) as player:
+            if any(player.renders_on_device(s) for s in stimuli.values()):
+                session = RENDERED
             sensor.start()
             response = _response(belt, sensor, clock,
                                  range(belt.n_tactors) if direct else needed, off_ns)
@@ -354,12 +369,13 @@ def validate_stimulus(belt: Belt, sensor: Sensor, study: Study, targets: Sequenc
     return StimulusValidation(
         belt=belt.url, sensor=sensor.url, drive=belt.drive, condition=condition,
         duration_s=duration_s, targets=rows,
-        response=[[None if not math.isfinite(v) else float(v) for v in col]
+        response=[[float(v) for v in col] if np.isfinite(col).all() else None
                   for col in response.T],
         traces=traces, rms_error=float(np.sqrt(np.mean(np.concatenate(all_sq)))),
         between_tactor_rms_error=(float(np.sqrt(np.mean(np.concatenate(between_sq))))
                                   if between_sq else None),
         isolation=DIRECT if direct else REPLAY, plays=total,
+        played=session if direct else STREAMED, session_plays=session,
         onset_reference=("device: belt.last_onset(), as a session stores it"
                          if belt.reports_onsets else "host: the player's onset"))
 
