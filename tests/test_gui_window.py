@@ -26,6 +26,7 @@ from tactorbelt.experiment.runner import run_session
 from tactorbelt.experiment.schedule import make_schedule
 from tactorbelt.experiment.store import Store
 from tactorbelt.experiment.study import Study
+from tactorbelt.geometry import TargetSet
 from tactorbelt.gui.render import COLORS
 from tactorbelt.gui.window import SCREEN_KINDS, ExperimentWindow, run_with_window
 from tactorbelt.inputs.base import TrialCue
@@ -113,7 +114,7 @@ def test_targets_are_drawn_where_the_geometry_puts_them(study: Study) -> None:
     try:
         win.draw(0)
         g = win.renderer.geometry
-        targets = study.target_set()
+        targets = TargetSet.even(study.targets.count)
         on = targets.on_tactor(study.layout_obj())
         pos = target_positions(targets.angles_deg, (g.cx, g.cy), g.rx, g.ry)
         for (px, py), is_on in zip(pos, on, strict=True):
@@ -466,7 +467,7 @@ def test_overlay_panel_hides_no_target_label_or_prompt(size: tuple[int, int]) ->
     from tactorbelt.gui.render import Renderer, View
 
     paper = paper_study()
-    layout, targets = paper.layout_obj(), paper.target_set()
+    layout, targets = paper.layout_obj(), TargetSet.even(paper.targets.count)
     pygame.display.init()
     pygame.font.init()
     surface = pygame.Surface(size)

@@ -138,9 +138,6 @@ class TargetsSpec(_Model):
 
     count: int = Field(ge=1, le=360)
 
-    def to_target_set(self) -> TargetSet:
-        return TargetSet.even(self.count)
-
 
 def _check_law(v: str | None) -> str | None:
     """``v`` when it names a registered amplitude law (``_lawnames.LAWS`` as it is when the
@@ -542,10 +539,6 @@ class Study(_Model):
         """The tactor layout."""
         return self.layout.to_layout()
 
-    def target_set(self) -> TargetSet:
-        """The candidate targets."""
-        return self.targets.to_target_set()
-
     def block_n_targets(self, block: BlockSpec) -> int:
         """The target count of a test block (its ``targets``, else ``[targets] count``)."""
         return block.targets if block.targets is not None else self.targets.count
@@ -553,10 +546,6 @@ class Study(_Model):
     def block_level(self, block: BlockSpec, f: Factor) -> Any:
         """A test block's level of factor ``f`` (the target count: :meth:`block_n_targets`)."""
         return self.block_n_targets(block) if f.key == "targets" else block.level(f)
-
-    def block_targets(self, block: BlockSpec) -> TargetSet:
-        """The candidate targets of a test block."""
-        return TargetSet.even(self.block_n_targets(block))
 
     def block_stimulus(self, block: BlockSpec) -> StimulusSpec:
         """The stimulus of a test block: ``[stimulus]`` with the block's overrides."""
