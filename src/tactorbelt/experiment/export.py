@@ -54,7 +54,7 @@ from collections.abc import Iterable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
-from .._errors import ConfigError, TactorbeltError
+from .._errors import ConfigError
 from ..factors import CONDITION, LOAD, TARGETS, Factor, added_factors, after_builtin
 from ..tasks import TLX_ITEMS, TLX_SCALES
 from .store import Store, open_store
@@ -63,6 +63,7 @@ from .study import Study
 __all__ = [
     "BEH_COLUMNS",
     "CURSOR_COLUMNS",
+    "DTYPES",
     "EVENT_COLUMNS",
     "RECORDING",
     "TASK",
@@ -70,6 +71,7 @@ __all__ = [
     "TLX_TASK",
     "beh_columns",
     "bids_label",
+    "dtypes",
     "export_bids",
     "export_csv",
     "factor_sidecar",
@@ -82,26 +84,55 @@ TASK = "betweentactor"
 #: The BIDS task label of the NASA-TLX ratings (a questionnaire after each test block).
 TLX_TASK = "nasatlx"
 
-TRIAL_COLUMNS = [
-    "participant", "session_id", "session_number", "trial_id", "trial_index", "block",
-    "block_index", "block_name", "condition", "repetition", "target_deg", "on_tactor",
-    "response_deg", "response_target_deg", "correct", "rt_s", "onset_ns", "acquired_ns",
-    "crossed_ns", "stimulus_off_ns", "n_samples", "status", "abort_reason", "attempts",
-    "n_targets", "load", "device_onset_ns", "onset_uncertainty_ns", "skin_onset_ns",
-    "skin_onset_sd_ns",
-]
-SAMPLE_COLUMNS = ["participant", "session_id", "trial_index", "t_s", "x", "y", "buttons"]
-TASK_EVENT_CSV_COLUMNS = [
-    "participant", "session_id", "session_number", "block_index", "task", "phase",
-    "item_index", "t_ns", "stimulus", "target", "response", "correct", "rt_s",
-]
-RATING_CSV_COLUMNS = ["participant", "session_id", "session_number", "block_index",
-                      "scale", "item", "value"]
-SESSION_COLUMNS = [
-    "session_id", "participant", "session_number", "study_name", "study_sha256", "seed",
-    "condition_order", "n_trials", "belt", "firmware_version", "package_version",
-    "git_commit", "host", "input", "clock", "started_at", "ended_at", "status", "resumed",
-]
+_INT, _FLOAT, _STR, _BOOL = "Int64", "Float64", "string", "boolean"
+#: The columns of every table of the CSV and Parquet exports, in order, with their
+#: pandas types (nullable; :mod:`.export_formats` reads the tables back with them).
+DTYPES: dict[str, dict[str, str]] = {
+    "sessions": {
+        "session_id": _INT, "participant": _STR, "session_number": _INT, "study_name": _STR,
+        "study_sha256": _STR, "seed": _INT, "condition_order": _STR, "n_trials": _INT,
+        "belt": _STR, "firmware_version": _STR, "package_version": _STR, "git_commit": _STR,
+        "host": _STR, "input": _STR, "clock": _STR, "started_at": _STR, "ended_at": _STR,
+        "status": _STR, "resumed": _INT,
+    },
+    "trials": {
+        "participant": _STR, "session_id": _INT, "session_number": _INT, "trial_id": _INT,
+        "trial_index": _INT, "block": _STR, "block_index": _INT, "block_name": _STR,
+        CONDITION.column: _STR, "repetition": _INT, "target_deg": _FLOAT, "on_tactor": _BOOL,
+        "response_deg": _FLOAT, "response_target_deg": _FLOAT, "correct": _BOOL,
+        "rt_s": _FLOAT, "onset_ns": _INT, "acquired_ns": _INT, "crossed_ns": _INT,
+        "stimulus_off_ns": _INT, "n_samples": _INT, "status": _STR, "abort_reason": _STR,
+        "attempts": _INT, TARGETS.column: _INT, LOAD.column: _STR,
+        "device_onset_ns": _INT, "onset_uncertainty_ns": _INT, "skin_onset_ns": _INT,
+        "skin_onset_sd_ns": _INT,
+    },
+    "samples": {
+        "participant": _STR, "session_id": _INT, "trial_index": _INT, "t_s": _FLOAT,
+        "x": _FLOAT, "y": _FLOAT, "buttons": _INT,
+    },
+    # under cognitive load (written when the store has any)
+    "task_events": {
+        "participant": _STR, "session_id": _INT, "session_number": _INT,
+        "block_index": _INT, "task": _STR, "phase": _STR, "item_index": _INT, "t_ns": _INT,
+        "stimulus": _STR, "target": _BOOL, "response": _STR, "correct": _BOOL,
+        "rt_s": _FLOAT,
+    },
+    "ratings": {
+        "participant": _STR, "session_id": _INT, "session_number": _INT,
+        "block_index": _INT, "scale": _STR, "item": _STR, "value": _FLOAT,
+    },
+}
+#: The built-in columns of ``trials.csv`` (:func:`trial_columns` adds the added factors').
+TRIAL_COLUMNS = list(DTYPES["trials"])
+_FACTOR_DTYPE = {"text": _STR, "int": _INT}
+
+
+def dtypes(table: str) -> dict[str, str]:
+    """The column types of an exported table: :data:`DTYPES`, the trials with a column
+    for each factor declared beyond the built-in ones (:mod:`tactorbelt.factors`)."""
+    extra = added_factors() if table == "trials" else ()
+    return {**DTYPES[table], **{f.column: _FACTOR_DTYPE[f.type] for f in extra}}
+
 
 def factor_sidecar(f: Factor) -> dict[str, Any]:
     """A factor's column in a BIDS sidecar: its description and levels, as declared."""
@@ -118,7 +149,7 @@ def _after_load(columns: dict[str, Any]) -> dict[str, Any]:
 def trial_columns() -> list[str]:
     """The columns of ``trials.csv``: :data:`TRIAL_COLUMNS`, then a column for each
     factor declared beyond the built-in ones."""
-    return TRIAL_COLUMNS + [f.column for f in added_factors()]
+    return list(dtypes("trials"))
 
 
 def beh_columns() -> dict[str, dict[str, Any]]:
@@ -332,11 +363,12 @@ def _beh_value(trial: dict[str, Any], column: str) -> Any:
 
 
 @functools.lru_cache(maxsize=64)
-def _study_count(study_toml: str) -> int | None:
-    """``[targets] count`` of a stored study text (None when it does not parse)."""
+def _parse_study(study_toml: str | None) -> Study | None:
+    """The study of a stored study text (None when it does not parse: an older or
+    hand-made store)."""
     try:
-        return Study.from_toml(study_toml).targets.count
-    except TactorbeltError:
+        return Study.from_toml(study_toml or "")
+    except Exception:
         return None
 
 
@@ -352,7 +384,8 @@ def _with_cell(trial: dict[str, Any], session: dict[str, Any]) -> dict[str, Any]
     for f in added:
         out[f.column] = f.stored(out.get(f.column))
     if out.get("n_targets") is None:
-        out["n_targets"] = _study_count(str(session.get("study_toml") or ""))
+        study = _parse_study(session.get("study_toml"))
+        out["n_targets"] = None if study is None else study.targets.count
     if out.get("load") is None:
         out["load"] = "none"
     return out
@@ -367,11 +400,11 @@ def _csv_value(v: Any) -> Any:
     return v
 
 
-def _table_rows(store: Store) -> dict[str, tuple[list[str], Iterable[list[Any]]]]:
-    """The columns and rows of each table of the CSV (and Parquet) export, the store's
-    values: ``sessions``, ``trials`` (with their cells), ``samples`` (read as they are
-    written), and ``task_events`` and ``ratings`` when the store has any; a row's
-    ``participant`` and ``session_number`` are its session's."""
+def _table_rows(store: Store) -> dict[str, Iterable[list[Any]]]:
+    """The rows of each table of the CSV (and Parquet) export (columns: :func:`dtypes`),
+    the store's values: ``sessions``, ``trials`` (with their cells), ``samples`` (read as
+    they are written), and ``task_events`` and ``ratings`` when the store has any; a
+    row's ``participant`` and ``session_number`` are its session's."""
     sessions = store.sessions()
     by_id = {int(s["session_id"]): s for s in sessions}
     own = ("participant", "session_number")
@@ -381,18 +414,16 @@ def _table_rows(store: Store) -> dict[str, tuple[list[str], Iterable[list[Any]]]
         sess = by_id[int(t["session_id"])]
         t = _with_cell(t, sess)  # the added factors' levels too
         trials.append([sess[k] if k in own else t[k] for k in columns])
-    out: dict[str, tuple[list[str], Iterable[list[Any]]]] = {
-        "sessions": (SESSION_COLUMNS, [[s[k] for k in SESSION_COLUMNS] for s in sessions]),
-        "trials": (columns, trials),
-        "samples": (SAMPLE_COLUMNS, ([by_id[int(sid)]["participant"], sid, index, t_s, x, y,
-                                      buttons]
-                                     for sid, index, t_s, x, y, buttons in store.iter_samples())),
+    out: dict[str, Iterable[list[Any]]] = {
+        "sessions": [[s[k] for k in DTYPES["sessions"]] for s in sessions],
+        "trials": trials,
+        "samples": ([by_id[int(sid)]["participant"], sid, index, t_s, x, y, buttons]
+                    for sid, index, t_s, x, y, buttons in store.iter_samples()),
     }
-    for name, cols, rows in (("task_events", TASK_EVENT_CSV_COLUMNS, store.task_events()),
-                             ("ratings", RATING_CSV_COLUMNS, store.ratings())):
+    for name, rows in (("task_events", store.task_events()), ("ratings", store.ratings())):
         if rows:
-            out[name] = (cols, [[by_id.get(int(r["session_id"]), {}).get(k) if k in own
-                                 else r[k] for k in cols] for r in rows])
+            out[name] = [[by_id.get(int(r["session_id"]), {}).get(k) if k in own else r[k]
+                          for k in DTYPES[name]] for r in rows]
     return out
 
 
@@ -412,11 +443,11 @@ def export_csv(db: str | Path, out: str | Path, *, force: bool = False) -> list[
         o = _prepare(out, "csv", force, db)
         files = []
         try:
-            for name, (columns, rows) in _table_rows(store).items():
+            for name, rows in _table_rows(store).items():
                 files.append(o / f"{name}.csv")
                 with files[-1].open("w", newline="") as fh:
                     w = csv.writer(fh)
-                    w.writerow(columns)
+                    w.writerow(dtypes(name))
                     w.writerows([_csv_value(v) for v in r] for r in rows)
         except OSError as exc:
             raise ConfigError(f"cannot write to {o}: {exc.strerror}") from None
@@ -437,19 +468,11 @@ def _write_tsv(path: Path, header: list[str] | None, rows: Any) -> None:
             w.writerow([_na(v) for v in row])
 
 
-def _studies(sessions: list[dict[str, Any]]) -> list[Any]:
+def _studies(sessions: list[dict[str, Any]]) -> list[Study | None]:
     """The distinct studies of the sessions (parsed from the stored study files)."""
-    from .study import Study
-
-    seen: dict[str, Any] = {}
+    seen: dict[str, Study | None] = {}
     for s in sessions:
-        key = s["study_sha256"] or s["study_name"]
-        if key in seen:
-            continue
-        try:
-            seen[key] = Study.from_toml(s["study_toml"])
-        except Exception:  # an older or hand-made store: the name is enough
-            seen[key] = None
+        seen.setdefault(s["study_sha256"] or s["study_name"], _parse_study(s["study_toml"]))
     return list(seen.values())
 
 
@@ -506,24 +529,27 @@ def _readme(name: str, studies: list[Any], sessions: list[dict[str, Any]],
         "`t`, seconds from the onset of the session's first trial (`StartTime` is the "
         "first sample's `t`).", "",
         "## Trial columns (`_beh.tsv`)", ""]
-    lines += [f"- `{k}`: {v['Description']}" + (f" ({v['Units']})" if "Units" in v else "")
-              for k, v in beh_columns().items()]
+    lines += _column_lines(beh_columns())
     if events:
         lines += ["", "## Secondary-task events (`_events.tsv`)", "",
                   "Under a cognitive load, `beh/*_task-betweentactor_events.tsv` has one row "
                   "per item of the secondary task (practice, baseline and during the test "
                   "blocks) and per press that answered no item:", ""]
-        lines += [f"- `{k}`: {v['Description']}" + (f" ({v['Units']})" if "Units" in v
-                                                      else "") for k, v in EVENT_COLUMNS.items()]
+        lines += _column_lines(EVENT_COLUMNS)
     if ratings:
         lines += ["", f"## Workload ratings (`_task-{TLX_TASK}_beh.tsv`)", "",
                   f"`beh/*_task-{TLX_TASK}_beh.tsv` has one row per test block rated with the "
                   "raw NASA-TLX after it:", ""]
-        lines += [f"- `{k}`: {v['Description']}" for k, v in tlx_columns().items()]
+        lines += _column_lines(tlx_columns())
     lines += ["", f"## Cursor samples (`_recording-{RECORDING}_physio.tsv.gz`)", ""]
-    lines += [f"- `{k}`: {v['Description']}" + (f" ({v['Units']})" if "Units" in v else "")
-              for k, v in CURSOR_COLUMNS.items()]
+    lines += _column_lines(CURSOR_COLUMNS)
     return "\n".join(lines) + "\n"
+
+
+def _column_lines(columns: dict[str, dict[str, Any]]) -> list[str]:
+    """A README's list of columns: name, description (and units)."""
+    return [f"- `{k}`: {v['Description']}" + (f" ({v['Units']})" if "Units" in v else "")
+            for k, v in columns.items()]
 
 
 def _cursor_rows(store: Store, session_id: int, trials: list[dict[str, Any]]
@@ -556,7 +582,7 @@ def _write_cursor(path: Path, rows: Iterator[list[Any]]) -> float | None:
 
 def _cursor_sidecar(session: dict[str, Any], start: float | None) -> dict[str, Any]:
     """The ``_physio.json`` of a session's cursor recording."""
-    study = _session_study(session)
+    study = _parse_study(session["study_toml"])
     out: dict[str, Any] = {
         "SamplingFrequency": study.session.sample_rate_hz if study is not None else 100.0,
         "StartTime": 0.0 if start is None else start,
@@ -718,6 +744,7 @@ def _stimulus_system(session: dict[str, Any]) -> dict[str, Any]:
     from ..devices.registry import BACKENDS
 
     belt = str(session.get("belt") or "")
+    query = parse_qs(belt.partition("?")[2])
     # the actuators and carrier the belt's registry entry declares
     backend = BACKENDS.get(belt.split(":", 1)[0].split("?", 1)[0].lower())
     out: dict[str, Any] = {
@@ -725,18 +752,17 @@ def _stimulus_system(session: dict[str, Any]) -> dict[str, Any]:
         "Belt": belt or "n/a",
         "ActuatorType": backend.actuator if backend and backend.actuator else "unknown",
         # the session's belt URL names a shaped drive (docs/belts.md, "Drive shaping")
-        "Drive": parse_qs(belt.partition("?")[2]).get("drive", ["plain"])[0],
+        "Drive": query.get("drive", ["plain"])[0],
     }
     if session.get("firmware_version"):
         out["FirmwareVersion"] = str(session["firmware_version"])
     if backend is not None and backend.carrier_hz is not None:
-        query = parse_qs(belt.partition("?")[2])
         carrier = backend.carrier_hz
         with contextlib.suppress(ValueError):
             carrier = float(query.get("carrier_hz", [carrier])[0])
         out["CarrierFrequency"] = carrier
         out["CarrierFrequencyUnits"] = "Hz"
-    study = _session_study(session)
+    study = _parse_study(session["study_toml"])
     angles: list[float] = []
     if study is not None:
         angles = [float(a) for a in study.layout_obj().angles_deg]
@@ -776,14 +802,6 @@ def _stimulus_system(session: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
-def _session_study(session: dict[str, Any]) -> Any:
-    """The session's study (None when its stored text does not parse)."""
-    try:
-        return Study.from_toml(session["study_toml"])
-    except Exception:
-        return None
-
-
 def _task_files(store: Store, s: dict[str, Any], trials: list[dict[str, Any]], beh: Path,
                 stem: str, lab: str) -> list[Path]:
     """A session's secondary-task events (``_events.tsv``) and NASA-TLX ratings
@@ -794,7 +812,8 @@ def _task_files(store: Store, s: dict[str, Any], trials: list[dict[str, Any]], b
         onsets = [t["onset_ns"] for t in trials if t["onset_ns"] is not None]
         origin = min(onsets) if onsets else min(e["t_ns"] for e in events)
         ev = beh / f"{stem}_events.tsv"
-        _write_tsv(ev, list(EVENT_COLUMNS), _event_rows(events, origin, _session_study(s)))
+        study = _parse_study(s["study_toml"])
+        _write_tsv(ev, list(EVENT_COLUMNS), _event_rows(events, origin, study))
         written += [ev, _write_json(ev.with_suffix(".json"), EVENT_COLUMNS)]
     rows = _tlx_rows(store.ratings(s["session_id"]), trials)
     if rows:

@@ -36,18 +36,7 @@ from typing import TYPE_CHECKING, Any
 
 from .._errors import ConfigError
 from ..factors import CONDITION, LOAD, TARGETS, Factor, added_factors, after_builtin
-from .export import (
-    RATING_CSV_COLUMNS,
-    SAMPLE_COLUMNS,
-    SESSION_COLUMNS,
-    TASK_EVENT_CSV_COLUMNS,
-    TRIAL_COLUMNS,
-    _csv_value,
-    _open,
-    _prepare,
-    _table_rows,
-    _with_cell,
-)
+from .export import DTYPES, _csv_value, _open, _prepare, _table_rows, _with_cell, dtypes
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -55,63 +44,6 @@ if TYPE_CHECKING:
 __all__ = ["DTYPES", "PSYCHOPY_COLUMNS", "TIDY_COLUMNS", "dtypes", "export_parquet",
            "export_psychopy", "export_tidy", "psychopy_columns", "read_table", "tables",
            "tidy_columns"]
-
-_INT = "Int64"
-_FLOAT = "Float64"
-_STR = "string"
-_BOOL = "boolean"
-
-#: The pandas type of every column of the CSV and Parquet exports, per table.
-DTYPES: dict[str, dict[str, str]] = {
-    "sessions": {
-        "session_id": _INT, "participant": _STR, "session_number": _INT, "study_name": _STR,
-        "study_sha256": _STR, "seed": _INT, "condition_order": _STR, "n_trials": _INT,
-        "belt": _STR, "firmware_version": _STR, "package_version": _STR, "git_commit": _STR,
-        "host": _STR, "input": _STR, "clock": _STR, "started_at": _STR, "ended_at": _STR,
-        "status": _STR, "resumed": _INT,
-    },
-    "trials": {
-        "participant": _STR, "session_id": _INT, "session_number": _INT, "trial_id": _INT,
-        "trial_index": _INT, "block": _STR, "block_index": _INT, "block_name": _STR,
-        CONDITION.column: _STR, "repetition": _INT, "target_deg": _FLOAT, "on_tactor": _BOOL,
-        "response_deg": _FLOAT, "response_target_deg": _FLOAT, "correct": _BOOL,
-        "rt_s": _FLOAT, "onset_ns": _INT, "acquired_ns": _INT, "crossed_ns": _INT,
-        "stimulus_off_ns": _INT, "n_samples": _INT, "status": _STR, "abort_reason": _STR,
-        "attempts": _INT, TARGETS.column: _INT, LOAD.column: _STR,
-        "device_onset_ns": _INT, "onset_uncertainty_ns": _INT, "skin_onset_ns": _INT,
-        "skin_onset_sd_ns": _INT,
-    },
-    "samples": {
-        "participant": _STR, "session_id": _INT, "trial_index": _INT, "t_s": _FLOAT,
-        "x": _FLOAT, "y": _FLOAT, "buttons": _INT,
-    },
-    # under cognitive load (written when the store has any)
-    "task_events": {
-        "participant": _STR, "session_id": _INT, "session_number": _INT,
-        "block_index": _INT, "task": _STR, "phase": _STR, "item_index": _INT, "t_ns": _INT,
-        "stimulus": _STR, "target": _BOOL, "response": _STR, "correct": _BOOL,
-        "rt_s": _FLOAT,
-    },
-    "ratings": {
-        "participant": _STR, "session_id": _INT, "session_number": _INT,
-        "block_index": _INT, "scale": _STR, "item": _STR, "value": _FLOAT,
-    },
-}
-assert list(DTYPES["sessions"]) == SESSION_COLUMNS
-assert list(DTYPES["trials"]) == TRIAL_COLUMNS
-assert list(DTYPES["samples"]) == SAMPLE_COLUMNS
-assert list(DTYPES["task_events"]) == TASK_EVENT_CSV_COLUMNS
-assert list(DTYPES["ratings"]) == RATING_CSV_COLUMNS
-_FACTOR_DTYPE = {"text": _STR, "int": _INT}
-
-
-def dtypes(table: str) -> dict[str, str]:
-    """The column types of an exported table: :data:`DTYPES`, the trials with a column
-    for each factor declared beyond the built-in ones (:mod:`tactorbelt.factors`)."""
-    extra = added_factors() if table == "trials" else ()
-    return {**DTYPES[table], **{f.column: _FACTOR_DTYPE[f.type] for f in extra}}
-
-
 
 _TIDY_TYPES = {"text": ("text", "factor"), "int": ("integer", "integer")}
 
@@ -183,7 +115,7 @@ def tables(db: str | Path) -> dict[str, pd.DataFrame]:
     ``ratings`` when it has any) as typed DataFrames: the rows and columns of the CSV
     export, the types of :data:`DTYPES`."""
     with _open(db) as store:
-        return {name: _frame(rows, name) for name, (_, rows) in _table_rows(store).items()}
+        return {name: _frame(rows, name) for name, rows in _table_rows(store).items()}
 
 
 def read_table(path: str | Path) -> pd.DataFrame:
@@ -200,7 +132,7 @@ def read_table(path: str | Path) -> pd.DataFrame:
         return pd.read_parquet(p).astype(types)
     # floats exactly as written (repr): pandas 3 parses them so by default
     exact = {} if int(pd.__version__.split(".")[0]) >= 3 else {"float_precision": "round_trip"}
-    df = pd.read_csv(p, dtype={k: v for k, v in types.items() if v != _BOOL},
+    df = pd.read_csv(p, dtype={k: v for k, v in types.items() if v != "boolean"},
                      keep_default_na=False, na_values=[""], **exact)
     return df.astype(types)
 
