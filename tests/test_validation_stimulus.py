@@ -32,6 +32,7 @@ from tactorbelt.validation.stimulus import (
     REPLAY,
     StimulusValidation,
     run_stimulus,
+    stimulus_figure,
     validate_stimulus,
 )
 
@@ -103,7 +104,8 @@ def test_a_mixing_sensor_measures_each_tactor_as_a_direct_one(condition: str,
             assert d[target, k]["felt"] == "sensed"  # the direct sensor measured it
 
 
-def test_replays_of_a_stimulus_a_session_renders_on_the_device_say_so() -> None:
+def test_replays_of_a_stimulus_a_session_renders_on_the_device_say_so(tmp_path: Path
+                                                                      ) -> None:
     """An uncalibrated sim belt renders the stimulus itself (as a session has it), with the
     shaper's preview; the replays stream: plain the same, shaped edges within the
     preview's few ticks."""
@@ -117,6 +119,9 @@ def test_replays_of_a_stimulus_a_session_renders_on_the_device_say_so() -> None:
                 for key in ("onset_error_ms", "offset_error_ms"):
                     tol = TICK_MS if drive == "plain" else LEAD_TICKS + TICK_MS
                     assert r[target, k][key] == pytest.approx(d[target, k][key], abs=tol)
+        # target 1's tactors 0 and 5 are drawn in their own colours
+        png = stimulus_figure(replay, tmp_path / f"{drive}.png")
+        assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
 # --- the emulator's board IMU -------------------------------------------------------------

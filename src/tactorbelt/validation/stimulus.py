@@ -439,8 +439,7 @@ def stimulus_figure(result: StimulusValidation, path: str | Path) -> Path:
     fig, axes = plt.subplots(nrows, cols, figsize=(4.2 * cols + (4 if n == 1 else 0),
                                                    2.3 * nrows + 1.0),
                              sharex=True, sharey=True, squeeze=False)
-    first = next(iter(result.traces.values()), {})
-    colors = tactor_colors(max(1, len(first)))
+    colors = tactor_colors(max(1, len(rows[0]["tactors"]) if rows else 1))
     for ax, row in zip(axes.ravel(), rows, strict=False):
         traces = result.traces[row["target"]]
         for t in row["tactors"]:
