@@ -218,6 +218,41 @@ TEST(a_shaped_rise_kicks_then_holds_the_level_and_is_faster_than_plain) {
   CHECK(fall[1] <= 30.0);
 }
 
+// A played stimulus is known ahead: the shaper aims each tick at its amplitudes
+// kShapeLeadTicks later, so the brake of its end starts that long before the end (the
+// level still commanded), and plain plays the levels as they are.
+TEST(a_played_stimulus_is_shaped_with_a_preview_of_its_end) {
+  for (int shaped = 0; shaped < 2; ++shaped) {
+    Rig rig;
+    if (shaped != 0) rig.drive(tb::kDriveShaped);
+    rig.tick_ms(1);
+    std::vector<uint8_t> p(14);
+    tb::put_u16(&p[0], 0);  // on tactor 0
+    p[2] = 0;               // static
+    p[3] = 0;               // the paper's law
+    tb::put_u16(&p[4], 1500);
+    tb::put_u16(&p[6], 1000);
+    tb::put_u16(&p[8], 100);
+    tb::put_u32(&p[10], 200);  // 200 ms
+    rig.send(tb::msg::kPlayTarget, p);
+    const uint64_t start = rig.now_us;
+    bool braked_early = false;
+    while (rig.now_us < start + 200000 - 1000) {
+      rig.tick_ms(1);
+      const uint64_t t = rig.now_us - start;
+      if (rig.controller.in2_mask() != 0) {
+        CHECK(shaped != 0);
+        CHECK(t + tb::kShapeLeadTicks * 1000u >= 200000u);  // not before the preview
+        CHECK(rig.controller.levels()[0] > 0);              // the level still on
+        braked_early = true;
+      } else if (shaped == 0) {
+        CHECK_EQ(rig.controller.in1()[0], rig.controller.levels()[0]);
+      }
+    }
+    CHECK_EQ(braked_early, shaped != 0);
+  }
+}
+
 TEST(a_board_without_in2_overdrives_but_coasts) {
   Rig rig(false);
   rig.drive(tb::kDriveShaped);

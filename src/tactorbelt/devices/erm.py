@@ -34,7 +34,7 @@ from numpy.typing import NDArray
 
 from .._errors import ConfigError
 
-__all__ = ["BRAKE", "DRIVES", "RENDER_TICK_NS", "ErmParams", "Shaper", "drive_relax",
+__all__ = ["BRAKE", "DRIVES", "LEAD_TICKS", "RENDER_TICK_NS", "ErmParams", "Shaper", "drive_relax",
            "erm_speed", "kick_duration_s", "sample_grid"]
 
 #: The drive modes a belt plays with: ``plain`` (each level straight to the motor) and
@@ -452,6 +452,13 @@ class _Response:
 # -- signed drive and drive shaping ------------------------------------------------------
 #: A shaper counts a tactor as at its target when its predicted speed is this close.
 _SETTLED: Final = 1e-9
+#: The largest preview a shaper takes (render ticks).
+MAX_LEAD_TICKS: Final = 50
+#: The shaper's preview of a rendered stimulus (render ticks, 3 ms): the firmware's
+#: renderer takes the same (``kShapeLeadTicks``, firmware/tactorbelt/src/core/drive.h).
+#: Measured on the paper's stimuli (docs/belts.md, "The goals, measured"): the between-
+#: tactor dynamic error is least at 3-4 ticks with a 5 V kick, 6 at 3.6 V.
+LEAD_TICKS: Final = 3
 
 
 def drive_steady(drive: FloatArray, start_level: float) -> FloatArray:
@@ -519,8 +526,17 @@ class Shaper:
     rise_tau_s: tuple[float, ...] | None = None
     fall_tau_s: tuple[float, ...] | None = None
     brake_tau_s: tuple[float, ...] | None = None
+    #: preview (render ticks): a rendered stimulus is known ahead, so the shaper aims each
+    #: tick at the level the render will have this many ticks later (its end included),
+    #: the felt envelope then tracks the intended one instead of lagging it. Frames and
+    #: stops are not known ahead and take no lead.
+    lead_ticks: int = LEAD_TICKS
 
     def __post_init__(self) -> None:
+        lt = self.lead_ticks
+        if isinstance(lt, bool) or not isinstance(lt, int) or not 0 <= lt <= MAX_LEAD_TICKS:
+            raise ConfigError(f"the shaper's lead must be a whole number of render ticks in "
+                              f"[0, {MAX_LEAD_TICKS}], got {lt!r}")
         od = self.overdrive
         if isinstance(od, bool) or not isinstance(od, int | float) or not (
                 math.isfinite(od) and 1.0 <= od <= 4.0):

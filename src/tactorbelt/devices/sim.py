@@ -201,10 +201,13 @@ class _Render:
             self._table = period
         return self._table
 
-    def change_ticks(self, k0: int, k1: int) -> IntArray:
+    def change_ticks(self, k0: int, k1: int, lead: int = 0) -> IntArray:
         """The ticks in [k0, k1) (counted from the onset) at which the levels may differ
         from the tick before: every tick, or for a periodic render only those where its
-        period's table changes (none for a constant one)."""
+        period's table changes (none for a constant one). ``lead``: of the levels
+        ``lead`` ticks ahead (:meth:`levels`)."""
+        if lead:
+            return np.asarray(self.change_ticks(k0 + lead, k1 + lead) - lead)
         if not self._table_ticks:
             return np.arange(k0, k1, dtype=np.int64)
         c, period = self._period().changes, self._table_ticks
@@ -235,16 +238,25 @@ class _Render:
                                                 self._period().levels))
         return self._response[1]
 
-    def levels(self, times: IntArray) -> FloatArray:
-        """Drive levels at ``times`` (all at or after the onset)."""
-        ticks = (times - self.onset_ns) // RENDER_TICK_NS
+    def end_ahead(self, lead: int) -> int | None:
+        """The end of the render as a shaper with a preview of ``lead`` ticks sees it
+        (``lead`` ticks early, not before the onset), or None."""
+        if self.end_ns is None:
+            return None
+        return max(self.onset_ns, self.end_ns - lead * RENDER_TICK_NS)
+
+    def levels(self, times: IntArray, lead: int = 0) -> FloatArray:
+        """Drive levels at ``times`` (all at or after the onset); with a ``lead``, those
+        ``lead`` ticks later (the shaper's preview: zero from :meth:`end_ahead`)."""
+        ticks = (times - self.onset_ns) // RENDER_TICK_NS + lead
         ticks_per_s = 1e9 / RENDER_TICK_NS
         if self._table_ticks:
             levels = self._period().levels[ticks % self._table_ticks]
         else:
             levels = self.calibration.apply(self.stimulus.amplitudes(ticks / ticks_per_s))
-        if self.end_ns is not None:
-            levels[times >= self.end_ns] = 0.0
+        end = self.end_ahead(lead)
+        if end is not None:
+            levels[times >= end] = 0.0
         return np.asarray(levels)
 
 
@@ -520,10 +532,12 @@ class SimBelt(Belt):
         Where the shaper predicts with the motor's own model (``self._exact``), the motors
         are its prediction, and a run of changes each landed within its tick from the
         last target (a dynamic stimulus's transit) is solved at once
-        (:meth:`~tactorbelt.devices.erm.Shaper.landing`)."""
+        (:meth:`~tactorbelt.devices.erm.Shaper.landing`). A render's levels are those
+        the shaper's preview sees (``Shaper.lead_ticks`` ahead)."""
+        lead = self.shaper.lead_ticks
         bounds = _sorted_unique(np.concatenate([np.array([t_a], dtype=np.int64),
-                                                self._breakpoints(t_a, t_last)]))
-        levels = self._levels_at(bounds)
+                                                self._breakpoints(t_a, t_last, lead)]))
+        levels = self._levels_at(bounds, lead)
         t_arr, d_arr, w_arr, e_arr = self._walk(bounds, levels, t_last, w, e,
                                                 self._onsets(t_a, t_last))
         for t_keep in {keep_until, min(also_keep, keep_until)} if also_keep is not None \
@@ -551,8 +565,9 @@ class SimBelt(Belt):
             if render.onset_ns != t_row:
                 continue
             cut = int(self._t[row + 1]) if row + 1 < self._hi else t_last + 1
-            if render.end_ns is not None:
-                cut = min(cut, render.end_ns)
+            end = render.end_ahead(self.shaper.lead_ticks)
+            if end is not None:
+                cut = min(cut, end)
             if t_row >= t_a:
                 out[t_row] = (render, min(cut, t_last + 1))
             elif t_a < cut:  # the walk starts inside the render
@@ -586,10 +601,11 @@ class SimBelt(Belt):
             onset = render.onset_ns
             bounds = _sorted_unique(np.concatenate([
                 np.array([onset], dtype=np.int64),
-                onset + render.change_ticks(1, _MEMO_TICKS) * RENDER_TICK_NS]))
+                onset + render.change_ticks(1, _MEMO_TICKS, self.shaper.lead_ticks)
+                * RENDER_TICK_NS]))
             end, render.end_ns = render.end_ns, None
             try:
-                levels = render.levels(bounds)
+                levels = render.levels(bounds, self.shaper.lead_ticks)
             finally:
                 render.end_ns = end
             zeros = np.zeros(self.n_tactors)
@@ -851,8 +867,9 @@ class SimBelt(Belt):
         rel = int(self._t[self._lo : self._hi].searchsorted(t_ns, side="right")) - 1
         return self._lo + rel
 
-    def _levels_at(self, times: IntArray) -> FloatArray:
-        """Commanded drive levels at each time (times need not be sorted)."""
+    def _levels_at(self, times: IntArray, lead: int = 0) -> FloatArray:
+        """Commanded drive levels at each time (times need not be sorted); a render's
+        ``lead`` ticks ahead (the shaper's preview)."""
         out = np.zeros((times.shape[0], self.n_tactors))
         lo, hi = self._lo, self._hi
         if hi == lo or times.shape[0] == 0:
@@ -866,11 +883,12 @@ class SimBelt(Belt):
         if not const.all():
             for r in sorted(set(rid[~const].tolist())):
                 sel = pos[rid == r]
-                out[sel] = self._renders[int(r)].levels(times[sel])
+                out[sel] = self._renders[int(r)].levels(times[sel], lead)
         return out
 
-    def _breakpoints(self, t_a: int, t_b: int) -> IntArray:
-        """Every time in (t_a, t_b] at which the commanded drive may change."""
+    def _breakpoints(self, t_a: int, t_b: int, lead: int = 0) -> IntArray:
+        """Every time in (t_a, t_b] at which the commanded drive may change (a render's
+        levels ``lead`` ticks ahead: :meth:`_Render.levels`)."""
         lo, hi = self._lo, self._hi
         if hi == lo:
             return np.zeros(0, dtype=np.int64)
@@ -885,10 +903,11 @@ class SimBelt(Belt):
             row = first + off
             render = self._renders[int(self._rid[row])]
             seg_end = int(self._t[row + 1]) if row + 1 < hi else t_b + 1
-            if render.end_ns is not None:
-                if t_a < render.end_ns <= t_b:
-                    parts.append(np.array([render.end_ns], dtype=np.int64))
-                seg_end = min(seg_end, render.end_ns)
+            end = render.end_ahead(lead)
+            if end is not None:
+                if t_a < end <= t_b:
+                    parts.append(np.array([end], dtype=np.int64))
+                seg_end = min(seg_end, end)
             seg_start = max(int(self._t[row]), t_a + 1)
             seg_end = min(seg_end, t_b + 1)
             if seg_end <= seg_start:
@@ -896,7 +915,8 @@ class SimBelt(Belt):
             k0 = -((render.onset_ns - seg_start) // RENDER_TICK_NS)  # ceil
             k1 = -((render.onset_ns - seg_end) // RENDER_TICK_NS)
             if k1 > k0:
-                parts.append(render.onset_ns + render.change_ticks(k0, k1) * RENDER_TICK_NS)
+                parts.append(render.onset_ns + render.change_ticks(k0, k1, lead)
+                             * RENDER_TICK_NS)
         return np.concatenate(parts)
 
     def _add_checkpoint(self, t_ns: int, w: FloatArray) -> None:

@@ -332,14 +332,31 @@ void Controller::update_outputs(uint64_t now_us) {
   }
   if (!model_started_ || now_us > model_us_) model_us_ = now_us;
   model_started_ = true;
+  // The drive: the levels themselves (plain, and always in the failsafe: IN2 low, so the
+  // motors coast), or each shaped (a kick, a brake pulse, then the level).
+  const bool shaped = (drive_mode_ & kDriveShaped) != 0 && state_ != State::kFailsafe;
   float amps[kMaxChannels] = {};
-  if (state_ == State::kPlaying) stimulus_.amplitudes(now_us - play_start_us_, amps);
+  // The shaper's preview of a played stimulus: its amplitudes kShapeLeadTicks ticks ahead
+  // (zero from that long before its end), as erm.Shaper.lead_ticks on the host.
+  float ahead[kMaxChannels] = {};
+  const bool preview = shaped && state_ == State::kPlaying;
+  if (state_ == State::kPlaying) {
+    const uint64_t t_us = now_us - play_start_us_;
+    stimulus_.amplitudes(t_us, amps);
+    const uint64_t t_ahead = t_us + kShapeLeadTicks * 1000u;
+    if (preview && (play_duration_ms_ == 0 ||
+                    t_ahead < static_cast<uint64_t>(play_duration_ms_) * 1000u)) {
+      stimulus_.amplitudes(t_ahead, ahead);
+    }
+  }
   const uint64_t max_on_us = static_cast<uint64_t>(max_on_ms_) * 1000u;
   bool changed = false;
+  uint16_t target[kMaxChannels] = {};
   for (uint8_t k = 0; k < n; ++k) {
     uint16_t level = 0;
     if (state_ == State::kStreaming) level = stream_[k];
     if (state_ == State::kPlaying) level = amplitude_to_level(amps[k]);
+    bool limited = false;
     // Continuous-on limit: a channel commanded on for max_onms without a break
     // goes off, and stays off until it is commanded to 0.
     if (level == 0) {
@@ -349,13 +366,13 @@ void Controller::update_outputs(uint64_t now_us) {
       on_since_us_[k] = now_us;
     } else if (now_us - on_since_us_[k] >= max_on_us) {
       level = 0;
+      limited = true;
     }
     out_[k] = level;
+    // what the shaper aims at: the level, or the preview (never past the on limit)
+    target[k] = preview && !limited ? amplitude_to_level(ahead[k]) : level;
   }
-  // The drive: the levels themselves (plain, and always in the failsafe: IN2 low, so the
-  // motors coast), or each shaped (a kick, a brake pulse, then the level). A shaped level
-  // is held at most at the rated drive; only a kick goes above it.
-  const bool shaped = (drive_mode_ & kDriveShaped) != 0 && state_ != State::kFailsafe;
+  // A shaped level is held at most at the rated drive; only a kick goes above it.
   const bool brake = can_brake_ && (drive_mode_ & kDriveNoBrake) == 0;
   uint16_t in1[kMaxChannels] = {};
   uint32_t in2 = 0;
@@ -364,7 +381,7 @@ void Controller::update_outputs(uint64_t now_us) {
       in1[k] = out_[k];
       continue;
     }
-    float level = static_cast<float>(out_[k]) / 65535.0f;
+    float level = static_cast<float>(target[k]) / 65535.0f;
     if (level > drive_[k].rated) level = drive_[k].rated;
     Drive d = shape_tick(level, w_[k], drive_[k], brake);
     // the bounds: a drive that would pass one is the level itself for this tick

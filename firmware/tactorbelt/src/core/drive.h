@@ -48,6 +48,12 @@ struct DriveParams {
   void prepare(float tick_s);
 };
 
+// The shaper's preview of a played stimulus (PLAY_TARGET), in 1 kHz ticks: it aims each
+// tick at the amplitudes the stimulus has this many ticks later (zero from this long
+// before its end), so the felt envelope tracks the intended one (erm.LEAD_TICKS).
+// Streamed frames are not known ahead: a streamed level is shaped as it comes.
+constexpr uint32_t kShapeLeadTicks = 3;
+
 // A tactor counts as at its level when its predicted speed is this close (a level step is
 // 1/65535 = 1.5e-5; float32 landing residues are ~1e-7).
 constexpr float kSettled = 1e-4f;
