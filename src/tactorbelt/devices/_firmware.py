@@ -922,15 +922,11 @@ class FirmwareBelt(Belt, PacketSink):
         log.warning("the belt on %s %s (its firmware stopped for 300 ms and every motor "
                     "went off); look for a firmware hang or a brown-out", self.port, what)
 
-    def _flags(self) -> int:
-        flags = wire.ConfigFlag.ONSET_EVENTS
-        if self.framed_replies:
-            flags |= wire.ConfigFlag.BLE_FRAMED
-        return int(flags)
-
     def _enable_flags(self) -> None:
         """SET_CONFIG with the flags byte: ONSET events (and framed BLE replies)."""
-        hb, max_on, flags = self.heartbeat_ms, self.max_on_ms, self._flags()
+        flags = wire.ConfigFlag.ONSET_EVENTS | (
+            wire.ConfigFlag.BLE_FRAMED if self.framed_replies else 0)
+        hb, max_on = self.heartbeat_ms, self.max_on_ms
         self._request(lambda seq: wire.set_config(seq, hb, max_on, flags),
                       "the onset-report setting", expect=wire.Ack)
         self.onset_events = True

@@ -66,18 +66,13 @@ def firmware_dir(override: str | os.PathLike[str] | None = None) -> Path:
     Raises:
         DeviceError: it is not there (an installed package without the source tree).
     """
-    candidates = []
-    if override is not None:
-        candidates.append(Path(override))
-    elif os.environ.get("TACTORBELT_FIRMWARE_DIR"):
-        candidates.append(Path(os.environ["TACTORBELT_FIRMWARE_DIR"]))
-    else:
-        candidates.append(Path(__file__).resolve().parents[3] / "firmware")
-    for c in candidates:
-        if (c / "Makefile").is_file():
-            return c
+    fw = Path(override if override is not None else
+              os.environ.get("TACTORBELT_FIRMWARE_DIR")
+              or Path(__file__).resolve().parents[3] / "firmware")
+    if (fw / "Makefile").is_file():
+        return fw
     raise DeviceError(
-        f"the emulator needs the firmware sources, not found at {candidates[0]}; run from a "
+        f"the emulator needs the firmware sources, not found at {fw}; run from a "
         "source checkout of tactorbelt or set TACTORBELT_FIRMWARE_DIR to its firmware/ directory"
     )
 

@@ -27,6 +27,7 @@ Pure: imports only the standard library and tactorbelt._errors.
 from __future__ import annotations
 
 import enum
+import functools
 import math
 import struct
 from binascii import crc_hqx as _crc_hqx
@@ -491,9 +492,20 @@ def ping(seq: int, nonce: int) -> Packet:
     return Packet(MsgType.PING, seq, struct.pack("<I", _uint("nonce", nonce, 32)))
 
 
-def get_info(seq: int) -> Packet:
-    """GET_INFO: the device answers INFO."""
-    return Packet(MsgType.GET_INFO, seq)
+# The requests without a payload: ``get_info(seq)`` is ``Packet(MsgType.GET_INFO, seq)``.
+#: GET_INFO: the device answers INFO.
+get_info = functools.partial(Packet, MsgType.GET_INFO)
+#: STOP_ALL: every output off, state idle; the device answers ACK.
+stop_all = functools.partial(Packet, MsgType.STOP_ALL)
+#: HEARTBEAT: pushes the failsafe deadline; no reply.
+heartbeat = functools.partial(Packet, MsgType.HEARTBEAT)
+#: GET_STATUS: the device answers STATUS.
+get_status = functools.partial(Packet, MsgType.GET_STATUS)
+#: GET_DIAG (extensions): the device answers DIAG; a plain v1 device NAKs code 2.
+get_diag = functools.partial(Packet, MsgType.GET_DIAG)
+#: SENSE_STOP (firmware 1.2): the session ends now (its last batch comes with
+#: :attr:`SenseFlag.LAST`); ACK, also when none runs.
+sense_stop = functools.partial(Packet, MsgType.SENSE_STOP)
 
 
 def set_amplitudes(seq: int, levels: Sequence[int]) -> Packet:
@@ -512,11 +524,6 @@ def set_amplitudes(seq: int, levels: Sequence[int]) -> Packet:
     if 2 * len(values) > MAX_PAYLOAD:
         raise ConfigError(f"{len(values)} levels do not fit in one packet (at most 30)")
     return Packet(MsgType.SET_AMPLITUDES, seq, struct.pack(f"<{len(values)}H", *values))
-
-
-def stop_all(seq: int) -> Packet:
-    """STOP_ALL: every output off, state idle; the device answers ACK."""
-    return Packet(MsgType.STOP_ALL, seq)
 
 
 def play_target(
@@ -542,11 +549,6 @@ def play_target(
     return Packet(MsgType.PLAY_TARGET, seq, payload)
 
 
-def heartbeat(seq: int) -> Packet:
-    """HEARTBEAT: pushes the failsafe deadline; no reply."""
-    return Packet(MsgType.HEARTBEAT, seq)
-
-
 def set_config(seq: int, heartbeat_ms: int, max_on_ms: int | None = None,
                flags: int | None = None) -> Packet:
     """SET_CONFIG: heartbeat timeout (50..2000 ms) and, optionally, the longest
@@ -560,16 +562,6 @@ def set_config(seq: int, heartbeat_ms: int, max_on_ms: int | None = None,
             raise ConfigError("SET_CONFIG flags need max_on_ms (the flags are the 7th byte)")
         payload += struct.pack("<B", _uint("flags", int(flags), 8))
     return Packet(MsgType.SET_CONFIG, seq, payload)
-
-
-def get_status(seq: int) -> Packet:
-    """GET_STATUS: the device answers STATUS."""
-    return Packet(MsgType.GET_STATUS, seq)
-
-
-def get_diag(seq: int) -> Packet:
-    """GET_DIAG (extensions): the device answers DIAG; a plain v1 device NAKs code 2."""
-    return Packet(MsgType.GET_DIAG, seq)
 
 
 def sense_start(seq: int, rate_hz: int, duration_ms: int,
@@ -631,12 +623,6 @@ def set_drive(seq: int, mode: int, constants: DriveConstants | None = None) -> P
     if constants is not None:
         payload += constants.pack()
     return Packet(MsgType.SET_DRIVE, seq, payload)
-
-
-def sense_stop(seq: int) -> Packet:
-    """SENSE_STOP (firmware 1.2): the session ends now (its last batch comes with
-    :attr:`SenseFlag.LAST`); ACK, also when none runs."""
-    return Packet(MsgType.SENSE_STOP, seq)
 
 
 def _expect_len(p: Packet, name: str, *sizes: int) -> None:
