@@ -343,13 +343,11 @@ def term_levels(df: pd.DataFrame, term: str) -> list[Any] | None:
     """
     col = term_column(term)
     s = df[col]
-    if term != col:
-        if _is_numeric(s):
-            return sorted({float(v) for v in s.dropna().to_numpy(dtype=float)})
+    if not _is_numeric(s):
         return sorted(set(s.astype(str).tolist()))
-    if _is_numeric(s):
+    if term == col:
         return None
-    return sorted(set(s.astype(str).to_numpy().tolist()))
+    return sorted({float(v) for v in s.dropna().to_numpy(dtype=float)})
 
 
 def _factor_columns(df: pd.DataFrame, term: str,
@@ -362,13 +360,10 @@ def _factor_columns(df: pd.DataFrame, term: str,
         levels = term_levels(df, term)
     if levels is None:
         return [s.to_numpy(dtype=float)], [term]
-    if levels and isinstance(levels[0], float):
-        vals_f = s.to_numpy(dtype=float)
-        return ([(vals_f == lv).astype(float) for lv in levels[1:]],
-                [f"{term}{_r_number(lv)}" for lv in levels[1:]])
-    vals = s.astype(str).to_numpy()
+    numbers = bool(levels) and isinstance(levels[0], float)
+    vals = s.to_numpy(dtype=float) if numbers else s.astype(str).to_numpy()
     return ([(vals == lv).astype(float) for lv in levels[1:]],
-            [f"{term}{lv}" for lv in levels[1:]])
+            [f"{term}{_r_number(lv) if numbers else lv}" for lv in levels[1:]])
 
 
 def fixed_design(df: pd.DataFrame, fixed: Sequence[str], *,
@@ -447,12 +442,37 @@ class _Term:
 
     def tri(self, th: np.ndarray) -> np.ndarray:
         t = np.zeros((self.b, self.b))
-        k = 0
-        for j in range(self.b):
-            for i in range(j, self.b):
-                t[i, j] = th[k]
-                k += 1
+        j, i = np.triu_indices(self.b)  # the lower triangle, column by column
+        t[i, j] = th
         return t
+
+
+def _split(terms: list[_Term], theta: np.ndarray) -> list[np.ndarray]:
+    """``theta`` cut into each term's elements."""
+    return np.split(np.asarray(theta, dtype=float),
+                    np.cumsum([t.n_theta for t in terms])[:-1])
+
+
+def _lower(terms: list[_Term]) -> list[float]:
+    return [b for t in terms for b in t.lower_bounds()]
+
+
+def _theta_names(terms: list[_Term]) -> list[str]:
+    return [nm for t in terms for nm in t.theta_names()]
+
+
+def _is_singular(theta: np.ndarray, lower: list[float]) -> bool:
+    """lme4's ``isSingular``: an element of theta bounded by 0 below :data:`SINGULAR_TOL`."""
+    return bool(any(th < SINGULAR_TOL for th, lb in zip(theta, lower, strict=True)
+                    if lb == 0.0))
+
+
+def _rank_messages(dropped: list[str]) -> list[str]:
+    """lme4's message for the columns :func:`fixed_design` dropped (none: no message)."""
+    if not dropped:
+        return []
+    return ["fixed-effect model matrix is rank deficient so dropping "
+            f"{len(dropped)} column(s): " + ", ".join(dropped)]
 
 
 def _random_terms(df: pd.DataFrame, spec: ModelSpec) -> list[_Term]:
@@ -622,6 +642,14 @@ class _System:
         x1 = t1 - np.einsum("gbr,r->gb", f["inv_a12"], x2)
         return x1, x2
 
+    def beta_block(self, f: dict[str, Any]) -> np.ndarray:
+        """``R_X' R_X``: the Schur complement of the random effects in the dense part."""
+        s, r_u = f["s"], self.r_u
+        sbb = s[r_u:, r_u:]
+        if r_u:
+            sbb = sbb - s[r_u:, :r_u] @ np.linalg.solve(s[:r_u, :r_u], s[:r_u, r_u:])
+        return np.asarray(sbb)
+
     def scatter1(self, v1: np.ndarray, resid: np.ndarray) -> np.ndarray:
         b1 = self.b1
         idx = (self.g1[:, None] * b1 + np.arange(b1)[None, :]).ravel()
@@ -733,14 +761,10 @@ class _Laplace:
         return g
 
     def split(self, theta: np.ndarray) -> list[np.ndarray]:
-        out, k = [], 0
-        for t in self.terms:
-            out.append(np.asarray(theta[k:k + t.n_theta], dtype=float))
-            k += t.n_theta
-        return out
+        return _split(self.terms, theta)
 
     def lower(self) -> list[float]:
-        return [b for t in self.terms for b in t.lower_bounds()]
+        return _lower(self.terms)
 
     def _pirls(self, theta: np.ndarray, beta: np.ndarray | None,
                tol: float = 1e-11) -> tuple[float, dict[str, Any]]:
@@ -964,11 +988,7 @@ class _Laplace:
         w = _weights(mu, self.m, self.robust)
         v1, d = self.sys_j.rows(self.split(par[: self.n_theta]))
         f = self.sys_j.factor(v1, d, w)
-        s = f["s"]
-        r_u = self.sys_j.r_u
-        sbb = s[r_u:, r_u:]
-        if r_u:
-            sbb = sbb - s[r_u:, :r_u] @ np.linalg.solve(s[:r_u, :r_u], s[:r_u, r_u:])
+        sbb = self.sys_j.beta_block(f)
         if self.prior_prec is not None:
             sbb = sbb + np.diag(self.prior_prec)
         return np.asarray(sbb)
@@ -995,51 +1015,33 @@ def deriv12(f: Any, x: np.ndarray, delta: float = HESSIAN_STEP) -> np.ndarray:
     k = x.size
     f0 = f(x)
     h = np.zeros((k, k))
-    fp = np.zeros(k)
-    fm = np.zeros(k)
+    e = np.eye(k) * delta
     for i in range(k):
-        e = np.zeros(k)
-        e[i] = delta
-        fp[i], fm[i] = f(x + e), f(x - e)
-        h[i, i] = (fp[i] + fm[i] - 2.0 * f0) / delta**2
+        h[i, i] = (f(x + e[i]) + f(x - e[i]) - 2.0 * f0) / delta**2
     for i in range(k):
         for j in range(i):
-            ei = np.zeros(k)
-            ej = np.zeros(k)
-            ei[i] = delta
-            ej[j] = delta
-            v = (f(x + ei + ej) - f(x + ei - ej) - f(x - ei + ej) + f(x - ei - ej)) / (
-                4.0 * delta**2)
-            h[i, j] = h[j, i] = v
+            h[i, j] = h[j, i] = (f(x + e[i] + e[j]) - f(x + e[i] - e[j]) - f(x - e[i] + e[j])
+                                 + f(x - e[i] - e[j])) / (4.0 * delta**2)
     return h
 
 
-def _minimize(f: Any, x0: np.ndarray, lower: Sequence[float], *, ftol: float = 1e-12,
-              gtol: float = 1e-6, central: bool = True) -> tuple[np.ndarray, bool, str]:
-    """L-BFGS-B with central-difference gradients (one-sided at a bound; forward
-    differences throughout with ``central=False``, for starting values)."""
-    from scipy.optimize import minimize
-
-    lo = np.array([(-np.inf if not math.isfinite(b) else b) for b in lower])
-    bounds = [(None if not math.isfinite(b) else b, None) for b in lower]
-    x0 = np.maximum(x0, np.where(np.isfinite(lo), lo, -np.inf))
-    res = minimize(f, x0, jac=lambda x: _central_grad(f, x, lo, central=central), method="L-BFGS-B",
-                   bounds=bounds, options={"maxiter": 500, "ftol": ftol, "gtol": gtol})
-    msg = str(res.message)
-    ok = bool(res.success) or "ABNORMAL" in msg.upper()
-    return np.asarray(res.x, dtype=float), ok, msg
+def _differences(f: Any, central: bool = True) -> Any:
+    """``fg`` for :func:`_minimize` from ``f`` alone: central-difference gradients
+    (one-sided at a bound; forward differences throughout with ``central=False``, for
+    starting values)."""
+    return lambda x, lo: (f(x), _central_grad(f, x, lo, central=central))
 
 
-def _minimize_fg(fg: Any, x0: np.ndarray, lower: Sequence[float], *, ftol: float = 1e-12,
-                 gtol: float = 1e-5) -> tuple[np.ndarray, bool, str]:
-    """L-BFGS-B with ``fg(x, lower) -> (f, gradient)``."""
+def _minimize(fg: Any, x0: np.ndarray, lower: Sequence[float], *, ftol: float = 1e-12,
+              gtol: float = 1e-6, maxiter: int = 500) -> tuple[np.ndarray, bool, str]:
+    """L-BFGS-B with ``fg(x, lower) -> (f, gradient)`` (``lower`` as an array)."""
     from scipy.optimize import minimize
 
     lo = np.array([(-np.inf if not math.isfinite(b) else b) for b in lower])
     bounds = [(None if not math.isfinite(b) else b, None) for b in lower]
     x0 = np.maximum(x0, np.where(np.isfinite(lo), lo, -np.inf))
     res = minimize(lambda x: fg(x, lo), x0, jac=True, method="L-BFGS-B", bounds=bounds,
-                   options={"maxiter": 1000, "ftol": ftol, "gtol": gtol})
+                   options={"maxiter": maxiter, "ftol": ftol, "gtol": gtol})
     msg = str(res.message)
     ok = bool(res.success) or "ABNORMAL" in msg.upper()
     return np.asarray(res.x, dtype=float), ok, msg
@@ -1100,8 +1102,8 @@ def _stage2(lap: _Laplace, par0: np.ndarray, lower: list[float],
         f, g = lap.dev_and_grad(to_par(z), lo)
         return f, np.r_[g[:k], np.linalg.solve(c, g[k:])]
 
-    z, ok, msg = _minimize_fg(fg, np.r_[par0[:k], np.zeros(lap.p)], lower + [-np.inf] * lap.p,
-                              ftol=ftol)
+    z, ok, msg = _minimize(fg, np.r_[par0[:k], np.zeros(lap.p)], lower + [-np.inf] * lap.p,
+                           ftol=ftol, gtol=1e-5, maxiter=1000)
     return to_par(z), ok, msg
 
 
@@ -1216,7 +1218,7 @@ class GlmmData:
 
     @property
     def theta_names(self) -> list[str]:
-        return [nm for t in self.pterms for nm in t.theta_names()]
+        return _theta_names(self.pterms)
 
     def pooled(self, y: np.ndarray) -> np.ndarray:
         """Per-row responses summed per pooled cell."""
@@ -1294,10 +1296,7 @@ def glmm_fit(data: GlmmData, y: np.ndarray | None = None, *,
     lap = data.laplace(None if y is None else data.pooled(np.asarray(y, dtype=float)))
     lap.set_prior(fixef_prior)
     names, pterms = data.names, data.pterms
-    messages: list[str] = []
-    if data.dropped:
-        messages.append("fixed-effect model matrix is rank deficient so dropping "
-                        f"{len(data.dropped)} column(s): " + ", ".join(data.dropped))
+    messages = _rank_messages(data.dropped)
     lower = lap.lower()
     # the covariance prior is infinite at a variance of 0: its optimiser stays inside
     opt_lower = (lower if fixef_prior is None
@@ -1307,8 +1306,8 @@ def glmm_fit(data: GlmmData, y: np.ndarray | None = None, *,
     if par0 is None:
         theta0 = np.array([1.0 if b == 0.0 else 0.0 for b in lower])
         # stage 1 (nAGQ = 0): theta only, beta at the joint penalised mode
-        theta1, ok1, _ = _minimize(lap.dev_theta, theta0, opt_lower, ftol=1e-8, gtol=1e-2,
-                                   central=False)
+        theta1, ok1, _ = _minimize(_differences(lap.dev_theta, central=False), theta0,
+                                   opt_lower, ftol=1e-8, gtol=1e-2)
         lap.dev_theta(theta1)
         par0 = np.r_[theta1, lap.beta_joint]
     # stage 2 (nAGQ = 1): the Laplace deviance over (theta, beta)
@@ -1318,8 +1317,7 @@ def glmm_fit(data: GlmmData, y: np.ndarray | None = None, *,
         par, dev, ok2, msg2 = _escape_boundary(lap, par, dev, lower, ftol, ok2, msg2)
     theta, beta = par[: lap.n_theta], par[lap.n_theta:]
     theta_names = data.theta_names
-    singular = bool(any(th < SINGULAR_TOL for th, lb in zip(theta, lower, strict=True)
-                        if lb == 0.0))
+    singular = _is_singular(theta, lower)
     zero = [nm for nm, th, lb in zip(theta_names, theta, lower, strict=True)
             if lb == 0.0 and th < SINGULAR_TOL]
     vcov_method = ("2 x inverse of the finite-difference Hessian of the Laplace deviance over "
@@ -1377,25 +1375,15 @@ class LmmData:
         x, self.ysum, self.w, self.terms, inv = _pool(x_obs, _random_terms(df, spec), y_obs)
         self.y2sum = np.bincount(inv, weights=y_obs**2, minlength=self.w.size)
         self.sysm = _System(self.terms, x)
-        self.lower = [b for t in self.terms for b in t.lower_bounds()]
-
-    @property
-    def theta_names(self) -> list[str]:
-        return [nm for t in self.terms for nm in t.theta_names()]
-
-    def split(self, theta: np.ndarray) -> list[np.ndarray]:
-        out, k = [], 0
-        for t in self.terms:
-            out.append(theta[k:k + t.n_theta])
-            k += t.n_theta
-        return out
+        self.lower = _lower(self.terms)
+        self.theta_names = _theta_names(self.terms)
 
     def state(self, theta: np.ndarray, reml: bool = True) -> dict[str, Any]:
         """At ``theta``: the profiled criterion ``crit`` (REML or ML), ``log det(L L')``
         (``ldl2``), ``log det(R_X' R_X)`` (``ldx``), the penalised weighted RSS
         (``pwrss``), ``beta`` and ``R_X' R_X`` (``sbb``)."""
         sysm, w, ysum, n, p = self.sysm, self.w, self.ysum, self.n, self.p
-        v1, d = sysm.rows(self.split(theta))
+        v1, d = sysm.rows(_split(self.terms, theta))
         f = sysm.factor(v1, d, w)
         r1 = sysm.scatter1(v1, ysum)
         r2 = d.tdot(ysum)
@@ -1404,18 +1392,14 @@ class LmmData:
         rss = float((self.y2sum - 2.0 * fitted * ysum + w * fitted**2).sum())
         pwrss = rss + float((x1**2).sum() + (x2[: sysm.r_u] ** 2).sum())
         ld = sysm.logdet_u(f)
-        s = f["s"]
-        r_u = sysm.r_u
-        sbb = s[r_u:, r_u:]
-        if r_u:
-            sbb = sbb - s[r_u:, :r_u] @ np.linalg.solve(s[:r_u, :r_u], s[:r_u, r_u:])
+        sbb = sysm.beta_block(f)
         ldx = 2.0 * float(np.log(np.diag(np.linalg.cholesky(sbb))).sum())
         if reml:
             dof = n - p
             crit = ld + ldx + dof * (1.0 + math.log(2.0 * math.pi * pwrss / dof))
         else:
             crit = ld + n * (1.0 + math.log(2.0 * math.pi * pwrss / n))
-        return {"crit": crit, "ldl2": ld, "ldx": ldx, "pwrss": pwrss, "beta": x2[r_u:],
+        return {"crit": crit, "ldl2": ld, "ldx": ldx, "pwrss": pwrss, "beta": x2[sysm.r_u:],
                 "sbb": sbb}
 
 
@@ -1438,23 +1422,20 @@ def _fit_lmm(data: LmmData, reml: bool, start: MixedModelFit | None) -> MixedMod
     theta0 = _start(start, data.theta_names)
     if theta0 is None:
         theta0 = np.array([1.0 if b == 0.0 else 0.0 for b in lower])
-    theta, ok, msg = _minimize(lambda t: data.state(t, reml)["crit"], theta0, lower)
+    theta, ok, msg = _minimize(_differences(lambda t: data.state(t, reml)["crit"]), theta0,
+                               lower)
     st = data.state(theta, reml)
     crit = st["crit"]
     sigma2 = st["pwrss"] / ((n - p) if reml else n)
     vcov = sigma2 * np.linalg.inv(st["sbb"])
-    messages = []
-    if data.dropped:
-        messages.append("fixed-effect model matrix is rank deficient so dropping "
-                        f"{len(data.dropped)} column(s): " + ", ".join(data.dropped))
+    messages = _rank_messages(data.dropped)
     if not ok:
         messages.append(f"optimizer: {msg}")
-    singular = bool(any(th < SINGULAR_TOL for th, lb in zip(theta, lower, strict=True)
-                        if lb == 0.0))
+    singular = _is_singular(theta, lower)
     if singular:
         messages.append("boundary (singular) fit: see help('isSingular')")
     sigma = math.sqrt(sigma2)
-    re = _random_table(data.terms, data.split(theta), scale=sigma)
+    re = _random_table(data.terms, _split(data.terms, theta), scale=sigma)
     re["Residual"] = {"sd": {"(Intercept)": sigma}}
     return MixedModelFit(
         spec=spec, family="gaussian", fixed_effects=_fixed_table(data.names, st["beta"], vcov),
