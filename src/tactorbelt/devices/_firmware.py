@@ -84,6 +84,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "DEFAULT_TIMEOUT_S",
+    "FIRMWARE_OPTIONS",
     "FirmwareBelt",
     "PacketSink",
     "SenseRecording",
@@ -109,6 +110,9 @@ DEFAULT_MAX_ON_MS: Final = 30_000
 DEFAULT_HEARTBEAT_MS: Final = 250
 #: Requests need an ATT MTU of this much (64-byte packets, 3 bytes of ATT header).
 BLE_MIN_MTU: Final = 67
+#: The keyword options of every firmware belt (:class:`FirmwareBelt`'s); a link adds its own.
+FIRMWARE_OPTIONS: Final = frozenset({"timeout_s", "heartbeat_ms", "calibration", "layout",
+                                     "keepalive", "clock", "supply_v", "kick_ms"})
 #: ONSET frames kept (by request seq).
 _ONSETS_KEPT: Final = 64
 #: Tactor angles within this of the default layout's are taken as the default layout.

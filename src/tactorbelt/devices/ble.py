@@ -42,7 +42,7 @@ from typing import Any, Final, Protocol, TypeVar
 
 from .._errors import DeviceError, ProtocolError
 from . import wire
-from ._firmware import FirmwareBelt, PacketSink, Transport, probe
+from ._firmware import FIRMWARE_OPTIONS, FirmwareBelt, PacketSink, Transport, probe
 from .registry import Discovery, Found, check_options
 
 __all__ = [
@@ -80,10 +80,7 @@ DEFAULT_BLE_TIMEOUT_S: Final = 1.0
 DEFAULT_SCAN_TIMEOUT_S: Final = 10.0
 DEFAULT_CONNECT_TIMEOUT_S: Final = 20.0
 
-OPTIONS: Final = frozenset({
-    "timeout_s", "heartbeat_ms", "calibration", "layout", "keepalive", "clock",
-    "client_factory", "scan_timeout_s", "connect_timeout_s", "supply_v", "kick_ms",
-})
+OPTIONS: Final = FIRMWARE_OPTIONS | {"client_factory", "scan_timeout_s", "connect_timeout_s"}
 
 #: A Bluetooth address, or the UUID macOS uses instead.
 _ADDRESS = re.compile(

@@ -33,7 +33,7 @@ from typing import IO, Any, Final
 from .._errors import ConfigError, DeviceError
 from ..geometry import Layout
 from . import wire
-from ._firmware import FirmwareBelt, checked_int
+from ._firmware import FIRMWARE_OPTIONS, FirmwareBelt, checked_int
 from .registry import check_options
 from .serial import SERIAL_STREAM_RATE_HZ, SerialTransport
 
@@ -46,11 +46,8 @@ START_TIMEOUT_S: Final = 10.0
 #: How long ``make`` may take.
 BUILD_TIMEOUT_S: Final = 300.0
 
-OPTIONS: Final = frozenset({
-    "tactors", "layout", "heartbeat_ms", "levels_log", "build", "timeout_s", "calibration",
-    "keepalive", "clock", "firmware_dir", "extra_args", "watchdog_ms", "debug_frames", "imu",
-    "brake", "supply_v", "kick_ms",
-})
+OPTIONS: Final = FIRMWARE_OPTIONS | {"tactors", "levels_log", "build", "firmware_dir",
+                                     "extra_args", "watchdog_ms", "debug_frames", "imu", "brake"}
 #: What the emulator's ``--imu`` takes.
 IMU_KINDS: Final = ("bmi270", "lsm9ds1", "none", "broken")
 

@@ -26,7 +26,14 @@ from typing import Any, Final
 
 from .._errors import ConfigError, DeviceError, ProtocolError
 from . import wire
-from ._firmware import DEFAULT_TIMEOUT_S, FirmwareBelt, PacketSink, Transport, probe
+from ._firmware import (
+    DEFAULT_TIMEOUT_S,
+    FIRMWARE_OPTIONS,
+    FirmwareBelt,
+    PacketSink,
+    Transport,
+    probe,
+)
 from .registry import Discovery, Found, check_options
 
 __all__ = [
@@ -49,10 +56,7 @@ SERIAL_STREAM_RATE_HZ: Final = 1000.0
 AUTO_PROBE_TIMEOUT_S: Final = 0.3
 
 #: Options open_serial accepts (passed on to FirmwareBelt but ``baudrate``).
-OPTIONS: Final = frozenset(
-    {"baudrate", "dtr", "timeout_s", "heartbeat_ms", "calibration", "layout", "keepalive",
-     "clock", "supply_v", "kick_ms"}
-)
+OPTIONS: Final = FIRMWARE_OPTIONS | {"baudrate", "dtr"}
 
 
 class SerialTransport(Transport):
