@@ -107,7 +107,9 @@ class Sensor(ABC):
     method: str
     unit: str = "arbitrary units"
     #: True when each tactor is sensed on a signal of its own (the model; one input
-    #: channel per tactor): pulses of other tactors may then follow one another closely.
+    #: channel per tactor): pulses of other tactors may then follow one another closely,
+    #: and ``validate stimulus`` senses every tactor over one play. False (one IMU, one
+    #: input channel): one pulse at a time, and a stimulus is replayed per tactor.
     separates_tactors: bool = False
 
     def start(self) -> None:  # noqa: B027 - optional hook
@@ -451,6 +453,8 @@ class BoardSensor(SampledSensor):
 
     unit = "acceleration (g)"
     scale = 1.0
+    #: one IMU senses every tactor: ``validate stimulus`` replays a stimulus per tactor
+    separates_tactors = False
 
     def __init__(self, belt: Belt, url: str, rate_hz: float | None, window_ms: float) -> None:
         if not belt.senses_vibration:
