@@ -64,7 +64,6 @@ the standard library (threading); no I/O library.
 from __future__ import annotations
 
 import bisect
-import itertools
 import math
 import threading
 from types import TracebackType
@@ -110,7 +109,6 @@ _MAX_WAIT_PERIODS: Final = 2.0
 _ON_TACTOR_DEG: Final = 1e-6
 
 FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.int64]
 Pair = tuple[int, int]
 
 # the segments of the perturbation's trapezoid within a pair (ccw tactor A, cw tactor B)
@@ -243,13 +241,11 @@ class DirectionDisplay:
         self.heading_filter = OneEuroFilter(min_cutoff_hz, beta, d_cutoff_hz, angular=True)
 
         self._lock = threading.RLock()
-        self._angles = self.layout.angles
-        self._angle_list = [float(a) for a in self._angles]
+        self._angle_list = [float(a) for a in self.layout.angles]
         order = sorted(range(self.layout.n), key=lambda k: self._angle_list[k])
         self._sorted_order = order
         self._sorted_angles = [self._angle_list[k] for k in order]
-        self._gaps_cw = self.layout.gaps_deg()
-        self._gap_list = [float(g) for g in self._gaps_cw]
+        self._gap_list = [float(g) for g in self.layout.gaps_deg()]
         self._hold_s = self.period_s - 2.0 * self.transit_s
         self._tick_rate_hz = self.device_rate_hz if self.device_render else self.rate_hz
         self._tick_ns = 1e9 / self._tick_rate_hz
@@ -395,10 +391,10 @@ class DirectionDisplay:
                 self._device_tick(now)
                 self._defer(now)
                 return None
-            amps = self._frames(np.array([max(now, self._t_ns)], dtype=np.int64))
+            amps = self._frame(max(now, self._t_ns))
             self._write(amps)
             self._defer(now)
-            return amps[0]
+            return amps
 
     def pump(self, until_ns: int) -> None:
         """Drive the belt up to ``until_ns`` on a simulated clock (moves the clock).
@@ -422,18 +418,13 @@ class DirectionDisplay:
                 if dl.deadline(i) < now:  # the clock was moved by someone else: skip ahead
                     i = dl.last_due(now - 1) + 1
                 end = max(i, dl.last_due(until - 1) + 1)  # frames due before ``until``
-                times = np.array([dl.deadline(k) for k in range(i, end)], dtype=np.int64)
-                n = end - i
                 dl.next_index = end
-                if self.device_render:
-                    for t in times.tolist():
-                        self.clock.sleep_until_ns(t)
+                for t in [dl.deadline(k) for k in range(i, end)]:
+                    self.clock.sleep_until_ns(t)
+                    if self.device_render:
                         self._device_tick(t)
-                elif n:
-                    amps = self._frames(times)
-                    for t, row in zip(times.tolist(), amps, strict=True):
-                        self.clock.sleep_until_ns(t)
-                        self._write(row[None, :])
+                    else:
+                        self._write(self._frame(t))
             self.clock.sleep_until_ns(until)
 
     # -- starting and the render thread -----------------------------------------------------
@@ -480,7 +471,7 @@ class DirectionDisplay:
                     if self.device_render:
                         self._device_tick(now)
                     else:
-                        self._write(self._frames(np.array([now], dtype=np.int64)))
+                        self._write(self._frame(now))
         except BaseException as exc:  # surfaced by the next call from the application
             self._error = exc
 
@@ -499,61 +490,43 @@ class DirectionDisplay:
             raise err
 
     # -- the displayed angle -----------------------------------------------------------------
-    def _slew(self, times: IntArray) -> FloatArray:
-        """Displayed angle at each (increasing) time; advances the state to the last."""
+    def _slew(self, t: int) -> float:
+        """The displayed angle at ``t``; advances the state to ``t``."""
         assert self._displayed is not None and self._requested is not None
-        d0, target = self._displayed, self._requested
-        if times.shape == (1,):  # one frame: the same arithmetic on floats
-            t1 = int(times[0])
-            diff1 = _wrap1(target - d0)
-            if math.isinf(self.slew_deg_per_s):
-                x1 = target
-            else:
-                travel1 = self.slew_deg_per_s * (float(max(t1 - self._t_ns, 0)) * 1e-9)
-                x1 = target if travel1 >= abs(diff1) else _normalize1(
-                    d0 + math.copysign(1.0, diff1) * travel1)
-            self._displayed = x1
-            self._t_ns = max(self._t_ns, t1)
-            return np.array([x1])
-        diff = float(wrap(target - d0))
-        dt = np.maximum(times - self._t_ns, 0).astype(float) * 1e-9
-        if math.isinf(self.slew_deg_per_s):
-            x = np.full(times.shape, target)
+        target = self._requested
+        diff = _wrap1(target - self._displayed)
+        travel = self.slew_deg_per_s * (float(max(t - self._t_ns, 0)) * 1e-9)
+        if math.isinf(self.slew_deg_per_s) or travel >= abs(diff):
+            x = target
         else:
-            travel = self.slew_deg_per_s * dt
-            arrived = travel >= abs(diff)
-            x = np.where(arrived, target,
-                         np.asarray(normalize(d0 + math.copysign(1.0, diff) * travel)))
-        if times.size:
-            self._displayed = float(x[-1])
-            self._t_ns = max(self._t_ns, int(times[-1]))
-        return np.asarray(x, dtype=float)
+            x = _normalize1(self._displayed + math.copysign(1.0, diff) * travel)
+        self._displayed = x
+        self._t_ns = max(self._t_ns, t)
+        return x
 
     # -- streaming --------------------------------------------------------------------------
-    def _frames(self, times: IntArray) -> FloatArray:
-        """Amplitudes (len(times), N) for increasing frame times; advances the state."""
-        x = self._slew(times)
-        dynamic = self.mode == "dynamic" and times.size > 0
-        loc = self._dynamic_locations(times, x) if dynamic else x
+    def _frame(self, t: int) -> FloatArray:
+        """The amplitudes (one per tactor) of the frame at ``t``; advances the state."""
+        x = self._slew(t)
+        loc = np.array([self._location1(t, x) if self.mode == "dynamic" else x])
         if self.profile is None:
-            return amplitudes(self.layout, loc, self.law, self.falloff_deg)
+            return amplitudes(self.layout, loc, self.law, self.falloff_deg)[0]
         loc = self.profile.warp_deg(self.layout, loc)
         return self.profile.apply_gains(amplitudes(self.layout, loc, self.law,
-                                                   self.falloff_deg))
+                                                   self.falloff_deg))[0]
 
-    def _write(self, amps: FloatArray) -> None:
-        for row in amps:
-            if self._last_amps is not None:
-                change = float(np.abs(row - self._last_amps).max())
-                if change > self.max_frame_change:
-                    self.max_frame_change = change
-            self.belt.set_amplitudes(row)
-            self._last_amps = row
-            self.frames_written += 1
+    def _write(self, row: FloatArray) -> None:
+        if self._last_amps is not None:
+            change = float(np.abs(row - self._last_amps).max())
+            if change > self.max_frame_change:
+                self.max_frame_change = change
+        self.belt.set_amplitudes(row)
+        self._last_amps = row
+        self.frames_written += 1
 
     def _pair_at(self, x: float) -> Pair:
-        """:meth:`_pairs` of one angle, in plain Python (a frame at a time: the render
-        thread at 1 kHz); the same numbers, as tests check."""
+        """The pair bracketing ``x``: (ccw, cw), or (k, k) on tactor k (as
+        Layout.tactor_at and Layout.neighbours find them, in plain Python)."""
         xn = _normalize1(x)  # as Layout.tactor_at and Layout.neighbours, on floats
         for k, ang in enumerate(self._angle_list):
             if abs(_wrap1(xn - ang)) < ANGLE_TOLERANCE_DEG:
@@ -564,26 +537,11 @@ class DirectionDisplay:
             pos = len(order) - 1
         return order[pos], order[(pos + 1) % len(order)]
 
-    def _pairs(self, x: FloatArray) -> tuple[IntArray, IntArray]:
-        """The pair bracketing each angle: (ccw, cw), or (k, k) on tactor k."""
-        on = np.asarray(self.layout.tactor_at(x))
-        ccw, cw = self.layout.neighbours(x)
-        a = np.where(on >= 0, on, ccw).astype(np.int64)
-        b = np.where(on >= 0, on, cw).astype(np.int64)
-        return a, b
-
-    def _r(self, pair: Pair, x: FloatArray) -> FloatArray:
-        """Where each angle sits in ``pair``: 0 at its ccw tactor, 1 at its cw tactor.
+    def _r1(self, pair: Pair, x: float) -> float:
+        """Where ``x`` sits in ``pair``: 0 at its ccw tactor, 1 at its cw tactor.
 
         Clamped to [0, 1]: an angle that has just left the pair counts as on its edge.
         """
-        a, _ = pair
-        gap = float(self._gaps_cw[a])
-        off = np.asarray(wrap(x - self._angles[a] - gap / 2.0)) + gap / 2.0
-        return np.asarray(np.clip(off / gap, 0.0, 1.0))
-
-    def _r1(self, pair: Pair, x: float) -> float:
-        """:meth:`_r` of one angle, on floats (the same numbers)."""
         a, _ = pair
         gap = self._gap_list[a]
         off = _wrap1(x - self._angle_list[a] - gap / 2.0) + gap / 2.0
@@ -612,73 +570,13 @@ class DirectionDisplay:
         """The tactor of the current pair nearest ``x`` (the one being crossed)."""
         assert self._pair is not None
         a, b = self._pair
-        da = abs(float(wrap(x - self._angles[a])))
-        db = abs(float(wrap(x - self._angles[b])))
+        da = abs(_wrap1(x - self._angle_list[a]))
+        db = abs(_wrap1(x - self._angle_list[b]))
         return a if da <= db else b
 
-    def _segments(self, times: IntArray, x: FloatArray, loc: FloatArray, i: int, j: int,
-                  stop_on: int | None = None) -> int:
-        """Render frames ``i..j-1`` in the current pair, moving along the trapezoid.
-
-        The trapezoid is a small state machine: dwell on the ccw tactor (for
-        ``hold*(1-r)``), transit to the cw tactor (``transit_s``), dwell there (for
-        ``hold*r``), transit back. Dwell lengths follow r at every frame; a transit
-        always runs at its nominal speed, so the felt location moves no faster than
-        in the paper's stimulus, whatever the display does.
-
-        Returns ``j``, or with ``stop_on`` the first frame at which the location is
-        dwelling on that tactor (that frame is not rendered).
-        """
-        assert self._pair is not None
-        a, b = self._pair
-        if a == b:
-            if stop_on is not None:
-                return i
-            loc[i:j] = self._angles[a]
-            return j
-        ang_a, gap = float(self._angles[a]), float(self._gaps_cw[a])
-        tr_ns = self.transit_s * 1e9
-        hold_ns = self._hold_s * 1e9
-        while i < j:
-            if stop_on is not None and self._dwelling_on(stop_on):
-                return i
-            seg, s0 = self._seg, self._seg_start_ns
-            t = times[i:j]
-            elapsed = (t - s0).astype(float)
-            if seg == _DWELL_A:
-                dur = hold_ns * (1.0 - self._r(self._pair, x[i:j]))
-            elif seg == _DWELL_B:
-                dur = hold_ns * self._r(self._pair, x[i:j])
-            else:
-                dur = np.full(t.shape, tr_ns)
-            done = np.flatnonzero(elapsed >= dur)
-            k = int(done[0]) if done.size else j - i
-            if seg == _DWELL_A:
-                loc[i:i + k] = ang_a
-            elif seg == _DWELL_B:
-                loc[i:i + k] = ang_a + gap
-            else:
-                frac = np.clip(elapsed[:k] / tr_ns, 0.0, 1.0)
-                loc[i:i + k] = ang_a + gap * (frac if seg == _TO_B else 1.0 - frac)
-            if not done.size:
-                return j
-            # the segment ended at s0 + dur; never before the last frame drawn in it
-            prev = int(times[i + k - 1]) if i + k > 0 else self._last_frame_ns
-            end = int(s0 + round(float(dur[k])))
-            self._seg = (seg + 1) % 4
-            self._seg_start_ns = max(end, prev)
-            i += k
-        return j
-
-    def _dynamic_locations(self, times: IntArray, x: FloatArray) -> FloatArray:
-        """Felt locations of the streamed perturbation (see the module docstring)."""
-        if times.shape[0] == 1:  # one frame (the render thread, update()): on floats
-            return np.array([self._location1(int(times[0]), float(x[0]))])
-        return self._locations(times, x)
-
     def _location1(self, t: int, x: float) -> float:
-        """:meth:`_locations` of one frame at ``t`` (angle ``x``), on floats: the same
-        numbers and the same state after, as tests/test_display_frame.py checks."""
+        """The felt location of the streamed perturbation in the frame at ``t``, the
+        displayed angle being ``x`` (see the module docstring)."""
         target = self._pair_at(x)
         loc: float | None = None
         if target != self._pair:
@@ -695,8 +593,16 @@ class DirectionDisplay:
         return _normalize1(loc)
 
     def _segment1(self, t: int, x: float, stop_on: int | None = None) -> float | None:
-        """:meth:`_segments` of one frame: its location, or None when ``stop_on`` stops
-        it (then the frame is not rendered)."""
+        """The location of the frame at ``t`` in the current pair, moving along the
+        trapezoid; None when ``stop_on`` stops it (then the frame is not rendered).
+
+        The trapezoid is a small state machine: dwell on the ccw tactor (for
+        ``hold*(1-r)``), transit to the cw tactor (``transit_s``), dwell there (for
+        ``hold*r``), transit back. Dwell lengths follow r at every frame; a transit
+        always runs at its nominal speed, so the felt location moves no faster than
+        in the paper's stimulus, whatever the display does. With ``stop_on``, it stops
+        at the first frame at which the location is dwelling on that tactor.
+        """
         assert self._pair is not None
         a, b = self._pair
         if a == b:
@@ -727,29 +633,6 @@ class DirectionDisplay:
             self._seg = (seg + 1) % 4
             self._seg_start_ns = max(end, self._last_frame_ns)
 
-    def _locations(self, times: IntArray, x: FloatArray) -> FloatArray:
-        """:meth:`_dynamic_locations` of any number of frames, on arrays."""
-        n = times.shape[0]
-        loc = np.empty(n)
-        ka, kb = self._pairs(x)
-        change = np.flatnonzero((np.diff(ka) != 0) | (np.diff(kb) != 0)) + 1
-        bounds = [0, *change.tolist(), n]
-        for i0, j in itertools.pairwise(bounds):
-            target: Pair = (int(ka[i0]), int(kb[i0]))
-            i = i0
-            if target != self._pair:
-                if self._pair is not None and self._pair[0] != self._pair[1]:
-                    s = self._crossed(float(x[i]))
-                    if s in target:  # wait until dwelling on the crossed tactor
-                        i = self._segments(times, x, loc, i, j, stop_on=s)
-                if i < j:
-                    self._enter_pair(target, int(times[i]), float(x[i]))
-            if i < j:
-                self._segments(times, x, loc, i, j)
-        if n:
-            self._last_frame_ns = int(times[-1])
-        return np.asarray(normalize(loc))
-
     # -- device rendering ---------------------------------------------------------------------
     def _stimulus(self, angle: float) -> Stimulus:
         return make_stimulus(self.layout, angle, self.mode, self.law, self.falloff_deg,
@@ -757,7 +640,7 @@ class DirectionDisplay:
 
     def _device_tick(self, now: int) -> None:
         """Slew to ``now``; send a PLAY_TARGET when the direction moved by > step_deg."""
-        x = float(self._slew(np.array([max(now, self._t_ns)], dtype=np.int64))[0])
+        x = self._slew(max(now, self._t_ns))
         assert self._requested is not None
         if abs(float(wrap(self._requested - x))) <= self.step_deg:
             x = self._requested  # within a step of the goal: aim at the goal itself
