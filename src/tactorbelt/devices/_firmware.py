@@ -798,14 +798,12 @@ class FirmwareBelt(Belt, PacketSink):
             raise DeviceError(self._lost) from None
 
     def _request(self, build: Callable[[int], wire.Packet], name: str,
-                 timeout_s: float | None = None, expect: type | None = None) -> Any:
+                 timeout_s: float | None = None, expect: type | None = None,
+                 onset: bool = False) -> Any:
         """Send a request and wait for the reply with its sequence number (``expect``: a
-        reply of that kind, else an error, :meth:`_expect`)."""
-        reply = self._wait(self._send(build, name), name, timeout_s)
-        return reply if expect is None else self._expect(reply, expect, name)
-
-    def _wait(self, waiter: _Waiter | None, name: str, timeout_s: float | None = None
-              ) -> wire.Reply:
+        reply of that kind, else an error, :meth:`_expect`; ``onset``: as for
+        :meth:`_send`)."""
+        waiter = self._send(build, name, onset)
         assert waiter is not None
         timeout = self.timeout_s if timeout_s is None else timeout_s
         if not waiter.event.wait(timeout):
@@ -818,7 +816,7 @@ class FirmwareBelt(Belt, PacketSink):
         if waiter.reply is None:  # woken by the link ending
             self._check_alive()
             raise DeviceError(f"belt on {self.port} stopped answering")
-        return waiter.reply
+        return waiter.reply if expect is None else self._expect(waiter.reply, expect, name)
 
     def _expect(self, reply: wire.Reply, kind: type, name: str) -> Any:
         if isinstance(reply, wire.Nak):
@@ -1290,9 +1288,8 @@ class FirmwareBelt(Belt, PacketSink):
     def _write_play(self, stimulus: Stimulus, duration_s: float | None) -> None:
         args = _play_args(stimulus, duration_s)
         self._streaming = False
-        waiter = self._send(lambda seq: wire.play_target(seq, *args), "the play command",
-                            onset=True)
-        self._expect(self._wait(waiter, "the play command"), wire.Ack, "the play command")
+        self._request(lambda seq: wire.play_target(seq, *args), "the play command",
+                      expect=wire.Ack, onset=True)
 
     def close(self) -> None:
         """Stop the motors (best effort: a dead device is logged, not raised) and release."""
