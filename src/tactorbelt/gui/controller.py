@@ -349,16 +349,10 @@ class WindowController(NullObserver, abc.ABC):
         pg = self._pg
         visible = bool(pg.mouse.get_visible())
         pg.mouse.set_visible(True)
-        prev = self.screen
         try:
-            self._idle("tlx", lambda: form.done and not (self.user_paused
-                                                        or self.device_paused),
-                       fps=TLX_FPS)
+            self._wait_screen("tlx", lambda: form.done, fps=TLX_FPS)
         finally:
             self._tlx = None
-            self.screen = prev
-            self._continue = False
-            self._frames = Deadlines(self.clock, self.fps)
             pg.mouse.set_visible(visible)
         return form.result() if form.done and not self.abort_requested else None
 
@@ -523,12 +517,15 @@ class WindowController(NullObserver, abc.ABC):
             if ev.type != pg.NOEVENT:
                 event = ev
 
-    def _wait_screen(self, kind: str) -> None:
-        """Show a waiting screen until the participant goes on (or an abort)."""
+    def _wait_screen(self, kind: str, done: Callable[[], bool] | None = None,
+                     fps: float = IDLE_FPS) -> None:
+        """Show a waiting screen until the participant goes on (or ``done()``), and no
+        pause is on, or an abort."""
         prev = self.screen
+        ready = done or (lambda: self._continue)
         try:
-            self._idle(kind, lambda: self._continue and not (self.user_paused
-                                                            or self.device_paused))
+            self._idle(kind, lambda: ready() and not (self.user_paused or self.device_paused),
+                       fps)
         finally:
             self.screen = prev
             self._continue = False
