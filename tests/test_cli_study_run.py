@@ -380,7 +380,7 @@ def test_the_clock_option_and_the_old_realtime_spelling(
 
 
 def test_options_stored_before_the_clock_option_resume_on_their_clock() -> None:
-    from tactorbelt.app.run import stored_options
+    from tactorbelt.app.request import stored_options
 
     class Old:
         def __init__(self, opts: dict[str, Any]) -> None:

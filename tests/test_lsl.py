@@ -354,11 +354,11 @@ def test_pause_resume_and_abort_are_markers_and_the_aborted_trial_ends(tmp_path:
 
 
 def test_the_resume_command_keeps_the_lsl_streams() -> None:
-    from tactorbelt.app.run import LslOptions, RunRequest, resume_command
+    from tactorbelt.app.run import RunRequest, resume_command
 
-    req = RunRequest(Path("s.toml"), "P01", lsl=LslOptions(wait_s=30.0))
+    req = RunRequest(Path("s.toml"), "P01", lsl=True, lsl_wait=30.0)
     assert resume_command(req).endswith(" --lsl --lsl-wait 30 --resume")
-    req.lsl.wait_all = True  # type: ignore[union-attr]
+    req.lsl_wait_all = True
     assert resume_command(req).endswith(" --lsl --lsl-wait 30 --lsl-wait-all --resume")
     assert "--lsl" not in resume_command(RunRequest(Path("s.toml"), "P01"))
 

@@ -322,7 +322,7 @@ def test_a_site_writer_reads_nothing_of_another_site(pg_server: Any, pg_url: str
 
 def test_db_and_push_options_resolve(tmp_path: Path) -> None:
     from tactorbelt import ConfigError
-    from tactorbelt.app.run import resolve_db
+    from tactorbelt.app.request import resolve_db
 
     study = tmp_path / "exp" / "study.toml"
     url = "postgresql://lyon@db.example.org/study"

@@ -1,10 +1,11 @@
 """``tactorbelt run`` (one participant's session); ``export`` lives in ``cli/export.py``
 (imported here for the command table).
 
-The run command parses its options into a :class:`tactorbelt.app.run.RunRequest` and
-calls :func:`tactorbelt.app.run.run_study`, which holds the policies (session, resume,
-display, clock, cursor). Options not given are ``None``, so ``--resume`` reuses what the
-session stored (and says which, with the option that overrides each).
+The run command passes the options given (by their names) into a
+:class:`tactorbelt.app.request.RunRequest` and calls :func:`tactorbelt.app.run.run_study`;
+:mod:`tactorbelt.app.request` holds the rules (session, resume, clock). Options not given
+are left out, so ``--resume`` reuses what the session stored (and says which, with the
+option that overrides each).
 
 Imports click at import time; everything else only when a command runs.
 """
@@ -24,10 +25,9 @@ from .export import export
 __all__ = ["export", "run"]
 
 
-def _given(ctx: click.Context, name: str, value: Any) -> Any:
-    """``value`` when the option was on the command line, else None."""
-    src = ctx.get_parameter_source(name)
-    return value if src is not None and src.name not in ("DEFAULT", "DEFAULT_MAP") else None
+def _given(source: click.core.ParameterSource | None) -> bool:
+    """Whether an option was on the command line (not its default)."""
+    return source is not None and source.name not in ("DEFAULT", "DEFAULT_MAP")
 
 
 @click.command("run")
@@ -92,14 +92,7 @@ def _given(ctx: click.Context, name: str, value: Any) -> Any:
 @click.option("--lsl-wait-all", is_flag=True,
               help="With --lsl-wait: wait for a consumer of every stream (the cursor too).")
 @click.pass_context
-def run(ctx: click.Context, study_file: Path, participant: str, belt_url: str,
-        calibration_file: str | None, input_kind: str | None, db: str, push: str | None,
-        site: str | None, offline: bool,
-        resume: bool, new_session: bool, headless: bool | None, limit: int | None,
-        seed: int | None, clock: str | None, realtime: bool, fullscreen: bool | None,
-        screenshot_dir: Path | None, joystick_device: str | None, axes: str,
-        dead_zone: float, invert_x: bool | None, invert_y: bool | None, lsl: bool,
-        lsl_wait: float, lsl_wait_all: bool) -> None:
+def run(ctx: click.Context, **opts: Any) -> None:
     """Run a study session for one participant, storing every trial in --db.
 
     Exit status: 0 the run ended (complete, or --limit reached), 130 stopped by the
@@ -109,39 +102,22 @@ def run(ctx: click.Context, study_file: Path, participant: str, belt_url: str,
     from ..app.display import check_display
     from ..interrupts import Terminated
 
-    if lsl_wait and not lsl:
+    if opts["lsl_wait"] and not opts["lsl"]:
         raise click.UsageError("--lsl-wait is for --lsl")
-    if lsl_wait_all and not lsl_wait:
+    if opts["lsl_wait_all"] and not opts["lsl_wait"]:
         raise click.UsageError("--lsl-wait-all is for --lsl-wait SECONDS")
-    if realtime and clock == "sim":
+    if opts["realtime"] and opts["clock"] == "sim":
         raise click.UsageError("--realtime is --clock wall; give --clock once")
-    if not participant.strip():
+    if not opts["participant"].strip():
         raise click.BadParameter("must not be empty", param_hint="--participant")
-    check_display(not resume and not headless)  # at once: before the heavy imports
-    from ..app.run import (
-        JoystickOptions,
-        LslOptions,
-        PushOptions,
-        RunRequest,
-        resolve_db,
-        resume_command,
-        run_study,
-    )
-    g = lambda name, value: _given(ctx, name, value)  # noqa: E731
-    local, push = resolve_db(db, push, study_file)
-    req = RunRequest(
-        study_file=study_file, participant=participant, db=local, site=site,
-        push=None if push is None else PushOptions(push, offline),
-        belt_url=g("belt_url", belt_url), calibration=calibration_file,
-        input_kind=input_kind, headless=headless,
-        resume=resume, new_session=new_session, limit=limit, seed=seed,
-        clock=clock or ("wall" if realtime else None), fullscreen=fullscreen,
-        screenshot_dir=screenshot_dir,
-        joystick=JoystickOptions(joystick_device, g("axes", axes), g("dead_zone", dead_zone),
-                                 invert_x, invert_y),
-        lsl=LslOptions(lsl_wait, lsl_wait_all) if lsl else None)
+    check_display(not opts["resume"] and not opts["headless"])  # before the heavy imports
+    from ..app.run import RunRequest, resume_command, run_study
+
+    # the options given (not their defaults: --resume reuses the session's stored ones)
+    req = RunRequest(**{name: value for name, value in opts.items()
+                        if _given(ctx.get_parameter_source(name))})
     try:
-        with counting_progress(participant) as progress:
+        with counting_progress(req.participant) as progress:
             outcome = run_study(req, progress=progress,
                                 note=lambda line: click.echo(line, err=True))
     except (KeyboardInterrupt, Terminated) as exc:
@@ -158,5 +134,3 @@ def run(ctx: click.Context, study_file: Path, participant: str, belt_url: str,
         click.echo(f"stopped by the experimenter; continue with '{resume_command(req)}'",
                    err=True)
         raise click.exceptions.Exit(130)
-
-
