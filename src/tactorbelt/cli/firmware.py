@@ -17,6 +17,13 @@ import click
 
 __all__ = ["firmware"]
 
+_imu = click.option("--imu", type=click.Choice(["bmi270", "lsm9ds1"]), default="bmi270",
+                    show_default=True,
+                    help="The board's IMU: bmi270 (Nano 33 BLE Rev2) or lsm9ds1 (Rev1).")
+_build_dir = click.option(
+    "--build-dir", type=click.Path(file_okay=False, path_type=Path), default=None,
+    help="Where the sketch and the binaries go (default: a new temporary folder).")
+
 
 @click.group("firmware")
 def firmware() -> None:
@@ -41,11 +48,8 @@ def export(dest: Path, force: bool) -> None:
 
 
 @firmware.command("build")
-@click.option("--imu", type=click.Choice(["bmi270", "lsm9ds1"]), default="bmi270",
-              show_default=True,
-              help="The board's IMU: bmi270 (Nano 33 BLE Rev2) or lsm9ds1 (Rev1).")
-@click.option("--build-dir", type=click.Path(file_okay=False, path_type=Path), default=None,
-              help="Where the sketch and the binaries go (default: a new temporary folder).")
+@_imu
+@_build_dir
 def build(imu: str, build_dir: Path | None) -> None:
     """Compile the sketch for the Nano 33 BLE with arduino-cli."""
     from ..firmware import build as build_firmware
@@ -58,11 +62,8 @@ def build(imu: str, build_dir: Path | None) -> None:
 @click.option("--port", required=True,
               help="The board's serial port (/dev/ttyACM0, COM3); 'tactorbelt devices' "
                    "lists them.")
-@click.option("--imu", type=click.Choice(["bmi270", "lsm9ds1"]), default="bmi270",
-              show_default=True,
-              help="The board's IMU: bmi270 (Nano 33 BLE Rev2) or lsm9ds1 (Rev1).")
-@click.option("--build-dir", type=click.Path(file_okay=False, path_type=Path), default=None,
-              help="Where the sketch and the binaries go (default: a new temporary folder).")
+@_imu
+@_build_dir
 def upload(port: str, imu: str, build_dir: Path | None) -> None:
     """Compile the sketch and upload it to the board on PORT with arduino-cli."""
     from ..firmware import bundled_version
