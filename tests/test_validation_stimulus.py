@@ -100,7 +100,7 @@ def test_a_mixing_sensor_measures_each_tactor_as_a_direct_one(condition: str,
         else:  # never played: silent, not the other tactors' vibration
             assert row == {"tactor": k, "rms_error": 0.0, "onset_error_ms": None,
                            "offset_error_ms": None, "driven": False, "felt": "silent",
-                           "plays": 0}
+                           "plays": 0, "missed_frames": 0}
             assert d[target, k]["felt"] == "sensed"  # the direct sensor measured it
 
 

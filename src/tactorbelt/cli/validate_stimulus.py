@@ -86,6 +86,9 @@ def stimulus(belt_url: str, sense_url: str | None, target: int | None, all_targe
                f" (between tactors {result.between_tactor_rms_error:.4f})")
     click.echo(f"RMS error {result.rms_error:.4f}{between}; drive {result.drive}; "
                f"tactors told apart: {result.isolation} ({result.plays} plays)")
+    if result.missed_frames:
+        click.echo(f"warning: the player skipped {result.missed_frames} frames of the plays "
+                   "(a busy computer): the felt envelope shows them late", err=True)
     for what, path in paths.items():
         click.echo(f"wrote {what}: {path}")
     click.echo("done: motors off")

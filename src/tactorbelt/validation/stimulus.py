@@ -125,6 +125,8 @@ class StimulusValidation:
     #: (``streamed`` or ``rendered on the device``)
     played: str = STREAMED
     session_plays: str = STREAMED
+    #: frames the player skipped over every play (a streamed play on a busy computer)
+    missed_frames: int = 0
 
     def to_dict(self) -> dict[str, Any]:
         return {"format": FORMAT, "version": 1, "belt": self.belt, "sensor": self.sensor,
@@ -133,6 +135,7 @@ class StimulusValidation:
                 "between_tactor_rms_error": self.between_tactor_rms_error,
                 "isolation": self.isolation, "plays": self.plays,
                 "played": self.played, "session_plays": self.session_plays,
+                "missed_frames": self.missed_frames,
                 "onset_reference": self.onset_reference,
                 "threshold": LOW, "response_levels": list(RESPONSE_LEVELS),
                 "response": self.response, "targets": self.targets}
@@ -222,10 +225,12 @@ def _driven(stimulus: Stimulus, duration_s: float) -> list[int]:
 
 @dataclass
 class _Played:
-    """One playback: its onset and end on the commands' clock."""
+    """One playback: its onset and end on the commands' clock, and the frames the player
+    skipped (streamed on a busy computer: each shows the stimulus later)."""
 
     onset: int
     end: int
+    missed: int = 0
 
 
 def _play(player: Player, belt: Belt, clock: Clock, what: Any, duration_s: float,
@@ -241,7 +246,7 @@ def _play(player: Player, belt: Belt, clock: Clock, what: Any, duration_s: float
             onset = int(got[0])
     end = onset + round(duration_s * 1e9)
     clock.sleep_until_ns(end + off_ns)
-    return _Played(onset, end)
+    return _Played(onset, end, int(stats.missed))
 
 
 def _compare(sensor: Sensor, k: int, played: _Played, stim: Stimulus, base_ns: int,
@@ -318,7 +323,7 @@ def validate_stimulus(belt: Belt, sensor: Sensor, study: Study, targets: Sequenc
     traces: dict[int, dict[int, _Trace]] = {}
     all_sq: list[FloatArray] = []
     between_sq: list[FloatArray] = []
-    done = 0
+    done = missed = 0
     session = STREAMED
     try:
         with Player(belt, clock) as player:
@@ -343,18 +348,20 @@ def validate_stimulus(belt: Belt, sensor: Sensor, study: Study, targets: Sequenc
                         row, trace, err2 = _compare(sensor, k, played, stim, base_ns,
                                                     off_ns, float(full[k]), grid,
                                                     curve[:, k])
-                        row["plays"] = 1
+                        row["plays"], row["missed_frames"] = 1, played.missed
                         tactors[k], traces[target][k] = row, trace
                         if row["driven"]:
                             sq.append(err2)
                     sensor.forget_before(played.end + off_ns - base_ns)
+                    missed += played.missed
                     done += 1
                     if progress is not None:
                         progress(done, total)
                 for k in range(belt.n_tactors):  # never played: silent
                     tactors.setdefault(k, {"tactor": k, "rms_error": 0.0,
                                            "onset_error_ms": None, "offset_error_ms": None,
-                                           "driven": False, "felt": "silent", "plays": 0})
+                                           "driven": False, "felt": "silent", "plays": 0,
+                                           "missed_frames": 0})
                 cat = np.concatenate(sq) if sq else np.zeros(1)
                 rows.append({"target": target, "target_deg": float(angles[target]),
                              "on_tactor": bool(on_tactor[target]),
@@ -375,7 +382,7 @@ def validate_stimulus(belt: Belt, sensor: Sensor, study: Study, targets: Sequenc
         between_tactor_rms_error=(float(np.sqrt(np.mean(np.concatenate(between_sq))))
                                   if between_sq else None),
         isolation=DIRECT if direct else REPLAY, plays=total,
-        played=session if direct else STREAMED, session_plays=session,
+        played=session if direct else STREAMED, session_plays=session, missed_frames=missed,
         onset_reference=("device: belt.last_onset(), as a session stores it"
                          if belt.reports_onsets else "host: the player's onset"))
 
