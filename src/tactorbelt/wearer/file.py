@@ -71,8 +71,8 @@ Angles = Annotated[list[float], _rule(
 Gains = Annotated[list[float], _rule(lambda v: isinstance(v, list) and all(map(is_number, v)),
                                     "must be a list of numbers, one per tactor"), _ABSENT]
 Law = Annotated[str, checked(lambda v: check_option("law", v, LAWS) or v)]
-Falloff = Annotated[Any, checked(lambda v: v if is_number(v) and v > 0 else _fail(
-    f"must be a positive number of degrees, got {v!r}"))]
+Falloff = Annotated[Any, _rule(lambda v: is_number(v) and v > 0,
+                               "must be a positive number of degrees, got {v!r}")]
 Pairs = Annotated[list[Pair], checked(_pairs), _ABSENT]
 
 
@@ -111,7 +111,3 @@ class File(FileModel):
                 raise ValueError(f"@pair[{k}].tactors@ must be [{k}, {(k + 1) % n}], got "
                                  f"{row.tactors!r}")
         return self
-
-
-def _fail(message: str) -> Any:
-    raise ValueError(message)
