@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING, Any
 
 from .._errors import ConfigError
 from .._registry import lazy_attributes
+from .._registry import resolve as _load
 from .registry import BACKENDS, parse_url, resolve, runs_on_simulated_time
 
 if TYPE_CHECKING:
@@ -48,10 +49,8 @@ def open_belt(url: str = "sim", **options: Any) -> Belt:
     if both:
         raise ConfigError(f"option {both[0]!r} is given both in belt URL {url!r} and as a "
                           "keyword; give it once")
-    drive = {**url_options, **options}.pop("drive", None)
-    url_options.pop("drive", None)
-    options.pop("drive", None)
-    belt: Belt = backend.load_opener()(target, **url_options, **options)
+    drive = url_options.pop("drive", options.pop("drive", None))  # given once (above)
+    belt: Belt = _load(backend.opener)(target, **url_options, **options)
     if drive is not None:
         try:
             belt.set_drive(drive)

@@ -83,10 +83,6 @@ class Backend:
     def forms(self) -> tuple[str, ...]:
         return self.allowed or (self.usage,)
 
-    def load_opener(self) -> Callable[..., Any]:
-        """Import the backend module and return its opener."""
-        return _load(self.opener)
-
     def load_discover(self) -> Callable[..., Discovery] | None:
         """Import the backend module and return its discovery function (None: none)."""
         return None if self.discover is None else _load(self.discover)
