@@ -62,7 +62,6 @@ import datetime as _dt
 import math
 import os
 import tempfile
-import tomllib
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, replace
 from functools import cache, cached_property
@@ -606,14 +605,13 @@ def update_timing(path: str | Path, n: int,
         ConfigError: the file is not a calibration, has another number of tactors than
             ``n``, or cannot be written.
     """
-    from .._files import read_user_text
+    from .._files import read_toml, read_user_text
 
     p = Path(path)
     created: str | None = None
     if p.exists():
-        text = read_user_text(p, "calibration file")
-        cal = Calibration.from_toml(text, source=str(p))
-        doc = tomllib.loads(text)
+        doc = read_toml(read_user_text(p, "calibration file"), str(p))
+        cal = Calibration.from_mapping(doc, str(p))
         belt = str(doc["belt"]) if doc.get("belt") else belt
         created = str(doc["created"]) if doc.get("created") else None
         rows = doc.get("tactor", [])
