@@ -79,6 +79,7 @@ def _local_session(path: Path, n_trials: int) -> None:
 def _copy_to_pg(src_path: Path, url: str) -> None:
     """Copy a synthetic (bare) SQLite store into PostgreSQL with bulk_insert, filling the
     columns a full store requires."""
+    from support.synthetic import bulk_insert
     from tactorbelt.experiment.store import open_store
 
     with open_store(src_path, create=False, readonly=True, verify=False) as src, \
@@ -96,10 +97,10 @@ def _copy_to_pg(src_path: Path, url: str) -> None:
                      recorded_at="2026-01-01T00:00:00", attempts=1,
                      repetition=t.get("repetition") or 0,
                      trial_index=t.get("trial_index") or 0)
-        dst.bulk_insert(sessions=sessions, trials=trials)
+        bulk_insert(dst, sessions=sessions, trials=trials)
         ids = [int(t["trial_id"]) for t in trials]
         for start in range(0, len(ids), 5000):
-            dst.bulk_insert(samples=src.samples_of(ids[start:start + 5000]))
+            bulk_insert(dst, samples=src.samples_of(ids[start:start + 5000]))
 
 
 def main() -> int:

@@ -20,6 +20,7 @@ tactorbelt.geometry and the store.
 from __future__ import annotations
 
 import sqlite3
+import uuid
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -27,11 +28,14 @@ from typing import Any
 import numpy as np
 
 from tactorbelt._errors import StoreError
+from tactorbelt.experiment.provenance import default_site
+from tactorbelt.experiment.store import SAMPLE_COLUMNS, Store
 from tactorbelt.experiment.store.schema import SQLITE, create_index, table
 from tactorbelt.experiment.store.sqlite import SQLiteStore
 from tactorbelt.geometry import Layout, TargetSet, normalize
 
 __all__ = [
+    "bulk_insert",
     "create_store",
     "insert_samples",
     "insert_session",
@@ -50,6 +54,53 @@ TRIAL_COLUMNS = (
     "target_deg", "on_tactor", "response_deg", "response_target_deg", "correct", "rt_s",
     "onset_ns", "status",
 )
+
+
+def bulk_insert(store: Store, *, sessions: Iterable[Mapping[str, Any]] = (),
+                trials: Iterable[Mapping[str, Any]] = (),
+                samples: Iterable[Sequence[Any]] = ()) -> list[int]:
+    """Insert ready-made rows into an open store in one transaction; the new sessions' ids.
+
+    Rows go in as given (explicit ids are kept, missing columns get the schema's
+    defaults); for synthetic data, not for runs (``write_trial`` checks trials). In a
+    store of several sites (PostgreSQL) a session without a ``session_uuid`` gets one and
+    without a site the default one, its participant id is claimed for that site, the next
+    generated ids follow the explicit ones, and samples get their ``sample_index`` after
+    the trial's samples already stored (by COPY).
+    """
+    d = store.dialect
+    multisite = d.has("multisite")
+    ids: list[int] = []
+    with store._transaction() as c:
+        for given in sessions:
+            row = dict(given)
+            if multisite:
+                row = {"session_uuid": str(uuid.uuid4())} | row | {
+                    "site": row.get("site") or default_site()}
+                store._claim(c, str(row["participant"]), str(row["site"]))
+            ids.append(store._insert(c, "sessions", row, "session_id"))
+        trial_rows = list(trials)
+        if trial_rows:
+            cols = sorted({k for r in trial_rows for k in r})
+            c.executemany(d.insert("trials", cols), ([r.get(k) for k in cols] for r in trial_rows))
+        if not d.has("order_columns"):
+            c.executemany(d.insert("samples", SAMPLE_COLUMNS), samples)
+            return ids
+        for name, col in (("sessions", "session_id"), ("trials", "trial_id")):
+            c.execute(f"SELECT setval(pg_get_serial_sequence('{d.table(name)}', '{col}'),"
+                      f" MAX({col})) FROM {d.table(name)} HAVING MAX({col}) IS NOT NULL")
+        sample_rows = [tuple(r) for r in samples]
+        tids = sorted({int(r[0]) for r in sample_rows})
+        nxt = {int(t): int(k) for t, k in c.execute(d.sql(
+            "SELECT trial_id, MAX(sample_index) + 1 FROM samples WHERE trial_id = ANY(?)"
+            " GROUP BY trial_id"), (tids,)).fetchall()}
+        with c.copy(f"COPY {d.table('samples')}(trial_id, sample_index, t_s, x, y, buttons)"
+                    " FROM STDIN") as copy:
+            for r in sample_rows:
+                k = nxt.get(int(r[0]), 0)
+                copy.write_row((int(r[0]), k, *r[1:]))
+                nxt[int(r[0])] = k + 1
+    return ids
 
 
 def paper_study_toml(name: str = "between-tactor-paper", tactors: int | Sequence[float] = 6,
@@ -87,7 +138,7 @@ def create_bare_store(path: str | Path, *, samples_index: bool = True,
 
     The analysis reads any store that has the required tables and columns; this one has
     no more (no meta table, no provenance), so tests can check that. Fill it with
-    :meth:`SQLiteStore.bulk_insert`.
+    :func:`bulk_insert`.
 
     Args:
         path: the new file (must not exist).
@@ -152,19 +203,19 @@ def insert_session(store: SQLiteStore, **fields: Any) -> int:
         "status": "complete",
     }
     row.update(fields)
-    (session_id,) = store.bulk_insert(sessions=[row])
+    (session_id,) = bulk_insert(store, sessions=[row])
     return session_id
 
 
 def insert_trials(store: SQLiteStore, rows: Iterable[Mapping[str, Any]]) -> None:
     """Insert trial rows (dicts keyed by trial column name; missing ones are NULL)."""
-    store.bulk_insert(trials=rows)
+    bulk_insert(store, trials=rows)
 
 
 def insert_samples(store: SQLiteStore, trial_id: int, t_s: Sequence[float],
                    x: Sequence[float], y: Sequence[float]) -> None:
     """Insert one trial's cursor samples (buttons 0)."""
-    store.bulk_insert(samples=[(trial_id, float(t), float(a), float(b), 0)
+    bulk_insert(store, samples=[(trial_id, float(t), float(a), float(b), 0)
                                for t, a, b in zip(t_s, x, y, strict=True)])
 
 
@@ -261,8 +312,8 @@ def _synthesize_block(store: SQLiteStore, counts: dict[str, int], rng: np.random
                               "synthetic", "0" * 64, toml, seed, order, belt, "1.0.0", "0.1.0",
                               f"2026-01-01T{hour}:00:00+00:00",
                               f"2026-01-01T{hour}:30:00+00:00", "complete"))
-        store.bulk_insert(sessions=(dict(zip(SESSION_COLUMNS, r, strict=True))
-                                    for r in sess_rows))
+        bulk_insert(store, sessions=(dict(zip(SESSION_COLUMNS, r, strict=True))
+                                     for r in sess_rows))
         k = stop - start
         n = k * n_per
         sess = np.repeat(first_session + np.arange(start, stop) + 1, n_per)
@@ -297,7 +348,7 @@ def _synthesize_block(store: SQLiteStore, counts: dict[str, int], rng: np.random
             (np.arange(n, dtype=np.int64) * 3_000_000_000).tolist(), status.tolist(),
             strict=True,
         )
-        store.bulk_insert(trials=(dict(zip(TRIAL_COLUMNS, r, strict=True)) for r in rows))
+        bulk_insert(store, trials=(dict(zip(TRIAL_COLUMNS, r, strict=True)) for r in rows))
         counts["sessions"] += k
         counts["trials"] += n
         if samples:
@@ -312,7 +363,7 @@ def _synthesize_block(store: SQLiteStore, counts: dict[str, int], rng: np.random
             a = np.deg2rad(np.repeat(resp, ns)) + 0.05 * np.sin(6 * frac)
             x = r * np.sin(a)
             y = r * np.cos(a)
-            store.bulk_insert(samples=zip(tid.tolist(), t.tolist(), x.tolist(), y.tolist(),
-                                          [0] * len(tid), strict=True))
+            bulk_insert(store, samples=zip(tid.tolist(), t.tolist(), x.tolist(), y.tolist(),
+                                           [0] * len(tid), strict=True))
             counts["samples"] += int(ns.sum())
     return trial_id

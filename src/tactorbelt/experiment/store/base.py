@@ -88,7 +88,6 @@ class StoreCapabilities:
         backend: the URL scheme (``sqlite``).
         file: the store is one file on disk (:attr:`Store.path` is set); it can be
             copied or moved aside when closed.
-        bulk_insert: :meth:`Store.bulk_insert` is supported.
         exclusive_writer: only one writer may hold the store at a time.
         sync_target: sessions copied from another store can be imported
             (:meth:`Store.sync_state`, :meth:`Store.import_session`,
@@ -99,7 +98,6 @@ class StoreCapabilities:
 
     backend: str
     file: bool
-    bulk_insert: bool
     exclusive_writer: bool
     sync_target: bool = False
     batch_commits: bool = False

@@ -32,9 +32,8 @@ Guarantees as the SQLite store (the same code: :class:`~.sql.Store`): each trial
 (row and samples) is one transaction; an ``aborted`` row is replaced when the trial is
 run again (found under a row lock: several writers); a final row is never written
 twice. Several writers may use the store at once (``exclusive_writer`` is False);
-a participant id belongs to the site that first used it (:meth:`create_session`,
-:meth:`import_session` and :meth:`bulk_insert` refuse it at another site, and so does
-the database).
+a participant id belongs to the site that first used it (:meth:`create_session` and
+:meth:`import_session` refuse it at another site, and so does the database).
 
 :meth:`import_session` / :meth:`import_trial` / :meth:`sync_state` take sessions copied
 from another store (``tactorbelt sync``, the runner's background push), keyed by the
@@ -174,8 +173,8 @@ def _connect_error(url: str, exc: Exception, create: bool, readonly: bool) -> St
 class PostgreSQLStore(Store):
     """A store in a PostgreSQL database (see the module doc). Open with :func:`open_store`."""
 
-    capabilities = StoreCapabilities(backend="postgresql", file=False, bulk_insert=True,
-                                     exclusive_writer=False, sync_target=True)
+    capabilities = StoreCapabilities(backend="postgresql", file=False, exclusive_writer=False,
+                                     sync_target=True)
     dialect = POSTGRESQL
 
     def __init__(self, url: str, conn: Any, readonly: bool) -> None:
@@ -379,36 +378,6 @@ class PostgreSQLStore(Store):
                         " FROM STDIN") as copy:
                 for r in rows:
                     copy.write_row(r)
-
-    # -- bulk writes -------------------------------------------------------------------
-    def _bulk_session(self, row: Mapping[str, Any]) -> Mapping[str, Any]:
-        """Sessions without a ``session_uuid`` get one, without a site the default one
-        (:func:`~tactorbelt.experiment.provenance.default_site`); the caller claims the
-        participant id for that site."""
-        return {"session_uuid": str(uuid.uuid4())} | dict(row) | {
-            "site": row.get("site") or default_site()}
-
-    def _bulk_ids(self, c: Any) -> None:
-        for table, col in (("sessions", "session_id"), ("trials", "trial_id")):
-            # explicit ids: the next generated one follows them
-            c.execute(f"SELECT setval(pg_get_serial_sequence('tactorbelt.{table}', "
-                      f"'{col}'), MAX({col})) FROM tactorbelt.{table} "
-                      f"HAVING MAX({col}) IS NOT NULL")
-
-    def _bulk_samples(self, c: Any, samples: Iterable[Sequence[Any]]) -> None:
-        """Samples get their ``sample_index`` after the trial's samples already stored."""
-        sample_rows = [tuple(s) for s in samples]
-        tids = sorted({int(r[0]) for r in sample_rows})
-        nxt = {int(t): int(k) for t, k in c.execute(
-            "SELECT trial_id, MAX(sample_index) + 1 FROM tactorbelt.samples"
-            " WHERE trial_id = ANY(%s) GROUP BY trial_id", (tids,)).fetchall()}
-        with c.copy("COPY tactorbelt.samples(trial_id, sample_index, t_s, x, y, buttons)"
-                    " FROM STDIN") as copy:
-            for sr in sample_rows:
-                tid = int(sr[0])
-                k = nxt.get(tid, 0)
-                copy.write_row((tid, k, *sr[1:]))
-                nxt[tid] = k + 1
 
     # -- copying sessions from another store (sync) ------------------------------------
     def sync_state(self, session_uuid: str

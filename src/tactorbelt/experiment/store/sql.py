@@ -11,12 +11,11 @@ the connection and what only its database does:
   raising StoreError (``cannot {what} {url}: ...``) on a database error;
 - ``_read_error()`` (the driver's error class: a failed read is StoreError) and
   ``_stream(sql, args)`` (rows without holding them all);
-- ``_write_samples(c, trial_id, result)`` and ``_bulk_samples(c, rows)``: the sample
-  rows of a trial and of :meth:`bulk_insert` (SQLite's multi-row INSERTs, PostgreSQL's
-  COPY);
+- ``_write_samples(c, trial_id, result)``: the sample rows of a trial (SQLite's
+  multi-row INSERTs, PostgreSQL's COPY);
 - hooks with a default here: ``_put_trial`` (how an earlier row of the trial is found:
   a row lock first, or an INSERT that fails on the UNIQUE key), ``_claim`` (participant
-  ids owned by a site), ``_bulk_session`` and ``_bulk_ids`` (bulk inserts' ids);
+  ids owned by a site);
 - what only some stores can (multi-site claims, batched commits, copied sessions: see
   :class:`~.base.StoreCapabilities`), the rest refusing with StoreError.
 
@@ -28,7 +27,7 @@ from __future__ import annotations
 import abc
 import contextlib
 import json
-from collections.abc import Iterable, Iterator, Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from contextlib import AbstractContextManager
 from pathlib import Path
 from types import TracebackType
@@ -140,9 +139,6 @@ class Store(abc.ABC):
         raise NotImplementedError
 
     def _write_samples(self, c: Any, trial_id: int, result: TrialResult) -> None:
-        raise NotImplementedError
-
-    def _bulk_samples(self, c: Any, rows: Iterable[Sequence[Any]]) -> None:
         raise NotImplementedError
 
     def _claim(self, c: Any, participant: str, site: str) -> None:  # noqa: B027
@@ -505,38 +501,6 @@ class Store(abc.ABC):
         sql += f" ORDER BY t.session_id, t.trial_id, p.{self.dialect.order('samples')}"
         for r in self._stream(self._sql(sql), args):
             yield (r[0], r[1], r[2], r[3], r[4], r[5])
-
-    # -- bulk writes -------------------------------------------------------------------
-    def bulk_insert(self, *, sessions: Iterable[Mapping[str, Any]] = (),
-                    trials: Iterable[Mapping[str, Any]] = (),
-                    samples: Iterable[Sequence[Any]] = ()) -> list[int]:
-        """Insert ready-made rows in one transaction; return the new sessions' ids.
-
-        Rows go in as given (explicit ids are kept, missing columns get the schema's
-        defaults); for synthetic data, not for runs (:meth:`write_trial` checks trials).
-        """
-        ids: list[int] = []
-        with self._transaction() as c:
-            for given in sessions:
-                row = self._bulk_session(given)
-                if row.get("site"):
-                    self._claim(c, str(row["participant"]), str(row["site"]))
-                ids.append(self._insert(c, "sessions", row, "session_id"))
-            trial_rows = list(trials)
-            if trial_rows:
-                cols = sorted({k for r in trial_rows for k in r})
-                c.executemany(self.dialect.insert("trials", cols),
-                              ([r.get(k) for k in cols] for r in trial_rows))
-            self._bulk_ids(c)
-            self._bulk_samples(c, samples)
-        return ids
-
-    def _bulk_session(self, row: Mapping[str, Any]) -> Mapping[str, Any]:
-        """A session row of :meth:`bulk_insert` as inserted."""
-        return row
-
-    def _bulk_ids(self, c: Any) -> None:  # noqa: B027
-        """After rows with explicit ids: the next generated ids follow them."""
 
     # -- multi-site stores, batched commits, copied sessions (defaults: none) ---------
     def claim_participant(self, participant: str, site: str) -> None:

@@ -38,7 +38,7 @@ import os
 import shutil
 import sqlite3
 import stat
-from collections.abc import Iterable, Iterator, Sequence
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -114,8 +114,8 @@ def _samples_sql(n_rows: int, buttons: bool) -> str:
 class SQLiteStore(Store):
     """A store in one SQLite file (see the module doc). Open with :func:`open_store`."""
 
-    capabilities = StoreCapabilities(backend="sqlite", file=True, bulk_insert=True,
-                                     exclusive_writer=True, batch_commits=True)
+    capabilities = StoreCapabilities(backend="sqlite", file=True, exclusive_writer=True,
+                                     batch_commits=True)
     dialect = SQLITE
     path: Path
     conn: sqlite3.Connection
@@ -469,11 +469,6 @@ class SQLiteStore(Store):
                 values[4::per] = bs[a:b]
             c.execute(_samples_sql(rows, buttons), values)
             a = b
-
-    def _bulk_samples(self, c: Any, rows: Iterable[Sequence[Any]]) -> None:
-        c.executemany("INSERT INTO samples(trial_id, t_s, x, y, buttons) VALUES (?,?,?,?,?)",
-                      rows)
-
 
 def move_store_file(src: str | Path, dst: str | Path) -> bool:
     """Move a closed store file (and any WAL files of a crashed run) to ``dst``.
