@@ -36,13 +36,13 @@ import numpy as np
 
 from .models.fit import mixed_model, rt_model
 from .models.lrt import DEFAULT_PB_SIMS
+from .tables._json import finite_float as _num
 from .tables._json import finite_json as _finite_json
 from .tables.cells import cell_summary, cells_to_json, participant_cells
 from .tables.classical import (
     DEFAULT_N_BOOT,
     TestResult,
     _not_computed,
-    _num,
     fisher_accuracy,
     mann_whitney_rt,
     wilcoxon_paired,

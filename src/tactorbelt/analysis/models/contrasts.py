@@ -21,12 +21,12 @@ Pure: NumPy, pandas, SciPy, statsmodels.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any, Final
 
 import numpy as np
 
+from ..tables._json import finite_float as _num
 from .glmm import fixed_design, term_column, term_levels
 
 if TYPE_CHECKING:
@@ -95,12 +95,6 @@ def contrast_matrix(fit: MixedModelFit, frame: pd.DataFrame
     return counts, xd, xs
 
 
-def _expit(v: np.ndarray) -> np.ndarray:
-    from scipy.special import expit
-
-    return np.asarray(expit(v))
-
-
 def condition_contrasts(fit: MixedModelFit, frame: pd.DataFrame,
                         not_estimable: Sequence[str] = ()) -> list[dict[str, Any]]:
     """Dynamic minus static at between-tactor targets, per target count (see the module).
@@ -118,6 +112,7 @@ def condition_contrasts(fit: MixedModelFit, frame: pd.DataFrame,
         ``probability`` (the same on the probability scale, with each condition's
         estimated accuracy), ``estimable``. Empty when the model has no condition or no finite vcov.
     """
+    from scipy.special import expit
     from scipy.stats import norm
     from statsmodels.stats.multitest import multipletests
 
@@ -134,7 +129,7 @@ def condition_contrasts(fit: MixedModelFit, frame: pd.DataFrame,
     z = est / se
     p = 2.0 * norm.sf(np.abs(z))
     eta_d, eta_s = xd @ beta, xs @ beta
-    pd_, ps_ = _expit(eta_d), _expit(eta_s)
+    pd_, ps_ = expit(eta_d), expit(eta_s)
     gmat = (pd_ * (1 - pd_))[:, None] * xd - (ps_ * (1 - ps_))[:, None] * xs
     pest = pd_ - ps_
     pse = np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", gmat, vcov, gmat), 0.0))
@@ -153,19 +148,14 @@ def condition_contrasts(fit: MixedModelFit, frame: pd.DataFrame,
         by["on_tactor"] = 0
         out.append({
             "contrast": CONTRAST, "by": by, "scale": "log-odds",
-            "estimate": _f(est[i]), "se": _f(se[i]), "z": _f(z[i]), "p": _f(p[i]),
-            "p_adjusted": _f(padj[i]), "adjust": ADJUST, "n_family": len(counts),
+            "estimate": _num(est[i]), "se": _num(se[i]), "z": _num(z[i]), "p": _num(p[i]),
+            "p_adjusted": _num(padj[i]), "adjust": ADJUST, "n_family": len(counts),
             "probability": {
-                "scale": "probability", "estimate": _f(pest[i]), "se": _f(pse[i]),
-                "z": _f(pz[i]), "p": _f(pp[i]), "p_adjusted": _f(ppadj[i]),
-                "adjust": ADJUST, "dynamic": _f(pd_[i]), "static": _f(ps_[i]),
+                "scale": "probability", "estimate": _num(pest[i]), "se": _num(pse[i]),
+                "z": _num(pz[i]), "p": _num(pp[i]), "p_adjusted": _num(ppadj[i]),
+                "adjust": ADJUST, "dynamic": _num(pd_[i]), "static": _num(ps_[i]),
                 "method": "delta method on the back-transformed estimates (emmeans' regrid)",
             },
             "estimable": bool(estimable[i]),
         })
     return out
-
-
-def _f(v: float) -> float | None:
-    v = float(v)
-    return v if math.isfinite(v) else None

@@ -26,9 +26,11 @@ from typing import TYPE_CHECKING, Any, Final
 import numpy as np
 
 from ...factors import CONDITION, LOAD, TARGETS, added_factors, factor
+from ..tables._json import finite_float as _num
 from ..tables._json import finite_json as _finite_json
-from ..tables.classical import TestResult, _not_computed, _num
+from ..tables.classical import TestResult, _not_computed
 from ..tables.tables import CONDITIONS
+from .glmm import Z95
 from .lrt import DEFAULT_PB_SIMS
 
 if TYPE_CHECKING:
@@ -56,7 +58,6 @@ __all__ = [
     "timeout_cells",
 ]
 
-Z95: Final = 1.959963984540054
 #: The trials-table columns of the fixed part, in this order (those that vary, crossed):
 #: the built-in factors (:mod:`tactorbelt.factors`), with ``on_tactor`` (a property of
 #: the target) after the condition; :func:`design_factors` adds the declared ones.

@@ -30,7 +30,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from .glmm import LmmData, MixedModelFit, one_blas_thread
+from .glmm import Z95, LmmData, MixedModelFit, one_blas_thread
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -154,7 +154,7 @@ def _satterthwaite(frame: pd.DataFrame, fit: MixedModelFit,
         df = 2.0 * var**2 / denom if denom > 0 else math.inf
         tval = fe.estimate / fe.se if fe.se > 0 else math.nan
         pval = float(2.0 * t_dist.sf(abs(tval), df)) if math.isfinite(tval) else math.nan
-        q = float(t_dist.ppf(0.975, df)) if math.isfinite(df) else 1.959963984540054
+        q = float(t_dist.ppf(0.975, df)) if math.isfinite(df) else Z95
         out[name] = {"df": float(df), "t": float(tval), "p": pval,
                      "ci_low": fe.estimate - q * fe.se, "ci_high": fe.estimate + q * fe.se}
     out["_"] = {"notes": notes}

@@ -13,38 +13,32 @@ import math
 from collections.abc import Sequence
 from typing import Any
 
+from ..tables._json import finite_float as _num
+
 __all__ = ["cell_text", "figure_view", "finite", "fixed", "joined", "number", "p_value",
            "p_value4", "percent"]
 
 
-def _float(v: Any) -> float | None:
-    try:
-        x = float(v)
-    except (TypeError, ValueError):
-        return None
-    return x if math.isfinite(x) else None
-
-
 def finite(v: Any) -> bool:
     """``v`` is a finite number."""
-    return v is not None and _float(v) is not None
+    return v is not None and _num(v) is not None
 
 
 def number(v: Any, digits: int = 3) -> str:
     """``digits`` significant digits; ``n/a`` for a missing or non-finite value."""
-    x = _float(v)
+    x = _num(v)
     return "n/a" if x is None else f"{x:.{digits}g}"
 
 
 def percent(v: Any, missing: str = "n/a") -> str:
     """A proportion as a percentage with one decimal; ``missing`` when there is none."""
-    x = _float(v)
+    x = _num(v)
     return missing if x is None else f"{100 * x:.1f} %"
 
 
 def p_value(v: Any) -> str:
     """A p-value: ``< 0.001`` below that, else 3 significant digits; ``n/a`` when missing."""
-    x = _float(v)
+    x = _num(v)
     if x is None:
         return "n/a"
     return "< 0.001" if x < 0.001 else f"{x:.3g}"
@@ -53,7 +47,7 @@ def p_value(v: Any) -> str:
 def fixed(v: Any, digits: int = 3, missing: str = "n/a") -> str:
     """A number for a table with ``digits`` decimals (``g`` for tiny or huge ones);
     ``missing`` (a word, never NaN) when there is none."""
-    x = _float(v)
+    x = _num(v)
     if x is None:
         return missing
     f = x + 0.0  # no "-0.000"
@@ -66,7 +60,7 @@ def fixed(v: Any, digits: int = 3, missing: str = "n/a") -> str:
 
 def p_value4(v: Any) -> str:
     """A p-value with 4 decimals, ``< 0.0001`` below that; ``n/a`` when missing."""
-    x = _float(v)
+    x = _num(v)
     if x is None:
         return "n/a"
     return "< 0.0001" if x < 1e-4 else f"{x:.4f}"

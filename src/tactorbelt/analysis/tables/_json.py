@@ -5,7 +5,16 @@ from __future__ import annotations
 import math
 from typing import Any
 
-__all__ = ["finite_json"]
+__all__ = ["finite_float", "finite_json"]
+
+
+def finite_float(v: Any) -> float | None:
+    """``v`` as a finite float, or None (missing, not a number, or not finite)."""
+    try:
+        x = float(v)
+    except (TypeError, ValueError):
+        return None
+    return x if math.isfinite(x) else None
 
 
 def finite_json(v: Any) -> Any:

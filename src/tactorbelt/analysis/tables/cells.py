@@ -34,6 +34,7 @@ from typing import TYPE_CHECKING, Any, Final, cast
 import numpy as np
 
 from ...factors import BUILTIN, added_factors, after_builtin, factors
+from ._json import finite_float as _num
 from .tables import infer_n_targets, prepare_trials, with_cell_columns
 from .transfer import ESTIMATOR, cell_interval, estimate_transfer, information_transfer
 
@@ -235,11 +236,6 @@ def _level(v: Any) -> Any:
     if v is None or (isinstance(v, float) and math.isnan(v)):
         return None
     return v.item() if isinstance(v, np.generic) else v
-
-
-def _num(v: Any) -> float | None:
-    x = float(v)
-    return x if math.isfinite(x) else None
 
 
 def cells_to_json(cells: pd.DataFrame | None) -> list[dict[str, Any]]:

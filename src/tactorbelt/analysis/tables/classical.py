@@ -25,6 +25,8 @@ from typing import Any, Final
 
 import numpy as np
 
+from ._json import finite_float as _num
+
 __all__ = [
     "DEFAULT_N_BOOT",
     "SIGNED_RANK_EXACT_MAX",
@@ -41,17 +43,6 @@ __all__ = [
 
 
 DEFAULT_N_BOOT: Final = 2000
-
-
-def _num(x: Any) -> float | None:
-    """A finite float, or None."""
-    if x is None:
-        return None
-    try:
-        v = float(x)
-    except (TypeError, ValueError):
-        return None
-    return v if math.isfinite(v) else None
 
 
 @dataclass

@@ -29,6 +29,7 @@ from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
 
 from ...tasks import PHASES, TLX_ITEMS
+from ._json import finite_float as _num
 
 __all__ = [
     "TLX_ITEMS",
@@ -70,16 +71,6 @@ def _truthy(v: Any) -> bool:
 
 def _pressed(v: Any) -> bool:
     return isinstance(v, str) and v.strip().lower() == "press"
-
-
-def _num(v: Any) -> float | None:
-    if v is None:
-        return None
-    try:
-        x = float(v)
-    except (TypeError, ValueError):
-        return None
-    return x if math.isfinite(x) else None
 
 
 def _counts(events: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
