@@ -606,7 +606,6 @@ class FirmwareBelt(Belt, PacketSink):
         self._keepalive_stop = threading.Event()
         self._keepalive_kick = threading.Event()
         self._keepalive_thread: threading.Thread | None = None
-        self._closing = False
         self.bad_replies = 0
         self.unmatched_replies = 0
         self.unsolicited_naks = 0
@@ -1290,14 +1289,6 @@ class FirmwareBelt(Belt, PacketSink):
         self._streaming = False
         self._request(lambda seq: wire.play_target(seq, *args), "the play command",
                       expect=wire.Ack, onset=True)
-
-    def close(self) -> None:
-        """Stop the motors (best effort: a dead device is logged, not raised) and release."""
-        self._closing = True
-        try:
-            super().close()
-        finally:
-            self._closing = False
 
     def _close(self) -> None:
         closed_before_exit(self)

@@ -164,6 +164,9 @@ class Belt(ABC):
     #: the device's channels kept for its own signals, never used for stimuli (a
     #: naviBelt's channel 0, its inaccurate-orientation signal)
     reserved_channels: tuple[int, ...] = ()
+    #: True from :meth:`close` on: a backend's ``_write_stop`` may then log what fails
+    #: (a dead link) rather than raise it
+    _closing = False
 
     def __init__(
         self,
@@ -426,6 +429,7 @@ class Belt(ABC):
         with self._lock:
             if self._closed:
                 return
+            self._closing = True
             try:
                 self._write_stop()
                 self._levels = np.zeros(self.n_tactors)

@@ -197,7 +197,6 @@ class NaviBelt(Belt):
         self._channels: dict[int, tuple[int, int]] = {}  # channel -> (intensity %, mask)
         self._lost: str | None = None
         self._left: str | None = None
-        self._closing = False
         self._in_app_mode = False
         self._warned_battery = False
         self._events_lock = threading.Lock()
@@ -331,10 +330,6 @@ class NaviBelt(Belt):
         profile = self._controller._gatt_profile  # pybelt 1.2.4 keeps it private
         if self._controller.read_gatt(profile.firmware_info_char) != 0:
             raise DeviceError(f"naviBelt on {self.port} did not answer")
-
-    def close(self) -> None:
-        self._closing = True
-        super().close()
 
     def _close(self) -> None:
         closed_before_exit(self)
