@@ -586,3 +586,28 @@ def test_a_5v_kick_brings_the_felt_dynamic_stimulus_3x_closer_than_plain(
     onsets = [abs(t["onset_error_ms"]) for r in static.targets for t in r["tactors"]
               if t["driven"]]
     assert max(onsets) <= 10.0
+
+
+def test_a_streamed_stimulus_leads_by_the_preview_on_a_shaped_belt() -> None:
+    """The player streams a stimulus to a shaped belt (a board shapes each frame as it
+    comes) LEAD_TICKS ms ahead, and off for the last LEAD_TICKS ms, as a device previews
+    what it renders; to a plain belt as it is."""
+    from tactorbelt.player import Player
+    from tactorbelt.stimuli import make_stimulus
+
+    got = {}
+    for drive in ("plain", "shaped"):
+        clock = SimClock()
+        with open_belt(f"sim?drive={drive}", clock=clock) as b:
+            stim = make_stimulus(b.layout, 15.0, "dynamic", period_s=0.4, transit_s=0.1)
+            player = Player(b, clock, device_render=False)
+            onset = player.start(stim, 0.5)
+            player.pump(onset + 600 * MS)
+            t, lv = b.commanded(onset, onset + 500 * MS, 1000)
+            got[drive] = lv
+            ms = (t - onset) / 1e9
+    assert np.allclose(got["plain"], stim.amplitudes(ms))
+    ahead = ms + LEAD_TICKS / 1000.0
+    expected = np.where((ahead < 0.5)[:, None], stim.amplitudes(ahead), 0.0)
+    assert np.allclose(got["shaped"], expected)
+    assert not np.allclose(got["shaped"], got["plain"])

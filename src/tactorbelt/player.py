@@ -18,7 +18,10 @@ Two ways to play:
   (``clock.simulated``) nothing runs by itself: :meth:`Player.pump` writes every frame
   due up to a time.
 
-Frame i shows ``stimulus.amplitudes(i / rate)`` (time since onset). A frame is *missed*
+Frame i shows ``stimulus.amplitudes(i / rate)`` (time since onset); on a belt whose
+drive is shaped, ``stimulus.amplitudes(i / rate + lead)`` and off within ``lead`` of the
+end: the shaper's preview (3 ms, ``devices.erm.LEAD_TICKS``), as a device previews what
+it renders. A frame is *missed*
 when it was woken up so late that the next deadline had already passed: the player
 then skips straight to the frame due now (it never writes a burst of stale frames) and
 counts the skipped ones as missed. The *deadline error* of a written frame is the
@@ -128,6 +131,16 @@ class _Errors:
         return self._buf[: min(self._n, self._buf.shape[0])]
 
 
+def _preview_s() -> float:
+    """The shaper's preview (s): a streamed stimulus is known ahead, so on a belt that
+    shapes its drive each frame shows the stimulus this much later, and the frames within
+    it of the end are off, as the device's renderer previews what it plays
+    (``erm.LEAD_TICKS``, docs/belts.md "Drive shaping")."""
+    from .devices.erm import LEAD_TICKS, RENDER_TICK_NS
+
+    return LEAD_TICKS * RENDER_TICK_NS * 1e-9
+
+
 class Player:
     """Plays stimuli on one belt (see the module docstring).
 
@@ -200,6 +213,8 @@ class Player:
         self._errors = _Errors()
         self._cache_start = 0
         self._cache: NDArray[np.float64] | None = None
+        #: the preview of a streamed stimulus (s): frames lead it on a shaped belt
+        self._lead_s = 0.0
 
     def _check_error(self) -> None:
         err = self._error
@@ -263,6 +278,8 @@ class Player:
         onset = int(self.clock.now_ns())
         with self._lock:
             self._reset(stimulus, onset, device)
+            if not device and self.belt.drive == "shaped":
+                self._lead_s = _preview_s()
             if duration_s is not None:
                 self._n_frames = max(1, round(float(duration_s) * self.rate_hz))
                 self._end = (onset + round(float(duration_s) * 1e9) if device
@@ -423,7 +440,11 @@ class Player:
                 if self._n_frames is not None:
                     idx = idx[idx < max(self._n_frames, i + 1)]
                 t = np.array([self._dl.time_s(int(k)) for k in idx])
+                if self._lead_s:  # a shaped belt's frames lead by the shaper's preview
+                    t += self._lead_s
                 cache = np.asarray(self._stimulus.amplitudes(t), dtype=float)
+                if self._lead_s and self._n_frames is not None:
+                    cache[t >= self._dl.time_s(self._n_frames)] = 0.0
                 self._cache, self._cache_start = cache, i
             return np.asarray(cache[i - self._cache_start])
 

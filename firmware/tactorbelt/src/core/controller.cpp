@@ -192,6 +192,7 @@ void Controller::handle(const Packet& p, uint64_t now_us, ReplySink& sink) {
       if (!stimulus_.set(layout_, sp)) return nak(sink, p.seq, nak::kOutOfRange);
       play_duration_ms_ = get_u32(p.payload + 10);
       play_start_us_ = now_us;
+      for (uint64_t& t : ahead_t_us_) t = ~0ull;
       state_ = State::kPlaying;
       update_outputs(now_us);
       ack(sink, p.seq);
@@ -335,18 +336,34 @@ void Controller::update_outputs(uint64_t now_us) {
   // The drive: the levels themselves (plain, and always in the failsafe: IN2 low, so the
   // motors coast), or each shaped (a kick, a brake pulse, then the level).
   const bool shaped = (drive_mode_ & kDriveShaped) != 0 && state_ != State::kFailsafe;
-  float amps[kMaxChannels] = {};
-  // The shaper's preview of a played stimulus: its amplitudes kShapeLeadTicks ticks ahead
-  // (zero from that long before its end), as erm.Shaper.lead_ticks on the host.
-  float ahead[kMaxChannels] = {};
+  // The played levels now, and the shaper's preview of them: the stimulus's levels
+  // kShapeLeadTicks ticks ahead (zero from that long before its end), as
+  // erm.Shaper.lead_ticks on the host. A level previewed on an earlier tick is taken from
+  // the ring instead of computed again.
+  uint16_t now_lv[kMaxChannels] = {};
+  uint16_t ahead_lv[kMaxChannels] = {};
   const bool preview = shaped && state_ == State::kPlaying;
   if (state_ == State::kPlaying) {
+    float amps[kMaxChannels] = {};
     const uint64_t t_us = now_us - play_start_us_;
-    stimulus_.amplitudes(t_us, amps);
-    const uint64_t t_ahead = t_us + kShapeLeadTicks * 1000u;
-    if (preview && (play_duration_ms_ == 0 ||
-                    t_ahead < static_cast<uint64_t>(play_duration_ms_) * 1000u)) {
-      stimulus_.amplitudes(t_ahead, ahead);
+    if (preview) {
+      const uint64_t t_ahead = t_us + kShapeLeadTicks * 1000u;
+      if (play_duration_ms_ == 0 ||
+          t_ahead < static_cast<uint64_t>(play_duration_ms_) * 1000u) {
+        stimulus_.amplitudes(t_ahead, amps);
+        for (uint8_t k = 0; k < n; ++k) ahead_lv[k] = amplitude_to_level(amps[k]);
+      }
+      const uint8_t slot = static_cast<uint8_t>((t_ahead / 1000u) % kAheadSlots);
+      ahead_t_us_[slot] = t_ahead;
+      for (uint8_t k = 0; k < n; ++k) ahead_[slot][k] = ahead_lv[k];
+    }
+    const uint8_t now_slot = static_cast<uint8_t>((t_us / 1000u) % kAheadSlots);
+    if (preview && ahead_t_us_[now_slot] == t_us &&
+        (play_duration_ms_ == 0 || t_us < static_cast<uint64_t>(play_duration_ms_) * 1000u)) {
+      for (uint8_t k = 0; k < n; ++k) now_lv[k] = ahead_[now_slot][k];
+    } else {
+      stimulus_.amplitudes(t_us, amps);
+      for (uint8_t k = 0; k < n; ++k) now_lv[k] = amplitude_to_level(amps[k]);
     }
   }
   const uint64_t max_on_us = static_cast<uint64_t>(max_on_ms_) * 1000u;
@@ -355,7 +372,7 @@ void Controller::update_outputs(uint64_t now_us) {
   for (uint8_t k = 0; k < n; ++k) {
     uint16_t level = 0;
     if (state_ == State::kStreaming) level = stream_[k];
-    if (state_ == State::kPlaying) level = amplitude_to_level(amps[k]);
+    if (state_ == State::kPlaying) level = now_lv[k];
     bool limited = false;
     // Continuous-on limit: a channel commanded on for max_onms without a break
     // goes off, and stays off until it is commanded to 0.
@@ -370,7 +387,7 @@ void Controller::update_outputs(uint64_t now_us) {
     }
     out_[k] = level;
     // what the shaper aims at: the level, or the preview (never past the on limit)
-    target[k] = preview && !limited ? amplitude_to_level(ahead[k]) : level;
+    target[k] = preview && !limited ? ahead_lv[k] : level;
   }
   // A shaped level is held at most at the rated drive; only a kick goes above it.
   const bool brake = can_brake_ && (drive_mode_ & kDriveNoBrake) == 0;

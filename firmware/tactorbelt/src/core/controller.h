@@ -171,6 +171,14 @@ class Controller {
   Stimulus stimulus_;
   uint64_t play_start_us_ = 0;
   uint32_t play_duration_ms_ = 0;
+  // The shaper's preview of the played stimulus (levels kShapeLeadTicks ticks ahead), kept
+  // for the ticks to come: on the 1 kHz tick a level computed as a preview is the level
+  // when its time comes, so the stimulus is computed once a tick, not twice.
+  static constexpr uint8_t kAheadSlots = 4;
+  static_assert(kShapeLeadTicks < kAheadSlots && kShapeLeadTicks % kAheadSlots != 0,
+                "the preview's ring holds the lead");
+  uint64_t ahead_t_us_[kAheadSlots] = {};  // time from the start; ~0 = empty
+  uint16_t ahead_[kAheadSlots][kMaxChannels] = {};
 
   uint16_t out_[kMaxChannels] = {};
   // drive shaping: the bridges' inputs, the shaper's model of each motor
