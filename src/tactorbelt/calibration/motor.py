@@ -1,6 +1,7 @@
 """Belts by hand: one tactor at a time (``belt-test``) and the calibration walk-through.
 
-- :class:`SingleTactor`: a constant frame with one tactor on, played like a stimulus.
+- :class:`ConstantFrame`: a constant frame played like a stimulus; :class:`SingleTactor`:
+  one with one tactor on.
 - :func:`pulse_each`: pulse each tactor in turn (a wiring check).
 - :func:`walk_calibration`: for each tactor, let the experimenter raise the level until
   it is just felt (its start level), then to a comfortable maximum (its ceiling); keys
@@ -25,7 +26,8 @@ if TYPE_CHECKING:
     from ..devices.calibration import Calibration
     from ..stimuli import Stimulus
 
-__all__ = ["KEYS_HELP", "CalibrationQuit", "SingleTactor", "pulse_each", "walk_calibration"]
+__all__ = ["KEYS_HELP", "CalibrationQuit", "ConstantFrame", "SingleTactor", "pulse_each",
+           "walk_calibration"]
 
 KEYS_HELP = ("keys: + / - = up / down by one step, ] / [ = five steps, enter = accept, "
              "q = quit without saving")
@@ -36,9 +38,26 @@ class CalibrationQuit(Exception):
     """The experimenter quit the calibration (``q``); nothing was written."""
 
 
-class SingleTactor:
-    """One tactor on at a constant level: what the player needs of a stimulus
-    (``layout`` and ``amplitudes(t)``), nothing it renders on a device.
+class ConstantFrame:
+    """A constant frame (one amplitude per tactor): what the player needs of a stimulus
+    (``layout`` and ``amplitudes(t)``), nothing it renders on a device."""
+
+    def __init__(self, layout: Layout, frame: NDArray[np.float64]) -> None:
+        self.layout = layout
+        self.frame = frame
+
+    def amplitudes(self, t: ArrayLike) -> NDArray[np.float64]:
+        """The frame at each time in ``t`` (shape ``(*t.shape, n)``)."""
+        ta = np.asarray(t, dtype=float)
+        return np.broadcast_to(self.frame, (*ta.shape, self.frame.shape[0])).copy()
+
+    def as_stimulus(self) -> Stimulus:
+        """For :class:`~tactorbelt.player.Player` (it reads ``layout`` and ``amplitudes``)."""
+        return cast("Stimulus", self)
+
+
+class SingleTactor(ConstantFrame):
+    """One tactor on at a constant level.
 
     Args:
         layout: the belt's layout.
@@ -49,20 +68,10 @@ class SingleTactor:
     def __init__(self, layout: Layout, tactor: int, level: float) -> None:
         if not 0 <= tactor < layout.n:
             raise IndexError(f"tactor {tactor} is not on a {layout.n}-tactor belt")
-        self.layout = layout
+        super().__init__(layout, np.zeros(layout.n))
         self.tactor = tactor
         self.level = float(level)
-        self.frame = np.zeros(layout.n)
         self.frame[tactor] = self.level
-
-    def amplitudes(self, t: ArrayLike) -> NDArray[np.float64]:
-        """The frame at each time in ``t`` (shape ``(*t.shape, n)``)."""
-        ta = np.asarray(t, dtype=float)
-        return np.broadcast_to(self.frame, (*ta.shape, self.frame.shape[0])).copy()
-
-    def as_stimulus(self) -> Stimulus:
-        """For :class:`~tactorbelt.player.Player` (it reads ``layout`` and ``amplitudes``)."""
-        return cast("Stimulus", self)
 
 
 def pulse_each(belt: Belt, clock: Clock, *, seconds_each: float, gap: float, level: float,

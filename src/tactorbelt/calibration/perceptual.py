@@ -50,6 +50,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from .._errors import ConfigError
 from ..wearer import PairWarp, WearerProfile, isotonic
+from .motor import ConstantFrame
 
 if TYPE_CHECKING:
     from ..clock import Clock
@@ -365,18 +366,6 @@ class PerceptualResult:
     duration_s: float = 0.0
 
 
-class _Frame:
-    """A constant frame, as the player streams it (``layout``, ``amplitudes(t)``)."""
-
-    def __init__(self, layout: Layout, frame: NDArray[np.float64]) -> None:
-        self.layout = layout
-        self.frame = frame
-
-    def amplitudes(self, t: ArrayLike) -> NDArray[np.float64]:
-        ta = np.asarray(t, dtype=float)
-        return np.broadcast_to(self.frame, (*ta.shape, self.frame.shape[0])).copy()
-
-
 class _Presenter:
     """Holds a frame on the belt for a while: set once on a simulated clock, streamed by
     a Player on the wall clock (a hardware belt's heartbeat needs frames)."""
@@ -394,7 +383,7 @@ class _Presenter:
             self.clock.sleep_until_ns(t0 + round(seconds * 1e9))
             self.belt.stop()
         else:
-            self.player.play(_Frame(self.belt.layout, frame), seconds)  # type: ignore[arg-type]
+            self.player.play(ConstantFrame(self.belt.layout, frame).as_stimulus(), seconds)
         return t0, self.clock.now_ns()
 
     def wait(self, seconds: float) -> None:
