@@ -49,7 +49,7 @@ def stimulus(belt_url: str, sense_url: str | None, target: int | None, all_targe
     envelope from a play of the stimulus with every other tactor off. Example:
     `tactorbelt validate stimulus --belt sim:virtual --all --condition dynamic -o out`.
     """
-    from ..validation.stimulus import run_stimulus
+    from ..validation.stimulus import MAX_SKIPPED, run_stimulus
 
     if (target is None) == (not all_targets):
         raise click.UsageError("give --target N or --all")
@@ -86,9 +86,12 @@ def stimulus(belt_url: str, sense_url: str | None, target: int | None, all_targe
                f" (between tactors {result.between_tactor_rms_error:.4f})")
     click.echo(f"RMS error {result.rms_error:.4f}{between}; drive {result.drive}; "
                f"tactors told apart: {result.isolation} ({result.plays} plays)")
+    if result.replayed_late:
+        click.echo(f"{result.replayed_late} plays were made again: the player skipped more "
+                   f"than {MAX_SKIPPED:.0%} of their frames (a busy computer)")
     if result.missed_frames:
         click.echo(f"warning: the player skipped {result.missed_frames} frames of the plays "
-                   "(a busy computer): the felt envelope shows them late", err=True)
+                   "measured (a busy computer): the felt envelope shows them late", err=True)
     for what, path in paths.items():
         click.echo(f"wrote {what}: {path}")
     click.echo("done: motors off")
