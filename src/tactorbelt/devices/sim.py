@@ -179,6 +179,10 @@ class _Render:
         self._table: _Period | None = None
         self._table_ticks = 0
         self._response: tuple[ErmParams, _Response] | None = None
+        #: the shaped memo last found for this stimulus (shared by the renders of the same
+        #: stimulus object, :meth:`share`): (motor params, shaper, tactors, memo), so a
+        #: walk finds it without hashing the stimulus
+        self.memo_box: list[tuple[ErmParams, Shaper, int, _ShapedMemo] | None] = [None]
         ticks_per_s = 1e9 / RENDER_TICK_NS
         if not stimulus.is_dynamic:
             self._table_ticks = 1
@@ -222,6 +226,7 @@ class _Render:
         calibration) has found or will find."""
         self._table = other._period() if self._table_ticks else None
         self._response = other._response
+        self.memo_box = other.memo_box
 
     def constant(self) -> FloatArray | None:
         """The drive levels of a render that never changes (a static stimulus), or None."""
@@ -578,8 +583,16 @@ class SimBelt(Belt):
         """The render's :meth:`_render_memo` when the walk at ``t`` is on it: a decision of
         the memo at ``t`` with the predicted speeds ``e`` (at the onset: every motor at
         rest, the memo made if need be; later: only a memo already made)."""
-        key = (render.stimulus, render.calibration, self.params, self.shaper, self.n_tactors)
-        memo = _SHAPED_MEMOS.get(key)
+        got = render.memo_box[0]
+        if got is not None and got[0] is self.params and got[1] is self.shaper \
+                and got[2] == self.n_tactors:
+            memo: _ShapedMemo | None = got[3]
+        else:
+            key = (render.stimulus, render.calibration, self.params, self.shaper,
+                   self.n_tactors)
+            memo = _SHAPED_MEMOS.get(key)
+            if memo is not None:
+                render.memo_box[0] = (self.params, self.shaper, self.n_tactors, memo)
         if memo is None:
             if t != render.onset_ns or any(e):
                 return None
@@ -614,6 +627,7 @@ class SimBelt(Belt):
             for arr in (memo.t, memo.bounds, memo.d, memo.e):
                 arr.setflags(write=False)
             _remember(_SHAPED_MEMOS, key, memo, _SHAPED_MEMOS_BUDGET)
+        render.memo_box[0] = (self.params, self.shaper, self.n_tactors, memo)
         return memo
 
     def _walk(self, bounds: IntArray, levels: FloatArray, t_last: int, w: FloatArray,
