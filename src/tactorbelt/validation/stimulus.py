@@ -37,10 +37,8 @@ How each tactor is sensed depends on what the sensor declares
   play is that tactor's envelope. Its static response is measured alone too. A tactor
   the stimulus never drives is not played: it is reported ``silent`` (felt nothing,
   error 0), not as whatever the sensor picked up from the others. The replays are
-  streamed (a device renders whole stimuli only): where a session would have the
-  device render the stimulus (``session_plays``), the device's shaper previews a
-  rendered stimulus a few ticks ahead (``erm.LEAD_TICKS``) and a streamed one not, so
-  shaped edges may come that much later in the replays than in a session.
+  streamed (a device renders whole stimuli only; ``session_plays`` says how a session
+  plays it), with the shaper's preview on a shaped belt as a rendered stimulus has it.
 
 :func:`run_stimulus` is the whole command: open, validate, write ``stimulus.json`` and
 ``stimulus.png``. Imports NumPy and tactorbelt's devices; matplotlib only for the figure.
