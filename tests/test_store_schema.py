@@ -17,7 +17,8 @@ from tactorbelt.experiment.store.schema import (
     TABLES,
     Dialect,
     columns,
-    create_statements,
+    create_table,
+    tables,
 )
 
 #: Columns only a dialect without rowid has: they keep the order rows were written in.
@@ -63,7 +64,7 @@ def test_both_dialects_render_the_one_declaration() -> None:
     for name, cols in sqlite.items():
         assert [c for c in pg[name] if (name, c) not in ORDER_COLUMNS] == cols, name
     for d, made in ((SQLITE, sqlite), (POSTGRESQL, pg)):
-        creates = [s for s in create_statements(d) if s.startswith("CREATE TABLE")]
+        creates = [create_table(d, t) for t in tables(d)]
         assert len(creates) == len(made)
         for stmt, name in zip(creates, made, strict=True):
             assert stmt.startswith(f"CREATE TABLE IF NOT EXISTS {d.table(name)}(")

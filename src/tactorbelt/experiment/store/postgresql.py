@@ -280,14 +280,6 @@ class PostgreSQLStore(Store):
             " AND NOT a.attisdropped", (PG_SCHEMA,))}
         return not missing_columns(POSTGRESQL, have)
 
-    def close(self) -> None:
-        """Close the connection. Idempotent."""
-        if self._closed:
-            return
-        self._closed = True
-        with contextlib.suppress(Exception):
-            self.conn.close()
-
     # -- helpers -----------------------------------------------------------------------
     @contextlib.contextmanager
     def _transaction(self, what: str = "write to") -> Iterator[Any]:

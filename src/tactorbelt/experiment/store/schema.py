@@ -1,7 +1,7 @@
 """The store's schema, declared once, and the SQL dialects it is written in.
 
 :data:`TABLES` and :data:`INDEXES` declare every table, column and index of a store;
-:func:`create_statements` and :func:`migrate` write them in a
+:func:`create_table`, :func:`create_index` and :func:`migrate` write them in a
 :class:`Dialect` (:data:`SQLITE`, :data:`POSTGRESQL`), as SQLAlchemy Core compiles one
 table definition per dialect, without SQLAlchemy. The queries are written once too
 (in :mod:`.sql`): in SQLite's spelling (``?`` placeholders, bare table names), which
@@ -38,7 +38,7 @@ from .base import SESSION_STATUSES, TRIAL_STATUSES
 
 __all__ = [
     "INDEXES", "POSTGRESQL", "SQLITE", "TABLES", "TABLE_NAMES", "Column", "Dialect", "Index",
-    "Table", "columns", "create_index", "create_statements", "migrate",
+    "Table", "columns", "create_index", "create_table", "migrate",
     "missing_columns", "table",
 ]
 
@@ -354,20 +354,6 @@ def create_index(d: Dialect, name: str) -> str:
             f"{d.table(i.table)}({', '.join(i.columns)})")
 
 
-def _create_tables(d: Dialect) -> list[str]:
-    out = [f"CREATE SCHEMA IF NOT EXISTS {d.namespace}"] if d.namespace else []
-    return out + [create_table(d, t) for t in tables(d)]
-
-
-def _create_indexes(d: Dialect) -> list[str]:
-    return [create_index(d, i.name) for i in INDEXES if d.has(i.only)]
-
-
-def create_statements(d: Dialect) -> list[str]:
-    """The statements that make a new store's tables and indexes (idempotent)."""
-    return _create_tables(d) + _create_indexes(d)
-
-
 def missing_columns(d: Dialect, have: set[tuple[str, str]]) -> list[tuple[str, str]]:
     """The declared ``(table, column)`` pairs of dialect ``d`` that are not in ``have``."""
     return [(t.name, c.name) for t in tables(d) for c in columns(d, t.name)
@@ -377,15 +363,18 @@ def missing_columns(d: Dialect, have: set[tuple[str, str]]) -> list[tuple[str, s
 def migrate(conn: Any, d: Dialect) -> None:
     """Create what a store lacks (tables, columns added since, indexes) and give every
     session a uuid, inside the caller's transaction (``conn.execute(sql, args)``)."""
-    for stmt in _create_tables(d):
-        conn.execute(stmt)
+    if d.namespace:
+        conn.execute(f"CREATE SCHEMA IF NOT EXISTS {d.namespace}")
+    for t in tables(d):
+        conn.execute(create_table(d, t))
     for t in tables(d):
         have = {str(r[0]) for r in conn.execute(d.sql(d.columns_query), (t.name,)).fetchall()}
         for c in columns(d, t.name):
             if c.name not in have:
                 conn.execute(f"ALTER TABLE {d.table(t.name)} ADD COLUMN {_column_sql(d, c)}")
-    for stmt in _create_indexes(d):
-        conn.execute(stmt)
+    for i in INDEXES:
+        if d.has(i.only):
+            conn.execute(create_index(d, i.name))
     for (sid,) in conn.execute(
             d.sql("SELECT session_id FROM sessions WHERE session_uuid IS NULL")).fetchall():
         conn.execute(d.sql("UPDATE sessions SET session_uuid=? WHERE session_id=?"),

@@ -116,9 +116,13 @@ class Store(abc.ABC):
                  verify: bool) -> Store:
         """Open this implementation's store at ``url`` (see :func:`open_store`)."""
 
-    @abc.abstractmethod
     def close(self) -> None:
         """Release the store (and, for a file store, leave only its file). Idempotent."""
+        if self._closed:
+            return
+        self._closed = True
+        with contextlib.suppress(Exception):
+            self.conn.close()
 
     def __enter__(self) -> Store:
         return self
@@ -167,6 +171,14 @@ class Store(abc.ABC):
 
     def _sql(self, text: str) -> str:
         return self.dialect.sql(text)
+
+    def _select(self, what: str, table: str, column: str, value: Any,
+                order: str) -> list[dict[str, Any]]:
+        """``what`` of ``table``'s rows (those whose ``column`` is ``value``, unless it is
+        None) ordered by ``order``, as dicts."""
+        where, args = ("", ()) if value is None else (f" WHERE {column}=?", (value,))
+        return self._dicts(self._sql(f"SELECT {what} FROM {table}{where} ORDER BY {order}"),
+                           args)
 
     def _new_id(self, c: Any, sql: str, values: Sequence[Any], key: str) -> int:
         """Run an INSERT of one row; the new row's ``key`` (its id)."""
@@ -237,10 +249,7 @@ class Store(abc.ABC):
 
     def sessions(self, participant: str | None = None) -> list[dict[str, Any]]:
         """Every session (of one participant), oldest first."""
-        if participant is None:
-            return self._dicts(self._sql("SELECT * FROM sessions ORDER BY session_id"))
-        return self._dicts(self._sql("SELECT * FROM sessions WHERE participant=?"
-                                     " ORDER BY session_id"), (participant,))
+        return self._select("*", "sessions", "participant", participant, "session_id")
 
     def session(self, session_id: int) -> dict[str, Any]:
         """One session row as a dict."""
@@ -390,10 +399,7 @@ class Store(abc.ABC):
 
     def trials(self, session_id: int | None = None) -> list[dict[str, Any]]:
         """Trial rows (of one session), in the order they were recorded."""
-        if session_id is None:
-            return self._dicts(self._sql("SELECT * FROM trials ORDER BY trial_id"))
-        return self._dicts(self._sql("SELECT * FROM trials WHERE session_id=?"
-                                     " ORDER BY trial_id"), (session_id,))
+        return self._select("*", "trials", "session_id", session_id, "trial_id")
 
     def samples(self, trial_id: int) -> list[tuple[float, float, float, int]]:
         """(t_s, x, y, buttons) of one trial, in time order."""
@@ -425,10 +431,7 @@ class Store(abc.ABC):
         """``cols`` of ``table``'s rows (of one session) as dicts; [] without the table."""
         if not self._has_table(table):
             return []
-        where = "" if session_id is None else " WHERE session_id=?"
-        args = () if session_id is None else (session_id,)
-        return self._dicts(self._sql(f"SELECT {', '.join(cols)} FROM {table}{where}"
-                                     f" ORDER BY {order}"), args)
+        return self._select(", ".join(cols), table, "session_id", session_id, order)
 
     def write_ratings(self, session_id: int, block_index: int, scale: str,
                       values: Mapping[str, float]) -> None:

@@ -321,14 +321,12 @@ class SQLiteStore(Store):
             return
         with contextlib.suppress(StoreError):
             self.end_batch()
-        self._closed = True
         if not self.readonly:
             with contextlib.suppress(sqlite3.Error):
                 self.conn.execute("PRAGMA busy_timeout = 0")  # never wait for a reader
                 self.conn.execute("PRAGMA wal_checkpoint(TRUNCATE)")
                 self.conn.execute("PRAGMA journal_mode = DELETE")
-        with contextlib.suppress(Exception):
-            self.conn.close()
+        super().close()
         if self._lock_fd is not None:
             with contextlib.suppress(OSError):
                 _lock_path(self.path).unlink()  # while still holding it
