@@ -60,10 +60,9 @@ FLOAT = Number(float)
 POSITIVE = Number(float, 0, lo_open=True)
 
 
-def number(kind: type = float, lo: float | None = None, hi: float | None = None,
-           lo_open: bool = False, hi_open: bool = False) -> Number:
-    """A typed number (``FLOAT`` or ``INTEGER`` in help) with a range."""
-    return Number(kind, lo, hi, lo_open, hi_open)
+#: A typed number (``FLOAT`` or ``INTEGER`` in help) with a range:
+#: ``number(kind, lo, hi, lo_open, hi_open)``.
+number = Number
 
 
 def output_option(kind: str, help: str, default: Any = None, required: bool = False,
@@ -179,14 +178,9 @@ def belt_option(what: str = "The belt") -> Callable[[F], F]:
 
 def belt_options(func: F) -> F:
     """Add --belt URL and --calibration FILE."""
-    options = [
-        belt_option(),
-        click.option("--calibration", "calibration_file", default=None, metavar="FILE",
-                     help="Motor calibration file (TOML, from `tactorbelt calibrate`)."),
-    ]
-    for option in reversed(options):
-        func = option(func)
-    return func
+    return belt_option()(click.option(
+        "--calibration", "calibration_file", default=None, metavar="FILE",
+        help="Motor calibration file (TOML, from `tactorbelt calibrate`).")(func))
 
 
 def load_calibration(path: str | None) -> Calibration | None:

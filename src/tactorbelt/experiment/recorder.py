@@ -17,6 +17,7 @@ import contextlib
 import hashlib
 import json
 from collections.abc import Iterator, Mapping, Sequence
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 from .._errors import ConfigError, StoreError
@@ -38,6 +39,7 @@ __all__ = ["END_STATUSES", "SessionRecorder"]
 END_STATUSES = ("complete", "completed", "interrupted", "aborted")
 
 
+@dataclass(eq=False)
 class SessionRecorder:
     """One session in a store: open (or resume) it, record its trials, end it.
 
@@ -54,19 +56,16 @@ class SessionRecorder:
             user agent); None: none.
     """
 
-    def __init__(self, store: Store, study: Study, participant: str, session_id: int,
-                 seed: int, schedule: list[ScheduledTrial], order: tuple[str, ...],
-                 resumed: bool, metadata: Mapping[str, Any] | None = None) -> None:
-        self.store = store
-        self.study = study
-        self.participant = participant
-        self.session_id = session_id
-        self.seed = seed
-        self.schedule = schedule
-        self.order = order
-        self.resumed = resumed
-        self.metadata = dict(metadata) if metadata else None
-        self._targets: dict[int, TargetSet] = {}
+    store: Store
+    study: Study
+    participant: str
+    session_id: int
+    seed: int
+    schedule: list[ScheduledTrial]
+    order: tuple[str, ...]
+    resumed: bool
+    metadata: dict[str, Any] | None = None
+    _targets: dict[int, TargetSet] = field(default_factory=dict, init=False, repr=False)
 
     # -- opening ---------------------------------------------------------------------------
     @staticmethod
@@ -111,6 +110,7 @@ class SessionRecorder:
         # with the pattern files its stimuli name appended (Study.session_toml), so the
         # store holds what the session played
         toml = study.session_toml(study_toml if study_toml is not None else study.to_toml())
+        meta = dict(metadata) if metadata else None
         sha = hashlib.sha256(toml.encode("utf-8")).hexdigest()
         if resume:
             row = store.find_resumable(participant)
@@ -130,7 +130,7 @@ class SessionRecorder:
                     )
             rec = cls(store, study, participant, int(row["session_id"]), int(row["seed"]),
                       schedule_from_json(row["schedule_json"], study),
-                      tuple(json.loads(row["condition_order"])), True, metadata)
+                      tuple(json.loads(row["condition_order"])), True, meta)
             store.mark_resumed(rec.session_id)
         else:
             used = study.session.seed if seed is None else int(seed)
@@ -144,7 +144,7 @@ class SessionRecorder:
                 git_commit=prov.git_commit, host=prov.host, input=input_kind, clock=clock,
                 site=site,
             )
-            rec = cls(store, study, participant, sid, used, schedule, order, False, metadata)
+            rec = cls(store, study, participant, sid, used, schedule, order, False, meta)
         if rec.metadata:  # kept at once, with the options stored before (a resume)
             rec.set_run_options(store.run_options(rec.session_id) or {})
         return rec
@@ -157,6 +157,14 @@ class SessionRecorder:
                         resume=store.find_resumable(participant) is not None, **kwargs)
 
     # -- reading back ----------------------------------------------------------------------
+    def targets(self, t: ScheduledTrial) -> TargetSet:
+        """The candidate targets of a trial's block (what the window draws, the model
+        participant chooses among and a response snaps to)."""
+        n = t.n_targets or self.study.targets.count
+        if n not in self._targets:
+            self._targets[n] = TargetSet.even(n)
+        return self._targets[n]
+
     def finished(self) -> set[int]:
         """Trial indices with a final outcome (done or timeout)."""
         return self.store.finished_indices(self.session_id)
@@ -211,9 +219,7 @@ class SessionRecorder:
         if response_deg is None:
             r.status = "timeout"
             return r
-        n = t.n_targets or self.study.targets.count
-        targets = self._targets.setdefault(n, TargetSet.even(n))
-        chosen = float(targets.nearest(float(response_deg)))
+        chosen = float(self.targets(t).nearest(float(response_deg)))
         r.status = "done"
         r.response_deg = float(response_deg)
         r.response_target_deg = chosen

@@ -49,7 +49,7 @@ from typing import TYPE_CHECKING, Any
 
 from .._errors import ConfigError, DeviceError, TactorbeltError
 from ..clock import Clock, Deadlines, SimClock
-from ..geometry import Layout, TargetSet
+from ..geometry import Layout
 from ..inputs.base import CursorSample, CursorSource, TrialCue
 from ..interrupts import Terminated
 from ..tasks import TASK_LEAD_NS, TLX_SCALE, WorkloadInfo, check_tlx
@@ -257,10 +257,38 @@ class SessionRunner:
     The parts, in order: :meth:`open_session` (a new session in the store, or the
     resumed one), then for each scheduled trial :meth:`run_trial` (:meth:`wait_home`,
     :meth:`present`), :meth:`inter_trial` and the breaks, with :meth:`pause` whenever
-    the observer pauses; :meth:`finish` or :meth:`fail` at the end. Cursor sampling and
+    the observer pauses; :meth:`fail` at the end after an error. Cursor sampling and
     every wait keep time with one :class:`~tactorbelt.clock.Deadlines` per loop.
 
-    Arguments: as :func:`run_session`.
+    Args:
+        study: the study.
+        participant: the participant id (see :func:`check_participant`).
+        belt: an open belt with the study's layout (the caller closes it).
+        cursor: where responses come from.
+        store: an open, writable store.
+        clock: the clock that paces everything (SimClock: no sleeping).
+        seed: randomisation seed (None: the study's ``session.seed``); ignored on resume.
+        resume: continue the participant's latest unfinished session with the trials
+            of its stored schedule that have no final outcome, in order.
+        limit: stop after this many test trials (the session stays resumable).
+        listeners: where the session's events go, in order
+            (:class:`~tactorbelt.experiment.listeners.SessionListener`).
+        operator: who answers the session's queries (pause, task presses, NASA-TLX,
+            the waits; :class:`~tactorbelt.experiment.listeners.Operator`), or None.
+        observer: a listener that is also the operator (the experiment window), or None.
+        progress: called as ``progress(n_done, n_total)`` after each trial (a listener,
+            :class:`~tactorbelt.experiment.listeners.Progress`, that watches nothing).
+        study_toml: the study file's text, stored verbatim (default: ``study.to_toml()``).
+        input_name: the cursor source's name, stored with the session.
+        site: the lab running the session, stored with it (default
+            :func:`~tactorbelt.experiment.provenance.default_site`).
+
+    :meth:`run` returns a :class:`SessionResult`; it (and the constructor) raises
+    ConfigError for a participant id that is empty or not allowed, a negative limit, a
+    belt whose layout is not the study's; StoreError with nothing to resume, or a study
+    changed since the session started; DeviceError when the belt failed (the trial in
+    flight is stored ``aborted`` and the session ``interrupted``; KeyboardInterrupt and
+    :class:`~tactorbelt.interrupts.Terminated`, SIGTERM or SIGHUP, likewise).
     """
 
     def __init__(self, study: Study, participant: str, belt: Belt, cursor: CursorSource,
@@ -305,7 +333,6 @@ class SessionRunner:
         self.input_name = input_name
         self.site = site
         self.rule = ResponseRule.from_study(study)
-        self._targets: dict[int, TargetSet] = {}
         self._rules: dict[float, ResponseRule] = {}
         self.rate_hz = float(study.session.sample_rate_hz)
         self.sim = bool(clock.simulated)
@@ -390,14 +417,6 @@ class SessionRunner:
             self._stimuli[key] = self.study.make_stimulus(
                 sp, self.belt.layout, t.target_deg, t.condition, profile=self.profile)
         return self._stimuli[key]
-
-    def targets_for(self, t: ScheduledTrial) -> TargetSet:
-        """The candidate targets of a trial's block (what the window draws, the model
-        participant chooses among and the response snaps to)."""
-        n = t.n_targets or self.study.targets.count
-        if n not in self._targets:
-            self._targets[n] = TargetSet.even(n)
-        return self._targets[n]
 
     def rule_for(self, t: ScheduledTrial) -> ResponseRule:
         """The response rule of a trial: the study's, with its block's longest presentation."""
@@ -651,7 +670,7 @@ class SessionRunner:
     def present(self, t: ScheduledTrial, machine: TrialMachine) -> TrialState:
         """Play the stimulus and sample the cursor on its deadlines until an outcome."""
         layout = self.belt.layout
-        cue = TrialCue(t.trial_index, t.block, t.condition, self.targets_for(t).angles_deg,
+        cue = TrialCue(t.trial_index, t.block, t.condition, self.recorder.targets(t).angles_deg,
                        layout, t.target_deg if t.block == "training" else None)
         onset = int(self.player.start(
             self.stimulus_for(t),
@@ -720,7 +739,7 @@ class SessionRunner:
         """One trial: home, stimulus and response. A pause returns it ``aborted``; any
         other way out stores nothing here, aborts it and re-raises with the result
         attached (``exc.trial_result``)."""
-        machine = TrialMachine(t, self.rule_for(t), self.targets_for(t))
+        machine = TrialMachine(t, self.rule_for(t), self.recorder.targets(t))
         try:
             self.wait_home(t, machine)
             state = self.present(t, machine)
@@ -889,62 +908,8 @@ class SessionRunner:
                 self.results.append(result)
 
 
-def run_session(
-    study: Study,
-    participant: str,
-    belt: Belt,
-    cursor: CursorSource,
-    store: Store,
-    clock: Clock,
-    *,
-    seed: int | None = None,
-    resume: bool = False,
-    limit: int | None = None,
-    listeners: Sequence[SessionListener] = (),
-    operator: Operator | None = None,
-    observer: SessionObserver | None = None,
-    progress: Callable[[int, int], None] | None = None,
-    study_toml: str | None = None,
-    input_name: str | None = None,
-    site: str | None = None,
-) -> SessionResult:
-    """Run (or resume) one participant's session.
-
-    Args:
-        study: the study.
-        participant: the participant id (see :func:`check_participant`).
-        belt: an open belt with the study's layout (the caller closes it).
-        cursor: where responses come from.
-        store: an open, writable store.
-        clock: the clock that paces everything (SimClock: no sleeping).
-        seed: randomisation seed (None: the study's ``session.seed``); ignored on resume.
-        resume: continue the participant's latest unfinished session with the trials
-            of its stored schedule that have no final outcome, in order.
-        limit: stop after this many test trials (the session stays resumable).
-        listeners: where the session's events go, in order
-            (:class:`~tactorbelt.experiment.listeners.SessionListener`).
-        operator: who answers the session's queries (pause, task presses, NASA-TLX,
-            the waits; :class:`~tactorbelt.experiment.listeners.Operator`), or None.
-        observer: a listener that is also the operator (the experiment window), or None.
-        progress: called as ``progress(n_done, n_total)`` after each trial (a listener,
-            :class:`~tactorbelt.experiment.listeners.Progress`, that watches nothing).
-        study_toml: the study file's text, stored verbatim (default: ``study.to_toml()``).
-        input_name: the cursor source's name, stored with the session.
-        site: the lab running the session, stored with it (default
-            :func:`~tactorbelt.experiment.provenance.default_site`).
-
-    Returns:
-        A :class:`SessionResult`.
-
-    Raises:
-        ConfigError: a participant id that is empty or not allowed, a negative limit, a
-            belt whose layout is not the study's.
-        StoreError: nothing to resume, or the study changed since the session started.
-        DeviceError: the belt failed; the trial in flight is stored ``aborted`` and the
-            session ``interrupted``. KeyboardInterrupt and
-            :class:`~tactorbelt.interrupts.Terminated` (SIGTERM, SIGHUP) likewise.
-    """
-    return SessionRunner(study, participant, belt, cursor, store, clock, seed=seed,
-                         resume=resume, limit=limit, listeners=listeners, operator=operator,
-                         observer=observer, progress=progress,
-                         study_toml=study_toml, input_name=input_name, site=site).run()
+def run_session(study: Study, participant: str, belt: Belt, cursor: CursorSource,
+                store: Store, clock: Clock, **options: Any) -> SessionResult:
+    """Run (or resume) one participant's session: ``SessionRunner(...).run()`` (the
+    arguments, the options and what it raises: :class:`SessionRunner`)."""
+    return SessionRunner(study, participant, belt, cursor, store, clock, **options).run()

@@ -75,7 +75,6 @@ class ResponseRule:
         dwell_ns: how long the cursor must stay beyond the threshold (0 = at once).
         timeout_ns: no acquisition this long after onset is a timeout.
         max_presentation_ns: the stimulus stops this long after onset at the latest.
-        sample_period_ns: cursor sampling period (10 ms at 100 Hz).
     """
 
     home_radius: float = 0.15
@@ -83,21 +82,18 @@ class ResponseRule:
     dwell_ns: int = 0
     timeout_ns: int = 10_000_000_000
     max_presentation_ns: int = 10_000_000_000
-    sample_period_ns: int = 10_000_000
 
     @classmethod
     def from_study(cls, study: object) -> ResponseRule:
         """The rule of a :class:`~tactorbelt.experiment.study.Study`."""
         r = study.response  # type: ignore[attr-defined]
         s = study.stimulus  # type: ignore[attr-defined]
-        rate = study.session.sample_rate_hz  # type: ignore[attr-defined]
         return cls(
             home_radius=r.home_radius,
             threshold=r.threshold,
             dwell_ns=round(r.dwell_s * 1e9),
             timeout_ns=round(r.timeout_s * 1e9),
             max_presentation_ns=round(s.max_presentation_s * 1e9),
-            sample_period_ns=round(1e9 / rate),
         )
 
 
@@ -221,11 +217,6 @@ class TrialMachine:
         self.state = TrialState.STIMULUS
 
     # -- STIMULUS --------------------------------------------------------------------
-    def deadline(self, k: int) -> int:
-        """The k-th sampling deadline: onset + k * sample period."""
-        assert self.result.onset_ns is not None
-        return self.result.onset_ns + k * self.rule.sample_period_ns
-
     def stimulus_due_off(self, now_ns: int) -> bool:
         """True once the longest presentation time has passed."""
         onset = self.result.onset_ns
@@ -318,9 +309,8 @@ class TrialMachine:
     # -- end states --------------------------------------------------------------------
     @property
     def finished(self) -> bool:
-        """True in RESPONSE, TIMEOUT, ABORTED or ITI: the trial's outcome is known."""
-        return self.state in (TrialState.RESPONSE, TrialState.TIMEOUT, TrialState.ABORTED,
-                              TrialState.ITI)
+        """True in RESPONSE, TIMEOUT or ABORTED: the trial's outcome is known."""
+        return self.state in (TrialState.RESPONSE, TrialState.TIMEOUT, TrialState.ABORTED)
 
     def abort(self, reason: str) -> TrialResult:
         """Abort the trial (pause, device failure, Ctrl-C): its outcome is ``aborted``."""
@@ -331,12 +321,6 @@ class TrialMachine:
         r.correct = r.rt_s = None
         self.state = TrialState.ABORTED
         return r
-
-    def to_iti(self) -> None:
-        """RESPONSE or TIMEOUT -> ITI."""
-        if self.state not in (TrialState.RESPONSE, TrialState.TIMEOUT):
-            raise TactorbeltError(f"trial {self.trial.trial_index}: ITI from {self.state.value}")
-        self.state = TrialState.ITI
 
     def _expect(self, state: TrialState) -> None:
         if self.state is not state:
