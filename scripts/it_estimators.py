@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import sys
 import time
 from pathlib import Path
 
@@ -41,11 +42,13 @@ from scipy.stats import norm
 
 from tactorbelt.analysis.tables.transfer import (
     ESTIMATOR,
-    ESTIMATORS,
     estimate_transfer,
     expanded_levels,
     two_level_means,
 )
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+from support.it_estimators import ESTIMATORS  # the estimators compared
 
 COUNTS = (12, 24, 36, 48)
 REPS = (2, 3, 5, 10)

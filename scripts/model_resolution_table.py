@@ -23,14 +23,19 @@ evidence about people.
 from __future__ import annotations
 
 import argparse
+import sys
+from pathlib import Path
 
 import numpy as np
 
-from tactorbelt.analysis.tables.transfer import information_transfer, miller_madow_transfer
+from tactorbelt.analysis.tables.transfer import information_transfer
 from tactorbelt.geometry import Layout, TargetSet, wrap
 from tactorbelt.inputs.model import sim_vibrator
 from tactorbelt.participant import ModelParams, Protocol, draw_participant, stimulus_cues
 from tactorbelt.participant.simulate import TrialTable, simulate_participant
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+from support.it_estimators import miller_madow_transfer
 
 COUNTS = (12, 18, 24, 36, 48)
 

@@ -11,21 +11,23 @@ from hypothesis import given
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from tactorbelt.analysis.tables.transfer import (
-    ESTIMATOR,
+from support.it_estimators import (
     ESTIMATORS,
     bootstrap_corrected_transfer,
-    chao_shen_transfer,
     confusion_matrix,
-    estimate_transfer,
-    information_transfer,
     jackknife_transfer,
     miller_madow_bias,
     miller_madow_transfer,
     panzeri_treves_transfer,
     stimulus_entropy,
 )
-from tactorbelt.analysis.tables.transfer import _pt_bins as pt_bins
+from support.it_estimators import _pt_bins as pt_bins
+from tactorbelt.analysis.tables.transfer import (
+    ESTIMATOR,
+    chao_shen_transfer,
+    estimate_transfer,
+    information_transfer,
+)
 
 LN2 = math.log(2)
 
