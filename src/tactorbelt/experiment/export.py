@@ -459,13 +459,14 @@ def _write_json(path: Path, doc: Any) -> Path:
     return path
 
 
-def _write_tsv(path: Path, header: list[str] | None, rows: Any) -> None:
+def _write_tsv(path: Path, header: list[str], rows: Iterable[Sequence[Any]],
+               sidecar: dict[str, Any]) -> list[Path]:
+    """A TSV file (``n/a`` for a missing value) and its JSON sidecar; both paths."""
     with path.open("w", newline="") as fh:
         w = csv.writer(fh, delimiter="\t", lineterminator="\n")
-        if header is not None:
-            w.writerow(header)
-        for row in rows:
-            w.writerow([_na(v) for v in row])
+        w.writerow(header)
+        w.writerows([_na(v) for v in row] for row in rows)
+    return [path, _write_json(path.with_suffix(".json"), sidecar)]
 
 
 def _studies(sessions: list[dict[str, Any]]) -> list[Study | None]:
@@ -691,33 +692,28 @@ def export_bids(db: str | Path, out: str | Path, *, readme: str | Path | None = 
                                   events=bool(store.task_events()),
                                   ratings=bool(store.ratings())), encoding="utf-8")
         written.append(p)
-        p = o / "participants.tsv"
-        _write_tsv(p, ["participant_id", "source_id"],
-                   [(f"sub-{lab}", pid) for lab, pid in sorted(labels.items())])
-        written.append(p)
-        written.append(_write_json(o / "participants.json", {
-            "participant_id": {"Description": "BIDS label of the participant"},
-            "source_id": {"Description": "participant id as entered at the session"},
-        }))
+        written += _write_tsv(
+            o / "participants.tsv", ["participant_id", "source_id"],
+            [(f"sub-{lab}", pid) for lab, pid in sorted(labels.items())], {
+                "participant_id": {"Description": "BIDS label of the participant"},
+                "source_id": {"Description": "participant id as entered at the session"}})
         for s in sessions:
             lab = bids_label(s["participant"])
             stem = f"sub-{lab}_ses-{s['session_number']}_task-{TASK}"
             base = o / f"sub-{lab}" / f"ses-{s['session_number']}"
             (base / "beh").mkdir(parents=True, exist_ok=True)
             trials = [_with_cell(t, s) for t in store.trials(s["session_id"])]
-            beh = base / "beh" / f"{stem}_beh.tsv"
             beh_cols = beh_columns()
             cols = list(beh_cols)
-            _write_tsv(beh, cols, [[_beh_value(t, k) for k in cols] for t in trials])
-            sidecar: dict[str, Any] = dict(beh_cols)
-            sidecar["TaskName"] = TASK
-            sidecar["StimulusSystem"] = _stimulus_system(s)
-            sidecar["tactorbelt"] = {
-                k: s[k] for k in ("study_name", "study_sha256", "seed", "condition_order",
-                                  "belt", "firmware_version", "package_version", "git_commit",
-                                  "host", "input", "clock", "started_at", "ended_at", "status")
-            }
-            written += [beh, _write_json(beh.with_suffix(".json"), sidecar)]
+            written += _write_tsv(
+                base / "beh" / f"{stem}_beh.tsv", cols,
+                [[_beh_value(t, k) for k in cols] for t in trials],
+                beh_cols | {"TaskName": TASK, "StimulusSystem": _stimulus_system(s),
+                            "tactorbelt": {k: s[k] for k in (
+                                "study_name", "study_sha256", "seed", "condition_order",
+                                "belt", "firmware_version", "package_version", "git_commit",
+                                "host", "input", "clock", "started_at", "ended_at",
+                                "status")}})
             written += _task_files(store, s, trials, base / "beh", stem, lab)
             rec = base / "beh" / f"{stem}_recording-{RECORDING}_physio.tsv.gz"
             start = _write_cursor(rec, _cursor_rows(store, s["session_id"], trials))
@@ -811,19 +807,18 @@ def _task_files(store: Store, s: dict[str, Any], trials: list[dict[str, Any]], b
     if events:
         onsets = [t["onset_ns"] for t in trials if t["onset_ns"] is not None]
         origin = min(onsets) if onsets else min(e["t_ns"] for e in events)
-        ev = beh / f"{stem}_events.tsv"
-        study = _parse_study(s["study_toml"])
-        _write_tsv(ev, list(EVENT_COLUMNS), _event_rows(events, origin, study))
-        written += [ev, _write_json(ev.with_suffix(".json"), EVENT_COLUMNS)]
-    rows = _tlx_rows(store.ratings(s["session_id"]), trials)
-    if rows:
-        tp = beh / f"sub-{lab}_ses-{s['session_number']}_task-{TLX_TASK}_beh.tsv"
+        rows = _event_rows(events, origin, _parse_study(s["study_toml"]))
+        written += _write_tsv(beh / f"{stem}_events.tsv", list(EVENT_COLUMNS), rows,
+                              EVENT_COLUMNS)
+    tlx = _tlx_rows(store.ratings(s["session_id"]), trials)
+    if tlx:
         tlx_cols = tlx_columns()
-        _write_tsv(tp, list(tlx_cols), rows)
-        written += [tp, _write_json(tp.with_suffix(".json"), {
-            "TaskName": TLX_TASK,
-            "TaskDescription": "Raw NASA Task Load Index (NASA-TLX): six workload items "
-                               "rated on 0-100 sliders after each test block of the "
-                               f"{TASK} task.",
-            **tlx_cols})]
+        written += _write_tsv(
+            beh / f"sub-{lab}_ses-{s['session_number']}_task-{TLX_TASK}_beh.tsv",
+            list(tlx_cols), tlx, {
+                "TaskName": TLX_TASK,
+                "TaskDescription": "Raw NASA Task Load Index (NASA-TLX): six workload items "
+                                   "rated on 0-100 sliders after each test block of the "
+                                   f"{TASK} task.",
+                **tlx_cols})
     return written
