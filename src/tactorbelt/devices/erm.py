@@ -688,3 +688,48 @@ def _shape_decision(level: float, e: float, start: float, overdrive: float, brak
     else:
         d = level
     return d
+
+
+
+def saturated_run(level: float, e: float, start: float, overdrive: float, brake: bool,
+                  xr: float, xf: float, xb: float) -> int:
+    """How many whole render ticks from the predicted speed ``e`` the shaper's decision
+    (:func:`_shape_decision`) stays at the saturated drive, the kick ``overdrive`` or the
+    full reverse ``-overdrive``: the speed after ``j`` such ticks is ``d + (e - d) x**j``
+    (``x`` the tick's decay factor of the rise or the brake time constant), so the run is
+    found in closed form (a logarithm, checked against the decision itself) instead of
+    tick by tick. 0 when this tick's decision is not saturated (it lands, or there is no
+    gap)."""
+    s = level if level >= start else 0.0
+    gap = s - e
+    if gap > _SETTLED:
+        d, x = overdrive, xr
+        thr = (s - overdrive * (1.0 - xr)) / xr  # the kick lands from above it
+
+        def saturated(w: float) -> bool:
+            return s - w > _SETTLED and (s - w * xr) / (1.0 - xr) >= overdrive
+    elif gap < -_SETTLED and brake:
+        d, x = -overdrive, xb
+        thr = (s + overdrive * (1.0 - xb)) / xb  # a weaker reverse lands from below it
+        if s > 0.0:  # a forward drive lands from below this one
+            thr = max(thr, (s - start * (1.0 - xf)) / xf)
+
+        def saturated(w: float) -> bool:
+            if s - w >= -_SETTLED:
+                return False
+            if (s - w * xf) / (1.0 - xf) >= start and s > 0.0:
+                return False
+            rev = (s - w * xb) / (1.0 - xb)
+            return rev <= 0.0 and -rev >= overdrive
+    else:
+        return 0
+    if not saturated(e):
+        return 0
+    # the last tick j with a saturated decision: e_j = d + (e - d) x**j crosses thr
+    ratio = (d - thr) / (d - e)
+    j = max(math.floor(math.log(ratio) / math.log(x)), 0) if ratio > 0.0 else 0
+    while j > 0 and not saturated(d + (e - d) * x**j):
+        j -= 1
+    while saturated(d + (e - d) * x ** (j + 1)):
+        j += 1
+    return j + 1

@@ -66,6 +66,7 @@ from .erm import (
     erm_speed,
     relax_f,
     sample_grid,
+    saturated_run,
     shape_tick,
     shape_whole_tick,
 )
@@ -751,6 +752,28 @@ class SimBelt(Belt):
                     wl = el if exact else [relax_f(lvl[k], wl[k], h, start, pr, pf, pb)
                                            for k in range(n)]
                     break
+                # a run of whole ticks at the kick or the full reverse (every moving
+                # tactor saturated): one decision, its end in closed form
+                if b1 - t >= 2 * tick:
+                    run = (b1 - t) // tick
+                    for k in moving:
+                        run = min(run, saturated_run(lvl[k], el[k], start, od, can_brake,
+                                                     xr[k], xf[k], xb[k]))
+                        if run < 2:
+                            break
+                    if run >= 2:
+                        d = list(lvl)
+                        el = list(el)
+                        for k in moving:
+                            up = sl[k] > el[k]
+                            d[k] = od if up else -od
+                            el[k] = d[k] + (el[k] - d[k]) * (xr[k] if up else xb[k]) ** run
+                        ds.append(d)
+                        h = run * tick * 1e-9
+                        wl = el if exact else [relax_f(d[k], wl[k], h, start, pr, pf, pb)
+                                               for k in range(n)]
+                        t += run * tick
+                        continue
                 # the decision holds a tick; each moving tactor in plain floats
                 nxt = min(t + tick, b1)
                 h = (nxt - t) * 1e-9
