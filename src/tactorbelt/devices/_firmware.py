@@ -650,15 +650,10 @@ class FirmwareBelt(Belt, PacketSink):
             if note:
                 log.warning("%s: %s", self.port, note)
             dev_layout = layout_from_info(info)
-            if layout is not None:
-                if layout.n != dev_layout.n:
-                    raise ConfigError(
-                        f"layout has {layout.n} tactors but the belt on {self.port} has "
-                        f"{dev_layout.n}"
-                    )
-                use_layout = layout
-            else:
-                use_layout = dev_layout
+            use_layout = dev_layout if layout is None else layout
+            if use_layout.n != dev_layout.n:
+                raise ConfigError(f"layout has {use_layout.n} tactors but the belt on "
+                                  f"{self.port} has {dev_layout.n}")
             self.info = info
             self.heartbeat_ms = info.heartbeat_ms
             self._can_play_target = info.can_play_target and use_layout == dev_layout
