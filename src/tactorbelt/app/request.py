@@ -181,12 +181,11 @@ def resolve(req: RunRequest, stored: dict[str, Any]) -> RunRequest:
     if req.headless is None and req.input_kind is not None and _window_input(req.input_kind):
         got["headless"] = False  # a live input given again brings the window back
     joy = stored.get("joystick") or {}
-    for f, key in STORED.items():
-        got[f] = stored.get(key) if got[f] is None else got[f]
-    for f, key in JOYSTICK.items():
-        got[f] = joy.get(key) if got[f] is None else got[f]
-    for f, default in DEFAULTS.items():
-        got[f] = default if got[f] is None else got[f]
+    for f, key in [*STORED.items(), *JOYSTICK.items()]:
+        if got[f] is None:
+            got[f] = (joy if f in JOYSTICK else stored).get(key)
+        if got[f] is None:
+            got[f] = DEFAULTS.get(f)
     got["input_kind"] = got["input_kind"] or DEFAULT_INPUTS[bool(got["headless"])]
     return replace(req, **got)
 

@@ -324,6 +324,8 @@ class SessionRunner:
         #: Nobody watches and nobody operates: nobody sees the samples or sends commands
         #: (the runner skips those calls in its loops).
         self._headless = not self.listeners.watching and operator is None
+        #: ... on an exact simulated clock: a loop may skip ticks at which nothing happens
+        self._fast = self._headless and isinstance(clock, SimClock) and clock.exact
         #: How the session's writes are committed (provenance.commit_mode): in batches
         #: only with nothing real involved; recorded in the store (Store.commit_mode).
         self.commits = provenance.commit_mode(
@@ -576,8 +578,7 @@ class SessionRunner:
         ticks = self._ticks()
         end = ticks.onset_ns + duration_ns
         now = ticks.onset_ns
-        if (self._headless and self._task is None and not self.player.playing
-                and isinstance(self.clock, SimClock) and self.clock.exact):
+        if self._fast and self._task is None and not self.player.playing:
             # nothing would happen at the ticks (nothing plays, nobody polls, no task):
             # the clock ends at ``end`` as it would after them
             self.clock.sleep_until_ns(end)
@@ -679,8 +680,7 @@ class SessionRunner:
         self.cursor.trial_started(cue, onset)
         self.listeners.on_trial_state(t, TrialState.STIMULUS, onset)
         ticks = self._ticks(onset, first=0)
-        if (self._headless and self._task is None and self.cursor.reads_runs
-                and isinstance(self.clock, SimClock) and self.clock.exact
+        if (self._fast and self._task is None and self.cursor.reads_runs
                 and not self.player.pumped):
             return self._present_runs(machine, ticks)
         playing = True
