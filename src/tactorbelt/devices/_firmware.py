@@ -1042,13 +1042,9 @@ class FirmwareBelt(Belt, PacketSink):
         """SET_DRIVE: the device shapes every level change from now on (frames and
         PLAY_TARGET alike), with its motor constants (docs/protocol.md, "SET_DRIVE")."""
         mode = int(wire.DriveMode.SHAPED if drive == "shaped" else 0)
-        vectors: list[wire.DriveConstants | None] = [None]
-        if drive == "shaped":
-            sent = drive_constants(self.n_tactors, self.calibration.shaping_taus(),
-                                   self._supply_v, self._kick_ms)
-            if sent:
-                vectors = list(sent)
-        for v in vectors:
+        vectors = drive_constants(self.n_tactors, self.calibration.shaping_taus(),
+                                  self._supply_v, self._kick_ms) if drive == "shaped" else None
+        for v in vectors or (None,):  # None: the mode alone (the device keeps its constants)
             self._request(functools.partial(wire.set_drive, mode=mode, constants=v),
                           "SET_DRIVE", expect=wire.Ack)
 
