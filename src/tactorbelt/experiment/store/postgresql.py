@@ -194,9 +194,16 @@ class PostgreSQLStore(Store):
                 tactorbelt store; (for writing) its schema is newer than this
                 tactorbelt's. Raised before anything is written.
         """
+        import psycopg
+
         text = str(url)
         check_url(text)
-        conn = cls.connect(text, create=create, readonly=readonly)
+        try:  # autocommit: transactions are explicit
+            conn = psycopg.connect("postgresql://" + text.split("://", 1)[1], autocommit=True,
+                                   connect_timeout=CONNECT_TIMEOUT_S,
+                                   application_name="tactorbelt")
+        except psycopg.Error as exc:
+            raise _connect_error(text, exc, create, readonly) from None
         try:
             cls._check_schema(text, conn, create=create, readonly=readonly)
         except BaseException:
@@ -204,21 +211,6 @@ class PostgreSQLStore(Store):
                 conn.close()
             raise
         return cls(text, conn, readonly)
-
-    @staticmethod
-    def connect(url: str, *, create: bool = True, readonly: bool = False,
-                timeout_s: float = CONNECT_TIMEOUT_S) -> Any:
-        """A psycopg connection (autocommit; transactions are explicit) or StoreError."""
-        import psycopg
-
-        dsn = "postgresql://" + url.split("://", 1)[1]
-        try:
-            conn = psycopg.connect(dsn, autocommit=True,
-                                   connect_timeout=max(1, round(timeout_s)),
-                                   application_name="tactorbelt")
-        except psycopg.Error as exc:
-            raise _connect_error(url, exc, create, readonly) from None
-        return conn
 
     @classmethod
     def _check_schema(cls, url: str, conn: Any, *, create: bool, readonly: bool) -> None:
