@@ -50,12 +50,13 @@ Pure: NumPy, SciPy and pandas; no I/O.
 
 from __future__ import annotations
 
+import functools
 import itertools
 import math
 import re
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, Final
+from typing import TYPE_CHECKING, Any, Final, ParamSpec, TypeVar
 
 import numpy as np
 
@@ -290,26 +291,32 @@ class MixedModelFit:
 # -- BLAS threads ------------------------------------------------------------------------
 
 _CONTROLLER: list[Any] = []
+P = ParamSpec("P")
+R = TypeVar("R")
 
 
-def one_blas_thread() -> Any:
-    """A context in which BLAS runs on one thread (threadpoolctl, when installed).
+def one_blas_thread(f: Callable[P, R]) -> Callable[P, R]:
+    """``f`` run with BLAS on one thread (threadpoolctl, when installed).
 
     The fits do thousands of small matrix operations; a threaded OpenBLAS makes its
     threads wait for each other on every one, which on a busy 2-core machine made a
     parametric bootstrap 3.6 times slower. Without threadpoolctl: no change.
     """
-    import contextlib
 
-    try:
-        from threadpoolctl import ThreadpoolController
-    except ImportError:  # pragma: no cover - threadpoolctl comes with SciPy's stack
-        return contextlib.nullcontext()
-    if not _CONTROLLER:
-        import scipy.optimize  # noqa: F401 - SciPy's own OpenBLAS (L-BFGS-B), loaded first
+    @functools.wraps(f)
+    def run(*args: P.args, **kwargs: P.kwargs) -> R:
+        try:
+            from threadpoolctl import ThreadpoolController
+        except ImportError:  # pragma: no cover - threadpoolctl comes with SciPy's stack
+            return f(*args, **kwargs)
+        if not _CONTROLLER:
+            import scipy.optimize  # noqa: F401 - SciPy's own OpenBLAS (L-BFGS-B), loaded first
 
-        _CONTROLLER.append(ThreadpoolController())
-    return _CONTROLLER[0].limit(limits=1, user_api="blas")
+            _CONTROLLER.append(ThreadpoolController())
+        with _CONTROLLER[0].limit(limits=1, user_api="blas"):
+            return f(*args, **kwargs)
+
+    return run
 
 
 # -- design matrices ---------------------------------------------------------------------
@@ -1259,6 +1266,7 @@ class GlmmData:
         return (rng.random(eta.shape) < _expit(eta)).astype(float)
 
 
+@one_blas_thread
 def fit_glmm(df: pd.DataFrame, spec: ModelSpec, *, skip_se_if_simplified: bool = False,
              start: MixedModelFit | None = None, se: bool = True,
              keep_slopes: bool = False, fixef_prior: FixefPrior | None = None) -> MixedModelFit:
@@ -1279,11 +1287,10 @@ def fit_glmm(df: pd.DataFrame, spec: ModelSpec, *, skip_se_if_simplified: bool =
     Raises:
         ValueError: a missing column, fewer than 2 levels of a grouping factor.
     """
-    with one_blas_thread():
-        data = GlmmData(df, spec)
-        par0 = _start(start, data.theta_names, data.names)
-        return glmm_fit(data, skip_se_if_simplified=skip_se_if_simplified, start_par=par0,
-                        se=se, keep_slopes=keep_slopes, fixef_prior=fixef_prior)
+    data = GlmmData(df, spec)
+    par0 = _start(start, data.theta_names, data.names)
+    return glmm_fit(data, skip_se_if_simplified=skip_se_if_simplified, start_par=par0, se=se,
+                    keep_slopes=keep_slopes, fixef_prior=fixef_prior)
 
 
 def glmm_fit(data: GlmmData, y: np.ndarray | None = None, *,
@@ -1403,6 +1410,7 @@ class LmmData:
                 "sbb": sbb}
 
 
+@one_blas_thread
 def fit_lmm(df: pd.DataFrame, spec: ModelSpec, *, reml: bool = True,
             start: MixedModelFit | None = None) -> MixedModelFit:
     """A linear mixed model by REML (``reml=False``: ML), as ``lme4::lmer``.
@@ -1412,12 +1420,7 @@ def fit_lmm(df: pd.DataFrame, spec: ModelSpec, *, reml: bool = True,
     z and p are Wald (normal) values; :func:`tactorbelt.analysis.models.satterthwaite.satterthwaite`
     gives lmerTest's t tests.
     """
-    with one_blas_thread():
-        return _fit_lmm(LmmData(df, spec), reml, start)
-
-
-def _fit_lmm(data: LmmData, reml: bool, start: MixedModelFit | None) -> MixedModelFit:
-    spec = data.spec
+    data = LmmData(df, spec)
     n, p, lower = data.n, data.p, data.lower
     theta0 = _start(start, data.theta_names)
     if theta0 is None:
@@ -1453,6 +1456,7 @@ def _fit_lmm(data: LmmData, reml: bool, start: MixedModelFit | None) -> MixedMod
 Fitter = Callable[["pd.DataFrame", ModelSpec], MixedModelFit]
 
 
+@one_blas_thread
 def fit_simplified(df: pd.DataFrame, spec: ModelSpec, fitter: Fitter, *,
                    keep_slopes: bool = False) -> tuple[MixedModelFit, list[dict[str, Any]]]:
     """Fit the maximal model and simplify it while the fit is singular.
@@ -1475,13 +1479,6 @@ def fit_simplified(df: pd.DataFrame, spec: ModelSpec, fitter: Fitter, *,
         ``zero_components`` and the ``action`` taken.
     """
     steps: list[dict[str, Any]] = []
-    with one_blas_thread():
-        return _fit_simplified(df, spec, fitter, steps, keep_slopes)
-
-
-def _fit_simplified(df: pd.DataFrame, spec: ModelSpec, fitter: Fitter,
-                    steps: list[dict[str, Any]],
-                    keep_slopes: bool) -> tuple[MixedModelFit, list[dict[str, Any]]]:
     while True:
         fit = fitter(df, spec)
         zero = fit.zero_components()

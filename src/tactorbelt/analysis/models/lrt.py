@@ -193,6 +193,7 @@ def _par(fit: MixedModelFit, data: GlmmData) -> np.ndarray:
     return np.array([th[nm] for nm in data.theta_names] + beta, dtype=float)
 
 
+@one_blas_thread
 def parametric_bootstrap(frame: pd.DataFrame, fit: MixedModelFit, fit0: MixedModelFit,
                          n_sim: int = DEFAULT_PB_SIMS, seed: int | Sequence[int] = 0,
                          responses: np.ndarray | None = None,
@@ -209,13 +210,6 @@ def parametric_bootstrap(frame: pd.DataFrame, fit: MixedModelFit, fit0: MixedMod
             the very responses R refits, in the tests).
         progress: called with ``(done, n_sim)``.
     """
-    with one_blas_thread():
-        return _bootstrap(frame, fit, fit0, n_sim, seed, responses, progress)
-
-
-def _bootstrap(frame: pd.DataFrame, fit: MixedModelFit, fit0: MixedModelFit, n_sim: int,
-               seed: Any, responses: np.ndarray | None,
-               progress: Callable[[int, int], None] | None) -> PBResult:
     data = GlmmData(frame, fit.spec)
     data0 = GlmmData(frame, fit0.spec)
     if responses is None:

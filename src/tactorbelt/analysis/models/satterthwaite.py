@@ -93,6 +93,7 @@ def richardson_hessian(f: Callable[[np.ndarray], float], x: np.ndarray, *,
     return hess
 
 
+@one_blas_thread
 def satterthwaite(frame: pd.DataFrame, fit: MixedModelFit,
                   tol: float = 1e-8) -> dict[str, dict[str, Any]]:
     """Satterthwaite ``df``, ``t`` and two-sided ``p`` of each fixed effect (lmerTest).
@@ -106,12 +107,6 @@ def satterthwaite(frame: pd.DataFrame, fit: MixedModelFit,
         interval on ``df``); and under the key ``"_"`` the notes (negative or zero
         eigenvalues of the Hessian, as lmerTest warns).
     """
-    with one_blas_thread():
-        return _satterthwaite(frame, fit, tol)
-
-
-def _satterthwaite(frame: pd.DataFrame, fit: MixedModelFit,
-                   tol: float) -> dict[str, dict[str, Any]]:
     from scipy.stats import t as t_dist
 
     data = LmmData(frame, fit.spec)
