@@ -346,18 +346,14 @@ class SessionRunner:
         self._has_latency = belt.calibration.has_timing
         self._block_stimuli: dict[str, StimulusSpec] = {}
         self.profile: Any = None  # the wearer profile ([calibration] perceptual), by open_session
-        #: the session in the store (the store seam), by open_session
+        #: the session in the store (the store seam: its id, seed, schedule and block
+        #: order), by open_session
         self.recorder: SessionRecorder = None  # type: ignore[assignment]
-        # set by open_session
-        self.session_id = 0
-        self.schedule: list[ScheduledTrial] = []
-        self.order: tuple[str, ...] = ()
         self.n_done = 0
         self.n_run = 0
         self.n_test_run = 0
         self.results: list[TrialResult] = []
         # secondary tasks (set by open_session)
-        self.seed_used = 0
         self._task: _TaskRun | None = None
         self._phases_done: set[tuple[str, str]] = set()
         self._rated: set[int] = set()
@@ -385,20 +381,18 @@ class SessionRunner:
             firmware_version=self.belt.firmware_version,
             calibration=self.belt.calibration.to_list(), clock="sim" if self.sim else "wall",
             site=self.site)
-        self.session_id, self.seed_used = rec.session_id, rec.seed
-        self.schedule, self.order = rec.schedule, rec.order
         if self.profile is not None:  # the wearer profile is part of the session's provenance
             rec.set_profile(self.profile.to_toml())
-        finished = rec.finished()
-        self.n_done = len(finished)
-        for t in self.schedule:
+        todo = rec.todo()
+        self.n_done = len(rec.schedule) - len(todo)
+        for t in rec.schedule:
             self._block_last[t.block_index] = t.trial_index
         if self.resume and (study.tasks or study.questionnaire.tlx):
             self._phases_done = {(e["task"], e["phase"]) for e in rec.task_events()
                                  if e["phase"] != "dual"}
             self._rated = {int(r["block_index"]) for r in rec.ratings()
                            if r["scale"] == TLX_SCALE}
-        return [t for t in self.schedule if t.trial_index not in finished]
+        return todo
 
     def trial_stimulus(self, t: ScheduledTrial) -> StimulusSpec:
         """The ``[stimulus]`` settings of a trial's block (``Study.trial_stimulus``, made
@@ -471,7 +465,7 @@ class SessionRunner:
         now = self.clock.now_ns()
         self._operator_presses(now)  # pressed while no task ran: not part of this run
         self.cursor.task_presses(now)
-        seed = derive_seed(self.seed_used, self.participant, run.name, run.phase,
+        seed = derive_seed(self.recorder.seed, self.participant, run.name, run.phase,
                            run.block_index, run.next_index)
         run.session = TaskSession(run.name, run.spec, run.phase, run.block_index, seed,
                                   now + TASK_LEAD_NS, run.remaining,
@@ -567,8 +561,9 @@ class SessionRunner:
     def _rate_unrated_before(self, todo: list[ScheduledTrial]) -> None:
         """On resume: the block finished just before the interruption, when its
         NASA-TLX was not stored (the session stopped during the questionnaire)."""
-        first = todo[0].trial_index if todo else len(self.schedule)
-        before = [t for t in self.schedule if t.trial_index < first]
+        schedule = self.recorder.schedule
+        first = todo[0].trial_index if todo else len(schedule)
+        before = [t for t in schedule if t.trial_index < first]
         if before and not (todo and todo[0].block_index == before[-1].block_index):
             self.rate_block(before[-1])
 
@@ -809,13 +804,14 @@ class SessionRunner:
             return self._run(todo)
 
     def _run(self, todo: list[ScheduledTrial]) -> SessionResult:
-        n_total = len(self.schedule)
-        info = SessionInfo(self.session_id, self.participant, self.study, n_total,
-                           self.n_done, self.resume, self.order)
+        rec = self.recorder
+        n_total = len(rec.schedule)
+        info = SessionInfo(rec.session_id, self.participant, self.study, n_total,
+                           self.n_done, self.resume, rec.order)
         try:
             # inside the try: Ctrl-C or a window error on the instructions screen leaves
             # the session "interrupted", not "running"
-            self.listeners.on_session_start(info, self.schedule)
+            self.listeners.on_session_start(info, rec.schedule)
             status = self._trials(todo)
         except _Aborted as exc:
             self._stop_task_quietly()
@@ -828,14 +824,14 @@ class SessionRunner:
             _stop_quietly(self.player, self.belt)
         self.recorder.end(status)
         self.listeners.on_session_end(status)
-        return SessionResult(self.session_id, status, n_total, self.n_done, self.n_run,
+        return SessionResult(rec.session_id, status, n_total, self.n_done, self.n_run,
                              self.results)
 
     def _trials(self, todo: list[ScheduledTrial]) -> str:
         """Run the trials to do, with the inter-trial intervals and breaks; the status."""
         iti_ns = round(self.study.session.iti_s * 1e9)
         break_every = self.study.session.break_every
-        n_total = len(self.schedule)
+        n_total = len(self.recorder.schedule)
         prev_block: int | None = None
         if self.resume:
             self._rate_unrated_before(todo)
@@ -895,8 +891,8 @@ class SessionRunner:
             raise DeviceError(
                 f"belt {self.belt.url} failed during the session ({exc}); motors off (a belt "
                 "that no longer answers turns them off itself within its heartbeat timeout), "
-                f"the trial in flight was stored as aborted and session {self.session_id} of "
-                f"{self.participant!r} can be resumed with --resume"
+                "the trial in flight was stored as aborted and session "
+                f"{self.recorder.session_id} of {self.participant!r} can be resumed with --resume"
             ) from exc
 
     def _record_failed(self, exc: BaseException) -> None:
