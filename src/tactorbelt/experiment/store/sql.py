@@ -9,13 +9,13 @@ the connection and what only its database does:
 - ``_transaction(what)``: a context manager giving an object with ``execute`` and
   ``executemany`` (the connection, a cursor), committing at its end, rolling back and
   raising StoreError (``cannot {what} {url}: ...``) on a database error;
-- ``_read_error()`` (the driver's error class: a failed read is StoreError) and
-  ``_stream(sql, args)`` (rows without holding them all);
+- ``_read_error()``: the driver's error class (a failed read is StoreError);
 - ``_write_samples(c, trial_id, result)``: the sample rows of a trial (SQLite's
   multi-row INSERTs, PostgreSQL's COPY);
 - hooks with a default here: ``_put_trial`` (how an earlier row of the trial is found:
   a row lock first, or an INSERT that fails on the UNIQUE key), ``_claim`` (participant
-  ids owned by a site);
+  ids owned by a site), ``_stream`` (rows without holding them all: a server-side
+  cursor in PostgreSQL);
 - what only some stores can (multi-site claims, batched commits, copied sessions: see
   :class:`~.base.StoreCapabilities`), the rest refusing with StoreError.
 
@@ -30,7 +30,6 @@ import json
 from collections.abc import Iterator, Mapping, Sequence
 from contextlib import AbstractContextManager
 from pathlib import Path
-from types import TracebackType
 from typing import TYPE_CHECKING, Any, ClassVar
 
 from ..._errors import StoreError
@@ -127,8 +126,7 @@ class Store(abc.ABC):
     def __enter__(self) -> Store:
         return self
 
-    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
-                 tb: TracebackType | None) -> None:
+    def __exit__(self, *exc: object) -> None:
         self.close()
 
     # -- what a subclass brings ------------------------------------------------------
@@ -137,9 +135,6 @@ class Store(abc.ABC):
 
     def _read_error(self) -> type[Exception]:
         """The driver's error class of a failed read."""
-        raise NotImplementedError
-
-    def _stream(self, sql: str, args: Sequence[Any]) -> Iterator[Sequence[Any]]:
         raise NotImplementedError
 
     def _write_samples(self, c: Any, trial_id: int, result: TrialResult) -> None:
@@ -168,6 +163,11 @@ class Store(abc.ABC):
             cur = self.conn.execute(sql, tuple(args))
             names = [d[0] for d in cur.description]
             return [dict(zip(names, r, strict=True)) for r in cur]
+
+    def _stream(self, sql: str, args: Sequence[Any]) -> Iterator[Sequence[Any]]:
+        """The rows of a query, without holding them all."""
+        with self._reading():
+            yield from self.conn.execute(sql, tuple(args))
 
     def _sql(self, text: str) -> str:
         return self.dialect.sql(text)

@@ -38,7 +38,7 @@ import os
 import shutil
 import sqlite3
 import stat
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -427,10 +427,6 @@ class SQLiteStore(Store):
 
     def _read_error(self) -> type[Exception]:
         return sqlite3.DatabaseError
-
-    def _stream(self, sql: str, args: Sequence[Any]) -> Iterator[Sequence[Any]]:
-        with self._reading():
-            yield from self.conn.execute(sql, tuple(args))
 
     # -- trials ------------------------------------------------------------------------
     def _put_trial(self, c: Any, session_id: int, trial_index: int,
