@@ -425,52 +425,42 @@ def summarize(data: StoreData, *, seed: int = 0, n_boot: int = DEFAULT_N_BOOT,
     tests: list[TestResult] = []
     n_part = counts["participants_with_test_trials"]
     between = counted.loc[counted["kind"] == "between_tactor"]
-    if len(counted) == 0:
-        reason = ("no test-block trial was done or timed out" if len(tr) else
-                  "the stores hold no trials")
-        tests.append(_not_computed("between_accuracy", "Fisher's exact test",
-                                   "between-tactor accuracy, dynamic vs static", reason))
-        tests.append(_not_computed("between_rt", "Mann-Whitney U test",
-                                   "between-tactor response time, dynamic vs static", reason))
-        notes.append(f"no statistics: {reason}")
+    if len(counted) == 0 or between.empty:
+        # the tests one participant (Fisher, Mann-Whitney) or several (Wilcoxon) would get
+        names = ([("Fisher's exact test", "between-tactor accuracy"),
+                  ("Mann-Whitney U test", "between-tactor response time")] if n_part <= 1 else
+                 [("Wilcoxon signed-rank test", "per-participant between-tactor accuracy"),
+                  ("Wilcoxon signed-rank test", "per-participant between-tactor median RT")])
+        reason = ("no between-tactor test trials (every target is on a tactor)" if len(counted)
+                  else "no test-block trial was done or timed out" if len(tr)
+                  else "the stores hold no trials")
+        tests += [_not_computed(key, test_name, f"{question}, dynamic vs static", reason)
+                  for key, (test_name, question) in zip(("between_accuracy", "between_rt"),
+                                                        names, strict=True)]
+        if len(counted) == 0:
+            notes.append(f"no statistics: {reason}")
     elif n_part == 1:
         by = {c: between.loc[between["condition"] == c] for c in CONDITIONS}
-        if between.empty:
-            reason = "no between-tactor test trials (every target is on a tactor)"
-            tests.append(_not_computed("between_accuracy", "Fisher's exact test",
-                                       "between-tactor accuracy, dynamic vs static", reason))
-            tests.append(_not_computed("between_rt", "Mann-Whitney U test",
-                                       "between-tactor response time, dynamic vs static", reason))
-        else:
-            tests.append(fisher_accuracy(
-                int(by["static"]["is_correct"].sum()), len(by["static"]),
-                int(by["dynamic"]["is_correct"].sum()), len(by["dynamic"]), rng, n_boot))
-            tests.append(mann_whitney_rt(by["static"]["rt"].to_numpy(),
-                                         by["dynamic"]["rt"].to_numpy(), rng, n_boot))
+        tests.append(fisher_accuracy(
+            int(by["static"]["is_correct"].sum()), len(by["static"]),
+            int(by["dynamic"]["is_correct"].sum()), len(by["dynamic"]), rng, n_boot))
+        tests.append(mann_whitney_rt(by["static"]["rt"].to_numpy(),
+                                     by["dynamic"]["rt"].to_numpy(), rng, n_boot))
     else:
         b = pp.loc[pp["kind"] == "between_tactor"].pivot(
             index="participant", columns="condition", values=["accuracy", "median_rt_s"])
-        if between.empty:
-            reason = "no between-tactor test trials (every target is on a tactor)"
-            tests.append(_not_computed("between_accuracy", "Wilcoxon signed-rank test",
-                                       "per-participant between-tactor accuracy, dynamic vs "
-                                       "static", reason))
-            tests.append(_not_computed("between_rt", "Wilcoxon signed-rank test",
-                                       "per-participant between-tactor median RT, dynamic vs "
-                                       "static", reason))
-        else:
-            acc_s, acc_d = b[("accuracy", "static")], b[("accuracy", "dynamic")]
-            lacking = b.index[acc_s.isna() | acc_d.isna()].tolist()
-            if lacking:
-                notes.append(
-                    f"{len(lacking)} participant(s) lack between-tactor trials in a condition "
-                    "and are left out of the paired tests: " + ", ".join(map(str, lacking[:20]))
-                    + (" ..." if len(lacking) > 20 else ""))
-            tests.append(wilcoxon_paired(acc_s.to_numpy(), acc_d.to_numpy(), rng, n_boot,
-                                         key="between_accuracy", what="accuracy"))
-            tests.append(wilcoxon_paired(
-                b[("median_rt_s", "static")].to_numpy(), b[("median_rt_s", "dynamic")].to_numpy(),
-                rng, n_boot, key="between_rt", what="median RT", unit=", s"))
+        acc_s, acc_d = b[("accuracy", "static")], b[("accuracy", "dynamic")]
+        lacking = b.index[acc_s.isna() | acc_d.isna()].tolist()
+        if lacking:
+            notes.append(
+                f"{len(lacking)} participant(s) lack between-tactor trials in a condition "
+                "and are left out of the paired tests: " + ", ".join(map(str, lacking[:20]))
+                + (" ..." if len(lacking) > 20 else ""))
+        tests.append(wilcoxon_paired(acc_s.to_numpy(), acc_d.to_numpy(), rng, n_boot,
+                                     key="between_accuracy", what="accuracy"))
+        tests.append(wilcoxon_paired(
+            b[("median_rt_s", "static")].to_numpy(), b[("median_rt_s", "dynamic")].to_numpy(),
+            rng, n_boot, key="between_rt", what="median RT", unit=", s"))
     rt_json: dict[str, Any] | None = None
     if len(counted):
         tests.append(mixed_model(tr, engine=engine, pb_sims=pb_sims, seed=seed,
