@@ -54,7 +54,7 @@ class RunRequest:
     study_file: Path
     participant: str
     #: the local store (``postgresql://...``: push there; :func:`resolve_db`)
-    db: Path = Path("study.sqlite")
+    db: Path | str = Path("study.sqlite")
     belt_url: str | None = None
     #: the belt's calibration file (motor levels; with ``validate onsets``' measured
     #: latencies, each trial's skin onset is stored)

@@ -227,7 +227,7 @@ def run_study(req: RunRequest, *, progress: Callable[[int, int], None] | None = 
                     observer=win.observer, **kwargs))
         trials = store.trials(result.session_id)
         events = store.task_events(result.session_id) if study.tasks else []
-    return RunOutcome(result, req.db, trials, req.resume, push_lines, events)
+    return RunOutcome(result, Path(req.db), trials, req.resume, push_lines, events)
 
 
 @contextlib.contextmanager
