@@ -303,12 +303,11 @@ def _open(db: str | Path) -> Store:
 #: What an export of each format writes at the top of its directory (``--force``
 #: replaces these, and refuses a directory holding anything else).
 _OWNED = {
-    "csv": ("sessions.csv", "trials.csv", "samples.csv", "task_events.csv", "ratings.csv"),
+    "csv": tuple(f"{name}.csv" for name in DTYPES),
     "bids": ("dataset_description.json", "participants.tsv", "participants.json", "README",
              "README.md", "README.rst", "README.txt", "sub-*"),
     # experiment/export_formats.py
-    "parquet": ("sessions.parquet", "trials.parquet", "samples.parquet",
-                "task_events.parquet", "ratings.parquet"),
+    "parquet": tuple(f"{name}.parquet" for name in DTYPES),
     "tidy": ("trials_tidy.csv", "codebook.csv"),
     "psychopy": ("*_[0-9][0-9][0-9][0-9]-[0-9][0-9]-[0-9][0-9]_[0-9][0-9]h[0-9][0-9].*.csv",
                  "*_session-*.csv"),

@@ -94,16 +94,11 @@ PSYCHOPY_COLUMNS = [
     "tactorbeltVersion",
 ]
 
-def _pandas() -> Any:
-    import pandas as pd
-
-    return pd
-
-
 def _frame(rows: Iterable[list[Any]], table: str) -> pd.DataFrame:
     """Typed rows; an empty text is missing (NA), as a CSV file cannot tell them apart
     (``task_events.response`` is empty when nothing was pressed)."""
-    pd = _pandas()
+    import pandas as pd
+
     types = dtypes(table)
     df = pd.DataFrame([[None if v == "" else v for v in r] for r in rows],
                       columns=list(types), dtype=object)
@@ -121,7 +116,8 @@ def tables(db: str | Path) -> dict[str, pd.DataFrame]:
 def read_table(path: str | Path) -> pd.DataFrame:
     """A table of the CSV or the Parquet export (``trials.csv``, ``samples.parquet``,
     ...) as a DataFrame with the types of :data:`DTYPES`: both give the same frame."""
-    pd = _pandas()
+    import pandas as pd
+
     p = Path(path)
     table = p.stem
     if table not in DTYPES:
@@ -131,7 +127,8 @@ def read_table(path: str | Path) -> pd.DataFrame:
         _pyarrow()
         return pd.read_parquet(p).astype(types)
     # floats exactly as written (repr): pandas 3 parses them so by default
-    exact = {} if int(pd.__version__.split(".")[0]) >= 3 else {"float_precision": "round_trip"}
+    exact: dict[str, Any] = ({} if int(pd.__version__.split(".")[0]) >= 3
+                             else {"float_precision": "round_trip"})
     df = pd.read_csv(p, dtype={k: v for k, v in types.items() if v != "boolean"},
                      keep_default_na=False, na_values=[""], **exact)
     return df.astype(types)
