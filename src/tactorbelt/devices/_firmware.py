@@ -293,7 +293,7 @@ def _play_args(stimulus: Stimulus, duration_s: float | None) -> tuple[int, ...]:
             0 if duration_s is None else _ms(duration_s, "duration", 1, 0xFFFFFFFF))
 
 
-class SenseRecording:
+class SenseRecording(contextlib.AbstractContextManager["SenseRecording"]):
     """Samples of the accelerometer on a firmware belt's own board, with host-clock times.
 
     Made by :meth:`FirmwareBelt.sense`, which returns once the first samples arrived; the
@@ -517,9 +517,6 @@ class SenseRecording:
             if not self.finished and self._broken is None:
                 self._broken = "its last samples did not arrive"
             self.finished = True
-
-    def __enter__(self) -> SenseRecording:
-        return self
 
     def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
                  tb: object) -> None:

@@ -35,6 +35,7 @@ import logging
 import math
 import time
 from collections.abc import Callable
+from contextlib import AbstractContextManager
 from typing import TYPE_CHECKING, Any
 
 from .._errors import ConfigError
@@ -217,7 +218,7 @@ class _ToLsl:
         return ts
 
 
-class LslListener(NullListener):
+class LslListener(NullListener, AbstractContextManager["LslListener"]):
     """A session listener that sends LSL markers and cursor samples (module doc).
 
     Args:
@@ -412,9 +413,6 @@ class LslListener(NullListener):
         if any(o.have_consumers() for o in outlets):
             time.sleep(LINGER_S)
         outlets.clear()
-
-    def __enter__(self) -> LslListener:
-        return self
 
     def __exit__(self, *exc: object) -> None:
         self.close()

@@ -166,7 +166,7 @@ def _release_signals(owner: int) -> None:
             _installed.remove(s)
 
 
-class TactileBelt:
+class TactileBelt(contextlib.AbstractContextManager["TactileBelt"]):
     """A belt for a PsychoPy window, shaped like a Builder component (module doc).
 
     Args:
@@ -466,9 +466,6 @@ class TactileBelt:
         if close is None:
             return None
         return close(*args, **kwargs)
-
-    def __enter__(self) -> TactileBelt:
-        return self
 
     def __exit__(self, *exc: object) -> None:
         self.close()
