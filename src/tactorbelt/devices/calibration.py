@@ -264,12 +264,9 @@ class Calibration:
             raise ConfigError(f"expected the timing of {self.n} tactors, got {len(timings)}")
         rows = []
         for k, (t, timing) in enumerate(zip(self.tactors, timings, strict=True)):
-            if timing is None:
-                rows.append(t)
-                continue
-            for key in sorted(timing):
+            for key in sorted(timing or ()):
                 check_option(f"timing key of tactor {k}:", key, TIMING_KEYS)
-            rows.append(_with_keys(t, timing, TIMING_KEYS))
+            rows.append(t if timing is None else _with_keys(t, timing, TIMING_KEYS))
         return replace(self, tactors=tuple(rows), validated=str(validated),
                        validation_method=str(method))
 
