@@ -11,6 +11,7 @@ from tactorbelt.bridge.messages import (
     clock_estimate,
     need_int,
     opt_number,
+    opt_str,
     parse,
     request_id,
 )
@@ -64,3 +65,11 @@ def test_fields_are_checked() -> None:
     with pytest.raises(MessageError, match="'duration_ms' must be a finite number"):
         opt_number(msg, "duration_ms")
     assert opt_number(msg, "absent") is None
+    short = {"type": "play", "duration_ms": 0.5, "page": "x" * 2000, "user_agent": 3}
+    with pytest.raises(MessageError) as info:
+        opt_number(short, "duration_ms", 1.0, 60_000.0)
+    assert str(info.value) == "play: 'duration_ms' must be in 1..60000, got 0.5"
+    assert opt_str(short, "page") == "x" * 1000 and opt_str(short, "absent") is None
+    with pytest.raises(MessageError) as info:
+        opt_str(short, "user_agent")
+    assert str(info.value) == "play: 'user_agent' must be a string, got 3"

@@ -91,13 +91,6 @@ def error_reply(rid: int | None, message: str) -> dict[str, Any]:
     return {"type": "error", "id": rid, "error": message}
 
 
-def _number(value: Any) -> float | None:
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        return None
-    x = float(value)
-    return x if math.isfinite(x) else None
-
-
 def need_int(msg: Mapping[str, Any], key: str, lo: int | None = None,
              hi: int | None = None) -> int:
     """Field ``key``: an integer in [lo, hi]."""
@@ -121,20 +114,19 @@ def opt_int(msg: Mapping[str, Any], key: str, lo: int | None = None,
     return need_int(msg, key, lo, hi)
 
 
-def opt_number(msg: Mapping[str, Any], key: str, lo: float | None = None,
-               hi: float | None = None) -> float | None:
+def opt_number(msg: Mapping[str, Any], key: str, lo: float = -math.inf,
+               hi: float = math.inf) -> float | None:
     """Field ``key`` when present and not null: a finite number in [lo, hi]."""
     value = msg.get(key)
     if value is None:
         return None
-    x = _number(value)
-    if x is None:
+    if isinstance(value, bool) or not isinstance(value, int | float) \
+            or not math.isfinite(value):
         raise MessageError(f"{msg.get('type')}: {key!r} must be a finite number, got "
                            f"{value!r}")
-    if (lo is not None and x < lo) or (hi is not None and x > hi):
-        raise MessageError(f"{msg.get('type')}: {key!r} must be in {lo:g}..{hi:g}, got {x:g}"
-                           if lo is not None and hi is not None else
-                           f"{msg.get('type')}: {key!r} is out of range: {x:g}")
+    x = float(value)
+    if not lo <= x <= hi:
+        raise MessageError(f"{msg.get('type')}: {key!r} must be in {lo:g}..{hi:g}, got {x:g}")
     return x
 
 
@@ -149,14 +141,9 @@ def need_str(msg: Mapping[str, Any], key: str, allowed: Sequence[str] | None = N
     return value
 
 
-def opt_str(msg: Mapping[str, Any], key: str, max_len: int = 1000) -> str | None:
-    """Field ``key`` when present and not null: a string, cut to ``max_len``."""
-    value = msg.get(key)
-    if value is None:
-        return None
-    if not isinstance(value, str):
-        raise MessageError(f"{msg.get('type')}: {key!r} must be a string, got {value!r}")
-    return value[:max_len]
+def opt_str(msg: Mapping[str, Any], key: str) -> str | None:
+    """Field ``key`` when present and not null: a string, cut to 1000 characters."""
+    return None if msg.get(key) is None else need_str(msg, key)[:1000]
 
 
 @dataclass(frozen=True)
