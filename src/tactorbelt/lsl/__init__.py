@@ -434,10 +434,6 @@ class LslListener(NullListener, AbstractContextManager["LslListener"]):
             self.send(onset, "task_item", **fields)
 
     # -- markers from the session's events ----------------------------------------------
-    def _trial_fields(self, t: ScheduledTrial) -> dict[str, Any]:
-        return {"trial_index": t.trial_index, "block_index": t.block_index, "block": t.block,
-                **_levels(t)}
-
     def _end_block(self, now_ns: int) -> None:
         if self._block is not None:
             self.send(now_ns, "block_end", block_index=self._block)
@@ -472,7 +468,8 @@ class LslListener(NullListener, AbstractContextManager["LslListener"]):
                 self._block, self._block_ns = trial.block_index, None
             self._trial = trial
             self._onset_pending = False
-            self.send(now_ns, "trial_start", **self._trial_fields(trial))
+            self.send(now_ns, "trial_start", trial_index=trial.trial_index,
+                      block_index=trial.block_index, block=trial.block, **_levels(trial))
         elif state is TrialState.STIMULUS:
             if self.belt.reports_onsets:
                 self._onset_pending = True  # the device's onset comes with the result
