@@ -761,9 +761,12 @@ class SimBelt(Belt):
                                            for k in range(n)]
                     break
                 # a run of whole ticks at the kick or the full reverse (every moving
-                # tactor saturated): one decision, its end in closed form
-                if b1 - t >= 2 * tick:
-                    run = (b1 - t) // tick
+                # tactor saturated): one decision, its end in closed form. The last
+                # stretch ends where the query does, not where the levels change: a run
+                # there is not cut (its decision is the same whatever the query's end)
+                last = i == m - 1
+                if b1 - t >= 2 * tick or last:
+                    run = (b1 - t) // tick if not last else _MEMO_TICKS
                     for k in moving:
                         run = min(run, saturated_run(lvl[k], el[k], start, od, can_brake,
                                                      xr[k], xf[k], xb[k]))
@@ -850,10 +853,7 @@ class SimBelt(Belt):
             return None
         render = self._renders[int(self._rid[row])]
         onset = render.onset_ns
-        box = render.memo_box[0]
-        if (not render.from_rest or onset != int(self._t[row]) or box is None
-                or box[0] is not self.params or box[1] is not self.shaper
-                or box[2] != self.n_tactors or (t_first - onset) % RENDER_TICK_NS):
+        if onset != int(self._t[row]) or (t_first - onset) % RENDER_TICK_NS:
             return None
         if row + 1 < self._hi and int(self._t[row + 1]) <= t_last:
             return None
@@ -861,6 +861,13 @@ class SimBelt(Belt):
         k0 = (t_first - onset) // RENDER_TICK_NS
         k1 = k0 + times.shape[0]
         if (end is not None and end <= t_last) or k1 >= _MEMO_TICKS:
+            return None
+        if not render.from_rest:  # the walk to the onset finds out (and the memo)
+            t_a, w_a, e_a = self._shaped_start(onset)
+            self._shaped_solve(t_a, w_a, e_a, onset, onset)
+        box = render.memo_box[0]
+        if (not render.from_rest or box is None or box[0] is not self.params
+                or box[1] is not self.shaper or box[2] != self.n_tactors):
             return None
         memo = box[3]
         got = render.grid_box[0]
