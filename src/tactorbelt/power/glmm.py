@@ -17,7 +17,7 @@ the study's test trials (its blocks, target counts and repetitions:
 analysed by the very functions the report uses
 (:func:`tactorbelt.analysis.models.fit.fit_model`: the same formula, the same singular-fit
 simplification rule, the same Laplace fit; and the same model without the condition
-terms) with the report's headline test (:func:`tactorbelt.analysis.models.fit.headline_method`):
+terms) with the report's headline test (:data:`tactorbelt.analysis.models.fit.HEADLINE_TEST`):
 the likelihood ratio of every condition term against none, referred to
 ``F(k, participants - 1)`` (:func:`tactorbelt.analysis.models.lrt.f_reference`), the test of
 those the report computes that holds its level with 4 to 16 participants

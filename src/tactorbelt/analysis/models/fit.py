@@ -48,7 +48,6 @@ __all__ = [
     "condition_tests",
     "design_factors",
     "fit_model",
-    "headline_method",
     "mixed_model",
     "model_frame",
     "model_json",
@@ -286,17 +285,11 @@ def timeout_cells(frame: pd.DataFrame) -> list[dict[str, Any]]:
 #: computed beside the headline (above, it would cost minutes and the chi-square p of
 #: the ratio is near its level; docs/analysis.md "Tests of the condition").
 PB_MAX_PARTICIPANTS: Final = 16
-#: The report's headline test of the condition (every study size): the likelihood ratio
-#: referred to F(k, participants - 1) (:func:`.lrt.f_reference`).
+#: The report's headline test of the condition at every study size: the likelihood ratio
+#: referred to F(k, participants - 1) (:func:`.lrt.f_reference`), at 4, 8 and 16
+#: participants the only test of those computed that holds its level (docs/analysis.md,
+#: "Tests of the condition").
 HEADLINE_TEST: Final = "LRT, F(k, participants - 1)"
-
-
-def headline_method(n_participants: int) -> str:
-    """The report's headline test of the condition for a study of this size: the
-    likelihood ratio referred to ``F(k, n_participants - 1)`` at every size measured
-    (4, 8 and 16 participants: the only test of those computed that holds its level
-    there; docs/analysis.md, "Tests of the condition")."""
-    return HEADLINE_TEST
 
 
 HEADLINE_WHY: Final = (
@@ -319,14 +312,19 @@ METHOD_WORDS: Final = {
 }
 
 
+def _average_weights(fit: Any, frame: pd.DataFrame) -> np.ndarray:
+    """The weights of :func:`_average_contrast` on the fit's fixed effects."""
+    from .contrasts import contrast_matrix
+
+    _, xd, xs = contrast_matrix(fit, frame)
+    return np.asarray((xs - xd).mean(axis=0))
+
+
 def _average_contrast(fit: Any, frame: pd.DataFrame) -> tuple[float, float]:
     """Static minus dynamic log-odds at between-tactor targets, averaged over the target
     counts and loads (emmeans' ``pairs(emmeans(m, ~ condition, at = list(on_tactor =
     0)))``, reversed): ``(estimate, se)``."""
-    from .contrasts import contrast_matrix
-
-    _, xd, xs = contrast_matrix(fit, frame)
-    lvec = (xs - xd).mean(axis=0)
+    lvec = _average_weights(fit, frame)
     beta = np.array([fe.estimate for fe in fit.fixed_effects.values()])
     return float(lvec @ beta), float(math.sqrt(max(float(lvec @ fit.vcov @ lvec), 0.0)))
 
@@ -461,7 +459,7 @@ def mixed_model(tr: pd.DataFrame, *, engine: str = "tactorbelt",
 
     Maximum likelihood with the Laplace approximation (:mod:`.glmm`, or lme4's glmer
     with ``engine="lme4"``). The test reported is the headline test of the condition
-    (:func:`headline_method`): the likelihood ratio of every condition term against
+    (:data:`HEADLINE_TEST`): the likelihood ratio of every condition term against
     none, referred to ``F(k, participants - 1)``; the Wald, chi-square and (up to
     :data:`PB_MAX_PARTICIPANTS` participants) bootstrap tests are beside it. The
     effect is the static minus dynamic log-odds at between-tactor targets (averaged
@@ -531,7 +529,7 @@ def mixed_model(tr: pd.DataFrame, *, engine: str = "tactorbelt",
             raise
         return _not_computed(key, test, question,
                              f"the model fit failed: {type(exc).__name__}: {exc}", **n)
-    method = headline_method(n_p)
+    method = HEADLINE_TEST
     by = {t["method"]: t for t in tests}
     lrt = by["LRT"]
     fref = lrt.get("f_reference") or {}
@@ -563,10 +561,7 @@ def mixed_model(tr: pd.DataFrame, *, engine: str = "tactorbelt",
     if fit.singular or not fit.converged:
         details["warnings"] = list(fit.messages)
     if inf_terms:
-        from .contrasts import contrast_matrix
-
-        _, xd, xs = contrast_matrix(fit, frame)
-        lvec = (xs - xd).mean(axis=0)
+        lvec = _average_weights(fit, frame)
         names = list(fit.fixed_effects)
         if any(abs(lvec[names.index(t)]) > 1e-12 for t in inf_terms if t in names):
             details["effect_estimable"] = False
