@@ -27,6 +27,7 @@ import pytest
 from tactorbelt._errors import ConfigError, DeviceError
 from tactorbelt.clock import SimClock, WallClock
 from tactorbelt.tasks.audio import LATE_NS, SdlTaskAudio, SilentTaskAudio, open_task_audio
+from tactorbelt.tasks.kinds import task_kind
 from tactorbelt.tasks.sounds import (
     BEEP_HZ,
     PEAK,
@@ -34,7 +35,7 @@ from tactorbelt.tasks.sounds import (
     TONE_HZ,
     SoundBank,
     beep_slot_s,
-    item_sound,
+    beeps,
     tone,
 )
 
@@ -69,7 +70,7 @@ def test_the_eight_tones_have_their_own_pitch_and_last_the_stimulus() -> None:
 
 @pytest.mark.parametrize(("a", "b"), [(1, 1), (2, 3), (4, 4), (3, 1)])
 def test_an_arithmetic_item_is_a_high_beeps_then_b_low_beeps(a: int, b: int) -> None:
-    x = item_sound(f"{a}+{b}", 0.5)
+    x = beeps(a, b, 0.5)
     bursts = _bursts(x)
     assert len(bursts) == a + b
     hz = [_peak_hz(x[s:e]) for s, e in bursts]
@@ -85,15 +86,16 @@ def test_an_arithmetic_item_is_a_high_beeps_then_b_low_beeps(a: int, b: int) -> 
 
 
 def test_items_without_a_sound_are_refused_and_the_bank_reuses_sounds() -> None:
-    for bad in ("K", "tone8", "5+", ""):
-        with pytest.raises(ConfigError, match=r"no sound|tones"):
-            item_sound(bad, 0.5)
+    nback, arithmetic = task_kind("nback"), task_kind("arithmetic")
+    for kind, bad in ((nback, "K"), (nback, "tone8"), (arithmetic, "5+"), (arithmetic, "")):
+        with pytest.raises(ConfigError, match="no sound"):
+            kind.sound(bad, 0.5, RATE)
     with pytest.raises(ConfigError, match="positive"):
         tone(0, 0.0)
     bank = SoundBank()
-    a = bank.get("tone2", 0.5)
-    assert bank.get("tone2", 0.5) is a and not a.flags.writeable
-    assert bank.get("tone2", 0.25).shape[0] == a.shape[0] // 2
+    a = bank.get("tone2", 0.5, nback.sound)
+    assert bank.get("tone2", 0.5, nback.sound) is a and not a.flags.writeable
+    assert bank.get("tone2", 0.25, nback.sound).shape[0] == a.shape[0] // 2
 
 
 # -- the output ----------------------------------------------------------------------------
@@ -125,7 +127,7 @@ def test_tones_come_out_of_the_sound_stream_at_their_onsets(tmp_path: Path) -> N
     assert set(played) == {"marker", "long", *(f"tone{k}" for k in range(8))}
     # the marker (an onset long past) starts on the stream's first frame: where the
     # stream begins in the file (SDL wrote silence before the device was started)
-    marker = item_sound("tone7", 0.05)
+    marker = tone(7, 0.05)
     assert played["marker"][2] == 0 and played["marker"][4] > 0
     first = int(np.flatnonzero(x)[0])
     pre = first - int(np.flatnonzero(marker)[0])
@@ -138,7 +140,7 @@ def test_tones_come_out_of_the_sound_stream_at_their_onsets(tmp_path: Path) -> N
     for k, onset in enumerate(d["onsets"]):
         label, asked, frame, start_ns, late_ns = played[f"tone{k}"]
         assert asked == onset
-        sound = item_sound(f"tone{k}", 0.1)
+        sound = tone(k, 0.1)
         # the whole tone is in the file from its frame on, untouched
         assert np.array_equal(x[pre + frame:pre + frame + sound.size], sound), label
         assert not x[pre + frame - 10:pre + frame].any()

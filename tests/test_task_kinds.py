@@ -17,7 +17,7 @@ import pytest
 from support.studies import study_toml
 from tactorbelt.tasks import kinds
 from tactorbelt.tasks.kinds import TASK_KINDS, TaskKind, task_kind
-from tactorbelt.tasks.sounds import item_sound
+from tactorbelt.tasks.sounds import beeps, tone
 
 
 class _Spec:
@@ -44,9 +44,11 @@ def test_the_model_works_out_every_kinds_go_items_from_the_stimuli(name: str,
                 judged += 1
                 assert go == item.target, (name, n, item)
         assert judged >= 297 and 0.2 < seen / 300 < 0.4  # match_rate 0.3
-        if modality == "auditory":  # the kind's sound is the one the window always played
-            np.testing.assert_array_equal(kind.sound(item.stimulus, 0.3, 8000),
-                                          item_sound(item.stimulus, 0.3, 8000))
+        if modality == "auditory":  # the kind's sound: the item's tone, or its beeps
+            a, plus, b = item.stimulus.partition("+")
+            want = (beeps(int(a), int(b), 0.3, 8000) if plus
+                    else tone(int(item.stimulus.removeprefix("tone")), 0.3, 8000))
+            np.testing.assert_array_equal(kind.sound(item.stimulus, 0.3, 8000), want)
 
 
 @pytest.mark.parametrize("name", sorted(TASK_KINDS))

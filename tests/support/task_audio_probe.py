@@ -19,7 +19,7 @@ import time
 
 from tactorbelt.clock import WallClock
 from tactorbelt.tasks.audio import SdlTaskAudio
-from tactorbelt.tasks.sounds import item_sound
+from tactorbelt.tasks.sounds import tone
 
 LEAD_NS = 100_000_000
 
@@ -28,18 +28,18 @@ def main(out: str) -> None:
     clock = WallClock()
     audio = SdlTaskAudio(clock)
     try:
-        audio.schedule(item_sound("tone7", 0.05), 0, "marker")
+        audio.schedule(tone(7, 0.05), 0, "marker")
         t0 = clock.now_ns()
         onsets = [t0 + 150_000_000 + k * 230_000_000 for k in range(8)]
         handed = []  # when each tone was handed over (late where the machine is loaded)
         for k, onset in enumerate(onsets):
             clock.sleep_until_ns(onset - LEAD_NS)
-            audio.schedule(item_sound(f"tone{k}", 0.1), onset, f"tone{k}")
+            audio.schedule(tone(k, 0.1), onset, f"tone{k}")
             handed.append(clock.now_ns())
         # a long tone stopped half-way (a pause): silent within a block and the fade
         long_onset = onsets[-1] + 300_000_000
         clock.sleep_until_ns(long_onset - LEAD_NS)
-        audio.schedule(item_sound("tone4", 1.0), long_onset, "long")
+        audio.schedule(tone(4, 1.0), long_onset, "long")
         clock.sleep_until_ns(long_onset + 400_000_000)
         stop_frame = audio.frames
         audio.stop()
@@ -63,7 +63,7 @@ def cycles(n: int = 20) -> None:
     clock = WallClock()
     for _ in range(n):
         audio = SdlTaskAudio(clock)
-        audio.schedule(item_sound("tone0", 0.05), clock.now_ns() + 20_000_000)
+        audio.schedule(tone(0, 0.05), clock.now_ns() + 20_000_000)
         end = time.perf_counter() + 0.03
         while time.perf_counter() < end:
             pass

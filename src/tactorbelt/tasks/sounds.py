@@ -11,8 +11,9 @@
   pause fit in 9 slots: at most 1.8 s); a beep fills 60 % of its slot.
 
 Every sound is mono float32 at the sample rate asked for (48 kHz by default), peak
-:data:`PEAK` (-6 dBFS), so two overlapping sounds do not clip. :func:`item_sound` turns
-an item's stimulus text into its sound; :class:`SoundBank` makes each sound once.
+:data:`PEAK` (-6 dBFS), so two overlapping sounds do not clip. A task kind turns an
+item's stimulus text into its sound (``TaskKind.sound``, :mod:`.kinds`); :class:`SoundBank`
+makes each sound once.
 
 Pure: NumPy only.
 """
@@ -20,7 +21,6 @@ Pure: NumPy only.
 from __future__ import annotations
 
 import math
-import re
 from collections.abc import Callable
 from typing import Any, Final
 
@@ -38,7 +38,6 @@ __all__ = [
     "SoundBank",
     "beep_slot_s",
     "beeps",
-    "item_sound",
     "tone",
 ]
 
@@ -54,9 +53,6 @@ RAMP_S: Final = 0.010
 PEAK: Final = 0.5
 
 FloatArray = NDArray[np.float32]
-
-_TONE = re.compile(r"^tone([0-7])$")
-_SUM = re.compile(r"^\s*(\d+)\s*\+\s*(\d+)\s*$")
 
 
 def _check(duration_s: float, rate: int) -> int:
@@ -125,22 +121,6 @@ def beeps(a: int, b: int, stimulus_s: float, rate: int = RATE) -> FloatArray:
     return out
 
 
-def item_sound(stimulus: str, stimulus_s: float, rate: int = RATE) -> FloatArray:
-    """The sound of an auditory item: ``"tone3"`` (n-back) or ``"2+3"`` (arithmetic).
-
-    Raises:
-        ConfigError: a stimulus that is neither (a visual item has no sound).
-    """
-    m = _TONE.match(stimulus)
-    if m:
-        return tone(int(m.group(1)), stimulus_s, rate)
-    m = _SUM.match(stimulus)
-    if m:
-        return beeps(int(m.group(1)), int(m.group(2)), stimulus_s, rate)
-    raise ConfigError(f"no sound for the task item {stimulus!r}: auditory items are "
-                      "tone0..tone7 (n-back) or a+b (arithmetic)")
-
-
 class SoundBank:
     """Each item's sound made once (per stimulus and duration) and kept.
 
@@ -153,16 +133,13 @@ class SoundBank:
         self._cache: dict[tuple[Any, str, float], FloatArray] = {}
 
     def get(self, stimulus: str, stimulus_s: float,
-            make: Callable[[str, float, int], Any] | None = None) -> FloatArray:
+            make: Callable[[str, float, int], Any]) -> FloatArray:
         """The sound of ``stimulus``, read-only: as ``make(stimulus, stimulus_s, rate)``
-        makes it (a task kind's ``sound``: :mod:`.kinds`), or as :func:`item_sound` does."""
+        makes it (a task kind's ``sound``: :mod:`.kinds`)."""
         key = (make, stimulus, float(stimulus_s))
         s = self._cache.get(key)
         if s is None:
-            if make is None:
-                s = item_sound(stimulus, stimulus_s, self.rate)
-            else:
-                s = np.asarray(make(stimulus, stimulus_s, self.rate), dtype=float)
+            s = np.asarray(make(stimulus, stimulus_s, self.rate), dtype=float)
             s.flags.writeable = False
             self._cache[key] = s
         return s
