@@ -14,13 +14,8 @@ from support.studies import make_study, write_study
 from tactorbelt import ConfigError, StudyFileError
 from tactorbelt.experiment.study import TaskSpec, load_study
 from tactorbelt.tasks import TLX_ITEMS, check_tlx
-from tactorbelt.tasks.schedule import (
-    NBACK_LETTERS,
-    NBACK_TONES,
-    TaskItem,
-    classify,
-    item_sequence,
-)
+from tactorbelt.tasks.kinds.nback import NBACK_LETTERS, NBACK_TONES
+from tactorbelt.tasks.schedule import TaskItem, classify, item_sequence
 from tactorbelt.tasks.session import TaskSession
 
 MS = 1_000_000

@@ -24,14 +24,11 @@ from typing import TYPE_CHECKING
 
 from .items import TaskItem
 from .kinds import NO_TASK, task_kind
-from .kinds.nback import NBACK_LETTERS, NBACK_TONES
 
 if TYPE_CHECKING:
     from .spec import TaskSpec
 
 __all__ = [
-    "NBACK_LETTERS",
-    "NBACK_TONES",
     "TaskEvent",
     "TaskItem",
     "classify",
