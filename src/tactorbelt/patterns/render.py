@@ -126,11 +126,6 @@ class PatternPlayback:
             out[m] = np.maximum(out[m], v)
         return out
 
-    def render(self, rate_hz: float = DEFAULT_RATE_HZ) -> tuple[NDArray[np.float64],
-                                                                NDArray[np.float64]]:
-        """``(t_s, amplitudes)`` sampled at ``t = i/rate`` over the pattern's length."""
-        return render_pattern(self, rate_hz)
-
 
 def render_pattern(playback: PatternPlayback, rate_hz: float = DEFAULT_RATE_HZ
                    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
