@@ -184,11 +184,6 @@ class _Render:
         #: stimulus object, :meth:`share`): (motor params, shaper, tactors, memo), so a
         #: walk finds it without hashing the stimulus
         self.memo_box: list[tuple[ErmParams, Shaper, int, _ShapedMemo] | None] = [None]
-        #: the memo's speeds on the 1 kHz grid from the onset (shared as ``memo_box``)
-        self.grid_box: list[tuple[_ShapedMemo, FloatArray] | None] = [None]
-        #: the shaped walk took this render's decisions from its memo at its onset (every
-        #: motor was at rest there)
-        self.from_rest = False
         ticks_per_s = 1e9 / RENDER_TICK_NS
         if not stimulus.is_dynamic:
             self._table_ticks = 1
@@ -233,7 +228,6 @@ class _Render:
         self._table = other._period() if self._table_ticks else None
         self._response = other._response
         self.memo_box = other.memo_box
-        self.grid_box = other.grid_box
 
     def constant(self) -> FloatArray | None:
         """The drive levels of a render that never changes (a static stimulus), or None."""
@@ -703,8 +697,6 @@ class SimBelt(Belt):
                 if memo is not None:
                     render, cut = got
                     onset = render.onset_ns
-                    if bounds_l[i] == onset:
-                        render.from_rest = True
                     r0 = int(memo.t.searchsorted(bounds_l[i] - onset))
                     # the memo's decisions before the cut (and within the memo) are the
                     # walk's; the walk goes on from the last of them
@@ -820,14 +812,9 @@ class SimBelt(Belt):
         if len(ck) > _MAX_SHAPED_CHECKPOINTS:
             del ck[0]
 
-    def _speed_shaped(self, times: IntArray, grid: tuple[int, int] | None = None
-                      ) -> FloatArray:
+    def _speed_shaped(self, times: IntArray) -> FloatArray:
         """:meth:`_speed_at` of the shaped drive: the motors' speed magnitude (a motor
         reverse-driven past a stop spins backwards and vibrates again)."""
-        if grid == (RENDER_TICK_NS, 1) and self._exact:
-            fast = self._memo_grid(times)
-            if fast is not None:
-                return fast
         t_first, t_last = int(times[0]), int(times[-1])
         t_a, w_a, e_a = self._shaped_start(t_first)
         keep = max(min(int(self.clock.now_ns()), t_last), t_a)
@@ -837,53 +824,6 @@ class SimBelt(Belt):
         dt = np.asarray((times - ts[idx]) * 1e-9, dtype=np.float64)
         w = drive_relax(ds[idx], ws[idx], dt, self.params)
         return np.asarray(np.abs(w))
-
-    def _memo_grid(self, times: IntArray) -> FloatArray | None:
-        """The speeds at 1 kHz ``times`` within a render whose decisions all come from its
-        memo (it started with every motor at rest, nothing else has commanded the drive
-        since, and the window is within the memo and before its previewed end), from the
-        memo's speeds on the grid from the onset: the rows :meth:`_shaped_solve` would
-        take, through the same :func:`drive_relax`; None otherwise. Keeps the decision at
-        ``now`` as the solve does."""
-        t_first, t_last = int(times[0]), int(times[-1])
-        if self._hi == self._lo:
-            return None
-        row = self._row_in_force(t_first)
-        if row < self._lo or int(self._rid[row]) < 0:
-            return None
-        render = self._renders[int(self._rid[row])]
-        onset = render.onset_ns
-        if onset != int(self._t[row]) or (t_first - onset) % RENDER_TICK_NS:
-            return None
-        if row + 1 < self._hi and int(self._t[row + 1]) <= t_last:
-            return None
-        end = render.end_ahead(self.shaper.lead_ticks)
-        k0 = (t_first - onset) // RENDER_TICK_NS
-        k1 = k0 + times.shape[0]
-        if (end is not None and end <= t_last) or k1 >= _MEMO_TICKS:
-            return None
-        if not render.from_rest:  # the walk to the onset finds out (and the memo)
-            t_a, w_a, e_a = self._shaped_start(onset)
-            self._shaped_solve(t_a, w_a, e_a, onset, onset)
-        box = render.memo_box[0]
-        if (not render.from_rest or box is None or box[0] is not self.params
-                or box[1] is not self.shaper or box[2] != self.n_tactors):
-            return None
-        memo = box[3]
-        got = render.grid_box[0]
-        if got is None or got[0] is not memo:
-            ticks = np.arange(_MEMO_TICKS, dtype=np.int64) * RENDER_TICK_NS
-            idx = memo.t.searchsorted(ticks, side="right") - 1
-            dt = np.asarray((ticks - memo.t[idx]) * 1e-9, dtype=np.float64)
-            speeds = np.abs(drive_relax(memo.d[idx], memo.e[idx], dt, self.params))
-            speeds.setflags(write=False)
-            got = render.grid_box[0] = (memo, speeds)
-        keep = max(min(int(self.clock.now_ns()), t_last), t_first) - onset
-        j = int(memo.t.searchsorted(keep, side="right")) - 1
-        if j > 0:
-            self._keep_decision(onset + int(memo.t[j]), memo.e[j], memo.e[j])
-        self._since_ck = 0
-        return np.array(got[1][k0:k1])
 
     def driven(self, t0_ns: int, t1_ns: int, rate_hz: float = 1000.0
                ) -> tuple[IntArray, FloatArray]:
@@ -1044,7 +984,7 @@ class SimBelt(Belt):
         if times.shape[0] == 0:
             return np.zeros((0, n))
         if self._drive == "shaped":
-            return self._speed_shaped(times, grid)
+            return self._speed_shaped(times)
         t_first, t_last = int(times[0]), int(times[-1])
         if self._pruned and t_first < self._base_t:
             raise ConfigError(
