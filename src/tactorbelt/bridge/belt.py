@@ -186,15 +186,13 @@ class BeltPort:
         """The belt's state, as the ``status`` reply gives it."""
         belt = self.belt
         levels = belt.levels
-        playing = bool(self._player is not None and self._player.playing) or bool(
-            levels is not None and levels.any())
         return {
             "url": belt.session_url,
             "name": belt.name,
             "tactors": belt.n_tactors,
             "angles_deg": list(belt.tactor_angles_deg),
             "connected": not belt.closed,
-            "playing": playing,
+            "playing": self.playing(self._play),
             "levels": None if levels is None else [float(v) for v in levels],
             "capabilities": {
                 "renders": belt.can_render(),

@@ -20,6 +20,7 @@ pygame, imported when the window opens.
 
 from __future__ import annotations
 
+import functools
 import math
 import os
 import time
@@ -117,7 +118,7 @@ class WindowRespondent(Respondent):
         pygame.display.set_caption("tactorbelt: perceptual calibration")
         self._events = events or pygame.event.get
         self._on_frame = on_frame
-        self._fonts: dict[int, Any] = {}
+        self._font = functools.cache(lambda px: pygame.font.Font(None, px))  # by size
         self._message = "Feel each vibration, then answer. Esc twice quits."
         self._last_esc = -math.inf
         self.answers: list[int] = []
@@ -186,12 +187,6 @@ class WindowRespondent(Respondent):
         return state.answer
 
     # -- drawing ---------------------------------------------------------------------------
-    def _font(self, px: int) -> Any:
-        f = self._fonts.get(px)
-        if f is None:
-            f = self._fonts[px] = self._pg.font.Font(None, px)
-        return f
-
     def _text(self, s: str, px: int, color: tuple[int, int, int], center: tuple[int, int]
               ) -> None:
         img = self._font(px).render(s, True, color)

@@ -18,6 +18,7 @@ window is opened.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -112,8 +113,11 @@ class Renderer:
     def __init__(self, size: tuple[int, int], aspect: float = 1.25) -> None:
         self.aspect = aspect
         self.overlay_layout = False
-        self._fonts: dict[int, Any] = {}
-        self._text_cache: dict[tuple[str, int, tuple[int, int, int]], Any] = {}
+        #: a font of a size in pixels (at least 8); the surface of a text in a size and
+        #: colour: ``text(s, px, color)``, each made once (the last 512 texts kept)
+        self._font = functools.cache(lambda px: pygame.font.Font(None, max(int(px), 8)))
+        self.text = functools.lru_cache(maxsize=512)(
+            lambda s, px, color: self._font(px).render(s, True, color))
         self._static: Any = None
         self._static_key: tuple[Any, ...] | None = None
         self._shades: dict[tuple[Any, ...], Any] = {}
@@ -141,26 +145,6 @@ class Renderer:
         self.target_radius = max(int(15 * self.unit), 4)
         self.cursor_radius = max(int(9 * self.unit), 3)
         self._static = None
-
-    # -- text --------------------------------------------------------------------------
-    def _font(self, px: int) -> Any:
-        px = max(int(px), 8)
-        f = self._fonts.get(px)
-        if f is None:
-            f = pygame.font.Font(None, px)
-            self._fonts[px] = f
-        return f
-
-    def text(self, s: str, px: int, color: tuple[int, int, int]) -> Any:
-        """A cached rendered text surface."""
-        key = (s, int(px), color)
-        surf = self._text_cache.get(key)
-        if surf is None:
-            if len(self._text_cache) > 512:
-                self._text_cache.clear()
-            surf = self._font(px).render(s, True, color)
-            self._text_cache[key] = surf
-        return surf
 
     def _shade(self, size: tuple[int, int], rgba: tuple[int, int, int, int]) -> Any:
         """A cached translucent rectangle."""
