@@ -18,10 +18,10 @@ from typing import Any
 import click
 
 from .._errors import ConfigError
-from ..display.heading import HeadingReader, HeadingSample, read_headings
+from ..display.heading import HeadingSample, read_headings
 from ._options import FLOAT, POSITIVE, belt_option, number, stimulus_options
 
-__all__ = ["HeadingReader", "HeadingSample", "point"]
+__all__ = ["point"]
 
 
 @click.command()

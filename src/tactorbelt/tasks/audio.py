@@ -48,7 +48,7 @@ import sys
 import time
 import weakref
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, Final
+from typing import TYPE_CHECKING, Any, Final, Self
 
 import numpy as np
 from numpy.typing import NDArray
@@ -147,7 +147,7 @@ class TaskAudio:
     def close(self) -> None:
         """Silence and release the output (idempotent)."""
 
-    def __enter__(self) -> TaskAudio:
+    def __enter__(self) -> Self:
         return self
 
     def __exit__(self, *exc: object) -> None:
@@ -443,9 +443,6 @@ class SdlTaskAudio(TaskAudio):
             self._lib.SDL_PauseAudioDevice(devid, 1)  # ctypes releases the GIL
             self._lib.SDL_CloseAudioDevice(devid)
             _RETIRED.append(dev)  # pygame must not close this id again
-
-    def __enter__(self) -> SdlTaskAudio:
-        return self
 
 
 def open_task_audio(clock: Clock, *, sound: bool = True, **options: Any) -> TaskAudio:
