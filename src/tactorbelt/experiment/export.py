@@ -582,7 +582,7 @@ def _write_cursor(path: Path, rows: Iterator[list[Any]]) -> float | None:
 
 def _cursor_sidecar(session: dict[str, Any], start: float | None) -> dict[str, Any]:
     """The ``_physio.json`` of a session's cursor recording."""
-    study = _parse_study(session["study_toml"])
+    study = _parse_study(session.get("study_toml"))
     out: dict[str, Any] = {
         "SamplingFrequency": study.session.sample_rate_hz if study is not None else 100.0,
         "StartTime": 0.0 if start is None else start,
@@ -757,7 +757,7 @@ def _stimulus_system(session: dict[str, Any]) -> dict[str, Any]:
             carrier = float(query.get("carrier_hz", [carrier])[0])
         out["CarrierFrequency"] = carrier
         out["CarrierFrequencyUnits"] = "Hz"
-    study = _parse_study(session["study_toml"])
+    study = _parse_study(session.get("study_toml"))
     angles: list[float] = []
     if study is not None:
         angles = [float(a) for a in study.layout_obj().angles_deg]
