@@ -167,21 +167,19 @@ def block_order(study: Study, participant: str, seed: int | None = None) -> list
     ``seed`` (default ``session.seed``) matters only for ``design.order = "random"``.
     """
     k = len(study.test)
-    p = participant_number(participant)
-    if study.design is not None:
-        rule = study.design.order
-        if rule == "fixed" or k == 1:
-            return list(range(k))
-        if rule == "random":
-            seed = study.session.seed if seed is None else int(seed)
-            return [int(i) for i in _rng(seed, participant, -1).permutation(k)]
-        rows = williams_square(k) if rule == "williams" else cyclic_latin_square(k)
-        return rows[(p - 1) % len(rows)]
-    if study.session.condition_order == "fixed" or k == 1:
+    rule = order_rule(study)
+    if rule == "fixed" or k == 1:
         return list(range(k))
-    if study.session.condition_order == "alternate":
+    if rule == "random":
+        seed = study.session.seed if seed is None else int(seed)
+        return [int(i) for i in _rng(seed, participant, -1).permutation(k)]
+    p = participant_number(participant)
+    if rule == "alternate":
         return list(range(k)) if p % 2 == 1 else list(reversed(range(k)))
-    rows = williams_square(k)
+    # ``latin``: the balanced (Williams) square in session.condition_order, the cyclic one
+    # in design.order
+    cyclic = rule == "latin" and study.design is not None
+    rows = cyclic_latin_square(k) if cyclic else williams_square(k)
     return rows[(p - 1) % len(rows)]
 
 
