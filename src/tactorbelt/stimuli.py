@@ -160,7 +160,10 @@ class Stimulus:
 
     def amplitudes(self, t: ArrayLike) -> NDArray[np.float64]:
         """Amplitudes at time(s) t: shape ``t.shape + (N,)``, values in [0, 1]."""
-        loc = self.location(t)
+        return self._at(self.location(t))
+
+    def _at(self, loc: ArrayLike) -> NDArray[np.float64]:
+        """The amplitudes of felt locations ``loc`` (degrees) by the law and the profile."""
         if self.profile is None:
             return amplitudes(self.layout, loc, self.law, self.falloff_deg)
         loc = self.profile.warp_deg(self.layout, loc)
@@ -287,9 +290,4 @@ def render_batch(
             raise ConfigError("render_batch: every stimulus must share layout, law, falloff "
                               "and wearer profile")
     t = sample_times(rate_hz, duration_s)
-    loc = np.stack([s.location(t) for s in stimuli])
-    if first.profile is None:
-        return t, amplitudes(first.layout, loc, first.law, first.falloff_deg)
-    loc = first.profile.warp_deg(first.layout, loc)
-    return t, first.profile.apply_gains(amplitudes(first.layout, loc, first.law,
-                                                   first.falloff_deg))
+    return t, first._at(np.stack([s.location(t) for s in stimuli]))
