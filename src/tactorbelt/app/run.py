@@ -194,7 +194,8 @@ def run_study(req: RunRequest, *, progress: Callable[[int, int], None] | None = 
                 devices.open_belt(str(r.belt_url), clock=clock, layout=study.layout_obj(),
                                   **({} if calibration is None else {"calibration": calibration})
                                   ) as belt, contextlib.ExitStack() as stack:
-            listeners: list[SessionListener] = [_RunListener(store, r.stored(), slow_s, pusher)]
+            listeners: list[SessionListener] = [*([pusher] if pusher else []),
+                                                _RunListener(store, r.stored(), slow_s)]
             lsl = None if not req.lsl else stack.enter_context(LslListener(
                 clock, belt, wait_s=req.lsl_wait, wait_all=req.lsl_wait_all, report=note))
             listeners += [lsl] if lsl is not None else []
@@ -258,22 +259,15 @@ def _pushing(req: RunRequest, lines: list[str]) -> Iterator[Pusher | None]:
 
 
 class _RunListener(NullListener):
-    """The run's own listener: stores the run's options when the session starts, and
-    tells the background push of each trial stored."""
+    """The run's own listener: stores the run's options when the session starts."""
 
-    def __init__(self, store: Store, opts: dict[str, Any], slow_s: float,
-                 pusher: Pusher | None = None) -> None:
+    def __init__(self, store: Store, opts: dict[str, Any], slow_s: float) -> None:
         self.store, self.opts, self.slow_s = store, opts, slow_s
-        self.pusher = pusher
 
     def on_session_start(self, info: SessionInfo, schedule: list[ScheduledTrial]) -> None:
         self.store.set_run_options(info.session_id, self.opts)
-        if self.pusher is not None:
-            self.pusher.watch(info.session_id)
 
     def on_trial_done(self, result: TrialResult) -> None:
-        if self.pusher is not None:
-            self.pusher.notify()
         if self.slow_s > 0:
             time.sleep(self.slow_s)
 

@@ -29,7 +29,10 @@ from pathlib import Path
 from typing import Any
 
 from .._errors import StoreError
+from .listeners import SessionInfo, SessionListener
+from .schedule import ScheduledTrial
 from .store import Store, open_store
+from .trial import TrialResult
 
 __all__ = ["Pusher", "SyncReport", "check_push", "check_sites", "sync_session", "sync_store",
            "sync_stores"]
@@ -191,9 +194,10 @@ def sync_stores(local: str | Path, url: str, *, site: str | None = None) -> Sync
         return sync_store(src, dst, site=site)
 
 
-class Pusher:
+class Pusher(SessionListener):
     """Pushes a running session's trials from the local store to a shared one, in a
-    background thread, after each stored trial (:meth:`notify`).
+    background thread, after each stored trial: a listener of the session
+    (:meth:`on_session_start` watches it, :meth:`on_trial_done` pushes).
 
     Args:
         local: the local store's path (read with a read-only connection of its own).
@@ -227,13 +231,13 @@ class Pusher:
         self._thread.start()
         return self
 
-    def watch(self, session_id: int) -> None:
-        """Push this local session (from now on, after each :meth:`notify`)."""
+    def on_session_start(self, info: SessionInfo, schedule: list[ScheduledTrial]) -> None:
+        """Push this local session (from now on, after each trial)."""
         with self._lock:
-            self._sessions.add(int(session_id))
+            self._sessions.add(int(info.session_id))
         self._wake.set()
 
-    def notify(self) -> None:
+    def on_trial_done(self, result: TrialResult) -> None:
         """A trial was stored locally: push it soon."""
         self._wake.set()
 
