@@ -160,10 +160,11 @@ class Stimulus:
 
     def amplitudes(self, t: ArrayLike) -> NDArray[np.float64]:
         """Amplitudes at time(s) t: shape ``t.shape + (N,)``, values in [0, 1]."""
-        return self._at(self.location(t))
+        return self.amplitudes_at(self.location(t))
 
-    def _at(self, loc: ArrayLike) -> NDArray[np.float64]:
-        """The amplitudes of felt locations ``loc`` (degrees) by the law and the profile."""
+    def amplitudes_at(self, loc: ArrayLike) -> NDArray[np.float64]:
+        """The amplitudes of felt locations ``loc`` (degrees, any shape) by the stimulus's
+        law and wearer profile: shape ``loc.shape + (N,)``."""
         if self.profile is None:
             return amplitudes(self.layout, loc, self.law, self.falloff_deg)
         loc = self.profile.warp_deg(self.layout, loc)
@@ -290,4 +291,4 @@ def render_batch(
             raise ConfigError("render_batch: every stimulus must share layout, law, falloff "
                               "and wearer profile")
     t = sample_times(rate_hz, duration_s)
-    return t, first._at(np.stack([s.location(t) for s in stimuli]))
+    return t, first.amplitudes_at(np.stack([s.location(t) for s in stimuli]))

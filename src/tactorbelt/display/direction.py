@@ -75,7 +75,7 @@ from numpy.typing import NDArray
 from .._errors import ConfigError, TactorbeltError
 from ..clock import Clock, Deadlines, WallClock
 from ..geometry import ANGLE_TOLERANCE_DEG, Layout, normalize, wrap
-from ..laws import DEFAULT_FALLOFF_DEG, amplitudes
+from ..laws import DEFAULT_FALLOFF_DEG
 from ..stimuli import DEFAULT_PERIOD_S, DEFAULT_TRANSIT_S, Stimulus, make_stimulus
 from .filters import (
     DEFAULT_BETA,
@@ -209,6 +209,7 @@ class DirectionDisplay:
         # validates mode, law, falloff, period, transit and the profile's layout together
         probe = make_stimulus(self.layout, 0.0, mode, law, falloff_deg, period_s, transit_s,
                               profile=profile)
+        self._probe = probe  # its law, falloff and profile render the streamed frames
         self.mode = probe.mode
         self.law = probe.law
         self.falloff_deg = probe.falloff_deg
@@ -509,11 +510,7 @@ class DirectionDisplay:
         """The amplitudes (one per tactor) of the frame at ``t``; advances the state."""
         x = self._slew(t)
         loc = np.array([self._location1(t, x) if self.mode == "dynamic" else x])
-        if self.profile is None:
-            return amplitudes(self.layout, loc, self.law, self.falloff_deg)[0]
-        loc = self.profile.warp_deg(self.layout, loc)
-        return self.profile.apply_gains(amplitudes(self.layout, loc, self.law,
-                                                   self.falloff_deg))[0]
+        return self._probe.amplitudes_at(loc)[0]
 
     def _write(self, row: FloatArray) -> None:
         if self._last_amps is not None:
