@@ -45,13 +45,9 @@ def render(angle: str, rate: float, duration: float | None, fmt: str, out: Path 
     CSV: header t_s,tactor_0,...,tactor_{N-1}, one row per sample at t = i/rate,
     9 decimals. JSON: parameters, times and amplitudes. PNG: amplitude against time.
     """
-    from ..stimuli import check_rate_duration
-
     stimulus = build_stimulus(angle, **stim)
-    rate_f, duration_f = check_rate_duration(
-        rate, stimulus.period_s if duration is None else duration,
-    )
-    t, amps = stimulus.render(rate_f, duration_f)
+    duration_s = stimulus.period_s if duration is None else duration
+    t, amps = stimulus.render(rate, duration_s)  # checks the rate and the duration
     if fmt == "csv":
         import io
 
@@ -65,8 +61,8 @@ def render(angle: str, rate: float, duration: float | None, fmt: str, out: Path 
     elif fmt == "json":
         doc = {
             "stimulus": stimulus.describe(),
-            "rate_hz": rate_f,
-            "duration_s": duration_f,
+            "rate_hz": rate,
+            "duration_s": duration_s,
             "t_s": [round(float(v), 9) for v in t],
             "amplitudes": [[round(float(v), 9) for v in row] for row in amps],
         }
