@@ -30,12 +30,6 @@ __all__ = ["devices"]
 _DISCOVERABLE = tuple(b.scheme for b in BACKENDS.values() if b.discover is not None)
 
 
-def _discover(scheme: str, timeout_s: float, probe_all: bool) -> Discovery:
-    discover = BACKENDS[scheme].load_discover()
-    assert discover is not None
-    return discover(timeout_s=timeout_s, probe_all=probe_all)
-
-
 def _line(row: Found) -> str:
     if row.is_belt:
         what = f"belt: firmware {row.firmware_version}, {row.tactors} tactors -> --belt {row.url}"
@@ -88,7 +82,9 @@ def devices(timeout_s: float, no_ble: bool, skip: tuple[str, ...], probe_all: bo
             flag = "--no-ble" if scheme == "ble" and no_ble else f"--skip {scheme}"
             found[scheme] = Discovery([], f"not scanned ({flag})")
         else:
-            found[scheme] = _discover(scheme, timeout_s, probe_all)
+            discover = BACKENDS[scheme].load_discover()
+            assert discover is not None
+            found[scheme] = discover(timeout_s=timeout_s, probe_all=probe_all)
     belts: list[Found] = [r for d in found.values() for r in d.rows if r.is_belt]
     sticks, stick_note = _joysticks()
     if as_json:
