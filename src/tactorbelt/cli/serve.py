@@ -4,7 +4,8 @@ Parses the options into a :class:`tactorbelt.bridge.BridgeConfig`, prints the
 ``open:`` line (the example page with its token) and calls
 :func:`tactorbelt.bridge.serve` until Ctrl-C (exit 130) or SIGTERM (143).
 
-Imports click at import time; the bridge, the study and the belt only when it runs.
+Imports click and tactorbelt.interrupts at import time; the bridge, the study and the
+belt only when it runs.
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ from pathlib import Path
 
 import click
 
+from ..interrupts import Terminated
 from ._options import belt_options, load_calibration, number
 
 __all__ = ["serve"]
@@ -93,10 +95,7 @@ def serve(belt_url: str, calibration_file: str | None, store_url: str,
     except KeyboardInterrupt:
         click.echo("interrupted: motors off; open sessions are left resumable", err=True)
         raise
-    except BaseException as exc:
-        from ..interrupts import Terminated
-
-        if isinstance(exc, Terminated):
-            click.echo(f"terminated by {exc.name}: motors off; open sessions are left "
-                       "resumable", err=True)
+    except Terminated as exc:
+        click.echo(f"terminated by {exc.name}: motors off; open sessions are left resumable",
+                   err=True)
         raise
