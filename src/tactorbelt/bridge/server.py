@@ -745,7 +745,8 @@ class _Bridge:
                                 process_request=self.http, ping_interval=None,
                                 max_size=MAX_MESSAGE_BYTES, server_header=None,
                                 logger=logging.getLogger("tactorbelt.bridge.ws")) as server:
-                self.port = _bound_port(server, self.config.port)
+                self.port = next((int(sock.getsockname()[1]) for sock in server.sockets),
+                                 self.config.port)  # port 0: the one the system gave
                 self.origins |= {f"http://127.0.0.1:{self.port}", f"http://localhost:{self.port}"}
                 if self.config.host not in ("127.0.0.1", "localhost", "0.0.0.0", "::"):
                     self.origins.add(f"http://{self.config.host}:{self.port}")
@@ -782,12 +783,6 @@ class _Bridge:
         if ":" in shown:
             shown = f"[{shown}]"
         return f"http://{shown}:{self.port}/{EXAMPLE_PAGE}?token={self.config.token}"
-
-
-def _bound_port(server: Server, port: int) -> int:
-    for sock in server.sockets:
-        return int(sock.getsockname()[1])
-    return port
 
 
 def serve(config: BridgeConfig, *, ready: Callable[[str], None],
