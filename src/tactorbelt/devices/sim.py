@@ -540,18 +540,62 @@ class SimBelt(Belt):
         last target (a dynamic stimulus's transit) is solved at once
         (:meth:`~tactorbelt.devices.erm.Shaper.landing`). A render's levels are those
         the shaper's preview sees (``Shaper.lead_ticks`` ahead)."""
-        lead = self.shaper.lead_ticks
-        bounds = _sorted_unique(np.concatenate([np.array([t_a], dtype=np.int64),
-                                                self._breakpoints(t_a, t_last, lead)]))
-        levels = self._levels_at(bounds, lead)
-        t_arr, d_arr, w_arr, e_arr = self._walk(bounds, levels, t_last, w, e,
-                                                self._onsets(t_a, t_last))
+        parts: list[tuple[IntArray, FloatArray, FloatArray, FloatArray]] = []
+        t_a, w, e, onsets = self._memo_prefix(t_a, w, e, t_last, parts)
+        parts.append(self._walk_span(t_a, t_last, w, e, onsets))
+        if len(parts) == 1:
+            t_arr, d_arr, w_arr, e_arr = parts[0]
+        else:
+            t_arr = np.concatenate([q[0] for q in parts])
+            d_arr, w_arr, e_arr = (np.concatenate([q[j] for q in parts]) for j in (1, 2, 3))
         for t_keep in {keep_until, min(also_keep, keep_until)} if also_keep is not None \
                 else {keep_until}:
             j = int(t_arr.searchsorted(t_keep, side="right")) - 1
             if j > 0:
                 self._keep_decision(int(t_arr[j]), w_arr[j], e_arr[j])
         return t_arr, d_arr, w_arr, e_arr
+
+    def _memo_prefix(self, t_a: int, w: FloatArray, e: FloatArray, t_last: int,
+                     parts: list[tuple[IntArray, FloatArray, FloatArray, FloatArray]],
+                     ) -> tuple[int, FloatArray, FloatArray, dict[int, tuple[_Render, int]]]:
+        """Where a walk starts on a render's memo (its onset at rest, or one of its
+        decisions), the memo's decisions up to its cut, as the walk takes them at its first
+        bound (appended to ``parts``); the start, speeds and render onsets to walk on from."""
+        onsets = self._onsets(t_a, t_last)
+        got = onsets.get(t_a)
+        take = self._memo_take(got, t_a, e.tolist()) if got is not None else None
+        if take is None:
+            return t_a, w, e, onsets
+        memo, r0, r = take
+        onset = t_a - int(memo.t[r0])
+        parts.append((memo.t[r0:r] + onset, memo.d[r0:r], memo.e[r0:r], memo.e[r0:r]))
+        t_a = onset + int(memo.t[r])
+        return t_a, memo.e[r], memo.e[r], self._onsets(t_a, t_last)
+
+    def _memo_take(self, got: tuple[_Render, int], t: int, e: list[float]
+                   ) -> tuple[_ShapedMemo, int, int] | None:
+        """The memo decisions a walk at ``t`` (predicted speeds ``e``) on the render of
+        ``got`` (render, cut: :meth:`_onsets`) splices: the memo and the rows ``r0..r``
+        (``r`` its last decision before the cut, the walk's next start), or None when
+        the walk splices none there (no memo, other speeds, nothing before the cut)."""
+        render, cut = got
+        memo = self._memo_at(render, t, e)
+        if memo is None:
+            return None
+        onset = render.onset_ns
+        r0 = int(memo.t.searchsorted(t - onset))
+        lim = min(cut, onset + _MEMO_TICKS * RENDER_TICK_NS)
+        r = int(memo.t.searchsorted(lim - onset, side="left")) - 1
+        return (memo, r0, r) if r > r0 else None
+
+    def _walk_span(self, t_a: int, t_last: int, w: FloatArray, e: FloatArray,
+                   onsets: dict[int, tuple[_Render, int]],
+                   ) -> tuple[IntArray, FloatArray, FloatArray, FloatArray]:
+        """:meth:`_walk` from the decision point ``t_a`` over the changes to ``t_last``."""
+        lead = self.shaper.lead_ticks
+        bounds = _sorted_unique(np.concatenate([np.array([t_a], dtype=np.int64),
+                                                self._breakpoints(t_a, t_last, lead)]))
+        return self._walk(bounds, self._levels_at(bounds, lead), t_last, w, e, onsets)
 
     def _onsets(self, t_a: int, t_last: int) -> dict[int, tuple[_Render, int]]:
         """The renders that start in (t_a, t_last]: onset -> (render, the first time after
@@ -638,7 +682,9 @@ class SimBelt(Belt):
         with motor speeds ``w`` and predicted ``e``; ``levels`` the commanded levels from
         each) to ``t_last``. A render in ``onsets`` that starts with every motor at rest
         takes the decisions of :meth:`_render_memo` up to its last change before anything
-        else commands the drive: the same walk on the same changes, so the same floats."""
+        else commands the drive: the same walk on the same changes, so the same floats.
+        ``t_last + 1`` is only where the caller stops asking: a run of kick or reverse
+        ticks goes on past it."""
         p, sh, taus = self.params, self.shaper, self._taus
         rise, fall, brake = taus
         rl, fl, bl = rise.tolist(), fall.tolist(), brake.tolist()
