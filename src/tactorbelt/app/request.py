@@ -178,7 +178,7 @@ def check_session(store: Store, req: RunRequest) -> dict[str, Any]:
 def resolve(req: RunRequest, stored: dict[str, Any]) -> RunRequest:
     """The request with stored values for what it does not give, then the defaults."""
     got: dict[str, Any] = {f: getattr(req, f) for f in (*STORED, *JOYSTICK)}
-    if req.headless is None and req.input_kind is not None and _window_input(req.input_kind):
+    if req.headless is None and req.input_kind and kinds.input_kind(req.input_kind).display:
         got["headless"] = False  # a live input given again brings the window back
     joy = stored.get("joystick") or {}
     for f, key in [*STORED.items(), *JOYSTICK.items()]:
@@ -190,21 +190,17 @@ def resolve(req: RunRequest, stored: dict[str, Any]) -> RunRequest:
     return replace(req, **got)
 
 
-def _window_input(name: str) -> bool:
-    """Whether the input kind ``name`` needs the experiment window (it declares it)."""
-    return kinds.input_kind(name).display
-
-
 def headless_inputs() -> str:
     """``--input model or --input scripted``: the kinds that run without a window."""
-    return " or ".join(f"--input {k}" for k in kinds.session_inputs() if not _window_input(k))
+    return " or ".join(f"--input {k}" for k in kinds.session_inputs()
+                       if not kinds.input_kind(k).display)
 
 
 def check_options(r: RunRequest, given: bool = False) -> None:
     """Refuse an unknown input, a window input without a window, an unknown belt URL,
     an unknown clock; ``given`` (the request as given): ``sim`` with LSL, and (a new
     session) ``sim`` where it cannot be."""
-    if r.input_kind is not None and _window_input(r.input_kind) and r.headless:
+    if r.input_kind is not None and kinds.input_kind(r.input_kind).display and r.headless:
         raise ConfigError(f"--input {r.input_kind} needs the experiment window; drop "
                           f"--headless, or use {headless_inputs()}")
     if r.belt_url is not None:
