@@ -11,7 +11,8 @@ from support.studies import study_toml
 from tactorbelt.clock import SimClock
 from tactorbelt.devices import open_belt
 from tactorbelt.experiment import provenance
-from tactorbelt.experiment.runner import NullObserver, run_session
+from tactorbelt.experiment.listeners import NullObserver
+from tactorbelt.experiment.runner import run_session
 from tactorbelt.experiment.schedule import make_schedule
 from tactorbelt.experiment.store import Store
 from tactorbelt.experiment.study import Study

@@ -16,7 +16,8 @@ from support.studies import make_study
 from support.tasks import TaskCursor, judge
 from tactorbelt.clock import SimClock
 from tactorbelt.devices import open_belt
-from tactorbelt.experiment.runner import Command, NullObserver, run_session
+from tactorbelt.experiment.listeners import Command, NullObserver
+from tactorbelt.experiment.runner import run_session
 from tactorbelt.experiment.schedule import make_schedule
 from tactorbelt.experiment.store import SCHEMA_VERSION, Store, open_store
 from tactorbelt.experiment.study import Study

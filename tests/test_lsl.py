@@ -302,7 +302,7 @@ class _Experimenter(NullObserver):
         self.trial, self.stimulus = trial.trial_index, state == "stimulus"
 
     def poll(self, now_ns: int) -> Any:
-        from tactorbelt.experiment.runner import Command
+        from tactorbelt.experiment.listeners import Command
 
         if self.polls_paused or (self.trial == 1 and self.stimulus and not self.done):
             self.polls_paused += 1

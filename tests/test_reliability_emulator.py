@@ -37,7 +37,8 @@ from tactorbelt import DeviceError
 from tactorbelt.clock import WallClock
 from tactorbelt.devices import open_belt, wire
 from tactorbelt.devices.emulator import EmulatorBelt
-from tactorbelt.experiment.runner import NullObserver, run_session
+from tactorbelt.experiment.listeners import NullObserver
+from tactorbelt.experiment.runner import run_session
 from tactorbelt.experiment.schedule import make_schedule
 from tactorbelt.experiment.store import Store
 from tactorbelt.experiment.study import Study

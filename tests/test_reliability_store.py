@@ -33,7 +33,8 @@ from tactorbelt import StoreError
 from tactorbelt.clock import SimClock
 from tactorbelt.devices import open_belt
 from tactorbelt.devices.sim import SimBelt
-from tactorbelt.experiment.runner import NullObserver, run_session
+from tactorbelt.experiment.listeners import NullObserver
+from tactorbelt.experiment.runner import run_session
 from tactorbelt.experiment.schedule import make_schedule
 from tactorbelt.experiment.store import Store
 from tactorbelt.experiment.store.sqlite import SQLiteStore

@@ -15,7 +15,8 @@ from tactorbelt import ConfigError, DeviceError, TactorbeltError
 from tactorbelt.clock import SimClock
 from tactorbelt.devices import open_belt
 from tactorbelt.devices.calibration import Calibration, TactorCalibration
-from tactorbelt.experiment.runner import Command, NullObserver, run_session
+from tactorbelt.experiment.listeners import Command, NullObserver
+from tactorbelt.experiment.runner import run_session
 from tactorbelt.experiment.schedule import make_schedule
 from tactorbelt.experiment.store import Store
 from tactorbelt.experiment.study import Study, paper_study

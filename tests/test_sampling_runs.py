@@ -15,7 +15,8 @@ from hypothesis import strategies as st
 from support.studies import make_study
 from tactorbelt.clock import Deadlines, SimClock
 from tactorbelt.devices import open_belt
-from tactorbelt.experiment.runner import NullObserver, run_session
+from tactorbelt.experiment.listeners import NullObserver
+from tactorbelt.experiment.runner import run_session
 from tactorbelt.experiment.schedule import ScheduledTrial
 from tactorbelt.experiment.store import Store
 from tactorbelt.experiment.study import Study

@@ -5,7 +5,8 @@
 - :mod:`.trial`: :class:`TrialMachine` (pure state machine), :class:`TrialResult`;
 - :mod:`.store`: :class:`Store` (the store interface), :func:`open_store` (by URL; the
   SQLite store: WAL, one transaction per trial);
-- :mod:`.runner`: :func:`run_session`, :class:`SessionObserver`, :class:`Command`;
+- :mod:`.runner`: :func:`run_session`; :mod:`.listeners`: :class:`SessionObserver`,
+  :class:`Command`;
 - :mod:`.export`: :func:`export_csv`, :func:`export_bids`.
 
 Names are imported lazily, so ``import tactorbelt.experiment`` costs nothing.
@@ -40,7 +41,7 @@ _LAZY = {
     "ScheduledTrial": "schedule", "make_schedule": "schedule",
     "TrialMachine": "trial", "TrialResult": "trial", "TrialState": "trial",
     "Store": "store", "open_store": "store",
-    "Command": "runner", "NullObserver": "runner", "SessionObserver": "runner",
+    "Command": "listeners", "NullObserver": "listeners", "SessionObserver": "listeners",
     "SessionResult": "runner", "run_session": "runner",
     "export_csv": "export", "export_bids": "export",
 }

@@ -59,8 +59,6 @@ from . import provenance
 from .listeners import (
     Command,
     Listeners,
-    NullListener,
-    NullObserver,
     NullOperator,
     Operator,
     Progress,
@@ -80,14 +78,6 @@ if TYPE_CHECKING:
     from ..stimuli import Stimulus
 
 __all__ = [
-    "Command",
-    "NullListener",
-    "NullObserver",
-    "NullOperator",
-    "Operator",
-    "SessionInfo",
-    "SessionListener",
-    "SessionObserver",
     "SessionResult",
     "SessionRunner",
     "check_participant",
