@@ -14,7 +14,9 @@ default, 1.2 x rated); ``shaped 5 V kick``: a 5 V supply, kicks at it for at mos
 (``supply_v=5&kick_ms=40``, 1.67 x rated). The emulator's motors are in units of the full
 duty, so its belts get a calibration whose ceiling is the rated level (3 V over the supply).
 ``validate stimulus`` runs on the sim belt only: the emulated board's IMU (``--sense
-board``) senses every tactor together, and a stimulus drives two at once.
+board``) senses every tactor together, and a stimulus drives two at once. Shaped, a played
+stimulus is previewed by the shaper (``erm.LEAD_TICKS``, 3 ms: docs/belts.md "Preview");
+``validate onsets`` plays frames, which are not.
 """
 
 from __future__ import annotations
