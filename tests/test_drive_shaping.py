@@ -695,3 +695,40 @@ def test_a_window_ending_inside_a_kick_reads_what_a_longer_one_does() -> None:
     whole = window(80)
     for ms in range(2, 60, 3):
         assert np.array_equal(window(ms), whole[:ms])
+
+
+def test_random_frames_and_plays_hold_a_5v_kick_above_the_maximum_within_kick_ms() -> None:
+    """With a 5 V kick (``kick_ms=40``), frames and static and dynamic plays (previewed,
+    stopped or ended) at random: the drive is above the motor's maximum voltage (3.6 V)
+    for at most ``kick_ms`` at a stretch, and never above the supply. (Above the rated
+    drive a dynamic render's ramp may be chased for longer, within the maximum voltage:
+    docs/belts.md "Drive shaping".)"""
+    from tactorbelt.stimuli import make_stimulus
+
+    p = ErmParams()
+    rng = np.random.default_rng(2)
+    clock = SimClock()
+    with open_belt("sim?supply_v=5&kick_ms=40", clock=clock) as b:
+        k = b.shaper.overdrive
+        t0 = clock.now_ns()
+        for _ in range(300):
+            if rng.random() < 0.4:
+                stim = make_stimulus(b.layout, float(rng.uniform(0, 360)),
+                                     str(rng.choice(["static", "dynamic"])),
+                                     period_s=float(rng.choice([0.25, 1.0])),
+                                     transit_s=float(rng.choice([0.01, 0.1])))
+                b.play(stim, None if rng.random() < 0.5 else float(rng.choice([0.05, 1.0])))
+            else:
+                b.set_amplitudes(rng.choice([0.0, 0.1, 0.3, 0.5, 1.0], size=b.n_tactors))
+            clock.advance(int(rng.choice([1, 3, 17, 60, 200, 700])) * MS
+                          + int(rng.integers(0, MS)))
+        _, d = b.driven(t0, clock.now_ns(), 10_000)
+    above = d > p.max_voltage_v / p.rated_voltage_v + 1e-12
+    assert above.any() and d.max() <= k
+    longest = 0
+    for col in above.T:
+        run = 0
+        for x in col:
+            run = run + 1 if x else 0
+            longest = max(longest, run)
+    assert longest / 10.0 <= 40.0  # ms at 10 kHz, against kick_ms
