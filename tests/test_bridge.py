@@ -184,6 +184,17 @@ def sessions_of(store: Path) -> list[dict[str, Any]]:
         con.close()
 
 
+def wait_status(store: Path, status: str) -> list[dict[str, Any]]:
+    """The sessions once the first one is stored with ``status`` (or at the deadline):
+    the bridge writes a lost page's status after it turned the motors off."""
+    end = time.monotonic() + DEADLINE_S
+    while True:
+        s = sessions_of(store)
+        if (s and s[0]["status"] == status) or time.monotonic() > end:
+            return s
+        time.sleep(0.05)
+
+
 async def wait_levels_off(page: Page) -> list[float]:
     """Ask the belt's status until every drive level is 0 (or the deadline)."""
     end = time.monotonic() + DEADLINE_S
@@ -448,7 +459,7 @@ def test_heartbeat_loss_and_close_turn_the_motors_off(bridge: Bridge) -> None:
     assert on == [1.0] * 6 and off == [0.0] * 6 and off2 == [0.0] * 6
     assert lost == 4000
     assert resumed["resumed"] is True and resumed["session_id"] == w["session_id"]
-    s = sessions_of(bridge.store)
+    s = wait_status(bridge.store, "interrupted")
     assert len(s) == 1 and s[0]["status"] == "interrupted" and s[0]["resumed"] == 1
 
 
