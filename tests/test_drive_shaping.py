@@ -734,16 +734,19 @@ def test_random_frames_and_plays_hold_a_5v_kick_above_the_maximum_within_kick_ms
     assert longest / 10.0 <= 40.0  # ms at 10 kHz, against kick_ms
 
 
-def test_a_constant_frame_streamed_to_a_shaped_belt_is_played_as_it_is() -> None:
-    """The preview is for a law's stimulus: a constant frame (belt-test's pulse of one
-    tactor) is streamed to a shaped belt for its whole duration, its last frames on."""
+def test_a_constant_frame_streamed_to_a_shaped_belt_ends_by_the_preview() -> None:
+    """A constant frame (belt-test's pulse of one tactor) streamed to a shaped belt is on
+    for its duration but the preview's last LEAD_TICKS ms, where the brake starts; to a
+    plain belt for all of it."""
     from tactorbelt.calibration.motor import SingleTactor
     from tactorbelt.player import Player
 
-    clock = SimClock()
-    with open_belt("sim?drive=shaped", clock=clock) as b:
-        player = Player(b, clock, device_render=False)
-        onset = player.start(SingleTactor(b.layout, 2, 1.0).as_stimulus(), 0.5)
-        player.pump(onset + 600 * MS)
-        _, lv = b.commanded(onset, onset + 500 * MS, 1000)
-    assert np.all(lv[:, 2] == 1.0) and np.all(np.delete(lv, 2, axis=1) == 0.0)
+    for drive, lead in (("plain", 0), ("shaped", LEAD_TICKS)):
+        clock = SimClock()
+        with open_belt(f"sim?drive={drive}", clock=clock) as b:
+            player = Player(b, clock, device_render=False)
+            onset = player.start(SingleTactor(b.layout, 2, 1.0).as_stimulus(), 0.5)
+            player.pump(onset + 600 * MS)
+            _, lv = b.commanded(onset, onset + 500 * MS, 1000)
+        assert np.all(lv[: 500 - lead, 2] == 1.0) and np.all(lv[500 - lead :, 2] == 0.0)
+        assert np.all(np.delete(lv, 2, axis=1) == 0.0)

@@ -18,10 +18,10 @@ Two ways to play:
   (``clock.simulated``) nothing runs by itself: :meth:`Player.pump` writes every frame
   due up to a time.
 
-Frame i shows ``stimulus.amplitudes(i / rate)`` (time since onset); a law's stimulus
-(:class:`~tactorbelt.stimuli.Stimulus`) on a belt whose drive is shaped,
-``stimulus.amplitudes(i / rate + lead)`` and off within ``lead`` of the end: the shaper's
-preview (3 ms, ``devices.erm.LEAD_TICKS``), as a device previews what it renders. A frame
+Frame i shows ``stimulus.amplitudes(i / rate)`` (time since onset); on a belt whose
+drive is shaped, ``stimulus.amplitudes(i / rate + lead)`` and off within ``lead`` of the
+end: the shaper's preview (3 ms, ``devices.erm.LEAD_TICKS``), as a device previews what
+it renders (a constant frame's last 3 ms are off: the brake starts then). A frame
 is *missed* when it was woken up so late that the next deadline had already passed: the player
 then skips straight to the frame due now (it never writes a burst of stale frames) and
 counts the skipped ones as missed. The *deadline error* of a written frame is the
@@ -278,8 +278,8 @@ class Player:
         onset = int(self.clock.now_ns())
         with self._lock:
             self._reset(stimulus, onset, device)
-            if not device and self.belt.drive == "shaped" and isinstance(stimulus, Stimulus):
-                self._lead_s = _preview_s()  # a law's stimulus (a constant frame: as it is)
+            if not device and self.belt.drive == "shaped":
+                self._lead_s = _preview_s()
             if duration_s is not None:
                 self._n_frames = max(1, round(float(duration_s) * self.rate_hz))
                 self._end = (onset + round(float(duration_s) * 1e9) if device
