@@ -15,7 +15,6 @@ import numpy as np
 import pytest
 
 from support.studies import study_toml
-from tactorbelt.tasks import kinds
 from tactorbelt.tasks.kinds import TASK_KINDS, TaskKind, task_kind
 from tactorbelt.tasks.sounds import beeps, tone
 
@@ -68,8 +67,8 @@ def test_an_unknown_kind_names_every_registered_one() -> None:
         task_kind("stroop")
 
 
-def test_a_new_kind_is_a_module_and_a_registry_line(tmp_path: Path,
-                                                    monkeypatch: pytest.MonkeyPatch) -> None:
+def test_a_new_kind_is_a_module_and_a_registry_line(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, request: pytest.FixtureRequest) -> None:
     """A toy kind (support/toy_task.py: press on an even digit, auditory) runs a whole
     load study of model participants: the study file accepts it, the schedule draws its
     items, the model answers them, the store keeps its events, the analysis reports the
@@ -80,7 +79,8 @@ def test_a_new_kind_is_a_module_and_a_registry_line(tmp_path: Path,
     from tactorbelt.tasks.sounds import SoundBank
 
     monkeypatch.setitem(TASK_KINDS, "even", "support.toy_task:KIND")
-    monkeypatch.setattr(kinds, "_LOADED", {})
+    task_kind.cache_clear()
+    request.addfinalizer(task_kind.cache_clear)  # the toy kind is not kept after the test
     text = study_toml(
         name="toy-load", tactors=6, targets=6, iti_s=0.5, break_every=0, training=0,
         timeout_s=4.0, blocks=[

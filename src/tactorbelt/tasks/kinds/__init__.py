@@ -19,6 +19,7 @@ first asked for.
 
 from __future__ import annotations
 
+import functools
 import random
 from abc import ABC, abstractmethod
 from collections import deque
@@ -135,18 +136,13 @@ class TaskKind(ABC):
         return {}
 
 
-_LOADED: dict[str, TaskKind] = {}
-
-
+@functools.cache
 def task_kind(name: str) -> TaskKind:
-    """The registered kind ``name``.
+    """The registered kind ``name`` (imported once).
 
     Raises:
         ValueError: not a registered kind (the message lists them; ``none`` is no task).
     """
-    kind = _LOADED.get(name)
-    if kind is not None:
-        return kind
     spec = TASK_KINDS.get(name)
     if spec is None:
         names = (*TASK_KINDS, NO_TASK)
@@ -154,5 +150,4 @@ def task_kind(name: str) -> TaskKind:
                          + f" or {names[-1]!r} (got {name!r})")
     kind = resolve(spec)
     assert isinstance(kind, TaskKind) and kind.name == name, spec
-    _LOADED[name] = kind
     return kind
