@@ -8,8 +8,9 @@ tactorbelt against R (lme4, emmeans, pbkrtest) on the same data.
    report's accuracy model with its simplification rule, the contrasts per target
    count and the likelihood ratio (the null model fitted too). R on the same frame:
    ``glmer`` of the final model and of the null model, ``anova`` and emmeans'
-   contrasts (``condition_tests_lme4``; its time includes starting R and reading the
-   CSV, ``r_*_fit_s`` is R's own clock for the fits and tests after that).
+   contrasts (``support.r_reference.r_condition_tests``; its time includes starting R
+   and reading the CSV, ``r_*_fit_s`` is R's own clock for the fits and tests after
+   that).
 2. The parametric bootstrap with ``--pb-sims`` simulations on ``--pb-participants``
    participants of the same design: ours
    (:func:`tactorbelt.analysis.models.lrt.parametric_bootstrap`)
@@ -71,10 +72,11 @@ def main() -> int:
     ap.add_argument("--keep", action="store_true", help="keep the stores for the next run")
     args = ap.parse_args()
 
+    from support.r_reference import r_condition_tests
     from tactorbelt.analysis.models.contrasts import condition_contrasts
     from tactorbelt.analysis.models.fit import fit_model
     from tactorbelt.analysis.models.glmm import fit_glmm
-    from tactorbelt.analysis.models.lme4 import condition_tests_lme4, lme4_available
+    from tactorbelt.analysis.models.lme4 import lme4_available
     from tactorbelt.analysis.models.lrt import likelihood_ratio, null_spec, parametric_bootstrap
 
     warnings.simplefilter("ignore")
@@ -99,8 +101,8 @@ def main() -> int:
         result["formula"] = fit.spec.formula()
         if use_r:
             t0 = time.perf_counter()
-            ref = condition_tests_lme4(frame, fit.spec, null_spec(fit.spec),  # type: ignore[arg-type]
-                                       contrasts=True, timeout_s=7200)
+            ref = r_condition_tests(frame, fit.spec, null_spec(fit.spec),  # type: ignore[arg-type]
+                                    contrasts=True, timeout_s=7200)
             result[f"r_resolution_{n}_s"] = round(time.perf_counter() - t0, 1)
             result["r_lrt"] = round(float(ref["lrt"]), 3)
             est = ref["contrasts"].query("scale == 'log-odds'")["estimate"].to_numpy()
@@ -116,8 +118,8 @@ def main() -> int:
         result["pb_p"] = pb.p
         if use_r:
             t0 = time.perf_counter()
-            ref = condition_tests_lme4(small, fit_s.spec, null_spec(fit_s.spec),  # type: ignore[arg-type]
-                                       n_sim=args.r_pb_sims, seed=0, timeout_s=7200)
+            ref = r_condition_tests(small, fit_s.spec, null_spec(fit_s.spec),  # type: ignore[arg-type]
+                                    n_sim=args.r_pb_sims, seed=0, timeout_s=7200)
             per_sim = float(ref["seconds_tests"]) / max(args.r_pb_sims, 1)
             result[f"r_pb_{args.r_pb_sims}_{k}_s"] = round(time.perf_counter() - t0, 1)
             result["r_pb_per_sim_s"] = round(per_sim, 2)

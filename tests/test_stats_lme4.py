@@ -206,8 +206,8 @@ def condition_fits() -> dict[str, tuple[pd.DataFrame, MixedModelFit, MixedModelF
     a study with a load factor (contrasts averaged over the loads)."""
     import warnings
 
+    from support.r_reference import r_condition_tests
     from tactorbelt.analysis.models.fit import fit_model
-    from tactorbelt.analysis.models.lme4 import condition_tests_lme4
     from tactorbelt.analysis.models.lrt import null_spec
 
     out = {}
@@ -217,7 +217,7 @@ def condition_fits() -> dict[str, tuple[pd.DataFrame, MixedModelFit, MixedModelF
             warnings.simplefilter("ignore")
             fit, _ = fit_model(frame)
             fit0 = fit_glmm(frame, null_spec(fit.spec), se=False)
-        ref = condition_tests_lme4(frame, fit.spec, null_spec(fit.spec), contrasts=True)
+        ref = r_condition_tests(frame, fit.spec, null_spec(fit.spec), contrasts=True)
         out[what] = (frame, fit, fit0, ref)
     return out
 
@@ -286,8 +286,8 @@ def test_parametric_bootstrap_agrees_with_pbkrtest() -> None:
     ref = those ratios): every LRT* within 1 % (or 0.01), and pbkrtest's p."""
     import warnings
 
+    from support.r_reference import r_condition_tests
     from tactorbelt.analysis.models.fit import fit_model
-    from tactorbelt.analysis.models.lme4 import condition_tests_lme4
     from tactorbelt.analysis.models.lrt import null_spec, parametric_bootstrap
     from tactorbelt.experiment.study import paper_study
     from tactorbelt.power.design import TrialDesign
@@ -303,7 +303,7 @@ def test_parametric_bootstrap_agrees_with_pbkrtest() -> None:
     from tactorbelt.analysis.models.glmm import GlmmData
 
     ys = GlmmData(frame, fit0.spec).simulate(fit0, np.random.default_rng(3), 20)
-    ref = condition_tests_lme4(frame, fit.spec, null_spec(fit.spec), responses=ys)
+    ref = r_condition_tests(frame, fit.spec, null_spec(fit.spec), responses=ys)
     assert ref["pb_nsim"] == pb.n_sim == 20 and not pb.failed
     # every LRT* equals glmer's fitted afresh to that response; pbkrtest's refit()
     # starts from the data's estimates and stops short of the optimum now and then
