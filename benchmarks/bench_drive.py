@@ -13,8 +13,9 @@ The belts: ``plain``; ``shaped 3.6 V``: kicks up to the motor's maximum voltage 
 default, 1.2 x rated); ``shaped 5 V kick``: a 5 V supply, kicks at it for at most 40 ms
 (``supply_v=5&kick_ms=40``, 1.67 x rated). The emulator's motors are in units of the full
 duty, so its belts get a calibration whose ceiling is the rated level (3 V over the supply).
-``validate stimulus`` runs on the sim belt only: the emulated board's IMU (``--sense
-board``) senses every tactor together, and a stimulus drives two at once. Shaped, a played
+On the emulator, ``validate stimulus`` senses with the board's IMU (``--sense board``),
+which mixes the tactors, so it plays the stimulus once per driven tactor (docs/validation.md,
+"per-tactor replay"); that takes minutes per row. Shaped, a played
 stimulus is previewed by the shaper (``erm.LEAD_TICKS``, 3 ms: docs/belts.md "Preview");
 ``validate onsets`` plays frames, which are not.
 """
@@ -134,7 +135,7 @@ def main() -> None:
         print("\n| belt | drive | dynamic RMS (18 between-tactor targets) | static RMS "
               "| static onset error, mean / max ms |")
         print("|---|---|---|---|---|")
-        for kind in ["sim"]:  # the board's IMU senses the tactors together (below)
+        for kind in kinds:
             for r in stimulus(out, kind):
                 results["stimulus"].append(r)
                 print(f"| {r['belt']} | {r['drive']} | {r['dynamic_rms']:.4f} | "
