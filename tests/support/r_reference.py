@@ -8,17 +8,15 @@ The report's ``--engine lme4`` runs only the bootstrap
 
 from __future__ import annotations
 
-import subprocess
 import tempfile
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Final
 
 from tactorbelt.analysis.models.lme4 import (
     _FLATTEN,
-    Lme4Unavailable,
-    _r_env,
     _rscript,
     _write_model,
+    run_tests_script,
 )
 
 if TYPE_CHECKING:
@@ -133,18 +131,8 @@ def r_condition_tests(df: pd.DataFrame, spec: ModelSpec, spec0: ModelSpec, *,
             y = np.asarray(responses, dtype=int)
             pd.DataFrame(y.T, columns=[f"s{i}" for i in range(y.shape[0])]).to_csv(
                 d / "sims.csv", index=False)
-        (d / "tests.R").write_text(_TESTS_SCRIPT)
-        try:
-            r = subprocess.run([exe, str(d / "tests.R"), str(d), str(int(n_sim)), str(int(seed)),
-                                "1" if contrasts else "0"], capture_output=True, text=True,
-                               timeout=timeout_s, env=_r_env())
-        except subprocess.TimeoutExpired as exc:
-            raise RuntimeError(f"R took longer than {timeout_s:g} s") from exc
-        if r.returncode != 0:
-            err = r.stderr.strip()
-            if "there is no package called" in err:
-                raise Lme4Unavailable("an R package is missing: " + err.splitlines()[-1])
-            raise RuntimeError("R failed: " + " | ".join(err.splitlines()[-5:]))
+        run_tests_script(exe, d, _TESTS_SCRIPT,
+                         [str(int(n_sim)), str(int(seed)), "1" if contrasts else "0"], timeout_s)
         vals = dict(pd.read_csv(d / "tests.csv").itertuples(index=False, name=None))
         out: dict[str, Any] = {k: float(v) for k, v in vals.items()}
         fx = pd.read_csv(d / "fixef.csv")

@@ -252,6 +252,26 @@ write.csv(data.frame(key = names(out), value = format(unname(out), digits = 15))
 """
 
 
+def run_tests_script(exe: str, d: Path, script: str, args: list[str],
+                     timeout_s: float) -> None:
+    """Run an R script (written to ``d/tests.R``) on the model files in ``d``.
+
+    Raises:
+        Lme4Unavailable: an R package is missing; RuntimeError: R failed or timed out.
+    """
+    (d / "tests.R").write_text(script)
+    try:
+        r = subprocess.run([exe, str(d / "tests.R"), str(d), *args],
+                           capture_output=True, text=True, timeout=timeout_s, env=_r_env())
+    except subprocess.TimeoutExpired as exc:
+        raise RuntimeError(f"R took longer than {timeout_s:g} s") from exc
+    if r.returncode != 0:
+        err = r.stderr.strip()
+        if "there is no package called" in err:
+            raise Lme4Unavailable("an R package is missing: " + err.splitlines()[-1])
+        raise RuntimeError("R failed: " + " | ".join(err.splitlines()[-5:]))
+
+
 def condition_tests_lme4(df: pd.DataFrame, spec: ModelSpec, spec0: ModelSpec, *,
                          n_sim: int, seed: int = 0, rscript: str = "Rscript",
                          timeout_s: float = 3600.0) -> dict[str, float]:
@@ -272,16 +292,6 @@ def condition_tests_lme4(df: pd.DataFrame, spec: ModelSpec, spec0: ModelSpec, *,
         d = Path(tmp)
         _write_model(d, df, spec)
         (d / "formula0.txt").write_text(spec0.formula() + "\n")
-        (d / "tests.R").write_text(_PB_SCRIPT)
-        try:
-            r = subprocess.run([exe, str(d / "tests.R"), str(d), str(int(n_sim)), str(int(seed))],
-                               capture_output=True, text=True, timeout=timeout_s, env=_r_env())
-        except subprocess.TimeoutExpired as exc:
-            raise RuntimeError(f"R took longer than {timeout_s:g} s") from exc
-        if r.returncode != 0:
-            err = r.stderr.strip()
-            if "there is no package called" in err:
-                raise Lme4Unavailable("an R package is missing: " + err.splitlines()[-1])
-            raise RuntimeError("R failed: " + " | ".join(err.splitlines()[-5:]))
+        run_tests_script(exe, d, _PB_SCRIPT, [str(int(n_sim)), str(int(seed))], timeout_s)
         vals = dict(pd.read_csv(d / "tests.csv").itertuples(index=False, name=None))
     return {k: float(v) for k, v in vals.items()}
