@@ -634,6 +634,51 @@ class Shaper:
         return np.asarray(d), np.asarray(ok.all(axis=-1))
 
 
+def budget_bounds_ns(overdrive: float, rise: FloatArray, brake: FloatArray
+                     ) -> tuple[list[int], list[int]]:
+    """The firmware's per-tactor bounds on the time above the rated drive and in reverse
+    (``DriveParams::prepare`` in firmware/tactorbelt/src/core/drive.cpp), in ns: a kick from
+    rest to the rated drive, ``rise_tau * ln(k / (k - 1))``, and a full reverse from full
+    speed to rest, ``brake_tau * ln(2)``, each plus a tick, truncated to whole
+    microseconds as the board does (0 above the rated drive when ``k`` is 1: nothing goes
+    above it)."""
+    k = float(overdrive)
+    tick_us = RENDER_TICK_NS / 1000
+    over = [int(r * math.log(k / (k - 1.0)) * 1e6 + tick_us) * 1000 if k > 1.0 else 0
+            for r in np.asarray(rise, dtype=float).tolist()]
+    rev = [int(b * math.log(2.0) * 1e6 + tick_us) * 1000
+           for b in np.asarray(brake, dtype=float).tolist()]
+    return over, rev
+
+
+def spend(used: int, h_ns: int, driving: bool) -> int:
+    """A bound's budget after ``h_ns`` (the firmware's ``budget``): the time used grows
+    while the drive is what the bound limits, else shrinks, never below 0."""
+    if driving:
+        return used + h_ns
+    return used - h_ns if used > h_ns else 0
+
+
+def budget_cut(d: float, level: float, over_used: int, rev_used: int, over_bound: int,
+               rev_bound: int) -> bool:
+    """Whether the firmware's bounds turn the decision ``d`` into the level itself for the
+    tick (controller.cpp, ``update_outputs``): a reverse drive whose budget has no tick
+    left, or a forward drive above the rated one (1) and the level whose budget has none."""
+    if math.copysign(1.0, d) < 0.0:
+        return rev_used + RENDER_TICK_NS > rev_bound
+    return d > level and d > 1.0 and over_used + RENDER_TICK_NS > over_bound
+
+
+def is_over(d: float) -> bool:
+    """A forward drive above the rated one (what the firmware's over budget counts)."""
+    return d > 1.0
+
+
+def is_reverse(d: float) -> bool:
+    """A reverse drive or the short brake (IN2 high: what the reverse budget counts)."""
+    return math.copysign(1.0, d) < 0.0
+
+
 def shape_tick(level: float, e: float, h_s: float, start: float, overdrive: float,
                brake: bool, rise: float, fall: float, brake_tau: float,
                tick_s: float = RENDER_TICK_NS * 1e-9) -> tuple[float, float]:

@@ -62,13 +62,18 @@ from .erm import (
     _relax_to,
     _Response,
     _sorted_unique,
+    budget_bounds_ns,
+    budget_cut,
     drive_relax,
     erm_speed,
+    is_over,
+    is_reverse,
     relax_f,
     sample_grid,
     saturated_run,
     shape_tick,
     shape_whole_tick,
+    spend,
 )
 
 if TYPE_CHECKING:
@@ -278,16 +283,19 @@ _SHAPED_MEMOS_BUDGET: Final = 24 * 2**20
 @dataclass(frozen=True)
 class _ShapedMemo:
     """The shaper's decisions on a render started from rest (times from its onset, ns),
-    the render's change ticks (ns from the onset), the drives and the predicted speeds."""
+    the render's change ticks (ns from the onset), the drives, the predicted speeds and the
+    firmware's budgets (ns above the rated drive, then in reverse, per tactor)."""
 
     t: IntArray
     bounds: IntArray
     d: FloatArray
     e: FloatArray
+    u: IntArray
 
     @property
     def nbytes(self) -> int:
-        return int(self.t.nbytes + self.bounds.nbytes + self.d.nbytes + self.e.nbytes)
+        return int(self.t.nbytes + self.bounds.nbytes + self.d.nbytes + self.e.nbytes
+                   + self.u.nbytes)
 
 
 _SHAPED_MEMOS: dict[tuple[Any, ...], _ShapedMemo] = {}
@@ -459,9 +467,15 @@ class SimBelt(Belt):
         #: the shaper predicts with the motors' own model: the motors are its prediction
         self._exact = (shaper_taus_are(self._taus, self.params)
                        and sp.start_level == self.params.start_level)
-        #: the shaper's decision points kept: time, motor speeds, predicted speeds
-        self._sck: list[tuple[int, FloatArray, FloatArray]] = []
+        #: the shaper's decision points kept: time, motor speeds, predicted speeds, and
+        #: the firmware's budgets there (ns above the rated drive, then in reverse, per
+        #: tactor: :func:`~tactorbelt.devices.erm.spend`)
+        self._sck: list[tuple[int, FloatArray, FloatArray, IntArray]] = []
         self._base_e = np.zeros(n)
+        self._base_u = np.zeros(2 * n, dtype=np.int64)
+        #: the firmware's bounds on those budgets, per tactor (ns)
+        self._over_bound, self._rev_bound = budget_bounds_ns(
+            self.shaper.overdrive, self._taus[0], self._taus[2])
         if drive not in DRIVES:
             raise ConfigError(f"drive must be one of {', '.join(DRIVES)}, got {drive!r}")
         self._drive = drive
@@ -487,99 +501,109 @@ class SimBelt(Belt):
         # one, and times before now are no longer asked for
         now = int(self.clock.now_ns())
         if self._hi > self._lo:  # never commanded: at rest either way, nothing to keep
-            t, w, e = self._state_before(now)
+            t, w, e, u = self._state_before(now)
             self._lo = max(self._row_in_force(t), self._lo)
             self._base_t, self._pruned = t, True
-            self._base_w, self._base_e = w, e
+            self._base_w, self._base_e, self._base_u = w, e, u
         if drive == "plain":  # the plain solution's states are forward speeds up to 1
             self._base_w = np.clip(self._base_w, 0.0, 1.0)
         self._ck_t.clear()
         self._ck_w.clear()
         self._sck.clear()
 
-    def _state_before(self, t_ns: int) -> tuple[int, FloatArray, FloatArray]:
+    def _state_before(self, t_ns: int) -> tuple[int, FloatArray, FloatArray, IntArray]:
         """A time at or before ``t_ns`` the drive may restart from, with the motors' and
-        the shaper's predicted speeds there: ``t_ns`` itself when plain, the shaper's last
-        decision before it when shaped (so the drive after it stays as played)."""
+        the shaper's predicted speeds and its budgets there: ``t_ns`` itself when plain
+        (no budget used: plain never drives above the rated level nor reverses), the
+        shaper's last decision before it when shaped (so the drive after it stays as
+        played)."""
         if self._drive != "shaped":
             w = self._speed_at(np.array([t_ns], dtype=np.int64))[0]
-            return t_ns, w, w.copy()
-        t_a, w_a, e_a = self._shaped_start(t_ns)
-        ts, _, ws, es = self._shaped_solve(t_a, w_a, e_a, t_ns, t_ns)
-        return int(ts[-1]), ws[-1], es[-1]
+            return t_ns, w, w.copy(), np.zeros(2 * self.n_tactors, dtype=np.int64)
+        t_a, w_a, e_a, u_a = self._shaped_start(t_ns)
+        ts, _, ws, es, us = self._shaped_solve(t_a, w_a, e_a, u_a, t_ns, t_ns)
+        return int(ts[-1]), ws[-1], es[-1], us[-1]
 
     # -- shaped drive -------------------------------------------------------------------
-    def _shaped_start(self, t_first: int) -> tuple[int, FloatArray, FloatArray]:
+    def _shaped_start(self, t_first: int
+                      ) -> tuple[int, FloatArray, FloatArray, IntArray]:
         """The latest kept decision of the shaper at or before ``t_first`` (time, motor
-        and predicted speeds), else the base state."""
+        and predicted speeds, budgets), else the base state."""
         if self._pruned and t_first < self._base_t:
             raise ConfigError(
                 f"time {t_first} ns is before the kept history (from {self._base_t} ns; "
                 f"the sim belt keeps {self._horizon_ns / 1e9:g} s, see horizon_s)")
         if t_first < self._base_t:
-            return t_first, np.zeros(self.n_tactors), np.zeros(self.n_tactors)
+            return (t_first, np.zeros(self.n_tactors), np.zeros(self.n_tactors),
+                    np.zeros(2 * self.n_tactors, dtype=np.int64))
         j = bisect.bisect_right([c[0] for c in self._sck], t_first) - 1
         if j >= 0:
             return self._sck[j]
-        return self._base_t, self._base_w, self._base_e
+        return self._base_t, self._base_w, self._base_e, self._base_u
 
-    def _shaped_solve(self, t_a: int, w: FloatArray, e: FloatArray, t_last: int,
-                      keep_until: int, also_keep: int | None = None,
-                      ) -> tuple[IntArray, FloatArray, FloatArray, FloatArray]:
+    def _shaped_solve(self, t_a: int, w: FloatArray, e: FloatArray, u: IntArray,
+                      t_last: int, keep_until: int, also_keep: int | None = None,
+                      ) -> tuple[IntArray, FloatArray, FloatArray, FloatArray, IntArray]:
         """The shaper's decisions from ``t_a`` (a decision point, motor speeds ``w``,
-        predicted ``e``) to ``t_last``: their times, drives, and the motor and predicted
-        speeds at each. It decides at every command and render change, and a tick (1 ms,
-        the firmware's renderer) after each decision while its prediction has not
-        settled on the level; settled, it drives the level until the levels change. The
-        last decision at or before ``keep_until`` is kept to start later solutions from,
-        and the last at or before ``also_keep`` (the first time a query asked for: the
-        next query of the same window starts there).
+        predicted ``e``, budgets ``u``) to ``t_last``: their times, drives, the motor and
+        predicted speeds and the budgets at each. It decides at every command and render
+        change, and a tick (1 ms, the firmware's renderer) after each decision while its
+        prediction has not settled on the level; settled, it drives the level until the
+        levels change. The last decision at or before ``keep_until`` is kept to start
+        later solutions from, and the last at or before ``also_keep`` (the first time a
+        query asked for: the next query of the same window starts there).
 
         Where the shaper predicts with the motor's own model (``self._exact``), the motors
         are its prediction, and a run of changes each landed within its tick from the
         last target (a dynamic stimulus's transit) is solved at once
         (:meth:`~tactorbelt.devices.erm.Shaper.landing`). A render's levels are those
         the shaper's preview sees (``Shaper.lead_ticks`` ahead)."""
-        parts: list[tuple[IntArray, FloatArray, FloatArray, FloatArray]] = []
-        t_a, w, e, onsets = self._memo_prefix(t_a, w, e, t_last, parts)
-        parts.append(self._walk_span(t_a, t_last, w, e, onsets))
+        parts: list[tuple[IntArray, FloatArray, FloatArray, FloatArray, IntArray]] = []
+        t_a, w, e, u, onsets = self._memo_prefix(t_a, w, e, u, t_last, parts)
+        parts.append(self._walk_span(t_a, t_last, w, e, u, onsets))
         if len(parts) == 1:
-            t_arr, d_arr, w_arr, e_arr = parts[0]
+            t_arr, d_arr, w_arr, e_arr, u_arr = parts[0]
         else:
             t_arr = np.concatenate([q[0] for q in parts])
             d_arr, w_arr, e_arr = (np.concatenate([q[j] for q in parts]) for j in (1, 2, 3))
+            u_arr = np.concatenate([q[4] for q in parts])
         for t_keep in {keep_until, min(also_keep, keep_until)} if also_keep is not None \
                 else {keep_until}:
             j = int(t_arr.searchsorted(t_keep, side="right")) - 1
             if j > 0:
-                self._keep_decision(int(t_arr[j]), w_arr[j], e_arr[j])
-        return t_arr, d_arr, w_arr, e_arr
+                self._keep_decision(int(t_arr[j]), w_arr[j], e_arr[j], u_arr[j])
+        return t_arr, d_arr, w_arr, e_arr, u_arr
 
-    def _memo_prefix(self, t_a: int, w: FloatArray, e: FloatArray, t_last: int,
-                     parts: list[tuple[IntArray, FloatArray, FloatArray, FloatArray]],
-                     ) -> tuple[int, FloatArray, FloatArray, dict[int, tuple[_Render, int]]]:
+    def _memo_prefix(self, t_a: int, w: FloatArray, e: FloatArray, u: IntArray, t_last: int,
+                     parts: list[tuple[IntArray, FloatArray, FloatArray, FloatArray,
+                                       IntArray]],
+                     ) -> tuple[int, FloatArray, FloatArray, IntArray,
+                                dict[int, tuple[_Render, int]]]:
         """Where a walk starts on a render's memo (its onset at rest, or one of its
         decisions), the memo's decisions up to its cut, as the walk takes them at its first
         bound (appended to ``parts``); the start, speeds and render onsets to walk on from."""
         onsets = self._onsets(t_a, t_last)
         got = onsets.get(t_a)
-        take = self._memo_take(got, t_a, e.tolist()) if got is not None else None
+        take = (self._memo_take(got, t_a, e.tolist(), u.tolist()) if got is not None
+                else None)
         if take is None:
-            return t_a, w, e, onsets
+            return t_a, w, e, u, onsets
         memo, r0, r = take
         onset = t_a - int(memo.t[r0])
-        parts.append((memo.t[r0:r] + onset, memo.d[r0:r], memo.e[r0:r], memo.e[r0:r]))
+        parts.append((memo.t[r0:r] + onset, memo.d[r0:r], memo.e[r0:r], memo.e[r0:r],
+                      memo.u[r0:r]))
         t_a = onset + int(memo.t[r])
-        return t_a, memo.e[r], memo.e[r], self._onsets(t_a, t_last)
+        return t_a, memo.e[r], memo.e[r], memo.u[r], self._onsets(t_a, t_last)
 
-    def _memo_take(self, got: tuple[_Render, int], t: int, e: list[float]
+    def _memo_take(self, got: tuple[_Render, int], t: int, e: list[float], u: list[int]
                    ) -> tuple[_ShapedMemo, int, int] | None:
         """The memo decisions a walk at ``t`` (predicted speeds ``e``) on the render of
         ``got`` (render, cut: :meth:`_onsets`) splices: the memo and the rows ``r0..r``
         (``r`` its last decision before the cut, the walk's next start), or None when
-        the walk splices none there (no memo, other speeds, nothing before the cut)."""
+        the walk splices none there (no memo, other speeds or budgets ``u``, nothing
+        before the cut)."""
         render, cut = got
-        memo = self._memo_at(render, t, e)
+        memo = self._memo_at(render, t, e, u)
         if memo is None:
             return None
         onset = render.onset_ns
@@ -588,14 +612,14 @@ class SimBelt(Belt):
         r = int(memo.t.searchsorted(lim - onset, side="left")) - 1
         return (memo, r0, r) if r > r0 else None
 
-    def _walk_span(self, t_a: int, t_last: int, w: FloatArray, e: FloatArray,
+    def _walk_span(self, t_a: int, t_last: int, w: FloatArray, e: FloatArray, u: IntArray,
                    onsets: dict[int, tuple[_Render, int]],
-                   ) -> tuple[IntArray, FloatArray, FloatArray, FloatArray]:
+                   ) -> tuple[IntArray, FloatArray, FloatArray, FloatArray, IntArray]:
         """:meth:`_walk` from the decision point ``t_a`` over the changes to ``t_last``."""
         lead = self.shaper.lead_ticks
         bounds = _sorted_unique(np.concatenate([np.array([t_a], dtype=np.int64),
                                                 self._breakpoints(t_a, t_last, lead)]))
-        return self._walk(bounds, self._levels_at(bounds, lead), t_last, w, e, onsets)
+        return self._walk(bounds, self._levels_at(bounds, lead), t_last, w, e, u, onsets)
 
     def _onsets(self, t_a: int, t_last: int) -> dict[int, tuple[_Render, int]]:
         """The renders that start in (t_a, t_last]: onset -> (render, the first time after
@@ -624,10 +648,12 @@ class SimBelt(Belt):
                 out[t_a] = (render, min(cut, t_last + 1))
         return out
 
-    def _memo_at(self, render: _Render, t: int, e: list[float]) -> _ShapedMemo | None:
+    def _memo_at(self, render: _Render, t: int, e: list[float], u: list[int]
+                 ) -> _ShapedMemo | None:
         """The render's :meth:`_render_memo` when the walk at ``t`` is on it: a decision of
-        the memo at ``t`` with the predicted speeds ``e`` (at the onset: every motor at
-        rest, the memo made if need be; later: only a memo already made)."""
+        the memo at ``t`` with the predicted speeds ``e`` and the budgets ``u`` (at the
+        onset: every motor at rest with no budget used, the memo made if need be; later:
+        only a memo already made)."""
         got = render.memo_box[0]
         if got is not None and got[0] is self.params and got[1] is self.shaper \
                 and got[2] == self.n_tactors:
@@ -639,13 +665,13 @@ class SimBelt(Belt):
             if memo is not None:
                 render.memo_box[0] = (self.params, self.shaper, self.n_tactors, memo)
         if memo is None:
-            if t != render.onset_ns or any(e):
+            if t != render.onset_ns or any(e) or any(u):
                 return None
             memo = self._render_memo(render)
         r = int(memo.t.searchsorted(t - render.onset_ns))
         if r >= memo.t.shape[0] or int(memo.t[r]) != t - render.onset_ns:
             return None
-        return memo if memo.e[r].tolist() == e else None
+        return memo if memo.e[r].tolist() == e and memo.u[r].tolist() == u else None
 
     def _render_memo(self, render: _Render) -> _ShapedMemo:
         """The shaper's decisions on a render started with every motor at rest, for its
@@ -667,24 +693,32 @@ class SimBelt(Belt):
             finally:
                 render.end_ns = end
             zeros = np.zeros(self.n_tactors)
-            t, d, _, e = self._walk(bounds, levels, onset + span - 1, zeros, zeros, {})
-            memo = _ShapedMemo(t - onset, bounds - onset, d, e)
-            for arr in (memo.t, memo.bounds, memo.d, memo.e):
+            t, d, _, e, u = self._walk(bounds, levels, onset + span - 1, zeros, zeros,
+                                       np.zeros(2 * self.n_tactors, dtype=np.int64), {})
+            memo = _ShapedMemo(t - onset, bounds - onset, d, e, u)
+            for arr in (memo.t, memo.bounds, memo.d, memo.e, memo.u):
                 arr.setflags(write=False)
             _remember(_SHAPED_MEMOS, key, memo, _SHAPED_MEMOS_BUDGET)
         render.memo_box[0] = (self.params, self.shaper, self.n_tactors, memo)
         return memo
 
     def _walk(self, bounds: IntArray, levels: FloatArray, t_last: int, w: FloatArray,
-              e: FloatArray, onsets: dict[int, tuple[_Render, int]],
-              ) -> tuple[IntArray, FloatArray, FloatArray, FloatArray]:
+              e: FloatArray, u: IntArray, onsets: dict[int, tuple[_Render, int]],
+              ) -> tuple[IntArray, FloatArray, FloatArray, FloatArray, IntArray]:
         """The walk of :meth:`_shaped_solve` over ``bounds`` (the first is a decision point
-        with motor speeds ``w`` and predicted ``e``; ``levels`` the commanded levels from
-        each) to ``t_last``. A render in ``onsets`` that starts with every motor at rest
-        takes the decisions of :meth:`_render_memo` up to its last change before anything
-        else commands the drive: the same walk on the same changes, so the same floats.
-        ``t_last + 1`` is only where the caller stops asking: a run of kick or reverse
-        ticks goes on past it."""
+        with motor speeds ``w``, predicted ``e`` and budgets ``u``; ``levels`` the
+        commanded levels from each) to ``t_last``. A render in ``onsets`` that starts with
+        every motor at rest takes the decisions of :meth:`_render_memo` up to its last
+        change before anything else commands the drive: the same walk on the same changes,
+        so the same floats. ``t_last + 1`` is only where the caller stops asking: a run of
+        kick or reverse ticks goes on past it.
+
+        The firmware's bounds hold as on the board (controller.cpp): per tactor, the time
+        the drive spends above the rated level, and in reverse, is counted up while it
+        does and down while it does not (:func:`~tactorbelt.devices.erm.spend`); a
+        decision that would pass a bound is the level itself for its tick
+        (:func:`~tactorbelt.devices.erm.budget_cut`). So a kick that chases a rising
+        render lasts at most what a kick to full level from rest does."""
         p, sh, taus = self.params, self.shaper, self._taus
         rise, fall, brake = taus
         rl, fl, bl = rise.tolist(), fall.tolist(), brake.tolist()
@@ -693,6 +727,7 @@ class SimBelt(Belt):
                       for taus_k in (rl, fl, bl))
         start, od, can_brake = sh.params.start_level, sh.overdrive, sh.brake
         n = self.n_tactors
+        ob, rb = self._over_bound, self._rev_bound
         tick = RENDER_TICK_NS
         m = bounds.shape[0]
         ends = np.empty(m, dtype=np.int64)
@@ -711,10 +746,12 @@ class SimBelt(Belt):
         blocks_d: list[FloatArray] = []
         blocks_w: list[FloatArray] = []
         blocks_e: list[FloatArray] = []
+        blocks_u: list[IntArray] = []
         ts: list[int] = []
         ds: list[Any] = []
         ws: list[Any] = []
         es: list[Any] = []
+        us: list[Any] = []
 
         def flush() -> None:
             if ts:
@@ -722,10 +759,22 @@ class SimBelt(Belt):
                 blocks_d.append(np.asarray(ds, dtype=float).reshape(-1, n))
                 blocks_w.append(np.asarray(ws, dtype=float).reshape(-1, n))
                 blocks_e.append(np.asarray(es, dtype=float).reshape(-1, n))
+                blocks_u.append(np.asarray(us, dtype=np.int64).reshape(-1, 2 * n))
                 ts.clear()
                 ds.clear()
                 ws.clear()
                 es.clear()
+                us.clear()
+
+        def spend_all(d: list[float], h: int) -> None:
+            # the budgets after the drives d held h ns (a budget at 0 stays at 0 unless
+            # its drive counts)
+            for k in range(n):
+                dk = d[k]
+                if ou[k] or is_over(dk):
+                    ou[k] = spend(ou[k], h, is_over(dk))
+                if ru[k] or is_reverse(dk):
+                    ru[k] = spend(ru[k], h, is_reverse(dk))
 
         exact = self._exact
         pr, pf, pb = p.rise_tau_s, p.fall_tau_s, p.brake_tau_s
@@ -734,12 +783,15 @@ class SimBelt(Belt):
         ends_l = ends.tolist()
         el: list[float] = e.tolist()
         wl: list[float] = el if exact else w.tolist()
+        ul = [int(x) for x in u.tolist()]
+        ou, ru = ul[:n], ul[n:]
         i = 0
         t_resume: int | None = None  # a decision inside stretch i to go on from
+        no_land = -1  # a bound whose landing a budget cut: decided one by one
         while i < m:
             got = onsets.get(bounds_l[i]) if onsets and t_resume is None else None
             if got is not None:
-                memo = self._memo_at(got[0], bounds_l[i], el)
+                memo = self._memo_at(got[0], bounds_l[i], el, ou + ru)
                 if memo is not None:
                     render, cut = got
                     onset = render.onset_ns
@@ -754,15 +806,18 @@ class SimBelt(Belt):
                         blocks_d.append(memo.d[r0:r])
                         blocks_w.append(memo.e[r0:r])
                         blocks_e.append(memo.e[r0:r])
+                        blocks_u.append(memo.u[r0:r])
                         el = wl = memo.e[r].tolist()
+                        ul = memo.u[r].tolist()
+                        ou, ru = ul[:n], ul[n:]
                         t_resume = onset + int(memo.t[r])
                         i = int(bounds.searchsorted(t_resume, side="right")) - 1
                         continue
-            if t_resume is None and d_on is not None and i > 0 and lands[i] and max(
-                    abs(x - y) for x, y in zip(el, s_all[i - 1].tolist(), strict=True)) <= _SETTLED:
+            if t_resume is None and d_on is not None and i > 0 and i != no_land and lands[
+                    i] and max(abs(x - y) for x, y in zip(el, s_all[i - 1].tolist(),
+                                                          strict=True)) <= _SETTLED:
                 k = int(bad[bad.searchsorted(i)]) if bad.size and bad[-1] >= i else m
                 if k > i:  # bounds i..k-1 each land on their target within a tick
-                    flush()
                     prev = s_all[i - 1 : k - 1]
                     longer = (ends[i:k] - bounds[i:k]) > tick  # then settled after a tick
                     n_more = int(longer.sum())
@@ -772,10 +827,23 @@ class SimBelt(Belt):
                     order = np.argsort(tt, kind="stable") if n_more else None
                     if order is not None:
                         tt, dd, ww = tt[order], dd[order], ww[order]
+                    uu, cut_at = self._landing_budgets(tt, dd, levels, bounds, i, k,
+                                                       int(ends_l[k - 1]), ou + ru)
+                    if cut_at is not None:  # a bound passed: decided one by one from there
+                        no_land = cut_at
+                        if cut_at == i:
+                            continue
+                        keep = int(tt.searchsorted(bounds_l[cut_at]))
+                        tt, dd, ww, uu = tt[:keep], dd[:keep], ww[:keep], uu[:keep + 1]
+                        k = cut_at
+                    flush()
                     blocks_t.append(tt)
                     blocks_d.append(dd)
                     blocks_w.append(ww)
                     blocks_e.append(ww)
+                    blocks_u.append(uu[:-1])
+                    ul = uu[-1].tolist()
+                    ou, ru = ul[:n], ul[n:]
                     el = wl = s_all[k - 1].tolist()
                     i = k
                     continue
@@ -788,6 +856,7 @@ class SimBelt(Belt):
                 ts.append(t)
                 ws.append(wl)
                 es.append(el)
+                us.append(ou + ru)
                 moving = [k for k in range(n) if abs(sl[k] - el[k]) > _SETTLED]
                 if all(not can_brake and sl[k] == 0.0 and el[k] >= 0.0 for k in moving):
                     # settled (or coasting to off, unbraked): the level to the stretch's end
@@ -797,11 +866,13 @@ class SimBelt(Belt):
                           if k in moving else el[k] for k in range(n)]
                     wl = el if exact else [relax_f(lvl[k], wl[k], h, start, pr, pf, pb)
                                            for k in range(n)]
+                    spend_all(lvl, b1 - t)
                     break
                 # a run of whole ticks at the kick or the full reverse (every moving
                 # tactor saturated): one decision, its end in closed form. The last
                 # stretch ends where the query does, not where the levels change: a run
-                # there is not cut (its decision is the same whatever the query's end)
+                # there is not cut (its decision is the same whatever the query's end).
+                # The budgets end a run where the board would cut its drive.
                 last = i == m - 1
                 if b1 - t >= 2 * tick or last:
                     run = (b1 - t) // tick if not last else _MEMO_TICKS
@@ -810,6 +881,12 @@ class SimBelt(Belt):
                                                      xr[k], xf[k], xb[k]))
                         if run < 2:
                             break
+                        up = sl[k] > el[k]
+                        if not up or od > 1.0:  # the ticks the budget leaves
+                            used, bound = (ou[k], ob[k]) if up else (ru[k], rb[k])
+                            run = min(run, max((bound - tick - used) // tick + 1, 0))
+                            if run < 2:
+                                break
                     if run >= 2:
                         d = list(lvl)
                         el = list(el)
@@ -821,6 +898,7 @@ class SimBelt(Belt):
                         h = run * tick * 1e-9
                         wl = el if exact else [relax_f(d[k], wl[k], h, start, pr, pf, pb)
                                                for k in range(n)]
+                        spend_all(d, run * tick)
                         t += run * tick
                         continue
                 # the decision holds a tick; each moving tactor in plain floats
@@ -836,16 +914,50 @@ class SimBelt(Belt):
                     for k in moving:
                         d[k], el[k] = shape_tick(lvl[k], el[k], h, start, od, can_brake,
                                                  rl[k], fl[k], bl[k])
+                for k in moving:
+                    if budget_cut(d[k], lvl[k], ou[k], ru[k], ob[k], rb[k]):
+                        d[k] = lvl[k]
+                        el[k] = relax_f(lvl[k], es[-1][k], h, start, rl[k], fl[k], bl[k])
                 ds.append(d)
                 wl = el if exact else [relax_f(d[k], wl[k], h, start, pr, pf, pb)
                                        for k in range(n)]
+                spend_all(d, nxt - t)
                 t = nxt
             i += 1
         flush()
         return (np.concatenate(blocks_t), np.concatenate(blocks_d), np.concatenate(blocks_w),
-                np.concatenate(blocks_e))
+                np.concatenate(blocks_e), np.concatenate(blocks_u))
 
-    def _keep_decision(self, t: int, w: FloatArray, e: FloatArray) -> None:
+    def _landing_budgets(self, tt: IntArray, dd: FloatArray, levels: FloatArray,
+                         bounds: IntArray, i: int, k: int, end: int, u0: list[int]
+                         ) -> tuple[IntArray, int | None]:
+        """The budgets before each decision of a run of landings (times ``tt``, drives
+        ``dd``, the run's bounds ``i..k-1``, ending at ``end``) and after the last, from
+        ``u0``; and the first bound whose landing a budget cuts (None: none does). The
+        firmware's counter in closed form: with ``S`` the running sum of +h (the drive
+        counts) and -h (it does not) from ``u0``, the budget is ``S - min(0, min S)``."""
+        n = self.n_tactors
+        h = np.diff(np.append(tt, end))[:, None]
+        over = dd > 1.0
+        rev = np.signbit(dd)
+        u0a = np.asarray(u0, dtype=np.int64)
+        out = np.empty((tt.shape[0] + 1, 2 * n), dtype=np.int64)
+        out[0] = u0a
+        for half, flag in ((slice(0, n), over), (slice(n, 2 * n), rev)):
+            x = np.where(flag, h, -h)
+            s = u0a[half][None, :] + np.cumsum(x, axis=0)
+            out[1:, half] = s - np.minimum(np.minimum.accumulate(s, axis=0), 0)
+        before = out[:-1]
+        lv = levels[np.searchsorted(bounds, tt, side="right") - 1]
+        cut = (rev & (before[:, n:] + RENDER_TICK_NS > np.asarray(self._rev_bound))) | (
+            over & (dd > lv) & (before[:, :n] + RENDER_TICK_NS > np.asarray(self._over_bound)))
+        rows = np.flatnonzero(cut.any(axis=1))
+        if rows.size == 0:
+            return out, None
+        j = int(np.searchsorted(bounds, tt[rows[0]], side="right")) - 1
+        return out, max(j, i)
+
+    def _keep_decision(self, t: int, w: FloatArray, e: FloatArray, u: IntArray) -> None:
         """Keep a decision of the shaper (in time order; the oldest go beyond
         :data:`_MAX_SHAPED_CHECKPOINTS`): a later query starts from the latest one at or
         before its first time."""
@@ -854,7 +966,7 @@ class SimBelt(Belt):
         i = bisect.bisect_left(times, t)
         if i < len(ck) and times[i] == t:
             return
-        ck.insert(i, (t, w, e))
+        ck.insert(i, (t, w, e, u))
         if len(ck) > _MAX_SHAPED_CHECKPOINTS:
             del ck[0]
 
@@ -862,9 +974,9 @@ class SimBelt(Belt):
         """:meth:`_speed_at` of the shaped drive: the motors' speed magnitude (a motor
         reverse-driven past a stop spins backwards and vibrates again)."""
         t_first, t_last = int(times[0]), int(times[-1])
-        t_a, w_a, e_a = self._shaped_start(t_first)
+        t_a, w_a, e_a, u_a = self._shaped_start(t_first)
         keep = max(min(int(self.clock.now_ns()), t_last), t_a)
-        ts, ds, ws, _ = self._shaped_solve(t_a, w_a, e_a, t_last, keep, t_first)
+        ts, ds, ws, _, _ = self._shaped_solve(t_a, w_a, e_a, u_a, t_last, keep, t_first)
         self._since_ck = 0  # a decision up to now is kept
         idx = ts.searchsorted(times, side="right") - 1
         dt = np.asarray((times - ts[idx]) * 1e-9, dtype=np.float64)
@@ -880,9 +992,9 @@ class SimBelt(Belt):
         with self._lock:
             if self._drive != "shaped" or times.shape[0] == 0:
                 return times, self._levels_at(times)
-            t_a, w_a, e_a = self._shaped_start(int(times[0]))
+            t_a, w_a, e_a, u_a = self._shaped_start(int(times[0]))
             keep = max(min(int(self.clock.now_ns()), int(times[-1])), t_a)
-            ts, ds, _, _ = self._shaped_solve(t_a, w_a, e_a, int(times[-1]), keep)
+            ts, ds, _, _, _ = self._shaped_solve(t_a, w_a, e_a, u_a, int(times[-1]), keep)
             return times, ds[ts.searchsorted(times, side="right") - 1]
 
     @property
@@ -1364,19 +1476,21 @@ class SimBelt(Belt):
                 before_ns)
             # cut at a remembered state when there is one close before the cut: no work
             j = bisect.bisect_right(self._ck_t, cut) - 1
-            e_cut = None
+            e_cut, u_cut = None, None
             if j >= 0 and self._ck_t[j] > max(self._base_t, cut - self._slack_ns):
                 cut, w_cut = self._ck_t[j], self._ck_w[j]
             elif cut <= self._base_t:
                 return
             else:
-                cut, w_cut, e_cut = self._state_before(cut)
+                cut, w_cut, e_cut, u_cut = self._state_before(cut)
                 if cut <= self._base_t:
                     return
             keep = max(self._row_in_force(cut), self._lo)
             self._lo = keep
             self._base_t, self._base_w, self._pruned = cut, w_cut, True
             self._base_e = w_cut.copy() if e_cut is None else e_cut
+            self._base_u = (np.zeros(2 * self.n_tactors, dtype=np.int64) if u_cut is None
+                            else u_cut)
             self._sck = [c for c in self._sck if c[0] >= cut]
             j = bisect.bisect_left(self._ck_t, cut)
             del self._ck_t[:j], self._ck_w[:j]
