@@ -135,7 +135,7 @@ def on_emulator(emulator_exe: Path, tmp_path_factory: pytest.TempPathFactory
                       "--target", "3", "--condition", "static", "--drive", "plain",
                       "--duration", "1", "-o", str(out / "one"))
     assert proc.returncode == 0, proc.stderr
-    assert "tactors told apart: per-tactor replay (" in proc.stdout
+    assert "the sensor mixes the tactors: each played alone (per-tactor replay, " in proc.stdout
     assert "silent (not played): 2,3,4,5" in proc.stdout
     with open_belt("emulator", build=False) as belt, open_sensor("board", belt) as sensor:
         assert isinstance(sensor, BoardSensor) and not sensor.separates_tactors

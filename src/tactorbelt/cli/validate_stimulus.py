@@ -85,7 +85,7 @@ def stimulus(belt_url: str, sense_url: str | None, target: int | None, all_targe
     between = ("" if result.between_tactor_rms_error is None else
                f" (between tactors {result.between_tactor_rms_error:.4f})")
     click.echo(f"RMS error {result.rms_error:.4f}{between}; drive {result.drive}; "
-               f"tactors told apart: {result.isolation} ({result.plays} plays)")
+               f"{result.how_sensed}")
     if result.replayed_late:
         click.echo(f"{result.replayed_late} plays were made again: the player skipped more "
                    f"than {MAX_SKIPPED:.0%} of their frames (a busy computer)")

@@ -134,6 +134,14 @@ class StimulusValidation:
     missed_frames: int = 0
     replayed_late: int = 0
 
+    @property
+    def how_sensed(self) -> str:
+        """How the tactors were told apart, in words (the console and the figure)."""
+        if self.isolation == DIRECT:
+            return "each tactor sensed directly"
+        return (f"the sensor mixes the tactors: each played alone ({self.isolation}, "
+                f"{self.plays} plays)")
+
     def to_dict(self) -> dict[str, Any]:
         return {"format": FORMAT, "version": 1, "belt": self.belt, "sensor": self.sensor,
                 "drive": self.drive, "condition": self.condition,
@@ -489,11 +497,8 @@ def stimulus_figure(result: StimulusValidation, path: str | Path) -> Path:
         ax.set_ylabel("of full-level steady")
     between = ("" if result.between_tactor_rms_error is None else
                f", between tactors {result.between_tactor_rms_error:.3f}")
-    how = ("each tactor sensed directly" if result.isolation == DIRECT else
-           f"the sensor mixes the tactors: each played alone ({result.isolation}, "
-           f"{result.plays} plays)")
     fig.suptitle(f"Felt (solid) and intended (dashed) {result.condition} stimulus, drive "
                  f"{result.drive}: RMS error {result.rms_error:.3f}{between}\n"
-                 f"belt {result.belt}, sensor {result.sensor}\n{how}", fontsize=10)
+                 f"belt {result.belt}, sensor {result.sensor}\n{result.how_sensed}", fontsize=10)
     fig.tight_layout()
     return save_figure(fig, path)
