@@ -771,9 +771,9 @@ class SimBelt(Belt):
             # its drive counts)
             for k in range(n):
                 dk = d[k]
-                if ou[k] or is_over(dk):
+                if ou[k] or dk > 1.0:
                     ou[k] = spend(ou[k], h, is_over(dk))
-                if ru[k] or is_reverse(dk):
+                if ru[k] or (dk <= 0.0 and is_reverse(dk)):
                     ru[k] = spend(ru[k], h, is_reverse(dk))
 
         exact = self._exact
