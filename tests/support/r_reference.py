@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING, Any, Final
 
 from tactorbelt.analysis.models.lme4 import (
     _FLATTEN,
+    READ_TWO_MODELS,
     _rscript,
     _write_model,
     run_tests_script,
@@ -30,12 +31,7 @@ suppressPackageStartupMessages(library(lme4))
 args <- commandArgs(trailingOnly = TRUE)
 dir <- args[1]; nsim <- as.integer(args[2]); seed <- as.integer(args[3])
 want_em <- args[4] == "1"
-form <- as.formula(readLines(file.path(dir, "formula.txt")))
-form0 <- as.formula(readLines(file.path(dir, "formula0.txt")))
-g <- readLines(file.path(dir, "groups.txt"))
-d <- read.csv(file.path(dir, "data.csv"), stringsAsFactors = FALSE,
-              colClasses = setNames(rep("character", length(g)), g))
-quiet <- function(expr) suppressWarnings(suppressMessages(expr))
+""" + READ_TWO_MODELS + r"""
 msgs <- character(0)
 m <- withCallingHandlers(glmer(form, data = d, family = binomial),
   warning = function(w) { msgs <<- c(msgs, conditionMessage(w)); invokeRestart("muffleWarning") },

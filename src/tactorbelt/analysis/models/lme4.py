@@ -225,16 +225,22 @@ def fit_lme4(df: pd.DataFrame, spec: ModelSpec, *, family: str = "binomial",
     )
 
 
-_PB_SCRIPT: Final = r"""
-suppressPackageStartupMessages(library(lme4))
-args <- commandArgs(trailingOnly = TRUE)
-dir <- args[1]; nsim <- as.integer(args[2]); seed <- as.integer(args[3])
+#: R: the two models' formulas (``form``, ``form0``) and the data of a tests script's
+#: directory, and ``quiet`` (a script's ``dir`` is set before it).
+READ_TWO_MODELS: Final = r"""
 form <- as.formula(readLines(file.path(dir, "formula.txt")))
 form0 <- as.formula(readLines(file.path(dir, "formula0.txt")))
 g <- readLines(file.path(dir, "groups.txt"))
 d <- read.csv(file.path(dir, "data.csv"), stringsAsFactors = FALSE,
               colClasses = setNames(rep("character", length(g)), g))
 quiet <- function(expr) suppressWarnings(suppressMessages(expr))
+"""
+
+_PB_SCRIPT: Final = r"""
+suppressPackageStartupMessages(library(lme4))
+args <- commandArgs(trailingOnly = TRUE)
+dir <- args[1]; nsim <- as.integer(args[2]); seed <- as.integer(args[3])
+""" + READ_TWO_MODELS + r"""
 m <- quiet(glmer(form, data = d, family = binomial))
 m0 <- quiet(glmer(form0, data = d, family = binomial))
 a <- anova(m0, m)
