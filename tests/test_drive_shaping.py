@@ -58,6 +58,17 @@ def pulse(url: str, level: float, on_s: float = 0.4, off_s: float = 0.4
             "overshoot": float(a.max()) / steady - 1.0, "steady": steady}
 
 
+def _longest_run_ms(mask: np.ndarray, rate_hz: float) -> float:
+    """The longest run of True down any column of ``mask`` (samples x tactors), in ms."""
+    best = 0
+    for col in mask.T:
+        run = 0
+        for x in col:
+            run = run + 1 if x else 0
+            best = max(best, run)
+    return best * 1000.0 / rate_hz
+
+
 @pytest.mark.parametrize("level", [0.5, 1.0])
 def test_plain_drive_keeps_the_models_rise_and_fall(level: float) -> None:
     got = pulse("sim?drive=plain", level)
@@ -142,22 +153,14 @@ def test_no_command_sequence_holds_overdrive_or_reverse_beyond_its_bound(url: st
     assert d.max() <= k and d.min() >= -k
     assert a.max() <= 1.0 + 1e-9  # no speed beyond the rated one (no overshoot)
 
-    def longest(mask: np.ndarray) -> float:
-        best = 0
-        for col in mask.T:
-            run = 0
-            for x in col:
-                run = run + 1 if x else 0
-                best = max(best, run)
-        return best / 10.0  # ms at 10 kHz
-
     tick_ms = 1.0 + 0.1  # the tick that lands it, and a sample of the 10 kHz grid
-    assert longest(d > 1.0) <= p.rise_tau_s * math.log(k / (k - 1)) * 1e3 + tick_ms
-    assert longest(np.signbit(d) & (d != 0)) <= p.brake_tau_s * math.log(2) * 1e3 + tick_ms
+    assert _longest_run_ms(d > 1.0, 10_000) <= p.rise_tau_s * math.log(k / (k - 1)) * 1e3 + tick_ms
+    reverse = np.signbit(d) & (d != 0)
+    assert _longest_run_ms(reverse, 10_000) <= p.brake_tau_s * math.log(2) * 1e3 + tick_ms
     # above the motor's maximum voltage only within the kick limit (kick_ms=40)
     above = d > p.max_voltage_v / p.rated_voltage_v + 1e-12
-    assert longest(above) <= (40.0 if k > 1.2 + 1e-9 else 0.0)
-    assert longest(above) <= kick_duration_s(k, p.rise_tau_s) * 1e3
+    assert _longest_run_ms(above, 10_000) <= (40.0 if k > 1.2 + 1e-9 else 0.0)
+    assert _longest_run_ms(above, 10_000) <= kick_duration_s(k, p.rise_tau_s) * 1e3
 
 
 def test_a_kick_above_the_motors_maximum_voltage_needs_a_time_limit_that_covers_it() -> None:
@@ -725,13 +728,7 @@ def test_random_frames_and_plays_hold_a_5v_kick_above_the_maximum_within_kick_ms
         _, d = b.driven(t0, clock.now_ns(), 10_000)
     above = d > p.max_voltage_v / p.rated_voltage_v + 1e-12
     assert above.any() and d.max() <= k
-    longest = 0
-    for col in above.T:
-        run = 0
-        for x in col:
-            run = run + 1 if x else 0
-            longest = max(longest, run)
-    assert longest / 10.0 <= 40.0  # ms at 10 kHz, against kick_ms
+    assert _longest_run_ms(above, 10_000) <= 40.0  # against kick_ms
 
 
 def test_a_constant_frame_streamed_to_a_shaped_belt_ends_by_the_preview() -> None:
@@ -750,16 +747,6 @@ def test_a_constant_frame_streamed_to_a_shaped_belt_ends_by_the_preview() -> Non
             _, lv = b.commanded(onset, onset + 500 * MS, 1000)
         assert np.all(lv[: 500 - lead, 2] == 1.0) and np.all(lv[500 - lead :, 2] == 0.0)
         assert np.all(np.delete(lv, 2, axis=1) == 0.0)
-
-
-def _longest_above_rated_ms(d: np.ndarray, rate_hz: float) -> float:
-    longest = 0
-    for col in (d > 1.0).T:
-        run = 0
-        for x in col:
-            run = run + 1 if x else 0
-            longest = max(longest, run)
-    return longest * 1000.0 / rate_hz
 
 
 @pytest.mark.parametrize("url", ["sim", "sim?supply_v=5&kick_ms=40"])
@@ -782,7 +769,7 @@ def test_a_shaped_dynamic_stimulus_holds_drive_above_rated_within_the_boards_bud
             clock.advance(2500 * MS)
         _, d = b.driven(t0, clock.now_ns(), 10_000)
     assert (d > 1.0).any()
-    assert _longest_above_rated_ms(d, 10_000) <= cap_ms, cap_ms
+    assert _longest_run_ms(d > 1.0, 10_000) <= cap_ms, cap_ms
 
 
 def test_the_sims_decisions_on_a_ramp_are_the_boards() -> None:
