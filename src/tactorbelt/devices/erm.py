@@ -664,9 +664,9 @@ def budget_cut(d: float, level: float, over_used: int, rev_used: int, over_bound
     """Whether the firmware's bounds turn the decision ``d`` into the level itself for the
     tick (controller.cpp, ``update_outputs``): a reverse drive whose budget has no tick
     left, or a forward drive above the rated one (1) and the level whose budget has none."""
-    if math.copysign(1.0, d) < 0.0:
+    if is_reverse(d):
         return rev_used + RENDER_TICK_NS > rev_bound
-    return d > level and d > 1.0 and over_used + RENDER_TICK_NS > over_bound
+    return d > level and is_over(d) and over_used + RENDER_TICK_NS > over_bound
 
 
 def is_over(d: float) -> bool:
@@ -733,7 +733,6 @@ def _shape_decision(level: float, e: float, start: float, overdrive: float, brak
     else:
         d = level
     return d
-
 
 
 def saturated_run(level: float, e: float, start: float, overdrive: float, brake: bool,
