@@ -35,7 +35,7 @@ __all__ = ["BACKEND", "OPENED", "ToyBelt", "discover", "open_toy", "register"]
 BACKEND = Backend(
     "toy", "support.toy_belt:open_toy", "a toy belt that keeps its frames in memory",
     ("toy:",), discover="support.toy_belt:discover", title="Toy belts",
-    docs="tests/support/toy_belt.py", contract_url="toy:", simulated_time=True)
+    contract_url="toy:", simulated_time=True)
 
 #: Every toy belt opened in this process, oldest first (a test reads what it was sent).
 OPENED: list[ToyBelt] = []

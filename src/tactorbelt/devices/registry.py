@@ -56,8 +56,6 @@ class Backend:
     discover: str | None = None
     #: heading of the backend's section in ``tactorbelt devices``.
     title: str = ""
-    #: the docs page describing the backend.
-    docs: str = "docs/devices.md"
     #: the URL forms an unknown-scheme error lists (default: :attr:`usage`).
     allowed: tuple[str, ...] = ()
     #: a URL that opens this backend on a machine with no hardware (a dummy device or
@@ -189,7 +187,7 @@ BACKENDS: dict[str, Backend] = {b.scheme: b for b in (
                                "rated (default: 3.6 V / 3.0 V)", 1.0, 4.0),
                      _SUPPLY, _KICK,
                      UrlOption("brake", bool, "both H-bridge inputs wired (default 1)")),
-            docs="docs/belts.md", simulated_time=True,
+            simulated_time=True,
             actuator="ERM vibration motor, simulated (tactorbelt's ERM model: no motor "
                      "vibrated)"),
     Backend("emulator", "tactorbelt.devices.emulator:open_emulator",
@@ -203,7 +201,6 @@ BACKENDS: dict[str, Backend] = {b.scheme: b for b in (
                                "none (firmware 1.1) or broken"),
                      UrlOption("brake", bool, "both H-bridge inputs wired (default 1; 0: IN2 "
                                "to ground, a shaped fall coasts)"), _DRIVE, _SUPPLY, _KICK),
-            docs="docs/devices.md",
             actuator="ERM vibration motor driven by the tactorbelt firmware, emulated on "
                      "the host (no motor vibrated)"),
     Backend("serial", "tactorbelt.devices.serial:open_serial",
@@ -213,7 +210,7 @@ BACKENDS: dict[str, Backend] = {b.scheme: b for b in (
                      UrlOption("dtr", bool, "assert DTR (default 1; the board is mute "
                                "without it)"), _DRIVE, _SUPPLY, _KICK),
             discover="tactorbelt.devices.serial:discover", title="Serial ports",
-            docs="docs/devices.md", allowed=("serial:PORT", "serial:auto"),
+            allowed=("serial:PORT", "serial:auto"),
             actuator="ERM vibration motor driven by the tactorbelt firmware (PWM), over USB "
                      "serial"),
     Backend("ble", "tactorbelt.devices.ble:open_ble",
@@ -224,7 +221,6 @@ BACKENDS: dict[str, Backend] = {b.scheme: b for b in (
                      UrlOption("connect_timeout_s", float, "seconds to connect", 0.1, 120.0),
                      _DRIVE, _SUPPLY, _KICK),
             discover="tactorbelt.devices.ble:discover", title="BLE",
-            docs="docs/devices.md",
             actuator="ERM vibration motor driven by the tactorbelt firmware (PWM), over "
                      "Bluetooth LE"),
     Backend("audio", "tactorbelt.devices.audio:open_audio",
@@ -241,7 +237,7 @@ BACKENDS: dict[str, Backend] = {b.scheme: b for b in (
                      UrlOption("ramp_ms", float, "ramp of every amplitude change", 0.1,
                                100.0), _DRIVE),
             discover="tactorbelt.devices.audio:discover", title="Audio outputs",
-            docs="docs/audio.md", allowed=("audio:DEVICE", "audio:default"),
+            allowed=("audio:DEVICE", "audio:default"),
             actuator="voice-coil or LRA actuator driven by a sound card output channel (a "
                      "sine carrier modulated by the drive level)",
             carrier_hz=250.0),  # the skin's most sensitive band (Pacinian receptors)
@@ -252,6 +248,6 @@ BACKENDS: dict[str, Backend] = {b.scheme: b for b in (
             options=(UrlOption("motors", str, "the motors used, e.g. 0,2,4,6 (default all 16)"),
                      UrlOption("rate_hz", float, "command rate (Hz)", 1.0, 200.0), _DRIVE),
             discover="tactorbelt.devices.navibelt:discover", title="naviBelts",
-            docs="docs/belts.md", allowed=("navibelt:auto", "navibelt:serial:PORT",
-                                           "navibelt:ble:NAME", "navibelt:emulator")),
+            allowed=("navibelt:auto", "navibelt:serial:PORT", "navibelt:ble:NAME",
+                     "navibelt:emulator")),
 )}
