@@ -46,7 +46,7 @@ import numpy as np
 from .._errors import ConfigError
 from .design import PowerDesign, TrialDesign
 from .outcomes import PowerRow, StudyOutcome
-from .pool import chunks, run_sizes
+from .pool import run_sizes, studies
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -214,8 +214,7 @@ def _between(frame: pd.DataFrame, condition: str) -> np.ndarray:
 
 
 def simulate_glmm_studies(trials: TrialDesign, effect: NamedEffect, n_participants: int,
-                          indices: Sequence[int], seed: int,
-                          progress: Callable[[int], None] | None = None) -> list[StudyOutcome]:
+                          indices: Sequence[int], seed: int) -> list[StudyOutcome]:
     """Simulate and analyse the studies ``indices`` of size ``n_participants``.
 
     The outcome's p is the report's headline test (:func:`headline_statistics`: the
@@ -227,24 +226,15 @@ def simulate_glmm_studies(trials: TrialDesign, effect: NamedEffect, n_participan
         raise ConfigError("the report's mixed model needs at least 3 participants; "
                           f"got a study size of {n_participants}")
     sign = math.copysign(1.0, effect.headline)
-    out: list[StudyOutcome] = []
-    for i in indices:
-        rng = np.random.default_rng([int(seed), int(n_participants), int(i)])
+
+    def one(rng: np.random.Generator) -> StudyOutcome:
         frame = simulate_frame(trials, effect, n_participants, rng)
         res = headline_statistics(frame)
         ok = math.isfinite(res.estimate) and math.copysign(1.0, res.estimate) == sign
-        out.append(StudyOutcome(n_participants, _between(frame, "static"),
-                                _between(frame, "dynamic"), res.p, direction_ok=ok))
-        if progress is not None:
-            progress(1)
-    return out
+        return StudyOutcome(n_participants, _between(frame, "static"),
+                            _between(frame, "dynamic"), res.p, direction_ok=ok)
 
-
-def _glmm_chunk(args: tuple[TrialDesign, NamedEffect, int, list[int], int]
-                ) -> list[StudyOutcome]:
-    """Worker: simulate and fit some studies of one size (module level, for processes)."""
-    trials, effect, n, indices, seed = args
-    return simulate_glmm_studies(trials, effect, n, indices, seed)
+    return studies(n_participants, indices, seed, one)
 
 
 def named_power(design: PowerDesign, effect: NamedEffect, sizes: Sequence[int], sims: int,
@@ -258,5 +248,5 @@ def named_power(design: PowerDesign, effect: NamedEffect, sizes: Sequence[int], 
     Results do not depend on ``jobs``: each simulated study has its own seed.
     """
     trials = design.trials(n_targets)
-    work = [(n, (trials, effect, n, idx, seed)) for n in sizes for idx in chunks(sims, jobs)]
-    return run_sizes(_glmm_chunk, work, sizes, jobs, alpha, advance)
+    return run_sizes(simulate_glmm_studies, lambda n, idx: (trials, effect, n, idx, seed),
+                     sizes, sims, jobs, alpha, advance)

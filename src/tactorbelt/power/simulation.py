@@ -46,7 +46,7 @@ from ..participant.simulate import (
 )
 from .effects import Effect
 from .outcomes import PairedTest, PowerRow, StudyOutcome
-from .pool import chunks, run_sizes
+from .pool import p_value, run_sizes, studies
 
 if TYPE_CHECKING:
     from .design import PowerDesign
@@ -144,8 +144,8 @@ def friedman_interaction(diff: FloatArray, paired: PairedTest) -> float:
 
 def simulate_studies(protocol: Protocol, cues: StimulusCues, n_participants: int,
                      indices: Sequence[int], seed: int, test: PairedTest,
-                     base: ModelParams | None = None, spread: Spread | None = None,
-                     progress: Callable[[int], None] | None = None) -> list[StudyOutcome]:
+                     base: ModelParams | None = None, spread: Spread | None = None
+                     ) -> list[StudyOutcome]:
     """Simulate the studies ``indices`` of size ``n_participants`` (one target count).
 
     Args:
@@ -157,32 +157,25 @@ def simulate_studies(protocol: Protocol, cues: StimulusCues, n_participants: int
         seed: the base seed.
         test: the paired test.
         base, spread: the typical observer and how individuals differ.
-        progress: called with 1 after each study.
     """
     if n_participants < 2:
         raise ConfigError(f"a study needs at least 2 participants, got {n_participants}")
     conds = protocol.conditions
     if "static" not in conds or "dynamic" not in conds:
         raise ConfigError("the power analysis needs a static and a dynamic test block")
-    base = base if base is not None else cues.params
-    out: list[StudyOutcome] = []
-    for i in indices:
-        rng = np.random.default_rng([int(seed), int(n_participants), int(i)])
+    typical = base if base is not None else cues.params
+
+    def one(rng: np.random.Generator) -> StudyOutcome:
         st = np.empty(n_participants)
         dy = np.empty(n_participants)
         for j in range(n_participants):
-            params = draw_participant(rng, base, spread)
+            params = draw_participant(rng, typical, spread)
             table = simulate_participant(protocol, cues, params, rng)
             st[j] = between_accuracy(table, "static")
             dy[j] = between_accuracy(table, "dynamic")
-        try:
-            p = float(test(st, dy))
-        except (ValueError, ZeroDivisionError, FloatingPointError):
-            p = float("nan")
-        out.append(StudyOutcome(n_participants, st, dy, p))
-        if progress is not None:
-            progress(1)
-    return out
+        return StudyOutcome(n_participants, st, dy, p_value(test, st, dy))
+
+    return studies(n_participants, indices, seed, one)
 
 
 def _between(tables: dict[int, TrialTable], condition: str | None, n: int | None,
@@ -210,9 +203,7 @@ def _between(tables: dict[int, TrialTable], condition: str | None, n: int | None
 def simulate_factorial_studies(protocol: FactorialProtocol, cues: Sequence[StimulusCues],
                                effect: Effect, n_participants: int, indices: Sequence[int],
                                seed: int, test: PairedTest, base: ModelParams | None = None,
-                               spread: Spread | None = None,
-                               progress: Callable[[int], None] | None = None
-                               ) -> list[StudyOutcome]:
+                               spread: Spread | None = None) -> list[StudyOutcome]:
     """Simulate the studies ``indices`` of size ``n_participants`` and test ``effect``.
 
     Each study's generator is seeded by ``(seed, n_participants, index)``. The outcome's
@@ -224,16 +215,15 @@ def simulate_factorial_studies(protocol: FactorialProtocol, cues: Sequence[Stimu
         raise ConfigError(f"a study needs at least 2 participants, got {n_participants}")
     if effect.kind != "load" and not {"static", "dynamic"} <= set(protocol.conditions()):
         raise ConfigError("the power analysis needs static and dynamic test blocks")
-    base = base if base is not None else cues[0].params
+    typical = base if base is not None else cues[0].params
     counts = protocol.counts
-    out: list[StudyOutcome] = []
-    for i in indices:
-        rng = np.random.default_rng([int(seed), int(n_participants), int(i)])
+
+    def one(rng: np.random.Generator) -> StudyOutcome:
         st = np.empty(n_participants)
         dy = np.empty(n_participants)
         diff = np.empty((n_participants, len(counts)))
         for j in range(n_participants):
-            params = draw_participant(rng, base, spread)
+            params = draw_participant(rng, typical, spread)
             tables = simulate_factorial_participant(protocol, cues, params, rng)
             if effect.kind == "load":
                 # the outcome's pair is (under load, without): found = higher without
@@ -246,16 +236,12 @@ def simulate_factorial_studies(protocol: FactorialProtocol, cues: Sequence[Stimu
             if effect.kind == "interaction":
                 diff[j] = [_between(tables, "dynamic", n) - _between(tables, "static", n)
                            for n in counts]
-        try:
-            p = (friedman_interaction(diff, test) if effect.kind == "interaction"
-                 else float(test(st, dy)))
-        except (ValueError, ZeroDivisionError, FloatingPointError):
-            p = float("nan")
-        out.append(replace(StudyOutcome(n_participants, st, dy, p),
-                           directional=effect.kind != "interaction"))
-        if progress is not None:
-            progress(1)
-    return out
+        p = (p_value(friedman_interaction, diff, test) if effect.kind == "interaction"
+             else p_value(test, st, dy))
+        return replace(StudyOutcome(n_participants, st, dy, p),
+                       directional=effect.kind != "interaction")
+
+    return studies(n_participants, indices, seed, one)
 
 
 # -- power at each size --------------------------------------------------------------------
@@ -264,21 +250,6 @@ def observer(protocol: Protocol | FactorialProtocol) -> ModelParams:
     """The typical observer the simulation draws around, at the protocol's stimulus
     period (a factorial protocol: its first part's)."""
     return ModelParams().for_period(protocol.period_s)
-
-
-def _power_chunk(args: tuple[Protocol, StimulusCues, int, list[int], int]
-                 ) -> list[StudyOutcome]:
-    """Worker: simulate some studies of one size (module level, so processes can run it)."""
-    protocol, cues, n, indices, seed = args
-    return simulate_studies(protocol, cues, n, indices, seed, analysis_paired_test)
-
-
-def _factorial_chunk(args: tuple[FactorialProtocol, tuple[StimulusCues, ...], Effect, int,
-                                  list[int], int]) -> list[StudyOutcome]:
-    """Worker: simulate some factorial studies of one size (module level, for processes)."""
-    protocol, cues, effect, n, indices, seed = args
-    return simulate_factorial_studies(protocol, cues, effect, n, indices, seed,
-                                      analysis_paired_test)
 
 
 def run_power(design: PowerDesign, sizes: Sequence[int], sims: int, seed: int, jobs: int,
@@ -297,8 +268,9 @@ def run_power(design: PowerDesign, sizes: Sequence[int], sims: int, seed: int, j
 
     protocol = design.protocol()
     cues = stimulus_cues(protocol, sim_vibrator(design.layout), observer(protocol))
-    work = [(n, (protocol, cues, n, idx, seed)) for n in sizes for idx in chunks(sims, jobs)]
-    return run_sizes(_power_chunk, work, sizes, jobs, alpha, advance)
+    return run_sizes(simulate_studies,
+                     lambda n, idx: (protocol, cues, n, idx, seed, analysis_paired_test),
+                     sizes, sims, jobs, alpha, advance)
 
 
 def run_factorial_power(design: PowerDesign, effect: Effect, sizes: Sequence[int],
@@ -311,6 +283,6 @@ def run_factorial_power(design: PowerDesign, effect: Effect, sizes: Sequence[int
 
     protocol = design.factorial()
     cues = factorial_cues(protocol, sim_vibrator(design.layout), observer(protocol))
-    work = [(n, (protocol, cues, effect, n, idx, seed))
-            for n in sizes for idx in chunks(sims, jobs)]
-    return run_sizes(_factorial_chunk, work, sizes, jobs, alpha, advance)
+    return run_sizes(simulate_factorial_studies,
+                     lambda n, idx: (protocol, cues, effect, n, idx, seed, analysis_paired_test),
+                     sizes, sims, jobs, alpha, advance)
