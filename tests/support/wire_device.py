@@ -5,7 +5,7 @@ request as a frozen dataclass (:func:`parse_request`), and replies built from th
 from __future__ import annotations
 
 import struct
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from typing import Any
 
 from tactorbelt import ConfigError, ProtocolError
@@ -32,7 +32,7 @@ from tactorbelt.devices.wire import (
     SenseData,
     Status,
     _expect_len,
-    _fields,
+    _pack,
     _uint,
     _unpack_fixed,
     angle_to_cdeg,
@@ -153,29 +153,27 @@ def parse_request(p: Packet) -> Request:
     raise ProtocolError(f"unknown request type 0x{t:02X}")
 
 
-#: The replies whose payload is one struct: class -> (type, struct, each field's bits).
-_FIXED_REPLIES: dict[type[Any], tuple[MsgType, struct.Struct, tuple[int, ...]]] = {
-    Pong: (MsgType.PONG, struct.Struct("<II"), (32, 32)),
-    Diag: (MsgType.DIAG, _DIAG, (64, 8, 16, 16)),
-    Onset: (MsgType.ONSET, _ONSET, (8, 8, 64)),
-    Ack: (MsgType.ACK, struct.Struct("<BB"), (8, 8))}
+#: The replies whose payload is one struct: class -> (type, struct).
+_FIXED_REPLIES: dict[type[Any], tuple[MsgType, struct.Struct]] = {
+    Pong: (MsgType.PONG, struct.Struct("<II")), Diag: (MsgType.DIAG, _DIAG),
+    Onset: (MsgType.ONSET, _ONSET), Ack: (MsgType.ACK, struct.Struct("<BB"))}
 
 
 def encode_reply(seq: int, reply: Reply) -> Packet:
     """Build a device reply (the inverse of :func:`parse_reply`; for tests and tools)."""
-    for kind, (t, layout, bits) in _FIXED_REPLIES.items():
+    for kind, (t, layout) in _FIXED_REPLIES.items():
         if isinstance(reply, kind):
-            return Packet(t, seq, layout.pack(*_fields(reply, *bits)))
+            return Packet(t, seq, _pack(layout, asdict(reply)))
     if isinstance(reply, Info):
         if reply.channels != len(reply.tactor_angles_deg):
             raise ConfigError(
                 f"INFO: {reply.channels} channels but {len(reply.tactor_angles_deg)} angles"
             )
-        payload = _INFO_HEAD.pack(*_fields(reply, 8, 8, 8, 8, 8, 16, 16, 8)) + b"".join(
+        payload = _pack(_INFO_HEAD, asdict(reply)) + b"".join(
             struct.pack("<H", angle_to_cdeg(a)) for a in reply.tactor_angles_deg)
         return Packet(MsgType.INFO, seq, payload)
     if isinstance(reply, Status):
-        payload = _STATUS_HEAD.pack(*_fields(reply, 8, 16, 16, 16, 16)) + b"".join(
+        payload = _pack(_STATUS_HEAD, asdict(reply)) + b"".join(
             struct.pack("<H", _uint("level", v, 16)) for v in reply.levels)
         return Packet(MsgType.STATUS, seq, payload)
     if isinstance(reply, SenseData):
@@ -185,9 +183,9 @@ def encode_reply(seq: int, reply: Reply) -> Packet:
         for v in reply.samples:
             if isinstance(v, bool) or not isinstance(v, int) or not -32768 <= v <= 32767:
                 raise ConfigError(f"SENSE_DATA: sample value {v!r} is not an int16")
-        payload = _SENSE_HEAD.pack(*_fields(reply, 8, 8, 32, 64, 16, 16)) + _SENSE_SAMPLES[
+        payload = _pack(_SENSE_HEAD, asdict(reply)) + _SENSE_SAMPLES[
             len(reply.samples) // 3].pack(*reply.samples)
         return Packet(MsgType.SENSE_DATA, seq, payload)
     if isinstance(reply, Nak):
-        return Packet(MsgType.NAK, seq, bytes(_fields(reply, 8, 8)))
+        return Packet(MsgType.NAK, seq, _pack(struct.Struct("<BB"), asdict(reply)))
     raise ConfigError(f"not a reply: {reply!r}")

@@ -31,8 +31,8 @@ import functools
 import math
 import struct
 from binascii import crc_hqx as _crc_hqx
-from collections.abc import Sequence
-from dataclasses import dataclass, fields
+from collections.abc import Mapping, Sequence
+from dataclasses import asdict, dataclass
 from typing import Any
 
 from .._errors import ConfigError, ProtocolError
@@ -229,10 +229,15 @@ def _uint(name: str, value: int, bits: int) -> int:
     return value
 
 
-def _fields(message: Any, *bits: int) -> list[int]:
-    """The first fields of dataclass ``message``, each checked to fit its ``bits``."""
-    return [_uint(f.name, getattr(message, f.name), b)
-            for f, b in zip(fields(message)[:len(bits)], bits, strict=True)]
+#: The bits of a struct field, by its format character.
+_BITS = {"B": 8, "H": 16, "I": 32, "Q": 64}
+
+
+def _pack(layout: struct.Struct, values: Mapping[str, int]) -> bytes:
+    """The first of ``values`` (name: value, in order) packed by ``layout``, each checked
+    to fit its field (u8 to u64)."""
+    return layout.pack(*[_uint(name, v, _BITS[c]) for (name, v), c in
+                         zip(values.items(), layout.format[1:], strict=False)])
 
 
 @dataclass(frozen=True)
@@ -537,16 +542,9 @@ def play_target(
     duration_ms: int,
 ) -> Packet:
     """PLAY_TARGET: the device renders the stimulus itself at 1 kHz; answers ACK."""
-    payload = _PLAY_TARGET.pack(
-        _uint("angle_cdeg", angle_cdeg, 16),
-        _uint("mode", mode, 8),
-        _uint("law", law, 8),
-        _uint("falloff_cdeg", falloff_cdeg, 16),
-        _uint("period_ms", period_ms, 16),
-        _uint("transit_ms", transit_ms, 16),
-        _uint("duration_ms", duration_ms, 32),
-    )
-    return Packet(MsgType.PLAY_TARGET, seq, payload)
+    return Packet(MsgType.PLAY_TARGET, seq, _pack(_PLAY_TARGET, dict(
+        angle_cdeg=angle_cdeg, mode=mode, law=law, falloff_cdeg=falloff_cdeg,
+        period_ms=period_ms, transit_ms=transit_ms, duration_ms=duration_ms)))
 
 
 def set_config(seq: int, heartbeat_ms: int, max_on_ms: int | None = None,
@@ -569,12 +567,8 @@ def sense_start(seq: int, rate_hz: int, duration_ms: int,
     """SENSE_START (firmware 1.2): ACK, then SENSE_DATA batches until ``duration_ms`` has
     passed or SENSE_STOP; NAK 2 from a firmware without it, NAK 6 when the board's IMU did
     not start, NAK 4 for a duration of 0 or above an hour or a tactor the belt lacks."""
-    payload = _SENSE_START.pack(
-        _uint("rate_hz", rate_hz, 16),
-        _uint("duration_ms", duration_ms, 32),
-        _uint("tactor", tactor, 8),
-    )
-    return Packet(MsgType.SENSE_START, seq, payload)
+    return Packet(MsgType.SENSE_START, seq, _pack(_SENSE_START, dict(
+        rate_hz=rate_hz, duration_ms=duration_ms, tactor=tactor)))
 
 
 #: SET_DRIVE's motor constants: tactor, start and rated levels, rise, fall and brake
@@ -611,7 +605,7 @@ class DriveConstants:
         if not 0 <= self.start < self.rated:
             raise ConfigError(f"SET_DRIVE start ({self.start}) must be below rated "
                               f"({self.rated})")
-        return _SET_DRIVE_CONSTANTS.pack(*_fields(self, 8, 16, 16, 16, 16, 16))
+        return _pack(_SET_DRIVE_CONSTANTS, asdict(self))
 
 
 def set_drive(seq: int, mode: int, constants: DriveConstants | None = None) -> Packet:
