@@ -36,7 +36,7 @@ from numpy.typing import NDArray
 
 from .._errors import ConfigError
 from ..participant.factorial import FactorialProtocol, simulate_factorial_participant
-from ..participant.params import ModelParams, Spread, draw_participant
+from ..participant.params import ModelParams, draw_participant
 from ..participant.simulate import (
     Protocol,
     StimulusCues,
@@ -143,33 +143,31 @@ def friedman_interaction(diff: FloatArray, paired: PairedTest) -> float:
 # -- simulated studies ---------------------------------------------------------------------
 
 def simulate_studies(protocol: Protocol, cues: StimulusCues, n_participants: int,
-                     indices: Sequence[int], seed: int, test: PairedTest,
-                     base: ModelParams | None = None, spread: Spread | None = None
+                     indices: Sequence[int], seed: int, test: PairedTest
                      ) -> list[StudyOutcome]:
     """Simulate the studies ``indices`` of size ``n_participants`` (one target count).
 
     Args:
         protocol: the study's protocol (:meth:`~.design.PowerDesign.protocol`).
-        cues: the stimuli's cues, sensed with ``base``.
+        cues: the stimuli's cues, sensed by the typical observer the participants are
+            drawn around (``cues.params``).
         n_participants: participants per study (at least 2).
         indices: which simulated studies (their generators are seeded by
             ``(seed, n_participants, index)``).
         seed: the base seed.
         test: the paired test.
-        base, spread: the typical observer and how individuals differ.
     """
     if n_participants < 2:
         raise ConfigError(f"a study needs at least 2 participants, got {n_participants}")
     conds = protocol.conditions
     if "static" not in conds or "dynamic" not in conds:
         raise ConfigError("the power analysis needs a static and a dynamic test block")
-    typical = base if base is not None else cues.params
 
     def one(rng: np.random.Generator) -> StudyOutcome:
         st = np.empty(n_participants)
         dy = np.empty(n_participants)
         for j in range(n_participants):
-            params = draw_participant(rng, typical, spread)
+            params = draw_participant(rng, cues.params)
             table = simulate_participant(protocol, cues, params, rng)
             st[j] = between_accuracy(table, "static")
             dy[j] = between_accuracy(table, "dynamic")
@@ -202,11 +200,11 @@ def _between(tables: dict[int, TrialTable], condition: str | None, n: int | None
 
 def simulate_factorial_studies(protocol: FactorialProtocol, cues: Sequence[StimulusCues],
                                effect: Effect, n_participants: int, indices: Sequence[int],
-                               seed: int, test: PairedTest, base: ModelParams | None = None,
-                               spread: Spread | None = None) -> list[StudyOutcome]:
+                               seed: int, test: PairedTest) -> list[StudyOutcome]:
     """Simulate the studies ``indices`` of size ``n_participants`` and test ``effect``.
 
-    Each study's generator is seeded by ``(seed, n_participants, index)``. The outcome's
+    Each study's generator is seeded by ``(seed, n_participants, index)``; the participants
+    are drawn around the observer the cues were sensed by. The outcome's
     ``static_acc``/``dynamic_acc`` are the between-tactor accuracies the effect is about
     (every block for the interaction); for the load effect they are the accuracy under
     load and without a load (so "found" keeps meaning "p < alpha and the second higher").
@@ -215,7 +213,6 @@ def simulate_factorial_studies(protocol: FactorialProtocol, cues: Sequence[Stimu
         raise ConfigError(f"a study needs at least 2 participants, got {n_participants}")
     if effect.kind != "load" and not {"static", "dynamic"} <= set(protocol.conditions()):
         raise ConfigError("the power analysis needs static and dynamic test blocks")
-    typical = base if base is not None else cues[0].params
     counts = protocol.counts
 
     def one(rng: np.random.Generator) -> StudyOutcome:
@@ -223,7 +220,7 @@ def simulate_factorial_studies(protocol: FactorialProtocol, cues: Sequence[Stimu
         dy = np.empty(n_participants)
         diff = np.empty((n_participants, len(counts)))
         for j in range(n_participants):
-            params = draw_participant(rng, typical, spread)
+            params = draw_participant(rng, cues[0].params)
             tables = simulate_factorial_participant(protocol, cues, params, rng)
             if effect.kind == "load":
                 # the outcome's pair is (under load, without): found = higher without
