@@ -338,18 +338,17 @@ def make_model_cursor(belt: Belt, clock: Clock, seed: int, params: ModelParams |
     """
     if isinstance(seed, bool) or not isinstance(seed, int | np.integer):
         raise ConfigError(f"the model participant's seed must be an integer, got {seed!r}")
-    if sense is None:
-        if not belt.models_vibration:
-            raise ConfigError(
-                f"the model participant feels the vibration a simulated belt models; belt "
-                f"{belt.url!r} models none. Use --belt sim with --input model"
-            )
-        sense = belt.vibration
-    if params is not None and not isinstance(params, ModelParams):
-        raise ConfigError(f"params must be a ModelParams, got {type(params).__name__}")
-    if load is not None and not isinstance(load, LoadParams):
-        raise ConfigError(f"load must be a LoadParams, got {type(load).__name__}")
-    return ModelCursor(sense, int(seed), params, clock, load)
+    return ModelCursor(sense if sense is not None else _sense(belt), int(seed), params, clock,
+                       load)
+
+
+def _sense(belt: Belt) -> Sense:
+    """The vibration ``belt`` models, felt by the model participant."""
+    if not belt.models_vibration:
+        raise ConfigError(f"the model participant feels the vibration a simulated belt "
+                          f"models; belt {belt.url!r} models none. Use --belt sim with "
+                          "--input model")
+    return belt.vibration
 
 
 class ModelRespondent(Respondent):
@@ -401,11 +400,7 @@ def make_model_respondent(belt: Belt, seed: int, params: ModelParams | None = No
     Raises:
         ConfigError: the belt models no vibration.
     """
-    if not belt.models_vibration:
-        raise ConfigError(f"the model participant feels the vibration a simulated belt "
-                          f"models; belt {belt.url!r} models none. Use --belt sim with "
-                          "--input model")
-    return ModelRespondent(belt.vibration, int(seed), params)
+    return ModelRespondent(_sense(belt), int(seed), params)
 
 
 def sim_vibrator(layout: Layout, **sim_options: Any
