@@ -153,16 +153,11 @@ def main(argv: list[str] | None = None) -> Any:
             )
         click.echo(f"error: {msg}", err=True)
         sys.exit(exc.exit_code if exc.exit_code != 1 else 2)
-    except DeviceError as exc:
-        if debug:
-            raise
-        click.echo(f"error: {exc}", err=True)
-        sys.exit(3)
     except TactorbeltError as exc:
         if debug:
             raise
         click.echo(f"error: {exc}", err=True)
-        sys.exit(2)
+        sys.exit(3 if isinstance(exc, DeviceError) else 2)
     except KeyboardInterrupt:
         sys.exit(130)
     except BrokenPipeError:
