@@ -25,7 +25,7 @@ import math
 import threading
 from collections import deque
 from dataclasses import dataclass
-from typing import Final
+from typing import Any, Final
 
 __all__ = ["MIN_BEST", "WINDOW", "ClockFit", "ClockSync"]
 
@@ -60,13 +60,21 @@ class ClockFit:
     n: int
     sxx: float
 
+    def host_ns(self, device_us: Any) -> Any:
+        """The host time (ns, not rounded) of a device time, or of an array of them."""
+        return device_us * 1000.0 + self.offset_ns + self.drift * (device_us - self.ref_us) * 1000.0
+
+    def device_us(self, host_ns: float) -> float:
+        """The device time of a host time (the inverse of :meth:`host_ns`)."""
+        return (host_ns - self.offset_ns + self.drift * self.ref_us * 1000.0) / (
+            1000.0 * (1.0 + self.drift))
+
     def to_host(self, device_us: int) -> tuple[int, int]:
         """(host_ns, uncertainty_ns) of a device time."""
         dx = device_us - self.ref_us
-        host = device_us * 1000.0 + self.offset_ns + self.drift * dx * 1000.0
         se = self.residual_ns * math.sqrt(1.0 / self.n + (dx * dx / self.sxx if self.sxx > 0
                                                           else 0.0))
-        return round(host), round(self.half_rtt_ns + se + 500.0)
+        return round(self.host_ns(device_us)), round(self.half_rtt_ns + se + 500.0)
 
 
 class ClockSync:

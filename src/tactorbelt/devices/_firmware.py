@@ -222,7 +222,6 @@ class _Waiter:
     """One request waiting for its reply."""
 
     seq: int
-    name: str
     event: threading.Event = field(default_factory=threading.Event)
     reply: wire.Reply | None = None
 
@@ -260,6 +259,15 @@ def _ms(value_s: float, what: str, lo: int, hi: int) -> int:
             f"allowed {lo / 1000:g} to {hi / 1000:g} s"
         )
     return ms
+
+
+def _rounded(value: Any, scale: float) -> int:
+    """``round(value * scale)`` of a finite number, else -1."""
+    try:
+        v = float(value) * scale
+    except (TypeError, ValueError):
+        return -1
+    return round(v) if math.isfinite(v) else -1
 
 
 def checked_int(name: str, value: Any, lo: int, hi: int) -> int:
@@ -405,18 +413,6 @@ class SenseRecording(contextlib.AbstractContextManager["SenseRecording"]):
             raise DeviceError(f"the belt on {self._belt.port} has no clock mapping yet")
         return fit
 
-    @staticmethod
-    def _to_host(fit: ClockFit, device_us: NDArray[np.int64]) -> NDArray[np.int64]:
-        d = device_us.astype(np.float64)
-        host = d * 1000.0 + fit.offset_ns + fit.drift * (d - fit.ref_us) * 1000.0
-        return np.asarray(np.rint(host), dtype=np.int64)
-
-    @staticmethod
-    def _to_device(fit: ClockFit, host_ns: int) -> float:
-        # the inverse of _to_host (the fit is linear in device time)
-        return (host_ns - fit.offset_ns + fit.drift * fit.ref_us * 1000.0) / (
-            1000.0 * (1.0 + fit.drift))
-
     def samples(self, t0_ns: int | None = None, t1_ns: int | None = None
                 ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
         """The samples taken in [t0, t1) (host ns; None: from the first, to the last).
@@ -429,10 +425,10 @@ class SenseRecording(contextlib.AbstractContextManager["SenseRecording"]):
         t_us, acc = self._consolidate()
         fit = self._current_fit()
         lo = 0 if t0_ns is None else int(np.searchsorted(
-            t_us, math.ceil(self._to_device(fit, t0_ns) - 1.0), "left"))
+            t_us, math.ceil(fit.device_us(t0_ns) - 1.0), "left"))
         hi = t_us.shape[0] if t1_ns is None else int(np.searchsorted(
-            t_us, math.floor(self._to_device(fit, t1_ns) + 1.0), "right"))
-        t_ns = self._to_host(fit, t_us[lo:hi])
+            t_us, math.floor(fit.device_us(t1_ns) + 1.0), "right"))
+        t_ns = np.rint(fit.host_ns(t_us[lo:hi].astype(np.float64))).astype(np.int64)
         keep = np.ones(t_ns.shape[0], dtype=bool)
         if t0_ns is not None:
             keep &= t_ns >= t0_ns
@@ -457,8 +453,8 @@ class SenseRecording(contextlib.AbstractContextManager["SenseRecording"]):
         if not gaps:
             return 0
         fit = self._current_fit()
-        lo = -math.inf if t0_ns is None else self._to_device(fit, t0_ns)
-        hi = math.inf if t1_ns is None else self._to_device(fit, t1_ns)
+        lo = -math.inf if t0_ns is None else fit.device_us(t0_ns)
+        hi = math.inf if t1_ns is None else fit.device_us(t1_ns)
         return sum(n for after, before, n in gaps if before > lo and after < hi)
 
     def problem(self, t0_ns: int | None = None, t1_ns: int | None = None) -> str | None:
@@ -495,7 +491,7 @@ class SenseRecording(contextlib.AbstractContextManager["SenseRecording"]):
     def forget_before(self, t_ns: int) -> None:
         """Drop the samples before host time ``t_ns`` (a long recording need not keep them)."""
         t_us, _ = self._consolidate()
-        cut = int(np.searchsorted(t_us, math.floor(self._to_device(self._current_fit(), t_ns)),
+        cut = int(np.searchsorted(t_us, math.floor(self._current_fit().device_us(t_ns)),
                                   "left"))
         with self._cond:
             self._t_us = self._t_us[cut:]
@@ -753,9 +749,9 @@ class FirmwareBelt(Belt, PacketSink):
         if self._lost is not None:
             raise DeviceError(self._lost)
 
-    def _send(self, build: Callable[[int], wire.Packet], waiter_name: str | None = None,
+    def _send(self, build: Callable[[int], wire.Packet], wait: bool = False,
               onset: bool = False) -> _Waiter | None:
-        """Build a packet with the next seq and write it; register a waiter first.
+        """Build a packet with the next seq and write it; register a waiter first (``wait``).
 
         ``onset``: the request starts a stimulus; its ONSET (if any) is the one
         :meth:`last_onset` reports.
@@ -765,8 +761,8 @@ class FirmwareBelt(Belt, PacketSink):
             seq = next(self._seq) & 0xFF
             packet = build(seq)
             waiter = None
-            if waiter_name is not None:
-                waiter = _Waiter(seq, waiter_name)
+            if wait:
+                waiter = _Waiter(seq)
                 with self._pending_lock:
                     self._pending[seq] = waiter
             if onset:
@@ -794,7 +790,7 @@ class FirmwareBelt(Belt, PacketSink):
         """Send a request and wait for the reply with its sequence number (``expect``: a
         reply of that kind, else an error, :meth:`_expect`; ``onset``: as for
         :meth:`_send`)."""
-        waiter = self._send(build, name, onset)
+        waiter = self._send(build, True, onset)
         assert waiter is not None
         timeout = self.timeout_s if timeout_s is None else timeout_s
         if not waiter.event.wait(timeout):
@@ -924,8 +920,8 @@ class FirmwareBelt(Belt, PacketSink):
                       "the onset-report setting", expect=wire.Ack)
         self.onset_events = True
 
-    def _sync_burst(self, n: int = SYNC_BURST) -> None:
-        for _ in range(n):
+    def _sync_burst(self) -> None:
+        for _ in range(SYNC_BURST):
             # spaced, so that a device reading its clock once per loop over waiting
             # input (the emulator) stamps each request when it arrived
             time.sleep(0.001)
@@ -1086,26 +1082,14 @@ class FirmwareBelt(Belt, PacketSink):
         if not self.senses_vibration and (
                 not self.extensions or (self.info.fw_major, self.info.fw_minor) < (1, 2)):
             raise DeviceError(self._no_sense_message())  # known without asking
-        if duration_s is None:
-            duration_ms = wire.SENSE_MAX_DURATION_MS
-        else:
-            try:
-                d = float(duration_s)
-            except (TypeError, ValueError):
-                d = math.nan
-            duration_ms = round(d * 1000.0) if math.isfinite(d) else -1
-            if not 1 <= duration_ms <= wire.SENSE_MAX_DURATION_MS:
-                raise ConfigError(f"duration_s must be 0.001 to "
-                                  f"{wire.SENSE_MAX_DURATION_MS // 1000} s, got {duration_s!r}")
-        rate = 0
-        if rate_hz is not None:
-            try:
-                r = float(rate_hz)
-            except (TypeError, ValueError):
-                r = math.nan
-            rate = round(r) if math.isfinite(r) else 0
-            if not 1 <= rate <= 0xFFFF:
-                raise ConfigError(f"rate_hz must be 1 to 65535 Hz, got {rate_hz!r}")
+        duration_ms = (wire.SENSE_MAX_DURATION_MS if duration_s is None
+                       else _rounded(duration_s, 1000.0))
+        if not 1 <= duration_ms <= wire.SENSE_MAX_DURATION_MS:
+            raise ConfigError(f"duration_s must be 0.001 to "
+                              f"{wire.SENSE_MAX_DURATION_MS // 1000} s, got {duration_s!r}")
+        rate = 0 if rate_hz is None else _rounded(rate_hz, 1.0)
+        if rate_hz is not None and not 1 <= rate <= 0xFFFF:
+            raise ConfigError(f"rate_hz must be 1 to 65535 Hz, got {rate_hz!r}")
         if tactor is not None and (isinstance(tactor, bool) or not isinstance(tactor, int)
                                    or not 0 <= tactor < self.n_tactors):
             raise ConfigError(f"tactor must be an index 0..{self.n_tactors - 1}, got {tactor!r}")
@@ -1360,8 +1344,8 @@ class FirmwareBelt(Belt, PacketSink):
 
 def drive_constants(n: int, taus: tuple[tuple[float, ...], tuple[float, ...],
                                         tuple[float, ...]] | None,
-                    supply_v: float | None, kick_ms: float = 0.0,
-                    params: ErmParams | None = None) -> list[wire.DriveConstants] | None:
+                    supply_v: float | None, kick_ms: float = 0.0
+                    ) -> list[wire.DriveConstants] | None:
     """The SET_DRIVE vectors that give a board's shaper the host's motor constants: the
     time constants ``validate onsets --tune`` fitted (``taus``: the calibration's
     :meth:`~tactorbelt.devices.calibration.Calibration.shaping_taus`) and the rated level
@@ -1376,7 +1360,7 @@ def drive_constants(n: int, taus: tuple[tuple[float, ...], tuple[float, ...],
     """
     if taus is None and supply_v is None:
         return None
-    p = params if params is not None else ErmParams()
+    p = ErmParams()
     rise, fall, brake = taus if taus is not None else (
         (p.rise_tau_s,) * n, (p.fall_tau_s,) * n, (p.brake_tau_s,) * n)
     rated = 1.0
