@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import difflib
 import re
+import types
+import typing
 from typing import Any
 
 from pydantic import BaseModel, ValidationError
@@ -56,28 +58,17 @@ def _line_for(loc: tuple[str | int, ...], lines: dict[tuple[str | int, ...], int
 
 def _model_at(root: Any, loc: tuple[str | int, ...]) -> Any:
     """The pydantic model that holds the last key of ``loc`` (None if not a model)."""
-    model: Any = root
-    ann: Any = None
+    tp: Any = root
     for part in loc[:-1]:
-        if ann is not None:  # the key of a dict (tasks.NAME) or an index of a list
-            ann = None
-            continue
-        if isinstance(part, int):
-            continue
-        field = model.model_fields.get(part) if model is not None else None
-        if field is None:
-            return None
-        ann = field.annotation
-        args = [a for a in getattr(ann, "__args__", ()) if a is not type(None)]
-        if isinstance(ann, type) and issubclass(ann, BaseModel):
-            model, ann = ann, None
-        elif args and isinstance(args[-1], type) and issubclass(args[-1], BaseModel):
-            model = args[-1]
-            if getattr(ann, "__origin__", None) is None:  # X | None
-                ann = None
-        else:
-            return None
-    return model
+        if isinstance(tp, type) and issubclass(tp, BaseModel):
+            field = tp.model_fields.get(str(part))
+            tp = None if field is None else field.annotation
+            args = [a for a in typing.get_args(tp) if a is not type(None)]
+            if isinstance(tp, types.UnionType) and len(args) == 1:  # X | None
+                tp = args[0]
+        else:  # the key of a dict (tasks.NAME) or an index of a list
+            tp = (typing.get_args(tp) or (None,))[-1]
+    return tp if isinstance(tp, type) and issubclass(tp, BaseModel) else None
 
 
 def _allowed_keys(root: Any, loc: tuple[str | int, ...]) -> list[str]:
@@ -150,15 +141,9 @@ def study_error(exc: ValidationError, text: str, where: str, root: Any) -> Study
     missing = {_clean_loc(e["loc"]) for e in errors if e["type"] == "missing"}
     extra = [_clean_loc(e["loc"], key_last=True) for e in errors
              if e["type"] == "extra_forbidden"]
-    pair = None
-    for x in extra:
-        for m in missing:
-            if (x[:-1] == m[:-1] and isinstance(x[-1], str) and isinstance(m[-1], str)
-                    and difflib.get_close_matches(x[-1], [m[-1]], n=1)):
-                pair = (x, m)
-                break
-        if pair:
-            break
+    pair = next(((x, m) for x in extra for m in missing
+                 if x[:-1] == m[:-1] and isinstance(x[-1], str) and isinstance(m[-1], str)
+                 and difflib.get_close_matches(x[-1], [m[-1]], n=1)), None)
     if pair is not None:
         loc, kind, got = pair[0], "extra_forbidden", None
     m_at = re.match(r"^(?:Value error, )?@([^@]+)@ (.*)$", msg, re.S) if kind == "value_error" \
