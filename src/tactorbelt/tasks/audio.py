@@ -248,16 +248,14 @@ class SdlTaskAudio(TaskAudio):
 
     Args:
         clock: the runner's clock (a wall clock: the callback reads it).
-        rate: sample rate (Hz).
-        block: frames per callback.
         latency_s: output latency after a callback (None: 0 for the ``disk`` and
             ``dummy`` drivers, one block otherwise).
-        follow: how fast the timeline follows a late callback, 0..1 (None: 1 for the
-            ``disk`` and ``dummy`` drivers, 0.2 otherwise).
         device: words of an SDL output's name (case-insensitive; None: the default
             output).
 
     Attributes:
+        follow: how fast the timeline follows a late callback, 0..1 (1 for the ``disk``
+            and ``dummy`` drivers, 0.2 otherwise).
         frames: frames output so far.
         blocks: per callback of the last minute, ``(first frame, its output time,
             callback time)`` (ns).
@@ -269,8 +267,7 @@ class SdlTaskAudio(TaskAudio):
 
     plays_sound = True
 
-    def __init__(self, clock: Clock, *, rate: int = RATE, block: int = BLOCK_FRAMES,
-                 latency_s: float | None = None, follow: float | None = None,
+    def __init__(self, clock: Clock, *, latency_s: float | None = None,
                  device: str | None = None) -> None:
         super().__init__()
         os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")
@@ -278,10 +275,10 @@ class SdlTaskAudio(TaskAudio):
         import pygame._sdl2.sdl2 as sdl
 
         self.clock = clock
-        self.rate = int(rate)
+        self.rate = RATE
         self.driver = _driver()
         immediate = self.driver in IMMEDIATE_DRIVERS
-        self.follow = float(follow if follow is not None else (1.0 if immediate else 0.2))
+        self.follow = 1.0 if immediate else 0.2
         self._inbox: collections.deque[_Sound] = collections.deque()
         self._pending: list[_Sound] = []
         self._active: list[_Sound] = []
@@ -307,7 +304,7 @@ class SdlTaskAudio(TaskAudio):
                     "SDL2) or make libSDL2 findable, or use a visual task")
             name = None if device is None else _find_output(device, sdl_audio)
             self._dev = sdl_audio.AudioDevice(name, False, self.rate, sdl_audio.AUDIO_F32,
-                                              1, int(block), 0, _Trampoline(self))
+                                              1, BLOCK_FRAMES, 0, _Trampoline(self))
         except DeviceError:
             self._closed = True
             raise
@@ -445,23 +442,22 @@ class SdlTaskAudio(TaskAudio):
             _RETIRED.append(dev)  # pygame must not close this id again
 
 
-def open_task_audio(clock: Clock, *, sound: bool = True, **options: Any) -> TaskAudio:
+def open_task_audio(clock: Clock) -> TaskAudio:
     """A task-sound output for ``clock``: SDL's (sound card, or SDL_AUDIODRIVER's
-    driver) on a wall clock when ``sound``, else a :class:`SilentTaskAudio`. The output
-    is ``options["device"]``, else ``$TACTORBELT_TASK_AUDIO`` (words of an SDL output's
-    name), else SDL's default; its latency ``options["latency_s"]``, else
-    ``$TACTORBELT_TASK_AUDIO_LATENCY_MS``, else the driver's default (see the module doc).
+    driver) on a wall clock, else a :class:`SilentTaskAudio`. The output is
+    ``$TACTORBELT_TASK_AUDIO`` (words of an SDL output's name), else SDL's default; its
+    latency ``$TACTORBELT_TASK_AUDIO_LATENCY_MS``, else the driver's default (see the
+    module doc).
 
     Raises:
         DeviceError: the sound output cannot be opened, or the one named is not there.
         ConfigError: a latency that is not a number of ms in 0..1000.
     """
-    if not sound or clock.simulated:
+    if clock.simulated:
         return SilentTaskAudio()
-    if options.get("device") is None and os.environ.get(DEVICE_ENV, "").strip():
-        options["device"] = os.environ[DEVICE_ENV].strip()
     text = os.environ.get(LATENCY_ENV, "").strip()
-    if options.get("latency_s") is None and text:
+    latency_s = None
+    if text:
         try:
             ms = float(text)
         except ValueError:
@@ -469,5 +465,6 @@ def open_task_audio(clock: Clock, *, sound: bool = True, **options: Any) -> Task
         if not (math.isfinite(ms) and 0 <= ms <= 1000):
             raise ConfigError(f"{LATENCY_ENV} must be the output latency in ms (0..1000), "
                               f"got {text!r}")
-        options["latency_s"] = ms / 1000.0
-    return SdlTaskAudio(clock, **options)
+        latency_s = ms / 1000.0
+    return SdlTaskAudio(clock, latency_s=latency_s,
+                        device=os.environ.get(DEVICE_ENV, "").strip() or None)
