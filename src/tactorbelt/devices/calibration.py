@@ -139,6 +139,15 @@ def _with_keys(t: TactorCalibration, values: Mapping[str, Any],
     return replace(t, **changed)
 
 
+def _toml_value(key: str, v: Any) -> str:
+    """A value of a ``[[tactor]]`` row as TOML: floats as Python writes them."""
+    if key == "channel":
+        return str(int(v))
+    if key == "response":
+        return "[" + ", ".join(f"[{float(h)!r}, {float(g)!r}]" for h, g in v) + "]"
+    return repr(float(v))
+
+
 def response_gain(points: Sequence[tuple[float, float]], hz: float) -> float:
     """The gain of a frequency response at ``hz`` (1.0 with no points): linear in
     log-frequency between points, the end values beyond them."""
@@ -398,21 +407,11 @@ class Calibration:
         for key, value in top.items():
             if value:
                 lines.append(tomli_w.dumps({key: str(value)}).strip())
-        for k, t in enumerate(self.tactors):
+        for k, row in enumerate(self.to_list()):  # to_list's keys, in its order
             lines += ["", "[[tactor]]", f"index = {k}"]
             if angles_deg is not None:
                 lines.append(f"angle_deg = {float(angles_deg[k])!r}")
-            lines += [f"start = {float(t.start)!r}", f"gain = {float(t.gain)!r}",
-                      f"ceiling = {float(t.ceiling)!r}"]
-            if t.channel is not None:
-                lines.append(f"channel = {int(t.channel)}")
-            if t.response:
-                points = ", ".join(f"[{float(h)!r}, {float(g)!r}]" for h, g in t.response)
-                lines.append(f"response = [{points}]")
-            for name in (*TIMING_KEYS, *SHAPING_KEYS):
-                value = getattr(t, name)
-                if value is not None:
-                    lines.append(f"{name} = {float(value)!r}")
+            lines += [f"{key} = {_toml_value(key, v)}" for key, v in row.items()]
         return "\n".join(lines) + "\n"
 
     def save(self, path: str | Path, belt: str | None = None,
