@@ -21,7 +21,7 @@ Pure: NumPy, participant.
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, fields, replace
 from typing import Any
 
 import numpy as np
@@ -84,13 +84,8 @@ def simulate_factorial_participant(protocol: FactorialProtocol, cues: Sequence[S
         tables = [simulate_participant(replace(p, blocks=(block,)), c,
                                        loaded_params(params, level), rng)
                   for block, level in zip(p.blocks, levels, strict=True)]
-        def cat(field: str, parts: list[TrialTable] = tables) -> Any:
-            return np.concatenate([getattr(t, field) for t in parts])
-
-        out[p.targets.m] = TrialTable(
-            condition=cat("condition"), target_deg=cat("target_deg"),
-            on_tactor=cat("on_tactor"), response_deg=cat("response_deg"),
-            correct=cat("correct"), rt_s=cat("rt_s"),
-            load=np.concatenate([np.full(t.n, name)
-                                 for t, name in zip(tables, names, strict=True)]))
+        columns = {f.name: np.concatenate([getattr(t, f.name) for t in tables])
+                   for f in fields(TrialTable) if f.name != "load"}
+        out[p.targets.m] = TrialTable(**columns, load=np.concatenate(
+            [np.full(t.n, name) for t, name in zip(tables, names, strict=True)]))
     return out
