@@ -230,13 +230,11 @@ class TrainingSpec(_Model):
         return v
 
 
-def plural(n: int, word: str, many: str | None = None) -> str:
+def plural(n: int, word: str) -> str:
     """``1 repetition``, ``2 repetitions``, ``1 pass``, ``3 passes``."""
     if n == 1:
         return f"{n} {word}"
-    if many is None:
-        many = word + ("es" if word.endswith(("s", "x", "ch", "sh")) else "s")
-    return f"{n} {many}"
+    return f"{n} {word}{'es' if word.endswith(('s', 'x', 'ch', 'sh')) else 's'}"
 
 
 _NAME = r"^[A-Za-z][A-Za-z0-9_\-]*$"
@@ -495,14 +493,11 @@ class Study(_Model):
             raise _at("calibration.perceptual", "a wearer profile is not applied to a "
                       f"pattern stimulus ({used[0][1]} = {used[0][0]!r}): measure and "
                       "run pattern studies without [calibration] perceptual")
-        base = (info.context or {}).get("base_dir") if info.context else None
+        base = (info.context or {}).get("base_dir")
         found: dict[str, dict[str, Any]] = {}
         for name, loc in used:
-            if name in self.patterns or name in found:
-                continue
-            if base is None:
-                continue
-            found[name] = _read_pattern_file(Path(base), name, loc)
+            if base is not None and name not in self.patterns and name not in found:
+                found[name] = _read_pattern_file(Path(base), name, loc)
         if found:
             object.__setattr__(self, "patterns", {**self.patterns, **found})
         for name, loc in used:
@@ -701,16 +696,10 @@ class Study(_Model):
         try:
             data = tomllib.loads(text)
         except tomllib.TOMLDecodeError as exc:
-            line = getattr(exc, "lineno", None)
-            msg = str(exc)
-            m = re.search(r"\(at line (\d+), column (\d+)\)", msg)
-            if line is None and m:
-                line = int(m.group(1))
-            msg = re.sub(r"\s*\(at line \d+, column \d+\)", "", msg)
-            msg = re.sub(r"\s*\(at end of document\)", "", msg)
-            raise StudyFileError(
-                f"not valid TOML: {msg}", path=where, line=line
-            ) from None
+            m = re.search(r"\(at line (\d+), column \d+\)", str(exc))
+            line = getattr(exc, "lineno", None) or (int(m.group(1)) if m else None)
+            msg = re.sub(r"\s*\(at (line \d+, column \d+|end of document)\)", "", str(exc))
+            raise StudyFileError(f"not valid TOML: {msg}", path=where, line=line) from None
         if base_dir is None and path is not None and Path(path).is_file():
             base_dir = Path(path).parent
         context = {"base_dir": Path(base_dir)} if base_dir is not None else None
@@ -731,14 +720,10 @@ class Study(_Model):
         else:
             data.pop("design", None)
             data["test"] = [b.toml_dict() for b in self.test]
-        if not self.tasks:
-            data.pop("tasks")
-        if self.questionnaire == QuestionnaireSpec():
-            data.pop("questionnaire")
-        if self.calibration == CalibrationSpec():
-            data.pop("calibration")
-        if not self.patterns:
-            data.pop("patterns")
+        for key, empty in (("tasks", {}), ("questionnaire", QuestionnaireSpec()),
+                           ("calibration", CalibrationSpec()), ("patterns", {})):
+            if getattr(self, key) == empty:
+                data.pop(key)
         return tomli_w.dumps(data)
 
     def sha256(self) -> str:
