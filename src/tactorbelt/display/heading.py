@@ -117,18 +117,13 @@ class HeadingReader:
     def _header(self, line_no: int, fields: list[str]) -> None:
         names = [f.lower() for f in fields]
         self._n_cols = len(names)
-        for name in _HEADING_COLUMNS:
-            if name in names:
-                self._heading_col = names.index(name)
-                break
-        else:
+        self._heading_col, self._time_col = (
+            next((names.index(n) for n in columns if n in names), None)
+            for columns in (_HEADING_COLUMNS, _TIME_COLUMNS))
+        if self._heading_col is None:
             raise ConfigError(
                 f"{self._where(line_no)}: {fields[0]!r} is not a heading; a CSV header "
                 f"needs a heading_deg column (got {','.join(fields)})")
-        for name in _TIME_COLUMNS:
-            if name in names:
-                self._time_col = names.index(name)
-                break
 
 
 def _is_number(text: str) -> bool:
