@@ -48,6 +48,7 @@ from __future__ import annotations
 import contextlib
 import os
 import select
+import struct
 import threading
 import time
 import tty
@@ -253,10 +254,8 @@ class NaviBeltEmulation:
         self._send(KEEP_ALIVE, bytes([0x01, mode]))
 
     def _battery(self) -> None:
-        charge = round(self.battery_percent * 256)
-        data = (bytes([2]) + charge.to_bytes(2, "little") + (1600).to_bytes(2, "little")
-                + (-150).to_bytes(2, "little", signed=True) + (3900).to_bytes(2, "little"))
-        self._send(BATTERY, data)
+        self._send(BATTERY, struct.pack("<BHHhH", 2, round(self.battery_percent * 256), 1600,
+                                        -150, 3900))
 
     def _packets(self, buf: bytearray) -> bytearray:
         while len(buf) >= 2:
@@ -320,13 +319,11 @@ class NaviBeltEmulation:
                 self.channels.pop(data[1], None)
             return
         if data[:1] == b"\x40" and len(data) >= 6:  # a pulse command: taken as continuous
-            channel, kind, orient, intensity = data[1], data[2], data[3] | data[4] << 8, data[5]
+            channel, kind, orient, intensity = struct.unpack_from("<BBHB", data, 1)
             intensity = self.default_intensity if intensity == 0xAA else intensity
         elif len(data) == 18 and data[0] <= 5:
-            channel, pattern = data[0], data[1]
-            intensity = data[2] | data[3] << 8
+            channel, pattern, intensity, kind, orient = struct.unpack_from("<BBH2xBH", data)
             intensity = self.default_intensity if intensity == 0xAAAA else intensity
-            kind, orient = data[6], data[7] | data[8] << 8
             if pattern == 0:
                 self.channels.pop(channel, None)
                 return
