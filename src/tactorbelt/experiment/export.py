@@ -375,18 +375,12 @@ def _with_cell(trial: dict[str, Any], session: dict[str, Any]) -> dict[str, Any]
     """The trial row with ``n_targets``, ``load`` and the added factors: as stored, else
     (a store written before factorial designs) the session's study's ``[targets] count``
     and ``none``, and (a store written before a factor was declared) its default."""
-    added = added_factors()
-    if trial.get("n_targets") is not None and trial.get("load") is not None and all(
-            trial.get(f.column) is not None for f in added):
-        return trial
     out = dict(trial)
-    for f in added:
+    for f in (LOAD, *added_factors()):
         out[f.column] = f.stored(out.get(f.column))
     if out.get("n_targets") is None:
         study = _parse_study(session.get("study_toml"))
         out["n_targets"] = None if study is None else study.targets.count
-    if out.get("load") is None:
-        out["load"] = "none"
     return out
 
 
@@ -478,12 +472,7 @@ def _studies(sessions: list[dict[str, Any]]) -> list[Study | None]:
 
 def study_authors(studies: Sequence[Any]) -> list[str]:
     """The authors the study files name (``authors``), each once, in order."""
-    out: list[str] = []
-    for st in studies:
-        for a in getattr(st, "authors", None) or []:
-            if a not in out:
-                out.append(a)
-    return out
+    return list(dict.fromkeys(a for st in studies for a in getattr(st, "authors", None) or []))
 
 
 def _readme(name: str, studies: list[Any], sessions: list[dict[str, Any]],

@@ -16,8 +16,7 @@ from functools import lru_cache
 from pathlib import Path
 
 __all__ = ["BATCH_TRIALS", "COMMITS_BATCHED", "COMMITS_PER_TRIAL", "SITE_ENV",
-           "Provenance", "collect", "commit_mode", "default_site", "git_commit",
-           "package_version"]
+           "Provenance", "collect", "commit_mode", "default_site", "git_commit"]
 
 #: The environment variable naming the lab (site) a session runs at.
 SITE_ENV = "TACTORBELT_SITE"
@@ -36,13 +35,6 @@ def git_commit() -> str | None:
     return commit if out.returncode == 0 and len(commit) == 40 else None
 
 
-def package_version() -> str:
-    """tactorbelt's version."""
-    from .. import __version__
-
-    return __version__
-
-
 @dataclass(frozen=True)
 class Provenance:
     """Where a session ran: the package version, the git commit (or None) and the host."""
@@ -54,7 +46,9 @@ class Provenance:
 
 def collect() -> Provenance:
     """The provenance of this process."""
-    return Provenance(package_version(), git_commit(), socket.gethostname())
+    from .. import __version__
+
+    return Provenance(__version__, git_commit(), socket.gethostname())
 
 
 def default_site() -> str:
