@@ -13,23 +13,12 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import click
 
 from ._options import number, output_option, seed_option
 
-if TYPE_CHECKING:
-    from ..analysis.summary import Summary
-
-__all__ = ["analyze", "print_summary_table"]
-
-
-def print_summary_table(summary: Summary) -> None:
-    """Accuracy and median RT per condition (on- and between-tactor), as a rich table."""
-    from ..analysis.report.analyze import print_summary_table as _print
-
-    _print(summary)
+__all__ = ["analyze"]
 
 
 @click.command("analyze")
