@@ -317,7 +317,7 @@ class _Page:
         if kind == "play":
             return await self.play(msg, t_recv)
         if kind == "stop":
-            await self.bridge.stop_motors(self)
+            await self.bridge.belt.call(self.bridge.belt.stop)
             return {"type": "stopped", "id": request_id(msg)}
         handler = {"hello": self.hello, "status": self.status, "trial": self.trial,
                    "end": self.end}[kind]  # parse() let only the page's types through
@@ -515,7 +515,7 @@ class _Page:
         done = await self.bridge.store_call(rec.finished)
         if status in ("completed", "complete"):
             status = "complete" if len(done) >= len(rec.schedule) else "interrupted"
-        await self.bridge.stop_motors(self)
+        await self.bridge.belt.call(self.bridge.belt.stop)
         await self.bridge.end_session(self, status)
         return {"type": "ended", "id": rid, "status": status,
                 "n_done": len(done), "n_total": len(rec.schedule)}
@@ -559,10 +559,6 @@ class _Bridge:
         onset = await self.belt.call(self.belt.play_levels, levels, duration_s)
         self.belt.stop_later(onset)
         return onset
-
-    async def stop_motors(self, page: _Page | None = None) -> None:
-        """Motors off (the page's request, or any page when None)."""
-        await self.belt.call(self.belt.stop)
 
     async def end_play(self, page: _Page, onset: Onset) -> int:
         """A trial was answered: its stimulus stops (as in the lab, at the response)
