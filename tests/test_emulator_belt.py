@@ -18,8 +18,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from support.belts import wait_for
-from tactorbelt import ConfigError, DeviceError, Layout
+from support.belts import hang, wait_for
+from tactorbelt import DeviceError, Layout, ProtocolError
 from tactorbelt.devices import open_belt, wire
 from tactorbelt.devices.emulator import EmulatorBelt, build_emulator, firmware_dir
 from tactorbelt.stimuli import make_stimulus
@@ -71,8 +71,8 @@ def test_the_emulator_has_the_extensions_and_reports_onsets(emu: EmulatorBelt) -
     assert t0 - uncertainty_ns <= host_ns <= time.perf_counter_ns() + uncertainty_ns
     assert 0 < uncertainty_ns < 50_000_000
     assert emu.unmatched_replies == 0 and emu.bad_replies == 0
-    with pytest.raises(ConfigError, match="debug_frames"):
-        emu.hang()  # DEBUG_HANG needs an emulator started with --debug-frames
+    with pytest.raises(ProtocolError, match=r"refused DEBUG_HANG \(NAK code 2\)"):
+        hang(emu)  # DEBUG_HANG needs an emulator started with --debug-frames
 
 
 def test_tactor_count_and_heartbeat_options(emulator_built: Path) -> None:

@@ -26,6 +26,7 @@ from pathlib import Path
 
 import pytest
 
+from support.belts import hang
 from support.emulator_clock import clock_offset_bracket
 from support.studies import study_toml
 from tactorbelt.clock import WallClock
@@ -182,7 +183,7 @@ def test_a_hang_resets_the_emulator_by_its_watchdog_and_the_belt_reports_it(
             build=False) as belt:
         assert isinstance(belt, EmulatorBelt) and not belt.watchdog_reset
         belt.play(make_stimulus(belt.layout, 45.0, mode="dynamic"))
-        belt.hang()  # the loop stops: no tick, no failsafe; the watchdog fires at 200 ms
+        hang(belt)  # the loop stops: no tick, no failsafe; the watchdog fires at 200 ms
         time.sleep(0.6)
         diag = belt.diag()
         assert diag.watchdog_reset and belt.watchdog_reset

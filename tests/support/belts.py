@@ -218,6 +218,13 @@ class LoopTransport(Transport):
         self.sink.link_lost("end of file")
 
 
+def hang(belt: FirmwareBelt) -> None:
+    """Send the emulator's DEBUG_HANG (0x7E): an emulator started with ``debug_frames`` ACKs
+    it, then its loop stops (no tick, no failsafe) until its watchdog resets it; any other
+    firmware NAKs it (code 2: a ProtocolError)."""
+    belt._request(lambda seq: wire.Packet(0x7E, seq), "DEBUG_HANG", expect=wire.Ack)
+
+
 def wait_for(predicate: Callable[[], object], timeout_s: float = 5.0) -> bool:
     """Poll a condition another thread makes true (for keep-alive behaviour)."""
     deadline = time.monotonic() + timeout_s

@@ -32,7 +32,6 @@ from typing import IO, Any, Final
 
 from .._errors import ConfigError, DeviceError
 from ..geometry import Layout
-from . import wire
 from ._firmware import FIRMWARE_OPTIONS, FirmwareBelt, checked_int
 from .registry import check_options
 from .serial import SERIAL_STREAM_RATE_HZ, SerialTransport
@@ -50,9 +49,6 @@ OPTIONS: Final = FIRMWARE_OPTIONS | {"tactors", "levels_log", "build", "firmware
                                      "extra_args", "watchdog_ms", "debug_frames", "imu", "brake"}
 #: What the emulator's ``--imu`` takes.
 IMU_KINDS: Final = ("bmi270", "lsm9ds1", "none", "broken")
-
-#: The emulator's debug request that stops its loop (with ``--debug-frames``).
-DEBUG_HANG: Final = 0x7E
 
 _build_lock = threading.Lock()
 
@@ -151,24 +147,10 @@ class EmulatorBelt(FirmwareBelt):
     """
 
     def __init__(self, transport: SerialTransport, process: subprocess.Popen[bytes],
-                 pty_path: str, debug_frames: bool = False, **options: Any) -> None:
+                 pty_path: str, **options: Any) -> None:
         self.process = process
         self.pty_path = pty_path
-        self.debug_frames = debug_frames
         super().__init__(transport, "emulator", stream_rate_hz=SERIAL_STREAM_RATE_HZ, **options)
-
-    def hang(self) -> None:
-        """Send DEBUG_HANG: the emulator ACKs it, then its loop stops (no tick, no
-        failsafe) until its watchdog (``watchdog_ms``) resets it. For tests of the
-        watchdog; needs ``debug_frames=True``.
-
-        Raises:
-            ConfigError: the emulator was started without ``debug_frames``.
-        """
-        if not self.debug_frames:
-            raise ConfigError("hang() needs an emulator opened with debug_frames=True")
-        self._check_open()
-        self._request(lambda seq: wire.Packet(DEBUG_HANG, seq), "DEBUG_HANG", expect=wire.Ack)
 
     def _close(self) -> None:
         try:
@@ -213,7 +195,7 @@ def open_emulator(target: str = "", **options: Any) -> EmulatorBelt:
                 board uses 300): a loop that stops for that long resets the core, and the
                 belt reports the watchdog reset. Off by default.
             debug_frames (bool, False): accept DEBUG_HANG (0x7E), which stops the
-                emulator's loop until the watchdog resets it (:meth:`EmulatorBelt.hang`).
+                emulator's loop until the watchdog resets it (tests of the watchdog).
             imu (str, "bmi270"): the board's simulated IMU: "bmi270" (1600 Hz, a Rev2
                 board), "lsm9ds1" (952 Hz, Rev1), "none" (no IMU streaming: firmware
                 1.1's behaviour), "broken" (an IMU that did not start).
@@ -269,8 +251,7 @@ def open_emulator(target: str = "", **options: Any) -> EmulatorBelt:
     given = {"--heartbeat-ms": heartbeat_ms, "--levels-log": options.pop("levels_log", None),
              "--watchdog-ms": watchdog_ms, "--imu": imu}
     args += [a for flag, v in given.items() if v is not None for a in (flag, str(v))]
-    debug_frames = bool(options.pop("debug_frames", False))
-    if debug_frames:
+    if options.pop("debug_frames", False):
         args += ["--debug-frames"]
     if not options.pop("brake", True):
         args += ["--wiring", "in1"]
@@ -304,7 +285,7 @@ def open_emulator(target: str = "", **options: Any) -> EmulatorBelt:
         stop_process(proc)
         raise
     try:  # a FirmwareBelt that fails to open closes its transport
-        return EmulatorBelt(transport, proc, path, debug_frames=debug_frames, **options)
+        return EmulatorBelt(transport, proc, path, **options)
     except BaseException:
         stop_process(proc)
         raise
