@@ -59,8 +59,8 @@ TASK_EVENT_COLUMNS = ("session_id", "block_index", "task", "phase", "item_index"
 RATING_COLUMNS = ("session_id", "block_index", "scale", "item", "value")
 
 #: URL scheme -> "module:Class" (relative to this package) of each store implementation.
-#: ``None`` means "planned, not available yet". A path with no scheme is ``sqlite``.
-BACKENDS: dict[str, str | None] = {
+#: A path with no scheme is ``sqlite``.
+BACKENDS: dict[str, str] = {
     "sqlite": "tactorbelt.experiment.store.sqlite:SQLiteStore",
     "postgresql": "tactorbelt.experiment.store.postgresql:PostgreSQLStore",
 }

@@ -555,33 +555,21 @@ class Store(abc.ABC):
         raise StoreError(f"{self.url}: this store does not take copied sessions")
 
 
-def _scheme(url: str | Path) -> tuple[str, str]:
-    """``(scheme, rest)``: a bare path (or a Windows drive letter) is ``sqlite``."""
-    text = str(url)
-    if isinstance(url, Path) or "://" not in text:
-        return "sqlite", text
-    scheme, rest = text.split("://", 1)
-    return scheme.lower().split("+", 1)[0], rest
-
-
 def backend_for(url: str | Path) -> type[Store]:
-    """The :class:`Store` class for a URL.
+    """The :class:`Store` class for a URL (a bare path, or a Windows drive letter, is
+    ``sqlite``).
 
     Raises:
-        StoreError: the scheme is unknown or its implementation is not available yet.
+        StoreError: the scheme is unknown.
     """
-    scheme, _ = _scheme(url)
-    if scheme == "postgres":
-        scheme = "postgresql"
+    text = str(url)
+    scheme = ("sqlite" if isinstance(url, Path) or "://" not in text
+              else text.split("://", 1)[0].lower().split("+", 1)[0])
+    scheme = {"postgres": "postgresql"}.get(scheme, scheme)
     if scheme not in BACKENDS:
         raise StoreError(f"unknown store URL scheme {scheme!r} in {url}; give a file path, "
                          f"sqlite:///path or one of: {', '.join(sorted(BACKENDS))}")
-    target = BACKENDS[scheme]
-    if target is None:
-        name = {"postgresql": "PostgreSQL"}.get(scheme, scheme)
-        raise StoreError(f"{name} stores are not available yet ({url}); give a file path "
-                         "such as study.sqlite")
-    store_cls: type[Store] = resolve(target)
+    store_cls: type[Store] = resolve(BACKENDS[scheme])
     return store_cls
 
 
