@@ -486,9 +486,8 @@ class Calibration:
         f = parse(_file_model(), doc, source, missing={
             "tactor": "missing: add one [[tactor]] table per tactor",
             "start": "missing (a number in [0, 1])", "ceiling": "missing (a number in [0, 1])"})
-        keys = ("start", "gain", "ceiling", "channel", *TIMING_KEYS, *SHAPING_KEYS)
         return cls(tuple(TactorCalibration(
-            **{k: getattr(row, k) for k in keys},
+            **row.model_dump(exclude={"index", "angle_deg", "response"}),
             response=tuple((float(h), float(g)) for h, g in row.response)) for row in f.tactor),
                    validated=f.validated, validation_method=f.validation_method)
 
@@ -610,11 +609,9 @@ def update_timing(path: str | Path, n: int,
         cal = Calibration.from_mapping(doc, str(p))
         belt = str(doc["belt"]) if doc.get("belt") else belt
         created = str(doc["created"]) if doc.get("created") else None
-        rows = doc.get("tactor", [])
-        noted = [r.get("angle_deg") for r in rows if isinstance(r, Mapping)]
-        angles = [float(a) for a in noted if isinstance(a, int | float)]
-        if angles and len(angles) == len(noted) == cal.n:
-            angles_deg = angles
+        noted = [r.get("angle_deg") for r in doc["tactor"]]  # one table per tactor (checked)
+        if all(isinstance(a, int | float) for a in noted):
+            angles_deg = [float(a) for a in noted]
         if cal.n != n:
             raise ConfigError(f"calibration file {str(p)!r} has {cal.n} tactors but the belt "
                               f"has {n}")
