@@ -93,8 +93,6 @@ class ModelStudyResult:
     summary: Summary
     store: Path
     report: Path
-    #: Where an earlier store in the directory was moved, or None.
-    previous_store: Path | None
 
 
 def run_model_study(out: Path, n_participants: int, seed: int,
@@ -149,9 +147,8 @@ def run_model_study(out: Path, n_participants: int, seed: int,
         raise ConfigError(f"cannot write {study_path}: {exc.strerror}") from None
     study: Study = Study.from_toml(text, path=study_path)
     db = out / STORE_NAME
-    moved = out / PREVIOUS_STORE_NAME if move_store_file(db, out / PREVIOUS_STORE_NAME) else None
-    if moved is not None and notify is not None:
-        notify(f"the previous store was moved to {moved}")
+    if move_store_file(db, out / PREVIOUS_STORE_NAME) and notify is not None:
+        notify(f"the previous store was moved to {out / PREVIOUS_STORE_NAME}")
     base = ModelParams().for_period(study.stimulus.period_s)
     people = model_participants(n_participants, seed, base)
     n_trials = study.n_trials()
@@ -195,5 +192,5 @@ def run_model_study(out: Path, n_participants: int, seed: int,
     # No seed given: the analysis derives it from the stored sessions, exactly as
     # 'tactorbelt analyze' on this store does.
     summary = analyze([db], out, progress=analysis_progress)
-    return ModelStudyResult(summary, db, out / "report.html", moved)
+    return ModelStudyResult(summary, db, out / "report.html")
 

@@ -30,6 +30,7 @@ import csv
 import datetime as dt
 import math
 import re
+from collections import Counter
 from collections.abc import Iterable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -271,18 +272,14 @@ def export_psychopy(db: str | Path, out: str | Path, *, force: bool = False) -> 
             first_onset = min((t["onset_ns"] for t in trials if t["onset_ns"] is not None),
                               default=0)
             block_n: dict[int, int] = {}
-            within: dict[int, int] = {}
-            within_rep: dict[tuple[int, int], int] = {}
+            seen: Counter[Any] = Counter()  # trials so far of each block, and repetition
             rows = []
             for t in trials:
                 t = _with_cell(t, s)
-                b = int(t["block_index"])
+                b, rep = int(t["block_index"]), int(t["repetition"])
                 block_n.setdefault(b, len(block_n))
-                k = within.get(b, 0)
-                within[b] = k + 1
-                rep = int(t["repetition"])
-                kr = within_rep.get((b, rep), 0)
-                within_rep[(b, rep)] = kr + 1
+                k, kr = seen[b], seen[(b, rep)]
+                seen.update([b, (b, rep)])
                 n = int(t["n_targets"] or 0)
                 done = t["status"] == "done"
                 row = {

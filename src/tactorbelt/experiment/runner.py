@@ -124,11 +124,8 @@ class SessionResult:
     @property
     def accuracy(self) -> float | None:
         """Share of correct answers among this call's finished test trials."""
-        done = [r for r in self.results if r.trial.block == "test" and r.status == "done"]
         test = [r for r in self.results if r.trial.block == "test" and r.status != "aborted"]
-        if not test:
-            return None
-        return sum(1 for r in done if r.correct) / len(test)
+        return sum(1 for r in test if r.correct) / len(test) if test else None
 
 
 @dataclass
