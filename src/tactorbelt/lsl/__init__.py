@@ -494,18 +494,16 @@ class LslListener(NullListener, AbstractContextManager["LslListener"]):
 
     def on_trial_done(self, result: TrialResult) -> None:
         t = result.trial
-        if self._onset_pending and result.onset_ns is not None:
-            if result.device_onset_ns is not None:
-                self._send_onset(t, result.device_onset_ns, "device")
-            else:
-                self._send_onset(t, result.onset_ns, "host")
-        self._onset_pending = False
         skin, self._skin = self._skin, None
-        if skin is not None and skin[0] == t.trial_index and result.onset_ns is not None:
-            stored = (result.device_onset_ns if result.device_onset_ns is not None
-                      else result.onset_ns)
-            self.send(skin[1], "skin_onset", trial_index=t.trial_index,
-                      latency_ms=(skin[1] - stored) / 1e6, sd_ms=skin[2] / 1e6)
+        if result.onset_ns is not None:  # the onset stored: the device's where it reports one
+            stored, clock = ((result.onset_ns, "host") if result.device_onset_ns is None
+                             else (result.device_onset_ns, "device"))
+            if self._onset_pending:
+                self._send_onset(t, stored, clock)
+            if skin is not None and skin[0] == t.trial_index:
+                self.send(skin[1], "skin_onset", trial_index=t.trial_index,
+                          latency_ms=(skin[1] - stored) / 1e6, sd_ms=skin[2] / 1e6)
+        self._onset_pending = False
         if result.status == "done" and result.acquired_ns is not None:
             self.send(result.acquired_ns, "response", trial_index=t.trial_index,
                       response_deg=result.response_deg,
