@@ -31,12 +31,8 @@ def site_conflicts(sessions: Iterable[Mapping[str, Any]]
     by_id: dict[str, list[Mapping[str, Any]]] = {}
     for row in sessions:
         by_id.setdefault(str(row["participant"]), []).append(row)
-    out = {}
-    for pid, rows in by_id.items():
-        sites = {str(r["site"]) for r in rows if _has_site(r)}
-        if len(sites) > 1:
-            out[pid] = rows
-    return out
+    return {pid: rows for pid, rows in by_id.items()
+            if len({str(r["site"]) for r in rows if _has_site(r)}) > 1}
 
 
 def _has_site(row: Mapping[str, Any]) -> bool:

@@ -105,9 +105,8 @@ class Store(abc.ABC):
     def open(cls, url: str | Path, create: bool = True, readonly: bool = False,
              verify: bool = True) -> Store:
         """Open a store; on :class:`Store` itself the URL picks the implementation."""
-        if cls is Store:
-            return open_store(url, create=create, readonly=readonly, verify=verify)
-        return cls.open_url(url, create=create, readonly=readonly, verify=verify)
+        impl = backend_for(url) if cls is Store else cls
+        return impl.open_url(url, create=create, readonly=readonly, verify=verify)
 
     @classmethod
     @abc.abstractmethod
