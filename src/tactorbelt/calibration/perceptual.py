@@ -86,7 +86,7 @@ class Fit:
 
 
 def fit_psychometric(x: ArrayLike, r: ArrayLike, lo: float, hi: float,
-                     start: tuple[float, float] | None = None, lapse: float = LAPSE,
+                     start: tuple[float, float] | None = None,
                      prior: tuple[float, float] | None = None) -> Fit:
     """Maximum-likelihood fit of the psychometric function (module doc) to answers ``r``.
 
@@ -95,7 +95,6 @@ def fit_psychometric(x: ArrayLike, r: ArrayLike, lo: float, hi: float,
         lo, hi: the stimulus range: the PSE is searched in and clipped to it, the sd in
             ``[(hi - lo) / 200, 2 (hi - lo)]``.
         start: (pse, sd) to start from (the QUEST+ estimate); default the middle.
-        lapse: the fixed lapse rate.
         prior: (mean, sd) of a normal prior on the PSE: the fit then maximises the
             likelihood times this prior (a penalised, maximum a posteriori fit). None:
             plain maximum likelihood.
@@ -114,8 +113,8 @@ def fit_psychometric(x: ArrayLike, r: ArrayLike, lo: float, hi: float,
         sd = min(max(math.exp(float(theta[1])), sd_lo), sd_hi)
         z = (xa - mu) / sd
         # log P(1) and log P(0) with the lapse, computed stably
-        p1 = lapse + (1 - 2 * lapse) * np.exp(log_ndtr(z))
-        p0_ = lapse + (1 - 2 * lapse) * np.exp(log_ndtr(-z))
+        p1 = LAPSE + (1 - 2 * LAPSE) * np.exp(log_ndtr(z))
+        p0_ = LAPSE + (1 - 2 * LAPSE) * np.exp(log_ndtr(-z))
         penalty = 0.0 if prior is None else 0.5 * ((mu - prior[0]) / prior[1]) ** 2
         return float(-(ra * np.log(p1) + (1 - ra) * np.log(p0_)).sum()) + penalty
 
@@ -123,7 +122,7 @@ def fit_psychometric(x: ArrayLike, r: ArrayLike, lo: float, hi: float,
                    options={"xatol": 1e-4, "fatol": 1e-6, "maxiter": 400})
     pse = min(max(float(res.x[0]), lo), hi)
     sd = min(max(math.exp(float(res.x[1])), sd_lo), sd_hi)
-    return Fit(pse, sd, (1 - 2 * lapse) / (sd * math.sqrt(2 * math.pi)), int(xa.size))
+    return Fit(pse, sd, (1 - 2 * LAPSE) / (sd * math.sqrt(2 * math.pi)), int(xa.size))
 
 
 # -- one adaptive track -----------------------------------------------------------------------
