@@ -81,24 +81,14 @@ def _range_text(root: Any, loc: tuple[str | int, ...]) -> str | None:
     model = _model_at(root, loc)
     if model is None or not isinstance(loc[-1], str) or loc[-1] not in model.model_fields:
         return None
-    lo = hi = None
-    lo_open = hi_open = True
-    for m in model.model_fields[loc[-1]].metadata:
-        if getattr(m, "ge", None) is not None:
-            lo, lo_open = m.ge, False
-        if getattr(m, "gt", None) is not None:
-            lo, lo_open = m.gt, True
-        if getattr(m, "le", None) is not None:
-            hi, hi_open = m.le, False
-        if getattr(m, "lt", None) is not None:
-            hi, hi_open = m.lt, True
+    c = {k: getattr(m, k) for m in model.model_fields[loc[-1]].metadata
+         for k in ("ge", "gt", "le", "lt") if getattr(m, k, None) is not None}
+    lo, hi = c.get("ge", c.get("gt")), c.get("le", c.get("lt"))
     if lo is None and hi is None:
         return None
-    left = "(" if lo_open or lo is None else "["
-    right = ")" if hi_open or hi is None else "]"
     lo_s = "-inf" if lo is None else f"{lo:g}"
     hi_s = "inf" if hi is None else f"{hi:g}"
-    return f"{left}{lo_s}, {hi_s}{right}"
+    return f"{'[' if 'ge' in c else '('}{lo_s}, {hi_s}{']' if 'le' in c else ')'}"
 
 
 def _parse_loc(dotted: str) -> tuple[str | int, ...]:
