@@ -196,11 +196,8 @@ def _order(
     """(repetition 1-based, target index) pairs for one block."""
     if mode == "none" or mode == "sequential":
         return [(r + 1, t) for r in range(passes) for t in range(n_targets)]
-    if mode == "per_repetition" or mode == "random":
-        out: list[tuple[int, int]] = []
-        for r in range(passes):
-            out += [(r + 1, int(t)) for t in rng.permutation(n_targets)]
-        return out
+    if mode == "per_repetition" or mode == "random":  # a permutation per repetition
+        return [(r + 1, int(t)) for r in range(passes) for t in rng.permutation(n_targets)]
     # full: one permutation of every (repetition, target) pair
     pairs = [(r + 1, t) for r in range(passes) for t in range(n_targets)]
     perm = rng.permutation(len(pairs))
