@@ -665,7 +665,6 @@ class SessionRunner:
         if (self._fast and self._task is None and self.cursor.reads_runs
                 and not self.player.pumped):
             return self._present_runs(machine, ticks)
-        playing = True
         headless = self._headless
         read, feed, tick = self.cursor.read, machine.feed, self._tick
         while True:
@@ -674,12 +673,7 @@ class SessionRunner:
             state = feed(now, s.x, s.y, s.buttons)
             if not headless:
                 self.listeners.on_sample(CursorSample(now, s.x, s.y, s.buttons))
-            finished = machine.finished
-            if playing and (finished or machine.stimulus_due_off(now)):
-                self.player.stop()
-                machine.stimulus_stopped(self.clock.now_ns())
-                playing = False
-            if finished:
+            if self._stop_when_due(machine, now):
                 return state
             if not headless:
                 self.handle(self._poll(now), machine)
@@ -698,24 +692,28 @@ class SessionRunner:
         clock, cursor, machine_feed = self.clock, self.cursor, machine.feed_run
         onset = ticks.onset_ns
         off_ns = onset + machine.rule.max_presentation_ns
-        playing = True
         while True:
             first = ticks.next_index
             times = ticks.deadlines(first, RUN_TICKS)
-            if playing and int(times[-1]) >= off_ns:
+            if machine.result.stimulus_off_ns is None and int(times[-1]) >= off_ns:
                 times = times[: int(times.searchsorted(off_ns)) + 1]
             clock.sleep_until_ns(int(times[0]))
             n = cursor.read_run(times, machine_feed)
             now = int(times[n - 1])
             clock.sleep_until_ns(now)
             ticks.next_index = first + n
-            finished = machine.finished
-            if playing and (finished or machine.stimulus_due_off(now)):
-                self.player.stop()
-                machine.stimulus_stopped(clock.now_ns())
-                playing = False
-            if finished:
+            if self._stop_when_due(machine, now):
                 return machine.state
+
+    def _stop_when_due(self, machine: TrialMachine, now: int) -> bool:
+        """Stop the stimulus (once) when the trial has its outcome or the stimulus is due
+        off at ``now``; whether the trial has its outcome."""
+        finished = machine.finished
+        if machine.result.stimulus_off_ns is None and (finished
+                                                      or machine.stimulus_due_off(now)):
+            self.player.stop()
+            machine.stimulus_stopped(self.clock.now_ns())
+        return finished
 
     def run_trial(self, t: ScheduledTrial) -> TrialResult:
         """One trial: home, stimulus and response. A pause returns it ``aborted``; any
