@@ -39,15 +39,11 @@ __all__ = [
     "utc_now",
 ]
 
-#: Version of the store schema this tactorbelt writes; a store with a newer one is refused.
-#: (A PostgreSQL store is one more: its site rules, ``postgresql.PG_SCHEMA_VERSION``.)
+#: Version of the store schema this tactorbelt writes; a store with a newer one is refused,
+#: an older one migrated by a writer (what each version added is marked in
+#: :data:`.schema.TABLES`). (A PostgreSQL store is one more: its site rules,
+#: ``postgresql.PG_SCHEMA_VERSION``.)
 SCHEMA_VERSION = 3
-#: What each schema version added (a writer opening an older store migrates it).
-SCHEMA_HISTORY = {
-    1: "sessions, trials, samples",
-    2: "trials.n_targets and trials.load (factorial designs)",
-    3: "task_events and ratings (secondary tasks, NASA-TLX)",
-}
 SESSION_STATUSES = ("running", "complete", "aborted", "interrupted")
 TRIAL_STATUSES = ("done", "timeout", "aborted")
 #: Columns of a cursor sample row, in order.
