@@ -735,7 +735,7 @@ class _Laplace:
         sds = prior.sds(self.p)
         self.prior_prec = 1.0 / sds**2
         self.prior_const = self.p * math.log(2.0 * math.pi) + 2.0 * float(np.log(sds).sum())
-        lower = self.lower()
+        lower = _lower(self.terms)
         w = 2.0 * (prior.COV_DF_EXTRA - 1.0)
         self.cov_weight = np.array([w if lb == 0.0 else 0.0 for lb in lower])
 
@@ -766,12 +766,6 @@ class _Laplace:
             g[: self.n_theta][on] = -self.cov_weight[on] / th[on]
         g[self.n_theta:] = 2.0 * self.prior_prec * par[self.n_theta:]
         return g
-
-    def split(self, theta: np.ndarray) -> list[np.ndarray]:
-        return _split(self.terms, theta)
-
-    def lower(self) -> list[float]:
-        return _lower(self.terms)
 
     def _pirls(self, theta: np.ndarray, beta: np.ndarray | None,
                tol: float = 1e-11) -> tuple[float, dict[str, Any]]:
@@ -805,7 +799,7 @@ class _Laplace:
                     warm: bool, robust: bool = False) -> tuple[float, dict[str, Any]]:
         joint = beta is None
         sysm = self.sys_j if joint else self.sys_u
-        v1, d = sysm.rows(self.split(theta))
+        v1, d = sysm.rows(_split(self.terms, theta))
         if warm:
             u1 = self.u1.copy()
             ud = np.r_[self.u2, self.beta_joint] if joint else self.u2.copy()
@@ -983,17 +977,13 @@ class _Laplace:
         """``-2 log L`` (Laplace) at ``(theta, beta)``, without the prior."""
         return self._pirls(par[: self.n_theta], par[self.n_theta:])[0]
 
-    def rx_vcov(self, par: np.ndarray) -> np.ndarray:
-        """``(R_X' R_X)^{-1}``: the conditional covariance of beta given theta."""
-        return np.asarray(_inv_or_pinv(self.rx(par)))
-
     def rx(self, par: np.ndarray) -> np.ndarray:
         """``R_X' R_X`` at ``(theta, beta)``: half the Hessian of the deviance over beta
         when the modes are held (the conditional information)."""
         _, st = self._pirls(par[: self.n_theta], par[self.n_theta:])
         mu = _expit(st["eta"])
         w = _weights(mu, self.m, self.robust)
-        v1, d = self.sys_j.rows(self.split(par[: self.n_theta]))
+        v1, d = self.sys_j.rows(_split(self.terms, par[: self.n_theta]))
         f = self.sys_j.factor(v1, d, w)
         sbb = self.sys_j.beta_block(f)
         if self.prior_prec is not None:
@@ -1304,7 +1294,7 @@ def glmm_fit(data: GlmmData, y: np.ndarray | None = None, *,
     lap.set_prior(fixef_prior)
     names, pterms = data.names, data.pterms
     messages = _rank_messages(data.dropped)
-    lower = lap.lower()
+    lower = _lower(lap.terms)
     # the covariance prior is infinite at a variance of 0: its optimiser stays inside
     opt_lower = (lower if fixef_prior is None
                  else [PRIOR_THETA_FLOOR if b == 0.0 else b for b in lower])
@@ -1343,7 +1333,7 @@ def glmm_fit(data: GlmmData, y: np.ndarray | None = None, *,
     else:
         vcov = _hessian_vcov(lap, par)
         if vcov is None:
-            vcov = lap.rx_vcov(par)
+            vcov = _inv_or_pinv(lap.rx(par))  # the conditional covariance of beta given theta
             vcov_method = "(R_X' R_X)^-1 given theta (the Hessian was not positive definite)"
             messages.append("variance-covariance matrix computed from finite-difference "
                             "Hessian is not positive definite: falling back to var-cov "
@@ -1354,7 +1344,7 @@ def glmm_fit(data: GlmmData, y: np.ndarray | None = None, *,
         messages.append("boundary (singular) fit: see help('isSingular')")
     return MixedModelFit(
         spec=spec, family="binomial", fixed_effects=_fixed_table(names, beta, vcov),
-        vcov=vcov, random_effects=_random_table(pterms, lap.split(theta)), theta=theta,
+        vcov=vcov, random_effects=_random_table(pterms, _split(pterms, theta)), theta=theta,
         singular=singular, deviance=dev,
         loglik=-(dev if fixef_prior is None else lap.likelihood_dev(par)) / 2.0,
         vcov_method=vcov_method,
