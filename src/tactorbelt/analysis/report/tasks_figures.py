@@ -19,8 +19,9 @@ from typing import TYPE_CHECKING, Any, Final
 
 import numpy as np
 
+from ...tasks import PHASES
 from ..tables.tables import CONDITIONS
-from ..tables.tasks import PHASE_ORDER
+from ..tables.tasks import load_order
 from .plot_style import COLORS, LINESTYLES, MARKERS, _figure, _mean_ci, _no_data, _png, _style
 
 if TYPE_CHECKING:
@@ -45,16 +46,12 @@ TASK_FIGURE_CAPTIONS: Final = {
 _COUNT_STYLES: Final = ("-", "--", ":", "-.")
 
 
-def _load_order(loads: Sequence[str]) -> list[str]:
-    return sorted(set(loads), key=lambda lv: (lv != "none", lv))
-
-
 def load_figure(participant_cells: pd.DataFrame) -> bytes:
     """Accuracy, information transfer and median RT against the load level."""
     pc = participant_cells
     fig = _figure(11.5, 4.2)
     axes = fig.subplots(1, 3)
-    loads = _load_order([str(v) for v in pc["load"].tolist()]) if len(pc) else ["none"]
+    loads = load_order([str(v) for v in pc["load"].tolist()]) if len(pc) else ["none"]
     counts = sorted({int(n) for n in pc["n_targets"].tolist()}) if len(pc) else []
     x = np.arange(len(loads))
     n_part = int(pc["participant"].nunique()) if len(pc) else 0
@@ -108,7 +105,7 @@ def secondary_figure(rows: Sequence[Mapping[str, Any]]) -> bytes:
              ("fa_rate", "false-alarm rate"))
     for ti, task in enumerate(tasks or ["(no task)"]):
         sub = [r for r in rows if str(r["task"]) == task]
-        phases = [p for p in PHASE_ORDER if any(r["phase"] == p for r in sub)]
+        phases = [p for p in PHASES if any(r["phase"] == p for r in sub)]
         phases += sorted({str(r["phase"]) for r in sub} - set(phases))
         x = np.arange(len(phases))
         for ax, (col, label) in zip(axes[ti], specs, strict=True):

@@ -42,25 +42,17 @@ __all__ = [
     "tlx_summary",
 ]
 
-#: The order the phases are reported in.
-PHASE_ORDER = PHASES
-
-
-def _z(p: float) -> float:
-    from scipy.stats import norm
-
-    return float(norm.ppf(p))
-
-
 def d_prime(hits: int, misses: int, false_alarms: int, correct_rejections: int) -> float:
     """d' with the log-linear correction (Hautus 1995), finite for any counts.
 
     ``H = (hits + 0.5) / (hits + misses + 1)``, ``F = (fa + 0.5) / (fa + cr + 1)``,
     ``d' = Phi^-1(H) - Phi^-1(F)``.
     """
+    from scipy.stats import norm
+
     h = (hits + 0.5) / (hits + misses + 1.0)
     f = (false_alarms + 0.5) / (false_alarms + correct_rejections + 1.0)
-    return _z(h) - _z(f)
+    return float(norm.ppf(h)) - float(norm.ppf(f))
 
 
 def _truthy(v: Any) -> bool:
@@ -107,7 +99,7 @@ def _counts(events: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
 
 
 def _phase_key(phase: str) -> int:
-    return PHASE_ORDER.index(phase) if phase in PHASE_ORDER else len(PHASE_ORDER)
+    return PHASES.index(phase) if phase in PHASES else len(PHASES)
 
 
 def secondary_task_rows(events: Iterable[Mapping[str, Any]], *, by_block: bool = False
@@ -272,7 +264,8 @@ def _across_load(table: Mapping[str, Mapping[str, float]], loads: Sequence[str]
             "statistic": float(r.statistic), "p_value": float(r.pvalue)}
 
 
-def _load_order(loads: Iterable[str]) -> list[str]:
+def load_order(loads: Iterable[str]) -> list[str]:
+    """The load levels, ``none`` first."""
     return sorted(set(loads), key=lambda lv: (lv != "none", lv))
 
 
@@ -286,7 +279,7 @@ def tlx_summary(rows: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
     if not rows:
         return {"n_blocks": 0, "loads": [], "per_participant": [], "by_load": [],
                 "by_condition_load": [], "test": None}
-    loads = _load_order(str(r["load"]) for r in rows)
+    loads = load_order(str(r["load"]) for r in rows)
     cell: dict[tuple[str, str], list[float]] = defaultdict(list)
     ccell: dict[tuple[str, str, str], list[float]] = defaultdict(list)
     for r in rows:
