@@ -422,7 +422,3 @@ def wilcoxon_paired(static: np.ndarray, dynamic: np.ndarray, rng: np.random.Gene
                  "hodges_lehmann": hl, "hodges_lehmann_ci95": [_num(hl_lo), _num(hl_hi)],
                  "hodges_lehmann_method": f"median of Walsh averages; interval {hl_how}"},
     )
-
-
-#: Factor columns of the design, in formula order, when the trials table has them and
-#: they vary: ``condition * on_tactor * n_targets * load``.
