@@ -31,6 +31,7 @@ from ..tables._json import finite_json as _finite_json
 from ..tables.classical import TestResult, _not_computed
 from ..tables.tables import CONDITIONS
 from .glmm import Z95
+from .lme4 import Lme4Unavailable
 from .lrt import DEFAULT_PB_SIMS
 
 if TYPE_CHECKING:
@@ -257,7 +258,7 @@ def rt_satterthwaite(data: pd.DataFrame, fit: Any) -> dict[str, dict[str, Any]]:
 
     from .satterthwaite import satterthwaite
 
-    if getattr(fit, "satterthwaite", None):
+    if fit.satterthwaite:
         out: dict[str, dict[str, Any]] = {}
         for k, v in fit.satterthwaite.items():
             fe = fit.fixed_effects[k]
@@ -522,11 +523,9 @@ def mixed_model(tr: pd.DataFrame, *, engine: str = "tactorbelt",
             contrasts = condition_contrasts(fit, frame, inf_terms)
             if sep.found and fixef_prior is None:
                 js["sensitivity"] = _sensitivity(frame, engine)
+    except Lme4Unavailable:
+        raise
     except Exception as exc:  # an engine may raise many kinds (LinAlgError, R errors, ...)
-        from .lme4 import Lme4Unavailable
-
-        if isinstance(exc, Lme4Unavailable):
-            raise
         return _not_computed(key, test, question,
                              f"the model fit failed: {type(exc).__name__}: {exc}", **n)
     method = HEADLINE_TEST
@@ -607,11 +606,9 @@ def rt_model(tr: pd.DataFrame, *, engine: str = "tactorbelt") -> dict[str, Any]:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             _, js = fit_model(frame, engine=engine, rt=True)
+    except Lme4Unavailable:
+        raise
     except Exception as exc:  # reported, not raised
-        from .lme4 import Lme4Unavailable
-
-        if isinstance(exc, Lme4Unavailable):
-            raise
         out["computed"] = False
         out["reason"] = f"the model fit failed: {type(exc).__name__}: {exc}"
         return out
