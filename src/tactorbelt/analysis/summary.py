@@ -50,6 +50,7 @@ from .tables.classical import (
 from .tables.design import StudyDesign, parse_design
 from .tables.tables import (
     CONDITIONS,
+    KINDS,
     condition_summary,
     confusion_matrices,
     direction_summary,
@@ -159,14 +160,19 @@ class Summary:
         """The test with this key, if it was run or considered."""
         return next((t for t in self.tests if t.key == key), None)
 
+    def condition_row(self, condition: str, kind: str) -> pd.Series:
+        """The row of :attr:`conditions` of this condition and kind (it has every one)."""
+        c = self.conditions
+        return c.loc[(c["condition"] == condition) & (c["kind"] == kind)].iloc[0]
+
     def condition_value(self, condition: str, kind: str, column: str) -> float | None:
-        """One value of :attr:`conditions` (None when missing or not finite)."""
-        sel = self.conditions.loc[(self.conditions["condition"] == condition)
-                                  & (self.conditions["kind"] == kind), column]
-        return _num(sel.iloc[0]) if len(sel) else None
+        """One value of :attr:`conditions` (None when not finite)."""
+        return _num(self.condition_row(condition, kind)[column])
 
     def provenance(self) -> dict[str, Any]:
         """Study names and hashes, package and firmware versions, belts, seeds."""
+        import pandas as pd
+
         s = self.sessions
 
         def uniq(col: str) -> list[Any]:
@@ -182,7 +188,8 @@ class Summary:
             "belts": uniq("belt"),
             "firmware_versions": uniq("firmware_version"),
             "inputs": uniq("input"),
-            "session_seeds": [int(v) for v in pd_numeric(s["seed"]).dropna().unique()],
+            "session_seeds": [int(v) for v in
+                              pd.to_numeric(s["seed"], errors="coerce").dropna().unique()],
             "analysis_seed": self.seed,
             "bootstrap_resamples": self.n_boot,
         }
@@ -193,13 +200,8 @@ class Summary:
         conditions: dict[str, Any] = {}
         for cond in CONDITIONS:
             entry: dict[str, Any] = {}
-            for kind in ("on_tactor", "between_tactor"):
-                row = self.conditions.loc[(self.conditions["condition"] == cond)
-                                          & (self.conditions["kind"] == kind)]
-                if row.empty:
-                    entry[kind] = {"n": 0}
-                    continue
-                r = row.iloc[0]
+            for kind in KINDS:
+                r = self.condition_row(cond, kind)
                 entry[kind] = {
                     "n": int(r["n"]), "n_participants": int(r["n_participants"]),
                     "n_correct": int(r["n_correct"]), "n_timeout": int(r["n_timeout"]),
@@ -242,20 +244,11 @@ class Summary:
         })
 
 
-
-
 COUNTING_RULES: Final = (
     "Only test-block trials count. Trials with status 'done' count; 'timeout' trials count "
     "as incorrect, with no response time and no response direction; 'aborted' trials are "
     "left out. Training trials are summarised separately."
 )
-
-
-def pd_numeric(s: pd.Series) -> pd.Series:
-    """``pd.to_numeric(errors="coerce")`` (imported lazily)."""
-    import pandas as pd
-
-    return pd.to_numeric(s, errors="coerce")
 
 
 def _is_model(sessions: pd.DataFrame) -> pd.Series:
@@ -310,14 +303,16 @@ def rt_from_choice(trials: pd.DataFrame, rt_from: str | None = None
         ConfigError: ``skin`` asked for while some analysed trial has no skin onset, or
             an unknown ``rt_from``.
     """
+    import pandas as pd
+
     from .._errors import ConfigError
 
     if rt_from is not None and rt_from not in RT_FROM:
         raise ConfigError(f"--rt-from must be one of {', '.join(RT_FROM)}, got {rt_from!r}")
-    rt = pd_numeric(trials["rt_s"]).to_numpy(dtype=float)
+    rt = pd.to_numeric(trials["rt_s"], errors="coerce").to_numpy(dtype=float)
     status = trials["status"].astype("string").fillna("")
     analysed = (status == "done").to_numpy(dtype=bool) & ~np.isnan(rt)
-    offset = (pd_numeric(trials["skin_offset_s"]).to_numpy(dtype=float)
+    offset = (pd.to_numeric(trials["skin_offset_s"], errors="coerce").to_numpy(dtype=float)
               if "skin_offset_s" in trials.columns else np.full(len(trials), np.nan))
     n = int(analysed.sum())
     lacking = int((analysed & np.isnan(offset)).sum())

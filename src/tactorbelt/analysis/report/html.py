@@ -126,8 +126,7 @@ def _condition_rows(summary: Summary) -> list[dict[str, Any]]:
     rows = []
     for cond in CONDITIONS:
         for kind in KINDS:
-            r = summary.conditions.loc[(summary.conditions["condition"] == cond)
-                                       & (summary.conditions["kind"] == kind)].iloc[0]
+            r = summary.condition_row(cond, kind)
             n = int(r["n"])
             rows.append({"condition": cond, "kind": KIND_LABELS[kind], "n": n,
                          "n_participants": int(r["n_participants"]),
