@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 import tomllib
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -55,6 +56,26 @@ def _first(sec: dict[str, Any], *keys: str) -> Any:
     return None
 
 
+def _angles_or_count(data: dict[str, Any], fallbacks: list[str], name: str,
+                     angle_keys: tuple[str, ...], count_keys: tuple[str, ...],
+                     from_angles: Callable[[list[Any]], Any], even: Callable[[int], Any],
+                     errors: type[Exception] | tuple[type[Exception], ...], default: Any) -> Any:
+    """Section ``name`` (``layout``, ``targets``) from its angles (a list) or its count (an
+    int); else ``default``, and in ``fallbacks`` why."""
+    sec = _section(data, name)
+    angles, count = _first(sec, *angle_keys), _first(sec, *count_keys)
+    try:
+        if isinstance(angles, list):
+            return from_angles(angles)
+        if isinstance(count, int) and not isinstance(count, bool):
+            return even(count)
+    except errors as exc:
+        fallbacks.append(f"[{name}] unusable ({exc})")
+    if data and not any(name in f for f in fallbacks):
+        fallbacks.append(f"[{name}] not found")
+    return default
+
+
 def parse_design(study_toml: str | None) -> StudyDesign:
     """Read layout, targets and law from a study TOML text, falling back to the paper's.
 
@@ -72,37 +93,13 @@ def parse_design(study_toml: str | None) -> StudyDesign:
         except tomllib.TOMLDecodeError as exc:
             fallbacks.append(f"study text is not valid TOML ({exc})")
 
-    layout_sec = _section(data, "layout")
-    layout: Layout | None = None
-    angles = _first(layout_sec, "angles_deg", "angles", "tactor_angles")
-    count = _first(layout_sec, "tactors", "count", "n")
-    try:
-        if isinstance(angles, list):
-            layout = Layout.from_angles(angles)
-        elif isinstance(count, int) and not isinstance(count, bool):
-            layout = Layout.even(count)
-    except ConfigError as exc:
-        fallbacks.append(f"[layout] unusable ({exc})")
-    if layout is None:
-        if data and not any("layout" in f for f in fallbacks):
-            fallbacks.append("[layout] not found")
-        layout = Layout.even(6)
-
-    tsec = _section(data, "targets")
-    targets: TargetSet | None = None
-    t_angles = _first(tsec, "angles_deg", "angles")
-    t_count = _first(tsec, "count", "n", "targets")
-    try:
-        if isinstance(t_angles, list):
-            targets = TargetSet(tuple(float(a) for a in t_angles))
-        elif isinstance(t_count, int) and not isinstance(t_count, bool):
-            targets = TargetSet.even(t_count)
-    except (ConfigError, TypeError, ValueError) as exc:
-        fallbacks.append(f"[targets] unusable ({exc})")
-    if targets is None:
-        if data and not any("targets" in f for f in fallbacks):
-            fallbacks.append("[targets] not found")
-        targets = TargetSet.even(24)
+    layout: Layout = _angles_or_count(
+        data, fallbacks, "layout", ("angles_deg", "angles", "tactor_angles"),
+        ("tactors", "count", "n"), Layout.from_angles, Layout.even, ConfigError, Layout.even(6))
+    targets: TargetSet = _angles_or_count(
+        data, fallbacks, "targets", ("angles_deg", "angles"), ("count", "n", "targets"),
+        lambda angles: TargetSet(tuple(float(a) for a in angles)), TargetSet.even,
+        (ConfigError, TypeError, ValueError), TargetSet.even(24))
 
     ssec = _section(data, "stimulus")
     law = ssec.get("law", "paper")
