@@ -162,22 +162,8 @@ def fit_lme4(df: pd.DataFrame, spec: ModelSpec, *, family: str = "binomial",
     with tempfile.TemporaryDirectory(prefix="tactorbelt-lme4-") as tmp:
         d = Path(tmp)
         _write_model(d, df, spec)
-        (d / "fit.R").write_text(_SCRIPT)
-        try:
-            r = subprocess.run([exe, str(d / "fit.R"), str(d), family,
-                                fixef_prior.blme() if fixef_prior is not None else ""],
-                               capture_output=True, text=True, timeout=timeout_s, env=_r_env())
-        except subprocess.TimeoutExpired as exc:
-            raise RuntimeError(f"lme4 took longer than {timeout_s:g} s") from exc
-        if r.returncode != 0:
-            err = r.stderr.strip()
-            if "there is no package called" in err and "blme" in err:
-                raise Lme4Unavailable("the R package blme is not installed (the penalised fit's "
-                                      "reference): 'apt install r-cran-blme' or "
-                                      "install.packages('blme') in R")
-            if "there is no package called" in err and "lme4" in err:
-                raise Lme4Unavailable(f"the R package lme4 is not installed. {INSTALL_HINT}")
-            raise RuntimeError("lme4 failed: " + " | ".join(err.splitlines()[-5:]))
+        run_tests_script(exe, d, _SCRIPT, [family, "" if fixef_prior is None
+                                           else fixef_prior.blme()], timeout_s, who="lme4")
         fx = pd.read_csv(d / "fixef.csv")
         vcov = pd.read_csv(d / "vcov.csv").to_numpy(dtype=float)
         th = pd.read_csv(d / "theta.csv")
@@ -259,8 +245,9 @@ write.csv(data.frame(key = names(out), value = format(unname(out), digits = 15))
 
 
 def run_tests_script(exe: str, d: Path, script: str, args: list[str],
-                     timeout_s: float) -> None:
-    """Run an R script (written to ``d/tests.R``) on the model files in ``d``.
+                     timeout_s: float, who: str = "R") -> None:
+    """Run an R script (written to ``d/tests.R``) on the model files in ``d``; ``who``:
+    ``lme4`` for the model fit (its messages name the package missing, blme or lme4).
 
     Raises:
         Lme4Unavailable: an R package is missing; RuntimeError: R failed or timed out.
@@ -270,12 +257,19 @@ def run_tests_script(exe: str, d: Path, script: str, args: list[str],
         r = subprocess.run([exe, str(d / "tests.R"), str(d), *args],
                            capture_output=True, text=True, timeout=timeout_s, env=_r_env())
     except subprocess.TimeoutExpired as exc:
-        raise RuntimeError(f"R took longer than {timeout_s:g} s") from exc
+        raise RuntimeError(f"{who} took longer than {timeout_s:g} s") from exc
     if r.returncode != 0:
         err = r.stderr.strip()
-        if "there is no package called" in err:
+        missing = "there is no package called" in err
+        if missing and who == "lme4" and "blme" in err:
+            raise Lme4Unavailable("the R package blme is not installed (the penalised fit's "
+                                  "reference): 'apt install r-cran-blme' or "
+                                  "install.packages('blme') in R")
+        if missing and who == "lme4" and "lme4" in err:
+            raise Lme4Unavailable(f"the R package lme4 is not installed. {INSTALL_HINT}")
+        if missing and who == "R":
             raise Lme4Unavailable("an R package is missing: " + err.splitlines()[-1])
-        raise RuntimeError("R failed: " + " | ".join(err.splitlines()[-5:]))
+        raise RuntimeError(f"{who} failed: " + " | ".join(err.splitlines()[-5:]))
 
 
 def condition_tests_lme4(df: pd.DataFrame, spec: ModelSpec, spec0: ModelSpec, *,
