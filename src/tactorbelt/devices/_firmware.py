@@ -122,12 +122,9 @@ SENSE_FIRST_TIMEOUT_S: Final = 1.0
 #: How long :meth:`SenseRecording.stop` waits for the session's last batch after the ACK.
 SENSE_LAST_TIMEOUT_S: Final = 1.0
 
-_LAW_CODES: Final = {"paper": wire.Law.PAPER, "linear": wire.Law.LINEAR, "energy": wire.Law.ENERGY}
-_MODE_CODES: Final = {"static": wire.Mode.STATIC, "dynamic": wire.Mode.DYNAMIC}
-_REPLY_TYPES: Final = frozenset(
-    {wire.MsgType.ACK, wire.MsgType.PONG, wire.MsgType.INFO, wire.MsgType.STATUS,
-     wire.MsgType.DIAG, wire.MsgType.ONSET, wire.MsgType.SENSE_DATA, wire.MsgType.NAK}
-)
+_LAW_CODES: Final = {law.name.lower(): law for law in wire.Law}
+_MODE_CODES: Final = {mode.name.lower(): mode for mode in wire.Mode}
+_REPLY_TYPES: Final = frozenset(t for t in wire.MsgType if t >= 0x80)  # replies from 0x80
 _SYNC_TYPES: Final = frozenset({wire.MsgType.PING, wire.MsgType.GET_DIAG})
 
 
