@@ -294,15 +294,6 @@ def test_longest_frame_is_accepted_and_one_more_byte_is_not() -> None:
     assert dec.framing_errors == 1
 
 
-def test_reset_drops_a_partial_frame() -> None:
-    frame = wire.encode_frame(wire.get_info(3))
-    dec = wire.FrameDecoder()
-    assert dec.feed(frame[:3]) == []
-    dec.reset()
-    assert dec.feed(frame) == [wire.get_info(3)]
-    assert dec.framing_errors == 0
-
-
 # --- requests ---------------------------------------------------------------------------------
 
 

@@ -399,11 +399,6 @@ class FrameDecoder:
         self._buf = b""
         self._overflow = False
 
-    def reset(self) -> None:
-        """Drop a partial frame (the counters stay)."""
-        self._buf = b""
-        self._overflow = False
-
     def feed(self, data: bytes) -> list[Packet]:
         """Consume bytes; return the packets completed by them, in order."""
         if type(data) is not bytes:
