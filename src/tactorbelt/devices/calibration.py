@@ -63,7 +63,7 @@ import math
 import os
 import tempfile
 from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import asdict, dataclass, replace
 from functools import cache, cached_property
 from pathlib import Path
 from typing import Any, Final
@@ -368,17 +368,13 @@ class Calibration:
         return np.asarray(np.where(a > 0.0, drive, 0.0))
 
     def to_list(self) -> list[dict[str, Any]]:
-        rows: list[dict[str, Any]] = []
-        for t in self.tactors:
-            row: dict[str, Any] = {"start": t.start, "gain": t.gain, "ceiling": t.ceiling}
-            if t.channel is not None:
-                row["channel"] = t.channel
-            if t.response:
-                row["response"] = [list(p) for p in t.response]
-            for name in (*TIMING_KEYS, *SHAPING_KEYS):
-                if getattr(t, name) is not None:
-                    row[name] = getattr(t, name)
-            rows.append(row)
+        """Each tactor's keys that are set (not None, not empty), in the order of its fields;
+        ``response`` as lists."""
+        rows = [{k: v for k, v in asdict(t).items() if v is not None and v != ()}
+                for t in self.tactors]
+        for row in rows:
+            if "response" in row:
+                row["response"] = [list(p) for p in row["response"]]
         return rows
 
     # -- files ----------------------------------------------------------------------
