@@ -219,21 +219,16 @@ def open_emulator(target: str = "", **options: Any) -> EmulatorBelt:
     check_options(options, OPTIONS, "emulator")
     if target:
         raise ConfigError(f"the emulator belt takes no target, got 'emulator:{target}'")
+    for name, lo, hi in (("tactors", 2, 16), ("heartbeat_ms", 50, 2000), ("watchdog_ms", 1, 10000)):
+        if options.get(name) is not None:
+            checked_int(name, options[name], lo, hi)
     tactors = options.pop("tactors", None)
     layout = options.pop("layout", None)
-    if tactors is not None:
-        checked_int("tactors", tactors, 2, 16)
     if layout is not None:
         if not isinstance(layout, Layout) or not 2 <= layout.n <= 16:
             raise ConfigError(f"layout must be a Layout of 2..16 tactors, got {layout!r}")
         if tactors is not None and tactors != layout.n:
             raise ConfigError(f"tactors={tactors} but the layout has {layout.n} tactors")
-    heartbeat_ms = options.pop("heartbeat_ms", None)
-    if heartbeat_ms is not None:
-        checked_int("heartbeat_ms", heartbeat_ms, 50, 2000)
-    watchdog_ms = options.pop("watchdog_ms", None)
-    if watchdog_ms is not None:
-        checked_int("watchdog_ms", watchdog_ms, 1, 10000)
     imu = options.pop("imu", None)
     if imu is not None and imu not in IMU_KINDS:
         raise ConfigError(f"imu must be one of {', '.join(IMU_KINDS)}, got {imu!r}")
@@ -248,8 +243,9 @@ def open_emulator(target: str = "", **options: Any) -> EmulatorBelt:
         args = [str(exe), "--tactor-angles", ",".join(f"{a:.2f}" for a in layout.angles_deg)]
     else:
         args = [str(exe), "--tactors", str(6 if tactors is None else tactors)]
-    given = {"--heartbeat-ms": heartbeat_ms, "--levels-log": options.pop("levels_log", None),
-             "--watchdog-ms": watchdog_ms, "--imu": imu}
+    given = {"--heartbeat-ms": options.pop("heartbeat_ms", None),
+             "--levels-log": options.pop("levels_log", None),
+             "--watchdog-ms": options.pop("watchdog_ms", None), "--imu": imu}
     args += [a for flag, v in given.items() if v is not None for a in (flag, str(v))]
     if options.pop("debug_frames", False):
         args += ["--debug-frames"]
