@@ -19,6 +19,7 @@ subprocess). pandas, SciPy and the model engines load inside the functions.
 
 from __future__ import annotations
 
+import functools
 import math
 import warnings
 from typing import TYPE_CHECKING, Any, Final
@@ -178,14 +179,8 @@ def model_json(fit: Any, steps: list[dict[str, Any]], engine: str,
     p_method, ci_method = "Wald z, two-sided, normal reference", "Wald"
     if satt is not None:
         for k, v in fixed.items():
-            sv = satt.get(k)
-            if sv is None:
-                continue
-            v["df"] = _num(sv["df"])
-            v["t"] = _num(sv["t"])
-            v["p"] = _num(sv["p"])
-            if "ci_low" in sv:
-                v["ci_low"], v["ci_high"] = _num(sv["ci_low"]), _num(sv["ci_high"])
+            sv = satt.get(k, {})
+            v.update({c: _num(sv[c]) for c in ("df", "t", "p", "ci_low", "ci_high") if c in sv})
         p_method = ("t = estimate / SE on Satterthwaite's degrees of freedom, two-sided, as "
                     "lmerTest's summary (z: the same ratio)")
         ci_method = "t on the Satterthwaite df"
@@ -492,22 +487,18 @@ def mixed_model(tr: pd.DataFrame, *, engine: str = "tactorbelt",
     if fixef_prior is not None:
         test = (f"binomial GLMM, penalised ML, fixef.prior = {fixef_prior.blme()} "
                 f"({'blme' if engine == 'lme4' else ENGINE_NAMES.get(engine, engine)})")
+    skip = functools.partial(_not_computed, key, test, question)
     if n_p < 3:
-        return _not_computed(key, test, question,
-                             f"needs at least 3 participants, found {n_p}", participants=n_p)
+        return skip(f"needs at least 3 participants, found {n_p}", participants=n_p)
+    n = {"participants": n_p, "trials": len(frame)}
     conds = set(frame["condition"].unique())
     if conds != set(CONDITIONS):
-        only = ", ".join(sorted(conds)) or "none"
-        return _not_computed(key, test, question,
-                             f"needs both conditions; the data hold only {only}",
-                             participants=n_p, trials=len(frame))
+        return skip("needs both conditions; the data hold only "
+                    + (", ".join(sorted(conds)) or "none"), **n)
     y = frame["correct"].to_numpy()
     if np.all(y == y[0]):
-        return _not_computed(key, test, question,
-                             "every counted trial is " + ("correct" if y[0] else "incorrect")
-                             + "; a logistic model has nothing to fit",
-                             participants=n_p, trials=len(frame))
-    n = {"participants": n_p, "trials": len(frame)}
+        return skip("every counted trial is " + ("correct" if y[0] else "incorrect")
+                    + "; a logistic model has nothing to fit", **n)
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
@@ -516,8 +507,7 @@ def mixed_model(tr: pd.DataFrame, *, engine: str = "tactorbelt",
             inf_terms = [] if fit.fixef_prior is not None else sep.terms
             fe = fit.fixed_effects.get("conditionstatic")
             if fe is None or not (math.isfinite(fe.estimate) and math.isfinite(fe.se)):
-                return _not_computed(key, test, question, "the fit gave no finite condition "
-                                     "coefficient (separation?)", **n)
+                return skip("the fit gave no finite condition coefficient (separation?)", **n)
             tests, _ = condition_tests(frame, fit, engine=engine, pb_sims=pb_sims, seed=seed,
                                        progress=progress, not_estimable=inf_terms)
             contrasts = condition_contrasts(fit, frame, inf_terms)
@@ -526,8 +516,7 @@ def mixed_model(tr: pd.DataFrame, *, engine: str = "tactorbelt",
     except Lme4Unavailable:
         raise
     except Exception as exc:  # an engine may raise many kinds (LinAlgError, R errors, ...)
-        return _not_computed(key, test, question,
-                             f"the model fit failed: {type(exc).__name__}: {exc}", **n)
+        return skip(f"the model fit failed: {type(exc).__name__}: {exc}", **n)
     method = HEADLINE_TEST
     by = {t["method"]: t for t in tests}
     lrt = by["LRT"]
