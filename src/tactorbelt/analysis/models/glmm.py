@@ -55,7 +55,7 @@ import itertools
 import math
 import re
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any, Final, ParamSpec, TypeVar
 
 import numpy as np
@@ -136,10 +136,8 @@ class ModelSpec:
 
     def replace_term(self, drop: RandomTerm, keep: RandomTerm | None = None) -> ModelSpec:
         """The same model with ``drop`` replaced by ``keep`` (or removed)."""
-        terms = tuple(t if t != drop else keep for t in self.random
-                      if t != drop or keep is not None)
-        return ModelSpec(self.response, self.fixed, tuple(t for t in terms if t is not None),
-                         self.transform)
+        terms = (keep if t == drop else t for t in self.random)
+        return replace(self, random=tuple(t for t in terms if t is not None))
 
     def response_values(self, df: pd.DataFrame) -> np.ndarray:
         y = df[self.response].to_numpy(dtype=float)
@@ -474,12 +472,14 @@ def _is_singular(theta: np.ndarray, lower: list[float]) -> bool:
                     if lb == 0.0))
 
 
-def _rank_messages(dropped: list[str]) -> list[str]:
-    """lme4's message for the columns :func:`fixed_design` dropped (none: no message)."""
-    if not dropped:
-        return []
-    return ["fixed-effect model matrix is rank deficient so dropping "
-            f"{len(dropped)} column(s): " + ", ".join(dropped)]
+def _messages(dropped: list[str], vcov_notes: list[str], ok: bool, optimizer: str,
+              singular: bool) -> list[str]:
+    """lme4's messages on a fit: the columns :func:`fixed_design` dropped, how vcov fell
+    back, the optimiser's message when it did not converge, a singular fit."""
+    out = (["fixed-effect model matrix is rank deficient so dropping "
+            f"{len(dropped)} column(s): " + ", ".join(dropped)] if dropped else [])
+    out += vcov_notes + ([] if ok else [f"optimizer: {optimizer}"])
+    return out + (["boundary (singular) fit: see help('isSingular')"] if singular else [])
 
 
 def _random_terms(df: pd.DataFrame, spec: ModelSpec) -> list[_Term]:
@@ -1293,7 +1293,6 @@ def glmm_fit(data: GlmmData, y: np.ndarray | None = None, *,
     lap = data.laplace(None if y is None else data.pooled(np.asarray(y, dtype=float)))
     lap.set_prior(fixef_prior)
     names, pterms = data.names, data.pterms
-    messages = _rank_messages(data.dropped)
     lower = _lower(lap.terms)
     # the covariance prior is infinite at a variance of 0: its optimiser stays inside
     opt_lower = (lower if fixef_prior is None
@@ -1323,6 +1322,7 @@ def glmm_fit(data: GlmmData, y: np.ndarray | None = None, *,
         vcov_method = ("2 x inverse of the finite-difference Hessian of the penalised "
                        "deviance over (theta, beta), as bglmer's vcov")
     vcov: np.ndarray | None
+    vcov_notes: list[str] = []
     if not se:
         vcov = np.full((lap.p, lap.p), np.nan)
         vcov_method = "not computed (a refit: only the deviance is needed)"
@@ -1335,20 +1335,16 @@ def glmm_fit(data: GlmmData, y: np.ndarray | None = None, *,
         if vcov is None:
             vcov = _inv_or_pinv(lap.rx(par))  # the conditional covariance of beta given theta
             vcov_method = "(R_X' R_X)^-1 given theta (the Hessian was not positive definite)"
-            messages.append("variance-covariance matrix computed from finite-difference "
-                            "Hessian is not positive definite: falling back to var-cov "
-                            "estimated from RX")
-    if not ok2:
-        messages.append(f"optimizer: {msg2}")
-    if singular:
-        messages.append("boundary (singular) fit: see help('isSingular')")
+            vcov_notes = ["variance-covariance matrix computed from finite-difference Hessian "
+                          "is not positive definite: falling back to var-cov estimated from RX"]
     return MixedModelFit(
         spec=spec, family="binomial", fixed_effects=_fixed_table(names, beta, vcov),
         vcov=vcov, random_effects=_random_table(pterms, _split(pterms, theta)), theta=theta,
         singular=singular, deviance=dev,
         loglik=-(dev if fixef_prior is None else lap.likelihood_dev(par)) / 2.0,
         vcov_method=vcov_method,
-        converged=ok1 and ok2, messages=messages, n_obs=data.n_obs, n_cells=int(lap.y.size),
+        converged=ok1 and ok2, messages=_messages(data.dropped, vcov_notes, ok2, msg2, singular),
+        n_obs=data.n_obs, n_cells=int(lap.y.size),
         theta_names=theta_names,
         groups={t.name: t.n_levels for t in data.terms},
         criterion="ML (Laplace)" if fixef_prior is None else "penalised ML (Laplace), bglmer",
@@ -1421,12 +1417,7 @@ def fit_lmm(df: pd.DataFrame, spec: ModelSpec, *, reml: bool = True,
     crit = st["crit"]
     sigma2 = st["pwrss"] / ((n - p) if reml else n)
     vcov = sigma2 * np.linalg.inv(st["sbb"])
-    messages = _rank_messages(data.dropped)
-    if not ok:
-        messages.append(f"optimizer: {msg}")
     singular = _is_singular(theta, lower)
-    if singular:
-        messages.append("boundary (singular) fit: see help('isSingular')")
     sigma = math.sqrt(sigma2)
     re = _random_table(data.terms, _split(data.terms, theta), scale=sigma)
     re["Residual"] = {"sd": {"(Intercept)": sigma}}
@@ -1434,7 +1425,8 @@ def fit_lmm(df: pd.DataFrame, spec: ModelSpec, *, reml: bool = True,
         spec=spec, family="gaussian", fixed_effects=_fixed_table(data.names, st["beta"], vcov),
         vcov=vcov, random_effects=re, theta=theta, singular=singular, deviance=crit,
         loglik=-crit / 2.0, vcov_method="sigma^2 (R_X' R_X)^-1, as lmer's vcov",
-        converged=ok, messages=messages, n_obs=n, n_cells=int(data.w.size),
+        converged=ok, messages=_messages(data.dropped, [], ok, msg, singular), n_obs=n,
+        n_cells=int(data.w.size),
         theta_names=data.theta_names,
         groups={t.name: t.n_levels for t in data.terms},
         criterion="REML" if reml else "ML",

@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any, Final
 
 import numpy as np
@@ -68,8 +68,7 @@ def null_spec(spec: ModelSpec) -> ModelSpec:
     """The model without every fixed-effect term containing the condition: the other
     factors still fully crossed, the random effects unchanged (a random condition slope
     stays)."""
-    return ModelSpec(spec.response, tuple(f for f in spec.fixed if f != TERM), spec.random,
-                     spec.transform)
+    return replace(spec, fixed=tuple(f for f in spec.fixed if f != TERM))
 
 
 def wald_condition(fit: MixedModelFit) -> dict[str, Any]:
