@@ -95,6 +95,22 @@ def load_figure(participant_cells: pd.DataFrame) -> bytes:
     return _png(fig)
 
 
+def _people_and_mean(ax: Any, rows: Sequence[Mapping[str, Any]], at: str, col: str,
+                     levels: list[str], **mean_style: Any) -> None:
+    """One grey line per participant through their ``col`` at each of ``levels`` (of the
+    rows' ``at``), then the mean over participants with its 95 % t interval in black."""
+    x = np.arange(len(levels))
+    for pid in sorted({str(r["participant"]) for r in rows}):
+        vals = {str(r[at]): r[col] for r in rows if str(r["participant"]) == pid}
+        ax.plot(x, [np.nan if vals.get(lv) is None else float(vals[lv]) for lv in levels],
+                color="#BBBBBB", marker="o", markersize=3, linewidth=0.8)
+    means = [_mean_ci(np.array([float(r[col]) for r in rows
+                                if r[at] == lv and r[col] is not None], dtype=float))
+             for lv in levels]
+    ax.errorbar(x, [m for m, _ in means], yerr=[h for _, h in means], color="black",
+                marker="s", capsize=3, linewidth=1.6, **mean_style)
+
+
 def secondary_figure(rows: Sequence[Mapping[str, Any]]) -> bytes:
     """d', hit rate and false-alarm rate of each task by phase (rows of
     :func:`~tactorbelt.analysis.tables.tasks.secondary_task_rows`)."""
@@ -113,19 +129,7 @@ def secondary_figure(rows: Sequence[Mapping[str, Any]]) -> bytes:
             if not sub:
                 _no_data(ax, "no task events")
                 continue
-            for pid in sorted({str(r["participant"]) for r in sub}):
-                vals = {str(r["phase"]): r[col] for r in sub if str(r["participant"]) == pid}
-                ys = [np.nan if vals.get(p) is None else float(vals[p]) for p in phases]
-                ax.plot(x, ys, color="#BBBBBB", marker="o", markersize=3, linewidth=0.8)
-            means, hws = [], []
-            for p in phases:
-                v = np.array([float(r[col]) for r in sub
-                              if r["phase"] == p and r[col] is not None], dtype=float)
-                m, h = _mean_ci(v)
-                means.append(m)
-                hws.append(h)
-            ax.errorbar(x, means, yerr=hws, color="black", marker="s", capsize=3,
-                        linewidth=1.6, markersize=5)
+            _people_and_mean(ax, sub, "phase", col, phases, markersize=5)
             ax.set_xticks(x, phases, fontsize=8)
             ax.set_xlim(-0.4, len(phases) - 0.6)
             ax.set_ylabel(label)
@@ -144,19 +148,8 @@ def tlx_figure(tlx: Mapping[str, Any]) -> bytes:
     _style(ax)
     loads = list(tlx.get("loads", []))
     x = np.arange(len(loads))
-    per = tlx.get("per_participant", [])
-    for pid in sorted({str(r["participant"]) for r in per}):
-        vals = {str(r["load"]): float(r["raw_tlx"]) for r in per
-                if str(r["participant"]) == pid}
-        ax.plot(x, [vals.get(lv, np.nan) for lv in loads], color="#BBBBBB", marker="o",
-                markersize=3, linewidth=0.8)
-    ms, hs = [], []
-    for lv in loads:
-        m, h = _mean_ci(np.array([float(r["raw_tlx"]) for r in per if r["load"] == lv]))
-        ms.append(m)
-        hs.append(h)
-    if loads:
-        ax.errorbar(x, ms, yerr=hs, color="black", marker="s", capsize=3, linewidth=1.6)
+    if loads:  # no loads: no ratings either
+        _people_and_mean(ax, tlx.get("per_participant", []), "load", "raw_tlx", loads)
     else:
         _no_data(ax, "no NASA-TLX ratings")
     ax.set_xticks(x, loads, fontsize=8)
