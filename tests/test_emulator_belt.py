@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from support.belts import hang, wait_for
+from support.belts import hang, wait_for, write_raw
 from tactorbelt import DeviceError, Layout, ProtocolError
 from tactorbelt.devices import open_belt, wire
 from tactorbelt.devices.emulator import EmulatorBelt, build_emulator, firmware_dir
@@ -205,10 +205,10 @@ def test_the_keepalive_holds_the_failsafe_off(emu: EmulatorBelt) -> None:
 def test_garbage_is_counted_and_skipped(emu: EmulatorBelt) -> None:
     before = emu.status()
     rng = np.random.default_rng(7)
-    emu.write_raw(rng.integers(1, 256, 300, dtype=np.uint8).tobytes() + b"\x00")  # too long
-    emu.write_raw(b"\x05\x01\x02\x03\x04\x00")  # valid COBS, bad CRC
-    emu.write_raw(b"\x02\x01\x00")  # too short
-    emu.write_raw(rng.integers(0, 256, 500, dtype=np.uint8).tobytes() + b"\x00")
+    write_raw(emu, rng.integers(1, 256, 300, dtype=np.uint8).tobytes() + b"\x00")  # too long
+    write_raw(emu, b"\x05\x01\x02\x03\x04\x00")  # valid COBS, bad CRC
+    write_raw(emu, b"\x02\x01\x00")  # too short
+    write_raw(emu, rng.integers(0, 256, 500, dtype=np.uint8).tobytes() + b"\x00")
     after = emu.status()  # a valid request still works
     assert after.framing_errors >= before.framing_errors + 2
     assert after.crc_errors >= before.crc_errors + 1

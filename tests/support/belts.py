@@ -218,6 +218,13 @@ class LoopTransport(Transport):
         self.sink.link_lost("end of file")
 
 
+def write_raw(belt: FirmwareBelt, data: bytes) -> None:
+    """Write bytes to the belt's link as they are, between packets: the device counts what
+    it cannot decode and skips it; a serial device resynchronises at the next 0x00."""
+    with belt._tx_lock:
+        belt._write(data)
+
+
 def hang(belt: FirmwareBelt) -> None:
     """Send the emulator's DEBUG_HANG (0x7E): an emulator started with ``debug_frames`` ACKs
     it, then its loop stops (no tick, no failsafe) until its watchdog resets it; any other

@@ -1312,17 +1312,6 @@ class FirmwareBelt(Belt, PacketSink):
             self.max_on_ms = max_on_ms
         self._keepalive_kick.set()
 
-    def write_raw(self, data: bytes) -> None:
-        """Write bytes to the link as they are, between packets (diagnostics, fuzzing).
-
-        The device counts what it cannot decode and skips it; a serial device
-        resynchronises at the next 0x00, so end the bytes with one.
-        """
-        self._check_open()
-        self._check_alive()
-        with self._tx_lock:
-            self._write(bytes(data))
-
     @property
     def lost(self) -> str | None:
         """Why the belt was lost (None while it answers)."""
