@@ -92,7 +92,8 @@ def main() -> None:
             stimulus = make_stimulus(belt.layout, 10.0, "dynamic")
             belt.play(stimulus, None)
             time.sleep(args.seconds)
-            load = belt.callback_load
+            # the callback's CPU time over the audio time it rendered (0..1 of one core)
+            load = belt._busy_ns / 1e9 / (belt._frame / belt.samplerate) if belt._frame else 0.0
             underruns = belt.underruns
             latency_ms = belt.latency_s * 1000
             block_us = render_block_us(belt, stimulus)

@@ -485,13 +485,6 @@ class AudioBelt(Belt):
         """Output underflows PortAudio reported since the belt was opened."""
         return self.underruns
 
-    @property
-    def callback_load(self) -> float:
-        """The callback's CPU time over the audio time it rendered (0..1 of one core)."""
-        if self._frame == 0:
-            return 0.0
-        return self._busy_ns / 1e9 / (self._frame / self.samplerate)
-
     def _report_underruns(self) -> None:
         new = self.underruns - self._underruns_reported
         if new > 0:
