@@ -547,14 +547,11 @@ def set_config(seq: int, heartbeat_ms: int, max_on_ms: int | None = None,
     """SET_CONFIG: heartbeat timeout (50..2000 ms) and, optionally, the longest
     continuous-on time per channel (100..600000 ms) and the flags byte (extensions:
     :class:`ConfigFlag`; needs ``max_on_ms``). ACK, or NAK when out of range."""
-    payload = struct.pack("<H", _uint("heartbeat_ms", heartbeat_ms, 16))
-    if max_on_ms is not None:
-        payload += struct.pack("<I", _uint("max_on_ms", max_on_ms, 32))
-    if flags is not None:
-        if max_on_ms is None:
-            raise ConfigError("SET_CONFIG flags need max_on_ms (the flags are the 7th byte)")
-        payload += struct.pack("<B", _uint("flags", int(flags), 8))
-    return Packet(MsgType.SET_CONFIG, seq, payload)
+    if flags is not None and max_on_ms is None:
+        raise ConfigError("SET_CONFIG flags need max_on_ms (the flags are the 7th byte)")
+    given = {k: v for k, v in (("heartbeat_ms", heartbeat_ms), ("max_on_ms", max_on_ms),
+                               ("flags", flags)) if v is not None}  # the first 2, 6 or 7 bytes
+    return Packet(MsgType.SET_CONFIG, seq, _pack(struct.Struct("<HIB"[:1 + len(given)]), given))
 
 
 def sense_start(seq: int, rate_hz: int, duration_ms: int,
