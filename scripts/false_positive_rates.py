@@ -63,6 +63,9 @@ from tactorbelt.power.design import TrialDesign
 from tactorbelt.power.glmm import NamedEffect, simulate_frame
 from tactorbelt.power.outcomes import binomial_ci
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+from support.power_trials import trials_of
+
 TESTS = ("wald_z", "wald_z_one_sided", "wald_chi2", "lrt", "lrt_f", "pb", "wald_z_max",
          "wald_chi2_max", "lrt_max", "pb_max")
 LABELS = {"wald_z": "Wald z, `conditionstatic` (two-sided)",
@@ -79,8 +82,8 @@ LABELS = {"wald_z": "Wald z, `conditionstatic` (two-sided)",
 
 def design_of(name: str) -> TrialDesign:
     if name == "paper":
-        return TrialDesign.from_study(paper_study())
-    return TrialDesign.from_study(Study.from_toml(template_toml("resolution")), all_counts=True)
+        return trials_of(paper_study())
+    return trials_of(Study.from_toml(template_toml("resolution")), all_counts=True)
 
 
 def one_study(design: TrialDesign, n: int, i: int, seed: int, pb_sims: int,

@@ -15,10 +15,10 @@ import numpy as np
 import pytest
 
 from support.cli import tactorbelt
+from support.power_trials import trials_of
 from tactorbelt._errors import ConfigError
 from tactorbelt.analysis.models.fit import fit_model
 from tactorbelt.experiment.study import Study, paper_study, template_toml
-from tactorbelt.power.design import TrialDesign
 from tactorbelt.power.glmm import (
     NamedEffect,
     headline_statistics,
@@ -28,7 +28,7 @@ from tactorbelt.power.glmm import (
 
 
 def test_the_paper_design_is_its_test_trials() -> None:
-    d = TrialDesign.from_study(paper_study())
+    d = trials_of(paper_study())
     assert d.n == 240 and d.n_targets == 24
     assert sorted(set(d.condition.tolist())) == ["dynamic", "static"]
     assert int(d.on_tactor.sum()) == 6 * 10  # 6 on-tactor targets x 5 reps x 2 blocks
@@ -37,7 +37,7 @@ def test_the_paper_design_is_its_test_trials() -> None:
 def test_simulated_trials_have_the_named_accuracies() -> None:
     eff = NamedEffect(2.0, accuracy=0.4, on_tactor_accuracy=0.95, participant_sd=0.0,
                       slope_sd=0.0, target_sd=0.0)
-    frame = simulate_frame(TrialDesign.from_study(paper_study()), eff, 200,
+    frame = simulate_frame(trials_of(paper_study()), eff, 200,
                            np.random.default_rng(3))
     between = frame["on_tactor"] == 0
     for cond, p in (("static", 0.4), ("dynamic", eff.dynamic_accuracy())):
@@ -51,7 +51,7 @@ def test_simulated_trials_have_the_named_accuracies() -> None:
 
 def test_the_report_model_recovers_the_named_odds_ratio() -> None:
     eff = NamedEffect(1.8, accuracy=0.5, participant_sd=0.6, slope_sd=0.2, target_sd=0.3)
-    frame = simulate_frame(TrialDesign.from_study(paper_study()), eff, 30,
+    frame = simulate_frame(trials_of(paper_study()), eff, 30,
                            np.random.default_rng(11))
     fit, js = fit_model(frame)
     fe = fit.fixed_effects["conditionstatic"]
@@ -62,7 +62,7 @@ def test_the_report_model_recovers_the_named_odds_ratio() -> None:
 def test_large_effects_are_found_and_no_effect_rarely() -> None:
     """The headline is the likelihood ratio referred to F(k, participants - 1): a large
     effect is found, no effect about as rarely as alpha / 2 in the named direction."""
-    design = TrialDesign.from_study(paper_study())
+    design = trials_of(paper_study())
     big = simulate_glmm_studies(design, NamedEffect(4.0), 6, range(6), seed=2)
     assert all(o.found(0.05) for o in big)
     null = simulate_glmm_studies(design, NamedEffect.no_effect(), 6, range(12), seed=3)
@@ -76,7 +76,7 @@ def test_large_effects_are_found_and_no_effect_rarely() -> None:
 def test_power_uses_the_likelihood_ratio_referred_to_f() -> None:
     from scipy import stats
 
-    design = TrialDesign.from_study(paper_study())
+    design = trials_of(paper_study())
     frame = simulate_frame(design, NamedEffect(2.0), 5, np.random.default_rng([5, 5, 0]))
     res = headline_statistics(frame)
     assert res.p == pytest.approx(stats.f.sf(res.lrt / 2, 2, 4))  # 2 condition terms
@@ -106,11 +106,11 @@ def test_bad_effect_sizes_are_refused(kwargs: dict[str, float], message: str) ->
 def test_a_factorial_study_needs_the_count_named() -> None:
     study = Study.from_toml(template_toml("resolution"))
     with pytest.raises(ConfigError, match="dynamic vs static at N"):
-        TrialDesign.from_study(study)
-    d = TrialDesign.from_study(study, 36)
+        trials_of(study)
+    d = trials_of(study, 36)
     assert d.n_targets == 36 and np.unique(d.target_deg).size == 36
     assert d.n == 36 * 2 * 2  # static and dynamic blocks of 36, 2 repetitions each
-    every = TrialDesign.from_study(study, all_counts=True)
+    every = trials_of(study, all_counts=True)
     assert every.counts is not None and every.n == (12 + 24 + 36 + 48) * 2 * 2
     frame = simulate_frame(every, NamedEffect(2.0), 3, np.random.default_rng(0))
     assert sorted(frame["n_targets"].unique().tolist()) == [12, 24, 36, 48]
@@ -146,7 +146,7 @@ def test_a_fit_whose_warm_start_diverges_still_converges() -> None:
     """This simulated study made the PIRLS warm start diverge (a singular system) in the
     optimiser's first stage; it must fit, and agree with lme4::glmer (R 4.2.2, lme4
     1.1.31 on the same data: conditionstatic 1.7468, SE 0.2770)."""
-    frame = simulate_frame(TrialDesign.from_study(paper_study()), NamedEffect(0.25), 6,
+    frame = simulate_frame(trials_of(paper_study()), NamedEffect(0.25), 6,
                            np.random.default_rng([2, 6, 2]))
     fit, js = fit_model(frame)
     fe = fit.fixed_effects["conditionstatic"]

@@ -190,12 +190,11 @@ def _resolution_frame(participants: int = 6, odds_ratio: float = 1.3,
     from the report's GLMM with a small condition effect (seed 7: glmer converges
     without a warning; with seed 5 it stops at max|grad| 0.004 and its estimates differ
     from the optimum, ours, by up to 1.3e-3)."""
+    from support.power_trials import trials_of
     from tactorbelt.experiment.study import Study, template_toml
-    from tactorbelt.power.design import TrialDesign
     from tactorbelt.power.glmm import NamedEffect, simulate_frame
 
-    design = TrialDesign.from_study(Study.from_toml(template_toml("resolution")),
-                                    all_counts=True)
+    design = trials_of(Study.from_toml(template_toml("resolution")), all_counts=True)
     return simulate_frame(design, NamedEffect(odds_ratio, accuracy=0.55), participants,
                           np.random.default_rng(seed))
 
@@ -286,14 +285,14 @@ def test_parametric_bootstrap_agrees_with_pbkrtest() -> None:
     ref = those ratios): every LRT* within 1 % (or 0.01), and pbkrtest's p."""
     import warnings
 
+    from support.power_trials import trials_of
     from support.r_reference import r_condition_tests
     from tactorbelt.analysis.models.fit import fit_model
     from tactorbelt.analysis.models.lrt import null_spec, parametric_bootstrap
     from tactorbelt.experiment.study import paper_study
-    from tactorbelt.power.design import TrialDesign
     from tactorbelt.power.glmm import NamedEffect, simulate_frame
 
-    frame = simulate_frame(TrialDesign.from_study(paper_study()), NamedEffect(1.4), 4,
+    frame = simulate_frame(trials_of(paper_study()), NamedEffect(1.4), 4,
                            np.random.default_rng([7, 4]))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")

@@ -174,28 +174,15 @@ class PowerDesign:
         return FactorialProtocol(tuple(parts), tuple(levels) if loaded else (),
                                  tuple(names) if loaded else ())
 
-    def trials(self, n_targets: int | None = None, *, all_counts: bool = False
-               ) -> TrialDesign:
-        """One participant's counted test trials, of the blocks of ``n_targets`` targets.
-
-        Args:
-            n_targets: the target count (None: the design's one count).
-            all_counts: every test block, whatever its target count (``n_targets`` is
-                then the first count; ``counts`` holds each trial's).
+    def trials(self, n_targets: int | None = None) -> TrialDesign:
+        """One participant's counted test trials, of the blocks of ``n_targets`` targets
+        (None: the design's one count).
 
         Raises:
             ConfigError: several target counts and none chosen; a count it lacks; no
                 static or no dynamic block.
         """
         counts = list(self.counts)
-        if all_counts and len(counts) > 1:
-            parts = [self.trials(c) for c in counts]
-            return TrialDesign(np.concatenate([p.condition for p in parts]),
-                               np.concatenate([p.target_deg for p in parts]),
-                               np.concatenate([p.on_tactor for p in parts]), int(counts[0]),
-                               np.concatenate([np.full(p.n, p.n_targets) for p in parts]),
-                               {k: np.concatenate([p.levels[k] for p in parts])
-                                for k in parts[0].levels})
         if n_targets is None:
             if len(counts) != 1:
                 raise ConfigError(
@@ -244,12 +231,6 @@ class TrialDesign:
     #: each trial's level of every factor declared beyond condition, targets and load,
     #: by column (the model has their terms where they vary)
     levels: Mapping[str, np.ndarray] = field(default_factory=dict)
-
-    @classmethod
-    def from_study(cls, study: Any, n_targets: int | None = None, *,
-                   all_counts: bool = False) -> TrialDesign:
-        """``PowerDesign.from_study(study).trials(n_targets, all_counts=all_counts)``."""
-        return PowerDesign.from_study(study).trials(n_targets, all_counts=all_counts)
 
     @property
     def n(self) -> int:
