@@ -193,9 +193,10 @@ class SessionRecorder:
         Raises:
             StoreError: the trial already has a final row, or the write failed.
         """
-        on, sd = (None, None) if skin_onset is None else skin_onset
-        return self.store.write_trial(self.session_id, result, skin_onset_ns=on,
-                                      skin_onset_sd_ns=sd)
+        if skin_onset is None:
+            return self.store.write_trial(self.session_id, result)
+        return self.store.write_trial(self.session_id, result, skin_onset_ns=skin_onset[0],
+                                      skin_onset_sd_ns=skin_onset[1])
 
     def result_for(self, index: int, *, onset_ns: int | None,
                    response_deg: float | None, rt_s: float | None,
