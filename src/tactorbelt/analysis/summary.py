@@ -203,12 +203,9 @@ class Summary:
             for kind in KINDS:
                 r = self.condition_row(cond, kind)
                 entry[kind] = {
-                    "n": int(r["n"]), "n_participants": int(r["n_participants"]),
-                    "n_correct": int(r["n_correct"]), "n_timeout": int(r["n_timeout"]),
-                    "accuracy": _num(r["accuracy"]), "median_rt_s": _num(r["median_rt_s"]),
-                    "circ_mean_error_deg": _num(r["circ_mean_error_deg"]),
-                    "circ_sd_error_deg": _num(r["circ_sd_error_deg"]),
-                }
+                    **{k: int(r[k]) for k in ("n", "n_participants", "n_correct", "n_timeout")},
+                    **{k: _num(r[k]) for k in ("accuracy", "median_rt_s", "circ_mean_error_deg",
+                                               "circ_sd_error_deg")}}
                 if int(r["n"]) == 0:
                     entry[kind]["note"] = "no counted test trials"
                 elif int(r["n_rt"]) == 0:
