@@ -1045,7 +1045,7 @@ def _minimize(fg: Any, x0: np.ndarray, lower: Sequence[float], *, ftol: float = 
 
 
 def _escape_boundary(lap: _Laplace, par: np.ndarray, dev: float, lower: list[float],
-                     ftol: float, ok: bool, msg: str) -> tuple[np.ndarray, float, bool, str]:
+                     ok: bool, msg: str) -> tuple[np.ndarray, float, bool, str]:
     """Leave a variance component at 0 only where 0 is a minimum along it.
 
     The deviance is even in a diagonal element of theta at 0, so its gradient there is
@@ -1067,7 +1067,7 @@ def _escape_boundary(lap: _Laplace, par: np.ndarray, dev: float, lower: list[flo
         lap.dev(par)  # the modes back at the optimum
         if best is None:
             break
-        new, ok_new, msg_new = _stage2(lap, best[1], lower, ftol=ftol)
+        new, ok_new, msg_new = _stage2(lap, best[1], lower)
         d_new = lap.dev(new)
         if d_new >= dev:
             lap.dev(par)
@@ -1076,8 +1076,7 @@ def _escape_boundary(lap: _Laplace, par: np.ndarray, dev: float, lower: list[flo
     return par, dev, ok, msg
 
 
-def _stage2(lap: _Laplace, par0: np.ndarray, lower: list[float],
-            ftol: float = 1e-12) -> tuple[np.ndarray, bool, str]:
+def _stage2(lap: _Laplace, par0: np.ndarray, lower: list[float]) -> tuple[np.ndarray, bool, str]:
     """Minimise the Laplace deviance over (theta, beta) from ``par0``.
 
     beta is preconditioned: optimised as ``gamma = C'(beta - beta0)`` with ``C C'`` the
@@ -1100,7 +1099,7 @@ def _stage2(lap: _Laplace, par0: np.ndarray, lower: list[float],
         return f, np.r_[g[:k], np.linalg.solve(c, g[k:])]
 
     z, ok, msg = _minimize(fg, np.r_[par0[:k], np.zeros(lap.p)], lower + [-np.inf] * lap.p,
-                           ftol=ftol, gtol=1e-5, maxiter=1000)
+                           gtol=1e-5, maxiter=1000)
     return to_par(z), ok, msg
 
 
@@ -1285,7 +1284,7 @@ def fit_glmm(df: pd.DataFrame, spec: ModelSpec, *, skip_se_if_simplified: bool =
 
 def glmm_fit(data: GlmmData, y: np.ndarray | None = None, *,
              skip_se_if_simplified: bool = False, start_par: np.ndarray | None = None,
-             se: bool = True, ftol: float = 1e-12, keep_slopes: bool = False,
+             se: bool = True, keep_slopes: bool = False,
              fixef_prior: FixefPrior | None = None) -> MixedModelFit:
     """:func:`fit_glmm` on prepared data, optionally with another per-row response ``y``
     (a refit, as lme4's ``refit(m, newresp = y)``) and a starting ``(theta, beta)``."""
@@ -1307,10 +1306,10 @@ def glmm_fit(data: GlmmData, y: np.ndarray | None = None, *,
         lap.dev_theta(theta1)
         par0 = np.r_[theta1, lap.beta_joint]
     # stage 2 (nAGQ = 1): the Laplace deviance over (theta, beta)
-    par, ok2, msg2 = _stage2(lap, par0, opt_lower, ftol=ftol)
+    par, ok2, msg2 = _stage2(lap, par0, opt_lower)
     dev = lap.dev(par)
     if fixef_prior is None:
-        par, dev, ok2, msg2 = _escape_boundary(lap, par, dev, lower, ftol, ok2, msg2)
+        par, dev, ok2, msg2 = _escape_boundary(lap, par, dev, lower, ok2, msg2)
     theta, beta = par[: lap.n_theta], par[lap.n_theta:]
     theta_names = data.theta_names
     singular = _is_singular(theta, lower)
@@ -1371,8 +1370,8 @@ class LmmData:
         self.lower = _lower(self.terms)
         self.theta_names = _theta_names(self.terms)
 
-    def state(self, theta: np.ndarray, reml: bool = True) -> dict[str, Any]:
-        """At ``theta``: the profiled criterion ``crit`` (REML or ML), ``log det(L L')``
+    def state(self, theta: np.ndarray) -> dict[str, Any]:
+        """At ``theta``: the profiled REML criterion ``crit``, ``log det(L L')``
         (``ldl2``), ``log det(R_X' R_X)`` (``ldx``), the penalised weighted RSS
         (``pwrss``), ``beta`` and ``R_X' R_X`` (``sbb``)."""
         sysm, w, ysum, n, p = self.sysm, self.w, self.ysum, self.n, self.p
@@ -1387,19 +1386,16 @@ class LmmData:
         ld = sysm.logdet_u(f)
         sbb = sysm.beta_block(f)
         ldx = 2.0 * float(np.log(np.diag(np.linalg.cholesky(sbb))).sum())
-        if reml:
-            dof = n - p
-            crit = ld + ldx + dof * (1.0 + math.log(2.0 * math.pi * pwrss / dof))
-        else:
-            crit = ld + n * (1.0 + math.log(2.0 * math.pi * pwrss / n))
+        dof = n - p
+        crit = ld + ldx + dof * (1.0 + math.log(2.0 * math.pi * pwrss / dof))
         return {"crit": crit, "ldl2": ld, "ldx": ldx, "pwrss": pwrss, "beta": x2[sysm.r_u:],
                 "sbb": sbb}
 
 
 @one_blas_thread
-def fit_lmm(df: pd.DataFrame, spec: ModelSpec, *, reml: bool = True,
+def fit_lmm(df: pd.DataFrame, spec: ModelSpec, *,
             start: MixedModelFit | None = None) -> MixedModelFit:
-    """A linear mixed model by REML (``reml=False``: ML), as ``lme4::lmer``.
+    """A linear mixed model by REML, as ``lme4::lmer``.
 
     The profiled criterion of Bates et al. (2015, eq. 34/41) is minimised over theta
     (L-BFGS-B, diagonal of theta >= 0); ``vcov = sigma^2 (R_X' R_X)^{-1}`` as lmer's.
@@ -1411,11 +1407,11 @@ def fit_lmm(df: pd.DataFrame, spec: ModelSpec, *, reml: bool = True,
     theta0 = _start(start, data.theta_names)
     if theta0 is None:
         theta0 = np.array([1.0 if b == 0.0 else 0.0 for b in lower])
-    theta, ok, msg = _minimize(_differences(lambda t: data.state(t, reml)["crit"]), theta0,
+    theta, ok, msg = _minimize(_differences(lambda t: data.state(t)["crit"]), theta0,
                                lower)
-    st = data.state(theta, reml)
+    st = data.state(theta)
     crit = st["crit"]
-    sigma2 = st["pwrss"] / ((n - p) if reml else n)
+    sigma2 = st["pwrss"] / (n - p)
     vcov = sigma2 * np.linalg.inv(st["sbb"])
     singular = _is_singular(theta, lower)
     sigma = math.sqrt(sigma2)
@@ -1429,7 +1425,7 @@ def fit_lmm(df: pd.DataFrame, spec: ModelSpec, *, reml: bool = True,
         n_cells=int(data.w.size),
         theta_names=data.theta_names,
         groups={t.name: t.n_levels for t in data.terms},
-        criterion="REML" if reml else "ML",
+        criterion="REML",
     )
 
 

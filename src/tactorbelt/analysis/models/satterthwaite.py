@@ -100,7 +100,7 @@ def satterthwaite(frame: pd.DataFrame, fit: MixedModelFit,
 
     Args:
         frame: the data ``fit`` was fitted to (answered trials).
-        fit: an LMM by REML or ML (:func:`~tactorbelt.analysis.models.glmm.fit_lmm`).
+        fit: an LMM by REML (:func:`~tactorbelt.analysis.models.glmm.fit_lmm`, or lmer's).
 
     Returns:
         Per fixed effect: ``df``, ``t``, ``p``, and ``ci_low``/``ci_high`` (the 95 % t
@@ -110,21 +110,19 @@ def satterthwaite(frame: pd.DataFrame, fit: MixedModelFit,
     from scipy.stats import t as t_dist
 
     data = LmmData(frame, fit.spec)
-    reml = fit.criterion == "REML"
     sigma = float(fit.random_effects["Residual"]["sd"]["(Intercept)"])
     varpar = np.r_[fit.theta, sigma]
     n, p = data.n, data.p
 
     def dev_vp(vp: np.ndarray) -> float:
-        st = data.state(vp[:-1], reml)
+        st = data.state(vp[:-1])
         s2 = vp[-1] ** 2
         dev = st["ldl2"] + st["pwrss"] / s2 + n * math.log(2.0 * math.pi * s2)
-        if reml:
-            dev += st["ldx"] - p * math.log(2.0 * math.pi * s2)
+        dev += st["ldx"] - p * math.log(2.0 * math.pi * s2)  # REML
         return float(dev)
 
     def covbeta(vp: np.ndarray) -> np.ndarray:
-        st = data.state(vp[:-1], reml)
+        st = data.state(vp[:-1])
         return np.asarray(vp[-1] ** 2 * np.linalg.inv(st["sbb"])).ravel()
 
     hess = richardson_hessian(dev_vp, varpar)
