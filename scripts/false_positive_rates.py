@@ -60,11 +60,11 @@ from tactorbelt.analysis.models.lrt import (
 )
 from tactorbelt.experiment.study import Study, paper_study, template_toml
 from tactorbelt.power.design import TrialDesign
-from tactorbelt.power.glmm import NamedEffect, simulate_frame
+from tactorbelt.power.glmm import simulate_frame
 from tactorbelt.power.outcomes import binomial_ci
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
-from support.power_trials import trials_of
+from support.power_trials import no_effect, trials_of
 
 TESTS = ("wald_z", "wald_z_one_sided", "wald_chi2", "lrt", "lrt_f", "pb", "wald_z_max",
          "wald_chi2_max", "lrt_max", "pb_max")
@@ -89,7 +89,7 @@ def design_of(name: str) -> TrialDesign:
 def one_study(design: TrialDesign, n: int, i: int, seed: int, pb_sims: int,
               keep_slopes: bool = False) -> dict[str, object]:
     rng = np.random.default_rng([seed, n, i])
-    frame = simulate_frame(design, NamedEffect.no_effect(), n, rng)
+    frame = simulate_frame(design, no_effect(), n, rng)
     t0 = time.process_time()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")

@@ -162,12 +162,12 @@ def test_a_variance_at_zero_is_left_when_it_is_no_minimum() -> None:
     simplified model started from a singular fit's 0 used to stay at that saddle (the
     participant SD of this study: 0 instead of glmer's 0.358, deviance 1761.3 instead of
     1735.5)."""
-    from support.power_trials import trials_of
+    from support.power_trials import no_effect, trials_of
     from tactorbelt.analysis.models.fit import fit_model
     from tactorbelt.experiment.study import paper_study
-    from tactorbelt.power.glmm import NamedEffect, simulate_frame
+    from tactorbelt.power.glmm import simulate_frame
 
-    frame = simulate_frame(trials_of(paper_study()), NamedEffect.no_effect(), 6,
+    frame = simulate_frame(trials_of(paper_study()), no_effect(), 6,
                            np.random.default_rng([2, 6, 1_000_017]))
     fit, js = fit_model(frame)
     assert not fit.singular

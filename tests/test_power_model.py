@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from support.cli import tactorbelt
-from support.power_trials import trials_of
+from support.power_trials import no_effect, trials_of
 from tactorbelt._errors import ConfigError
 from tactorbelt.analysis.models.fit import fit_model
 from tactorbelt.experiment.study import Study, paper_study, template_toml
@@ -65,7 +65,7 @@ def test_large_effects_are_found_and_no_effect_rarely() -> None:
     design = trials_of(paper_study())
     big = simulate_glmm_studies(design, NamedEffect(4.0), 6, range(6), seed=2)
     assert all(o.found(0.05) for o in big)
-    null = simulate_glmm_studies(design, NamedEffect.no_effect(), 6, range(12), seed=3)
+    null = simulate_glmm_studies(design, no_effect(), 6, range(12), seed=3)
     assert sum(o.found(0.05) for o in null) <= 2
     # OR < 1 names "static better": found in that direction
     reverse = simulate_glmm_studies(design, NamedEffect(1 / 4.0), 6, range(3), seed=2)
@@ -87,7 +87,7 @@ def test_power_uses_the_likelihood_ratio_referred_to_f() -> None:
 
 
 def test_null_effect_is_an_odds_ratio_of_one() -> None:
-    eff = NamedEffect.no_effect(accuracy=0.6)
+    eff = no_effect(accuracy=0.6)
     assert eff.odds_ratio == 1.0 and eff.headline == 0.0 and eff.accuracy == 0.6
     assert eff.dynamic_accuracy() == pytest.approx(0.6)
 

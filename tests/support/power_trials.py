@@ -1,7 +1,7 @@
-"""A study's counted test trials as the power analysis draws them, for the tests and
-scripts/false_positive_rates.py: :meth:`tactorbelt.power.design.PowerDesign.trials`, or
-every test block whatever its target count (the resolution study's model with
-``factor(n_targets)``)."""
+"""A study's counted test trials as the power analysis draws them, and the named-effect
+model without an effect, for the tests and scripts/false_positive_rates.py:
+:meth:`tactorbelt.power.design.PowerDesign.trials`, or every test block whatever its
+target count (the resolution study's model with ``factor(n_targets)``); :func:`no_effect`."""
 
 from __future__ import annotations
 
@@ -10,6 +10,7 @@ from typing import Any
 import numpy as np
 
 from tactorbelt.power.design import PowerDesign, TrialDesign
+from tactorbelt.power.glmm import NamedEffect
 
 
 def trials_of(study: Any, n_targets: int | None = None, *, all_counts: bool = False
@@ -28,3 +29,11 @@ def trials_of(study: Any, n_targets: int | None = None, *, all_counts: bool = Fa
                        np.concatenate([np.full(p.n, p.n_targets) for p in parts]),
                        {k: np.concatenate([p.levels[k] for p in parts])
                         for k in parts[0].levels})
+
+
+def no_effect(**sizes: float) -> NamedEffect:
+    """The named-effect model with no condition effect (odds ratio 1, which a user may not
+    name): the null, for false-positive rates."""
+    eff = NamedEffect(2.0, **sizes)
+    object.__setattr__(eff, "odds_ratio", 1.0)
+    return eff

@@ -102,14 +102,6 @@ class NamedEffect:
                 raise ConfigError(f"{name.replace('_', ' ')} must be between 0 and 5 "
                                   f"(log-odds), got {v!r}")
 
-    @classmethod
-    def no_effect(cls, **sizes: float) -> NamedEffect:
-        """The same model with no condition effect (odds ratio 1): the null, for
-        false-positive rates (scripts/false_positive_rates.py)."""
-        eff = cls(2.0, **sizes)
-        object.__setattr__(eff, "odds_ratio", 1.0)
-        return eff
-
     @property
     def headline(self) -> float:
         """The true ``conditionstatic`` coefficient: ``-log(odds_ratio)``."""
