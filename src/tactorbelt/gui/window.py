@@ -37,6 +37,7 @@ runner's observer types, inputs and tactorbelt.gui.
 from __future__ import annotations
 
 import contextlib
+import functools
 import logging
 import os
 from collections.abc import Callable
@@ -438,13 +439,8 @@ def run_with_window(
             src = make_cursor(cursor_kind, study=study, belt=belt, clock=clock,
                               participant=participant, seed=seed, schedule=answers)
             win.window.attach_cursor(src)
-        clk = clock
-
-        def go() -> SessionResult:
-            return run_session(study, participant, belt, src, store, clk, seed=seed,
-                               resume=resume, limit=limit, observer=win.observer,
-                               progress=progress, study_toml=study_toml,
-                               input_name=cursor_kind)
-
-        result: SessionResult = win.run(go)
+        result: SessionResult = win.run(functools.partial(
+            run_session, study, participant, belt, src, store, clock, seed=seed, resume=resume,
+            limit=limit, observer=win.observer, progress=progress, study_toml=study_toml,
+            input_name=cursor_kind))
         return result
