@@ -83,11 +83,8 @@ def print_summary_table(summary: Summary, console: Console | None = None) -> Non
 
     con = console or Console()
     table = Table(title="Accuracy and median response time (test block)")
-    table.add_column("condition")
-    table.add_column("targets")
-    table.add_column("n", justify="right")
-    table.add_column("accuracy", justify="right")
-    table.add_column("median RT (s)", justify="right")
+    for i, column in enumerate(("condition", "targets", "n", "accuracy", "median RT (s)")):
+        table.add_column(column, justify="left" if i < 2 else "right")
     style = {"static": "bold blue", "dynamic": "bold dark_orange3"}
     for cond in CONDITIONS:
         for kind in KINDS:
@@ -218,11 +215,9 @@ def analyze(paths: Sequence[str | Path], out: str | Path, *, seed: int | None = 
     tick("writing the report")
     try:
         out.mkdir(parents=True, exist_ok=True)
-        for name in FIGURE_ORDER:  # stale figures of an earlier run would mislead
-            if name not in figures and (out / name).is_file():
-                (out / name).unlink()
-        for old in [*out.glob("fig1b-*.png"), out / "resolution.png",  # factorial, load
-                    *(out / n for n in TASK_FIGURE_ORDER)]:
+        # stale figures of an earlier run would mislead (factorial and load ones too)
+        for old in [*(out / n for n in (*FIGURE_ORDER, "resolution.png", *TASK_FIGURE_ORDER)),
+                    *out.glob("fig1b-*.png")]:
             if old.name not in figures and old.is_file():
                 old.unlink()
         for name, png in figures.items():
