@@ -46,15 +46,11 @@ REQUIRED_COLUMNS: Final[dict[str, tuple[str, ...]]] = {
 }
 #: Optional session columns read when present.
 OPTIONAL_SESSION_COLUMNS: Final = ("input", "site")
-#: Optional trial columns (schema 2, factorial designs) read when present; trials of
-#: older stores get their session's study's target count and load ``none``.
+#: Optional trial columns (schema 2, factorial designs) read when present, then the
+#: column of each factor declared beyond the built-in ones (:mod:`tactorbelt.factors`; a
+#: store from before it lacks it); trials of older stores get their session's study's
+#: target count and load ``none``.
 OPTIONAL_TRIAL_COLUMNS: Final = ("n_targets", "load", "block_index")
-
-
-def optional_trial_columns() -> tuple[str, ...]:
-    """:data:`OPTIONAL_TRIAL_COLUMNS`, then the column of each factor declared beyond
-    the built-in ones (:mod:`tactorbelt.factors`; a store from before it lacks it)."""
-    return (*OPTIONAL_TRIAL_COLUMNS, *(f.column for f in added_factors()))
 #: The trial's onset at the skin (the stored onset plus the measured latency of the
 #: tactors that start the stimulus) and its spread, read when present; loaded as
 #: ``skin_offset_s`` (``(skin_onset_ns - onset_ns) / 1e9``, from the exact integer
@@ -113,7 +109,8 @@ def _read_store(path: Path | str, store_index: int, include_running: bool = Fals
         sess_cols = list(REQUIRED_COLUMNS["sessions"]) + [
             c for c in OPTIONAL_SESSION_COLUMNS if c in cols["sessions"]]
         trial_cols = list(REQUIRED_COLUMNS["trials"]) + [
-            c for c in optional_trial_columns() if c in cols["trials"]]
+            c for c in (*OPTIONAL_TRIAL_COLUMNS, *(f.column for f in added_factors()))
+            if c in cols["trials"]]
         skin = all(c in cols["trials"] for c in SKIN_ONSET_COLUMNS)
         read_cols = trial_cols + (list(SKIN_ONSET_COLUMNS) if skin else [])
         sessions = pd.DataFrame.from_records(store.read_table("sessions", sess_cols),
