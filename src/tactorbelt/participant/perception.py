@@ -106,13 +106,6 @@ class Cues:
         idx = np.asarray(index, dtype=np.intp)
         return Cues(*(np.asarray(getattr(self, f))[idx] for f in _CUE_FIELDS))
 
-    @staticmethod
-    def concat(items: list[Cues]) -> Cues:
-        """Join batches of cues into one."""
-        if not items:
-            raise ConfigError("Cues.concat needs at least one batch")
-        return Cues(*(np.concatenate([getattr(c, f) for c in items]) for f in _CUE_FIELDS))
-
 
 _CUE_FIELDS = ("pair", "w_a", "w_b", "felt_a", "felt_b", "dwell_a_s", "dwell_b_s",
                "overlap", "duration_s")
