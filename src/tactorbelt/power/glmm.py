@@ -51,12 +51,8 @@ from .pool import run_sizes, studies
 if TYPE_CHECKING:
     import pandas as pd
 
-__all__ = ["HEADLINE", "HeadlineResult", "NamedEffect", "TrialDesign", "headline_statistics",
+__all__ = ["HeadlineResult", "NamedEffect", "TrialDesign", "headline_statistics",
            "named_power", "simulate_frame", "simulate_glmm_studies"]
-
-#: the coefficient the report's headline test is about (static minus dynamic, log-odds,
-#: at between-tactor targets).
-HEADLINE = "conditionstatic"
 
 
 def _logit(p: float) -> float:
@@ -161,17 +157,15 @@ class HeadlineResult:
         lrt: the likelihood ratio (every condition term against none); lrt_p its
             chi-square p.
         p: the headline p: ``lrt / df`` referred to ``F(df, participants - 1)``.
-        wald_p: the Wald z p of ``conditionstatic`` (the old headline).
     """
 
     estimate: float
     lrt: float
     lrt_p: float
     p: float
-    wald_p: float
 
 
-_NAN_RESULT = HeadlineResult(math.nan, math.nan, math.nan, math.nan, math.nan)
+_NAN_RESULT = HeadlineResult(math.nan, math.nan, math.nan, math.nan)
 
 
 def headline_statistics(frame: pd.DataFrame) -> HeadlineResult:
@@ -194,10 +188,8 @@ def headline_statistics(frame: pd.DataFrame) -> HeadlineResult:
     except (ValueError, np.linalg.LinAlgError, FloatingPointError):
         return _NAN_RESULT
     lr = likelihood_ratio(fit, fit0)
-    fe = fit.fixed_effects.get(HEADLINE)
     f_p = float(lr.get("f_reference", {}).get("p", math.nan))
-    return HeadlineResult(est, float(lr["statistic"]), float(lr["p"]), f_p,
-                          fe.p if fe is not None else math.nan)
+    return HeadlineResult(est, float(lr["statistic"]), float(lr["p"]), f_p)
 
 
 def _between(frame: pd.DataFrame, condition: str) -> np.ndarray:
