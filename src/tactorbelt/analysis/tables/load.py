@@ -171,19 +171,18 @@ def _tidy(sessions: pd.DataFrame, trials: pd.DataFrame, labels: list[str],
     import numpy as np
     import pandas as pd
 
-    sessions = sessions.copy()
     label = pd.Series(labels, dtype="string")
-    sessions["session_key"] = (label.iloc[sessions["store"].to_numpy()].to_numpy() + "#"
-                               + sessions["session_id"].astype(str))
+
+    def session_key(df: pd.DataFrame) -> pd.Series:
+        return label.iloc[df["store"].to_numpy()].to_numpy() + "#" + df["session_id"].astype(str)
+
+    sessions = sessions.copy()
+    sessions["session_key"] = session_key(sessions)
     sessions["participant"] = sessions["participant"].astype(str)
     for c in ("status", "belt", "study_name", "study_sha256", "firmware_version",
-              "package_version", "condition_order", "started_at", "ended_at"):
-        sessions[c] = sessions[c].astype("string")
-    for c in OPTIONAL_SESSION_COLUMNS:
-        if c not in sessions.columns:
-            sessions[c] = pd.Series(pd.NA, index=sessions.index, dtype="string")
-        else:
-            sessions[c] = sessions[c].astype("string")
+              "package_version", "condition_order", "started_at", "ended_at",
+              *OPTIONAL_SESSION_COLUMNS):  # the optional ones: <NA> where not stored
+        sessions[c] = sessions.get(c, pd.Series(pd.NA, index=sessions.index)).astype("string")
 
     # The same session copied into two stores: keep the first copy.
     ident = ["participant", "study_sha256", "started_at"]
@@ -198,8 +197,7 @@ def _tidy(sessions: pd.DataFrame, trials: pd.DataFrame, labels: list[str],
         sessions = sessions.loc[~dup].reset_index(drop=True)
 
     trials = trials.copy()
-    trials["session_key"] = (label.iloc[trials["store"].to_numpy()].to_numpy() + "#"
-                             + trials["session_id"].astype(str))
+    trials["session_key"] = session_key(trials)
     orphan = ~trials["session_key"].isin(sessions["session_key"])
     if orphan.any():
         n_dup = int(orphan.sum())
