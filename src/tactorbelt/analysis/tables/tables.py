@@ -282,10 +282,7 @@ def training_summary(tr: pd.DataFrame) -> pd.DataFrame:
 def infer_n_targets(target_deg: np.ndarray) -> int:
     """The target count of angles at k*360/n: 360 / gcd(angles, 360) (in micro-degrees)."""
     micro = np.round(np.mod(np.asarray(target_deg, dtype=float), 360.0) * 1e6).astype(np.int64)
-    g = 360_000_000
-    for v in np.unique(micro).tolist():
-        g = math.gcd(g, int(v))
-    return max(1, round(360_000_000 / g))
+    return max(1, round(360_000_000 / math.gcd(360_000_000, *np.unique(micro).tolist())))
 
 
 def with_cell_columns(trials: pd.DataFrame, n_targets: int | None = None) -> pd.DataFrame:
