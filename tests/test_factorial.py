@@ -329,7 +329,8 @@ def test_cell_information_transfer_is_per_participant_then_averaged() -> None:
 
 
 def test_old_trials_get_the_single_count_and_no_load() -> None:
-    from tactorbelt.analysis.tables.cells import cell_summary, infer_n_targets
+    from tactorbelt.analysis.tables.cells import cell_summary
+    from tactorbelt.analysis.tables.tables import infer_n_targets
 
     tr = _trials(paper_study(), ["P01"], {"P01": 0}).drop(columns=["n_targets", "load"])
     out = cell_summary(tr)

@@ -35,7 +35,7 @@ import numpy as np
 
 from ...factors import BUILTIN, added_factors, after_builtin, factors
 from ._json import finite_float as _num
-from .tables import infer_n_targets, prepare_trials, with_cell_columns
+from .tables import prepare_trials, with_cell_columns
 from .transfer import ESTIMATOR, cell_interval, estimate_transfer, information_transfer
 
 if TYPE_CHECKING:
@@ -50,10 +50,8 @@ __all__ = [
     "PARTICIPANT_CELL_COLUMNS",
     "cell_summary",
     "cells_to_json",
-    "infer_n_targets",
     "is_factorial",
     "participant_cells",
-    "with_cell_columns",
 ]
 
 #: The built-in factors' columns (:mod:`tactorbelt.factors`); :func:`cell_keys` adds the
