@@ -45,8 +45,7 @@ FIGURE_CAPTIONS: Final = {
     "paired.png": "Per-participant between-tactor accuracy and median RT in the two "
                   "conditions; each grey line is one participant.",
 }
-FIGURE_ORDER: Final = ("fig1b.png", "polar.png", "confusion.png", "trajectories.png",
-                       "paired.png")
+FIGURE_ORDER: Final = tuple(FIGURE_CAPTIONS)
 MAX_TABLE_ROWS: Final = 200
 MAX_LISTED: Final = 50
 
