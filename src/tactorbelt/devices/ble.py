@@ -42,7 +42,7 @@ from typing import Any, Final, Protocol, TypeVar
 
 from .._errors import DeviceError, ProtocolError
 from . import wire
-from ._firmware import FIRMWARE_OPTIONS, FirmwareBelt, PacketSink, Transport, probe
+from ._firmware import BLE_MIN_MTU, FIRMWARE_OPTIONS, FirmwareBelt, PacketSink, Transport, probe
 from .registry import Discovery, Found, check_options
 
 __all__ = [
@@ -74,8 +74,6 @@ DEVICE_NAME: Final = "tactorbelt"
 BLE_STREAM_RATE_HZ: Final = 40.0
 #: The ATT MTU every link starts with (20 bytes per notification).
 DEFAULT_ATT_MTU: Final = 23
-#: The MTU a 64-byte request needs in one write; below it, replies come framed.
-MIN_ATT_MTU: Final = 67
 DEFAULT_BLE_TIMEOUT_S: Final = 1.0
 DEFAULT_SCAN_TIMEOUT_S: Final = 10.0
 DEFAULT_CONNECT_TIMEOUT_S: Final = 20.0
@@ -275,7 +273,7 @@ class BleTransport(Transport):
             if len(data) > self.reply_limit:
                 hint = (f" (a {len(data)}-byte request; the link reported ATT MTU {self.mtu}, "
                         f"at most {self.reply_limit} bytes per write: the adapter must "
-                        f"negotiate an MTU of at least {MIN_ATT_MTU})")
+                        f"negotiate an MTU of at least {BLE_MIN_MTU})")
             raise DeviceError(f"write to {self.port} failed: {_describe(exc)}{hint}") from None
 
     def start(self, sink: PacketSink) -> None:
