@@ -111,14 +111,14 @@ def provenance_warnings(summary: Summary) -> list[tuple[str, str]]:
     return out
 
 
-def _listing(df: pd.DataFrame) -> dict[str, Any] | None:
-    """Rows of a stored table, at most :data:`MAX_LISTED` (None when there are none)."""
+def _listing(df: pd.DataFrame, shown: int = MAX_LISTED) -> dict[str, Any] | None:
+    """Rows of a stored table, at most ``shown`` (None when there are none)."""
     if df.empty:
         return None
     return {"n": len(df), "headers": [_COLUMN_WORDS.get(str(c), str(c)) for c in df.columns],
             "rows": [[formatting.cell_text(v) for v in r]
-                     for r in df.head(MAX_LISTED).itertuples(index=False)],
-            "more": max(len(df) - MAX_LISTED, 0)}
+                     for r in df.head(shown).itertuples(index=False)],
+            "more": max(len(df) - shown, 0), "shown": shown}
 
 
 def _condition_rows(summary: Summary) -> list[dict[str, Any]]:
@@ -344,7 +344,6 @@ def render_html(summary: Summary, figures: dict[str, bytes], *,
     prov = summary.provenance()
     design = summary.design
     s = summary.sessions
-    cols = [col for col in _SESSION_COLUMNS if col in s]
     angles = design.targets.angles_deg
     training: Any = summary.training.itertuples(index=False)
     context = {
@@ -372,9 +371,6 @@ def render_html(summary: Summary, figures: dict[str, bytes], *,
                        + (" ..." if design.targets.m > 8 else ""),
             "law": f"{design.law}, falloff {design.falloff_deg:g}°",
             "fallbacks": "; ".join(design.fallbacks)},
-        "sessions": {"n": len(s), "shown": MAX_TABLE_ROWS,
-                     "headers": [_COLUMN_WORDS.get(c, c) for c in cols],
-                     "rows": [[formatting.cell_text(v) for v in r]
-                              for r in s[cols].head(MAX_TABLE_ROWS).itertuples(index=False)]},
+        "sessions": _listing(s[[col for col in _SESSION_COLUMNS if col in s]], MAX_TABLE_ROWS),
     }
     return _environment().get_template("report.html.j2").render(context)
