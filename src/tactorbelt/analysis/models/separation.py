@@ -28,7 +28,7 @@ Pure: NumPy, pandas, SciPy; no I/O.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from typing import TYPE_CHECKING, Any, Final
 
 import numpy as np
@@ -69,8 +69,7 @@ class Separation:
         return bool(self.terms)
 
     def to_json(self) -> dict[str, Any]:
-        return {"cells": self.cells, "terms": self.terms, "direction": self.direction,
-                "because": self.because, "method": METHOD}
+        return {**asdict(self), "method": METHOD}
 
 
 def _cell_label(cols: list[str], key: tuple[Any, ...], k: int, n: int) -> str:
