@@ -956,22 +956,16 @@ class _Laplace:
         th, beta = par[: self.n_theta], par[self.n_theta:]
         dev, st = self._pirls(th, beta)
         grad = np.r_[self.theta_gradient(st), self.beta_gradient(st)]
-        if self.prior_prec is not None:
-            return dev + self.penalty(par), grad + self.penalty_grad(par)
-        return dev, grad
+        return dev + self.penalty(par), grad + self.penalty_grad(par)  # 0 without a prior
 
     def dev_theta(self, theta: np.ndarray) -> float:
         """Stage 1's criterion (beta at the joint mode); with a prior, bglmer's stage 1
         adds the covariance prior and the fixed-effect prior at beta = 0 (a constant)."""
-        out = self._pirls(theta, None)[0]
-        if self.prior_prec is not None:
-            out += self._cov_penalty(theta) + self.prior_const
-        return out
+        return self._pirls(theta, None)[0] + (self._cov_penalty(theta) + self.prior_const)
 
     def dev(self, par: np.ndarray) -> float:
         """The Laplace deviance at ``(theta, beta)``, penalised by the prior if any."""
-        out = self._pirls(par[: self.n_theta], par[self.n_theta:])[0]
-        return out + self.penalty(par) if self.prior_prec is not None else out
+        return self.likelihood_dev(par) + self.penalty(par)
 
     def likelihood_dev(self, par: np.ndarray) -> float:
         """``-2 log L`` (Laplace) at ``(theta, beta)``, without the prior."""
