@@ -243,12 +243,34 @@ def test_anything_but_a_stimulus_or_a_playable_is_refused() -> None:
     assert belt.writes == []
 
 
+class SlowStop(FrameLog):
+    """A belt whose stop takes 2 ms to be acknowledged (a request's round trip)."""
+
+    def _write_stop(self) -> None:
+        super()._write_stop()
+        self.clock.advance(2 * MS)  # type: ignore[attr-defined]
+
+
+def test_a_stream_played_to_its_end_says_when_its_stop_took_effect() -> None:
+    """Midway through the stop, however late the computer woke for it; None where the
+    device times the end itself or the playback was stopped before it."""
+    clock = SimClock(start_ns=5 * S, jitter=lambda: 300_000)  # every wake-up 0.3 ms late
+    stats = Player(SlowStop(clock)).play(STATIC, 0.5)
+    assert stats.stopped_ns == 5 * S + 500 * MS + 300_000 + 1 * MS
+    clock = SimClock()
+    assert Player(open_sim("", clock=clock)).play(STATIC, 0.5).stopped_ns is None
+    player = Player(FrameLog(clock))
+    onset = player.start(STATIC, 1.0)
+    player.pump(onset + 100 * MS)
+    assert player.stop().stopped_ns is None
+
+
 def test_stats_to_dict_has_the_documented_keys() -> None:
     stats = Player(FrameLog(SimClock())).play(STATIC, 0.01)
     assert isinstance(stats, PlayerStats)
     assert set(stats.to_dict()) == {"frames", "missed", "deadline_error_p50_ms",
                                     "deadline_error_p99_ms", "deadline_error_max_ms",
-                                    "onset_ns", "underruns"}
+                                    "onset_ns", "underruns", "stopped_ns"}
 
 
 def test_device_switch_restarts_on_the_device_for_the_rest_of_the_duration() -> None:

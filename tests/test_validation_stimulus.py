@@ -123,6 +123,30 @@ def test_replays_of_a_stimulus_a_session_renders_on_the_device_say_so(tmp_path: 
         assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
+def test_a_busy_computer_stopping_a_replay_late_does_not_move_its_offset() -> None:
+    """A computer that wakes 3 ms late at every deadline sends a streamed replay's stop
+    3 ms late; the device plays what it gets, so the offset is measured from when the stop
+    took effect: the replays' offsets equal those of the stimulus the device renders (and
+    times) within a tick."""
+    from tactorbelt.clock import SimClock
+
+    study = paper_study()
+    runs = []
+    for sensor_kind in (ModelSensor, _Mixed):
+        clock = SimClock(jitter=lambda: 3_000_000)
+        with open_belt("sim?drive=plain", layout=study.layout_obj(), clock=clock) as belt:
+            runs.append(validate_stimulus(belt, sensor_kind(belt), study, TARGETS, "static",
+                                          duration_s=0.5))
+    direct, replay = runs
+    assert (direct.played, replay.played) == ("rendered on the device", "streamed")
+    assert replay.missed_frames > 0  # the replays were streamed late...
+    d, r = _rows(direct), _rows(replay)
+    for target, ks in DRIVEN.items():
+        for k in ks:
+            assert r[target, k]["offset_error_ms"] == pytest.approx(
+                d[target, k]["offset_error_ms"], abs=TICK_MS)  # ...and stopped late
+
+
 # --- the emulator's board IMU -------------------------------------------------------------
 @pytest.fixture(scope="module")
 def on_emulator(emulator_exe: Path, tmp_path_factory: pytest.TempPathFactory

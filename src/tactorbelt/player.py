@@ -79,6 +79,11 @@ class PlayerStats:
         underruns: when the device renders, the output blocks it could not fill in time
             during the playback (an audio belt's underruns, :meth:`Belt.dropouts`): its
             missed frames; 0 when streaming or when the device cannot tell.
+        stopped_ns: a stream played to its end: when its stop took effect, the clock
+            midway through the belt's stop (a firmware belt returns once the device
+            acknowledged it, so the device stopped within the call); the onset plus the
+            duration only when the computer kept time. None when the device renders,
+            when the playback was stopped before its end, or while it plays.
     """
 
     frames: int
@@ -88,6 +93,7 @@ class PlayerStats:
     deadline_error_max_ms: float
     onset_ns: int | None
     underruns: int = 0
+    stopped_ns: int | None = None
 
     def to_dict(self) -> dict[str, float | int | None]:
         """The statistics as a plain dict (for JSON)."""
@@ -208,6 +214,7 @@ class Player:
         self._dropouts0 = self.belt.dropouts() if device else 0
         self._active = stimulus is not None
         self._end: int | None = None
+        self._stopped: int | None = None
         self._n_frames: int | None = None
         self._frames = 0
         self._errors = _Errors()
@@ -416,7 +423,7 @@ class Player:
                 mx = 0
             under = self.belt.dropouts() - self._dropouts0 if self._device else 0
             return PlayerStats(self._frames, self._dl.missed, float(p50) / 1e6, float(p99) / 1e6,
-                               float(mx) / 1e6, self._onset, under)
+                               float(mx) / 1e6, self._onset, under, self._stopped)
 
     def _stop_motors(self) -> None:
         with contextlib.suppress(Exception):  # best effort: the original error matters more
@@ -462,7 +469,9 @@ class Player:
             if limit_ns is not None and end > limit_ns:
                 return False
             self.clock.sleep_until_ns(end)
+            t0 = int(self.clock.now_ns())
             self.belt.stop()
+            self._stopped = (t0 + int(self.clock.now_ns())) // 2
             self._active = False
             return False
         if limit_ns is not None and dl.deadline(i) > limit_ns:

@@ -22,7 +22,10 @@ what was meant:
   every target's.
 
 The onset of a playback is the device-true one where the belt reports it
-(``Belt.last_onset``, as a session stores it), else the player's.
+(``Belt.last_onset``, as a session stores it), else the player's; its end, for a
+streamed play, when the player's stop took effect (``PlayerStats.stopped_ns``: a busy
+computer sends a first frame or a stop late, and the device plays what it got), for a
+rendered one the onset plus the duration, as the device times it.
 
 How each tactor is sensed depends on what the sensor declares
 (:attr:`~tactorbelt.validation.sensors.Sensor.separates_tactors`):
@@ -258,7 +261,9 @@ class _Played:
 def _play(player: Player, belt: Belt, clock: Clock, what: Any, duration_s: float,
           base_ns: int, off_ns: int) -> _Played:
     """Wait a baseline, play ``what`` for ``duration_s`` (motors off after), wait
-    ``off_ns`` for the fall; the onset is the device's where the belt reports it."""
+    ``off_ns`` for the fall. The onset is the device's where the belt reports it; the end
+    of a streamed play is when its stop took effect (the computer may have sent its first
+    frame or its stop late), of a rendered one the onset plus the duration."""
     clock.sleep_until_ns(int(clock.now_ns()) + base_ns)
     stats = player.play(what, duration_s)
     onset = int(stats.onset_ns if stats.onset_ns is not None else clock.now_ns())
@@ -266,7 +271,8 @@ def _play(player: Player, belt: Belt, clock: Clock, what: Any, duration_s: float
         got = belt.last_onset(timeout_s=ONSET_TIMEOUT_S)
         if got is not None:
             onset = int(got[0])
-    end = onset + round(duration_s * 1e9)
+    end = (onset + round(duration_s * 1e9) if stats.stopped_ns is None
+           else stats.stopped_ns)
     clock.sleep_until_ns(end + off_ns)
     return _Played(onset, end, int(stats.missed), int(stats.frames))
 
