@@ -80,15 +80,11 @@ class TestResult:
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready: every number finite or None."""
-        out: dict[str, Any] = {}
-        for k, v in self.__dict__.items():
-            if isinstance(v, float | np.floating):
-                out[k] = _num(v)
-            elif isinstance(v, dict):
-                out[k] = {kk: (_num(vv) if isinstance(vv, float | np.floating) else vv)
-                          for kk, vv in v.items()}
-            else:
-                out[k] = v
+        def num(v: Any) -> Any:
+            return _num(v) if isinstance(v, float | np.floating) else v
+
+        out = {k: ({kk: num(vv) for kk, vv in v.items()} if isinstance(v, dict) else num(v))
+               for k, v in self.__dict__.items()}
         if out.get("ci_low") is not None:
             out["ci95"] = [out["ci_low"], out["ci_high"]]
         return out
