@@ -365,24 +365,22 @@ def validate_onsets(belt: Belt, sensor: Sensor, settings: OnsetSettings | None =
             repeats.append({"tactor": p.tactor, "level": p.level, "reason": problem})
             queue.insert(0, _Pulse(p.tactor, p.level, p.attempt + 1))
             return
+        m: PulseMeasure | None
         try:
             m = measure_pulse(window.t_ns, window.env, p.t_on, p.t_off, tactor=p.tactor,
                               level=p.level)
         except ValueError:  # the sensor lost the window's start (a loaded machine)
             if problem is None:
                 raise
-            raise DeviceError(
-                f"tactor {p.tactor} at level {p.level:g}: {problem} in each of "
-                f"{p.attempt + 1} attempts (an overloaded machine? raise the sound "
-                "card's latency, or JACK's period)") from None
-        if not m.seen:
+            m = None
+        if m is not None and not m.seen:
             raise NoPulseError(
                 f"the sensor ({sensor.url}) saw no pulse on tactor {p.tactor} at level "
                 f"{p.level:g}: its steady amplitude {m.amplitude:.3g} is not above the "
                 f"baseline's noise ({m.noise:.3g}; {sensor.unit}). Is the sensor on that "
                 "tactor and connected, and does the tactor vibrate at this level (an "
                 "ERM's dead zone; see 'tactorbelt belt-test')?", p.tactor, p.level)
-        if problem is not None:
+        if problem is not None or m is None:
             raise DeviceError(
                 f"tactor {p.tactor} at level {p.level:g}: {problem} in each of "
                 f"{p.attempt + 1} attempts (an overloaded machine? raise the sound "
