@@ -62,6 +62,7 @@ from numpy.typing import NDArray
 from .._errors import ConfigError, DeviceError
 from ..clock import WallClock
 from .envelope import LOW
+from .run import BASELINE_S, ONSET_TIMEOUT_S, check_output, making, write_json
 from .sensors import Sensor
 
 if TYPE_CHECKING:
@@ -82,10 +83,6 @@ RESPONSE_LEVELS: Final = tuple(round(0.05 * i, 2) for i in range(1, 21))
 #: Each response level is held this long (s); its steady amplitude is the median of the
 #: last fifth.
 HOLD_S: Final = 0.4
-#: The baseline before each onset (s).
-BASELINE_S: Final = 0.1
-#: ``Belt.last_onset`` waits this long for the device's report (s).
-ONSET_TIMEOUT_S: Final = 0.5
 #: A streamed play whose player skipped more than this fraction of its frames (a busy
 #: computer: the device holds a level until the next frame, so the stimulus comes late
 #: and in steps) is played again, up to :data:`MAX_TRIES` plays in all; the one that
@@ -367,14 +364,15 @@ def validate_stimulus(belt: Belt, sensor: Sensor, study: Study, targets: Sequenc
                 tactors: dict[int, dict[str, Any]] = {}
                 sq = []
                 traces[target] = {}
-                plays = ([(None, range(belt.n_tactors))] if direct else
-                         [(_Only(stim, k), (k,)) for k in driven[target]])
+                plays: list[tuple[Any, Sequence[int]]] = (
+                    [(stim, range(belt.n_tactors))] if direct else
+                    [(_Only(stim, k), (k,)) for k in driven[target]])
                 for what, which in plays:
-                    tries = [_play(player, belt, clock, stim if what is None else what,
-                                   duration_s, base_ns, off_ns)]
-                    while tries[-1].skipped > MAX_SKIPPED and len(tries) < MAX_TRIES:
-                        tries.append(_play(player, belt, clock, stim if what is None
-                                           else what, duration_s, base_ns, off_ns))
+                    tries: list[_Played] = []
+                    while not tries or (tries[-1].skipped > MAX_SKIPPED
+                                        and len(tries) < MAX_TRIES):
+                        tries.append(_play(player, belt, clock, what, duration_s, base_ns,
+                                           off_ns))
                     played = min(tries, key=lambda p: p.skipped)
                     for k in which:
                         row, trace, err2 = _compare(sensor, k, played, stim, base_ns,
@@ -440,7 +438,6 @@ def run_stimulus(belt_url: str, out_dir: str | Path, *, targets: Sequence[int] |
     from ..devices import open_belt
     from ..devices.calibration import Calibration
     from ..experiment.study import paper_study
-    from .run import check_output, making, write_json
     from .sensors import open_sensor
 
     st = study if study is not None else paper_study()
