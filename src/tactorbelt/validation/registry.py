@@ -11,26 +11,22 @@ from typing import Any
 
 from .._registry import UrlOption, parse_url
 
-__all__ = ["SENSORS", "SensorBackend", "SensorOption", "resolve_sensor", "sense_url_help"]
-
-
-#: An option of a sensor URL: the belt URL's option (its errors say "sensor URL").
-SensorOption = UrlOption
+__all__ = ["SENSORS", "SensorBackend", "resolve_sensor", "sense_url_help"]
 
 
 @dataclass(frozen=True)
 class SensorBackend:
     """One registered sensor: its URL scheme, its opener (``"module:function"``, called
     as ``opener(target, belt, **options)``), a summary and examples for the help, whether
-    the URL needs a target (``audio:DEVICE``), its options, its docs page."""
+    the URL needs a target (``audio:DEVICE``), its options (the belt URL's kind: their
+    errors say "sensor URL")."""
 
     scheme: str
     opener: str
     summary: str
     examples: tuple[str, ...]
     target: str = ""
-    options: tuple[SensorOption, ...] = ()
-    docs: str = "docs/validation.md"
+    options: tuple[UrlOption, ...] = ()
 
     @property
     def usage(self) -> str:
@@ -41,27 +37,27 @@ SENSORS: dict[str, SensorBackend] = {s.scheme: s for s in (
     SensorBackend("model", "tactorbelt.validation.sensors:open_model",
                   "the belt's own vibration model (the sim belt; the default there)",
                   ("model",),
-                  options=(SensorOption("rate_hz", float, "samples per second", 100.0,
-                                        1e6),)),
+                  options=(UrlOption("rate_hz", float, "samples per second", 100.0,
+                                     1e6),)),
     SensorBackend("audio", "tactorbelt.validation.sensors:open_audio_sensor",
                   "an input channel of a sound card: a loopback cable, or a piezo or "
                   "accelerometer on the tactor",
                   ("audio:default?channel=0", "audio:3?map=0,1,2,3,4,5"), target="DEVICE",
-                  options=(SensorOption("channel", int, "the input channel that senses "
-                                        "every tactor", 0, 255),
-                           SensorOption("map", str, "tactor k's input channel: 0,1,2,3,4,5"),
-                           SensorOption("samplerate", int, "sample rate (Hz)", 1000, 768_000),
-                           SensorOption("latency", str, "low, high or seconds (PortAudio)"),
-                           SensorOption("blocksize", int, "frames per callback (0: "
-                                        "PortAudio's)", 0, 16384),
-                           SensorOption("window_ms", float, "the envelope's moving mean "
-                                        "(ms; about one carrier period)", 0.05, 1000.0))),
+                  options=(UrlOption("channel", int, "the input channel that senses "
+                                     "every tactor", 0, 255),
+                           UrlOption("map", str, "tactor k's input channel: 0,1,2,3,4,5"),
+                           UrlOption("samplerate", int, "sample rate (Hz)", 1000, 768_000),
+                           UrlOption("latency", str, "low, high or seconds (PortAudio)"),
+                           UrlOption("blocksize", int, "frames per callback (0: "
+                                     "PortAudio's)", 0, 16384),
+                           UrlOption("window_ms", float, "the envelope's moving mean "
+                                     "(ms; about one carrier period)", 0.05, 1000.0))),
     SensorBackend("board", "tactorbelt.validation.sensors:open_board",
                   "the IMU on the belt's own board (firmware 1.2)", ("board",),
-                  options=(SensorOption("rate_hz", float, "the sampling rate asked for",
-                                        1.0, 10_000.0),
-                           SensorOption("window_ms", float, "the envelope's moving mean (ms)",
-                                        0.05, 1000.0))),
+                  options=(UrlOption("rate_hz", float, "the sampling rate asked for",
+                                     1.0, 10_000.0),
+                           UrlOption("window_ms", float, "the envelope's moving mean (ms)",
+                                     0.05, 1000.0))),
 )}
 
 
