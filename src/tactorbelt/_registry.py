@@ -14,7 +14,7 @@ stores, commands, input kinds): entries by name, imported only when used.
       KINDS: Registry[InputKind] = Registry("input kind", [InputKind("keyboard", ...)])
       KINDS.get("mouse")               # ConfigError: unknown input kind 'mouse'; allowed: ...
 
-  Entries are any objects with a ``name`` attribute (or give ``key=`` to name them).
+  Entries are any objects with a ``name`` attribute.
 - :func:`parse_url` splits ``scheme:target?key=value&...`` for belts and sensors alike:
   the entry's :class:`UrlOption` s type and range-check the options::
 
@@ -50,13 +50,12 @@ def resolve(spec: str) -> Any:
     return pkgutil.resolve_name(spec)
 
 
-def check_option(what: str, value: object, allowed: Iterable[object],
-                 error: type[Exception] = ConfigError) -> None:
-    """Raise ConfigError (or ``error``) ``unknown {what} {value!r}; allowed: a, b, c``
-    unless ``value`` is one of ``allowed``."""
+def check_option(what: str, value: object, allowed: Iterable[object]) -> None:
+    """Raise ConfigError ``unknown {what} {value!r}; allowed: a, b, c`` unless ``value``
+    is one of ``allowed``."""
     allowed = list(allowed)
     if value not in allowed:
-        raise error(f"unknown {what} {value!r}; allowed: "
+        raise ConfigError(f"unknown {what} {value!r}; allowed: "
                           f"{', '.join(str(a) for a in allowed) or 'none'}")
 
 
@@ -65,16 +64,14 @@ class Registry(Generic[T]):
 
     Args:
         what: what an entry is, for the error (``"input kind"``).
-        entries: the entries.
-        key: an entry's name (default: its ``name`` attribute).
+        entries: the entries, each named by its ``name`` attribute.
     """
 
-    def __init__(self, what: str, entries: Iterable[T],
-                 key: Callable[[T], str] = lambda e: str(e.name)) -> None:  # type: ignore[attr-defined]
+    def __init__(self, what: str, entries: Iterable[T]) -> None:
         self.what = what
         self._entries: dict[str, T] = {}
         for entry in entries:
-            name = key(entry)
+            name = str(entry.name)  # type: ignore[attr-defined]
             if name in self._entries:
                 raise ValueError(f"{what} {name!r} registered twice")
             self._entries[name] = entry
@@ -102,9 +99,6 @@ class Registry(Generic[T]):
     def values(self) -> Iterable[T]:
         return self._entries.values()
 
-    def items(self) -> Iterable[tuple[str, T]]:
-        return self._entries.items()
-
 
 @dataclass(frozen=True)
 class UrlOption:
@@ -123,7 +117,7 @@ class UrlOption:
     low: float | None = None
     high: float | None = None
 
-    def parse(self, text: str, url: str, noun: str = "belt URL") -> Any:
+    def parse(self, text: str, url: str, noun: str) -> Any:
         """The value of ``key=text``, checked. Raises ConfigError naming the URL."""
         what = f"option {self.name!r} of {noun} {url!r}"
         if self.kind is bool:
