@@ -18,12 +18,11 @@ from .geometry import Layout, TargetSet
 from .laws import DEFAULT_FALLOFF_DEG, amplitudes
 
 if TYPE_CHECKING:
-    from matplotlib.axes import Axes
     from matplotlib.figure import Figure
 
     from .stimuli import Stimulus
 
-__all__ = ["amplitude_figure", "plot_amplitudes", "save_figure", "stimulus_figure", "tactor_colors"]
+__all__ = ["amplitude_figure", "save_figure", "stimulus_figure", "tactor_colors"]
 
 
 def _pyplot() -> Any:
@@ -43,14 +42,18 @@ def tactor_colors(n: int) -> list[tuple[float, float, float, float]]:
     return [cmap(k % cmap.N) for k in range(n)]
 
 
-def plot_amplitudes(
-    ax: Axes,
-    layout: Layout,
-    targets: TargetSet,
+def amplitude_figure(
+    layout: Layout | None = None,
+    targets: TargetSet | None = None,
     law: str = "paper",
     falloff_deg: float = DEFAULT_FALLOFF_DEG,
-) -> None:
-    """Draw each tactor's amplitude against direction on ``ax`` (curves and target marks)."""
+) -> Figure:
+    """The top of the paper's Fig. 1(B) for any layout, target set and law: each tactor's
+    amplitude against direction (curves and target marks)."""
+    layout = layout or Layout.even(6)
+    targets = targets or TargetSet.even(24)
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(9, 3.6), dpi=150)
     fine = np.linspace(0.0, 360.0, 1441)
     amp_fine = amplitudes(layout, fine, law, falloff_deg)
     amp_t = amplitudes(layout, targets.angles, law, falloff_deg)
@@ -69,20 +72,6 @@ def plot_amplitudes(
     ax.set_xlabel("target direction (deg; 0 = navel, clockwise from above)")
     ax.set_ylabel("amplitude")
     ax.grid(alpha=0.25)
-
-
-def amplitude_figure(
-    layout: Layout | None = None,
-    targets: TargetSet | None = None,
-    law: str = "paper",
-    falloff_deg: float = DEFAULT_FALLOFF_DEG,
-) -> Figure:
-    """The top of the paper's Fig. 1(B) for any layout, target set and law."""
-    layout = layout or Layout.even(6)
-    targets = targets or TargetSet.even(24)
-    plt = _pyplot()
-    fig, ax = plt.subplots(figsize=(9, 3.6), dpi=150)
-    plot_amplitudes(ax, layout, targets, law, falloff_deg)
     from matplotlib.lines import Line2D
 
     handles, labels = ax.get_legend_handles_labels()
