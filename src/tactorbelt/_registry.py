@@ -50,12 +50,13 @@ def resolve(spec: str) -> Any:
     return pkgutil.resolve_name(spec)
 
 
-def check_option(what: str, value: object, allowed: Iterable[object]) -> None:
-    """Raise ConfigError ``unknown {what} {value!r}; allowed: a, b, c`` unless ``value``
-    is one of ``allowed``."""
+def check_option(what: str, value: object, allowed: Iterable[object],
+                 error: type[Exception] = ConfigError) -> None:
+    """Raise ConfigError (or ``error``) ``unknown {what} {value!r}; allowed: a, b, c``
+    unless ``value`` is one of ``allowed``."""
     allowed = list(allowed)
     if value not in allowed:
-        raise ConfigError(f"unknown {what} {value!r}; allowed: "
+        raise error(f"unknown {what} {value!r}; allowed: "
                           f"{', '.join(str(a) for a in allowed) or 'none'}")
 
 
