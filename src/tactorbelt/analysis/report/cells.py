@@ -23,7 +23,7 @@ from .formatting import figure_view
 if TYPE_CHECKING:
     from ..summary import Summary
 
-__all__ = ["CELL_FIGURE_CAPTIONS", "cell_figure_names", "cells_view"]
+__all__ = ["CELL_FIGURE_CAPTIONS", "cells_view"]
 
 CELL_FIGURE_CAPTIONS: Final = {
     "resolution.png": "Accuracy, information transfer (bits, from each participant's "
@@ -41,12 +41,6 @@ CELL_FIGURE_CAPTIONS: Final = {
 _FIG1B = re.compile(r"^fig1b-(\d+)\.png$")
 
 
-def cell_figure_names(names: Any) -> list[str]:
-    """The factorial figures among ``names``, in report order."""
-    per = sorted((int(m.group(1)), n) for n in names if (m := _FIG1B.match(n)))
-    return (["resolution.png"] if "resolution.png" in names else []) + [n for _, n in per]
-
-
 def cells_view(summary: Summary, figures: dict[str, bytes]) -> dict[str, Any] | None:
     """The per-cell results and figures as the template shows them (None for a study that
     is not factorial)."""
@@ -61,12 +55,12 @@ def cells_view(summary: Summary, figures: dict[str, bytes]) -> dict[str, Any] | 
              "added": [str(r[k]) for k in added],
              "it_ci": math.isfinite(float(r["it_bits_ci_low"]))}
             for r in cells.to_dict("records")]
-    shown = []
-    for name in cell_figure_names(figures):
-        m = _FIG1B.match(name)
-        shown.append(figure_view(name, figures[name],
-                                 CELL_FIGURE_CAPTIONS["fig1b"].format(n=m.group(1)) if m
-                                 else CELL_FIGURE_CAPTIONS[name]))
+    # resolution.png, then fig1b-N.png by N
+    per = sorted((int(m.group(1)), m.group(1), n) for n in figures if (m := _FIG1B.match(n)))
+    shown = [figure_view(n, figures[n], CELL_FIGURE_CAPTIONS[n])
+             for n in ("resolution.png",) if n in figures]
+    shown += [figure_view(name, figures[name], CELL_FIGURE_CAPTIONS["fig1b"].format(n=n))
+              for _, n, name in per]
     return {
         "factors": ["condition", "targets", "load", *added],
         "headers": ["condition", "targets", "load", *added, "participants", "n trials",
