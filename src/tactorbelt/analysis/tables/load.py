@@ -155,14 +155,11 @@ def store_labels(paths: Sequence[Path | str]) -> list[str]:
     """Short, unique names for the stores: the file name, or more of the path if needed
     (a server store: its URL)."""
     if any(isinstance(p, str) for p in paths):
-        return [p if isinstance(p, str) else str(p) for p in paths]
+        return [str(p) for p in paths]
     files = [Path(p) for p in paths]
-    names = [p.name for p in files]
-    if len(set(names)) == len(names):
-        return names
-    longer = [f"{p.parent.name}/{p.name}" for p in files]
-    if len(set(longer)) == len(longer):
-        return longer
+    for names in ([p.name for p in files], [f"{p.parent.name}/{p.name}" for p in files]):
+        if len(set(names)) == len(names):
+            return names
     return [f"{i}:{p.name}" for i, p in enumerate(files)]
 
 
