@@ -14,7 +14,7 @@
 
 Pure: imports NumPy, pandas, SciPy and the pure analysis modules; never an I/O layer,
 except that ``engine="lme4"`` runs R through :mod:`.lme4` (temporary files and a
-subprocess). pandas, SciPy and the model engines load inside the functions.
+subprocess). pandas and SciPy load inside the functions.
 """
 
 from __future__ import annotations
@@ -31,9 +31,19 @@ from ..tables._json import finite_float as _num
 from ..tables._json import finite_json as _finite_json
 from ..tables.classical import TestResult, _not_computed
 from ..tables.tables import CONDITIONS
-from .glmm import Z95
-from .lme4 import Lme4Unavailable
-from .lrt import DEFAULT_PB_SIMS
+from .contrasts import condition_contrasts, contrast_matrix
+from .glmm import Z95, FixefPrior, ModelSpec, RandomTerm, fit_glmm, fit_lmm, fit_simplified
+from .lme4 import Lme4Unavailable, condition_tests_lme4, fit_lme4
+from .lrt import (
+    DEFAULT_PB_SIMS,
+    condition_terms,
+    likelihood_ratio,
+    null_spec,
+    parametric_bootstrap,
+    wald_condition,
+)
+from .satterthwaite import satterthwaite
+from .separation import detect_separation, not_estimable_text
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -124,8 +134,6 @@ def model_spec(frame: pd.DataFrame, response: str = "correct",
     when some participant has both conditions) and a per-target intercept (from 2
     targets).
     """
-    from .glmm import ModelSpec, RandomTerm
-
     notes: list[str] = []
     fixed = []
     for col in design_factors():
@@ -147,11 +155,7 @@ def model_spec(frame: pd.DataFrame, response: str = "correct",
 def _fitter(engine: str, family: str, keep_slopes: bool = False,
             fixef_prior: Any = None) -> Any:
     if engine == "lme4":
-        from .lme4 import fit_lme4
-
         return lambda df, spec: fit_lme4(df, spec, family=family, fixef_prior=fixef_prior)
-    from .glmm import fit_glmm, fit_lmm
-
     last: list[Any] = [None]  # each simplification step starts from the previous fit
 
     def fit(df: pd.DataFrame, spec: Any) -> Any:
@@ -229,8 +233,6 @@ def fit_model(frame: pd.DataFrame, *, engine: str = "tactorbelt", rt: bool = Fal
     Returns:
         ``(fit, json)``; see :func:`model_json`.
     """
-    from .glmm import fit_simplified
-
     if engine not in ENGINES:
         raise ValueError(f"unknown engine {engine!r}; choose {', '.join(ENGINES)}")
     data = frame.loc[frame["status"] == "done"] if rt else frame
@@ -250,8 +252,6 @@ def rt_satterthwaite(data: pd.DataFrame, fit: Any) -> dict[str, dict[str, Any]]:
     for a fit by R with lmerTest, else :func:`.satterthwaite.satterthwaite` (which also
     takes R's fit)."""
     from scipy.stats import t as t_dist
-
-    from .satterthwaite import satterthwaite
 
     if fit.satterthwaite:
         out: dict[str, dict[str, Any]] = {}
@@ -310,8 +310,6 @@ METHOD_WORDS: Final = {
 
 def _average_weights(fit: Any, frame: pd.DataFrame) -> np.ndarray:
     """The weights of :func:`_average_contrast` on the fit's fixed effects."""
-    from .contrasts import contrast_matrix
-
     _, xd, xs = contrast_matrix(fit, frame)
     return np.asarray((xs - xd).mean(axis=0))
 
@@ -341,14 +339,6 @@ def condition_tests(frame: pd.DataFrame, fit: Any, *, engine: str = "tactorbelt"
             (:func:`.separation.detect_separation`): a Wald test over any of them is
             marked not valid (its SE means nothing), the likelihood ratio stays valid.
     """
-    from .lrt import (
-        condition_terms,
-        likelihood_ratio,
-        null_spec,
-        parametric_bootstrap,
-        wald_condition,
-    )
-
     n_sim = DEFAULT_PB_SIMS if pb_sims is None else int(pb_sims)
     n_p = int(frame["participant"].nunique())
     spec0 = null_spec(fit.spec)
@@ -361,15 +351,8 @@ def condition_tests(frame: pd.DataFrame, fit: Any, *, engine: str = "tactorbelt"
             "and SEs (and this statistic) are where the optimiser stopped; the likelihood "
             "ratio stays finite and valid"))
     tests: list[dict[str, Any]] = [wald]
-    fit0 = None
-    if engine == "lme4":
-        from .lme4 import fit_lme4
-
-        fit0 = fit_lme4(frame, spec0, fixef_prior=prior)
-    else:
-        from .glmm import fit_glmm
-
-        fit0 = fit_glmm(frame, spec0, se=False, fixef_prior=prior)
+    fit0 = (fit_lme4(frame, spec0, fixef_prior=prior) if engine == "lme4"
+            else fit_glmm(frame, spec0, se=False, fixef_prior=prior))
     lr = likelihood_ratio(fit, fit0)
     if bad:
         lr["valid"] = True
@@ -388,8 +371,6 @@ def condition_tests(frame: pd.DataFrame, fit: Any, *, engine: str = "tactorbelt"
     elif prior is not None:
         pb.update(computed=False, reason="not computed for a penalised fit (--fixef-prior)")
     elif engine == "lme4":
-        from .lme4 import condition_tests_lme4
-
         r = condition_tests_lme4(frame, fit.spec, spec0, n_sim=n_sim, seed=seed)
         pb.update(computed=True, statistic=lr["statistic"], df=lr["df"], p=r["pb_p"],
                   n_sim=int(r["pb_nsim"]), n_positive=int(r["pb_npos"]), seed=seed,
@@ -409,8 +390,6 @@ def _separation(frame: pd.DataFrame, fit: Any, js: dict[str, Any]) -> Any:
     ``js["separation"]`` and mark each infinite fixed effect ``"estimable": false``
     with the cells that make it so (not for a penalised fit, whose estimates are
     finite by its prior)."""
-    from .separation import detect_separation, not_estimable_text
-
     sep = detect_separation(frame, fit.spec, list(fit.fixed_effects))
     js["separation"] = sep.to_json()
     if fit.fixef_prior is None:
@@ -425,8 +404,6 @@ def _separation(frame: pd.DataFrame, fit: Any, js: dict[str, Any]) -> Any:
 def _sensitivity(frame: pd.DataFrame, engine: str) -> dict[str, Any]:
     """The penalised fit (bglmer's default prior, normal(sd = c(10, 2.5))) beside a
     maximum-likelihood fit with separation: its fixed effects and condition effect."""
-    from .glmm import FixefPrior
-
     prior = FixefPrior()
     out: dict[str, Any] = {"fixef_prior": prior.to_json(),
                            "why": "separation: a weakly informative prior on the fixed "
@@ -478,8 +455,6 @@ def mixed_model(tr: pd.DataFrame, *, engine: str = "tactorbelt",
     valid), and (without a prior) ``model["sensitivity"]`` holds the penalised fit
     with bglmer's default prior.
     """
-    from .contrasts import condition_contrasts
-
     key, question = "mixed_model", "accuracy, dynamic vs static (every condition term)"
     frame = model_frame(tr)
     n_p = int(frame["participant"].nunique())
