@@ -52,7 +52,7 @@ SENSORS: dict[str, SensorBackend] = {s.scheme: s for s in (
                                      "PortAudio's)", 0, 16384),
                            UrlOption("window_ms", float, "the envelope's moving mean "
                                      "(ms; about one carrier period)", 0.05, 1000.0))),
-    SensorBackend("board", "tactorbelt.validation.sensors:open_board",
+    SensorBackend("board", "tactorbelt.validation.sensors:BoardSensor",
                   "the IMU on the belt's own board (firmware 1.2)", ("board",),
                   options=(UrlOption("rate_hz", float, "the sampling rate asked for",
                                      1.0, 10_000.0),

@@ -31,6 +31,7 @@ Imports the standard library and NumPy; sounddevice only when an audio sensor op
 
 from __future__ import annotations
 
+import bisect
 import contextlib
 import math
 import threading
@@ -145,14 +146,15 @@ class ModelSensor(Sensor):
     unit = "vibration amplitude (1 = rated speed)"
     separates_tactors = True
 
-    def __init__(self, belt: Belt, rate_hz: float = MODEL_RATE_HZ, url: str = "model") -> None:
+    url = "model"
+
+    def __init__(self, belt: Belt, rate_hz: float = MODEL_RATE_HZ) -> None:
         if not belt.models_vibration:
             raise ConfigError(f"belt {belt.url!r} models no vibration, so it cannot be its "
                               "own sensor; give --sense audio:DEVICE?channel=N (a piezo or "
                               "accelerometer on the tactor, or a loopback cable)")
         self.belt = belt
         self.rate_hz = float(rate_hz)
-        self.url = url
         self.description = f"the vibration model of belt {belt.url!r}"
         self.method = (f"belt.vibration() of {belt.url!r} sampled at {self.rate_hz:g} Hz "
                        "(the modelled amplitude, no estimator)")
@@ -285,11 +287,8 @@ class AudioSensor(SampledSensor):
 
     def forget_before(self, t_ns: int) -> None:
         cut = t_ns - MAP_SPAN_NS
-        with self._lock:
-            drop = 0
-            while drop < len(self._blocks) and self._blocks[drop][0] < cut:
-                drop += 1
-            del self._blocks[:drop]  # the stretches of the rest stay as they were
+        with self._lock:  # the stretches of the rest stay as they were
+            del self._blocks[:bisect.bisect_left(self._blocks, cut, key=lambda b: b[0])]
 
     def _snapshot(self) -> tuple[IntArray, IntArray, IntArray, list[NDArray[np.float32]]]:
         with self._lock:
@@ -449,14 +448,19 @@ class BoardSensor(SampledSensor):
     clock fit (:class:`~tactorbelt.devices._firmware.SenseRecording`); lost samples are a
     window's ``problem``. The signal is the magnitude of the acceleration less its median
     over the interval (gravity: the board does not move), so an ERM's rotating force reads
-    as its amplitude (``scale`` 1) in g. One IMU senses every tactor."""
+    as its amplitude (``scale`` 1) in g. One IMU senses every tactor.
 
+    The opener of ``board`` (its URL has no target): ``rate_hz`` is the rate asked for
+    (the IMU's highest by default), ``window_ms`` the envelope's window (5 ms)."""
+
+    url = "board"
     unit = "acceleration (g)"
     scale = 1.0
     #: one IMU senses every tactor: ``validate stimulus`` replays a stimulus per tactor
     separates_tactors = False
 
-    def __init__(self, belt: Belt, url: str, rate_hz: float | None, window_ms: float) -> None:
+    def __init__(self, target: str, belt: Belt, rate_hz: float | None = None,
+                 window_ms: float = BOARD_WINDOW_MS) -> None:
         if not belt.senses_vibration:
             raise DeviceError(
                 f"sensor 'board' (the belt's own IMU) is not available for belt "
@@ -465,7 +469,6 @@ class BoardSensor(SampledSensor):
                 "started); use --sense audio:DEVICE?channel=N with a piezo disc or an "
                 "analog accelerometer on the tactor")
         self.belt = belt
-        self.url = url
         self.window_s = window_ms / 1000.0
         self._ask = rate_hz
         self.rate_hz = rate_hz or 0.0
@@ -496,13 +499,6 @@ class BoardSensor(SampledSensor):
         if self._rec is not None:
             with contextlib.suppress(Exception):
                 self._rec.stop()
-
-
-def open_board(target: str, belt: Belt, **options: Any) -> Sensor:
-    """``board``: the belt's own IMU (``rate_hz``: the rate asked for, the IMU's highest
-    by default; ``window_ms``: the envelope's window, 5 ms)."""
-    return BoardSensor(belt, "board", options.get("rate_hz"),
-                       float(options.get("window_ms", BOARD_WINDOW_MS)))
 
 
 def open_sensor(url: str | None, belt: Belt) -> Sensor:
