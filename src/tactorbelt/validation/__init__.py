@@ -26,10 +26,8 @@ from .._registry import lazy_attributes
 __all__ = ["SENSORS", "NoPulseError", "OnsetSettings", "OnsetValidation", "Sensor",
            "open_sensor", "run_onsets", "validate_onsets"]
 
-_WHERE = {"SENSORS": "registry", "NoPulseError": "run", "OnsetSettings": "run",
-          "OnsetValidation": "run", "Sensor": "sensors", "open_sensor": "sensors",
-          "run_onsets": "run", "validate_onsets": "run"}
-
-
-__getattr__ = lazy_attributes(__name__, {k: f".{v}" for k, v in _WHERE.items()})
+__getattr__ = lazy_attributes(__name__, {
+    "SENSORS": ".registry", "NoPulseError": ".run", "OnsetSettings": ".run",
+    "OnsetValidation": ".run", "Sensor": ".sensors", "open_sensor": ".sensors",
+    "run_onsets": ".run", "validate_onsets": ".run"})
 
