@@ -36,6 +36,7 @@ Imports NumPy, the standard library and tactorbelt (clock, devices.base, stimuli
 
 from __future__ import annotations
 
+import collections
 import contextlib
 import math
 import threading
@@ -59,7 +60,7 @@ __all__ = ["DEFAULT_RATE_HZ", "Player", "PlayerStats"]
 DEFAULT_RATE_HZ: Final = 1000.0
 #: Frames computed at once (one vectorised call of ``stimulus.amplitudes``).
 _CHUNK: Final = 250
-#: Deadline errors kept exactly; beyond this, percentiles cover the most recent ones.
+#: Deadline errors kept; beyond this, percentiles cover the most recent ones.
 _MAX_ERRORS: Final = 1 << 21
 
 
@@ -111,30 +112,6 @@ class Playable(Protocol):
     layout: Layout
 
     def amplitudes(self, t: NDArray[np.float64]) -> NDArray[np.float64]: ...
-
-
-class _Errors:
-    """Deadline errors in ns: exact up to _MAX_ERRORS, then a ring of the latest."""
-
-    def __init__(self) -> None:
-        self._buf = np.zeros(1024, dtype=np.int64)
-        self._n = 0
-        self.max_ns = 0
-
-    def add(self, err_ns: int) -> None:
-        if self._n < self._buf.shape[0]:
-            self._buf[self._n] = err_ns
-        elif self._buf.shape[0] < _MAX_ERRORS:
-            self._buf = np.concatenate([self._buf, np.zeros_like(self._buf)])
-            self._buf[self._n] = err_ns
-        else:
-            self._buf[self._n % _MAX_ERRORS] = err_ns
-        self._n += 1
-        if self._n == 1 or err_ns > self.max_ns:
-            self.max_ns = err_ns
-
-    def values(self) -> NDArray[np.int64]:
-        return self._buf[: min(self._n, self._buf.shape[0])]
 
 
 def _preview_s() -> float:
@@ -217,7 +194,9 @@ class Player:
         self._stopped: int | None = None
         self._n_frames: int | None = None
         self._frames = 0
-        self._errors = _Errors()
+        #: the deadline errors (ns) of the latest frames written, and the largest of all
+        self._errors: collections.deque[int] = collections.deque(maxlen=_MAX_ERRORS)
+        self._max_error = 0
         self._cache_start = 0
         self._cache: NDArray[np.float64] | None = None
         #: the preview of a streamed stimulus (s): frames lead it on a shaped belt
@@ -362,11 +341,9 @@ class Player:
         """
         self._join()
         self._active = False
-        err = self._error
-        if err is not None:
-            self._error = None
+        if self._error is not None:
             self._stop_motors()
-            raise err
+            self._check_error()
         self.belt.stop()
         return self._stats()
 
@@ -414,16 +391,11 @@ class Player:
     # -- internals ----------------------------------------------------------------------------
     def _stats(self) -> PlayerStats:
         with self._lock:
-            errs = self._errors.values()
-            if errs.size:
-                p50, p99 = np.percentile(errs, [50.0, 99.0])
-                mx = self._errors.max_ns
-            else:
-                p50 = p99 = 0.0
-                mx = 0
+            errs = np.fromiter(self._errors, dtype=np.int64, count=len(self._errors))
+            p50, p99 = np.percentile(errs, [50.0, 99.0]) if errs.size else (0.0, 0.0)
             under = self.belt.dropouts() - self._dropouts0 if self._device else 0
             return PlayerStats(self._frames, self._dl.missed, float(p50) / 1e6, float(p99) / 1e6,
-                               float(mx) / 1e6, self._onset, under, self._stopped)
+                               self._max_error / 1e6, self._onset, under, self._stopped)
 
     def _stop_motors(self) -> None:
         with contextlib.suppress(Exception):  # best effort: the original error matters more
@@ -487,9 +459,11 @@ class Player:
         if j > i:
             frame = self._frame(j)
         self.belt.set_amplitudes(frame)
+        err = now - dl.deadline(j)
         with self._lock:
             self._frames += 1
-            self._errors.add(now - dl.deadline(j))
+            self._errors.append(err)
+            self._max_error = err if self._frames == 1 else max(self._max_error, err)
         return True
 
     def _run(self) -> None:
