@@ -49,7 +49,6 @@ __all__ = [
     "DEFAULT_TRANSIT_S",
     "MODES",
     "Stimulus",
-    "check_rate_duration",
     "make_stimulus",
     "render_batch",
 ]
@@ -71,8 +70,9 @@ def _finite_positive(value: float, what: str, unit: str) -> float:
     return v
 
 
-def check_rate_duration(rate_hz: float, duration_s: float) -> tuple[float, float]:
-    """Validate a sample rate and a duration (both positive and finite)."""
+def sample_times(rate_hz: float, duration_s: float) -> NDArray[np.float64]:
+    """``t = i/rate`` for ``i in range(round(duration*rate))``, the rate and the duration
+    checked (both positive and finite, at least one sample)."""
     rate = _finite_positive(rate_hz, "rate", "Hz")
     duration = _finite_positive(duration_s, "duration", "seconds")
     if round(duration * rate) < 1:
@@ -80,12 +80,6 @@ def check_rate_duration(rate_hz: float, duration_s: float) -> tuple[float, float
             f"duration {duration:g} s at {rate:g} Hz gives no sample; "
             "make the duration at least one sample period"
         )
-    return rate, duration
-
-
-def sample_times(rate_hz: float, duration_s: float) -> NDArray[np.float64]:
-    """``t = i/rate`` for ``i in range(round(duration*rate))``."""
-    rate, duration = check_rate_duration(rate_hz, duration_s)
     return np.arange(round(duration * rate), dtype=float) / rate
 
 
