@@ -71,9 +71,7 @@ def parse_angle(text: str | float, what: str = "angle") -> float:
     try:
         value = float(text)
     except (TypeError, ValueError):
-        raise ConfigError(
-            f"{what} must be a finite number of degrees, got {text!r}"
-        ) from None
+        value = math.nan
     if not math.isfinite(value):
         raise ConfigError(f"{what} must be a finite number of degrees, got {text!r}")
     return float(normalize(value))
@@ -104,9 +102,7 @@ class Layout:
         for i, k in enumerate(order):
             j = order[(i + 1) % len(order)]
             gap = (angles[j] - angles[k]) % 360.0
-            if len(order) > 1 and (
-                gap < ANGLE_TOLERANCE_DEG or 360.0 - gap < ANGLE_TOLERANCE_DEG
-            ):
+            if gap < ANGLE_TOLERANCE_DEG or 360.0 - gap < ANGLE_TOLERANCE_DEG:
                 raise ConfigError(
                     f"duplicate tactor angles: tactors {min(k, j)} and {max(k, j)} "
                     f"are both at {angles[k]:g} deg; every tactor needs its own angle"
