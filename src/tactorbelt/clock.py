@@ -19,20 +19,10 @@ if TYPE_CHECKING:
     import numpy as np
     from numpy.typing import NDArray
 
-__all__ = ["Clock", "Deadlines", "SimClock", "WallClock", "ns", "seconds"]
+__all__ = ["Clock", "Deadlines", "SimClock", "WallClock"]
 
 #: The wall clock sleeps until this long before a deadline, then spins.
 SPIN_NS = 1_000_000
-
-
-def ns(seconds_: float) -> int:
-    """Seconds (float) to integer nanoseconds, rounded."""
-    return round(seconds_ * 1e9)
-
-
-def seconds(nanoseconds: int) -> float:
-    """Integer nanoseconds to seconds (float)."""
-    return nanoseconds / 1e9
 
 
 @runtime_checkable
