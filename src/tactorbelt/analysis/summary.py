@@ -34,6 +34,7 @@ from typing import TYPE_CHECKING, Any, Final
 
 import numpy as np
 
+from .._errors import ConfigError
 from .models.fit import mixed_model, rt_model
 from .models.lrt import DEFAULT_PB_SIMS
 from .tables._json import finite_float as _num
@@ -59,6 +60,7 @@ from .tables.tables import (
     prepare_trials,
     training_summary,
 )
+from .tables.tasks import secondary_tasks_json, tlx_rows, tlx_summary
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -302,8 +304,6 @@ def rt_from_choice(trials: pd.DataFrame, rt_from: str | None = None
     """
     import pandas as pd
 
-    from .._errors import ConfigError
-
     if rt_from is not None and rt_from not in RT_FROM:
         raise ConfigError(f"--rt-from must be one of {', '.join(RT_FROM)}, got {rt_from!r}")
     rt = pd.to_numeric(trials["rt_s"], errors="coerce").to_numpy(dtype=float)
@@ -467,8 +467,6 @@ def summarize(data: StoreData, *, seed: int = 0, n_boot: int = DEFAULT_N_BOOT,
     for cond in CONDITIONS:
         if not (counted["condition"] == cond).any() and len(counted):
             notes.append(f"no {cond} test trials: its accuracy and RT are not reported")
-
-    from .tables.tasks import secondary_tasks_json, tlx_rows, tlx_summary
 
     secondary = secondary_tasks_json(data.task_events)
     tlx = tlx_summary(tlx_rows(data.ratings)) if data.ratings else None

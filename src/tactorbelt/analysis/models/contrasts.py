@@ -27,12 +27,10 @@ from typing import TYPE_CHECKING, Any, Final
 import numpy as np
 
 from ..tables._json import finite_float as _num
-from .glmm import fixed_design, term_column, term_levels
+from .glmm import MixedModelFit, fixed_design, term_column, term_levels
 
 if TYPE_CHECKING:
     import pandas as pd
-
-    from .glmm import MixedModelFit
 
 __all__ = ["CONTRAST", "condition_contrasts", "contrast_matrix"]
 

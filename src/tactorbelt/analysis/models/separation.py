@@ -33,10 +33,10 @@ from typing import TYPE_CHECKING, Any, Final
 
 import numpy as np
 
+from .glmm import ModelSpec, fixed_design, term_column
+
 if TYPE_CHECKING:
     import pandas as pd
-
-    from .glmm import ModelSpec
 
 __all__ = ["Separation", "detect_separation", "not_estimable_text"]
 
@@ -93,8 +93,6 @@ def detect_separation(frame: pd.DataFrame, spec: ModelSpec,
             combinations are left out too); default: the design's own.
     """
     from scipy.optimize import linprog
-
-    from .glmm import fixed_design, term_column
 
     out = Separation()
     cols = [term_column(t) for t in spec.fixed]

@@ -18,12 +18,18 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Final
 
 from ..._errors import ConfigError
+from ..models.glmm import FixefPrior
+from ..models.lme4 import Lme4Unavailable
+from ..summary import summarize
 from ..tables.classical import DEFAULT_N_BOOT
-from ..tables.tables import CONDITIONS, KIND_LABELS, KINDS
+from ..tables.load import analysis_seed, load_samples, load_stores
+from ..tables.tables import CONDITIONS, KIND_LABELS, KINDS, per_site
+from .figures import make_figures
 from .formatting import fixed as _fmt
 from .formatting import p_value4 as _p
 from .formatting import percent as _pct
 from .html import FIGURE_ORDER, provenance_warnings, render_html, rt_from_words
+from .tasks_figures import TASK_FIGURE_ORDER
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -122,8 +128,6 @@ def _package_version() -> str:
 
 def _sites(data: StoreData, summary: Summary) -> pd.DataFrame | None:
     """The per-site table when the sessions come from two sites or more."""
-    from ..tables.tables import per_site
-
     s = data.sessions.dropna(subset=["site"])
     if s["site"].nunique() < 2:
         return None
@@ -162,11 +166,6 @@ def analyze(paths: Sequence[str | Path], out: str | Path, *, seed: int | None = 
             ``engine="lme4"`` without R and lme4 (the message says how to install them);
             ``rt_from="skin"`` with trials that have no skin onset.
     """
-    from ..summary import summarize
-    from ..tables.load import analysis_seed, load_samples, load_stores
-    from .figures import make_figures
-    from .tasks_figures import TASK_FIGURE_ORDER
-
     total = 6
     step = 0
 
@@ -181,8 +180,6 @@ def analyze(paths: Sequence[str | Path], out: str | Path, *, seed: int | None = 
         raise ConfigError(f"--out {out} is a file; give a directory for the report")
     prior = None
     if fixef_prior is not None:
-        from ..models.glmm import FixefPrior
-
         try:
             prior = FixefPrior.parse(fixef_prior)
         except ValueError as exc:
@@ -192,7 +189,6 @@ def analyze(paths: Sequence[str | Path], out: str | Path, *, seed: int | None = 
     if seed is None:
         seed = analysis_seed(data)
     tick("computing tables and tests")
-    from ..models.lme4 import Lme4Unavailable
 
     def boot(done: int, n_sim: int) -> None:
         if progress is not None:

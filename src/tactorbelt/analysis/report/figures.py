@@ -26,14 +26,17 @@ NumPy, pandas, matplotlib and tactorbelt.laws.
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import TYPE_CHECKING, Any, Final
 
 import numpy as np
 
 from ...factors import added_factors
+from ...geometry import TargetSet
 from ...laws import amplitudes
 from ..tables.cells import is_factorial
-from ..tables.tables import CONDITIONS, NO_RESPONSE
+from ..tables.tables import CONDITIONS, NO_RESPONSE, direction_summary
+from ..tables.transfer import ESTIMATOR
 from .plot_style import (
     COLORS,
     DPI,
@@ -48,6 +51,8 @@ from .plot_style import (
     _style,
     _tactor_color,
 )
+from .tasks import has_load
+from .tasks_figures import load_figure, secondary_figure, tlx_figure
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -416,8 +421,6 @@ def resolution_figure(participant_cells: pd.DataFrame, cells: pd.DataFrame) -> b
     :func:`tactorbelt.analysis.tables.transfer.cell_interval`), drawn with one participant
     too. The dotted grey line is the most a cell can carry, log2(targets).
     """
-    from ..tables.transfer import ESTIMATOR
-
     fig = _figure(11.5, 4.2)
     axes = fig.subplots(1, 3)
     # a line per condition and variant: the load and the levels of any declared factor
@@ -492,11 +495,6 @@ def fig1b_per_resolution(design: StudyDesign, trials: pd.DataFrame) -> dict[str,
     ``trials`` are the prepared trials (with ``n_targets``); a figure pools the loads
     of its target count.
     """
-    from dataclasses import replace
-
-    from ...geometry import TargetSet
-    from ..tables.tables import direction_summary
-
     out: dict[str, bytes] = {}
     counted = trials.loc[trials["counted"]]
     for n in sorted({int(v) for v in counted["n_targets"].tolist()}):
@@ -541,9 +539,6 @@ def make_figures(summary: Summary, samples: pd.DataFrame | None = None,
 def _task_figures(summary: Summary) -> dict[str, bytes]:
     """``load.png``, ``secondary.png`` and ``tlx.png`` of a study with a load
     (:mod:`.tasks_figures`)."""
-    from .tasks import has_load
-    from .tasks_figures import load_figure, secondary_figure, tlx_figure
-
     figs: dict[str, bytes] = {}
     if not has_load(summary):
         return figs

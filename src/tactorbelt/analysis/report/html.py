@@ -14,6 +14,7 @@ from __future__ import annotations
 from functools import cache
 from typing import TYPE_CHECKING, Any, Final
 
+from ..summary import COUNTING_RULES
 from ..tables.tables import CONDITIONS, KIND_LABELS, KINDS
 from . import formatting
 from .cells import cells_view
@@ -339,8 +340,6 @@ def render_html(summary: Summary, figures: dict[str, bytes], *,
                 generated_at: str | None = None, package_version: str | None = None,
                 sites: pd.DataFrame | None = None) -> str:
     """The whole report as one HTML string (figures embedded as data: URIs)."""
-    from ..summary import COUNTING_RULES
-
     prov = summary.provenance()
     design = summary.design
     s = summary.sessions

@@ -21,6 +21,7 @@ from typing import TYPE_CHECKING, Any, Final
 from ..._errors import StoreError
 from ...factors import added_factors
 from .dataset import StoreData
+from .design import parse_design
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -229,8 +230,6 @@ def _cell_columns(sessions: pd.DataFrame, trials: pd.DataFrame) -> pd.DataFrame:
     """``n_targets`` and ``load`` of every trial: as stored, else (stores written before
     factorial designs, schema 1) the session's study's ``[targets] count`` and ``none``."""
     import pandas as pd
-
-    from .design import parse_design
 
     if "n_targets" not in trials.columns:
         trials["n_targets"] = float("nan")

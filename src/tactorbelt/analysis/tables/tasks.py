@@ -28,8 +28,11 @@ from collections import defaultdict
 from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
 
+import numpy as np
+
 from ...tasks import PHASES, TLX_ITEMS
 from ._json import finite_float as _num
+from .classical import signed_rank_test
 
 __all__ = [
     "TLX_ITEMS",
@@ -153,10 +156,6 @@ def secondary_task_summary(rows: Sequence[Mapping[str, Any]]) -> list[dict[str, 
 
 
 def _paired(diffs: Sequence[float]) -> dict[str, Any]:
-    import numpy as np
-
-    from .classical import signed_rank_test
-
     d = np.asarray(diffs, dtype=float)
     if d.size < 2 or not np.any(d != 0):
         return {"test": "Wilcoxon signed-rank (two-sided)", "computed": False,
@@ -237,8 +236,6 @@ def tlx_rows(ratings: Iterable[Mapping[str, Any]]) -> list[dict[str, Any]]:
 def _across_load(table: Mapping[str, Mapping[str, float]], loads: Sequence[str]
                  ) -> dict[str, Any]:
     """Within-participant test of raw TLX across ``loads`` (complete participants only)."""
-    import numpy as np
-
     complete = [pid for pid, by in table.items() if all(lv in by for lv in loads)]
     n = len(complete)
     if len(loads) < 2:
