@@ -33,6 +33,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Final
 
 import numpy as np
+import pandas as pd
 
 from .._errors import ConfigError
 from .models.fit import mixed_model, rt_model
@@ -63,8 +64,6 @@ from .tables.tables import (
 from .tables.tasks import secondary_tasks_json, tlx_rows, tlx_summary
 
 if TYPE_CHECKING:
-    import pandas as pd
-
     from .tables.dataset import StoreData
 
 __all__ = ["COUNTING_RULES", "RT_FROM", "Summary", "rt_from_choice", "summarize"]
@@ -173,8 +172,6 @@ class Summary:
 
     def provenance(self) -> dict[str, Any]:
         """Study names and hashes, package and firmware versions, belts, seeds."""
-        import pandas as pd
-
         s = self.sessions
 
         def uniq(col: str) -> list[Any]:
@@ -302,8 +299,6 @@ def rt_from_choice(trials: pd.DataFrame, rt_from: str | None = None
         ConfigError: ``skin`` asked for while some analysed trial has no skin onset, or
             an unknown ``rt_from``.
     """
-    import pandas as pd
-
     if rt_from is not None and rt_from not in RT_FROM:
         raise ConfigError(f"--rt-from must be one of {', '.join(RT_FROM)}, got {rt_from!r}")
     rt = pd.to_numeric(trials["rt_s"], errors="coerce").to_numpy(dtype=float)

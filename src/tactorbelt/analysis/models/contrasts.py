@@ -22,15 +22,13 @@ Pure: NumPy, pandas, SciPy, statsmodels.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import TYPE_CHECKING, Any, Final
+from typing import Any, Final
 
 import numpy as np
+import pandas as pd
 
 from ..tables._json import finite_float as _num
 from .glmm import MixedModelFit, fixed_design, term_column, term_levels
-
-if TYPE_CHECKING:
-    import pandas as pd
 
 __all__ = ["CONTRAST", "condition_contrasts", "contrast_matrix"]
 
@@ -43,8 +41,6 @@ def _grid(frame: pd.DataFrame, terms: tuple[str, ...]) -> tuple[pd.DataFrame, li
 
     Returns the grid and the target counts (one ``None`` when the data have none)."""
     import itertools
-
-    import pandas as pd
 
     columns: dict[str, list[Any]] = {"condition": ["dynamic", "static"]}
     counts: list[Any] = [None]

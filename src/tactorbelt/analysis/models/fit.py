@@ -14,7 +14,7 @@
 
 Pure: imports NumPy, pandas, SciPy and the pure analysis modules; never an I/O layer,
 except that ``engine="lme4"`` runs R through :mod:`.lme4` (temporary files and a
-subprocess). pandas and SciPy load inside the functions.
+subprocess). SciPy loads inside the functions.
 """
 
 from __future__ import annotations
@@ -22,9 +22,10 @@ from __future__ import annotations
 import functools
 import math
 import warnings
-from typing import TYPE_CHECKING, Any, Final
+from typing import Any, Final
 
 import numpy as np
+import pandas as pd
 
 from ...factors import CONDITION, LOAD, TARGETS, added_factors, factor
 from ..tables._json import finite_float as _num
@@ -44,9 +45,6 @@ from .lrt import (
 )
 from .satterthwaite import satterthwaite
 from .separation import detect_separation, not_estimable_text
-
-if TYPE_CHECKING:
-    import pandas as pd
 
 __all__ = [
     "DESIGN_FACTORS",
@@ -100,8 +98,6 @@ def model_frame(tr: pd.DataFrame) -> pd.DataFrame:
     ``target`` (``target_deg`` as text, a factor), ``rt_s`` (NaN for timeouts) and
     ``status``.
     """
-    import pandas as pd
-
     c = tr.loc[tr["counted"]]
     out = pd.DataFrame({
         "correct": c["is_correct"].to_numpy(dtype=int),

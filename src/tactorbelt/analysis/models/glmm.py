@@ -56,12 +56,10 @@ import math
 import re
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING, Any, Final, ParamSpec, TypeVar
+from typing import Any, Final, ParamSpec, TypeVar
 
 import numpy as np
-
-if TYPE_CHECKING:
-    import pandas as pd
+import pandas as pd
 
 __all__ = [
     "SINGULAR_TOL",
@@ -320,8 +318,6 @@ def one_blas_thread(f: Callable[P, R]) -> Callable[P, R]:
 # -- design matrices ---------------------------------------------------------------------
 
 def _is_numeric(s: pd.Series) -> bool:
-    import pandas as pd
-
     return bool(pd.api.types.is_numeric_dtype(s) and not pd.api.types.is_bool_dtype(s))
 
 

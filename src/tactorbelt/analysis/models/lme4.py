@@ -18,12 +18,11 @@ import shutil
 import subprocess
 import tempfile
 from pathlib import Path
-from typing import TYPE_CHECKING, Final
+from typing import Final
+
+import pandas as pd
 
 from .glmm import FixedEffect, FixefPrior, MixedModelFit, ModelSpec, _fixed_table, term_column
-
-if TYPE_CHECKING:
-    import pandas as pd
 
 __all__ = ["INSTALL_HINT", "Lme4Unavailable", "condition_tests_lme4", "fit_lme4",
            "lme4_available"]
@@ -132,8 +131,6 @@ def _r_env() -> dict[str, str]:
 
 def _frame(df: pd.DataFrame, spec: ModelSpec) -> pd.DataFrame:
     """The columns the formula uses; booleans as 0/1 (lme4 then names them plainly)."""
-    import pandas as pd
-
     cols = list(dict.fromkeys([spec.response, *(term_column(f) for f in spec.fixed),
                                *(t.group for t in spec.random),
                                *(s for t in spec.random for s in t.slopes)]))
@@ -156,8 +153,6 @@ def fit_lme4(df: pd.DataFrame, spec: ModelSpec, *, family: str = "binomial",
         Lme4Unavailable: no ``Rscript`` or no lme4 (the message says how to install).
         RuntimeError: R failed (its last error lines are quoted).
     """
-    import pandas as pd
-
     exe = _rscript(rscript)
     with tempfile.TemporaryDirectory(prefix="tactorbelt-lme4-") as tmp:
         d = Path(tmp)
@@ -285,8 +280,6 @@ def condition_tests_lme4(df: pd.DataFrame, spec: ModelSpec, spec0: ModelSpec, *,
     Raises:
         Lme4Unavailable: no Rscript, lme4 or pbkrtest; RuntimeError: R failed.
     """
-    import pandas as pd
-
     exe = _rscript(rscript)
     with tempfile.TemporaryDirectory(prefix="tactorbelt-lme4-") as tmp:
         d = Path(tmp)

@@ -17,6 +17,8 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Final
 
+import pandas as pd
+
 from ..._errors import ConfigError
 from ..models.glmm import FixefPrior
 from ..models.lme4 import Lme4Unavailable
@@ -32,7 +34,6 @@ from .html import FIGURE_ORDER, provenance_warnings, render_html, rt_from_words
 from .tasks_figures import TASK_FIGURE_ORDER
 
 if TYPE_CHECKING:
-    import pandas as pd
     from rich.console import Console
 
     from ..summary import Summary
@@ -75,8 +76,6 @@ def choose_sample_trials(summary: Summary, per_condition: int = 5, seed: int = 0
         sub = sub.sample(frac=1.0, random_state=rng)
         sub = sub.sort_values("on_tactor", kind="stable").drop_duplicates("target_deg")
         picks.append(sub.head(per_condition))
-    import pandas as pd
-
     return pd.concat(picks) if picks else ok.iloc[0:0]
 
 

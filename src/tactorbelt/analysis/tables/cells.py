@@ -29,17 +29,15 @@ from __future__ import annotations
 
 import math
 import zlib
-from typing import TYPE_CHECKING, Any, Final, cast
+from typing import Any, Final, cast
 
 import numpy as np
+import pandas as pd
 
 from ...factors import BUILTIN, added_factors, after_builtin, factors
 from ._json import finite_float as _num
 from .tables import prepare_trials, with_cell_columns
 from .transfer import ESTIMATOR, cell_interval, estimate_transfer, information_transfer
-
-if TYPE_CHECKING:
-    import pandas as pd
 
 __all__ = [
     "CELL_COLUMNS",
@@ -132,8 +130,6 @@ def participant_cells(trials: pd.DataFrame, n_targets: int | None = None) -> pd.
     matrix of the cell (clamped to ``[0, log2 n_targets]``), ``it_bits_plain`` the
     plug-in estimate.
     """
-    import pandas as pd
-
     c = _prepared(trials, n_targets)
     keys = cell_keys()
     rows = []
@@ -174,8 +170,6 @@ def cell_summary(trials: pd.DataFrame, n_targets: int | None = None, *, seed: in
     ``it_bits_pooled`` the estimate of the pooled matrix.
     Rows are sorted by condition (static first), n_targets and load (``none`` first).
     """
-    import pandas as pd
-
     c = _prepared(trials, n_targets)
     per = participant_cells(c, n_targets)
     keys = cell_keys()

@@ -18,14 +18,14 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Final
 
+import pandas as pd
+
 from ..._errors import StoreError
 from ...factors import added_factors
 from .dataset import StoreData
 from .design import parse_design
 
 if TYPE_CHECKING:
-    import pandas as pd
-
     from ...experiment.store import Store
 
 __all__ = ["REQUIRED_COLUMNS", "StoreData", "analysis_seed", "load_samples", "load_stores",
@@ -98,8 +98,6 @@ def _read_store(path: Path | str, store_index: int, include_running: bool = Fals
                 ) -> tuple[pd.DataFrame, pd.DataFrame]:
     """Sessions and trials of one store; its ``task_events`` and ``ratings`` rows go to
     ``extra`` (tagged with ``store``)."""
-    import pandas as pd
-
     with _open(path) as store:
         if extra is not None:
             for name, rows in (("task_events", store.task_events()),
@@ -167,7 +165,6 @@ def store_labels(paths: Sequence[Path | str]) -> list[str]:
 def _tidy(sessions: pd.DataFrame, trials: pd.DataFrame, labels: list[str],
           notes: list[str]) -> tuple[pd.DataFrame, pd.DataFrame]:
     import numpy as np
-    import pandas as pd
 
     label = pd.Series(labels, dtype="string")
 
@@ -229,8 +226,6 @@ def _tidy(sessions: pd.DataFrame, trials: pd.DataFrame, labels: list[str],
 def _cell_columns(sessions: pd.DataFrame, trials: pd.DataFrame) -> pd.DataFrame:
     """``n_targets`` and ``load`` of every trial: as stored, else (stores written before
     factorial designs, schema 1) the session's study's ``[targets] count`` and ``none``."""
-    import pandas as pd
-
     if "n_targets" not in trials.columns:
         trials["n_targets"] = float("nan")
     n = pd.to_numeric(trials["n_targets"], errors="coerce")
@@ -288,8 +283,6 @@ def load_stores(paths: Sequence[str | Path], *, sites: Sequence[str] | None = No
         StoreError: no path given; a file missing, not SQLite, or lacking the tactorbelt
             tables or columns; or no session in any of the stores.
     """
-    import pandas as pd
-
     if not paths:
         raise StoreError("no store given; pass one or more .sqlite files")
     notes: list[str] = []
@@ -381,8 +374,6 @@ def load_samples(data: StoreData, trials: pd.DataFrame) -> pd.DataFrame:
     Returns:
         Columns ``store, trial_id, t_s, x, y, buttons``, ordered by trial and time.
     """
-    import pandas as pd
-
     frames = []
     stores = sorted({int(v) for v in trials["store"].tolist()})
     for store in stores:

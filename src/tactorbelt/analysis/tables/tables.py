@@ -19,15 +19,13 @@ Pure: imports NumPy, pandas, SciPy and tactorbelt.geometry; never an I/O layer.
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Final
+from typing import Final
 
 import numpy as np
+import pandas as pd
 
 from ...factors import CONDITION, added_factors
 from ...geometry import wrap
-
-if TYPE_CHECKING:
-    import pandas as pd
 
 __all__ = [
     "CONDITIONS",
@@ -64,8 +62,6 @@ def prepare_trials(trials: pd.DataFrame) -> pd.DataFrame:
     (``rt_s`` of done trials, NaN otherwise), ``kind`` (``on_tactor`` or
     ``between_tactor``) and ``err_sin``/``err_cos`` (for circular means).
     """
-    import pandas as pd
-
     tr = trials.copy()
     status = tr["status"].astype("string").fillna("aborted")
     done = (status == "done").to_numpy(dtype=bool)
@@ -168,8 +164,6 @@ def condition_summary(tr: pd.DataFrame) -> pd.DataFrame:
     Columns: condition, kind, n, n_participants, n_correct, accuracy, n_timeout, n_rt,
     median_rt_s, n_error, circ_mean_error_deg, circ_sd_error_deg.
     """
-    import pandas as pd
-
     c = tr.loc[tr["counted"]]
     rows = []
     for cond in CONDITIONS:
@@ -197,8 +191,6 @@ def per_participant(tr: pd.DataFrame) -> pd.DataFrame:
     Every participant gets a row for every condition and kind; where they have no
     trial, ``n`` is 0 and the values are NaN (the report says so).
     """
-    import pandas as pd
-
     c = tr.loc[tr["counted"]]
     out = _agg(c, ["participant", "condition", "kind"])
     parts = sorted(tr["participant"].unique().tolist())
@@ -243,8 +235,6 @@ def confusion_matrices(tr: pd.DataFrame, targets: np.ndarray) -> dict[str, pd.Da
     Responses that were not one of ``targets`` are put on the nearest target;
     timeouts go to the last column, ``no response``.
     """
-    import pandas as pd
-
     c = tr.loc[tr["counted"]]
     tg = np.unique(np.round(np.concatenate([np.asarray(targets, dtype=float),
                                             c["target_deg"].to_numpy(dtype=float)]), 6))
@@ -268,8 +258,6 @@ def confusion_matrices(tr: pd.DataFrame, targets: np.ndarray) -> dict[str, pd.Da
 
 def training_summary(tr: pd.DataFrame) -> pd.DataFrame:
     """Training-block trials per condition: n and accuracy (same counting rules)."""
-    import pandas as pd
-
     t = tr.loc[(tr["block"] == "training") & tr["status"].isin(["done", "timeout"])]
     if t.empty:
         return pd.DataFrame(columns=["condition", "n", "accuracy"])
