@@ -35,7 +35,9 @@ Imports NumPy only.
 
 from __future__ import annotations
 
+import itertools
 import math
+import operator
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any, Final
@@ -255,13 +257,13 @@ def linearity(levels: Sequence[float], amplitudes: Sequence[float]
     return float(slope), float(intercept), r2
 
 
-def _stat(values: Sequence[float]) -> tuple[float, float, int]:
-    """Mean, sample standard deviation (0 for one value) and count of the finite values."""
+def _stat(values: Sequence[float]) -> tuple[float, float]:
+    """Mean and sample standard deviation (0 for one value) of the finite values."""
     v = np.asarray(values, dtype=float)
     v = v[np.isfinite(v)]
     if v.size == 0:
-        return math.nan, math.nan, 0
-    return float(v.mean()), float(v.std(ddof=1)) if v.size > 1 else 0.0, int(v.size)
+        return math.nan, math.nan
+    return float(v.mean()), float(v.std(ddof=1)) if v.size > 1 else 0.0
 
 
 @dataclass
@@ -271,17 +273,23 @@ class TactorSummary:
     tactor: int
     pulses: list[PulseMeasure]
 
-    def _over(self, name: str, level: float | None = None) -> tuple[float, float, int]:
+    def _over(self, name: str, level: float | None = None) -> tuple[float, float]:
         return _stat([getattr(p, name) for p in self.pulses
                       if level is None or p.level == level])
 
+    def _times(self, names: Sequence[str], level: float | None = None) -> dict[str, Any]:
+        """Each of ``names`` (``latency_ms``, ...) over the pulses (at ``level``): its
+        mean, and its sd as ``latency_sd_ms``."""
+        out = {}
+        for name in names:
+            mean, sd = self._over(name, level)
+            out[name], out[name.replace("_ms", "_sd_ms")] = _num(mean), _num(sd)
+        return out
+
     def to_dict(self) -> dict[str, Any]:
         """``validation.json``'s entry of this tactor."""
-        row: dict[str, Any] = {"tactor": self.tactor}
-        for name in ("latency_ms", "rise_ms", "fall_ms", "stop_latency_ms"):
-            mean, sd, _ = self._over(name)
-            row[name] = _num(mean)
-            row[name.replace("_ms", "_sd_ms")] = _num(sd)
+        row: dict[str, Any] = {"tactor": self.tactor, **self._times(
+            ("latency_ms", "rise_ms", "fall_ms", "stop_latency_ms"))}
         levels = sorted({p.level for p in self.pulses})
         row["pulses"] = len(self.pulses)
         row["levels"] = levels
@@ -292,15 +300,9 @@ class TactorSummary:
         row["linearity"] = (None if fit is None else
                             {"slope": fit[0], "intercept": fit[1], "r2": fit[2]})
         row["settled"] = all(p.settled for p in self.pulses)
-        row["by_level"] = []
-        for lv in levels:
-            entry: dict[str, Any] = {"level": lv}
-            for name in ("latency_ms", "rise_ms", "fall_ms"):
-                mean, sd, n = self._over(name, lv)
-                entry[name] = _num(mean)
-                entry[name.replace("_ms", "_sd_ms")] = _num(sd)
-            entry["pulses"] = sum(1 for p in self.pulses if p.level == lv)
-            row["by_level"].append(entry)
+        row["by_level"] = [{"level": lv, **self._times(("latency_ms", "rise_ms", "fall_ms"), lv),
+                            "pulses": sum(1 for p in self.pulses if p.level == lv)}
+                           for lv in levels]
         return row
 
     def timing(self) -> dict[str, float | None]:
@@ -312,8 +314,7 @@ class TactorSummary:
 
 
 def summarise(pulses: Sequence[PulseMeasure]) -> list[TactorSummary]:
-    """Group measured pulses by tactor (in tactor order)."""
-    by: dict[int, list[PulseMeasure]] = {}
-    for p in pulses:
-        by.setdefault(p.tactor, []).append(p)
-    return [TactorSummary(k, by[k]) for k in sorted(by)]
+    """Group measured pulses by tactor (in tactor order; each tactor's in measured order)."""
+    tactor = operator.attrgetter("tactor")
+    return [TactorSummary(k, list(g))
+            for k, g in itertools.groupby(sorted(pulses, key=tactor), key=tactor)]
