@@ -93,7 +93,7 @@ class Window:
     problem: str | None = None
 
 
-class Sensor(ABC):
+class Sensor(contextlib.AbstractContextManager["Sensor"], ABC):
     """Senses a belt's vibration (see the module docstring). A context manager.
 
     Attributes:
@@ -113,7 +113,7 @@ class Sensor(ABC):
     #: input channel): one pulse at a time, and a stimulus is replayed per tactor.
     separates_tactors: bool = False
 
-    def start(self) -> None:  # noqa: B027 - optional hook
+    def start(self) -> None:  # an optional hook
         """Begin recording (called after the belt is open, before the first pulse)."""
 
     @abstractmethod
@@ -125,14 +125,11 @@ class Sensor(ABC):
             DeviceError: the sensor stopped delivering samples.
         """
 
-    def forget_before(self, t_ns: int) -> None:  # noqa: B027 - optional hook
+    def forget_before(self, t_ns: int) -> None:  # an optional hook
         """Nothing before ``t_ns`` will be asked for again (a recording may drop it)."""
 
-    def close(self) -> None:  # noqa: B027 - optional hook
+    def close(self) -> None:  # an optional hook
         """Stop recording and release the device."""
-
-    def __enter__(self) -> Sensor:
-        return self
 
     def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
                  tb: TracebackType | None) -> None:
