@@ -26,6 +26,8 @@ from typing import Any, Final
 
 import numpy as np
 import pandas as pd
+from scipy.special import expit
+from scipy.stats import norm
 
 from ..tables._json import finite_float as _num
 from .glmm import MixedModelFit, fixed_design, term_column, term_levels
@@ -106,8 +108,6 @@ def condition_contrasts(fit: MixedModelFit, frame: pd.DataFrame,
         ``probability`` (the same on the probability scale, with each condition's
         estimated accuracy), ``estimable``. Empty when the model has no condition or no finite vcov.
     """
-    from scipy.special import expit
-    from scipy.stats import norm
     from statsmodels.stats.multitest import multipletests
 
     if "condition" not in fit.spec.fixed:

@@ -26,6 +26,7 @@ from typing import Any, Final
 
 import numpy as np
 import pandas as pd
+from scipy.stats import t as t_dist
 
 from ...factors import CONDITION, LOAD, TARGETS, added_factors, factor
 from ..tables._json import finite_float as _num
@@ -247,8 +248,6 @@ def rt_satterthwaite(data: pd.DataFrame, fit: Any) -> dict[str, dict[str, Any]]:
     """lmerTest's Satterthwaite df, t and p of an LMM's fixed effects: R's own numbers
     for a fit by R with lmerTest, else :func:`.satterthwaite.satterthwaite` (which also
     takes R's fit)."""
-    from scipy.stats import t as t_dist
-
     if fit.satterthwaite:
         out: dict[str, dict[str, Any]] = {}
         for k, v in fit.satterthwaite.items():

@@ -60,6 +60,9 @@ from typing import Any, Final, ParamSpec, TypeVar
 
 import numpy as np
 import pandas as pd
+from scipy.optimize import minimize  # SciPy's OpenBLAS loaded before one_blas_thread looks
+from scipy.special import expit
+from scipy.stats import norm
 
 __all__ = [
     "SINGULAR_TOL",
@@ -306,8 +309,6 @@ def one_blas_thread(f: Callable[P, R]) -> Callable[P, R]:
         except ImportError:  # pragma: no cover - threadpoolctl comes with SciPy's stack
             return f(*args, **kwargs)
         if not _CONTROLLER:
-            import scipy.optimize  # noqa: F401 - SciPy's own OpenBLAS (L-BFGS-B), loaded first
-
             _CONTROLLER.append(ThreadpoolController())
         with _CONTROLLER[0].limit(limits=1, user_api="blas"):
             return f(*args, **kwargs)
@@ -688,13 +689,6 @@ def _weights(mu: np.ndarray, m: np.ndarray, floor: bool = False) -> np.ndarray:
     return np.maximum(w, m * WEIGHT_FLOOR) if floor else w
 
 
-def _expit(eta: np.ndarray) -> np.ndarray:
-    """The logistic function, without overflow warnings at large ``|eta|``."""
-    from scipy.special import expit
-
-    return np.asarray(expit(eta))
-
-
 def _binom_dev(eta: np.ndarray, y: np.ndarray, m: np.ndarray) -> float:
     """``-2 log L`` of binomial counts (without the binomial coefficients, which Bernoulli
     rows do not have): the sum of Bernoulli deviance residuals."""
@@ -812,7 +806,7 @@ class _Laplace:
 
         pen, eta = objective(u1, ud)
         for _ in range(200):
-            mu = _expit(eta)
+            mu = expit(eta)
             w = _weights(mu, m, robust)
             f = sysm.factor(v1, d, w)
             resid = y - m * mu
@@ -833,7 +827,7 @@ class _Laplace:
                     float(np.abs(step * x1).max(initial=0.0)),
                     float(np.abs(step * x2).max(initial=0.0))) < 1e-7:
                 break
-        mu = _expit(eta)
+        mu = expit(eta)
         w = _weights(mu, m, robust)
         f = sysm.factor(v1, d, w)
         ld = sysm.logdet_u(f)
@@ -971,7 +965,7 @@ class _Laplace:
         """``R_X' R_X`` at ``(theta, beta)``: half the Hessian of the deviance over beta
         when the modes are held (the conditional information)."""
         _, st = self._pirls(par[: self.n_theta], par[self.n_theta:])
-        mu = _expit(st["eta"])
+        mu = expit(st["eta"])
         w = _weights(mu, self.m, self.robust)
         v1, d = self.sys_j.rows(_split(self.terms, par[: self.n_theta]))
         f = self.sys_j.factor(v1, d, w)
@@ -1022,8 +1016,6 @@ def _differences(f: Any, central: bool = True) -> Any:
 def _minimize(fg: Any, x0: np.ndarray, lower: Sequence[float], *, ftol: float = 1e-12,
               gtol: float = 1e-6, maxiter: int = 500) -> tuple[np.ndarray, bool, str]:
     """L-BFGS-B with ``fg(x, lower) -> (f, gradient)`` (``lower`` as an array)."""
-    from scipy.optimize import minimize
-
     lo = np.array([(-np.inf if not math.isfinite(b) else b) for b in lower])
     bounds = [(None if not math.isfinite(b) else b, None) for b in lower]
     x0 = np.maximum(x0, np.where(np.isfinite(lo), lo, -np.inf))
@@ -1110,8 +1102,6 @@ def _pool(x: np.ndarray, terms: list[_Term], y: np.ndarray
 
 
 def _fixed_table(names: list[str], beta: np.ndarray, vcov: np.ndarray) -> dict[str, FixedEffect]:
-    from scipy.stats import norm
-
     out: dict[str, FixedEffect] = {}
     se = np.sqrt(np.maximum(np.diag(vcov), 0.0))
     for nm, b, s in zip(names, beta, se, strict=True):
@@ -1242,7 +1232,7 @@ class GlmmData:
     def simulate(self, fit: MixedModelFit, rng: np.random.Generator, n_sim: int) -> np.ndarray:
         """``(n_sim, N)`` 0/1 responses simulated from ``fit`` (a fit of this model)."""
         eta = self.linear_predictor(fit, rng, n_sim)
-        return (rng.random(eta.shape) < _expit(eta)).astype(float)
+        return (rng.random(eta.shape) < expit(eta)).astype(float)
 
 
 @one_blas_thread

@@ -35,6 +35,8 @@ from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any, Final
 
 import numpy as np
+from scipy.stats import chi2
+from scipy.stats import f as f_dist
 
 from .glmm import GlmmData, MixedModelFit, ModelSpec, glmm_fit, one_blas_thread
 
@@ -73,8 +75,6 @@ def null_spec(spec: ModelSpec) -> ModelSpec:
 
 def wald_condition(fit: MixedModelFit) -> dict[str, Any]:
     """The Wald chi-square of every condition term at once."""
-    from scipy.stats import chi2
-
     names = list(fit.fixed_effects)
     terms = condition_terms(names)
     idx = [names.index(t) for t in terms]
@@ -98,8 +98,6 @@ def likelihood_ratio(fit: MixedModelFit, fit0: MixedModelFit) -> dict[str, Any]:
     """``anova(m0, m)``: ``2 (log L - log L0)``, its df and chi-square p; and the same
     ratio referred to ``F(df, participants - 1)`` (``f_reference``, see
     :func:`f_reference`)."""
-    from scipy.stats import chi2
-
     df = len(fit.fixed_effects) - len(fit0.fixed_effects)
     # -2 log L of each (a penalised fit's deviance also holds its prior)
     stat = float(2.0 * (fit.loglik - fit0.loglik))
@@ -127,8 +125,6 @@ def f_reference(lrt: float, df: int, n_participants: int) -> dict[str, Any]:
     chi-square p finds effects that are not there (docs/analysis.md, "Tests of the
     condition").
     """
-    from scipy.stats import f as f_dist
-
     df2 = int(n_participants) - 1
     fstat = max(float(lrt), 0.0) / df
     return {"statistic": fstat, "df1": int(df), "df2": df2,

@@ -29,6 +29,7 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from scipy.stats import t as t_dist
 
 from .glmm import Z95, LmmData, MixedModelFit, one_blas_thread
 
@@ -107,8 +108,6 @@ def satterthwaite(frame: pd.DataFrame, fit: MixedModelFit,
         interval on ``df``); and under the key ``"_"`` the notes (negative or zero
         eigenvalues of the Hessian, as lmerTest warns).
     """
-    from scipy.stats import t as t_dist
-
     data = LmmData(frame, fit.spec)
     sigma = float(fit.random_effects["Residual"]["sd"]["(Intercept)"])
     varpar = np.r_[fit.theta, sigma]

@@ -32,6 +32,7 @@ from dataclasses import asdict, dataclass, field
 from typing import TYPE_CHECKING, Any, Final
 
 import numpy as np
+from scipy.optimize import linprog
 
 from .glmm import ModelSpec, fixed_design, term_column
 
@@ -92,8 +93,6 @@ def detect_separation(frame: pd.DataFrame, spec: ModelSpec,
         names: the fitted model's fixed-effect names (columns the fit dropped as linear
             combinations are left out too); default: the design's own.
     """
-    from scipy.optimize import linprog
-
     out = Separation()
     cols = [term_column(t) for t in spec.fixed]
     y = frame[spec.response].to_numpy(dtype=float)

@@ -30,6 +30,7 @@ from dataclasses import replace
 from typing import TYPE_CHECKING, Any, Final
 
 import numpy as np
+from scipy.stats import t as t_dist
 
 from ...factors import added_factors
 from ...geometry import TargetSet
@@ -345,7 +346,6 @@ def trajectory_figure(samples: pd.DataFrame, trials: pd.DataFrame,
 def paired_figure(per_participant: pd.DataFrame) -> bytes:
     """Per-participant between-tactor accuracy and median RT, static vs dynamic."""
     from matplotlib.collections import LineCollection
-    from scipy.stats import t as t_dist
 
     fig = _figure(8.0, 4.4)
     axes = fig.subplots(1, 2)

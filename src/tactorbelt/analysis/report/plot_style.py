@@ -12,6 +12,7 @@ import io
 from typing import TYPE_CHECKING, Any, Final
 
 import numpy as np
+from scipy.stats import t as t_dist
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -68,8 +69,6 @@ def _no_data(ax: Any, text: str) -> None:
 
 def _mean_ci(values: np.ndarray) -> tuple[float, float]:
     """Mean and the half-width of its 95 % t interval (0 for fewer than 2 values)."""
-    from scipy.stats import t as t_dist
-
     v = values[np.isfinite(values)]
     if v.size == 0:
         return float("nan"), 0.0

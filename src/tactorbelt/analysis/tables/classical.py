@@ -24,6 +24,8 @@ from dataclasses import dataclass, field
 from typing import Any, Final
 
 import numpy as np
+from scipy.stats import bootstrap, fisher_exact, mannwhitneyu, norm, rankdata, ttest_1samp
+from scipy.stats.contingency import odds_ratio
 
 from ._json import finite_float as _num
 
@@ -104,8 +106,6 @@ def bca_interval(data: tuple[np.ndarray, ...], statistic: Any, rng: np.random.Ge
     (e.g. every resample equal) the percentile interval is returned, and the third
     value says which one it is.
     """
-    from scipy.stats import bootstrap
-
     for method in ("BCa", "percentile"):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
@@ -151,8 +151,6 @@ def signed_rank_test(diff: np.ndarray) -> tuple[float, float, str]:
     Returns:
         ``(W, p, method)``: W the smaller of ``T+`` and ``T-``.
     """
-    from scipy.stats import norm, rankdata
-
     d = np.asarray(diff, dtype=float)
     d = d[d != 0]
     n = d.size
@@ -174,8 +172,6 @@ def signed_rank_test(diff: np.ndarray) -> tuple[float, float, str]:
 
 def _untied_signed_rank_cut(n: int) -> int:
     """c with ``P(T <= c) <= 0.025`` maximal (untied, exact up to 50, normal above)."""
-    from scipy.stats import norm
-
     if n <= SIGNED_RANK_EXACT_MAX:
         cdf = np.cumsum(_signed_rank_null(2 * np.arange(1, n + 1)))[::2]
         ok = np.flatnonzero(cdf <= 0.025)
@@ -211,8 +207,6 @@ def hodges_lehmann_shift(x: np.ndarray, y: np.ndarray) -> tuple[float, float, fl
     recursion) when ``n m <= 2500``, else its normal approximation with continuity
     correction (no tie correction).
     """
-    from scipy.stats import norm
-
     x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
     n, m = x.size, y.size
     diffs = np.sort((x[:, None] - y[None, :]).ravel())
@@ -256,9 +250,6 @@ def fisher_accuracy(correct_static: int, n_static: int, correct_dynamic: int, n_
     BCa bootstrap interval (trials resampled within each condition). The sample odds
     ratio ``(a d) / (b c)`` is in ``details`` as ``sample_odds_ratio``.
     """
-    from scipy.stats import fisher_exact
-    from scipy.stats.contingency import odds_ratio
-
     test, question = "Fisher's exact test", "between-tactor accuracy, dynamic vs static"
     if n_static == 0 or n_dynamic == 0:
         missing = "static" if n_static == 0 else "dynamic"
@@ -310,8 +301,6 @@ def mann_whitney_rt(rt_static: np.ndarray, rt_dynamic: np.ndarray, rng: np.rando
     sample has at most 8 trials and there are no ties, else the tie-corrected normal
     approximation with continuity correction (SciPy's rule, chosen explicitly).
     """
-    from scipy.stats import mannwhitneyu
-
     test, question = "Mann-Whitney U test", "between-tactor response time, dynamic vs static"
     s = np.asarray(rt_static, dtype=float)
     d = np.asarray(rt_dynamic, dtype=float)
@@ -358,8 +347,6 @@ def matched_pairs_rank_biserial(diff: np.ndarray) -> float:
     Ranks of ``|diff|`` among the non-zero differences (average ranks for ties), as in
     the Wilcoxon signed-rank test with ``zero_method="wilcox"``.
     """
-    from scipy.stats import rankdata
-
     d = np.asarray(diff, dtype=float)
     d = d[d != 0]
     if d.size == 0:
@@ -380,8 +367,6 @@ def wilcoxon_paired(static: np.ndarray, dynamic: np.ndarray, rng: np.random.Gene
     (participants resampled) of the mean paired difference; the t interval and the
     Hodges-Lehmann estimate with its interval are in ``details``.
     """
-    from scipy.stats import ttest_1samp
-
     test = "Wilcoxon signed-rank test"
     question = f"per-participant between-tactor {what}, dynamic vs static"
     s = np.asarray(static, dtype=float)

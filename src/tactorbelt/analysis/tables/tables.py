@@ -23,6 +23,7 @@ from typing import Final
 
 import numpy as np
 import pandas as pd
+from scipy.stats import circmean, circstd
 
 from ...factors import CONDITION, added_factors
 from ...geometry import wrap
@@ -105,8 +106,6 @@ def circ_stats(errors_deg: np.ndarray) -> tuple[float, float]:
 
     Returns NaNs for no errors; callers say why in words.
     """
-    from scipy.stats import circmean, circstd
-
     e = np.asarray(errors_deg, dtype=float)
     e = e[~np.isnan(e)]
     if e.size == 0:

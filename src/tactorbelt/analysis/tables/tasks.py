@@ -29,6 +29,7 @@ from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
+from scipy.stats import friedmanchisquare, norm
 
 from ...tasks import PHASES, TLX_ITEMS
 from ._json import finite_float as _num
@@ -51,8 +52,6 @@ def d_prime(hits: int, misses: int, false_alarms: int, correct_rejections: int) 
     ``H = (hits + 0.5) / (hits + misses + 1)``, ``F = (fa + 0.5) / (fa + cr + 1)``,
     ``d' = Phi^-1(H) - Phi^-1(F)``.
     """
-    from scipy.stats import norm
-
     h = (hits + 0.5) / (hits + misses + 1.0)
     f = (false_alarms + 0.5) / (false_alarms + correct_rejections + 1.0)
     return float(norm.ppf(h)) - float(norm.ppf(f))
@@ -254,8 +253,6 @@ def _across_load(table: Mapping[str, Mapping[str, float]], loads: Sequence[str]
     if np.all(m == m[:, :1]):
         return {"test": test, "computed": False, "reason": "no participant's ratings differ "
                 "across load", "n_participants": n, "statistic": None, "p_value": None}
-    from scipy.stats import friedmanchisquare
-
     r = friedmanchisquare(*m.T)
     return {"test": test, "computed": True, "n_participants": n,
             "statistic": float(r.statistic), "p_value": float(r.pvalue)}

@@ -40,6 +40,8 @@ from collections.abc import Sequence
 from typing import Final
 
 import numpy as np
+from scipy.stats import norm
+from scipy.stats import t as t_dist
 
 __all__ = [
     "ESTIMATOR",
@@ -286,9 +288,6 @@ def expanded_levels(n: int, level: float = 0.95) -> tuple[float, float]:
     a = (1.0 - level) / 2.0
     if n < 2:
         return a, 1.0 - a
-    from scipy.stats import norm
-    from scipy.stats import t as t_dist
-
     z = math.sqrt(n / (n - 1.0)) * float(t_dist.ppf(1.0 - a, n - 1))
     lo = float(norm.cdf(-z))
     return lo, 1.0 - lo
