@@ -21,6 +21,7 @@ Pure: NumPy, pandas, SciPy, statsmodels.
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Sequence
 from typing import Any, Final
 
@@ -42,8 +43,6 @@ def _grid(frame: pd.DataFrame, terms: tuple[str, ...]) -> tuple[pd.DataFrame, li
     """The reference grid: condition x n_targets x (other factor levels), on_tactor = 0.
 
     Returns the grid and the target counts (one ``None`` when the data have none)."""
-    import itertools
-
     columns: dict[str, list[Any]] = {"condition": ["dynamic", "static"]}
     counts: list[Any] = [None]
     for t in terms:

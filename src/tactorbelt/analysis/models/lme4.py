@@ -14,6 +14,7 @@ I/O (temporary files, a subprocess).
 from __future__ import annotations
 
 import math
+import os
 import shutil
 import subprocess
 import tempfile
@@ -124,8 +125,6 @@ def _write_model(d: Path, df: pd.DataFrame, spec: ModelSpec) -> None:
 def _r_env() -> dict[str, str]:
     """R's environment with one BLAS thread: threaded sums change glmer's path in the
     4th digit from run to run."""
-    import os
-
     return {**os.environ, "OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1"}
 
 

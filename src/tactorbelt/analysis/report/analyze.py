@@ -17,6 +17,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Final
 
+import numpy as np
 import pandas as pd
 
 from ..._errors import ConfigError
@@ -58,8 +59,6 @@ def choose_sample_trials(summary: Summary, per_condition: int = 5, seed: int = 0
     (else the first with any), prefers between-tactor targets, distinct targets,
     chosen with a seeded generator.
     """
-    import numpy as np
-
     tr = summary.trials
     ok = tr.loc[tr["counted"] & tr["responded"]]
     if ok.empty:

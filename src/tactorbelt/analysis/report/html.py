@@ -14,7 +14,7 @@ from __future__ import annotations
 from functools import cache
 from typing import TYPE_CHECKING, Any, Final
 
-from ..summary import COUNTING_RULES
+from ..summary import COUNTING_RULES, Summary
 from ..tables.tables import CONDITIONS, KIND_LABELS, KINDS
 from . import formatting
 from .cells import cells_view
@@ -25,7 +25,6 @@ if TYPE_CHECKING:
     import jinja2
     import pandas as pd
 
-    from ..summary import Summary
     from ..tables.classical import TestResult
 
 __all__ = ["FIGURE_CAPTIONS", "FIGURE_ORDER", "fixed_effects_view", "model_view",

@@ -18,6 +18,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Final
 
+import numpy as np
 import pandas as pd
 
 from ..._errors import StoreError
@@ -164,8 +165,6 @@ def store_labels(paths: Sequence[Path | str]) -> list[str]:
 
 def _tidy(sessions: pd.DataFrame, trials: pd.DataFrame, labels: list[str],
           notes: list[str]) -> tuple[pd.DataFrame, pd.DataFrame]:
-    import numpy as np
-
     label = pd.Series(labels, dtype="string")
 
     def session_key(df: pd.DataFrame) -> pd.Series:

@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from ..._errors import TactorbeltError
 from ...geometry import Layout, wrap
 
 __all__ = ["COLUMNS", "profile_table"]
@@ -31,7 +32,6 @@ COLUMNS = ("profile", "condition", "n_participants", "n", "accuracy", "mean_abs_
 
 def _layout(study_toml: str) -> Layout:
     """The session's layout; a study text that no longer parses gives the default one."""
-    from ..._errors import TactorbeltError
     from ...experiment.study import Study
 
     try:
