@@ -114,16 +114,6 @@ class Playable(Protocol):
     def amplitudes(self, t: NDArray[np.float64]) -> NDArray[np.float64]: ...
 
 
-def _preview_s() -> float:
-    """The shaper's preview (s): a streamed stimulus is known ahead, so on a belt that
-    shapes its drive each frame shows the stimulus this much later, and the frames within
-    it of the end are off, as the device's renderer previews what it plays
-    (``erm.LEAD_TICKS``, docs/belts.md "Drive shaping")."""
-    from .devices.erm import LEAD_TICKS, RENDER_TICK_NS
-
-    return LEAD_TICKS * RENDER_TICK_NS * 1e-9
-
-
 class Player:
     """Plays stimuli on one belt (see the module docstring).
 
@@ -265,7 +255,12 @@ class Player:
         with self._lock:
             self._reset(stimulus, onset, device)
             if not device and self.belt.drive == "shaped":
-                self._lead_s = _preview_s()
+                # a streamed stimulus is known ahead: each frame shows it the shaper's
+                # preview later, as the device's renderer previews what it plays
+                # (docs/belts.md "Drive shaping")
+                from .devices.erm import LEAD_TICKS, RENDER_TICK_NS
+
+                self._lead_s = LEAD_TICKS * RENDER_TICK_NS * 1e-9
             if duration_s is not None:
                 self._n_frames = max(1, round(float(duration_s) * self.rate_hz))
                 self._end = (onset + round(float(duration_s) * 1e9) if device
