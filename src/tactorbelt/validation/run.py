@@ -177,10 +177,6 @@ class OnsetSettings:
         if not 0 <= int(self.max_repeats) <= 100:
             raise ConfigError(f"max_repeats must be in 0..100, got {self.max_repeats!r}")
 
-    @property
-    def baseline_s(self) -> float:
-        return min(BASELINE_S, 0.5 * self.off_s)
-
 
 @dataclass
 class OnsetValidation:
@@ -276,10 +272,6 @@ def fit_shaping(result: OnsetValidation) -> list[dict[str, Any]]:
     return out
 
 
-def _now_iso() -> str:
-    return _dt.datetime.now(_dt.UTC).astimezone().isoformat(timespec="seconds")
-
-
 @dataclass
 class _Pulse:
     tactor: int
@@ -344,7 +336,7 @@ def validate_onsets(belt: Belt, sensor: Sensor, settings: OnsetSettings | None =
     queue = [_Pulse(k, lv, 0) for _ in range(s.pulses) for lv in s.levels for k in ks]
     total = len(queue)
     on_ns, off_ns = round(s.on_s * 1e9), round(s.off_s * 1e9)
-    base_ns = round(s.baseline_s * 1e9)
+    base_ns = round(min(BASELINE_S, 0.5 * s.off_s) * 1e9)
     gap_ns = round(GAP_S * 1e9) if sensor.separates_tactors else off_ns
     device_onsets = belt.reports_onsets
     uncertainties: list[int] = []
@@ -447,7 +439,8 @@ def validate_onsets(belt: Belt, sensor: Sensor, settings: OnsetSettings | None =
         onset_reference=("device: belt.last_onset(), the device-true onset" if device_onsets
                          and uncertainties else
                          "host: the clock time just before the command (Player.start)"),
-        settings=s, tactors=summarise(measured), date=_now_iso(),
+        settings=s, tactors=summarise(measured),
+        date=_dt.datetime.now(_dt.UTC).astimezone().isoformat(timespec="seconds"),
         angles_deg=tuple(belt.tactor_angles_deg), seconds=time.perf_counter() - wall0,
         repeats=repeats, warnings=list(warned.values()),
         onset_uncertainty_ms=(float(np.median(uncertainties)) / 1e6 if uncertainties
