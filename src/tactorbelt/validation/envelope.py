@@ -257,15 +257,6 @@ def linearity(levels: Sequence[float], amplitudes: Sequence[float]
     return float(slope), float(intercept), r2
 
 
-def _stat(values: Sequence[float]) -> tuple[float, float]:
-    """Mean and sample standard deviation (0 for one value) of the finite values."""
-    v = np.asarray(values, dtype=float)
-    v = v[np.isfinite(v)]
-    if v.size == 0:
-        return math.nan, math.nan
-    return float(v.mean()), float(v.std(ddof=1)) if v.size > 1 else 0.0
-
-
 @dataclass
 class TactorSummary:
     """A tactor's figures over its pulses (see :func:`summarise`)."""
@@ -274,8 +265,14 @@ class TactorSummary:
     pulses: list[PulseMeasure]
 
     def _over(self, name: str, level: float | None = None) -> tuple[float, float]:
-        return _stat([getattr(p, name) for p in self.pulses
-                      if level is None or p.level == level])
+        """The mean and sample standard deviation (0 for one value) of the finite values
+        of ``name`` over the pulses (at ``level``)."""
+        v = np.array([getattr(p, name) for p in self.pulses
+                      if level is None or p.level == level], dtype=float)
+        v = v[np.isfinite(v)]
+        if v.size == 0:
+            return math.nan, math.nan
+        return float(v.mean()), float(v.std(ddof=1)) if v.size > 1 else 0.0
 
     def _times(self, names: Sequence[str], level: float | None = None) -> dict[str, Any]:
         """Each of ``names`` (``latency_ms``, ...) over the pulses (at ``level``): its
