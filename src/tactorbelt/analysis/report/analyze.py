@@ -20,6 +20,7 @@ from typing import TYPE_CHECKING, Final
 import numpy as np
 import pandas as pd
 
+from ... import __version__
 from ..._errors import ConfigError
 from ..models.glmm import FixefPrior
 from ..models.lme4 import Lme4Unavailable
@@ -114,15 +115,6 @@ def print_summary_table(summary: Summary, console: Console | None = None) -> Non
 
 
 # -- files -----------------------------------------------------------------------------
-
-def _package_version() -> str:
-    from importlib.metadata import PackageNotFoundError, version
-
-    try:
-        return version("tactorbelt")
-    except PackageNotFoundError:  # pragma: no cover
-        return "unknown"
-
 
 def _sites(data: StoreData, summary: Summary) -> pd.DataFrame | None:
     """The per-site table when the sessions come from two sites or more."""
@@ -232,7 +224,7 @@ def analyze(paths: Sequence[str | Path], out: str | Path, *, seed: int | None = 
         now = _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
         (out / "report.html").write_text(
             render_html(summary, figures, generated_at=now,
-                        package_version=_package_version(), sites=_sites(data, summary)),
+                        package_version=__version__, sites=_sites(data, summary)),
             encoding="utf-8")
     except OSError as exc:
         raise ConfigError(f"cannot write the report to {out}: {exc.strerror}") from None
