@@ -152,10 +152,6 @@ class Deadlines:
         if first < 0 or last * self._p >= 2**62 or abs(self.onset_ns) >= 2**62:
             return np.array([self.deadline(i) for i in range(first, first + int(n))],
                             dtype=np.int64)
-        if self._q == 1:  # a whole number of ns a frame (100 Hz, 1 kHz): one step
-            return np.arange(self.onset_ns + first * self._p,
-                             self.onset_ns + (first + int(n)) * self._p, self._p,
-                             dtype=np.int64)
         i = np.arange(first, first + int(n), dtype=np.int64)
         return np.asarray(self.onset_ns + (i * self._p) // self._q, dtype=np.int64)
 
