@@ -231,7 +231,6 @@ class AudioSensor(SampledSensor):
         self._col = {c: i for i, c in enumerate(opened)}
         self._lock = threading.Lock()
         self._blocks: list[tuple[int, int, bool, NDArray[np.float32]]] = []
-        self._first = 0  # frames before the first kept block
         self._frames = 0
         self._recording = False
         self._error: BaseException | None = None
