@@ -470,8 +470,7 @@ def mixed_model(tr: pd.DataFrame, *, engine: str = "tactorbelt",
         return skip("every counted trial is " + ("correct" if y[0] else "incorrect")
                     + "; a logistic model has nothing to fit", **n)
     try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
+        with warnings.catch_warnings(action="ignore"):
             fit, js = fit_model(frame, engine=engine, fixef_prior=fixef_prior)
             sep = _separation(frame, fit, js)
             inf_terms = [] if fit.fixef_prior is not None else sep.terms
@@ -562,8 +561,7 @@ def rt_model(tr: pd.DataFrame, *, engine: str = "tactorbelt") -> dict[str, Any]:
                          "conditions and positive response times")
         return out
     try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
+        with warnings.catch_warnings(action="ignore"):
             _, js = fit_model(frame, engine=engine, rt=True)
     except Lme4Unavailable:
         raise

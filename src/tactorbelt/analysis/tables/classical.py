@@ -107,8 +107,7 @@ def bca_interval(data: tuple[np.ndarray, ...], statistic: Any, rng: np.random.Ge
     value says which one it is.
     """
     for method in ("BCa", "percentile"):
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
+        with warnings.catch_warnings(action="ignore"):
             try:
                 res = bootstrap(data, statistic, n_resamples=n_boot, method=method, rng=rng,
                                 vectorized=True, axis=-1)
@@ -384,8 +383,7 @@ def wilcoxon_paired(static: np.ndarray, dynamic: np.ndarray, rng: np.random.Gene
                              f"the same {what} in both conditions)", pairs=int(s.size))
     w, p, p_how = signed_rank_test(diff)
     lo, hi, how = bca_interval((diff,), lambda a, axis: a.mean(axis), rng, n_boot)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
+    with warnings.catch_warnings(action="ignore"):
         tci = ttest_1samp(diff, 0.0).confidence_interval(0.95)
     hl, hl_lo, hl_hi, hl_how = hodges_lehmann_paired(diff)
     return TestResult(
