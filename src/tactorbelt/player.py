@@ -114,7 +114,7 @@ class Playable(Protocol):
     def amplitudes(self, t: NDArray[np.float64]) -> NDArray[np.float64]: ...
 
 
-class Player:
+class Player(contextlib.AbstractContextManager["Player"]):
     """Plays stimuli on one belt (see the module docstring).
 
     Args:
@@ -372,9 +372,6 @@ class Player:
         """The statistics so far (re-raises an error from the background thread)."""
         self._check_error()
         return self._stats()
-
-    def __enter__(self) -> Player:
-        return self
 
     def __exit__(self, *exc: object) -> None:
         if self._active or self._thread is not None:
