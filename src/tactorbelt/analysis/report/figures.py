@@ -30,7 +30,6 @@ from dataclasses import replace
 from typing import TYPE_CHECKING, Any, Final
 
 import numpy as np
-from scipy.stats import t as t_dist
 
 from ...factors import added_factors
 from ...geometry import TargetSet
@@ -373,9 +372,7 @@ def paired_figure(per_participant: pd.DataFrame) -> bytes:
             ax.scatter(xs[:, i], ys[:, i], s=14 if n < 100 else 4, color=COLORS[cond],
                        marker=MARKERS[cond], alpha=min(1.0, alpha + 0.2), zorder=3,
                        linewidths=0)
-            m = float(np.mean(ys[:, i]))
-            se = float(np.std(ys[:, i], ddof=1) / np.sqrt(n)) if n > 1 else 0.0
-            half = float(t_dist.ppf(0.975, n - 1)) * se if n > 1 else 0.0
+            m, half = _mean_ci(ys[:, i])
             ax.errorbar([i + (0.22 if i else -0.22)], [m], yerr=[half], fmt=MARKERS[cond],
                         color=COLORS[cond], markersize=8, capsize=4, linewidth=2, zorder=4,
                         markeredgecolor="black")
