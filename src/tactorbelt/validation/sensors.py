@@ -318,10 +318,9 @@ class AudioSensor(SampledSensor):
                 ref = off if ref is None else min(ref, off)
         return np.asarray(group[np.searchsorted(ids, stretch)])
 
-    def _mapped(self, t0_ns: int, t1_ns: int
-                ) -> tuple[IntArray, FloatArray, str | None, bool] | None:
+    def _mapped(self, t0_ns: int, t1_ns: int) -> tuple[IntArray, FloatArray, str | None] | None:
         """The interval's frames if they have all arrived: (times, the block data's rows,
-        problem, complete); None when nothing is recorded yet."""
+        problem); None while some are still to come."""
         t_cb, k, stretch, data = self._snapshot()
         if t_cb.size == 0:
             return None
@@ -343,18 +342,19 @@ class AudioSensor(SampledSensor):
         inside = np.flatnonzero((ends > t0_ns) & (times < t1_ns))
         if inside.size:
             self.callback_late_ms = max(self.callback_late_ms, float(late[inside].max()) / 1e6)
-        complete = bool(ends[-1] >= t1_ns)
+        if ends[-1] < t1_ns:
+            return None
         problem = None
         if inside.size == 0 or times[inside[0]] > t0_ns:
             problem = "the sensor recorded nothing at the start of the interval"
         elif np.unique(stretch[inside]).size > 1:
             problem = "the sensor lost input (an overflow) in the interval"
         if inside.size == 0:
-            return np.zeros(0, dtype=np.int64), np.zeros((0, len(self._col))), problem, complete
+            return np.zeros(0, dtype=np.int64), np.zeros((0, len(self._col))), problem
         rows = np.concatenate([data[i] for i in inside]).astype(float)
         frame_t = np.concatenate([times[i] + np.round(np.arange(lengths[i]) * period)
                                   .astype(np.int64) for i in inside])
-        return frame_t, rows, problem, complete
+        return frame_t, rows, problem
 
     def samples(self, tactor: int, t0_ns: int, t1_ns: int
                 ) -> tuple[IntArray, FloatArray, str | None]:
@@ -365,14 +365,14 @@ class AudioSensor(SampledSensor):
                 raise DeviceError(f"the audio input {self.device.label()} failed: "
                                   f"{self._error}")
             got = self._mapped(t0_ns, t1_ns)
-            if got is not None and got[3]:
+            if got is not None:
                 break
             if time.monotonic() > end or not self._stream.active:
                 raise DeviceError(f"the audio input {self.device.label()} delivered no "
                                   "samples for the last pulse (did the sound server or the "
                                   "device go away?)")
             time.sleep(0.005)
-        frame_t, rows, problem, _ = got
+        frame_t, rows, problem = got
         col = self._col[self.channels[tactor]]
         keep = (frame_t >= t0_ns) & (frame_t < t1_ns)
         return frame_t[keep], rows[keep, col], problem
