@@ -564,54 +564,14 @@ class Shaper:
                 out.append(np.asarray(given, dtype=float))
         return out[0], out[1], out[2]
 
-    def drive(self, levels: FloatArray, w: FloatArray, h_s: float,
-              taus: tuple[FloatArray, FloatArray, FloatArray]) -> FloatArray:
-        """The signed drive of each tactor for the next ``h_s`` seconds, from the commanded
-        ``levels`` and the predicted speeds ``w`` (``taus``: :meth:`taus`)."""
-        rise, fall, brake = taus
-        start = self.params.start_level
-        lv = np.asarray(levels, dtype=float)
-        s = np.where(lv >= start, lv, 0.0)
-        gap = s - w
-        d = lv.copy()
-        up = gap > _SETTLED
-        down = gap < -_SETTLED
-        if up.any():
-            e = np.exp(-h_s / rise)
-            d = np.where(up, np.minimum((s - w * e) / (1.0 - e), self.overdrive), d)
-        if down.any():
-            e = np.exp(-h_s / fall)
-            fwd = (s - w * e) / (1.0 - e)  # the forward drive that lands, coasting
-            lands = (fwd >= start) & (s > 0.0)
-            if self.brake:
-                eb = np.exp(-h_s / brake)
-                rev = (s - w * eb) / (1.0 - eb)  # the reverse drive that lands
-                fall_d = np.where(rev <= 0.0, np.maximum(rev, -self.overdrive) - 0.0, lv)
-                # -0.0 keeps the sign bit of a zero (the short brake)
-                fall_d = np.where(rev <= 0.0, np.copysign(np.abs(fall_d), -1.0), fall_d)
-            else:
-                fall_d = np.where(fwd < 0.0, 0.0, lv)
-            d = np.where(down, np.where(lands, fwd, fall_d), d)
-        return np.asarray(d)
-
-    def settled(self, levels: FloatArray, w: FloatArray) -> bool:
-        """True when every tactor's predicted speed is at its level's steady speed (or its
-        level is off and the bridge cannot brake: it coasts as plain): the drive is the
-        level from here on while the levels stay."""
-        lv = np.asarray(levels, dtype=float)
-        s = np.where(lv >= self.params.start_level, lv, 0.0)
-        ok = np.abs(s - w) <= _SETTLED
-        if not self.brake:
-            ok |= (s == 0.0) & (w >= 0.0)
-        return bool(ok.all())
-
     def landing(self, levels: FloatArray, prev: FloatArray, h_s: float,
                 taus: tuple[FloatArray, FloatArray, FloatArray]
                 ) -> tuple[FloatArray, NDArray[np.bool_]]:
-        """:meth:`drive` for many decisions at once, each from a predicted speed at the
-        previous target (``prev``: rows are decisions): the drive of each and whether
-        every tactor lands on its target within ``h_s`` (the decision then ends on the
-        target; where one does not, the decision is taken one by one)."""
+        """The shaper's drive (the rule of :class:`Shaper`) for many decisions at once,
+        each from a predicted speed at the previous target (``prev``: rows are
+        decisions): the drive of each and whether every tactor lands on its target within
+        ``h_s`` (the decision then ends on the target; where one does not, the decision is
+        taken one by one)."""
         rise, fall, brake = taus
         start = self.params.start_level
         lv = np.asarray(levels, dtype=float)
@@ -682,9 +642,9 @@ def is_reverse(d: float) -> bool:
 def shape_tick(level: float, e: float, h_s: float, start: float, overdrive: float,
                brake: bool, rise: float, fall: float, brake_tau: float,
                tick_s: float = RENDER_TICK_NS * 1e-9) -> tuple[float, float]:
-    """:meth:`Shaper.drive` of one tactor, in plain floats (the sim belt's walk through
-    the decisions), and its predicted speed ``h_s`` later (at most a tick): ``(drive,
-    speed)``. The decision is for a whole tick (``tick_s``)."""
+    """The drive of :class:`Shaper` for one tactor, in plain floats (the sim belt's walk
+    through the decisions), and its predicted speed ``h_s`` later (at most a tick):
+    ``(drive, speed)``. The decision is for a whole tick (``tick_s``)."""
     d = _shape_decision(level, e, start, overdrive, brake, math.exp(-tick_s / rise),
                         math.exp(-tick_s / fall), math.exp(-tick_s / brake_tau))
     return d, relax_f(d, e, h_s, start, rise, fall, brake_tau)
