@@ -23,12 +23,14 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, TypeVar
 
 from ..clock import WallClock
+from ..devices import open_belt
+from ..experiment.runner import check_layout
+from ..player import Player
 
 if TYPE_CHECKING:
     from ..devices.base import Belt
     from ..devices.calibration import Calibration
     from ..geometry import Layout
-    from ..player import Player
     from ..stimuli import Stimulus
 
 __all__ = ["BeltPort", "Onset"]
@@ -108,10 +110,6 @@ class BeltPort:
 
     def open(self) -> Belt:
         """Open the belt (on the worker thread: ``await port.call(port.open)``)."""
-        from ..devices import open_belt
-        from ..experiment.runner import check_layout
-        from ..player import Player
-
         kwargs: dict[str, Any] = {"clock": self.clock, "layout": self.layout}
         if self.calibration_file is not None:
             kwargs["calibration"] = self.calibration_file

@@ -6,8 +6,7 @@ outside it), :func:`content_type` names a file's type (``.mjs`` as JavaScript),
 :func:`study_json` is ``/study.json``: what a page needs of the study to draw and run
 it.
 
-Imports the standard library, the study and geometry; ``websockets`` when a response is
-built.
+Imports the standard library, the study, geometry and ``websockets``.
 """
 
 from __future__ import annotations
@@ -17,11 +16,12 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 from urllib.parse import unquote
 
+from websockets.datastructures import Headers
+from websockets.http11 import Response
+
 from ..geometry import TargetSet
 
 if TYPE_CHECKING:
-    from websockets.http11 import Response
-
     from ..experiment.study import Study
 
 __all__ = ["content_type", "response", "static_file", "study_json"]
@@ -53,9 +53,6 @@ def study_json(study: Study, path: str | None) -> dict[str, Any]:
 
 def response(status: int, body: bytes, ctype: str, cors: str | None = None) -> Response:
     """An HTTP reply that is never cached, with CORS for ``cors`` (an allowed origin)."""
-    from websockets.datastructures import Headers
-    from websockets.http11 import Response
-
     headers = Headers([("Content-Type", ctype), ("Content-Length", str(len(body))),
                        ("Cache-Control", "no-store"), ("Connection", "close")])
     if cors is not None:

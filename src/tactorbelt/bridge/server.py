@@ -54,8 +54,16 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypeVar
 from urllib.parse import parse_qs
 
+from websockets.asyncio.server import serve as ws_serve
+
 from .._errors import ConfigError, StoreError, TactorbeltError
+from ..calibration.perceptual import profile_for_session
+from ..experiment.provenance import default_site
+from ..experiment.recorder import SessionRecorder
+from ..experiment.runner import check_participant, skin_latency
+from ..experiment.store import Store, open_store
 from ..interrupts import Terminated
+from ..stimuli import Stimulus, make_stimulus
 from .belt import BeltPort, Onset
 from .http import content_type, response, static_file, study_json
 from .messages import (
@@ -77,11 +85,8 @@ if TYPE_CHECKING:
     from websockets.asyncio.server import Server, ServerConnection
     from websockets.http11 import Request, Response
 
-    from ..experiment.recorder import SessionRecorder
     from ..experiment.schedule import ScheduledTrial
-    from ..experiment.store import Store
     from ..experiment.study import Study
-    from ..stimuli import Stimulus
 
 __all__ = ["DEFAULT_PORT", "BridgeConfig", "serve"]
 
@@ -324,8 +329,6 @@ class _Page:
         return await handler(msg)
 
     async def hello(self, msg: dict[str, Any]) -> dict[str, Any]:
-        from ..experiment.runner import check_participant
-
         rid = request_id(msg)
         if self.recording is not None:
             raise MessageError(f"hello: this page already runs session "
@@ -363,8 +366,6 @@ class _Page:
                  ) -> tuple[Stimulus, float]:
         """The stimulus of a target and condition with a block's ``[stimulus]`` (the
         study's without a block), as the runner makes it; its longest presentation."""
-        from ..stimuli import make_stimulus
-
         study = self.bridge.config.study
         sp = study.stimulus if block_name is None else study.trial_stimulus(block_name)
         key = (round(float(target_deg), 9), condition, sp.law, sp.falloff_deg, sp.period_s,
@@ -377,8 +378,6 @@ class _Page:
         return stim, float(sp.max_presentation_s)
 
     async def play(self, msg: dict[str, Any], t_recv: int) -> dict[str, Any]:
-        from ..experiment.runner import skin_latency
-
         rid = request_id(msg)
         bridge = self.bridge
         duration_ms = opt_number(msg, "duration_ms", 1.0, MAX_DURATION_MS)
@@ -593,10 +592,6 @@ class _Bridge:
         """Open (or resume) the participant's session as ``tactorbelt run`` would (a
         participant with a complete session is refused, as ``run`` does without
         ``--new-session``); with its wearer profile where the study asks for one."""
-        from ..calibration.perceptual import profile_for_session
-        from ..experiment.provenance import default_site
-        from ..experiment.recorder import SessionRecorder
-
         store = self.store
         assert store is not None
         study = self.config.study
@@ -717,10 +712,6 @@ class _Bridge:
     # -- the whole run ----------------------------------------------------------------------
     async def main(self, ready: Callable[[str], None]) -> int | None:
         """Serve until a signal; the signal's number (None: the server ended)."""
-        from websockets.asyncio.server import serve as ws_serve
-
-        from ..experiment.store import open_store
-
         loop = asyncio.get_running_loop()
         stop = asyncio.Event()
         got: list[int] = []
