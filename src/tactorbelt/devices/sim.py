@@ -106,6 +106,8 @@ _OPTIONS: Final = ("layout", "clock", "calibration", "params", "horizon_s", "nam
 DEFAULT_SUPPLY_V: Final = 3.6
 #: Shaped checkpoints kept (decision points of the shaper with the motor state).
 _MAX_SHAPED_CHECKPOINTS: Final = 512
+#: The dtypes of a shaped walk's decisions: times, drives, motor and predicted speeds, budgets.
+_COLUMNS: Final = (np.int64, float, float, float, np.int64)
 
 @dataclass(frozen=True)
 class SimCommand:
@@ -561,12 +563,8 @@ class SimBelt(Belt):
         parts: list[tuple[IntArray, FloatArray, FloatArray, FloatArray, IntArray]] = []
         t_a, w, e, u, onsets = self._memo_prefix(t_a, w, e, u, t_last, parts)
         parts.append(self._walk_span(t_a, t_last, w, e, u, onsets))
-        if len(parts) == 1:
-            t_arr, d_arr, w_arr, e_arr, u_arr = parts[0]
-        else:
-            t_arr = np.concatenate([q[0] for q in parts])
-            d_arr, w_arr, e_arr = (np.concatenate([q[j] for q in parts]) for j in (1, 2, 3))
-            u_arr = np.concatenate([q[4] for q in parts])
+        t_arr, d_arr, w_arr, e_arr, u_arr = parts[0] if len(parts) == 1 else (
+            np.concatenate(q) for q in zip(*parts, strict=True))
         for t_keep in {keep_until, min(also_keep, keep_until)} if also_keep is not None \
                 else {keep_until}:
             j = int(t_arr.searchsorted(t_keep, side="right")) - 1
@@ -742,29 +740,22 @@ class SimBelt(Belt):
             ok &= (ends[1:] - bounds[1:]) >= tick  # a landing needs its whole tick
             bad = np.flatnonzero(~ok) + 1  # the bounds where landing fails
             lands = [False, *ok.tolist()]
-        blocks_t: list[IntArray] = []
-        blocks_d: list[FloatArray] = []
-        blocks_w: list[FloatArray] = []
-        blocks_e: list[FloatArray] = []
-        blocks_u: list[IntArray] = []
-        ts: list[int] = []
-        ds: list[Any] = []
-        ws: list[Any] = []
-        es: list[Any] = []
-        us: list[Any] = []
+        # the decisions in arrays (times, drives, motor and predicted speeds, budgets), and
+        # those of the decisions taken one by one since, in lists
+        blocks: tuple[list[Any], ...] = ([], [], [], [], [])
+        rows: tuple[list[Any], ...] = ([], [], [], [], [])
+        ts, ds, ws, es, us = rows
 
-        def flush() -> None:
+        def flush(*arrays: Any) -> None:
+            # the rows so far as arrays, then ``arrays`` (a block of each) after them
             if ts:
-                blocks_t.append(np.asarray(ts, dtype=np.int64))
-                blocks_d.append(np.asarray(ds, dtype=float).reshape(-1, n))
-                blocks_w.append(np.asarray(ws, dtype=float).reshape(-1, n))
-                blocks_e.append(np.asarray(es, dtype=float).reshape(-1, n))
-                blocks_u.append(np.asarray(us, dtype=np.int64).reshape(-1, 2 * n))
-                ts.clear()
-                ds.clear()
-                ws.clear()
-                es.clear()
-                us.clear()
+                for block, row, dtype, width in zip(blocks, rows, _COLUMNS, (1, n, n, n, 2 * n),
+                                                    strict=True):
+                    block.append(np.asarray(row, dtype=dtype).reshape(-1, width)
+                                 if width > 1 else np.asarray(row, dtype=dtype))
+                    row.clear()
+            for block, a in zip(blocks, arrays, strict=False):
+                block.append(a)
 
         def spend_all(d: list[float], h: int) -> None:
             # the budgets after the drives d held h ns (a budget at 0 stays at 0 unless
@@ -790,29 +781,20 @@ class SimBelt(Belt):
         no_land = -1  # a bound whose landing a budget cut: decided one by one
         while i < m:
             got = onsets.get(bounds_l[i]) if onsets and t_resume is None else None
-            if got is not None:
-                memo = self._memo_at(got[0], bounds_l[i], el, ou + ru)
-                if memo is not None:
-                    render, cut = got
-                    onset = render.onset_ns
-                    r0 = int(memo.t.searchsorted(bounds_l[i] - onset))
-                    # the memo's decisions before the cut (and within the memo) are the
-                    # walk's; the walk goes on from the last of them
-                    lim = min(cut, onset + _MEMO_TICKS * RENDER_TICK_NS)
-                    r = int(memo.t.searchsorted(lim - onset, side="left")) - 1
-                    if r > r0:
-                        flush()
-                        blocks_t.append(memo.t[r0:r] + onset)
-                        blocks_d.append(memo.d[r0:r])
-                        blocks_w.append(memo.e[r0:r])
-                        blocks_e.append(memo.e[r0:r])
-                        blocks_u.append(memo.u[r0:r])
-                        el = wl = memo.e[r].tolist()
-                        ul = memo.u[r].tolist()
-                        ou, ru = ul[:n], ul[n:]
-                        t_resume = onset + int(memo.t[r])
-                        i = int(bounds.searchsorted(t_resume, side="right")) - 1
-                        continue
+            take = self._memo_take(got, bounds_l[i], el, ou + ru) if got is not None else None
+            if take is not None:
+                # the memo's decisions before the cut are the walk's; it goes on from the
+                # last of them
+                memo, r0, r = take
+                onset = bounds_l[i] - int(memo.t[r0])
+                flush(memo.t[r0:r] + onset, memo.d[r0:r], memo.e[r0:r], memo.e[r0:r],
+                      memo.u[r0:r])
+                el = wl = memo.e[r].tolist()
+                ul = memo.u[r].tolist()
+                ou, ru = ul[:n], ul[n:]
+                t_resume = onset + int(memo.t[r])
+                i = int(bounds.searchsorted(t_resume, side="right")) - 1
+                continue
             if t_resume is None and d_on is not None and i > 0 and i != no_land and lands[
                     i] and max(abs(x - y) for x, y in zip(el, s_all[i - 1].tolist(),
                                                           strict=True)) <= _SETTLED:
@@ -836,12 +818,7 @@ class SimBelt(Belt):
                         keep = int(tt.searchsorted(bounds_l[cut_at]))
                         tt, dd, ww, uu = tt[:keep], dd[:keep], ww[:keep], uu[:keep + 1]
                         k = cut_at
-                    flush()
-                    blocks_t.append(tt)
-                    blocks_d.append(dd)
-                    blocks_w.append(ww)
-                    blocks_e.append(ww)
-                    blocks_u.append(uu[:-1])
+                    flush(tt, dd, ww, ww, uu[:-1])
                     ul = uu[-1].tolist()
                     ou, ru = ul[:n], ul[n:]
                     el = wl = s_all[k - 1].tolist()
@@ -925,8 +902,8 @@ class SimBelt(Belt):
                 t = nxt
             i += 1
         flush()
-        return (np.concatenate(blocks_t), np.concatenate(blocks_d), np.concatenate(blocks_w),
-                np.concatenate(blocks_e), np.concatenate(blocks_u))
+        t_out, d_out, w_out, e_out, u_out = (np.concatenate(b) for b in blocks)
+        return t_out, d_out, w_out, e_out, u_out
 
     def _landing_budgets(self, tt: IntArray, dd: FloatArray, levels: FloatArray,
                          bounds: IntArray, i: int, k: int, end: int, u0: list[int]
