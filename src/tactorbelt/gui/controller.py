@@ -30,22 +30,24 @@ from typing import TYPE_CHECKING, Any
 
 from .._errors import ConfigError
 from ..clock import Deadlines
-from ..experiment.listeners import NullObserver
+from ..experiment.listeners import Command, NullObserver
+from ..geometry import TargetSet
 from ..inputs.base import LiveCursor
 from ..inputs.joystick import prepare_sdl
 from ..inputs.kinds import input_kind as input_kind_of
+from .taskview import TaskPresenter
+from .tlx import TlxForm, TlxScreen
 
 if TYPE_CHECKING:
     from ..clock import Clock
     from ..devices.base import Belt
-    from ..experiment.listeners import Command, SessionInfo
+    from ..experiment.listeners import SessionInfo
     from ..experiment.schedule import ScheduledTrial
     from ..experiment.study import Study, TaskSpec
     from ..experiment.trial import TrialResult, TrialState
     from ..inputs.base import CursorSample, CursorSource
     from ..tasks import WorkloadInfo
     from ..tasks.schedule import TaskItem
-    from .tlx import TlxScreen
 
 __all__ = ["ESC_WINDOW_S", "IDLE_FPS", "TLX_FPS", "WindowController"]
 
@@ -102,11 +104,7 @@ class WindowController(NullObserver, abc.ABC):
         prepare_sdl()
         import pygame
 
-        from ..experiment.listeners import Command
-        from .taskview import TaskPresenter
-
         self._pg = pygame
-        self._Command = Command
         self.study = study
         self.belt = belt
         self.clock = clock
@@ -211,8 +209,6 @@ class WindowController(NullObserver, abc.ABC):
         """Show the candidate targets of a block of ``n`` targets (at k*360/n)."""
         if n <= 0 or n == self._n_targets:
             return
-        from ..geometry import TargetSet
-
         targets = TargetSet.even(n)
         self._n_targets = n
         self.targets_deg = targets.angles_deg
@@ -335,8 +331,6 @@ class WindowController(NullObserver, abc.ABC):
     def ask_workload(self, info: WorkloadInfo) -> dict[str, float] | None:
         """The NASA-TLX screen; the six ratings, or None when the session was aborted
         (or nobody answered within ``auto_continue_s``)."""
-        from .tlx import TlxForm, TlxScreen
-
         form = TlxForm()
         tests = sorted({t.block_index for t in self._schedule if t.block == "test"})
         k = tests.index(info.block_index) + 1 if info.block_index in tests else \
@@ -359,7 +353,6 @@ class WindowController(NullObserver, abc.ABC):
     # ------------------------------------------------------------------------------------
     # commands
     def _command(self) -> Command | None:
-        Command = self._Command
         if self.abort_requested:
             return Command.ABORT
         want = self.user_paused or self.device_paused

@@ -13,8 +13,8 @@ Nothing here changes the window's state; the task presenter advances its glyphs 
 practice feedback to the time of the frame, as it did before the split. The
 participant's words for each input are the input kind's (:mod:`tactorbelt.inputs.kinds`).
 
-Pure text and layout; :func:`compose` and :func:`draw` import tactorbelt.gui.render
-(pygame) on use.
+Pure text and layout (with the stimuli and the task presenter); :func:`compose` and
+:func:`draw` import tactorbelt.gui.render (pygame) on use.
 """
 
 from __future__ import annotations
@@ -24,6 +24,11 @@ import itertools
 import math
 from collections.abc import Callable, Container
 from typing import TYPE_CHECKING, Any
+
+from ..stimuli import make_stimulus
+from ..tasks.kinds import task_kind
+from .taskview import block_lines
+from .taskview import instructions as task_instructions
 
 if TYPE_CHECKING:
     from .controller import ShownTrial, WindowController
@@ -177,8 +182,6 @@ def task_alone(v: View, s: WindowController, now_ns: int) -> None:
     button = tasks.response
     spec = tasks.spec
     if button is not None and spec is not None:
-        from ..tasks.kinds import task_kind
-
         v.prompt = task_kind(spec.kind).prompt(spec, button.words())
     said = tasks.feedback(now_ns)
     if said is not None:
@@ -220,8 +223,6 @@ def block(s: WindowController, go_on: str, move: str) -> Modal:
     n = len(s.info.condition_order) if s.info is not None else k
     extra: list[str] = []
     if s.block_task is not None:
-        from .taskview import block_lines
-
         extra = [*block_lines(s.block_task[1]), ""]
         if s.block_note:
             extra = [s.block_note, "", *extra]
@@ -234,8 +235,6 @@ def task(s: WindowController, go_on: str, move: str) -> Modal:
     """A task's instructions before its practice or baseline run."""
     if s.task_intro is None:
         return None, []
-    from .taskview import instructions as task_instructions
-
     _, spec, phase, note = s.task_intro
     title, lines = task_instructions(spec, phase, go_on)
     return title, [note, "", *lines] if note else lines
@@ -369,8 +368,6 @@ class TactorLevels:
                sp.period_s, sp.transit_s)
         stim = self._stimuli.get(key)
         if stim is None:
-            from ..stimuli import make_stimulus
-
             stim = make_stimulus(s.layout, cur.trial.target_deg, cur.trial.condition,
                                  sp.law, sp.falloff_deg, sp.period_s, sp.transit_s)
             self._stimuli[key] = stim

@@ -45,15 +45,17 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from .._errors import ConfigError, TactorbeltError
+from ..clock import Clock, SimClock, WallClock
 from ..inputs import make_cursor
 from ..inputs.base import CursorSource
 from ..inputs.kinds import JoystickConfig, input_kind
+from ..tasks.audio import DEVICE_ENV, open_task_audio
 from . import screens
 from .controller import WindowController
 from .screens import SCREEN_KINDS, TASK_SCREEN_KINDS
+from .taskview import check_responses
 
 if TYPE_CHECKING:
-    from ..clock import Clock
     from ..devices.base import Belt
     from ..experiment.runner import SessionResult
     from ..experiment.store import Store
@@ -160,12 +162,8 @@ class ExperimentWindow(WindowController):
     def _open_task_audio(self) -> None:
         """Check the tasks' buttons; open the sound output now when a task is auditory
         (a sound card that cannot be opened stops the run before the session starts)."""
-        from .taskview import check_responses
-
         check_responses(self.study)
         if any(t.active and t.modality == "auditory" for t in self.study.tasks.values()):
-            from ..tasks.audio import DEVICE_ENV, open_task_audio
-
             self.tasks.audio = open_task_audio(self.clock)
             belt = self.belt
             if (belt is not None and belt.uses_sound_output
@@ -334,8 +332,6 @@ def session_window(
             backend) instead of the one ``input`` makes.
     """
     if clock is None:
-        from ..clock import WallClock
-
         clock = WallClock()
     kind = input_kind(input)
     if auto_continue_s is None and not kind.live:  # nobody presses a key
@@ -416,14 +412,8 @@ def run_with_window(
         own = belt.clock
         if own is not None and (realtime or own.simulated):
             clock = own
-        elif realtime:
-            from ..clock import WallClock
-
-            clock = WallClock()
         else:
-            from ..clock import SimClock
-
-            clock = SimClock()
+            clock = WallClock() if realtime else SimClock()
     assert clock is not None
     if auto_continue_s is None and (cursor is not None or not input_kind(cursor_kind).live):
         auto_continue_s = 2.0
