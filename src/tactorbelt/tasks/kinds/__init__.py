@@ -26,6 +26,7 @@ from collections import deque
 from collections.abc import Iterator
 from typing import Any, Final, Protocol
 
+from ..._errors import ConfigError
 from ..._registry import resolve
 from ..items import TaskItem
 
@@ -127,8 +128,6 @@ class TaskKind(ABC):
         Raises:
             ConfigError: the kind has no auditory items, or ``stimulus`` is not one.
         """
-        from ..._errors import ConfigError
-
         raise ConfigError(f"a {self.name} task has no auditory items (got {stimulus!r})")
 
     def stream_fields(self, spec: TaskLike) -> dict[str, Any]:

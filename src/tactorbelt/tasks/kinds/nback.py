@@ -29,7 +29,7 @@ _BACK = {1: "the one just before it", 2: "the one two before it", 3: "the one th
 
 
 def _nback(rng: random.Random, pool: Sequence[str], n: int, p: float) -> Iterator[TaskItem]:
-    recent: list[str] = []
+    recent: deque[str] = deque(maxlen=n)  # the last n items
     k = 0
     while True:
         if len(recent) >= n and rng.random() < p:
@@ -40,8 +40,6 @@ def _nback(rng: random.Random, pool: Sequence[str], n: int, p: float) -> Iterato
             stim, target = choices[rng.randrange(len(choices))], False
         yield TaskItem(k, stim, target)
         recent.append(stim)
-        if len(recent) > n:
-            recent.pop(0)
         k += 1
 
 
