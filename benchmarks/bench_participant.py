@@ -32,7 +32,9 @@ def main() -> None:
     from tactorbelt.inputs.model import ModelCursor, make_model_cursor, sim_vibrator
     from tactorbelt.participant import ModelParams, simulate_participant, stimulus_cues
     from tactorbelt.power.design import PowerDesign
-    from tactorbelt.power.simulation import analysis_paired_test, simulate_studies
+    from tactorbelt.participant.factorial import FactorialProtocol
+    from tactorbelt.power.effects import Effect
+    from tactorbelt.power.simulation import analysis_paired_test, simulate_factorial_studies
 
     study = paper_study()
     out: dict[str, float] = {}
@@ -66,7 +68,8 @@ def main() -> None:
     total = 0.0
     for n in (4, 8, 12, 16):
         t0 = time.perf_counter()
-        simulate_studies(protocol, cues, n, range(10), 1, analysis_paired_test)
+        simulate_factorial_studies(FactorialProtocol((protocol,)), (cues,), Effect("condition"),
+                                   n, range(10), 1, analysis_paired_test)
         total += (time.perf_counter() - t0) / 10 * 500
     out["power_default_estimate_s"] = total
     print(json.dumps({k: round(v, 4) for k, v in out.items()}))

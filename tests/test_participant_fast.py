@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -21,10 +22,12 @@ from tactorbelt.participant import (
     simulate_participant,
     stimulus_cues,
 )
+from tactorbelt.participant.factorial import FactorialProtocol
 from tactorbelt.participant.simulate import between_accuracy
 from tactorbelt.power.design import PowerDesign
-from tactorbelt.power.outcomes import binomial_ci, power_row
-from tactorbelt.power.simulation import simulate_studies
+from tactorbelt.power.effects import Effect
+from tactorbelt.power.outcomes import StudyOutcome, binomial_ci, power_row
+from tactorbelt.power.simulation import simulate_factorial_studies
 
 
 @pytest.fixture(scope="module")
@@ -101,15 +104,19 @@ def test_power_simulation_is_reproducible_and_summarised(protocol, cues) -> None
     def test(static: np.ndarray, dynamic: np.ndarray) -> float:
         return 0.01 if dynamic.mean() > static.mean() else 0.5
 
-    a = simulate_studies(protocol, cues, 3, range(4), seed=5, test=test)
-    b = simulate_studies(protocol, cues, 3, [2, 3], seed=5, test=test)
+    def simulate_studies(n: int, indices: Sequence[int]) -> list[StudyOutcome]:
+        return simulate_factorial_studies(FactorialProtocol((protocol,)), (cues,),
+                                          Effect("condition"), n, indices, seed=5, test=test)
+
+    a = simulate_studies(3, range(4))
+    b = simulate_studies(3, [2, 3])
     assert np.array_equal(a[2].static_acc, b[0].static_acc)  # independent of the split
     row = power_row(a, alpha=0.05)
     assert row.n_participants == 3 and row.sims == 4 and row.found == 4 and row.power == 1.0
     assert row.ci_low < 1.0 == row.ci_high
     assert row.dynamic_acc > row.static_acc
     with pytest.raises(ConfigError, match="at least 2"):
-        simulate_studies(protocol, cues, 1, range(1), seed=5, test=test)
+        simulate_studies(1, range(1))
 
 
 def test_binomial_ci() -> None:

@@ -28,22 +28,19 @@ analysis' Wilcoxon, the sim belt's vibration and the pool inside the functions).
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import replace
 from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
 
 from .._errors import ConfigError
-from ..participant.factorial import FactorialProtocol, simulate_factorial_participant
-from ..participant.params import ModelParams, draw_participant
-from ..participant.simulate import (
-    Protocol,
-    StimulusCues,
-    TrialTable,
-    between_accuracy,
-    simulate_participant,
+from ..participant.factorial import (
+    FactorialProtocol,
+    factorial_cues,
+    simulate_factorial_participant,
 )
+from ..participant.params import ModelParams, draw_participant
+from ..participant.simulate import Protocol, StimulusCues, TrialTable
 from .effects import Effect
 from .outcomes import PairedTest, PowerRow, StudyOutcome
 from .pool import p_value, run_sizes, studies
@@ -52,8 +49,7 @@ if TYPE_CHECKING:
     from .design import PowerDesign
 
 __all__ = ["analysis_paired_test", "exact_signed_rank_p", "friedman_interaction",
-           "observer", "run_factorial_power", "run_power", "simulate_factorial_studies",
-           "simulate_studies"]
+           "observer", "run_factorial_power", "run_power", "simulate_factorial_studies"]
 
 FloatArray = NDArray[np.float64]
 
@@ -142,40 +138,6 @@ def friedman_interaction(diff: FloatArray, paired: PairedTest) -> float:
 
 # -- simulated studies ---------------------------------------------------------------------
 
-def simulate_studies(protocol: Protocol, cues: StimulusCues, n_participants: int,
-                     indices: Sequence[int], seed: int, test: PairedTest
-                     ) -> list[StudyOutcome]:
-    """Simulate the studies ``indices`` of size ``n_participants`` (one target count).
-
-    Args:
-        protocol: the study's protocol (:meth:`~.design.PowerDesign.protocol`).
-        cues: the stimuli's cues, sensed by the typical observer the participants are
-            drawn around (``cues.params``).
-        n_participants: participants per study (at least 2).
-        indices: which simulated studies (their generators are seeded by
-            ``(seed, n_participants, index)``).
-        seed: the base seed.
-        test: the paired test.
-    """
-    if n_participants < 2:
-        raise ConfigError(f"a study needs at least 2 participants, got {n_participants}")
-    conds = protocol.conditions
-    if "static" not in conds or "dynamic" not in conds:
-        raise ConfigError("the power analysis needs a static and a dynamic test block")
-
-    def one(rng: np.random.Generator) -> StudyOutcome:
-        st = np.empty(n_participants)
-        dy = np.empty(n_participants)
-        for j in range(n_participants):
-            params = draw_participant(rng, cues.params)
-            table = simulate_participant(protocol, cues, params, rng)
-            st[j] = between_accuracy(table, "static")
-            dy[j] = between_accuracy(table, "dynamic")
-        return StudyOutcome(n_participants, st, dy, p_value(test, st, dy))
-
-    return studies(n_participants, indices, seed, one)
-
-
 def _between(tables: dict[int, TrialTable], condition: str | None, n: int | None,
              load: str | None = None, loaded: bool | None = None) -> float:
     """Between-tactor accuracy in ``condition`` (None: both), the blocks of ``n``
@@ -235,8 +197,7 @@ def simulate_factorial_studies(protocol: FactorialProtocol, cues: Sequence[Stimu
                            for n in counts]
         p = (p_value(friedman_interaction, diff, test) if effect.kind == "interaction"
              else p_value(test, st, dy))
-        return replace(StudyOutcome(n_participants, st, dy, p),
-                       directional=effect.kind != "interaction")
+        return StudyOutcome(n_participants, st, dy, p, directional=effect.kind != "interaction")
 
     return studies(n_participants, indices, seed, one)
 
@@ -260,14 +221,8 @@ def run_power(design: PowerDesign, sizes: Sequence[int], sims: int, seed: int, j
     Raises:
         ConfigError: several target counts (use :func:`run_factorial_power`).
     """
-    from ..inputs.model import sim_vibrator
-    from ..participant.simulate import stimulus_cues
-
-    protocol = design.protocol()
-    cues = stimulus_cues(protocol, sim_vibrator(design.layout), observer(protocol))
-    return run_sizes(simulate_studies,
-                     lambda n, idx: (protocol, cues, n, idx, seed, analysis_paired_test),
-                     sizes, sims, jobs, alpha, advance)
+    return _run(design, FactorialProtocol((design.protocol(),)), Effect("condition"), sizes,
+                sims, seed, jobs, alpha, advance)
 
 
 def run_factorial_power(design: PowerDesign, effect: Effect, sizes: Sequence[int],
@@ -275,10 +230,14 @@ def run_factorial_power(design: PowerDesign, effect: Effect, sizes: Sequence[int
                         advance: Callable[[int], None] | None = None) -> list[PowerRow]:
     """:func:`run_power` for any design (target counts, loads) and a named effect: one
     participant runs every block (:meth:`~.design.PowerDesign.factorial`)."""
-    from ..inputs.model import sim_vibrator
-    from ..participant.factorial import factorial_cues
+    return _run(design, design.factorial(), effect, sizes, sims, seed, jobs, alpha, advance)
 
-    protocol = design.factorial()
+
+def _run(design: PowerDesign, protocol: FactorialProtocol, effect: Effect,
+         sizes: Sequence[int], sims: int, seed: int, jobs: int, alpha: float,
+         advance: Callable[[int], None] | None) -> list[PowerRow]:
+    from ..inputs.model import sim_vibrator
+
     cues = factorial_cues(protocol, sim_vibrator(design.layout), observer(protocol))
     return run_sizes(simulate_factorial_studies,
                      lambda n, idx: (protocol, cues, effect, n, idx, seed, analysis_paired_test),
