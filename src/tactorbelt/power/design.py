@@ -148,10 +148,13 @@ class PowerDesign:
             raise ConfigError(f"the study's test blocks have {len(counts)} target counts "
                               f"({', '.join(map(str, counts))}); simulate it with "
                               "PowerDesign.factorial()")
-        s = self.stimulus
-        return Protocol(self.layout, TargetSet.even(counts[0]), s.law, s.falloff_deg,
-                        s.period_s, s.transit_s,
-                        tuple((b.condition, b.repetitions) for b in self.blocks),
+        return self._protocol(counts[0], self.blocks, self.stimulus)
+
+    def _protocol(self, n: int, blocks: tuple[DesignBlock, ...], s: StimulusParams
+                  ) -> Protocol:
+        """The fast path's protocol of ``blocks`` (of ``n`` targets), rendered with ``s``."""
+        return Protocol(self.layout, TargetSet.even(n), s.law, s.falloff_deg, s.period_s,
+                        s.transit_s, tuple((b.condition, b.repetitions) for b in blocks),
                         self.threshold)
 
     def factorial(self) -> FactorialProtocol:
@@ -165,11 +168,7 @@ class PowerDesign:
             blocks = self.blocks_of(n)
             levels.append(tuple(b.load_level for b in blocks))
             names.append(tuple(b.load for b in blocks))
-            s = blocks[0].stimulus
-            parts.append(Protocol(self.layout, TargetSet.even(n), s.law, s.falloff_deg,
-                                  s.period_s, s.transit_s,
-                                  tuple((b.condition, b.repetitions) for b in blocks),
-                                  self.threshold))
+            parts.append(self._protocol(n, blocks, blocks[0].stimulus))
         loaded = any(v > 0 for lv in levels for v in lv)
         return FactorialProtocol(tuple(parts), tuple(levels) if loaded else (),
                                  tuple(names) if loaded else ())
