@@ -30,7 +30,7 @@ simulation-based power for a GLMM (Green & MacLeod 2016, simr).
 Each simulated study draws from its own generator, seeded by ``(seed, N, index)``, so
 results do not depend on how the work is split across processes.
 
-Pure apart from the process pool: NumPy, pandas and the analysis (inside the functions).
+Pure apart from the process pool: NumPy, pandas and the analysis.
 """
 
 from __future__ import annotations
@@ -39,17 +39,17 @@ import math
 import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
+import pandas as pd
 
 from .._errors import ConfigError
+from ..analysis.models.fit import _average_contrast, fit_model
+from ..analysis.models.glmm import fit_glmm
+from ..analysis.models.lrt import likelihood_ratio, null_spec
 from .design import PowerDesign, TrialDesign
 from .outcomes import PowerRow, StudyOutcome
 from .pool import run_sizes, studies
-
-if TYPE_CHECKING:
-    import pandas as pd
 
 __all__ = ["HeadlineResult", "NamedEffect", "TrialDesign", "headline_statistics",
            "named_power", "simulate_frame", "simulate_glmm_studies"]
@@ -117,8 +117,6 @@ def simulate_frame(trials: TrialDesign, effect: NamedEffect, n_participants: int
                    rng: np.random.Generator) -> pd.DataFrame:
     """One simulated study's counted trials in :func:`~tactorbelt.analysis.models.fit.model_frame`'s
     columns (every trial answered; ``rt_s`` is not simulated)."""
-    import pandas as pd
-
     t_levels, t_index = np.unique(trials.target_deg, return_inverse=True)
     w = rng.normal(0.0, effect.target_sd, t_levels.size)
     u = rng.normal(0.0, effect.participant_sd, n_participants)
@@ -172,16 +170,11 @@ def headline_statistics(frame: pd.DataFrame) -> HeadlineResult:
     """Fit the report's accuracy model (:func:`~tactorbelt.analysis.models.fit.fit_model`)
     and its null model on ``frame``: the effect and the likelihood ratio (NaN when it
     cannot be fitted)."""
-    from ..analysis.models.fit import _average_contrast, fit_model
-    from ..analysis.models.glmm import fit_glmm
-    from ..analysis.models.lrt import likelihood_ratio, null_spec
-
     y = frame["correct"].to_numpy()
     if y.min() == y.max():
         return _NAN_RESULT
     try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
+        with warnings.catch_warnings(action="ignore"):
             fit, _ = fit_model(frame)
             fit0 = fit_glmm(frame, null_spec(fit.spec), se=False)
             est, _ = _average_contrast(fit, frame)
