@@ -229,16 +229,12 @@ def _write_power(rows: Sequence[PowerRow], out: Path, doc: dict[str, Any],
                                f"{r.static_acc:.4f}", f"{r.dynamic_acc:.4f}",
                                "" if not math.isfinite(r.median_p) else f"{r.median_p:.6g}"]))
     (out / "power.csv").write_text("\n".join(lines) + "\n", encoding="utf-8")
-    doc = {**doc, "rows": [{_row_key(k, pair): (None if isinstance(v, float)
-                                                and not math.isfinite(v) else v)
+    # power.json's names of the two accuracies (``static_acc`` is ``loaded_acc`` for a load)
+    keys = {"static_acc": f"{pair[0]}_acc", "dynamic_acc": f"{pair[1]}_acc"}
+    doc = {**doc, "rows": [{keys.get(k, k): (None if isinstance(v, float)
+                                             and not math.isfinite(v) else v)
                             for k, v in r.__dict__.items()} for r in rows]}
     (out / "power.json").write_text(json.dumps(doc, indent=2) + "\n", encoding="utf-8")
-
-
-def _row_key(key: str, pair: tuple[str, str]) -> str:
-    """power.json's name of a PowerRow field (``static_acc`` is ``loaded_acc`` for a
-    load effect)."""
-    return {"static_acc": f"{pair[0]}_acc", "dynamic_acc": f"{pair[1]}_acc"}.get(key, key)
 
 
 def _plot_power(rows: Sequence[PowerRow], path: Path, title: str, alpha: float) -> None:
