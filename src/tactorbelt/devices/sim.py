@@ -48,7 +48,6 @@ from .erm import (
     _RESPONSE_MAX_TICKS,
     _SETTLED,
     _TIE,
-    DRIVES,
     RENDER_TICK_NS,
     ErmParams,
     FloatArray,
@@ -157,15 +156,9 @@ def _remember(cache: dict[Any, Any], key: Any, value: Any, budget: int) -> None:
     memory exceeds ``budget`` (the newest stays)."""
     with _CACHE_LOCK:
         cache[key] = value
-        _trim(cache, budget)
-
-
-def _trim(cache: dict[Any, Any], budget: int) -> None:
-    """Drop the oldest entries beyond ``budget`` bytes (call with the lock)."""
-    total = sum(v.nbytes for v in cache.values())
-    while total > budget and len(cache) > 1:
-        oldest = next(iter(cache))
-        total -= cache.pop(oldest).nbytes
+        total = sum(v.nbytes for v in cache.values())
+        while total > budget and len(cache) > 1:
+            total -= cache.pop(next(iter(cache))).nbytes
 
 
 class _Render:
@@ -247,8 +240,13 @@ class _Render:
         if not self._table_ticks:
             return None
         if self._response is None or self._response[0] is not params:
-            self._response = (params, _response(self.stimulus, self.calibration, params,
-                                                self._period().levels))
+            # the process-wide response of this stimulus (made on first use)
+            key = (self.stimulus, self.calibration, params)
+            resp = _RESPONSES.get(key)
+            if resp is None:
+                resp = _Response(self._period().levels, params)
+                _remember(_RESPONSES, key, resp, _RESPONSES_BUDGET)
+            self._response = (params, resp)
         return self._response[1]
 
     def end_ahead(self, lead: int) -> int | None:
@@ -301,17 +299,6 @@ class _ShapedMemo:
 
 
 _SHAPED_MEMOS: dict[tuple[Any, ...], _ShapedMemo] = {}
-
-
-def _response(stimulus: Stimulus, calibration: Calibration, params: ErmParams,
-              period: FloatArray) -> _Response:
-    """The process-wide :class:`_Response` of a periodic render (made on first use)."""
-    key = (stimulus, calibration, params)
-    resp = _RESPONSES.get(key)
-    if resp is None:
-        resp = _Response(period, params)
-        _remember(_RESPONSES, key, resp, _RESPONSES_BUDGET)
-    return resp
 
 
 class _OnsetGrid:
@@ -465,10 +452,12 @@ class SimBelt(Belt):
         if self.shaper.brake and not self._brake:
             raise ConfigError("the shaper brakes but the belt cannot (brake=0)")
         self._taus = self.shaper.taus(n)
-        sp = self.shaper.params
-        #: the shaper predicts with the motors' own model: the motors are its prediction
-        self._exact = (shaper_taus_are(self._taus, self.params)
-                       and sp.start_level == self.params.start_level)
+        p = self.params
+        #: the shaper predicts with the motors' own model (its time constants and start
+        #: level, every tactor): the motors are its prediction
+        self._exact = all(bool((tau == v).all()) for tau, v in zip(
+            self._taus, (p.rise_tau_s, p.fall_tau_s, p.brake_tau_s), strict=True)
+        ) and self.shaper.params.start_level == p.start_level
         #: the shaper's decision points kept: time, motor speeds, predicted speeds, and
         #: the firmware's budgets there (ns above the rated drive, then in reverse, per
         #: tactor: :func:`~tactorbelt.devices.erm.spend`)
@@ -478,9 +467,7 @@ class SimBelt(Belt):
         #: the firmware's bounds on those budgets, per tactor (ns)
         self._over_bound, self._rev_bound = budget_bounds_ns(
             self.shaper.overdrive, self._taus[0], self._taus[2])
-        if drive not in DRIVES:
-            raise ConfigError(f"drive must be one of {', '.join(DRIVES)}, got {drive!r}")
-        self._drive = drive
+        self.set_drive(drive)
 
     # -- Belt backend -----------------------------------------------------------------
     def _device_renders(self, stimulus: Stimulus | None) -> bool:
@@ -1480,12 +1467,6 @@ class SimBelt(Belt):
                     del self._played[id(render.stimulus)]
 
 
-def shaper_taus_are(taus: tuple[FloatArray, FloatArray, FloatArray], p: ErmParams) -> bool:
-    """True when a shaper's time constants are the motor model's, every tactor."""
-    return bool((taus[0] == p.rise_tau_s).all() and (taus[1] == p.fall_tau_s).all()
-                and (taus[2] == p.brake_tau_s).all())
-
-
 def _parse_target(target: str) -> tuple[int | None, bool]:
     n: int | None = None
     virtual = False
@@ -1545,12 +1526,7 @@ def open_sim(target: str = "", **options: Any) -> SimBelt:
     calibration = options.get("calibration")
     if calibration is not None and not isinstance(calibration, Calibration):
         calibration = Calibration.load(calibration)
-    url = f"sim:{target}" if target else "sim"
-    return SimBelt(layout=layout, clock=clock, calibration=calibration,
-                   params=options.get("params"),
-                   horizon_s=options.get("horizon_s", DEFAULT_HORIZON_S),
-                   url=url, name=options.get("name"), drive=options.get("drive", "shaped"),
-                   shaper=options.get("shaper"), brake=bool(options.get("brake", True)),
-                   overdrive=options.get("overdrive"),
-                   supply_v=options.get("supply_v", DEFAULT_SUPPLY_V),
-                   kick_ms=options.get("kick_ms", 0.0))
+    # the other options go to SimBelt as they are (its defaults but the drive's)
+    return SimBelt(**{**options, "layout": layout, "clock": clock, "calibration": calibration,
+                      "url": f"sim:{target}" if target else "sim",
+                      "drive": options.get("drive", "shaped")})
