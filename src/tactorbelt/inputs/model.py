@@ -47,12 +47,14 @@ from numpy.typing import NDArray
 
 from .._errors import ConfigError
 from ..calibration.perceptual import Interval, Respondent
-from ..clock import Clock
+from ..clock import Clock, SimClock
 from ..geometry import TargetSet
+from ..participant.calibration import judge_side, judge_stronger
 from ..participant.load import LoadParams, TaskResponder, load_level, loaded_params, tlx_ratings
 from ..participant.params import ModelParams
 from ..participant.perception import Percepts, perceive_vibration
 from ..participant.timing import observation_s, one_decision_s
+from . import participant_seed
 from .base import CursorSample, CursorSource, RunTaker, TrialCue
 
 if TYPE_CHECKING:
@@ -171,7 +173,7 @@ class ModelCursor(CursorSource):
         self._cue: TrialCue | None = None
         self._onset_ns = 0
         self._decide_ns: int | None = None
-        self._move: _Move | None = None
+        self._move = _Move(0, 1, 0.0, 0.0, 0.0, 0.0)  # at rest in the centre
         self._targets: dict[tuple[float, ...], TargetSet] = {}
         self._noise: list[float] | None = None  # the block as a list, for tick-by-tick reads
         self._noise_arr: NDArray[np.float64] = np.zeros(0)
@@ -185,11 +187,11 @@ class ModelCursor(CursorSource):
         self._onset_ns = int(onset_ns)
         obs = observation_s(cue.condition, self.params)
         self._decide_ns = self._onset_ns + round(obs * 1e9)
-        x, y = self._position(self._onset_ns)
+        x, y = self._move.at(self._onset_ns)
         self._move = _Move(self._onset_ns, 1, x, y, x, y)
 
     def trial_ended(self, now_ns: int) -> None:
-        x, y = self._position(int(now_ns))
+        x, y = self._move.at(int(now_ns))
         self._move = _Move(int(now_ns), max(round(self.params.return_s * 1e9), 1), x, y,
                            0.0, 0.0)
         self._cue = None
@@ -199,7 +201,7 @@ class ModelCursor(CursorSource):
         now = int(now_ns)
         if self._cue is not None and self._decide_ns is not None and now >= self._decide_ns:
             self._decide(now)
-        x, y = self._position(now)
+        x, y = self._move.at(now)
         j = self.params.jitter
         if j > 0:
             if self._noise_i + 2 > self._noise_arr.shape[0]:
@@ -233,10 +235,7 @@ class ModelCursor(CursorSource):
                 self._refill_noise()
             n = min(n, (self._noise_arr.shape[0] - self._noise_i) // 2)
         t = times[:n]
-        if self._move is None:
-            x, y = np.zeros(n), np.zeros(n)
-        else:
-            x, y = self._move.at_many(t)
+        x, y = self._move.at_many(t)
         if j > 0:
             i = self._noise_i
             noise = self._noise_arr[i : i + 2 * n]
@@ -276,11 +275,6 @@ class ModelCursor(CursorSource):
         return tlx_ratings(load_level(info.task), self._tlx_rng, self._tlx_offset, self.load)
 
     # -- internals -------------------------------------------------------------------------
-    def _position(self, now_ns: int) -> tuple[float, float]:
-        if self._move is None:
-            return 0.0, 0.0
-        return self._move.at(now_ns)
-
     def _refill_noise(self) -> None:
         self._noise_arr = self._rng.standard_normal(_NOISE_BLOCK)
         self._noise = None
@@ -309,7 +303,7 @@ class ModelCursor(CursorSource):
         wait = one_decision_s(self._rng, len(cue.targets_deg), p)
         angle = math.radians(answer + float(self._rng.normal(0.0, p.endpoint_sd_deg)))
         start = now_ns + round(wait * 1e9)
-        x0, y0 = self._position(now_ns)
+        x0, y0 = self._move.at(now_ns)
         r = p.reach_radius
         self._move = _Move(start, max(round(p.movement_s * 1e9), 1), x0, y0,
                            r * math.sin(angle), r * math.cos(angle))
@@ -376,16 +370,12 @@ class ModelRespondent(Respondent):
         """The model reads no instructions."""
 
     def stronger(self, first: Interval, second: Interval) -> int:
-        from ..participant.calibration import judge_stronger
-
         _, v1 = self._sense(first.t0_ns, first.t1_ns)
         _, v2 = self._sense(second.t0_ns, second.t1_ns)
         return judge_stronger(v1, first.tactor, v2, second.tactor, self.params, self._rng)
 
     def side(self, interval: Interval, pair: tuple[int, int], marked_deg: float,
              layout: Layout) -> int:
-        from ..participant.calibration import judge_side
-
         t1 = min(interval.t1_ns, interval.t0_ns + round(self.params.observe_static_s * 1e9))
         t_ns, vib = self._sense(interval.t0_ns, t1)
         t_s = (np.asarray(t_ns, dtype=np.int64) - interval.t0_ns) / 1e9
@@ -413,7 +403,6 @@ def sim_vibrator(layout: Layout, **sim_options: Any
     its observation window. ``sim_options`` go to the sim belt (``calibration``,
     ``params``).
     """
-    from ..clock import SimClock
     from ..devices.sim import SimBelt
 
     def vibrate(stimulus: Stimulus, duration_s: float) -> tuple[NDArray[np.float64],
@@ -438,8 +427,6 @@ def cursor(ctx: InputContext) -> CursorSource:
     if ctx.belt is None or ctx.clock is None or ctx.study is None:
         raise ConfigError("the model participant (--input model) needs the belt and the "
                           "clock")
-    from . import participant_seed
-
     session_seed = ctx.study.session.seed if ctx.seed is None else int(ctx.seed)
     own = participant_seed(session_seed, ctx.participant) if ctx.cursor_seed is None \
         else int(ctx.cursor_seed)
