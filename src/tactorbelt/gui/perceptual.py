@@ -28,6 +28,8 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any, Final
 
+from .._errors import DeviceError
+from ..calibration.motor import CalibrationQuit
 from ..calibration.perceptual import Interval, Respondent
 from ..geometry import Layout
 
@@ -97,10 +99,7 @@ class WindowRespondent(Respondent):
         os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")
         import pygame
 
-        from ..calibration.motor import CalibrationQuit
-
         self._pg = pygame
-        self._quit_error = CalibrationQuit
         self.layout = layout
         pygame.display.init()
         pygame.font.init()
@@ -109,8 +108,6 @@ class WindowRespondent(Respondent):
             pygame.joystick.init()
             if pygame.joystick.get_count() == 0:
                 pygame.quit()
-                from .._errors import DeviceError
-
                 raise DeviceError("--input joystick: no joystick found; plug one in, or "
                                   "answer with --input mouse (mouse and keys)")
             self._stick = pygame.joystick.Joystick(0)
@@ -160,14 +157,14 @@ class WindowRespondent(Respondent):
         while state.answer is None:
             for ev in self._events():
                 if ev.type == pg.QUIT:
-                    raise self._quit_error("perceptual calibration abandoned (window "
+                    raise CalibrationQuit("perceptual calibration abandoned (window "
                                            "closed); nothing was written")
                 if ev.type == pg.KEYDOWN:
                     name = pg.key.name(ev.key)
                     if name == "escape":
                         now = time.monotonic()
                         if now - self._last_esc <= ESC_WINDOW_S:
-                            raise self._quit_error("perceptual calibration abandoned (Esc "
+                            raise CalibrationQuit("perceptual calibration abandoned (Esc "
                                                    "Esc); nothing was written")
                         self._last_esc = now
                         self._message = "Press Esc again to quit (nothing is written)."
