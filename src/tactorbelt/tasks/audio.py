@@ -161,18 +161,16 @@ class SilentTaskAudio(TaskAudio):
         self.played.append(Placement(label, int(onset_ns), None, int(onset_ns), 0))
 
 
+@dataclass(slots=True, eq=False)
 class _Sound:
     """A scheduled sound; ``gen``: the stops asked before it was scheduled (a later
-    stop silences it, an earlier one does not)."""
+    stop silences it, an earlier one does not); ``start``: its first frame, once placed."""
 
-    __slots__ = ("gen", "label", "onset_ns", "samples", "start")
-
-    def __init__(self, label: str, onset_ns: int, samples: FloatArray, gen: int) -> None:
-        self.label = label
-        self.onset_ns = onset_ns
-        self.samples = samples
-        self.gen = gen
-        self.start: int | None = None
+    label: str
+    onset_ns: int
+    samples: FloatArray
+    gen: int
+    start: int | None = None
 
 
 class _Trampoline:
