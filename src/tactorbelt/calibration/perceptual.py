@@ -39,9 +39,10 @@ experiment layer.
 
 from __future__ import annotations
 
+import datetime
 import math
 from abc import ABC, abstractmethod
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, Final
 
@@ -50,7 +51,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from .._errors import ConfigError
 from ..wearer import PairWarp, WearerProfile, isotonic
-from .motor import ConstantFrame
+from .motor import CalibrationQuit, ConstantFrame
 
 if TYPE_CHECKING:
     from ..clock import Clock
@@ -254,8 +255,6 @@ class KeyboardRespondent(Respondent):
         self._say(text)
 
     def _ask(self, prompt: str, keys: dict[str, int]) -> int:
-        from .motor import CalibrationQuit
-
         self._asked += 1
         self._say(f"  [{self._asked}] {prompt}")
         while True:
@@ -389,11 +388,12 @@ class _Presenter:
         self.clock.sleep_until_ns(self.clock.now_ns() + round(seconds * 1e9))
 
 
-def _interleave(tracks: Sequence[Track], rng: np.random.Generator) -> list[int]:
-    """Indices of the unfinished tracks in a random order (one round of trials)."""
-    todo = [i for i, t in enumerate(tracks) if not t.done]
-    rng.shuffle(todo)
-    return todo
+def _rounds(tracks: Sequence[Track], rng: np.random.Generator) -> Iterator[int]:
+    """Indices of the unfinished tracks, a round of trials at a time in a random order,
+    until every track is done."""
+    while todo := [i for i, t in enumerate(tracks) if not t.done]:
+        rng.shuffle(todo)
+        yield from todo
 
 
 def run_perceptual_calibration(belt: Belt, clock: Clock, respondent: Respondent, *,
@@ -425,28 +425,24 @@ def run_perceptual_calibration(belt: Belt, clock: Clock, respondent: Respondent,
         respondent.say(f"part 1: intensity. Two vibrations each time; say which was stronger "
                        f"({len(others)} tactors against tactor {ref}).")
         tracks = [intensity_track(s) for _ in others]
-        while True:
-            order = _interleave(tracks, rng)
-            if not order:
-                break
-            for i in order:
-                k, x = others[i], tracks[i].next()
-                ref_frame = np.zeros(n)
-                ref_frame[ref] = s.reference_amplitude
-                test_frame = np.zeros(n)
-                test_frame[k] = min(1.0, s.reference_amplitude * 2.0 ** x)
-                test_first = bool(rng.random() < 0.5)
-                frames = [(test_frame, k), (ref_frame, ref)]
-                if not test_first:
-                    frames.reverse()
-                shown = []
-                for j, (frame, tactor) in enumerate(frames):
-                    t0, t1 = present.hold(frame, s.interval_s)
-                    shown.append(Interval(frame, t0, t1, tactor, x))
-                    present.wait(s.gap_s if j == 0 else s.iti_s)
-                second = respondent.stronger(shown[0], shown[1])
-                tracks[i].update(x, second if test_first is False else 1 - second)
-                n_trials += 1
+        for i in _rounds(tracks, rng):
+            k, x = others[i], tracks[i].next()
+            ref_frame = np.zeros(n)
+            ref_frame[ref] = s.reference_amplitude
+            test_frame = np.zeros(n)
+            test_frame[k] = min(1.0, s.reference_amplitude * 2.0 ** x)
+            test_first = bool(rng.random() < 0.5)
+            frames = [(test_frame, k), (ref_frame, ref)]
+            if not test_first:
+                frames.reverse()
+            shown = []
+            for j, (frame, tactor) in enumerate(frames):
+                t0, t1 = present.hold(frame, s.interval_s)
+                shown.append(Interval(frame, t0, t1, tactor, x))
+                present.wait(s.gap_s if j == 0 else s.iti_s)
+            second = respondent.stronger(shown[0], shown[1])
+            tracks[i].update(x, second if test_first is False else 1 - second)
+            n_trials += 1
         for k, tr in zip(others, tracks, strict=True):
             f = tr.fit()
             gains[k] = float(2.0 ** f.pse)
@@ -463,24 +459,20 @@ def run_perceptual_calibration(belt: Belt, clock: Clock, respondent: Respondent,
     gaps = layout.gaps_deg()
     keys = [(a, m) for a in range(n) for m in s.marks]
     ltracks = [location_track(s, m) for _, m in keys]
-    while True:
-        order = _interleave(ltracks, rng)
-        if not order:
-            break
-        for i in order:
-            a, m = keys[i]
-            b = int(cw[a])
-            x = ltracks[i].next()
-            rendered = layout.angles_deg[a] + x * float(gaps[a])
-            stim = make_stimulus(layout, rendered, "static", s.law, s.falloff_deg,
-                                 profile=gain_profile)
-            frame = np.asarray(stim.amplitudes(0.0), dtype=float)
-            t0, t1 = present.hold(frame, s.interval_s)
-            marked = float((layout.angles_deg[a] + m * float(gaps[a])) % 360.0)
-            r = respondent.side(Interval(frame, t0, t1, -1, x), (a, b), marked, layout)
-            present.wait(s.iti_s)
-            ltracks[i].update(x, r)
-            n_trials += 1
+    for i in _rounds(ltracks, rng):
+        a, m = keys[i]
+        b = int(cw[a])
+        x = ltracks[i].next()
+        rendered = layout.angles_deg[a] + x * float(gaps[a])
+        stim = make_stimulus(layout, rendered, "static", s.law, s.falloff_deg,
+                             profile=gain_profile)
+        frame = np.asarray(stim.amplitudes(0.0), dtype=float)
+        t0, t1 = present.hold(frame, s.interval_s)
+        marked = float((layout.angles_deg[a] + m * float(gaps[a])) % 360.0)
+        r = respondent.side(Interval(frame, t0, t1, -1, x), (a, b), marked, layout)
+        present.wait(s.iti_s)
+        ltracks[i].update(x, r)
+        n_trials += 1
     warps: list[PairWarp] = []
     for a in range(n):
         pses = []
@@ -534,13 +526,11 @@ def profile_for_session(study: Any, store: Any, belt: Belt, clock: Clock, partic
             f"calibrate perceptual --participant {participant} --input keyboard --db "
             f"{store.url}")
     else:
-        import datetime as _dt
-
         s = study.stimulus
         settings = CalibrationSettings(law=s.law, falloff_deg=float(s.falloff_deg))
         profile = run_perceptual_calibration(belt, clock, respondent, participant=participant,
                                              settings=settings, seed=seed,
-                                             created=_dt.datetime.now(_dt.UTC).isoformat(
+                                             created=datetime.datetime.now(datetime.UTC).isoformat(
                                                  timespec="microseconds")).profile
         store.save_wearer_profile(participant, profile.to_toml())
     profile.check_layout(belt.layout, source=f"the wearer profile of {participant!r}")
