@@ -283,22 +283,22 @@ _SHAPED_MEMOS_BUDGET: Final = 24 * 2**20
 @dataclass(frozen=True)
 class _ShapedMemo:
     """The shaper's decisions on a render started from rest (times from its onset, ns),
-    the render's change ticks (ns from the onset), the drives, the predicted speeds and the
-    firmware's budgets (ns above the rated drive, then in reverse, per tactor)."""
+    the drives, the predicted speeds and the firmware's budgets (ns above the rated drive,
+    then in reverse, per tactor)."""
 
     t: IntArray
-    bounds: IntArray
     d: FloatArray
     e: FloatArray
     u: IntArray
 
     @property
     def nbytes(self) -> int:
-        return int(self.t.nbytes + self.bounds.nbytes + self.d.nbytes + self.e.nbytes
-                   + self.u.nbytes)
+        return int(self.t.nbytes + self.d.nbytes + self.e.nbytes + self.u.nbytes)
 
 
 _SHAPED_MEMOS: dict[tuple[Any, ...], _ShapedMemo] = {}
+#: A shaped walk's decisions: their times, drives, motor and predicted speeds, and budgets.
+_Decisions = tuple[IntArray, FloatArray, FloatArray, FloatArray, IntArray]
 
 
 class _OnsetGrid:
@@ -532,7 +532,7 @@ class SimBelt(Belt):
 
     def _shaped_solve(self, t_a: int, w: FloatArray, e: FloatArray, u: IntArray,
                       t_last: int, keep_until: int, also_keep: int | None = None,
-                      ) -> tuple[IntArray, FloatArray, FloatArray, FloatArray, IntArray]:
+                      ) -> _Decisions:
         """The shaper's decisions from ``t_a`` (a decision point, motor speeds ``w``,
         predicted ``e``, budgets ``u``) to ``t_last``: their times, drives, the motor and
         predicted speeds and the budgets at each. It decides at every command and render
@@ -547,7 +547,7 @@ class SimBelt(Belt):
         last target (a dynamic stimulus's transit) is solved at once
         (:meth:`~tactorbelt.devices.erm.Shaper.landing`). A render's levels are those
         the shaper's preview sees (``Shaper.lead_ticks`` ahead)."""
-        parts: list[tuple[IntArray, FloatArray, FloatArray, FloatArray, IntArray]] = []
+        parts: list[_Decisions] = []
         t_a, w, e, u, onsets = self._memo_prefix(t_a, w, e, u, t_last, parts)
         parts.append(self._walk_span(t_a, t_last, w, e, u, onsets))
         t_arr, d_arr, w_arr, e_arr, u_arr = parts[0] if len(parts) == 1 else (
@@ -560,8 +560,7 @@ class SimBelt(Belt):
         return t_arr, d_arr, w_arr, e_arr, u_arr
 
     def _memo_prefix(self, t_a: int, w: FloatArray, e: FloatArray, u: IntArray, t_last: int,
-                     parts: list[tuple[IntArray, FloatArray, FloatArray, FloatArray,
-                                       IntArray]],
+                     parts: list[_Decisions],
                      ) -> tuple[int, FloatArray, FloatArray, IntArray,
                                 dict[int, tuple[_Render, int]]]:
         """Where a walk starts on a render's memo (its onset at rest, or one of its
@@ -573,20 +572,17 @@ class SimBelt(Belt):
                 else None)
         if take is None:
             return t_a, w, e, u, onsets
-        memo, r0, r = take
-        onset = t_a - int(memo.t[r0])
-        parts.append((memo.t[r0:r] + onset, memo.d[r0:r], memo.e[r0:r], memo.e[r0:r],
-                      memo.u[r0:r]))
-        t_a = onset + int(memo.t[r])
-        return t_a, memo.e[r], memo.e[r], memo.u[r], self._onsets(t_a, t_last)
+        block, t_a, e, u = take
+        parts.append(block)
+        return t_a, e, e, u, self._onsets(t_a, t_last)
 
     def _memo_take(self, got: tuple[_Render, int], t: int, e: list[float], u: list[int]
-                   ) -> tuple[_ShapedMemo, int, int] | None:
+                   ) -> tuple[_Decisions, int, FloatArray, IntArray] | None:
         """The memo decisions a walk at ``t`` (predicted speeds ``e``) on the render of
-        ``got`` (render, cut: :meth:`_onsets`) splices: the memo and the rows ``r0..r``
-        (``r`` its last decision before the cut, the walk's next start), or None when
-        the walk splices none there (no memo, other speeds or budgets ``u``, nothing
-        before the cut)."""
+        ``got`` (render, cut: :meth:`_onsets`) splices (the motors' speeds are the predicted
+        ones), then the walk's next start (the memo's last decision before the cut) with
+        its predicted speeds and budgets; None when the walk splices none there (no memo,
+        other speeds or budgets ``u``, nothing before the cut)."""
         render, cut = got
         memo = self._memo_at(render, t, e, u)
         if memo is None:
@@ -595,11 +591,13 @@ class SimBelt(Belt):
         r0 = int(memo.t.searchsorted(t - onset))
         lim = min(cut, onset + _MEMO_TICKS * RENDER_TICK_NS)
         r = int(memo.t.searchsorted(lim - onset, side="left")) - 1
-        return (memo, r0, r) if r > r0 else None
+        if r <= r0:
+            return None
+        return ((memo.t[r0:r] + onset, memo.d[r0:r], memo.e[r0:r], memo.e[r0:r], memo.u[r0:r]),
+                onset + int(memo.t[r]), memo.e[r], memo.u[r])
 
     def _walk_span(self, t_a: int, t_last: int, w: FloatArray, e: FloatArray, u: IntArray,
-                   onsets: dict[int, tuple[_Render, int]],
-                   ) -> tuple[IntArray, FloatArray, FloatArray, FloatArray, IntArray]:
+                   onsets: dict[int, tuple[_Render, int]]) -> _Decisions:
         """:meth:`_walk` from the decision point ``t_a`` over the changes to ``t_last``."""
         lead = self.shaper.lead_ticks
         bounds = _sorted_unique(np.concatenate([np.array([t_a], dtype=np.int64),
@@ -642,17 +640,18 @@ class SimBelt(Belt):
         got = render.memo_box[0]
         if got is not None and got[0] is self.params and got[1] is self.shaper \
                 and got[2] == self.n_tactors:
-            memo: _ShapedMemo | None = got[3]
+            memo = got[3]
         else:
             key = (render.stimulus, render.calibration, self.params, self.shaper,
                    self.n_tactors)
-            memo = _SHAPED_MEMOS.get(key)
-            if memo is not None:
-                render.memo_box[0] = (self.params, self.shaper, self.n_tactors, memo)
-        if memo is None:
-            if t != render.onset_ns or any(e) or any(u):
-                return None
-            memo = self._render_memo(render)
+            found = _SHAPED_MEMOS.get(key)
+            if found is None:
+                if t != render.onset_ns or any(e) or any(u):
+                    return None
+                found = self._render_memo(render)
+                _remember(_SHAPED_MEMOS, key, found, _SHAPED_MEMOS_BUDGET)
+            memo = found
+            render.memo_box[0] = (self.params, self.shaper, self.n_tactors, memo)
         r = int(memo.t.searchsorted(t - render.onset_ns))
         if r >= memo.t.shape[0] or int(memo.t[r]) != t - render.onset_ns:
             return None
@@ -662,34 +661,29 @@ class SimBelt(Belt):
         """The shaper's decisions on a render started with every motor at rest, for its
         first :data:`_MEMO_TICKS` ticks: the same walk (:meth:`_walk`) on the render's own
         change ticks, shared by the sim belts of the process with the same stimulus,
-        calibration, motor model and shaping (read-only)."""
-        key = (render.stimulus, render.calibration, self.params, self.shaper, self.n_tactors)
-        memo = _SHAPED_MEMOS.get(key)
-        if memo is None:
-            span = _MEMO_TICKS * RENDER_TICK_NS
-            onset = render.onset_ns
-            bounds = _sorted_unique(np.concatenate([
-                np.array([onset], dtype=np.int64),
-                onset + render.change_ticks(1, _MEMO_TICKS, self.shaper.lead_ticks)
-                * RENDER_TICK_NS]))
-            end, render.end_ns = render.end_ns, None
-            try:
-                levels = render.levels(bounds, self.shaper.lead_ticks)
-            finally:
-                render.end_ns = end
-            zeros = np.zeros(self.n_tactors)
-            t, d, _, e, u = self._walk(bounds, levels, onset + span - 1, zeros, zeros,
-                                       np.zeros(2 * self.n_tactors, dtype=np.int64), {})
-            memo = _ShapedMemo(t - onset, bounds - onset, d, e, u)
-            for arr in (memo.t, memo.bounds, memo.d, memo.e, memo.u):
-                arr.setflags(write=False)
-            _remember(_SHAPED_MEMOS, key, memo, _SHAPED_MEMOS_BUDGET)
-        render.memo_box[0] = (self.params, self.shaper, self.n_tactors, memo)
+        calibration, motor model and shaping (read-only; :meth:`_memo_at` keeps it)."""
+        onset = render.onset_ns
+        bounds = _sorted_unique(np.concatenate([
+            np.array([onset], dtype=np.int64),
+            onset + render.change_ticks(1, _MEMO_TICKS, self.shaper.lead_ticks)
+            * RENDER_TICK_NS]))
+        end, render.end_ns = render.end_ns, None
+        try:
+            levels = render.levels(bounds, self.shaper.lead_ticks)
+        finally:
+            render.end_ns = end
+        zeros = np.zeros(self.n_tactors)
+        t, d, _, e, u = self._walk(bounds, levels, onset + _MEMO_TICKS * RENDER_TICK_NS - 1,
+                                   zeros, zeros, np.zeros(2 * self.n_tactors, dtype=np.int64),
+                                   {})
+        memo = _ShapedMemo(t - onset, d, e, u)
+        for arr in (memo.t, memo.d, memo.e, memo.u):
+            arr.setflags(write=False)
         return memo
 
     def _walk(self, bounds: IntArray, levels: FloatArray, t_last: int, w: FloatArray,
               e: FloatArray, u: IntArray, onsets: dict[int, tuple[_Render, int]],
-              ) -> tuple[IntArray, FloatArray, FloatArray, FloatArray, IntArray]:
+              ) -> _Decisions:
         """The walk of :meth:`_shaped_solve` over ``bounds`` (the first is a decision point
         with motor speeds ``w``, predicted ``e`` and budgets ``u``; ``levels`` the
         commanded levels from each) to ``t_last``. A render in ``onsets`` that starts with
@@ -772,14 +766,11 @@ class SimBelt(Belt):
             if take is not None:
                 # the memo's decisions before the cut are the walk's; it goes on from the
                 # last of them
-                memo, r0, r = take
-                onset = bounds_l[i] - int(memo.t[r0])
-                flush(memo.t[r0:r] + onset, memo.d[r0:r], memo.e[r0:r], memo.e[r0:r],
-                      memo.u[r0:r])
-                el = wl = memo.e[r].tolist()
-                ul = memo.u[r].tolist()
+                block, t_resume, e_next, u_next = take
+                flush(*block)
+                el = wl = e_next.tolist()
+                ul = u_next.tolist()
                 ou, ru = ul[:n], ul[n:]
-                t_resume = onset + int(memo.t[r])
                 i = int(bounds.searchsorted(t_resume, side="right")) - 1
                 continue
             if t_resume is None and d_on is not None and i > 0 and i != no_land and lands[
