@@ -89,8 +89,7 @@ def parse_response(text: str) -> Response:
                 f"window ({', '.join(EXPERIMENTER_KEYS)}); give the task another key, "
                 "e.g. \"key:j\"")
         try:
-            with warnings.catch_warnings():  # SDL's key table needs no initialised SDL
-                warnings.simplefilter("ignore")
+            with warnings.catch_warnings(action="ignore"):  # the key table needs no SDL init
                 code = int(pygame.key.key_code(value))
         except ValueError:
             raise ConfigError(f"the task response {text!r} names no key pygame knows "
@@ -209,16 +208,15 @@ class TaskPresenter:
 
     Args:
         clock: the runner's clock.
-        audio: the task sound output (None: opened on the first auditory task, a silent
-            one on a simulated clock).
         tick_ns: the window's poll period (the runner's sampling period): glyphs
             change at the poll nearest their onset and end.
     """
 
-    def __init__(self, clock: Clock, audio: TaskAudio | None = None,
-                 tick_ns: int = 10_000_000) -> None:
+    def __init__(self, clock: Clock, tick_ns: int) -> None:
         self.clock = clock
-        self.audio = audio
+        #: the task sound output (None: opened on the first auditory task, a silent one
+        #: on a simulated clock)
+        self.audio: TaskAudio | None = None
         self._half_tick = max(int(tick_ns) // 2, 0)
         self.name: str | None = None
         self.spec: TaskSpec | None = None
