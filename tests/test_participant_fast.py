@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from support.power_trials import between_accuracy
 from tactorbelt import ConfigError, open_belt
 from tactorbelt.clock import SimClock
 from tactorbelt.experiment.runner import run_session
@@ -23,7 +24,6 @@ from tactorbelt.participant import (
     stimulus_cues,
 )
 from tactorbelt.participant.factorial import FactorialProtocol
-from tactorbelt.participant.simulate import between_accuracy
 from tactorbelt.power.design import PowerDesign
 from tactorbelt.power.effects import Effect
 from tactorbelt.power.outcomes import StudyOutcome, binomial_ci, power_row

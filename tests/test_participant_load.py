@@ -8,6 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 import pytest
 
+from support.power_trials import between_accuracy
 from tactorbelt import ConfigError
 from tactorbelt.experiment.study import paper_study
 from tactorbelt.inputs.model import sim_vibrator
@@ -23,7 +24,6 @@ from tactorbelt.participant.load import (
     task_rt_median_s,
     tlx_ratings,
 )
-from tactorbelt.participant.simulate import between_accuracy
 from tactorbelt.power.design import PowerDesign
 
 

@@ -1,7 +1,8 @@
 """A study's counted test trials as the power analysis draws them, and the named-effect
 model without an effect, for the tests and scripts/false_positive_rates.py:
 :meth:`tactorbelt.power.design.PowerDesign.trials`, or every test block whatever its
-target count (the resolution study's model with ``factor(n_targets)``); :func:`no_effect`."""
+target count (the resolution study's model with ``factor(n_targets)``); :func:`no_effect`;
+a simulated participant's between-tactor accuracy (:func:`between_accuracy`)."""
 
 from __future__ import annotations
 
@@ -9,6 +10,7 @@ from typing import Any
 
 import numpy as np
 
+from tactorbelt.participant.simulate import TrialTable
 from tactorbelt.power.design import PowerDesign, TrialDesign
 from tactorbelt.power.glmm import NamedEffect
 
@@ -37,3 +39,9 @@ def no_effect(**sizes: float) -> NamedEffect:
     eff = NamedEffect(2.0, **sizes)
     object.__setattr__(eff, "odds_ratio", 1.0)
     return eff
+
+
+def between_accuracy(table: TrialTable, condition: str) -> float:
+    """Share of correct between-tactor test trials in one condition (NaN if none)."""
+    sel = (table.condition == condition) & ~table.on_tactor
+    return float(table.correct[sel].mean()) if sel.any() else float("nan")

@@ -42,7 +42,6 @@ __all__ = [
     "Protocol",
     "StimulusCues",
     "TrialTable",
-    "between_accuracy",
     "simulate_participant",
     "stimulus_cues",
 ]
@@ -195,9 +194,3 @@ def simulate_participant(protocol: Protocol, cues: StimulusCues, params: ModelPa
         response_deg=response_deg, correct=np.abs(response_deg - target_deg) < 1e-6,
         rt_s=np.concatenate(rts),
     )
-
-
-def between_accuracy(table: TrialTable, condition: str) -> float:
-    """Share of correct between-tactor test trials in one condition (NaN if none)."""
-    sel = (table.condition == condition) & ~table.on_tactor
-    return float(table.correct[sel].mean()) if sel.any() else float("nan")
