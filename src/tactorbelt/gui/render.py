@@ -102,6 +102,12 @@ class View:
     glyph: str | None = None
 
 
+def _translucent(size: tuple[int, int], rgba: tuple[int, int, int, int]) -> Any:
+    surf = pygame.Surface(size, pygame.SRCALPHA)
+    surf.fill(rgba)
+    return surf
+
+
 class Renderer:
     """Draws :class:`View` objects on a surface of a given size.
 
@@ -120,7 +126,8 @@ class Renderer:
             lambda s, px, color: self._font(px).render(s, True, color))
         self._static: Any = None
         self._static_key: tuple[Any, ...] | None = None
-        self._shades: dict[tuple[Any, ...], Any] = {}
+        #: a translucent rectangle of a size and RGBA colour (the last 16 kept)
+        self._shade = functools.lru_cache(maxsize=16)(_translucent)
         self.resize(size)
 
     # -- geometry ----------------------------------------------------------------------
@@ -145,18 +152,6 @@ class Renderer:
         self.target_radius = max(int(15 * self.unit), 4)
         self.cursor_radius = max(int(9 * self.unit), 3)
         self._static = None
-
-    def _shade(self, size: tuple[int, int], rgba: tuple[int, int, int, int]) -> Any:
-        """A cached translucent rectangle."""
-        key = (size, rgba)
-        surf = self._shades.get(key)
-        if surf is None:
-            if len(self._shades) > 16:
-                self._shades.clear()
-            surf = pygame.Surface(size, pygame.SRCALPHA)
-            surf.fill(rgba)
-            self._shades[key] = surf
-        return surf
 
     # -- static layer ------------------------------------------------------------------
     def _static_layer(self, view: View) -> Any:
@@ -261,9 +256,9 @@ class Renderer:
 
     def _draw_glyph(self, surface: Any, glyph: str) -> None:
         t = self.text(glyph, int(72 * self.unit), COLORS["text"])
-        for rect in self.glyph_rects(glyph):
-            surface.blit(t, rect)
         self.rects["glyph"] = self.glyph_rects(glyph)
+        for rect in self.rects["glyph"]:
+            surface.blit(t, rect)
 
     def _draw_tactors(self, surface: Any, view: View) -> None:
         g = self.geometry
