@@ -245,7 +245,7 @@ class WindowController(NullObserver, abc.ABC):
             self._wait_screen("block")
 
     def on_trial_state(self, trial: ScheduledTrial, state: TrialState, now_ns: int) -> None:
-        phase = str(getattr(state, "value", state))
+        phase = str(state)  # a StrEnum: its value
         if phase == "wait_home" or self.current is None or self.current.trial is not trial:
             self.current = ShownTrial(trial)
             self._show_targets(trial.n_targets)
@@ -255,13 +255,9 @@ class WindowController(NullObserver, abc.ABC):
                 self.last_sample = None
                 self.sample_times.clear()
         cur = self.current
-        if phase == "wait_home":
-            cur.phase = "home"
-        elif phase == "stimulus":
-            cur.phase = "stimulus"
+        cur.phase = "home" if phase == "wait_home" else phase
+        if phase == "stimulus":
             cur.onset_ns = int(now_ns)
-        else:
-            cur.phase = phase
 
     def on_sample(self, sample: CursorSample) -> None:
         self.last_sample = sample
@@ -447,8 +443,9 @@ class WindowController(NullObserver, abc.ABC):
                 self.abort()
             else:
                 self._esc_ns = now_ns
-                self._show_banner("Press Esc again to abort (the session is saved and can "
-                                  "be resumed)", now_ns)
+                self.banner = ("Press Esc again to abort (the session is saved and can be "
+                               "resumed)")
+                self.banner_until_ns = now_ns + round(ESC_WINDOW_S * 1e9)
         elif key == pg.K_p:
             if self.user_paused:
                 self.resume()
@@ -460,10 +457,6 @@ class WindowController(NullObserver, abc.ABC):
             self._continue = True
         elif key == pg.K_F12:
             self._manual_shot()
-
-    def _show_banner(self, text: str, now_ns: int, seconds: float = ESC_WINDOW_S) -> None:
-        self.banner = text
-        self.banner_until_ns = now_ns + round(seconds * 1e9)
 
     # ------------------------------------------------------------------------------------
     # the loop
