@@ -354,9 +354,10 @@ def _relax(u: FloatArray, w: FloatArray, dt_ns: IntArray, params: ErmParams) -> 
     return np.asarray(u + (w - u) * _decay_factors(dt_ns, tau))
 
 
-def _decay_factors(dt_ns: IntArray, tau: FloatArray) -> FloatArray:
-    """``exp(-dt / tau)`` (rows: times; columns: the time constants), the exponent capped
-    at ``_MAX_DECAY``: the decay of a stretch under a constant drive."""
+def _decay_factors(dt_ns: IntArray, tau: FloatArray | float) -> FloatArray:
+    """``exp(-dt / tau)`` (rows: times; columns: the time constants, one for a single
+    one), the exponent capped at ``_MAX_DECAY``: the decay of a stretch under a constant
+    drive."""
     dt = dt_ns.astype(float) * 1e-9
     return np.asarray(np.exp(-np.minimum(dt[:, None] / tau, _MAX_DECAY)))
 
@@ -370,18 +371,12 @@ def _relax_to(u: FloatArray, w: FloatArray, dt_ns: int, params: ErmParams) -> Fl
 
 
 def _fall_factor_to(dt_ns: int, params: ErmParams) -> np.float64:
-    """:func:`_fall_factor` at one time: :func:`_relax_to` with ``u = 0`` is ``w`` times it
-    (the same arithmetic; NumPy's exp gives a scalar what it gives an array)."""
+    """How much an undriven motor's speed falls in ``dt_ns``: :func:`_relax_to` with ``u = 0``
+    is ``w`` times it, ``exp(-dt / fall_tau)``, the same factor for every motor (the same
+    arithmetic as :func:`_decay_factors` with the fall time constant; NumPy's exp gives a
+    scalar what it gives an array)."""
     dt = float(dt_ns) * 1e-9
     return np.float64(np.exp(-min(dt / params.fall_tau_s, _MAX_DECAY)))
-
-
-def _fall_factor(dt_ns: IntArray, params: ErmParams) -> FloatArray:
-    """How much an undriven motor's speed falls in ``dt_ns``: :func:`_relax` with ``u = 0``
-    is ``w * exp(-dt / fall_tau)``, the same factor for every motor (the same
-    arithmetic)."""
-    dt = dt_ns.astype(float) * 1e-9
-    return np.asarray(np.exp(-np.minimum(dt / params.fall_tau_s, _MAX_DECAY)))
 
 
 class _Response:

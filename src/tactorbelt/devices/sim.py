@@ -54,7 +54,6 @@ from .erm import (
     IntArray,
     Shaper,
     _decay_factors,
-    _fall_factor,
     _fall_factor_to,
     _grid_period,
     _relax,
@@ -304,14 +303,14 @@ _Decisions = tuple[IntArray, FloatArray, FloatArray, FloatArray, IntArray]
 class _OnsetGrid:
     """The terms of a render's speeds over a regular sample grid from its onset that do not
     depend on the state at the onset (:meth:`SimBelt._onset_piece`): the undriven motors'
-    fall factor ``ff`` (n,) and, for the moving motors, the response from rest ``tw`` and
+    fall factor ``ff`` (n, 1) and, for the moving motors, the response from rest ``tw`` and
     its decay ``d`` (n, moving) at each sample's tick. ``ff`` alone where a sample falls
     between ticks or beyond the response (then the general path is taken)."""
 
     __slots__ = ("d", "ff", "tw")
 
     def __init__(self, resp: _Response, params: ErmParams, dt: IntArray) -> None:
-        self.ff: FloatArray = _fall_factor(dt, params)
+        self.ff: FloatArray = _decay_factors(dt, params.fall_tau_s)  # (n, 1)
         self.tw: FloatArray | None = None
         self.d: FloatArray | None = None
         tick = dt // RENDER_TICK_NS
@@ -625,10 +624,8 @@ class SimBelt(Belt):
             end = render.end_ahead(self.shaper.lead_ticks)
             if end is not None:
                 cut = min(cut, end)
-            if t_row >= t_a:
-                out[t_row] = (render, min(cut, t_last + 1))
-            elif t_a < cut:  # the walk starts inside the render
-                out[t_a] = (render, min(cut, t_last + 1))
+            if t_row >= t_a or t_a < cut:  # at its onset, or the walk starts inside it
+                out[max(t_row, t_a)] = (render, min(cut, t_last + 1))
         return out
 
     def _memo_at(self, render: _Render, t: int, e: list[float], u: list[int]
@@ -986,18 +983,15 @@ class SimBelt(Belt):
         if self._hi == self._t.shape[0]:
             live = self._hi - self._lo
             if self._lo >= live:  # at least half free at the front: compact
-                self._t[:live] = self._t[self._lo : self._hi]
-                self._lv[:live] = self._lv[self._lo : self._hi]
-                self._rid[:live] = self._rid[self._lo : self._hi]
+                t, lv, r = self._t, self._lv, self._rid
             else:
                 cap = 2 * self._t.shape[0]
-                t = np.zeros(cap, dtype=np.int64)
-                lv = np.zeros((cap, self.n_tactors))
-                r = np.full(cap, -1, dtype=np.int64)
-                t[:live] = self._t[self._lo : self._hi]
-                lv[:live] = self._lv[self._lo : self._hi]
-                r[:live] = self._rid[self._lo : self._hi]
-                self._t, self._lv, self._rid = t, lv, r
+                t, lv, r = (np.zeros(cap, dtype=np.int64), np.zeros((cap, self.n_tactors)),
+                            np.full(cap, -1, dtype=np.int64))
+            t[:live] = self._t[self._lo : self._hi]
+            lv[:live] = self._lv[self._lo : self._hi]
+            r[:live] = self._rid[self._lo : self._hi]
+            self._t, self._lv, self._rid = t, lv, r
             self._lo, self._hi = 0, live
         i = self._hi
         self._t[i] = now
@@ -1246,7 +1240,7 @@ class SimBelt(Belt):
         if g is None:
             g = _OnsetGrid(resp, p, _grid_dt(n, grid))
             _remember(_GRIDS, key, g, _GRIDS_BUDGET)
-        out = w * g.ff[:, None]
+        out = w * g.ff
         w_end = w * g.ff[-1]
         cols = resp.cols
         if cols.shape[0]:
@@ -1271,9 +1265,9 @@ class SimBelt(Belt):
         stop = t_last if end is None else end
         # every motor as if undriven (a zero drive falls by one factor for all of them);
         # then the moving ones from the response
-        out = (w * _fall_factor(times - start, p)[:, None] if times.shape[0]
+        out = (w * _decay_factors(times - start, p.fall_tau_s) if times.shape[0]
                else np.empty((0, w.shape[0])))
-        w_end = w * _fall_factor(np.array([stop - start]), p)[0]
+        w_end = w * _decay_factors(np.array([stop - start]), p.fall_tau_s)[0]
         cols = resp.cols
         if cols.shape[0]:
             got = self._moving(resp, render.onset_ns, start, stop, end is None, w[cols],
@@ -1310,18 +1304,18 @@ class SimBelt(Belt):
             rest = out
         # every tick start from k0 to k_stop, by superposition on the response from rest
         offset = w - tw[k0]
-        if not resp.within_limits(offset):
-            # the offset may change a rise/fall choice: check every tick
+        within = resp.within_limits(offset)
+        if within and not times.shape[0]:  # only the state at the end is wanted
+            ws = tw[k_stop : k_stop + 1] + offset * resp.decay(k0, k_stop, k_stop + 1)
+            k0 = k_stop
+        else:
             ws = tw[k0 : k_stop + 1] + offset * resp.decay(k0, k0, k_stop + 1)
+        if not within:
+            # the offset may change a rise/fall choice: check every tick
             u = resp.u(np.arange(k0, k_stop))
             gap = u - ws[:-1]
             if (((gap > 0.0) != (u > tw[k0:k_stop])) & (np.abs(gap) > _TIE)).any():
                 return None  # another rise/fall pattern than from rest
-        elif times.shape[0]:
-            ws = tw[k0 : k_stop + 1] + offset * resp.decay(k0, k0, k_stop + 1)
-        else:  # only the state at the end is wanted
-            ws = tw[k_stop : k_stop + 1] + offset * resp.decay(k0, k_stop, k_stop + 1)
-            k0 = k_stop
         if times.shape[0]:
             tick = (times - onset) // RENDER_TICK_NS
             base = ws[tick - k0]
@@ -1431,9 +1425,9 @@ class SimBelt(Belt):
                 before_ns)
             # cut at a remembered state when there is one close before the cut: no work
             j = bisect.bisect_right(self._ck_t, cut) - 1
-            e_cut, u_cut = None, None
             if j >= 0 and self._ck_t[j] > max(self._base_t, cut - self._slack_ns):
-                cut, w_cut = self._ck_t[j], self._ck_w[j]
+                cut, w_cut = self._ck_t[j], self._ck_w[j]  # plain: no budget used
+                e_cut, u_cut = w_cut.copy(), np.zeros(2 * self.n_tactors, dtype=np.int64)
             elif cut <= self._base_t:
                 return
             else:
@@ -1443,9 +1437,7 @@ class SimBelt(Belt):
             keep = max(self._row_in_force(cut), self._lo)
             self._lo = keep
             self._base_t, self._base_w, self._pruned = cut, w_cut, True
-            self._base_e = w_cut.copy() if e_cut is None else e_cut
-            self._base_u = (np.zeros(2 * self.n_tactors, dtype=np.int64) if u_cut is None
-                            else u_cut)
+            self._base_e, self._base_u = e_cut, u_cut
             self._sck = [c for c in self._sck if c[0] >= cut]
             j = bisect.bisect_left(self._ck_t, cut)
             del self._ck_t[:j], self._ck_w[:j]
