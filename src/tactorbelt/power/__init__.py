@@ -10,9 +10,9 @@ one design object that every analysis takes:
   :class:`~.design.TrialDesign` (one participant's counted test trials);
 - :mod:`.effects`: the effect to look for (``--effect``: dynamic vs static, at N targets,
   the interaction, a load);
-- :mod:`.simulation`: power with model participants (docs/participant-model.md): the
-  paper's test (:func:`~.simulation.run_power`) and any design and effect
-  (:func:`~.simulation.run_factorial_power`), the paired Wilcoxon and Friedman tests;
+- :mod:`.simulation`: power with model participants (docs/participant-model.md) for the
+  paper's test and any design and effect (:func:`~.simulation.run_power`), the paired
+  Wilcoxon and Friedman tests;
 - :mod:`.glmm`: power of the report's accuracy GLMM for effect sizes the user names
   (``--odds-ratio``; :func:`~.glmm.named_power`);
 - :mod:`.outcomes`: a simulated study's outcome, the power at one size and its

@@ -7,12 +7,11 @@ count, repetitions, load (name and level) and stimulus (with the block's overrid
 Nothing else in :mod:`tactorbelt.power` reads the study. Every power analysis takes the
 design and asks it for the view it simulates:
 
-- the model-participant simulation of a study with one target count
-  (:func:`~tactorbelt.power.simulation.run_power`): :meth:`PowerDesign.protocol`, the
-  fast path's :class:`~tactorbelt.participant.simulate.Protocol`;
-- the factorial one (target counts, loads;
-  :func:`~tactorbelt.power.simulation.run_factorial_power`): :meth:`PowerDesign.factorial`,
-  one protocol per target count (:class:`~tactorbelt.participant.factorial.FactorialProtocol`);
+- the model-participant simulation (:func:`~tactorbelt.power.simulation.run_power`) of a
+  study with one target count: :meth:`PowerDesign.protocol`, the fast path's
+  :class:`~tactorbelt.participant.simulate.Protocol`;
+- the same of any study (target counts, loads): :meth:`PowerDesign.factorial`, one
+  protocol per target count (:class:`~tactorbelt.participant.factorial.FactorialProtocol`);
 - the GLMM power for named effect sizes (:func:`~tactorbelt.power.glmm.named_power`):
   :meth:`PowerDesign.trials`, one participant's counted test trials (:class:`TrialDesign`).
 

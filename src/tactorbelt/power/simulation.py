@@ -10,13 +10,12 @@ between-tactor accuracies (:mod:`.effects`; the paired test is the analysis' Wil
 below alpha and the mean accuracies go the way the model predicts (dynamic above
 static; without a load above under one); an interaction is found either way.
 
-- :func:`run_power`: a design with one target count and no load, dynamic vs static
-  over every test block (the paper's test);
-- :func:`run_factorial_power`: any design and a named :class:`~.effects.Effect`.
-
-Both take the :class:`~.design.PowerDesign`. Each simulated study draws from its own
-generator, seeded by ``(seed, N, index)``, so results do not depend on how the work is
-split across processes.
+:func:`run_power` takes a protocol of the :class:`~.design.PowerDesign` (its
+:meth:`~.design.PowerDesign.factorial`, or for the paper's test, dynamic vs static over
+every block of a design with one target count and no load, its
+:meth:`~.design.PowerDesign.protocol` alone) and an :class:`~.effects.Effect`. Each
+simulated study draws from its own generator, seeded by ``(seed, N, index)``, so results
+do not depend on how the work is split across processes.
 
 The power is a property of the model's assumptions (docs/participant-model.md), not of
 people: it says how large a study would need to be *if* people behaved like it.
@@ -28,7 +27,6 @@ analysis' Wilcoxon, the sim belt's vibration and the pool inside the functions).
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
@@ -40,16 +38,13 @@ from ..participant.factorial import (
     simulate_factorial_participant,
 )
 from ..participant.params import ModelParams, draw_participant
-from ..participant.simulate import Protocol, StimulusCues, TrialTable
+from ..participant.simulate import StimulusCues, TrialTable
 from .effects import Effect
 from .outcomes import PairedTest, PowerRow, StudyOutcome
 from .pool import p_value, run_sizes, studies
 
-if TYPE_CHECKING:
-    from .design import PowerDesign
-
 __all__ = ["analysis_paired_test", "exact_signed_rank_p", "friedman_interaction",
-           "observer", "run_factorial_power", "run_power", "simulate_factorial_studies"]
+           "observer", "run_power", "simulate_factorial_studies"]
 
 FloatArray = NDArray[np.float64]
 
@@ -204,41 +199,24 @@ def simulate_factorial_studies(protocol: FactorialProtocol, cues: Sequence[Stimu
 
 # -- power at each size --------------------------------------------------------------------
 
-def observer(protocol: Protocol | FactorialProtocol) -> ModelParams:
+def observer(protocol: FactorialProtocol) -> ModelParams:
     """The typical observer the simulation draws around, at the protocol's stimulus
     period (a factorial protocol: its first part's)."""
     return ModelParams().for_period(protocol.period_s)
 
 
-def run_power(design: PowerDesign, sizes: Sequence[int], sims: int, seed: int, jobs: int,
-              alpha: float, advance: Callable[[int], None] | None = None) -> list[PowerRow]:
-    """Simulate ``sims`` studies at each size (in ``jobs`` processes) of a design with one
-    target count, test dynamic vs static over every test block, summarise each size.
+def run_power(protocol: FactorialProtocol, effect: Effect, sizes: Sequence[int], sims: int,
+              seed: int, jobs: int, alpha: float,
+              advance: Callable[[int], None] | None = None) -> list[PowerRow]:
+    """Simulate ``sims`` studies of ``protocol`` at each size (in ``jobs`` processes), test
+    ``effect`` on each, summarise each size.
 
     The cues are sensed once, on the sim belt, by the typical observer (:func:`observer`).
     Results do not depend on ``jobs``: each simulated study has its own seed.
-
-    Raises:
-        ConfigError: several target counts (use :func:`run_factorial_power`).
     """
-    return _run(design, FactorialProtocol((design.protocol(),)), Effect("condition"), sizes,
-                sims, seed, jobs, alpha, advance)
-
-
-def run_factorial_power(design: PowerDesign, effect: Effect, sizes: Sequence[int],
-                        sims: int, seed: int, jobs: int, alpha: float,
-                        advance: Callable[[int], None] | None = None) -> list[PowerRow]:
-    """:func:`run_power` for any design (target counts, loads) and a named effect: one
-    participant runs every block (:meth:`~.design.PowerDesign.factorial`)."""
-    return _run(design, design.factorial(), effect, sizes, sims, seed, jobs, alpha, advance)
-
-
-def _run(design: PowerDesign, protocol: FactorialProtocol, effect: Effect,
-         sizes: Sequence[int], sims: int, seed: int, jobs: int, alpha: float,
-         advance: Callable[[int], None] | None) -> list[PowerRow]:
     from ..inputs.model import sim_vibrator
 
-    cues = factorial_cues(protocol, sim_vibrator(design.layout), observer(protocol))
+    cues = factorial_cues(protocol, sim_vibrator(protocol.parts[0].layout), observer(protocol))
     return run_sizes(simulate_factorial_studies,
                      lambda n, idx: (protocol, cues, effect, n, idx, seed, analysis_paired_test),
                      sizes, sims, jobs, alpha, advance)

@@ -6,9 +6,10 @@ effect is read against the design (:func:`~tactorbelt.power.effects.parse_effect
 one of three analyses runs on the design:
 
 - no ``--effect``, one target count, no load (the paper's protocol): model participants,
-  dynamic vs static over every test block (:func:`~tactorbelt.power.simulation.run_power`);
+  dynamic vs static over every test block, rendered with the study's ``[stimulus]``
+  (:func:`~tactorbelt.power.simulation.run_power` of the design's one protocol);
 - otherwise: model participants and the named effect
-  (:func:`~tactorbelt.power.simulation.run_factorial_power`);
+  (:func:`~tactorbelt.power.simulation.run_power` of the design's factorial protocol);
 - ``--odds-ratio``: trials drawn from the report's accuracy GLMM with the named effect
   sizes, each study analysed with the report's headline test
   (:func:`~tactorbelt.power.glmm.named_power`).
@@ -112,9 +113,10 @@ def run_power_study(study: Study, sizes: Sequence[int], sims: int, seed: int, ou
         ConfigError: the study lacks a static or a dynamic test block (a load effect:
             blocks with and without a load); an unknown effect; ``out`` unusable.
     """
+    from ..participant.factorial import FactorialProtocol
     from .design import PowerDesign
     from .effects import parse_effect
-    from .simulation import observer, run_factorial_power, run_power
+    from .simulation import observer, run_power
 
     design = PowerDesign.from_study(study)
     counts = design.counts
@@ -132,13 +134,9 @@ def run_power_study(study: Study, sizes: Sequence[int], sims: int, seed: int, ou
                             advance)
     loaded = design.loaded
     plain = effect is None and len(counts) == 1 and not loaded  # the paper's protocol
-    if plain:
-        base = observer(design.protocol())
-        rows = run_power(design, sizes, sims, seed, n_jobs, alpha, advance=advance)
-    else:
-        base = observer(design.factorial())
-        rows = run_factorial_power(design, eff, sizes, sims, seed, n_jobs, alpha,
-                                   advance=advance)
+    protocol = FactorialProtocol((design.protocol(),)) if plain else design.factorial()
+    base = observer(protocol)
+    rows = run_power(protocol, eff, sizes, sims, seed, n_jobs, alpha, advance=advance)
 
     doc: dict[str, Any] = {
         "note": MODEL_NOTE,
