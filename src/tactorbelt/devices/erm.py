@@ -179,15 +179,14 @@ class ErmParams:
         return np.asarray(w**self.amplitude_exponent)
 
 
-def kick_duration_s(overdrive: float, rise_tau_s: float, level: float = 1.0,
-                    tick_s: float = RENDER_TICK_NS * 1e-9) -> float:
-    """The longest kick the shaper holds at ``overdrive`` (levels) to reach ``level`` from
-    rest: ``rise_tau * ln(k / (k - level))`` plus the render tick that lands it (s). No
+def kick_duration_s(overdrive: float, rise_tau_s: float) -> float:
+    """The longest kick the shaper holds at ``overdrive`` (levels) to reach full level from
+    rest: ``rise_tau * ln(k / (k - 1))`` plus the render tick that lands it (s). No
     command sequence holds a kick longer (tests/test_drive_shaping.py)."""
     k = float(overdrive)
-    if k <= level:
+    if k <= 1.0:
         return math.inf
-    return rise_tau_s * math.log(k / (k - level)) + tick_s
+    return rise_tau_s * math.log(k / (k - 1.0)) + RENDER_TICK_NS * 1e-9
 
 
 _INT64_MAX: Final = 2**63 - 1
@@ -456,34 +455,23 @@ MAX_LEAD_TICKS: Final = 50
 LEAD_TICKS: Final = 3
 
 
-def drive_steady(drive: FloatArray, start_level: float) -> FloatArray:
-    """The signed steady speed of a signed drive: forward (``>= +0.0``) as
-    :meth:`ErmParams.steady_speed` (no spin below the start level), reverse the drive
-    itself (the motor is pushed towards spinning backwards; it is already turning, so no
-    dead zone), a short brake (:data:`BRAKE`) 0."""
-    d = np.asarray(drive, dtype=float)
-    return np.asarray(np.where(np.signbit(d), d, np.where(d >= start_level, d, 0.0)))
-
-
 def drive_relax(drive: FloatArray, w: FloatArray, dt_s: float | FloatArray,
-                params: ErmParams, *, rise: Any = None, fall: Any = None,
-                brake: Any = None) -> FloatArray:
+                params: ErmParams) -> FloatArray:
     """The signed speed ``dt_s`` after ``w`` under a constant signed drive.
 
     Forward drive (coast at +0.0, above 1 overdrive) relaxes with the rise or the fall
     time constant as in :func:`erm_speed` (the same arithmetic for drives in [0, 1]);
     reverse drive and the short brake with the brake time constant, towards the drive
     (a motor held in reverse past a stop spins backwards: the speed goes negative).
-    ``rise``, ``fall``, ``brake``: time constants in s (per tactor) instead of the
-    params'.
     """
     d = np.asarray(drive, dtype=float)
     w = np.asarray(w, dtype=float)
-    u = drive_steady(d, params.start_level)
-    r = params.rise_tau_s if rise is None else rise
-    f = params.fall_tau_s if fall is None else fall
-    b = params.brake_tau_s if brake is None else brake
-    tau = np.where(np.signbit(d), b, np.where(u > w, r, f))
+    # the signed steady speed: forward (>= +0.0) as ErmParams.steady_speed (no spin below
+    # the start level), reverse the drive itself (the motor is pushed towards spinning
+    # backwards; it is already turning, so no dead zone), a short brake (BRAKE) 0
+    u = np.where(np.signbit(d), d, np.where(d >= params.start_level, d, 0.0))
+    tau = np.where(np.signbit(d), params.brake_tau_s,
+                   np.where(u > w, params.rise_tau_s, params.fall_tau_s))
     dt = np.asarray(dt_s, dtype=float)
     if dt.ndim == 1 and tau.ndim == 2:  # one time per row
         dt = dt[:, None]
@@ -635,11 +623,11 @@ def is_reverse(d: float) -> bool:
 
 
 def shape_tick(level: float, e: float, h_s: float, start: float, overdrive: float,
-               brake: bool, rise: float, fall: float, brake_tau: float,
-               tick_s: float = RENDER_TICK_NS * 1e-9) -> tuple[float, float]:
+               brake: bool, rise: float, fall: float, brake_tau: float) -> tuple[float, float]:
     """The drive of :class:`Shaper` for one tactor, in plain floats (the sim belt's walk
     through the decisions), and its predicted speed ``h_s`` later (at most a tick):
-    ``(drive, speed)``. The decision is for a whole tick (``tick_s``)."""
+    ``(drive, speed)``. The decision is for a whole render tick."""
+    tick_s = RENDER_TICK_NS * 1e-9
     d = _shape_decision(level, e, start, overdrive, brake, math.exp(-tick_s / rise),
                         math.exp(-tick_s / fall), math.exp(-tick_s / brake_tau))
     return d, relax_f(d, e, h_s, start, rise, fall, brake_tau)
