@@ -36,7 +36,8 @@ Validation refuses a wrong number of gains or pairs for the tactor angles, gains
 It sits below the stimulus engine that applies it (:mod:`tactorbelt.stimuli`) and the
 perceptual calibration that measures it.
 
-Pure: NumPy, the standard library and tactorbelt.geometry; pydantic when a file is read
+Pure: NumPy, the standard library, tactorbelt.geometry and the reading of user files
+(tactorbelt._files); pydantic when a file is read
 (its model: :mod:`.file`), tomli-w when one is saved.
 """
 
@@ -52,11 +53,11 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .._errors import ConfigError
+from .._files import read_toml, read_user_text
 from ..geometry import Layout, normalize
 from .rules import EPS, FORMAT, VERSION, warp_problem
 
 __all__ = ["FORMAT", "PairWarp", "WearerProfile", "isotonic"]
-
 
 
 def isotonic(values: Sequence[float], lo: float = 0.0, hi: float = 1.0,
@@ -241,15 +242,11 @@ class WearerProfile:
     @classmethod
     def load(cls, path: str | Path) -> WearerProfile:
         """Read a profile file; errors name the file and the field."""
-        from .._files import read_user_text
-
         p = Path(path)
         return cls.from_toml(read_user_text(p, "wearer profile"), source=str(p))
 
     @classmethod
     def from_toml(cls, text: str, source: str = "<wearer profile>") -> WearerProfile:
-        from .._files import read_toml
-
         return cls.from_mapping(read_toml(text, source), source)
 
     @classmethod
