@@ -667,8 +667,7 @@ def test_the_walk_takes_saturated_runs_as_one_decision_with_the_same_vibration(
                 clock.advance(int(rng.integers(5, 200)) * MS)
             t, d = b.driven(t0, clock.now_ns(), 1000)
             _, v = b.vibration(t0, clock.now_ns(), 2000)
-            ts, _, _, _, _ = b._shaped_solve(t0, np.zeros(6), np.zeros(6),
-                                             np.zeros(12, dtype=np.int64), clock.now_ns(), t0)
+            ts, _, _, _, _ = b._shaped_solve(t0, clock.now_ns(), t0)  # from rest at t0
         return v, ts.shape[0]
 
     runs, n_runs = scenario()

@@ -508,8 +508,7 @@ class SimBelt(Belt):
         if self._drive != "shaped":
             w = self._speed_at(np.array([t_ns], dtype=np.int64))[0]
             return t_ns, w, w.copy(), np.zeros(2 * self.n_tactors, dtype=np.int64)
-        t_a, w_a, e_a, u_a = self._shaped_start(t_ns)
-        ts, _, ws, es, us = self._shaped_solve(t_a, w_a, e_a, u_a, t_ns, t_ns)
+        ts, _, ws, es, us = self._shaped_solve(t_ns, t_ns, t_ns)
         return int(ts[-1]), ws[-1], es[-1], us[-1]
 
     # -- shaped drive -------------------------------------------------------------------
@@ -529,23 +528,27 @@ class SimBelt(Belt):
             return self._sck[j]
         return self._base_t, self._base_w, self._base_e, self._base_u
 
-    def _shaped_solve(self, t_a: int, w: FloatArray, e: FloatArray, u: IntArray,
-                      t_last: int, keep_until: int, also_keep: int | None = None,
-                      ) -> _Decisions:
-        """The shaper's decisions from ``t_a`` (a decision point, motor speeds ``w``,
-        predicted ``e``, budgets ``u``) to ``t_last``: their times, drives, the motor and
+    def _shaped_solve(self, t_first: int, t_last: int, keep_until: int | None = None,
+                      also_keep: int | None = None) -> _Decisions:
+        """The shaper's decisions from its latest kept decision at or before ``t_first``
+        (:meth:`_shaped_start`) to ``t_last``: their times, drives, the motor and
         predicted speeds and the budgets at each. It decides at every command and render
         change, and a tick (1 ms, the firmware's renderer) after each decision while its
         prediction has not settled on the level; settled, it drives the level until the
-        levels change. The last decision at or before ``keep_until`` is kept to start
-        later solutions from, and the last at or before ``also_keep`` (the first time a
-        query asked for: the next query of the same window starts there).
+        levels change. The last decision at or before ``keep_until`` (default: now, or
+        ``t_last`` when earlier: no later command changes it) is kept to start later
+        solutions from, and the last at or before ``also_keep`` (the first time a query
+        asked for: the next query of the same window starts there).
 
         Where the shaper predicts with the motor's own model (``self._exact``), the motors
         are its prediction, and a run of changes each landed within its tick from the
         last target (a dynamic stimulus's transit) is solved at once
         (:meth:`~tactorbelt.devices.erm.Shaper.landing`). A render's levels are those
         the shaper's preview sees (``Shaper.lead_ticks`` ahead)."""
+        t_a, w, e, u = self._shaped_start(t_first)
+        if keep_until is None:
+            keep_until = min(int(self.clock.now_ns()), t_last)
+        keep_until = max(keep_until, t_a)
         parts: list[_Decisions] = []
         t_a, w, e, u, onsets = self._memo_prefix(t_a, w, e, u, t_last, parts)
         parts.append(self._walk_span(t_a, t_last, w, e, u, onsets))
@@ -925,10 +928,8 @@ class SimBelt(Belt):
     def _speed_shaped(self, times: IntArray) -> FloatArray:
         """:meth:`_speed_at` of the shaped drive: the motors' speed magnitude (a motor
         reverse-driven past a stop spins backwards and vibrates again)."""
-        t_first, t_last = int(times[0]), int(times[-1])
-        t_a, w_a, e_a, u_a = self._shaped_start(t_first)
-        keep = max(min(int(self.clock.now_ns()), t_last), t_a)
-        ts, ds, ws, _, _ = self._shaped_solve(t_a, w_a, e_a, u_a, t_last, keep, t_first)
+        ts, ds, ws, _, _ = self._shaped_solve(int(times[0]), int(times[-1]),
+                                              also_keep=int(times[0]))
         self._since_ck = 0  # a decision up to now is kept
         idx = ts.searchsorted(times, side="right") - 1
         dt = np.asarray((times - ts[idx]) * 1e-9, dtype=np.float64)
@@ -944,9 +945,7 @@ class SimBelt(Belt):
         with self._lock:
             if self._drive != "shaped" or times.shape[0] == 0:
                 return times, self._levels_at(times)
-            t_a, w_a, e_a, u_a = self._shaped_start(int(times[0]))
-            keep = max(min(int(self.clock.now_ns()), int(times[-1])), t_a)
-            ts, ds, _, _, _ = self._shaped_solve(t_a, w_a, e_a, u_a, int(times[-1]), keep)
+            ts, ds, _, _, _ = self._shaped_solve(int(times[0]), int(times[-1]))
             return times, ds[ts.searchsorted(times, side="right") - 1]
 
     @property
