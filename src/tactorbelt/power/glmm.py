@@ -47,7 +47,7 @@ from .._errors import ConfigError
 from ..analysis.models.fit import _average_contrast, fit_model
 from ..analysis.models.glmm import fit_glmm
 from ..analysis.models.lrt import likelihood_ratio, null_spec
-from .design import PowerDesign, TrialDesign
+from .design import TrialDesign
 from .outcomes import PowerRow, StudyOutcome
 from .pool import run_sizes, studies
 
@@ -214,16 +214,12 @@ def simulate_glmm_studies(trials: TrialDesign, effect: NamedEffect, n_participan
     return studies(n_participants, indices, seed, one)
 
 
-def named_power(design: PowerDesign, effect: NamedEffect, sizes: Sequence[int], sims: int,
-                seed: int, jobs: int = 1, alpha: float = 0.05,
-                advance: Callable[[int], None] | None = None, *,
-                n_targets: int | None = None) -> list[PowerRow]:
-    """Power of the report's headline test for the named effect, one row per size.
-
-    The trials are the design's test trials of ``n_targets`` targets
-    (:meth:`~tactorbelt.power.design.PowerDesign.trials`; None: its one target count).
+def named_power(trials: TrialDesign, effect: NamedEffect, sizes: Sequence[int], sims: int,
+                seed: int, jobs: int, alpha: float,
+                advance: Callable[[int], None] | None = None) -> list[PowerRow]:
+    """Power of the report's headline test for the named effect on one participant's
+    ``trials`` (:meth:`~tactorbelt.power.design.PowerDesign.trials`), one row per size.
     Results do not depend on ``jobs``: each simulated study has its own seed.
     """
-    trials = design.trials(n_targets)
     return run_sizes(simulate_glmm_studies, lambda n, idx: (trials, effect, n, idx, seed),
                      sizes, sims, jobs, alpha, advance)

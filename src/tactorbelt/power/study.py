@@ -196,8 +196,7 @@ def _named_power(design: PowerDesign, eff: Effect, named: NamedEffect, sizes: Se
     from .glmm import named_power
 
     trials = design.trials(eff.n_targets)
-    rows = named_power(design, named, sizes, sims, seed, jobs, alpha, advance,
-                       n_targets=eff.n_targets)
+    rows = named_power(trials, named, sizes, sims, seed, jobs, alpha, advance)
     formula = _maximal_formula(trials, named)
     what = (f"odds ratio {named.odds_ratio:g} (dynamic over static, {trials.n_targets} "
             "targets)")
