@@ -85,6 +85,8 @@ DEFAULT_HORIZON_S: Final = 120.0
 #: History is pruned in steps of at least this much (or an eighth of the horizon), at a
 #: checkpoint, so pruning replays nothing.
 _PRUNE_SLACK_NS: Final = 1_000_000_000
+#: Render ticks per second (1 kHz).
+_TICKS_PER_S: Final = 1e9 / RENDER_TICK_NS
 #: A checkpoint is taken at least every this many commands (cheap: ~0.3 ms each).
 _CHECKPOINT_EVERY: Final = 256
 #: Memory for the one-period tables of periodic renders kept per process (the oldest
@@ -183,11 +185,10 @@ class _Render:
         #: stimulus object, :meth:`share`): (motor params, shaper, tactors, memo), so a
         #: walk finds it without hashing the stimulus
         self.memo_box: list[tuple[ErmParams, Shaper, int, _ShapedMemo] | None] = [None]
-        ticks_per_s = 1e9 / RENDER_TICK_NS
         if not stimulus.is_dynamic:
             self._table_ticks = 1
         else:
-            per = stimulus.period_s * ticks_per_s
+            per = stimulus.period_s * _TICKS_PER_S
             if abs(per - round(per)) < 1e-9 and 0 < round(per) <= self.MAX_TABLE:
                 self._table_ticks = round(per)
 
@@ -200,7 +201,7 @@ class _Render:
             if period is None:
                 k = np.arange(self._table_ticks)
                 period = _Period(self.calibration.apply(
-                    self.stimulus.amplitudes(k / (1e9 / RENDER_TICK_NS))))
+                    self.stimulus.amplitudes(k / _TICKS_PER_S)))
                 _remember(_PERIODS, key, period, _TABLES_BUDGET)
             self._table = period
         return self._table
@@ -259,11 +260,10 @@ class _Render:
         """Drive levels at ``times`` (all at or after the onset); with a ``lead``, those
         ``lead`` ticks later (the shaper's preview: zero from :meth:`end_ahead`)."""
         ticks = (times - self.onset_ns) // RENDER_TICK_NS + lead
-        ticks_per_s = 1e9 / RENDER_TICK_NS
         if self._table_ticks:
             levels = self._period().levels[ticks % self._table_ticks]
         else:
-            levels = self.calibration.apply(self.stimulus.amplitudes(ticks / ticks_per_s))
+            levels = self.calibration.apply(self.stimulus.amplitudes(ticks / _TICKS_PER_S))
         end = self.end_ahead(lead)
         if end is not None:
             levels[times >= end] = 0.0
