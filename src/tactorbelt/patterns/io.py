@@ -16,6 +16,8 @@ from typing import Any, Final
 
 import numpy as np
 
+from .._errors import ConfigError
+from .._registry import check_option
 from ..geometry import Layout
 from .ahap import pattern_from_ahap, write_ahap
 from .haptic import pattern_from_haptic
@@ -104,9 +106,6 @@ def export_pattern(pattern: Pattern, fmt: str, out: str | Path, *, layout: Layou
     Raises:
         PatternFileError: an empty pattern. ConfigError: a bad format, rate or carrier.
     """
-    from .._errors import ConfigError
-    from .._registry import check_option
-
     require_events(pattern, source)
     check_option("export format", fmt, EXPORT_FORMATS)
     if fmt == "ahap":
