@@ -94,25 +94,21 @@ class HeadingReader:
                     "as t_s,heading_deg")
             raise ConfigError(f"{self._where(line_no)}: expected {self._n_cols} fields "
                               f"as in the header, got {len(fields)}: {s!r}")
-        hcol = self._heading_col or 0
-        raw = fields[hcol]
-        if not _is_number(raw):
-            raise ConfigError(f"{self._where(line_no)}: heading {raw!r} is not a number "
-                              "of degrees")
-        heading = float(raw)
+        heading = self._number(line_no, fields[self._heading_col or 0], "heading", "degrees")
         t: float | None = None
         if self._time_col is not None:
-            traw = fields[self._time_col]
-            if not _is_number(traw):
-                raise ConfigError(f"{self._where(line_no)}: time {traw!r} is not a number "
-                                  "of seconds")
-            t = float(traw)
+            t = self._number(line_no, fields[self._time_col], "time", "seconds")
             if self._last_t is not None and t < self._last_t:
                 raise ConfigError(f"{self._where(line_no)}: time {t:g} s is earlier than "
                                   f"the line before ({self._last_t:g} s); times must not "
                                   "decrease")
             self._last_t = t
         return HeadingSample(line_no, t, heading)
+
+    def _number(self, line_no: int, raw: str, what: str, unit: str) -> float:
+        if not _is_number(raw):
+            raise ConfigError(f"{self._where(line_no)}: {what} {raw!r} is not a number of {unit}")
+        return float(raw)
 
     def _header(self, line_no: int, fields: list[str]) -> None:
         names = [f.lower() for f in fields]
