@@ -125,14 +125,10 @@ class TlxScreen:
         f = self.form
         t = ev.type
         if t == pg.KEYDOWN:
-            if ev.key == pg.K_UP:
-                f.select(-1)
-            elif ev.key == pg.K_DOWN:
-                f.select(1)
-            elif ev.key == pg.K_LEFT:
-                f.move(-1)
-            elif ev.key == pg.K_RIGHT:
-                f.move(1)
+            arrow = {pg.K_UP: (f.select, -1), pg.K_DOWN: (f.select, 1),
+                     pg.K_LEFT: (f.move, -1), pg.K_RIGHT: (f.move, 1)}.get(ev.key)
+            if arrow is not None:
+                arrow[0](arrow[1])
             elif ev.key in (pg.K_SPACE, pg.K_RETURN, pg.K_KP_ENTER):
                 f.confirm()
             else:
