@@ -551,11 +551,15 @@ class SimBelt(Belt):
         keep_until = max(keep_until, t_a)
         parts: list[_Decisions] = []
         t_a, w, e, u, onsets = self._memo_prefix(t_a, w, e, u, t_last, parts)
-        parts.append(self._walk_span(t_a, t_last, w, e, u, onsets))
+        # then the walk from there over the changes to t_last
+        lead = self.shaper.lead_ticks
+        bounds = _sorted_unique(np.concatenate([np.array([t_a], dtype=np.int64),
+                                                self._breakpoints(t_a, t_last, lead)]))
+        parts.append(self._walk(bounds, self._levels_at(bounds, lead), t_last, w, e, u, onsets))
         t_arr, d_arr, w_arr, e_arr, u_arr = parts[0] if len(parts) == 1 else (
             np.concatenate(q) for q in zip(*parts, strict=True))
-        for t_keep in {keep_until, min(also_keep, keep_until)} if also_keep is not None \
-                else {keep_until}:
+        for t_keep in {keep_until, min(keep_until if also_keep is None else also_keep,
+                                       keep_until)}:
             j = int(t_arr.searchsorted(t_keep, side="right")) - 1
             if j > 0:
                 self._keep_decision(int(t_arr[j]), w_arr[j], e_arr[j], u_arr[j])
@@ -597,14 +601,6 @@ class SimBelt(Belt):
             return None
         return ((memo.t[r0:r] + onset, memo.d[r0:r], memo.e[r0:r], memo.e[r0:r], memo.u[r0:r]),
                 onset + int(memo.t[r]), memo.e[r], memo.u[r])
-
-    def _walk_span(self, t_a: int, t_last: int, w: FloatArray, e: FloatArray, u: IntArray,
-                   onsets: dict[int, tuple[_Render, int]]) -> _Decisions:
-        """:meth:`_walk` from the decision point ``t_a`` over the changes to ``t_last``."""
-        lead = self.shaper.lead_ticks
-        bounds = _sorted_unique(np.concatenate([np.array([t_a], dtype=np.int64),
-                                                self._breakpoints(t_a, t_last, lead)]))
-        return self._walk(bounds, self._levels_at(bounds, lead), t_last, w, e, u, onsets)
 
     def _onsets(self, t_a: int, t_last: int) -> dict[int, tuple[_Render, int]]:
         """The renders that start in (t_a, t_last]: onset -> (render, the first time after
