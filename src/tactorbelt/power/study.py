@@ -235,12 +235,9 @@ def _write_power(rows: Sequence[PowerRow], out: Path, doc: dict[str, Any],
 
 
 def _plot_power(rows: Sequence[PowerRow], path: Path, title: str, alpha: float) -> None:
-    os.environ.setdefault("MPLBACKEND", "Agg")
-    import matplotlib
+    from ..figures import _pyplot
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt = _pyplot()
     n = [r.n_participants for r in rows]
     pw = [r.power for r in rows]
     lo = [r.power - r.ci_low for r in rows]
