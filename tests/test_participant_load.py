@@ -174,7 +174,7 @@ def test_load_params_are_checked() -> None:
 
 def test_the_fast_path_draws_loaded_blocks_with_the_loaded_observer() -> None:
     from tactorbelt.experiment.study import Study, template_toml
-    from tactorbelt.participant.factorial import factorial_cues, simulate_factorial_participant
+    from tactorbelt.participant.factorial import simulate_factorial_participant
 
     study = Study.from_toml(template_toml("load").replace(
         "repetitions = 2                # every", "repetitions = 6                # every"),
@@ -183,7 +183,7 @@ def test_the_fast_path_draws_loaded_blocks_with_the_loaded_observer() -> None:
     assert fp.load_levels == ((0.0, load_level(Spec("nback", 2)), 0.0,
                                load_level(Spec("nback", 2))),)
     base = ModelParams().for_period(fp.period_s)
-    cues = factorial_cues(fp, sim_vibrator(study.layout_obj()), base)
+    cues = tuple(stimulus_cues(p, sim_vibrator(study.layout_obj()), base) for p in fp.parts)
     table = simulate_factorial_participant(fp, cues, base, np.random.default_rng(4))[24]
     per_block = 24 * 6
     blocks = [table.correct[i * per_block:(i + 1) * per_block].mean() for i in range(4)]
@@ -212,7 +212,7 @@ def test_fast_path_agrees_with_the_full_runner_under_load(tmp_path) -> None:  # 
     from tactorbelt.experiment.store import open_store
     from tactorbelt.experiment.study import Study, template_toml
     from tactorbelt.inputs.model import make_model_cursor
-    from tactorbelt.participant.factorial import factorial_cues, simulate_factorial_participant
+    from tactorbelt.participant.factorial import simulate_factorial_participant
 
     text = template_toml("load").replace(
         "repetitions = 2                # every", "repetitions = 4  # every").replace(
@@ -228,7 +228,7 @@ def test_fast_path_agrees_with_the_full_runner_under_load(tmp_path) -> None:  # 
                             study_toml=text, input_name="model")
         rows = [r for r in store.trials() if r["block"] == "test"]
     fp = PowerDesign.from_study(study).factorial()
-    cues = factorial_cues(fp, sim_vibrator(study.layout_obj()), base)
+    cues = tuple(stimulus_cues(p, sim_vibrator(study.layout_obj()), base) for p in fp.parts)
     rng = np.random.default_rng(8)
     tables = [simulate_factorial_participant(fp, cues, base, rng)[24] for _ in range(30)]
     for load in ("none", "nback2"):

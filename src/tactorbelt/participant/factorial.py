@@ -20,16 +20,15 @@ Pure: NumPy, participant.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, fields, replace
-from typing import Any
 
 import numpy as np
 
 from .params import ModelParams
-from .simulate import Protocol, StimulusCues, TrialTable, simulate_participant, stimulus_cues
+from .simulate import Protocol, StimulusCues, TrialTable, simulate_participant
 
-__all__ = ["FactorialProtocol", "factorial_cues", "simulate_factorial_participant"]
+__all__ = ["FactorialProtocol", "simulate_factorial_participant"]
 
 
 @dataclass(frozen=True)
@@ -57,12 +56,6 @@ class FactorialProtocol:
 
     def conditions(self) -> tuple[str, ...]:
         return tuple(dict.fromkeys(c for p in self.parts for c in p.conditions))
-
-
-def factorial_cues(protocol: FactorialProtocol, vibrate: Callable[..., Any],
-                   params: ModelParams | None = None) -> tuple[StimulusCues, ...]:
-    """The cues of every part (see :func:`~tactorbelt.participant.simulate.stimulus_cues`)."""
-    return tuple(stimulus_cues(p, vibrate, params) for p in protocol.parts)
 
 
 def simulate_factorial_participant(protocol: FactorialProtocol, cues: Sequence[StimulusCues],

@@ -32,13 +32,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .._errors import ConfigError
-from ..participant.factorial import (
-    FactorialProtocol,
-    factorial_cues,
-    simulate_factorial_participant,
-)
+from ..participant.factorial import FactorialProtocol, simulate_factorial_participant
 from ..participant.params import ModelParams, draw_participant
-from ..participant.simulate import StimulusCues, TrialTable
+from ..participant.simulate import StimulusCues, TrialTable, stimulus_cues
 from .effects import Effect
 from .outcomes import PairedTest, PowerRow, StudyOutcome
 from .pool import p_value, run_sizes, studies
@@ -216,7 +212,8 @@ def run_power(protocol: FactorialProtocol, effect: Effect, sizes: Sequence[int],
     """
     from ..inputs.model import sim_vibrator
 
-    cues = factorial_cues(protocol, sim_vibrator(protocol.parts[0].layout), observer(protocol))
+    vibrate, typical = sim_vibrator(protocol.parts[0].layout), observer(protocol)
+    cues = tuple(stimulus_cues(p, vibrate, typical) for p in protocol.parts)
     return run_sizes(simulate_factorial_studies,
                      lambda n, idx: (protocol, cues, effect, n, idx, seed, analysis_paired_test),
                      sizes, sims, jobs, alpha, advance)
