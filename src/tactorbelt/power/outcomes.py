@@ -4,7 +4,7 @@ study size (with its Clopper-Pearson interval).
 A study *finds the effect* when its test's p-value is below alpha and, for an effect
 with a predicted direction, the direction holds (:meth:`StudyOutcome.found`).
 
-Pure: NumPy (SciPy inside :func:`binomial_ci`).
+Pure: NumPy and SciPy.
 """
 
 from __future__ import annotations
@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.stats import beta
 
 from .._errors import ConfigError
 
@@ -56,8 +57,6 @@ class StudyOutcome:
 
 def binomial_ci(k: int, n: int, level: float = 0.95) -> tuple[float, float]:
     """Clopper-Pearson (exact) confidence interval of a proportion k/n."""
-    from scipy.stats import beta
-
     if n <= 0:
         return float("nan"), float("nan")
     a = (1.0 - level) / 2.0

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
+from concurrent.futures import ProcessPoolExecutor, as_completed
 from typing import Any
 
 import numpy as np
@@ -62,8 +63,6 @@ def run_sizes(worker: Callable[..., list[StudyOutcome]],
             if advance is not None:
                 advance(len(done))
     else:
-        from concurrent.futures import ProcessPoolExecutor, as_completed
-
         finished: dict[int, list[StudyOutcome]] = {}
         with ProcessPoolExecutor(max_workers=jobs) as pool:
             futures = {pool.submit(worker, *item): i for i, (_, item) in enumerate(work)}

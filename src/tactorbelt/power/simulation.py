@@ -20,8 +20,8 @@ do not depend on how the work is split across processes.
 The power is a property of the model's assumptions (docs/participant-model.md), not of
 people: it says how large a study would need to be *if* people behaved like it.
 
-Pure apart from the process pool: NumPy and participant (SciPy in the tests; the
-analysis' Wilcoxon, the sim belt's vibration and the pool inside the functions).
+Pure apart from the process pool: NumPy, SciPy's tests, the analysis' Wilcoxon and
+participant (the sim belt's vibration inside :func:`run_power`).
 """
 
 from __future__ import annotations
@@ -30,8 +30,10 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.stats import friedmanchisquare, rankdata
 
 from .._errors import ConfigError
+from ..analysis.tables.classical import wilcoxon_paired
 from ..participant.factorial import FactorialProtocol, simulate_factorial_participant
 from ..participant.params import ModelParams, draw_participant
 from ..participant.simulate import StimulusCues, TrialTable, stimulus_cues
@@ -64,8 +66,6 @@ def exact_signed_rank_p(diff: NDArray[np.float64]) -> float | None:
     give the same proportions. ``tests/test_participant_fast.py`` checks the equality
     on random paired accuracies.
     """
-    from scipy.stats import rankdata
-
     d = np.asarray(diff, dtype=float)
     n = d.size
     nz = d[d != 0]
@@ -94,8 +94,6 @@ def analysis_paired_test(static: FloatArray, dynamic: FloatArray) -> float:
     about 0.2 s a call) the same p-value comes from :func:`exact_signed_rank_p` (a
     matrix product).
     """
-    from ..analysis.tables.classical import wilcoxon_paired
-
     s = np.asarray(static, dtype=float)
     d = np.asarray(dynamic, dtype=float)
     ok = ~(np.isnan(s) | np.isnan(d))
@@ -115,8 +113,6 @@ def analysis_paired_test(static: FloatArray, dynamic: FloatArray) -> float:
 def friedman_interaction(diff: FloatArray, paired: PairedTest) -> float:
     """p-value of "the per-participant differences (rows) differ across the target
     counts (columns)": Friedman, or the paired test with two counts; NaN if not computed."""
-    from scipy.stats import friedmanchisquare
-
     d = diff[np.isfinite(diff).all(axis=1)]
     if d.shape[0] < 2:
         return float("nan")
