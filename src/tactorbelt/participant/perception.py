@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import functools
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -107,8 +107,7 @@ class Cues:
         return Cues(*(np.asarray(getattr(self, f))[idx] for f in _CUE_FIELDS))
 
 
-_CUE_FIELDS = ("pair", "w_a", "w_b", "felt_a", "felt_b", "dwell_a_s", "dwell_b_s",
-               "overlap", "duration_s")
+_CUE_FIELDS = tuple(f.name for f in fields(Cues))
 
 
 def _sample_durations(t_s: FloatArray) -> FloatArray:
