@@ -31,8 +31,8 @@ def main() -> None:
     from tactorbelt.experiment.study import paper_study
     from tactorbelt.inputs.model import ModelCursor, make_model_cursor, sim_vibrator
     from tactorbelt.participant import ModelParams, simulate_participant, stimulus_cues
-    from tactorbelt.power.design import PowerDesign
     from tactorbelt.participant.factorial import FactorialProtocol
+    from tactorbelt.power.design import PowerDesign
     from tactorbelt.power.effects import Effect
     from tactorbelt.power.simulation import analysis_paired_test, simulate_factorial_studies
 
