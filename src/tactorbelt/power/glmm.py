@@ -44,7 +44,7 @@ import numpy as np
 import pandas as pd
 
 from .._errors import ConfigError
-from ..analysis.models.fit import _average_contrast, fit_model
+from ..analysis.models.fit import _average_contrast, fit_model, model_spec
 from ..analysis.models.glmm import fit_glmm
 from ..analysis.models.lrt import likelihood_ratio, null_spec
 from .design import TrialDesign
@@ -52,7 +52,7 @@ from .outcomes import PowerRow, StudyOutcome
 from .pool import run_sizes, studies
 
 __all__ = ["HeadlineResult", "NamedEffect", "TrialDesign", "headline_statistics",
-           "named_power", "simulate_frame", "simulate_glmm_studies"]
+           "maximal_formula", "named_power", "simulate_frame", "simulate_glmm_studies"]
 
 
 def _logit(p: float) -> float:
@@ -143,6 +143,13 @@ def simulate_frame(trials: TrialDesign, effect: NamedEffect, n_participants: int
     for column, levels in trials.levels.items():  # recorded factors: no effect drawn
         frame[column] = np.tile(levels, n_participants)
     return frame
+
+
+def maximal_formula(trials: TrialDesign, effect: NamedEffect) -> str:
+    """The maximal model each simulated study is analysed with (its fixed part follows
+    the design: every factor that varies, the declared ones included)."""
+    frame = simulate_frame(trials, effect, 3, np.random.default_rng(0))
+    return str(model_spec(frame)[0].formula())
 
 
 @dataclass(frozen=True)

@@ -32,7 +32,7 @@ from .._errors import ConfigError
 
 if TYPE_CHECKING:
     from ..experiment.study import Study
-    from .design import PowerDesign, TrialDesign
+    from .design import PowerDesign
     from .effects import Effect
     from .glmm import NamedEffect
     from .outcomes import PowerRow
@@ -169,18 +169,6 @@ def run_power_study(study: Study, sizes: Sequence[int], sims: int, seed: int, ou
                             what if effect is not None else eff.describe(), pair)
 
 
-def _maximal_formula(trials: TrialDesign, named: NamedEffect) -> str:
-    """The maximal model each simulated study is analysed with (its fixed part follows
-    the design: every factor that varies, the declared ones included)."""
-    import numpy as np
-
-    from ..analysis.models.fit import model_spec
-    from .glmm import simulate_frame
-
-    frame = simulate_frame(trials, named, 3, np.random.default_rng(0))
-    return str(model_spec(frame)[0].formula())
-
-
 def _named_power(design: PowerDesign, eff: Effect, named: NamedEffect, sizes: Sequence[int],
                  sims: int, seed: int, out: Path, jobs: int, alpha: float,
                  advance: Callable[[int], None] | None) -> PowerStudyResult:
@@ -193,11 +181,11 @@ def _named_power(design: PowerDesign, eff: Effect, named: NamedEffect, sizes: Se
     if min(sizes) < 3:
         raise ConfigError("the report's mixed model needs at least 3 participants: use "
                           "study sizes of 3 or more with --odds-ratio")
-    from .glmm import named_power
+    from .glmm import maximal_formula, named_power
 
     trials = design.trials(eff.n_targets)
     rows = named_power(trials, named, sizes, sims, seed, jobs, alpha, advance)
-    formula = _maximal_formula(trials, named)
+    formula = maximal_formula(trials, named)
     what = (f"odds ratio {named.odds_ratio:g} (dynamic over static, {trials.n_targets} "
             "targets)")
     _write_power(rows, out, {
