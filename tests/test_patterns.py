@@ -27,7 +27,6 @@ from tactorbelt.patterns.model import (
     Event,
     Pattern,
     PatternFileError,
-    load_pattern,
     pattern_from_dict,
     pattern_to_dict,
     save_pattern,
@@ -174,7 +173,7 @@ def test_a_long_envelope_is_split_into_curves_core_haptics_takes(tmp_path: Path)
 def test_the_pattern_json_reads_back_as_written(sample: Path, tmp_path: Path) -> None:
     p = read_any(sample)
     save_pattern(p, tmp_path / "p.json")
-    back = load_pattern(tmp_path / "p.json")
+    back = read_any(tmp_path / "p.json")
     assert pattern_to_dict(back) == pattern_to_dict(p)
     _same_events(p, back)
 
@@ -313,7 +312,7 @@ def test_an_empty_pattern_imports_but_cannot_be_played_exported_or_drawn(
     path = _write(tmp_path, "empty.ahap", {"Version": 1, "Pattern": []})
     code, out, _ = run("pattern", "import", str(path), "-o", str(tmp_path / "e.json"))
     assert code == 0 and ": 0 events" in out
-    assert load_pattern(tmp_path / "e.json").events == ()
+    assert read_any(tmp_path / "e.json").events == ()
     for args in (["play", "--belt", "sim:virtual"], ["export", "--format", "wav", "-o",
                                                       str(tmp_path / "e.wav")],
                  ["show", "-o", str(tmp_path / "e.png")]):

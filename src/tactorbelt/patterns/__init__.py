@@ -24,10 +24,10 @@ from typing import Any
 from .._registry import lazy_attributes
 
 __all__ = ["FORMAT", "Event", "Pattern", "PatternFileError", "PatternPlayback", "export_pattern",
-           "load_pattern", "play_pattern", "read_any", "save_pattern", "schema", "show_pattern"]
+           "play_pattern", "read_any", "save_pattern", "schema", "show_pattern"]
 
 _WHERE = {"FORMAT": ".model", "Event": ".model", "Pattern": ".model",
-          "PatternFileError": ".model", "load_pattern": ".model", "save_pattern": ".model",
+          "PatternFileError": ".model", "save_pattern": ".model",
           "PatternPlayback": ".render", "export_pattern": ".io", "read_any": ".io",
           "show_pattern": ".show", "play_pattern": ".play"}
 

@@ -27,7 +27,6 @@ __all__ = [
     "Pattern",
     "PatternFileError",
     "imported",
-    "load_pattern",
     "pattern_from_dict",
     "pattern_to_dict",
     "save_pattern",
@@ -285,15 +284,6 @@ def _event(r: _Reader, raw: Any, where: str, n_tactors: int) -> Event:
     sharp = d.get("sharpness")
     sharpness = None if sharp is None else r.unit(sharp, f"{where}.sharpness")
     return Event(at, dur, intensity, tactor, angle, path, tuple(env), transient, sharpness)
-
-
-def load_pattern(path: str | Path) -> Pattern:
-    """Read a ``tactorbelt.pattern/1`` JSON file.
-
-    Raises:
-        PatternFileError: unreadable, not JSON, or not a valid pattern (file, field, reason).
-    """
-    return pattern_from_dict(read_json(path), str(path))
 
 
 def read_json(path: str | Path) -> Any:
