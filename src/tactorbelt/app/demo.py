@@ -17,8 +17,8 @@ is scheduled with seed ``s``, and the analysis seed is derived from the stored s
 The participants are models (docs/participant-model.md); their results follow from the
 model's assumptions and are no evidence about people.
 
-I/O: writes files and a store; imports NumPy, the runner and the analysis only inside the
-functions.
+I/O: writes files and a store. Only ``tactorbelt demo`` (inside its command) and the tests
+import this module, so NumPy, the runner and the analysis load at its top.
 """
 
 from __future__ import annotations
@@ -27,15 +27,23 @@ import json
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
+
+import numpy as np
 
 from .._errors import ConfigError
+from ..analysis.report.analyze import analyze
+from ..analysis.summary import Summary
+from ..clock import SimClock
+from ..devices import open_belt
+from ..experiment.runner import run_session
+from ..experiment.store import open_store
+from ..experiment.store.sqlite import move_store_file
+from ..experiment.study import PAPER_STUDY_TOML, Study
+from ..inputs import make_cursor
+from ..participant.load import LoadParams
+from ..participant.params import ModelParams, draw_participant
 from ..power.study import MODEL_NOTE, prepare_out
-
-if TYPE_CHECKING:
-    from ..analysis.summary import Summary
-    from ..experiment.study import Study
-    from ..participant.params import ModelParams
 
 __all__ = [
     "MODEL_NOTE",
@@ -73,10 +81,6 @@ class ModelParticipant:
 
 def model_participants(n: int, seed: int, base: ModelParams) -> list[ModelParticipant]:
     """The study's model participants under the one seed policy (see the module doc)."""
-    import numpy as np
-
-    from ..participant.params import draw_participant
-
     people = []
     for i, pid in enumerate(participant_ids(n)):
         params_seq, cursor_seq = np.random.SeedSequence([seed, i + 1]).spawn(2)
@@ -122,16 +126,6 @@ def run_model_study(out: Path, n_participants: int, seed: int,
         StudyFileError: the study file is not a valid study (file, line and field).
         StoreError: another run is using the store.
     """
-    from ..analysis.report.analyze import analyze
-    from ..clock import SimClock
-    from ..devices import open_belt
-    from ..experiment.runner import run_session
-    from ..experiment.store import open_store
-    from ..experiment.store.sqlite import move_store_file
-    from ..experiment.study import PAPER_STUDY_TOML, Study
-    from ..inputs import make_cursor
-    from ..participant.params import ModelParams
-
     if study_file is not None:
         try:
             study_toml = Path(study_file).read_text(encoding="utf-8")
@@ -179,8 +173,6 @@ def run_model_study(out: Path, n_participants: int, seed: int,
         "participants": {p.pid: {"seed": p.cursor_seed, "params": p.params.to_dict()}
                          for p in people}}
     if study.tasks or study.questionnaire.tlx:
-        from ..participant.load import LoadParams
-
         doc["load_model"] = LoadParams().to_dict()  # shared; docs/participant-model.md
     (out / "participants.json").write_text(json.dumps(doc, indent=2) + "\n",
                                            encoding="utf-8")
