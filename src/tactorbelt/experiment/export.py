@@ -437,11 +437,8 @@ def export_csv(db: str | Path, out: str | Path, *, force: bool = False) -> list[
         files = []
         try:
             for name, rows in _table_rows(store).items():
-                files.append(o / f"{name}.csv")
-                with files[-1].open("w", newline="") as fh:
-                    w = csv.writer(fh)
-                    w.writerow(dtypes(name))
-                    w.writerows([_csv_value(v) for v in r] for r in rows)
+                files.append(_write_csv(o / f"{name}.csv", dtypes(name),
+                                        ([_csv_value(v) for v in r] for r in rows)))
         except OSError as exc:
             raise ConfigError(f"cannot write to {o}: {exc.strerror}") from None
     return files
@@ -452,13 +449,21 @@ def _write_json(path: Path, doc: Any) -> Path:
     return path
 
 
+def _write_csv(path: Path, header: Iterable[str], rows: Iterable[Sequence[Any]],
+               encoding: str | None = None, **fmt: Any) -> Path:
+    """A CSV file: the header, then the rows (``fmt``: the csv writer's format)."""
+    with path.open("w", newline="", encoding=encoding) as fh:
+        w = csv.writer(fh, **fmt)
+        w.writerow(header)
+        w.writerows(rows)
+    return path
+
+
 def _write_tsv(path: Path, header: list[str], rows: Iterable[Sequence[Any]],
                sidecar: dict[str, Any]) -> list[Path]:
     """A TSV file (``n/a`` for a missing value) and its JSON sidecar; both paths."""
-    with path.open("w", newline="") as fh:
-        w = csv.writer(fh, delimiter="\t", lineterminator="\n")
-        w.writerow(header)
-        w.writerows([_na(v) for v in row] for row in rows)
+    _write_csv(path, header, ([_na(v) for v in row] for row in rows), delimiter="\t",
+               lineterminator="\n")
     return [path, _write_json(path.with_suffix(".json"), sidecar)]
 
 

@@ -26,7 +26,6 @@ I/O: reads a store read-only and writes files; pandas (and pyarrow for Parquet).
 
 from __future__ import annotations
 
-import csv
 import datetime as dt
 import math
 import re
@@ -37,7 +36,7 @@ from typing import TYPE_CHECKING, Any
 
 from .._errors import ConfigError
 from ..factors import CONDITION, LOAD, TARGETS, Factor, added_factors, after_builtin
-from .export import DTYPES, _csv_value, _open, _prepare, _table_rows, _with_cell, dtypes
+from .export import DTYPES, _csv_value, _open, _prepare, _table_rows, _with_cell, _write_csv, dtypes
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -208,19 +207,13 @@ def export_tidy(db: str | Path, out: str | Path, *, force: bool = False) -> list
                 t["status"], int(bool(t["correct"])) if t["status"] == "done" else 0,
                 t["rt_s"] if t["status"] == "done" else None, resp, t["response_target_deg"],
                 None if resp is None else _wrap180(float(resp) - float(t["target_deg"]))])
-    files = [o / "trials_tidy.csv", o / "codebook.csv"]
     try:
-        with files[0].open("w", newline="") as fh:
-            w = csv.writer(fh)
-            w.writerow([c[0] for c in columns])
-            w.writerows([[_na(v) for v in r] for r in rows])
-        with files[1].open("w", newline="") as fh:
-            w = csv.writer(fh)
-            w.writerow(["column", "type", "r_type", "jasp_type", "description"])
-            w.writerows(columns)
+        return [_write_csv(o / "trials_tidy.csv", [c[0] for c in columns],
+                           [[_na(v) for v in r] for r in rows]),
+                _write_csv(o / "codebook.csv",
+                           ["column", "type", "r_type", "jasp_type", "description"], columns)]
     except OSError as exc:
         raise ConfigError(f"cannot write to {o}: {exc.strerror}") from None
-    return files
 
 
 def psychopy_date(iso: str | None) -> str:
@@ -307,10 +300,9 @@ def export_psychopy(db: str | Path, out: str | Path, *, force: bool = False) -> 
             try:
                 # as PsychoPy writes them: UTF-8 with a byte-order mark, a delimiter after
                 # the last column of every line
-                with path.open("w", newline="", encoding="utf-8-sig") as fh:
-                    w = csv.writer(fh, lineterminator="\n")
-                    w.writerow([*columns, ""])
-                    w.writerows([["" if v is None else v for v in r] + [""] for r in rows])
+                _write_csv(path, [*columns, ""],
+                           [["" if v is None else v for v in r] + [""] for r in rows],
+                           encoding="utf-8-sig", lineterminator="\n")
             except OSError as exc:
                 raise ConfigError(f"cannot write to {o}: {exc.strerror}") from None
             files.append(path)
