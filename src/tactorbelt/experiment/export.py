@@ -54,6 +54,7 @@ from collections.abc import Iterable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
+from .. import __version__
 from .._errors import ConfigError
 from ..factors import CONDITION, LOAD, TARGETS, Factor, added_factors, after_builtin
 from ..tasks import TLX_ITEMS, TLX_SCALES
@@ -641,8 +642,6 @@ def export_bids(db: str | Path, out: str | Path, *, readme: str | Path | None = 
     Returns:
         The files written.
     """
-    from .. import __version__
-
     readme_text: str | None = None
     readme_name = "README.md"
     if readme is not None:

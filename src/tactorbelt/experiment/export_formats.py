@@ -34,6 +34,7 @@ from collections.abc import Iterable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from .. import __version__
 from .._errors import ConfigError
 from ..factors import CONDITION, LOAD, TARGETS, Factor, added_factors, after_builtin
 from .export import DTYPES, _csv_value, _open, _prepare, _table_rows, _with_cell, _write_csv, dtypes
@@ -244,8 +245,6 @@ def export_psychopy(db: str | Path, out: str | Path, *, force: bool = False) -> 
     """Write one PsychoPy-style wide CSV per session into ``out`` (module doc): rows are
     the session's trials in running order (aborted attempts left out, as PsychoPy
     keeps no row for a trial that did not run to its end)."""
-    from .. import __version__
-
     columns = psychopy_columns()
     added = added_factors()
     with _open(db) as store:

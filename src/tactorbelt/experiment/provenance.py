@@ -15,6 +15,8 @@ from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
 
+from .. import __version__
+
 __all__ = ["BATCH_TRIALS", "COMMITS_BATCHED", "COMMITS_PER_TRIAL", "SITE_ENV",
            "Provenance", "collect", "commit_mode", "default_site", "git_commit"]
 
@@ -46,8 +48,6 @@ class Provenance:
 
 def collect() -> Provenance:
     """The provenance of this process."""
-    from .. import __version__
-
     return Provenance(__version__, git_commit(), socket.gethostname())
 
 

@@ -30,6 +30,7 @@ from typing import Any
 
 from .._errors import StoreError
 from .listeners import SessionInfo, SessionListener
+from .provenance import default_site
 from .schedule import ScheduledTrial
 from .store import Store, open_store
 from .trial import TrialResult
@@ -92,8 +93,6 @@ def sync_session(local: Store, remote: Store, row: Mapping[str, Any],
                          "open the store for writing once (tactorbelt sync does) to give it one")
     full = dict(row)
     if not full.get("site"):
-        from .provenance import default_site
-
         full["site"] = site or default_site()
     state = remote.sync_state(uuid)
     if state is None:
@@ -143,8 +142,6 @@ def check_sites(local: Store, remote: Store, rows: list[dict[str, Any]],
                 site: str | None = None) -> None:
     """Refuse (StoreError, before anything is copied) sessions of a site that
     ``remote``'s login may not write, naming them."""
-    from .provenance import default_site
-
     by_site: dict[str, list[str]] = {}
     for row in rows:
         name = f"session {row['session_id']} ({row['participant']})"
