@@ -32,16 +32,14 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING, Any, Final
+from typing import Any, Final
 
 import numpy as np
+import pandas as pd
 from scipy.stats import chi2
 from scipy.stats import f as f_dist
 
 from .glmm import GlmmData, MixedModelFit, ModelSpec, glmm_fit, one_blas_thread
-
-if TYPE_CHECKING:
-    import pandas as pd
 
 __all__ = [
     "DEFAULT_PB_SIMS",

@@ -26,15 +26,13 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
+import pandas as pd
 from scipy.stats import t as t_dist
 
 from .glmm import Z95, LmmData, MixedModelFit, one_blas_thread
-
-if TYPE_CHECKING:
-    import pandas as pd
 
 __all__ = ["richardson_hessian", "richardson_jacobian", "satterthwaite"]
 

@@ -29,15 +29,13 @@ Pure: NumPy, pandas, SciPy; no I/O.
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field
-from typing import TYPE_CHECKING, Any, Final
+from typing import Any, Final
 
 import numpy as np
+import pandas as pd
 from scipy.optimize import linprog
 
 from .glmm import ModelSpec, fixed_design, term_column
-
-if TYPE_CHECKING:
-    import pandas as pd
 
 __all__ = ["Separation", "detect_separation", "not_estimable_text"]
 

@@ -24,9 +24,9 @@ from ... import __version__
 from ..._errors import ConfigError
 from ..models.glmm import FixefPrior
 from ..models.lme4 import Lme4Unavailable
-from ..summary import summarize
+from ..summary import Summary, summarize
 from ..tables.classical import DEFAULT_N_BOOT
-from ..tables.load import analysis_seed, load_samples, load_stores
+from ..tables.load import StoreData, analysis_seed, load_samples, load_stores
 from ..tables.tables import CONDITIONS, KIND_LABELS, KINDS, per_site
 from .figures import make_figures
 from .formatting import fixed as _fmt
@@ -37,9 +37,6 @@ from .tasks_figures import TASK_FIGURE_ORDER
 
 if TYPE_CHECKING:
     from rich.console import Console
-
-    from ..summary import Summary
-    from ..tables.dataset import StoreData
 
 __all__ = ["KNOWN_OUTPUTS", "ProgressFn", "analyze", "choose_sample_trials",
            "print_summary_table"]

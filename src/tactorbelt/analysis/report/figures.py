@@ -30,6 +30,7 @@ from dataclasses import replace
 from typing import TYPE_CHECKING, Any, Final
 
 import numpy as np
+import pandas as pd
 
 from ...factors import added_factors
 from ...geometry import TargetSet
@@ -55,8 +56,6 @@ from .tasks import has_load
 from .tasks_figures import load_figure, secondary_figure, tlx_figure
 
 if TYPE_CHECKING:
-    import pandas as pd
-
     from ..summary import Summary
     from ..tables.design import StudyDesign
 

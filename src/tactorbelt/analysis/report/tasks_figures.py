@@ -15,17 +15,15 @@ Pure apart from matplotlib (see :mod:`.figures`).
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from typing import TYPE_CHECKING, Any, Final
+from typing import Any, Final
 
 import numpy as np
+import pandas as pd
 
 from ...tasks import PHASES
 from ..tables.tables import CONDITIONS
 from ..tables.tasks import load_order
 from .plot_style import COLORS, LINESTYLES, MARKERS, _figure, _mean_ci, _no_data, _png, _style
-
-if TYPE_CHECKING:
-    import pandas as pd
 
 __all__ = ["TASK_FIGURE_CAPTIONS", "TASK_FIGURE_ORDER", "load_figure", "secondary_figure",
            "tlx_figure"]
