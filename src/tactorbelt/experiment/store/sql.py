@@ -27,6 +27,7 @@ from __future__ import annotations
 import abc
 import contextlib
 import json
+import uuid
 from collections.abc import Iterator, Mapping, Sequence
 from contextlib import AbstractContextManager
 from pathlib import Path
@@ -35,6 +36,7 @@ from typing import TYPE_CHECKING, Any, ClassVar
 from ..._errors import StoreError
 from ..._registry import check_option, resolve
 from ...factors import added_factors
+from ..provenance import default_site
 from ..schedule import ScheduledTrial, schedule_from_json, schedule_to_json
 from ..trial import TrialResult
 from .base import (
@@ -210,10 +212,6 @@ class Store(abc.ABC):
         Raises:
             StoreError: the participant id is taken at another site, or the write failed.
         """
-        import uuid
-
-        from ..provenance import default_site
-
         site = site or default_site()
         with self._transaction() as c:
             self._claim(c, participant, site)
