@@ -14,7 +14,6 @@ from typing import TYPE_CHECKING, Any
 
 from .._errors import ConfigError
 from ..calibration.perceptual import (
-    CalibrationSettings,
     PerceptualResult,
     Respondent,
     run_perceptual_calibration,
@@ -56,7 +55,6 @@ def make_respondent(kind: str, belt: Belt, *, seed: int, read_key: Callable[[], 
 
 def calibrate_wearer(belt_url: str, participant: str, *, input_kind: str = "keyboard",
                      db: str | None = None, out: str | None = None, seed: int = 0,
-                     settings: CalibrationSettings | None = None,
                      read_key: Callable[[], str] = lambda: "q",
                      say: Callable[[str], None] = lambda text: None) -> PerceptualResult:
     """``tactorbelt calibrate perceptual``: open the belt, run the procedure, keep the
@@ -77,8 +75,7 @@ def calibrate_wearer(belt_url: str, participant: str, *, input_kind: str = "keyb
         respondent = make_respondent(input_kind, belt, seed=seed, read_key=read_key, say=say)
         try:
             result = run_perceptual_calibration(belt, clock, respondent, participant=who,
-                                                settings=settings, seed=seed,
-                                                created=utc_now())
+                                                seed=seed, created=utc_now())
         finally:
             respondent.close()
     if db is not None:
