@@ -53,6 +53,7 @@ import shutil
 from collections.abc import Iterable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
+from urllib.parse import parse_qs
 
 from .. import __version__
 from .._errors import ConfigError
@@ -727,8 +728,6 @@ def _stimulus_system(session: dict[str, Any]) -> dict[str, Any]:
     """The ``StimulusSystem`` object of a session's ``_beh.json``: the belt, its tactor
     layout in body coordinates, its actuators (and carrier), the amplitude law, the
     calibration with each tactor's measured latency and rise, and the skin-onset rule."""
-    from urllib.parse import parse_qs
-
     from ..devices.registry import BACKENDS
 
     belt = str(session.get("belt") or "")
@@ -765,10 +764,8 @@ def _stimulus_system(session: dict[str, Any]) -> dict[str, Any]:
             "Law": sp.law, "FalloffDeg": sp.falloff_deg, "PeriodS": sp.period_s,
             "TransitS": sp.transit_s}
     rows: list[dict[str, Any]] = []
-    try:
+    with contextlib.suppress(TypeError, ValueError):
         rows = list(json.loads(session.get("calibration_json") or "[]") or [])
-    except (TypeError, ValueError):
-        rows = []
     if rows:
         tactors = []
         for k, r in enumerate(rows):
