@@ -13,15 +13,13 @@ from __future__ import annotations
 
 import math
 import re
-from typing import TYPE_CHECKING, Any, Final
+from typing import Any, Final
 
 from ...factors import added_factors
+from ..summary import Summary
 from ..tables.cells import IT_N_BOOT, is_factorial
 from ..tables.transfer import ESTIMATOR
 from .formatting import figure_view
-
-if TYPE_CHECKING:
-    from ..summary import Summary
 
 __all__ = ["CELL_FIGURE_CAPTIONS", "cells_view"]
 

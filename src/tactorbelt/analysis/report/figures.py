@@ -27,7 +27,7 @@ NumPy, pandas, matplotlib and tactorbelt.laws.
 from __future__ import annotations
 
 from dataclasses import replace
-from typing import TYPE_CHECKING, Any, Final
+from typing import Any, Final
 
 import numpy as np
 import pandas as pd
@@ -35,7 +35,9 @@ import pandas as pd
 from ...factors import added_factors
 from ...geometry import TargetSet
 from ...laws import amplitudes
+from ..summary import Summary
 from ..tables.cells import is_factorial
+from ..tables.design import StudyDesign
 from ..tables.tables import CONDITIONS, NO_RESPONSE, direction_summary
 from ..tables.transfer import ESTIMATOR
 from .plot_style import (
@@ -54,10 +56,6 @@ from .plot_style import (
 )
 from .tasks import has_load
 from .tasks_figures import load_figure, secondary_figure, tlx_figure
-
-if TYPE_CHECKING:
-    from ..summary import Summary
-    from ..tables.design import StudyDesign
 
 __all__ = [
     "COLORS",

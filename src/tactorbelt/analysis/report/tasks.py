@@ -10,15 +10,13 @@ Pure: plain values from a Summary and PNG bytes.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
+from ..summary import Summary
 from .formatting import figure_view
 from .formatting import number as _f
 from .formatting import p_value as _p
 from .tasks_figures import TASK_FIGURE_CAPTIONS, TASK_FIGURE_ORDER
-
-if TYPE_CHECKING:
-    from ..summary import Summary
 
 __all__ = ["has_load", "load_view", "test_text"]
 
