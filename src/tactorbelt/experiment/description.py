@@ -11,6 +11,7 @@ from typing import Any
 
 from ..geometry import TargetSet
 from ..tasks.kinds import task_kind
+from .schedule import block_order, make_schedule, order_rows, order_rule
 from .study import Study, plural
 
 __all__ = ["Cell", "StudyDescription", "describe"]
@@ -143,8 +144,6 @@ def describe(study: Study, participant: str = "P01", seed: int | None = None) ->
     Also builds the participant's schedule, so a study that cannot be scheduled fails
     here. ``seed`` (default ``session.seed``) matters for ``design.order = "random"``.
     """
-    from .schedule import block_order, make_schedule, order_rows, order_rule
-
     cells = tuple(Cell(b.label, study.block_n_targets(b), b.condition, b.load, b.repetitions,
                        tuple(b.levels.items()))
                   for b in study.test)
