@@ -26,6 +26,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Any, Literal, cast
 
+import tomli_w
 from pydantic import (
     BaseModel,
     ConfigDict,
@@ -627,8 +628,6 @@ class Study(_Model):
                  if not isinstance(written, dict) or k not in written}
         if not extra:
             return text
-        import tomli_w
-
         return (text.rstrip("\n") + "\n\n# written by tactorbelt: the pattern files the "
                 "stimuli name, as this session played them\n"
                 + tomli_w.dumps({"patterns": extra}))
@@ -710,8 +709,6 @@ class Study(_Model):
 
     def to_toml(self) -> str:
         """TOML text that :meth:`from_toml` reads back to an equal study."""
-        import tomli_w
-
         data = self.model_dump(mode="python", exclude_none=True)
         if self.design is not None:
             data.pop("test")
