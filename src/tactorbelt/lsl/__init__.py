@@ -170,6 +170,15 @@ def _levels(t: ScheduledTrial) -> dict[str, Any]:
     return {f.column: t.level(f) for f in factors()}
 
 
+def _child(node: Any, tag: str, /, **values: str) -> Any:
+    """Append the child ``tag`` to an LSL description node, with one text value per
+    keyword in the order given; returns the child."""
+    child = node.append_child(tag)
+    for key, value in values.items():
+        child.append_child_value(key, value)
+    return child
+
+
 def _plain(v: Any) -> Any:
     if isinstance(v, bool) or v is None or isinstance(v, int | str):
         return v
@@ -285,12 +294,8 @@ class LslListener(NullListener, AbstractContextManager["LslListener"]):
         self._describe(c, info)
         chans = c.desc().append_child("channels")
         for label, what in (("x", "right positive"), ("y", "up (front) positive")):
-            ch = chans.append_child("channel")
-            ch.append_child_value("label", label)
-            ch.append_child_value("type", "Position")
-            ch.append_child_value("unit", "ellipse radius")
-            ch.append_child_value("description", f"cursor {label}, {what}; the response "
-                                  "ellipse has radius 1")
+            _child(chans, "channel", label=label, type="Position", unit="ellipse radius",
+                   description=f"cursor {label}, {what}; the response ellipse has radius 1")
         try:
             self.markers = lsl.StreamOutlet(m)
             self.cursor = lsl.StreamOutlet(c)
@@ -376,28 +381,20 @@ class LslListener(NullListener, AbstractContextManager["LslListener"]):
         from .. import __version__
 
         d = si.desc()
-        acq = d.append_child("acquisition")
-        acq.append_child_value("manufacturer", "tactorbelt")
-        acq.append_child_value("version", __version__)
-        acq.append_child_value("clock", "sim" if self.clock.simulated else "wall")
-        st = d.append_child("study")
-        st.append_child_value("name", info.study.name)
-        st.append_child_value("condition_order", ",".join(info.condition_order))
+        _child(d, "acquisition", manufacturer="tactorbelt", version=__version__,
+               clock="sim" if self.clock.simulated else "wall")
+        _child(d, "study", name=info.study.name, condition_order=",".join(info.condition_order))
         d.append_child_value("participant", info.participant)
         d.append_child_value("session_id", str(info.session_id))
-        b = d.append_child("belt")
-        b.append_child_value("url", self.belt.url)
-        b.append_child_value("drive", self.belt.drive)
-        b.append_child_value("firmware_version", str(self.belt.firmware_version or ""))
-        b.append_child_value("reports_onsets", "true" if self.belt.reports_onsets else "false")
-        cal = self.belt.calibration
-        b.append_child_value("timing_validated", str(cal.validated or ""))
-        b.append_child_value("timing_method", str(cal.validation_method or ""))
+        belt, cal = self.belt, self.belt.calibration
+        b = _child(d, "belt", url=belt.url, drive=belt.drive,
+                   firmware_version=str(belt.firmware_version or ""),
+                   reports_onsets="true" if belt.reports_onsets else "false",
+                   timing_validated=str(cal.validated or ""),
+                   timing_method=str(cal.validation_method or ""))
         tactors = b.append_child("tactors")
-        for k, angle in enumerate(self.belt.layout.angles_deg):
-            t = tactors.append_child("tactor")
-            t.append_child_value("index", str(k))
-            t.append_child_value("angle_deg", f"{angle:g}")
+        for k, angle in enumerate(belt.layout.angles_deg):
+            t = _child(tactors, "tactor", index=str(k), angle_deg=f"{angle:g}")
             if k < cal.n:  # measured timing (ms): the skin-onset offset
                 for name in ("latency_ms", "latency_sd_ms", "rise_ms", "rise_sd_ms"):
                     v = getattr(cal.tactors[k], name)
