@@ -194,14 +194,13 @@ def _order(
     n_targets: int, passes: int, mode: str, rng: np.random.Generator
 ) -> list[tuple[int, int]]:
     """(repetition 1-based, target index) pairs for one block."""
+    pairs = [(r + 1, t) for r in range(passes) for t in range(n_targets)]
     if mode == "none" or mode == "sequential":
-        return [(r + 1, t) for r in range(passes) for t in range(n_targets)]
+        return pairs
     if mode == "per_repetition" or mode == "random":  # a permutation per repetition
         return [(r + 1, int(t)) for r in range(passes) for t in rng.permutation(n_targets)]
     # full: one permutation of every (repetition, target) pair
-    pairs = [(r + 1, t) for r in range(passes) for t in range(n_targets)]
-    perm = rng.permutation(len(pairs))
-    return [pairs[int(i)] for i in perm]
+    return [pairs[int(i)] for i in rng.permutation(len(pairs))]
 
 
 def make_schedule(study: Study, participant: str, seed: int | None = None) -> list[ScheduledTrial]:
