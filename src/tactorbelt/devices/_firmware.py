@@ -659,7 +659,10 @@ class FirmwareBelt(Belt, PacketSink):
             if not self.extensions:
                 self._probe_extensions()
             if self.extensions:
-                self._report_reset(info)
+                diag = self.diagnostics
+                if info.capabilities & wire.Capability.WATCHDOG_RESET or (
+                        diag is not None and diag.watchdog_reset):
+                    self._warn_watchdog("was last reset by its watchdog")
                 self._enable_flags()
                 self._sync_burst()
         except BaseException:
@@ -896,12 +899,6 @@ class FirmwareBelt(Belt, PacketSink):
         self.diagnostics = diag
         self.extensions = True
         return True
-
-    def _report_reset(self, info: wire.Info) -> None:
-        diag = self.diagnostics
-        if info.capabilities & wire.Capability.WATCHDOG_RESET or (
-                diag is not None and diag.watchdog_reset):
-            self._warn_watchdog("was last reset by its watchdog")
 
     def _warn_watchdog(self, what: str) -> None:
         self.watchdog_reset = True
