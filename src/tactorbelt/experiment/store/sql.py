@@ -586,5 +586,4 @@ def open_store(url: str | Path, create: bool = True, readonly: bool = False,
         StoreError: unknown or unavailable scheme, or the store cannot be opened (see
             the implementation's ``open``). Raised before anything is written.
     """
-    cls = backend_for(url)
-    return cls.open_url(url, create=create, readonly=readonly, verify=verify)
+    return Store.open(url, create=create, readonly=readonly, verify=verify)
