@@ -30,7 +30,7 @@ subprocess). Randomness comes from the ``seed`` argument only.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, Final
+from typing import Any, Final
 
 import numpy as np
 import pandas as pd
@@ -49,6 +49,7 @@ from .tables.classical import (
     mann_whitney_rt,
     wilcoxon_paired,
 )
+from .tables.dataset import StoreData
 from .tables.design import StudyDesign, parse_design
 from .tables.tables import (
     CONDITIONS,
@@ -62,9 +63,6 @@ from .tables.tables import (
     training_summary,
 )
 from .tables.tasks import secondary_tasks_json, tlx_rows, tlx_summary
-
-if TYPE_CHECKING:
-    from .tables.dataset import StoreData
 
 __all__ = ["COUNTING_RULES", "RT_FROM", "Summary", "rt_from_choice", "summarize"]
 
