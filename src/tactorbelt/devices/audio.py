@@ -508,17 +508,6 @@ def _parse_map(text: str, url: str) -> tuple[int, ...]:
     return chans
 
 
-def _rates_offered(sd: Any, device: AudioDevice, channels: int) -> list[int]:
-    offered = []
-    for rate in _COMMON_RATES:
-        try:
-            sd.check_output_settings(device.index, channels, "float32", None, rate)
-        except Exception:
-            continue
-        offered.append(rate)
-    return offered
-
-
 def open_audio(target: str, **options: Any) -> AudioBelt:
     """Open ``audio:DEVICE`` (see the module docstring and docs/audio.md).
 
@@ -584,7 +573,11 @@ def open_audio(target: str, **options: Any) -> AudioBelt:
     try:
         sd.check_output_settings(device.index, channels, "float32", None, rate)
     except Exception as exc:
-        offered = _rates_offered(sd, device, channels)
+        offered = []
+        for common in _COMMON_RATES:
+            with contextlib.suppress(Exception):
+                sd.check_output_settings(device.index, channels, "float32", None, common)
+                offered.append(common)
         raise DeviceError(f"audio device {device.label()} refuses {rate:g} Hz ({exc}); it "
                           f"offers {', '.join(f'{r} Hz' for r in offered) or 'no common rate'}"
                           ) from None
