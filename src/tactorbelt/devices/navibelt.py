@@ -235,7 +235,8 @@ class NaviBelt(Belt):
                      "the belt stops its motors when it loses its host (it leaves app "
                      "mode for wait mode)")
             last = ("" if not self._channels else "; last sent: " + ", ".join(
-                f"{i} % on motors {self._mask_motors(m)}" for i, m in self._channels.values()))
+                f"{i} % on motors {[k for k in range(MOTORS) if m >> k & 1]}"
+                for i, m in self._channels.values()))
             raise DeviceError(f"naviBelt on {self.port}: {why} while {doing}; {state}{last}")
 
     def channels_needed(self, levels: NDArray[np.float64]) -> NDArray[np.int64]:
@@ -243,10 +244,6 @@ class NaviBelt(Belt):
         steps = np.sort(np.rint(np.atleast_2d(levels) * 100.0).astype(np.int64), axis=1)
         new = np.diff(steps, axis=1, prepend=0) != 0
         return np.asarray((new & (steps > 0)).sum(axis=1), dtype=np.int64)
-
-    @staticmethod
-    def _mask_motors(mask: int) -> list[int]:
-        return [m for m in range(MOTORS) if mask >> m & 1]
 
     def _write_levels(self, levels: NDArray[np.float64]) -> None:
         self._check_link("playing")
