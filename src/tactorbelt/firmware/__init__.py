@@ -230,14 +230,6 @@ def _prepare(build_dir: str | os.PathLike[str] | None) -> tuple[Path, Path]:
     return sketch, work / "build"
 
 
-def _imu_flags(imu: str) -> tuple[str, ...]:
-    if imu not in IMUS:
-        raise ConfigError(f"imu must be one of {', '.join(IMUS)} (bmi270: Nano 33 BLE Rev2, "
-                          f"lsm9ds1: Rev1), got {imu!r}")
-    define, _ = IMUS[imu]
-    return ("--build-property", f"compiler.cpp.extra_flags=-D{define}")
-
-
 def build(*, build_dir: str | os.PathLike[str] | None = None,
           cli: str | None = None, imu: str = "bmi270") -> BuildResult:
     """Compile the bundled sketch for the Nano 33 BLE with arduino-cli.
@@ -253,11 +245,13 @@ def build(*, build_dir: str | os.PathLike[str] | None = None,
         ArduinoCliMissing: arduino-cli is not installed (the message is the steps).
         TactorbeltError: the compile failed.
     """
-    flags = _imu_flags(imu)
+    if imu not in IMUS:
+        raise ConfigError(f"imu must be one of {', '.join(IMUS)} (bmi270: Nano 33 BLE Rev2, "
+                          f"lsm9ds1: Rev1), got {imu!r}")
     exe = _arduino_cli(cli)
     sketch, out = _prepare(build_dir)
-    cmd = (exe, "compile", "--fqbn", FQBN, "--warnings", "all", *flags, "--output-dir",
-           str(out), str(sketch))
+    cmd = (exe, "compile", "--fqbn", FQBN, "--warnings", "all", "--build-property",
+           f"compiler.cpp.extra_flags=-D{IMUS[imu][0]}", "--output-dir", str(out), str(sketch))
     _run(cmd, "building the firmware", _BUILD_HINT)
     return BuildResult(sketch, out, (cmd,))
 
