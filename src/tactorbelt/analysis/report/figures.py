@@ -526,21 +526,12 @@ def make_figures(summary: Summary, samples: pd.DataFrame | None = None,
         assert summary.cells is not None
         figs["resolution.png"] = resolution_figure(summary.participant_cells, summary.cells)
         figs.update(fig1b_per_resolution(summary.design, summary.trials))
-    figs.update(_task_figures(summary))
-    return figs
-
-
-def _task_figures(summary: Summary) -> dict[str, bytes]:
-    """``load.png``, ``secondary.png`` and ``tlx.png`` of a study with a load
-    (:mod:`.tasks_figures`)."""
-    figs: dict[str, bytes] = {}
-    if not has_load(summary):
-        return figs
-    pc = summary.participant_cells
-    if pc is not None and len(pc) and pc["load"].nunique() > 1:
-        figs["load.png"] = load_figure(pc)
-    if summary.secondary_tasks is not None:
-        figs["secondary.png"] = secondary_figure(summary.secondary_tasks["rows"])
-    if summary.tlx is not None:
-        figs["tlx.png"] = tlx_figure(summary.tlx)
+    if has_load(summary):  # load.png, secondary.png and tlx.png (.tasks_figures)
+        pc = summary.participant_cells
+        if pc is not None and len(pc) and pc["load"].nunique() > 1:
+            figs["load.png"] = load_figure(pc)
+        if summary.secondary_tasks is not None:
+            figs["secondary.png"] = secondary_figure(summary.secondary_tasks["rows"])
+        if summary.tlx is not None:
+            figs["tlx.png"] = tlx_figure(summary.tlx)
     return figs
