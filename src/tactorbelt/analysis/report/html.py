@@ -128,8 +128,7 @@ def _condition_rows(summary: Summary) -> list[dict[str, Any]]:
             r = summary.condition_row(cond, kind)
             n = int(r["n"])
             rows.append({"condition": cond, "kind": KIND_LABELS[kind], "n": n,
-                         "n_participants": int(r["n_participants"]),
-                         "n_timeout": int(r["n_timeout"]),
+                         **{k: int(r[k]) for k in ("n_participants", "n_timeout")},
                          "none": "no trials" if n == 0 else "no answered trial",
                          **{k: r[k] for k in ("accuracy", "median_rt_s", "circ_mean_error_deg",
                                               "circ_sd_error_deg")}})
