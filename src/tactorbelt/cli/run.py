@@ -25,11 +25,6 @@ from .export import export
 __all__ = ["export", "run"]
 
 
-def _given(source: click.core.ParameterSource | None) -> bool:
-    """Whether an option was on the command line (not its default)."""
-    return source is not None and source.name not in ("DEFAULT", "DEFAULT_MAP")
-
-
 @click.command("run")
 @click.argument("study_file", metavar="STUDY", type=click.Path(dir_okay=False, path_type=Path))
 @click.option("--participant", "-p", required=True,
@@ -114,8 +109,9 @@ def run(ctx: click.Context, **opts: Any) -> None:
     from ..app.run import RunRequest, resume_command, run_study
 
     # the options given (not their defaults: --resume reuses the session's stored ones)
+    defaults = (None, click.core.ParameterSource.DEFAULT, click.core.ParameterSource.DEFAULT_MAP)
     req = RunRequest(**{name: value for name, value in opts.items()
-                        if _given(ctx.get_parameter_source(name))})
+                        if ctx.get_parameter_source(name) not in defaults})
     try:
         with counting_progress(req.participant) as progress:
             outcome = run_study(req, progress=progress,
