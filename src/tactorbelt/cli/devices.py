@@ -42,16 +42,6 @@ def _line(row: Found) -> str:
     return f"  {row.port}  {row.description}  {what}"
 
 
-def _joysticks() -> tuple[list[dict[str, Any]], str | None]:
-    """The joysticks SDL sees, or a note saying why none can be listed."""
-    try:
-        from ..inputs.joystick import list_joysticks
-
-        return list_joysticks(), None
-    except Exception as exc:  # no SDL, no display server: a note, not an error
-        return [], f"joysticks cannot be listed here ({exc})"
-
-
 @click.command(epilog="\b\nBelt URLs (--belt URL):\n" + "\n".join(
     f"  {', '.join(b.examples)}: {b.summary}" for b in BACKENDS.values())
     + "\n\n\b\nURL options (--belt serial:auto?timeout_s=2&heartbeat_ms=500):\n"
@@ -86,7 +76,13 @@ def devices(timeout_s: float, no_ble: bool, skip: tuple[str, ...], probe_all: bo
             assert discover is not None
             found[scheme] = discover(timeout_s=timeout_s, probe_all=probe_all)
     belts: list[Found] = [r for d in found.values() for r in d.rows if r.is_belt]
-    sticks, stick_note = _joysticks()
+    try:  # the joysticks SDL sees, or a note saying why none can be listed
+        from ..inputs.joystick import list_joysticks
+
+        sticks: list[dict[str, Any]] = list_joysticks()
+        stick_note: str | None = None
+    except Exception as exc:  # no SDL, no display server: a note, not an error
+        sticks, stick_note = [], f"joysticks cannot be listed here ({exc})"
     if as_json:
         out: dict[str, Any] = {}
         for scheme, d in found.items():
