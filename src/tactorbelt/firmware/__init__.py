@@ -164,13 +164,6 @@ def update_command(port: str | None) -> str:
     return f"tactorbelt firmware upload --port {port}"
 
 
-def _version_tuple(text: str) -> tuple[int, ...] | None:
-    try:
-        return tuple(int(x) for x in text.split("."))
-    except ValueError:
-        return None
-
-
 def version_note(board_version: str | None, usb_port: str | None) -> str:
     """What to say of a board's firmware version against the one this tactorbelt
     carries: "" when they are equal (or cannot be compared), else which is newer and the
@@ -181,8 +174,11 @@ def version_note(board_version: str | None, usb_port: str | None) -> str:
         return ""
     if board_version is None:
         return ""
-    board, mine = _version_tuple(board_version), _version_tuple(ours)
-    if board is None or mine is None or board == mine:
+    try:
+        board, mine = (tuple(int(x) for x in v.split(".")) for v in (board_version, ours))
+    except ValueError:  # a version that is not dotted numbers cannot be compared
+        return ""
+    if board == mine:
         return ""
     if board < mine:
         return (f"firmware {board_version} is older than this tactorbelt's {ours}; update "
