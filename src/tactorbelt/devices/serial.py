@@ -266,24 +266,19 @@ class SerialPortInfo:
         return f"{self.device} ({self.description}{ids})"
 
 
-def _looks_like_belt(vid: int | None, text: str) -> bool:
-    t = text.lower()
-    return vid == ARDUINO_VID or "nano 33 ble" in t or "arduino" in t
-
-
 def list_serial_ports() -> list[SerialPortInfo]:
     """Every serial port the OS lists, Arduino-looking ones first (else in the OS's order)."""
     from serial.tools import list_ports
 
     ports = []
     for p in list_ports.comports():
-        text = " ".join(str(x) for x in (p.description, p.product, p.manufacturer) if x)
+        text = " ".join(str(x) for x in (p.description, p.product, p.manufacturer) if x).lower()
         ports.append(SerialPortInfo(
             device=p.device,
             description=str(p.description or p.device),
             vid=p.vid,
             pid=p.pid,
-            looks_like_belt=_looks_like_belt(p.vid, text),
+            looks_like_belt=p.vid == ARDUINO_VID or "nano 33 ble" in text or "arduino" in text,
         ))
     ports.sort(key=lambda p: not p.looks_like_belt)
     return ports
