@@ -155,11 +155,8 @@ def belt_url_help() -> str:
 
 def url_options_help() -> str:
     """One line per backend with URL options (for ``tactorbelt devices --help``)."""
-    lines = []
-    for b in BACKENDS.values():
-        for o in b.options:
-            lines.append(f"  {b.scheme}: {o.name} ({o.kind.__name__}): {o.help}")
-    return "\n".join(lines)
+    return "\n".join(f"  {b.scheme}: {o.name} ({o.kind.__name__}): {o.help}"
+                     for b in BACKENDS.values() for o in b.options)
 
 
 _TIMEOUT: Final = UrlOption("timeout_s", float, "seconds a request waits for its reply",
