@@ -558,8 +558,8 @@ class SimBelt(Belt):
         parts.append(self._walk(bounds, self._levels_at(bounds, lead), t_last, w, e, u, onsets))
         t_arr, d_arr, w_arr, e_arr, u_arr = parts[0] if len(parts) == 1 else (
             np.concatenate(q) for q in zip(*parts, strict=True))
-        for t_keep in {keep_until, min(keep_until if also_keep is None else also_keep,
-                                       keep_until)}:
+        also = keep_until if also_keep is None else min(also_keep, keep_until)
+        for t_keep in {keep_until, also}:
             j = int(t_arr.searchsorted(t_keep, side="right")) - 1
             if j > 0:
                 self._keep_decision(int(t_arr[j]), w_arr[j], e_arr[j], u_arr[j])
