@@ -114,6 +114,12 @@ def test_make_model_cursor_needs_a_belt_that_models_vibration() -> None:
         make_model_cursor(Silent(), SimClock(), seed=1)  # type: ignore[arg-type]
     with pytest.raises(ConfigError, match="seed"):
         make_model_cursor(Silent(), SimClock(), seed="x", sense=lambda a, b: (a, b))  # type: ignore[arg-type]
+    with pytest.raises(ConfigError, match="params must be a ModelParams, got dict"):
+        make_model_cursor(Silent(), SimClock(), seed=1, params={},  # type: ignore[arg-type]
+                          sense=lambda a, b: (a, b))  # type: ignore[arg-type]
+    with pytest.raises(ConfigError, match="load must be a LoadParams, got float"):
+        make_model_cursor(Silent(), SimClock(), seed=1, load=0.5,  # type: ignore[arg-type]
+                          sense=lambda a, b: (a, b))  # type: ignore[arg-type]
 
 
 def _session(path: Path, seed: int, participant: str = "model-01") -> list[dict[str, object]]:

@@ -327,11 +327,15 @@ def make_model_cursor(belt: Belt, clock: Clock, seed: int, params: ModelParams |
         load: the dual-task model (default: :class:`LoadParams`).
 
     Raises:
-        ConfigError: the belt models no vibration and no ``sense`` was given, or the
-            seed is not an integer.
+        ConfigError: the belt models no vibration and no ``sense`` was given, the seed is
+            not an integer, or ``params`` or ``load`` is not of its type.
     """
     if isinstance(seed, bool) or not isinstance(seed, int | np.integer):
         raise ConfigError(f"the model participant's seed must be an integer, got {seed!r}")
+    if params is not None and not isinstance(params, ModelParams):
+        raise ConfigError(f"params must be a ModelParams, got {type(params).__name__}")
+    if load is not None and not isinstance(load, LoadParams):
+        raise ConfigError(f"load must be a LoadParams, got {type(load).__name__}")
     return ModelCursor(sense if sense is not None else _sense(belt), int(seed), params, clock,
                        load)
 
