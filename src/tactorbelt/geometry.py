@@ -25,6 +25,7 @@ __all__ = [
     "TargetSet",
     "normalize",
     "parse_angle",
+    "parse_number",
     "region_name",
     "wrap",
 ]
@@ -60,6 +61,17 @@ def wrap(angle: ArrayLike) -> Any:
     if w.size and not w.min() > -180.0:  # (a NaN anywhere: look at every element)
         w[w <= -180.0] = 180.0
     return w
+
+
+def parse_number(text: object, what: str) -> float:
+    """A finite float from text (or a number), or ConfigError naming ``what``."""
+    try:
+        value = float(text)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        raise ConfigError(f"{what} must be a number, got {text!r}") from None
+    if not math.isfinite(value):
+        raise ConfigError(f"{what} must be a finite number, got {text!r}")
+    return value
 
 
 def parse_angle(text: str | float, what: str = "angle") -> float:

@@ -18,7 +18,6 @@ with exit code 2. Imports click at module level; NumPy and the devices in functi
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypeVar
@@ -50,7 +49,6 @@ __all__ = [
     "load_calibration",
     "number",
     "output_option",
-    "parse_number",
     "seed_option",
     "stimulus_options",
 ]
@@ -83,17 +81,6 @@ def seed_option(help: str, default: int | None = None) -> Callable[[F], F]:
     """``--seed INTEGER`` (0 to 2**63 - 1)."""
     return click.option("--seed", type=Number(int, 0, 2**63 - 1), default=default,
                         show_default=default is not None, help=help)
-
-
-def parse_number(text: object, what: str) -> float:
-    """A finite float from text, or ConfigError naming the option."""
-    try:
-        value = float(text)  # type: ignore[arg-type]
-    except (TypeError, ValueError):
-        raise ConfigError(f"{what} must be a number, got {text!r}") from None
-    if not math.isfinite(value):
-        raise ConfigError(f"{what} must be a finite number, got {text!r}")
-    return value
 
 
 #: The stimulus options by parameter name, in the order ``--help`` lists them.
@@ -147,7 +134,7 @@ def build_layout(tactors: object | None, tactor_angles: str | None) -> Layout:
 def build_stimulus(angle: str, *, mode: str, law: str, falloff: object, tactors: object | None,
                    tactor_angles: str | None, period: object, transit: object) -> Stimulus:
     """Validate the stimulus options and build the stimulus for ANGLE."""
-    from ..geometry import parse_angle
+    from ..geometry import parse_angle, parse_number
     from ..stimuli import make_stimulus
 
     layout = build_layout(tactors, tactor_angles)

@@ -74,7 +74,7 @@ from numpy.typing import NDArray
 
 from .._errors import ConfigError, TactorbeltError
 from ..clock import Clock, Deadlines, WallClock
-from ..geometry import ANGLE_TOLERANCE_DEG, Layout, normalize, wrap
+from ..geometry import ANGLE_TOLERANCE_DEG, Layout, normalize, parse_number, wrap
 from ..laws import DEFAULT_FALLOFF_DEG
 from ..stimuli import DEFAULT_PERIOD_S, DEFAULT_TRANSIT_S, Stimulus, make_stimulus
 from .filters import (
@@ -113,16 +113,6 @@ Pair = tuple[int, int]
 
 # the segments of the perturbation's trapezoid within a pair (ccw tactor A, cw tactor B)
 _DWELL_A, _TO_B, _DWELL_B, _TO_A = range(4)
-
-
-def _number(value: object, what: str) -> float:
-    try:
-        v = float(value)  # type: ignore[arg-type]
-    except (TypeError, ValueError):
-        raise ConfigError(f"{what} must be a number, got {value!r}") from None
-    if not math.isfinite(v):
-        raise ConfigError(f"{what} must be a finite number, got {value!r}")
-    return v
 
 
 def _positive(value: object, what: str, allow_inf: bool = False) -> float:
@@ -215,7 +205,7 @@ class DirectionDisplay:
         self.falloff_deg = probe.falloff_deg
         self.period_s = probe.period_s
         self.transit_s = probe.transit_s
-        self.step_deg = _number(step_deg, "step_deg")
+        self.step_deg = parse_number(step_deg, "step_deg")
         if self.step_deg < 0:
             raise ConfigError(f"step_deg must be >= 0 degrees, got {step_deg!r}")
         self.slew_deg_per_s = _positive(slew_deg_per_s, "slew_deg_per_s", allow_inf=True)
@@ -315,7 +305,7 @@ class DirectionDisplay:
         Returns:
             The requested angle after hysteresis (what the display moves toward).
         """
-        x = _number(angle_deg, "angle")
+        x = parse_number(angle_deg, "angle")
         self._raise_thread_error()
         with self._lock:
             held = self.hysteresis(float(normalize(x)))
@@ -342,9 +332,9 @@ class DirectionDisplay:
         Returns:
             The requested body angle after hysteresis.
         """
-        b = _number(bearing_deg, "bearing")
-        h = _number(heading_deg, "heading")
-        t = self.clock.now_ns() / 1e9 if t_s is None else _number(t_s, "heading time")
+        b = parse_number(bearing_deg, "bearing")
+        h = parse_number(heading_deg, "heading")
+        t = self.clock.now_ns() / 1e9 if t_s is None else parse_number(t_s, "heading time")
         with self._lock:
             hf = self.heading_filter(h, t)
             self.filtered_heading_deg = hf
