@@ -203,11 +203,6 @@ def _find_output(words: str, sdl_audio: Any) -> str:
     return match[0]
 
 
-def _driver() -> str:
-    """SDL's audio driver as the environment asks for it (first of a list), or ''."""
-    return os.environ.get("SDL_AUDIODRIVER", "").split(",")[0].strip().lower()
-
-
 def _sdl_library() -> Any:
     """The SDL2 library pygame loaded, through ctypes (None when it cannot be found)."""
     paths: list[str] = []
@@ -273,8 +268,8 @@ class SdlTaskAudio(TaskAudio):
         import pygame._sdl2.sdl2 as sdl
 
         self.clock = clock
-        self.rate = RATE
-        self.driver = _driver()
+        # SDL's audio driver as the environment asks for it (first of a list), or ''
+        self.driver = os.environ.get("SDL_AUDIODRIVER", "").split(",")[0].strip().lower()
         immediate = self.driver in IMMEDIATE_DRIVERS
         self.follow = 1.0 if immediate else 0.2
         self._inbox: collections.deque[_Sound] = collections.deque()
