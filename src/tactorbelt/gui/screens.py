@@ -20,6 +20,7 @@ Pure text and layout (with the stimuli and the task presenter); :func:`compose` 
 from __future__ import annotations
 
 import copy
+import functools
 import itertools
 import math
 from collections.abc import Callable, Container
@@ -354,7 +355,7 @@ class TactorLevels:
     them (the sim belt), else computed from the trial's stimulus (kept per stimulus)."""
 
     def __init__(self) -> None:
-        self._stimuli: dict[tuple[Any, ...], Any] = {}
+        self._stimulus = functools.cache(make_stimulus)
 
     def __call__(self, s: WindowController, now_ns: int) -> Any:
         lv = s.belt.levels if s.belt is not None else None
@@ -364,13 +365,8 @@ class TactorLevels:
         if cur is None or cur.phase != "stimulus" or cur.onset_ns is None:
             return [0.0] * len(s.tactors_deg)
         sp = s.study.trial_stimulus(cur.trial.block_name)
-        key = (cur.trial.target_deg, cur.trial.condition, sp.law, sp.falloff_deg,
-               sp.period_s, sp.transit_s)
-        stim = self._stimuli.get(key)
-        if stim is None:
-            stim = make_stimulus(s.layout, cur.trial.target_deg, cur.trial.condition,
-                                 sp.law, sp.falloff_deg, sp.period_s, sp.transit_s)
-            self._stimuli[key] = stim
+        stim = self._stimulus(s.layout, cur.trial.target_deg, cur.trial.condition, sp.law,
+                              sp.falloff_deg, sp.period_s, sp.transit_s)
         return stim.amplitudes((now_ns - cur.onset_ns) / 1e9)
 
 
