@@ -37,6 +37,7 @@ belt; never the window or a hardware backend.
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -174,7 +175,7 @@ class ModelCursor(CursorSource):
         self._onset_ns = 0
         self._decide_ns: int | None = None
         self._move = _Move(0, 1, 0.0, 0.0, 0.0, 0.0)  # at rest in the centre
-        self._targets: dict[tuple[float, ...], TargetSet] = {}
+        self._target_set = functools.cache(TargetSet)  # one per candidate set shown
         self._noise: list[float] | None = None  # the block as a list, for tick-by-tick reads
         self._noise_arr: NDArray[np.float64] = np.zeros(0)
         self._noise_i = 0
@@ -280,12 +281,6 @@ class ModelCursor(CursorSource):
         self._noise = None
         self._noise_i = 0
 
-    def _target_set(self, cue: TrialCue) -> TargetSet:
-        key = tuple(cue.targets_deg)
-        if key not in self._targets:
-            self._targets[key] = TargetSet(key)
-        return self._targets[key]
-
     def _decide(self, now_ns: int) -> None:
         cue = self._cue
         assert cue is not None
@@ -297,7 +292,7 @@ class ModelCursor(CursorSource):
         else:
             t_ns, vib = self._sense(self._onset_ns, now_ns)
             t_s = (np.asarray(t_ns, dtype=np.int64) - self._onset_ns) / 1e9
-            targets = self._target_set(cue)
+            targets = self._target_set(tuple(cue.targets_deg))
             percept = perceive_vibration(t_s, vib, cue.layout, targets, p, self._rng)
             answer = float(percept.response_deg[0])
         wait = one_decision_s(self._rng, len(cue.targets_deg), p)
@@ -415,7 +410,7 @@ def sim_vibrator(layout: Layout, **sim_options: Any
         belt = SimBelt(layout=layout, clock=clock, **sim_options)
         with belt:
             belt.play(stimulus)
-            t0 = clock.now_ns()
+            t0 = clock.now_ns() + belt.preroll_ns  # the onset, as Player.start gives it
             clock.advance(round(duration_s * 1e9))
             t_ns, vib = belt.vibration(t0, clock.now_ns())
         return (np.asarray(t_ns) - t0) / 1e9, np.asarray(vib)
