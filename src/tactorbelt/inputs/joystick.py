@@ -162,8 +162,6 @@ class JoystickCursor(LiveCursor):
         self._backend = backend if backend is not None else _PygameJoysticks()
         self._js: Any = None
         self._instance_id: int | None = None
-        self.name: str | None = None
-        self.problem: str | None = None
         self.raw_axes: tuple[float, float] = (0.0, 0.0)
         for i in range(self._backend.count()):
             if self._try_open(i):
