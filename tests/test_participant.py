@@ -7,6 +7,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
+from support.observers import noiseless
 from tactorbelt import ConfigError
 from tactorbelt.geometry import Layout, TargetSet, wrap
 from tactorbelt.laws import amplitudes
@@ -112,7 +113,7 @@ def test_ideal_observer_feels_energy_law_where_rendered(layout: Layout) -> None:
     x = rng.uniform(0, 360, 200)
     amps = amplitudes(layout, x, "energy")  # (200, N), steady state
     vib = np.repeat(amps[:, None, :], 50, axis=1)
-    ideal = ModelParams().noiseless().replace(detect_amplitude=0.0)  # feels any vibration
+    ideal = noiseless().replace(detect_amplitude=0.0)  # feels any vibration
     pc = perceive(sense_cues(T_S[:50], vib, layout, ideal), layout, TargetSet.even(24), ideal,
                   np.random.default_rng(6))
     assert np.max(np.abs(wrap(pc.perceived_deg - x))) < 1e-9
@@ -122,7 +123,7 @@ def test_ideal_observer_feels_paper_law_quarter_point_displaced() -> None:
     """It perceives what is rendered, not the target: the paper's law at a quarter point
     is felt nearer the near tactor once the weights are squared amplitudes."""
     layout = Layout.even(6)
-    ideal = ModelParams().noiseless()
+    ideal = noiseless()
     amps = amplitudes(layout, 45.0, "paper")
     pc = perceive_vibration(T_S, steady(amps), layout, TargetSet.even(24), ideal)
     w = amps**2
@@ -135,7 +136,7 @@ def test_gamma_sets_the_weights() -> None:
     layout = Layout.even(6)
     amps = amplitudes(layout, 60.0 - 10.0, "linear")
     for gamma in (1.0, 2.0, 3.0):
-        p = ModelParams(gamma=gamma).noiseless()
+        p = noiseless(ModelParams(gamma=gamma))
         pc = perceive_vibration(T_S, steady(amps), layout, TargetSet.even(24), p)
         w = amps**gamma
         assert pc.perceived_deg[0] == pytest.approx(30 + 60 * w[1] / (w[0] + w[1]), abs=1e-9)
@@ -188,7 +189,7 @@ def test_dynamic_beats_static_between_tactors_with_a_simple_erm() -> None:
 def test_single_and_silent_tactors() -> None:
     layout = Layout.even(6)
     targets = TargetSet.even(24)
-    p = ModelParams().noiseless()
+    p = noiseless()
     on = perceive_vibration(T_S, steady(np.eye(6)[2]), layout, targets, p)
     assert on.kind[0] == KIND_SINGLE and on.response_deg[0] == 150.0
     off = perceive_vibration(T_S, np.zeros((T_S.size, 6)), layout, targets, p,
@@ -199,7 +200,7 @@ def test_single_and_silent_tactors() -> None:
 
 def test_two_point_percepts_answer_at_the_stronger_tactor() -> None:
     layout = Layout.even(6)
-    p = ModelParams().noiseless().replace(p_two_points=1.0)
+    p = noiseless().replace(p_two_points=1.0)
     amps = amplitudes(layout, 45.0, "paper")
     pc = perceive_vibration(T_S, steady(amps), layout, TargetSet.even(24), p)
     assert pc.two_points[0] and pc.response_deg[0] == 30.0
@@ -207,7 +208,7 @@ def test_two_point_percepts_answer_at_the_stronger_tactor() -> None:
 
 def test_lapses_answer_at_random() -> None:
     layout = Layout.even(6)
-    p = ModelParams().noiseless().replace(lapse=1.0)
+    p = noiseless().replace(lapse=1.0)
     vib = np.repeat(steady(np.eye(6)[0])[None], 2000, axis=0)
     pc = perceive_vibration(T_S, vib, layout, TargetSet.even(24), p, np.random.default_rng(9))
     assert pc.guessed.all()

@@ -164,16 +164,6 @@ class ModelParams:
         share = self.observe_dynamic_s / 1.0
         return self.replace(observe_dynamic_s=max(self.observe_static_s, share * period_s))
 
-    def noiseless(self) -> ModelParams:
-        """The ideal observer: no perceptual noise, bias, lapse or two-point percepts.
-
-        Timing keeps its means (no ex-Gaussian spread); movement keeps no endpoint noise.
-        """
-        return self.replace(weber_amplitude=0.0, weber_duration=0.0, p_two_points=0.0,
-                            loc_sd_min_deg=0.0, loc_sd_max_deg=0.0, midline_bias_deg=0.0,
-                            lapse=0.0, exgauss_sigma_s=0.0, exgauss_tau_s=0.0,
-                            endpoint_sd_deg=0.0, jitter=0.0)
-
     def to_dict(self) -> dict[str, float]:
         """The parameters as a plain dict (for JSON)."""
         return {f.name: float(getattr(self, f.name)) for f in fields(self)}
