@@ -178,27 +178,26 @@ class LoadParams:
                          else float(getattr(self, f.name))) for f in fields(self)}
 
 
-def loaded_params(params: ModelParams, level: float, load: LoadParams | None = None
+def loaded_params(params: ModelParams, level: float, load: LoadParams = LoadParams()
                   ) -> ModelParams:
     """The observer ``params`` while a task of load ``level`` runs alongside localisation.
 
     ``level = 0`` returns ``params`` unchanged.
     """
-    lp = load if load is not None else LoadParams()
     if not (math.isfinite(level) and 0.0 <= level <= 1.0):
         raise ConfigError(f"a load level is in [0, 1], got {level!r}")
     if level == 0.0:
         return params
-    w = 1.0 + lp.weber_gain * level
-    s = 1.0 + lp.loc_sd_gain * level
+    w = 1.0 + load.weber_gain * level
+    s = 1.0 + load.loc_sd_gain * level
     return params.replace(
         weber_amplitude=params.weber_amplitude * w,
         weber_duration=params.weber_duration * w,
         loc_sd_min_deg=params.loc_sd_min_deg * s,
         loc_sd_max_deg=params.loc_sd_max_deg * s,
         midline_bias_deg=params.midline_bias_deg * s,
-        lapse=min(1.0, params.lapse + lp.lapse_per_load * level),
-        nondecision_s=params.nondecision_s + lp.nondecision_s_per_load * level,
+        lapse=min(1.0, params.lapse + load.lapse_per_load * level),
+        nondecision_s=params.nondecision_s + load.nondecision_s_per_load * level,
     )
 
 
@@ -208,34 +207,31 @@ def _dual(phase: str | None) -> bool:
     return phase == "dual"
 
 
-def task_d_prime(spec: TaskLike, phase: str, load: LoadParams | None = None,
+def task_d_prime(spec: TaskLike, phase: str, load: LoadParams = LoadParams(),
                  ability: float = 1.0) -> float:
     """The model's d' on ``spec`` in ``phase`` (lower in ``dual`` than alone), times the
     participant's ``ability`` (1: the typical participant)."""
-    lp = load if load is not None else LoadParams()
     if spec.kind == NO_TASK:
         raise ConfigError(f"a task of kind {spec.kind!r} has no items to answer")
-    d = _kind(spec).model_d_prime(spec, lp)
-    return d * ability * (lp.dual_d_prime_factor if _dual(phase) else 1.0)
+    d = _kind(spec).model_d_prime(spec, load)
+    return d * ability * (load.dual_d_prime_factor if _dual(phase) else 1.0)
 
 
 def _phi(x: float) -> float:
     return 0.5 * (1.0 + math.erf(x / math.sqrt(2.0)))
 
 
-def task_hit_fa(spec: TaskLike, phase: str, load: LoadParams | None = None,
+def task_hit_fa(spec: TaskLike, phase: str, load: LoadParams = LoadParams(),
                 ability: float = 1.0) -> tuple[float, float]:
     """The model's expected (hit rate, false-alarm rate): ``Phi(d'/2 - c)``, ``Phi(-d'/2 - c)``."""
-    lp = load if load is not None else LoadParams()
-    d = task_d_prime(spec, phase, lp, ability)
-    return _phi(d / 2.0 - lp.criterion), _phi(-d / 2.0 - lp.criterion)
+    d = task_d_prime(spec, phase, load, ability)
+    return _phi(d / 2.0 - load.criterion), _phi(-d / 2.0 - load.criterion)
 
 
-def task_rt_median_s(spec: TaskLike, phase: str, load: LoadParams | None = None) -> float:
+def task_rt_median_s(spec: TaskLike, phase: str, load: LoadParams = LoadParams()) -> float:
     """The model's median press RT (seconds from the item's onset)."""
-    lp = load if load is not None else LoadParams()
     steps = _kind(spec).model_rt_steps(spec)
-    return lp.rt_s + lp.rt_s_per_n * steps + (lp.dual_rt_s if _dual(phase) else 0.0)
+    return load.rt_s + load.rt_s_per_n * steps + (load.dual_rt_s if _dual(phase) else 0.0)
 
 
 class TaskResponder:
@@ -253,10 +249,10 @@ class TaskResponder:
     after the onset (``interval_s`` given to :meth:`start`).
     """
 
-    def __init__(self, rng: np.random.Generator, load: LoadParams | None = None,
+    def __init__(self, rng: np.random.Generator, load: LoadParams = LoadParams(),
                  ability: float = 1.0) -> None:
         self._rng = rng
-        self.load = load if load is not None else LoadParams()
+        self.load = load
         #: this participant's d' factor (:attr:`LoadParams.ability_sd`)
         self.ability = float(ability)
         self._spec: TaskLike | None = None
@@ -318,17 +314,16 @@ class TaskResponder:
 
 
 def tlx_ratings(level: float, rng: np.random.Generator, person_offset: float = 0.0,
-                load: LoadParams | None = None) -> dict[str, float]:
+                load: LoadParams = LoadParams()) -> dict[str, float]:
     """The model's raw NASA-TLX answers after a block of load ``level``.
 
     Each item is ``base + per_load * L + person_offset + N(0, item_sd)``, clipped to
     0..100 and rounded to the slider's step of 5.
     """
-    lp = load if load is not None else LoadParams()
-    noise = rng.standard_normal(len(TLX_ITEMS)) * lp.tlx_item_sd
+    noise = rng.standard_normal(len(TLX_ITEMS)) * load.tlx_item_sd
     out: dict[str, float] = {}
     for i, name in enumerate(TLX_ITEMS):
-        v = lp.tlx_base[i] + lp.tlx_per_load[i] * level + person_offset + float(noise[i])
+        v = load.tlx_base[i] + load.tlx_per_load[i] * level + person_offset + float(noise[i])
         out[name] = float(min(100.0, max(0.0, 5.0 * round(v / 5.0))))
     return out
 
