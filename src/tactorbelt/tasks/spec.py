@@ -19,11 +19,6 @@ from .kinds import NO_TASK, task_kind
 __all__ = ["RESERVED_RESPONSES", "TaskSpec"]
 
 
-def _at(loc: str, message: str) -> ValueError:
-    """A ValueError the study file's error reports at field ``loc`` (``interval_s``)."""
-    return ValueError(f"@{loc}@ {message}")
-
-
 #: Responses that go on or confirm a localisation in the window: a task may not use them.
 RESERVED_RESPONSES: dict[str, str] = {
     "key:space": "Space goes on from the window's screens",
@@ -91,8 +86,10 @@ class TaskSpec(BaseModel):
     @model_validator(mode="after")
     def _interval(self) -> TaskSpec:
         if self.interval_s <= self.stimulus_s:
-            raise _at("interval_s", f"interval_s ({self.interval_s:g} s) must be longer than "
-                      f"stimulus_s ({self.stimulus_s:g} s): one item ends before the next")
+            # "@interval_s@": the study file's error reports it at that field
+            raise ValueError(f"@interval_s@ interval_s ({self.interval_s:g} s) must be longer "
+                             f"than stimulus_s ({self.stimulus_s:g} s): one item ends before "
+                             "the next")
         return self
 
     @property
