@@ -43,7 +43,6 @@ import errno
 import json
 import logging
 import math
-import re
 import secrets
 import signal
 import time
@@ -152,11 +151,10 @@ def browser_name(user_agent: str | None) -> str | None:
     ``safari``), or None."""
     if not user_agent:
         return None
-    ua = user_agent
-    for pattern, name in ((r"Edg/", "edge"), (r"HeadlessChrome/", "chromium-headless"),
-                          (r"Chromium/", "chromium"), (r"Chrome/", "chrome"),
-                          (r"Firefox/", "firefox"), (r"Safari/", "safari")):
-        if re.search(pattern, ua):
+    for token, name in (("Edg/", "edge"), ("HeadlessChrome/", "chromium-headless"),
+                        ("Chromium/", "chromium"), ("Chrome/", "chrome"),
+                        ("Firefox/", "firefox"), ("Safari/", "safari")):
+        if token in user_agent:
             return name
     return "other"
 
