@@ -149,8 +149,7 @@ class OneEuroFilter:
             self._t = tv
             self._raw_prev = xv
             self._x_unwrapped = xv
-            self._y = xv
-            self._dx = 0.0
+            self._y = xv  # the speed is 0 (reset)
             return self.value  # type: ignore[return-value]
         dt = tv - self._t
         if dt < 0:

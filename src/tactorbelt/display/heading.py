@@ -237,8 +237,7 @@ class PointRun:
             rel = (s.t_s - first_t) if timed and s.t_s is not None else i / rate_hz
             if not self.wait_until(t_start + round(rel * 1e9)):
                 return
-            self.display.show_bearing(bearing, s.heading_deg,
-                                      None if s.t_s is None else s.t_s)
+            self.display.show_bearing(bearing, s.heading_deg, s.t_s)
             self.headings += 1
             self.status(self._describe(bearing))
         # hold the last heading for one sample interval
