@@ -35,12 +35,6 @@ _ANGLE_HELP = ("Where an AHAP or .haptic pattern is placed, degrees (0 = the nav
                "clockwise); a .tact keeps its layout's places.")
 
 
-def _read(path: str, angle: float) -> Any:
-    from ..patterns.io import read_any
-
-    return read_any(path, angle)
-
-
 def _law_option(func: Any) -> Any:
     return click.option("--law", type=click.Choice(LAWS), default=None,
                         help="Amplitude law for angles and paths [default: the pattern's, "
@@ -79,9 +73,10 @@ def pattern() -> None:
 def import_(file: str, out: Path, angle: float) -> None:
     """Convert FILE (AHAP .ahap, Meta Haptics Studio .haptic, bHaptics .tact) to a pattern."""
     from ..patterns.ahap import TRANSIENT_MS
+    from ..patterns.io import read_any
     from ..patterns.model import save_pattern
 
-    p = _read(file, angle)
+    p = read_any(file, angle)
     kind = p.source.get("format", "tactorbelt")
     counts = {k: sum(e.place == k for e in p.events) for k in ("tactor", "angle", "path")}
     if kind in ("ahap", "haptic"):
@@ -114,9 +109,10 @@ def import_(file: str, out: Path, angle: float) -> None:
 def play(file: str, belt_url: str, calibration_file: str | None, angle: float,
          law: str | None, falloff: float, rate: float | None, stats: bool) -> None:
     """Play pattern FILE once on a belt. Ctrl-C stops with the motors off."""
+    from ..patterns.io import read_any
     from ..patterns.play import play_pattern
 
-    p = _read(file, angle)
+    p = read_any(file, angle)
 
     def started(belt: Any, playback: Any, player: Any) -> None:
         click.echo(f"playing {Path(file).name}: {len(p.events)} events, {p.duration_ms:g} ms "
@@ -152,9 +148,9 @@ def export(file: str, fmt: str, out: Path, angle: float, tactors: int | None,
            tactor_angles: str | None, law: str | None, rate: float | None,
            carrier_hz: float) -> None:
     """Export pattern FILE as a multichannel WAV, a CSV of amplitudes, or AHAP."""
-    from ..patterns.io import export_pattern
+    from ..patterns.io import export_pattern, read_any
 
-    p = _read(file, angle)
+    p = read_any(file, angle)
     layout = _layout(p, tactors, tactor_angles)
     notes = export_pattern(p, fmt, out, layout=layout, law=law, rate_hz=rate,
                            carrier_hz=carrier_hz, source=file)
@@ -172,10 +168,10 @@ def export(file: str, fmt: str, out: Path, angle: float, tactors: int | None,
 def show(file: str, out: Path, angle: float, tactors: int | None, tactor_angles: str | None,
          law: str | None) -> None:
     """Draw each tactor's envelope of pattern FILE to a PNG."""
-    from ..patterns.io import require_events
+    from ..patterns.io import read_any, require_events
     from ..patterns.show import show_pattern
 
-    p = _read(file, angle)
+    p = read_any(file, angle)
     require_events(p, file)
     path = show_pattern(p, _layout(p, tactors, tactor_angles), out, law, source=file)
     click.echo(f"wrote {path}")
