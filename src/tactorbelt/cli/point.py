@@ -84,7 +84,6 @@ def point(belt_url: str, bearing: float | None, heading_from: str | None,
     if sweep and heading_from is not None:
         raise click.UsageError("--heading-from needs --bearing, not --sweep")
     bearing_deg = parse_angle(bearing, "--bearing") if bearing is not None else 0.0
-    sweep_s, rate, limit_s = sweep_period, heading_rate, seconds
     display_opts: dict[str, Any] = {
         "mode": mode, "law": law, "falloff_deg": falloff, "period_s": period,
         "transit_s": transit, "slew_deg_per_s": slew, "hysteresis_deg": hysteresis,
@@ -114,7 +113,7 @@ def point(belt_url: str, bearing: float | None, heading_from: str | None,
         if profile_file is not None:
             profile.check_layout(belt.layout, source=profile_file)
         display = DirectionDisplay(belt, **display_opts)
-        if display.clock.simulated and limit_s is None and heading_from is None:
+        if display.clock.simulated and seconds is None and heading_from is None:
             raise ConfigError(f"belt {belt.url!r} runs on a simulated clock, where only "
                               "--seconds (or the end of --heading-from) ends the run; "
                               "give --seconds")
@@ -124,9 +123,9 @@ def point(belt_url: str, bearing: float | None, heading_from: str | None,
         say(f"showing {what} on {belt.url} ({belt.n_tactors} tactors, {mode}, {law} law, "
             f"{how}{', drive ' + belt.drive if belt.can_shape else ''}); Ctrl-C stops")
         report = run_point(display, bearing_deg=bearing_deg,
-                           sweep_s=sweep_s if sweep else None, samples=samples, timed=timed,
-                           rate_hz=rate, from_stdin=heading_from == "-", limit_s=limit_s,
-                           quiet=quiet)
+                           sweep_s=sweep_period if sweep else None, samples=samples,
+                           timed=timed, rate_hz=heading_rate, from_stdin=heading_from == "-",
+                           limit_s=seconds, quiet=quiet)
     say(f"{'stopped (Ctrl-C)' if report.interrupted else 'done'} after "
         f"{report.elapsed_s:.1f} s: {report.headings} headings, {report.sent}; motors off")
     if report.interrupted:
