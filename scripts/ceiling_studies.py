@@ -17,6 +17,7 @@ from __future__ import annotations
 import argparse
 import sys
 import warnings
+from pathlib import Path
 
 import numpy as np
 
@@ -57,8 +58,11 @@ def main(argv: list[str] | None = None) -> int:
     warnings.simplefilter("ignore")
     from tactorbelt.analysis.models.fit import fit_model
     from tactorbelt.analysis.models.glmm import FixefPrior, GlmmData, fit_glmm
-    from tactorbelt.analysis.models.lme4 import fit_lme4, lme4_available
+    from tactorbelt.analysis.models.lme4 import fit_lme4
     from tactorbelt.analysis.models.separation import detect_separation
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+    from support.r_reference import lme4_available
 
     use_r = not args.no_r and lme4_available() is None
     prior = FixefPrior()

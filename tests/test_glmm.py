@@ -8,6 +8,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from support.r_reference import lme4_available
 from tactorbelt.analysis.models import lme4 as lme4_mod
 from tactorbelt.analysis.models.glmm import (
     ModelSpec,
@@ -74,7 +75,7 @@ def test_singular_fits_are_simplified_by_the_stated_rule() -> None:
 
 def test_lme4_engine_without_r_says_how_to_install(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(lme4_mod.shutil, "which", lambda _name: None)
-    assert lme4_mod.lme4_available() is not None
+    assert lme4_available() is not None
     spec = ModelSpec("correct", ("condition",), (RandomTerm("participant"),))
     with pytest.raises(lme4_mod.Lme4Unavailable, match="apt install r-base-core r-cran-lme4"):
         lme4_mod.fit_lme4(_frame(), spec)

@@ -22,9 +22,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from support.r_reference import lme4_available
 from tactorbelt.analysis.models.fit import fit_model, mixed_model, model_spec
 from tactorbelt.analysis.models.glmm import FixefPrior, GlmmData, fit_glmm
-from tactorbelt.analysis.models.lme4 import _FLATTEN, fit_lme4, lme4_available
+from tactorbelt.analysis.models.lme4 import _FLATTEN, fit_lme4
 from tactorbelt.analysis.models.separation import detect_separation
 
 EST_REL, EST_FLOOR_SE, SE_REL = 0.02, 0.02, 0.05

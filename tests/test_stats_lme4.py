@@ -22,10 +22,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from support.r_reference import lme4_available
 from support.synthetic import synthesize_store
 from tactorbelt.analysis.models.fit import model_frame, model_spec
 from tactorbelt.analysis.models.glmm import MixedModelFit, fit_glmm, fit_lmm, fit_simplified
-from tactorbelt.analysis.models.lme4 import fit_lme4, lme4_available
+from tactorbelt.analysis.models.lme4 import fit_lme4
 from tactorbelt.analysis.summary import summarize
 from tactorbelt.analysis.tables.load import load_stores
 from tactorbelt.analysis.tables.tables import prepare_trials

@@ -1,6 +1,7 @@
 """R's tests of the condition, the reference the tests (and benchmarks/bench_condition_tests.py)
 hold tactorbelt's against: glmer fits, ``anova(m0, m)``, pbkrtest's ``PBmodcomp`` (on
-simulated or given responses, refitted by ``refit`` and afresh) and emmeans' contrasts.
+simulated or given responses, refitted by ``refit`` and afresh) and emmeans' contrasts;
+whether R and lme4 are here to run them (:func:`lme4_available`).
 
 The report's ``--engine lme4`` runs only the bootstrap
 (:func:`tactorbelt.analysis.models.lme4.condition_tests_lme4`).
@@ -8,6 +9,8 @@ The report's ``--engine lme4`` runs only the bootstrap
 
 from __future__ import annotations
 
+import shutil
+import subprocess
 import tempfile
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Final
@@ -24,6 +27,22 @@ if TYPE_CHECKING:
     import pandas as pd
 
     from tactorbelt.analysis.models.glmm import ModelSpec
+
+
+def lme4_available(rscript: str = "Rscript") -> str | None:
+    """None when ``Rscript`` runs and lme4 loads; else why not, in words."""
+    exe = shutil.which(rscript)
+    if exe is None:
+        return f"'{rscript}' is not on PATH"
+    try:
+        r = subprocess.run([exe, "-e", "suppressPackageStartupMessages(library(lme4))"],
+                           capture_output=True, text=True, timeout=120)
+    except (OSError, subprocess.TimeoutExpired) as exc:
+        return f"'{rscript}' failed to run: {exc}"
+    if r.returncode != 0:
+        return "the R package lme4 is not installed (" + (r.stderr.strip().splitlines()
+                                                         or ["no message"])[-1] + ")"
+    return None
 
 
 _TESTS_SCRIPT: Final = _FLATTEN + r"""

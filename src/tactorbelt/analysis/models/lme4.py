@@ -25,8 +25,7 @@ import pandas as pd
 
 from .glmm import FixedEffect, FixefPrior, MixedModelFit, ModelSpec, _fixed_table, term_column
 
-__all__ = ["INSTALL_HINT", "Lme4Unavailable", "condition_tests_lme4", "fit_lme4",
-           "lme4_available"]
+__all__ = ["INSTALL_HINT", "Lme4Unavailable", "condition_tests_lme4", "fit_lme4"]
 
 INSTALL_HINT: Final = ("R with lme4 is needed for --engine lme4: install it with "
                        "'apt install r-base-core r-cran-lme4' (Debian/Ubuntu), or "
@@ -89,22 +88,6 @@ writeLines(msgs, file.path(dir, "messages.txt"))
 
 class Lme4Unavailable(RuntimeError):
     """Rscript or the lme4 package is missing."""
-
-
-def lme4_available(rscript: str = "Rscript") -> str | None:
-    """None when ``Rscript`` runs and lme4 loads; else why not, in words."""
-    exe = shutil.which(rscript)
-    if exe is None:
-        return f"'{rscript}' is not on PATH"
-    try:
-        r = subprocess.run([exe, "-e", "suppressPackageStartupMessages(library(lme4))"],
-                           capture_output=True, text=True, timeout=120)
-    except (OSError, subprocess.TimeoutExpired) as exc:
-        return f"'{rscript}' failed to run: {exc}"
-    if r.returncode != 0:
-        return "the R package lme4 is not installed (" + (r.stderr.strip().splitlines()
-                                                         or ["no message"])[-1] + ")"
-    return None
 
 
 def _rscript(rscript: str) -> str:
