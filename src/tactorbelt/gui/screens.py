@@ -68,9 +68,7 @@ def cursor_position(s: WindowController) -> tuple[float, float] | None:
     if live is not None:
         x, y, _ = live.state
         return (x, y)
-    if s.task_alone:
-        return (0.0, 0.0)
-    if s.current is not None and s.last_sample is not None:
+    if not s.task_alone and s.current is not None and s.last_sample is not None:
         return (s.last_sample.x, s.last_sample.y)
     return (0.0, 0.0)
 
