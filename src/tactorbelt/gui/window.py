@@ -414,7 +414,6 @@ def run_with_window(
             clock = own
         else:
             clock = WallClock() if realtime else SimClock()
-    assert clock is not None
     if auto_continue_s is None and (cursor is not None or not input_kind(cursor_kind).live):
         auto_continue_s = 2.0
     with session_window(study, input=cursor_kind, participant=participant, clock=clock,
