@@ -71,15 +71,12 @@ __all__ = [
     "TASK",
     "TLX_COLUMNS",
     "TLX_TASK",
-    "beh_columns",
     "bids_label",
     "dtypes",
     "export_bids",
     "export_csv",
     "factor_sidecar",
     "study_authors",
-    "tlx_columns",
-    "trial_columns",
 ]
 
 TASK = "betweentactor"
@@ -124,8 +121,6 @@ DTYPES: dict[str, dict[str, str]] = {
         "block_index": _INT, "scale": _STR, "item": _STR, "value": _FLOAT,
     },
 }
-#: The built-in columns of ``trials.csv`` (:func:`trial_columns` adds the added factors').
-TRIAL_COLUMNS = list(DTYPES["trials"])
 _FACTOR_DTYPE = {"text": _STR, "int": _INT}
 
 
@@ -142,27 +137,10 @@ def factor_sidecar(f: Factor) -> dict[str, Any]:
 
 
 def _after_load(columns: dict[str, Any]) -> dict[str, Any]:
-    """``columns`` with a column for each factor declared beyond the built-in ones after
-    ``load`` (:mod:`tactorbelt.factors`)."""
+    """A BIDS table's ``columns`` (:data:`BEH_COLUMNS`, :data:`TLX_COLUMNS`) and their sidecar
+    entries, with one for each factor declared beyond the built-in ones after ``load``."""
     every = {**columns, **{f.column: factor_sidecar(f) for f in added_factors()}}
     return {k: every[k] for k in after_builtin(list(columns), list(every)[len(columns):])}
-
-
-def trial_columns() -> list[str]:
-    """The columns of ``trials.csv``: :data:`TRIAL_COLUMNS`, then a column for each
-    factor declared beyond the built-in ones."""
-    return list(dtypes("trials"))
-
-
-def beh_columns() -> dict[str, dict[str, Any]]:
-    """The ``_beh.tsv`` columns and their sidecar entries (:data:`BEH_COLUMNS`, and the
-    added factors after ``load``)."""
-    return _after_load(BEH_COLUMNS)
-
-
-def tlx_columns() -> dict[str, dict[str, Any]]:
-    """The ratings file's columns (:data:`TLX_COLUMNS`, and the added factors)."""
-    return _after_load(TLX_COLUMNS)
 
 
 #: Every column of the BIDS ``_beh.tsv`` and its description (the JSON sidecar); a
@@ -403,7 +381,7 @@ def _table_rows(store: Store) -> dict[str, Iterable[list[Any]]]:
     sessions = store.sessions()
     by_id = {int(s["session_id"]): s for s in sessions}
     own = ("participant", "session_number")
-    columns = trial_columns()
+    columns = list(dtypes("trials"))
     trials = []
     for t in sorted(store.trials(), key=lambda t: (t["session_id"], t["trial_id"])):
         sess = by_id[int(t["session_id"])]
@@ -525,7 +503,7 @@ def _readme(name: str, studies: list[Any], sessions: list[dict[str, Any]],
         "`t`, seconds from the onset of the session's first trial (`StartTime` is the "
         "first sample's `t`).", "",
         "## Trial columns (`_beh.tsv`)", ""]
-    lines += _column_lines(beh_columns())
+    lines += _column_lines(_after_load(BEH_COLUMNS))
     if events:
         lines += ["", "## Secondary-task events (`_events.tsv`)", "",
                   "Under a cognitive load, `beh/*_task-betweentactor_events.tsv` has one row "
@@ -536,7 +514,7 @@ def _readme(name: str, studies: list[Any], sessions: list[dict[str, Any]],
         lines += ["", f"## Workload ratings (`_task-{TLX_TASK}_beh.tsv`)", "",
                   f"`beh/*_task-{TLX_TASK}_beh.tsv` has one row per test block rated with the "
                   "raw NASA-TLX after it:", ""]
-        lines += _column_lines(tlx_columns())
+        lines += _column_lines(_after_load(TLX_COLUMNS))
     lines += ["", f"## Cursor samples (`_recording-{RECORDING}_physio.tsv.gz`)", ""]
     lines += _column_lines(CURSOR_COLUMNS)
     return "\n".join(lines) + "\n"
@@ -696,7 +674,7 @@ def export_bids(db: str | Path, out: str | Path, *, readme: str | Path | None = 
             base = o / f"sub-{lab}" / f"ses-{s['session_number']}"
             (base / "beh").mkdir(parents=True, exist_ok=True)
             trials = [_with_cell(t, s) for t in store.trials(s["session_id"])]
-            beh_cols = beh_columns()
+            beh_cols = _after_load(BEH_COLUMNS)
             cols = list(beh_cols)
             written += _write_tsv(
                 base / "beh" / f"{stem}_beh.tsv", cols,
@@ -801,7 +779,7 @@ def _task_files(store: Store, s: dict[str, Any], trials: list[dict[str, Any]], b
                               EVENT_COLUMNS)
     tlx = _tlx_rows(store.ratings(s["session_id"]), trials)
     if tlx:
-        tlx_cols = tlx_columns()
+        tlx_cols = _after_load(TLX_COLUMNS)
         written += _write_tsv(
             beh / f"sub-{lab}_ses-{s['session_number']}_task-{TLX_TASK}_beh.tsv",
             list(tlx_cols), tlx, {
