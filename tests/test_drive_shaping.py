@@ -604,7 +604,7 @@ def test_a_streamed_stimulus_leads_by_the_preview_on_a_shaped_belt() -> None:
         with open_belt(f"sim?drive={drive}", clock=clock) as b:
             stim = make_stimulus(b.layout, 15.0, "dynamic", period_s=0.4, transit_s=0.1)
             player = Player(b, clock, device_render=False)
-            onset = player.start(stim, 0.5)
+            onset = player.start(stim, 0.5) - b.preroll_ns  # the first frame's time
             player.pump(onset + 600 * MS)
             t, lv = b.commanded(onset, onset + 500 * MS, 1000)
             got[drive] = lv
@@ -741,7 +741,9 @@ def test_a_constant_frame_streamed_to_a_shaped_belt_ends_by_the_preview() -> Non
         clock = SimClock()
         with open_belt(f"sim?drive={drive}", clock=clock) as b:
             player = Player(b, clock, device_render=False)
-            onset = player.start(SingleTactor(b.layout, 2, 1.0).as_stimulus(), 0.5)
+            # the first frame's time: the onset the player gives less the pre-roll
+            onset = player.start(SingleTactor(b.layout, 2, 1.0).as_stimulus(), 0.5
+                                 ) - b.preroll_ns
             player.pump(onset + 600 * MS)
             _, lv = b.commanded(onset, onset + 500 * MS, 1000)
         assert np.all(lv[: 500 - lead, 2] == 1.0) and np.all(lv[500 - lead :, 2] == 0.0)

@@ -11,6 +11,7 @@ import pytest
 from tactorbelt import ConfigError, DeviceError, TactorbeltError
 from tactorbelt.clock import SimClock
 from tactorbelt.devices.base import Belt
+from tactorbelt.devices.erm import PREROLL_NS
 from tactorbelt.devices.sim import SimBelt, open_sim
 from tactorbelt.geometry import Layout
 from tactorbelt.player import Player, PlayerStats
@@ -123,7 +124,8 @@ def test_device_rendering_on_the_sim_belt() -> None:
     player = Player(belt)
     assert player.device_render and player.clock is clock
     stats = player.play(DYNAMIC, 1.0)
-    assert stats.frames == 0 and stats.onset_ns == 0
+    # the sim belt shapes by default: the stimulus's onset is its pre-roll after the play
+    assert stats.frames == 0 and stats.onset_ns == PREROLL_NS == belt.preroll_ns
     assert clock.now_ns() == S
     _, levels = belt.commanded(0, S)
     np.testing.assert_allclose(levels, DYNAMIC.render(1000.0, 1.0)[1], atol=1e-12)
@@ -148,7 +150,7 @@ def test_stop_turns_the_motors_off_now() -> None:
     assert player.playing and belt.levels.max() > 0
     stats = player.stop()
     assert not player.playing and np.all(belt.levels == 0.0)
-    assert stats.frames == 101
+    assert stats.frames == 101 + belt.preroll_ns // MS  # from the command, at 1 kHz
 
 
 def test_rate_comes_from_the_belt() -> None:
@@ -288,3 +290,45 @@ def test_device_switch_restarts_on_the_device_for_the_rest_of_the_duration() -> 
     clock.advance(1500 * MS)
     assert not player.playing
     assert np.all(belt.levels == 0.0)
+
+
+def test_a_shaped_belt_starts_its_drive_the_pre_roll_before_the_onset_it_gives() -> None:
+    """The onset a session stores of a stimulus played on a shaped belt is the pre-roll
+    after the command, device-rendered or streamed: the kick from rest starts before it
+    (so the skin feels the stimulus near the onset, not a kick's time after); the end of a
+    stream on the same terms. Plain, the onset is the command."""
+    for drive, device in itertools.product(("plain", "shaped"), (True, False)):
+        clock = SimClock()
+        belt = open_sim("", clock=clock, drive=drive)
+        pre = PREROLL_NS if drive == "shaped" else 0
+        assert belt.preroll_ns == pre
+        player = Player(belt, device_render=device)
+        stats = player.play(STATIC, 0.5)
+        assert stats.onset_ns == pre, (drive, device)
+        assert stats.stopped_ns == (None if device else 500 * MS + pre), (drive, device)
+        t, d = belt.driven(0, 20 * MS)
+        first = int(t[np.flatnonzero(np.abs(d).max(axis=1) > 0)[0]])
+        assert first == 0  # the drive starts at the command: the pre-roll before the onset
+        assert player.device_onset() is None  # the sim belt reports no device onsets
+
+
+@pytest.mark.emulator
+def test_a_device_onset_of_a_shaped_play_is_the_pre_roll_after_the_boards(
+        emulator_exe: object) -> None:
+    """On a belt that reports its onsets (the emulated board), the player's device onset
+    of a shaped play is the board's onset plus the pre-roll, as the onset the player gives;
+    plain, the board's own."""
+    from tactorbelt.devices import open_belt
+
+    for drive in ("plain", "shaped"):
+        with open_belt(f"emulator?heartbeat_ms=1000&drive={drive}", build=False) as belt:
+            assert belt.reports_onsets
+            player = Player(belt)
+            assert player.renders_on_device(STATIC)
+            player.start(STATIC, 0.2)
+            board = belt.last_onset(timeout_s=1.0)
+            got = player.device_onset(timeout_s=1.0)
+            player.stop()
+            assert board is not None and got is not None
+            assert got == (board[0] + belt.preroll_ns, board[1])
+            assert belt.preroll_ns == (PREROLL_NS if drive == "shaped" else 0)

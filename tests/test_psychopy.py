@@ -40,6 +40,12 @@ def rig() -> Any:
     helper.close()
 
 
+def _onset_s(win: Any, belt: Any) -> float:
+    """The onset of a stimulus started at the last flip: on the shaped sim belt (the
+    default) its pre-roll after the flip (``Belt.preroll_ns``, docs/belts.md)."""
+    return (win.flips[-1] + belt.preroll_ns) / 1e9
+
+
 def _starts(belt: Any) -> list[tuple[int, float]]:
     """(time, target) of every stimulus the belt was given."""
     return [(c.t_ns, c.stimulus.target_deg) for c in belt.commands() if c.stimulus is not None]
@@ -52,7 +58,8 @@ def test_present_starts_the_stimulus_on_the_next_flip_not_before(rig: Any) -> No
     assert _starts(belt) == [] and helper.onset_s is None
     win.flip()
     assert _starts(belt) == [(win.flips[-1], 45.0)]
-    assert helper.onset_s == win.flips[-1] / 1e9 and helper.playing
+    assert belt.preroll_ns == 3_000_000
+    assert helper.onset_s == _onset_s(win, belt) and helper.playing
     win.flip()
     win.flip()  # later frames start nothing more
     assert len(_starts(belt)) == 1
@@ -68,7 +75,7 @@ def test_each_trial_starts_on_its_own_flip(rig: Any) -> None:
         win.flip()
         onsets.append(helper.onset_s)
     starts = _starts(belt)
-    assert [t for t, _ in starts] == [round(s * 1e9) for s in onsets]
+    assert [t for t, _ in starts] == [round(s * 1e9) - belt.preroll_ns for s in onsets]
     assert [t for t, _ in starts] == win.flips[30::31]
     assert [a for _, a in starts] == [0.0, 90.0, 202.5]
 
@@ -114,12 +121,13 @@ def test_times_are_reported_on_the_timebase_the_flips_are_on(tmp_path: Path) -> 
                      timebase=experiment_clock) as helper:
         helper.present(45.0, duration_s=0.5)
         win.flip()
-        assert helper.onset_s == pytest.approx(win.flips[-1] / 1e9 + 1000.0, abs=1e-9)
+        assert helper.onset_s == pytest.approx(_onset_s(win, helper.belt) + 1000.0, abs=1e-9)
         assert helper.tStart == helper.onset_s and helper.now() == experiment_clock()
         clock.advance(100_000_000)
         helper.stop()
         assert helper.onset_s is not None
-        assert helper.tStop == pytest.approx(helper.onset_s + 0.1, abs=1e-6)
+        # stopped 100 ms after the flip (the command): the pre-roll less after the onset
+        assert helper.tStop == pytest.approx(win.flips[-1] / 1e9 + 1000.0 + 0.1, abs=1e-6)
 
 
 class _Clock:
@@ -137,7 +145,7 @@ def test_a_psychopy_clock_object_is_a_timebase(rig: Any) -> None:
     with TactileBelt(win, belt, clock=clock, timebase=_Clock(clock)) as helper:
         helper.present(10.0)
         win.flip()
-        assert helper.onset_s == pytest.approx(win.flips[-1] / 1e9 - 7.0, abs=1e-9)
+        assert helper.onset_s == pytest.approx(_onset_s(win, belt) - 7.0, abs=1e-9)
 
 
 @pytest.mark.parametrize("bad", [
@@ -157,7 +165,7 @@ def test_a_bad_argument_is_refused_at_present_and_later_flips_work(
     win.flip()
     helper.present(0.0, "static", duration_s=0.2)
     win.flip()
-    assert helper.playing and helper.onset_s == win.flips[-1] / 1e9
+    assert helper.playing and helper.onset_s == _onset_s(win, belt)
 
 
 @pytest.mark.parametrize("bad", [
@@ -210,7 +218,7 @@ def test_a_device_error_at_a_flip_comes_out_of_it_once_and_later_flips_work(
         belt.unplugged = False
         helper.present(90.0, "dynamic")
         win.flip()
-        assert helper.onset_s == win.flips[-1] / 1e9 and helper.error is None
+        assert helper.onset_s == _onset_s(win, belt) and helper.error is None
     assert [c for c in read_commands(tmp_path / "belt.log") if c[0] == "play"] == [
         ("play", 90.0)]
 
@@ -222,7 +230,7 @@ def test_status_and_times_follow_builders_component(rig: Any) -> None:
     helper.present(30.0, duration_s=0.5)
     assert helper.status == NOT_STARTED  # not before the flip
     win.flip()
-    assert helper.status == STARTED and helper.tStart == win.flips[-1] / 1e9
+    assert helper.status == STARTED and helper.tStart == _onset_s(win, belt)
     clock.advance(600_000_000)  # the duration ran out
     assert helper.status == FINISHED
     assert helper.tStop == pytest.approx(helper.tStart + 0.5)
@@ -262,7 +270,7 @@ def test_add_data_puts_the_onset_columns_in_the_row(rig: Any) -> None:
     assert set(exp.rows[0]) == set(exp.rows[1])
     assert exp.rows[0]["belt.started"] is None
     assert exp.rows[1] == {
-        "belt.started": win.flips[-1] / 1e9, "belt.startedRefresh": None,
+        "belt.started": _onset_s(win, belt), "belt.startedRefresh": None,
         "belt.stopped": None, "belt.target_deg": 45.0, "belt.mode": "dynamic",
         "belt.duration_s": 1.0}
 

@@ -76,15 +76,17 @@ class PlayerStats:
             99th percentile (NumPy's linear interpolation) and maximum; 0.0 when no
             frame was written. Percentiles cover the last 2,097,152 frames (35 min
             at 1 kHz); counts and the maximum cover everything.
-        onset_ns: when the playback started (the first deadline), or None.
+        onset_ns: when the playback started (the first deadline), or None; on a shaped
+            belt its pre-roll later (``Belt.preroll_ns``), as :meth:`Player.start` says.
         underruns: when the device renders, the output blocks it could not fill in time
             during the playback (an audio belt's underruns, :meth:`Belt.dropouts`): its
             missed frames; 0 when streaming or when the device cannot tell.
         stopped_ns: a stream played to its end: when its stop took effect, the clock
             midway through the belt's stop (a firmware belt returns once the device
             acknowledged it, so the device stopped within the call); the onset plus the
-            duration only when the computer kept time. None when the device renders,
-            when the playback was stopped before its end, or while it plays.
+            duration only when the computer kept time; like ``onset_ns``, plus the pre-roll
+            on a shaped belt. None when the device renders, when the playback was stopped
+            before its end, or while it plays.
     """
 
     frames: int
@@ -191,6 +193,8 @@ class Player(contextlib.AbstractContextManager["Player"]):
         self._cache: NDArray[np.float64] | None = None
         #: the preview of a streamed stimulus (s): frames lead it on a shaped belt
         self._lead_s = 0.0
+        #: the belt's pre-roll (ns): the stimulus's onset is this long after the command
+        self._preroll = 0
 
     def _check_error(self) -> None:
         err = self._error
@@ -236,7 +240,9 @@ class Player(contextlib.AbstractContextManager["Player"]):
         A playback already running is replaced (without turning the motors off).
 
         Returns:
-            The onset: the clock time of the first frame's deadline (integer ns).
+            The onset: the clock time of the first frame's deadline (integer ns), plus the
+            belt's pre-roll on a shaped belt (``Belt.preroll_ns``: the drive starts this
+            long before the onset, so the kick from rest precedes it).
         """
         self._check_error()
         self._check_stimulus(stimulus)
@@ -254,6 +260,7 @@ class Player(contextlib.AbstractContextManager["Player"]):
         onset = int(self.clock.now_ns())
         with self._lock:
             self._reset(stimulus, onset, device)
+            self._preroll = self.belt.preroll_ns
             if not device and self.belt.drive == "shaped":
                 # a streamed stimulus is known ahead: each frame shows it the shaper's
                 # preview later, as the device's renderer previews what it plays
@@ -281,7 +288,15 @@ class Player(contextlib.AbstractContextManager["Player"]):
             self._thread = threading.Thread(target=self._run, name="tactorbelt-player",
                                             daemon=True)
             self._thread.start()
-        return onset
+        return onset + self._preroll
+
+    def device_onset(self, timeout_s: float = 0.1) -> tuple[int, int] | None:
+        """The device-true onset of the last start, ``(host_ns, uncertainty_ns)``: the
+        belt's :meth:`~tactorbelt.devices.base.Belt.last_onset` (when its outputs changed)
+        plus the pre-roll, as :meth:`start` returns the onset; None where the belt cannot
+        tell (``reports_onsets``)."""
+        got = self.belt.last_onset(timeout_s) if self.belt.reports_onsets else None
+        return None if got is None else (int(got[0]) + self._preroll, int(got[1]))
 
     def switch(self, stimulus: Stimulus) -> None:
         """Play ``stimulus`` from the next frame on, without a gap.
@@ -386,8 +401,10 @@ class Player(contextlib.AbstractContextManager["Player"]):
             errs = np.fromiter(self._errors, dtype=np.int64, count=len(self._errors))
             p50, p99 = np.percentile(errs, [50.0, 99.0]) if errs.size else (0.0, 0.0)
             under = self.belt.dropouts() - self._dropouts0 if self._device else 0
+            onset, stopped = (None if t is None else t + self._preroll
+                              for t in (self._onset, self._stopped))
             return PlayerStats(self._frames, self._dl.missed, float(p50) / 1e6, float(p99) / 1e6,
-                               self._max_error / 1e6, self._onset, under, self._stopped)
+                               self._max_error / 1e6, onset, under, stopped)
 
     def _stop_motors(self) -> None:
         with contextlib.suppress(Exception):  # best effort: the original error matters more

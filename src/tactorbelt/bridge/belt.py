@@ -132,9 +132,8 @@ class BeltPort:
         self._inline = not belt.hardware
         return belt
 
-    def _device_onset(self, onset_ns: int, duration_s: float) -> Onset:
-        belt = self.belt
-        device = belt.last_onset() if belt.reports_onsets else None
+    def _onset(self, onset_ns: int, duration_s: float, device: tuple[int, int] | None
+               ) -> Onset:
         if device is None:
             return Onset(self._play, onset_ns, None, 0, duration_s)
         return Onset(self._play, onset_ns, int(device[0]), int(device[1]), duration_s)
@@ -144,7 +143,7 @@ class BeltPort:
         assert self._player is not None
         self._play += 1
         onset = int(self._player.start(stimulus, duration_s=duration_s))
-        return self._device_onset(onset, duration_s)
+        return self._onset(onset, duration_s, self._player.device_onset())
 
     def play_levels(self, amplitudes: Sequence[float], duration_s: float) -> Onset:
         """Set every tactor's amplitude (0..1) now; :meth:`stop_play` ends it."""
@@ -153,8 +152,9 @@ class BeltPort:
             self._player.stop()
         self._play += 1
         onset = int(self.clock.now_ns())
-        self.belt.set_amplitudes(amplitudes)
-        return self._device_onset(onset, duration_s)
+        belt = self.belt
+        belt.set_amplitudes(amplitudes)
+        return self._onset(onset, duration_s, belt.last_onset() if belt.reports_onsets else None)
 
     def stop(self) -> int:
         """Motors off now; the time they were turned off (wall clock, ns)."""

@@ -289,6 +289,17 @@ class Belt(ABC):
         """``plain`` or ``shaped`` (docs/belts.md, "Drive shaping")."""
         return self._drive
 
+    @property
+    def preroll_ns(self) -> int:
+        """How long after the command a stimulus the player plays has its onset: 0 when
+        plain; when shaped, :data:`~tactorbelt.devices.erm.PREROLL_NS`, so the kick from
+        rest starts before the onset a session stores (docs/belts.md, "Pre-roll")."""
+        if self._drive != "shaped":
+            return 0
+        from .erm import PREROLL_NS
+
+        return PREROLL_NS
+
     def set_drive(self, drive: str) -> None:
         """Play ``plain`` or ``shaped`` from now on.
 

@@ -34,8 +34,8 @@ from numpy.typing import NDArray
 
 from .._errors import ConfigError
 
-__all__ = ["BRAKE", "DRIVES", "LEAD_TICKS", "RENDER_TICK_NS", "ErmParams", "Shaper", "drive_relax",
-           "erm_speed", "kick_duration_s", "sample_grid"]
+__all__ = ["BRAKE", "DRIVES", "LEAD_TICKS", "PREROLL_NS", "RENDER_TICK_NS", "ErmParams", "Shaper",
+           "drive_relax", "erm_speed", "kick_duration_s", "sample_grid"]
 
 #: The drive modes a belt plays with: ``plain`` (each level straight to the motor) and
 #: ``shaped`` (overdrive and active braking, :class:`Shaper`).
@@ -453,6 +453,14 @@ MAX_LEAD_TICKS: Final = 50
 #: Measured on the paper's stimuli (docs/belts.md, "The goals, measured"): the between-
 #: tactor dynamic error is least at 3-4 ticks with a 5 V kick, 6 at 3.6 V.
 LEAD_TICKS: Final = 3
+#: The shaped drive's pre-roll (ns, 3 ms): a stimulus played through the player on a
+#: shaped belt has its onset this long after the command, so the kick from rest starts
+#: before the onset a session stores, and the shaper aims each tick at what the study
+#: means the pre-roll and its preview later (docs/belts.md, "Pre-roll"). Measured on the
+#: paper's stimuli (benchmarks/bench_drive.py --stimulus, 0 to 16 ms): at 3 ms the worst
+#: static onset error at 3.6 V falls from 12.0 to 9.0 ms and the 5 V kick's dynamic error
+#: is least; longer pre-rolls make the 5 V kick's worse.
+PREROLL_NS: Final = 3 * RENDER_TICK_NS
 
 
 def drive_relax(drive: FloatArray, w: FloatArray, dt_s: float | FloatArray,

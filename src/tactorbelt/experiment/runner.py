@@ -723,7 +723,7 @@ class SessionRunner:
         try:
             self.wait_home(t, machine)
             state = self.present(t, machine)
-            device_onset = self.belt.last_onset()  # (host_ns, uncertainty_ns) or None
+            device_onset = self.player.device_onset()  # (host_ns, uncertainty_ns) or None
             if device_onset is not None:
                 machine.result.device_onset_ns, machine.result.onset_uncertainty_ns = device_onset
             self.listeners.on_trial_state(t, state, self.clock.now_ns())

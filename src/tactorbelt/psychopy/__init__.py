@@ -188,8 +188,9 @@ class TactileBelt(contextlib.AbstractContextManager["TactileBelt"]):
 
     Attributes:
         onset_s, tStart: the onset of the last stimulus started (the belt was asked to
-            start, right after the flip), seconds on the timebase; None before the first
-            and after a start that failed.
+            start, right after the flip; on a shaped belt its pre-roll later,
+            ``Belt.preroll_ns``), seconds on the timebase; None before the first and
+            after a start that failed.
         tStartRefresh: the time of the flip that started it (``win.timeOnFlip``; None
             with a window that lacks it).
         tStop: when it stopped (:meth:`stop`, or its duration ran out), or None.
@@ -416,9 +417,10 @@ class TactileBelt(contextlib.AbstractContextManager["TactileBelt"]):
         self._status = value
 
     def device_onset_s(self, timeout_s: float = 0.1) -> float | None:
-        """The device-true onset of the last stimulus (seconds on the timebase), or
-        None when the belt cannot tell (``Belt.reports_onsets``)."""
-        got = self.belt.last_onset(timeout_s) if self.belt.reports_onsets else None
+        """The device-true onset of the last stimulus (seconds on the timebase; with the
+        pre-roll of a shaped belt, ``Player.device_onset``), or None when the belt cannot
+        tell (``Belt.reports_onsets``)."""
+        got = self.player.device_onset(timeout_s)
         return None if got is None else got[0] / 1e9 + self._offset_s
 
     def add_data(self, exp: Any) -> None:

@@ -22,10 +22,11 @@ what was meant:
   every target's.
 
 The onset of a playback is the device-true one where the belt reports it
-(``Belt.last_onset``, as a session stores it), else the player's; its end, for a
+(``Player.device_onset``, as a session stores it), else the player's; its end, for a
 streamed play, when the player's stop took effect (``PlayerStats.stopped_ns``: a busy
 computer sends a first frame or a stop late, and the device plays what it got), for a
-rendered one the onset plus the duration, as the device times it.
+rendered one the onset plus the duration, as the device times it. On a shaped belt both
+are the pre-roll after the commands (``Belt.preroll_ns``), as a session stores them.
 
 How each tactor is sensed depends on what the sensor declares
 (:attr:`~tactorbelt.validation.sensors.Sensor.separates_tactors`):
@@ -255,19 +256,19 @@ class _Played:
         return self.missed / due if due else 0.0
 
 
-def _play(player: Player, belt: Belt, clock: Clock, what: Any, duration_s: float,
-          base_ns: int, off_ns: int) -> _Played:
+def _play(player: Player, clock: Clock, what: Any, duration_s: float, base_ns: int,
+          off_ns: int) -> _Played:
     """Wait a baseline, play ``what`` for ``duration_s`` (motors off after), wait
-    ``off_ns`` for the fall. The onset is the device's where the belt reports it; the end
+    ``off_ns`` for the fall. The onset is the device's where the belt reports it (both
+    with the pre-roll of a shaped belt, ``Player.device_onset``); the end
     of a streamed play is when its stop took effect (the computer may have sent its first
     frame or its stop late), of a rendered one the onset plus the duration."""
     clock.sleep_until_ns(int(clock.now_ns()) + base_ns)
     stats = player.play(what, duration_s)
     onset = int(stats.onset_ns if stats.onset_ns is not None else clock.now_ns())
-    if belt.reports_onsets:
-        got = belt.last_onset(timeout_s=ONSET_TIMEOUT_S)
-        if got is not None:
-            onset = int(got[0])
+    got = player.device_onset(timeout_s=ONSET_TIMEOUT_S)
+    if got is not None:
+        onset = got[0]
     end = (onset + round(duration_s * 1e9) if stats.stopped_ns is None
            else stats.stopped_ns)
     clock.sleep_until_ns(end + off_ns)
@@ -371,7 +372,7 @@ def validate_stimulus(belt: Belt, sensor: Sensor, study: Study, targets: Sequenc
                     tries: list[_Played] = []
                     while not tries or (tries[-1].skipped > MAX_SKIPPED
                                         and len(tries) < MAX_TRIES):
-                        tries.append(_play(player, belt, clock, what, duration_s, base_ns,
+                        tries.append(_play(player, clock, what, duration_s, base_ns,
                                            off_ns))
                     played = min(tries, key=lambda p: p.skipped)
                     for k in which:
