@@ -247,7 +247,7 @@ def test_the_power_analysis_crosses_it(study_file: Path, tmp_path: Path) -> None
 
 def test_a_factor_cannot_take_a_name_in_use_nor_change_what_is_played() -> None:
     from tactorbelt._errors import ConfigError
-    from tactorbelt.experiment.export import BEH_COLUMNS, TLX_COLUMNS, TRIAL_COLUMNS
+    from tactorbelt.experiment.export import BEH_COLUMNS, DTYPES, TLX_COLUMNS
     from tactorbelt.experiment.export_formats import PSYCHOPY_COLUMNS, TIDY_COLUMNS
     from tactorbelt.experiment.store.schema import table
     from tactorbelt.experiment.study import BlockSpec, DesignSpec
@@ -255,7 +255,7 @@ def test_a_factor_cannot_take_a_name_in_use_nor_change_what_is_played() -> None:
 
     builtin = {n for f in BUILTIN for n in (f.key, f.column)}
     used = ({c.name for t in ("trials", "samples") for c in table(t, added=False).columns}
-            | set(TRIAL_COLUMNS) | set(BEH_COLUMNS) | set(TLX_COLUMNS)
+            | set(DTYPES["trials"]) | set(BEH_COLUMNS) | set(TLX_COLUMNS)
             | {c[0] for c in TIDY_COLUMNS}
             | {c for c in PSYCHOPY_COLUMNS if c.islower() and "." not in c}
             | set(BlockSpec.model_fields) | set(DesignSpec.model_fields))
