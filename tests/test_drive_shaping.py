@@ -591,6 +591,24 @@ def test_a_5v_kick_brings_the_felt_dynamic_stimulus_3x_closer_than_plain(
     assert max(onsets) <= 10.0
 
 
+def test_at_the_motors_maximum_voltage_every_static_onset_is_within_10_ms(
+        tmp_path: Path) -> None:
+    """The issue's static onset goal at the default (kicks bounded by the motor's 3.6 V):
+    over the paper's 24 static targets every driven tactor's felt onset is within 10 ms
+    of the onset the session stores. A kick at 1.2 times the rated drive needs 12 ms to
+    bring a full-level tactor to 10 % of its amplitude, so this holds by the pre-roll
+    (the kick starts 3 ms before the stored onset); plain, every onset is 15 ms late."""
+    from tactorbelt.validation.stimulus import run_stimulus
+
+    worst = {}
+    for drive in ("plain", "shaped"):
+        res, _ = run_stimulus("sim:virtual", tmp_path / drive, targets=list(range(24)),
+                              condition="static", drive=drive)
+        worst[drive] = max(abs(t["onset_error_ms"]) for r in res.targets
+                           for t in r["tactors"] if t["driven"])
+    assert worst["shaped"] <= 10.0 < worst["plain"], worst
+
+
 def test_a_streamed_stimulus_leads_by_the_preview_on_a_shaped_belt() -> None:
     """The player streams a stimulus to a shaped belt (a board shapes each frame as it
     comes) LEAD_TICKS ms ahead, and off for the last LEAD_TICKS ms, as a device previews
