@@ -318,10 +318,6 @@ def one_blas_thread(f: Callable[P, R]) -> Callable[P, R]:
 
 # -- design matrices ---------------------------------------------------------------------
 
-def _is_numeric(s: pd.Series) -> bool:
-    return bool(pd.api.types.is_numeric_dtype(s) and not pd.api.types.is_bool_dtype(s))
-
-
 _FACTOR_CALL = re.compile(r"^factor\((\w+)\)$")
 
 
@@ -345,7 +341,7 @@ def term_levels(df: pd.DataFrame, term: str) -> list[Any] | None:
     """
     col = term_column(term)
     s = df[col]
-    if not _is_numeric(s):
+    if pd.api.types.is_bool_dtype(s) or not pd.api.types.is_numeric_dtype(s):
         return sorted(set(s.astype(str).tolist()))
     if term == col:
         return None
