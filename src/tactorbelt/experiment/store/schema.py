@@ -33,7 +33,7 @@ from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any
 
-from ...factors import CONDITION, LOAD, TARGETS, Factor, added_factors
+from ...factors import CONDITION, LOAD, TARGETS, added_factors
 from .base import SESSION_STATUSES, TRIAL_STATUSES
 
 __all__ = [
@@ -198,18 +198,13 @@ TABLE_NAMES = tuple(t.name for t in TABLES)
 _BY_NAME = {t.name: t for t in TABLES}
 
 
-def factor_column(f: Factor) -> Column:
-    """The trials column of a factor declared beyond the built-in ones (old rows: NULL,
-    which the readers take as the factor's default)."""
-    return _c(f.column, f.type, added=True)
-
-
 def table(name: str, *, added: bool = True) -> Table:
     """A table as declared, the trials with a column for each added factor (unless
-    ``added`` is False)."""
+    ``added`` is False; old rows: NULL, which the readers take as the factor's default)."""
     t = _BY_NAME[name]
     extra = added_factors() if name == "trials" and added else ()
-    return replace(t, columns=t.columns + tuple(factor_column(f) for f in extra)) if extra else t
+    columns = tuple(_c(f.column, f.type, added=True) for f in extra)
+    return replace(t, columns=t.columns + columns) if extra else t
 
 
 @dataclass(eq=False)
