@@ -34,7 +34,7 @@ import math
 import pkgutil
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass
-from typing import Any, Protocol, TypeVar
+from typing import Any, Generic, Protocol, TypeVar
 
 from ._errors import ConfigError
 
@@ -60,7 +60,7 @@ def check_option(what: str, value: object, allowed: Iterable[object],
                           f"{', '.join(str(a) for a in allowed) or 'none'}")
 
 
-class Registry(Mapping[str, T]):
+class Registry(Generic[T]):
     """Entries of one kind by name, in the order registered (a read-only mapping).
 
     Args:
@@ -77,13 +77,16 @@ class Registry(Mapping[str, T]):
                 raise ValueError(f"{what} {name!r} registered twice")
             self._entries[name] = entry
 
-    def get(self, name: str) -> T:  # type: ignore[override]  # no default: checked
+    def get(self, name: str) -> T:
         """The entry ``name``; ConfigError naming the allowed ones when there is none."""
         check_option(self.what, name, self._entries)
         return self._entries[name]
 
     def __getitem__(self, name: str) -> T:
         return self._entries[name]
+
+    def __contains__(self, name: object) -> bool:
+        return name in self._entries
 
     def __iter__(self) -> Iterator[str]:
         return iter(self._entries)
@@ -93,6 +96,9 @@ class Registry(Mapping[str, T]):
 
     def names(self) -> tuple[str, ...]:
         return tuple(self._entries)
+
+    def values(self) -> Iterable[T]:
+        return self._entries.values()
 
 
 @dataclass(frozen=True)
