@@ -415,7 +415,7 @@ def validate_stimulus(belt: Belt, sensor: Sensor, study: Study, targets: Sequenc
                                   if between_sq else None),
         isolation=DIRECT if direct else REPLAY, plays=total + extra, replayed_late=extra,
         played=session if direct else STREAMED, session_plays=session, missed_frames=missed,
-        onset_reference=("device: belt.last_onset(), as a session stores it"
+        onset_reference=("device: Player.device_onset(), as a session stores it"
                          if belt.reports_onsets else "host: the player's onset"))
 
 
