@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import math
 import statistics
-from collections import defaultdict
+from collections import Counter, defaultdict
 from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
 
@@ -63,30 +63,20 @@ def _truthy(v: Any) -> bool:
     return bool(v) and not (isinstance(v, float) and math.isnan(v))
 
 
-def _pressed(v: Any) -> bool:
-    return isinstance(v, str) and v.strip().lower() == "press"
-
-
 def _counts(events: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
-    hits = misses = fa = cr = extra = 0
+    n: Counter[tuple[bool, bool]] = Counter()  # items by (a target, pressed)
+    extra = 0
     rts: list[float] = []
     for e in events:
         if int(e["item_index"]) < 0:
             extra += 1
             continue
         target = _truthy(e["target"])
-        pressed = _pressed(e["response"])
-        if target and pressed:
-            hits += 1
-            rt = _num(e.get("rt_s"))
-            if rt is not None:
-                rts.append(rt)
-        elif target:
-            misses += 1
-        elif pressed:
-            fa += 1
-        else:
-            cr += 1
+        pressed = isinstance(e["response"], str) and e["response"].strip().lower() == "press"
+        n[target, pressed] += 1
+        if target and pressed and (rt := _num(e.get("rt_s"))) is not None:
+            rts.append(rt)
+    hits, misses, fa, cr = n[True, True], n[True, False], n[False, True], n[False, False]
     go, nogo = hits + misses, fa + cr
     items = go + nogo
     return {
