@@ -262,3 +262,50 @@ def test_ctrl_c_or_an_error_during_the_replays_leaves_the_motors_off(
         after = sensor.envelope(1, stopped + 200_000_000, time.perf_counter_ns())
     assert before.env.min() > 0.5  # tactor 1 was playing (0.4 of its 2 g)...
     assert after.env.max() < 0.02  # ...and the board's motors are still now
+
+
+def test_a_belt_lost_mid_run_keeps_the_targets_measured_before(tmp_path: Path) -> None:
+    """A belt that stops answering after the first target (its cable pulled) ends the run
+    with that target measured and the reason in ``stopped`` (stimulus.json keeps it, and
+    its figure draws), the motors off; lost before any target is done, the error itself."""
+    from support.recordingbelt import RecordingBelt, read_commands
+    from tactorbelt import DeviceError
+    from tactorbelt.clock import SimClock
+    from tactorbelt.validation.stimulus import stimulus_figure
+
+    study = paper_study()
+    for pull_after in (1, 0):
+        log = tmp_path / f"belt-{pull_after}.log"
+        belt = RecordingBelt(log, clock=SimClock(), layout=study.layout_obj())
+
+        def pulled(done: int, total: int, belt: RecordingBelt = belt,
+                   after: int = pull_after) -> None:
+            if done >= after:
+                belt.unplugged = True
+
+        with belt:
+            if pull_after == 0:
+                belt.unplugged = True
+                with pytest.raises(DeviceError, match="unplugged"):
+                    validate_stimulus(belt, ModelSensor(belt), study, TARGETS, "static",
+                                      progress=pulled)
+            else:
+                result = validate_stimulus(belt, ModelSensor(belt), study, TARGETS,
+                                           "static", progress=pulled)
+                assert [r["target"] for r in result.targets] == [TARGETS[0]]
+                assert result.stopped == f"target {TARGETS[1]}: belt 'sim' does not answer " \
+                    "(unplugged)"
+                data = json.loads(json.dumps(result.to_dict()))
+                assert data["stopped"] == result.stopped and len(data["targets"]) == 1
+                assert set(result.traces) == {TARGETS[0]}
+                assert stimulus_figure(result, tmp_path / "partial.png").stat().st_size > 0
+            assert read_commands(log)[-1][0] == "stop"  # motors off
+
+
+def test_a_complete_run_says_it_did_not_stop() -> None:
+    """stimulus.json's ``stopped`` is null when every target was measured."""
+    study = paper_study()
+    with open_belt("sim:virtual", layout=study.layout_obj()) as belt:
+        result = validate_stimulus(belt, ModelSensor(belt), study, TARGETS, "static")
+    assert result.stopped is None and result.to_dict()["stopped"] is None
+    assert [r["target"] for r in result.targets] == list(TARGETS)

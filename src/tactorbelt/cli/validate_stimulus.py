@@ -94,6 +94,12 @@ def stimulus(belt_url: str, sense_url: str | None, target: int | None, all_targe
                    "measured (a busy computer): the felt envelope shows them late", err=True)
     for what, path in paths.items():
         click.echo(f"wrote {what}: {path}")
+    if result.stopped is not None:  # the belt or the sensor failed: what was measured is kept
+        from .._errors import DeviceError
+
+        n = len(result.targets)
+        raise DeviceError(f"stopped after {n} target{'' if n == 1 else 's'}, {result.stopped} "
+                          "(the targets measured before it are written)")
     click.echo("done: motors off")
 
 

@@ -134,6 +134,9 @@ class StimulusValidation:
     #: computer), and the plays made again because it skipped too many
     missed_frames: int = 0
     replayed_late: int = 0
+    #: why the run stopped before its last target (the belt or the sensor failed: the
+    #: targets measured until then are kept), or None
+    stopped: str | None = None
 
     @property
     def how_sensed(self) -> str:
@@ -154,7 +157,8 @@ class StimulusValidation:
                 "max_skipped": MAX_SKIPPED,
                 "onset_reference": self.onset_reference,
                 "threshold": LOW, "response_levels": list(RESPONSE_LEVELS),
-                "response": self.response, "targets": self.targets}
+                "response": self.response, "targets": self.targets,
+                "stopped": self.stopped}
 
 
 class _Only:
@@ -315,10 +319,12 @@ def validate_stimulus(belt: Belt, sensor: Sensor, study: Study, targets: Sequenc
     ``condition`` for ``duration_s``, sensed by ``sensor``: directly, or once per driven
     tactor when the sensor mixes the tactors; see the module docstring. The motors are
     off when it returns or raises (Ctrl-C too). ``progress(done, total)`` counts plays.
+    A DeviceError after the first target (the belt or the sensor lost) ends the run with
+    the targets measured until then and the reason in ``stopped``.
 
     Raises:
         ConfigError: a target or condition the study does not have.
-        DeviceError: the sensor saw nothing, or lost samples.
+        DeviceError: the sensor saw nothing, or lost samples, before a target was done.
     """
     from ..geometry import TargetSet
     from ..player import Player
@@ -351,6 +357,7 @@ def validate_stimulus(belt: Belt, sensor: Sensor, study: Study, targets: Sequenc
     between_sq: list[FloatArray] = []
     done = missed = extra = 0
     session = STREAMED
+    stopped: str | None = None
     try:
         with Player(belt, clock) as player:
             if any(player.renders_on_device(s) for s in stimuli.values()):
@@ -362,46 +369,54 @@ def validate_stimulus(belt: Belt, sensor: Sensor, study: Study, targets: Sequenc
             curve = np.vstack([np.zeros((1, belt.n_tactors)), response / full])
             grid = np.array((0.0, *RESPONSE_LEVELS))
             for target, stim in stimuli.items():
-                tactors: dict[int, dict[str, Any]] = {}
-                sq = []
-                traces[target] = {}
-                plays: list[tuple[Any, Sequence[int]]] = (
-                    [(stim, range(belt.n_tactors))] if direct else
-                    [(_Only(stim, k), (k,)) for k in driven[target]])
-                for what, which in plays:
-                    tries: list[_Played] = []
-                    while not tries or (tries[-1].skipped > MAX_SKIPPED
-                                        and len(tries) < MAX_TRIES):
-                        tries.append(_play(player, clock, what, duration_s, base_ns,
-                                           off_ns))
-                    played = min(tries, key=lambda p: p.skipped)
-                    for k in which:
-                        row, trace, err2 = _compare(sensor, k, played, stim, base_ns,
-                                                    off_ns, float(full[k]), grid,
-                                                    curve[:, k])
-                        row["plays"], row["missed_frames"] = len(tries), played.missed
-                        tactors[k], traces[target][k] = row, trace
-                        if row["driven"]:
-                            sq.append(err2)
-                    sensor.forget_before(tries[-1].end + off_ns - base_ns)
-                    missed += played.missed
-                    extra += len(tries) - 1
-                    done += 1
-                    if progress is not None:
-                        progress(done, total)
-                for k in range(belt.n_tactors):  # never played: silent
-                    tactors.setdefault(k, {"tactor": k, "rms_error": 0.0,
-                                           "onset_error_ms": None, "offset_error_ms": None,
-                                           "driven": False, "felt": "silent", "plays": 0,
-                                           "missed_frames": 0})
-                cat = np.concatenate(sq) if sq else np.zeros(1)
-                rows.append({"target": target, "target_deg": float(angles[target]),
-                             "on_tactor": bool(on_tactor[target]),
-                             "rms_error": float(np.sqrt(np.mean(cat))),
-                             "tactors": [tactors[k] for k in range(belt.n_tactors)]})
-                all_sq.append(cat)
-                if not on_tactor[target]:
-                    between_sq.append(cat)
+                try:
+                    tactors: dict[int, dict[str, Any]] = {}
+                    sq = []
+                    traces[target] = {}
+                    plays: list[tuple[Any, Sequence[int]]] = (
+                        [(stim, range(belt.n_tactors))] if direct else
+                        [(_Only(stim, k), (k,)) for k in driven[target]])
+                    for what, which in plays:
+                        tries: list[_Played] = []
+                        while not tries or (tries[-1].skipped > MAX_SKIPPED
+                                            and len(tries) < MAX_TRIES):
+                            tries.append(_play(player, clock, what, duration_s, base_ns,
+                                               off_ns))
+                        played = min(tries, key=lambda p: p.skipped)
+                        for k in which:
+                            row, trace, err2 = _compare(sensor, k, played, stim, base_ns,
+                                                        off_ns, float(full[k]), grid,
+                                                        curve[:, k])
+                            row["plays"], row["missed_frames"] = len(tries), played.missed
+                            tactors[k], traces[target][k] = row, trace
+                            if row["driven"]:
+                                sq.append(err2)
+                        sensor.forget_before(tries[-1].end + off_ns - base_ns)
+                        missed += played.missed
+                        extra += len(tries) - 1
+                        done += 1
+                        if progress is not None:
+                            progress(done, total)
+                    for k in range(belt.n_tactors):  # never played: silent
+                        tactors.setdefault(k, {"tactor": k, "rms_error": 0.0,
+                                               "onset_error_ms": None, "offset_error_ms": None,
+                                               "driven": False, "felt": "silent", "plays": 0,
+                                               "missed_frames": 0})
+                    cat = np.concatenate(sq) if sq else np.zeros(1)
+                    rows.append({"target": target, "target_deg": float(angles[target]),
+                                 "on_tactor": bool(on_tactor[target]),
+                                 "rms_error": float(np.sqrt(np.mean(cat))),
+                                 "tactors": [tactors[k] for k in range(belt.n_tactors)]})
+                    all_sq.append(cat)
+                    if not on_tactor[target]:
+                        between_sq.append(cat)
+                except DeviceError as exc:  # the belt or the sensor lost
+                    if not rows:
+                        raise
+                    # what was measured is kept: the targets done, and why it stopped
+                    traces.pop(target, None)
+                    stopped = f"target {target}: {exc}"
+                    break
     finally:
         with contextlib.suppress(Exception):
             belt.stop()
@@ -416,7 +431,8 @@ def validate_stimulus(belt: Belt, sensor: Sensor, study: Study, targets: Sequenc
         isolation=DIRECT if direct else REPLAY, plays=total + extra, replayed_late=extra,
         played=session if direct else STREAMED, session_plays=session, missed_frames=missed,
         onset_reference=("device: Player.device_onset(), as a session stores it"
-                         if belt.reports_onsets else "host: the player's onset"))
+                         if belt.reports_onsets else "host: the player's onset"),
+        stopped=stopped)
 
 
 def run_stimulus(belt_url: str, out_dir: str | Path, *, targets: Sequence[int] | None,
@@ -503,6 +519,9 @@ def stimulus_figure(result: StimulusValidation, path: str | Path) -> Path:
                f", between tactors {result.between_tactor_rms_error:.3f}")
     fig.suptitle(f"Felt (solid) and intended (dashed) {result.condition} stimulus, drive "
                  f"{result.drive}: RMS error {result.rms_error:.3f}{between}\n"
-                 f"belt {result.belt}, sensor {result.sensor}\n{result.how_sensed}", fontsize=10)
+                 f"belt {result.belt}, sensor {result.sensor}\n{result.how_sensed}"
+                 + ("" if result.stopped is None else
+                    f"\nstopped after target {result.targets[-1]['target']}: the belt or "
+                    "the sensor failed (stimulus.json says why)"), fontsize=10)
     fig.tight_layout()
     return save_figure(fig, path)
