@@ -71,11 +71,6 @@ def _model_at(root: Any, loc: tuple[str | int, ...]) -> Any:
     return tp if isinstance(tp, type) and issubclass(tp, BaseModel) else None
 
 
-def _allowed_keys(root: Any, loc: tuple[str | int, ...]) -> list[str]:
-    model = _model_at(root, loc)
-    return list(model.model_fields) if model is not None else []
-
-
 def _range_text(root: Any, loc: tuple[str | int, ...]) -> str | None:
     """The allowed range of a numeric field, e.g. ``(0, 1]``, from its constraints."""
     model = _model_at(root, loc)
@@ -144,7 +139,8 @@ def study_error(exc: ValidationError, text: str, where: str, root: Any) -> Study
     line = _line_for(loc, lines)
     dotted = _dotted(loc)
     if kind == "extra_forbidden":
-        allowed = _allowed_keys(root, loc)
+        model = _model_at(root, loc)
+        allowed = list(model.model_fields) if model is not None else []
         close = difflib.get_close_matches(str(loc[-1]), allowed, n=1)
         msg = f"unknown key {loc[-1]!r}"
         if pair is not None:
