@@ -429,9 +429,6 @@ class _Term:
     def n_theta(self) -> int:
         return self.b * (self.b + 1) // 2
 
-    def lower_bounds(self) -> list[float]:
-        return [0.0 if i == j else -np.inf for j in range(self.b) for i in range(j, self.b)]
-
     def theta_names(self) -> list[str]:
         """lme4's names of this term's theta elements (``group.col`` or ``group.row.col``)."""
         c = self.columns
@@ -452,7 +449,7 @@ def _split(terms: list[_Term], theta: np.ndarray) -> list[np.ndarray]:
 
 
 def _lower(terms: list[_Term]) -> list[float]:
-    return [b for t in terms for b in t.lower_bounds()]
+    return [0.0 if i == j else -np.inf for t in terms for j in range(t.b) for i in range(j, t.b)]
 
 
 def _theta_names(terms: list[_Term]) -> list[str]:
