@@ -373,7 +373,7 @@ def summarize(data: StoreData, *, seed: int = 0, n_boot: int = DEFAULT_N_BOOT,
         notes.append(f"{int(unknown_cond.sum())} test trial(s) with condition "
                      f"{', '.join(vals)} were left out (allowed: static, dynamic)")
     status = tr["status"]
-    test = tr["block"] == "test"
+    test, in_training = tr["block"] == "test", tr["block"] == "training"
     counted = tr.loc[tr["counted"]]
     status_s = sessions["status"].astype("string").str.lower().fillna("")
     incomplete = sessions.loc[~status_s.isin(COMPLETE_STATUSES) | sessions["ended_at"].isna(),
@@ -392,12 +392,10 @@ def summarize(data: StoreData, *, seed: int = 0, n_boot: int = DEFAULT_N_BOOT,
         "trials": len(tr),
         "test_trials": int(test.sum()),
         "counted_trials": len(counted),
-        "done": int((test & (status == "done")).sum()),
-        "timeout": int((test & (status == "timeout")).sum()),
-        "aborted": int((test & (status == "aborted")).sum()),
-        "training_trials": int((tr["block"] == "training").sum()),
-        "training_timeout": int(((tr["block"] == "training") & (status == "timeout")).sum()),
-        "training_aborted": int(((tr["block"] == "training") & (status == "aborted")).sum()),
+        **{s: int((test & (status == s)).sum()) for s in ("done", "timeout", "aborted")},
+        "training_trials": int(in_training.sum()),
+        **{f"training_{s}": int((in_training & (status == s)).sum())
+           for s in ("timeout", "aborted")},
     }
 
     cond_table = condition_summary(tr)
