@@ -72,11 +72,10 @@ def main() -> int:
     ap.add_argument("--keep", action="store_true", help="keep the stores for the next run")
     args = ap.parse_args()
 
-    from support.r_reference import r_condition_tests
+    from support.r_reference import lme4_available, r_condition_tests
     from tactorbelt.analysis.models.contrasts import condition_contrasts
     from tactorbelt.analysis.models.fit import fit_model
     from tactorbelt.analysis.models.glmm import fit_glmm
-    from tactorbelt.analysis.models.lme4 import lme4_available
     from tactorbelt.analysis.models.lrt import likelihood_ratio, null_spec, parametric_bootstrap
 
     warnings.simplefilter("ignore")
