@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..figures import save_figure, tactor_colors
+from ..figures import _pyplot, save_figure, tactor_colors
 from ..geometry import Layout
 from .model import Pattern
 from .render import PatternPlayback, render_pattern
@@ -18,11 +18,7 @@ __all__ = ["show_pattern"]
 def show_pattern(pattern: Pattern, layout: Layout, out: str | Path, law: str | None = None,
                  rate_hz: float = 1000.0, source: str | None = None) -> Path:
     """Draw ``pattern`` rendered on ``layout`` (the law for angles and paths) to ``out``."""
-    import matplotlib
-
-    matplotlib.use("Agg", force=False)
-    import matplotlib.pyplot as plt
-
+    plt = _pyplot()
     playback = PatternPlayback(pattern, layout, law, source=source)
     t, amps = render_pattern(playback, rate_hz)
     n = layout.n
