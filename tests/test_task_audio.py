@@ -245,3 +245,21 @@ def test_a_measured_output_latency_is_taken_from_the_environment(
     monkeypatch.setenv("TACTORBELT_TASK_AUDIO_LATENCY_MS", "fast")
     with pytest.raises(ConfigError, match="TACTORBELT_TASK_AUDIO_LATENCY_MS must be"):
         open_task_audio(WallClock())
+
+
+def test_the_silent_output_drops_the_sounds_a_stop_comes_before() -> None:
+    """As an output that plays: a stop drops the sounds scheduled for onsets the clock
+    has not reached (a task run ended before an item it announced), keeps the others."""
+    from tactorbelt.clock import SimClock
+    from tactorbelt.tasks.audio import SilentTaskAudio
+
+    clock = SimClock()
+    out = SilentTaskAudio(clock)
+    tone = np.zeros(10, dtype=np.float32)
+    out.schedule(tone, 10_000_000, "a")
+    out.schedule(tone, 30_000_000, "b")
+    clock.advance(20_000_000)
+    out.stop()
+    assert [p.label for p in out.played] == ["a"]
+    out.schedule(tone, 40_000_000, "c")  # scheduled after the stop: kept
+    assert [p.label for p in out.played] == ["a", "c"]

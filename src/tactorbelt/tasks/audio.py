@@ -155,10 +155,20 @@ class TaskAudio:
 
 
 class SilentTaskAudio(TaskAudio):
-    """Records each sound as placed at its onset; plays nothing."""
+    """Records each sound as placed at its onset; plays nothing. As an output that plays,
+    :meth:`stop` drops the sounds whose onset ``clock`` has not reached (a task run that
+    ends before an item it announced: the item is never heard)."""
+
+    def __init__(self, clock: Clock) -> None:
+        super().__init__()
+        self.clock = clock
 
     def schedule(self, sound: FloatArray, onset_ns: int, label: str = "") -> None:
         self.played.append(Placement(label, int(onset_ns), None, int(onset_ns), 0))
+
+    def stop(self) -> None:
+        now = int(self.clock.now_ns())
+        self.played = [p for p in self.played if p.onset_ns <= now]
 
 
 @dataclass(slots=True, eq=False)
@@ -447,7 +457,7 @@ def open_task_audio(clock: Clock) -> TaskAudio:
         ConfigError: a latency that is not a number of ms in 0..1000.
     """
     if clock.simulated:
-        return SilentTaskAudio()
+        return SilentTaskAudio(clock)
     text = os.environ.get(LATENCY_ENV, "").strip()
     latency_s = None
     if text:
