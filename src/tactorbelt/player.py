@@ -294,8 +294,8 @@ class Player(contextlib.AbstractContextManager["Player"]):
         """The device-true onset of the last start, ``(host_ns, uncertainty_ns)``: the
         belt's :meth:`~tactorbelt.devices.base.Belt.last_onset` (when its outputs changed)
         plus the pre-roll, as :meth:`start` returns the onset; None where the belt cannot
-        tell (``reports_onsets``)."""
-        got = self.belt.last_onset(timeout_s) if self.belt.reports_onsets else None
+        tell (``last_onset`` is None then)."""
+        got = self.belt.last_onset(timeout_s)
         return None if got is None else (int(got[0]) + self._preroll, int(got[1]))
 
     def switch(self, stimulus: Stimulus) -> None:

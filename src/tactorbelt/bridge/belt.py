@@ -152,9 +152,8 @@ class BeltPort:
             self._player.stop()
         self._play += 1
         onset = int(self.clock.now_ns())
-        belt = self.belt
-        belt.set_amplitudes(amplitudes)
-        return self._onset(onset, duration_s, belt.last_onset() if belt.reports_onsets else None)
+        self.belt.set_amplitudes(amplitudes)
+        return self._onset(onset, duration_s, self.belt.last_onset())
 
     def stop(self) -> int:
         """Motors off now; the time they were turned off (wall clock, ns)."""
