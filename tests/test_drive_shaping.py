@@ -392,6 +392,86 @@ def test_a_long_shaped_session_of_played_stimuli_keeps_its_history() -> None:
     assert np.isfinite(v).all() and v.max() > 0.1
 
 
+def _random_trials(url: str, seed: int, walk_only: bool = False, n_trials: int = 40
+                   ) -> list[np.ndarray]:
+    """Trials as a study plays them on a shaped sim belt (simulated clock; random
+    stimuli, static and dynamic, some with a duration; a read of up to 400 ms from at or
+    after the onset; now and then a frame; a stop; a gap of 0-1.5 s): what each read
+    gave. ``walk_only``: every read walks (the belt never reads a trial from its memo)."""
+    from tactorbelt.stimuli import make_stimulus
+
+    rng = np.random.default_rng(seed)
+    stims = [make_stimulus(Layout.even(6), a, c) for a in (0.0, 15.0, 45.0, 100.0, 200.0)
+             for c in ("static", "dynamic")]
+    clock = SimClock()
+    reads: list[np.ndarray] = []
+    with open_belt(url, clock=clock) as b:
+        if walk_only:
+            b._from_rest = lambda t0, t1: None  # type: ignore[attr-defined]
+        for _ in range(n_trials):
+            onset = clock.now_ns()
+            b.play(stims[int(rng.integers(len(stims)))],
+                   None if rng.random() < 0.7 else float(rng.uniform(0.05, 1.5)))
+            clock.advance(int(rng.integers(1, 400)) * MS)
+            start = onset + int(rng.integers(0, 50)) * MS // 4
+            reads.append(b.vibration_at(start + np.arange(int(rng.integers(1, 400)),
+                                                          dtype=np.int64) * MS))
+            if rng.random() < 0.15:
+                b.set_amplitudes(rng.uniform(0, 1, 6))
+                clock.advance(int(rng.integers(1, 100)) * MS)
+            clock.advance(int(rng.integers(0, 2500)) * MS)
+            b.stop()
+            clock.advance(int(rng.integers(0, 150) if rng.random() < 0.5
+                              else rng.integers(150, 1500)) * MS)
+    return reads
+
+
+@pytest.mark.parametrize("url", ["sim", "sim?supply_v=5&kick_ms=40"])
+def test_a_trial_that_starts_at_rest_reads_as_the_walk_does(url: str) -> None:
+    """A read inside a stimulus whose onset found the shaper at rest (the stimulus before
+    was stopped and braked to a standstill in the gap) is taken from the stimulus's memo
+    without walking; over random trials it gives, to the bit, what the walk gives,
+    including the trials whose onset was not at rest (a short gap, a frame between)."""
+    for seed in range(8):
+        fast = _random_trials(url, seed)
+        slow = _random_trials(url, seed, walk_only=True)
+        for i, (a, b) in enumerate(zip(fast, slow, strict=True)):
+            assert np.array_equal(a, b), (seed, i)
+
+
+def test_a_run_of_trials_with_gaps_walks_far_fewer_times_than_it_reads() -> None:
+    """The cost the instruction benchmark measures: trials with a gap long enough to
+    brake to rest are read from the memo, and the rest after a stop is known from the
+    decision the stop finds, so 200 trials walk a few times per stimulus, not per trial."""
+    from tactorbelt.devices import sim
+    from tactorbelt.stimuli import make_stimulus
+
+    stims = [make_stimulus(Layout.even(6), a, c) for a in (15.0, 45.0)
+             for c in ("static", "dynamic")]
+    rng = np.random.default_rng(0)
+    clock = SimClock()
+    walks = 0
+    with open_belt("sim", clock=clock) as b:
+        assert isinstance(b, sim.SimBelt)
+        walk = b._walk
+
+        def counted(*args: object) -> object:
+            nonlocal walks
+            walks += 1
+            return walk(*args)  # type: ignore[arg-type]
+
+        b._walk = counted  # type: ignore[method-assign]
+        for i in range(200):
+            onset = clock.now_ns()
+            b.play(stims[i % 4], None)
+            clock.advance(300 * MS)
+            b.vibration(onset, onset + 299 * MS)
+            clock.advance(int(rng.integers(500, 2000)) * MS)  # the response
+            b.stop()
+            clock.advance(1000 * MS)
+    assert walks <= 50  # 32 here; reading each trial by a walk takes 200
+
+
 def test_the_shaped_solution_is_the_same_tick_by_tick_and_run_by_run() -> None:
     """Runs of landed changes are solved at once where the shaper predicts with the
     motor's own model; walking every decision one by one gives the same vibration."""
@@ -715,6 +795,26 @@ def test_a_window_ending_inside_a_kick_reads_what_a_longer_one_does() -> None:
     whole = window(80)
     for ms in range(2, 60, 3):
         assert np.array_equal(window(ms), whole[:ms])
+
+
+def test_a_window_ending_inside_a_tick_reads_what_a_longer_one_does() -> None:
+    """The shaper decides whole render ticks, also on a query's last stretch: a window
+    that ends between two ticks (here every 0.25 ms over the first 60 ms of a static and a
+    dynamic stimulus, kicks and landing ticks included) gives, to the bit, the values a
+    longer window gives at the same times."""
+    from tactorbelt.stimuli import make_stimulus
+
+    for stim in (make_stimulus(Layout.even(6), 15.0, "static"),
+                 make_stimulus(Layout.even(6), 15.0, "dynamic")):
+        clock = SimClock()
+        with open_belt("sim", clock=clock) as b:
+            onset = clock.now_ns()
+            b.play(stim, None)
+            clock.advance(100 * MS)
+            times = onset + np.arange(0, 80 * MS, MS // 4, dtype=np.int64)
+            whole = b.vibration_at(times)
+            for j in range(1, 240):
+                assert np.array_equal(b.vibration_at(times[: j + 1]), whole[: j + 1]), j
 
 
 def test_random_frames_and_plays_hold_a_5v_kick_above_the_maximum_within_kick_ms() -> None:

@@ -38,6 +38,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Final
 
 import numpy as np
+from numpy.typing import NDArray
 
 from .._errors import ConfigError
 from ..clock import Clock, WallClock
@@ -45,6 +46,7 @@ from ..geometry import Layout
 from .base import Belt
 from .calibration import Calibration
 from .erm import (
+    _MAX_DECAY,
     _RESPONSE_MAX_TICKS,
     _SETTLED,
     _TIE,
@@ -185,6 +187,10 @@ class _Render:
         #: stimulus object, :meth:`share`): (motor params, shaper, tactors, memo), so a
         #: walk finds it without hashing the stimulus
         self.memo_box: list[tuple[ErmParams, Shaper, int, _ShapedMemo] | None] = [None]
+        #: whether the shaper of the belt that plays it was at rest at the onset (every
+        #: motor and predicted speed and budget zero): None until asked
+        #: (:meth:`SimBelt._at_rest`)
+        self.rest: bool | None = None
         if not stimulus.is_dynamic:
             self._table_ticks = 1
         else:
@@ -279,20 +285,52 @@ _MEMO_TICKS: Final = 3_072
 _SHAPED_MEMOS_BUDGET: Final = 24 * 2**20
 
 
-@dataclass(frozen=True)
 class _ShapedMemo:
     """The shaper's decisions on a render started from rest (times from its onset, ns),
     the drives, the predicted speeds and the firmware's budgets (ns above the rated drive,
-    then in reverse, per tactor)."""
+    then in reverse, per tactor); read-only. With the motor model ``params`` each
+    decision's steady speed, time constant and gap (:func:`~tactorbelt.devices.erm.
+    drive_relax`'s terms), so :meth:`speeds` relaxes only the decisions that move."""
 
-    t: IntArray
-    d: FloatArray
-    e: FloatArray
-    u: IntArray
+    __slots__ = ("d", "e", "gap", "moving", "rest_after", "steady", "t", "tau", "u")
+
+    def __init__(self, t: IntArray, d: FloatArray, e: FloatArray, u: IntArray,
+                 params: ErmParams) -> None:
+        self.t, self.d, self.e, self.u = t, d, e, u
+        rev = np.signbit(d)
+        self.steady: FloatArray = np.where(rev, d, np.where(d >= params.start_level, d, 0.0))
+        self.tau: FloatArray = np.where(rev, params.brake_tau_s, np.where(
+            self.steady > e, params.rise_tau_s, params.fall_tau_s))
+        self.gap: FloatArray = e - self.steady
+        #: the decisions under which some speed changes
+        self.moving: NDArray[np.bool_] = np.asarray(self.gap.any(axis=1))
+        for arr in (t, d, e, u, self.steady, self.tau, self.gap, self.moving):
+            arr.setflags(write=False)
+        #: per decision (index) settled on its levels: how long after a stop that finds
+        #: it, its budgets spent, the shaper is at rest (ns; None: it does not come to
+        #: rest exactly, or the decision is not settled). Filled as stops ask
+        #: (:meth:`SimBelt._rest_after_row`).
+        self.rest_after: dict[int, int | None] = {}
 
     @property
     def nbytes(self) -> int:
-        return int(self.t.nbytes + self.d.nbytes + self.e.nbytes + self.u.nbytes)
+        return int(sum(a.nbytes for a in (self.t, self.d, self.e, self.u, self.steady,
+                                          self.tau, self.gap, self.moving)))
+
+    def speeds(self, times: IntArray) -> FloatArray:
+        """The motors' speed magnitudes at ``times`` (from the onset, increasing, at or
+        after it): :func:`~tactorbelt.devices.erm.drive_relax` of the decision in force,
+        the same floats, relaxed only under the decisions that move (elsewhere the speed
+        is the steady one)."""
+        idx = self.t.searchsorted(times, side="right") - 1
+        out = self.steady[idx]
+        sel = np.flatnonzero(self.moving[idx])
+        if sel.size:
+            r = idx[sel]
+            dt = np.asarray((times[sel] - self.t[r]) * 1e-9, dtype=np.float64)[:, None]
+            out[sel] = self.steady[r] + self.gap[r] * np.exp(
+                -np.minimum(dt / self.tau[r], _MAX_DECAY))
+        return np.abs(out)
 
 
 _SHAPED_MEMOS: dict[tuple[Any, ...], _ShapedMemo] = {}
@@ -498,6 +536,8 @@ class SimBelt(Belt):
         self._ck_t.clear()
         self._ck_w.clear()
         self._sck.clear()
+        for render in self._renders.values():  # found under the drive before
+            render.rest = None
 
     def _state_before(self, t_ns: int) -> tuple[int, FloatArray, FloatArray, IntArray]:
         """A time at or before ``t_ns`` the drive may restart from, with the motors' and
@@ -672,10 +712,7 @@ class SimBelt(Belt):
         t, d, _, e, u = self._walk(bounds, levels, onset + _MEMO_TICKS * RENDER_TICK_NS - 1,
                                    zeros, zeros, np.zeros(2 * self.n_tactors, dtype=np.int64),
                                    {})
-        memo = _ShapedMemo(t - onset, d, e, u)
-        for arr in (memo.t, memo.d, memo.e, memo.u):
-            arr.setflags(write=False)
-        return memo
+        return _ShapedMemo(t - onset, d, e, u, self.params)
 
     def _walk(self, bounds: IntArray, levels: FloatArray, t_last: int, w: FloatArray,
               e: FloatArray, u: IntArray, onsets: dict[int, tuple[_Render, int]],
@@ -924,13 +961,154 @@ class SimBelt(Belt):
     def _speed_shaped(self, times: IntArray) -> FloatArray:
         """:meth:`_speed_at` of the shaped drive: the motors' speed magnitude (a motor
         reverse-driven past a stop spins backwards and vibrates again)."""
+        from_rest = self._from_rest(int(times[0]), int(times[-1]))
+        self._since_ck = 0  # a decision up to now is kept
+        if from_rest is not None:
+            onset, memo = from_rest
+            return memo.speeds(times - onset)
         ts, ds, ws, _, _ = self._shaped_solve(int(times[0]), int(times[-1]),
                                               also_keep=int(times[0]))
-        self._since_ck = 0  # a decision up to now is kept
         idx = ts.searchsorted(times, side="right") - 1
         dt = np.asarray((times - ts[idx]) * 1e-9, dtype=np.float64)
         w = drive_relax(ds[idx], ws[idx], dt, self.params)
         return np.asarray(np.abs(w))
+
+    def _from_rest(self, t0: int, t1: int) -> tuple[int, _ShapedMemo] | None:
+        """The onset and the memo (:meth:`_render_memo`) of the render a query over
+        [t0, t1] reads inside, when the shaper was at rest at its onset
+        (:meth:`_at_rest`), the motors are its prediction (``self._exact``) and the query
+        ends before anything else commands the drive, within the memo: the walk splices
+        that memo there, so its decisions are the query's, without walking. None
+        otherwise (the walk answers)."""
+        if not self._exact or self._hi == self._lo:
+            return None
+        j = self._row_in_force(t0)
+        rid = int(self._rid[j]) if j >= self._lo else -1
+        if rid < 0:
+            return None
+        render = self._renders[rid]
+        onset = render.onset_ns
+        limit = onset + (_MEMO_TICKS - 1) * RENDER_TICK_NS
+        end = render.end_ahead(self.shaper.lead_ticks)
+        for c in (int(self._t[j + 1]) if j + 1 < self._hi else None, end):
+            if c is not None:
+                limit = min(limit, c)
+        if onset != int(self._t[j]) or onset <= self._base_t or t1 >= limit \
+                or not self._at_rest(j):
+            return None
+        memo = self._memo_at(render, onset, [0.0] * self.n_tactors,
+                             [0] * (2 * self.n_tactors))
+        return None if memo is None else (onset, memo)
+
+    def _rest_after_row(self, render: _Render, memo: _ShapedMemo, r: int) -> int | None:
+        """How long after a stop the shaper is at rest (every predicted speed and budget
+        zero), when the stop comes while the render's memo decision ``r`` holds, settled
+        on its levels (none above the rated drive), and its budgets are spent: the walk
+        from that decision over such a stop (ns; None when the decision is not settled,
+        or the walk does not come to rest exactly within 2 s). A later onset then finds
+        the shaper at rest, whenever the stop: the walk's decisions up to the rest are
+        the same, and after it the speeds stay zero and the budgets spent."""
+        tick, n, lead = RENDER_TICK_NS, self.n_tactors, self.shaper.lead_ticks
+        t_r = render.onset_ns + int(memo.t[r])
+        e_r, u_r = memo.e[r], memo.u[r]
+        lv = render.levels(np.array([t_r], dtype=np.int64), lead)[0]
+        s = np.where(lv >= self.shaper.params.start_level, lv, 0.0)
+        if np.signbit(lv).any() or lv.max() > 1.0 or np.abs(s - e_r).max() > _SETTLED:
+            return None
+        stop = t_r + max(int(u_r.max()), tick)
+        far = stop + 2_000_000_000
+        ts, ds, _, es, us = self._walk(
+            np.array([t_r, stop, far], dtype=np.int64), np.stack([lv, np.zeros(n),
+                                                                  np.zeros(n)]),
+            far, e_r, e_r, u_r, {})
+        keep = (ts >= stop) & (ts < far)
+        ts, ds, es, us = ts[keep], ds[keep], es[keep], us[keep]
+        coasting = (es == 0.0).all(axis=1) & (ds == 0.0).all(axis=1) & ~np.signbit(ds).any(
+            axis=1)
+        if not coasting.size or not coasting[-1]:
+            return None
+        q = coasting.size - int(np.argmin(coasting[::-1])) if not coasting.all() else 0
+        rest = int(ts[q]) + int(us[q].max())
+        return rest - stop if rest < far else None
+
+    def _at_rest(self, j: int) -> bool:
+        """Whether every motor, predicted speed and budget of the shaper is zero at the
+        onset of the render that row ``j`` starts (kept on the render; a decision at rest
+        there is kept for later walks). Shown from the render before when the row before
+        stops it (:meth:`_rest_after_stop`; back along such renders to one already
+        known), else by the walk to the onset."""
+        chain = [j]
+        while self._renders[int(self._rid[chain[-1]])].rest is None:
+            k = chain[-1] - 2  # the render the row before stops
+            if k < self._lo or self._rid[k] < 0 or self._rid[k + 1] >= 0:
+                break
+            chain.append(k)
+        n = self.n_tactors
+        for k in reversed(chain):
+            render = self._renders[int(self._rid[k])]
+            if render.rest is not None:
+                continue
+            onset = render.onset_ns
+            rest = self._rest_after_stop(k)
+            if rest is None:
+                _, _, ws, es, us = self._shaped_solve(onset, onset, onset)
+                rest = not (ws[-1].any() or es[-1].any() or us[-1].any())
+            elif rest:
+                self._keep_decision(onset, np.zeros(n), np.zeros(n),
+                                    np.zeros(2 * n, dtype=np.int64))
+            render.rest = rest
+        return bool(self._renders[int(self._rid[j])].rest)
+
+    def _rest_before(self, t: int, since: int) -> int | None:
+        """The latest onset in (``since``, ``t``] of a render at whose onset the shaper
+        was at rest (:meth:`_at_rest`), or None."""
+        for k in range(self._row_in_force(t), max(self._lo, 0) - 1, -1):
+            t_k = int(self._t[k])
+            if t_k <= since:
+                break
+            rid = int(self._rid[k])
+            if rid >= 0 and self._renders[rid].onset_ns == t_k and self._at_rest(k):
+                return t_k
+        return None
+
+    def _rest_after_stop(self, j: int) -> bool | None:
+        """:meth:`_at_rest` of the render row ``j`` starts, when the row before stops a
+        render that started at rest (the paper study's trials): the walk from that
+        render's last memo decision before the stop (where a walk through it resumes
+        after splicing the memo) to the onset. None when the rows are not so."""
+        lo, lead, n = self._lo, self.shaper.lead_ticks, self.n_tactors
+        if j - 2 < lo or self._rid[j - 1] >= 0 or self._lv[j - 1].any() \
+                or self._rid[j - 2] < 0:
+            return None
+        before = self._renders[int(self._rid[j - 2])]
+        t_on = before.onset_ns
+        if t_on != int(self._t[j - 2]) or before.rest is not True:
+            return None
+        cut = int(self._t[j - 1])
+        end = before.end_ahead(lead)
+        if end is not None:
+            cut = min(cut, end)
+        memo = self._memo_at(before, t_on, [0.0] * n, [0] * (2 * n))
+        if memo is None or cut > t_on + _MEMO_TICKS * RENDER_TICK_NS:
+            return None
+        r = int(memo.t.searchsorted(cut - t_on, side="left")) - 1
+        if r < 1:
+            return None
+        t_r, onset = t_on + int(memo.t[r]), int(self._t[j])
+        stop = int(self._t[j - 1])
+        if cut == stop and stop - t_r >= int(memo.u[r].max()):
+            # the stop finds decision r settled (or not) with its budgets spent: the rest
+            # after it depends on that decision alone
+            if r not in memo.rest_after:
+                memo.rest_after[r] = self._rest_after_row(before, memo, r)
+            rest_ns = memo.rest_after[r]
+            if rest_ns is not None and onset - stop >= rest_ns + 2 * RENDER_TICK_NS:
+                return True
+        bounds = _sorted_unique(np.concatenate([np.array([t_r], dtype=np.int64),
+                                                self._breakpoints(t_r, onset, lead)]))
+        ts, _, _, es, us = self._walk(bounds, self._levels_at(bounds, lead), onset,
+                                      memo.e[r], memo.e[r], memo.u[r], {})
+        return int(ts[-1]) == onset and not (es[-1].any() or us[-1].any())
 
     def driven(self, t0_ns: int, t1_ns: int, rate_hz: float = 1000.0
                ) -> tuple[IntArray, FloatArray]:
@@ -1420,9 +1598,17 @@ class SimBelt(Belt):
                 before_ns)
             # cut at a remembered state when there is one close before the cut: no work
             j = bisect.bisect_right(self._ck_t, cut) - 1
+            k = bisect.bisect_right([c[0] for c in self._sck], cut) - 1
             if j >= 0 and self._ck_t[j] > max(self._base_t, cut - self._slack_ns):
                 cut, w_cut = self._ck_t[j], self._ck_w[j]  # plain: no budget used
                 e_cut, u_cut = w_cut.copy(), np.zeros(2 * self.n_tactors, dtype=np.int64)
+            elif k >= 0 and self._sck[k][0] > max(self._base_t, cut - self._slack_ns):
+                cut, w_cut, e_cut, u_cut = self._sck[k]  # a decision of the shaper
+            elif self._drive == "shaped" and self._exact and (rest := self._rest_before(
+                    cut, max(self._base_t, cut - self._slack_ns))) is not None:
+                n = self.n_tactors  # an onset at rest
+                cut, w_cut, e_cut = rest, np.zeros(n), np.zeros(n)
+                u_cut = np.zeros(2 * n, dtype=np.int64)
             elif cut <= self._base_t:
                 return
             else:
