@@ -1225,7 +1225,7 @@ class SimBelt(Belt):
             seg_end = int(self._t[row + 1]) if row + 1 < hi else t_b + 1
             end = render.end_ahead(lead)
             if end is not None:
-                if t_a < end <= t_b:
+                if t_a < end <= t_b and end < seg_end:  # not when a command came first
                     parts.append(np.array([end], dtype=np.int64))
                 seg_end = min(seg_end, end)
             seg_start = max(int(self._t[row]), t_a + 1)
