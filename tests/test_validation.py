@@ -178,6 +178,75 @@ def test_a_pulse_whose_samples_were_lost_is_pulsed_again() -> None:
         validate_onsets(belt, sensor, OnsetSettings(pulses=1, max_repeats=2))
 
 
+def test_a_belt_lost_mid_run_keeps_the_pulses_measured_before(tmp_path: Path) -> None:
+    """A belt that stops answering after three pulses are measured (its cable pulled) ends
+    the run with those, and the pulses played before whose windows are over, measured and
+    the reason in ``stopped`` (validation.json keeps it, and its figure draws), the motors
+    off; lost before any pulse is measured, the error itself."""
+    from support.recordingbelt import RecordingBelt, read_commands
+    from tactorbelt.validation.run import onset_figure
+
+    for pull_after in (3, 0):
+        log = tmp_path / f"belt-{pull_after}.log"
+        belt = RecordingBelt(log, clock=SimClock())
+
+        def pulled(done: int, total: int, belt: RecordingBelt = belt,
+                   after: int = pull_after) -> None:
+            if done >= after:
+                belt.unplugged = True
+
+        with belt, open_sensor(None, belt) as sensor:
+            if pull_after == 0:
+                with pytest.raises(DeviceError, match="unplugged"):
+                    validate_onsets(belt, sensor, OnsetSettings(pulses=2), progress=pulled)
+            else:
+                result = validate_onsets(belt, sensor, OnsetSettings(pulses=2),
+                                         progress=pulled)
+                assert [t.tactor for t in result.tactors] == [0, 1, 2, 3]
+                assert result.stopped == ("the pulse of tactor 5 at level 1, with 4 of 12 "
+                                          "measured: belt 'sim' does not answer (unplugged)")
+                data = json.loads(json.dumps(result.to_dict()))
+                assert data["stopped"] == result.stopped and len(data["pulses"]) == 4
+                assert onset_figure(result, tmp_path / "partial.png").stat().st_size > 0
+            assert read_commands(log)[-1][0] == "stop"  # motors off
+
+
+def test_a_run_stopped_by_a_lost_belt_is_written_and_leaves_the_calibration_alone(
+        tmp_path: Path) -> None:
+    """run_onsets writes what a stopped run measured (validation.json with ``stopped``,
+    the figure) but not the calibration file, which holds complete measurements; with
+    ``--tune`` the stopped plain run is written and nothing is fitted from it. A complete
+    run says ``stopped: null``."""
+    cal_file = tmp_path / "belt.toml"
+    Calibration((TactorCalibration(0.3, 1.0, 0.8),) * 6).save(cal_file, belt="sim:virtual")
+    before = cal_file.read_text()
+    for tune in (False, True):
+        opened: list[Any] = []
+
+        def dead(levels: Any) -> None:
+            raise DeviceError("belt 'sim:virtual' stopped answering")
+
+        def lose(done: int, total: int, opened: list[Any] = opened) -> None:
+            if done >= 4 and opened:
+                opened[0]._write_levels = dead
+
+        def keep(belt: Any, sensor: Any, opened: list[Any] = opened) -> None:
+            opened.append(belt)
+
+        result, paths = run_onsets(
+            "sim:virtual", tmp_path / f"val-{tune}", calibration_file=cal_file,
+            settings=OnsetSettings(pulses=2), tune=tune, progress=lose,
+            drive=None if tune else "plain", on_open=keep)
+        assert result.stopped is not None and "stopped answering" in result.stopped
+        assert result.drive == "plain" and result.shaping is None
+        assert sum(len(t.pulses) for t in result.tactors) >= 4  # and those played before
+        assert json.loads(paths["results"].read_text())["stopped"] == result.stopped
+        assert paths["figure"].is_file() and "calibration" not in paths
+        assert cal_file.read_text() == before
+    result, _ = run_onsets("sim:virtual", tmp_path / "whole", settings=OnsetSettings(pulses=1))
+    assert result.stopped is None and result.to_dict()["stopped"] is None
+
+
 def test_without_a_sensor_a_belt_that_models_no_vibration_is_refused() -> None:
     class Silent(SimBelt):
         @property

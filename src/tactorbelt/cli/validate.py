@@ -118,6 +118,14 @@ def onsets(belt_url: str, sense_url: str | None, pulses: int, levels: tuple[floa
                f"drive: {result.drive}")
     for what, path in paths.items():
         click.echo(f"wrote {what}: {path}")
+    if result.stopped is not None:  # the belt or the sensor failed: what was measured is kept
+        from .._errors import DeviceError
+
+        n = sum(len(t.pulses) for t in result.tactors)
+        unchanged = "" if calibration_file is None else "; the calibration file is unchanged"
+        raise DeviceError(f"stopped after {n} pulse{'' if n == 1 else 's'}, at "
+                          f"{result.stopped} (the pulses measured before it are written"
+                          f"{unchanged})")
     click.echo("done: motors off")
 
 

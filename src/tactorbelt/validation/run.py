@@ -203,6 +203,9 @@ class OnsetValidation:
     #: plain validation they were fitted from
     shaping: list[dict[str, Any]] | None = None
     plain: OnsetValidation | None = None
+    #: why the run stopped before its last pulse (the belt or the sensor failed: the
+    #: pulses measured before are kept), or None
+    stopped: str | None = None
 
     def to_dict(self) -> dict[str, Any]:
         from importlib.metadata import PackageNotFoundError, version
@@ -226,7 +229,7 @@ class OnsetValidation:
             "seconds": round(self.seconds, 3),
             "repeats": self.repeats, "warnings": self.warnings,
             "pulses": [p.to_dict() for t in self.tactors for p in t.pulses],
-            "drive": self.drive,
+            "drive": self.drive, "stopped": self.stopped,
             **({} if self.shaping is None else {"shaping": self.shaping}),
             **({} if self.plain is None else {"plain": {
                 "drive": self.plain.drive,
@@ -322,9 +325,14 @@ def validate_onsets(belt: Belt, sensor: Sensor, settings: OnsetSettings | None =
 
     ``progress(done, total)`` is called after each pulse is measured.
 
+    A DeviceError after the first pulse is measured (the belt or the sensor lost, input
+    lost in every attempt at a pulse) ends the run with the pulses measured until then and
+    the reason in ``stopped``.
+
     Raises:
         NoPulseError: the sensor saw no pulse on a tactor at a level.
-        DeviceError: the sensor lost input in every attempt at a pulse, or stopped.
+        DeviceError: the sensor lost input in every attempt at a pulse, or stopped, before
+            a pulse was measured.
     """
     s = settings or OnsetSettings()
     clock = belt.clock or WallClock()
@@ -401,6 +409,7 @@ def validate_onsets(belt: Belt, sensor: Sensor, settings: OnsetSettings | None =
         progress(0, total)
     sensor.start()
     t_next = int(clock.now_ns()) + round(s.lead_s * 1e9)
+    stopped: str | None = None
     try:
         while queue or pending:
             if not queue:  # wait out the last windows
@@ -411,18 +420,31 @@ def validate_onsets(belt: Belt, sensor: Sensor, settings: OnsetSettings | None =
             frame = np.zeros(belt.n_tactors)
             frame[p.tactor] = p.level
             clock.sleep_until_ns(max(t_next, free_at.get(p.tactor, t_next)))
-            p.t_on = int(clock.now_ns())
-            dropouts.note(p.t_on)
-            belt.set_amplitudes(frame)
-            if device_onsets:
-                got = belt.last_onset(timeout_s=ONSET_TIMEOUT_S)
-                if got is not None:
-                    p.t_on = int(got[0])
-                    uncertainties.append(int(got[1]))
-            measure_due(int(clock.now_ns()))  # while this pulse is on
-            clock.sleep_until_ns(p.t_on + on_ns)
-            p.t_off = int(clock.now_ns())
-            belt.stop()
+            try:
+                p.t_on = int(clock.now_ns())
+                dropouts.note(p.t_on)
+                belt.set_amplitudes(frame)
+                if device_onsets:
+                    got = belt.last_onset(timeout_s=ONSET_TIMEOUT_S)
+                    if got is not None:
+                        p.t_on = int(got[0])
+                        uncertainties.append(int(got[1]))
+                measure_due(int(clock.now_ns()))  # while this pulse is on
+                clock.sleep_until_ns(p.t_on + on_ns)
+                p.t_off = int(clock.now_ns())
+                belt.stop()
+            except NoPulseError:
+                raise
+            except DeviceError as exc:  # the belt or the sensor lost
+                if not measured:
+                    raise
+                # what was measured is kept: the pulses done (and those whose windows are
+                # over, if the sensor still answers), and why it stopped
+                with contextlib.suppress(DeviceError):
+                    measure_due(int(clock.now_ns()))
+                stopped = (f"the pulse of tactor {p.tactor} at level {p.level:g}, with "
+                           f"{len(measured)} of {total} measured: {exc}")
+                break
             dropouts.note(p.t_off)
             pending.append(p)
             free_at[p.tactor] = p.t_off + off_ns
@@ -444,7 +466,7 @@ def validate_onsets(belt: Belt, sensor: Sensor, settings: OnsetSettings | None =
         angles_deg=tuple(belt.tactor_angles_deg), seconds=time.perf_counter() - wall0,
         repeats=repeats, warnings=list(warned.values()),
         onset_uncertainty_ms=(float(np.median(uncertainties)) / 1e6 if uncertainties
-                              else None), drive=belt.drive)
+                              else None), drive=belt.drive, stopped=stopped)
 
 
 def run_onsets(belt_url: str, out_dir: str | Path, *, sense_url: str | None = None,
@@ -474,7 +496,7 @@ def run_onsets(belt_url: str, out_dir: str | Path, *, sense_url: str | None = No
         DeviceError: the belt or the sensor cannot be used, or a pulse was not seen.
     """
     from ..devices import open_belt
-    from ..devices.calibration import Calibration, update_timing
+    from ..devices.calibration import Calibration
     from .sensors import open_sensor
 
     out, results = check_output(out_dir, RESULTS, force, sense_url)
@@ -501,19 +523,30 @@ def run_onsets(belt_url: str, out_dir: str | Path, *, sense_url: str | None = No
 
     with making(out):
         if tune:
-            plain = once(calibration, "plain")
-            shaping = fit_shaping(plain)
-            by = {f["tactor"]: f for f in shaping}
-            base = calibration or Calibration.identity(len(plain.angles_deg))
-            tuned = base.with_shaping([by.get(k) for k in range(base.n)])
-            result = once(tuned, "shaped")
-            result.shaping, result.plain = shaping, plain
+            result = plain = once(calibration, "plain")
+            if plain.stopped is None:  # else nothing to fit from: the plain run is kept
+                shaping = fit_shaping(plain)
+                by = {f["tactor"]: f for f in shaping}
+                base = calibration or Calibration.identity(len(plain.angles_deg))
+                tuned = base.with_shaping([by.get(k) for k in range(base.n)])
+                result = once(tuned, "shaped")
+                result.shaping, result.plain = shaping, plain
         else:
             result = once(calibration, drive)
+    return _written(result, out, results, calibration_file)
+
+
+def _written(result: OnsetValidation, out: Path, results: Path,
+             calibration_file: str | Path | None) -> tuple[OnsetValidation, dict[str, Path]]:
+    """Write validation.json and onsets.png of ``result`` into ``out``, and its timings
+    (and fitted shaping) into ``calibration_file`` when given and the run was not stopped
+    (a calibration holds complete measurements); return it and the paths written."""
+    from ..devices.calibration import update_timing
+
     paths = {"results": results}
     write_json(results, result.to_dict())
     paths["figure"] = onset_figure(result, out / FIGURE)
-    if calibration_file is not None:
+    if calibration_file is not None and result.stopped is None:
         by = {f["tactor"]: f for f in result.shaping or []}
         update_timing(calibration_file, len(result.angles_deg), result.timings(),
                       result.date, f"{result.sensor}: {result.method}", belt=result.belt,
@@ -600,8 +633,10 @@ def onset_figure(result: OnsetValidation, path: str | Path) -> Path:
         axes[0, 1].legend(handles=handles, loc="upper right", fontsize=7, frameon=False)
     lv = ", ".join(f"{x:g}" for x in levels)
     drive = f"drive {result.drive}" + (" (grey: plain, before tuning)" if plain else "")
+    stopped = ("" if result.stopped is None else
+               f"\nstopped early, at {result.stopped}"[:160])
     fig.suptitle(f"Onset validation of {result.belt} sensed by {result.sensor}, {drive}\n"
                  f"({len(result.tactors[0].pulses) if result.tactors else 0} pulses a "
-                 f"tactor at levels {lv}; {result.date})", fontsize=10)
+                 f"tactor at levels {lv}; {result.date}){stopped}", fontsize=10)
     fig.tight_layout()
     return save_figure(fig, path)
