@@ -8,6 +8,11 @@
   this one moves by about 1 % from run to run (``PYTHONHASHSEED`` fixed), so a change
   of a few per cent in what a session costs shows here first. The kernel's share (file
   writes, about 4 % of a session) is not counted.
+- ``shaped_session_instructions``: the same sessions with the study's ``[stimulus] drive``
+  ``shaped`` (the sim belt's drive shaping, docs/belts.md "How it is solved"), and
+  ``shaped_session_instructions_x``: it over ``session_instructions``, the same run
+  (the goal: within 5 %). With ``--drive plain`` or ``shaped`` only that one is counted
+  (as ``session_instructions``).
 - ``session_instructions_sessions``: ``k``.
 
 Needs valgrind (Debian: ``apt-get install valgrind``); without it the script exits with
@@ -15,7 +20,7 @@ the reason, and ``run.py`` reports the figure as not measured. Ctrl-C or SIGTERM
 143) stops both counted processes first.
 
 Prints one JSON object as its last line.
-Usage: python benchmarks/bench_instructions.py [--sessions 2] [--drive plain|shaped]
+Usage: python benchmarks/bench_instructions.py [--sessions 2] [--drive both|plain|shaped]
 """
 
 from __future__ import annotations
@@ -80,8 +85,9 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sessions", type=int, default=2,
                     help="sessions counted beyond the first (default 2)")
-    ap.add_argument("--drive", choices=("plain", "shaped"), default="plain",
-                    help="the sessions' drive (default plain, the paper's)")
+    ap.add_argument("--drive", choices=("both", "plain", "shaped"), default="both",
+                    help="the sessions' drive: plain (the paper's), shaped, or both and "
+                         "their ratio (default)")
     args = ap.parse_args()
     if args.sessions < 1:
         ap.error("--sessions must be at least 1")
@@ -90,18 +96,25 @@ def main() -> None:
         raise SystemExit("valgrind is not installed (Debian: apt-get install valgrind)")
     # SIGTERM as Ctrl-C: out through the finally below, which stops the valgrind children
     signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))
-    with tempfile.TemporaryDirectory() as tmp:
-        # both at once: each is one thread, and the counts do not depend on the timing
-        procs = [_count(valgrind, n, Path(tmp), args.drive) for n in (1, 1 + args.sessions)]
-        try:
-            one, more = (_instructions(p, timeout=900) for p in procs)
-        finally:
-            for p in procs:
-                if p.poll() is None:
-                    p.kill()
-                    p.wait()
-    print(json.dumps({"session_instructions": round((more - one) / args.sessions),
-                      "session_instructions_sessions": args.sessions}))
+    out: dict[str, float] = {}
+    for drive in ("plain", "shaped") if args.drive == "both" else (args.drive,):
+        with tempfile.TemporaryDirectory() as tmp:
+            # both at once: each is one thread, and the counts do not depend on the timing
+            procs = [_count(valgrind, n, Path(tmp), drive) for n in (1, 1 + args.sessions)]
+            try:
+                one, more = (_instructions(p, timeout=900) for p in procs)
+            finally:
+                for p in procs:
+                    if p.poll() is None:
+                        p.kill()
+                        p.wait()
+        key = "shaped_session_instructions" if args.drive == "both" and drive == "shaped" \
+            else "session_instructions"
+        out[key] = round((more - one) / args.sessions)
+    if args.drive == "both":
+        out["shaped_session_instructions_x"] = round(
+            out["shaped_session_instructions"] / out["session_instructions"], 4)
+    print(json.dumps({**out, "session_instructions_sessions": args.sessions}))
 
 
 if __name__ == "__main__":
