@@ -121,10 +121,8 @@ def onsets(belt_url: str, sense_url: str | None, pulses: int, levels: tuple[floa
     if result.stopped is not None:  # the belt or the sensor failed: what was measured is kept
         from .._errors import DeviceError
 
-        n = sum(len(t.pulses) for t in result.tactors)
         unchanged = "" if calibration_file is None else "; the calibration file is unchanged"
-        raise DeviceError(f"stopped after {n} pulse{'' if n == 1 else 's'}, at "
-                          f"{result.stopped} (the pulses measured before it are written"
+        raise DeviceError(f"stopped at {result.stopped} (the pulses measured are written"
                           f"{unchanged})")
     click.echo("done: motors off")
 

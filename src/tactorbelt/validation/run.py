@@ -30,6 +30,7 @@ import contextlib
 import datetime as _dt
 import json
 import math
+import textwrap
 import time
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import asdict, dataclass, field
@@ -633,10 +634,12 @@ def onset_figure(result: OnsetValidation, path: str | Path) -> Path:
         axes[0, 1].legend(handles=handles, loc="upper right", fontsize=7, frameon=False)
     lv = ", ".join(f"{x:g}" for x in levels)
     drive = f"drive {result.drive}" + (" (grey: plain, before tuning)" if plain else "")
-    stopped = ("" if result.stopped is None else
-               f"\nstopped early, at {result.stopped}"[:160])
+    stopped = ("" if result.stopped is None else "\n" + "\n".join(
+        textwrap.wrap(f"stopped early, at {result.stopped}", 110)[:2]))
+    counts = sorted({len(t.pulses) for t in result.tactors}) or [0]
+    pulses = f"{counts[0]}" if len(counts) == 1 else f"{counts[0]}-{counts[-1]}"
     fig.suptitle(f"Onset validation of {result.belt} sensed by {result.sensor}, {drive}\n"
-                 f"({len(result.tactors[0].pulses) if result.tactors else 0} pulses a "
-                 f"tactor at levels {lv}; {result.date}){stopped}", fontsize=10)
+                 f"({pulses} pulses a tactor at levels {lv}; {result.date}){stopped}",
+                 fontsize=10)
     fig.tight_layout()
     return save_figure(fig, path)
