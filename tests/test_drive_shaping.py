@@ -443,7 +443,8 @@ def test_what_a_shaped_belt_felt_does_not_depend_on_what_was_read_before(url: st
             assert np.array_equal(a, b), (seed, i)
 
 
-@pytest.mark.parametrize("url", ["sim", "sim?supply_v=5&kick_ms=40", "sim?brake=0"])
+@pytest.mark.parametrize("url", ["sim", "sim?supply_v=5&kick_ms=40", "sim?brake=0",
+                                 "sim?horizon_s=5"])
 def test_a_trial_that_starts_at_rest_reads_as_the_walk_does(url: str) -> None:
     """A read inside a stimulus whose onset found the shaper at rest (the stimulus before
     was stopped and braked to a standstill in the gap) is taken from the stimulus's memo

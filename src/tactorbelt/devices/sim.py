@@ -993,7 +993,7 @@ class SimBelt(Belt):
         for c in (int(self._t[j + 1]) if j + 1 < self._hi else None, end):
             if c is not None:
                 limit = min(limit, c)
-        if onset != int(self._t[j]) or onset <= self._base_t or t1 >= limit \
+        if onset != int(self._t[j]) or onset < self._base_t or t1 >= limit \
                 or not self._at_rest(j):
             return None
         memo = self._memo_at(render, onset, [0.0] * self.n_tactors,
