@@ -5,7 +5,13 @@ For each belt and drive: ``tactorbelt validate onsets`` at levels 0.5 and 1.0 (l
 overshoot in the JSON) and
 ``tactorbelt validate stimulus --all`` for the paper's static and dynamic stimuli (the
 RMS felt-against-intended error over the between-tactor targets, the static onset errors).
-Prints one markdown table of each (docs/belts.md, "The goals, measured").
+Prints one markdown table of each (docs/belts.md, "The goals, measured"), then the goals'
+figures as one JSON object (``make bench``; the sim belt's; ``emulator_`` before those of
+the emulator): ``drive_<config>_rise_ms`` and ``_fall_ms`` at level 1.0 and
+``drive_<config>_half_rise_ms`` and ``_half_fall_ms`` at 0.5 for ``plain``, ``shaped`` (3.6 V)
+and ``kick`` (5 V); ``drive_overshoot_max_pct`` over the shaped pulses; with ``--stimulus``,
+``drive_<config>_dynamic_x`` (plain's dynamic RMS over the shaped one, the same run) and
+``drive_<config>_static_onset_max_ms``.
 
     python benchmarks/bench_drive.py [--emulator] [--stimulus] [-o DIR]
 
@@ -33,6 +39,8 @@ from typing import Any
 
 TACTORBELT = str(Path(sys.executable).with_name("tactorbelt"))
 
+#: A configuration's key in the JSON.
+KEYS = {"plain": "plain", "shaped 3.6 V": "shaped", "shaped 5 V kick": "kick"}
 #: (name, belt URL query, drive, supply V for the emulator's calibration ceiling)
 CONFIGS = (
     ("plain", "", "plain", 3.0),
@@ -143,6 +151,31 @@ def main() -> None:
                       f"{r['static_onset_max_ms']:.1f} |", flush=True)
     (out / "bench_drive.json").write_text(json.dumps(results, indent=1))
     print(f"\nresults: {out / 'bench_drive.json'}")
+    print(json.dumps(figures(results)))
+
+
+def figures(results: dict[str, Any]) -> dict[str, float]:
+    """The goals' figures of ``results`` (see the module docstring)."""
+    out: dict[str, float] = {}
+    for r in results["onsets"]:
+        pre = ("" if r["belt"] == "sim" else "emulator_") + f"drive_{KEYS[r['drive']]}_"
+        half = "half_" if r["level"] == 0.5 else ""
+        out[f"{pre}{half}rise_ms"] = round(r["rise_ms"], 2)
+        out[f"{pre}{half}fall_ms"] = round(r["fall_ms"], 2)
+    for kind in ("sim", "emulator"):
+        shaped = [r["overshoot_max"] for r in results["onsets"]
+                  if r["belt"] == kind and r["drive"] != "plain"]
+        if shaped:
+            pre = "" if kind == "sim" else "emulator_"
+            out[f"{pre}drive_overshoot_max_pct"] = round(100 * max(shaped), 2)
+        rows = {r["drive"]: r for r in results["stimulus"] if r["belt"] == kind}
+        for name, r in rows.items():
+            if name == "plain":
+                continue
+            pre = ("" if kind == "sim" else "emulator_") + f"drive_{KEYS[name]}_"
+            out[f"{pre}dynamic_x"] = round(rows["plain"]["dynamic_rms"] / r["dynamic_rms"], 3)
+            out[f"{pre}static_onset_max_ms"] = round(r["static_onset_max_ms"], 2)
+    return out
 
 
 if __name__ == "__main__":

@@ -6,6 +6,8 @@ sim belt with the study's ``[stimulus] drive`` plain, shaped within the motor's 
 voltage (3.6 V, k = 1.2) and shaped with a 5 V kick (``sim?supply_v=5&kick_ms=40``,
 k = 1.67), and prints one markdown row each over the test trials: accuracy and median
 response time by condition, between-tactor accuracy, and the CPU seconds of the sessions.
+Its last line is one JSON object (``make bench``): ``participant_<drive>_<condition>_accuracy``
+and ``participant_<drive>_cpu_s`` for the drives ``plain``, ``shaped`` (3.6 V) and ``kick``.
 
     python benchmarks/bench_participant_drive.py [--participants 12]
 """
@@ -13,13 +15,15 @@ response time by condition, between-tactor accuracy, and the CPU seconds of the 
 from __future__ import annotations
 
 import argparse
+import json
 import statistics
 import tempfile
 import time
 from pathlib import Path
 
-DRIVES = (("plain", "sim", "plain"), ("shaped 3.6 V", "sim", "shaped"),
-          ("shaped 5 V kick", "sim?supply_v=5&kick_ms=40", "shaped"))
+#: (name, belt URL, drive, key in the JSON)
+DRIVES = (("plain", "sim", "plain", "plain"), ("shaped 3.6 V", "sim", "shaped", "shaped"),
+          ("shaped 5 V kick", "sim?supply_v=5&kick_ms=40", "shaped", "kick"))
 
 
 def run(url: str, drive: str, seeds: list[int]) -> tuple[list[object], float]:
@@ -53,19 +57,24 @@ def main() -> None:
     print("| drive | static accuracy | static between-tactor | dynamic accuracy | dynamic "
           "between-tactor | static median RT (s) | dynamic median RT (s) | CPU s |")
     print("|---|---|---|---|---|---|---|---|")
-    for name, url, drive in DRIVES:
+    figures: dict[str, float] = {}
+    for name, url, drive, key in DRIVES:
         rs, cpu = run(url, drive, seeds)
         row = [name]
         for cond in ("static", "dynamic"):
             c = [r for r in rs if r.trial.condition == cond and r.status == "done"]  # type: ignore[attr-defined]
             b = [r for r in c if not r.trial.on_tactor]  # type: ignore[attr-defined]
-            row += [f"{statistics.mean(r.correct for r in c):.3f}",  # type: ignore[attr-defined]
+            acc = statistics.mean(r.correct for r in c)  # type: ignore[attr-defined]
+            figures[f"participant_{key}_{cond}_accuracy"] = round(acc, 4)
+            row += [f"{acc:.3f}",
                     f"{statistics.mean(r.correct for r in b):.3f}"]  # type: ignore[attr-defined]
         for cond in ("static", "dynamic"):
             rt = [r.rt_s for r in rs if r.trial.condition == cond and r.rt_s is not None]  # type: ignore[attr-defined]
             row.append(f"{statistics.median(rt):.2f}")
         row.append(f"{cpu:.1f}")
+        figures[f"participant_{key}_cpu_s"] = round(cpu, 2)
         print("| " + " | ".join(row) + " |", flush=True)
+    print(json.dumps(figures))
 
 
 if __name__ == "__main__":
