@@ -463,6 +463,21 @@ LEAD_TICKS: Final = 3
 PREROLL_NS: Final = 3 * RENDER_TICK_NS
 
 
+def relax_terms(drive: FloatArray, w: FloatArray, params: ErmParams
+                ) -> tuple[FloatArray, FloatArray]:
+    """The signed steady speed a constant signed drive relaxes a speed ``w`` towards, and
+    the time constant it relaxes with (:func:`drive_relax`'s terms): forward (>= +0.0) as
+    ErmParams.steady_speed (no spin below the start level) with the rise or the fall
+    time constant; reverse the drive itself (the motor is pushed towards spinning
+    backwards; it is already turning, so no dead zone), a short brake (BRAKE) 0, with
+    the brake time constant."""
+    d = np.asarray(drive, dtype=float)
+    u = np.where(np.signbit(d), d, np.where(d >= params.start_level, d, 0.0))
+    tau = np.where(np.signbit(d), params.brake_tau_s,
+                   np.where(u > w, params.rise_tau_s, params.fall_tau_s))
+    return u, tau
+
+
 def drive_relax(drive: FloatArray, w: FloatArray, dt_s: float | FloatArray,
                 params: ErmParams) -> FloatArray:
     """The signed speed ``dt_s`` after ``w`` under a constant signed drive.
@@ -472,14 +487,8 @@ def drive_relax(drive: FloatArray, w: FloatArray, dt_s: float | FloatArray,
     reverse drive and the short brake with the brake time constant, towards the drive
     (a motor held in reverse past a stop spins backwards: the speed goes negative).
     """
-    d = np.asarray(drive, dtype=float)
     w = np.asarray(w, dtype=float)
-    # the signed steady speed: forward (>= +0.0) as ErmParams.steady_speed (no spin below
-    # the start level), reverse the drive itself (the motor is pushed towards spinning
-    # backwards; it is already turning, so no dead zone), a short brake (BRAKE) 0
-    u = np.where(np.signbit(d), d, np.where(d >= params.start_level, d, 0.0))
-    tau = np.where(np.signbit(d), params.brake_tau_s,
-                   np.where(u > w, params.rise_tau_s, params.fall_tau_s))
+    u, tau = relax_terms(drive, w, params)
     dt = np.asarray(dt_s, dtype=float)
     if dt.ndim == 1 and tau.ndim == 2:  # one time per row
         dt = dt[:, None]

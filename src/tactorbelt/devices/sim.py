@@ -69,6 +69,7 @@ from .erm import (
     is_over,
     is_reverse,
     relax_f,
+    relax_terms,
     sample_grid,
     saturated_run,
     shape_tick,
@@ -297,10 +298,7 @@ class _ShapedMemo:
     def __init__(self, t: IntArray, d: FloatArray, e: FloatArray, u: IntArray,
                  params: ErmParams) -> None:
         self.t, self.d, self.e, self.u = t, d, e, u
-        rev = np.signbit(d)
-        self.steady: FloatArray = np.where(rev, d, np.where(d >= params.start_level, d, 0.0))
-        self.tau: FloatArray = np.where(rev, params.brake_tau_s, np.where(
-            self.steady > e, params.rise_tau_s, params.fall_tau_s))
+        self.steady, self.tau = relax_terms(d, e, params)
         self.gap: FloatArray = e - self.steady
         #: the decisions under which some speed changes
         self.moving: NDArray[np.bool_] = np.asarray(self.gap.any(axis=1))
@@ -1051,8 +1049,8 @@ class SimBelt(Belt):
             onset = render.onset_ns
             rest = self._rest_after_stop(k)
             if rest is None:
-                _, _, ws, es, us = self._shaped_solve(onset, onset, onset)
-                rest = not (ws[-1].any() or es[-1].any() or us[-1].any())
+                t, w, e, u = self._state_before(onset)
+                rest = t == onset and not (w.any() or e.any() or u.any())
             elif rest:
                 self._keep_decision(onset, np.zeros(n), np.zeros(n),
                                     np.zeros(2 * n, dtype=np.int64))
@@ -1084,10 +1082,10 @@ class SimBelt(Belt):
         t_on = before.onset_ns
         if t_on != int(self._t[j - 2]) or before.rest is not True:
             return None
-        cut = int(self._t[j - 1])
+        cut = stop = int(self._t[j - 1])
         end = before.end_ahead(lead)
         if end is not None:
-            cut = min(cut, end)
+            cut = min(stop, end)
         memo = self._memo_at(before, t_on, [0.0] * n, [0] * (2 * n))
         if memo is None or cut > t_on + _MEMO_TICKS * RENDER_TICK_NS:
             return None
@@ -1095,7 +1093,6 @@ class SimBelt(Belt):
         if r < 1:
             return None
         t_r, onset = t_on + int(memo.t[r]), int(self._t[j])
-        stop = int(self._t[j - 1])
         if cut == stop and stop - t_r >= int(memo.u[r].max()):
             # the stop finds decision r settled (or not) with its budgets spent: the rest
             # after it depends on that decision alone
@@ -1597,20 +1594,20 @@ class SimBelt(Belt):
             cut = int(self.clock.now_ns()) - self._horizon_ns if before_ns is None else int(
                 before_ns)
             # cut at a remembered state when there is one close before the cut: no work
+            since = max(self._base_t, cut - self._slack_ns)
             j = bisect.bisect_right(self._ck_t, cut) - 1
-            k = bisect.bisect_right([c[0] for c in self._sck], cut) - 1
-            if j >= 0 and self._ck_t[j] > max(self._base_t, cut - self._slack_ns):
+            if j >= 0 and self._ck_t[j] > since:
                 cut, w_cut = self._ck_t[j], self._ck_w[j]  # plain: no budget used
                 e_cut, u_cut = w_cut.copy(), np.zeros(2 * self.n_tactors, dtype=np.int64)
-            elif k >= 0 and self._sck[k][0] > max(self._base_t, cut - self._slack_ns):
-                cut, w_cut, e_cut, u_cut = self._sck[k]  # a decision of the shaper
-            elif self._drive == "shaped" and self._exact and (rest := self._rest_before(
-                    cut, max(self._base_t, cut - self._slack_ns))) is not None:
+            elif cut <= self._base_t:
+                return
+            elif self._drive == "shaped" and (kept := self._shaped_start(cut))[0] > since:
+                cut, w_cut, e_cut, u_cut = kept  # a decision of the shaper
+            elif self._drive == "shaped" and self._exact and (
+                    rest := self._rest_before(cut, since)) is not None:
                 n = self.n_tactors  # an onset at rest
                 cut, w_cut, e_cut = rest, np.zeros(n), np.zeros(n)
                 u_cut = np.zeros(2 * n, dtype=np.int64)
-            elif cut <= self._base_t:
-                return
             else:
                 cut, w_cut, e_cut, u_cut = self._state_before(cut)
                 if cut <= self._base_t:
